@@ -29,6 +29,7 @@ pub const fn dlc_to_len(dlc: u8) -> Option<usize> {
     }
 }
 
+#[allow(clippy::cast_possible_truncation)] // dlc < 16
 /// The DLC code of a legal CAN FD payload length, or `None` if `len` is not one of
 /// 0..=8, 12, 16, 20, 24, 32, 48, 64.
 #[must_use]
@@ -75,7 +76,9 @@ pub enum FrameError {
         len: usize,
     },
     /// The raw identifier does not fit its format.
-    #[error("CAN identifier {raw:#x} out of range (allowed: 0..=0x7FF standard, 0..=0x1FFFFFFF extended)")]
+    #[error(
+        "CAN identifier {raw:#x} out of range (allowed: 0..=0x7FF standard, 0..=0x1FFFFFFF extended)"
+    )]
     IdOutOfRange {
         /// The identifier that was given.
         raw: u32,
@@ -110,6 +113,7 @@ impl CanFrame {
 
     /// A CAN FD frame with BRS on whose payload is `data` padded with zero bytes up to the
     /// next legal CAN FD length (a 10-byte read reply becomes 12 bytes).
+    #[allow(clippy::cast_possible_truncation)] // len <= 64
     pub fn new_fd_padded(id: impl Into<Id>, data: &[u8]) -> Result<Self, FrameError> {
         let Some(len) = padded_len(data.len()) else {
             return Err(FrameError::IllegalFdLength { len: data.len() });
@@ -132,7 +136,9 @@ impl CanFrame {
     pub fn standard_id(raw: u16) -> Result<Id, FrameError> {
         StandardId::new(raw)
             .map(Id::Standard)
-            .ok_or(FrameError::IdOutOfRange { raw: u32::from(raw) })
+            .ok_or(FrameError::IdOutOfRange {
+                raw: u32::from(raw),
+            })
     }
 
     /// An extended (29-bit) identifier from a raw value, as an [`Id`].
@@ -142,10 +148,30 @@ impl CanFrame {
             .ok_or(FrameError::IdOutOfRange { raw })
     }
 
+    /// An empty CAN FD frame (BRS on); infallible fallback for internal encoders.
+    pub(crate) const fn empty_fd(id: StandardId) -> Self {
+        Self {
+            id: Id::Standard(id),
+            len: 0,
+            data: [0; MAX_FD_LEN],
+            fd: true,
+            brs: true,
+            esi: false,
+        }
+    }
+
+    #[allow(clippy::cast_possible_truncation)] // callers checked data.len() <= 64
     fn build(id: Id, data: &[u8], fd: bool, brs: bool) -> Self {
         let mut buf = [0u8; MAX_FD_LEN];
         buf[..data.len()].copy_from_slice(data);
-        Self { id, len: data.len() as u8, data: buf, fd, brs, esi: false }
+        Self {
+            id,
+            len: data.len() as u8,
+            data: buf,
+            fd,
+            brs,
+            esi: false,
+        }
     }
 
     /// Returns the frame with its BRS (bit-rate switch) flag set as given. Ignored for
@@ -256,6 +282,7 @@ mod tests {
     use super::*;
 
     #[test]
+    #[allow(clippy::cast_possible_truncation)]
     fn dlc_mapping_is_the_iso_table() {
         let lens: [usize; 16] = [0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64];
         for (dlc, len) in lens.iter().enumerate() {
