@@ -1,1 +1,92 @@
-//! Links: byte links and CAN FD frame links (work in progress: see issue 4).
+//! Links: the layer that moves bytes and CAN FD frames for robobus clients and simulators.
+//!
+//! Two small traits with deadlines, and everything else composes around them:
+//!
+//! - [`ByteLink`] (wCK servos, UART): [`SerialLink`] (a real port), [`PtyPair`] /
+//!   [`PtyLink`] (a simulator as a serial device any program opens by path),
+//!   [`MemoryByteLink`] (deterministic tests).
+//! - [`FrameLink`] (WHJ joints, CAN FD): [`SocketCanLink`] (Linux `SocketCAN`), [`UdpBus`]
+//!   (python-can's `udp_multicast` virtual bus), [`MemoryBus`] (deterministic tests).
+//! - Wrappers implementing the same traits: [`FaultyByteLink`] / [`FaultyFrameLink`]
+//!   (seeded fault injection), [`CaptureByteLink`] / [`CaptureFrameLink`] (hex log /
+//!   candump log capture), [`ReplayByteLink`] / [`ReplayFrameLink`] (play a capture back).
+//!
+//! ```
+//! use std::time::{Duration, Instant};
+//! use robobus_link::{FaultConfig, FaultyFrameLink, FrameLink, IdFilter, MemoryBus};
+//! use robobus_whj::CanFrame;
+//!
+//! let bus = MemoryBus::new();
+//! let mut host = bus.endpoint();
+//! let mut joint = bus.endpoint();
+//! joint.set_filters(&[IdFilter::standard(0x07)])?;
+//!
+//! // Wrappers compose: a link that flips bits in 1 % of the frames, reproducibly.
+//! let mut host = FaultyFrameLink::new(&mut host, FaultConfig { corrupt: 0.01, ..FaultConfig::seeded(42) });
+//! let frame = CanFrame::new_fd(CanFrame::standard_id(0x07)?, &[0x01, 0x0A, 0x00, 0x00])?;
+//! host.send(&frame)?;
+//! let got = joint.recv(Instant::now() + Duration::from_millis(100))?;
+//! assert_eq!(got.frame.raw_id(), 0x07);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! A simulator serves a wCK bus behind a pseudo-terminal that any program opens by path:
+//!
+//! ```
+//! use std::time::{Duration, Instant};
+//! use robobus_link::{ByteLink, PtyOptions, PtyPair, SerialLink};
+//!
+//! let PtyPair { mut master, slave, slave_path } = PtyPair::open(&PtyOptions::default())?;
+//! drop(slave); // the client opens the path itself
+//! let mut client = SerialLink::open(&slave_path, 115_200)?;
+//! client.write_all(&[0xFF, 0x03, 0x7F, 0x7C])?;
+//! let mut cmd = [0u8; 4];
+//! master.read_exact(&mut cmd, Instant::now() + Duration::from_secs(1))?;
+//! master.write_all(&[0x12, 0x7F])?; // a real simulator waits for the wire time first
+//! let mut reply = [0u8; 2];
+//! client.read_exact(&mut reply, Instant::now() + Duration::from_secs(1))?;
+//! assert_eq!(reply, [0x12, 0x7F]);
+//! # Ok::<(), robobus_link::LinkError>(())
+//! ```
+//!
+//! Virtual CAN without kernel support, User-Mode Linux for real `SocketCAN`, and the
+//! python-can wire format: `../shared/docs/virtual-can.md`. Wire timing (a pty does not
+//! pace bytes; FTDI latency timer): `../shared/docs/wire-timing.md`.
+//!
+//! # Tests that provision outside programs
+//!
+//! `cargo test` installs what the interop tests need and fails loudly if it cannot:
+//! `scripts/py/ensure-venv` makes `target/pyenv` with python-can and msgpack (the python-can
+//! exchange runs in a private network namespace made with `unshare -n`);
+//! `scripts/uml/ensure-uml` unpacks User-Mode Linux and can-utils into `target/uml`, and
+//! `scripts/uml/run-in-uml` boots it with a CAN FD `vcan0` to run the `SocketCAN` test.
+
+pub mod byte;
+pub mod capture;
+pub mod fault;
+pub mod frame_link;
+pub mod memory;
+#[cfg(unix)]
+pub mod pty;
+pub mod pycan;
+#[cfg(unix)]
+pub mod serial;
+#[cfg(target_os = "linux")]
+pub mod socketcan;
+pub mod udp;
+
+pub use byte::{ByteLink, LinkError};
+pub use capture::{
+    CandumpError, CandumpRecord, CandumpWriter, CaptureByteLink, CaptureFrameLink, HexRecord,
+    ReplayByteLink, ReplayFrameLink, read_candump, read_hex_log,
+};
+pub use fault::{FaultConfig, FaultStats, FaultyByteLink, FaultyFrameLink};
+pub use frame_link::{BusErrorKind, FrameLink, FrameLinkError, IdFilter, Received};
+pub use memory::{MemoryBus, MemoryBusEndpoint, MemoryByteLink};
+#[cfg(unix)]
+pub use pty::{PtyLink, PtyOptions, PtyPair};
+#[cfg(unix)]
+pub use serial::{SerialLink, set_usb_latency_timer, usb_latency_timer};
+#[cfg(target_os = "linux")]
+pub use socketcan::SocketCanLink;
+pub use udp::{UdpBus, UdpBusConfig, UdpBusStats};

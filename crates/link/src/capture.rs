@@ -1,0 +1,734 @@
+//! Capture and replay: candump log files for frame links, a hex log for byte links.
+//!
+//! # candump log format
+//!
+//! One frame per line, as `candump -l` writes it: `(1795360410.847412) vcan0 123##5DEADBEEF`.
+//! The identifier is 3 hex digits (11-bit) or 8 (29-bit). A CAN FD frame is
+//! `ID##<flags><hex data>` with the flags nibble BRS = 1, ESI = 2, FDF = 4 (we write FDF
+//! set, like current kernels; the reader accepts any nibble, since older tools wrote
+//! `##0` / `##1`); a classic frame is `ID#<hex data>`. The reader also accepts a trailing
+//! ` R` / ` T` direction mark and `.` between data bytes; remote and error frames are
+//! reported as errors (a [`CanFrame`] is a data frame). Every error names its line.
+//!
+//! # Hex log format (byte links)
+//!
+//! One line per write or read call: `<seconds> <dir> <hex bytes>`, e.g.
+//! `0.001234 > FF 03 7F 7C` then `0.002760 < 12 7F`. `seconds` counts from the start of the
+//! capture (6 decimals); `>` marks bytes this side wrote, `<` bytes it read; bytes are two
+//! hex digits separated by single spaces. Lines starting with `#` and blank lines are
+//! comments.
+
+use std::collections::VecDeque;
+use std::fmt::Write as _;
+use std::io::{self, BufRead, Write};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use robobus_whj::frame::{CanFrame, FrameError};
+
+use crate::byte::{ByteLink, LinkError};
+use crate::frame_link::{FrameLink, FrameLinkError, IdFilter, Received, passes};
+
+/// One line of a candump log.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct CandumpRecord {
+    /// Time since the Unix epoch (candump's clock).
+    pub timestamp: Duration,
+    /// Interface name (`vcan0`, `can1`, ...).
+    pub iface: String,
+    /// The frame.
+    pub frame: CanFrame,
+}
+
+/// What is wrong with a candump line.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum CandumpErrorKind {
+    /// Not `(timestamp) iface frame`.
+    #[error("expected `(seconds.micros) iface ID#data`")]
+    Layout,
+    /// The timestamp is not `(seconds.fraction)`.
+    #[error("bad timestamp {0:?}")]
+    Timestamp(String),
+    /// The identifier is not 3 or 8 hex digits.
+    #[error("bad identifier {0:?} (3 hex digits for 11-bit, 8 for 29-bit)")]
+    Id(String),
+    /// The data is not pairs of hex digits.
+    #[error("bad data {0:?} (pairs of hex digits)")]
+    Data(String),
+    /// A remote or error frame (not a data frame).
+    #[error("{0} not supported (only data frames)")]
+    Unsupported(&'static str),
+    /// Illegal length or identifier for the frame kind.
+    #[error(transparent)]
+    Frame(#[from] FrameError),
+}
+
+/// A candump line that could not be read, with its 1-based line number.
+#[derive(Debug, thiserror::Error)]
+pub enum CandumpError {
+    /// The line is malformed.
+    #[error("candump log line {line}: {kind}")]
+    Parse {
+        /// 1-based line number.
+        line: usize,
+        /// What is wrong.
+        kind: CandumpErrorKind,
+    },
+    /// Reading failed.
+    #[error("reading candump log at line {line}: {source}")]
+    Io {
+        /// 1-based line number.
+        line: usize,
+        /// The I/O error.
+        #[source]
+        source: io::Error,
+    },
+}
+
+fn hex_nibble(c: u8) -> Option<u8> {
+    match c {
+        b'0'..=b'9' => Some(c - b'0'),
+        b'a'..=b'f' => Some(c - b'a' + 10),
+        b'A'..=b'F' => Some(c - b'A' + 10),
+        _ => None,
+    }
+}
+
+fn parse_hex_bytes(s: &str) -> Option<Vec<u8>> {
+    let digits: Vec<u8> = s.bytes().filter(|c| *c != b'.').collect();
+    if !digits.len().is_multiple_of(2) {
+        return None;
+    }
+    digits
+        .chunks(2)
+        .map(|p| match p {
+            [h, l] => Some((hex_nibble(*h)? << 4) | hex_nibble(*l)?),
+            _ => None,
+        })
+        .collect()
+}
+
+fn parse_timestamp(s: &str) -> Option<Duration> {
+    let inner = s.strip_prefix('(')?.strip_suffix(')')?;
+    let (secs, frac) = inner.split_once('.').unwrap_or((inner, ""));
+    if secs.is_empty() || !secs.bytes().all(|c| c.is_ascii_digit()) {
+        return None;
+    }
+    if frac.len() > 9 || !frac.bytes().all(|c| c.is_ascii_digit()) {
+        return None;
+    }
+    let secs: u64 = secs.parse().ok()?;
+    let nanos: u32 = if frac.is_empty() {
+        0
+    } else {
+        frac.parse::<u32>().ok()? * 10u32.pow(9 - u32::try_from(frac.len()).ok()?)
+    };
+    Some(Duration::new(secs, nanos))
+}
+
+/// Parses one candump log line (without line-number context).
+pub fn parse_candump_line(line: &str) -> Result<CandumpRecord, CandumpErrorKind> {
+    let mut parts = line.split_whitespace();
+    let (Some(ts), Some(iface), Some(frame)) = (parts.next(), parts.next(), parts.next()) else {
+        return Err(CandumpErrorKind::Layout);
+    };
+    match (parts.next(), parts.next()) {
+        (None | Some("R" | "T" | "r" | "t"), None) => {}
+        _ => return Err(CandumpErrorKind::Layout),
+    }
+    let timestamp = parse_timestamp(ts).ok_or_else(|| CandumpErrorKind::Timestamp(ts.into()))?;
+    let (id_str, rest) = frame.split_once('#').ok_or(CandumpErrorKind::Layout)?;
+    let raw = u32::from_str_radix(id_str, 16)
+        .ok()
+        .filter(|_| id_str.bytes().all(|c| c.is_ascii_hexdigit()))
+        .ok_or_else(|| CandumpErrorKind::Id(id_str.into()))?;
+    let id = match id_str.len() {
+        3 => CanFrame::standard_id(u16::try_from(raw).unwrap_or(u16::MAX))?,
+        8 if raw & 0x2000_0000 != 0 => return Err(CandumpErrorKind::Unsupported("an error frame")),
+        8 => CanFrame::extended_id(raw & !0x8000_0000)?,
+        _ => return Err(CandumpErrorKind::Id(id_str.into())),
+    };
+    let frame = if let Some(fd) = rest.strip_prefix('#') {
+        let mut chars = fd.chars();
+        let flags = chars
+            .next()
+            .and_then(|c| c.to_digit(16))
+            .ok_or_else(|| CandumpErrorKind::Data(fd.into()))?;
+        let data = chars.as_str();
+        let bytes = parse_hex_bytes(data).ok_or_else(|| CandumpErrorKind::Data(data.into()))?;
+        CanFrame::new_fd(id, &bytes)?
+            .with_brs(flags & 1 != 0)
+            .with_esi(flags & 2 != 0)
+    } else {
+        if rest.starts_with(['R', 'r']) {
+            return Err(CandumpErrorKind::Unsupported("a remote frame"));
+        }
+        let bytes = parse_hex_bytes(rest).ok_or_else(|| CandumpErrorKind::Data(rest.into()))?;
+        CanFrame::new_classic(id, &bytes)?
+    };
+    Ok(CandumpRecord {
+        timestamp,
+        iface: iface.to_owned(),
+        frame,
+    })
+}
+
+/// Formats one candump log line (no newline).
+pub fn format_candump_line(rec: &CandumpRecord) -> String {
+    let f = &rec.frame;
+    let mut s = String::with_capacity(64 + 2 * f.len());
+    let _ = write!(
+        s,
+        "({}.{:06}) {} ",
+        rec.timestamp.as_secs(),
+        rec.timestamp.subsec_micros(),
+        rec.iface
+    );
+    if f.is_extended() {
+        let _ = write!(s, "{:08X}", f.raw_id());
+    } else {
+        let _ = write!(s, "{:03X}", f.raw_id());
+    }
+    if f.is_fd() {
+        let flags = 4 | u8::from(f.brs()) | (u8::from(f.esi()) << 1);
+        let _ = write!(s, "##{flags:X}");
+    } else {
+        s.push('#');
+    }
+    for b in f.data() {
+        let _ = write!(s, "{b:02X}");
+    }
+    s
+}
+
+/// Reads every record of a candump log; blank lines are skipped.
+pub fn read_candump(
+    reader: impl BufRead,
+) -> impl Iterator<Item = Result<CandumpRecord, CandumpError>> {
+    reader.lines().enumerate().filter_map(|(i, line)| {
+        let line_no = i + 1;
+        match line {
+            Err(source) => Some(Err(CandumpError::Io {
+                line: line_no,
+                source,
+            })),
+            Ok(l) if l.trim().is_empty() => None,
+            Ok(l) => Some(parse_candump_line(&l).map_err(|kind| CandumpError::Parse {
+                line: line_no,
+                kind,
+            })),
+        }
+    })
+}
+
+/// Writes candump log lines.
+#[derive(Debug)]
+pub struct CandumpWriter<W> {
+    out: W,
+}
+
+impl<W: Write> CandumpWriter<W> {
+    /// A writer into `out`.
+    pub const fn new(out: W) -> Self {
+        Self { out }
+    }
+
+    /// Writes one record as a line.
+    pub fn write(&mut self, rec: &CandumpRecord) -> io::Result<()> {
+        writeln!(self.out, "{}", format_candump_line(rec))
+    }
+
+    /// Flushes the output.
+    pub fn flush(&mut self) -> io::Result<()> {
+        self.out.flush()
+    }
+
+    /// The output.
+    pub fn into_inner(self) -> W {
+        self.out
+    }
+}
+
+fn since_epoch(t: SystemTime) -> Duration {
+    t.duration_since(UNIX_EPOCH).unwrap_or_default()
+}
+
+/// A frame link that records every frame sent and received to a candump log.
+#[derive(Debug)]
+pub struct CaptureFrameLink<L, W> {
+    inner: L,
+    log: CandumpWriter<W>,
+    rx_iface: String,
+    tx_iface: String,
+}
+
+impl<L: FrameLink, W: Write> CaptureFrameLink<L, W> {
+    /// Wraps `inner`; frames in both directions are logged under `iface`.
+    pub fn new(inner: L, out: W, iface: &str) -> Self {
+        Self {
+            inner,
+            log: CandumpWriter::new(out),
+            rx_iface: iface.into(),
+            tx_iface: iface.into(),
+        }
+    }
+
+    /// Logs sent frames under a different interface name (to tell directions apart).
+    #[must_use]
+    pub fn with_tx_iface(mut self, iface: &str) -> Self {
+        self.tx_iface = iface.into();
+        self
+    }
+
+    /// Flushes the log and returns the link and the log output.
+    pub fn into_parts(mut self) -> (L, W) {
+        let _ = self.log.flush();
+        (self.inner, self.log.into_inner())
+    }
+
+    fn record(&mut self, frame: &CanFrame, at: SystemTime, tx: bool) -> io::Result<()> {
+        let iface = if tx { &self.tx_iface } else { &self.rx_iface };
+        let rec = CandumpRecord {
+            timestamp: since_epoch(at),
+            iface: iface.clone(),
+            frame: *frame,
+        };
+        self.log.write(&rec)
+    }
+}
+
+impl<L: FrameLink, W: Write> FrameLink for CaptureFrameLink<L, W> {
+    fn send(&mut self, frame: &CanFrame) -> Result<(), FrameLinkError> {
+        self.inner.send(frame)?;
+        self.record(frame, SystemTime::now(), true)
+            .map_err(|e| FrameLinkError::io("writing the candump capture", e))
+    }
+
+    fn recv(&mut self, deadline: Instant) -> Result<Received, FrameLinkError> {
+        let r = self.inner.recv(deadline)?;
+        self.record(&r.frame, r.timestamp.unwrap_or_else(SystemTime::now), false)
+            .map_err(|e| FrameLinkError::io("writing the candump capture", e))?;
+        Ok(r)
+    }
+
+    fn set_filters(&mut self, filters: &[IdFilter]) -> Result<(), FrameLinkError> {
+        self.inner.set_filters(filters)
+    }
+}
+
+/// A frame link that plays a candump capture back: `recv` returns the records in order
+/// (optionally at their original pace), `send` is accepted and counted, and after the last
+/// record `recv` reports `Closed`.
+#[derive(Debug)]
+pub struct ReplayFrameLink {
+    records: VecDeque<CandumpRecord>,
+    paced: Option<(Instant, Duration)>,
+    pace: bool,
+    filters: Vec<IdFilter>,
+    sent: u64,
+}
+
+impl ReplayFrameLink {
+    /// Replays `records`; with `paced`, each record is released at its original offset
+    /// from the first one.
+    pub fn new(records: impl IntoIterator<Item = CandumpRecord>, paced: bool) -> Self {
+        Self {
+            records: records.into_iter().collect(),
+            paced: None,
+            pace: paced,
+            filters: Vec::new(),
+            sent: 0,
+        }
+    }
+
+    /// Frames sent into the replay so far.
+    pub const fn sent(&self) -> u64 {
+        self.sent
+    }
+}
+
+impl FrameLink for ReplayFrameLink {
+    fn send(&mut self, _frame: &CanFrame) -> Result<(), FrameLinkError> {
+        self.sent += 1;
+        Ok(())
+    }
+
+    fn recv(&mut self, deadline: Instant) -> Result<Received, FrameLinkError> {
+        loop {
+            let Some(rec) = self.records.front() else {
+                return Err(FrameLinkError::Closed {
+                    context: "replay: end of capture".into(),
+                });
+            };
+            if self.pace {
+                let (start, first) = *self.paced.get_or_insert((Instant::now(), rec.timestamp));
+                let due = start + rec.timestamp.saturating_sub(first);
+                if due > deadline {
+                    std::thread::sleep(deadline.saturating_duration_since(Instant::now()));
+                    return Err(FrameLinkError::Timeout);
+                }
+                std::thread::sleep(due.saturating_duration_since(Instant::now()));
+            }
+            let Some(rec) = self.records.pop_front() else {
+                continue;
+            };
+            if passes(&self.filters, &rec.frame) {
+                return Ok(Received {
+                    frame: rec.frame,
+                    timestamp: Some(UNIX_EPOCH + rec.timestamp),
+                });
+            }
+        }
+    }
+
+    fn set_filters(&mut self, filters: &[IdFilter]) -> Result<(), FrameLinkError> {
+        self.filters = filters.to_vec();
+        Ok(())
+    }
+}
+
+/// Direction of a hex log record.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Dir {
+    /// Bytes this side wrote (`>`).
+    Written,
+    /// Bytes this side read (`<`).
+    Read,
+}
+
+/// One line of a hex log.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct HexRecord {
+    /// Time since the start of the capture.
+    pub at: Duration,
+    /// Direction.
+    pub dir: Dir,
+    /// The bytes.
+    pub bytes: Vec<u8>,
+}
+
+/// A hex log line that could not be read.
+#[derive(Debug, thiserror::Error)]
+#[error("hex log line {line}: {what}")]
+pub struct HexLogError {
+    /// 1-based line number.
+    pub line: usize,
+    /// What is wrong.
+    pub what: String,
+}
+
+/// Formats one hex log line (no newline).
+pub fn format_hex_line(rec: &HexRecord) -> String {
+    let mut s = format!(
+        "{}.{:06} {}",
+        rec.at.as_secs(),
+        rec.at.subsec_micros(),
+        match rec.dir {
+            Dir::Written => '>',
+            Dir::Read => '<',
+        }
+    );
+    for b in &rec.bytes {
+        let _ = write!(s, " {b:02X}");
+    }
+    s
+}
+
+/// Parses one hex log line (`Ok(None)` for comments and blank lines).
+pub fn parse_hex_line(line: &str) -> Result<Option<HexRecord>, String> {
+    let t = line.trim();
+    if t.is_empty() || t.starts_with('#') {
+        return Ok(None);
+    }
+    let mut parts = t.split_whitespace();
+    let ts = parts.next().unwrap_or_default();
+    let at = parse_timestamp(&format!("({ts})")).ok_or_else(|| format!("bad time {ts:?}"))?;
+    let dir = match parts.next() {
+        Some(">") => Dir::Written,
+        Some("<") => Dir::Read,
+        other => return Err(format!("bad direction {other:?} (expected > or <)")),
+    };
+    let bytes = parts
+        .map(|p| {
+            if p.len() == 2 {
+                parse_hex_bytes(p).and_then(|v| v.first().copied())
+            } else {
+                None
+            }
+            .ok_or_else(|| format!("bad byte {p:?} (two hex digits)"))
+        })
+        .collect::<Result<Vec<u8>, String>>()?;
+    Ok(Some(HexRecord { at, dir, bytes }))
+}
+
+/// Reads every record of a hex log.
+pub fn read_hex_log(reader: impl BufRead) -> Result<Vec<HexRecord>, HexLogError> {
+    let mut out = Vec::new();
+    for (i, line) in reader.lines().enumerate() {
+        let line = line.map_err(|e| HexLogError {
+            line: i + 1,
+            what: e.to_string(),
+        })?;
+        if let Some(r) = parse_hex_line(&line).map_err(|what| HexLogError { line: i + 1, what })? {
+            out.push(r);
+        }
+    }
+    Ok(out)
+}
+
+/// A byte link that records every write and read to a hex log.
+#[derive(Debug)]
+pub struct CaptureByteLink<L, W> {
+    inner: L,
+    out: W,
+    start: Instant,
+}
+
+impl<L: ByteLink, W: Write> CaptureByteLink<L, W> {
+    /// Wraps `inner`; the log's clock starts now.
+    pub fn new(inner: L, out: W) -> Self {
+        Self {
+            inner,
+            out,
+            start: Instant::now(),
+        }
+    }
+
+    /// Flushes the log and returns the link and the log output.
+    pub fn into_parts(mut self) -> (L, W) {
+        let _ = self.out.flush();
+        (self.inner, self.out)
+    }
+
+    fn record(&mut self, dir: Dir, bytes: &[u8]) -> Result<(), LinkError> {
+        let rec = HexRecord {
+            at: self.start.elapsed(),
+            dir,
+            bytes: bytes.to_vec(),
+        };
+        writeln!(self.out, "{}", format_hex_line(&rec))
+            .map_err(|e| LinkError::io("writing the hex capture", e))
+    }
+}
+
+impl<L: ByteLink, W: Write> ByteLink for CaptureByteLink<L, W> {
+    fn write_all(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
+        self.inner.write_all(bytes)?;
+        self.record(Dir::Written, bytes)
+    }
+
+    fn read_some(&mut self, buf: &mut [u8], deadline: Instant) -> Result<usize, LinkError> {
+        let n = self.inner.read_some(buf, deadline)?;
+        let got = buf.get(..n).unwrap_or_default().to_vec();
+        self.record(Dir::Read, &got)?;
+        Ok(n)
+    }
+
+    fn discard_input(&mut self) -> Result<(), LinkError> {
+        self.inner.discard_input()
+    }
+
+    fn set_baud(&mut self, baud: u32) -> Result<(), LinkError> {
+        self.inner.set_baud(baud)
+    }
+
+    fn baud(&self) -> Option<u32> {
+        self.inner.baud()
+    }
+}
+
+/// A byte link that plays the `<` (read) records of a hex log back as incoming bytes
+/// (optionally at their original pace); writes are accepted and kept for inspection.
+/// After the last record, reads report `Closed`.
+#[derive(Debug)]
+pub struct ReplayByteLink {
+    records: VecDeque<HexRecord>,
+    buffered: VecDeque<u8>,
+    start: Option<Instant>,
+    pace: bool,
+    written: Vec<u8>,
+    baud: u32,
+}
+
+impl ReplayByteLink {
+    /// Replays the read records of `records`.
+    pub fn new(records: impl IntoIterator<Item = HexRecord>, paced: bool) -> Self {
+        Self {
+            records: records.into_iter().filter(|r| r.dir == Dir::Read).collect(),
+            buffered: VecDeque::new(),
+            start: None,
+            pace: paced,
+            written: Vec::new(),
+            baud: 115_200,
+        }
+    }
+
+    /// Everything written into the replay so far.
+    pub fn written(&self) -> &[u8] {
+        &self.written
+    }
+}
+
+impl ByteLink for ReplayByteLink {
+    fn write_all(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
+        self.written.extend_from_slice(bytes);
+        Ok(())
+    }
+
+    fn read_some(&mut self, buf: &mut [u8], deadline: Instant) -> Result<usize, LinkError> {
+        if buf.is_empty() {
+            return Ok(0);
+        }
+        let start = *self.start.get_or_insert_with(Instant::now);
+        while self.buffered.is_empty() {
+            let Some(rec) = self.records.front() else {
+                return Err(LinkError::Closed {
+                    context: "replay: end of capture".into(),
+                });
+            };
+            if self.pace {
+                let due = start + rec.at;
+                if due > deadline {
+                    std::thread::sleep(deadline.saturating_duration_since(Instant::now()));
+                    return Err(LinkError::Timeout {
+                        received: 0,
+                        expected: buf.len(),
+                    });
+                }
+                std::thread::sleep(due.saturating_duration_since(Instant::now()));
+            }
+            if let Some(rec) = self.records.pop_front() {
+                self.buffered.extend(rec.bytes);
+            }
+        }
+        let n = buf.len().min(self.buffered.len());
+        for (slot, b) in buf.iter_mut().zip(self.buffered.drain(..n)) {
+            *slot = b;
+        }
+        Ok(n)
+    }
+
+    fn discard_input(&mut self) -> Result<(), LinkError> {
+        self.buffered.clear();
+        Ok(())
+    }
+
+    fn set_baud(&mut self, baud: u32) -> Result<(), LinkError> {
+        self.baud = baud;
+        Ok(())
+    }
+
+    fn baud(&self) -> Option<u32> {
+        Some(self.baud)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use proptest::prelude::*;
+
+    use super::*;
+
+    fn rec(line: &str) -> CandumpRecord {
+        parse_candump_line(line).unwrap()
+    }
+
+    #[test]
+    fn reads_candump_lines_with_any_flags_nibble() {
+        let r = rec("(1795360410.847412) vcan0 123##4DEADBEEF");
+        assert_eq!(r.timestamp, Duration::new(1_795_360_410, 847_412_000));
+        assert_eq!(r.iface, "vcan0");
+        assert_eq!(r.frame.raw_id(), 0x123);
+        assert_eq!(r.frame.data(), [0xDE, 0xAD, 0xBE, 0xEF]);
+        assert!(r.frame.is_fd() && !r.frame.brs() && !r.frame.esi());
+        let r = rec("(1.5) can1 12345678##3AABB.CC");
+        assert!(r.frame.is_extended() && r.frame.brs() && r.frame.esi());
+        assert_eq!(r.frame.len(), 3);
+        assert!(rec("(0.000001) vcan0 7FF##1").frame.brs());
+        assert!(rec("(0.000001) vcan0 7FF##5 R").frame.brs());
+        let c = rec("(2.0) vcan0 001#0102");
+        assert!(!c.frame.is_fd() && c.frame.data() == [1, 2]);
+    }
+
+    #[test]
+    fn writes_what_candump_writes() {
+        let f = CanFrame::new_fd(
+            CanFrame::standard_id(0x123).unwrap(),
+            &[0xDE, 0xAD, 0xBE, 0xEF],
+        )
+        .unwrap();
+        let r = CandumpRecord {
+            timestamp: Duration::new(1_795_360_410, 847_412_999),
+            iface: "vcan0".into(),
+            frame: f,
+        };
+        assert_eq!(
+            format_candump_line(&r),
+            "(1795360410.847412) vcan0 123##5DEADBEEF"
+        );
+        let e = CanFrame::new_classic(CanFrame::extended_id(0x1F).unwrap(), &[]).unwrap();
+        let r = CandumpRecord { frame: e, ..r };
+        assert_eq!(
+            format_candump_line(&r),
+            "(1795360410.847412) vcan0 0000001F#"
+        );
+    }
+
+    #[test]
+    fn errors_name_the_line_and_the_problem() {
+        let text = "(1.0) vcan0 123##1AA\n\n(1.0) vcan0 123#R\n(x) vcan0 1#\n(1.0) vcan0 1234##1AA\n(1.0) vcan0 123##1A\n(1.0) vcan0 123##1AABBCCDDEEFF0011223\n(1.0) vcan0 20000080#0000000000000000\n(1.0) vcan0\n(1.0) vcan0 800#00\n";
+        let results: Vec<_> = read_candump(text.as_bytes()).collect();
+        assert!(results[0].is_ok());
+        let errs: Vec<(usize, CandumpErrorKind)> = results[1..]
+            .iter()
+            .map(|r| match r {
+                Err(CandumpError::Parse { line, kind }) => (*line, kind.clone()),
+                other => panic!("{other:?}"),
+            })
+            .collect();
+        assert_eq!(
+            errs[0],
+            (3, CandumpErrorKind::Unsupported("a remote frame"))
+        );
+        assert_eq!(errs[1], (4, CandumpErrorKind::Timestamp("(x)".into())));
+        assert_eq!(errs[2], (5, CandumpErrorKind::Id("1234".into())));
+        assert_eq!(errs[3], (6, CandumpErrorKind::Data("A".into())));
+        assert!(matches!(errs[4], (7, CandumpErrorKind::Data(_))));
+        assert_eq!(
+            errs[5],
+            (8, CandumpErrorKind::Unsupported("an error frame"))
+        );
+        assert_eq!(errs[6], (9, CandumpErrorKind::Layout));
+        assert!(matches!(
+            errs[7],
+            (
+                10,
+                CandumpErrorKind::Frame(FrameError::IdOutOfRange { raw: 0x800 })
+            )
+        ));
+        let shown = CandumpError::Parse {
+            line: 3,
+            kind: errs[0].1.clone(),
+        }
+        .to_string();
+        assert!(shown.contains("line 3"), "{shown}");
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(512))]
+
+        #[test]
+        fn arbitrary_lines_never_panic(line in "\\PC{0,80}") {
+            let _ = parse_candump_line(&line);
+            let _ = parse_hex_line(&line);
+        }
+
+        #[test]
+        fn candump_round_trip(id in 0u16..=0x7FF, dlc in 0u8..16, fill in any::<u8>(), brs: bool, esi: bool, secs in 0u64..4_000_000_000, micros in 0u32..1_000_000) {
+            let len = robobus_whj::frame::dlc_to_len(dlc).unwrap();
+            let data: Vec<u8> = (0..len).map(|i| fill ^ u8::try_from(i).unwrap()).collect();
+            let frame = CanFrame::new_fd(CanFrame::standard_id(id).unwrap(), &data).unwrap().with_brs(brs).with_esi(esi);
+            let r = CandumpRecord { timestamp: Duration::new(secs, micros * 1000), iface: "can0".into(), frame };
+            prop_assert_eq!(parse_candump_line(&format_candump_line(&r)).unwrap(), r);
+        }
+    }
+}

@@ -1,0 +1,341 @@
+//! Pseudo-terminal pairs: a simulator holds the master side, any program opens the slave
+//! side by path as if it were a serial port.
+//!
+//! Both sides are put in raw mode (`cfmakeraw`) before anything else can touch them, so
+//! no byte is ever echoed, translated or swallowed as a control character. A pty does not
+//! pace bytes: the baud rate is only a termios setting, and any wire timing must come from
+//! the simulator (`../shared/docs/wire-timing.md`).
+
+use std::fs::File;
+use std::io::{self, Read, Write};
+use std::os::fd::{AsFd, OwnedFd};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use nix::errno::Errno;
+use nix::fcntl::{FcntlArg, OFlag};
+use nix::poll::{PollFd, PollFlags};
+use nix::sys::termios::{self, BaudRate, FlushArg, SetArg};
+use nix::sys::time::TimeSpec;
+
+use crate::byte::{ByteLink, LinkError};
+
+/// The termios speed constants robobus uses, with their baud rates.
+const BAUD_TABLE: [(u32, BaudRate); 19] = [
+    (1200, BaudRate::B1200),
+    (2400, BaudRate::B2400),
+    (4800, BaudRate::B4800),
+    (9600, BaudRate::B9600),
+    (19_200, BaudRate::B19200),
+    (38_400, BaudRate::B38400),
+    (57_600, BaudRate::B57600),
+    (115_200, BaudRate::B115200),
+    (230_400, BaudRate::B230400),
+    (460_800, BaudRate::B460800),
+    (500_000, BaudRate::B500000),
+    (576_000, BaudRate::B576000),
+    (921_600, BaudRate::B921600),
+    (1_000_000, BaudRate::B1000000),
+    (1_152_000, BaudRate::B1152000),
+    (1_500_000, BaudRate::B1500000),
+    (2_000_000, BaudRate::B2000000),
+    (3_000_000, BaudRate::B3000000),
+    (4_000_000, BaudRate::B4000000),
+];
+
+/// Maps a baud rate to a termios speed constant (the standard rates 1200..=4000000).
+fn termios_baud(baud: u32) -> Option<BaudRate> {
+    BAUD_TABLE.iter().find(|(b, _)| *b == baud).map(|(_, r)| *r)
+}
+
+fn errno_io(e: Errno) -> io::Error {
+    io::Error::from_raw_os_error(e as i32)
+}
+
+/// Puts a terminal in raw mode at `baud` (8N1, no flow control, no echo).
+fn make_raw(fd: impl AsFd, baud: BaudRate) -> Result<(), Errno> {
+    let mut t = termios::tcgetattr(&fd)?;
+    termios::cfmakeraw(&mut t);
+    termios::cfsetspeed(&mut t, baud)?;
+    // cfmakeraw leaves VMIN=1/VTIME=0; reads are gated by poll anyway.
+    termios::tcsetattr(&fd, SetArg::TCSANOW, &t)
+}
+
+/// How long a write may wait for the other side to drain before it fails (default;
+/// see [`PtyLink::set_write_timeout`]).
+pub const WRITE_TIMEOUT: Duration = Duration::from_secs(2);
+
+/// Waits until `fd` is readable or `deadline` passes; returns whether it is readable
+/// (or hung up, which the following read reports).
+fn wait_readable(fd: impl AsFd, deadline: Instant) -> io::Result<bool> {
+    wait_for(fd, PollFlags::POLLIN, deadline)
+}
+
+fn wait_for(fd: impl AsFd, what: PollFlags, deadline: Instant) -> io::Result<bool> {
+    loop {
+        let remaining = deadline.saturating_duration_since(Instant::now());
+        let mut fds = [PollFd::new(fd.as_fd(), what)];
+        match nix::poll::ppoll(&mut fds, Some(TimeSpec::from_duration(remaining)), None) {
+            Ok(0) => return Ok(false),
+            Ok(_) => return Ok(true),
+            Err(Errno::EINTR) => {}
+            Err(e) => return Err(errno_io(e)),
+        }
+    }
+}
+
+/// Options for [`PtyPair::open`].
+#[derive(Debug, Clone)]
+pub struct PtyOptions {
+    /// Initial baud rate recorded in termios (no pacing happens). Default 115200.
+    pub baud: u32,
+    /// If set, a symbolic link at this path points to the slave device (e.g.
+    /// `/tmp/robobus-wck`), so programs can use a stable name. A stale symlink there is
+    /// replaced; anything else there is an error. Removed when the master is dropped.
+    pub symlink: Option<PathBuf>,
+}
+
+impl Default for PtyOptions {
+    fn default() -> Self {
+        Self {
+            baud: 115_200,
+            symlink: None,
+        }
+    }
+}
+
+/// A freshly opened pseudo-terminal pair.
+#[derive(Debug)]
+pub struct PtyPair {
+    /// The master side (what a simulator drives). It keeps a slave descriptor open so the
+    /// master never sees a hang-up when a program closes and reopens the slave path.
+    pub master: PtyLink,
+    /// The slave side as a link (for in-process tests). Drop it if an outside program is
+    /// going to use [`PtyPair::slave_path`].
+    pub slave: PtyLink,
+    /// The slave device path (`/dev/pts/N`).
+    pub slave_path: PathBuf,
+}
+
+impl PtyPair {
+    /// Opens a pty pair in raw mode.
+    pub fn open(options: &PtyOptions) -> Result<Self, LinkError> {
+        let baud = termios_baud(options.baud).ok_or_else(|| LinkError::UnsupportedBaud {
+            baud: options.baud,
+            context: "pty (termios)".into(),
+        })?;
+        let pty = nix::pty::openpty(None, None)
+            .map_err(|e| LinkError::io("opening a pseudo-terminal pair", errno_io(e)))?;
+        let nonblocking = |fd: &OwnedFd| {
+            nix::fcntl::fcntl(fd, FcntlArg::F_SETFL(OFlag::O_NONBLOCK | OFlag::O_RDWR)).map(drop)
+        };
+        make_raw(&pty.slave, baud)
+            .and_then(|()| make_raw(&pty.master, baud))
+            .and_then(|()| nonblocking(&pty.master))
+            .and_then(|()| nonblocking(&pty.slave))
+            .map_err(|e| LinkError::io("setting the pty to raw mode", errno_io(e)))?;
+        let slave_path = nix::unistd::ttyname(&pty.slave)
+            .map_err(|e| LinkError::io("finding the pty slave's path", errno_io(e)))?;
+        let keep_slave = pty
+            .slave
+            .try_clone()
+            .map_err(|e| LinkError::io("duplicating the pty slave descriptor", e))?;
+        let symlink = match &options.symlink {
+            Some(link) => {
+                make_symlink(&slave_path, link)?;
+                Some(link.clone())
+            }
+            None => None,
+        };
+        let name = slave_path.display().to_string();
+        Ok(Self {
+            master: PtyLink {
+                file: File::from(pty.master),
+                baud: options.baud,
+                name: format!("pty master of {name}"),
+                _keep_slave: Some(keep_slave),
+                symlink,
+                write_timeout: WRITE_TIMEOUT,
+            },
+            slave: PtyLink {
+                file: File::from(pty.slave),
+                baud: options.baud,
+                name,
+                _keep_slave: None,
+                symlink: None,
+                write_timeout: WRITE_TIMEOUT,
+            },
+            slave_path,
+        })
+    }
+}
+
+fn make_symlink(target: &Path, link: &Path) -> Result<(), LinkError> {
+    match std::fs::symlink_metadata(link) {
+        Ok(meta) if meta.file_type().is_symlink() => std::fs::remove_file(link)
+            .map_err(|e| LinkError::io(format!("removing stale symlink {}", link.display()), e))?,
+        Ok(_) => {
+            return Err(LinkError::io(
+                format!("creating pty symlink {}", link.display()),
+                io::Error::new(
+                    io::ErrorKind::AlreadyExists,
+                    "a file that is not a symlink is in the way; remove it or pick another path",
+                ),
+            ));
+        }
+        Err(_) => {}
+    }
+    std::os::unix::fs::symlink(target, link)
+        .map_err(|e| LinkError::io(format!("creating pty symlink {}", link.display()), e))
+}
+
+/// One side of a pseudo-terminal pair (see [`PtyPair`]).
+#[derive(Debug)]
+pub struct PtyLink {
+    file: File,
+    baud: u32,
+    name: String,
+    _keep_slave: Option<OwnedFd>,
+    symlink: Option<PathBuf>,
+    write_timeout: Duration,
+}
+
+impl PtyLink {
+    /// How long a write may wait for the other side to drain before it fails with
+    /// [`LinkError::WriteTimeout`] (a pty holds a few kilobytes).
+    pub fn set_write_timeout(&mut self, timeout: Duration) {
+        self.write_timeout = timeout;
+    }
+
+    /// The stable symlink this master created, if any.
+    pub fn symlink(&self) -> Option<&Path> {
+        self.symlink.as_deref()
+    }
+
+    fn closed_or_io(&self, what: &str, e: io::Error) -> LinkError {
+        // Linux reports a pty whose other side is gone as EIO.
+        if e.raw_os_error() == Some(Errno::EIO as i32) {
+            LinkError::Closed {
+                context: format!("{}: other side closed", self.name),
+            }
+        } else {
+            LinkError::io(format!("{what} {}", self.name), e)
+        }
+    }
+}
+
+impl Drop for PtyLink {
+    fn drop(&mut self) {
+        if let Some(link) = &self.symlink {
+            // Best effort: the link may have been removed by someone else already.
+            let _ = std::fs::remove_file(link);
+        }
+    }
+}
+
+impl ByteLink for PtyLink {
+    fn write_all(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
+        let deadline = Instant::now() + self.write_timeout;
+        let mut written = 0;
+        while let Some(rest) = bytes.get(written..).filter(|r| !r.is_empty()) {
+            match self.file.write(rest) {
+                Ok(n) => written += n,
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => {
+                    let ready = wait_for(&self.file, PollFlags::POLLOUT, deadline)
+                        .map_err(|e| LinkError::io(format!("waiting on {}", self.name), e))?;
+                    if !ready {
+                        return Err(LinkError::WriteTimeout {
+                            written,
+                            total: bytes.len(),
+                        });
+                    }
+                }
+                Err(e) => return Err(self.closed_or_io("writing to", e)),
+            }
+        }
+        Ok(())
+    }
+
+    fn read_some(&mut self, buf: &mut [u8], deadline: Instant) -> Result<usize, LinkError> {
+        if buf.is_empty() {
+            return Ok(0);
+        }
+        loop {
+            let ready = wait_readable(&self.file, deadline)
+                .map_err(|e| LinkError::io(format!("waiting on {}", self.name), e))?;
+            if !ready {
+                return Err(LinkError::Timeout {
+                    received: 0,
+                    expected: buf.len(),
+                });
+            }
+            match self.file.read(buf) {
+                Ok(0) => {
+                    return Err(LinkError::Closed {
+                        context: format!("{}: end of file", self.name),
+                    });
+                }
+                Ok(n) => return Ok(n),
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        io::ErrorKind::Interrupted | io::ErrorKind::WouldBlock
+                    ) => {}
+                Err(e) => return Err(self.closed_or_io("reading from", e)),
+            }
+        }
+    }
+
+    fn discard_input(&mut self) -> Result<(), LinkError> {
+        termios::tcflush(&self.file, FlushArg::TCIFLUSH)
+            .map_err(|e| LinkError::io(format!("flushing input of {}", self.name), errno_io(e)))?;
+        // tcflush on a pty master does not always reach data already queued for it:
+        // drain whatever is readable right now as well.
+        let mut scratch = [0u8; 256];
+        while wait_readable(&self.file, Instant::now())
+            .map_err(|e| LinkError::io(format!("waiting on {}", self.name), e))?
+        {
+            match self.file.read(&mut scratch) {
+                Ok(0) => break,
+                Ok(_) => {}
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => break,
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                Err(e) => return Err(self.closed_or_io("reading from", e)),
+            }
+        }
+        Ok(())
+    }
+
+    fn set_baud(&mut self, baud: u32) -> Result<(), LinkError> {
+        let rate = termios_baud(baud).ok_or_else(|| LinkError::UnsupportedBaud {
+            baud,
+            context: self.name.clone(),
+        })?;
+        let mut t = termios::tcgetattr(&self.file)
+            .map_err(|e| LinkError::io(format!("reading termios of {}", self.name), errno_io(e)))?;
+        termios::cfsetspeed(&mut t, rate)
+            .and_then(|()| termios::tcsetattr(&self.file, SetArg::TCSANOW, &t))
+            .map_err(|e| LinkError::io(format!("setting baud on {}", self.name), errno_io(e)))?;
+        self.baud = baud;
+        Ok(())
+    }
+
+    fn baud(&self) -> Option<u32> {
+        Some(self.baud)
+    }
+}
+
+/// The output baud rate termios currently holds for a terminal (for tests and
+/// diagnostics), or `None` for a rate outside the standard table.
+pub fn termios_speed(fd: impl AsFd) -> Result<Option<u32>, LinkError> {
+    let t = termios::tcgetattr(&fd).map_err(|e| LinkError::io("reading termios", errno_io(e)))?;
+    let rate = termios::cfgetospeed(&t);
+    Ok(BAUD_TABLE.iter().find(|(_, r)| *r == rate).map(|(b, _)| *b))
+}
+
+impl AsFd for PtyLink {
+    fn as_fd(&self) -> std::os::fd::BorrowedFd<'_> {
+        self.file.as_fd()
+    }
+}

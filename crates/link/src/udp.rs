@@ -1,0 +1,239 @@
+//! A virtual CAN FD bus over IPv4 UDP multicast that speaks python-can's `udp_multicast`
+//! wire format byte for byte (see [`crate::pycan`]), so python-can scripts,
+//! `python -m can.viewer` and `python -m can.logger` can join the same bus.
+//!
+//! Sockets stay on the loopback interface: `IP_MULTICAST_IF = 127.0.0.1`,
+//! `IP_MULTICAST_LOOP = 1`, TTL 1, and the group is joined on 127.0.0.1, so nothing leaves
+//! the machine. python-can itself sets its sockets up without an interface address; to mix
+//! with python-can peers, run both inside a private network namespace with
+//! `ip link set lo up; ip route add 224.0.0.0/4 dev lo` (`../shared/docs/virtual-can.md`).
+//!
+//! A sender receives its own datagrams back (multicast loop); [`UdpBus`] drops them by
+//! remembering the exact bytes of its recent datagrams. Timestamps are float64 seconds and
+//! strictly increasing per endpoint, so another endpoint's datagram is never byte-identical
+//! to one of ours in practice; and since each remembered datagram cancels only one echo, a
+//! byte-identical foreign datagram would still be delivered.
+
+use std::collections::VecDeque;
+use std::io;
+use std::net::{Ipv4Addr, SocketAddrV4, UdpSocket};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use robobus_whj::frame::CanFrame;
+use socket2::{Domain, Protocol, Socket, Type};
+
+use crate::frame_link::{FrameLink, FrameLinkError, IdFilter, Received, passes};
+use crate::pycan;
+
+/// python-can's default IPv4 group.
+pub const DEFAULT_GROUP: Ipv4Addr = Ipv4Addr::new(239, 74, 163, 2);
+/// python-can's default port.
+pub const DEFAULT_PORT: u16 = 43113;
+/// How many of our own datagrams are remembered for echo filtering.
+const ECHO_MEMORY: usize = 1024;
+
+/// Where a [`UdpBus`] lives.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct UdpBusConfig {
+    /// Multicast group (default 239.74.163.2, python-can's).
+    pub group: Ipv4Addr,
+    /// UDP port (default 43113, python-can's).
+    pub port: u16,
+    /// Interface address for sending and joining (default 127.0.0.1: loopback only).
+    pub interface: Ipv4Addr,
+    /// Multicast TTL (default 1: never routed).
+    pub ttl: u32,
+}
+
+impl Default for UdpBusConfig {
+    fn default() -> Self {
+        Self {
+            group: DEFAULT_GROUP,
+            port: DEFAULT_PORT,
+            interface: Ipv4Addr::LOCALHOST,
+            ttl: 1,
+        }
+    }
+}
+
+/// Counters of what [`UdpBus`] dropped while receiving.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct UdpBusStats {
+    /// Our own datagrams that came back and were dropped.
+    pub echoes: u64,
+    /// Datagrams that were not valid python-can messages (logged and skipped).
+    pub malformed: u64,
+    /// Valid python-can messages a [`CanFrame`] cannot carry (remote / error frames).
+    pub unsupported: u64,
+    /// Frames dropped by the acceptance filters.
+    pub filtered: u64,
+}
+
+/// An endpoint on the python-can compatible UDP multicast bus.
+///
+/// ```no_run
+/// use std::time::{Duration, Instant};
+/// use robobus_link::{FrameLink, UdpBus, UdpBusConfig};
+/// use robobus_whj::CanFrame;
+///
+/// let mut bus = UdpBus::open(&UdpBusConfig::default())?;
+/// bus.send(&CanFrame::new_fd(CanFrame::standard_id(0x07)?, &[1, 2, 3, 4])?)?;
+/// let reply = bus.recv(Instant::now() + Duration::from_millis(50));
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+#[derive(Debug)]
+pub struct UdpBus {
+    socket: UdpSocket,
+    dest: SocketAddrV4,
+    sent: VecDeque<Vec<u8>>,
+    last_timestamp: f64,
+    filters: Vec<IdFilter>,
+    stats: UdpBusStats,
+}
+
+impl UdpBus {
+    /// Joins the bus described by `config`.
+    pub fn open(config: &UdpBusConfig) -> Result<Self, FrameLinkError> {
+        let ctx = |what: &str| format!("UDP bus {}:{}: {what}", config.group, config.port);
+        if !config.group.is_multicast() {
+            return Err(FrameLinkError::io(
+                ctx("opening"),
+                io::Error::new(
+                    io::ErrorKind::InvalidInput,
+                    format!("{} is not a multicast address (224.0.0.0/4)", config.group),
+                ),
+            ));
+        }
+        let socket = Socket::new(Domain::IPV4, Type::DGRAM, Some(Protocol::UDP))
+            .map_err(|e| FrameLinkError::io(ctx("creating socket"), e))?;
+        let setup = || -> io::Result<()> {
+            socket.set_reuse_address(true)?;
+            socket.set_reuse_port(true)?;
+            // Bound to the group address: only this group's datagrams arrive, so buses on
+            // other groups sharing the port stay separate.
+            socket.bind(&SocketAddrV4::new(config.group, config.port).into())?;
+            socket.set_multicast_if_v4(&config.interface)?;
+            socket.set_multicast_loop_v4(true)?;
+            socket.set_multicast_ttl_v4(config.ttl)?;
+            socket.join_multicast_v4(&config.group, &config.interface)?;
+            Ok(())
+        };
+        setup().map_err(|e| {
+            FrameLinkError::io(
+                ctx(&format!(
+                    "setting up multicast on interface {} (is the loopback interface up?)",
+                    config.interface
+                )),
+                e,
+            )
+        })?;
+        Ok(Self {
+            socket: socket.into(),
+            dest: SocketAddrV4::new(config.group, config.port),
+            sent: VecDeque::with_capacity(ECHO_MEMORY),
+            last_timestamp: 0.0,
+            filters: Vec::new(),
+            stats: UdpBusStats::default(),
+        })
+    }
+
+    /// What was dropped so far.
+    pub const fn stats(&self) -> UdpBusStats {
+        self.stats
+    }
+
+    /// Sends `frame` and returns the exact datagram that went out.
+    pub fn send_datagram(&mut self, frame: &CanFrame) -> Result<Vec<u8>, FrameLinkError> {
+        let now = SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .map_or(0.0, |d| d.as_secs_f64());
+        // Strictly increasing timestamps keep every datagram of ours distinct.
+        let ts = if now > self.last_timestamp {
+            now
+        } else {
+            self.last_timestamp.next_up()
+        };
+        self.last_timestamp = ts;
+        let datagram = pycan::encode(frame, ts);
+        if self.sent.len() == ECHO_MEMORY {
+            self.sent.pop_front();
+        }
+        self.sent.push_back(datagram.clone());
+        self.socket
+            .send_to(&datagram, self.dest)
+            .map_err(|e| FrameLinkError::io(format!("sending to UDP bus {}", self.dest), e))?;
+        Ok(datagram)
+    }
+
+    /// Removes `datagram` from the echo memory if it is one of ours.
+    fn is_own_echo(&mut self, datagram: &[u8]) -> bool {
+        if let Some(i) = self.sent.iter().position(|d| d.as_slice() == datagram) {
+            self.sent.remove(i);
+            true
+        } else {
+            false
+        }
+    }
+}
+
+impl FrameLink for UdpBus {
+    fn send(&mut self, frame: &CanFrame) -> Result<(), FrameLinkError> {
+        self.send_datagram(frame).map(drop)
+    }
+
+    fn recv(&mut self, deadline: Instant) -> Result<Received, FrameLinkError> {
+        let mut buf = [0u8; 2048];
+        loop {
+            let remaining = deadline.saturating_duration_since(Instant::now());
+            // A zero timeout means "block forever" to the OS: poll for 1 µs instead.
+            self.socket
+                .set_read_timeout(Some(remaining.max(Duration::from_micros(1))))
+                .map_err(|e| FrameLinkError::io(format!("UDP bus {}", self.dest), e))?;
+            let n = match self.socket.recv(&mut buf) {
+                Ok(n) => n,
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut
+                    ) =>
+                {
+                    return Err(FrameLinkError::Timeout);
+                }
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+                Err(e) => {
+                    return Err(FrameLinkError::io(
+                        format!("receiving from UDP bus {}", self.dest),
+                        e,
+                    ));
+                }
+            };
+            let timestamp = Some(SystemTime::now());
+            let datagram = buf.get(..n).unwrap_or_default();
+            if self.is_own_echo(datagram) {
+                self.stats.echoes += 1;
+                continue;
+            }
+            match pycan::decode_frame(datagram) {
+                Ok((frame, _)) => {
+                    if passes(&self.filters, &frame) {
+                        return Ok(Received { frame, timestamp });
+                    }
+                    self.stats.filtered += 1;
+                }
+                Err(e @ pycan::DecodeError::NotADataFrame { .. }) => {
+                    self.stats.unsupported += 1;
+                    tracing::debug!(bus = %self.dest, error = %e, "skipping datagram");
+                }
+                Err(e) => {
+                    self.stats.malformed += 1;
+                    tracing::warn!(bus = %self.dest, error = %e, len = n, "skipping malformed datagram");
+                }
+            }
+        }
+    }
+
+    fn set_filters(&mut self, filters: &[IdFilter]) -> Result<(), FrameLinkError> {
+        self.filters = filters.to_vec();
+        Ok(())
+    }
+}
