@@ -1,0 +1,138 @@
+//! External-client test: the built `robobus sim whj` binary serves seven joints on
+//! python-can's UDP multicast bus, and a python-can script (`scripts/py/whj_position_client.py`)
+//! enables joint 1, switches to position mode, streams position servo frames at 1 kHz for a
+//! ±10° move and checks that the feedback follows.
+//!
+//! Both processes run inside a private network namespace (`unshare -n`, loopback up, a
+//! multicast route on `lo`), as `shared/docs/virtual-can.md` explains, so no datagram can
+//! leave the machine. The test provisions python-can itself (`scripts/py/ensure-venv`)
+//! and fails loudly if it cannot.
+
+#![allow(
+    clippy::unwrap_used,
+    clippy::float_cmp,
+    clippy::cast_possible_truncation,
+    clippy::cast_sign_loss,
+    clippy::cast_possible_wrap,
+    clippy::cast_precision_loss,
+    clippy::unchecked_time_subtraction,
+    clippy::panic
+)] // Test code: a failed unwrap is a failed test; exact float equality is asserted on purpose.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn workspace() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .canonicalize()
+        .expect("workspace root")
+}
+
+fn python() -> PathBuf {
+    let script = workspace().join("scripts/py/ensure-venv");
+    let out = Command::new(&script)
+        .output()
+        .unwrap_or_else(|e| panic!("running {}: {e}", script.display()));
+    assert!(
+        out.status.success(),
+        "{} failed (python-can is needed for this test):\n{}",
+        script.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    PathBuf::from(String::from_utf8_lossy(&out.stdout).trim())
+}
+
+fn field(json: &str, key: &str) -> f64 {
+    let pat = format!("\"{key}\": ");
+    let at = json
+        .find(&pat)
+        .unwrap_or_else(|| panic!("{key} missing in {json}"))
+        + pat.len();
+    let rest = &json[at..];
+    let end = rest.find([',', '}']).unwrap_or(rest.len());
+    rest[..end]
+        .trim()
+        .parse()
+        .unwrap_or_else(|_| panic!("{key} in {json}"))
+}
+
+#[test]
+fn python_can_client_streams_position_at_1khz_over_udp() {
+    let py = python();
+    let client = workspace().join("scripts/py/whj_position_client.py");
+    let sim = env!("CARGO_BIN_EXE_robobus");
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("sim.log");
+    let script = dir.path().join("run.sh");
+    let q = |p: &Path| format!("'{}'", p.display());
+    std::fs::write(
+        &script,
+        format!(
+            r#"set -u
+ip link set lo up && ip route add 224.0.0.0/4 dev lo || {{ echo "network namespace setup failed" >&2; exit 90; }}
+'{sim}' sim whj --joints 1-7 --model whj30 --bus udp --seed 3 2>{log} &
+sim=$!
+for i in $(seq 200); do grep -q serving {log} && break; kill -0 $sim 2>/dev/null || break; sleep 0.05; done
+grep -q serving {log} || {{ echo "simulator did not start:" >&2; cat {log} >&2; exit 91; }}
+{py} {client} --interface udp_multicast --channel 239.74.163.2 --joint 1 --amplitude-deg 10 --period-s 2 --rate-hz 1000 --max-error-deg 3
+rc=$?
+kill -INT $sim
+wait $sim
+simrc=$?
+cat {log} >&2
+[ $simrc -eq 0 ] || {{ echo "simulator exited with $simrc after SIGINT" >&2; exit 92; }}
+exit $rc
+"#,
+            log = q(&log),
+            py = q(&py),
+            client = q(&client),
+        ),
+    )
+    .unwrap();
+    let out = Command::new("timeout")
+        .args(["120", "unshare", "-n", "bash"])
+        .arg(&script)
+        .output()
+        .expect("running unshare -n (needs root or user namespaces)");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success(),
+        "client or simulator failed ({:?}):\nstdout: {stdout}\nstderr: {stderr}",
+        out.status
+    );
+    let json = stdout
+        .lines()
+        .rev()
+        .find(|l| l.starts_with('{'))
+        .unwrap_or_else(|| panic!("no result line: {stdout}"));
+    eprintln!("client result: {json}");
+    assert!(json.contains("\"ok\": true"), "{json}");
+    // Every one of the 2001 frames was answered, the joint swept ±10° and followed.
+    assert_eq!(field(json, "sent"), 2001.0);
+    assert_eq!(field(json, "replies"), 2001.0);
+    assert!(
+        field(json, "max_deg") >= 9.0 && field(json, "min_deg") <= -9.0,
+        "{json}"
+    );
+    // Within 3° even if either process is descheduled for tens of ms on a loaded machine.
+    assert!(field(json, "max_follow_error_deg") <= 3.0, "{json}");
+    // The simulator saw at least the 2001 servo frames plus the 6 start-up / status frames
+    // (more if the client had to repeat one), and answered each.
+    let stats = stderr
+        .lines()
+        .find(|l| l.contains("frames in"))
+        .unwrap_or_else(|| panic!("no stop line: {stderr}"));
+    let count = |what: &str| -> u64 {
+        let before = stats.split(what).next().unwrap_or_default();
+        before
+            .rsplit(|c: char| !c.is_ascii_digit())
+            .find(|t| !t.is_empty())
+            .unwrap_or("0")
+            .parse()
+            .unwrap()
+    };
+    assert!(count(" frames in") >= 2007, "{stats}");
+    assert_eq!(count(" frames in"), count(" frames out"), "{stats}");
+}

@@ -1,0 +1,9 @@
+//! robobus simulators: wCK servos on a wire-timed multi-drop UART bus ([`wck`]) and WHJ
+//! joints on a wire-timed CAN FD bus ([`whj`]).
+//!
+//! Time in every simulator is a [`core::time::Duration`] since the simulation started.
+//! In tests the simulators run on a virtual clock (deterministic, faster than real time);
+//! behind an endpoint they follow the wall clock.
+
+pub mod wck;
+pub mod whj;

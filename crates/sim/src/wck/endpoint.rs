@@ -1,0 +1,223 @@
+//! The wCK bus behind a pseudo-terminal, on the wall clock (Linux).
+//!
+//! One thread owns the [`Bus`] and the pty master. It reads what a client writes to the
+//! slave side, stamps each chunk with its arrival time and puts it on the simulated wire
+//! at the client's baud rate (read from the pty's termios, which Linux shares between
+//! master and slave, so a client's `tcsetattr` is seen here and a mismatch garbles the
+//! bytes as on a real bus). It writes each reply byte to the master the moment its stop
+//! bit would leave the wire, sleeping in `ppoll` with a 1 µs timer slack until then.
+//! Other threads reach the bus through [`Endpoint::with_bus`] (a small command queue),
+//! so the test API (push, hold, set the A/D input, power-cycle) works while it serves.
+
+use core::time::Duration;
+use std::os::fd::{AsFd, OwnedFd};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc;
+use std::thread::JoinHandle;
+use std::time::Instant;
+
+use robobus_link::pty::termios_speed;
+use robobus_link::{ByteLink, LinkError, PtyLink};
+
+use super::bus::Bus;
+
+/// How long the serving thread sleeps at most when nothing is due (it then checks for
+/// stop requests, queued commands and the client's baud rate).
+const IDLE: Duration = Duration::from_millis(10);
+
+/// What the serving thread did, returned by [`Endpoint::stop`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct EndpointStats {
+    /// How long it served.
+    pub wall: Duration,
+    /// CPU time the serving thread used (user + system).
+    pub cpu: Duration,
+    /// Bytes read from the client.
+    pub bytes_in: u64,
+    /// Bytes written to the client.
+    pub bytes_out: u64,
+    /// Latest a reply byte was written after its release instant.
+    pub late_max: Duration,
+    /// Sum of the lateness of every written byte (divide by `bytes_out` for the mean).
+    pub late_total: Duration,
+}
+
+/// Why serving stopped with an error.
+#[derive(Debug, thiserror::Error)]
+pub enum EndpointError {
+    /// The pty failed.
+    #[error("wCK endpoint: {0}")]
+    Link(#[from] LinkError),
+    /// The serving thread panicked (a bug).
+    #[error("wCK endpoint: the serving thread panicked")]
+    Panicked,
+}
+
+type Job = Box<dyn FnOnce(&mut Bus) + Send>;
+
+/// A simulated bus served on a pty by a background thread. Dropping it stops the thread.
+#[derive(Debug)]
+pub struct Endpoint {
+    stop: Arc<AtomicBool>,
+    jobs: mpsc::Sender<Job>,
+    thread: Option<JoinHandle<Result<EndpointStats, EndpointError>>>,
+    path: PathBuf,
+}
+
+impl Endpoint {
+    /// Serves `bus` on the master side of a pty (from `robobus_link::PtyPair`); `path` is
+    /// what clients open (the slave device or its symlink), kept for [`Endpoint::path`].
+    /// Simulation time continues from the bus's current time.
+    pub fn spawn(bus: Bus, master: PtyLink, path: PathBuf) -> std::io::Result<Self> {
+        let termios = master.as_fd().try_clone_to_owned()?;
+        Self::spawn_link(bus, master, Some(termios), path)
+    }
+
+    /// Serves `bus` on any byte link, for example a pty master wrapped in
+    /// `robobus_link::FaultyByteLink` (noise, dropped bytes). `termios` is a descriptor of
+    /// the pty (a duplicate of the master) whose baud rate the client sets; `None` keeps
+    /// the bus's host rate.
+    pub fn spawn_link<L: ByteLink + Send + 'static>(
+        bus: Bus,
+        link: L,
+        termios: Option<OwnedFd>,
+        path: PathBuf,
+    ) -> std::io::Result<Self> {
+        let stop = Arc::new(AtomicBool::new(false));
+        let (jobs, rx) = mpsc::channel::<Job>();
+        let flag = Arc::clone(&stop);
+        let thread = std::thread::Builder::new()
+            .name("robobus-sim-wck".into())
+            .spawn(move || serve(bus, link, termios.as_ref(), &flag, &rx))?;
+        Ok(Self {
+            stop,
+            jobs,
+            thread: Some(thread),
+            path,
+        })
+    }
+
+    /// The path clients open.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Whether the serving thread is still running.
+    pub fn is_running(&self) -> bool {
+        self.thread.as_ref().is_some_and(|t| !t.is_finished())
+    }
+
+    /// Runs `f` on the bus in the serving thread (after bringing the bus to the current
+    /// time) and returns its result, or `None` if the thread has stopped.
+    pub fn with_bus<R: Send + 'static>(
+        &self,
+        f: impl FnOnce(&mut Bus) -> R + Send + 'static,
+    ) -> Option<R> {
+        let (tx, rx) = mpsc::sync_channel(1);
+        let job: Job = Box::new(move |bus| {
+            let _ = tx.send(f(bus));
+        });
+        self.jobs.send(job).ok()?;
+        rx.recv().ok()
+    }
+
+    /// Stops serving and returns what the thread did. The pty (and its symlink) is closed.
+    pub fn stop(mut self) -> Result<EndpointStats, EndpointError> {
+        self.stop_thread()
+    }
+
+    fn stop_thread(&mut self) -> Result<EndpointStats, EndpointError> {
+        self.stop.store(true, Ordering::Relaxed);
+        match self.thread.take() {
+            Some(t) => t.join().map_err(|_| EndpointError::Panicked)?,
+            None => Ok(EndpointStats::default()),
+        }
+    }
+}
+
+impl Drop for Endpoint {
+    fn drop(&mut self) {
+        let _ = self.stop_thread();
+    }
+}
+
+/// CPU time of the calling thread.
+fn thread_cpu() -> Duration {
+    use nix::sys::resource::{UsageWho, getrusage};
+    getrusage(UsageWho::RUSAGE_THREAD).map_or(Duration::ZERO, |u| {
+        let tv = |t: nix::sys::time::TimeVal| {
+            let secs = u64::try_from(t.tv_sec()).unwrap_or(0);
+            let micros = u64::try_from(t.tv_usec()).unwrap_or(0);
+            Duration::from_secs(secs) + Duration::from_micros(micros)
+        };
+        tv(u.user_time()) + tv(u.system_time())
+    })
+}
+
+fn follow_client_baud(bus: &mut Bus, termios: Option<&OwnedFd>) {
+    if let Some(fd) = termios
+        && let Ok(Some(bps)) = termios_speed(fd)
+    {
+        bus.set_host_bps(bps);
+    }
+}
+
+fn serve<L: ByteLink>(
+    mut bus: Bus,
+    mut master: L,
+    termios: Option<&OwnedFd>,
+    stop: &AtomicBool,
+    jobs: &mpsc::Receiver<Job>,
+) -> Result<EndpointStats, EndpointError> {
+    // Wake-ups as close to the requested instant as the kernel allows.
+    let _ = nix::sys::prctl::set_timerslack(1);
+    let cpu0 = thread_cpu();
+    let t0 = Instant::now();
+    let offset = bus.now();
+    let sim_now = || offset + t0.elapsed();
+    let mut stats = EndpointStats::default();
+    let mut buf = [0u8; 512];
+    let mut out: Vec<u8> = Vec::with_capacity(64);
+    let mut next_baud_check = Duration::ZERO;
+    while !stop.load(Ordering::Relaxed) {
+        let now = sim_now();
+        while let Ok(job) = jobs.try_recv() {
+            bus.advance(now);
+            job(&mut bus);
+        }
+        if now >= next_baud_check {
+            follow_client_baud(&mut bus, termios);
+            next_baud_check = now + IDLE;
+        }
+        bus.advance(now);
+        out.clear();
+        while let Some((due, byte)) = bus.pop_received() {
+            let late = now.saturating_sub(due);
+            stats.late_max = stats.late_max.max(late);
+            stats.late_total += late;
+            out.push(byte);
+        }
+        if !out.is_empty() {
+            master.write_all(&out)?;
+            stats.bytes_out += out.len() as u64;
+        }
+        let wake = bus.next_event().map_or(now + IDLE, |t| t.min(now + IDLE));
+        let deadline = t0 + wake.saturating_sub(offset);
+        match master.read_some(&mut buf, deadline) {
+            Ok(n) => {
+                let at = sim_now();
+                bus.advance(at);
+                follow_client_baud(&mut bus, termios);
+                bus.host_send(at, buf.get(..n).unwrap_or_default());
+                stats.bytes_in += n as u64;
+            }
+            Err(LinkError::Timeout { .. }) => {}
+            Err(e) => return Err(e.into()),
+        }
+    }
+    stats.wall = t0.elapsed();
+    stats.cpu = thread_cpu().saturating_sub(cpu0);
+    Ok(stats)
+}

@@ -1,0 +1,1397 @@
+//! One simulated WHJ joint: the firmware state machine over the device-side decoder of
+//! `robobus-whj`, on top of the mechanics in [`super::physics`].
+//!
+//! [`SimJoint::handle`] takes a received frame and the time its last bit arrived and
+//! returns the reply (if any) with the time it is ready to be sent; [`SimJoint::advance`]
+//! integrates the mechanics up to a point in time. Rules and their sources are §6 of
+//! `whj-joint-protocol.md`; options for the conflicting ones are in [`JointConfig`].
+
+use core::time::Duration;
+
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use robobus_whj::registers::{self, Access, Half, Persistence, RegisterInfo, TABLE_LEN};
+use robobus_whj::reply::Reply as WireReply;
+use robobus_whj::units::{ActualSpeed, Current, Position, Temperature, Voltage};
+use robobus_whj::{
+    BroadcastCurrent, BroadcastFeedback, BroadcastPosition, BroadcastRegister,
+    BroadcastRegisterReply, CanFrame, CmdError, ErrorCode, FeedForward, JointId, JointStatus,
+    Malformed, MalformedReason, RegisterAddr, RegisterOp, RegisterSlot, ReplyMask, Request,
+    ServoFeedback, Words, WriteData, WriteStatus,
+};
+
+use super::config::{BroadcastReadReply, JointConfig, SpeedLimitUnit};
+use super::model::rpm_to_rad_s;
+use super::physics::{Drive, DriveLimits, Environment, Mechanics};
+
+/// Position counts per degree.
+const COUNTS_PER_DEG: f64 = 10_000.0;
+/// Quiet time after a disable (§6.3).
+const DISABLE_SETTLE: Duration = Duration::from_millis(5);
+/// Busy time after a save to flash (§6.4).
+const SAVE_BUSY: Duration = Duration::from_millis(50);
+/// How far the output may pass a position limit before 0x0200 trips, counts (1°) \[inf\].
+const LIMIT_TOLERANCE: i64 = 10_000;
+/// An over-temperature bit clears only 5 K below the alarm \[inf\].
+const TEMP_HYSTERESIS_C: f64 = 5.0;
+
+/// A frame a joint sends, and the instant it is ready for arbitration.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Reply {
+    /// When the joint has finished processing and wants the bus.
+    pub ready_at: Duration,
+    /// The frame.
+    pub frame: CanFrame,
+}
+
+/// What the joint's firmware is doing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Phase {
+    /// Staggered power-up (`ON_DELAY` = 0): silent until the instant given.
+    PowerUpDelay {
+        /// When the bootloader starts.
+        until: Duration,
+    },
+    /// In the bootloader: only a write to `IAP_FLAG` (0x49) is answered.
+    Bootloader {
+        /// When the bootloader started.
+        since: Duration,
+    },
+    /// Running the application.
+    Application,
+}
+
+/// A snapshot of the values a joint reports, in wire units.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Sample {
+    /// Motor current in counts (1 or 2 mA per count).
+    pub current: i32,
+    /// Output speed in counts of 0.02 RPM.
+    pub speed: i32,
+    /// Output position in counts of 0.0001° (after the zero offset).
+    pub position: i32,
+    /// Whether the drive is enabled.
+    pub enabled: bool,
+    /// Latched error bits.
+    pub error: u16,
+    /// Bus voltage in counts of 0.01 V.
+    pub voltage: i16,
+    /// Temperature in counts of 0.1 °C.
+    pub temperature: i16,
+    /// Whether the brake is locked.
+    pub brake_locked: bool,
+    /// Broadcast receive counter.
+    pub broadcast_counter: u8,
+}
+
+/// A snapshot of a joint's state in engineering units, for tests and displays.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct JointState {
+    /// Node ID the joint answers to.
+    pub id: u8,
+    /// Firmware phase.
+    pub phase: Phase,
+    /// Reported position, degrees (after the zero offset).
+    pub position_deg: f64,
+    /// Physical output angle, degrees (the encoder before the zero offset).
+    pub physical_deg: f64,
+    /// Output speed, RPM.
+    pub speed_rpm: f64,
+    /// Motor current, A.
+    pub current_a: f64,
+    /// Winding temperature, °C.
+    pub temperature_c: f64,
+    /// Bus voltage, V.
+    pub voltage_v: f64,
+    /// Whether the drive is enabled.
+    pub enabled: bool,
+    /// Whether the brake is locked.
+    pub brake_locked: bool,
+    /// Latched error bits.
+    pub error: ErrorCode,
+    /// Work mode (0x30).
+    pub mode: u16,
+    /// Position target (0x36/0x37), counts.
+    pub target_position: i32,
+    /// Speed target (0x34/0x35), counts of 0.002 RPM.
+    pub target_speed: i32,
+    /// Current target (0x32/0x33), counts.
+    pub target_current: i32,
+    /// Electrical input power, W.
+    pub input_power_w: f64,
+}
+
+/// Result of a register write.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum WriteOutcome {
+    /// Acknowledged with status 1 (true) or 0 (false).
+    Ack(bool),
+    /// A read-only register: `CMD_ERR` permission error.
+    Permission,
+}
+
+/// The flash copy of the table plus the zero offset.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct FlashImage {
+    words: [u16; TABLE_LEN],
+    zero_offset: i64,
+}
+
+/// Which stream the communication watchdog guards.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Guard {
+    Position,
+    Current,
+}
+
+/// A simulated WHJ joint.
+#[derive(Debug, Clone)]
+#[allow(clippy::struct_excessive_bools)] // independent firmware flags
+pub struct SimJoint {
+    cfg: JointConfig,
+    rng: ChaCha8Rng,
+    flash: FlashImage,
+    ram: [u16; TABLE_LEN],
+    phase: Phase,
+    bus_id: u8,
+    enabled: bool,
+    errors: u16,
+    zero_offset: i64,
+    mech: Mechanics,
+    env: Environment,
+    t: Duration,
+    quiet_until: Duration,
+    brake_release_used: bool,
+    brake_released: bool,
+    counter: u8,
+    watchdog: Option<(Duration, Guard)>,
+    inside_limits: bool,
+    speed_ff: f64,
+    current_ff: f64,
+    frames_handled: u64,
+}
+
+impl SimJoint {
+    /// A joint powered up at time zero with a factory-fresh flash built from `cfg`.
+    /// `seed` drives the measurement noise (and nothing else).
+    pub fn new(cfg: JointConfig, seed: u64) -> Self {
+        let flash = FlashImage {
+            words: factory_flash(&cfg),
+            zero_offset: 0,
+        };
+        let env = Environment {
+            supply_v: cfg.supply_voltage_v,
+            supply_r: cfg.supply_resistance_ohm,
+            ambient_c: cfg.ambient_temp_c,
+            load_inertia: cfg.load.inertia_kgm2,
+            gravity_nm: cfg.load.gravity_nm,
+            external_nm: cfg.load.constant_nm,
+        };
+        let mech = Mechanics::new(cfg.initial_position_deg.to_radians(), &env);
+        let rng = ChaCha8Rng::seed_from_u64(seed ^ (u64::from(cfg.id) << 32));
+        let mut joint = Self {
+            bus_id: cfg.id,
+            cfg,
+            rng,
+            ram: flash.words,
+            flash,
+            phase: Phase::Application,
+            enabled: false,
+            errors: 0,
+            zero_offset: 0,
+            mech,
+            env,
+            t: Duration::ZERO,
+            quiet_until: Duration::ZERO,
+            brake_release_used: false,
+            brake_released: false,
+            counter: 0,
+            watchdog: None,
+            inside_limits: true,
+            speed_ff: 0.0,
+            current_ff: 0.0,
+            frames_handled: 0,
+        };
+        joint.power_on(Duration::ZERO);
+        joint
+    }
+
+    /// The configuration the joint was built with.
+    pub fn config(&self) -> &JointConfig {
+        &self.cfg
+    }
+
+    /// The node ID the joint answers to now.
+    pub fn id(&self) -> u8 {
+        self.bus_id
+    }
+
+    /// The firmware phase.
+    pub fn phase(&self) -> Phase {
+        self.phase
+    }
+
+    /// The time up to which the mechanics have been integrated.
+    pub fn time(&self) -> Duration {
+        self.t
+    }
+
+    /// Number of frames the joint has answered.
+    pub fn frames_handled(&self) -> u64 {
+        self.frames_handled
+    }
+
+    /// Switch the supply off and on again at `now`: RAM is lost, flash survives, the joint
+    /// goes through its power-up delay and bootloader again. The output keeps its angle.
+    pub fn power_cycle(&mut self, now: Duration) {
+        self.advance(now);
+        self.mech.omega = 0.0;
+        self.mech.current = 0.0;
+        self.power_on(now);
+    }
+
+    /// Change the supply voltage (a sagging battery, a bad PSU).
+    pub fn set_supply_voltage(&mut self, volts: f64) {
+        self.env.supply_v = volts;
+    }
+
+    /// Change the constant external torque on the output, N·m (a push, a hard stop).
+    pub fn set_external_torque(&mut self, nm: f64) {
+        self.env.external_nm = nm;
+    }
+
+    /// Change the gravity torque amplitude on the output, N·m.
+    pub fn set_gravity_torque(&mut self, nm: f64) {
+        self.env.gravity_nm = nm;
+    }
+
+    /// Change the ambient temperature, °C.
+    pub fn set_ambient_temperature(&mut self, celsius: f64) {
+        self.env.ambient_c = celsius;
+    }
+
+    /// The state in engineering units (no measurement noise).
+    pub fn state(&self) -> JointState {
+        JointState {
+            id: self.bus_id,
+            phase: self.phase,
+            position_deg: self.reported_position() as f64 / COUNTS_PER_DEG,
+            physical_deg: self.mech.theta.to_degrees(),
+            speed_rpm: self.mech.omega * 60.0 / core::f64::consts::TAU,
+            current_a: self.mech.current,
+            temperature_c: self.mech.temp_c,
+            voltage_v: self.mech.bus_v,
+            enabled: self.enabled,
+            brake_locked: self.brake_locked(),
+            error: ErrorCode(self.errors),
+            mode: self.ram[0x30],
+            target_position: self.get_i32(0x36),
+            target_speed: self.get_i32(0x34),
+            target_current: self.get_i32(0x32),
+            input_power_w: self.mech.input_power(),
+        }
+    }
+
+    /// The value a register read would return now (live values sampled without noise).
+    pub fn register(&self, addr: u8) -> u16 {
+        let sample = self.sample_exact();
+        self.read_word(addr, &sample)
+    }
+
+    // ----- time -------------------------------------------------------------------------
+
+    /// Integrate the mechanics and run the firmware's timers up to `now`. The state is
+    /// sampled in fixed steps (`physics_step`); calls with a `now` in the past do nothing.
+    pub fn advance(&mut self, now: Duration) {
+        let step = self.cfg.physics_step.max(Duration::from_micros(1));
+        let dt = step.as_secs_f64();
+        while self.t + step <= now {
+            self.t += step;
+            let t = self.t;
+            self.run_timers(t);
+            if self.phase != Phase::Application {
+                // Powered down or in the bootloader: the brake (if any) holds the output.
+                let drive = Drive::Off {
+                    brake_locked: self.cfg.model.has_brake(),
+                };
+                let limits = self.limits();
+                self.mech.step(
+                    dt,
+                    drive,
+                    &limits,
+                    &self.cfg.params,
+                    &self.env,
+                    self.cfg.position_bandwidth_hz,
+                );
+                continue;
+            }
+            let drive = self.drive();
+            let limits = self.limits();
+            self.mech.step(
+                dt,
+                drive,
+                &limits,
+                &self.cfg.params,
+                &self.env,
+                self.cfg.position_bandwidth_hz,
+            );
+            self.protect();
+        }
+    }
+
+    fn run_timers(&mut self, t: Duration) {
+        match self.phase {
+            Phase::PowerUpDelay { until } if t >= until => {
+                if self.cfg.boot.wait_for_iap_flag {
+                    self.phase = Phase::Bootloader { since: until };
+                } else {
+                    self.start_application();
+                }
+            }
+            Phase::Bootloader { since } => {
+                if let Some(timeout) = self.cfg.boot.bootloader_timeout
+                    && t >= since + timeout
+                {
+                    self.start_application();
+                }
+            }
+            _ => {}
+        }
+        if let Some((deadline, guard)) = self.watchdog
+            && t >= deadline
+        {
+            // Communication lost: stop by itself, stay enabled, no error bit (§8.9).
+            self.watchdog = None;
+            match guard {
+                Guard::Position => {
+                    let actual = self.reported_position();
+                    self.set_i32(0x36, actual);
+                    self.speed_ff = 0.0;
+                    self.current_ff = 0.0;
+                }
+                Guard::Current => self.set_i32(0x32, 0),
+            }
+            tracing::debug!(id = self.bus_id, "communication watchdog expired");
+        }
+    }
+
+    // ----- power-up ---------------------------------------------------------------------
+
+    fn power_on(&mut self, now: Duration) {
+        self.t = self.t.max(now);
+        self.enabled = false;
+        self.errors = 0;
+        self.watchdog = None;
+        self.brake_release_used = false;
+        self.brake_released = false;
+        self.quiet_until = Duration::ZERO;
+        self.counter = 0;
+        self.speed_ff = 0.0;
+        self.current_ff = 0.0;
+        self.ram = self.flash.words;
+        self.zero_offset = self.flash.zero_offset;
+        self.bus_id = u8::try_from(self.flash.words[0x01]).unwrap_or(1);
+        let delayed = self.flash.words[0x1F] == 0 && self.fw_519();
+        let delay = if delayed {
+            self.cfg.boot.boot_delay + self.cfg.boot.boot_delay_per_id * u32::from(self.bus_id)
+        } else {
+            Duration::ZERO
+        };
+        if delay > Duration::ZERO {
+            self.phase = Phase::PowerUpDelay { until: now + delay };
+        } else if self.cfg.boot.wait_for_iap_flag {
+            self.phase = Phase::Bootloader { since: now };
+        } else {
+            self.start_application();
+        }
+    }
+
+    /// Flash → RAM, 0x38 := 0, targets cleared, enable at power-up if 0x0B = 1 (§6.1).
+    fn start_application(&mut self) {
+        self.phase = Phase::Application;
+        self.ram = self.flash.words;
+        for info in &registers::REGISTERS {
+            if info.persistence == Persistence::Ram || info.persistence == Persistence::Trigger {
+                let a = usize::from(info.addr.get());
+                if let Some(slot) = self.ram.get_mut(a) {
+                    *slot = init_word(info);
+                }
+            }
+        }
+        self.ram[0x38] = 0;
+        self.enabled = false;
+        self.mech.reset_loops();
+        if self.ram[0x0B] == 1 {
+            let _ = self.enable();
+        }
+    }
+
+    // ----- units ------------------------------------------------------------------------
+
+    fn fw_519(&self) -> bool {
+        self.cfg.firmware.at_least_label(0x519)
+    }
+
+    /// Whether a gated register exists on this model and firmware.
+    fn register_available(&self, addr: u8) -> bool {
+        match addr {
+            0x1F | 0x79 => self.fw_519(),
+            0x69 => self.fw_519() && self.cfg.model.supports_low_power(),
+            0x6A => {
+                self.cfg.model.supports_brake_release() && self.cfg.firmware.at_least_label(0x522)
+            }
+            0x4E => self.cfg.firmware.at_least_label(0x500),
+            _ => true,
+        }
+    }
+
+    fn get_i32(&self, low: usize) -> i32 {
+        let lo = u32::from(self.ram.get(low).copied().unwrap_or(0));
+        let hi = u32::from(self.ram.get(low + 1).copied().unwrap_or(0));
+        i32::from_ne_bytes(((hi << 16) | lo).to_ne_bytes())
+    }
+
+    fn set_i32(&mut self, low: usize, value: i32) {
+        let bits = u32::from_ne_bytes(value.to_ne_bytes());
+        if let Some(w) = self.ram.get_mut(low) {
+            *w = (bits & 0xFFFF) as u16;
+        }
+        if let Some(w) = self.ram.get_mut(low + 1) {
+            *w = (bits >> 16) as u16;
+        }
+    }
+
+    /// Physical encoder angle in counts.
+    fn physical_counts(&self) -> i64 {
+        round_i64(self.mech.theta.to_degrees() * COUNTS_PER_DEG)
+    }
+
+    /// Reported position in counts (saturated into i32).
+    fn reported_position(&self) -> i32 {
+        saturate_i32(self.physical_counts() - self.zero_offset)
+    }
+
+    fn counts_to_physical_rad(&self, counts: i32) -> f64 {
+        ((i64::from(counts) + self.zero_offset) as f64 / COUNTS_PER_DEG).to_radians()
+    }
+
+    fn position_limits(&self) -> (i32, i32) {
+        let lo = self.get_i32(0x44);
+        let hi = self.get_i32(0x46);
+        if lo <= hi { (lo, hi) } else { (hi, lo) }
+    }
+
+    fn clamp_to_limits(&self, counts: i32) -> i32 {
+        let (lo, hi) = self.position_limits();
+        counts.clamp(lo, hi)
+    }
+
+    fn ma_per_count(&self) -> f64 {
+        self.cfg.params.ma_per_count()
+    }
+
+    fn limits(&self) -> DriveLimits {
+        let p = &self.cfg.params;
+        let max_current = f64::from(self.ram[0x40]) * self.ma_per_count() / 1000.0;
+        let raw_speed = f64::from(self.ram[0x41]);
+        let max_speed_rpm = match self.cfg.speed_limit_unit {
+            SpeedLimitUnit::PerRatio => raw_speed / f64::from(p.reduction_ratio.max(1)),
+            SpeedLimitUnit::CentiRpm => raw_speed * 0.01,
+        };
+        let max_accel = rpm_to_rad_s(f64::from(self.ram[0x42]) * 0.1);
+        let low_power = self.ram[0x69] == 1 && self.register_available(0x69);
+        DriveLimits {
+            max_current,
+            max_speed: rpm_to_rad_s(max_speed_rpm),
+            max_accel,
+            power_cap: low_power.then_some(self.cfg.low_power_cap_w),
+        }
+    }
+
+    fn brake_locked(&self) -> bool {
+        self.cfg.model.has_brake() && !self.enabled && !self.brake_released
+    }
+
+    fn drive(&self) -> Drive {
+        if !self.enabled {
+            return Drive::Off {
+                brake_locked: self.brake_locked(),
+            };
+        }
+        match self.ram[0x30] {
+            0 => Drive::OpenLoop {
+                duty: f64::from(self.ram[0x31].min(100)) / 100.0,
+            },
+            1 => Drive::Current {
+                amps: f64::from(self.get_i32(0x32)) * self.ma_per_count() / 1000.0
+                    + self.current_ff,
+            },
+            2 => Drive::Speed {
+                rad_s: rpm_to_rad_s(f64::from(self.get_i32(0x34)) * 0.002),
+            },
+            _ => {
+                let target = self.clamp_to_limits(self.get_i32(0x36));
+                Drive::Position {
+                    target: self.counts_to_physical_rad(target),
+                    speed_ff: self.speed_ff,
+                    current_ff: self.current_ff,
+                }
+            }
+        }
+    }
+
+    // ----- protection -------------------------------------------------------------------
+
+    fn latch(&mut self, bits: u16) {
+        let new = bits & !self.errors;
+        if new == 0 {
+            return;
+        }
+        self.errors |= bits;
+        tracing::debug!(
+            id = self.bus_id,
+            bits = format_args!("{new:#06x}"),
+            "error latched"
+        );
+        if ErrorCode(new).disables_drive() && self.enabled {
+            self.enabled = false;
+            self.watchdog = None;
+        }
+    }
+
+    fn protect(&mut self) {
+        let p = self.cfg.params;
+        if self.mech.temp_c >= self.cfg.over_temp_c {
+            self.latch(ErrorCode::OVER_TEMPERATURE.bits());
+        }
+        if self.mech.bus_v < self.cfg.under_voltage_v {
+            self.latch(ErrorCode::UNDER_VOLTAGE.bits());
+        }
+        if self.mech.bus_v > self.cfg.over_voltage_v {
+            self.latch(ErrorCode::OVER_VOLTAGE.bits());
+        }
+        if self.mech.current.abs() > self.cfg.over_current_factor * p.peak_current_a() {
+            self.latch(ErrorCode::OVER_CURRENT.bits());
+        }
+        if !self.enabled {
+            return;
+        }
+        let actual = self.physical_counts() - self.zero_offset;
+        if self.ram[0x30] == 3 {
+            // Following error: the commanded trajectory (the target approached under the
+            // speed and acceleration limits) minus the actual position. Comparing with the
+            // final target instead would trip whenever a joint enabled outside its range
+            // drives back to the limit (C9).
+            let max_diff = i64::from(self.get_i32(0x4B));
+            let commanded =
+                round_i64(self.mech.reference().to_degrees() * COUNTS_PER_DEG) - self.zero_offset;
+            if max_diff > 0 && (commanded - actual).abs() > max_diff {
+                self.latch(ErrorCode::FOLLOWING_ERROR.bits());
+            }
+        }
+        let (lo, hi) = self.position_limits();
+        let (lo, hi) = (i64::from(lo), i64::from(hi));
+        let inside = actual >= lo && actual <= hi;
+        if self.inside_limits && (actual < lo - LIMIT_TOLERANCE || actual > hi + LIMIT_TOLERANCE) {
+            self.latch(ErrorCode::POSITION_LIMIT.bits());
+            self.inside_limits = false;
+        } else if inside {
+            self.inside_limits = true;
+        }
+    }
+
+    /// Clear the bits whose cause has ended (§6.4, §7).
+    fn clear_errors(&mut self) {
+        let mut keep = 0u16;
+        if self.mech.temp_c >= self.cfg.over_temp_c - TEMP_HYSTERESIS_C {
+            keep |= ErrorCode::OVER_TEMPERATURE.bits();
+        }
+        if self.mech.bus_v < self.cfg.under_voltage_v {
+            keep |= ErrorCode::UNDER_VOLTAGE.bits();
+        }
+        if self.mech.bus_v > self.cfg.over_voltage_v {
+            keep |= ErrorCode::OVER_VOLTAGE.bits();
+        }
+        self.errors &= keep;
+        if self.errors == 0 && self.cfg.auto_enable_after_clear && !self.enabled {
+            let _ = self.enable();
+        }
+    }
+
+    // ----- actions ----------------------------------------------------------------------
+
+    /// Enable the drive; false if refused (a latched error, or the brake released by 0x6A).
+    fn enable(&mut self) -> bool {
+        if self.errors != 0 || self.brake_released {
+            return false;
+        }
+        if self.enabled {
+            return true;
+        }
+        self.enabled = true;
+        self.mech.reset_loops();
+        let actual = self.reported_position();
+        // Target := actual, clamped: a joint outside its range drives to the limit (C9).
+        let target = self.clamp_to_limits(actual);
+        self.set_i32(0x36, target);
+        self.set_i32(0x34, 0);
+        self.set_i32(0x32, 0);
+        self.speed_ff = 0.0;
+        self.current_ff = 0.0;
+        let (lo, hi) = self.position_limits();
+        self.inside_limits = actual >= lo && actual <= hi;
+        true
+    }
+
+    fn disable(&mut self, now: Duration) {
+        self.enabled = false;
+        self.watchdog = None;
+        if self.cfg.strict_settle {
+            self.quiet_until = self.quiet_until.max(now + DISABLE_SETTLE);
+        }
+    }
+
+    fn change_mode(&mut self, mode: u16) {
+        self.ram[0x30] = mode;
+        // No jump: position target := actual, speed and current targets := 0 (§6.2).
+        let actual = self.reported_position();
+        let target = if mode == 3 {
+            self.clamp_to_limits(actual)
+        } else {
+            actual
+        };
+        self.set_i32(0x36, target);
+        self.set_i32(0x34, 0);
+        self.set_i32(0x32, 0);
+        self.speed_ff = 0.0;
+        self.current_ff = 0.0;
+        self.watchdog = None;
+        self.mech.reset_loops();
+    }
+
+    fn save(&mut self, now: Duration) -> bool {
+        if self.enabled {
+            return false;
+        }
+        for info in &registers::REGISTERS {
+            if info.persistence == Persistence::Flash {
+                let a = usize::from(info.addr.get());
+                if let (Some(f), Some(r)) = (self.flash.words.get_mut(a), self.ram.get(a)) {
+                    *f = *r;
+                }
+            }
+        }
+        self.flash.zero_offset = self.zero_offset;
+        if self.cfg.strict_settle {
+            self.quiet_until = self.quiet_until.max(now + SAVE_BUSY);
+        }
+        true
+    }
+
+    fn set_zero(&mut self) {
+        let before = i64::from(self.reported_position());
+        self.zero_offset = self.physical_counts();
+        // Shift the targets by the same amount so an enabled joint stays still (§6.4).
+        let shift = before;
+        let target = i64::from(self.get_i32(0x36)) - shift;
+        self.set_i32(0x36, saturate_i32(target));
+    }
+
+    /// Apply a new position target from any source; false if the step check rejected it.
+    fn set_position_target(&mut self, counts: i32, from_register: bool) -> bool {
+        let mode3 = self.ram[0x30] == 3;
+        let target = if mode3 {
+            self.clamp_to_limits(counts)
+        } else {
+            counts
+        };
+        let checked =
+            self.enabled && mode3 && (!from_register || self.cfg.step.step_check_register_writes);
+        if checked {
+            let limit = round_i64(self.cfg.step.step_limit_deg * COUNTS_PER_DEG);
+            let actual = i64::from(self.reported_position());
+            if (i64::from(target) - actual).abs() > limit {
+                self.latch(ErrorCode::POSITION_STEP.bits());
+                if self.cfg.step.step_error_disables {
+                    self.enabled = false;
+                    self.watchdog = None;
+                }
+                return false;
+            }
+        }
+        self.set_i32(0x36, target);
+        true
+    }
+
+    // ----- frames -----------------------------------------------------------------------
+
+    /// A frame whose last bit arrived at `now`: act on it and return the reply, if any,
+    /// with the time it is ready for arbitration (`now + processing_delay`).
+    ///
+    /// The mechanics are advanced to `now` first, so servo feedback shows the state
+    /// before the command takes effect (§3.2).
+    pub fn handle(&mut self, frame: &CanFrame, now: Duration) -> Option<Reply> {
+        self.advance(now);
+        if matches!(self.phase, Phase::PowerUpDelay { .. }) || now < self.quiet_until {
+            return None;
+        }
+        let frame = if frame.is_fd() {
+            *frame
+        } else if self.cfg.accept_classic_frames && !frame.is_extended() {
+            CanFrame::new_fd(frame.id(), frame.data()).ok()?
+        } else {
+            return None;
+        };
+        let me = JointId::new(self.bus_id).ok()?;
+        let reply = match Request::from_frame(&frame) {
+            Ok(req) => self.dispatch(req, me, now),
+            Err(bad) => self.malformed(&frame, &bad, me, now),
+        }?;
+        self.frames_handled += 1;
+        Some(Reply {
+            ready_at: now + self.cfg.processing_delay,
+            frame: reply.to_frame(),
+        })
+    }
+
+    fn malformed(
+        &mut self,
+        frame: &CanFrame,
+        bad: &Malformed,
+        me: JointId,
+        now: Duration,
+    ) -> Option<WireReply> {
+        if self.phase != Phase::Application {
+            return None;
+        }
+        let raw = frame.standard_raw_id()?;
+        let data = frame.data();
+        match bad.reason {
+            // Option: frames to node 0 apply their writes silently (C32).
+            MalformedReason::InterfaceBoard if self.cfg.apply_id0_writes && raw == 0x000 => {
+                let as_mine =
+                    CanFrame::new_fd(CanFrame::standard_id(u16::from(me.get())).ok()?, data)
+                        .ok()?;
+                if let Ok(Request::Write { addr, data, .. }) = Request::decode(&as_mine) {
+                    let (words, n) = data.words();
+                    let _ = self.write_words(addr.get(), words.get(..n)?, now);
+                }
+                return None;
+            }
+            // Option: GRIP's command 0x03 = write without reply.
+            MalformedReason::UnknownCommand { cmd: 3 }
+                if self.cfg.silent_write_cmd3 && bad.joint == Some(me) =>
+            {
+                let (&index, rest) = data.get(1..)?.split_first()?;
+                let write = WriteData::from_bytes(rest)?;
+                let (words, n) = write.words();
+                let _ = self.write_words(index, words.get(..n)?, now);
+                return None;
+            }
+            // Option: any even number of data bytes writes that many registers.
+            MalformedReason::WriteLength { data_len }
+                if self.cfg.any_even_write_length && bad.joint == Some(me) && data_len % 2 == 0 =>
+            {
+                let index = *data.get(1)?;
+                let words: Vec<u16> = data
+                    .get(2..)?
+                    .chunks_exact(2)
+                    .map(|c| u16::from_le_bytes([c[0], c[1]]))
+                    .collect();
+                let addr = RegisterAddr::new(index).ok()?;
+                let status = match self.write_words(index, &words, now) {
+                    WriteOutcome::Ack(ok) => status(ok),
+                    WriteOutcome::Permission => {
+                        return Some(WireReply::CmdErr {
+                            joint: me,
+                            code: self.cfg.cmd_err_code,
+                            error: CmdError::Permission,
+                        });
+                    }
+                };
+                return Some(WireReply::WriteAck {
+                    joint: me,
+                    addr,
+                    status,
+                });
+            }
+            _ => {}
+        }
+        let (joint, error) = bad.response()?;
+        (joint == me).then_some(WireReply::CmdErr {
+            joint: me,
+            code: self.cfg.cmd_err_code,
+            error,
+        })
+    }
+
+    fn dispatch(&mut self, req: Request, me: JointId, now: Duration) -> Option<WireReply> {
+        if let Phase::Bootloader { .. } = self.phase {
+            // The bootloader answers only writes to IAP_FLAG (§6.1).
+            return match req {
+                Request::Write { joint, addr, data } if joint == me && addr.get() == 0x49 => {
+                    let (words, _) = data.words();
+                    if words[0] == 0 {
+                        self.start_application();
+                    }
+                    Some(WireReply::WriteAck {
+                        joint: me,
+                        addr,
+                        status: WriteStatus::Ok,
+                    })
+                }
+                _ => None,
+            };
+        }
+        match req {
+            Request::Read { joint, range } if joint == me => {
+                let mut words = [0u16; registers::MAX_READ_COUNT as usize];
+                let out = words.get_mut(..usize::from(range.count()))?;
+                self.read_words(range.start().get(), out);
+                WireReply::read(me, range, out).ok()
+            }
+            Request::Write { joint, addr, data } if joint == me => {
+                let (words, n) = data.words();
+                match self.write_words(addr.get(), words.get(..n)?, now) {
+                    WriteOutcome::Ack(ok) => Some(WireReply::WriteAck {
+                        joint: me,
+                        addr,
+                        status: status(ok),
+                    }),
+                    WriteOutcome::Permission => Some(WireReply::CmdErr {
+                        joint: me,
+                        code: self.cfg.cmd_err_code,
+                        error: CmdError::Permission,
+                    }),
+                }
+            }
+            Request::PositionServo { joint, target } if joint == me => {
+                let feedback = self.servo_feedback();
+                self.set_position_target(target.0, false);
+                if self.cfg.watchdog.guard_point_to_point {
+                    self.arm_watchdog(now, Guard::Position, true);
+                }
+                Some(WireReply::ServoFeedback {
+                    joint: me,
+                    feedback,
+                })
+            }
+            Request::SpeedServo { joint, target } if joint == me => {
+                let feedback = self.servo_feedback();
+                self.set_i32(0x34, target.0);
+                Some(WireReply::ServoFeedback {
+                    joint: me,
+                    feedback,
+                })
+            }
+            Request::CurrentServo { joint, target } if joint == me => {
+                let feedback = self.servo_feedback();
+                self.set_i32(0x32, target.0);
+                Some(WireReply::ServoFeedback {
+                    joint: me,
+                    feedback,
+                })
+            }
+            Request::StatusQuery { joint } if joint == me => Some(WireReply::Status {
+                joint: me,
+                status: self.status(),
+            }),
+            Request::BroadcastPosition(b) => self.broadcast_position(&b, me, now),
+            Request::BroadcastCurrent(b) => self.broadcast_current(&b, me, now),
+            Request::BroadcastRegister(b) => self.broadcast_register(&b, me, now),
+            Request::BroadcastStatus(b) => {
+                self.counter = self.counter.wrapping_add(1);
+                self.broadcast_feedback(b.mask, me)
+            }
+            _ => None,
+        }
+    }
+
+    fn servo_feedback(&mut self) -> ServoFeedback {
+        let s = self.sample();
+        ServoFeedback {
+            current: Current(s.current),
+            speed: ActualSpeed(s.speed),
+            position: Position(s.position),
+            enable: u16::from(s.enabled),
+            error: ErrorCode(s.error),
+        }
+    }
+
+    fn status(&mut self) -> JointStatus {
+        let s = self.sample();
+        JointStatus {
+            error: ErrorCode(s.error),
+            voltage: Voltage(s.voltage),
+            temperature: Temperature(s.temperature),
+            enable: u8::from(s.enabled),
+            brake: u8::from(s.brake_locked),
+            position: Position(s.position),
+            current: self.cfg.status_len_16.then_some(Current(s.current)),
+        }
+    }
+
+    /// Slot index of this joint in broadcast frames (IDs 1..=7).
+    fn slot(me: JointId) -> Option<usize> {
+        me.has_broadcast_slot().then(|| usize::from(me.get() - 1))
+    }
+
+    fn broadcast_feedback(&mut self, mask: ReplyMask, me: JointId) -> Option<WireReply> {
+        if !mask.selects(me) {
+            return None;
+        }
+        let s = self.sample();
+        let feedback = BroadcastFeedback {
+            current: Current(s.current),
+            speed: ActualSpeed(s.speed),
+            position: Position(s.position),
+            error: ErrorCode(s.error),
+            voltage: Voltage(s.voltage),
+            temperature: Temperature(s.temperature),
+            state: u8::from(s.enabled) | (u8::from(s.brake_locked) << 7),
+            encoder: 0,
+            counter: s.broadcast_counter,
+        };
+        Some(WireReply::BroadcastFeedback {
+            joint: me,
+            feedback,
+        })
+    }
+
+    fn arm_watchdog(&mut self, now: Duration, guard: Guard, with_data: bool) {
+        let mode_ok = match guard {
+            Guard::Position => self.ram[0x30] == 3,
+            Guard::Current => self.ram[0x30] == 1,
+        };
+        let armed = self.watchdog.is_some_and(|(_, g)| g == guard);
+        if self.enabled
+            && mode_ok
+            && (with_data || (armed && !self.cfg.watchdog.rearm_only_with_data))
+        {
+            self.watchdog = Some((now + self.cfg.watchdog.timeout, guard));
+        }
+    }
+
+    fn broadcast_position(
+        &mut self,
+        b: &BroadcastPosition,
+        me: JointId,
+        now: Duration,
+    ) -> Option<WireReply> {
+        self.counter = self.counter.wrapping_add(1);
+        let slot = Self::slot(me)?;
+        // The feedback shows the state before the new target (as point-to-point).
+        let reply = self.broadcast_feedback(b.mask, me);
+        let data = b.slots.get(slot).copied().flatten();
+        if let Some(slot) = data {
+            let layout = self.cfg.feed_forward_layout;
+            self.speed_ff = if b.feed_forward.speed(layout) == FeedForward::Host {
+                rpm_to_rad_s(
+                    f64::from(slot.speed_ff) * robobus_whj::units::TARGET_SPEED_RPM_PER_COUNT,
+                )
+            } else {
+                0.0
+            };
+            self.current_ff = if b.feed_forward.current(layout) == FeedForward::Host {
+                f64::from(slot.current_ff) * f64::from(robobus_whj::units::CURRENT_FF_MA_PER_COUNT)
+                    / 1000.0
+            } else {
+                0.0
+            };
+            self.set_position_target(slot.position.0, false);
+        }
+        self.arm_watchdog(now, Guard::Position, data.is_some());
+        reply
+    }
+
+    fn broadcast_current(
+        &mut self,
+        b: &BroadcastCurrent,
+        me: JointId,
+        now: Duration,
+    ) -> Option<WireReply> {
+        self.counter = self.counter.wrapping_add(1);
+        let slot = Self::slot(me)?;
+        let reply = self.broadcast_feedback(b.mask, me);
+        let data = b.slots.get(slot).copied().flatten();
+        if let Some(current) = data {
+            self.set_i32(0x32, current.0);
+        }
+        if self.cfg.watchdog.guard_broadcast_current {
+            self.arm_watchdog(now, Guard::Current, data.is_some());
+        }
+        reply
+    }
+
+    fn broadcast_register(
+        &mut self,
+        b: &BroadcastRegister,
+        me: JointId,
+        now: Duration,
+    ) -> Option<WireReply> {
+        self.counter = self.counter.wrapping_add(1);
+        let slot = Self::slot(me)?;
+        // An unselected joint still executes its slot but stays silent (§8.1, 8.12 (8)).
+        let reply = match b.slots.get(slot).copied()? {
+            RegisterSlot::Empty | RegisterSlot::Invalid(_) => return None,
+            RegisterSlot::Op(RegisterOp::Read(range)) => {
+                let mut words = [0u16; registers::MAX_READ_COUNT as usize];
+                let out = words.get_mut(..usize::from(range.count()))?;
+                self.read_words(range.start().get(), out);
+                let length_prefix = match self.cfg.broadcast_read_reply {
+                    BroadcastReadReply::Doc => None,
+                    BroadcastReadReply::LengthPrefixed => u8::try_from(2 + 2 * out.len()).ok(),
+                };
+                BroadcastRegisterReply::Read {
+                    addr: range.start(),
+                    words: Words::from_slice(out).ok()?,
+                    length_prefix,
+                }
+            }
+            RegisterSlot::Op(RegisterOp::Write { addr, data }) => {
+                let (words, n) = data.words();
+                let ok =
+                    self.write_words(addr.get(), words.get(..n)?, now) == WriteOutcome::Ack(true);
+                BroadcastRegisterReply::WriteAck {
+                    addr,
+                    status: status(ok),
+                }
+            }
+        };
+        b.mask
+            .selects(me)
+            .then_some(WireReply::BroadcastRegister { joint: me, reply })
+    }
+
+    // ----- register access --------------------------------------------------------------
+
+    /// Measured values with noise, sampled once per frame.
+    fn sample(&mut self) -> Sample {
+        let mut s = self.sample_exact();
+        if self.cfg.current_noise_ma > 0.0 {
+            let noise = gaussian(&mut self.rng) * self.cfg.current_noise_ma / self.ma_per_count();
+            s.current = saturate_i32(i64::from(s.current) + round_i64(noise));
+        }
+        s
+    }
+
+    fn sample_exact(&self) -> Sample {
+        let current = self.mech.current * 1000.0 / self.ma_per_count();
+        let rpm = self.mech.omega * 60.0 / core::f64::consts::TAU;
+        Sample {
+            current: saturate_i32(round_i64(current)),
+            speed: saturate_i32(round_i64(
+                rpm / robobus_whj::units::ACTUAL_SPEED_RPM_PER_COUNT,
+            )),
+            position: self.reported_position(),
+            enabled: self.enabled,
+            error: self.errors,
+            voltage: saturate_i16(round_i64(self.mech.bus_v * 100.0)),
+            temperature: saturate_i16(round_i64(self.mech.temp_c * 10.0)),
+            brake_locked: self.brake_locked(),
+            broadcast_counter: self.counter,
+        }
+    }
+
+    fn read_word(&self, addr: u8, s: &Sample) -> u16 {
+        let lo = |v: i32| (u32::from_ne_bytes(v.to_ne_bytes()) & 0xFFFF) as u16;
+        let hi = |v: i32| (u32::from_ne_bytes(v.to_ne_bytes()) >> 16) as u16;
+        match addr {
+            0x00 => registers::SIGNATURE_VALUE,
+            0x04 | 0x78 => s.error,
+            0x05 => s.voltage.cast_unsigned(),
+            0x06 => s.temperature.cast_unsigned(),
+            0x0A => u16::from(s.enabled),
+            0x0C..=0x0F | 0x50 => 0,
+            0x10 => lo(s.current),
+            0x11 => hi(s.current),
+            0x12 => lo(s.speed),
+            0x13 => hi(s.speed),
+            0x14 => lo(s.position),
+            0x15 => hi(s.position),
+            0x4E if self.register_available(0x4E) => u16::from(s.broadcast_counter),
+            0x6A if self.register_available(0x6A) => u16::from(self.brake_released),
+            a if RegisterInfo::by_raw(a).is_none() || !self.register_available(a) => 0,
+            a => self.ram.get(usize::from(a)).copied().unwrap_or(0),
+        }
+    }
+
+    /// Read `count` registers from `start` into `out`, sampling the live values once.
+    pub(crate) fn read_words(&mut self, start: u8, out: &mut [u16]) {
+        let s = self.sample();
+        for (i, w) in out.iter_mut().enumerate() {
+            let a = usize::from(start) + i;
+            *w = u8::try_from(a).map_or(0, |a| self.read_word(a, &s));
+        }
+    }
+
+    /// Check a word write without side effects.
+    fn precheck(&self, addr: u8, value: u16) -> Result<(), WriteOutcome> {
+        let Some(info) = RegisterInfo::by_raw(addr) else {
+            return Err(WriteOutcome::Ack(false));
+        };
+        if info.access == Access::ReadOnly {
+            return Err(WriteOutcome::Permission);
+        }
+        if !self.register_available(addr) {
+            return Err(WriteOutcome::Ack(false));
+        }
+        if info.half == Half::Single && !info.in_range(i32::from(value.cast_signed())) {
+            // Flags accept only 0/1 (§2.4); enumerations and IDs their documented range.
+            return Err(WriteOutcome::Ack(false));
+        }
+        Ok(())
+    }
+
+    /// Write consecutive registers from one command (1, 2 or 4 data bytes, §2.3).
+    pub(crate) fn write_words(&mut self, start: u8, words: &[u16], now: Duration) -> WriteOutcome {
+        let mut first_failure = None;
+        for (i, &w) in words.iter().enumerate() {
+            let Some(a) = usize::from(start)
+                .checked_add(i)
+                .and_then(|a| u8::try_from(a).ok())
+            else {
+                return WriteOutcome::Ack(false);
+            };
+            if let Err(outcome) = self.precheck(a, w) {
+                if outcome == WriteOutcome::Permission {
+                    return outcome;
+                }
+                first_failure.get_or_insert(outcome);
+            }
+        }
+        if let Some(outcome) = first_failure {
+            return outcome;
+        }
+        let mut ok = true;
+        let mut i = 0;
+        while i < words.len() {
+            let a = usize::from(start) + i;
+            let Ok(a8) = u8::try_from(a) else { break };
+            let w = words[i];
+            // Targets are applied as one 32-bit value when both halves come together.
+            if matches!(a, 0x32 | 0x34 | 0x36) && i + 1 < words.len() {
+                let value = i32::from_ne_bytes(
+                    (u32::from(words[i + 1]) << 16 | u32::from(w)).to_ne_bytes(),
+                );
+                ok &= self.write_target(a, value);
+                i += 2;
+                continue;
+            }
+            ok &= self.write_one(a8, w, now);
+            i += 1;
+        }
+        WriteOutcome::Ack(ok)
+    }
+
+    fn write_target(&mut self, low: usize, value: i32) -> bool {
+        if low == 0x36 {
+            self.set_position_target(value, true)
+        } else {
+            self.set_i32(low, value);
+            true
+        }
+    }
+
+    fn write_one(&mut self, addr: u8, value: u16, now: Duration) -> bool {
+        let a = usize::from(addr);
+        match addr {
+            0x01 => {
+                self.ram[a] = value;
+                if self.cfg.id_change_immediate {
+                    self.bus_id = u8::try_from(value).unwrap_or(self.bus_id);
+                }
+                true
+            }
+            0x0A => {
+                if value == 1 {
+                    self.enable()
+                } else {
+                    self.disable(now);
+                    true
+                }
+            }
+            0x0C => value == 0 || self.save(now),
+            0x0D => {
+                if value == 1 {
+                    tracing::warn!(
+                        id = self.bus_id,
+                        "SYS_DEMA_ABSPOS written: calibration not simulated (C15)"
+                    );
+                }
+                true
+            }
+            0x0E => {
+                if value == 1 {
+                    self.set_zero();
+                }
+                true
+            }
+            0x0F => {
+                if value == 1 {
+                    self.clear_errors();
+                }
+                true
+            }
+            0x30 => {
+                self.change_mode(value);
+                true
+            }
+            0x32..=0x37 => {
+                // A lone half: every 16-bit write applies at once (torn values possible).
+                let low = a & !1;
+                let mut words = [self.ram[low], self.ram[low + 1]];
+                words[a - low] = value;
+                let v = i32::from_ne_bytes(
+                    (u32::from(words[1]) << 16 | u32::from(words[0])).to_ne_bytes(),
+                );
+                self.write_target(low, v)
+            }
+            0x49 => {
+                if value == 1 {
+                    // Firmware update requested: back to the bootloader.
+                    self.enabled = false;
+                    self.watchdog = None;
+                    self.phase = Phase::Bootloader { since: now };
+                }
+                true
+            }
+            0x4E => {
+                self.counter = u8::try_from(value).unwrap_or(0);
+                true
+            }
+            0x50 => true,
+            0x6A => self.write_brake_release(value),
+            _ => {
+                if let Some(w) = self.ram.get_mut(a) {
+                    *w = value;
+                }
+                true
+            }
+        }
+    }
+
+    /// 0x6A direct brake release (§6.8): once per power cycle, only while disabled.
+    fn write_brake_release(&mut self, value: u16) -> bool {
+        if value == 0 {
+            self.brake_released = false;
+            return true;
+        }
+        if self.enabled || self.brake_release_used {
+            return false;
+        }
+        self.brake_release_used = true;
+        self.brake_released = true;
+        true
+    }
+}
+
+/// The factory flash image of a joint.
+fn factory_flash(cfg: &JointConfig) -> [u16; TABLE_LEN] {
+    let p = &cfg.params;
+    let mut w = [0u16; TABLE_LEN];
+    for info in &registers::REGISTERS {
+        if let Some(slot) = w.get_mut(usize::from(info.addr.get())) {
+            *slot = init_word(info);
+        }
+    }
+    let mut put32 = |low: usize, v: i32| {
+        let bits = u32::from_ne_bytes(v.to_ne_bytes());
+        w[low] = (bits & 0xFFFF) as u16;
+        w[low + 1] = (bits >> 16) as u16;
+    };
+    put32(
+        0x44,
+        saturate_i32(round_i64(cfg.position_limits_deg.0 * COUNTS_PER_DEG)),
+    );
+    put32(
+        0x46,
+        saturate_i32(round_i64(cfg.position_limits_deg.1 * COUNTS_PER_DEG)),
+    );
+    put32(0x4B, 300_000);
+    w[0x00] = registers::SIGNATURE_VALUE;
+    w[0x01] = u16::from(cfg.id);
+    w[0x02] = cfg.model.model().code();
+    w[0x03] = cfg.firmware.0;
+    w[0x07] = p.reduction_ratio;
+    // C11: the bit-rate registers say what the bus really runs at (1M / 5M).
+    w[0x08] = 2;
+    w[0x09] = 5;
+    let peak_counts = p.peak_current_a() * 1000.0 / p.ma_per_count();
+    w[0x40] = u16::try_from(round_i64(peak_counts)).unwrap_or(u16::MAX);
+    w[0x41] = match cfg.speed_limit_unit {
+        SpeedLimitUnit::PerRatio => 3000,
+        SpeedLimitUnit::CentiRpm => {
+            u16::try_from(round_i64(p.peak_speed_rpm * 100.0)).unwrap_or(u16::MAX)
+        }
+    };
+    w[0x42] = 5000;
+    w[0x43] = 5000;
+    w[0x2A..0x30].copy_from_slice(&cfg.unique_id);
+    // Factory gains: raw values, not used by the idealised loops [inf].
+    let gains: [(usize, u16); 13] = [
+        (0x51, 1200),
+        (0x52, 60),
+        (0x53, 0),
+        (0x54, 800),
+        (0x55, 20),
+        (0x56, 0),
+        (0x57, 0),
+        (0x58, 300),
+        (0x59, 0),
+        (0x5A, 0),
+        (0x5B, 0),
+        (0x5C, 50),
+        (0x5D, 50),
+    ];
+    for (a, v) in gains {
+        w[a] = v;
+    }
+    w
+}
+
+fn init_word(info: &RegisterInfo) -> u16 {
+    // A pair's initial value is the i32 on its low word.
+    let v = match info.half {
+        Half::High => info
+            .partner()
+            .and_then(RegisterInfo::by_addr)
+            .and_then(|low| low.init)
+            .unwrap_or(0),
+        Half::Single | Half::Low => info.init.unwrap_or(0),
+    };
+    let bits = u32::from_ne_bytes(v.to_ne_bytes());
+    match info.half {
+        Half::High => (bits >> 16) as u16,
+        Half::Single | Half::Low => (bits & 0xFFFF) as u16,
+    }
+}
+
+/// Round half away from zero, saturating.
+#[allow(clippy::cast_possible_truncation)] // `as` saturates, which is what we want.
+pub(crate) fn round_i64(x: f64) -> i64 {
+    x.round() as i64
+}
+
+pub(crate) fn saturate_i32(x: i64) -> i32 {
+    i32::try_from(x).unwrap_or(if x < 0 { i32::MIN } else { i32::MAX })
+}
+
+fn saturate_i16(x: i64) -> i16 {
+    i16::try_from(x).unwrap_or(if x < 0 { i16::MIN } else { i16::MAX })
+}
+
+fn status(ok: bool) -> WriteStatus {
+    if ok {
+        WriteStatus::Ok
+    } else {
+        WriteStatus::Failed
+    }
+}
+
+/// A standard normal sample (Box–Muller).
+fn gaussian(rng: &mut ChaCha8Rng) -> f64 {
+    let u1: f64 = rng.random::<f64>().max(1e-12);
+    let u2: f64 = rng.random::<f64>();
+    (-2.0 * u1.ln()).sqrt() * (core::f64::consts::TAU * u2).cos()
+}

@@ -1,0 +1,79 @@
+//! The pty endpoint on the wall clock, driven in-process through the pty's slave side.
+#![cfg(target_os = "linux")]
+#![allow(clippy::unwrap_used, clippy::panic)] // test helpers
+
+use std::time::{Duration, Instant};
+
+use robobus_link::{ByteLink, LinkError, PtyOptions, PtyPair};
+use robobus_sim::wck::{Bus, BusConfig, Endpoint, Model};
+
+fn transact(client: &mut impl ByteLink, packet: &[u8], wait: Duration) -> (Vec<u8>, Duration) {
+    client.discard_input().unwrap();
+    let t0 = Instant::now();
+    client.write_all(packet).unwrap();
+    let mut buf = [0u8; 2];
+    match client.read_exact(&mut buf, t0 + wait) {
+        Ok(()) => (buf.to_vec(), t0.elapsed()),
+        Err(LinkError::Timeout { received, .. }) => (buf[..received].to_vec(), t0.elapsed()),
+        Err(e) => panic!("{e}"),
+    }
+}
+
+#[test]
+fn endpoint_serves_paced_replies_follows_the_client_baud_and_takes_commands() {
+    let pair = PtyPair::open(&PtyOptions::default()).unwrap();
+    let bus = Bus::with_servos(BusConfig::default(), Model::W1413, [0, 1]);
+    let endpoint = Endpoint::spawn(bus, pair.master, pair.slave_path.clone()).unwrap();
+    assert_eq!(endpoint.path(), pair.slave_path);
+    let mut client = pair.slave;
+    std::thread::sleep(Duration::from_millis(80));
+
+    let wait = Duration::from_millis(200);
+    let (reply, took) = transact(&mut client, &[0xFF, 0xA0, 0x00, 0x20], wait);
+    assert_eq!(reply, [0x00, 0x7F]);
+    // Command 347 µs + turnaround 1006.6 µs + reply 173.6 µs on the simulated wire.
+    assert!(took >= Duration::from_micros(1520), "{took:?}");
+
+    // The test API through the serving thread.
+    endpoint
+        .with_bus(|b| b.servo_mut(1).unwrap().set_position(40))
+        .unwrap();
+    assert_eq!(
+        transact(&mut client, &[0xFF, 0xA1, 0x00, 0x21], wait).0,
+        [0x00, 40]
+    );
+
+    // A client at another baud rate gets nothing sensible.
+    client.set_baud(57_600).unwrap();
+    std::thread::sleep(Duration::from_millis(30));
+    let (reply, _) = transact(
+        &mut client,
+        &[0xFF, 0xA0, 0x00, 0x20],
+        Duration::from_millis(30),
+    );
+    assert_ne!(reply, [0x00, 0x7F]);
+    client.set_baud(115_200).unwrap();
+    std::thread::sleep(Duration::from_millis(30));
+    assert_eq!(
+        transact(&mut client, &[0xFF, 0xA0, 0x00, 0x20], wait).0,
+        [0x00, 0x7F]
+    );
+
+    // Power-cycled, the module is deaf for 65 ms.
+    endpoint.with_bus(|b| b.power_cycle(0)).unwrap();
+    let (reply, _) = transact(
+        &mut client,
+        &[0xFF, 0xA0, 0x00, 0x20],
+        Duration::from_millis(20),
+    );
+    assert!(reply.is_empty(), "{reply:?}");
+    std::thread::sleep(Duration::from_millis(70));
+    assert_eq!(
+        transact(&mut client, &[0xFF, 0xA0, 0x00, 0x20], wait).0,
+        [0x00, 0x7F]
+    );
+
+    let stats = endpoint.stop().unwrap();
+    assert!(stats.bytes_in >= 24 && stats.bytes_out >= 8, "{stats:?}");
+    assert!(stats.cpu < stats.wall, "{stats:?}");
+}

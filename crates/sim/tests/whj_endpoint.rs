@@ -1,0 +1,51 @@
+//! The wall-clock endpoint: `serve` on an in-memory frame link answers like the virtual
+//! bus, no earlier than the wire allows, and stops when asked.
+
+#![allow(clippy::unwrap_used, clippy::panic)] // Test code: a failed unwrap is a failed test.
+
+mod whj_common;
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::thread;
+use std::time::{Duration, Instant};
+
+use robobus_link::{FrameLink, MemoryBus};
+use robobus_sim::whj::{WhjBus, WhjModel, serve};
+use whj_common::{frame, pos_cmd};
+
+#[test]
+fn serve_answers_on_the_wall_clock_and_stops() {
+    let link = MemoryBus::new();
+    let mut host = link.endpoint();
+    let mut sim_end = link.endpoint();
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = Arc::clone(&stop);
+    let server = thread::spawn(move || {
+        let mut bus = WhjBus::chain(1..=7, WhjModel::Whj60, 1);
+        serve(&mut bus, &mut sim_end, &flag).unwrap()
+    });
+
+    let mut ask = |f, want: u32| {
+        let t0 = Instant::now();
+        host.send(&f).unwrap();
+        let got = host.recv(Instant::now() + Duration::from_secs(2)).unwrap();
+        assert_eq!(got.frame.raw_id(), want, "reply to {f:?}");
+        (got.frame, t0.elapsed())
+    };
+    let (ack, _) = ask(frame(0x003, &[0x02, 0x49, 0x00]), 0x103);
+    assert_eq!(ack.data(), &[0x02, 0x49, 0x01]);
+    // A servo command and its feedback take at least their wire time (103 µs) plus the
+    // 20 µs processing delay.
+    let (fb, rtt) = ask(pos_cmd(3, 1000), 0x503);
+    assert_eq!(fb.len(), 16);
+    assert!(rtt >= Duration::from_micros(123), "{rtt:?}");
+    // Joint 4 is still in its bootloader: no answer.
+    host.send(&frame(0x604, &[])).unwrap();
+    let none = host.recv(Instant::now() + Duration::from_millis(50));
+    assert!(none.unwrap_err().is_timeout());
+
+    stop.store(true, Ordering::Relaxed);
+    let stats = server.join().unwrap();
+    assert_eq!((stats.received, stats.sent), (3, 2));
+}
