@@ -326,12 +326,18 @@ impl ByteLink for PtyLink {
     }
 }
 
-/// The output baud rate termios currently holds for a terminal (for tests and
-/// diagnostics), or `None` for a rate outside the standard table.
+/// The output baud rate termios currently holds for a terminal, in bit/s, or `None` for
+/// rate 0 (hang-up).
+///
+/// Any rate is reported, including arbitrary ones set through `termios2` (`BOTHER`), as
+/// the `serialport` crate does: this reads the terminal with `TCGETS2` (via `rustix`), so a
+/// client's choice of API can never make the reader fail. (`nix`'s `cfgetospeed` panics
+/// on `BOTHER`, which is why it is not used here.)
 pub fn termios_speed(fd: impl AsFd) -> Result<Option<u32>, LinkError> {
-    let t = termios::tcgetattr(&fd).map_err(|e| LinkError::io("reading termios", errno_io(e)))?;
-    let rate = termios::cfgetospeed(&t);
-    Ok(BAUD_TABLE.iter().find(|(_, r)| *r == rate).map(|(b, _)| *b))
+    let t = rustix::termios::tcgetattr(&fd)
+        .map_err(|e| LinkError::io("reading termios", io::Error::from(e)))?;
+    let rate = t.output_speed();
+    Ok((rate != 0).then_some(rate))
 }
 
 impl AsFd for PtyLink {

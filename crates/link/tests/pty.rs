@@ -279,3 +279,18 @@ fn writes_nobody_drains_time_out_instead_of_hanging() {
     assert!(start.elapsed() < Duration::from_secs(5));
     drop(slave);
 }
+
+/// `serialport` sets line rates with termios2 (`BOTHER`); the master side must read any
+/// such rate back, standard or not, without failing (a simulator reads it to follow its
+/// client's baud rate).
+#[test]
+fn termios2_rates_set_through_serialport_read_back_on_the_master() {
+    let PtyPair {
+        master, slave_path, ..
+    } = PtyPair::open(&PtyOptions::default()).unwrap();
+    let path = slave_path.to_str().unwrap().to_owned();
+    let mut port = SerialLink::open(&path, 115_200).unwrap();
+    assert_eq!(termios_speed(&master).unwrap(), Some(115_200));
+    port.set_baud(250_000).unwrap();
+    assert_eq!(termios_speed(&master).unwrap(), Some(250_000));
+}
