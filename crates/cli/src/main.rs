@@ -1,24 +1,115 @@
 //! `robobus`: drive and simulate wCK servos and WHJ joints from the command line.
 //!
-//! One module per subcommand; this file only parses and dispatches.
+//! One module per subcommand; this file only parses, sets up logging and dispatches.
+//!
+//! | module | subcommand |
+//! | --- | --- |
+//! | [`wck`] | `robobus wck --port PATH ...` (wCK servos on a serial bus) |
+//! | [`whj`] | `robobus whj --bus BUS ...` (WHJ joints on CAN FD) |
+//! | [`plot`] | `robobus plot FILE.csv -o FILE.png\|svg` |
+//! | [`doctor`] | `robobus doctor` (setup checks) |
+//! | [`generate`] | `robobus completions SHELL`, `robobus man` |
+//! | [`sim_wck`], [`sim_whj`] | `robobus sim wck`, `robobus sim whj` |
+//!
+//! Cross-cutting pieces: [`exit`] (exit codes and the error kinds that select them),
+//! [`output`] (how `--dry-run` prints packets and frames), [`client`] (the single place
+//! where a planned command meets a device).
+//!
+//! # Exit codes
+//!
+//! See [`exit::Exit`]: 0 success, 1 device / runtime error, 2 usage or validation error
+//! (nothing was opened or sent), 3 timeout or no device answered, 4 not available in this
+//! build, 5 `doctor` found a problem, 130 interrupted (Ctrl-C).
 
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod client;
+mod doctor;
+mod exit;
+mod generate;
+mod output;
+mod plot;
 mod sim_wck;
 mod sim_whj;
+mod wck;
+mod whj;
+
+use exit::Exit;
+
+/// Text shown after the top-level `--help`: exit codes and where to start.
+const AFTER_HELP: &str = "\
+Exit codes:
+  0    success
+  1    device or runtime error (I/O, a device reported an error, a malformed reply)
+  2    usage or validation error: a value is out of range or malformed; nothing was
+       opened or sent
+  3    timeout: no device answered
+  4    not available in this build (the command needs a part that is not built yet)
+  5    `robobus doctor` found at least one problem
+  130  interrupted (Ctrl-C); devices were brought to their safe state first
+
+Every value is checked before anything is opened; `--dry-run` prints the exact bytes
+(wCK) or CAN FD frames (WHJ) a command would send, one per line, without opening anything.
+
+Examples:
+  robobus wck --port /dev/ttyUSB0 --dry-run move 3 127      # prints FF 03 7F 7C
+  robobus whj --bus can0 --dry-run enable 1                 # prints 001##1020A01
+  robobus sim wck --servos 0-5 --link /tmp/wck              # a simulated wCK bus
+  robobus doctor --port /dev/ttyUSB0 --can can0";
 
 /// Drive and simulate RoboBuilder wCK servos and RealMan WHJ joints.
 #[derive(Debug, Parser)]
-#[command(name = "robobus", version, about, propagate_version = true)]
-struct Cli {
+#[command(
+    name = "robobus",
+    version,
+    propagate_version = true,
+    after_help = AFTER_HELP
+)]
+pub(crate) struct Cli {
+    /// Options every subcommand accepts.
+    #[command(flatten)]
+    global: Global,
+    /// What to do.
     #[command(subcommand)]
     command: Command,
 }
 
+/// Options every subcommand accepts (written before or after the subcommand).
+#[derive(Debug, Clone, Copy, Default, clap::Args)]
+pub(crate) struct Global {
+    /// Machine-readable output: one JSON document on stdout.
+    #[arg(long, global = true)]
+    pub(crate) json: bool,
+    /// Print the exact bytes / CAN FD frames the command would send, one per line, and
+    /// exit without opening any port or bus.
+    #[arg(long, global = true)]
+    pub(crate) dry_run: bool,
+    /// More log output on stderr (-v info, -vv debug, -vvv trace). `RUST_LOG` overrides.
+    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    pub(crate) verbose: u8,
+    /// Answer "yes" to confirmations. Commands that rewrite a device's EEPROM / flash
+    /// (wck set-id, set-baud, set (not --runtime), program upload; whj set-id, save) ask
+    /// first on a terminal, and without a terminal need --yes.
+    #[arg(short = 'y', long, global = true)]
+    pub(crate) yes: bool,
+}
+
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Drive wCK servos on a serial (UART) bus.
+    Wck(wck::Args),
+    /// Drive WHJ joints on a CAN FD bus (SocketCAN or the python-can UDP bus).
+    Whj(whj::Args),
+    /// Plot a recording (CSV) to a PNG or SVG file.
+    Plot(plot::Args),
+    /// Check the machine's setup: serial ports, USB latency, SocketCAN, the UDP bus.
+    Doctor(doctor::Args),
+    /// Print a shell completion script (bash, zsh, fish, elvish, powershell).
+    Completions(generate::CompletionArgs),
+    /// Write the man pages (robobus.1 and one per subcommand).
+    Man(generate::ManArgs),
     /// Run a simulated bus that other programs can talk to like real hardware.
     #[command(subcommand)]
     Sim(SimCommand),
@@ -32,24 +123,42 @@ enum SimCommand {
     Whj(sim_whj::Args),
 }
 
-fn main() -> ExitCode {
-    let cli = Cli::parse();
+fn init_logging(verbose: u8) {
+    let default = match verbose {
+        0 => "warn",
+        1 => "info",
+        2 => "debug",
+        _ => "trace",
+    };
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default)),
         )
         .with_writer(std::io::stderr)
         .init();
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    init_logging(cli.global.verbose);
+    let g = cli.global;
     let result = match cli.command {
+        Command::Wck(args) => wck::run(g, &args),
+        Command::Whj(args) => whj::run(g, &args),
+        Command::Plot(args) => plot::run(g, &args),
+        Command::Doctor(args) => doctor::run(g, &args),
+        Command::Completions(args) => generate::completions(&args),
+        Command::Man(args) => generate::man(&args),
         Command::Sim(SimCommand::Wck(args)) => sim_wck::run(&args),
         Command::Sim(SimCommand::Whj(args)) => sim_whj::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
+            let code = Exit::of(&err);
             eprintln!("robobus: error: {err:#}");
-            ExitCode::FAILURE
+            ExitCode::from(code as u8)
         }
     }
 }

@@ -98,7 +98,7 @@ fn parse_joints(s: &str) -> Result<JointIds, String> {
     Ok(JointIds(ids))
 }
 
-fn parse_bus(s: &str) -> Result<BusSpec, String> {
+pub(crate) fn parse_bus(s: &str) -> Result<BusSpec, String> {
     if s == "udp" {
         let d = UdpBusConfig::default();
         return Ok(BusSpec::Udp {

@@ -1,0 +1,670 @@
+//! `robobus doctor`: checks what breaks real setups, each finding with a concrete fix.
+//!
+//! The checks are independent functions returning [`Finding`]s, grouped by what they look
+//! at: serial ports ([`check_serial`]), SocketCAN interfaces ([`check_can`]) and the UDP
+//! bus ([`check_udp`]). None of them opens a port or sends anything. Checks that need a
+//! device (joints stuck in IAP, duplicate IDs, firmware versions) will be added as more
+//! groups that take the client; they report through the same [`Finding`] type.
+//!
+//! Exit code 0 when nothing failed (warnings allowed), 5 when a check failed.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use serde_json::json;
+
+use crate::Global;
+use crate::exit::ProblemsFound;
+
+/// Options of `robobus doctor`.
+#[derive(Debug, clap::Args)]
+#[command(after_help = "\
+Without --port / --can, every USB serial port (/dev/ttyUSB*, /dev/ttyACM*) and every CAN
+interface found is checked, and the UDP bus always is. Nothing is opened or sent.
+Exit code 0 when no check failed (warnings allowed), 5 when one did.")]
+pub(crate) struct Args {
+    /// Serial port(s) to check (repeatable).
+    #[arg(long, value_name = "PATH")]
+    port: Vec<PathBuf>,
+    /// SocketCAN interface(s) to check (repeatable), e.g. can0, vcan0.
+    #[arg(long, value_name = "IFACE")]
+    can: Vec<String>,
+    /// Apply the fixes robobus can apply itself: set USB-serial latency timers to 1 ms
+    /// (needs write access to sysfs, usually root).
+    #[arg(long)]
+    fix: bool,
+}
+
+/// Outcome of one check.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Status {
+    /// Fine.
+    Ok,
+    /// Works, but not as well as it could.
+    Warn,
+    /// Broken: robobus will not work this way.
+    Fail,
+    /// Not applicable here.
+    Skip,
+}
+
+impl Status {
+    fn label(self) -> &'static str {
+        match self {
+            Self::Ok => "ok",
+            Self::Warn => "warn",
+            Self::Fail => "FAIL",
+            Self::Skip => "skip",
+        }
+    }
+}
+
+/// One finding: what was checked, the outcome, the facts, and the fix.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) struct Finding {
+    /// What the check looked at (`/dev/ttyUSB0`, `can0`, `udp bus`).
+    pub(crate) subject: String,
+    /// The check's name.
+    pub(crate) check: &'static str,
+    /// Outcome.
+    pub(crate) status: Status,
+    /// What was found.
+    pub(crate) detail: String,
+    /// How to fix it (for warn / fail).
+    pub(crate) fix: Option<String>,
+}
+
+fn finding(
+    subject: &str,
+    check: &'static str,
+    status: Status,
+    detail: impl Into<String>,
+    fix: Option<String>,
+) -> Finding {
+    Finding {
+        subject: subject.to_owned(),
+        check,
+        status,
+        detail: detail.into(),
+        fix,
+    }
+}
+
+/// Runs `robobus doctor`.
+pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
+    let ports = if args.port.is_empty() && args.can.is_empty() {
+        find_serial_ports()
+    } else {
+        args.port.clone()
+    };
+    let cans = if args.port.is_empty() && args.can.is_empty() {
+        find_can_interfaces(Path::new(NET_DIR))
+    } else {
+        args.can.clone()
+    };
+    let mut findings = Vec::new();
+    if ports.is_empty() && args.can.is_empty() {
+        findings.push(finding(
+            "serial",
+            "ports",
+            Status::Skip,
+            "no USB serial port found (/dev/ttyUSB*, /dev/ttyACM*)",
+            None,
+        ));
+    }
+    for p in &ports {
+        findings.extend(check_serial(p, args.fix));
+    }
+    findings.extend(check_can_kernel());
+    for iface in &cans {
+        findings.extend(check_can(Path::new(NET_DIR), iface));
+    }
+    findings.extend(check_udp(Path::new(NET_DIR)));
+    report(g, &findings)
+}
+
+fn report(g: Global, findings: &[Finding]) -> anyhow::Result<()> {
+    let failed = findings.iter().filter(|f| f.status == Status::Fail).count();
+    if g.json {
+        let rows: Vec<_> = findings
+            .iter()
+            .map(|f| {
+                json!({
+                    "subject": f.subject,
+                    "check": f.check,
+                    "status": f.status.label().to_ascii_lowercase(),
+                    "detail": f.detail,
+                    "fix": f.fix,
+                })
+            })
+            .collect();
+        crate::output::print_json(&json!({"ok": failed == 0, "findings": rows}))?;
+    } else {
+        crate::output::print(&table(findings))?;
+    }
+    if failed > 0 {
+        return Err(anyhow::Error::new(ProblemsFound(failed)));
+    }
+    Ok(())
+}
+
+/// The checklist as a text table; fixes on an indented line below their finding.
+fn table(findings: &[Finding]) -> String {
+    let w_subject = findings
+        .iter()
+        .map(|f| f.subject.chars().count())
+        .max()
+        .unwrap_or(7)
+        .max(7);
+    let w_check = findings
+        .iter()
+        .map(|f| f.check.len())
+        .max()
+        .unwrap_or(5)
+        .max(5);
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "{:<4}  {:<w_subject$}  {:<w_check$}  DETAIL",
+        "", "SUBJECT", "CHECK"
+    );
+    for f in findings {
+        let _ = writeln!(
+            s,
+            "{:<4}  {:<w_subject$}  {:<w_check$}  {}",
+            f.status.label(),
+            f.subject,
+            f.check,
+            f.detail
+        );
+        if let Some(fix) = &f.fix {
+            let _ = writeln!(s, "{:<4}  {:<w_subject$}  fix: {fix}", "", "");
+        }
+    }
+    s
+}
+
+// ---------------------------------------------------------------- serial ports
+
+fn find_serial_ports() -> Vec<PathBuf> {
+    let mut out: Vec<PathBuf> = std::fs::read_dir("/dev")
+        .into_iter()
+        .flatten()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.starts_with("ttyUSB") || n.starts_with("ttyACM"))
+        })
+        .collect();
+    out.sort();
+    out
+}
+
+/// The name of group `gid` from /etc/group.
+fn group_name(gid: u32) -> Option<String> {
+    let text = std::fs::read_to_string("/etc/group").ok()?;
+    text.lines().find_map(|l| {
+        let mut f = l.split(':');
+        let name = f.next()?;
+        let _pw = f.next()?;
+        (f.next()?.parse::<u32>().ok()? == gid).then(|| name.to_owned())
+    })
+}
+
+/// Checks a serial port: exists, is a character device, readable and writable, latency
+/// timer.
+pub(crate) fn check_serial(path: &Path, fix: bool) -> Vec<Finding> {
+    use std::os::unix::fs::{FileTypeExt as _, MetadataExt as _};
+    let subject = path.display().to_string();
+    let mut out = Vec::new();
+    let meta = match std::fs::metadata(path) {
+        Ok(m) => m,
+        Err(e) => {
+            out.push(finding(
+                &subject,
+                "exists",
+                Status::Fail,
+                format!("cannot stat: {e}"),
+                Some(
+                    "check the cable and the adapter; `ls -l /dev/serial/by-id/` lists the \
+                     serial adapters the kernel sees; `robobus sim wck` prints a simulated \
+                     port's path"
+                        .into(),
+                ),
+            ));
+            return out;
+        }
+    };
+    if meta.file_type().is_char_device() {
+        out.push(finding(
+            &subject,
+            "exists",
+            Status::Ok,
+            "character device",
+            None,
+        ));
+    } else {
+        out.push(finding(
+            &subject,
+            "exists",
+            Status::Warn,
+            "exists but is not a character device (not a serial port)",
+            Some("pass the device node, e.g. /dev/ttyUSB0".into()),
+        ));
+    }
+    let access = nix::unistd::access(
+        path,
+        nix::unistd::AccessFlags::R_OK | nix::unistd::AccessFlags::W_OK,
+    );
+    let group = group_name(meta.gid()).unwrap_or_else(|| meta.gid().to_string());
+    match access {
+        Ok(()) => out.push(finding(
+            &subject,
+            "permissions",
+            Status::Ok,
+            format!("readable and writable (group {group})"),
+            None,
+        )),
+        Err(e) => out.push(finding(
+            &subject,
+            "permissions",
+            Status::Fail,
+            format!(
+                "no read/write access ({e}); mode {:o}, group {group}",
+                meta.mode() & 0o777
+            ),
+            Some(format!(
+                "sudo usermod -aG {group} \"$USER\", then log out and in again"
+            )),
+        )),
+    }
+    out.push(check_latency(path, &subject, fix));
+    out
+}
+
+fn check_latency(path: &Path, subject: &str, fix: bool) -> Finding {
+    let tty = std::fs::canonicalize(path)
+        .ok()
+        .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+        .unwrap_or_else(|| "ttyUSB0".into());
+    let manual_fix = format!(
+        "robobus doctor --port {subject} --fix (as root), or `echo 1 | sudo tee \
+         /sys/bus/usb-serial/devices/{tty}/latency_timer`; to keep it, a udev rule: \
+         ACTION==\"add\", SUBSYSTEM==\"usb-serial\", DRIVER==\"ftdi_sio\", ATTR{{latency_timer}}=\"1\""
+    );
+    match robobus_link::usb_latency_timer(path) {
+        None => finding(
+            subject,
+            "latency timer",
+            Status::Skip,
+            "no USB-serial latency timer (not an FTDI-style adapter)",
+            None,
+        ),
+        Some(1) => finding(subject, "latency timer", Status::Ok, "1 ms", None),
+        Some(ms) if fix => match robobus_link::set_usb_latency_timer(path, 1) {
+            Ok(()) => finding(
+                subject,
+                "latency timer",
+                Status::Ok,
+                format!("was {ms} ms, set to 1 ms (until the adapter is replugged)"),
+                None,
+            ),
+            Err(e) => finding(
+                subject,
+                "latency timer",
+                Status::Warn,
+                format!("{ms} ms; setting it to 1 ms failed: {e}"),
+                Some(manual_fix),
+            ),
+        },
+        Some(ms) => finding(
+            subject,
+            "latency timer",
+            Status::Warn,
+            format!(
+                "{ms} ms: each reply can wait up to {ms} ms in the adapter, capping the poll \
+                 rate"
+            ),
+            Some(manual_fix),
+        ),
+    }
+}
+
+// ---------------------------------------------------------------- SocketCAN
+
+const NET_DIR: &str = "/sys/class/net";
+/// `ARPHRD_CAN`.
+const ARPHRD_CAN: u32 = 280;
+/// MTU of a CAN FD capable interface.
+const CANFD_MTU: u32 = 72;
+
+fn read_u32(path: &Path) -> Option<u32> {
+    let t = std::fs::read_to_string(path).ok()?;
+    let t = t.trim();
+    match t.strip_prefix("0x") {
+        Some(hex) => u32::from_str_radix(hex, 16).ok(),
+        None => t.parse().ok(),
+    }
+}
+
+fn find_can_interfaces(net_dir: &Path) -> Vec<String> {
+    let mut out: Vec<String> = std::fs::read_dir(net_dir)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter(|e| read_u32(&e.path().join("type")) == Some(ARPHRD_CAN))
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    out.sort();
+    out
+}
+
+fn check_can_kernel() -> Vec<Finding> {
+    #[cfg(target_os = "linux")]
+    let has = robobus_link::socketcan::kernel_has_can();
+    #[cfg(not(target_os = "linux"))]
+    let has = false;
+    vec![if has {
+        finding(
+            "socketcan",
+            "kernel",
+            Status::Ok,
+            "AF_CAN sockets available",
+            None,
+        )
+    } else {
+        finding(
+            "socketcan",
+            "kernel",
+            Status::Warn,
+            "this kernel has no SocketCAN (socket(AF_CAN) fails); only the UDP bus works",
+            Some(
+                "sudo modprobe can can_raw vcan (if the modules exist); otherwise use \
+                 --bus udp"
+                    .into(),
+            ),
+        )
+    }]
+}
+
+/// Checks a SocketCAN interface under `net_dir`: exists, is CAN, is up, is FD-capable, and
+/// (via `ip -details -json`) its bit rates and FD mode.
+pub(crate) fn check_can(net_dir: &Path, iface: &str) -> Vec<Finding> {
+    let dir = net_dir.join(iface);
+    let is_virtual = iface.starts_with("vcan");
+    let setup = if is_virtual {
+        format!(
+            "sudo modprobe vcan && sudo ip link add dev {iface} type vcan && sudo ip link set \
+             {iface} mtu 72 up"
+        )
+    } else {
+        format!(
+            "sudo ip link set {iface} down && sudo ip link set {iface} type can bitrate \
+             1000000 dbitrate 5000000 fd on && sudo ip link set {iface} up"
+        )
+    };
+    if !dir.exists() {
+        return vec![finding(
+            iface,
+            "exists",
+            Status::Fail,
+            "no such network interface",
+            Some(if is_virtual {
+                setup
+            } else {
+                "plug in the CAN FD adapter and check `ip link`; or test with a virtual bus: \
+                 sudo modprobe vcan && sudo ip link add dev vcan0 type vcan && sudo ip link \
+                 set vcan0 mtu 72 up"
+                    .to_owned()
+            }),
+        )];
+    }
+    let mut out = Vec::new();
+    match read_u32(&dir.join("type")) {
+        Some(ARPHRD_CAN) => out.push(finding(iface, "type", Status::Ok, "CAN interface", None)),
+        other => {
+            out.push(finding(
+                iface,
+                "type",
+                Status::Fail,
+                format!("not a CAN interface (link type {other:?}, CAN is 280)"),
+                Some("name a CAN interface (`ip -details link show type can`)".into()),
+            ));
+            return out;
+        }
+    }
+    let up = read_u32(&dir.join("flags")).is_some_and(|f| f & 1 != 0);
+    out.push(if up {
+        finding(iface, "up", Status::Ok, "interface is up", None)
+    } else {
+        finding(
+            iface,
+            "up",
+            Status::Fail,
+            "interface is down",
+            Some(format!("sudo ip link set {iface} up")),
+        )
+    });
+    match read_u32(&dir.join("mtu")) {
+        Some(CANFD_MTU) => out.push(finding(
+            iface,
+            "fd mtu",
+            Status::Ok,
+            "MTU 72 (CAN FD)",
+            None,
+        )),
+        Some(mtu) => out.push(finding(
+            iface,
+            "fd mtu",
+            Status::Fail,
+            format!("MTU {mtu}: not CAN FD (needs 72); WHJ joints talk CAN FD only"),
+            Some(setup.clone()),
+        )),
+        None => out.push(finding(
+            iface,
+            "fd mtu",
+            Status::Skip,
+            "MTU unreadable",
+            None,
+        )),
+    }
+    if is_virtual {
+        out.push(finding(
+            iface,
+            "bit rates",
+            Status::Skip,
+            "virtual interface: no bit timing",
+            None,
+        ));
+    } else {
+        out.push(check_bit_rates(iface, &setup));
+    }
+    out
+}
+
+/// Bit rates and FD mode from `ip -details -json link show IFACE`.
+fn check_bit_rates(iface: &str, setup: &str) -> Finding {
+    let Ok(o) = Command::new("ip")
+        .args(["-details", "-json", "link", "show", iface])
+        .output()
+    else {
+        return finding(
+            iface,
+            "bit rates",
+            Status::Skip,
+            "`ip` (iproute2) not found; cannot read the bit timing",
+            Some("sudo apt-get install iproute2".into()),
+        );
+    };
+    let parsed: Option<serde_json::Value> = serde_json::from_slice(&o.stdout).ok();
+    let Some(data) = parsed
+        .as_ref()
+        .and_then(|v| v.get(0))
+        .and_then(|v| v.pointer("/linkinfo/info_data"))
+    else {
+        return finding(
+            iface,
+            "bit rates",
+            Status::Skip,
+            "`ip -details -json` shows no CAN bit timing",
+            None,
+        );
+    };
+    bit_rate_finding(iface, data, setup)
+}
+
+/// Judges the `info_data` object of `ip -details -json link show` for a CAN interface.
+pub(crate) fn bit_rate_finding(iface: &str, data: &serde_json::Value, setup: &str) -> Finding {
+    let bitrate = data
+        .pointer("/bittiming/bitrate")
+        .and_then(serde_json::Value::as_u64);
+    let dbitrate = data
+        .pointer("/data_bittiming/bitrate")
+        .and_then(serde_json::Value::as_u64);
+    let fd = data
+        .get("ctrlmode")
+        .and_then(serde_json::Value::as_array)
+        .is_some_and(|m| m.iter().any(|x| x.as_str() == Some("FD")));
+    let detail = format!(
+        "bitrate {}, dbitrate {}, fd {}",
+        bitrate.map_or_else(|| "?".into(), |b| b.to_string()),
+        dbitrate.map_or_else(|| "?".into(), |b| b.to_string()),
+        if fd { "on" } else { "off" }
+    );
+    if bitrate == Some(1_000_000) && dbitrate == Some(5_000_000) && fd {
+        finding(iface, "bit rates", Status::Ok, detail, None)
+    } else {
+        finding(
+            iface,
+            "bit rates",
+            Status::Fail,
+            format!("{detail}; WHJ joints need 1000000 / 5000000 with fd on"),
+            Some(setup.to_owned()),
+        )
+    }
+}
+
+// ---------------------------------------------------------------- UDP bus
+
+/// Checks what the UDP bus needs: loopback up; and, for python-can peers, a multicast
+/// route on `lo`.
+pub(crate) fn check_udp(net_dir: &Path) -> Vec<Finding> {
+    let subject = "udp bus";
+    let mut out = Vec::new();
+    let lo_up = read_u32(&net_dir.join("lo").join("flags")).is_some_and(|f| f & 1 != 0);
+    out.push(if lo_up {
+        finding(subject, "loopback", Status::Ok, "lo is up", None)
+    } else {
+        finding(
+            subject,
+            "loopback",
+            Status::Fail,
+            "the loopback interface is down; the UDP bus lives on it",
+            Some("sudo ip link set lo up".into()),
+        )
+    });
+    let group = robobus_link::udp::DEFAULT_GROUP.to_string();
+    let route = Command::new("ip")
+        .args(["route", "get", &group])
+        .output()
+        .ok()
+        .map(|o| String::from_utf8_lossy(&o.stdout).into_owned());
+    out.push(match route {
+        None => finding(
+            subject,
+            "multicast route",
+            Status::Skip,
+            "`ip` (iproute2) not found",
+            None,
+        ),
+        Some(r)
+            if r.split_whitespace()
+                .collect::<Vec<_>>()
+                .windows(2)
+                .any(|w| w == ["dev", "lo"]) =>
+        {
+            finding(
+                subject,
+                "multicast route",
+                Status::Ok,
+                format!("{group} routes via lo (python-can peers can join)"),
+                None,
+            )
+        }
+        Some(r) => finding(
+            subject,
+            "multicast route",
+            Status::Warn,
+            format!(
+                "{group} does not route via lo ({}); robobus endpoints do not need it, \
+                 python-can peers do",
+                r.split_whitespace().collect::<Vec<_>>().join(" ")
+            ),
+            Some(
+                "in a private network namespace (unshare -n): ip link set lo up; ip route \
+                 add 224.0.0.0/4 dev lo"
+                    .into(),
+            ),
+        ),
+    });
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn missing_port_fails_with_a_fix() {
+        let f = check_serial(Path::new("/nonexistent/ttyUSB9"), false);
+        assert_eq!(f.len(), 1);
+        assert_eq!(f[0].status, Status::Fail);
+        assert!(f[0].fix.as_deref().unwrap().contains("/dev/serial/by-id"));
+    }
+
+    #[test]
+    fn can_interface_from_a_fake_sysfs() {
+        let dir = tempfile::tempdir().unwrap();
+        let vcan = dir.path().join("vcan7");
+        std::fs::create_dir(&vcan).unwrap();
+        std::fs::write(vcan.join("type"), "280\n").unwrap();
+        std::fs::write(vcan.join("flags"), "0x1\n").unwrap();
+        std::fs::write(vcan.join("mtu"), "16\n").unwrap();
+        let f = check_can(dir.path(), "vcan7");
+        let mtu = f.iter().find(|f| f.check == "fd mtu").unwrap();
+        assert_eq!(mtu.status, Status::Fail);
+        assert!(mtu.fix.as_deref().unwrap().contains("mtu 72"));
+        std::fs::write(vcan.join("mtu"), "72\n").unwrap();
+        std::fs::write(vcan.join("flags"), "0x0\n").unwrap();
+        let f = check_can(dir.path(), "vcan7");
+        assert!(
+            f.iter()
+                .any(|f| f.check == "fd mtu" && f.status == Status::Ok)
+        );
+        assert!(
+            f.iter()
+                .any(|f| f.check == "up" && f.status == Status::Fail)
+        );
+        let missing = check_can(dir.path(), "vcan8");
+        assert_eq!(missing[0].status, Status::Fail);
+        assert_eq!(find_can_interfaces(dir.path()), ["vcan7"]);
+    }
+
+    #[test]
+    fn bit_rates_are_judged_from_ip_json() {
+        let good: serde_json::Value = serde_json::from_str(
+            r#"{"ctrlmode":["FD"],"bittiming":{"bitrate":1000000},"data_bittiming":{"bitrate":5000000}}"#,
+        )
+        .unwrap();
+        assert_eq!(bit_rate_finding("can0", &good, "x").status, Status::Ok);
+        let classic: serde_json::Value =
+            serde_json::from_str(r#"{"bittiming":{"bitrate":500000}}"#).unwrap();
+        let f = bit_rate_finding("can0", &classic, "setup");
+        assert_eq!(f.status, Status::Fail);
+        assert!(f.detail.contains("500000") && f.detail.contains("fd off"));
+        assert_eq!(f.fix.as_deref(), Some("setup"));
+    }
+}

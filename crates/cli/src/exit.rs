@@ -1,0 +1,138 @@
+//! Exit codes, and the error kinds that select them.
+//!
+//! Every error is an [`anyhow::Error`]; its exit code is decided by [`Exit::of`] from the
+//! marker type at its root: [`Usage`] (code 2), [`Timeout`] (3), [`NotAvailable`] (4),
+//! [`ProblemsFound`] (5), [`Interrupted`] (130). Anything else is a runtime error (1).
+//! Errors from clap's own parsing exit with 2 as well (clap's convention).
+
+use std::fmt;
+
+/// The process exit codes, as `robobus --help` documents them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub(crate) enum Exit {
+    /// Device or runtime error: I/O, a device reported an error, a malformed reply.
+    Runtime = 1,
+    /// Usage or validation error: nothing was opened or sent.
+    Usage = 2,
+    /// No device answered in time.
+    Timeout = 3,
+    /// The command needs a part that is not in this build.
+    NotAvailable = 4,
+    /// `robobus doctor` found at least one problem.
+    ProblemsFound = 5,
+    /// Interrupted by Ctrl-C / SIGTERM.
+    Interrupted = 130,
+}
+
+impl Exit {
+    /// The exit code for an error, from the marker type at the root of its chain.
+    pub(crate) fn of(err: &anyhow::Error) -> Self {
+        if err.downcast_ref::<Usage>().is_some() {
+            Self::Usage
+        } else if err.downcast_ref::<Timeout>().is_some() {
+            Self::Timeout
+        } else if err.downcast_ref::<NotAvailable>().is_some() {
+            Self::NotAvailable
+        } else if err.downcast_ref::<ProblemsFound>().is_some() {
+            Self::ProblemsFound
+        } else if err.downcast_ref::<Interrupted>().is_some() {
+            Self::Interrupted
+        } else {
+            Self::Runtime
+        }
+    }
+}
+
+/// A usage or validation error (exit code 2). The message names the option, the value and
+/// what is allowed.
+#[derive(Debug)]
+pub(crate) struct Usage(pub(crate) String);
+
+impl fmt::Display for Usage {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for Usage {}
+
+/// A usage error as an [`anyhow::Error`].
+pub(crate) fn usage(message: impl Into<String>) -> anyhow::Error {
+    anyhow::Error::new(Usage(message.into()))
+}
+
+/// No device answered before the deadline (exit code 3).
+#[derive(Debug)]
+#[allow(dead_code)] // raised by the client-backed commands once they are wired in
+pub(crate) struct Timeout(pub(crate) String);
+
+impl fmt::Display for Timeout {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for Timeout {}
+
+/// The command needs a part that is not in this build (exit code 4).
+#[derive(Debug)]
+pub(crate) struct NotAvailable(pub(crate) String);
+
+impl fmt::Display for NotAvailable {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for NotAvailable {}
+
+/// `doctor` found problems (exit code 5); the report has been printed already.
+#[derive(Debug)]
+pub(crate) struct ProblemsFound(pub(crate) usize);
+
+impl fmt::Display for ProblemsFound {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} check(s) failed; see the fixes above", self.0)
+    }
+}
+
+impl std::error::Error for ProblemsFound {}
+
+/// Interrupted by Ctrl-C / SIGTERM (exit code 130).
+#[derive(Debug)]
+#[allow(dead_code)] // raised by the client-backed commands once they are wired in
+pub(crate) struct Interrupted;
+
+impl fmt::Display for Interrupted {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("interrupted")
+    }
+}
+
+impl std::error::Error for Interrupted {}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn markers_select_their_codes_even_with_context() {
+        use anyhow::Context as _;
+        let e: anyhow::Result<()> = Err(usage("bad")).context("while parsing");
+        assert_eq!(Exit::of(&e.unwrap_err()), Exit::Usage);
+        assert_eq!(
+            Exit::of(&anyhow::Error::new(NotAvailable("x".into()))),
+            Exit::NotAvailable
+        );
+        assert_eq!(Exit::of(&anyhow::anyhow!("io")), Exit::Runtime);
+        assert_eq!(
+            Exit::of(&anyhow::Error::new(Timeout("t".into()))),
+            Exit::Timeout
+        );
+        assert_eq!(
+            Exit::of(&anyhow::Error::new(Interrupted)),
+            Exit::Interrupted
+        );
+    }
+}

@@ -1,0 +1,256 @@
+//! What a wCK or WHJ command would send, and how `--dry-run` prints it.
+//!
+//! Every `robobus wck` / `robobus whj` subcommand first builds a plan ([`WckPlan`],
+//! [`WhjPlan`]): the validated, typed commands in the order they go on the wire, with the
+//! time each is due. `--dry-run` prints the plan; a real run hands it to [`crate::client`].
+//!
+//! # Text format (stdout)
+//!
+//! * wCK: one packet per line, hex bytes separated by spaces, as the manual prints them:
+//!   `FF 03 7F 7C`.
+//! * WHJ: one CAN FD frame per line in `cansend`'s syntax, `ID##FLAGS DATA` without the
+//!   space: `001##1020A01` is standard ID 0x001, flags 1 (bit-rate switch on; bit 1 = ESI),
+//!   data `02 0A 01`. A line can be passed to `cansend can0` as it is.
+//! * Lines starting with `#` are comments: notes on assumptions, the pacing of timed
+//!   sequences, and (wCK `scan --all-bauds`) the baud rate the following packets go at.
+//!
+//! # JSON format (`--json`)
+//!
+//! One object: `{"dry_run": true, "bus": ..., "notes": [...], "packets": [...]}` for wCK,
+//! `"frames"` for WHJ. A packet is `{"t_ms", "baud", "command", "target", "hex", "bytes",
+//! "reply_len"}`; a frame is `{"t_ms", "id", "fd", "brs", "esi", "hex", "data", "line",
+//! "request"}` (`line` is the text form). `t_ms` is when it is due after the start
+//! (`null` = as soon as the previous exchange is done).
+
+use std::fmt::Write as _;
+use std::io::Write as _;
+
+use robobus_wck::{BaudRate, Command};
+use robobus_whj::{CanFrame, Request};
+use serde_json::{Value, json};
+
+/// One wCK packet to send.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) struct WckStep {
+    /// When it is due, ms after the start; `None` = right after the previous exchange.
+    pub(crate) at_ms: Option<u64>,
+    /// The baud rate it goes at, if the plan switches rates (`scan --all-bauds`).
+    pub(crate) baud: Option<BaudRate>,
+    /// The command.
+    pub(crate) command: Command,
+}
+
+/// The packets a `robobus wck` command sends, in order.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub(crate) struct WckPlan {
+    /// Notes printed as comments (assumptions, pacing).
+    pub(crate) notes: Vec<String>,
+    /// The packets.
+    pub(crate) steps: Vec<WckStep>,
+}
+
+impl WckPlan {
+    /// A plan of one command.
+    pub(crate) fn one(command: Command) -> Self {
+        Self {
+            notes: Vec::new(),
+            steps: vec![WckStep {
+                at_ms: None,
+                baud: None,
+                command,
+            }],
+        }
+    }
+
+    /// Appends a command sent right after the previous exchange.
+    pub(crate) fn push(&mut self, command: Command) {
+        self.steps.push(WckStep {
+            at_ms: None,
+            baud: None,
+            command,
+        });
+    }
+
+    /// The text form (see the module docs), one line per packet or comment.
+    pub(crate) fn to_text(&self) -> String {
+        let mut s = String::new();
+        for n in &self.notes {
+            let _ = writeln!(s, "# {n}");
+        }
+        let mut baud = None;
+        for step in &self.steps {
+            if step.baud.is_some() && step.baud != baud {
+                if let Some(b) = step.baud {
+                    let _ = writeln!(s, "# {b}");
+                }
+                baud = step.baud;
+            }
+            let _ = writeln!(s, "{}", step.command.encode());
+        }
+        s
+    }
+
+    /// The JSON form (see the module docs).
+    pub(crate) fn to_json(&self, port: &str, baud: BaudRate) -> Value {
+        let packets: Vec<Value> = self
+            .steps
+            .iter()
+            .map(|st| {
+                let p = st.command.encode();
+                json!({
+                    "t_ms": st.at_ms,
+                    "baud": st.baud.unwrap_or(baud).bits_per_second(),
+                    "command": st.command.name(),
+                    "target": st.command.target().to_string(),
+                    "hex": p.to_string(),
+                    "bytes": p.as_bytes(),
+                    "reply_len": st.command.reply_len(),
+                })
+            })
+            .collect();
+        json!({
+            "dry_run": true,
+            "bus": {"kind": "wck", "port": port, "baud": baud.bits_per_second()},
+            "notes": self.notes,
+            "packets": packets,
+        })
+    }
+}
+
+/// One WHJ request to send.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) struct WhjStep {
+    /// When it is due, µs after the start; `None` = right after the previous exchange.
+    pub(crate) at_us: Option<u64>,
+    /// The request.
+    pub(crate) request: Request,
+}
+
+/// The frames a `robobus whj` command sends, in order.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub(crate) struct WhjPlan {
+    /// Notes printed as comments.
+    pub(crate) notes: Vec<String>,
+    /// The requests.
+    pub(crate) steps: Vec<WhjStep>,
+}
+
+/// A frame in `cansend` syntax: `001##1020A01` (FD) or `001#0102` (classic).
+pub(crate) fn frame_line(f: &CanFrame) -> String {
+    let mut s = String::with_capacity(8 + 2 * f.len());
+    if f.is_extended() {
+        let _ = write!(s, "{:08X}", f.raw_id());
+    } else {
+        let _ = write!(s, "{:03X}", f.raw_id());
+    }
+    if f.is_fd() {
+        let flags = u8::from(f.brs()) | (u8::from(f.esi()) << 1);
+        let _ = write!(s, "##{flags:X}");
+    } else {
+        s.push('#');
+    }
+    for b in f.data() {
+        let _ = write!(s, "{b:02X}");
+    }
+    s
+}
+
+fn spaced_hex(bytes: &[u8]) -> String {
+    let mut s = String::with_capacity(3 * bytes.len());
+    for (i, b) in bytes.iter().enumerate() {
+        if i > 0 {
+            s.push(' ');
+        }
+        let _ = write!(s, "{b:02X}");
+    }
+    s
+}
+
+impl WhjPlan {
+    /// Appends a request sent right after the previous exchange.
+    pub(crate) fn push(&mut self, request: Request) {
+        self.steps.push(WhjStep {
+            at_us: None,
+            request,
+        });
+    }
+
+    /// Appends a request due at `at_us` µs after the start.
+    pub(crate) fn push_at(&mut self, at_us: u64, request: Request) {
+        self.steps.push(WhjStep {
+            at_us: Some(at_us),
+            request,
+        });
+    }
+
+    /// The text form (see the module docs).
+    pub(crate) fn to_text(&self) -> String {
+        let mut s = String::new();
+        for n in &self.notes {
+            let _ = writeln!(s, "# {n}");
+        }
+        for st in &self.steps {
+            let _ = writeln!(s, "{}", frame_line(&st.request.to_frame()));
+        }
+        s
+    }
+
+    /// The JSON form (see the module docs).
+    pub(crate) fn to_json(&self, bus: &str) -> Value {
+        let frames: Vec<Value> = self
+            .steps
+            .iter()
+            .map(|st| {
+                let f = st.request.to_frame();
+                json!({
+                    "t_ms": st.at_us.map(|us| us as f64 / 1000.0),
+                    "id": f.raw_id(),
+                    "fd": f.is_fd(),
+                    "brs": f.brs(),
+                    "esi": f.esi(),
+                    "hex": spaced_hex(f.data()),
+                    "data": f.data(),
+                    "line": frame_line(&f),
+                    "request": format!("{:?}", st.request),
+                })
+            })
+            .collect();
+        json!({
+            "dry_run": true,
+            "bus": {"kind": "whj", "bus": bus},
+            "notes": self.notes,
+            "frames": frames,
+        })
+    }
+}
+
+/// Writes `text` to stdout (a closed pipe is not an error worth a panic).
+pub(crate) fn print(text: &str) -> anyhow::Result<()> {
+    let mut out = std::io::stdout().lock();
+    match out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err(e.into()),
+        _ => Ok(()),
+    }
+}
+
+/// Writes a JSON value to stdout, pretty-printed, with a final newline.
+pub(crate) fn print_json(value: &Value) -> anyhow::Result<()> {
+    let mut text = serde_json::to_string_pretty(value)?;
+    text.push('\n');
+    print(&text)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use robobus_whj::JointId;
+
+    #[test]
+    fn frame_lines_use_cansend_syntax() {
+        let j1 = JointId::new(1).unwrap();
+        let f = Request::enable(j1, true).to_frame();
+        assert_eq!(frame_line(&f), "001##1020A01");
+        let q = Request::StatusQuery { joint: j1 }.to_frame();
+        assert_eq!(frame_line(&q), "601##1");
+    }
+}

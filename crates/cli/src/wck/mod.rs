@@ -1,0 +1,726 @@
+//! `robobus wck`: drive wCK servos on a serial (UART) bus.
+//!
+//! Every subcommand maps onto the commands of the wCK manual's appendix A-1
+//! ([`robobus_wck::Command`]). Arguments are parsed into the protocol crate's range-checked
+//! newtypes by clap value parsers, so an out-of-range value is refused (exit code 2, the
+//! message names the value, the range and the argument) before anything is opened. The
+//! subcommand then builds a [`WckPlan`]; `--dry-run` prints it (see [`crate::output`]),
+//! otherwise [`crate::client::execute`] runs it.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context as _;
+use clap::{Subcommand, ValueEnum};
+use robobus_wck::program::Program;
+use robobus_wck::{
+    Accel, BaudRate, Boundaries, Command, DGain, DataByte, ExtServoId, IGain, IoBits, Overload,
+    PGain, Position, Position10, RangeError, Rotation, ServoId, Speed, SyncMove, TorqueLevel,
+    WheelSpeed,
+};
+use serde_json::json;
+
+use crate::Global;
+use crate::client::{Job, execute};
+use crate::exit::usage;
+use crate::output::{self, WckPlan, WckStep};
+
+pub(crate) mod play;
+
+const AFTER_HELP: &str = "\
+IDs: 4- and 6-byte commands address servos 0..=30 (31 is the broadcast ID used by
+sync-move and brake); move10 / read10 address 0..=253. Positions are 0..=254
+(1 step = 269/255 degrees ~ 1.055 deg), 10-bit positions 0..=1023 (333/1023 deg).
+Torque levels are 0 (maximum) ..= 4 (minimum).
+
+With --dry-run every subcommand prints the packets it would send, one per line in hex
+(`FF 03 7F 7C`), lines starting with `#` are comments; --json prints them as JSON.
+Commands marked (EEPROM) rewrite the servo's non-volatile memory.";
+
+/// Options of `robobus wck`.
+#[derive(Debug, clap::Args)]
+#[command(after_help = AFTER_HELP)]
+pub(crate) struct Args {
+    /// Serial port of the wCK bus, e.g. /dev/ttyUSB0 or the path `robobus sim wck` printed.
+    /// Required unless --dry-run is given or the subcommand needs no device.
+    #[arg(long, value_name = "PATH", global = true)]
+    port: Option<String>,
+    /// Baud rate the servos are set to: 4800, 9600, 38400, 57600, 115200, 230400, 460800 or
+    /// 921600.
+    #[arg(long, default_value = "115200", value_parser = parse_baud, global = true)]
+    baud: BaudRate,
+    /// What to do.
+    #[command(subcommand)]
+    command: WckCommand,
+}
+
+#[derive(Debug, Subcommand)]
+enum WckCommand {
+    /// Find servos: read the status of every ID (0..=30 unless --ids is given).
+    Scan {
+        /// Try every baud rate the wCK supports, not just --baud.
+        #[arg(long)]
+        all_bauds: bool,
+        /// IDs to try: a list of IDs and ranges, e.g. `0-5,7`.
+        #[arg(long, default_value = "0-30", value_parser = parse_servo_ids)]
+        ids: ServoIds,
+    },
+    /// Read load and position of servos (A-1 (3) status read).
+    Status {
+        /// Servo IDs: a list of IDs and ranges, e.g. `3` or `0-5,7`.
+        #[arg(value_parser = parse_servo_ids)]
+        ids: ServoIds,
+    },
+    /// Move one servo to a position (A-1 (1) position move); replies load and position.
+    Move {
+        /// Servo ID, 0..=30.
+        #[arg(value_parser = parse_servo_id)]
+        id: ServoId,
+        /// Target position, 0..=254.
+        #[arg(value_parser = parse_position)]
+        position: Position,
+        /// Torque level, 0 (maximum) ..= 4 (minimum).
+        #[arg(long, default_value = "0", value_parser = parse_torque)]
+        torque: TorqueLevel,
+    },
+    /// Move one servo to a 10-bit position (A-1 (26)).
+    Move10 {
+        /// Servo ID, 0..=253.
+        #[arg(value_parser = parse_ext_id)]
+        id: ExtServoId,
+        /// Target position, 0..=1023.
+        #[arg(value_parser = parse_position10)]
+        position: Position10,
+        /// Torque, 0..=254 (a full data byte, as the manual gives it).
+        #[arg(long, default_value = "0", value_parser = parse_data_byte)]
+        torque: DataByte,
+    },
+    /// Read the 10-bit position of a servo (A-1 (27)).
+    Read10 {
+        /// Servo ID, 0..=253.
+        #[arg(value_parser = parse_ext_id)]
+        id: ExtServoId,
+    },
+    /// Move servos 0..N-1 at once (A-1 (2) synchronized move, no reply).
+    SyncMove {
+        /// Target positions of servos 0, 1, 2, ... (1..=31 values, each 0..=254).
+        #[arg(required = true, num_args = 1..=31, value_parser = parse_position)]
+        positions: Vec<Position>,
+        /// Torque level, 0 (maximum) ..= 4 (minimum).
+        #[arg(long, default_value = "0", value_parser = parse_torque)]
+        torque: TorqueLevel,
+    },
+    /// Release the torque of servos (A-1 (4) passive); replies the position.
+    Passive {
+        /// Servo IDs, e.g. `3` or `0-5`.
+        #[arg(value_parser = parse_servo_ids)]
+        ids: ServoIds,
+    },
+    /// Turn a servo continuously (A-1 (5) wheel mode).
+    Wheel {
+        /// Servo ID, 0..=30.
+        #[arg(value_parser = parse_servo_id)]
+        id: ServoId,
+        /// Direction.
+        direction: Direction,
+        /// Speed 0 (stop), 1 (minimum) ..= 15 (maximum).
+        #[arg(value_parser = parse_wheel_speed)]
+        speed: WheelSpeed,
+    },
+    /// Put every servo on the bus into break mode (A-1 (6)).
+    Brake,
+    /// Read a parameter of a servo.
+    #[command(subcommand)]
+    Get(GetParam),
+    /// Write a parameter of a servo.
+    #[command(subcommand)]
+    Set(SetParam),
+    /// Give a servo a new ID (A-1 (14), EEPROM). IDs above 30 are reachable only with
+    /// move10 / read10.
+    SetId {
+        /// Current ID, 0..=30.
+        #[arg(value_parser = parse_servo_id)]
+        id: ServoId,
+        /// New ID, 0..=253.
+        #[arg(value_parser = parse_ext_id)]
+        new_id: ExtServoId,
+    },
+    /// Set a servo's baud rate (A-1 (7), EEPROM); reach it afterwards with --baud RATE.
+    SetBaud {
+        /// Servo ID, 0..=30.
+        #[arg(value_parser = parse_servo_id)]
+        id: ServoId,
+        /// New baud rate: 4800, 9600, 38400, 57600, 115200, 230400, 460800 or 921600.
+        #[arg(value_parser = parse_baud)]
+        rate: BaudRate,
+    },
+    /// Self-running motion programs (manual section 3-11).
+    #[command(subcommand)]
+    Program(ProgramCommand),
+    /// Record poses by hand: servos go passive, their positions are read at a rate.
+    Teach {
+        /// Servo IDs to record, e.g. `0-15`.
+        #[arg(value_parser = parse_servo_ids)]
+        ids: ServoIds,
+        /// Poses per second.
+        #[arg(long, default_value_t = 10.0, value_parser = parse_rate)]
+        rate_hz: f64,
+        /// Write the poses as a keyframe motion file (see `robobus wck play --help`).
+        #[arg(short, long, value_name = "FILE")]
+        output: Option<PathBuf>,
+    },
+    /// Play a keyframe motion file: poses with transition times, interpolated and sent as
+    /// synchronized moves.
+    #[command(after_help = play::FORMAT_HELP)]
+    Play {
+        /// The keyframe motion file.
+        file: PathBuf,
+        /// Synchronized moves per second while interpolating (1..=200).
+        #[arg(long, default_value_t = 50.0, value_parser = parse_rate)]
+        rate_hz: f64,
+    },
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum Direction {
+    /// Counter-clockwise.
+    Ccw,
+    /// Clockwise.
+    Cw,
+}
+
+#[derive(Debug, Subcommand)]
+enum GetParam {
+    /// P and D gains (A-1 (9)).
+    Gains(IdArg),
+    /// I gain (A-1 (11)).
+    IGain(IdArg),
+    /// Speed level and acceleration range (A-1 (16)).
+    Speed(IdArg),
+    /// Over-load (over-current) threshold, shown in mA (A-1 (19)).
+    Overload(IdArg),
+    /// Movement boundaries (A-1 (21)).
+    Bounds(IdArg),
+    /// Digital outputs and the A/D input (A-1 (23)).
+    Io(IdArg),
+}
+
+#[derive(Debug, clap::Args)]
+struct IdArg {
+    /// Servo ID, 0..=30.
+    #[arg(value_parser = parse_servo_id)]
+    id: ServoId,
+}
+
+#[derive(Debug, Subcommand)]
+enum SetParam {
+    /// P and D gains (A-1 (8), EEPROM; --runtime: A-1 (12), lost at power-off).
+    Gains {
+        /// Servo ID, 0..=30.
+        #[arg(value_parser = parse_servo_id)]
+        id: ServoId,
+        /// P gain, 1..=254 (the manual recommends up to 120, and P = 1.5 x D).
+        #[arg(value_parser = parse_p_gain)]
+        p: PGain,
+        /// D gain, 0..=254.
+        #[arg(value_parser = parse_d_gain)]
+        d: DGain,
+        /// Only until power-off (runtime gains), not in EEPROM.
+        #[arg(long)]
+        runtime: bool,
+    },
+    /// I gain (A-1 (10), EEPROM; --runtime: A-1 (13)).
+    IGain {
+        /// Servo ID, 0..=30.
+        #[arg(value_parser = parse_servo_id)]
+        id: ServoId,
+        /// I gain, 0..=254 (the manual recommends 0..=10).
+        #[arg(value_parser = parse_i_gain)]
+        i: IGain,
+        /// Only until power-off, not in EEPROM.
+        #[arg(long)]
+        runtime: bool,
+    },
+    /// Speed level and acceleration range (A-1 (15), EEPROM; --runtime: A-1 (17)).
+    Speed {
+        /// Servo ID, 0..=30.
+        #[arg(value_parser = parse_servo_id)]
+        id: ServoId,
+        /// Speed level, 0..=30 (0 = no limit).
+        #[arg(value_parser = parse_speed)]
+        speed: Speed,
+        /// Acceleration range, 20..=100.
+        #[arg(value_parser = parse_accel)]
+        accel: Accel,
+        /// Only until power-off, not in EEPROM (the servo does not reply).
+        #[arg(long)]
+        runtime: bool,
+    },
+    /// Over-load (over-current) threshold in mA, 400..=1800 (A-1 (18), EEPROM).
+    Overload {
+        /// Servo ID, 0..=30.
+        #[arg(value_parser = parse_servo_id)]
+        id: ServoId,
+        /// Threshold in mA, 400..=1800 (rounded to the nearest code).
+        #[arg(value_parser = parse_overload_ma)]
+        milliamps: Overload,
+    },
+    /// Movement boundaries (A-1 (20), EEPROM).
+    Bounds {
+        /// Servo ID, 0..=30.
+        #[arg(value_parser = parse_servo_id)]
+        id: ServoId,
+        /// Lower boundary, 0..=254.
+        #[arg(value_parser = parse_position)]
+        lower: Position,
+        /// Upper boundary, 0..=254, not below the lower one.
+        #[arg(value_parser = parse_position)]
+        upper: Position,
+    },
+    /// Digital outputs (A-1 (22)): 0..=3, bit 0 = D/O 1, bit 1 = D/O 2.
+    Io {
+        /// Servo ID, 0..=30.
+        #[arg(value_parser = parse_servo_id)]
+        id: ServoId,
+        /// Output bits, 0..=3.
+        #[arg(value_parser = parse_io_bits)]
+        outputs: IoBits,
+    },
+}
+
+#[derive(Debug, Subcommand)]
+enum ProgramCommand {
+    /// Store a motion program (text form) in a servo (A-1 (24), EEPROM).
+    #[command(after_help = PROGRAM_HELP)]
+    Upload {
+        /// Servo ID, 0..=30.
+        #[arg(value_parser = parse_servo_id)]
+        id: ServoId,
+        /// The program, in the text form (see `robobus wck program check --help`).
+        file: PathBuf,
+    },
+    /// Read how many instructions a servo's program has (A-1 (25)).
+    Download {
+        /// Servo ID, 0..=30.
+        #[arg(value_parser = parse_servo_id)]
+        id: ServoId,
+    },
+    /// Check a program file without a device: report errors with line:column, print the
+    /// encoded bytes.
+    #[command(after_help = PROGRAM_HELP)]
+    Check {
+        /// The program, in the text form.
+        file: PathBuf,
+        /// Servo ID for the printed upload packet, 0..=30.
+        #[arg(long, default_value = "0", value_parser = parse_servo_id)]
+        id: ServoId,
+    },
+}
+
+const PROGRAM_HELP: &str = "\
+Program text form (manual section 3-11): one instruction per line, at most 8; `#` starts a
+comment.
+  none                      no operation
+  move <0..=254> torque <0..=4>
+  motion passive | motion break
+  wheel ccw|cw <0..=15>
+  delay <0..=4095>ms        (delays whose low byte is 0xFF, e.g. 255, cannot be sent)
+  output <0..=3>
+  if pos <op> <0..=254>     <op>: == > < >= <=; a false condition skips the next line
+  if adc <op> <0..=254>
+  repeat <1..=254> | repeat forever
+  end";
+
+/// A parsed list of servo IDs (`0-5,7`), in the order given, without repeats.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) struct ServoIds(pub(crate) Vec<ServoId>);
+
+/// Parses a number: decimal or `0x` hex.
+pub(crate) fn parse_u32(s: &str) -> Result<u32, String> {
+    let t = s.trim();
+    let parsed = match t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
+        Some(hex) => u32::from_str_radix(hex, 16),
+        None => t.parse(),
+    };
+    parsed.map_err(|_| format!("`{s}` is not a whole number"))
+}
+
+/// Parses a byte-sized value with a protocol constructor; values above 255 get the same
+/// message as the constructor's own range error.
+fn ranged<T>(s: &str, new: impl Fn(u8) -> Result<T, RangeError>) -> Result<T, String> {
+    let v = parse_u32(s)?;
+    match u8::try_from(v) {
+        Ok(b) => new(b).map_err(|e| e.to_string()),
+        Err(_) => match new(u8::MAX) {
+            Err(e) => Err(RangeError { value: v, ..e }.to_string()),
+            Ok(_) => Err(format!("{v} is out of range 0..=255")),
+        },
+    }
+}
+
+pub(crate) fn parse_servo_id(s: &str) -> Result<ServoId, String> {
+    ranged(s, ServoId::new)
+}
+fn parse_ext_id(s: &str) -> Result<ExtServoId, String> {
+    ranged(s, ExtServoId::new)
+}
+pub(crate) fn parse_position(s: &str) -> Result<Position, String> {
+    ranged(s, Position::new)
+}
+pub(crate) fn parse_torque(s: &str) -> Result<TorqueLevel, String> {
+    ranged(s, TorqueLevel::new)
+}
+fn parse_data_byte(s: &str) -> Result<DataByte, String> {
+    ranged(s, DataByte::new)
+}
+fn parse_wheel_speed(s: &str) -> Result<WheelSpeed, String> {
+    ranged(s, WheelSpeed::new)
+}
+fn parse_p_gain(s: &str) -> Result<PGain, String> {
+    ranged(s, PGain::new)
+}
+fn parse_d_gain(s: &str) -> Result<DGain, String> {
+    ranged(s, DGain::new)
+}
+fn parse_i_gain(s: &str) -> Result<IGain, String> {
+    ranged(s, IGain::new)
+}
+fn parse_speed(s: &str) -> Result<Speed, String> {
+    ranged(s, Speed::new)
+}
+fn parse_accel(s: &str) -> Result<Accel, String> {
+    ranged(s, Accel::new)
+}
+fn parse_io_bits(s: &str) -> Result<IoBits, String> {
+    ranged(s, IoBits::new)
+}
+
+fn parse_position10(s: &str) -> Result<Position10, String> {
+    let v = parse_u32(s)?;
+    let raw = u16::try_from(v).unwrap_or(u16::MAX);
+    Position10::new(raw).map_err(|e| RangeError { value: v, ..e }.to_string())
+}
+
+fn parse_overload_ma(s: &str) -> Result<Overload, String> {
+    let v = parse_u32(s.trim().trim_end_matches("mA").trim_end_matches("ma"))?;
+    let raw = u16::try_from(v).unwrap_or(u16::MAX);
+    Overload::from_milliamps(raw).map_err(|e| RangeError { value: v, ..e }.to_string())
+}
+
+/// Parses a baud rate in bit/s.
+pub(crate) fn parse_baud(s: &str) -> Result<BaudRate, String> {
+    let v = parse_u32(s)?;
+    BaudRate::from_bits_per_second(v).map_err(|e| e.to_string())
+}
+
+/// A rate in Hz, 0.1..=200.
+fn parse_rate(s: &str) -> Result<f64, String> {
+    let v: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{s}` is not a number"))?;
+    if (0.1..=200.0).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("rate {v} Hz is out of range 0.1..=200"))
+    }
+}
+
+/// Parses `0-5,7` into servo IDs 0..=30 (order kept, repeats dropped).
+pub(crate) fn parse_servo_ids(spec: &str) -> Result<ServoIds, String> {
+    let mut ids: Vec<ServoId> = Vec::new();
+    for part in spec.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+        let (lo, hi) = if let Some((a, b)) = part.split_once('-') {
+            (parse_servo_id(a)?, parse_servo_id(b)?)
+        } else {
+            let id = parse_servo_id(part)?;
+            (id, id)
+        };
+        if lo > hi {
+            return Err(format!(
+                "range {lo}-{hi} runs backwards (write the lower ID first)"
+            ));
+        }
+        for raw in lo.get()..=hi.get() {
+            let id = ServoId::new(raw).map_err(|e| e.to_string())?;
+            if !ids.contains(&id) {
+                ids.push(id);
+            }
+        }
+    }
+    if ids.is_empty() {
+        return Err(format!(
+            "`{spec}` names no servo IDs (examples: `3`, `0-5,7`; allowed 0..=30)"
+        ));
+    }
+    Ok(ServoIds(ids))
+}
+
+fn read_file(path: &Path) -> anyhow::Result<String> {
+    std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))
+}
+
+/// Parses a motion program file; a syntax error is a usage error with `FILE:line:column`.
+fn load_program(path: &Path) -> anyhow::Result<Program> {
+    let text = read_file(path)?;
+    Program::parse(&text).map_err(|e| {
+        usage(format!(
+            "{}:{}:{}: {}",
+            path.display(),
+            e.line,
+            e.column,
+            e.kind
+        ))
+    })
+}
+
+/// Runs `robobus wck`.
+pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
+    let action = action_name(&args.command);
+    if let WckCommand::Program(ProgramCommand::Check { file, id }) = &args.command {
+        return check_program(g, file, *id);
+    }
+    let plan = plan(args)?;
+    if g.dry_run {
+        let port = args.port.as_deref().unwrap_or("(none)");
+        return if g.json {
+            output::print_json(&plan.to_json(port, args.baud))
+        } else {
+            output::print(&plan.to_text())
+        };
+    }
+    let Some(port) = args.port.as_deref() else {
+        return Err(usage(
+            "robobus wck: --port PATH is required (e.g. --port /dev/ttyUSB0), unless --dry-run is given",
+        ));
+    };
+    execute(
+        &Job::Wck {
+            action,
+            port,
+            baud: args.baud,
+            plan: &plan,
+        },
+        g.yes,
+    )
+}
+
+fn action_name(c: &WckCommand) -> &'static str {
+    match c {
+        WckCommand::Scan { .. } => "scan",
+        WckCommand::Status { .. } => "status",
+        WckCommand::Move { .. } => "move",
+        WckCommand::Move10 { .. } => "move10",
+        WckCommand::Read10 { .. } => "read10",
+        WckCommand::SyncMove { .. } => "sync-move",
+        WckCommand::Passive { .. } => "passive",
+        WckCommand::Wheel { .. } => "wheel",
+        WckCommand::Brake => "brake",
+        WckCommand::Get(_) => "get",
+        WckCommand::Set(_) => "set",
+        WckCommand::SetId { .. } => "set-id",
+        WckCommand::SetBaud { .. } => "set-baud",
+        WckCommand::Program(ProgramCommand::Upload { .. }) => "program upload",
+        WckCommand::Program(ProgramCommand::Download { .. }) => "program download",
+        WckCommand::Program(ProgramCommand::Check { .. }) => "program check",
+        WckCommand::Teach { .. } => "teach",
+        WckCommand::Play { .. } => "play",
+    }
+}
+
+/// The validated packets of a subcommand.
+#[allow(clippy::too_many_lines)] // one arm per subcommand
+fn plan(args: &Args) -> anyhow::Result<WckPlan> {
+    Ok(match &args.command {
+        WckCommand::Scan { all_bauds, ids } => {
+            let bauds: Vec<BaudRate> = if *all_bauds {
+                BaudRate::ALL.to_vec()
+            } else {
+                vec![args.baud]
+            };
+            let mut plan = WckPlan::default();
+            plan.notes.push(
+                "a status read per ID; an ID that answers within the reply timeout is present"
+                    .into(),
+            );
+            for baud in bauds {
+                for &id in &ids.0 {
+                    plan.steps.push(WckStep {
+                        at_ms: None,
+                        baud: all_bauds.then_some(baud),
+                        command: Command::StatusRead { id },
+                    });
+                }
+            }
+            plan
+        }
+        WckCommand::Status { ids } => each(ids, |id| Command::StatusRead { id }),
+        WckCommand::Move {
+            id,
+            position,
+            torque,
+        } => WckPlan::one(Command::Move {
+            id: *id,
+            torque: *torque,
+            position: *position,
+        }),
+        WckCommand::Move10 {
+            id,
+            position,
+            torque,
+        } => WckPlan::one(Command::Move10 {
+            id: *id,
+            torque: *torque,
+            position: *position,
+        }),
+        WckCommand::Read10 { id } => WckPlan::one(Command::Read10 { id: *id }),
+        WckCommand::SyncMove { positions, torque } => {
+            let sync = SyncMove::new(*torque, positions).map_err(|e| {
+                usage(format!(
+                    "sync-move <POSITIONS>: {e} (one position per servo 0..=30)"
+                ))
+            })?;
+            WckPlan::one(Command::SyncMove(sync))
+        }
+        WckCommand::Passive { ids } => each(ids, |id| Command::Passive { id }),
+        WckCommand::Wheel {
+            id,
+            direction,
+            speed,
+        } => WckPlan::one(Command::Wheel {
+            id: *id,
+            rotation: match direction {
+                Direction::Ccw => Rotation::Ccw,
+                Direction::Cw => Rotation::Cw,
+            },
+            speed: *speed,
+        }),
+        WckCommand::Brake => WckPlan::one(Command::Break),
+        WckCommand::Get(p) => WckPlan::one(match p {
+            GetParam::Gains(a) => Command::GainRead { id: a.id },
+            GetParam::IGain(a) => Command::IGainRead { id: a.id },
+            GetParam::Speed(a) => Command::SpeedRead { id: a.id },
+            GetParam::Overload(a) => Command::OverloadRead { id: a.id },
+            GetParam::Bounds(a) => Command::BoundaryRead { id: a.id },
+            GetParam::Io(a) => Command::IoRead { id: a.id },
+        }),
+        WckCommand::Set(p) => WckPlan::one(set_command(p)?),
+        WckCommand::SetId { id, new_id } => WckPlan::one(Command::IdSet {
+            id: *id,
+            new_id: *new_id,
+        }),
+        WckCommand::SetBaud { id, rate } => WckPlan::one(Command::BaudSet {
+            id: *id,
+            baud: *rate,
+        }),
+        WckCommand::Program(ProgramCommand::Upload { id, file }) => {
+            WckPlan::one(Command::MotionWrite {
+                id: *id,
+                program: load_program(file)?,
+            })
+        }
+        WckCommand::Program(ProgramCommand::Download { id } | ProgramCommand::Check { id, .. }) => {
+            WckPlan::one(Command::MotionRead { id: *id })
+        }
+        WckCommand::Teach { ids, rate_hz, .. } => {
+            let mut plan = each(ids, |id| Command::Passive { id });
+            plan.notes.push(format!(
+                "teach: the passive round below repeats {rate_hz} times per second until \
+                 Enter / Ctrl-C; each reply's position is recorded"
+            ));
+            plan
+        }
+        WckCommand::Play { file, rate_hz } => {
+            let text = read_file(file)?;
+            let motion =
+                play::Motion::parse(&text).map_err(|e| usage(format!("{}:{e}", file.display())))?;
+            motion.plan(*rate_hz)
+        }
+    })
+}
+
+fn each(ids: &ServoIds, f: impl Fn(ServoId) -> Command) -> WckPlan {
+    let mut plan = WckPlan::default();
+    for &id in &ids.0 {
+        plan.push(f(id));
+    }
+    plan
+}
+
+fn set_command(p: &SetParam) -> anyhow::Result<Command> {
+    Ok(match *p {
+        SetParam::Gains { id, p, d, runtime } => {
+            if runtime {
+                Command::RuntimeGainSet { id, p, d }
+            } else {
+                Command::GainSet { id, p, d }
+            }
+        }
+        SetParam::IGain { id, i, runtime } => {
+            if runtime {
+                Command::RuntimeIGainSet { id, i }
+            } else {
+                Command::IGainSet { id, i }
+            }
+        }
+        SetParam::Speed {
+            id,
+            speed,
+            accel,
+            runtime,
+        } => {
+            if runtime {
+                Command::RuntimeSpeedSet { id, speed, accel }
+            } else {
+                Command::SpeedSet { id, speed, accel }
+            }
+        }
+        SetParam::Overload { id, milliamps } => Command::OverloadSet {
+            id,
+            overload: milliamps,
+        },
+        SetParam::Bounds { id, lower, upper } => Command::BoundarySet {
+            id,
+            bounds: Boundaries::new(lower, upper)
+                .map_err(|e| usage(format!("set bounds <LOWER> <UPPER>: {e}")))?,
+        },
+        SetParam::Io { id, outputs } => Command::IoWrite { id, outputs },
+    })
+}
+
+/// `program check`: parse, list the instructions, print the upload packet.
+fn check_program(g: Global, file: &Path, id: ServoId) -> anyhow::Result<()> {
+    let program = load_program(file)?;
+    let command = Command::MotionWrite { id, program };
+    let packet = command.encode();
+    if g.json {
+        let instructions: Vec<_> = program
+            .instructions()
+            .iter()
+            .map(|i| {
+                let (c, d) = i.to_pair();
+                json!({"text": i.to_string(), "command": c, "data": d})
+            })
+            .collect();
+        return output::print_json(&json!({
+            "file": file.display().to_string(),
+            "ok": true,
+            "instructions": instructions,
+            "upload_packet": {"id": id.get(), "hex": packet.to_string(), "bytes": packet.as_bytes()},
+        }));
+    }
+    let mut text = format!(
+        "# {}: OK, {} instruction(s)\n",
+        file.display(),
+        program.len()
+    );
+    if program.is_empty() {
+        text.push_str("# an empty program: uploading it switches the servo's program off\n");
+    }
+    for (n, i) in program.instructions().iter().enumerate() {
+        let (c, d) = i.to_pair();
+        let _ = writeln!(text, "# {:>2}  {c:02X} {d:02X}  {i}", n + 1);
+    }
+    let _ = writeln!(text, "# upload packet for servo {id}:\n{packet}");
+    output::print(&text)
+}

@@ -1,0 +1,879 @@
+//! `robobus whj`: drive WHJ joints on a CAN FD bus.
+//!
+//! Every subcommand maps onto requests of the WHJ protocol ([`robobus_whj::Request`]).
+//! Arguments are validated first (joint IDs 1..=30 by [`JointId`], registers by
+//! [`RegisterInfo`] with their documented ranges and units, motion values against the
+//! limits below); the subcommand builds a [`WhjPlan`], which `--dry-run` prints as
+//! `cansend` lines (see [`crate::output`]) and a real run hands to
+//! [`crate::client::execute`].
+//!
+//! Motion limits of the CLI (on top of the joint's own limit registers): targets within
+//! ±[`MAX_DEG`]°, speeds within ±[`MAX_RPM`] RPM, currents within ±[`MAX_MA`] mA; `move`
+//! steps at most `--max-speed` / `--rate-hz` degrees per frame.
+
+use std::f64::consts::PI;
+use std::fmt::Write as _;
+
+use clap::{Subcommand, ValueEnum};
+use robobus_whj::registers::{Half, Unit};
+use robobus_whj::units::{Current, CurrentScale, Position, TargetSpeed};
+use robobus_whj::{JointId, REGISTERS, RegisterAddr, RegisterInfo, Request, WorkMode, registers};
+
+use crate::Global;
+use crate::client::{Job, execute};
+use crate::exit::usage;
+use crate::output::{self, WhjPlan};
+use crate::sim_whj::parse_bus;
+
+/// Largest |target angle| the CLI sends, degrees.
+pub(crate) const MAX_DEG: f64 = 360.0;
+/// Largest |target speed| the CLI sends, output RPM.
+pub(crate) const MAX_RPM: f64 = 60.0;
+/// Largest |target current| the CLI sends, mA.
+pub(crate) const MAX_MA: f64 = 30_000.0;
+
+const AFTER_HELP: &str = "\
+Joint IDs are 1..=30 (0 is the interface board); lists and ranges are allowed where the
+argument says JOINTS: `1`, `1-7`, `1,3,5-7`.
+Units: angles in degrees (0.0001 deg per count), speeds in output RPM (0.002 RPM per
+count), currents in mA (1 mA per count; 2 mA on WHJ60/WHJ120: give --model).
+CLI safety limits: |angle| <= 360 deg, |speed| <= 60 RPM, |current| <= 30000 mA; the
+joint's own limit registers (0x40.., 0x44..0x47) apply as well.
+
+With --dry-run every subcommand prints the CAN FD frames it would send, one per line in
+cansend syntax (`001##1020A01`: ID 0x001, FD with bit-rate switch, data 02 0A 01); lines
+starting with `#` are comments; --json prints them as JSON.";
+
+/// Options of `robobus whj`.
+#[derive(Debug, clap::Args)]
+#[command(after_help = AFTER_HELP)]
+pub(crate) struct Args {
+    /// The bus: `udp` (python-can UDP multicast 239.74.163.2:43113, what `robobus sim whj`
+    /// serves), `udp:GROUP:PORT`, or a SocketCAN interface such as can0 / vcan0. Required
+    /// unless --dry-run is given.
+    #[arg(long, value_name = "BUS", global = true)]
+    bus: Option<String>,
+    /// Joint model, for current scaling: whj03, whj10, whj30, whj60, whj120 (2 mA per
+    /// count on whj60 / whj120, else 1 mA). A real run reads it from the joint.
+    #[arg(long, value_enum, global = true)]
+    model: Option<ModelArg>,
+    /// What to do.
+    #[command(subcommand)]
+    command: WhjCommand,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum ModelArg {
+    Whj03,
+    Whj10,
+    Whj30,
+    Whj60,
+    Whj120,
+}
+
+impl ModelArg {
+    fn scale(self) -> CurrentScale {
+        match self {
+            Self::Whj60 | Self::Whj120 => CurrentScale::TwoMilliamps,
+            _ => CurrentScale::OneMilliamp,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum ModeArg {
+    /// Open loop (PWM duty; not recommended).
+    OpenLoop,
+    /// Current (torque) servo.
+    Current,
+    /// Speed servo.
+    Speed,
+    /// Position servo (factory default).
+    Position,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum Shape {
+    /// offset + amplitude * sin(2 pi f t).
+    Sine,
+    /// offset + amplitude while sin(2 pi f t) >= 0, else offset - amplitude.
+    Square,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum WaveMode {
+    /// Position servo frames (0x200+ID); amplitude and offset in degrees.
+    Position,
+    /// Speed servo frames (0x300+ID); amplitude and offset in RPM.
+    Speed,
+    /// Current servo frames (0x400+ID); amplitude and offset in mA.
+    Current,
+}
+
+#[derive(Debug, Subcommand)]
+enum WhjCommand {
+    /// Find joints: read signature, ID, model and firmware of every ID (1..=30 unless
+    /// --joints is given).
+    Scan {
+        /// Joint IDs to try.
+        #[arg(long, default_value = "1-30", value_parser = parse_joints)]
+        joints: Joints,
+    },
+    /// Identity, unique ID and position limits of a joint.
+    Info {
+        /// Joint ID, 1..=30.
+        #[arg(value_parser = parse_joint)]
+        joint: JointId,
+    },
+    /// Status query (0x600+ID): position, speed, current, errors, enable state.
+    Status {
+        /// Joint IDs, e.g. `1-7`.
+        #[arg(value_parser = parse_joints)]
+        joints: Joints,
+    },
+    /// Enable the drive (register 0x0A := 1).
+    Enable {
+        /// Joint IDs, e.g. `1-7`.
+        #[arg(value_parser = parse_joints)]
+        joints: Joints,
+    },
+    /// Disable the drive (register 0x0A := 0).
+    Disable {
+        /// Joint IDs, e.g. `1-7`.
+        #[arg(value_parser = parse_joints)]
+        joints: Joints,
+    },
+    /// Set the work mode (register 0x30).
+    Mode {
+        /// Joint IDs, e.g. `1-7`.
+        #[arg(value_parser = parse_joints)]
+        joints: Joints,
+        /// The mode.
+        mode: ModeArg,
+    },
+    /// Move a joint to an angle in position mode, in steps no faster than --max-speed.
+    Move {
+        /// Joint ID, 1..=30.
+        #[arg(value_parser = parse_joint)]
+        joint: JointId,
+        /// Target angle in degrees, -360..=360.
+        #[arg(allow_hyphen_values = true, value_parser = parse_angle)]
+        degrees: f64,
+        /// Largest speed of the steps, degrees per second (0.1..=180).
+        #[arg(long, default_value_t = 10.0, value_parser = parse_max_speed)]
+        max_speed: f64,
+        /// Position frames per second (1..=1000).
+        #[arg(long, default_value_t = 200.0, value_parser = parse_frame_rate)]
+        rate_hz: f64,
+        /// Start angle for --dry-run (a real run reads the present position; without
+        /// --from a dry run assumes 0).
+        #[arg(long, allow_hyphen_values = true, value_parser = parse_angle)]
+        from: Option<f64>,
+    },
+    /// Speed servo target (0x300+ID) in output RPM, -60..=60.
+    Speed {
+        /// Joint ID, 1..=30.
+        #[arg(value_parser = parse_joint)]
+        joint: JointId,
+        /// Target speed, RPM.
+        #[arg(allow_hyphen_values = true, value_parser = parse_rpm)]
+        rpm: f64,
+    },
+    /// Current servo target (0x400+ID) in mA, -30000..=30000.
+    Current {
+        /// Joint ID, 1..=30.
+        #[arg(value_parser = parse_joint)]
+        joint: JointId,
+        /// Target current, mA.
+        #[arg(allow_hyphen_values = true, value_parser = parse_ma)]
+        milliamps: f64,
+    },
+    /// Make the present position 0 degrees (register 0x0E := 1).
+    Zero {
+        /// Joint ID, 1..=30.
+        #[arg(value_parser = parse_joint)]
+        joint: JointId,
+    },
+    /// Clear latched errors (register 0x0F := 1).
+    Clear {
+        /// Joint IDs, e.g. `1-7`.
+        #[arg(value_parser = parse_joints)]
+        joints: Joints,
+    },
+    /// Save the register table to flash (register 0x0C := 1; the joint must be disabled).
+    Save {
+        /// Joint IDs, e.g. `1-7`.
+        #[arg(value_parser = parse_joints)]
+        joints: Joints,
+    },
+    /// Read registers by name (`cur_position`, `SYS_TEMP`) or address (`0x14`, `20`).
+    Read {
+        /// Joint ID, 1..=30.
+        #[arg(value_parser = parse_joint)]
+        joint: JointId,
+        /// Register name or address (0x00..=0x91).
+        #[arg(value_parser = parse_register)]
+        register: Register,
+        /// Number of registers, 1..=31 (default: 2 for a 32-bit pair, else 1).
+        count: Option<u8>,
+    },
+    /// Write a register by name or address, in its unit (degrees, RPM, mA, V, ...).
+    Write {
+        /// Joint ID, 1..=30.
+        #[arg(value_parser = parse_joint)]
+        joint: JointId,
+        /// Register name or address (0x00..=0x91).
+        #[arg(value_parser = parse_register)]
+        register: Register,
+        /// The value, in the register's unit (see `robobus whj registers`); with --raw, in
+        /// counts.
+        #[arg(allow_hyphen_values = true)]
+        value: String,
+        /// The value is in raw counts.
+        #[arg(long)]
+        raw: bool,
+    },
+    /// List the register table: address, name, unit, range, access, meaning.
+    Registers,
+    /// Give a joint a new ID (register 0x01, then save to flash; power-cycle afterwards).
+    SetId {
+        /// Current joint ID, 1..=30.
+        #[arg(value_parser = parse_joint)]
+        joint: JointId,
+        /// New joint ID, 1..=30.
+        #[arg(value_parser = parse_joint)]
+        new_id: JointId,
+    },
+    /// Send a test signal (sine or square) as servo frames, like the vendor tool.
+    Wave {
+        /// Joint ID, 1..=30.
+        #[arg(value_parser = parse_joint)]
+        joint: JointId,
+        /// Signal shape.
+        #[arg(long, value_enum, default_value = "sine")]
+        shape: Shape,
+        /// Which servo loop the signal drives.
+        #[arg(long, value_enum, default_value = "position")]
+        mode: WaveMode,
+        /// Amplitude (degrees, RPM or mA by --mode), >= 0.
+        #[arg(long, value_parser = parse_finite)]
+        amplitude: f64,
+        /// Frequency in Hz, 0.01..=20 and at most --rate-hz / 4.
+        #[arg(long, default_value_t = 0.5, value_parser = parse_finite)]
+        frequency: f64,
+        /// Offset (degrees, RPM or mA by --mode).
+        #[arg(long, default_value_t = 0.0, allow_hyphen_values = true, value_parser = parse_finite)]
+        offset: f64,
+        /// Duration in seconds, 0.01..=600.
+        #[arg(long, default_value_t = 4.0, value_parser = parse_finite)]
+        duration: f64,
+        /// Frames per second (1..=1000).
+        #[arg(long, default_value_t = 200.0, value_parser = parse_frame_rate)]
+        rate_hz: f64,
+    },
+    /// Start the application on joints waiting in the bootloader (`IAP_FLAG` 0x49 := 0).
+    ReleaseIap {
+        /// Joint IDs, e.g. `1-7`.
+        #[arg(value_parser = parse_joints)]
+        joints: Joints,
+    },
+}
+
+/// A parsed list of joint IDs, sorted, without repeats.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) struct Joints(Vec<JointId>);
+
+/// A register: its address and, unless reserved, its table entry.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Register {
+    addr: RegisterAddr,
+    info: Option<&'static RegisterInfo>,
+}
+
+fn parse_joint(s: &str) -> Result<JointId, String> {
+    let v = crate::wck::parse_u32(s)?;
+    let raw = u8::try_from(v).unwrap_or(u8::MAX);
+    JointId::new(raw).map_err(|_| robobus_whj::JointIdError { value: v }.to_string())
+}
+
+fn parse_joints(spec: &str) -> Result<Joints, String> {
+    let mut ids = Vec::new();
+    for part in spec.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+        let (lo, hi) = if let Some((a, b)) = part.split_once('-') {
+            (parse_joint(a)?, parse_joint(b)?)
+        } else {
+            let j = parse_joint(part)?;
+            (j, j)
+        };
+        if lo > hi {
+            return Err(format!(
+                "joint range {}-{} runs backwards (write the lower ID first)",
+                lo.get(),
+                hi.get()
+            ));
+        }
+        for raw in lo.get()..=hi.get() {
+            ids.push(JointId::new(raw).map_err(|e| e.to_string())?);
+        }
+    }
+    ids.sort_unstable();
+    ids.dedup();
+    if ids.is_empty() {
+        return Err(format!(
+            "`{spec}` names no joints (examples: `1`, `1-7`, `1,3`; allowed 1..=30)"
+        ));
+    }
+    Ok(Joints(ids))
+}
+
+fn parse_register(s: &str) -> Result<Register, String> {
+    let t = s.trim();
+    if let Ok(v) = crate::wck::parse_u32(t) {
+        let raw = u8::try_from(v).unwrap_or(u8::MAX);
+        let addr = RegisterAddr::new(raw)
+            .map_err(|_| robobus_whj::RegisterAddrError { value: v }.to_string())?;
+        return Ok(Register {
+            addr,
+            info: RegisterInfo::by_addr(addr),
+        });
+    }
+    RegisterInfo::by_name(t)
+        .map(|info| Register {
+            addr: info.addr,
+            info: Some(info),
+        })
+        .ok_or_else(|| {
+            format!(
+                "no register is named `{t}` (names as in `robobus whj registers`, e.g. \
+                 SYS_TEMP, cur_position; or an address 0x00..=0x91)"
+            )
+        })
+}
+
+fn parse_finite(s: &str) -> Result<f64, String> {
+    let v: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{s}` is not a number"))?;
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(format!("`{s}` is not a finite number"))
+    }
+}
+
+fn in_range(s: &str, what: &str, min: f64, max: f64) -> Result<f64, String> {
+    let v = parse_finite(s)?;
+    if (min..=max).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("{what} {v} is out of range {min}..={max}"))
+    }
+}
+
+fn parse_angle(s: &str) -> Result<f64, String> {
+    in_range(s, "angle (degrees)", -MAX_DEG, MAX_DEG)
+}
+fn parse_max_speed(s: &str) -> Result<f64, String> {
+    in_range(s, "speed (degrees/s)", 0.1, 180.0)
+}
+fn parse_frame_rate(s: &str) -> Result<f64, String> {
+    in_range(s, "rate (Hz)", 1.0, 1000.0)
+}
+fn parse_rpm(s: &str) -> Result<f64, String> {
+    in_range(s, "speed (RPM)", -MAX_RPM, MAX_RPM)
+}
+fn parse_ma(s: &str) -> Result<f64, String> {
+    in_range(s, "current (mA)", -MAX_MA, MAX_MA)
+}
+
+/// Runs `robobus whj`.
+pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
+    if let Some(bus) = &args.bus {
+        parse_bus(bus).map_err(|e| usage(format!("--bus: {e}")))?;
+    }
+    if matches!(args.command, WhjCommand::Registers) {
+        return list_registers(g);
+    }
+    let plan = plan(args, g.dry_run)?;
+    if g.dry_run {
+        let bus = args.bus.as_deref().unwrap_or("(none)");
+        return if g.json {
+            output::print_json(&plan.to_json(bus))
+        } else {
+            output::print(&plan.to_text())
+        };
+    }
+    let Some(bus) = args.bus.as_deref() else {
+        return Err(usage(
+            "robobus whj: --bus is required (udp, udp:GROUP:PORT or a SocketCAN interface \
+             such as can0), unless --dry-run is given",
+        ));
+    };
+    execute(
+        &Job::Whj {
+            action: action_name(&args.command),
+            bus,
+            plan: &plan,
+        },
+        g.yes,
+    )
+}
+
+fn action_name(c: &WhjCommand) -> &'static str {
+    match c {
+        WhjCommand::Scan { .. } => "scan",
+        WhjCommand::Info { .. } => "info",
+        WhjCommand::Status { .. } => "status",
+        WhjCommand::Enable { .. } => "enable",
+        WhjCommand::Disable { .. } => "disable",
+        WhjCommand::Mode { .. } => "mode",
+        WhjCommand::Move { .. } => "move",
+        WhjCommand::Speed { .. } => "speed",
+        WhjCommand::Current { .. } => "current",
+        WhjCommand::Zero { .. } => "zero",
+        WhjCommand::Clear { .. } => "clear",
+        WhjCommand::Save { .. } => "save",
+        WhjCommand::Read { .. } => "read",
+        WhjCommand::Write { .. } => "write",
+        WhjCommand::Registers => "registers",
+        WhjCommand::SetId { .. } => "set-id",
+        WhjCommand::Wave { .. } => "wave",
+        WhjCommand::ReleaseIap { .. } => "release-iap",
+    }
+}
+
+fn each(joints: &Joints, f: impl Fn(JointId) -> Request) -> WhjPlan {
+    let mut plan = WhjPlan::default();
+    for &j in &joints.0 {
+        plan.push(f(j));
+    }
+    plan
+}
+
+/// The current scale for a command that needs one: --model, or (real runs) the joint's.
+fn current_scale(args: &Args, dry_run: bool, option: &str) -> anyhow::Result<CurrentScale> {
+    match args.model {
+        Some(m) => Ok(m.scale()),
+        None if dry_run => Err(usage(format!(
+            "{option}: converting mA to counts needs the joint model in a dry run: give \
+             --model whj03|whj10|whj30|whj60|whj120"
+        ))),
+        // A real run reads the model from the joint; the client does the scaling.
+        None => Ok(CurrentScale::OneMilliamp),
+    }
+}
+
+#[allow(clippy::too_many_lines)]
+fn plan(args: &Args, dry_run: bool) -> anyhow::Result<WhjPlan> {
+    Ok(match &args.command {
+        WhjCommand::Scan { joints } => {
+            let mut p = each(joints, Request::read_identity);
+            p.notes.push(
+                "reads signature, ID, model and firmware of each ID; a joint that answers \
+                 is present"
+                    .into(),
+            );
+            p
+        }
+        WhjCommand::Info { joint } => {
+            let mut p = WhjPlan::default();
+            p.push(Request::read_identity(*joint));
+            p.push(Request::read_unique_id(*joint));
+            p.push(Request::read_position_limits(*joint));
+            p.push(Request::StatusQuery { joint: *joint });
+            p
+        }
+        WhjCommand::Status { joints } => each(joints, |joint| Request::StatusQuery { joint }),
+        WhjCommand::Enable { joints } => each(joints, |j| Request::enable(j, true)),
+        WhjCommand::Disable { joints } => each(joints, |j| Request::enable(j, false)),
+        WhjCommand::Mode { joints, mode } => {
+            let mode = match mode {
+                ModeArg::OpenLoop => WorkMode::OpenLoop,
+                ModeArg::Current => WorkMode::Current,
+                ModeArg::Speed => WorkMode::Speed,
+                ModeArg::Position => WorkMode::Position,
+            };
+            each(joints, |j| Request::set_mode(j, mode))
+        }
+        WhjCommand::Move {
+            joint,
+            degrees,
+            max_speed,
+            rate_hz,
+            from,
+        } => plan_move(*joint, *degrees, *max_speed, *rate_hz, *from)?,
+        WhjCommand::Speed { joint, rpm } => {
+            let target = TargetSpeed::from_rpm(*rpm).map_err(|e| usage(format!("<RPM>: {e}")))?;
+            let mut p = WhjPlan::default();
+            p.push(Request::SpeedServo {
+                joint: *joint,
+                target,
+            });
+            p
+        }
+        WhjCommand::Current { joint, milliamps } => {
+            let scale = current_scale(args, dry_run, "current <MILLIAMPS>")?;
+            let target = Current::from_milliamps(*milliamps, scale)
+                .map_err(|e| usage(format!("<MILLIAMPS>: {e}")))?;
+            let mut p = WhjPlan::default();
+            p.push(Request::CurrentServo {
+                joint: *joint,
+                target,
+            });
+            p
+        }
+        WhjCommand::Zero { joint } => {
+            let mut p = WhjPlan::default();
+            p.push(Request::set_zero(*joint));
+            p
+        }
+        WhjCommand::Clear { joints } => each(joints, Request::clear_error),
+        WhjCommand::Save { joints } => {
+            let mut p = each(joints, Request::save_to_flash);
+            p.notes
+                .push("the joints must be disabled; each needs ~50 ms to write flash".into());
+            p
+        }
+        WhjCommand::Read {
+            joint,
+            register,
+            count,
+        } => {
+            let count = count.unwrap_or(match register.info.map(|i| i.half) {
+                Some(Half::Low) => 2,
+                _ => 1,
+            });
+            let req = Request::read(*joint, register.addr, count)
+                .map_err(|e| usage(format!("read <REGISTER> [COUNT]: {e}")))?;
+            let mut p = WhjPlan::default();
+            p.push(req);
+            p
+        }
+        WhjCommand::Write {
+            joint,
+            register,
+            value,
+            raw,
+        } => {
+            let req = write_request(args, dry_run, *joint, *register, value, *raw)?;
+            let mut p = WhjPlan::default();
+            p.push(req);
+            p
+        }
+        WhjCommand::Registers => WhjPlan::default(),
+        WhjCommand::SetId { joint, new_id } => {
+            let mut p = WhjPlan::default();
+            p.push(Request::enable(*joint, false));
+            p.push(
+                Request::write(*joint, registers::addr::SYS_ID, u16::from(new_id.get()))
+                    .map_err(|e| usage(format!("set-id <NEW_ID>: {e}")))?,
+            );
+            p.push(Request::save_to_flash(*joint));
+            p.notes.push(format!(
+                "disable, write SYS_ID, save; the new ID {} applies after a power cycle \
+                 (firmware V1.1 applies it at once: then save again with `robobus whj save {}`)",
+                new_id.get(),
+                new_id.get()
+            ));
+            p
+        }
+        WhjCommand::Wave {
+            joint,
+            shape,
+            mode,
+            amplitude,
+            frequency,
+            offset,
+            duration,
+            rate_hz,
+        } => {
+            let scale = if *mode == WaveMode::Current {
+                current_scale(args, dry_run, "wave --mode current")?
+            } else {
+                CurrentScale::OneMilliamp
+            };
+            plan_wave(
+                *joint,
+                &WaveSpec {
+                    shape: *shape,
+                    mode: *mode,
+                    amplitude: *amplitude,
+                    frequency: *frequency,
+                    offset: *offset,
+                    duration: *duration,
+                    rate_hz: *rate_hz,
+                },
+                scale,
+            )?
+        }
+        WhjCommand::ReleaseIap { joints } => each(joints, Request::start_application),
+    })
+}
+
+/// Position frames from `from` to `to`, each step at most `max_speed / rate_hz` degrees.
+fn plan_move(
+    joint: JointId,
+    to: f64,
+    max_speed: f64,
+    rate_hz: f64,
+    from: Option<f64>,
+) -> anyhow::Result<WhjPlan> {
+    let mut p = WhjPlan::default();
+    let start = from.unwrap_or(0.0);
+    if from.is_none() {
+        p.notes.push(
+            "start angle assumed 0 deg (a real run reads the present position first; \
+             give --from DEG to plan from another angle)"
+                .into(),
+        );
+    }
+    let step_max = max_speed / rate_hz;
+    // The tolerance keeps float noise (30 - 29.9 = 0.1000000000000014) from adding a step.
+    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // <= 720 / 1e-4
+    let steps = ((to - start).abs() / step_max - 1e-9).ceil().max(1.0) as u64;
+    p.notes.push(format!(
+        "{steps} position frame(s), one every {:.3} ms, at most {step_max:.4} deg each; the \
+         joint must be enabled and in position mode",
+        1000.0 / rate_hz
+    ));
+    p.push(Request::read_position(joint));
+    for k in 1..=steps {
+        let deg = start + (to - start) * (k as f64 / steps as f64);
+        let target = Position::from_degrees(deg).map_err(|e| usage(format!("<DEGREES>: {e}")))?;
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let at = ((k - 1) as f64 * 1e6 / rate_hz).round() as u64;
+        p.push_at(at, Request::PositionServo { joint, target });
+    }
+    Ok(p)
+}
+
+/// A `wave` test signal.
+#[derive(Debug, Clone, Copy)]
+struct WaveSpec {
+    shape: Shape,
+    mode: WaveMode,
+    amplitude: f64,
+    frequency: f64,
+    offset: f64,
+    duration: f64,
+    rate_hz: f64,
+}
+
+fn plan_wave(joint: JointId, spec: &WaveSpec, scale: CurrentScale) -> anyhow::Result<WhjPlan> {
+    if spec.amplitude < 0.0 {
+        return Err(usage(format!(
+            "--amplitude {} is negative (allowed: >= 0)",
+            spec.amplitude
+        )));
+    }
+    let fmax = (spec.rate_hz / 4.0).min(20.0);
+    if !(0.01..=fmax).contains(&spec.frequency) {
+        return Err(usage(format!(
+            "--frequency {} Hz is out of range 0.01..={fmax} (at most 20 Hz and at most \
+             --rate-hz / 4)",
+            spec.frequency
+        )));
+    }
+    if !(0.01..=600.0).contains(&spec.duration) {
+        return Err(usage(format!(
+            "--duration {} s is out of range 0.01..=600",
+            spec.duration
+        )));
+    }
+    let (limit, unit) = match spec.mode {
+        WaveMode::Position => (MAX_DEG, "degrees"),
+        WaveMode::Speed => (MAX_RPM, "RPM"),
+        WaveMode::Current => (MAX_MA, "mA"),
+    };
+    let peak = spec.offset.abs() + spec.amplitude;
+    if peak > limit {
+        return Err(usage(format!(
+            "--offset {} and --amplitude {} reach {peak} {unit}, outside -{limit}..={limit} \
+             {unit}",
+            spec.offset, spec.amplitude
+        )));
+    }
+    let mut plan = WhjPlan::default();
+    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // <= 600_000
+    let count = (spec.duration * spec.rate_hz).round().max(1.0) as u64;
+    plan.notes.push(format!(
+        "{:?} wave, {count} frame(s) at {} Hz; the joint must be enabled and in {:?} mode",
+        spec.shape, spec.rate_hz, spec.mode
+    ));
+    for k in 0..count {
+        let t = k as f64 / spec.rate_hz;
+        let s = (2.0 * PI * spec.frequency * t).sin();
+        let v = match spec.shape {
+            Shape::Sine => spec.offset + spec.amplitude * s,
+            Shape::Square if s >= 0.0 => spec.offset + spec.amplitude,
+            Shape::Square => spec.offset - spec.amplitude,
+        };
+        let bad = |e: robobus_whj::units::UnitRangeError| usage(format!("wave: {e}"));
+        let request = match spec.mode {
+            WaveMode::Position => Request::PositionServo {
+                joint,
+                target: Position::from_degrees(v).map_err(bad)?,
+            },
+            WaveMode::Speed => Request::SpeedServo {
+                joint,
+                target: TargetSpeed::from_rpm(v).map_err(bad)?,
+            },
+            WaveMode::Current => Request::CurrentServo {
+                joint,
+                target: Current::from_milliamps(v, scale).map_err(bad)?,
+            },
+        };
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let at = (t * 1e6).round() as u64;
+        plan.push_at(at, request);
+    }
+    Ok(plan)
+}
+
+/// The write request for `write REGISTER VALUE`, converting units.
+fn write_request(
+    args: &Args,
+    dry_run: bool,
+    joint: JointId,
+    register: Register,
+    value: &str,
+    raw: bool,
+) -> anyhow::Result<Request> {
+    let name = register.info.map_or("reserved register", |i| i.name);
+    let v: f64 = value
+        .trim()
+        .parse()
+        .map_err(|_| usage(format!("write {name} <VALUE>: `{value}` is not a number")))?;
+    if !v.is_finite() {
+        return Err(usage(format!(
+            "write {name} <VALUE>: `{value}` is not finite"
+        )));
+    }
+    let unit = register.info.map_or(Unit::Raw, |i| i.unit);
+    let per_count = if raw {
+        1.0
+    } else {
+        match unit {
+            Unit::Current => {
+                f64::from(current_scale(args, dry_run, &format!("write {name}"))?.ma_per_count())
+            }
+            Unit::SpeedLimit => {
+                return Err(usage(format!(
+                    "write {name}: its unit depends on the firmware (0.01 RPM or 1/ratio RPM, \
+                     conflict C3); give the value in counts with --raw"
+                )));
+            }
+            other => other.scale().unwrap_or(1.0),
+        }
+    };
+    let counts = (v / per_count).round();
+    if (counts - v / per_count).abs() > 1e-6 && (raw || unit.scale().is_none()) {
+        return Err(usage(format!(
+            "write {name} <VALUE>: `{value}` is not a whole number of counts"
+        )));
+    }
+    if counts < f64::from(i32::MIN) || counts > f64::from(i32::MAX) {
+        return Err(usage(format!(
+            "write {name} <VALUE>: {value} is {counts} counts, outside the 32-bit range"
+        )));
+    }
+    #[allow(clippy::cast_possible_truncation)] // checked just above
+    let counts = counts as i32;
+    let bad = |e: robobus_whj::RequestError| usage(format!("write <REGISTER> <VALUE>: {e}"));
+    if register.info.map(|i| i.half) == Some(Half::Low) {
+        return Request::write_i32(joint, register.addr, counts).map_err(bad);
+    }
+    let word = u16::try_from(counts).map_err(|_| {
+        usage(format!(
+            "write {name} <VALUE>: {counts} counts is out of range 0..=65535 for a 16-bit \
+             register"
+        ))
+    })?;
+    Request::write(joint, register.addr, word).map_err(bad)
+}
+
+/// `robobus whj registers`: the table as text or JSON.
+fn list_registers(g: Global) -> anyhow::Result<()> {
+    if g.json {
+        let rows: Vec<_> = REGISTERS
+            .iter()
+            .map(|r| {
+                serde_json::json!({
+                    "addr": r.addr.get(),
+                    "name": r.name,
+                    "unit": r.unit.symbol(),
+                    "scale": r.unit.scale(),
+                    "range": r.range.map(|(a, b)| [a, b]),
+                    "writable": r.access.is_writable(),
+                    "meaning": r.meaning,
+                })
+            })
+            .collect();
+        return output::print_json(&serde_json::Value::Array(rows));
+    }
+    let mut s = format!(
+        "{:<5} {:<24} {:<6} {:<4} {:<25} {}\n",
+        "ADDR", "NAME", "UNIT", "RW", "RANGE", "MEANING"
+    );
+    for r in &REGISTERS {
+        let range = match r.range {
+            Some((a, b)) if (a, b) == (i32::MIN, i32::MAX) => "i32".to_owned(),
+            Some((a, b)) => format!("{a}..={b}"),
+            None => "-".to_owned(),
+        };
+        let _ = writeln!(
+            s,
+            "0x{:02X}  {:<24} {:<6} {:<4} {:<25} {}",
+            r.addr.get(),
+            r.name,
+            r.unit.symbol(),
+            if r.access.is_writable() { "rw" } else { "r" },
+            range,
+            r.meaning
+        );
+    }
+    output::print(&s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn joint_lists_sort_and_dedup() {
+        let j = parse_joints("3,1-2,2").unwrap();
+        let raw: Vec<u8> = j.0.iter().map(|j| j.get()).collect();
+        assert_eq!(raw, [1, 2, 3]);
+        assert!(parse_joints("0").unwrap_err().contains("1..=30"));
+        assert!(parse_joints("5-2").is_err());
+        assert!(parse_joint("300").unwrap_err().contains("300"));
+    }
+
+    #[test]
+    fn registers_by_name_or_address() {
+        let r = parse_register("cur_position").unwrap();
+        assert_eq!(r.addr.get(), 0x14);
+        assert_eq!(parse_register("0x14").unwrap().addr.get(), 0x14);
+        assert_eq!(parse_register("20").unwrap().addr.get(), 0x14);
+        assert!(parse_register("0x92").unwrap_err().contains("0x92"));
+        assert!(parse_register("nope").is_err());
+    }
+
+    #[test]
+    fn move_steps_never_exceed_the_step_limit() {
+        let j = JointId::new(1).unwrap();
+        let p = plan_move(j, 3.0, 10.0, 200.0, Some(1.0)).unwrap();
+        // 2 degrees at 0.05 deg per frame: 40 frames after the position read.
+        assert_eq!(p.steps.len(), 41);
+        let mut last = 1.0;
+        for st in &p.steps[1..] {
+            let Request::PositionServo { target, .. } = st.request else {
+                panic!("{:?}", st.request)
+            };
+            assert!((target.degrees() - last).abs() <= 0.05 + 1e-4);
+            last = target.degrees();
+        }
+        assert!((last - 3.0).abs() < 1e-9);
+    }
+}

@@ -1,0 +1,227 @@
+//! Bad input: exit code 2, a message naming the value, the allowed range and the
+//! argument, nothing on stdout, and nothing opened (the port / bus named does not exist,
+//! and the error is the validation one, not an I/O one).
+
+#![allow(clippy::unwrap_used, clippy::panic)] // test helpers: a failed unwrap is a failed test
+
+mod common;
+
+use common::robobus;
+
+const PORT: &str = "/nonexistent/ttyUSB9";
+
+#[track_caller]
+fn refused(args: &[&str], must_contain: &[&str]) {
+    let r = robobus(args);
+    assert_eq!(r.code, Some(2), "robobus {args:?}: {r:#?}");
+    assert!(r.stdout.is_empty(), "robobus {args:?} printed {}", r.stdout);
+    for s in must_contain {
+        assert!(
+            r.stderr.contains(s),
+            "robobus {args:?}: stderr lacks {s:?}:\n{}",
+            r.stderr
+        );
+    }
+    assert!(
+        !r.stderr.contains("No such file") && !r.stderr.contains("not yet available"),
+        "robobus {args:?} got past validation:\n{}",
+        r.stderr
+    );
+}
+
+#[test]
+fn wck_values_out_of_range_are_refused_before_anything_is_opened() {
+    for dry in [false, true] {
+        let mut base = vec!["wck", "--port", PORT];
+        if dry {
+            base.push("--dry-run");
+        }
+        let with = |rest: &[&'static str]| {
+            let mut v = base.clone();
+            v.extend_from_slice(rest);
+            v
+        };
+        refused(
+            &with(&["move", "31", "127"]),
+            &["'31'", "<ID>", "servo id 31", "0..=30"],
+        );
+        refused(
+            &with(&["move", "3", "255"]),
+            &["<POSITION>", "position 255", "0..=254"],
+        );
+        refused(&with(&["move", "3", "1000"]), &["position 1000", "0..=254"]);
+        refused(
+            &with(&["move", "3", "12", "--torque", "5"]),
+            &["--torque", "torque level 5", "0..=4"],
+        );
+        refused(
+            &with(&["move10", "254", "0"]),
+            &["extended servo id 254", "0..=253"],
+        );
+        refused(
+            &with(&["move10", "3", "1024"]),
+            &["10-bit position 1024", "0..=1023"],
+        );
+        refused(
+            &with(&["wheel", "3", "cw", "16"]),
+            &["<SPEED>", "wheel speed 16", "0..=15"],
+        );
+        refused(
+            &with(&["set", "overload", "3", "1801"]),
+            &["<MILLIAMPS>", "1801", "400..=1800"],
+        );
+        refused(
+            &with(&["set", "speed", "3", "10", "19"]),
+            &["<ACCEL>", "acceleration 19", "20..=100"],
+        );
+        refused(
+            &with(&["set", "gains", "3", "0", "10"]),
+            &["<P>", "P gain 0", "1..=254"],
+        );
+        refused(
+            &with(&["set", "bounds", "3", "100", "50"]),
+            &["set bounds", "lower 100", "upper 50"],
+        );
+        refused(
+            &with(&["set", "io", "3", "4"]),
+            &["<OUTPUTS>", "digital outputs 4", "0..=3"],
+        );
+        refused(
+            &with(&["set-baud", "3", "19200"]),
+            &["<RATE>", "19200", "115200"],
+        );
+        refused(
+            &with(&["set-id", "3", "254"]),
+            &["<NEW_ID>", "254", "0..=253"],
+        );
+        refused(&with(&["status", "0-31"]), &["<IDS>", "servo id 31"]);
+        refused(&with(&["status", "5-2"]), &["<IDS>", "backwards"]);
+        refused(
+            &with(&["move", "3", "x"]),
+            &["<POSITION>", "`x` is not a whole number"],
+        );
+        refused(
+            &with(&["teach", "0", "--rate-hz", "500"]),
+            &["--rate-hz", "500", "0.1..=200"],
+        );
+    }
+    refused(
+        &["wck", "--port", PORT, "--baud", "1234", "brake"],
+        &["--baud", "1234"],
+    );
+    let many: Vec<String> = (0..32).map(|_| "127".to_owned()).collect();
+    let mut args = vec!["wck", "--port", PORT, "sync-move"];
+    args.extend(many.iter().map(String::as_str));
+    refused(&args, &["<POSITIONS>"]);
+}
+
+#[test]
+fn whj_values_out_of_range_are_refused_before_anything_is_opened() {
+    for dry in [false, true] {
+        let mut base = vec!["whj", "--bus", "vcan99"];
+        if dry {
+            base.push("--dry-run");
+        }
+        let with = |rest: &[&'static str]| {
+            let mut v = base.clone();
+            v.extend_from_slice(rest);
+            v
+        };
+        refused(
+            &with(&["enable", "0"]),
+            &["<JOINTS>", "joint ID 0", "1..=30"],
+        );
+        refused(&with(&["enable", "31"]), &["joint ID 31", "1..=30"]);
+        refused(
+            &with(&["move", "1", "400"]),
+            &["<DEGREES>", "400", "-360..=360"],
+        );
+        refused(
+            &with(&["move", "1", "10", "--max-speed", "500"]),
+            &["--max-speed", "500", "0.1..=180"],
+        );
+        refused(&with(&["speed", "1", "-61"]), &["<RPM>", "-61", "-60..=60"]);
+        refused(&with(&["current", "1", "40000"]), &["<MILLIAMPS>", "40000"]);
+        refused(
+            &with(&["read", "1", "0x92"]),
+            &["<REGISTER>", "0x92", "0x00..=0x91"],
+        );
+        refused(
+            &with(&["read", "1", "no_such_reg"]),
+            &["<REGISTER>", "no_such_reg"],
+        );
+        refused(
+            &with(&["write", "1", "sys_id", "40"]),
+            &["SYS_ID", "40", "1..=30"],
+        );
+        refused(&with(&["write", "1", "cur_position", "1"]), &["read-only"]);
+        refused(&with(&["set-id", "1", "31"]), &["<NEW_ID>", "31", "1..=30"]);
+        refused(
+            &with(&["wave", "1", "--amplitude", "300", "--offset", "100"]),
+            &["--offset", "--amplitude", "400"],
+        );
+        refused(
+            &with(&["wave", "1", "--amplitude", "1", "--frequency", "100"]),
+            &["--frequency", "100", "0.01..="],
+        );
+        refused(&with(&["mode", "1", "torque"]), &["torque", "position"]);
+    }
+    refused(
+        &["whj", "--bus", "udp:1.2.3.4:5", "--dry-run", "enable", "1"],
+        &["--bus", "multicast"],
+    );
+    // Current scaling needs the model in a dry run.
+    refused(&["whj", "--dry-run", "current", "1", "100"], &["--model"]);
+}
+
+#[test]
+fn execution_needs_the_client_library_and_says_so() {
+    let r = robobus(&["wck", "--port", PORT, "move", "3", "127"]);
+    assert_eq!(r.code, Some(4), "{r:#?}");
+    assert!(r.stderr.contains("not yet available"), "{}", r.stderr);
+    assert!(
+        r.stderr.contains("Nothing was opened or sent"),
+        "{}",
+        r.stderr
+    );
+    let r = robobus(&["whj", "--bus", "vcan99", "enable", "1"]);
+    assert_eq!(r.code, Some(4), "{r:#?}");
+    // Without --dry-run the port / bus is required.
+    let r = robobus(&["wck", "move", "3", "127"]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    assert!(r.stderr.contains("--port"), "{}", r.stderr);
+    let r = robobus(&["whj", "enable", "1"]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    assert!(r.stderr.contains("--bus"), "{}", r.stderr);
+}
+
+#[test]
+fn memory_rewrites_need_confirmation_without_a_terminal() {
+    // stdin of a test is not a terminal: without --yes the command is refused (exit 2)...
+    for args in [
+        &["wck", "--port", PORT, "set-id", "3", "4"][..],
+        &["wck", "--port", PORT, "set", "gains", "3", "30", "20"][..],
+        &["whj", "--bus", "vcan99", "save", "1"][..],
+    ] {
+        let r = robobus(args);
+        assert_eq!(r.code, Some(2), "{args:?}: {r:#?}");
+        assert!(r.stderr.contains("--yes"), "{}", r.stderr);
+        // ...and with --yes it gets as far as the (missing) client.
+        let mut yes = args.to_vec();
+        yes.push("--yes");
+        assert_eq!(robobus(&yes).code, Some(4), "{yes:?}");
+    }
+    // Runtime settings and motion need no confirmation.
+    let r = robobus(&[
+        "wck",
+        "--port",
+        PORT,
+        "set",
+        "gains",
+        "3",
+        "30",
+        "20",
+        "--runtime",
+    ]);
+    assert_eq!(r.code, Some(4), "{r:#?}");
+}

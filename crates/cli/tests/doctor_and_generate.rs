@@ -1,0 +1,101 @@
+//! `robobus doctor` (checks that need no device), `robobus completions` and `robobus man`.
+
+#![allow(clippy::unwrap_used, clippy::panic)] // test helpers: a failed unwrap is a failed test
+
+mod common;
+
+use common::{ok, robobus};
+
+#[test]
+fn doctor_reports_a_missing_port_with_a_fix_and_exit_code_5() {
+    let r = robobus(&["doctor", "--port", "/nonexistent/ttyUSB9"]);
+    assert_eq!(r.code, Some(5), "{r:#?}");
+    assert!(
+        r.stdout.contains("FAIL  /nonexistent/ttyUSB9"),
+        "{}",
+        r.stdout
+    );
+    assert!(r.stdout.contains("fix: check the cable"), "{}", r.stdout);
+    assert!(r.stdout.contains("udp bus"), "{}", r.stdout);
+    assert!(r.stderr.contains("1 check(s) failed"), "{}", r.stderr);
+}
+
+#[test]
+fn doctor_json_lists_every_finding() {
+    let dir = tempfile::tempdir().unwrap();
+    let fake = dir.path().join("not-a-tty");
+    std::fs::write(&fake, "").unwrap();
+    let r = robobus(&[
+        "doctor",
+        "--json",
+        "--port",
+        fake.to_str().unwrap(),
+        "--can",
+        "vcan99",
+    ]);
+    let v: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
+    let findings = v["findings"].as_array().unwrap();
+    let get = |subject: &str, check: &str| {
+        findings
+            .iter()
+            .find(|f| f["subject"] == subject && f["check"] == check)
+            .unwrap_or_else(|| panic!("no {subject}/{check} in {findings:#?}"))
+    };
+    let port = fake.to_str().unwrap();
+    assert_eq!(get(port, "exists")["status"], "warn");
+    assert_eq!(get(port, "latency timer")["status"], "skip");
+    let vcan = get("vcan99", "exists");
+    assert_eq!(vcan["status"], "fail");
+    assert!(vcan["fix"].as_str().unwrap().contains("type vcan"));
+    assert!(
+        ["ok", "warn", "skip", "fail"]
+            .contains(&get("udp bus", "loopback")["status"].as_str().unwrap())
+    );
+    assert_eq!(v["ok"], false);
+    assert_eq!(r.code, Some(5));
+}
+
+#[test]
+fn completions_cover_the_subcommands() {
+    for shell in ["bash", "zsh", "fish"] {
+        let out = ok(&["completions", shell]);
+        for word in [
+            "wck",
+            "whj",
+            "sync-move",
+            "release-iap",
+            "doctor",
+            "--dry-run",
+        ] {
+            assert!(out.contains(word), "{shell} completion lacks {word}");
+        }
+    }
+    let r = robobus(&["completions", "tcsh"]);
+    assert_eq!(r.code, Some(2));
+}
+
+#[test]
+fn man_pages_are_written_for_every_subcommand() {
+    let page = ok(&["man"]);
+    assert!(
+        page.starts_with(".ie") || page.contains(".TH robobus"),
+        "{}",
+        &page[..200]
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let r = robobus(&["man", "-o", dir.path().to_str().unwrap()]);
+    assert_eq!(r.code, Some(0), "{r:#?}");
+    for name in [
+        "robobus.1",
+        "robobus-wck.1",
+        "robobus-wck-move.1",
+        "robobus-whj-wave.1",
+        "robobus-sim-wck.1",
+    ] {
+        let text = std::fs::read_to_string(dir.path().join(name))
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(text.contains(".TH"), "{name} is not a man page");
+    }
+    let move_page = std::fs::read_to_string(dir.path().join("robobus-wck-move.1")).unwrap();
+    assert!(move_page.contains("torque"), "{move_page}");
+}

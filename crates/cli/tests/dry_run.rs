@@ -1,0 +1,282 @@
+//! `--dry-run` prints exactly the bytes / frames of the manuals' examples, and nothing is
+//! opened: every run names a port or bus that does not exist.
+
+#![allow(clippy::unwrap_used, clippy::panic)] // test helpers: a failed unwrap is a failed test
+
+mod common;
+
+use common::{lines, ok, robobus};
+
+const PORT: &str = "/nonexistent/ttyUSB9";
+
+fn wck(args: &[&str]) -> Vec<String> {
+    let mut all = vec!["wck", "--port", PORT, "--dry-run"];
+    all.extend_from_slice(args);
+    lines(&ok(&all)).into_iter().map(str::to_owned).collect()
+}
+
+fn whj(args: &[&str]) -> Vec<String> {
+    let mut all = vec!["whj", "--bus", "vcan99", "--dry-run"];
+    all.extend_from_slice(args);
+    lines(&ok(&all)).into_iter().map(str::to_owned).collect()
+}
+
+#[test]
+fn wck_packets_match_the_manual_a1_examples() {
+    // (subcommand, packet as the manual's appendix A-1 prints it, corrected checksums)
+    let cases: &[(&[&str], &str)] = &[
+        (&["move", "3", "127"], "FF 03 7F 7C"),
+        (&["move", "0", "127"], "FF 00 7F 7F"),
+        (&["sync-move", "127", "127"], "FF 1F 02 7F 7F 00"),
+        (&["status", "0"], "FF A0 00 20"),
+        (&["passive", "0"], "FF C0 10 50"),
+        (&["wheel", "0", "ccw", "15"], "FF C0 3F 7F"),
+        (&["brake"], "FF DF 20 7F"),
+        (&["set-baud", "0", "115200"], "FF E0 08 07 07 68"),
+        (&["set", "gains", "0", "100", "100"], "FF E0 09 64 64 69"),
+        (&["get", "gains", "0"], "FF E0 0A 00 00 6A"),
+        (&["set", "i-gain", "0", "100"], "FF E0 15 64 64 75"),
+        (&["get", "i-gain", "0"], "FF E0 16 00 00 76"),
+        (
+            &["set", "gains", "0", "100", "100", "--runtime"],
+            "FF E0 0B 64 64 6B",
+        ),
+        (
+            &["set", "i-gain", "0", "4", "--runtime"],
+            "FF E0 18 04 04 78",
+        ),
+        (&["set-id", "0", "30"], "FF E0 0C 1E 1E 6C"),
+        (&["set", "speed", "0", "30", "100"], "FF E0 0D 1E 64 17"),
+        (&["get", "speed", "0"], "FF E0 0E 00 00 6E"),
+        (
+            &["set", "speed", "0", "30", "100", "--runtime"],
+            "FF E0 17 1E 64 0D",
+        ),
+        (&["set", "overload", "0", "1000"], "FF E0 0F 68 68 6F"),
+        (&["get", "overload", "0"], "FF E0 10 00 00 70"),
+        (&["set", "bounds", "0", "50", "100"], "FF E0 11 32 64 27"),
+        (&["get", "bounds", "0"], "FF E0 12 00 00 72"),
+        (&["set", "io", "0", "3"], "FF E0 64 03 03 04"),
+        (&["get", "io", "0"], "FF E0 65 00 00 05"),
+        (&["program", "download", "0"], "FF E0 97 00 00 77"),
+        (&["move10", "0", "1000"], "FF E0 C8 00 00 07 D0 7F"),
+        (&["read10", "0"], "FF E0 C9 00 00 29"),
+    ];
+    for (args, packet) in cases {
+        assert_eq!(wck(args), [*packet], "robobus wck --dry-run {args:?}");
+    }
+}
+
+#[test]
+fn wck_program_upload_matches_the_manual_a1_24_example() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("swing.wck");
+    std::fs::write(
+        &file,
+        "# the manual's A-1 (24) example\nmove 82 torque 0\ndelay 266ms\nmove 172 torque 0\ndelay 266ms\n",
+    )
+    .unwrap();
+    let f = file.to_str().unwrap();
+    let expected = "FF E0 96 04 10 52 31 0A 10 AC 31 0A 0C";
+    assert_eq!(wck(&["program", "upload", "0", f]), [expected]);
+    // `program check` needs no port at all and prints the same packet.
+    let out = ok(&["wck", "program", "check", f]);
+    assert_eq!(lines(&out), [expected]);
+    assert!(out.contains("4 instruction(s)"), "{out}");
+    assert!(out.contains("10 52  move 82 torque 0"), "{out}");
+}
+
+#[test]
+fn wck_program_check_reports_line_and_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("bad.wck");
+    std::fs::write(&file, "move 82 torque 0\ndelay 266ms\nmove 300 torque 0\n").unwrap();
+    let r = robobus(&["wck", "program", "check", file.to_str().unwrap()]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    assert!(r.stderr.contains("bad.wck:3:6:"), "{}", r.stderr);
+    assert!(r.stderr.contains("300"), "{}", r.stderr);
+    assert!(r.stdout.is_empty());
+}
+
+#[test]
+fn wck_scan_reads_every_id_and_all_bauds_switch_rates() {
+    let packets = wck(&["scan"]);
+    assert_eq!(packets.len(), 31);
+    assert_eq!(packets[0], "FF A0 00 20");
+    let out = ok(&["wck", "--dry-run", "scan", "--all-bauds", "--ids", "0-1"]);
+    assert_eq!(lines(&out).len(), 16);
+    assert!(out.contains("# 4800 bit/s\nFF A0 00 20\n"), "{out}");
+    assert!(out.contains("# 921600 bit/s\n"), "{out}");
+}
+
+#[test]
+fn global_options_go_before_or_after_the_subcommand() {
+    let before = ok(&["--dry-run", "wck", "--port", PORT, "move", "3", "127"]);
+    let after = ok(&["wck", "move", "3", "127", "--port", PORT, "--dry-run"]);
+    assert_eq!(before, "FF 03 7F 7C\n");
+    assert_eq!(after, before);
+}
+
+#[test]
+fn whj_raw_writes_refuse_fractions() {
+    let r = robobus(&["whj", "--dry-run", "write", "1", "0x36", "1.5", "--raw"]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    assert!(r.stderr.contains("not a whole number"), "{}", r.stderr);
+}
+
+#[test]
+fn wck_json_form_is_machine_readable() {
+    let out = ok(&[
+        "wck",
+        "--port",
+        PORT,
+        "--dry-run",
+        "--json",
+        "move",
+        "3",
+        "127",
+    ]);
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["dry_run"], true);
+    assert_eq!(v["bus"]["port"], PORT);
+    let p = &v["packets"][0];
+    assert_eq!(p["hex"], "FF 03 7F 7C");
+    assert_eq!(p["bytes"], serde_json::json!([255, 3, 127, 124]));
+    assert_eq!(p["command"], "position move");
+    assert_eq!(p["reply_len"], 2);
+}
+
+#[test]
+fn wck_play_interpolates_keyframes_into_sync_moves() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("wave.motion");
+    std::fs::write(
+        &file,
+        "# two servos\ntorque 1\npose 500 100 200\npose 100 120 180\nhold 40\npose 0 0 0\n",
+    )
+    .unwrap();
+    let f = file.to_str().unwrap();
+    // 50 Hz: 20 ms period; the 100 ms transition takes 5 steps of 4 counts.
+    let packets = wck(&["play", f]);
+    let expect = |a: u8, b: u8| format!("FF 3F 02 {a:02X} {b:02X} {:02X}", (a ^ b) & 0x7F);
+    assert_eq!(
+        packets,
+        [
+            expect(100, 200),
+            expect(104, 196),
+            expect(108, 192),
+            expect(112, 188),
+            expect(116, 184),
+            expect(120, 180),
+            expect(0, 0),
+        ]
+    );
+    let out = ok(&["wck", "--dry-run", "--json", "play", f]);
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let times: Vec<u64> = v["packets"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["t_ms"].as_u64().unwrap())
+        .collect();
+    assert_eq!(times, [0, 520, 540, 560, 580, 600, 640]);
+}
+
+#[test]
+fn wck_play_errors_point_into_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("bad.motion");
+    std::fs::write(&file, "pose 0 1 2\npose 100 1 2 3\n").unwrap();
+    let r = robobus(&["wck", "--dry-run", "play", file.to_str().unwrap()]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    assert!(r.stderr.contains("bad.motion:2:1:"), "{}", r.stderr);
+    assert!(r.stderr.contains("3 servos"), "{}", r.stderr);
+}
+
+#[test]
+fn whj_frames_match_the_usage_demo() {
+    let cases: &[(&[&str], &[&str])] = &[
+        (&["enable", "1"], &["001##1020A01"]),
+        (&["disable", "1"], &["001##1020A00"]),
+        (&["mode", "1", "position"], &["001##1023003"]),
+        (&["release-iap", "1"], &["001##1024900"]),
+        (&["clear", "1"], &["001##1020F01"]),
+        (&["zero", "1"], &["001##1020E01"]),
+        (&["save", "1"], &["001##1020C01"]),
+        (&["status", "1"], &["601##1"]),
+        (&["read", "1", "cur_position"], &["001##1011402"]),
+        (&["read", "1", "0x06"], &["001##1010601"]),
+        (
+            &["enable", "1-3"],
+            &["001##1020A01", "002##1020A01", "003##1020A01"],
+        ),
+        (&["speed", "2", "1"], &["302##1F4010000"]),
+        (
+            &["write", "1", "tag_position", "30"],
+            &["001##10236E0930400"],
+        ),
+        (
+            &["write", "1", "0x36", "300000", "--raw"],
+            &["001##10236E0930400"],
+        ),
+    ];
+    for (args, frames) in cases {
+        assert_eq!(whj(args), *frames, "robobus whj --dry-run {args:?}");
+    }
+}
+
+#[test]
+fn whj_move_steps_to_the_target_and_ends_on_it() {
+    // 30 deg from 0 at 10 deg/s and 200 Hz would be 600 frames; check a small one:
+    // 0 -> 0.2 deg at 10 deg/s, 100 Hz = 0.1 deg per frame: 2 frames.
+    let frames = whj(&["move", "1", "0.2", "--from", "0", "--rate-hz", "100"]);
+    assert_eq!(frames, ["001##1011402", "201##1E8030000", "201##1D0070000"]);
+    // The usage demo's 30 deg target in one frame: E0 93 04 00.
+    let frames = whj(&[
+        "move",
+        "1",
+        "30",
+        "--from",
+        "29.9",
+        "--max-speed",
+        "20",
+        "--rate-hz",
+        "200",
+    ]);
+    assert_eq!(frames.last().unwrap(), "201##1E0930400");
+    assert_eq!(frames.len(), 2);
+}
+
+#[test]
+fn whj_wave_has_one_frame_per_period() {
+    let out = ok(&[
+        "whj",
+        "--dry-run",
+        "--json",
+        "wave",
+        "1",
+        "--amplitude",
+        "10",
+        "--frequency",
+        "1",
+        "--duration",
+        "1",
+        "--rate-hz",
+        "4",
+    ]);
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let frames = v["frames"].as_array().unwrap();
+    let lines: Vec<&str> = frames.iter().map(|f| f["line"].as_str().unwrap()).collect();
+    // sin at 0, 90, 180, 270 degrees of phase: 0, +10, 0, -10 degrees.
+    assert_eq!(
+        lines,
+        [
+            "201##100000000",
+            "201##1A0860100",
+            "201##100000000",
+            "201##16079FEFF"
+        ]
+    );
+    let t: Vec<f64> = frames.iter().map(|f| f["t_ms"].as_f64().unwrap()).collect();
+    assert_eq!(t, [0.0, 250.0, 500.0, 750.0]);
+}
