@@ -1,0 +1,7 @@
+//! robobus: drive RoboBuilder wCK servos and RealMan WHJ joints from a host computer.
+//!
+//! The same API works on real hardware and on the robobus simulators; the link is the
+//! only difference.
+
+pub mod wck;
+pub mod whj;
