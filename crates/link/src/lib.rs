@@ -73,6 +73,7 @@ pub mod pycan;
 pub mod serial;
 #[cfg(target_os = "linux")]
 pub mod socketcan;
+#[cfg(unix)]
 pub mod udp;
 
 pub use byte::{ByteLink, LinkError};
@@ -89,4 +90,5 @@ pub use pty::{PtyLink, PtyOptions, PtyPair};
 pub use serial::{SerialLink, set_usb_latency_timer, usb_latency_timer};
 #[cfg(target_os = "linux")]
 pub use socketcan::SocketCanLink;
+#[cfg(unix)]
 pub use udp::{UdpBus, UdpBusConfig, UdpBusStats};

@@ -66,12 +66,13 @@ fn make_raw(fd: impl AsFd, baud: BaudRate) -> Result<(), Errno> {
 pub const WRITE_TIMEOUT: Duration = Duration::from_secs(2);
 
 /// Waits until `fd` is readable or `deadline` passes; returns whether it is readable
-/// (or hung up, which the following read reports).
-fn wait_readable(fd: impl AsFd, deadline: Instant) -> io::Result<bool> {
+/// (or hung up, which the following read reports). `ppoll` with a nanosecond timeout: no
+/// rounding to the kernel tick, unlike `SO_RCVTIMEO`.
+pub(crate) fn wait_readable(fd: impl AsFd, deadline: Instant) -> io::Result<bool> {
     wait_for(fd, PollFlags::POLLIN, deadline)
 }
 
-fn wait_for(fd: impl AsFd, what: PollFlags, deadline: Instant) -> io::Result<bool> {
+pub(crate) fn wait_for(fd: impl AsFd, what: PollFlags, deadline: Instant) -> io::Result<bool> {
     loop {
         let remaining = deadline.saturating_duration_since(Instant::now());
         let mut fds = [PollFd::new(fd.as_fd(), what)];

@@ -25,6 +25,9 @@ use socket2::{Domain, Protocol, Socket, Type};
 use crate::frame_link::{FrameLink, FrameLinkError, IdFilter, Received, passes};
 use crate::pycan;
 
+/// How long a send may wait for room in the socket buffer before it fails.
+const SEND_TIMEOUT: Duration = Duration::from_secs(1);
+
 /// python-can's default IPv4 group.
 pub const DEFAULT_GROUP: Ipv4Addr = Ipv4Addr::new(239, 74, 163, 2);
 /// python-can's default port.
@@ -127,6 +130,11 @@ impl UdpBus {
                 e,
             )
         })?;
+        // Non-blocking: `recv` waits with `ppoll` (exact deadlines) instead of
+        // `SO_RCVTIMEO`, which the kernel rounds up to its tick (4 ms at HZ=250).
+        socket
+            .set_nonblocking(true)
+            .map_err(|e| FrameLinkError::io(ctx("setting non-blocking mode"), e))?;
         Ok(Self {
             socket: socket.into(),
             dest: SocketAddrV4::new(config.group, config.port),
@@ -159,10 +167,35 @@ impl UdpBus {
             self.sent.pop_front();
         }
         self.sent.push_back(datagram.clone());
-        self.socket
-            .send_to(&datagram, self.dest)
-            .map_err(|e| FrameLinkError::io(format!("sending to UDP bus {}", self.dest), e))?;
-        Ok(datagram)
+        let deadline = Instant::now() + SEND_TIMEOUT;
+        loop {
+            match self.socket.send_to(&datagram, self.dest) {
+                Ok(_) => return Ok(datagram),
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => {
+                    let writable =
+                        crate::pty::wait_for(&self.socket, nix::poll::PollFlags::POLLOUT, deadline)
+                            .map_err(|e| self.io_error("waiting to send on", e))?;
+                    if !writable {
+                        return Err(self.io_error("sending to", e));
+                    }
+                }
+                Err(e) => return Err(self.io_error("sending to", e)),
+            }
+        }
+    }
+
+    fn io_error(&self, what: &str, e: io::Error) -> FrameLinkError {
+        FrameLinkError::io(format!("{what} UDP bus {}", self.dest), e)
+    }
+
+    /// Waits until a datagram can be read or `deadline` passes; returns whether one can.
+    fn wait_readable(&self, deadline: Instant) -> Result<bool, FrameLinkError> {
+        if Instant::now() >= deadline {
+            return Ok(false);
+        }
+        crate::pty::wait_readable(&self.socket, deadline)
+            .map_err(|e| self.io_error("waiting on", e))
     }
 
     /// Removes `datagram` from the echo memory if it is one of ours.
@@ -184,28 +217,21 @@ impl FrameLink for UdpBus {
     fn recv(&mut self, deadline: Instant) -> Result<Received, FrameLinkError> {
         let mut buf = [0u8; 2048];
         loop {
-            let remaining = deadline.saturating_duration_since(Instant::now());
-            // A zero timeout means "block forever" to the OS: poll for 1 µs instead.
-            self.socket
-                .set_read_timeout(Some(remaining.max(Duration::from_micros(1))))
-                .map_err(|e| FrameLinkError::io(format!("UDP bus {}", self.dest), e))?;
             let n = match self.socket.recv(&mut buf) {
                 Ok(n) => n,
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
                 Err(e)
                     if matches!(
                         e.kind(),
                         io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut
                     ) =>
                 {
-                    return Err(FrameLinkError::Timeout);
+                    if !self.wait_readable(deadline)? {
+                        return Err(FrameLinkError::Timeout);
+                    }
+                    continue;
                 }
-                Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
-                Err(e) => {
-                    return Err(FrameLinkError::io(
-                        format!("receiving from UDP bus {}", self.dest),
-                        e,
-                    ));
-                }
+                Err(e) => return Err(self.io_error("receiving from", e)),
             };
             let timestamp = Some(SystemTime::now());
             let datagram = buf.get(..n).unwrap_or_default();
