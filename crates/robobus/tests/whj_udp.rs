@@ -20,10 +20,8 @@ use robobus_whj::units::Position;
 use robobus_whj::{JointId, WorkMode};
 use whj_common::{Sim, chain, configs};
 
-/// Cycle period of the loop over UDP. The simulator's endpoint waits in the UDP bus's
-/// receive, whose timeout (`SO_RCVTIMEO`) rounds up to the kernel tick, so a reply over
-/// UDP takes a few milliseconds; the in-process bus runs the same loop at 500 Hz.
-const PERIOD: Duration = Duration::from_millis(20);
+/// Cycle period of the loop over UDP: 500 Hz, as on the in-process bus.
+const PERIOD: Duration = Duration::from_millis(2);
 
 /// Tells the inner tests they run inside the namespace.
 const NETNS_ENV: &str = "ROBOBUS_WHJ_IN_NETNS";
@@ -114,7 +112,8 @@ fn inner_every_operation_and_a_seven_joint_loop() {
         std::thread::sleep(Duration::from_millis(1500));
         let stats = cyc.stop();
         eprintln!("UDP {protocol:?} 7 joints every {PERIOD:?}: {stats:#?}");
-        assert!(stats.cycles >= 50, "{stats:?}");
+        // 750 cycles in 1.5 s; a loaded 2-core CI machine may stall a few.
+        assert!(stats.cycles >= 500, "{stats:?}");
         assert!(stats.complete * 2 >= stats.cycles, "{stats:?}");
     }
     for (i, &id) in joints.iter().enumerate() {
