@@ -186,7 +186,24 @@ impl StreamDecoder {
     }
 
     /// Pushes one byte; returns an event when a packet completes or is abandoned.
+    #[inline]
     pub fn push(&mut self, byte: u8) -> Option<Result<Command, DecodeError>> {
+        // Fast path: a data byte in the middle of a packet whose length is known.
+        if byte != HEADER
+            && self.len + 1 < self.expected
+            && let Some(slot) = self.buf.get_mut(usize::from(self.len))
+        {
+            *slot = byte;
+            self.len += 1;
+            self.done = 0;
+            return None;
+        }
+        self.push_slow(byte)
+    }
+
+    /// Every other byte: headers, the first bytes of a packet, the last byte.
+    #[inline(never)]
+    fn push_slow(&mut self, byte: u8) -> Option<Result<Command, DecodeError>> {
         self.done = 0;
         if byte == HEADER {
             let received = usize::from(self.len);
