@@ -3,5 +3,10 @@
 //! The same API works on real hardware and on the robobus simulators; the link is the
 //! only difference.
 
+pub mod actuator;
+pub mod robot;
 pub mod wck;
 pub mod whj;
+
+pub use actuator::{Actuator, ActuatorError, ActuatorState, JointLimits};
+pub use robot::{Robot, RobotConfig, RobotError};

@@ -1,0 +1,411 @@
+//! The robot description: a TOML file of buses and named joints.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::time::Duration;
+
+use serde::Deserialize;
+
+use robobus_wck::Position;
+
+use super::RobotError;
+use crate::actuator::{JointMap, WCK_DEFAULT_CENTRE, WckScale};
+
+/// The safe state a bus is put in by the watchdog, a Ctrl-C stop and a drop.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SafeState {
+    /// wCK: every module passive (torque released; the shaft turns freely).
+    Passive,
+    /// wCK: the bus-wide break command (dynamic brake).
+    Break,
+    /// WHJ: a position servo frame at the actual angle (powered, holding).
+    Hold,
+    /// WHJ: drive disabled (brake models lock the brake).
+    Disable,
+}
+
+impl SafeState {
+    /// The keyword used in the TOML file.
+    pub const fn keyword(self) -> &'static str {
+        match self {
+            Self::Passive => "passive",
+            Self::Break => "break",
+            Self::Hold => "hold",
+            Self::Disable => "disable",
+        }
+    }
+}
+
+/// A bus in the robot file (`[buses.NAME]`, selected by `kind`).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum BusConfig {
+    /// `kind = "wck"`: a wCK multi-drop UART on a serial port.
+    Wck {
+        /// Serial port (`/dev/ttyUSB0`, or a simulator's pty).
+        port: String,
+        /// Bit rate, bit/s (one of the module's rates; default 115200).
+        #[serde(default = "default_baud")]
+        baud: u32,
+        /// Torque level of position moves, 0 (maximum) ..= 4 (minimum); default 2.
+        #[serde(default = "default_torque")]
+        torque: u8,
+        /// `"passive"` (default) or `"break"`.
+        #[serde(default = "default_wck_safe")]
+        safe_state: SafeState,
+    },
+    /// `kind = "whj-udp"`: WHJ joints on the python-can compatible UDP multicast bus.
+    WhjUdp {
+        /// Multicast group (default [`robobus_link::udp::DEFAULT_GROUP`], 239.74.163.2).
+        group: Option<std::net::Ipv4Addr>,
+        /// UDP port (default [`robobus_link::udp::DEFAULT_PORT`], 43113).
+        port: Option<u16>,
+        /// `"hold"` (default) or `"disable"`.
+        #[serde(default = "default_whj_safe")]
+        safe_state: SafeState,
+    },
+    /// `kind = "whj-can"`: WHJ joints on a `SocketCAN` interface (Linux).
+    WhjCan {
+        /// Interface name (`can0`).
+        iface: String,
+        /// `"hold"` (default) or `"disable"`.
+        #[serde(default = "default_whj_safe")]
+        safe_state: SafeState,
+    },
+    /// `kind = "wck-external"`: a wCK bus the program supplies
+    /// ([`RobotBuilder::wck_bus`](super::RobotBuilder::wck_bus)), for example a simulator.
+    WckExternal {
+        /// Torque level of position moves, 0..=4; default 2.
+        #[serde(default = "default_torque")]
+        torque: u8,
+        /// `"passive"` (default) or `"break"`.
+        #[serde(default = "default_wck_safe")]
+        safe_state: SafeState,
+    },
+    /// `kind = "whj-external"`: a WHJ bus the program supplies
+    /// ([`RobotBuilder::whj_bus`](super::RobotBuilder::whj_bus)).
+    WhjExternal {
+        /// `"hold"` (default) or `"disable"`.
+        #[serde(default = "default_whj_safe")]
+        safe_state: SafeState,
+    },
+}
+
+const fn default_baud() -> u32 {
+    115_200
+}
+const fn default_torque() -> u8 {
+    2
+}
+const fn default_wck_safe() -> SafeState {
+    SafeState::Passive
+}
+const fn default_whj_safe() -> SafeState {
+    SafeState::Hold
+}
+
+impl BusConfig {
+    /// Whether the bus carries wCK servos (else WHJ joints).
+    pub const fn is_wck(&self) -> bool {
+        matches!(self, Self::Wck { .. } | Self::WckExternal { .. })
+    }
+
+    /// The configured safe state.
+    pub const fn safe_state(&self) -> SafeState {
+        match self {
+            Self::Wck { safe_state, .. }
+            | Self::WhjUdp { safe_state, .. }
+            | Self::WhjCan { safe_state, .. }
+            | Self::WckExternal { safe_state, .. }
+            | Self::WhjExternal { safe_state } => *safe_state,
+        }
+    }
+
+    /// The torque level of wCK moves (`None` on a WHJ bus).
+    pub const fn torque(&self) -> Option<u8> {
+        match self {
+            Self::Wck { torque, .. } | Self::WckExternal { torque, .. } => Some(*torque),
+            _ => None,
+        }
+    }
+}
+
+/// One joint (`[[joints]]`). Angles are joint angles in rad.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointConfig {
+    /// Unique name.
+    pub name: String,
+    /// The `[buses.NAME]` it is on.
+    pub bus: String,
+    /// Device ID (wCK 0..=30, WHJ 1..=30).
+    pub id: u8,
+    /// Device angle at joint zero, rad (wCK: relative to `centre`); default 0.
+    #[serde(default)]
+    pub offset: f64,
+    /// `1` or `-1` (joint turns opposite to the device); default 1.
+    #[serde(default = "default_direction")]
+    pub direction: i8,
+    /// Soft position limits `[min, max]`, rad.
+    pub limits: [f64; 2],
+    /// Largest commanded speed, rad/s.
+    pub max_velocity: f64,
+    /// Largest commanded acceleration, rad/s².
+    pub max_acceleration: f64,
+    /// wCK only: the position step taken as device angle 0 (default 127).
+    pub centre: Option<u8>,
+}
+
+const fn default_direction() -> i8 {
+    1
+}
+
+/// A robot file: `watchdog_timeout` (s), `[buses.NAME]` tables and `[[joints]]`.
+///
+/// ```
+/// use robobus::robot::RobotConfig;
+///
+/// let config = RobotConfig::from_toml_str(r#"
+///     watchdog_timeout = 0.1   # s
+///
+///     [buses.legs]
+///     kind = "wck"
+///     port = "/dev/ttyUSB0"
+///     baud = 115200
+///     safe_state = "passive"
+///
+///     [buses.arm]
+///     kind = "whj-can"
+///     iface = "can0"
+///     safe_state = "disable"
+///
+///     [[joints]]
+///     name = "knee"
+///     bus = "legs"
+///     id = 0
+///     limits = [-1.0, 1.0]      # rad
+///     max_velocity = 2.0        # rad/s
+///     max_acceleration = 20.0   # rad/s²
+///
+///     [[joints]]
+///     name = "shoulder"
+///     bus = "arm"
+///     id = 1
+///     direction = -1
+///     limits = [-0.5, 0.5]
+///     max_velocity = 0.5
+///     max_acceleration = 2.0
+/// "#)?;
+/// assert_eq!(config.joints[1].name, "shoulder");
+/// # Ok::<(), robobus::robot::RobotError>(())
+/// ```
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RobotConfig {
+    /// Watchdog timeout, s: the robot is put in its safe state if
+    /// [`Robot::command`](super::Robot::command) is not called for this long
+    /// (default 0.1 s).
+    #[serde(default = "default_watchdog")]
+    pub watchdog_timeout: f64,
+    /// The buses by name.
+    pub buses: BTreeMap<String, BusConfig>,
+    /// The joints, in the order of [`Robot::read`](super::Robot::read) and
+    /// [`Robot::command`](super::Robot::command).
+    pub joints: Vec<JointConfig>,
+}
+
+const fn default_watchdog() -> f64 {
+    0.1
+}
+
+impl RobotConfig {
+    /// Parses and checks a robot file. Syntax errors give the line and column; errors in
+    /// the values name the joint or bus, the field and the value.
+    pub fn from_toml_str(text: &str) -> Result<Self, RobotError> {
+        let config: Self = toml::from_str(text).map_err(|e| {
+            let (line, column) = e.span().map_or((0, 0), |s| line_column(text, s.start));
+            RobotError::Parse {
+                line,
+                column,
+                message: e.message().to_owned(),
+            }
+        })?;
+        config.validate()?;
+        Ok(config)
+    }
+
+    /// Reads and parses the robot file at `path`.
+    pub fn from_toml_file(path: impl AsRef<Path>) -> Result<Self, RobotError> {
+        let path = path.as_ref();
+        let text = std::fs::read_to_string(path).map_err(|source| RobotError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
+        Self::from_toml_str(&text)
+    }
+
+    /// The watchdog timeout as a [`Duration`].
+    pub fn watchdog(&self) -> Duration {
+        Duration::from_secs_f64(self.watchdog_timeout)
+    }
+
+    /// Checks the values (everything the parser cannot): unique joint names, known buses,
+    /// IDs, limits, directions and safe states per family.
+    pub fn validate(&self) -> Result<(), RobotError> {
+        if !(self.watchdog_timeout.is_finite() && (0.001..=10.0).contains(&self.watchdog_timeout)) {
+            return Err(RobotError::Invalid {
+                item: "robot".into(),
+                field: "watchdog_timeout",
+                value: self.watchdog_timeout.to_string(),
+                expected: "0.001..=10 s".into(),
+            });
+        }
+        for (name, bus) in &self.buses {
+            let state = bus.safe_state();
+            let ok = if bus.is_wck() {
+                matches!(state, SafeState::Passive | SafeState::Break)
+            } else {
+                matches!(state, SafeState::Hold | SafeState::Disable)
+            };
+            if !ok {
+                return Err(RobotError::Invalid {
+                    item: format!("bus {name}"),
+                    field: "safe_state",
+                    value: state.keyword().into(),
+                    expected: if bus.is_wck() {
+                        "\"passive\" or \"break\" on a wCK bus".into()
+                    } else {
+                        "\"hold\" or \"disable\" on a WHJ bus".into()
+                    },
+                });
+            }
+            if let Some(torque) = bus.torque()
+                && torque > 4
+            {
+                return Err(RobotError::Invalid {
+                    item: format!("bus {name}"),
+                    field: "torque",
+                    value: torque.to_string(),
+                    expected: "0..=4".into(),
+                });
+            }
+        }
+        for (i, joint) in self.joints.iter().enumerate() {
+            self.validate_joint(i, joint)?;
+        }
+        Ok(())
+    }
+
+    fn validate_joint(&self, index: usize, joint: &JointConfig) -> Result<(), RobotError> {
+        let item = format!("joint {}", joint.name);
+        let invalid = |field: &'static str, value: String, expected: &str| RobotError::Invalid {
+            item: item.clone(),
+            field,
+            value,
+            expected: expected.into(),
+        };
+        if self.joints[..index].iter().any(|j| j.name == joint.name) {
+            return Err(invalid("name", joint.name.clone(), "a name used once"));
+        }
+        let Some(bus) = self.buses.get(&joint.bus) else {
+            let known: Vec<&str> = self.buses.keys().map(String::as_str).collect();
+            return Err(invalid(
+                "bus",
+                joint.bus.clone(),
+                &format!("one of the [buses]: {}", known.join(", ")),
+            ));
+        };
+        let (ids, id_text) = if bus.is_wck() {
+            (0..=30, "0..=30 (wCK)")
+        } else {
+            (1..=30, "1..=30 (WHJ)")
+        };
+        if !ids.contains(&joint.id) {
+            return Err(invalid("id", joint.id.to_string(), id_text));
+        }
+        if self.joints[..index]
+            .iter()
+            .any(|j| j.bus == joint.bus && j.id == joint.id)
+        {
+            return Err(invalid(
+                "id",
+                joint.id.to_string(),
+                "an ID used once per bus",
+            ));
+        }
+        if joint.direction != 1 && joint.direction != -1 {
+            return Err(invalid("direction", joint.direction.to_string(), "1 or -1"));
+        }
+        if !joint.offset.is_finite() {
+            return Err(invalid(
+                "offset",
+                joint.offset.to_string(),
+                "a finite angle in rad",
+            ));
+        }
+        let [min, max] = joint.limits;
+        if !(min.is_finite() && max.is_finite() && min <= max) {
+            return Err(invalid(
+                "limits",
+                format!("[{min}, {max}]"),
+                "[min, max] in rad with min <= max",
+            ));
+        }
+        for (field, value) in [
+            ("max_velocity", joint.max_velocity),
+            ("max_acceleration", joint.max_acceleration),
+        ] {
+            if !(value.is_finite() && value > 0.0) {
+                return Err(invalid(field, value.to_string(), "a number > 0"));
+            }
+        }
+        if let Some(centre) = joint.centre {
+            if !bus.is_wck() {
+                return Err(invalid(
+                    "centre",
+                    centre.to_string(),
+                    "no centre on a WHJ joint",
+                ));
+            }
+            if centre > 254 {
+                return Err(invalid("centre", centre.to_string(), "0..=254"));
+            }
+        }
+        if bus.is_wck() {
+            let scale = WckScale {
+                centre: joint.centre.unwrap_or(WCK_DEFAULT_CENTRE),
+                map: JointMap {
+                    offset_rad: joint.offset,
+                    reversed: joint.direction < 0,
+                },
+            };
+            if joint.limits.iter().any(|&l| scale.to_position(l).is_none()) {
+                let a = scale.to_rad(Position::MIN);
+                let b = scale.to_rad(Position::MAX);
+                return Err(invalid(
+                    "limits",
+                    format!("[{min}, {max}]"),
+                    &format!(
+                        "angles the servo can reach: {:.4}..={:.4} rad (steps 0..=254, centre {}, offset {} rad)",
+                        a.min(b),
+                        a.max(b),
+                        scale.centre,
+                        joint.offset
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// 1-based line and column of byte `offset` in `text`.
+fn line_column(text: &str, offset: usize) -> (usize, usize) {
+    let before = text.get(..offset).unwrap_or(text);
+    let line = before.matches('\n').count() + 1;
+    let column = before.rfind('\n').map_or(before.chars().count(), |nl| {
+        before.get(nl + 1..).map_or(0, |s| s.chars().count())
+    }) + 1;
+    (line, column)
+}
