@@ -6,6 +6,8 @@
 //! | --- | --- |
 //! | [`wck`] | `robobus wck --port PATH ...` (wCK servos on a serial bus) |
 //! | [`whj`] | `robobus whj --bus BUS ...` (WHJ joints on CAN FD) |
+//! | [`demo`] | `robobus demo` (the built-in simulated robot) |
+//! | [`monitor`] | `robobus monitor` (live dashboard) |
 //! | [`plot`] | `robobus plot FILE.csv -o FILE.png\|svg` |
 //! | [`doctor`] | `robobus doctor` (setup checks) |
 //! | [`generate`] | `robobus completions SHELL`, `robobus man` |
@@ -26,9 +28,11 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 mod client;
+mod demo;
 mod doctor;
 mod exit;
 mod generate;
+mod monitor;
 mod output;
 mod plot;
 mod sim_wck;
@@ -54,6 +58,7 @@ Every value is checked before anything is opened; `--dry-run` prints the exact b
 (wCK) or CAN FD frames (WHJ) a command would send, one per line, without opening anything.
 
 Examples:
+  robobus demo                                              # the simulated robot, no setup
   robobus wck --port /dev/ttyUSB0 --dry-run move 3 127      # prints FF 03 7F 7C
   robobus whj --bus can0 --dry-run enable 1                 # prints 001##1020A01
   robobus sim wck --servos 0-5 --link /tmp/wck              # a simulated wCK bus
@@ -98,10 +103,21 @@ pub(crate) struct Global {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Run the built-in simulated robot through a short showcase: start here.
+    ///
+    /// A wCK humanoid of 16 servos and a 7-joint WHJ arm, simulated in-process: scan,
+    /// synchronized wCK keyframes, a 500 Hz WHJ sine trajectory; then a summary of what
+    /// moved, how well it tracked, and the bus figures.
+    Demo(demo::Args),
     /// Drive wCK servos on a serial (UART) bus.
     Wck(wck::Args),
     /// Drive WHJ joints on a CAN FD bus (SocketCAN or the python-can UDP bus).
     Whj(whj::Args),
+    /// Live terminal dashboard of a WHJ bus or a wCK port; records to CSV.
+    ///
+    /// Positions, speeds, currents (wCK: load), enable state and errors, with a scrolling
+    /// plot of the positions; `q`, `Esc` or Ctrl-C quit.
+    Monitor(monitor::Args),
     /// Plot a recording (CSV) to a PNG or SVG file.
     Plot(plot::Args),
     /// Check the machine's setup: serial ports, USB latency, SocketCAN, the UDP bus.
@@ -144,8 +160,10 @@ fn main() -> ExitCode {
     init_logging(cli.global.verbose);
     let g = cli.global;
     let result = match cli.command {
+        Command::Demo(args) => demo::run(g, &args),
         Command::Wck(args) => wck::run(g, &args),
         Command::Whj(args) => whj::run(g, &args),
+        Command::Monitor(args) => monitor::run(g, &args),
         Command::Plot(args) => plot::run(g, &args),
         Command::Doctor(args) => doctor::run(g, &args),
         Command::Completions(args) => generate::completions(&args),

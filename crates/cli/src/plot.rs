@@ -265,6 +265,29 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     }
 }
 
+/// Draws `rec` to `output` (PNG or SVG by its extension) with `title`, 1200 x 600 pixels.
+/// For other commands that plot what they recorded (`robobus demo --plot`).
+pub(crate) fn write_image(rec: &Recording, output: &Path, title: &str) -> anyhow::Result<()> {
+    let format = format_of(output)?;
+    register_font()?;
+    let size = (1200, 600);
+    match format {
+        Format::Png => {
+            let root = BitMapBackend::new(output, size).into_drawing_area();
+            draw(&root, rec, title)?;
+            root.present()
+                .with_context(|| format!("cannot write {}", output.display()))?;
+        }
+        Format::Svg => {
+            let root = SVGBackend::new(output, size).into_drawing_area();
+            draw(&root, rec, title)?;
+            root.present()
+                .with_context(|| format!("cannot write {}", output.display()))?;
+        }
+    }
+    Ok(())
+}
+
 /// The range of the data, widened where it is a single value.
 fn span(mut lo: f64, mut hi: f64) -> (f64, f64) {
     if !lo.is_finite() || !hi.is_finite() {

@@ -20,6 +20,7 @@ use robobus_whj::units::{Current, CurrentScale, Position, TargetSpeed};
 use robobus_whj::{JointId, REGISTERS, RegisterAddr, RegisterInfo, Request, WorkMode, registers};
 
 use crate::Global;
+use crate::client::whj::{OnStop, Wave, WaveLoop, WhjRun};
 use crate::client::{Job, execute};
 use crate::exit::usage;
 use crate::output::{self, WhjPlan};
@@ -40,6 +41,14 @@ count), currents in mA (1 mA per count; 2 mA on WHJ60/WHJ120: give --model).
 CLI safety limits: |angle| <= 360 deg, |speed| <= 60 RPM, |current| <= 30000 mA; the
 joint's own limit registers (0x40.., 0x44..0x47) apply as well.
 
+Without --dry-run the command runs on the bus: each joint is connected first (IAP
+release, identify), results are printed as a table (--json: one JSON object; fields carry
+their units: position_deg, speed_rpm, current_ma). `move` streams a smooth, speed- and
+acceleration-limited profile; `wave` runs through the cyclic loop and reports cycles,
+deadline misses, latency and tracking. A joint that does not answer gives exit code 3
+(the message names it); `save` is refused while a joint is enabled. Ctrl-C during move
+or wave first brings the joint to the --on-stop state, then exits with 130.
+
 With --dry-run every subcommand prints the CAN FD frames it would send, one per line in
 cansend syntax (`001##1020A01`: ID 0x001, FD with bit-rate switch, data 02 0A 01); lines
 starting with `#` are comments; --json prints them as JSON.";
@@ -57,6 +66,10 @@ pub(crate) struct Args {
     /// count on whj60 / whj120, else 1 mA). A real run reads it from the joint.
     #[arg(long, value_enum, global = true)]
     model: Option<ModelArg>,
+    /// What Ctrl-C leaves a moving joint in (move, wave): hold (stay enabled at the
+    /// present position; speed / current waves get target 0) or disable.
+    #[arg(long, value_enum, default_value = "hold", global = true)]
+    on_stop: OnStop,
     /// What to do.
     #[command(subcommand)]
     command: WhjCommand,
@@ -410,14 +423,108 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
              such as can0), unless --dry-run is given",
         ));
     };
+    let run = whj_run(&args.command);
     execute(
         &Job::Whj {
             action: action_name(&args.command),
             bus,
             plan: &plan,
+            run: &run,
+            on_stop: args.on_stop,
+            json: g.json,
         },
         g.yes,
     )
+}
+
+const fn work_mode(mode: ModeArg) -> WorkMode {
+    match mode {
+        ModeArg::OpenLoop => WorkMode::OpenLoop,
+        ModeArg::Current => WorkMode::Current,
+        ModeArg::Speed => WorkMode::Speed,
+        ModeArg::Position => WorkMode::Position,
+    }
+}
+
+/// How a (validated) command runs on the bus.
+fn whj_run(c: &WhjCommand) -> WhjRun {
+    match c {
+        WhjCommand::Scan { joints } => WhjRun::Scan(joints.0.clone()),
+        WhjCommand::Info { joint } => WhjRun::Info(*joint),
+        WhjCommand::Status { joints } => WhjRun::Status(joints.0.clone()),
+        WhjCommand::Enable { joints } => WhjRun::Enable(joints.0.clone(), true),
+        WhjCommand::Disable { joints } => WhjRun::Enable(joints.0.clone(), false),
+        WhjCommand::Mode { joints, mode } => WhjRun::Mode(joints.0.clone(), work_mode(*mode)),
+        WhjCommand::Move {
+            joint,
+            degrees,
+            max_speed,
+            rate_hz,
+            ..
+        } => WhjRun::Move {
+            joint: *joint,
+            degrees: *degrees,
+            max_speed: *max_speed,
+            rate_hz: *rate_hz,
+        },
+        WhjCommand::Speed { joint, rpm } => WhjRun::Speed(*joint, *rpm),
+        WhjCommand::Current { joint, milliamps } => WhjRun::Current(*joint, *milliamps),
+        WhjCommand::Zero { joint } => WhjRun::Zero(*joint),
+        WhjCommand::Clear { joints } => WhjRun::Clear(joints.0.clone()),
+        WhjCommand::Save { joints } => WhjRun::Save(joints.0.clone()),
+        WhjCommand::Read {
+            joint,
+            register,
+            count,
+        } => WhjRun::Read {
+            joint: *joint,
+            addr: register.addr,
+            info: register.info,
+            count: *count,
+        },
+        WhjCommand::Write {
+            joint,
+            register,
+            value,
+            raw,
+        } => WhjRun::Write {
+            joint: *joint,
+            addr: register.addr,
+            info: register.info,
+            // Validated by the plan (a finite number).
+            value: value.trim().parse().unwrap_or(0.0),
+            raw: *raw,
+        },
+        // Handled before a plan is made.
+        WhjCommand::Registers => WhjRun::Status(Vec::new()),
+        WhjCommand::SetId { joint, new_id } => WhjRun::SetId(*joint, *new_id),
+        WhjCommand::Wave {
+            joint,
+            shape,
+            mode,
+            amplitude,
+            frequency,
+            offset,
+            duration,
+            rate_hz,
+        } => WhjRun::Wave(
+            *joint,
+            Wave {
+                square: *shape == Shape::Square,
+                mode: match mode {
+                    WaveMode::Position => WaveLoop::Position,
+                    WaveMode::Speed => WaveLoop::Speed,
+                    WaveMode::Current => WaveLoop::Current,
+                },
+                amplitude: *amplitude,
+                frequency: *frequency,
+                offset: *offset,
+                duration: *duration,
+                rate_hz: *rate_hz,
+            },
+        ),
+        WhjCommand::ReleaseIap { joints } => WhjRun::ReleaseIap(joints.0.clone()),
+    }
 }
 
 fn action_name(c: &WhjCommand) -> &'static str {
@@ -488,12 +595,7 @@ fn plan(args: &Args, dry_run: bool) -> anyhow::Result<WhjPlan> {
         WhjCommand::Enable { joints } => each(joints, |j| Request::enable(j, true)),
         WhjCommand::Disable { joints } => each(joints, |j| Request::enable(j, false)),
         WhjCommand::Mode { joints, mode } => {
-            let mode = match mode {
-                ModeArg::OpenLoop => WorkMode::OpenLoop,
-                ModeArg::Current => WorkMode::Current,
-                ModeArg::Speed => WorkMode::Speed,
-                ModeArg::Position => WorkMode::Position,
-            };
+            let mode = work_mode(*mode);
             each(joints, |j| Request::set_mode(j, mode))
         }
         WhjCommand::Move {

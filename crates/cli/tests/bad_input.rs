@@ -175,17 +175,18 @@ fn whj_values_out_of_range_are_refused_before_anything_is_opened() {
 }
 
 #[test]
-fn execution_needs_the_client_library_and_says_so() {
+fn execution_opens_the_port_and_names_it_when_it_is_missing() {
+    // wCK runs through the client: a port that does not exist is "no device" (exit 3),
+    // and the message names the path.
     let r = robobus(&["wck", "--port", PORT, "move", "3", "127"]);
-    assert_eq!(r.code, Some(4), "{r:#?}");
-    assert!(r.stderr.contains("not yet available"), "{}", r.stderr);
-    assert!(
-        r.stderr.contains("Nothing was opened or sent"),
-        "{}",
-        r.stderr
-    );
+    assert_eq!(r.code, Some(3), "{r:#?}");
+    assert!(r.stderr.contains(PORT), "{}", r.stderr);
+    assert!(r.stderr.contains("does not exist"), "{}", r.stderr);
+    // WHJ runs through the client too: a SocketCAN interface that does not exist is
+    // "no device" (exit 3), and the message names it.
     let r = robobus(&["whj", "--bus", "vcan99", "enable", "1"]);
-    assert_eq!(r.code, Some(4), "{r:#?}");
+    assert_eq!(r.code, Some(3), "{r:#?}");
+    assert!(r.stderr.contains("vcan99"), "{}", r.stderr);
     // Without --dry-run the port / bus is required.
     let r = robobus(&["wck", "move", "3", "127"]);
     assert_eq!(r.code, Some(2), "{r:#?}");
@@ -198,20 +199,23 @@ fn execution_needs_the_client_library_and_says_so() {
 #[test]
 fn memory_rewrites_need_confirmation_without_a_terminal() {
     // stdin of a test is not a terminal: without --yes the command is refused (exit 2)...
-    for args in [
-        &["wck", "--port", PORT, "set-id", "3", "4"][..],
-        &["wck", "--port", PORT, "set", "gains", "3", "30", "20"][..],
-        &["whj", "--bus", "vcan99", "save", "1"][..],
+    for (args, next) in [
+        (&["wck", "--port", PORT, "set-id", "3", "4"][..], 3),
+        (
+            &["wck", "--port", PORT, "set", "gains", "3", "30", "20"][..],
+            3,
+        ),
+        (&["whj", "--bus", "vcan99", "save", "1"][..], 3),
     ] {
         let r = robobus(args);
         assert_eq!(r.code, Some(2), "{args:?}: {r:#?}");
         assert!(r.stderr.contains("--yes"), "{}", r.stderr);
-        // ...and with --yes it gets as far as the (missing) client.
+        // ...and with --yes it gets as far as opening the (missing) port or interface.
         let mut yes = args.to_vec();
         yes.push("--yes");
-        assert_eq!(robobus(&yes).code, Some(4), "{yes:?}");
+        assert_eq!(robobus(&yes).code, Some(next), "{yes:?}");
     }
-    // Runtime settings and motion need no confirmation.
+    // Runtime settings and motion need no confirmation: straight to the (missing) port.
     let r = robobus(&[
         "wck",
         "--port",
@@ -223,5 +227,6 @@ fn memory_rewrites_need_confirmation_without_a_terminal() {
         "20",
         "--runtime",
     ]);
-    assert_eq!(r.code, Some(4), "{r:#?}");
+    assert_eq!(r.code, Some(3), "{r:#?}");
+    assert!(r.stderr.contains(PORT), "{}", r.stderr);
 }

@@ -83,7 +83,10 @@ done
 canplayer -I stream.log || exit 94
 sleep 0.3
 cansend vcan0 601##1
-sleep 0.3
+# Wait for the second status reply (the simulator may still be working off the burst on a
+# loaded machine); at most 5 s.
+for i in $(seq 50); do [ "$(grep -c '701##' dump.log)" -ge 2 ] && break; sleep 0.1; done
+sleep 0.2
 kill -INT $dump
 kill -INT $sim
 wait $sim

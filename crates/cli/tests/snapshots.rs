@@ -66,6 +66,8 @@ fn help_texts_match_their_snapshots() {
         &["whj", "move"],
         &["whj", "write"],
         &["whj", "wave"],
+        &["demo"],
+        &["monitor"],
         &["plot"],
         &["doctor"],
         &["completions"],

@@ -9,6 +9,7 @@
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+use std::time::Duration;
 
 use anyhow::Context as _;
 use clap::{Subcommand, ValueEnum};
@@ -21,6 +22,7 @@ use robobus_wck::{
 use serde_json::json;
 
 use crate::Global;
+use crate::client::wck::{OnStop, Teach, WckRun};
 use crate::client::{Job, execute};
 use crate::exit::usage;
 use crate::output::{self, WckPlan, WckStep};
@@ -32,6 +34,14 @@ IDs: 4- and 6-byte commands address servos 0..=30 (31 is the broadcast ID used b
 sync-move and brake); move10 / read10 address 0..=253. Positions are 0..=254
 (1 step = 269/255 degrees ~ 1.055 deg), 10-bit positions 0..=1023 (333/1023 deg).
 Torque levels are 0 (maximum) ..= 4 (minimum).
+
+Without --dry-run the command runs on the bus at --port: each reply is printed as a table
+(--json: one JSON object; fields carry their units: position, degrees, load, milliamps).
+Settings stored in EEPROM are verified by reading them back, set-id / set-baud by talking
+to the servo at its new ID / rate. A servo that does not answer gives exit code 3 (the
+message names the port and the servo). move / move10 reply the status before the move
+(load_before, position_before). Ctrl-C during play, teach or a timed wheel run
+first brings the servos to the --on-stop state, then exits with 130.
 
 With --dry-run every subcommand prints the packets it would send, one per line in hex
 (`FF 03 7F 7C`), lines starting with `#` are comments; --json prints them as JSON.
@@ -57,6 +67,10 @@ pub(crate) struct Args {
 #[derive(Debug, Subcommand)]
 enum WckCommand {
     /// Find servos: read the status of every ID (0..=30 unless --ids is given).
+    ///
+    /// Prints the servos found (ID, baud rate, load, position); IDs answered by more than
+    /// one module are flagged as duplicates. On a terminal a progress bar shows on stderr.
+    /// Exit code 3 if no servo answers.
     Scan {
         /// Try every baud rate the wCK supports, not just --baud.
         #[arg(long)]
@@ -71,7 +85,7 @@ enum WckCommand {
         #[arg(value_parser = parse_servo_ids)]
         ids: ServoIds,
     },
-    /// Move one servo to a position (A-1 (1) position move); replies load and position.
+    /// Move one servo to a position (A-1 (1) position move); replies load and position
     Move {
         /// Servo ID, 0..=30.
         #[arg(value_parser = parse_servo_id)]
@@ -126,6 +140,14 @@ enum WckCommand {
         /// Speed 0 (stop), 1 (minimum) ..= 15 (maximum).
         #[arg(value_parser = parse_wheel_speed)]
         speed: WheelSpeed,
+        /// Turn for this many seconds (0.1..=3600), then stop per --on-stop. Without it the
+        /// servo keeps turning after the command returns.
+        #[arg(long, value_name = "SECS", value_parser = parse_seconds)]
+        duration: Option<Duration>,
+        /// How the servo stops after --duration or on Ctrl-C: hold (position move to where
+        /// it is), passive or break.
+        #[arg(long, value_enum, default_value = "hold", hide_possible_values = true)]
+        on_stop: OnStop,
     },
     /// Put every servo on the bus into break mode (A-1 (6)).
     Brake,
@@ -157,17 +179,40 @@ enum WckCommand {
     /// Self-running motion programs (manual section 3-11).
     #[command(subcommand)]
     Program(ProgramCommand),
-    /// Record poses by hand: servos go passive, their positions are read at a rate.
+    /// Record poses by hand: servos go passive, their positions are recorded as poses.
+    ///
+    /// Move the servos by hand; each Enter records a pose (q + Enter or Ctrl-D finishes).
+    /// With --rate-hz / --duration poses are recorded at a rate instead (for --duration,
+    /// or until Enter). Writes a keyframe motion file that `play` plays.
     Teach {
-        /// Servo IDs to record, e.g. `0-15`.
+        /// Servo IDs to record: 0..N-1 (e.g. `0-15`), since a pose lists servos 0, 1, ...
         #[arg(value_parser = parse_servo_ids)]
         ids: ServoIds,
-        /// Poses per second.
-        #[arg(long, default_value_t = 10.0, value_parser = parse_rate)]
-        rate_hz: f64,
-        /// Write the poses as a keyframe motion file (see `robobus wck play --help`).
+        /// Record at this many poses per second (0.1..=200) instead of per keypress.
+        #[arg(long, value_parser = parse_rate)]
+        rate_hz: Option<f64>,
+        /// Record for this many seconds (0.1..=3600), at --rate-hz (default 10).
+        #[arg(long, value_name = "SECS", value_parser = parse_seconds)]
+        duration: Option<Duration>,
+        /// Transition time written for each pose recorded by keypress, ms (0..=600000).
+        #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u32).range(0..=600_000))]
+        pose_ms: u32,
+        /// Torque level written into the file, 0 (maximum) ..= 4 (minimum).
+        #[arg(long, default_value = "0", value_parser = parse_torque)]
+        torque: TorqueLevel,
+        /// Write the poses as a keyframe motion file (see `robobus wck play --help`);
+        /// without it the file is printed on stdout.
         #[arg(short, long, value_name = "FILE")]
         output: Option<PathBuf>,
+        /// What the servos do when recording ends: passive (stay limp), hold (keep the last
+        /// pose with torque) or break.
+        #[arg(
+            long,
+            value_enum,
+            default_value = "passive",
+            hide_possible_values = true
+        )]
+        on_stop: OnStop,
     },
     /// Play a keyframe motion file: poses with transition times, interpolated and sent as
     /// synchronized moves.
@@ -178,6 +223,10 @@ enum WckCommand {
         /// Synchronized moves per second while interpolating (1..=200).
         #[arg(long, default_value_t = 50.0, value_parser = parse_rate)]
         rate_hz: f64,
+        /// What the servos do on Ctrl-C: hold (keep the current position), passive or
+        /// break.
+        #[arg(long, value_enum, default_value = "hold", hide_possible_values = true)]
+        on_stop: OnStop,
     },
 }
 
@@ -426,6 +475,20 @@ fn parse_rate(s: &str) -> Result<f64, String> {
     }
 }
 
+/// A duration in seconds, 0.1..=3600.
+fn parse_seconds(s: &str) -> Result<Duration, String> {
+    let v: f64 = s
+        .trim()
+        .trim_end_matches('s')
+        .parse()
+        .map_err(|_| format!("`{s}` is not a number of seconds"))?;
+    if (0.1..=3600.0).contains(&v) {
+        Ok(Duration::from_secs_f64(v))
+    } else {
+        Err(format!("{v} s is out of range 0.1..=3600"))
+    }
+}
+
 /// Parses `0-5,7` into servo IDs 0..=30 (order kept, repeats dropped).
 pub(crate) fn parse_servo_ids(spec: &str) -> Result<ServoIds, String> {
     let mut ids: Vec<ServoId> = Vec::new();
@@ -494,12 +557,49 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
             "robobus wck: --port PATH is required (e.g. --port /dev/ttyUSB0), unless --dry-run is given",
         ));
     };
+    let teach;
+    let run = match &args.command {
+        WckCommand::Scan { all_bauds, ids } => WckRun::Scan {
+            ids: &ids.0,
+            all_bauds: *all_bauds,
+        },
+        WckCommand::Wheel {
+            duration, on_stop, ..
+        } => WckRun::Wheel {
+            duration: *duration,
+            on_stop: *on_stop,
+        },
+        WckCommand::Teach {
+            ids,
+            rate_hz,
+            duration,
+            pose_ms,
+            torque,
+            output,
+            on_stop,
+        } => {
+            teach = Teach {
+                ids: ids.0.clone(),
+                rate_hz: *rate_hz,
+                duration: *duration,
+                pose_ms: *pose_ms,
+                torque: *torque,
+                output: output.clone(),
+                on_stop: *on_stop,
+            };
+            WckRun::Teach(&teach)
+        }
+        WckCommand::Play { on_stop, .. } => WckRun::Play { on_stop: *on_stop },
+        _ => WckRun::Steps,
+    };
     execute(
         &Job::Wck {
             action,
             port,
             baud: args.baud,
             plan: &plan,
+            run,
+            json: g.json,
         },
         g.yes,
     )
@@ -587,6 +687,7 @@ fn plan(args: &Args) -> anyhow::Result<WckPlan> {
             id,
             direction,
             speed,
+            ..
         } => WckPlan::one(Command::Wheel {
             id: *id,
             rotation: match direction {
@@ -622,21 +723,57 @@ fn plan(args: &Args) -> anyhow::Result<WckPlan> {
         WckCommand::Program(ProgramCommand::Download { id } | ProgramCommand::Check { id, .. }) => {
             WckPlan::one(Command::MotionRead { id: *id })
         }
-        WckCommand::Teach { ids, rate_hz, .. } => {
+        WckCommand::Teach {
+            ids,
+            rate_hz,
+            duration,
+            ..
+        } => {
+            check_teach_ids(ids)?;
             let mut plan = each(ids, |id| Command::Passive { id });
+            let when = match (rate_hz, duration) {
+                (None, None) => "once per Enter until q / end of input / Ctrl-C".to_string(),
+                (rate, None) => format!(
+                    "{} times per second until Enter / Ctrl-C",
+                    rate.unwrap_or(10.0)
+                ),
+                (rate, Some(d)) => format!(
+                    "{} times per second for {} s",
+                    rate.unwrap_or(10.0),
+                    d.as_secs_f64()
+                ),
+            };
             plan.notes.push(format!(
-                "teach: the passive round below repeats {rate_hz} times per second until \
-                 Enter / Ctrl-C; each reply's position is recorded"
+                "teach: the passive round below repeats {when}; each reply's position is recorded"
             ));
             plan
         }
-        WckCommand::Play { file, rate_hz } => {
+        WckCommand::Play { file, rate_hz, .. } => {
             let text = read_file(file)?;
             let motion =
                 play::Motion::parse(&text).map_err(|e| usage(format!("{}:{e}", file.display())))?;
             motion.plan(*rate_hz)
         }
     })
+}
+
+/// A pose lists servos 0, 1, ... in order, so teach records exactly servos 0..N-1.
+fn check_teach_ids(ids: &ServoIds) -> anyhow::Result<()> {
+    let contiguous = ids
+        .0
+        .iter()
+        .enumerate()
+        .all(|(i, id)| usize::from(id.get()) == i);
+    if contiguous {
+        Ok(())
+    } else {
+        let given: Vec<String> = ids.0.iter().map(ToString::to_string).collect();
+        Err(usage(format!(
+            "teach <IDS>: got servo(s) {}; a keyframe file lists servos 0, 1, 2, ... in order, \
+             so teach records servos 0..N-1 (e.g. `0-5`)",
+            given.join(",")
+        )))
+    }
 }
 
 fn each(ids: &ServoIds, f: impl Fn(ServoId) -> Command) -> WckPlan {

@@ -275,7 +275,6 @@ impl Motion {
     }
 
     /// The text form of a list of poses (what `teach` writes).
-    #[allow(dead_code)] // used by `teach` once the client is wired in
     pub(crate) fn to_text(&self, ids: &[ServoId]) -> String {
         let mut s = String::from("# robobus keyframe motion\n");
         let names: Vec<String> = ids.iter().map(ToString::to_string).collect();

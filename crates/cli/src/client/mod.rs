@@ -4,17 +4,20 @@
 //! ([`crate::output::WckPlan`] / [`crate::output::WhjPlan`]) before anything is opened.
 //! `--dry-run` prints the plan; otherwise the plan comes here, to [`execute`].
 //!
-//! The client library (`robobus`: `WckBus` / `Servo`, `JointBus` / `Joint`) is not part
-//! of this build yet, so [`execute`] refuses with [`NotAvailable`] (exit code 4) instead of
-//! pretending. Wiring the client in replaces the body of [`execute`]: open the bus named
-//! in [`Job`], run the plan's commands through the client, print the replies.
+//! - wCK plans run through the `robobus` client library ([`robobus::wck::WckBus`]): see
+//!   [`wck`] for how each kind of run prints its results and maps errors to exit codes.
+//! - WHJ plans run through [`robobus::whj::JointBus`]: see [`whj`] (the plan is what
+//!   `--dry-run` prints; the run is the typed [`whj::WhjRun`]).
 
 use std::io::{BufRead as _, IsTerminal as _, Write as _};
 
 use robobus_whj::{Request, registers};
 
-use crate::exit::{NotAvailable, usage};
+use crate::exit::usage;
 use crate::output::{WckPlan, WhjPlan};
+
+pub(crate) mod wck;
+pub(crate) mod whj;
 
 /// A validated plan and the bus it is for.
 #[derive(Debug)]
@@ -29,6 +32,10 @@ pub(crate) enum Job<'a> {
         baud: robobus_wck::BaudRate,
         /// What to send.
         plan: &'a WckPlan,
+        /// How to run the plan (one exchange per step, or a scan / teach / play loop).
+        run: wck::WckRun<'a>,
+        /// `--json`: one JSON document on stdout instead of a table.
+        json: bool,
     },
     /// WHJ joints on a CAN FD bus.
     Whj {
@@ -38,6 +45,12 @@ pub(crate) enum Job<'a> {
         bus: &'a str,
         /// What to send.
         plan: &'a WhjPlan,
+        /// How to run it on the bus.
+        run: &'a whj::WhjRun,
+        /// Safe state after Ctrl-C (move, wave).
+        on_stop: whj::OnStop,
+        /// `--json`: one JSON document on stdout instead of a table.
+        json: bool,
     },
 }
 
@@ -86,24 +99,38 @@ pub(crate) fn confirm(job: &Job<'_>, yes: bool) -> anyhow::Result<()> {
 /// rewrites non-volatile memory.
 pub(crate) fn execute(job: &Job<'_>, yes: bool) -> anyhow::Result<()> {
     confirm(job, yes)?;
-    let (what, action) = match job {
+    match job {
         Job::Wck {
             action,
             port,
             baud,
             plan,
+            run,
+            json,
+        } => wck::execute(&wck::WckJob {
+            action,
+            port,
+            baud: *baud,
+            plan,
+            run,
+            json: *json,
+        }),
+        Job::Whj {
+            action,
+            bus,
+            plan,
+            run,
+            on_stop,
+            json,
         } => {
-            tracing::debug!(%port, %baud, packets = plan.steps.len(), "wck plan");
-            (format!("robobus wck --port {port}"), *action)
-        }
-        Job::Whj { action, bus, plan } => {
             tracing::debug!(%bus, frames = plan.steps.len(), "whj plan");
-            (format!("robobus whj --bus {bus}"), *action)
+            whj::execute(&whj::WhjJob {
+                action,
+                bus,
+                run,
+                on_stop: *on_stop,
+                json: *json,
+            })
         }
-    };
-    Err(anyhow::Error::new(NotAvailable(format!(
-        "`{what} {action}` is not yet available: it needs the robobus client library, which \
-         this build does not include yet. Nothing was opened or sent. Use --dry-run to see \
-         the exact bytes / frames it would send."
-    ))))
+    }
 }

@@ -1,0 +1,872 @@
+//! `robobus monitor`: a live terminal dashboard of a WHJ bus or a wCK port.
+//!
+//! Sources ([`Source`]):
+//!
+//! - `--bus BUS --joints 1-7`: WHJ joints, read-only: each sample is a status query
+//!   (position, current, enable, error bits) and a speed register read per joint, through
+//!   [`robobus::whj::JointBus`].
+//! - `--port PATH --servos 0-15`: wCK servos, read-only: a status read (position, load)
+//!   per servo through [`robobus::wck::WckBus`]; the speed is the position's derivative.
+//! - `--sim`: the built-in simulated WHJ arm (joints 1..=7, in-process), which the monitor
+//!   itself drives along a slow sine through the cyclic loop, so there is something to
+//!   watch without hardware; the values are the loop's feedback.
+//!
+//! On a terminal it draws a table (position, speed, current / load, enable, errors) and a
+//! scrolling plot of the positions with ratatui; `q`, `Esc` or Ctrl-C quit and the terminal
+//! is restored. Without a terminal it prints one line per second instead. `--record
+//! FILE.csv` writes every sample in the format `robobus plot` reads; `--duration` ends the
+//! run by itself.
+
+use std::collections::VecDeque;
+use std::fmt::Write as _;
+use std::io::{IsTerminal as _, Write as _};
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use anyhow::Context as _;
+use ratatui::Frame;
+use ratatui::layout::{Constraint, Layout};
+use ratatui::style::{Color, Style, Stylize as _};
+use ratatui::symbols::Marker;
+use ratatui::text::Line;
+use ratatui::widgets::{Axis, Block, Cell, Chart, Dataset, GraphType, Paragraph, Row, Table};
+use robobus::wck::WckBus;
+use robobus::whj::{CyclicConfig, JointBus, JointBusConfig, MotionLimits};
+use robobus_wck::{BaudRate, ServoId};
+use robobus_whj::JointId;
+use robobus_whj::units::Position;
+
+use crate::Global;
+use crate::client::whj::{open_link, whj_error};
+use crate::exit::{Interrupted, usage};
+
+/// Seconds of history in the scrolling plot.
+const WINDOW_S: f64 = 10.0;
+
+/// Options of `robobus monitor`.
+#[derive(Debug, clap::Args)]
+#[command(after_help = crate::plot::FORMAT_HELP)]
+pub(crate) struct Args {
+    /// A WHJ bus: `udp`, `udp:GROUP:PORT` or a SocketCAN interface (with --joints).
+    #[arg(long, value_name = "BUS", conflicts_with_all = ["port", "sim"])]
+    bus: Option<String>,
+    /// WHJ joint IDs to watch, e.g. `1-7` or `1,3`.
+    #[arg(long, default_value = "1-7", value_parser = parse_ids_1_30)]
+    joints: Ids,
+    /// A wCK serial port (with --servos).
+    #[arg(long, value_name = "PATH", conflicts_with = "sim")]
+    port: Option<PathBuf>,
+    /// wCK servo IDs to watch, e.g. `0-15`.
+    #[arg(long, default_value = "0-15", value_parser = parse_ids_0_30)]
+    servos: Ids,
+    /// wCK baud rate (bit/s).
+    #[arg(long, default_value_t = 115_200)]
+    baud: u32,
+    /// Watch the built-in simulated WHJ arm (7 joints, in-process), moved along a slow
+    /// sine by the monitor itself.
+    #[arg(long)]
+    sim: bool,
+    /// Samples per second, 1..=200.
+    #[arg(long, default_value_t = 20.0, value_parser = parse_rate)]
+    rate_hz: f64,
+    /// Stop after this many seconds (default: until q / Ctrl-C).
+    #[arg(long, value_parser = parse_duration)]
+    duration: Option<f64>,
+    /// Write every sample to this CSV file (the format `robobus plot` reads).
+    #[arg(long, value_name = "FILE.csv")]
+    record: Option<PathBuf>,
+}
+
+/// A list of IDs.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) struct Ids(Vec<u8>);
+
+fn parse_ids(spec: &str, lo: u8, hi: u8) -> Result<Ids, String> {
+    let one = |t: &str| -> Result<u8, String> {
+        let v: u32 = t
+            .trim()
+            .parse()
+            .map_err(|_| format!("`{t}` is not an ID (allowed {lo}..={hi})"))?;
+        u8::try_from(v)
+            .ok()
+            .filter(|v| (lo..=hi).contains(v))
+            .ok_or_else(|| format!("ID {v} is out of range {lo}..={hi}"))
+    };
+    let mut ids = Vec::new();
+    for part in spec.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+        let (a, b) = match part.split_once('-') {
+            Some((a, b)) => (one(a)?, one(b)?),
+            None => (one(part)?, one(part)?),
+        };
+        if a > b {
+            return Err(format!("range {a}-{b} runs backwards"));
+        }
+        ids.extend(a..=b);
+    }
+    ids.sort_unstable();
+    ids.dedup();
+    if ids.is_empty() {
+        return Err(format!("`{spec}` names no IDs (allowed {lo}..={hi})"));
+    }
+    Ok(Ids(ids))
+}
+
+fn parse_ids_1_30(s: &str) -> Result<Ids, String> {
+    parse_ids(s, 1, 30)
+}
+fn parse_ids_0_30(s: &str) -> Result<Ids, String> {
+    parse_ids(s, 0, 30)
+}
+fn parse_number(s: &str, what: &str, lo: f64, hi: f64) -> Result<f64, String> {
+    let v: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{s}` is not a number"))?;
+    if v.is_finite() && (lo..=hi).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("{what} {s} is out of range {lo}..={hi}"))
+    }
+}
+fn parse_rate(s: &str) -> Result<f64, String> {
+    parse_number(s, "rate (Hz)", 1.0, 200.0)
+}
+fn parse_duration(s: &str) -> Result<f64, String> {
+    parse_number(s, "duration (s)", 0.1, 86_400.0)
+}
+
+/// One watched device's latest values and history.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Channel {
+    /// Label, e.g. `J3` or `S12`.
+    pub(crate) name: String,
+    /// Position, degrees.
+    pub(crate) position: Option<f64>,
+    /// Speed (RPM for WHJ, degrees/s for wCK).
+    pub(crate) speed: Option<f64>,
+    /// Current in mA (WHJ) or load (wCK, 0..=255).
+    pub(crate) effort: Option<f64>,
+    /// Drive enabled (WHJ).
+    pub(crate) enabled: Option<bool>,
+    /// Error text of the latest sample (`no error`, an error bit list, `timeout`).
+    pub(crate) error: String,
+    /// Failed samples.
+    pub(crate) failures: u64,
+    /// (time, position) for the plot.
+    pub(crate) history: VecDeque<(f64, f64)>,
+}
+
+/// What the dashboard shows.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Dashboard {
+    /// Top line: the source.
+    pub(crate) title: String,
+    /// Speed column unit.
+    pub(crate) speed_unit: &'static str,
+    /// Effort column header (`current mA` / `load`).
+    pub(crate) effort_name: &'static str,
+    /// The devices.
+    pub(crate) channels: Vec<Channel>,
+    /// Seconds since the start.
+    pub(crate) t: f64,
+    /// Samples taken.
+    pub(crate) samples: u64,
+    /// Where samples are recorded.
+    pub(crate) recording: Option<String>,
+}
+
+impl Dashboard {
+    fn push_history(&mut self) {
+        let t = self.t;
+        for c in &mut self.channels {
+            if let Some(p) = c.position {
+                c.history.push_back((t, p));
+            }
+            while c.history.front().is_some_and(|(t0, _)| *t0 < t - WINDOW_S) {
+                c.history.pop_front();
+            }
+        }
+    }
+
+    fn csv_header(&self) -> String {
+        let mut s = String::from("t_s");
+        for c in &self.channels {
+            let _ = write!(
+                s,
+                ",{n}_deg,{n}_{},{n}_{}",
+                self.speed_unit.replace('/', "_per_").to_ascii_lowercase(),
+                if self.effort_name == "load" {
+                    "load"
+                } else {
+                    "mA"
+                },
+                n = c.name.to_ascii_lowercase()
+            );
+        }
+        s
+    }
+
+    fn csv_row(&self) -> String {
+        let mut s = format!("{:.4}", self.t);
+        let cell = |v: Option<f64>| v.map_or_else(String::new, |v| format!("{v:.4}"));
+        for c in &self.channels {
+            let _ = write!(
+                s,
+                ",{},{},{}",
+                cell(c.position),
+                cell(c.speed),
+                cell(c.effort)
+            );
+        }
+        s
+    }
+
+    fn plain_line(&self) -> String {
+        let mut s = format!("t={:6.2}s", self.t);
+        for c in &self.channels {
+            match c.position {
+                Some(p) => {
+                    let _ = write!(s, "  {} {p:8.3}", c.name);
+                }
+                None => {
+                    let _ = write!(s, "  {} {:>8}", c.name, c.error);
+                }
+            }
+        }
+        s
+    }
+}
+
+/// Line colours of the plot, one per channel (repeating).
+const COLORS: [Color; 8] = [
+    Color::Cyan,
+    Color::Yellow,
+    Color::Magenta,
+    Color::Green,
+    Color::Red,
+    Color::Blue,
+    Color::White,
+    Color::LightRed,
+];
+
+/// Draws the dashboard: header, table, position plot.
+#[allow(clippy::too_many_lines)] // one widget after the other
+pub(crate) fn render(f: &mut Frame<'_>, d: &Dashboard) {
+    let rows = u16::try_from(d.channels.len()).unwrap_or(30);
+    let [head, table, plot, foot] = Layout::vertical([
+        Constraint::Length(1),
+        Constraint::Length(rows + 3),
+        Constraint::Min(6),
+        Constraint::Length(1),
+    ])
+    .areas(f.area());
+    f.render_widget(
+        Paragraph::new(Line::from(vec![
+            "robobus monitor ".bold(),
+            d.title.clone().into(),
+            format!("   t = {:.1} s, {} samples", d.t, d.samples).into(),
+        ])),
+        head,
+    );
+    let cell =
+        |v: Option<f64>, prec: usize| v.map_or_else(|| "-".into(), |v| format!("{v:.prec$}"));
+    let body = d.channels.iter().map(|c| {
+        let en = match c.enabled {
+            Some(true) => "on",
+            Some(false) => "off",
+            None => "-",
+        };
+        let err_style = if c.error == "no error" || c.error == "ok" {
+            Style::default().fg(Color::Green)
+        } else {
+            Style::default().fg(Color::Red)
+        };
+        Row::new(vec![
+            Cell::from(c.name.clone()),
+            Cell::from(cell(c.position, 3)),
+            Cell::from(cell(c.speed, 2)),
+            Cell::from(cell(c.effort, 0)),
+            Cell::from(en),
+            Cell::from(c.error.clone()).style(err_style),
+            Cell::from(c.failures.to_string()),
+        ])
+    });
+    let header = Row::new(vec![
+        "id".to_owned(),
+        "position deg".to_owned(),
+        format!("speed {}", d.speed_unit),
+        d.effort_name.to_owned(),
+        "enabled".to_owned(),
+        "errors".to_owned(),
+        "failed".to_owned(),
+    ])
+    .style(Style::default().bold());
+    f.render_widget(
+        Table::new(
+            body,
+            [
+                Constraint::Length(5),
+                Constraint::Length(13),
+                Constraint::Length(12),
+                Constraint::Length(11),
+                Constraint::Length(8),
+                Constraint::Min(12),
+                Constraint::Length(7),
+            ],
+        )
+        .header(header)
+        .block(Block::bordered().title(" live values ")),
+        table,
+    );
+
+    let points: Vec<Vec<(f64, f64)>> = d
+        .channels
+        .iter()
+        .map(|c| c.history.iter().copied().collect())
+        .collect();
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for (_, v) in points.iter().flatten() {
+        lo = lo.min(*v);
+        hi = hi.max(*v);
+    }
+    if !lo.is_finite() || hi - lo < 1.0 {
+        let mid = if lo.is_finite() {
+            f64::midpoint(lo, hi)
+        } else {
+            0.0
+        };
+        lo = mid - 1.0;
+        hi = mid + 1.0;
+    }
+    let x1 = d.t.max(WINDOW_S);
+    let x0 = x1 - WINDOW_S;
+    let datasets = d
+        .channels
+        .iter()
+        .zip(&points)
+        .enumerate()
+        .map(|(i, (c, p))| {
+            Dataset::default()
+                .name(c.name.clone())
+                .marker(Marker::Braille)
+                .graph_type(GraphType::Line)
+                .style(Style::default().fg(COLORS[i % COLORS.len()]))
+                .data(p)
+        })
+        .collect();
+    f.render_widget(
+        Chart::new(datasets)
+            .block(Block::bordered().title(" position, degrees (last 10 s) "))
+            .x_axis(
+                Axis::default()
+                    .bounds([x0, x1])
+                    .labels([format!("{x0:.0} s"), format!("{x1:.0} s")]),
+            )
+            .y_axis(
+                Axis::default()
+                    .bounds([lo, hi])
+                    .labels([format!("{lo:.1}"), format!("{hi:.1}")]),
+            ),
+        plot,
+    );
+    let rec = d
+        .recording
+        .as_deref()
+        .map_or_else(String::new, |r| format!("   recording to {r}"));
+    f.render_widget(
+        Paragraph::new(format!("q / Esc / Ctrl-C: quit{rec}")).dim(),
+        foot,
+    );
+}
+
+/// Where samples come from.
+enum Source<'a> {
+    Whj {
+        bus: &'a JointBus,
+        joints: Vec<JointId>,
+    },
+    Sim {
+        cyc: robobus::whj::Cyclic<'a>,
+        start: Instant,
+    },
+    Wck {
+        bus: WckBus<robobus_link::SerialLink>,
+        ids: Vec<ServoId>,
+        last: Vec<Option<(f64, f64)>>,
+    },
+}
+
+fn sample(src: &mut Source<'_>, d: &mut Dashboard) {
+    match src {
+        Source::Whj { bus, joints } => {
+            for (c, &id) in d.channels.iter_mut().zip(joints.iter()) {
+                let j = bus.joint_unchecked(id);
+                let scale = j
+                    .identity()
+                    .map_or(robobus_whj::units::CurrentScale::OneMilliamp, |i| {
+                        i.current_scale()
+                    });
+                match j.status() {
+                    Ok(st) => {
+                        c.position = Some(st.position.degrees());
+                        #[allow(clippy::cast_precision_loss)] // mA fit easily
+                        let ma = st.current.map(|cu| cu.milliamps(scale) as f64);
+                        c.effort = ma;
+                        c.enabled = Some(st.is_enabled());
+                        c.error = st.error.to_string();
+                        c.speed = j.speed().ok().map(robobus_whj::units::ActualSpeed::rpm);
+                    }
+                    Err(e) => {
+                        c.failures += 1;
+                        c.error = if e.is_timeout() {
+                            "timeout".into()
+                        } else {
+                            "bad reply".into()
+                        };
+                    }
+                }
+            }
+        }
+        Source::Sim { cyc, start } => {
+            let t = start.elapsed().as_secs_f64();
+            if let Some(r) = cyc.latest() {
+                for (c, fb) in d.channels.iter_mut().zip(&r.feedback) {
+                    match fb {
+                        Some(fb) => {
+                            c.position = Some(fb.position.degrees());
+                            c.speed = Some(fb.speed.rpm());
+                            #[allow(clippy::cast_precision_loss)]
+                            let ma = fb
+                                .current
+                                .milliamps(robobus_whj::units::CurrentScale::OneMilliamp)
+                                as f64;
+                            c.effort = Some(ma);
+                            c.enabled = Some(fb.enabled);
+                            c.error = fb.error.to_string();
+                        }
+                        None => c.failures += 1,
+                    }
+                }
+            }
+            let targets: Vec<Position> = (0..d.channels.len())
+                .filter_map(|i| {
+                    #[allow(clippy::cast_precision_loss)]
+                    let phase = i as f64 * 0.5;
+                    Position::from_degrees(
+                        15.0 * (std::f64::consts::TAU * 0.2 * t + phase).sin() - 15.0 * phase.sin(),
+                    )
+                    .ok()
+                })
+                .collect();
+            let _ = cyc.set_positions(&targets);
+        }
+        Source::Wck { bus, ids, last } => {
+            for ((c, &id), prev) in d.channels.iter_mut().zip(ids.iter()).zip(last.iter_mut()) {
+                if let Ok(st) = bus.servo(id).status() {
+                    let deg = (f64::from(st.position.get()) - 127.0) * 1.055;
+                    let now = d.t;
+                    c.speed = prev.and_then(|(t0, p0)| (now > t0).then(|| (deg - p0) / (now - t0)));
+                    *prev = Some((now, deg));
+                    c.position = Some(deg);
+                    c.effort = Some(f64::from(st.load.get()));
+                    c.error = "ok".into();
+                } else {
+                    c.failures += 1;
+                    c.error = "no reply".into();
+                }
+            }
+        }
+    }
+    d.samples += 1;
+    d.push_history();
+}
+
+/// Restores the terminal when dropped (also on errors and panics in the loop).
+struct TerminalGuard;
+
+impl Drop for TerminalGuard {
+    fn drop(&mut self) {
+        ratatui::restore();
+    }
+}
+
+/// Runs `robobus monitor`.
+pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
+    if g.dry_run {
+        return Err(usage(
+            "robobus monitor: --dry-run has nothing to print (it only reads)",
+        ));
+    }
+    if let Some(r) = &args.record
+        && r.extension().and_then(|e| e.to_str()) != Some("csv")
+    {
+        return Err(usage(format!(
+            "--record {}: the file name must end in .csv",
+            r.display()
+        )));
+    }
+    let baud = BaudRate::from_bits_per_second(args.baud)
+        .map_err(|e| usage(format!("--baud {}: {e}", args.baud)))?;
+    if args.sim {
+        return run_sim(args);
+    }
+    if let Some(bus) = &args.bus {
+        let link = open_link(bus)?;
+        let jb = JointBus::open_with(
+            link,
+            JointBusConfig {
+                connect_timeout: Duration::from_millis(300),
+                ..JointBusConfig::default()
+            },
+        )
+        .map_err(whj_error)?;
+        let joints: Vec<JointId> = args
+            .joints
+            .0
+            .iter()
+            .filter_map(|&j| JointId::new(j).ok())
+            .collect();
+        // Joints wait in their bootloader after power-up until released (the vendor's
+        // required first operation); one that stays silent shows as `timeout`.
+        for &id in &joints {
+            if let Err(e) = jb.joint(id) {
+                tracing::info!("joint {id}: {e}");
+            }
+        }
+        let d = dashboard(
+            format!("WHJ bus {bus}"),
+            "RPM",
+            "current mA",
+            joints.iter().map(|j| format!("J{}", j.get())),
+            args,
+        );
+        return watch(&mut Source::Whj { bus: &jb, joints }, d, args);
+    }
+    if let Some(port) = &args.port {
+        let bus = WckBus::open(port, baud).map_err(|e| {
+            anyhow::Error::new(crate::exit::Timeout(e.to_string()))
+                .context(format!("opening {}", port.display()))
+        })?;
+        let ids: Vec<ServoId> = args
+            .servos
+            .0
+            .iter()
+            .filter_map(|&s| ServoId::new(s).ok())
+            .collect();
+        let d = dashboard(
+            format!("wCK port {} at {} bit/s", port.display(), args.baud),
+            "deg/s",
+            "load",
+            ids.iter().map(|s| format!("S{}", s.get())),
+            args,
+        );
+        let last = vec![None; ids.len()];
+        return watch(&mut Source::Wck { bus, ids, last }, d, args);
+    }
+    Err(usage(
+        "robobus monitor: give --bus BUS (WHJ), --port PATH (wCK) or --sim (the built-in \
+         simulated arm)",
+    ))
+}
+
+fn dashboard(
+    title: String,
+    speed_unit: &'static str,
+    effort_name: &'static str,
+    names: impl Iterator<Item = String>,
+    args: &Args,
+) -> Dashboard {
+    Dashboard {
+        title,
+        speed_unit,
+        effort_name,
+        channels: names
+            .map(|name| Channel {
+                name,
+                error: "-".into(),
+                ..Channel::default()
+            })
+            .collect(),
+        recording: args.record.as_ref().map(|p| p.display().to_string()),
+        ..Dashboard::default()
+    }
+}
+
+fn run_sim(args: &Args) -> anyhow::Result<()> {
+    use robobus_sim::whj::{WhjBus, WhjModel};
+    let joints: Vec<u8> = args.joints.0.clone();
+    let wire = robobus_link::MemoryBus::new();
+    let mut sim_end = wire.endpoint();
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = Arc::clone(&stop);
+    let ids = joints.clone();
+    let sim = std::thread::spawn(move || {
+        let mut sim = WhjBus::chain(ids, WhjModel::Whj30, 5);
+        robobus_sim::whj::serve(&mut sim, &mut sim_end, &flag)
+    });
+    let result = (|| {
+        let bus = JointBus::open(wire.endpoint()).map_err(whj_error)?;
+        let ids: Vec<JointId> = joints
+            .iter()
+            .filter_map(|&j| JointId::new(j).ok())
+            .collect();
+        for &id in &ids {
+            let j = bus.joint(id).map_err(whj_error)?;
+            j.disable().map_err(whj_error)?;
+            j.set_mode(robobus_whj::WorkMode::Position)
+                .map_err(whj_error)?;
+            j.enable().map_err(whj_error)?;
+        }
+        let cyc = bus
+            .cyclic(CyclicConfig {
+                smooth: Some(MotionLimits::default()),
+                ..CyclicConfig::position(ids.clone(), Duration::from_millis(5))
+            })
+            .map_err(whj_error)?;
+        let d = dashboard(
+            format!("simulated WHJ30 arm, joints {}", ids_text(&joints)),
+            "RPM",
+            "current mA",
+            ids.iter().map(|j| format!("J{}", j.get())),
+            args,
+        );
+        let mut src = Source::Sim {
+            cyc,
+            start: Instant::now(),
+        };
+        let r = watch(&mut src, d, args);
+        if let Source::Sim { cyc, .. } = src {
+            let _ = cyc.stop();
+        }
+        for &id in &ids {
+            let _ = bus.joint_unchecked(id).disable();
+        }
+        r
+    })();
+    stop.store(true, Ordering::Relaxed);
+    let _ = sim.join();
+    result
+}
+
+fn ids_text(ids: &[u8]) -> String {
+    match (ids.first(), ids.last()) {
+        (Some(a), Some(b)) if ids.len() > 1 && usize::from(b - a) + 1 == ids.len() => {
+            format!("{a}-{b}")
+        }
+        _ => ids.iter().map(u8::to_string).collect::<Vec<_>>().join(","),
+    }
+}
+
+fn watch(src: &mut Source<'_>, mut d: Dashboard, args: &Args) -> anyhow::Result<()> {
+    use ratatui::crossterm::event::{self, Event, KeyCode, KeyEventKind, KeyModifiers};
+
+    let mut csv = match &args.record {
+        Some(p) => {
+            let mut f = std::io::BufWriter::new(
+                std::fs::File::create(p)
+                    .with_context(|| format!("cannot create {}", p.display()))?,
+            );
+            writeln!(f, "# robobus monitor: {}", d.title)?;
+            writeln!(f, "{}", d.csv_header())?;
+            Some(f)
+        }
+        None => None,
+    };
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = Arc::clone(&stop);
+    let _ = ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst));
+    let tui = std::io::stdout().is_terminal();
+    let mut terminal = if tui {
+        Some(ratatui::try_init().context("setting up the terminal")?)
+    } else {
+        None
+    };
+    let guard = if tui { Some(TerminalGuard) } else { None };
+    let period = Duration::from_secs_f64(1.0 / args.rate_hz);
+    let start = Instant::now();
+    let mut next = start;
+    let mut last_line = -1.0f64;
+    let mut quit_by_key = false;
+    loop {
+        if stop.load(Ordering::SeqCst) {
+            break;
+        }
+        d.t = start.elapsed().as_secs_f64();
+        if args.duration.is_some_and(|limit| d.t >= limit) {
+            break;
+        }
+        sample(src, &mut d);
+        if let Some(f) = &mut csv {
+            writeln!(f, "{}", d.csv_row())?;
+            if d.samples.is_multiple_of(16) {
+                f.flush()?;
+            }
+        }
+        if let Some(term) = &mut terminal {
+            term.draw(|f| render(f, &d))?;
+        } else if d.t - last_line >= 1.0 {
+            last_line = d.t;
+            crate::output::print(&format!("{}\n", d.plain_line()))?;
+        }
+        next += period;
+        // Wait for the next sample, reading keys meanwhile (at least once per sample).
+        loop {
+            let now = Instant::now();
+            if tui {
+                if event::poll(next.saturating_duration_since(now))?
+                    && let Event::Key(k) = event::read()?
+                    && k.kind == KeyEventKind::Press
+                {
+                    let ctrl_c =
+                        k.code == KeyCode::Char('c') && k.modifiers.contains(KeyModifiers::CONTROL);
+                    if matches!(k.code, KeyCode::Char('q') | KeyCode::Esc) || ctrl_c {
+                        quit_by_key = true;
+                        break;
+                    }
+                }
+            } else if now < next {
+                std::thread::sleep(next - now);
+            }
+            if Instant::now() >= next {
+                break;
+            }
+        }
+        if quit_by_key {
+            break;
+        }
+        if Instant::now() > next + period * 10 {
+            next = Instant::now();
+        }
+    }
+    drop(terminal);
+    drop(guard);
+    if let Some(mut f) = csv {
+        f.flush()?;
+    }
+    if let Some(p) = &args.record {
+        eprintln!(
+            "robobus monitor: {} samples recorded to {}",
+            d.samples,
+            p.display()
+        );
+    }
+    if stop.load(Ordering::SeqCst) {
+        return Err(anyhow::Error::new(Interrupted));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use ratatui::Terminal;
+    use ratatui::backend::TestBackend;
+
+    use super::*;
+
+    fn screen(dash: &Dashboard, width: u16, height: u16) -> String {
+        let mut term = Terminal::new(TestBackend::new(width, height)).unwrap();
+        term.draw(|f| render(f, dash)).unwrap();
+        let buf = term.backend().buffer().clone();
+        let mut text = String::new();
+        for y in 0..height {
+            for x in 0..width {
+                text.push_str(buf[(x, y)].symbol());
+            }
+            text.push('\n');
+        }
+        text
+    }
+
+    #[test]
+    fn the_dashboard_shows_values_errors_and_the_plot() {
+        let mut d = Dashboard {
+            title: "WHJ bus udp".into(),
+            speed_unit: "RPM",
+            effort_name: "current mA",
+            channels: vec![
+                Channel {
+                    name: "J1".into(),
+                    position: Some(12.345),
+                    speed: Some(1.5),
+                    effort: Some(250.0),
+                    enabled: Some(true),
+                    error: "no error".into(),
+                    ..Channel::default()
+                },
+                Channel {
+                    name: "J2".into(),
+                    error: "timeout".into(),
+                    failures: 3,
+                    ..Channel::default()
+                },
+            ],
+            t: 2.0,
+            samples: 40,
+            recording: Some("run.csv".into()),
+        };
+        for k in 0..20 {
+            d.t = f64::from(k) * 0.1;
+            d.channels[0].position = Some(f64::from(k));
+            d.push_history();
+        }
+        let s = screen(&d, 100, 30);
+        assert!(s.contains("robobus monitor WHJ bus udp"), "{s}");
+        assert!(s.contains("19.000"), "{s}");
+        assert!(
+            s.contains("1.50") && s.contains("250") && s.contains(" on "),
+            "{s}"
+        );
+        assert!(s.contains("timeout"), "{s}");
+        assert!(s.contains("position, degrees"), "{s}");
+        assert!(s.contains("recording to run.csv"), "{s}");
+        // The plot draws braille dots for J1's history.
+        assert!(
+            s.chars().any(|c| ('\u{2801}'..='\u{28FF}').contains(&c)),
+            "{s}"
+        );
+        assert_eq!(d.channels[0].history.len(), 20);
+    }
+
+    #[test]
+    fn csv_rows_match_the_header_and_gaps_stay_empty() {
+        let d = Dashboard {
+            speed_unit: "deg/s",
+            effort_name: "load",
+            channels: vec![
+                Channel {
+                    name: "S0".into(),
+                    position: Some(1.0),
+                    speed: Some(2.0),
+                    effort: Some(3.0),
+                    ..Channel::default()
+                },
+                Channel {
+                    name: "S1".into(),
+                    ..Channel::default()
+                },
+            ],
+            t: 0.5,
+            ..Dashboard::default()
+        };
+        assert_eq!(
+            d.csv_header(),
+            "t_s,s0_deg,s0_deg_per_s,s0_load,s1_deg,s1_deg_per_s,s1_load"
+        );
+        assert_eq!(d.csv_row(), "0.5000,1.0000,2.0000,3.0000,,,");
+        let text = format!("{}\n{}\n", d.csv_header(), d.csv_row());
+        let rec = crate::plot::Recording::parse(&text).unwrap();
+        assert_eq!(rec.signals.len(), 6);
+        assert_eq!(rec.signals[3].1, vec![None]);
+    }
+
+    #[test]
+    fn id_lists_are_checked() {
+        assert_eq!(parse_ids_1_30("1-3,5").unwrap().0, [1, 2, 3, 5]);
+        assert!(parse_ids_1_30("0").unwrap_err().contains("1..=30"));
+        assert!(parse_ids_0_30("3-1").is_err());
+        assert_eq!(ids_text(&[1, 2, 3]), "1-3");
+        assert_eq!(ids_text(&[1, 3]), "1,3");
+    }
+}

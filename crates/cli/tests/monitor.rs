@@ -1,0 +1,81 @@
+//! `robobus monitor` without a terminal: plain lines, a CSV recording `robobus plot`
+//! reads, `--duration`, and bad options. (The ratatui screen itself is tested with
+//! ratatui's `TestBackend` in the module's unit tests.)
+
+#![allow(clippy::unwrap_used, clippy::panic)] // Test code.
+
+mod common;
+
+#[test]
+fn monitor_records_the_simulated_arm_to_csv_and_stops_by_itself() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("arm.csv");
+    let started = std::time::Instant::now();
+    let r = common::robobus(&[
+        "monitor",
+        "--sim",
+        "--joints",
+        "1-3",
+        "--rate-hz",
+        "40",
+        "--duration",
+        "2",
+        "--record",
+        csv.to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, Some(0), "{}", r.stderr);
+    assert!(started.elapsed().as_secs_f64() < 20.0);
+    // One plain line per second, naming the joints.
+    assert!(r.stdout.lines().count() >= 2, "{}", r.stdout);
+    assert!(
+        r.stdout.contains("J1") && r.stdout.contains("J3"),
+        "{}",
+        r.stdout
+    );
+    assert!(r.stderr.contains("samples recorded"), "{}", r.stderr);
+
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    let header = lines.next().unwrap();
+    assert_eq!(
+        header,
+        "t_s,j1_deg,j1_rpm,j1_mA,j2_deg,j2_rpm,j2_mA,j3_deg,j3_rpm,j3_mA"
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert!((40..=90).contains(&rows.len()), "{} rows", rows.len());
+    assert!(rows.iter().all(|r| r.len() == 10));
+    // The arm moves: joint 1's position changes by degrees over the run.
+    let j1: Vec<f64> = rows.iter().filter_map(|r| r[1].parse().ok()).collect();
+    let (lo, hi) = j1
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+    assert!(hi - lo > 2.0, "joint 1 stayed within {lo}..{hi}");
+
+    // `robobus plot` reads the recording.
+    let png = dir.path().join("arm.png");
+    let p = common::robobus(&["plot", csv.to_str().unwrap(), "-o", png.to_str().unwrap()]);
+    assert_eq!(p.code, Some(0), "{}", p.stderr);
+    assert!(p.stdout.contains("9 signals"), "{}", p.stdout);
+}
+
+#[test]
+fn monitor_refuses_bad_options() {
+    let r = common::robobus(&["monitor", "--duration", "1"]);
+    assert_eq!(r.code, Some(2));
+    assert!(
+        r.stderr.contains("--bus") && r.stderr.contains("--sim"),
+        "{}",
+        r.stderr
+    );
+    let r = common::robobus(&["monitor", "--sim", "--record", "out.txt"]);
+    assert_eq!(r.code, Some(2));
+    assert!(r.stderr.contains(".csv"), "{}", r.stderr);
+    let r = common::robobus(&["monitor", "--sim", "--joints", "0-3"]);
+    assert_eq!(r.code, Some(2));
+    assert!(r.stderr.contains("1..=30"), "{}", r.stderr);
+    let r = common::robobus(&["monitor", "--sim", "--rate-hz", "500"]);
+    assert_eq!(r.code, Some(2));
+    assert!(r.stderr.contains("1..=200"), "{}", r.stderr);
+    let r = common::robobus(&["monitor", "--bus", "udp", "--sim"]);
+    assert_eq!(r.code, Some(2));
+}

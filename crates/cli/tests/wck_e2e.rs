@@ -1,0 +1,654 @@
+//! End to end: the built `robobus wck ...` against `robobus sim wck` running as a separate
+//! process on a pseudo-terminal (the way a user runs them), for every wCK subcommand: the
+//! tables, the JSON documents, the effects on the simulated servos (read back through the
+//! CLI itself), bad input and the exit codes.
+#![cfg(target_os = "linux")]
+#![allow(clippy::unwrap_used, clippy::panic)] // test helpers: a failed unwrap is a failed test
+
+mod common;
+
+use std::io::{BufRead as _, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use common::{Run, robobus};
+use serde_json::Value;
+
+/// `robobus sim wck` in its own process, stopped (SIGTERM) on drop.
+struct Sim {
+    child: Child,
+    link: PathBuf,
+    _dir: tempfile::TempDir,
+}
+
+impl Sim {
+    /// Starts a simulated bus with `servos` (e.g. `0-2`) and waits until it is up.
+    fn start(servos: &str, extra: &[&str]) -> Self {
+        let dir = tempfile::tempdir().unwrap();
+        let link = dir.path().join("wck");
+        let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
+            .args(["sim", "wck", "--servos", servos, "--eeprom-ms", "5"])
+            .args(extra)
+            .arg("--link")
+            .arg(&link)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let mut first = String::new();
+        BufReader::new(child.stdout.take().unwrap())
+            .read_line(&mut first)
+            .unwrap();
+        assert_eq!(
+            Path::new(first.trim()),
+            link,
+            "the sim prints the path first"
+        );
+        // Past the 65 ms a wCK module is deaf after power-up.
+        std::thread::sleep(Duration::from_millis(120));
+        Self {
+            child,
+            link,
+            _dir: dir,
+        }
+    }
+
+    fn port(&self) -> &str {
+        self.link.to_str().unwrap()
+    }
+
+    /// `robobus wck --port LINK ARGS`.
+    fn wck(&self, args: &[&str]) -> Run {
+        let mut all = vec!["wck", "--port", self.port()];
+        all.extend_from_slice(args);
+        robobus(&all)
+    }
+
+    /// Like [`Sim::wck`] and requires exit code 0; returns stdout.
+    #[track_caller]
+    fn ok(&self, args: &[&str]) -> String {
+        let r = self.wck(args);
+        assert_eq!(r.code, Some(0), "wck {args:?}: {r:#?}");
+        r.stdout
+    }
+
+    /// `--json` run, exit 0, parsed.
+    #[track_caller]
+    fn json(&self, args: &[&str]) -> Value {
+        let mut all = vec!["--json"];
+        all.extend_from_slice(args);
+        serde_json::from_str(&self.ok(&all)).unwrap()
+    }
+
+    /// The first result of a `--json` run.
+    #[track_caller]
+    fn result(&self, args: &[&str]) -> Value {
+        let v = self.json(args);
+        v["results"][0].clone()
+    }
+
+    /// The position servo `id` reports.
+    #[track_caller]
+    fn position(&self, id: u8) -> u64 {
+        self.result(&["status", &id.to_string()])["position"]
+            .as_u64()
+            .unwrap()
+    }
+
+    /// Polls the position of `id` until it is within 3 steps of `target` (3 s at most;
+    /// the simulated shaft settles within the controller's dead band).
+    #[track_caller]
+    fn wait_at(&self, id: u8, target: u64) {
+        let deadline = Instant::now() + Duration::from_secs(3);
+        loop {
+            let p = self.position(id);
+            if p.abs_diff(target) <= 3 {
+                return;
+            }
+            assert!(
+                Instant::now() < deadline,
+                "servo {id} stays at {p}, expected {target}"
+            );
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+}
+
+impl Drop for Sim {
+    fn drop(&mut self) {
+        let _ = Command::new("kill")
+            .arg("-TERM")
+            .arg(self.child.id().to_string())
+            .status();
+        let deadline = Instant::now() + Duration::from_secs(5);
+        while Instant::now() < deadline {
+            if let Ok(Some(_)) = self.child.try_wait() {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+#[test]
+fn status_move_and_10_bit_moves_show_their_effect() {
+    let sim = Sim::start("0-2", &[]);
+    // A table with a header and one row per servo, at the factory position 127.
+    let out = sim.ok(&["status", "0-2"]);
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(lines.len(), 4, "{out}");
+    assert!(
+        lines[0].starts_with("ID") && lines[0].contains("POSITION"),
+        "{out}"
+    );
+    for (i, l) in lines[1..].iter().enumerate() {
+        let cells: Vec<&str> = l.split_whitespace().collect();
+        assert_eq!(cells[0], i.to_string(), "{out}");
+        assert_eq!(cells[2], "127", "{out}");
+    }
+    // JSON: stable fields with units in their names.
+    let v = sim.json(&["status", "1"]);
+    assert_eq!(v["command"], "status");
+    assert_eq!(v["port"], sim.port());
+    assert_eq!(v["baud"], 115_200);
+    let r = &v["results"][0];
+    assert_eq!(r["id"], 1);
+    assert_eq!(r["position"], 127);
+    assert!(
+        (r["degrees"].as_f64().unwrap() - 133.97).abs() < 0.01,
+        "{r}"
+    );
+    assert!(r["load"].is_u64(), "{r}");
+
+    // A move replies the status before it; status shows where it went.
+    let m = sim.result(&["move", "1", "200", "--torque", "1"]);
+    assert_eq!(m["target_position"], 200);
+    assert_eq!(m["position_before"], 127);
+    assert_eq!(m["torque"], 1);
+    sim.wait_at(1, 200);
+    assert_eq!(sim.position(0), 127, "servo 0 did not move");
+
+    // 10-bit read and move.
+    let r = sim.result(&["read10", "2"]);
+    let p10 = r["position10"].as_u64().unwrap();
+    assert!(p10.abs_diff(412) <= 3, "{r}");
+    let m = sim.result(&["move10", "2", "600"]);
+    assert_eq!(m["target_position10"], 600);
+    assert_eq!(m["position10_before"], p10);
+    let deadline = Instant::now() + Duration::from_secs(3);
+    loop {
+        let p = sim.result(&["read10", "2"])["position10"].as_u64().unwrap();
+        if p.abs_diff(600) <= 4 {
+            break;
+        }
+        assert!(Instant::now() < deadline, "10-bit move ends at {p}");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+
+    // Bad input: exit 2 before anything is sent (servo 0 stays where it is).
+    let r = sim.wck(&["move", "0", "255"]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    assert!(
+        r.stderr.contains("255") && r.stderr.contains("0..=254"),
+        "{}",
+        r.stderr
+    );
+    let r = sim.wck(&["move", "31", "100"]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    assert_eq!(sim.position(0), 127);
+}
+
+#[test]
+fn a_servo_that_does_not_answer_is_exit_3_naming_the_port_and_the_servo() {
+    let sim = Sim::start("0-1", &[]);
+    let r = sim.wck(&["status", "9"]);
+    assert_eq!(r.code, Some(3), "{r:#?}");
+    assert!(r.stderr.contains(sim.port()), "{}", r.stderr);
+    assert!(r.stderr.contains("servo 9"), "{}", r.stderr);
+    // The servos before the silent one are printed, then the error.
+    let r = sim.wck(&["status", "0-2"]);
+    assert_eq!(r.code, Some(3), "{r:#?}");
+    assert!(r.stderr.contains("servo 2"), "{}", r.stderr);
+    assert_eq!(r.stdout.lines().count(), 3, "{}", r.stdout);
+    // A wrong baud rate: nobody answers.
+    let r = sim.wck(&["--baud", "57600", "get", "gains", "0"]);
+    assert_eq!(r.code, Some(3), "{r:#?}");
+    assert!(r.stderr.contains("57600"), "{}", r.stderr);
+    // A port that does not exist: exit 3, naming the path.
+    let missing = sim.link.with_file_name("nothing-here");
+    let r = robobus(&["wck", "--port", missing.to_str().unwrap(), "status", "0"]);
+    assert_eq!(r.code, Some(3), "{r:#?}");
+    assert!(r.stderr.contains("nothing-here"), "{}", r.stderr);
+}
+
+#[test]
+fn scan_finds_servos_flags_duplicates_and_fails_on_an_empty_bus() {
+    let sim = Sim::start("0,2,3", &[]);
+    let out = sim.ok(&["scan", "--ids", "0-5"]);
+    let ids: Vec<&str> = out
+        .lines()
+        .skip(1)
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| l.split_whitespace().next().unwrap())
+        .collect();
+    assert_eq!(ids, ["0", "2", "3"], "{out}");
+    assert!(out.contains("3 servo(s) found, 0 duplicate"), "{out}");
+
+    // Every rate: the servos are found at theirs.
+    let v = sim.json(&["scan", "--all-bauds", "--ids", "0-2"]);
+    assert_eq!(v["bauds_tried"].as_array().unwrap().len(), 8, "{v}");
+    let found = v["found"].as_array().unwrap();
+    assert_eq!(found.len(), 2, "{v}");
+    assert!(found.iter().all(|f| f["baud"] == 115_200), "{v}");
+    assert_eq!(found[0]["id"], 0);
+    assert_eq!(found[0]["position"], 127);
+    assert_eq!(v["duplicates"].as_array().unwrap().len(), 0);
+
+    // Nobody at these IDs: the empty result, then exit 3.
+    let r = sim.wck(&["--json", "scan", "--ids", "5-7"]);
+    assert_eq!(r.code, Some(3), "{r:#?}");
+    let v: Value = serde_json::from_str(&r.stdout).unwrap();
+    assert_eq!(v["found"].as_array().unwrap().len(), 0);
+    assert!(
+        r.stderr.contains("5-7") && r.stderr.contains(sim.port()),
+        "{}",
+        r.stderr
+    );
+
+    // Bad input.
+    let r = sim.wck(&["scan", "--ids", "0-31"]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+}
+
+#[test]
+fn scan_flags_two_servos_sharing_an_id() {
+    // At 921600 bit/s the replies of two modules with one ID collide visibly.
+    let sim = Sim::start("0,1,1", &["--baud", "921600"]);
+    let out = sim.ok(&["--baud", "921600", "scan", "--ids", "0-2"]);
+    assert!(out.contains("DUPLICATE  ID 1"), "{out}");
+    let v = sim.json(&["--baud", "921600", "scan", "--ids", "0-2"]);
+    let dups = v["duplicates"].as_array().unwrap();
+    assert_eq!(dups.len(), 1, "{v}");
+    assert_eq!(dups[0]["id"], 1);
+    assert!(!dups[0]["evidence"].as_str().unwrap().is_empty());
+    let found: Vec<&Value> = v["found"].as_array().unwrap().iter().collect();
+    assert_eq!(found.len(), 1, "{v}");
+    assert_eq!(found[0]["id"], 0);
+}
+
+#[test]
+fn every_parameter_reads_back_what_was_set() {
+    let sim = Sim::start("0-1", &[]);
+    // EEPROM settings need --yes without a terminal; nothing is sent otherwise.
+    let r = sim.wck(&["set", "overload", "1", "1000"]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    assert!(r.stderr.contains("--yes"), "{}", r.stderr);
+    let before = sim.result(&["get", "overload", "1"]);
+    assert_ne!(before["milliamps"], 1000, "{before}");
+
+    let set = sim.result(&["--yes", "set", "overload", "1", "1000"]);
+    assert_eq!(set["milliamps"], 1000, "{set}");
+    let got = sim.result(&["get", "overload", "1"]);
+    assert_eq!(got["milliamps"], 1000, "{got}");
+    assert!(got["overload_code"].is_u64());
+    assert_ne!(
+        sim.result(&["get", "overload", "0"])["milliamps"],
+        1000,
+        "servo 0 keeps its own"
+    );
+
+    sim.ok(&["--yes", "set", "gains", "1", "30", "20"]);
+    let gains = sim.result(&["get", "gains", "1"]);
+    assert_eq!(
+        (gains["p_gain"].as_u64(), gains["d_gain"].as_u64()),
+        (Some(30), Some(20))
+    );
+
+    // Runtime gains: no confirmation needed, effective at once.
+    let gains = sim.result(&["set", "gains", "1", "40", "25", "--runtime"]);
+    assert_eq!(
+        (gains["p_gain"].as_u64(), gains["d_gain"].as_u64()),
+        (Some(40), Some(25))
+    );
+
+    sim.ok(&["--yes", "set", "i-gain", "1", "5"]);
+    assert_eq!(sim.result(&["get", "i-gain", "1"])["i_gain"], 5);
+    let runtime_i = sim.result(&["set", "i-gain", "1", "3", "--runtime"]);
+    assert_eq!(runtime_i["i_gain"], 3);
+
+    sim.ok(&["--yes", "set", "speed", "1", "10", "50"]);
+    let speed = sim.result(&["get", "speed", "1"]);
+    assert_eq!(
+        (speed["speed"].as_u64(), speed["accel"].as_u64()),
+        (Some(10), Some(50))
+    );
+    // The runtime speed set has no reply: the row says so.
+    let speed = sim.result(&["set", "speed", "1", "12", "40", "--runtime"]);
+    assert!(
+        speed["reply"].as_str().unwrap().contains("no reply"),
+        "{speed}"
+    );
+    let speed = sim.result(&["get", "speed", "1"]);
+    assert_eq!(
+        (speed["speed"].as_u64(), speed["accel"].as_u64()),
+        (Some(12), Some(40))
+    );
+
+    sim.ok(&["--yes", "set", "bounds", "1", "10", "240"]);
+    let bounds = sim.result(&["get", "bounds", "1"]);
+    assert_eq!(
+        (bounds["lower"].as_u64(), bounds["upper"].as_u64()),
+        (Some(10), Some(240))
+    );
+    assert!(bounds["lower_degrees"].as_f64().unwrap() > 10.0);
+
+    let written = sim.result(&["set", "io", "1", "2"]);
+    assert_eq!(written["outputs"], 2);
+    let io = sim.result(&["get", "io", "1"]);
+    assert_eq!(io["outputs"], 2);
+    assert_eq!(io["do1"], false);
+    assert_eq!(io["do2"], true);
+    assert!(io["adc"].is_u64() && io["adc_volts"].is_f64(), "{io}");
+
+    // Text tables name their columns like the JSON fields.
+    let out = sim.ok(&["get", "overload", "1"]);
+    assert!(out.starts_with("ID") && out.contains("MILLIAMPS"), "{out}");
+    assert!(out.lines().nth(1).unwrap().contains("1000"), "{out}");
+
+    // Bad values: exit 2, named.
+    let r = sim.wck(&["--yes", "set", "overload", "1", "2000"]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    assert!(r.stderr.contains("2000"), "{}", r.stderr);
+    let r = sim.wck(&["--yes", "set", "bounds", "1", "200", "100"]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    assert_eq!(sim.result(&["get", "bounds", "1"])["lower"], 10);
+}
+
+#[test]
+fn set_id_and_set_baud_are_verified_and_take_effect() {
+    let sim = Sim::start("0-1", &[]);
+    let r = sim.result(&["--yes", "set-id", "1", "7"]);
+    assert_eq!((r["id"].as_u64(), r["new_id"].as_u64()), (Some(1), Some(7)));
+    assert_eq!(sim.position(7), 127);
+    let r = sim.wck(&["status", "1"]);
+    assert_eq!(r.code, Some(3), "the old ID no longer answers: {r:#?}");
+    // An ID that is taken is refused (the client checks first).
+    let r = sim.wck(&["--yes", "set-id", "7", "0"]);
+    assert_eq!(r.code, Some(1), "{r:#?}");
+    assert!(r.stderr.contains("already answers"), "{}", r.stderr);
+    sim.ok(&["--yes", "set-id", "7", "1"]);
+    assert_eq!(sim.position(1), 127);
+
+    let r = sim.result(&["--yes", "set-baud", "1", "57600"]);
+    assert_eq!(r["baud"], 57_600);
+    assert_eq!(
+        sim.result(&["--baud", "57600", "status", "1"])["position"],
+        127
+    );
+    assert_eq!(sim.wck(&["status", "1"]).code, Some(3));
+    sim.ok(&["--baud", "57600", "--yes", "set-baud", "1", "115200"]);
+    assert_eq!(sim.position(1), 127);
+    // Without --yes: refused before anything is sent.
+    assert_eq!(sim.wck(&["set-id", "1", "4"]).code, Some(2));
+    assert_eq!(sim.position(1), 127);
+}
+
+#[test]
+fn programs_upload_verified_download_the_count_and_check_offline() {
+    let sim = Sim::start("0", &[]);
+    let dir = tempfile::tempdir().unwrap();
+    let prog = write(
+        dir.path(),
+        "p.txt",
+        "move 100 torque 2\ndelay 300ms\nmove 150 torque 2\nrepeat forever\n",
+    );
+    let empty = write(dir.path(), "empty.txt", "# nothing\n");
+    let bad = write(dir.path(), "bad.txt", "move 300 torque 2\n");
+    let p = prog.to_str().unwrap();
+    // Check needs no device.
+    let out = common::ok(&["wck", "program", "check", p]);
+    assert!(out.contains("OK, 4 instruction(s)"), "{out}");
+
+    assert_eq!(sim.result(&["program", "download", "0"])["instructions"], 0);
+    let r = sim.result(&["--yes", "program", "upload", "0", p]);
+    assert_eq!(r["instructions"], 4);
+    assert_eq!(sim.result(&["program", "download", "0"])["instructions"], 4);
+    // The program runs: the shaft leaves 127.
+    let deadline = Instant::now() + Duration::from_secs(3);
+    while sim.position(0).abs_diff(127) <= 2 {
+        assert!(
+            Instant::now() < deadline,
+            "the program does not move the servo"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    // An empty program switches it off.
+    sim.ok(&["--yes", "program", "upload", "0", empty.to_str().unwrap()]);
+    assert_eq!(sim.result(&["program", "download", "0"])["instructions"], 0);
+    // A bad file: exit 2 with file:line:column, nothing sent.
+    let r = sim.wck(&["--yes", "program", "upload", "0", bad.to_str().unwrap()]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    assert!(r.stderr.contains("bad.txt:1:"), "{}", r.stderr);
+    assert_eq!(sim.result(&["program", "download", "0"])["instructions"], 0);
+}
+
+#[test]
+fn passive_wheel_brake_and_sync_move() {
+    let sim = Sim::start("0-2", &[]);
+    let v = sim.json(&["passive", "0-2"]);
+    let rows = v["results"].as_array().unwrap();
+    assert_eq!(rows.len(), 3);
+    assert!(rows.iter().all(|r| r["position"] == 127), "{v}");
+
+    // A synchronized move drives servos 0..N-1 at once (no reply).
+    let r = sim.result(&["sync-move", "100", "110", "120"]);
+    assert_eq!(r["id"], "all");
+    assert_eq!(r["positions"], serde_json::json!([100, 110, 120]));
+    sim.wait_at(0, 100);
+    sim.wait_at(1, 110);
+    sim.wait_at(2, 120);
+
+    // A timed wheel run turns the shaft, then holds it.
+    let r = sim.result(&["wheel", "1", "ccw", "10", "--duration", "0.3"]);
+    assert_eq!(r["stopped"], "hold");
+    assert!(r["ran_ms"].as_u64().unwrap() >= 300, "{r}");
+    let stopped = sim.position(1);
+    assert_ne!(stopped, 110, "the wheel turned");
+    std::thread::sleep(Duration::from_millis(200));
+    assert!(sim.position(1).abs_diff(stopped) <= 2, "it holds still");
+    // Without a duration the command returns and the servo keeps turning.
+    sim.ok(&["wheel", "2", "cw", "15"]);
+    let a = sim.position(2);
+    std::thread::sleep(Duration::from_millis(200));
+    assert_ne!(sim.position(2), a, "still turning");
+    sim.ok(&["move", "2", "127"]);
+
+    // Break: every servo answers at once; the command is heard.
+    let out = sim.ok(&["brake"]);
+    assert!(out.starts_with("ID"), "{out}");
+    let r = sim.wck(&["wheel", "1", "up", "3"]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    let r = sim.wck(&["wheel", "1", "ccw", "16"]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    let r = sim.wck(&["sync-move"]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+}
+
+#[test]
+fn play_ends_at_the_last_pose() {
+    let sim = Sim::start("0-1", &[]);
+    let dir = tempfile::tempdir().unwrap();
+    let f = write(
+        dir.path(),
+        "m.txt",
+        "torque 0\npose 200 100 150\npose 300 160 90\nhold 100\npose 200 140 110\n",
+    );
+    let start = Instant::now();
+    let v = sim.json(&["play", f.to_str().unwrap(), "--rate-hz", "25"]);
+    let took = start.elapsed();
+    assert_eq!(v["last_positions"], serde_json::json!([140, 110]));
+    assert_eq!(v["planned_ms"], 800);
+    assert_eq!(v["sent"], v["moves"]);
+    assert!(v["duration_ms"].as_u64().unwrap() >= 800, "{v}");
+    assert!(took >= Duration::from_millis(800), "{took:?}");
+    sim.wait_at(0, 140);
+    sim.wait_at(1, 110);
+    // Text form.
+    let out = sim.ok(&["play", f.to_str().unwrap()]);
+    assert!(out.contains("last pose: 140 110"), "{out}");
+    // A bad file: exit 2 with file:line:column.
+    let bad = write(dir.path(), "bad.txt", "pose 100 1 2\npose 100 1 300\n");
+    let r = sim.wck(&["play", bad.to_str().unwrap()]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    assert!(r.stderr.contains("bad.txt:2:"), "{}", r.stderr);
+}
+
+#[test]
+fn ctrl_c_during_play_holds_the_servos_and_exits_130() {
+    let sim = Sim::start("0-1", &[]);
+    let dir = tempfile::tempdir().unwrap();
+    let f = write(dir.path(), "long.txt", "pose 0 60 60\npose 4000 220 220\n");
+    let child = Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .args(["wck", "--port", sim.port(), "play"])
+        .arg(&f)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(1200));
+    let signalled = Command::new("kill")
+        .arg("-INT")
+        .arg(child.id().to_string())
+        .status()
+        .unwrap();
+    assert!(signalled.success());
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(130), "{out:?}");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("interrupted"), "{stderr}");
+    assert!(stderr.contains("hold"), "{stderr}");
+    // Held where it was stopped: well short of the end, and it stays there.
+    let p = sim.position(0);
+    assert!(p < 200, "stopped at {p}");
+    std::thread::sleep(Duration::from_millis(300));
+    assert!(sim.position(0).abs_diff(p) <= 2, "it holds");
+}
+
+#[test]
+fn teach_at_a_rate_writes_a_file_that_play_accepts() {
+    let sim = Sim::start("0-2", &[]);
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("taught.txt");
+    let out = sim.ok(&[
+        "teach",
+        "0-2",
+        "--rate-hz",
+        "20",
+        "--duration",
+        "0.4",
+        "-o",
+        f.to_str().unwrap(),
+    ]);
+    assert!(out.contains("pose(s) of servo(s) 0-2"), "{out}");
+    let text = std::fs::read_to_string(&f).unwrap();
+    let poses: Vec<&str> = text.lines().filter(|l| l.starts_with("pose ")).collect();
+    assert!(
+        (4..=10).contains(&poses.len()),
+        "about 0.4 s x 20 Hz poses: {text}"
+    );
+    assert!(poses.iter().all(|l| l == &"pose 50 127 127 127"), "{text}");
+    // The servos were left passive (the default --on-stop).
+    assert_eq!(sim.result(&["status", "0"])["load"], 0);
+    // The file plays: synchronized moves of servos 0-2 to 127.
+    let dry = common::ok(&["wck", "--dry-run", "play", f.to_str().unwrap()]);
+    let packets = common::lines(&dry);
+    assert!(!packets.is_empty());
+    assert!(
+        packets.iter().all(|l| l.starts_with("FF 1F 03 7F 7F 7F ")),
+        "{dry}"
+    );
+    // Playing it back works on the device too.
+    sim.ok(&["play", f.to_str().unwrap()]);
+
+    // Poses per keypress (from stdin), JSON on stdout without --output.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .args(["wck", "--port", sim.port(), "--json", "teach", "0-1"])
+        .args(["--pose-ms", "400"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    {
+        use std::io::Write as _;
+        let mut stdin = child.stdin.take().unwrap();
+        stdin.write_all(b"\n\nq\n").unwrap();
+    }
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success(), "{out:?}");
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["ids"], serde_json::json!([0, 1]));
+    let poses = v["poses"].as_array().unwrap();
+    assert_eq!(poses.len(), 3, "the first pose and one per Enter: {v}");
+    assert!(poses.iter().all(|p| p["ms"] == 400));
+
+    // Teach records servos 0..N-1: other lists are refused before anything is opened.
+    let r = sim.wck(&["teach", "1-2", "--duration", "0.2"]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    assert!(r.stderr.contains("0..N-1"), "{}", r.stderr);
+    let r = sim.wck(&["teach", "0-1", "--rate-hz", "500"]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+}
+
+#[test]
+fn ctrl_c_ends_teach_keeps_the_recording_and_exits_130() {
+    let sim = Sim::start("0-1", &[]);
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("taught.txt");
+    // At a rate without --duration: until Enter or Ctrl-C; stdin stays open (a pipe).
+    let child = Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .args([
+            "wck",
+            "--port",
+            sim.port(),
+            "teach",
+            "0-1",
+            "--rate-hz",
+            "20",
+        ])
+        .args(["--on-stop", "hold", "-o"])
+        .arg(&f)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(500));
+    let signalled = Command::new("kill")
+        .arg("-INT")
+        .arg(child.id().to_string())
+        .status()
+        .unwrap();
+    assert!(signalled.success());
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(130), "{out:?}");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("hold"), "{stderr}");
+    let text = std::fs::read_to_string(&f).unwrap();
+    let poses = text.lines().filter(|l| l.starts_with("pose ")).count();
+    assert!(poses >= 2, "the poses so far are written: {text}");
+    // --on-stop hold: a position move to where each servo stood (nobody moved them).
+    assert_eq!(sim.position(0), 127);
+    assert_eq!(sim.position(1), 127);
+}

@@ -1,0 +1,375 @@
+//! End-to-end: the built `robobus whj ...` commands against `robobus sim whj` in another
+//! process, on the python-can UDP multicast bus, inside a private network namespace.
+//!
+//! Each test re-executes itself under `unshare -n` (with `ROBOBUS_IN_NETNS` set), brings
+//! up loopback with a multicast route there, starts the simulator on its own group and
+//! port, and runs the commands, checking their effects through other commands (enable →
+//! status shows enabled, move → position reached, write → read back, ...). No datagram
+//! can leave the namespace.
+
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::float_cmp,
+    clippy::cast_precision_loss,
+    clippy::many_single_char_names,
+    clippy::similar_names
+)] // Test code: a failed unwrap is a failed test.
+
+mod common;
+
+use std::io::Read as _;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use serde_json::Value;
+
+const INSIDE: &str = "ROBOBUS_IN_NETNS";
+
+/// Runs the test `name` again inside a fresh network namespace; returns `true` when the
+/// caller is already inside (and should run the test body).
+fn in_netns(name: &str) -> bool {
+    if std::env::var_os(INSIDE).is_some() {
+        let ok = Command::new("ip")
+            .args(["link", "set", "lo", "up"])
+            .status()
+            .is_ok_and(|s| s.success())
+            && Command::new("ip")
+                .args(["route", "add", "224.0.0.0/4", "dev", "lo"])
+                .status()
+                .is_ok_and(|s| s.success());
+        assert!(ok, "network namespace setup (ip link / ip route) failed");
+        return true;
+    }
+    let exe = std::env::current_exe().unwrap();
+    let out = Command::new("timeout")
+        .args(["300", "unshare", "-n"])
+        .arg(exe)
+        .args([name, "--exact", "--nocapture", "--test-threads=1"])
+        .env(INSIDE, "1")
+        .output()
+        .expect("running unshare -n (needs root or user namespaces)");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success() && stdout.contains("1 passed"),
+        "{name} inside the namespace failed ({:?}):\nstdout: {stdout}\nstderr: {stderr}",
+        out.status
+    );
+    false
+}
+
+/// `robobus sim whj` on a UDP bus; killed on drop.
+struct Sim {
+    child: Child,
+    bus: String,
+}
+
+impl Sim {
+    fn start(bus: &str, extra: &[&str]) -> Self {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
+            .args([
+                "sim", "whj", "--joints", "1-7", "--model", "whj30", "--seed", "3",
+            ])
+            .args(["--bus", bus])
+            .args(extra)
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("starting robobus sim whj");
+        // Wait for its "serving" line.
+        let mut err = child.stderr.take().unwrap();
+        let start = Instant::now();
+        let mut seen = Vec::new();
+        let mut buf = [0u8; 256];
+        while !String::from_utf8_lossy(&seen).contains("serving") {
+            assert!(
+                start.elapsed() < Duration::from_secs(20),
+                "simulator did not start: {}",
+                String::from_utf8_lossy(&seen)
+            );
+            let n = err.read(&mut buf).unwrap();
+            assert!(
+                n > 0,
+                "simulator exited: {}",
+                String::from_utf8_lossy(&seen)
+            );
+            seen.extend_from_slice(&buf[..n]);
+        }
+        // Keep draining stderr so the simulator never blocks on a full pipe.
+        std::thread::spawn(move || std::io::copy(&mut err, &mut std::io::sink()));
+        Self {
+            child,
+            bus: bus.to_owned(),
+        }
+    }
+
+    /// `robobus whj --bus BUS ARGS`.
+    fn whj(&self, args: &[&str]) -> common::Run {
+        let mut all = vec!["whj", "--bus", self.bus.as_str()];
+        all.extend_from_slice(args);
+        common::robobus(&all)
+    }
+
+    /// `robobus whj --bus BUS --json ARGS`, expecting success; the `results` array.
+    fn json(&self, args: &[&str]) -> Vec<Value> {
+        let mut all = vec!["--json"];
+        all.extend_from_slice(args);
+        let r = self.whj(&all);
+        assert_eq!(r.code, Some(0), "whj {args:?} failed: {}", r.stderr);
+        let doc: Value = serde_json::from_str(&r.stdout)
+            .unwrap_or_else(|e| panic!("whj {args:?}: not JSON ({e}): {}", r.stdout));
+        assert_eq!(doc["bus"], self.bus.as_str());
+        doc["results"].as_array().unwrap().clone()
+    }
+}
+
+impl Drop for Sim {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn f(v: &Value) -> f64 {
+    v.as_f64().unwrap_or_else(|| panic!("not a number: {v}"))
+}
+
+#[test]
+fn whj_e2e_scan_info_enable_move_save_registers() {
+    if !in_netns("whj_e2e_scan_info_enable_move_save_registers") {
+        return;
+    }
+    let sim = Sim::start("udp:239.74.163.11:43121", &[]);
+
+    // Scan: the seven joints, nothing at 8.
+    let found = sim.json(&["scan", "--joints", "1-8"]);
+    let ids: Vec<u64> = found.iter().map(|r| r["joint"].as_u64().unwrap()).collect();
+    assert_eq!(ids, [1, 2, 3, 4, 5, 6, 7]);
+    assert!(found.iter().all(|r| r["model"] == "WHJ30"), "{found:?}");
+    // The table form names its columns.
+    let t = sim.whj(&["scan", "--joints", "1-2"]);
+    assert_eq!(t.code, Some(0), "{}", t.stderr);
+    assert!(t.stdout.starts_with("JOINT"), "{}", t.stdout);
+    assert_eq!(t.stdout.lines().count(), 3, "{}", t.stdout);
+
+    // Info: identity and limits.
+    let info = sim.json(&["info", "1"]);
+    assert_eq!(info[0]["model"], "WHJ30");
+    assert!(f(&info[0]["max_deg"]) > f(&info[0]["min_deg"]), "{info:?}");
+
+    // Status after disable and after enable (the simulated joints power up enabled).
+    let d = sim.json(&["disable", "1-2"]);
+    assert!(d.iter().all(|r| r["enabled"] == false), "{d:?}");
+    let st = sim.json(&["status", "1-2"]);
+    assert_eq!(st.len(), 2);
+    assert_eq!(st[0]["enabled"], false, "{st:?}");
+    assert_eq!(st[1]["enabled"], false, "{st:?}");
+    let m = sim.json(&["mode", "1", "position"]);
+    assert_eq!(m[0]["mode"], "position");
+    let en = sim.json(&["enable", "1"]);
+    assert_eq!(en[0]["enabled"], true);
+    let st = sim.json(&["status", "1"]);
+    assert_eq!(st[0]["enabled"], true, "{st:?}");
+    assert_eq!(st[0]["mode"], "position");
+
+    // Move 12° in safe steps; the position is reached.
+    let mv = sim.json(&["move", "1", "12", "--max-speed", "60"]);
+    assert!((f(&mv[0]["position_deg"]) - 12.0).abs() <= 0.1, "{mv:?}");
+    assert!(f(&mv[0]["frames"]) > 20.0, "{mv:?}");
+    let st = sim.json(&["status", "1"]);
+    assert!((f(&st[0]["position_deg"]) - 12.0).abs() <= 0.2, "{st:?}");
+    // And back, negative.
+    let mv = sim.json(&["move", "1", "-5", "--max-speed", "90"]);
+    assert!((f(&mv[0]["position_deg"]) + 5.0).abs() <= 0.1, "{mv:?}");
+
+    // Save refused while enabled (exit 1, nothing written), allowed once disabled.
+    let r = sim.whj(&["--yes", "save", "1"]);
+    assert_eq!(r.code, Some(1), "{r:?}");
+    assert!(r.stderr.contains("enabled"), "{}", r.stderr);
+    // Without --yes and without a terminal: refused before anything is opened.
+    let r = sim.whj(&["save", "2"]);
+    assert_eq!(r.code, Some(2), "{r:?}");
+    assert!(r.stderr.contains("--yes"), "{}", r.stderr);
+    let d = sim.json(&["disable", "1"]);
+    assert_eq!(d[0]["enabled"], false);
+    let s = sim.json(&["--yes", "save", "1"]);
+    assert_eq!(s[0]["saved"], true);
+
+    // Registers: write in units, read back by name and by address.
+    let w = sim.json(&["write", "2", "LIT_MAX_CURRENT", "5000"]);
+    assert_eq!(f(&w[0]["value"]), 5000.0, "{w:?}");
+    let r = sim.json(&["read", "2", "0x40"]);
+    assert_eq!(f(&r[0]["raw"]), 5000.0, "{r:?}");
+    assert_eq!(r[0]["unit"], "mA");
+    let w = sim.json(&["write", "2", "LIT_MAX_POS_DIFF", "20"]);
+    assert!((f(&w[0]["value"]) - 20.0).abs() < 1e-6, "{w:?}");
+    let r = sim.json(&["read", "2", "lit_max_pos_diff"]);
+    assert_eq!(f(&r[0]["raw"]), 200_000.0, "{r:?}");
+    let w = sim.json(&["write", "2", "0x31", "7", "--raw"]);
+    assert_eq!(f(&w[0]["raw"]), 7.0, "{w:?}");
+    let words = sim.json(&["read", "2", "0x30", "2"]);
+    assert_eq!(words.len(), 2, "{words:?}");
+    assert_eq!(f(&words[1]["raw"]), 7.0, "{words:?}");
+    // Temperature in its unit.
+    let t = sim.json(&["read", "2", "SYS_TEMP"]);
+    assert_eq!(t[0]["unit"], "°C", "{t:?}");
+    assert!((0.0..100.0).contains(&f(&t[0]["value"])), "{t:?}");
+
+    // Zero: the present position becomes 0.
+    let z = sim.json(&["zero", "1"]);
+    assert!(f(&z[0]["position_deg"]).abs() < 0.05, "{z:?}");
+    // Clear, release-iap on a running joint, set-id.
+    let c = sim.json(&["clear", "1-2"]);
+    assert_eq!(c.len(), 2);
+    let rel = sim.json(&["release-iap", "3"]);
+    assert_eq!(rel[0]["released"], true);
+    let sid = sim.json(&["--yes", "set-id", "7", "9"]);
+    assert_eq!(sid[0]["new_id"], 9);
+}
+
+#[test]
+fn whj_e2e_wave_speed_current_and_interrupt() {
+    if !in_netns("whj_e2e_wave_speed_current_and_interrupt") {
+        return;
+    }
+    let sim = Sim::start("udp:239.74.163.12:43122", &[]);
+
+    // A wave needs the joint enabled in the matching mode: refused otherwise, nothing sent.
+    sim.json(&["disable", "3"]);
+    let r = sim.whj(&["wave", "3", "--amplitude", "5", "--duration", "0.5"]);
+    assert_eq!(r.code, Some(1), "{r:?}");
+    assert!(r.stderr.contains("enable"), "{}", r.stderr);
+
+    sim.json(&["mode", "3", "position"]);
+    sim.json(&["enable", "3"]);
+    let out = sim.whj(&[
+        "--json",
+        "wave",
+        "3",
+        "--amplitude",
+        "5",
+        "--frequency",
+        "1",
+        "--duration",
+        "1.5",
+        "--rate-hz",
+        "200",
+    ]);
+    assert_eq!(out.code, Some(0), "{}", out.stderr);
+    let doc: Value = serde_json::from_str(&out.stdout).unwrap();
+    let stats = &doc["stats"];
+    let cycles = f(&stats["cycles"]);
+    assert!((250.0..=320.0).contains(&cycles), "{stats}");
+    assert!(f(&stats["tracking_rms_deg"]) < 1.0, "{stats}");
+    assert!(f(&stats["tracking_max_deg"]) < 3.0, "{stats}");
+    assert!(f(&stats["complete"]) > 0.8 * cycles, "{stats}");
+
+    // Square wave, plain text with a summary.
+    let out = sim.whj(&[
+        "wave",
+        "3",
+        "--shape",
+        "square",
+        "--amplitude",
+        "2",
+        "--duration",
+        "0.5",
+    ]);
+    assert_eq!(out.code, Some(0), "{}", out.stderr);
+    assert!(out.stdout.contains("deadline_misses"), "{}", out.stdout);
+
+    // Ctrl-C (SIGINT) during a long wave: exit 130, joint disabled with --on-stop disable.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .args([
+            "whj",
+            "--bus",
+            &sim.bus,
+            "--on-stop",
+            "disable",
+            "wave",
+            "3",
+        ])
+        .args(["--amplitude", "3", "--duration", "30"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+    let pid = child.id().to_string();
+    assert!(
+        Command::new("kill")
+            .args(["-INT", &pid])
+            .status()
+            .unwrap()
+            .success()
+    );
+    let status = child.wait().unwrap();
+    let mut err = String::new();
+    child
+        .stderr
+        .take()
+        .unwrap()
+        .read_to_string(&mut err)
+        .unwrap();
+    assert_eq!(status.code(), Some(130), "{err}");
+    assert!(err.contains("disabled"), "{err}");
+    let st = sim.json(&["status", "3"]);
+    assert_eq!(st[0]["enabled"], false, "{st:?}");
+
+    // Speed servo frame in speed mode: the feedback comes back.
+    sim.json(&["mode", "4", "speed"]);
+    sim.json(&["enable", "4"]);
+    let sp = sim.json(&["speed", "4", "2.5"]);
+    assert_eq!(sp[0]["enabled"], true, "{sp:?}");
+    std::thread::sleep(Duration::from_millis(300));
+    let sp = sim.json(&["speed", "4", "0"]);
+    assert!(f(&sp[0]["speed_rpm"]) > 0.5, "the joint turned: {sp:?}");
+    // Current servo frame.
+    sim.json(&["mode", "5", "current"]);
+    sim.json(&["enable", "5"]);
+    let cu = sim.json(&["current", "5", "200"]);
+    assert_eq!(cu[0]["joint"], 5, "{cu:?}");
+    sim.json(&["disable", "4-5"]);
+}
+
+#[test]
+fn whj_e2e_timeouts_and_bad_input() {
+    if !in_netns("whj_e2e_timeouts_and_bad_input") {
+        return;
+    }
+    let sim = Sim::start("udp:239.74.163.13:43123", &[]);
+
+    // A joint that is not on the bus: exit 3, the message names it.
+    let r = sim.whj(&["status", "12"]);
+    assert_eq!(r.code, Some(3), "{r:?}");
+    assert!(r.stderr.contains("12"), "{}", r.stderr);
+    let r = sim.whj(&["scan", "--joints", "20-22"]);
+    assert_eq!(r.code, Some(3), "{r:?}");
+    assert!(r.stderr.contains("no joint answered"), "{}", r.stderr);
+
+    // Bad input: exit 2, the value and the allowed range named, nothing sent.
+    for (args, needle) in [
+        (vec!["move", "1", "400"], "-360..=360"),
+        (vec!["speed", "1", "99"], "-60..=60"),
+        (vec!["status", "31"], "31"),
+        (vec!["read", "1", "NOPE"], "NOPE"),
+        (vec!["write", "1", "SYS_ENABLE_DRIVER", "2"], "0..=1"),
+        (
+            vec!["wave", "1", "--amplitude", "5", "--frequency", "90"],
+            "--frequency",
+        ),
+    ] {
+        let r = sim.whj(&args);
+        assert_eq!(r.code, Some(2), "{args:?}: {r:?}");
+        assert!(r.stderr.contains(needle), "{args:?}: {}", r.stderr);
+    }
+    let r = common::robobus(&["whj", "--bus", "udp:1.2.3.4:5", "status", "1"]);
+    assert_eq!(r.code, Some(2), "{r:?}");
+    assert!(r.stderr.contains("multicast"), "{}", r.stderr);
+    // The joints are still fine after all that.
+    let st = sim.json(&["status", "1"]);
+    assert_eq!(st[0]["error"], "no error", "{st:?}");
+}
