@@ -1,0 +1,107 @@
+//! `robobus-bench`: runs the benchmark suite and writes the report.
+//!
+//! ```text
+//! robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]
+//! robobus-bench serve-whj --joints N --delay-us D [--fast-wire]
+//! ```
+
+use std::io::Write as _;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Duration;
+
+use robobus_bench::{Options, report, run, whj};
+
+fn usage() -> ExitCode {
+    let _ = writeln!(
+        std::io::stderr(),
+        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire]"
+    );
+    ExitCode::from(2)
+}
+
+fn serve_whj(args: &[String]) -> ExitCode {
+    let mut spec = whj::ChainSpec {
+        joints: 1,
+        delay: whj::DEFAULT_DELAY,
+        fast_wire: false,
+    };
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--joints" => match it.next().and_then(|v| v.parse().ok()) {
+                Some(n) if (1..=30).contains(&n) => spec.joints = n,
+                _ => return usage(),
+            },
+            "--delay-us" => match it.next().and_then(|v| v.parse().ok()) {
+                Some(us) => spec.delay = Duration::from_micros(us),
+                None => return usage(),
+            },
+            "--fast-wire" => spec.fast_wire = true,
+            _ => return usage(),
+        }
+    }
+    match whj::serve_whj_process(spec) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            let _ = writeln!(std::io::stderr(), "serve-whj: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    if args.first().map(String::as_str) == Some("serve-whj") {
+        return serve_whj(args.get(1..).unwrap_or_default());
+    }
+    let mut opts = Options {
+        smoke: false,
+        out: PathBuf::from("target/bench-report"),
+        python: None,
+        udp: false,
+        exe: std::env::current_exe().unwrap_or_else(|_| PathBuf::from("robobus-bench")),
+        criterion: None,
+    };
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--smoke" => opts.smoke = true,
+            "--udp" => opts.udp = true,
+            "--out" => match it.next() {
+                Some(v) => opts.out = v.into(),
+                None => return usage(),
+            },
+            "--python" => match it.next() {
+                Some(v) => opts.python = Some(v.into()),
+                None => return usage(),
+            },
+            "--criterion" => match it.next() {
+                Some(v) => opts.criterion = Some(v.into()),
+                None => return usage(),
+            },
+            _ => return usage(),
+        }
+    }
+    let results = run(&opts, |line| {
+        let _ = writeln!(std::io::stderr(), "bench: {line}");
+    });
+    match report::write(&results, &opts.out) {
+        Ok(path) => {
+            let _ = writeln!(std::io::stdout(), "{}", path.display());
+        }
+        Err(e) => {
+            let _ = writeln!(std::io::stderr(), "bench: {e}");
+            return ExitCode::FAILURE;
+        }
+    }
+    if results.failures > 0 {
+        let _ = writeln!(
+            std::io::stderr(),
+            "bench: {} benchmark(s) failed",
+            results.failures
+        );
+        return ExitCode::FAILURE;
+    }
+    ExitCode::SUCCESS
+}

@@ -1,0 +1,82 @@
+//! The benchmark suite in smoke mode: every benchmark runs briefly (the numbers mean
+//! nothing) and the report is written with every section and its plots. The Python peers
+//! run too (pyserial on the pty; python-can on the UDP bus inside a private network
+//! namespace, `unshare -n`, as the link and CLI interop tests do).
+
+#![allow(clippy::unwrap_used, clippy::panic)]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn python() -> PathBuf {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let out = Command::new(root.join("scripts/py/ensure-pyserial"))
+        .output()
+        .expect("running scripts/py/ensure-pyserial");
+    assert!(
+        out.status.success(),
+        "ensure-pyserial failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    PathBuf::from(String::from_utf8(out.stdout).unwrap().trim())
+}
+
+#[test]
+fn smoke_run_writes_the_report_with_every_section() {
+    let py = python();
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new("unshare")
+        .args(["-n", "bash", "-c"])
+        .arg(r#"ip link set lo up && ip route add 224.0.0.0/4 dev lo && exec "$@""#)
+        .arg("bench")
+        .arg(env!("CARGO_BIN_EXE_robobus-bench"))
+        .args(["--smoke", "--udp", "--python"])
+        .arg(&py)
+        .arg("--out")
+        .arg(dir.path())
+        .output()
+        .expect("running the benchmarks inside `unshare -n` (root or user namespaces)");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success(),
+        "smoke run failed ({}):\n{stderr}",
+        out.status
+    );
+    let report = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
+    for section in [
+        "# robobus benchmark report",
+        "**Smoke mode**",
+        "## Summary",
+        "## Machine",
+        "## Codec",
+        "## wCK polling",
+        "## wCK synchronized-move streaming",
+        "## WHJ free-running",
+        "## WHJ fixed rate",
+        "## Peers",
+        "## Simulator",
+    ] {
+        assert!(report.contains(section), "no {section:?} in:\n{report}");
+    }
+    // Both peers ran against the simulators and answered.
+    assert!(
+        report.contains("| wCK polling 1 servos, 921600 bit/s |"),
+        "{report}"
+    );
+    assert!(
+        report.contains("| WHJ servo cycle 1 joints, UDP"),
+        "{report}"
+    );
+    assert!(!report.contains("FAILED"), "{report}");
+    // Every plot the report links exists and is an SVG.
+    let links: Vec<&str> = report
+        .lines()
+        .filter_map(|l| l.strip_prefix("![").and_then(|l| l.split_once("](")))
+        .map(|(_, rest)| rest.trim_end_matches(')'))
+        .collect();
+    assert!(links.len() >= 4, "{links:?}");
+    for l in links {
+        let svg = std::fs::read_to_string(dir.path().join(l)).unwrap();
+        assert!(svg.starts_with("<svg") && svg.contains("</svg>"), "{l}");
+    }
+}
