@@ -12,6 +12,16 @@ use robobus_whj::units::{Current, Position, TargetSpeed};
 use robobus_whj::{ErrorCode, JointId, WorkMode};
 use whj_common::{chain, memory};
 
+/// Each test runs a real-time loop against a simulator on the wall clock: one at a time,
+/// so that they do not starve each other on a small machine.
+static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn serial() -> std::sync::MutexGuard<'static, ()> {
+    SERIAL
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
 fn ids(n: u8) -> Vec<JointId> {
     (1..=n).map(|i| JointId::new(i).unwrap()).collect()
 }
@@ -40,6 +50,7 @@ fn ready(bus: &JointBus, joints: &[JointId], mode: WorkMode) {
 
 #[test]
 fn seven_joints_point_to_point_far_targets_become_smooth_moves() {
+    let _serial = serial();
     let (_sim, link) = memory(chain(7));
     let bus = JointBus::open(link).unwrap();
     let joints = ids(7);
@@ -122,6 +133,7 @@ fn seven_joints_point_to_point_far_targets_become_smooth_moves() {
 
 #[test]
 fn broadcast_position_for_a_seven_joint_chain() {
+    let _serial = serial();
     let (sim, link) = memory(chain(7));
     let bus = JointBus::open(link).unwrap();
     let joints = ids(7);
@@ -162,6 +174,7 @@ fn broadcast_position_for_a_seven_joint_chain() {
 
 #[test]
 fn current_loop_point_to_point_and_broadcast() {
+    let _serial = serial();
     let (_sim, link) = memory(chain(2));
     let bus = JointBus::open(link).unwrap();
     let joints = ids(2);
@@ -198,6 +211,7 @@ fn current_loop_point_to_point_and_broadcast() {
 
 #[test]
 fn speed_loop_point_to_point() {
+    let _serial = serial();
     let (_sim, link) = memory(chain(3));
     let bus = JointBus::open(link).unwrap();
     let joints = ids(3);
