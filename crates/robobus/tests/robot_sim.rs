@@ -21,6 +21,16 @@ use robobus_sim::wck::Mode;
 use robobus_wck::{ServoId, TorqueLevel};
 use robobus_whj::JointId;
 
+/// Each test runs real-time loops against simulators on the wall clock: one at a time, so
+/// that they do not starve each other on a small machine.
+static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn serial() -> std::sync::MutexGuard<'static, ()> {
+    SERIAL
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
 /// A robot file with a wCK bus `legs` and a WHJ bus `arm` supplied by the test.
 fn config(watchdog_s: f64, wck_safe: &str, whj_safe: &str, joints: &str) -> RobotConfig {
     RobotConfig::from_toml_str(&format!(
@@ -118,6 +128,7 @@ fn drive(robot: &mut Robot, targets: &[f64], tol: f64, limit: Duration) -> Vec<A
 
 #[test]
 fn a_mixed_robot_moves_a_wck_servo_and_a_whj_joint_with_the_same_code() {
+    let _serial = serial();
     let joints = joint("hip", "legs", 0, [-1.0, 1.0], 2.0, 20.0)
         + &joint("shoulder", "arm", 1, [-1.0, 1.0], 2.0, 20.0);
     let mut rig = rig(config(0.5, "passive", "hold", &joints), &[0], 1);
@@ -147,6 +158,7 @@ fn a_mixed_robot_moves_a_wck_servo_and_a_whj_joint_with_the_same_code() {
 
 #[test]
 fn targets_beyond_the_soft_limits_are_clamped_and_reported() {
+    let _serial = serial();
     // Servo 2 alone on its bus: not IDs 0..n, so one move per servo instead of a
     // synchronized move.
     let joints = joint("hip", "legs", 2, [-0.3, 0.25], 5.0, 100.0)
@@ -181,6 +193,7 @@ fn targets_beyond_the_soft_limits_are_clamped_and_reported() {
 
 #[test]
 fn speed_and_acceleration_limits_spread_a_large_step() {
+    let _serial = serial();
     // 0.4 rad (22.9°) at once would trip the WHJ joint's 10° step protection; limited
     // to 0.5 rad/s it takes at least 0.8 s.
     let (vmax, amax) = (0.5, 5.0);
@@ -231,6 +244,7 @@ fn speed_and_acceleration_limits_spread_a_large_step() {
 
 #[test]
 fn a_late_cycle_never_jumps_past_the_whj_step_limit() {
+    let _serial = serial();
     // 300 ms between two commands at 2 rad/s would allow 0.6 rad (34°) at once; the
     // joint refuses more than 5° a command, so the set-point waits for it instead.
     let joints = joint("shoulder", "arm", 1, [-1.0, 1.0], 2.0, 100.0);
@@ -258,6 +272,7 @@ fn a_late_cycle_never_jumps_past_the_whj_step_limit() {
 
 #[test]
 fn the_watchdog_puts_wck_servos_passive_within_its_timeout() {
+    let _serial = serial();
     let timeout = Duration::from_millis(100);
     let joints = joint("hip", "legs", 0, [-1.0, 1.0], 2.0, 20.0)
         + &joint("knee", "legs", 1, [-1.0, 1.0], 2.0, 20.0);
@@ -311,6 +326,7 @@ fn the_watchdog_puts_wck_servos_passive_within_its_timeout() {
 
 #[test]
 fn the_watchdog_can_break_the_wck_bus() {
+    let _serial = serial();
     let joints = joint("hip", "legs", 0, [-1.0, 1.0], 2.0, 20.0);
     let mut rig = rig(config(0.05, "break", "hold", &joints), &[0], 1);
     rig.robot.command(&[0.05]).unwrap();
@@ -346,6 +362,7 @@ fn await_stop(robot: &Robot, since: Instant) -> Duration {
 
 #[test]
 fn the_watchdog_disables_whj_joints_within_its_timeout() {
+    let _serial = serial();
     let timeout = Duration::from_millis(100);
     let joints = joint("shoulder", "arm", 1, [-1.0, 1.0], 2.0, 20.0)
         + &joint("elbow", "arm", 2, [-1.0, 1.0], 2.0, 20.0);
@@ -371,6 +388,7 @@ fn the_watchdog_disables_whj_joints_within_its_timeout() {
 
 #[test]
 fn the_watchdog_hold_keeps_whj_joints_powered_where_they_are() {
+    let _serial = serial();
     let joints = joint("shoulder", "arm", 1, [-1.0, 1.0], 0.5, 5.0);
     let mut rig = rig(config(0.1, "passive", "hold", &joints), &[0], 1);
     let arm = rig.robot.whj_bus("arm").unwrap();
@@ -398,6 +416,7 @@ fn the_watchdog_hold_keeps_whj_joints_powered_where_they_are() {
 
 #[test]
 fn dropping_the_robot_puts_every_bus_in_its_safe_state() {
+    let _serial = serial();
     let joints = joint("hip", "legs", 0, [-1.0, 1.0], 2.0, 20.0)
         + &joint("shoulder", "arm", 1, [-1.0, 1.0], 2.0, 20.0);
     let rig = rig(config(5.0, "passive", "disable", &joints), &[0], 1);
@@ -419,6 +438,7 @@ fn dropping_the_robot_puts_every_bus_in_its_safe_state() {
 
 #[test]
 fn a_stop_handle_stops_the_robot_from_another_thread() {
+    let _serial = serial();
     let joints = joint("hip", "legs", 0, [-1.0, 1.0], 2.0, 20.0);
     let mut rig = rig(config(5.0, "passive", "hold", &joints), &[0], 1);
     rig.robot.command(&[0.1]).unwrap();
@@ -437,6 +457,7 @@ fn a_stop_handle_stops_the_robot_from_another_thread() {
 
 #[test]
 fn bad_targets_are_refused_before_anything_is_sent() {
+    let _serial = serial();
     let joints = joint("hip", "legs", 0, [-1.0, 1.0], 2.0, 20.0)
         + &joint("shoulder", "arm", 1, [-1.0, 1.0], 2.0, 20.0);
     let mut rig = rig(config(5.0, "passive", "hold", &joints), &[0], 1);
@@ -454,6 +475,7 @@ fn bad_targets_are_refused_before_anything_is_sent() {
 
 #[test]
 fn a_supplied_bus_must_match_the_file() {
+    let _serial = serial();
     let joints = joint("hip", "legs", 0, [-1.0, 1.0], 2.0, 20.0);
     let mut wck = wck_support::serve_ids(&[0]);
     let err = Robot::builder(config(1.0, "passive", "hold", &joints))
@@ -494,6 +516,7 @@ const LIMITS: JointLimits = JointLimits {
 
 #[test]
 fn actuators_of_both_families_move_with_the_same_code() {
+    let _serial = serial();
     let mut wck_sim = wck_support::serve_ids(&[3]);
     let mut wck: WckBus<PtyLink> = wck_sim.bus();
     let scale = WckScale {

@@ -75,7 +75,9 @@ fn fake_module(script: Vec<Step>, config: WckConfig) -> (WckBus<MemoryByteLink>,
 
 fn quick() -> WckConfig {
     WckConfig {
-        margin: Duration::from_millis(3),
+        // Room for the fake module's thread to be scheduled on a busy 2-core machine: one
+        // late answer would shift every scripted step after it.
+        margin: Duration::from_millis(25),
         ..WckConfig::default()
     }
 }
@@ -406,7 +408,7 @@ fn the_reply_deadline_is_the_wire_time_model_plus_the_margin() {
         p: PGain::DEFAULT,
         d: DGain::DEFAULT,
     };
-    let margin = Duration::from_millis(3);
+    let margin = quick().margin;
     // 4 + 2 bytes at 115200 (520.8 µs) + 1006.6 µs turnaround.
     assert_eq!(
         bus.reply_wait(&status),
@@ -450,7 +452,7 @@ proptest::proptest! {
         reply in proptest::collection::vec(proptest::prelude::any::<u8>(), 0..=3),
         which in 0..4u8,
     ) {
-        let config = WckConfig { retries: 1, margin: Duration::from_millis(2), ..WckConfig::default() };
+        let config = WckConfig { retries: 1, margin: Duration::from_millis(25), ..WckConfig::default() };
         let (mut bus, _fake) = fake_module(vec![Reply(reply.clone()), Reply(reply.clone())], config);
         let s = id(3);
         let command = match which {
