@@ -1,4 +1,4 @@
-//! Fault tests: the seeded fault injector between the client and the simulator's pty, a
+//! Fault tests: the seeded fault injector between the client and the simulator, a
 //! device that is unplugged, a link that goes away.
 #![cfg(target_os = "linux")]
 #![allow(clippy::unwrap_used, clippy::panic)] // test helpers
@@ -13,7 +13,7 @@ use robobus_link::{FaultConfig, FaultyByteLink};
 use robobus_wck::{
     BaudRate, Boundaries, DGain, IGain, MotionCount, Overload, PGain, Position, Target,
 };
-use wck_support::{id, serve_at, serve_ids};
+use wck_support::{id, serve_fast, serve_ids};
 
 /// 10 000 reads with 1 % of the bytes corrupted in both directions (one random bit
 /// flipped in each such byte): every value returned is the true one, and none fails.
@@ -26,16 +26,15 @@ use wck_support::{id, serve_at, serve_ids};
 /// it is held.
 #[test]
 fn a_read_loop_with_one_percent_corrupted_bytes_returns_no_wrong_value() {
-    // At 921600 bit/s a transaction is 1.07 ms, mostly the module's turnaround.
-    let mut sim = serve_at(&[1], BaudRate::B921600);
+    // At 921600 bit/s a transaction is 1.07 ms, mostly the module's turnaround; the
+    // simulated clock skips the waits.
+    let mut sim = serve_fast(&[1], BaudRate::B921600);
     sim.with_bus(|b| b.servo_mut(0).unwrap().hold(true));
-    let link = sim.slave.take().unwrap();
+    let link = sim.link();
     let faults = FaultConfig {
         corrupt: 0.01,
         ..FaultConfig::seeded(7)
     };
-    // Generous retries: the simulator runs on the wall clock, and a loaded CI machine can
-    // delay several replies in a row past their deadline. Retries cost nothing otherwise.
     let config = WckConfig {
         confirm_reads: 3,
         retries: 10,
@@ -88,7 +87,7 @@ fn a_read_loop_with_one_percent_corrupted_bytes_returns_no_wrong_value() {
 #[test]
 fn an_unplugged_device_is_a_clear_timeout_naming_it() {
     let mut sim = serve_ids(&[5]);
-    let path = sim.endpoint.path().display().to_string();
+    let path = wck_support::DEVICE;
     let mut bus = sim.bus();
     assert!(bus.servo(id(5)).status().is_ok());
     sim.with_bus(|b| b.unplug(0));
@@ -102,7 +101,7 @@ fn an_unplugged_device_is_a_clear_timeout_naming_it() {
             waited,
             ..
         } => {
-            assert_eq!(device, &path);
+            assert_eq!(device, path);
             assert_eq!(*target, Target::Servo(id(5)));
             assert!(received.is_empty());
             assert_eq!(*attempts, 4);
@@ -112,7 +111,7 @@ fn an_unplugged_device_is_a_clear_timeout_naming_it() {
     }
     let text = err.to_string();
     assert!(
-        text.contains(&path) && text.contains("servo 5") && text.contains("did not answer"),
+        text.contains(path) && text.contains("servo 5") && text.contains("did not answer"),
         "{text}"
     );
     // Plugged back in, it answers once it is awake.
@@ -124,7 +123,7 @@ fn an_unplugged_device_is_a_clear_timeout_naming_it() {
 #[test]
 fn a_link_that_goes_away_is_a_link_error_naming_the_device() {
     let mut sim = serve_ids(&[0]);
-    let link = sim.slave.take().unwrap();
+    let link = sim.link();
     let faults = FaultConfig {
         disconnect_after: Some(4),
         ..FaultConfig::seeded(1)

@@ -50,7 +50,8 @@ pub struct WckConfig {
     /// (two replies corrupted the same way), 3 about one in 30 million.
     pub confirm_reads: u8,
     /// After a failed attempt, input is drained until the line has been quiet this long
-    /// (at most 50 ms), so a late reply cannot be taken for the next one. Default
+    /// (at most 50 ms or twice this, whichever is longer), so a late reply cannot be taken
+    /// for the next one. Default
     /// [`DEFAULT_SETTLE`] (2 ms).
     pub settle: Duration,
 }
@@ -661,9 +662,9 @@ impl<L: ByteLink> WckBus<L> {
     }
 
     /// Reads and drops input until the line is quiet for [`WckConfig::settle`] (at most
-    /// 50 ms), then flushes.
+    /// 50 ms or twice the settle time), then flushes.
     pub(crate) fn settle(&mut self) {
-        let cap = Instant::now() + MAX_DRAIN;
+        let cap = Instant::now() + MAX_DRAIN.max(self.config.settle.saturating_mul(2));
         let mut buf = [0u8; 64];
         loop {
             let now = Instant::now();

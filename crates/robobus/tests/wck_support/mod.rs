@@ -1,73 +1,88 @@
-//! Helpers shared by the wCK client tests: the simulator served on a pty, as
-//! `robobus sim wck` serves it, and a client opening the pty by path like a real port.
+//! Helpers shared by the wCK client tests: the simulator in process behind a
+//! [`SimLink`] (answers that do not depend on thread scheduling), or served on a pty as
+//! `robobus sim wck` serves it, with a client opening the pty like a real port.
 #![allow(dead_code, unreachable_pub, clippy::unwrap_used)]
 
 use core::time::Duration;
 
-use robobus::wck::WckBus;
+use robobus::wck::{WckBus, WckConfig};
 use robobus_link::{PtyLink, PtyOptions, PtyPair};
-use robobus_sim::wck::{Bus, BusConfig, Eeprom, Endpoint, Model};
+use robobus_sim::wck::{Bus, BusConfig, Eeprom, Endpoint, Model, SimHandle, SimLink};
 use robobus_wck::{BaudRate, ExtServoId, ServoId};
 
 /// Past the 65 ms a module is deaf after power-up.
 pub const AWAKE: Duration = Duration::from_millis(70);
 
-/// A simulated bus served on a pty, and the client side of that pty.
+/// The device name of the in-process simulator in errors.
+pub const DEVICE: &str = "sim:wck";
+
+/// The reply margin of the clients of the pty simulator. That simulator is a thread on
+/// the wall clock, and a shared virtual machine stalls threads now and then: on the
+/// development VM (CPU steal 10-60 %) a 1 ms sleep overshot by more than 50 ms about once
+/// in 800 and by up to 172 ms (90 s of sampling). A reply that misses its deadline and
+/// arrives later is taken for the next command's reply (wCK replies carry no ID), so
+/// these clients wait long enough for such stalls; a real module answers within the
+/// default 10 ms margin. The in-process [`SimLink`] needs none of this.
+pub const PTY_MARGIN: Duration = Duration::from_millis(300);
+
+/// A simulated bus in this process, and the client's link to it.
 #[derive(Debug)]
 pub struct Sim {
-    /// The serving simulator.
-    pub endpoint: Endpoint,
-    /// The pty's slave side, what a client uses (taken by [`Sim::bus`]).
-    pub slave: Option<PtyLink>,
+    /// The bus, from any thread.
+    pub handle: SimHandle,
+    /// The client's end (taken by [`Sim::bus`] or [`Sim::link`]).
+    link: Option<SimLink>,
 }
 
 impl Sim {
-    /// The client: a [`WckBus`] on the pty's slave side at 115200, named by its path.
-    ///
-    /// `WckBus::open` (a `SerialLink` on the path) is the real-port path; it is not used
-    /// here because the simulator's endpoint cannot yet read the termios2 (BOTHER) speed
-    /// that the `serialport` crate sets (see `wck_open_by_path`).
-    pub fn bus(&mut self) -> WckBus<PtyLink> {
-        let link = self.slave.take().unwrap();
-        WckBus::new(link, BaudRate::B115200)
+    /// The client: a [`WckBus`] at 115200 bit/s with the default configuration, named
+    /// [`DEVICE`].
+    pub fn bus(&mut self) -> WckBus<SimLink> {
+        WckBus::new(self.link(), BaudRate::B115200)
             .unwrap()
-            .with_device_name(self.endpoint.path().display().to_string())
+            .with_device_name(DEVICE)
     }
 
-    /// Runs `f` on the simulated bus (in its serving thread).
-    pub fn with_bus<R: Send + 'static>(&self, f: impl FnOnce(&mut Bus) -> R + Send + 'static) -> R {
-        self.endpoint.with_bus(f).unwrap()
+    /// The client's link itself.
+    pub fn link(&mut self) -> SimLink {
+        self.link.take().unwrap()
+    }
+
+    /// Runs `f` on the simulated bus.
+    pub fn with_bus<R>(&self, f: impl FnOnce(&mut Bus) -> R) -> R {
+        self.handle.with_bus(f)
     }
 }
 
-/// Serves `bus` on a fresh pty and waits until its modules are awake.
+/// Connects to `bus` in process and waits until its modules are awake.
 pub fn serve(bus: Bus) -> Sim {
-    let pair = PtyPair::open(&PtyOptions::default()).unwrap();
-    let path = pair.slave_path.clone();
-    let endpoint = Endpoint::spawn(bus, pair.master, path).unwrap();
-    std::thread::sleep(AWAKE);
+    let (link, handle) = SimLink::new(bus);
+    std::thread::sleep(AWAKE.saturating_sub(handle.now()));
     Sim {
-        endpoint,
-        slave: Some(pair.slave),
+        handle,
+        link: Some(link),
+    }
+}
+
+/// Like [`serve_at`], on a fast-forwarding link ([`SimLink::fast_forward`]): long
+/// transaction loops run as fast as the processor allows.
+pub fn serve_fast(ids: &[u8], baud: BaudRate) -> Sim {
+    let (link, handle) = SimLink::fast_forward(bus_with_ids(ids, baud));
+    std::thread::sleep(AWAKE.saturating_sub(handle.now()));
+    Sim {
+        handle,
+        link: Some(link),
     }
 }
 
 /// A simulated bus with one 1108 module per ID (factory defaults, shaft at 127).
 pub fn serve_ids(ids: &[u8]) -> Sim {
-    serve(Bus::with_servos(
-        BusConfig::default(),
-        Model::W1108,
-        ids.iter().copied(),
-    ))
+    serve(bus_with_ids(ids, BaudRate::B115200))
 }
 
 /// Like [`serve_ids`], with the modules (and the simulated host) at `baud`.
 pub fn serve_at(ids: &[u8], baud: BaudRate) -> Sim {
-    let config = BusConfig {
-        host_baud: baud,
-        ..BusConfig::default()
-    };
-    serve(Bus::with_servos(config, Model::W1108, ids.iter().copied()))
+    serve(bus_with_ids(ids, baud))
 }
 
 /// A bus with modules given as (ID, baud rate, position 0..=254).
@@ -82,6 +97,67 @@ pub fn serve_modules(modules: &[(u8, BaudRate, u8)]) -> Sim {
         bus.add(Model::W1108, eeprom, f64::from(position) * 269.0 / 255.0);
     }
     serve(bus)
+}
+
+fn bus_with_ids(ids: &[u8], baud: BaudRate) -> Bus {
+    let config = BusConfig {
+        host_baud: baud,
+        ..BusConfig::default()
+    };
+    Bus::with_servos(config, Model::W1108, ids.iter().copied())
+}
+
+/// A simulated bus served on a pty by the simulator's endpoint thread, and the client
+/// side of that pty.
+#[derive(Debug)]
+pub struct PtySim {
+    /// The serving simulator.
+    pub endpoint: Endpoint,
+    /// The pty's slave side, what a client uses (taken by [`PtySim::bus`]).
+    pub slave: Option<PtyLink>,
+}
+
+impl PtySim {
+    /// The client: a [`WckBus`] on the pty's slave side at 115200 with [`PTY_MARGIN`],
+    /// named by its path.
+    pub fn bus(&mut self) -> WckBus<PtyLink> {
+        let link = self.slave.take().unwrap();
+        WckBus::new(link, BaudRate::B115200)
+            .unwrap()
+            .with_config(pty_config())
+            .with_device_name(self.endpoint.path().display().to_string())
+    }
+
+    /// Runs `f` on the simulated bus (in its serving thread).
+    pub fn with_bus<R: Send + 'static>(&self, f: impl FnOnce(&mut Bus) -> R + Send + 'static) -> R {
+        self.endpoint.with_bus(f).unwrap()
+    }
+}
+
+/// The client configuration for the pty simulator: the defaults with [`PTY_MARGIN`] and
+/// a drain after a failed attempt that outlasts most stalls.
+pub fn pty_config() -> WckConfig {
+    WckConfig {
+        margin: PTY_MARGIN,
+        settle: Duration::from_millis(40),
+        ..WckConfig::default()
+    }
+}
+
+/// Serves modules with `ids` (factory defaults) on a fresh pty and waits until they are
+/// awake (in simulated time: the serving thread may start late on a busy machine).
+pub fn serve_pty(ids: &[u8]) -> PtySim {
+    let pair = PtyPair::open(&PtyOptions::default()).unwrap();
+    let path = pair.slave_path.clone();
+    let bus = bus_with_ids(ids, BaudRate::B115200);
+    let endpoint = Endpoint::spawn(bus, pair.master, path).unwrap();
+    while endpoint.with_bus(|b| b.now()).unwrap() < AWAKE {
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    PtySim {
+        endpoint,
+        slave: Some(pair.slave),
+    }
 }
 
 /// A servo ID.

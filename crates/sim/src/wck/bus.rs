@@ -357,6 +357,11 @@ impl Bus {
         self.received.pop_front()
     }
 
+    /// The oldest byte the host received and has not taken yet, left in place.
+    pub fn peek_received(&self) -> Option<(Duration, u8)> {
+        self.received.front().copied()
+    }
+
     /// Bytes received and not taken yet.
     pub fn received_len(&self) -> usize {
         self.received.len()

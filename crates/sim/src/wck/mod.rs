@@ -14,6 +14,8 @@
 //!   instant its stop bit ends. Seeded faults ([`Faults`]) and module faults (power off /
 //!   on, unplug).
 //! * [`VirtualHost`]: a host on the virtual clock for deterministic tests.
+//! * [`SimLink`]: the bus as an in-process byte link on the wall clock, whose replies do
+//!   not depend on thread scheduling (for client tests on a loaded machine).
 //! * [`endpoint`] (Linux): the bus behind a pseudo-terminal on the wall clock.
 //!
 //! # Where the manual is silent
@@ -67,6 +69,7 @@ mod bus;
 mod clock;
 #[cfg(target_os = "linux")]
 pub mod endpoint;
+mod link;
 pub mod mechanics;
 mod model;
 mod params;
@@ -77,6 +80,7 @@ pub use bus::{Bus, BusConfig, BusStats, Faults};
 pub use clock::VirtualHost;
 #[cfg(target_os = "linux")]
 pub use endpoint::{Endpoint, EndpointError, EndpointStats};
+pub use link::{SimHandle, SimLink};
 pub use mechanics::{Drive, Mechanics};
 pub use model::{Model, UnknownModel};
 pub use params::{Eeprom, EepromFileError, Runtime};
