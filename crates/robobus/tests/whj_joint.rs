@@ -26,7 +26,7 @@ fn deg(d: f64) -> Position {
 fn strict() -> JointBusConfig {
     JointBusConfig {
         retries: 0,
-        ..JointBusConfig::default()
+        ..whj_common::config()
     }
 }
 
@@ -71,7 +71,7 @@ fn connect_keeps_trying_through_a_staggered_power_up() {
     let mut cfg = JointConfig::new(2, WhjModel::Whj10B);
     cfg.boot.boot_delay = Duration::from_millis(300);
     let (_sim, link) = memory(configs(vec![cfg]));
-    let bus = JointBus::open(link).unwrap();
+    let bus = JointBus::open_with(link, whj_common::config()).unwrap();
     let t = Instant::now();
     let joint = bus.joint(j(2)).unwrap();
     assert!(
@@ -87,6 +87,7 @@ fn a_silent_joint_gives_a_clear_message() {
     let (_sim, link) = memory(chain(2));
     let bus = JointBus::open_with(
         link,
+        // Nothing answers: the default reply timeout, several attempts within 150 ms.
         JointBusConfig {
             connect_timeout: Duration::from_millis(150),
             ..JointBusConfig::default()
@@ -177,7 +178,7 @@ fn save_to_flash_is_refused_while_enabled_and_settles_after() {
 #[test]
 fn limits_and_registers_by_name_with_units() {
     let (_sim, link) = memory(chain(1));
-    let bus = JointBus::open(link).unwrap();
+    let bus = JointBus::open_with(link, whj_common::config()).unwrap();
     let joint = bus.joint(j(1)).unwrap();
     assert_eq!(joint.position_limits().unwrap(), (deg(-360.0), deg(360.0)));
     joint.set_position_limits(deg(-90.0), deg(120.5)).unwrap();
@@ -252,7 +253,7 @@ fn limits_and_registers_by_name_with_units() {
 #[test]
 fn position_commands_step_limit_and_smooth_moves() {
     let (_sim, link) = memory(chain(1));
-    let bus = JointBus::open(link).unwrap();
+    let bus = JointBus::open_with(link, whj_common::config()).unwrap();
     let joint = bus.joint(j(1)).unwrap();
     joint.set_mode(WorkMode::Position).unwrap();
     joint.enable().unwrap();
@@ -302,7 +303,7 @@ fn position_commands_step_limit_and_smooth_moves() {
 #[test]
 fn step_error_clear_error_and_refused_enable() {
     let (_sim, link) = memory(chain(1));
-    let bus = JointBus::open(link).unwrap();
+    let bus = JointBus::open_with(link, whj_common::config()).unwrap();
     let joint = bus.joint(j(1)).unwrap();
     joint.enable().unwrap();
     // Bypass the host's check with a raw request: a 20° step latches 0x4000.
@@ -336,7 +337,7 @@ fn set_zero_makes_the_present_position_zero() {
         c.initial_position_deg = 12.5;
         c
     }]));
-    let bus = JointBus::open(link).unwrap();
+    let bus = JointBus::open_with(link, whj_common::config()).unwrap();
     let joint = bus.joint(j(1)).unwrap();
     assert!((joint.position().unwrap().degrees() - 12.5).abs() < 0.01);
     joint.set_zero().unwrap();
@@ -346,7 +347,7 @@ fn set_zero_makes_the_present_position_zero() {
 #[test]
 fn speed_and_current_commands_with_feedback() {
     let (_sim, link) = memory(chain(2));
-    let bus = JointBus::open(link).unwrap();
+    let bus = JointBus::open_with(link, whj_common::config()).unwrap();
     let joint = bus.joint(j(2)).unwrap();
     joint.set_mode(WorkMode::Speed).unwrap();
     joint.enable().unwrap();
@@ -377,7 +378,7 @@ fn speed_and_current_commands_with_feedback() {
 #[test]
 fn status_and_telemetry() {
     let (_sim, link) = memory(chain(2));
-    let bus = JointBus::open(link).unwrap();
+    let bus = JointBus::open_with(link, whj_common::config()).unwrap();
     let joint = bus.joint(j(1)).unwrap();
     joint.disable().unwrap();
     let s = joint.status().unwrap();
@@ -401,7 +402,7 @@ fn status_and_telemetry() {
     assert_eq!(joint.id(), j(1));
     assert_eq!(
         joint.bus().config().reply_timeout,
-        Duration::from_millis(20)
+        whj_common::REPLY_TIMEOUT
     );
 
     // Raw requests: one attempt with the timeout given; broadcast frames are refused.
@@ -412,7 +413,7 @@ fn status_and_telemetry() {
             Duration::from_millis(5),
         )
         .unwrap_err();
-    assert!(t.elapsed() >= Duration::from_millis(5) && t.elapsed() < Duration::from_millis(500));
+    assert!(t.elapsed() >= Duration::from_millis(5) && t.elapsed() < Duration::from_secs(2));
     assert!(
         matches!(
             err,
@@ -436,7 +437,7 @@ fn status_and_telemetry() {
 #[test]
 fn handles_work_from_several_threads() {
     let (_sim, link) = memory(chain(3));
-    let bus = JointBus::open(link).unwrap();
+    let bus = JointBus::open_with(link, whj_common::config()).unwrap();
     for n in 1..=3 {
         bus.joint(j(n)).unwrap();
     }

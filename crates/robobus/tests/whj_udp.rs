@@ -146,7 +146,7 @@ fn inner_reads_with_corrupted_frames() {
         link,
         JointBusConfig {
             verify_reads: true,
-            ..JointBusConfig::default()
+            ..whj_common::config()
         },
     )
     .unwrap();

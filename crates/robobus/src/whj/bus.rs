@@ -118,7 +118,8 @@ pub struct BusHealth {
     pub frames_sent: u64,
     /// Frames received.
     pub frames_received: u64,
-    /// Received frames no request was waiting for (late replies, other hosts' traffic).
+    /// Received frames no request was waiting for, or that answer another request than
+    /// the one waiting (late replies, other hosts' traffic); they are ignored.
     pub unmatched: u64,
     /// Received frames that are not valid joint replies.
     pub malformed: u64,
@@ -224,8 +225,8 @@ pub(crate) enum Attempt {
         /// The reply.
         reply: Reply,
     },
-    /// A frame arrived on the reply ID that does not answer this request (wrong register,
-    /// wrong length, malformed).
+    /// A frame arrived on the reply ID that claims to answer this request but cannot
+    /// (malformed, wrong length). Replies to other requests are ignored instead.
     Mismatch(String),
     /// Nothing arrived in time.
     Timeout {
@@ -286,7 +287,7 @@ impl Expect {
     }
 
     /// Whether `reply` (carried by `frame`) answers a request of this kind.
-    fn check(self, reply: &Reply, frame: &CanFrame) -> Result<(), String> {
+    fn check(self, reply: &Reply, frame: &CanFrame) -> Result<(), Unanswered> {
         match (self, reply) {
             (Self::Read { .. } | Self::Write { .. }, Reply::CmdErr { .. })
             | (Self::Servo, Reply::ServoFeedback { .. })
@@ -294,28 +295,44 @@ impl Expect {
             (Self::Read { addr, count }, Reply::Read { addr: a, words, .. }) => {
                 let want_len = padded_len(2 + 2 * usize::from(count));
                 if a.get() != addr {
-                    Err(format!(
+                    Err(Unanswered::Other(format!(
                         "read reply for register {:#04x}, expected {addr:#04x}",
                         a.get()
-                    ))
+                    )))
                 } else if want_len != Some(frame.len()) || words.len() < usize::from(count) {
-                    Err(format!(
+                    Err(Unanswered::Bad(format!(
                         "read reply of {} bytes, expected {} for {count} register(s)",
                         frame.len(),
                         want_len.unwrap_or(0)
-                    ))
+                    )))
                 } else {
                     Ok(())
                 }
             }
             (Self::Write { addr }, Reply::WriteAck { addr: a, .. }) if a.get() == addr => Ok(()),
-            (Self::Write { addr }, Reply::WriteAck { addr: a, .. }) => Err(format!(
-                "write ack for register {:#04x}, expected {addr:#04x}",
-                a.get()
-            )),
-            (want, got) => Err(format!("expected a {}, got {got:?}", want.name())),
+            (Self::Write { addr }, Reply::WriteAck { addr: a, .. }) => {
+                Err(Unanswered::Other(format!(
+                    "write ack for register {:#04x}, expected {addr:#04x}",
+                    a.get()
+                )))
+            }
+            (want, got) => Err(Unanswered::Other(format!(
+                "expected a {}, got {got:?}",
+                want.name()
+            ))),
         }
     }
+}
+
+/// Why a well-formed reply on a request's reply ID does not answer it.
+#[derive(Debug)]
+enum Unanswered {
+    /// It answers another request (another register, another kind): a late reply to an
+    /// earlier request that timed out, or one sent by another client. Ignored; the
+    /// request keeps waiting.
+    Other(String),
+    /// It claims to answer this request but has the wrong shape: an error.
+    Bad(String),
 }
 
 /// One transaction submitted to the bus thread.
@@ -880,6 +897,15 @@ impl<L: FrameLink> Worker<L> {
             lock(&self.shared.telemetry).bus.unmatched += 1;
             return;
         };
+        if let Ok(reply) = &decoded
+            && let Err(Unanswered::Other(reason)) = f.txn.expect.check(reply, &frame)
+        {
+            // A late reply to something else: the request is still waiting for its own.
+            tracing::debug!(%reason, "ignored a reply that answers another request");
+            lock(&self.shared.telemetry).bus.unmatched += 1;
+            self.in_flight.insert(key, f);
+            return;
+        }
         let outcome = match decoded {
             Ok(reply) => match f.txn.expect.check(&reply, &frame) {
                 Ok(()) => {
@@ -893,7 +919,9 @@ impl<L: FrameLink> Worker<L> {
                     }
                     Attempt::Reply { reply }
                 }
-                Err(reason) => Attempt::Mismatch(reason),
+                Err(Unanswered::Bad(reason) | Unanswered::Other(reason)) => {
+                    Attempt::Mismatch(reason)
+                }
             },
             Err(e) => Attempt::Mismatch(e.to_string()),
         };

@@ -630,7 +630,8 @@ impl<'a> Joint<'a> {
 
     /// One request with the retry policy: `retry` for reads and idempotent operations.
     /// `CMD_ERR` replies become [`WhjError::CmdErr`] (a format error is retried, since a
-    /// corrupted request causes one).
+    /// corrupted request causes one, and so is an error code the protocol does not define,
+    /// which only a corrupted reply carries).
     fn transact(
         &self,
         request: Request,
@@ -646,7 +647,9 @@ impl<'a> Joint<'a> {
                 Attempt::Reply {
                     reply: Reply::CmdErr { error, .. },
                     ..
-                } if error == CmdError::Format && n < max => last = Some(attempt),
+                } if matches!(error, CmdError::Format | CmdError::Unknown(_)) && n < max => {
+                    last = Some(attempt);
+                }
                 Attempt::Reply { reply, .. } if !matches!(reply, Reply::CmdErr { .. }) => {
                     return Ok(reply);
                 }

@@ -7,6 +7,9 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 
+use core::time::Duration;
+
+use robobus::whj::JointBusConfig;
 use robobus_link::{FrameLink, MemoryBus, MemoryBusEndpoint};
 use robobus_sim::whj::{JointConfig, ServeStats, WhjBus, WhjModel};
 
@@ -64,4 +67,18 @@ pub fn chain(n: u8) -> WhjBus {
 /// Joints from configs.
 pub fn configs(configs: Vec<JointConfig>) -> WhjBus {
     WhjBus::with_configs(configs, 11)
+}
+
+/// How long the test clients wait for a reply. The simulator answers from a thread on the
+/// wall clock, and a shared virtual machine stalls threads now and then (on the
+/// development VM a 1 ms sleep overshot by up to 172 ms, about once in 800 by more than
+/// 50 ms); a real joint answers in about 0.2 ms, well within the default 20 ms.
+pub const REPLY_TIMEOUT: Duration = Duration::from_millis(250);
+
+/// The client configuration of the tests: the defaults with [`REPLY_TIMEOUT`].
+pub fn config() -> JointBusConfig {
+    JointBusConfig {
+        reply_timeout: REPLY_TIMEOUT,
+        ..JointBusConfig::default()
+    }
 }
