@@ -109,6 +109,12 @@ fn wck_values_out_of_range_are_refused_before_anything_is_opened() {
         &["wck", "--port", PORT, "--baud", "1234", "brake"],
         &["--baud", "1234"],
     );
+    for margin in ["abc", "10001", "1.5"] {
+        refused(
+            &["wck", "--port", PORT, "--reply-margin", margin, "brake"],
+            &["--reply-margin", margin, "0..=10000"],
+        );
+    }
     let many: Vec<String> = (0..32).map(|_| "127".to_owned()).collect();
     let mut args = vec!["wck", "--port", PORT, "sync-move"];
     args.extend(many.iter().map(String::as_str));

@@ -15,6 +15,11 @@ use std::time::{Duration, Instant};
 use common::{Run, robobus};
 use serde_json::Value;
 
+/// `--reply-margin` for the clients, in ms: the simulator is another process on the wall
+/// clock, and a shared virtual machine stalls processes for up to ~200 ms; a reply that
+/// misses its deadline would be taken for the next command's (wCK replies carry no ID).
+const MARGIN: &str = "300";
+
 /// `robobus sim wck` in its own process, stopped (SIGTERM) on drop.
 struct Sim {
     child: Child,
@@ -59,9 +64,9 @@ impl Sim {
         self.link.to_str().unwrap()
     }
 
-    /// `robobus wck --port LINK ARGS`.
+    /// `robobus wck --port LINK --reply-margin MARGIN ARGS`.
     fn wck(&self, args: &[&str]) -> Run {
-        let mut all = vec!["wck", "--port", self.port()];
+        let mut all = vec!["wck", "--port", self.port(), "--reply-margin", MARGIN];
         all.extend_from_slice(args);
         robobus(&all)
     }
@@ -519,7 +524,14 @@ fn ctrl_c_during_play_holds_the_servos_and_exits_130() {
     let dir = tempfile::tempdir().unwrap();
     let f = write(dir.path(), "long.txt", "pose 0 60 60\npose 4000 220 220\n");
     let child = Command::new(env!("CARGO_BIN_EXE_robobus"))
-        .args(["wck", "--port", sim.port(), "play"])
+        .args([
+            "wck",
+            "--port",
+            sim.port(),
+            "--reply-margin",
+            MARGIN,
+            "play",
+        ])
         .arg(&f)
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
@@ -583,7 +595,8 @@ fn teach_at_a_rate_writes_a_file_that_play_accepts() {
 
     // Poses per keypress (from stdin), JSON on stdout without --output.
     let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
-        .args(["wck", "--port", sim.port(), "--json", "teach", "0-1"])
+        .args(["wck", "--port", sim.port(), "--reply-margin", MARGIN])
+        .args(["--json", "teach", "0-1"])
         .args(["--pose-ms", "400"])
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
@@ -622,6 +635,8 @@ fn ctrl_c_ends_teach_keeps_the_recording_and_exits_130() {
             "wck",
             "--port",
             sim.port(),
+            "--reply-margin",
+            MARGIN,
             "teach",
             "0-1",
             "--rate-hz",

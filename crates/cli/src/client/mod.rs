@@ -30,6 +30,8 @@ pub(crate) enum Job<'a> {
         port: &'a str,
         /// Baud rate.
         baud: robobus_wck::BaudRate,
+        /// `--reply-margin`, if given.
+        margin: Option<core::time::Duration>,
         /// What to send.
         plan: &'a WckPlan,
         /// How to run the plan (one exchange per step, or a scan / teach / play loop).
@@ -104,6 +106,7 @@ pub(crate) fn execute(job: &Job<'_>, yes: bool) -> anyhow::Result<()> {
             action,
             port,
             baud,
+            margin,
             plan,
             run,
             json,
@@ -111,6 +114,7 @@ pub(crate) fn execute(job: &Job<'_>, yes: bool) -> anyhow::Result<()> {
             action,
             port,
             baud: *baud,
+            margin: *margin,
             plan,
             run,
             json: *json,

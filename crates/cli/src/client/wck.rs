@@ -112,6 +112,8 @@ pub(crate) struct WckJob<'a> {
     pub(crate) port: &'a str,
     /// Baud rate.
     pub(crate) baud: BaudRate,
+    /// `--reply-margin`: replaces the bus's reply margin.
+    pub(crate) margin: Option<Duration>,
     /// The validated plan.
     pub(crate) plan: &'a WckPlan,
     /// How to run it.
@@ -185,6 +187,9 @@ pub(crate) fn execute(job: &WckJob<'_>) -> anyhow::Result<()> {
         arm_ctrlc();
     }
     let mut bus = WckBus::open(job.port, job.baud).map_err(wck_error)?;
+    if let Some(margin) = job.margin {
+        bus.config_mut().margin = margin;
+    }
     run(&mut bus, job)
 }
 

@@ -59,6 +59,11 @@ pub(crate) struct Args {
     /// 921600.
     #[arg(long, default_value = "115200", value_parser = parse_baud, global = true)]
     baud: BaudRate,
+    /// Extra time to wait for each reply beyond its modelled wire time and turnaround, in
+    /// ms (default 10, plus a USB adapter's latency timer when it can be read). Raise it
+    /// for a simulator on a heavily loaded machine.
+    #[arg(long, value_name = "MS", value_parser = parse_margin, global = true)]
+    reply_margin: Option<core::time::Duration>,
     /// What to do.
     #[command(subcommand)]
     command: WckCommand,
@@ -456,6 +461,16 @@ fn parse_overload_ma(s: &str) -> Result<Overload, String> {
     Overload::from_milliamps(raw).map_err(|e| RangeError { value: v, ..e }.to_string())
 }
 
+/// Parses `--reply-margin`: whole milliseconds, 0..=10000.
+fn parse_margin(s: &str) -> Result<core::time::Duration, String> {
+    match s.parse::<u64>() {
+        Ok(ms) if ms <= 10_000 => Ok(core::time::Duration::from_millis(ms)),
+        _ => Err(format!(
+            "{s:?} is not a reply margin: whole milliseconds, 0..=10000"
+        )),
+    }
+}
+
 /// Parses a baud rate in bit/s.
 pub(crate) fn parse_baud(s: &str) -> Result<BaudRate, String> {
     let v = parse_u32(s)?;
@@ -597,6 +612,7 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
             action,
             port,
             baud: args.baud,
+            margin: args.reply_margin,
             plan: &plan,
             run,
             json: g.json,
