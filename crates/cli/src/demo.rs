@@ -242,6 +242,10 @@ fn humanoid(
     std::thread::sleep(robobus_wck::timing::POWER_UP_DEAF + Duration::from_millis(50));
     let mut bus = WckBus::new(pty.slave, BaudRate::B115200)?
         .with_device_name(format!("{} (simulated humanoid)", sim.path().display()));
+    // The simulator is a thread on this machine: a loaded (or shared, virtual) machine can
+    // hold it past the 10 ms a real module needs, and a late reply would be taken for the
+    // next command's. 50 ms covers all but rare stalls and keeps the 31-ID scan short.
+    bus.config_mut().margin = Duration::from_millis(50);
     let started = Instant::now();
     let result = humanoid_run(&mut bus, progress, stop, wall, samples);
     let served = sim.stop().context("stopping the simulated wCK bus")?;
