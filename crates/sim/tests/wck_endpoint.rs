@@ -26,9 +26,17 @@ fn endpoint_serves_paced_replies_follows_the_client_baud_and_takes_commands() {
     let endpoint = Endpoint::spawn(bus, pair.master, pair.slave_path.clone()).unwrap();
     assert_eq!(endpoint.path(), pair.slave_path);
     let mut client = pair.slave;
-    std::thread::sleep(Duration::from_millis(80));
+    // Past the 65 ms of deafness after power-up, in simulated time (the serving thread
+    // may start late on a busy machine).
+    let awake = |from: Duration| {
+        while endpoint.with_bus(|b| b.now()).unwrap() < from + Duration::from_millis(70) {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    };
+    awake(Duration::ZERO);
 
-    let wait = Duration::from_millis(200);
+    // Generous: a shared virtual machine can stall the serving thread for ~200 ms.
+    let wait = Duration::from_secs(1);
     let (reply, took) = transact(&mut client, &[0xFF, 0xA0, 0x00, 0x20], wait);
     assert_eq!(reply, [0x00, 0x7F]);
     // Command 347 µs + turnaround 1006.6 µs + reply 173.6 µs on the simulated wire.
@@ -60,14 +68,19 @@ fn endpoint_serves_paced_replies_follows_the_client_baud_and_takes_commands() {
     );
 
     // Power-cycled, the module is deaf for 65 ms.
-    endpoint.with_bus(|b| b.power_cycle(0)).unwrap();
+    let cycled_at = endpoint
+        .with_bus(|b| {
+            b.power_cycle(0);
+            b.now()
+        })
+        .unwrap();
     let (reply, _) = transact(
         &mut client,
         &[0xFF, 0xA0, 0x00, 0x20],
         Duration::from_millis(20),
     );
     assert!(reply.is_empty(), "{reply:?}");
-    std::thread::sleep(Duration::from_millis(70));
+    awake(cycled_at);
     assert_eq!(
         transact(&mut client, &[0xFF, 0xA0, 0x00, 0x20], wait).0,
         [0x00, 0x7F]
