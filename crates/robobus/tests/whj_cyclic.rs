@@ -329,3 +329,165 @@ fn invalid_configurations_are_refused() {
     drop(first);
     assert!(!bus.cyclic_running());
 }
+
+/// The simulator's side of the bus. Every servo feedback of joint 1 is held back by
+/// `base` (so real round trips are at least that long); the one answering command number
+/// `slow_index` is held back by `slow` instead, or dropped if `drop` is set. Each
+/// feedback's current field is replaced by the number of the command it answers (0, 1,
+/// ...), so the client side can tell which command a feedback frame answers.
+struct StampingLink<L> {
+    inner: L,
+    commands: i32,
+    slow_index: i32,
+    base: Duration,
+    slow: Duration,
+    drop: bool,
+}
+
+impl<L: robobus_link::FrameLink> robobus_link::FrameLink for StampingLink<L> {
+    fn send(&mut self, frame: &robobus_whj::CanFrame) -> Result<(), robobus_link::FrameLinkError> {
+        if let Ok(robobus_whj::Reply::ServoFeedback {
+            joint,
+            mut feedback,
+        }) = robobus_whj::Reply::from_frame(frame)
+        {
+            let n = self.commands - 1;
+            if n == self.slow_index && self.drop {
+                return Ok(());
+            }
+            std::thread::sleep(if n == self.slow_index {
+                self.slow
+            } else {
+                self.base
+            });
+            feedback.current = Current(n);
+            let stamped = robobus_whj::Reply::ServoFeedback { joint, feedback }.to_frame();
+            return self.inner.send(&stamped);
+        }
+        self.inner.send(frame)
+    }
+
+    fn recv(
+        &mut self,
+        deadline: std::time::Instant,
+    ) -> Result<robobus_link::Received, robobus_link::FrameLinkError> {
+        let rx = self.inner.recv(deadline)?;
+        // Current servo commands to joint 1.
+        if rx.frame.standard_raw_id() == Some(0x401) {
+            self.commands += 1;
+        }
+        Ok(rx)
+    }
+
+    fn set_filters(
+        &mut self,
+        filters: &[robobus_link::IdFilter],
+    ) -> Result<(), robobus_link::FrameLinkError> {
+        self.inner.set_filters(filters)
+    }
+}
+
+/// Runs a current loop for joint 1 over a [`StampingLink`] whose feedback to command 5
+/// takes `slow` (or is dropped), until four complete cycles after cycle 7; `None` if the
+/// machine stalled the test (a cycle started more than half a period late, or the setup
+/// timed out), which makes the scenario a different one.
+fn stamped_run(
+    period: Duration,
+    base: Duration,
+    slow: Duration,
+    drop: bool,
+) -> Option<(Vec<CycleReport>, robobus::whj::CyclicStats)> {
+    let wire = robobus_link::MemoryBus::new();
+    let _sim = whj_common::Sim::serve(
+        chain(1),
+        StampingLink {
+            inner: wire.endpoint(),
+            commands: 0,
+            slow_index: 5,
+            base,
+            slow,
+            drop,
+        },
+    );
+    let bus = JointBus::open_with(wire.endpoint(), whj_common::config()).unwrap();
+    let joints = ids(1);
+    let setup = |bus: &JointBus| -> Result<(), WhjError> {
+        let j = bus.joint(joints[0])?;
+        j.disable()?;
+        j.set_mode(WorkMode::Current)?;
+        j.enable()
+    };
+    if let Err(e) = setup(&bus) {
+        eprintln!("stalled, scenario run again: {e}");
+        return None;
+    }
+    let cyc = bus
+        .cyclic(CyclicConfig {
+            mode: ServoMode::Current,
+            smooth: None,
+            ..CyclicConfig::position(joints, period)
+        })
+        .unwrap();
+    let mut reports: Vec<CycleReport> = Vec::new();
+    while reports.iter().filter(|r| r.cycle > 7 && !r.missed).count() < 4 {
+        let r = cyc.next_report(Duration::from_secs(3)).unwrap();
+        if r.start_lateness > period / 2 || reports.len() > 30 {
+            eprintln!("stalled, scenario run again: {r:?}");
+            return None;
+        }
+        reports.push(r);
+    }
+    Some((reports, cyc.stop()))
+}
+
+/// Every complete cycle holds the answer to its own command, never an earlier one.
+fn assert_matched(reports: &[CycleReport], base: Duration) {
+    for r in reports {
+        if let [Some(fb)] = r.feedback[..] {
+            assert_eq!(
+                i64::from(fb.current.raw()),
+                i64::try_from(r.cycle).unwrap(),
+                "{r:?}"
+            );
+            let rt = r.round_trip.unwrap();
+            assert!(rt >= base, "implausible round trip {rt:?}: {r:?}");
+        }
+    }
+}
+
+#[test]
+fn feedback_later_than_the_next_tick_counts_as_late_and_later_cycles_stay_matched() {
+    let _serial = serial();
+    // Long periods, so that the stalls of a shared machine rarely disturb the scenario.
+    let period = Duration::from_millis(200);
+    let base = Duration::from_millis(10);
+    // Past the next tick: the feedback of cycle 5 arrives during cycle 6.
+    let slow = period + Duration::from_millis(60);
+    let (reports, stats) = (0..10)
+        .find_map(|_| stamped_run(period, base, slow, false))
+        .expect("the machine stalled every run");
+    assert_eq!(stats.send_errors, 0, "{stats:?}");
+    assert!(reports[5].missed, "{:?}", reports[5]);
+    assert_eq!(reports[5].feedback, vec![None]);
+    assert!(stats.late_replies >= 1, "{stats:?}");
+    // Cycle 6 still gets its own feedback (after the late one), and so does every later one.
+    assert!(!reports[6].missed, "{:?}", reports[6]);
+    assert_matched(&reports, base);
+    assert!(stats.round_trip.p50 >= base, "{stats:?}");
+}
+
+#[test]
+fn a_lost_feedback_frame_costs_one_more_cycle_then_feedback_is_matched_again() {
+    let _serial = serial();
+    let period = Duration::from_millis(200);
+    let base = Duration::from_millis(10);
+    let (reports, stats) = (0..10)
+        .find_map(|_| stamped_run(period, base, Duration::ZERO, true))
+        .expect("the machine stalled every run");
+    // Cycle 5's feedback never comes; cycle 6's frame is taken for it (frames carry no
+    // sequence number), so cycle 6 misses too; from cycle 7 on every cycle is matched.
+    assert!(reports[5].missed && reports[6].missed, "{reports:?}");
+    assert!(reports[7..].iter().all(|r| !r.missed), "{reports:?}");
+    assert_matched(&reports, base);
+    assert_eq!(stats.late_replies, 1, "{stats:?}");
+}

@@ -1,6 +1,18 @@
 //! The cyclic servo loop: the bus thread sends one command frame per joint (or one
 //! broadcast frame for joints 1..=7) at a fixed rate, collects the feedback, and keeps
 //! deadline-miss and latency statistics.
+//!
+//! Feedback is matched to commands per joint. A joint answers each servo (or broadcast)
+//! frame with one feedback frame, in order, so its first feedback after a command answers
+//! that command. When a cycle closes without a joint's feedback, that feedback is owed:
+//! the joint's next feedback frame is counted as a late reply of the closed cycle, not as
+//! the new cycle's feedback (which would leave every later cycle holding the previous
+//! command's answer). The frames carry no sequence number, so a feedback frame that is
+//! lost outright cannot be told from a late one. Two rules keep a lost frame from
+//! shifting the matching for good: a cycle in which the joint's only frame paid an older
+//! debt owes nothing more (the joint answered once for one command), and an owed reply is
+//! given up as lost once it is four periods (at least 20 ms) old. A lost frame therefore
+//! costs one more missed cycle, and feedback is matched again from the cycle after.
 
 use core::time::Duration;
 use std::collections::VecDeque;
@@ -245,6 +257,15 @@ struct Reports {
 }
 
 const REPORT_QUEUE: usize = 256;
+/// Late feedback is expected per joint for at most this many closed cycles.
+const MAX_OWED: usize = 8;
+
+/// How long an owed feedback frame is waited for before it counts as lost: four periods,
+/// and at least 20 ms (the client's default reply timeout; a joint answers in about
+/// 0.2 ms).
+pub(crate) fn owed_expiry(period: Duration) -> Duration {
+    (period * 4).max(Duration::from_millis(20))
+}
 /// Keep at most this many latency samples (about 30 min at 500 Hz).
 const MAX_SAMPLES: usize = 1_000_000;
 
@@ -289,6 +310,11 @@ pub(crate) struct CyclicRun {
     profiles: Vec<Profile>,
     actual: Vec<Option<Position>>,
     mask: ReplyMask,
+    /// Per joint: when the frames of closed cycles still owed a feedback frame by the
+    /// joint went out, oldest first.
+    owed: Vec<VecDeque<Instant>>,
+    /// Per joint: whether a feedback frame in the running cycle paid an owed one.
+    paid: Vec<bool>,
 }
 
 impl CyclicRun {
@@ -305,6 +331,8 @@ impl CyclicRun {
             .map(|raw| Some(Position(*raw)))
             .collect();
         let mask = best_mask(&setup.config.joints);
+        let owed = vec![VecDeque::new(); setup.config.joints.len()];
+        let paid = vec![false; setup.config.joints.len()];
         Self {
             config: setup.config,
             shared: setup.shared,
@@ -315,6 +343,8 @@ impl CyclicRun {
             profiles,
             actual,
             mask,
+            owed,
+            paid,
         }
     }
 
@@ -462,6 +492,24 @@ impl CyclicRun {
         if let Some(a) = self.actual.get_mut(i) {
             *a = Some(fb.position);
         }
+        if let Some(owed) = self.owed.get_mut(i) {
+            let expiry = owed_expiry(self.config.period);
+            while owed
+                .front()
+                .is_some_and(|sent| now.saturating_duration_since(*sent) > expiry)
+            {
+                // Too old to still be on its way: that feedback frame was lost.
+                owed.pop_front();
+            }
+            if owed.pop_front().is_some() {
+                // The answer to an earlier cycle's command, which closed without it.
+                if let Some(p) = self.paid.get_mut(i) {
+                    *p = true;
+                }
+                lock(&self.shared.acc).stats.late_replies += 1;
+                return true;
+            }
+        }
         let slot = self.current.as_mut().and_then(|c| {
             c.feedback
                 .get_mut(i)
@@ -491,6 +539,17 @@ impl CyclicRun {
             return;
         };
         let complete = c.remaining == 0;
+        for ((owed, paid), fb) in self.owed.iter_mut().zip(&mut self.paid).zip(&c.feedback) {
+            // A joint that answered once in this cycle (paying an older debt) owes
+            // nothing more for it: its frame for an earlier command was lost.
+            if fb.is_none() && !*paid {
+                if owed.len() >= MAX_OWED {
+                    owed.pop_front();
+                }
+                owed.push_back(c.started);
+            }
+            *paid = false;
+        }
         let round_trip = if complete {
             c.last_reply.map(|t| t.saturating_duration_since(c.started))
         } else {
