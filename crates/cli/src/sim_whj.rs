@@ -48,7 +48,7 @@ pub(crate) struct Args {
 
 /// Parsed `--joints`.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub(crate) struct JointIds(Vec<u8>);
+pub(crate) struct JointIds(pub(crate) Vec<u8>);
 
 /// Parsed `--bus`.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -64,7 +64,7 @@ pub(crate) enum BusSpec {
     SocketCan(String),
 }
 
-fn parse_joints(s: &str) -> Result<JointIds, String> {
+pub(crate) fn parse_joints(s: &str) -> Result<JointIds, String> {
     let mut ids = Vec::new();
     let id = |t: &str| -> Result<u8, String> {
         let v: u8 = t

@@ -667,3 +667,41 @@ fn ctrl_c_ends_teach_keeps_the_recording_and_exits_130() {
     assert_eq!(sim.position(0), 127);
     assert_eq!(sim.position(1), 127);
 }
+
+#[test]
+fn doctor_probes_the_servos_and_flags_a_shared_id() {
+    // At 921600 bit/s the replies of two modules with one ID collide visibly (at lower
+    // rates two identical modules at one angle answer identically).
+    let sim = Sim::start("0,2,2", &["--baud", "921600"]);
+    let r = robobus(&[
+        "doctor",
+        "--json",
+        "--wck-port",
+        sim.port(),
+        "--wck-baud",
+        "921600",
+        "--reply-margin",
+        MARGIN,
+    ]);
+    // A failed check: exit 5.
+    assert_eq!(r.code, Some(5), "{r:#?}");
+    let v: Value = serde_json::from_str(&r.stdout).unwrap();
+    let findings = v["findings"].as_array().unwrap();
+    let of = |check: &str| {
+        findings
+            .iter()
+            .find(|f| f["subject"] == sim.port() && f["check"] == check)
+            .unwrap_or_else(|| panic!("no {check} finding: {v:#}"))
+            .clone()
+    };
+    let servos = of("servos");
+    assert_eq!(servos["status"], "ok", "{v:#}");
+    assert!(
+        servos["detail"].as_str().unwrap().contains("IDs 0"),
+        "{v:#}"
+    );
+    let dup = of("duplicate-id");
+    assert_eq!(dup["status"], "fail", "{v:#}");
+    assert!(dup["detail"].as_str().unwrap().contains("ID 2"), "{v:#}");
+    assert!(dup["fix"].as_str().unwrap().contains("set-id 2"), "{v:#}");
+}

@@ -462,7 +462,7 @@ fn parse_overload_ma(s: &str) -> Result<Overload, String> {
 }
 
 /// Parses `--reply-margin`: whole milliseconds, 0..=10000.
-fn parse_margin(s: &str) -> Result<core::time::Duration, String> {
+pub(crate) fn parse_margin(s: &str) -> Result<core::time::Duration, String> {
     match s.parse::<u64>() {
         Ok(ms) if ms <= 10_000 => Ok(core::time::Duration::from_millis(ms)),
         _ => Err(format!(

@@ -2,9 +2,10 @@
 //!
 //! The checks are independent functions returning [`Finding`]s, grouped by what they look
 //! at: serial ports ([`check_serial`]), SocketCAN interfaces ([`check_can`]) and the UDP
-//! bus ([`check_udp`]). None of them opens a port or sends anything. Checks that need a
-//! device (joints stuck in IAP, duplicate IDs, firmware versions) will be added as more
-//! groups that take the client; they report through the same [`Finding`] type.
+//! bus ([`check_udp`]); none of them opens a port or sends anything. The device checks in
+//! [`probe`] (silent devices, joints waiting in their bootloader, shared IDs, firmware
+//! gates) talk to the devices through the client, and run only when asked
+//! (`--wck-port`, `--whj-bus`).
 //!
 //! Exit code 0 when nothing failed (warnings allowed), 5 when a check failed.
 
@@ -17,11 +18,15 @@ use serde_json::json;
 use crate::Global;
 use crate::exit::ProblemsFound;
 
+mod probe;
+
 /// Options of `robobus doctor`.
 #[derive(Debug, clap::Args)]
 #[command(after_help = "\
 Without --port / --can, every USB serial port (/dev/ttyUSB*, /dev/ttyACM*) and every CAN
-interface found is checked, and the UDP bus always is. Nothing is opened or sent.
+interface found is checked, and the UDP bus always is. Nothing is opened or sent, except
+to the devices named by --wck-port / --whj-bus: those are probed (a wCK scan; WHJ status
+queries, the IAP release of a joint waiting in its bootloader, identity reads).
 Exit code 0 when no check failed (warnings allowed), 5 when one did.")]
 pub(crate) struct Args {
     /// Serial port(s) to check (repeatable).
@@ -34,6 +39,25 @@ pub(crate) struct Args {
     /// (needs write access to sysfs, usually root).
     #[arg(long)]
     fix: bool,
+    /// Probe the wCK servos on this serial port: scan IDs 0..=30 at --wck-baud, report
+    /// the servos found and IDs shared by two modules.
+    #[arg(long, value_name = "PATH")]
+    wck_port: Option<String>,
+    /// Baud rate for --wck-port.
+    #[arg(long, value_name = "BAUD", default_value = "115200", value_parser = crate::wck::parse_baud)]
+    wck_baud: robobus_wck::BaudRate,
+    /// Extra reply wait for --wck-port in ms (default 10 plus the adapter's latency timer;
+    /// raise it for a simulator on a loaded machine).
+    #[arg(long, value_name = "MS", value_parser = crate::wck::parse_margin)]
+    reply_margin: Option<std::time::Duration>,
+    /// Probe the WHJ joints on this bus (udp, udp:GROUP:PORT, or a SocketCAN interface):
+    /// silent joints, joints waiting in their bootloader (released), IDs shared by two
+    /// joints, firmware lacking a feature robobus uses.
+    #[arg(long, value_name = "BUS")]
+    whj_bus: Option<String>,
+    /// Joint IDs for --whj-bus: a range `1-7`, a list `1,2,5`, or both.
+    #[arg(long, value_name = "IDS", default_value = "1-7", value_parser = crate::sim_whj::parse_joints)]
+    joints: crate::sim_whj::JointIds,
 }
 
 /// Outcome of one check.
@@ -121,7 +145,52 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
         findings.extend(check_can(Path::new(NET_DIR), iface));
     }
     findings.extend(check_udp(Path::new(NET_DIR)));
+    if let Some(port) = &args.wck_port {
+        findings.extend(probe_wck(port, args.wck_baud, args.reply_margin));
+    }
+    if let Some(bus) = &args.whj_bus {
+        findings.extend(probe_whj(bus, &args.joints.0));
+    }
     report(g, &findings)
+}
+
+fn probe_wck(
+    port: &str,
+    baud: robobus_wck::BaudRate,
+    margin: Option<std::time::Duration>,
+) -> Vec<Finding> {
+    match robobus::wck::WckBus::open(port, baud) {
+        Ok(mut bus) => {
+            if let Some(m) = margin {
+                bus.config_mut().margin = m;
+            }
+            probe::wck(&mut bus, port)
+        }
+        Err(e) => vec![finding(port, "open", Status::Fail, e.to_string(), None)],
+    }
+}
+
+fn probe_whj(bus_name: &str, ids: &[u8]) -> Vec<Finding> {
+    let opened = crate::client::whj::open_link(bus_name).and_then(|link| {
+        robobus::whj::JointBus::open_with(
+            link,
+            robobus::whj::JointBusConfig {
+                connect_timeout: std::time::Duration::from_millis(500),
+                ..robobus::whj::JointBusConfig::default()
+            },
+        )
+        .map_err(anyhow::Error::new)
+    });
+    match opened {
+        Ok(bus) => probe::whj(&bus, bus_name, ids),
+        Err(e) => vec![finding(
+            bus_name,
+            "open",
+            Status::Fail,
+            format!("{e:#}"),
+            None,
+        )],
+    }
 }
 
 fn report(g: Global, findings: &[Finding]) -> anyhow::Result<()> {

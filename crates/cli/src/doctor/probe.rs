@@ -1,0 +1,403 @@
+//! The checks that talk to devices (only when asked: `--wck-port`, `--whj-bus`): servos
+//! and joints that are silent, joints waiting in their bootloader (IAP), two devices
+//! sharing an ID, and WHJ firmware that lacks a feature robobus uses.
+
+use std::time::Duration;
+
+use robobus::wck::{ScanOptions, WckBus};
+use robobus::whj::{JointBus, WhjError};
+use robobus_link::ByteLink;
+use robobus_whj::units::FirmwareVersion;
+use robobus_whj::{JointId, Reply, Request};
+
+use super::{Finding, Status, finding};
+
+/// How long a joint is given to answer a status query before it counts as not running.
+const STATUS_WAIT: Duration = Duration::from_millis(50);
+
+/// How long after a status reply further replies from the same ID are counted (a second
+/// joint with the ID answers within a frame time or two).
+const DUPLICATE_WINDOW: Duration = Duration::from_millis(30);
+
+/// A firmware gate from the vendor's documents, by the label they quote (the register
+/// printed as four hex digits; the mapping is inferred, so gates are reported as warnings).
+struct Gate {
+    feature: &'static str,
+    label: &'static str,
+    ok: fn(FirmwareVersion) -> bool,
+}
+
+const GATES: [Gate; 3] = [
+    Gate {
+        feature: "broadcast protocol (0x2F/0x4F, `cyclic` Broadcast)",
+        label: "D5.XX (E2.XX on multi-turn joints)",
+        ok: |v| v.0 >= 0xD500 || v.major() == 0xE2,
+    },
+    Gate {
+        feature: "low power 0x69, end-board mode 0x79, staggered power-up 0x1F",
+        label: "519",
+        ok: |v| v.0 >= 0xD519 || v.major() == 0xE2,
+    },
+    Gate {
+        feature: "direct brake release 0x6A",
+        label: "DA05 / DA24 / D522",
+        ok: |v| v.0 >= 0xD522 || v.0 == 0xDA05 || v.0 == 0xDA24,
+    },
+];
+
+/// Probes WHJ joints `ids` on `bus`: running or in the bootloader (released if so), one
+/// joint per ID, firmware gates. `bus_name` names the bus in the findings.
+pub(crate) fn whj(bus: &JointBus, bus_name: &str, ids: &[u8]) -> Vec<Finding> {
+    let mut out = Vec::new();
+    for &raw in ids {
+        let Ok(id) = JointId::new(raw) else {
+            continue;
+        };
+        let subject = format!("J{raw} on {bus_name}");
+        let before = bus.telemetry().joint(id).replies;
+        let status = bus.request_with_timeout(Request::StatusQuery { joint: id }, STATUS_WAIT);
+        match status {
+            Ok(Reply::Status { .. }) => out.push(finding(
+                &subject,
+                "iap",
+                Status::Ok,
+                "running its application (answers status queries)",
+                None,
+            )),
+            Ok(other) => out.push(finding(
+                &subject,
+                "iap",
+                Status::Fail,
+                format!("answered a status query with {other:?}"),
+                Some("check that nothing else on the bus uses this ID".into()),
+            )),
+            Err(e) if e.is_timeout() => match bus.joint_unchecked(id).release_iap() {
+                Ok(()) => out.push(finding(
+                    &subject,
+                    "iap",
+                    Status::Warn,
+                    "was waiting in its bootloader (IAP): it answered only the IAP release, \
+                     which started its application now",
+                    Some(
+                        "after every power-up a program must write IAP_FLAG (0x49) := 0 before \
+                         anything else (robobus does on connect; robobus whj release-iap)"
+                            .into(),
+                    ),
+                )),
+                Err(e) => {
+                    out.push(finding(
+                        &subject,
+                        "iap",
+                        Status::Fail,
+                        format!("silent: {e}"),
+                        Some(
+                            "check power, the CAN wiring and its 120 Ω terminations, the bit \
+                             rates (1 Mbit/s arbitration, 5 Mbit/s data) and the ID (robobus \
+                             whj scan)"
+                                .into(),
+                        ),
+                    ));
+                    continue;
+                }
+            },
+            Err(e) => {
+                out.push(finding(&subject, "iap", Status::Fail, e.to_string(), None));
+                continue;
+            }
+        }
+        out.push(duplicate(bus, id, &subject, before));
+        out.push(firmware(bus, id, &subject));
+    }
+    out
+}
+
+/// Two joints with one ID both answer a status query: more replies than queries.
+fn duplicate(bus: &JointBus, id: JointId, subject: &str, before: u64) -> Finding {
+    let mut queries = 0u64;
+    for _ in 0..2 {
+        if bus
+            .request_with_timeout(Request::StatusQuery { joint: id }, STATUS_WAIT)
+            .is_ok()
+        {
+            queries += 1;
+        }
+    }
+    std::thread::sleep(DUPLICATE_WINDOW);
+    // The first query (or IAP release) answered once too.
+    let replies = bus.telemetry().joint(id).replies.saturating_sub(before);
+    if replies > queries + 1 {
+        finding(
+            subject,
+            "duplicate-id",
+            Status::Fail,
+            format!(
+                "{replies} replies to {} requests: more than one joint answers as ID {}",
+                queries + 1,
+                id.get()
+            ),
+            Some(format!(
+                "connect the joints one at a time and give each its own ID (robobus whj \
+                 --bus BUS set-id {} NEW, then save)",
+                id.get()
+            )),
+        )
+    } else {
+        finding(
+            subject,
+            "duplicate-id",
+            Status::Ok,
+            "one joint answers",
+            None,
+        )
+    }
+}
+
+fn firmware(bus: &JointBus, id: JointId, subject: &str) -> Finding {
+    let identity = match bus.joint_unchecked(id).identity() {
+        Ok(i) => i,
+        Err(e) => {
+            return finding(
+                subject,
+                "firmware",
+                Status::Warn,
+                format!("identity not readable: {}", short(&e)),
+                None,
+            );
+        }
+    };
+    let v = identity.firmware;
+    let missing: Vec<String> = GATES
+        .iter()
+        .filter(|g| !(g.ok)(v))
+        .map(|g| format!("{} (needs {})", g.feature, g.label))
+        .collect();
+    if missing.is_empty() {
+        finding(
+            subject,
+            "firmware",
+            Status::Ok,
+            format!(
+                "{} firmware {:04X}: every documented feature gate passes",
+                identity.model.name(),
+                v.0
+            ),
+            None,
+        )
+    } else {
+        finding(
+            subject,
+            "firmware",
+            Status::Warn,
+            format!(
+                "{} firmware {:04X} lacks: {}",
+                identity.model.name(),
+                v.0,
+                missing.join("; ")
+            ),
+            Some(
+                "avoid those features on this joint, or update its firmware (the vendor's \
+                 tool); the gates follow the vendor's labels, whose mapping to the register \
+                 is inferred"
+                    .into(),
+            ),
+        )
+    }
+}
+
+fn short(e: &WhjError) -> String {
+    e.to_string().lines().next().unwrap_or_default().to_owned()
+}
+
+/// Scans the wCK bus at its rate: servos found, IDs shared by two modules.
+pub(crate) fn wck<L: ByteLink>(bus: &mut WckBus<L>, port: &str) -> Vec<Finding> {
+    let baud = bus.baud();
+    let report = match bus.scan(&ScanOptions::default(), |_| {}) {
+        Ok(r) => r,
+        Err(e) => {
+            return vec![finding(port, "servos", Status::Fail, e.to_string(), None)];
+        }
+    };
+    let mut out = Vec::new();
+    if report.found.is_empty() && report.duplicates.is_empty() {
+        out.push(finding(
+            port,
+            "servos",
+            Status::Fail,
+            format!("no servo answered at {baud} (IDs 0..=30)"),
+            Some(format!(
+                "check power and wiring, then look at every rate: robobus wck --port {port} \
+                 scan --all-bauds"
+            )),
+        ));
+    } else {
+        let ids: Vec<String> = report
+            .found
+            .iter()
+            .map(|f| f.id.get().to_string())
+            .collect();
+        out.push(finding(
+            port,
+            "servos",
+            Status::Ok,
+            format!(
+                "{} servo(s) at {baud}: IDs {}",
+                report.found.len(),
+                if ids.is_empty() {
+                    "none alone".to_owned()
+                } else {
+                    ids.join(", ")
+                }
+            ),
+            None,
+        ));
+    }
+    for d in &report.duplicates {
+        out.push(finding(
+            port,
+            "duplicate-id",
+            Status::Fail,
+            format!(
+                "ID {} is answered by more than one module: {}",
+                d.id.get(),
+                d.evidence
+            ),
+            Some(format!(
+                "connect the modules with ID {id} one at a time and give each its own ID: \
+                 robobus wck --port {port} set-id {id} NEW",
+                id = d.id.get()
+            )),
+        ));
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use robobus_sim::wck::{Bus, BusConfig, Eeprom, Model, SimLink};
+    use robobus_sim::whj::{JointConfig, WhjBus, WhjModel};
+    use robobus_wck::{BaudRate, ExtServoId};
+
+    fn status_of<'a>(findings: &'a [Finding], subject: &str, check: &str) -> &'a Finding {
+        findings
+            .iter()
+            .find(|f| f.subject.starts_with(subject) && f.check == check)
+            .unwrap_or_else(|| panic!("no {check} finding for {subject}: {findings:#?}"))
+    }
+
+    #[test]
+    fn wck_probe_reports_servos_and_a_shared_id() {
+        let mut sim = Bus::new(BusConfig::default());
+        for id in [0u8, 3, 3] {
+            let eeprom = Eeprom {
+                id: ExtServoId::new(id).unwrap(),
+                ..Eeprom::default()
+            };
+            sim.add(Model::W1108, eeprom, 100.0 + f64::from(id) * 10.0);
+        }
+        sim.servo_mut(2).unwrap().set_position(200);
+        let (link, handle) = SimLink::new(sim);
+        std::thread::sleep(Duration::from_millis(70).saturating_sub(handle.now()));
+        let mut bus = WckBus::new(link, BaudRate::B115200).unwrap();
+        let f = wck(&mut bus, "/dev/ttyUSB0");
+        let servos = status_of(&f, "/dev/ttyUSB0", "servos");
+        assert_eq!(servos.status, Status::Ok, "{f:#?}");
+        assert!(servos.detail.contains("IDs 0"), "{f:#?}");
+        let dup = status_of(&f, "/dev/ttyUSB0", "duplicate-id");
+        assert_eq!(dup.status, Status::Fail, "{f:#?}");
+        assert!(dup.detail.contains("ID 3"), "{f:#?}");
+        assert!(dup.fix.as_deref().unwrap().contains("set-id 3"), "{f:#?}");
+    }
+
+    #[test]
+    fn wck_probe_of_a_silent_bus_fails_and_suggests_every_rate() {
+        let (link, _handle) = SimLink::new(Bus::new(BusConfig::default()));
+        let mut bus = WckBus::new(link, BaudRate::B115200).unwrap();
+        let f = wck(&mut bus, "P");
+        assert_eq!(f.len(), 1, "{f:#?}");
+        assert_eq!(f[0].status, Status::Fail);
+        assert!(
+            f[0].fix.as_deref().unwrap().contains("--all-bauds"),
+            "{f:#?}"
+        );
+    }
+
+    #[test]
+    fn whj_probe_finds_running_iap_silent_and_old_firmware() {
+        // J1 still in its bootloader (as shipped), J2 already running with old firmware.
+        let j1 = JointConfig::new(1, WhjModel::Whj30);
+        let mut j2 = JointConfig::new(2, WhjModel::Whj30);
+        j2.firmware = FirmwareVersion(0xD505);
+        let wire = robobus_link::MemoryBus::new();
+        let mut sim = WhjBus::with_configs(vec![j1, j2], 11);
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let flag = std::sync::Arc::clone(&stop);
+        let mut sim_link = wire.endpoint();
+        let server = std::thread::spawn(move || {
+            robobus_sim::whj::serve(&mut sim, &mut sim_link, &flag).unwrap();
+        });
+        let config = robobus::whj::JointBusConfig {
+            reply_timeout: Duration::from_millis(250),
+            connect_timeout: Duration::from_millis(500),
+            ..robobus::whj::JointBusConfig::default()
+        };
+        let bus = JointBus::open_with(wire.endpoint(), config).unwrap();
+        // J2 running: release it first, as a program would have.
+        bus.joint_unchecked(JointId::new(2).unwrap())
+            .release_iap()
+            .unwrap();
+        let f = whj(&bus, "mem", &[1, 2, 3]);
+        stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        server.join().unwrap();
+
+        assert_eq!(status_of(&f, "J1 ", "iap").status, Status::Warn, "{f:#?}");
+        assert_eq!(
+            status_of(&f, "J1 ", "firmware").status,
+            Status::Ok,
+            "{f:#?}"
+        );
+        assert_eq!(
+            status_of(&f, "J1 ", "duplicate-id").status,
+            Status::Ok,
+            "{f:#?}"
+        );
+        assert_eq!(status_of(&f, "J2 ", "iap").status, Status::Ok, "{f:#?}");
+        let fw = status_of(&f, "J2 ", "firmware");
+        assert_eq!(fw.status, Status::Warn, "{f:#?}");
+        assert!(
+            fw.detail.contains("D505") && fw.detail.contains("519"),
+            "{f:#?}"
+        );
+        assert!(!fw.detail.contains("broadcast"), "{f:#?}");
+        let j3 = status_of(&f, "J3 ", "iap");
+        assert_eq!(j3.status, Status::Fail, "{f:#?}");
+        assert!(j3.detail.contains("silent"), "{f:#?}");
+    }
+
+    #[test]
+    fn whj_probe_finds_two_joints_sharing_an_id() {
+        let wire = robobus_link::MemoryBus::new();
+        let configs = vec![
+            JointConfig::new(4, WhjModel::Whj30),
+            JointConfig::new(4, WhjModel::Whj30),
+        ];
+        let mut sim = WhjBus::with_configs(configs, 11);
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let flag = std::sync::Arc::clone(&stop);
+        let mut sim_link = wire.endpoint();
+        let server = std::thread::spawn(move || {
+            robobus_sim::whj::serve(&mut sim, &mut sim_link, &flag).unwrap();
+        });
+        let config = robobus::whj::JointBusConfig {
+            reply_timeout: Duration::from_millis(250),
+            ..robobus::whj::JointBusConfig::default()
+        };
+        let bus = JointBus::open_with(wire.endpoint(), config).unwrap();
+        let f = whj(&bus, "mem", &[4]);
+        stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        server.join().unwrap();
+        let dup = status_of(&f, "J4 ", "duplicate-id");
+        assert_eq!(dup.status, Status::Fail, "{f:#?}");
+        assert!(dup.fix.as_deref().unwrap().contains("set-id 4"), "{f:#?}");
+    }
+}
