@@ -373,3 +373,47 @@ fn whj_e2e_timeouts_and_bad_input() {
     let st = sim.json(&["status", "1"]);
     assert_eq!(st[0]["error"], "no error", "{st:?}");
 }
+
+#[test]
+fn whj_e2e_doctor_probes_the_joints() {
+    if !in_netns("whj_e2e_doctor_probes_the_joints") {
+        return;
+    }
+    let sim = Sim::start("udp:239.74.163.14:43124", &[]);
+    let doctor = || {
+        let r = common::robobus(&[
+            "doctor",
+            "--json",
+            "--whj-bus",
+            sim.bus.as_str(),
+            "--joints",
+            "1,2,9",
+        ]);
+        let v: Value =
+            serde_json::from_str(&r.stdout).unwrap_or_else(|e| panic!("not JSON ({e}): {r:?}"));
+        (r.code, v)
+    };
+    let status = |v: &Value, subject: &str, check: &str| -> String {
+        v["findings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|f| f["subject"] == subject && f["check"] == check)
+            .unwrap_or_else(|| panic!("no {check} finding for {subject}: {v:#}"))["status"]
+            .as_str()
+            .unwrap()
+            .to_owned()
+    };
+    let bus = &sim.bus;
+    // As shipped, the joints wait in their bootloader: released (a warning); J9 is absent.
+    let (code, v) = doctor();
+    assert_eq!(code, Some(5), "{v:#}");
+    assert_eq!(status(&v, &format!("J1 on {bus}"), "iap"), "warn", "{v:#}");
+    assert_eq!(status(&v, &format!("J2 on {bus}"), "iap"), "warn", "{v:#}");
+    assert_eq!(status(&v, &format!("J9 on {bus}"), "iap"), "fail", "{v:#}");
+    assert_eq!(status(&v, &format!("J1 on {bus}"), "duplicate-id"), "ok");
+    assert_eq!(status(&v, &format!("J1 on {bus}"), "firmware"), "ok");
+    // Now running: fine.
+    let (_, v) = doctor();
+    assert_eq!(status(&v, &format!("J1 on {bus}"), "iap"), "ok", "{v:#}");
+}
