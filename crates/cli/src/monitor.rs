@@ -465,7 +465,8 @@ fn sample(src: &mut Source<'_>, d: &mut Dashboard) {
         Source::Wck { bus, ids, last } => {
             for ((c, &id), prev) in d.channels.iter_mut().zip(ids.iter()).zip(last.iter_mut()) {
                 if let Ok(st) = bus.servo(id).status() {
-                    let deg = (f64::from(st.position.get()) - 127.0) * 1.055;
+                    // The same degrees `robobus wck status` prints (0..=269°).
+                    let deg = st.position.degrees();
                     let now = d.t;
                     c.speed = prev.and_then(|(t0, p0)| (now > t0).then(|| (deg - p0) / (now - t0)));
                     *prev = Some((now, deg));

@@ -705,3 +705,41 @@ fn doctor_probes_the_servos_and_flags_a_shared_id() {
     assert!(dup["detail"].as_str().unwrap().contains("ID 2"), "{v:#}");
     assert!(dup["fix"].as_str().unwrap().contains("set-id 2"), "{v:#}");
 }
+
+#[test]
+fn monitor_records_the_servo_positions_in_degrees() {
+    let sim = Sim::start("0-1", &[]);
+    sim.ok(&["move", "1", "200"]);
+    std::thread::sleep(Duration::from_millis(800));
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("wck.csv");
+    let r = robobus(&[
+        "monitor",
+        "--port",
+        sim.port(),
+        "--servos",
+        "0-1",
+        "--rate-hz",
+        "10",
+        "--duration",
+        "1",
+        "--record",
+        csv.to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, Some(0), "{r:#?}");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    assert_eq!(
+        lines.next().unwrap(),
+        "t_s,s0_deg,s0_deg_per_s,s0_load,s1_deg,s1_deg_per_s,s1_load"
+    );
+    let last: Vec<f64> = lines
+        .last()
+        .unwrap()
+        .split(',')
+        .map(|v| v.parse().unwrap_or(f64::NAN))
+        .collect();
+    // The degrees `wck status` prints: 127 -> 134.0°, 200 -> 211.0° (269° over 255 steps).
+    assert!((last[1] - 133.97).abs() < 1.1, "{text}");
+    assert!((last[4] - 210.98).abs() < 1.1, "{text}");
+}
