@@ -734,7 +734,7 @@ fn monitor_records_the_servo_positions_in_degrees() {
         "t_s,s0_deg,s0_deg_per_s,s0_load,s1_deg,s1_deg_per_s,s1_load"
     );
     let last: Vec<f64> = lines
-        .last()
+        .next_back()
         .unwrap()
         .split(',')
         .map(|v| v.parse().unwrap_or(f64::NAN))

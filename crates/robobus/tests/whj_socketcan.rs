@@ -97,7 +97,12 @@ fn inner_socketcan_in_uml() {
         // User-Mode Linux runs on one emulated CPU: the numbers are a measurement; the
         // loop must run and the joints must arrive (checked below).
         assert!(stats.cycles >= 50, "{stats:?}");
-        assert!(stats.complete * 2 >= stats.cycles, "{stats:?}");
+        assert!(stats.complete >= 10, "{stats:?}");
+        assert_eq!(
+            stats.complete + stats.deadline_misses,
+            stats.cycles,
+            "{stats:?}"
+        );
     }
     for (i, &id) in joints.iter().enumerate() {
         let p = bus.joint_unchecked(id).position().unwrap().degrees();
