@@ -660,6 +660,18 @@ fn ids_text(ids: &[u8]) -> String {
     }
 }
 
+/// Whether the terminal on stdin has hung up (reads would only return end of file).
+fn terminal_gone() -> bool {
+    use nix::poll::{PollFd, PollFlags, PollTimeout, poll};
+    use std::os::fd::AsFd as _;
+    let stdin = std::io::stdin();
+    let mut fds = [PollFd::new(stdin.as_fd(), PollFlags::POLLIN)];
+    matches!(poll(&mut fds, PollTimeout::ZERO), Ok(n) if n > 0)
+        && fds[0].revents().is_some_and(|r| {
+            r.intersects(PollFlags::POLLHUP | PollFlags::POLLERR | PollFlags::POLLNVAL)
+        })
+}
+
 fn watch(src: &mut Source<'_>, mut d: Dashboard, args: &Args) -> anyhow::Result<()> {
     use ratatui::crossterm::event::{self, Event, KeyCode, KeyEventKind, KeyModifiers};
 
@@ -685,6 +697,24 @@ fn watch(src: &mut Source<'_>, mut d: Dashboard, args: &Args) -> anyhow::Result<
         None
     };
     let guard = if tui { Some(TerminalGuard) } else { None };
+    // Key presses, read on their own thread: crossterm's reader can spin forever on a
+    // terminal that hung up, and the sampling loop must keep its duration and its exits.
+    let keys = tui.then(|| {
+        let (tx, rx) = std::sync::mpsc::channel();
+        let _ = std::thread::Builder::new()
+            .name("monitor-keys".into())
+            .spawn(move || {
+                while let Ok(ev) = event::read() {
+                    if let Event::Key(k) = ev
+                        && k.kind == KeyEventKind::Press
+                        && tx.send(k).is_err()
+                    {
+                        break;
+                    }
+                }
+            });
+        rx
+    });
     let period = Duration::from_secs_f64(1.0 / args.rate_hz);
     let start = Instant::now();
     let mut next = start;
@@ -716,15 +746,29 @@ fn watch(src: &mut Source<'_>, mut d: Dashboard, args: &Args) -> anyhow::Result<
         loop {
             let now = Instant::now();
             if tui {
-                if event::poll(next.saturating_duration_since(now))?
-                    && let Event::Key(k) = event::read()?
-                    && k.kind == KeyEventKind::Press
-                {
-                    let ctrl_c =
-                        k.code == KeyCode::Char('c') && k.modifiers.contains(KeyModifiers::CONTROL);
-                    if matches!(k.code, KeyCode::Char('q') | KeyCode::Esc) || ctrl_c {
-                        quit_by_key = true;
-                        break;
+                // A closed terminal (a killed tmux, a dropped SSH session) reads as end of
+                // file forever (crossterm then spins inside its reader thread, below): stop
+                // as if the user had quit (the hang-up signal also sets `stop`).
+                if stop.load(Ordering::SeqCst) || terminal_gone() {
+                    quit_by_key = true;
+                    break;
+                }
+                let wait = next
+                    .saturating_duration_since(now)
+                    .min(Duration::from_millis(50));
+                match keys.as_ref().map(|k| k.recv_timeout(wait)) {
+                    Some(Ok(k)) => {
+                        let ctrl_c = k.code == KeyCode::Char('c')
+                            && k.modifiers.contains(KeyModifiers::CONTROL);
+                        if matches!(k.code, KeyCode::Char('q') | KeyCode::Esc) || ctrl_c {
+                            quit_by_key = true;
+                            break;
+                        }
+                    }
+                    Some(Err(std::sync::mpsc::RecvTimeoutError::Timeout)) => {}
+                    // The reader stopped (its terminal failed): just wait.
+                    Some(Err(std::sync::mpsc::RecvTimeoutError::Disconnected)) | None => {
+                        std::thread::sleep(wait);
                     }
                 }
             } else if now < next {
