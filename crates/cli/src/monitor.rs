@@ -672,9 +672,49 @@ fn terminal_gone() -> bool {
         })
 }
 
-fn watch(src: &mut Source<'_>, mut d: Dashboard, args: &Args) -> anyhow::Result<()> {
-    use ratatui::crossterm::event::{self, Event, KeyCode, KeyEventKind, KeyModifiers};
+/// Key presses, read on their own thread: crossterm's reader can spin forever on a
+/// terminal that hung up, and the sampling loop must keep its duration and its exits.
+fn key_reader() -> std::sync::mpsc::Receiver<ratatui::crossterm::event::KeyEvent> {
+    use ratatui::crossterm::event::{self, Event, KeyEventKind};
+    let (tx, rx) = std::sync::mpsc::channel();
+    let _ = std::thread::Builder::new()
+        .name("monitor-keys".into())
+        .spawn(move || {
+            while let Ok(ev) = event::read() {
+                if let Event::Key(k) = ev
+                    && k.kind == KeyEventKind::Press
+                    && tx.send(k).is_err()
+                {
+                    break;
+                }
+            }
+        });
+    rx
+}
 
+/// Waits up to `wait` for a key; whether it was one that quits (q, Esc, Ctrl-C).
+fn quit_key(
+    keys: Option<&std::sync::mpsc::Receiver<ratatui::crossterm::event::KeyEvent>>,
+    wait: Duration,
+) -> bool {
+    use ratatui::crossterm::event::{KeyCode, KeyModifiers};
+    use std::sync::mpsc::RecvTimeoutError;
+    match keys.map(|k| k.recv_timeout(wait)) {
+        Some(Ok(k)) => {
+            let ctrl_c =
+                k.code == KeyCode::Char('c') && k.modifiers.contains(KeyModifiers::CONTROL);
+            matches!(k.code, KeyCode::Char('q') | KeyCode::Esc) || ctrl_c
+        }
+        Some(Err(RecvTimeoutError::Timeout)) => false,
+        // The reader stopped (its terminal failed): just wait.
+        Some(Err(RecvTimeoutError::Disconnected)) | None => {
+            std::thread::sleep(wait);
+            false
+        }
+    }
+}
+
+fn watch(src: &mut Source<'_>, mut d: Dashboard, args: &Args) -> anyhow::Result<()> {
     let mut csv = match &args.record {
         Some(p) => {
             let mut f = std::io::BufWriter::new(
@@ -697,24 +737,7 @@ fn watch(src: &mut Source<'_>, mut d: Dashboard, args: &Args) -> anyhow::Result<
         None
     };
     let guard = if tui { Some(TerminalGuard) } else { None };
-    // Key presses, read on their own thread: crossterm's reader can spin forever on a
-    // terminal that hung up, and the sampling loop must keep its duration and its exits.
-    let keys = tui.then(|| {
-        let (tx, rx) = std::sync::mpsc::channel();
-        let _ = std::thread::Builder::new()
-            .name("monitor-keys".into())
-            .spawn(move || {
-                while let Ok(ev) = event::read() {
-                    if let Event::Key(k) = ev
-                        && k.kind == KeyEventKind::Press
-                        && tx.send(k).is_err()
-                    {
-                        break;
-                    }
-                }
-            });
-        rx
-    });
+    let keys = tui.then(key_reader);
     let period = Duration::from_secs_f64(1.0 / args.rate_hz);
     let start = Instant::now();
     let mut next = start;
@@ -756,20 +779,9 @@ fn watch(src: &mut Source<'_>, mut d: Dashboard, args: &Args) -> anyhow::Result<
                 let wait = next
                     .saturating_duration_since(now)
                     .min(Duration::from_millis(50));
-                match keys.as_ref().map(|k| k.recv_timeout(wait)) {
-                    Some(Ok(k)) => {
-                        let ctrl_c = k.code == KeyCode::Char('c')
-                            && k.modifiers.contains(KeyModifiers::CONTROL);
-                        if matches!(k.code, KeyCode::Char('q') | KeyCode::Esc) || ctrl_c {
-                            quit_by_key = true;
-                            break;
-                        }
-                    }
-                    Some(Err(std::sync::mpsc::RecvTimeoutError::Timeout)) => {}
-                    // The reader stopped (its terminal failed): just wait.
-                    Some(Err(std::sync::mpsc::RecvTimeoutError::Disconnected)) | None => {
-                        std::thread::sleep(wait);
-                    }
+                if quit_key(keys.as_ref(), wait) {
+                    quit_by_key = true;
+                    break;
                 }
             } else if now < next {
                 std::thread::sleep(next - now);
