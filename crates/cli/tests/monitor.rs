@@ -79,3 +79,43 @@ fn monitor_refuses_bad_options() {
     let r = common::robobus(&["monitor", "--bus", "udp", "--sim"]);
     assert_eq!(r.code, Some(2));
 }
+
+/// A dashboard whose terminal goes away (a killed tmux, a dropped SSH session) ends
+/// promptly instead of spinning on end of file until killed.
+#[test]
+fn monitor_ends_when_its_terminal_hangs_up() {
+    use std::process::{Command, Stdio};
+    use std::time::{Duration, Instant};
+
+    use robobus_link::{PtyOptions, PtyPair};
+
+    let pair = PtyPair::open(&PtyOptions::default()).unwrap();
+    let tty = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(&pair.slave_path)
+        .unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .args(["monitor", "--sim", "--joints", "1-2", "--duration", "60"])
+        .stdin(tty.try_clone().unwrap())
+        .stdout(tty.try_clone().unwrap())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    drop(tty);
+    // Drain what it draws so it never blocks on a full pty, then hang up.
+    std::thread::sleep(Duration::from_millis(1500));
+    assert!(child.try_wait().unwrap().is_none(), "monitor ended early");
+    drop(pair);
+    let hung_up = Instant::now();
+    loop {
+        if child.try_wait().unwrap().is_some() {
+            break;
+        }
+        if hung_up.elapsed() > Duration::from_secs(10) {
+            let _ = child.kill();
+            panic!("monitor kept running 10 s after its terminal hung up");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}

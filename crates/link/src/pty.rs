@@ -130,6 +130,15 @@ impl PtyPair {
         let nonblocking = |fd: &OwnedFd| {
             nix::fcntl::fcntl(fd, FcntlArg::F_SETFL(OFlag::O_NONBLOCK | OFlag::O_RDWR)).map(drop)
         };
+        // `openpty` does not set close-on-exec: without it every child process (a
+        // simulator's client, a test's subprocess) would inherit the master and keep the
+        // pty alive, so closing it would never hang up the slave side.
+        let cloexec = |fd: &OwnedFd| {
+            nix::fcntl::fcntl(fd, FcntlArg::F_SETFD(nix::fcntl::FdFlag::FD_CLOEXEC)).map(drop)
+        };
+        cloexec(&pty.master)
+            .and_then(|()| cloexec(&pty.slave))
+            .map_err(|e| LinkError::io("setting close-on-exec on the pty", errno_io(e)))?;
         make_raw(&pty.slave, baud)
             .and_then(|()| make_raw(&pty.master, baud))
             .and_then(|()| nonblocking(&pty.master))

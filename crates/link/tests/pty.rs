@@ -294,3 +294,18 @@ fn termios2_rates_set_through_serialport_read_back_on_the_master() {
     port.set_baud(250_000).unwrap();
     assert_eq!(termios_speed(&master).unwrap(), Some(250_000));
 }
+
+/// Child processes must not inherit the pty: an inherited master keeps the pty alive, so
+/// closing it would never hang up the slave side (a client's terminal, a test's child).
+#[test]
+fn pty_descriptors_are_close_on_exec() {
+    use std::os::fd::AsFd;
+    let pair = PtyPair::open(&PtyOptions::default()).unwrap();
+    for link in [&pair.master, &pair.slave] {
+        let flags = nix::fcntl::fcntl(link.as_fd(), nix::fcntl::FcntlArg::F_GETFD).unwrap();
+        assert!(
+            nix::fcntl::FdFlag::from_bits_truncate(flags).contains(nix::fcntl::FdFlag::FD_CLOEXEC),
+            "{link:?}"
+        );
+    }
+}
