@@ -87,6 +87,9 @@ def main():
     ap.add_argument("--rate-hz", type=float, default=1000.0)
     ap.add_argument("--max-error-deg", type=float, default=1.0,
                     help="largest allowed |feedback - previous target|")
+    ap.add_argument("--allow-lost", type=int, default=0,
+                    help="servo frames that may go unanswered (UDP may drop datagrams "
+                         "when a stalled process overflows its socket buffer)")
     args = ap.parse_args()
 
     bus = can.Bus(interface=args.interface, channel=args.channel, fd=True)
@@ -134,6 +137,8 @@ def main():
         for k, (_, _, pos, _, error) in enumerate(feedback):
             errors |= error
             # Feedback k is sampled before target k takes effect: compare with target k-1.
+            # (After a lost datagram the pairing is off by the number lost; with --allow-lost
+            # that is a few hundredths of a degree per lost frame at the test's slope.)
             prev = targets[k - 1] if k > 0 else p0
             worst = max(worst, abs(pos - prev))
         positions = [f[2] for f in feedback] or [p0]
@@ -151,7 +156,7 @@ def main():
             "end_deg": None if end is None else end["position"] / 10000,
         }
         ok = (
-            replies == sent
+            replies >= sent - args.allow_lost
             and errors == 0
             and worst <= args.max_error_deg * 10000
             and hi - p0 >= amp * 0.9
