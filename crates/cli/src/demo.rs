@@ -2,8 +2,9 @@
 //!
 //! Starts, in this process and on the wall clock:
 //!
-//! - a wCK humanoid: 16 simulated wCK-1108 servos (IDs 0..=15) on a 115200 bit/s bus behind
-//!   a pseudo-terminal, exactly what `robobus sim wck` serves;
+//! - a wCK humanoid: 16 simulated wCK-1108 servos (IDs 0..=15) on a 115200 bit/s bus, the
+//!   bus `robobus sim wck` serves, reached through an in-process `SimLink` (its replies do
+//!   not depend on how loaded the machine is);
 //! - a 7-joint WHJ30 arm (IDs 1..=7) on an in-process CAN FD bus, served on its own thread.
 //!
 //! Then it does what a first session with real hardware does, through [`robobus::wck`]
@@ -221,34 +222,28 @@ fn check_stop(stop: &AtomicBool) -> anyhow::Result<()> {
     }
 }
 
-#[cfg(target_os = "linux")]
 fn humanoid(
     progress: &Progress,
     stop: &AtomicBool,
     wall: Instant,
     samples: &mut Samples,
 ) -> anyhow::Result<WckSummary> {
-    use robobus_link::{PtyOptions, PtyPair};
-    use robobus_sim::wck::{Bus, BusConfig, Endpoint, Model};
+    use robobus_sim::wck::{Bus, BusConfig, Model, SimLink};
 
-    let pty = PtyPair::open(&PtyOptions::default()).context("opening a pseudo-terminal")?;
-    let sim = Endpoint::spawn(
-        Bus::with_servos(BusConfig::default(), Model::W1108, 0..SERVOS),
-        pty.master,
-        pty.slave_path.clone(),
-    )
-    .context("starting the simulated wCK bus")?;
-    // The modules are deaf for 65 ms after power-up (plus a margin for a busy machine).
-    std::thread::sleep(robobus_wck::timing::POWER_UP_DEAF + Duration::from_millis(50));
-    let mut bus = WckBus::new(pty.slave, BaudRate::B115200)?
-        .with_device_name(format!("{} (simulated humanoid)", sim.path().display()));
-    // The simulator is a thread on this machine: a loaded (or shared, virtual) machine can
-    // hold it past the 10 ms a real module needs, and a late reply would be taken for the
-    // next command's. 50 ms covers all but rare stalls and keeps the 31-ID scan short.
-    bus.config_mut().margin = Duration::from_millis(50);
+    let (link, sim) = SimLink::new(Bus::with_servos(
+        BusConfig::default(),
+        Model::W1108,
+        0..SERVOS,
+    ));
+    // The modules are deaf for 65 ms after power-up.
+    std::thread::sleep(
+        (robobus_wck::timing::POWER_UP_DEAF + Duration::from_millis(5)).saturating_sub(sim.now()),
+    );
+    let mut bus =
+        WckBus::new(link, BaudRate::B115200)?.with_device_name("simulated humanoid (in-process)");
     let started = Instant::now();
     let result = humanoid_run(&mut bus, progress, stop, wall, samples);
-    let served = sim.stop().context("stopping the simulated wCK bus")?;
+    let served = sim.with_bus(|b| b.stats());
     let (found, scan, poses, polls) = result?;
     Ok(WckSummary {
         found,
@@ -256,22 +251,10 @@ fn humanoid(
         poses,
         polls,
         stats: bus.stats(),
-        bytes_out: served.bytes_in,
-        bytes_in: served.bytes_out,
+        bytes_out: served.host_bytes,
+        bytes_in: served.received_bytes,
         elapsed: started.elapsed(),
     })
-}
-
-#[cfg(not(target_os = "linux"))]
-fn humanoid(
-    _progress: &Progress,
-    _stop: &AtomicBool,
-    _wall: Instant,
-    _samples: &mut Samples,
-) -> anyhow::Result<WckSummary> {
-    Err(anyhow::Error::new(crate::exit::NotAvailable(
-        "robobus demo needs Linux (the simulated wCK bus sits behind a pseudo-terminal)".into(),
-    )))
 }
 
 type HumanoidRun = (Vec<u8>, Duration, Vec<Pose>, u64);
@@ -396,7 +379,7 @@ fn arm(
             robobus_sim::whj::serve(&mut sim, &mut sim_end, &flag)
         })
         .context("starting the simulated WHJ arm")?;
-    let bus = JointBus::open(wire.endpoint())?;
+    let bus = JointBus::open_with(wire.endpoint(), crate::client::whj::in_process_config())?;
     let result = arm_run(&bus, progress, stop, seconds, wall, samples);
     // Safe state whatever happened: every joint disabled.
     for id in 1..=JOINTS {
@@ -700,7 +683,7 @@ fn summary_text(
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "wCK humanoid: {SERVOS} x wCK-1108 on one 115200 bit/s bus (simulated, behind a pty)"
+        "wCK humanoid: {SERVOS} x wCK-1108 on one 115200 bit/s bus (simulated, in-process)"
     );
     let _ = writeln!(
         s,

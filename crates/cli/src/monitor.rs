@@ -608,7 +608,8 @@ fn run_sim(args: &Args) -> anyhow::Result<()> {
         robobus_sim::whj::serve(&mut sim, &mut sim_end, &flag)
     });
     let result = (|| {
-        let bus = JointBus::open(wire.endpoint()).map_err(whj_error)?;
+        let bus = JointBus::open_with(wire.endpoint(), crate::client::whj::in_process_config())
+            .map_err(whj_error)?;
         let ids: Vec<JointId> = joints
             .iter()
             .filter_map(|&j| JointId::new(j).ok())
