@@ -63,7 +63,8 @@ fn inner_socketcan_in_uml() {
         "this test only runs inside the User-Mode Linux guest its outer test boots"
     );
     let sim = Sim::serve(chain(7), SocketCanLink::open("vcan0").unwrap());
-    let bus = JointBus::open(SocketCanLink::open("vcan0").unwrap()).unwrap();
+    let bus =
+        JointBus::open_with(SocketCanLink::open("vcan0").unwrap(), whj_common::config()).unwrap();
     let joints: Vec<_> = (1..=7).map(j).collect();
     for &id in &joints {
         let joint = bus.joint(id).unwrap();
@@ -96,8 +97,8 @@ fn inner_socketcan_in_uml() {
         eprintln!("SocketCAN {protocol:?} 7 joints every 20 ms: {stats:#?}");
         // User-Mode Linux runs on one emulated CPU: the numbers are a measurement; the
         // loop must run and the joints must arrive (checked below).
-        assert!(stats.cycles >= 50, "{stats:?}");
-        assert!(stats.complete >= 10, "{stats:?}");
+        assert!(stats.cycles >= 20, "{stats:?}");
+        assert!(stats.complete >= 5, "{stats:?}");
         assert_eq!(
             stats.complete + stats.deadline_misses,
             stats.cycles,

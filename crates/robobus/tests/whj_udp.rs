@@ -77,7 +77,7 @@ fn whj_client_over_udp_in_a_private_network_namespace() {
 fn inner_every_operation_and_a_seven_joint_loop() {
     in_namespace();
     let sim = Sim::serve(chain(7), UdpBus::open(&udp(1)).unwrap());
-    let bus = JointBus::open(UdpBus::open(&udp(1)).unwrap()).unwrap();
+    let bus = JointBus::open_with(UdpBus::open(&udp(1)).unwrap(), whj_common::config()).unwrap();
     let joints: Vec<_> = (1..=7).map(j).collect();
     for &id in &joints {
         let joint = bus.joint(id).unwrap();
@@ -175,7 +175,7 @@ fn inner_reads_with_corrupted_frames() {
 fn inner_unplugged_joint_times_out_naming_it() {
     in_namespace();
     let sim = Sim::serve(chain(3), UdpBus::open(&udp(3)).unwrap());
-    let bus = JointBus::open(UdpBus::open(&udp(3)).unwrap()).unwrap();
+    let bus = JointBus::open_with(UdpBus::open(&udp(3)).unwrap(), whj_common::config()).unwrap();
     let joint = bus.joint(j(3)).unwrap();
     joint.status().unwrap();
     drop(sim.stop());

@@ -234,10 +234,12 @@ type Row = Vec<(&'static str, Value)>;
 
 /// The client settings for a simulated arm in this process: its simulator is a thread on
 /// the same machine, which a loaded (or shared, virtual) machine can hold for far longer
-/// than the 0.2 ms a real joint needs, so replies get 250 ms instead of 20 ms.
+/// than the 0.2 ms a real joint needs, so replies get 250 ms instead of 20 ms, and reads
+/// five retries instead of two.
 pub(crate) fn in_process_config() -> JointBusConfig {
     JointBusConfig {
         reply_timeout: Duration::from_millis(250),
+        retries: 5,
         ..JointBusConfig::default()
     }
 }
