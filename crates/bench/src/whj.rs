@@ -249,23 +249,11 @@ pub fn free_running_on(
     })
 }
 
-/// The client settings of the benchmarks: the defaults, but a set-up or status request
-/// waits 250 ms and retries five times, so that a stall of the shared machine (the
-/// simulator is a thread or process on it) fails no benchmark; the measured loops never
-/// wait that long unless a frame is lost.
-fn client_config() -> JointBusConfig {
-    JointBusConfig {
-        reply_timeout: Duration::from_millis(250),
-        retries: 5,
-        ..JointBusConfig::default()
-    }
-}
-
 /// Free-running cycle over the in-process memory bus.
 pub fn free_running_memory(spec: ChainSpec, duration: Duration) -> Result<FreeResult, BenchError> {
     let wire = MemoryBus::new();
     let sim = SimThread::spawn(spec.build(), wire.endpoint());
-    let bus = JointBus::open_with(wire.endpoint(), client_config())
+    let bus = JointBus::open_with(wire.endpoint(), JointBusConfig::simulated())
         .map_err(|e| BenchError::new("JointBus", e))?;
     let joints = prepare(&bus, spec.joints)?;
     let mut r = free_running_on(&bus, &joints, spec, "memory", duration)?;
@@ -369,8 +357,8 @@ pub fn fixed_rate(
     let wire = MemoryBus::new();
     let sim = SimThread::spawn(spec.build(), wire.endpoint());
     let (link, observed) = ObservedLink::new(wire.endpoint());
-    let bus =
-        JointBus::open_with(link, client_config()).map_err(|e| BenchError::new("JointBus", e))?;
+    let bus = JointBus::open_with(link, JointBusConfig::simulated())
+        .map_err(|e| BenchError::new("JointBus", e))?;
     let joints = prepare(&bus, spec.joints)?;
     let period = Duration::from_secs(1) / hz.max(1);
     let mut config = CyclicConfig::position(joints.iter().map(|j| j.0).collect(), period);
@@ -626,8 +614,8 @@ pub fn udp_compare(
 ) -> Result<FreeResult, BenchError> {
     let sim = ChildSim::start(exe, spec)?;
     let link = UdpBus::open(&UdpBusConfig::default()).map_err(|e| BenchError::new("UDP bus", e))?;
-    let bus =
-        JointBus::open_with(link, client_config()).map_err(|e| BenchError::new("JointBus", e))?;
+    let bus = JointBus::open_with(link, JointBusConfig::simulated())
+        .map_err(|e| BenchError::new("JointBus", e))?;
     let joints = prepare(&bus, spec.joints)?;
     let mut r = free_running_on(&bus, &joints, spec, "UDP", duration)?;
     drop(bus);

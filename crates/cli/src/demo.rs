@@ -379,7 +379,7 @@ fn arm(
             robobus_sim::whj::serve(&mut sim, &mut sim_end, &flag)
         })
         .context("starting the simulated WHJ arm")?;
-    let bus = JointBus::open_with(wire.endpoint(), crate::client::whj::in_process_config())?;
+    let bus = JointBus::open_with(wire.endpoint(), robobus::whj::JointBusConfig::simulated())?;
     let result = arm_run(&bus, progress, stop, seconds, wall, samples);
     // Safe state whatever happened: every joint disabled.
     for id in 1..=JOINTS {

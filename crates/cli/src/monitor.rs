@@ -608,7 +608,7 @@ fn run_sim(args: &Args) -> anyhow::Result<()> {
         robobus_sim::whj::serve(&mut sim, &mut sim_end, &flag)
     });
     let result = (|| {
-        let bus = JointBus::open_with(wire.endpoint(), crate::client::whj::in_process_config())
+        let bus = JointBus::open_with(wire.endpoint(), robobus::whj::JointBusConfig::simulated())
             .map_err(whj_error)?;
         let ids: Vec<JointId> = joints
             .iter()

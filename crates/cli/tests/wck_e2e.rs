@@ -20,6 +20,17 @@ use serde_json::Value;
 /// misses its deadline would be taken for the next command's (wCK replies carry no ID).
 const MARGIN: &str = "300";
 
+/// Sends SIGINT (Ctrl-C) to `child` and waits for it to end.
+fn interrupt(child: std::process::Child) -> std::process::Output {
+    let signalled = Command::new("kill")
+        .arg("-INT")
+        .arg(child.id().to_string())
+        .status()
+        .unwrap();
+    assert!(signalled.success());
+    child.wait_with_output().unwrap()
+}
+
 /// `robobus sim wck` in its own process, stopped (SIGTERM) on drop.
 struct Sim {
     child: Child,
@@ -554,13 +565,7 @@ fn ctrl_c_during_play_holds_the_servos_and_exits_130() {
         .spawn()
         .unwrap();
     std::thread::sleep(Duration::from_millis(1200));
-    let signalled = Command::new("kill")
-        .arg("-INT")
-        .arg(child.id().to_string())
-        .status()
-        .unwrap();
-    assert!(signalled.success());
-    let out = child.wait_with_output().unwrap();
+    let out = interrupt(child);
     assert_eq!(out.status.code(), Some(130), "{out:?}");
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("interrupted"), "{stderr}");
@@ -665,13 +670,7 @@ fn ctrl_c_ends_teach_keeps_the_recording_and_exits_130() {
         .spawn()
         .unwrap();
     std::thread::sleep(Duration::from_millis(500));
-    let signalled = Command::new("kill")
-        .arg("-INT")
-        .arg(child.id().to_string())
-        .status()
-        .unwrap();
-    assert!(signalled.success());
-    let out = child.wait_with_output().unwrap();
+    let out = interrupt(child);
     assert_eq!(out.status.code(), Some(130), "{out:?}");
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("hold"), "{stderr}");

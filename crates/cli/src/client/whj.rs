@@ -232,18 +232,6 @@ pub(crate) fn open_link(bus: &str) -> anyhow::Result<Box<dyn FrameLink + Send>> 
 
 type Row = Vec<(&'static str, Value)>;
 
-/// The client settings for a simulated arm in this process: its simulator is a thread on
-/// the same machine, which a loaded (or shared, virtual) machine can hold for far longer
-/// than the 0.2 ms a real joint needs, so replies get 250 ms instead of 20 ms, and reads
-/// five retries instead of two.
-pub(crate) fn in_process_config() -> JointBusConfig {
-    JointBusConfig {
-        reply_timeout: Duration::from_millis(250),
-        retries: 5,
-        ..JointBusConfig::default()
-    }
-}
-
 /// Runs a `robobus whj` command on the bus.
 pub(crate) fn execute(job: &WhjJob<'_>) -> anyhow::Result<()> {
     let link = open_link(job.bus)?;

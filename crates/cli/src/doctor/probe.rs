@@ -322,33 +322,44 @@ mod tests {
         );
     }
 
+    /// Runs `f` on a client bus to simulated joints `configs`, served on a thread.
+    fn with_whj_bus<R>(configs: Vec<JointConfig>, f: impl FnOnce(&JointBus) -> R) -> R {
+        use std::sync::Arc;
+        use std::sync::atomic::{AtomicBool, Ordering};
+        let wire = robobus_link::MemoryBus::new();
+        let mut sim = WhjBus::with_configs(configs, 11);
+        let stop = Arc::new(AtomicBool::new(false));
+        let flag = Arc::clone(&stop);
+        let mut sim_link = wire.endpoint();
+        let server = std::thread::spawn(move || {
+            robobus_sim::whj::serve(&mut sim, &mut sim_link, &flag).unwrap();
+        });
+        // A silent joint gives up after 0.5 s.
+        let config = robobus::whj::JointBusConfig {
+            connect_timeout: Duration::from_millis(500),
+            ..robobus::whj::JointBusConfig::simulated()
+        };
+        let bus = JointBus::open_with(wire.endpoint(), config).unwrap();
+        let out = f(&bus);
+        drop(bus);
+        stop.store(true, Ordering::Relaxed);
+        server.join().unwrap();
+        out
+    }
+
     #[test]
     fn whj_probe_finds_running_iap_silent_and_old_firmware() {
         // J1 still in its bootloader (as shipped), J2 already running with old firmware.
         let j1 = JointConfig::new(1, WhjModel::Whj30);
         let mut j2 = JointConfig::new(2, WhjModel::Whj30);
         j2.firmware = FirmwareVersion(0xD505);
-        let wire = robobus_link::MemoryBus::new();
-        let mut sim = WhjBus::with_configs(vec![j1, j2], 11);
-        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-        let flag = std::sync::Arc::clone(&stop);
-        let mut sim_link = wire.endpoint();
-        let server = std::thread::spawn(move || {
-            robobus_sim::whj::serve(&mut sim, &mut sim_link, &flag).unwrap();
+        let f = with_whj_bus(vec![j1, j2], |bus| {
+            // J2 running: release it first, as a program would have.
+            bus.joint_unchecked(JointId::new(2).unwrap())
+                .release_iap()
+                .unwrap();
+            whj(bus, "mem", &[1, 2, 3])
         });
-        let config = robobus::whj::JointBusConfig {
-            reply_timeout: Duration::from_millis(250),
-            connect_timeout: Duration::from_millis(500),
-            ..robobus::whj::JointBusConfig::default()
-        };
-        let bus = JointBus::open_with(wire.endpoint(), config).unwrap();
-        // J2 running: release it first, as a program would have.
-        bus.joint_unchecked(JointId::new(2).unwrap())
-            .release_iap()
-            .unwrap();
-        let f = whj(&bus, "mem", &[1, 2, 3]);
-        stop.store(true, std::sync::atomic::Ordering::Relaxed);
-        server.join().unwrap();
 
         assert_eq!(status_of(&f, "J1 ", "iap").status, Status::Warn, "{f:#?}");
         assert_eq!(
@@ -376,26 +387,11 @@ mod tests {
 
     #[test]
     fn whj_probe_finds_two_joints_sharing_an_id() {
-        let wire = robobus_link::MemoryBus::new();
         let configs = vec![
             JointConfig::new(4, WhjModel::Whj30),
             JointConfig::new(4, WhjModel::Whj30),
         ];
-        let mut sim = WhjBus::with_configs(configs, 11);
-        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-        let flag = std::sync::Arc::clone(&stop);
-        let mut sim_link = wire.endpoint();
-        let server = std::thread::spawn(move || {
-            robobus_sim::whj::serve(&mut sim, &mut sim_link, &flag).unwrap();
-        });
-        let config = robobus::whj::JointBusConfig {
-            reply_timeout: Duration::from_millis(250),
-            ..robobus::whj::JointBusConfig::default()
-        };
-        let bus = JointBus::open_with(wire.endpoint(), config).unwrap();
-        let f = whj(&bus, "mem", &[4]);
-        stop.store(true, std::sync::atomic::Ordering::Relaxed);
-        server.join().unwrap();
+        let f = with_whj_bus(configs, |bus| whj(bus, "mem", &[4]));
         let dup = status_of(&f, "J4 ", "duplicate-id");
         assert_eq!(dup.status, Status::Fail, "{f:#?}");
         assert!(dup.fix.as_deref().unwrap().contains("set-id 4"), "{f:#?}");

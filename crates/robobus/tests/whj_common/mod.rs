@@ -75,10 +75,13 @@ pub fn configs(configs: Vec<JointConfig>) -> WhjBus {
 /// 50 ms); a real joint answers in about 0.2 ms, well within the default 20 ms.
 pub const REPLY_TIMEOUT: Duration = Duration::from_millis(250);
 
-/// The client configuration of the tests: the defaults with [`REPLY_TIMEOUT`].
+/// The client configuration of the tests: [`JointBusConfig::simulated`]'s reply timeout,
+/// with the default retries (the timeout tests count three attempts).
 pub fn config() -> JointBusConfig {
-    JointBusConfig {
-        reply_timeout: REPLY_TIMEOUT,
-        ..JointBusConfig::default()
-    }
+    let config = JointBusConfig {
+        retries: JointBusConfig::default().retries,
+        ..JointBusConfig::simulated()
+    };
+    debug_assert_eq!(config.reply_timeout, REPLY_TIMEOUT);
+    config
 }
