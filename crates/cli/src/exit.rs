@@ -44,6 +44,24 @@ impl Exit {
     }
 }
 
+/// The text of an error and its causes, joined by `: `, leaving out a cause whose text
+/// the message already carries (library errors often print their source themselves, so
+/// anyhow's `{:#}` would say the same thing twice).
+pub(crate) fn message(err: &anyhow::Error) -> String {
+    let mut text = String::new();
+    for cause in err.chain() {
+        let part = cause.to_string();
+        if text.contains(&part) {
+            continue;
+        }
+        if !text.is_empty() {
+            text.push_str(": ");
+        }
+        text.push_str(&part);
+    }
+    text
+}
+
 /// A usage or validation error (exit code 2). The message names the option, the value and
 /// what is allowed.
 #[derive(Debug)]
@@ -115,6 +133,38 @@ impl std::error::Error for Interrupted {}
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_cause_the_message_already_carries_is_said_once() {
+        #[derive(Debug)]
+        struct Inner;
+        impl fmt::Display for Inner {
+            fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str("device busy")
+            }
+        }
+        impl std::error::Error for Inner {}
+        #[derive(Debug)]
+        struct Outer(Inner);
+        impl fmt::Display for Outer {
+            fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                write!(f, "link error during open: {}", self.0)
+            }
+        }
+        impl std::error::Error for Outer {
+            fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+                Some(&self.0)
+            }
+        }
+        let e = anyhow::Error::new(Outer(Inner)).context("opening /dev/ttyUSB0");
+        assert_eq!(
+            message(&e),
+            "opening /dev/ttyUSB0: link error during open: device busy"
+        );
+        assert_eq!(format!("{e:#}").matches("device busy").count(), 2);
+        let plain = anyhow::anyhow!("timeout").context("reading J1");
+        assert_eq!(message(&plain), "reading J1: timeout");
+    }
 
     #[test]
     fn markers_select_their_codes_even_with_context() {

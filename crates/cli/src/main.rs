@@ -113,10 +113,12 @@ enum Command {
     Wck(wck::Args),
     /// Drive WHJ joints on a CAN FD bus (SocketCAN or the python-can UDP bus).
     Whj(whj::Args),
-    /// Live terminal dashboard of a WHJ bus or a wCK port; records to CSV.
+    /// Live terminal dashboard of a WHJ bus, a wCK port or a robot file; records to CSV.
     ///
     /// Positions, speeds, currents (wCK: load), enable state and errors, with a scrolling
-    /// plot of the positions; `q`, `Esc` or Ctrl-C quit.
+    /// plot of the positions; `q`, `Esc` or Ctrl-C quit. Only reads: nothing is enabled,
+    /// moved or released. With --json (or without a terminal) it prints samples instead:
+    /// one JSON object per sample, or one text line per second.
     Monitor(monitor::Args),
     /// Plot a recording (CSV) to a PNG or SVG file.
     Plot(plot::Args),
@@ -175,7 +177,7 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
             let code = Exit::of(&err);
-            eprintln!("robobus: error: {err:#}");
+            eprintln!("robobus: error: {}", exit::message(&err));
             ExitCode::from(code as u8)
         }
     }

@@ -7,15 +7,22 @@
 //!   [`robobus::whj::JointBus`].
 //! - `--port PATH --servos 0-15`: wCK servos, read-only: a status read (position, load)
 //!   per servo through [`robobus::wck::WckBus`]; the speed is the position's derivative.
+//! - `--robot FILE.toml`: every joint of a robot file, by name, in the file's order, as
+//!   joint angles (the file's `offset`, `direction` and wCK `centre` applied) in degrees
+//!   and deg/s. The file's buses are opened for reading only
+//!   ([`robobus::robot::open_wck_bus`], [`robobus::robot::open_whj_bus`]), without a
+//!   [`robobus::robot::Robot`]: nothing is enabled, and ending the monitor neither
+//!   disables an arm nor releases a servo.
 //! - `--sim`: the built-in simulated WHJ arm (joints 1..=7, in-process), which the monitor
 //!   itself drives along a slow sine through the cyclic loop, so there is something to
 //!   watch without hardware; the values are the loop's feedback.
 //!
 //! On a terminal it draws a table (position, speed, current / load, enable, errors) and a
 //! scrolling plot of the positions with ratatui; `q`, `Esc` or Ctrl-C quit and the terminal
-//! is restored. Without a terminal it prints one line per second instead. `--record
-//! FILE.csv` writes every sample in the format `robobus plot` reads; `--duration` ends the
-//! run by itself.
+//! is restored. Without a terminal it prints one line per second instead; with `--json`,
+//! one JSON object per sample (JSON lines, never the dashboard). `--record FILE.csv`
+//! writes every sample in the format `robobus plot` reads; `--duration` ends the run by
+//! itself.
 
 use std::collections::VecDeque;
 use std::fmt::Write as _;
@@ -32,7 +39,9 @@ use ratatui::style::{Color, Style, Stylize as _};
 use ratatui::symbols::Marker;
 use ratatui::text::Line;
 use ratatui::widgets::{Axis, Block, Cell, Chart, Dataset, GraphType, Paragraph, Row, Table};
-use robobus::wck::WckBus;
+use robobus::actuator::{JointMap, WckScale, whj_to_rad};
+use robobus::robot::{BusConfig, DynByteLink, RobotConfig, RobotError};
+use robobus::wck::{WckBus, WckConfig};
 use robobus::whj::{CyclicConfig, JointBus, JointBusConfig, MotionLimits};
 use robobus_wck::{BaudRate, ServoId};
 use robobus_whj::JointId;
@@ -50,13 +59,13 @@ const WINDOW_S: f64 = 10.0;
 #[command(after_help = crate::plot::FORMAT_HELP)]
 pub(crate) struct Args {
     /// A WHJ bus: `udp`, `udp:GROUP:PORT` or a SocketCAN interface (with --joints).
-    #[arg(long, value_name = "BUS", conflicts_with_all = ["port", "sim"])]
+    #[arg(long, value_name = "BUS", conflicts_with_all = ["port", "sim", "robot"])]
     bus: Option<String>,
     /// WHJ joint IDs to watch, e.g. `1-7` or `1,3`.
     #[arg(long, default_value = "1-7", value_parser = parse_ids_1_30)]
     joints: Ids,
     /// A wCK serial port (with --servos).
-    #[arg(long, value_name = "PATH", conflicts_with = "sim")]
+    #[arg(long, value_name = "PATH", conflicts_with_all = ["sim", "robot"])]
     port: Option<PathBuf>,
     /// wCK servo IDs to watch, e.g. `0-15`.
     #[arg(long, default_value = "0-15", value_parser = parse_ids_0_30)]
@@ -64,6 +73,14 @@ pub(crate) struct Args {
     /// wCK baud rate (bit/s).
     #[arg(long, default_value_t = 115_200)]
     baud: u32,
+    /// Extra time to wait for each wCK reply beyond its modelled wire time, in ms
+    /// (default 10, plus a USB adapter's latency timer when it can be read).
+    #[arg(long, value_name = "MS", value_parser = crate::wck::parse_margin)]
+    reply_margin: Option<Duration>,
+    /// Every joint of a robot file (the TOML `robobus::robot` reads), as joint angles;
+    /// its buses are only read: nothing is enabled or released.
+    #[arg(long, value_name = "FILE.toml", conflicts_with = "sim")]
+    robot: Option<PathBuf>,
     /// Watch the built-in simulated WHJ arm (7 joints, in-process), moved along a slow
     /// sine by the monitor itself.
     #[arg(long)]
@@ -148,6 +165,8 @@ pub(crate) struct Channel {
     pub(crate) speed: Option<f64>,
     /// Current in mA (WHJ) or load (wCK, 0..=255).
     pub(crate) effort: Option<f64>,
+    /// Unit of `effort`: `mA` (WHJ) or `load` (wCK).
+    pub(crate) effort_unit: &'static str,
     /// Drive enabled (WHJ).
     pub(crate) enabled: Option<bool>,
     /// Error text of the latest sample (`no error`, an error bit list, `timeout`).
@@ -175,6 +194,8 @@ pub(crate) struct Dashboard {
     pub(crate) samples: u64,
     /// Where samples are recorded.
     pub(crate) recording: Option<String>,
+    /// Channels are a robot file's joints (named), not device IDs.
+    pub(crate) named_joints: bool,
 }
 
 impl Dashboard {
@@ -192,20 +213,46 @@ impl Dashboard {
 
     fn csv_header(&self) -> String {
         let mut s = String::from("t_s");
+        let speed = self.speed_unit.replace('/', "_per_").to_ascii_lowercase();
         for c in &self.channels {
-            let _ = write!(
-                s,
-                ",{n}_deg,{n}_{},{n}_{}",
-                self.speed_unit.replace('/', "_per_").to_ascii_lowercase(),
-                if self.effort_name == "load" {
-                    "load"
-                } else {
-                    "mA"
-                },
-                n = c.name.to_ascii_lowercase()
-            );
+            let n = column_name(&c.name);
+            let _ = write!(s, ",{n}_deg,{n}_{speed},{n}_{}", c.effort_unit);
         }
         s
+    }
+
+    /// One sample as a JSON object (`robobus --json monitor` prints one per line).
+    fn json_line(&self) -> String {
+        let speed_key = format!(
+            "speed_{}",
+            self.speed_unit.replace('/', "_per_").to_ascii_lowercase()
+        );
+        let channels: Vec<serde_json::Value> = self
+            .channels
+            .iter()
+            .map(|c| {
+                let mut o = serde_json::Map::new();
+                o.insert("name".into(), c.name.clone().into());
+                o.insert("position_deg".into(), c.position.into());
+                o.insert(speed_key.clone(), c.speed.into());
+                let effort_key = if c.effort_unit == "mA" {
+                    "current_ma"
+                } else {
+                    "load"
+                };
+                o.insert(effort_key.into(), c.effort.into());
+                o.insert("enabled".into(), c.enabled.into());
+                o.insert("error".into(), c.error.clone().into());
+                o.insert("failures".into(), c.failures.into());
+                serde_json::Value::Object(o)
+            })
+            .collect();
+        serde_json::json!({
+            "t_s": (self.t * 1e4).round() / 1e4,
+            "sample": self.samples,
+            "channels": channels,
+        })
+        .to_string()
     }
 
     fn csv_row(&self) -> String {
@@ -237,6 +284,20 @@ impl Dashboard {
         }
         s
     }
+}
+
+/// A channel name as a CSV column prefix: lower case, anything but letters, digits and
+/// `_` replaced by `_` (joint names of a robot file are free text).
+fn column_name(name: &str) -> String {
+    name.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '_' {
+                c.to_ascii_lowercase()
+            } else {
+                '_'
+            }
+        })
+        .collect()
 }
 
 /// Line colours of the plot, one per channel (repeating).
@@ -272,6 +333,14 @@ pub(crate) fn render(f: &mut Frame<'_>, d: &Dashboard) {
     );
     let cell =
         |v: Option<f64>, prec: usize| v.map_or_else(|| "-".into(), |v| format!("{v:.prec$}"));
+    let name_width = d
+        .channels
+        .iter()
+        .map(|c| c.name.chars().count())
+        .max()
+        .unwrap_or(0)
+        .clamp(4, 24);
+    let name_width = u16::try_from(name_width + 1).unwrap_or(25);
     let body = d.channels.iter().map(|c| {
         let en = match c.enabled {
             Some(true) => "on",
@@ -294,7 +363,7 @@ pub(crate) fn render(f: &mut Frame<'_>, d: &Dashboard) {
         ])
     });
     let header = Row::new(vec![
-        "id".to_owned(),
+        if d.named_joints { "joint" } else { "id" }.to_owned(),
         "position deg".to_owned(),
         format!("speed {}", d.speed_unit),
         d.effort_name.to_owned(),
@@ -307,7 +376,7 @@ pub(crate) fn render(f: &mut Frame<'_>, d: &Dashboard) {
         Table::new(
             body,
             [
-                Constraint::Length(5),
+                Constraint::Length(name_width),
                 Constraint::Length(13),
                 Constraint::Length(12),
                 Constraint::Length(11),
@@ -381,102 +450,142 @@ pub(crate) fn render(f: &mut Frame<'_>, d: &Dashboard) {
     );
 }
 
-/// Where samples come from.
+/// Where samples come from: one source per bus. Each device fills the dashboard channel
+/// at its index; with a robot file's conversion it shows joint angles, else the device's
+/// own units.
 enum Source<'a> {
     Whj {
-        bus: &'a JointBus,
-        joints: Vec<JointId>,
+        bus: JointBus,
+        joints: Vec<(usize, JointId, Option<JointMap>)>,
     },
     Sim {
         cyc: robobus::whj::Cyclic<'a>,
         start: Instant,
     },
     Wck {
-        bus: WckBus<robobus_link::SerialLink>,
-        ids: Vec<ServoId>,
+        bus: WckBus<DynByteLink>,
+        servos: Vec<(usize, ServoId, Option<WckScale>)>,
+        /// (time, degrees) of each servo's previous reading, for its speed.
         last: Vec<Option<(f64, f64)>>,
     },
 }
 
-fn sample(src: &mut Source<'_>, d: &mut Dashboard) {
-    match src {
-        Source::Whj { bus, joints } => {
-            for (c, &id) in d.channels.iter_mut().zip(joints.iter()) {
-                let j = bus.joint_unchecked(id);
-                let scale = j
-                    .identity()
-                    .map_or(robobus_whj::units::CurrentScale::OneMilliamp, |i| {
-                        i.current_scale()
-                    });
-                match j.status() {
-                    Ok(st) => {
-                        c.position = Some(st.position.degrees());
-                        #[allow(clippy::cast_precision_loss)] // mA fit easily
-                        let ma = st.current.map(|cu| cu.milliamps(scale) as f64);
-                        c.effort = ma;
-                        c.enabled = Some(st.is_enabled());
-                        c.error = st.error.to_string();
-                        c.speed = j.speed().ok().map(robobus_whj::units::ActualSpeed::rpm);
-                    }
-                    Err(e) => {
-                        c.failures += 1;
-                        c.error = if e.is_timeout() {
-                            "timeout".into()
-                        } else {
-                            "bad reply".into()
-                        };
-                    }
-                }
-            }
-        }
-        Source::Sim { cyc, start } => {
-            let t = start.elapsed().as_secs_f64();
-            if let Some(r) = cyc.latest() {
-                for (c, fb) in d.channels.iter_mut().zip(&r.feedback) {
-                    match fb {
-                        Some(fb) => {
-                            c.position = Some(fb.position.degrees());
-                            c.speed = Some(fb.speed.rpm());
-                            #[allow(clippy::cast_precision_loss)]
-                            let ma = fb
-                                .current
-                                .milliamps(robobus_whj::units::CurrentScale::OneMilliamp)
-                                as f64;
-                            c.effort = Some(ma);
-                            c.enabled = Some(fb.enabled);
-                            c.error = fb.error.to_string();
-                        }
-                        None => c.failures += 1,
-                    }
-                }
-            }
-            let targets: Vec<Position> = (0..d.channels.len())
-                .filter_map(|i| {
-                    #[allow(clippy::cast_precision_loss)]
-                    let phase = i as f64 * 0.5;
-                    Position::from_degrees(
-                        15.0 * (std::f64::consts::TAU * 0.2 * t + phase).sin() - 15.0 * phase.sin(),
-                    )
-                    .ok()
-                })
-                .collect();
-            let _ = cyc.set_positions(&targets);
-        }
-        Source::Wck { bus, ids, last } => {
-            for ((c, &id), prev) in d.channels.iter_mut().zip(ids.iter()).zip(last.iter_mut()) {
-                if let Ok(st) = bus.servo(id).status() {
-                    // The same degrees `robobus wck status` prints (0..=269°).
-                    let deg = st.position.degrees();
-                    let now = d.t;
-                    c.speed = prev.and_then(|(t0, p0)| (now > t0).then(|| (deg - p0) / (now - t0)));
-                    *prev = Some((now, deg));
-                    c.position = Some(deg);
-                    c.effort = Some(f64::from(st.load.get()));
-                    c.error = "ok".into();
+/// RPM to degrees per second.
+const DEG_S_PER_RPM: f64 = 6.0;
+
+fn sample_whj(
+    bus: &JointBus,
+    joints: &[(usize, JointId, Option<JointMap>)],
+    channels: &mut [Channel],
+) {
+    for &(i, id, map) in joints {
+        let Some(c) = channels.get_mut(i) else {
+            continue;
+        };
+        let j = bus.joint_unchecked(id);
+        let scale = j
+            .identity()
+            .map_or(robobus_whj::units::CurrentScale::OneMilliamp, |i| {
+                i.current_scale()
+            });
+        match j.status() {
+            Ok(st) => {
+                let rpm = j.speed().ok().map(robobus_whj::units::ActualSpeed::rpm);
+                if let Some(map) = map {
+                    c.position = Some(whj_to_rad(map, st.position).to_degrees());
+                    c.speed = rpm.map(|r| map.speed_to_joint(r * DEG_S_PER_RPM));
                 } else {
-                    c.failures += 1;
-                    c.error = "no reply".into();
+                    c.position = Some(st.position.degrees());
+                    c.speed = rpm;
                 }
+                #[allow(clippy::cast_precision_loss)] // mA fit easily
+                let ma = st.current.map(|cu| cu.milliamps(scale) as f64);
+                c.effort = ma;
+                c.enabled = Some(st.is_enabled());
+                c.error = st.error.to_string();
+            }
+            Err(e) => {
+                c.failures += 1;
+                c.error = if e.is_timeout() {
+                    "timeout".into()
+                } else {
+                    "bad reply".into()
+                };
+            }
+        }
+    }
+}
+
+fn sample_sim(cyc: &mut robobus::whj::Cyclic<'_>, start: Instant, channels: &mut [Channel]) {
+    let t = start.elapsed().as_secs_f64();
+    if let Some(r) = cyc.latest() {
+        for (c, fb) in channels.iter_mut().zip(&r.feedback) {
+            match fb {
+                Some(fb) => {
+                    c.position = Some(fb.position.degrees());
+                    c.speed = Some(fb.speed.rpm());
+                    #[allow(clippy::cast_precision_loss)]
+                    let ma = fb
+                        .current
+                        .milliamps(robobus_whj::units::CurrentScale::OneMilliamp)
+                        as f64;
+                    c.effort = Some(ma);
+                    c.enabled = Some(fb.enabled);
+                    c.error = fb.error.to_string();
+                }
+                None => c.failures += 1,
+            }
+        }
+    }
+    let targets: Vec<Position> = (0..channels.len())
+        .filter_map(|i| {
+            #[allow(clippy::cast_precision_loss)]
+            let phase = i as f64 * 0.5;
+            Position::from_degrees(
+                15.0 * (std::f64::consts::TAU * 0.2 * t + phase).sin() - 15.0 * phase.sin(),
+            )
+            .ok()
+        })
+        .collect();
+    let _ = cyc.set_positions(&targets);
+}
+
+fn sample_wck(
+    bus: &mut WckBus<DynByteLink>,
+    servos: &[(usize, ServoId, Option<WckScale>)],
+    last: &mut [Option<(f64, f64)>],
+    now: f64,
+    channels: &mut [Channel],
+) {
+    for (&(i, id, scale), prev) in servos.iter().zip(last.iter_mut()) {
+        let Some(c) = channels.get_mut(i) else {
+            continue;
+        };
+        if let Ok(st) = bus.servo(id).status() {
+            let deg = match scale {
+                Some(scale) => scale.to_rad(st.position).to_degrees(),
+                // The same degrees `robobus wck status` prints (0..=269°).
+                None => st.position.degrees(),
+            };
+            c.speed = prev.and_then(|(t0, p0)| (now > t0).then(|| (deg - p0) / (now - t0)));
+            *prev = Some((now, deg));
+            c.position = Some(deg);
+            c.effort = Some(f64::from(st.load.get()));
+            c.error = "ok".into();
+        } else {
+            c.failures += 1;
+            c.error = "no reply".into();
+        }
+    }
+}
+
+fn sample(srcs: &mut [Source<'_>], d: &mut Dashboard) {
+    for src in srcs {
+        match src {
+            Source::Whj { bus, joints } => sample_whj(bus, joints, &mut d.channels),
+            Source::Sim { cyc, start } => sample_sim(cyc, *start, &mut d.channels),
+            Source::Wck { bus, servos, last } => {
+                sample_wck(bus, servos, last, d.t, &mut d.channels);
             }
         }
     }
@@ -510,46 +619,48 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     }
     let baud = BaudRate::from_bits_per_second(args.baud)
         .map_err(|e| usage(format!("--baud {}: {e}", args.baud)))?;
+    let out = Output { json: g.json };
     if args.sim {
-        return run_sim(args);
+        return run_sim(args, out);
+    }
+    if let Some(path) = &args.robot {
+        return run_robot(path, args, out);
     }
     if let Some(bus) = &args.bus {
         let link = open_link(bus)?;
-        let jb = JointBus::open_with(
-            link,
-            JointBusConfig {
-                connect_timeout: Duration::from_millis(300),
-                ..JointBusConfig::default()
-            },
-        )
-        .map_err(whj_error)?;
+        let jb = JointBus::open_with(link, whj_config()).map_err(whj_error)?;
         let joints: Vec<JointId> = args
             .joints
             .0
             .iter()
             .filter_map(|&j| JointId::new(j).ok())
             .collect();
-        // Joints wait in their bootloader after power-up until released (the vendor's
-        // required first operation); one that stays silent shows as `timeout`.
-        for &id in &joints {
-            if let Err(e) = jb.joint(id) {
-                tracing::info!("joint {id}: {e}");
-            }
-        }
+        connect_joints(&jb, &joints);
         let d = dashboard(
             format!("WHJ bus {bus}"),
             "RPM",
             "current mA",
-            joints.iter().map(|j| format!("J{}", j.get())),
+            joints.iter().map(|j| (format!("J{}", j.get()), "mA")),
             args,
         );
-        return watch(&mut Source::Whj { bus: &jb, joints }, d, args);
+        let joints = joints
+            .into_iter()
+            .enumerate()
+            .map(|(i, id)| (i, id, None))
+            .collect();
+        return watch(&mut [Source::Whj { bus: jb, joints }], d, args, out);
     }
     if let Some(port) = &args.port {
         let bus = WckBus::open(port, baud).map_err(|e| {
             anyhow::Error::new(crate::exit::Timeout(e.to_string()))
                 .context(format!("opening {}", port.display()))
         })?;
+        let config = *bus.config();
+        let link: DynByteLink = Box::new(bus.into_link());
+        let bus = WckBus::new(link, baud)
+            .map_err(|e| anyhow::anyhow!("{e}"))?
+            .with_config(wck_config(config, args))
+            .with_device_name(port.display().to_string());
         let ids: Vec<ServoId> = args
             .servos
             .0
@@ -560,23 +671,161 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
             format!("wCK port {} at {} bit/s", port.display(), args.baud),
             "deg/s",
             "load",
-            ids.iter().map(|s| format!("S{}", s.get())),
+            ids.iter().map(|s| (format!("S{}", s.get()), "load")),
             args,
         );
         let last = vec![None; ids.len()];
-        return watch(&mut Source::Wck { bus, ids, last }, d, args);
+        let servos = ids
+            .into_iter()
+            .enumerate()
+            .map(|(i, id)| (i, id, None))
+            .collect();
+        return watch(&mut [Source::Wck { bus, servos, last }], d, args, out);
     }
     Err(usage(
-        "robobus monitor: give --bus BUS (WHJ), --port PATH (wCK) or --sim (the built-in \
-         simulated arm)",
+        "robobus monitor: give --bus BUS (WHJ), --port PATH (wCK), --robot FILE.toml or \
+         --sim (the built-in simulated arm)",
     ))
+}
+
+/// How samples are printed when there is no dashboard.
+#[derive(Debug, Clone, Copy)]
+struct Output {
+    /// One JSON object per sample (and never the dashboard).
+    json: bool,
+}
+
+/// The WHJ client settings of the monitor: a short connect timeout, so a silent joint
+/// does not hold up the start (it shows as `timeout`).
+fn whj_config() -> JointBusConfig {
+    JointBusConfig {
+        connect_timeout: Duration::from_millis(300),
+        ..JointBusConfig::default()
+    }
+}
+
+/// `--reply-margin` applied to a wCK bus's settings.
+fn wck_config(config: WckConfig, args: &Args) -> WckConfig {
+    WckConfig {
+        margin: args.reply_margin.unwrap_or(config.margin),
+        ..config
+    }
+}
+
+/// Joints wait in their bootloader after power-up until released (the vendor's required
+/// first operation): release and identify each; one that stays silent shows as `timeout`.
+fn connect_joints(bus: &JointBus, joints: &[JointId]) {
+    for &id in joints {
+        if let Err(e) = bus.joint(id) {
+            tracing::info!("joint {id}: {e}");
+        }
+    }
+}
+
+/// A robot-file error as the CLI reports it: a port or interface that cannot be opened is
+/// a missing device (exit code 3), anything else is bad input (2).
+fn robot_error(path: &std::path::Path, e: RobotError) -> anyhow::Error {
+    match e {
+        RobotError::OpenWck { .. } | RobotError::OpenWhj { .. } => {
+            anyhow::Error::new(crate::exit::Timeout(format!("{}: {e}", path.display())))
+        }
+        e => usage(format!("--robot {}: {e}", path.display())),
+    }
+}
+
+/// `monitor --robot FILE`: every joint of the file, read through the file's buses.
+fn run_robot(path: &std::path::Path, args: &Args, out: Output) -> anyhow::Result<()> {
+    let config = RobotConfig::from_toml_file(path).map_err(|e| robot_error(path, e))?;
+    let mut sources = Vec::new();
+    let mut buses = Vec::new();
+    for (name, bus) in &config.buses {
+        let on_bus = || {
+            config
+                .joints
+                .iter()
+                .enumerate()
+                .filter(move |(_, j)| &j.bus == name)
+        };
+        match bus {
+            BusConfig::Wck { port, baud, .. } => {
+                let open =
+                    robobus::robot::open_wck_bus(name, bus).map_err(|e| robot_error(path, e))?;
+                let config = wck_config(*open.config(), args);
+                let servos: Vec<(usize, ServoId, Option<WckScale>)> = on_bus()
+                    .filter_map(|(i, j)| Some((i, ServoId::new(j.id).ok()?, Some(j.wck_scale()))))
+                    .collect();
+                buses.push(format!("{name}: wCK {port} at {baud} bit/s"));
+                sources.push(Source::Wck {
+                    bus: open.with_config(config),
+                    last: vec![None; servos.len()],
+                    servos,
+                });
+            }
+            BusConfig::WhjUdp { .. } | BusConfig::WhjCan { .. } => {
+                let jb = robobus::robot::open_whj_bus(name, bus, whj_config())
+                    .map_err(|e| robot_error(path, e))?;
+                let joints: Vec<(usize, JointId, Option<JointMap>)> = on_bus()
+                    .filter_map(|(i, j)| Some((i, JointId::new(j.id).ok()?, Some(j.map()))))
+                    .collect();
+                connect_joints(&jb, &joints.iter().map(|j| j.1).collect::<Vec<_>>());
+                buses.push(match bus {
+                    BusConfig::WhjCan { iface, .. } => format!("{name}: WHJ {iface}"),
+                    _ => format!("{name}: WHJ UDP"),
+                });
+                sources.push(Source::Whj { bus: jb, joints });
+            }
+            BusConfig::WckExternal { .. } | BusConfig::WhjExternal { .. } => {
+                return Err(usage(format!(
+                    "--robot {}: bus {name} has kind = \"{}\", which a program supplies; \
+                     the monitor opens buses of kind wck, whj-udp and whj-can",
+                    path.display(),
+                    bus.kind()
+                )));
+            }
+        }
+    }
+    let kinds: std::collections::BTreeSet<&str> = config
+        .joints
+        .iter()
+        .filter_map(|j| config.buses.get(&j.bus))
+        .map(|b| if b.is_wck() { "load" } else { "mA" })
+        .collect();
+    let effort_name = match (kinds.contains("mA"), kinds.contains("load")) {
+        (true, true) => "mA / load",
+        (false, true) => "load",
+        _ => "current mA",
+    };
+    let d = dashboard(
+        format!(
+            "{}: {} joints ({})",
+            path.display(),
+            config.joints.len(),
+            buses.join("; ")
+        ),
+        "deg/s",
+        effort_name,
+        config.joints.iter().map(|j| {
+            let unit = if config.buses.get(&j.bus).is_some_and(BusConfig::is_wck) {
+                "load"
+            } else {
+                "mA"
+            };
+            (j.name.clone(), unit)
+        }),
+        args,
+    );
+    let d = Dashboard {
+        named_joints: true,
+        ..d
+    };
+    watch(&mut sources, d, args, out)
 }
 
 fn dashboard(
     title: String,
     speed_unit: &'static str,
     effort_name: &'static str,
-    names: impl Iterator<Item = String>,
+    names: impl Iterator<Item = (String, &'static str)>,
     args: &Args,
 ) -> Dashboard {
     Dashboard {
@@ -584,8 +833,9 @@ fn dashboard(
         speed_unit,
         effort_name,
         channels: names
-            .map(|name| Channel {
+            .map(|(name, effort_unit)| Channel {
                 name,
+                effort_unit,
                 error: "-".into(),
                 ..Channel::default()
             })
@@ -595,7 +845,7 @@ fn dashboard(
     }
 }
 
-fn run_sim(args: &Args) -> anyhow::Result<()> {
+fn run_sim(args: &Args, out: Output) -> anyhow::Result<()> {
     use robobus_sim::whj::{WhjBus, WhjModel};
     let joints: Vec<u8> = args.joints.0.clone();
     let wire = robobus_link::MemoryBus::new();
@@ -631,14 +881,15 @@ fn run_sim(args: &Args) -> anyhow::Result<()> {
             format!("simulated WHJ30 arm, joints {}", ids_text(&joints)),
             "RPM",
             "current mA",
-            ids.iter().map(|j| format!("J{}", j.get())),
+            ids.iter().map(|j| (format!("J{}", j.get()), "mA")),
             args,
         );
-        let mut src = Source::Sim {
+        let mut src = [Source::Sim {
             cyc,
             start: Instant::now(),
-        };
-        let r = watch(&mut src, d, args);
+        }];
+        let r = watch(&mut src, d, args, out);
+        let [src] = src;
         if let Source::Sim { cyc, .. } = src {
             let _ = cyc.stop();
         }
@@ -715,7 +966,12 @@ fn quit_key(
     }
 }
 
-fn watch(src: &mut Source<'_>, mut d: Dashboard, args: &Args) -> anyhow::Result<()> {
+fn watch(
+    srcs: &mut [Source<'_>],
+    mut d: Dashboard,
+    args: &Args,
+    out: Output,
+) -> anyhow::Result<()> {
     let mut csv = match &args.record {
         Some(p) => {
             let mut f = std::io::BufWriter::new(
@@ -731,7 +987,7 @@ fn watch(src: &mut Source<'_>, mut d: Dashboard, args: &Args) -> anyhow::Result<
     let stop = Arc::new(AtomicBool::new(false));
     let flag = Arc::clone(&stop);
     let _ = ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst));
-    let tui = std::io::stdout().is_terminal();
+    let tui = !out.json && std::io::stdout().is_terminal();
     let mut terminal = if tui {
         Some(ratatui::try_init().context("setting up the terminal")?)
     } else {
@@ -752,7 +1008,7 @@ fn watch(src: &mut Source<'_>, mut d: Dashboard, args: &Args) -> anyhow::Result<
         if args.duration.is_some_and(|limit| d.t >= limit) {
             break;
         }
-        sample(src, &mut d);
+        sample(srcs, &mut d);
         if let Some(f) = &mut csv {
             writeln!(f, "{}", d.csv_row())?;
             if d.samples.is_multiple_of(16) {
@@ -761,6 +1017,8 @@ fn watch(src: &mut Source<'_>, mut d: Dashboard, args: &Args) -> anyhow::Result<
         }
         if let Some(term) = &mut terminal {
             term.draw(|f| render(f, &d))?;
+        } else if out.json {
+            crate::output::print(&format!("{}\n", d.json_line()))?;
         } else if d.t - last_line >= 1.0 {
             last_line = d.t;
             crate::output::print(&format!("{}\n", d.plain_line()))?;
@@ -898,10 +1156,12 @@ mod tests {
                     position: Some(1.0),
                     speed: Some(2.0),
                     effort: Some(3.0),
+                    effort_unit: "load",
                     ..Channel::default()
                 },
                 Channel {
                     name: "S1".into(),
+                    effort_unit: "load",
                     ..Channel::default()
                 },
             ],
@@ -917,6 +1177,57 @@ mod tests {
         let rec = crate::plot::Recording::parse(&text).unwrap();
         assert_eq!(rec.signals.len(), 6);
         assert_eq!(rec.signals[3].1, vec![None]);
+    }
+
+    #[test]
+    fn robot_joint_names_become_csv_columns_and_json_keys_carry_units() {
+        let d = Dashboard {
+            speed_unit: "deg/s",
+            effort_name: "mA / load",
+            channels: vec![
+                Channel {
+                    name: "Left Knee".into(),
+                    position: Some(-12.5),
+                    effort: Some(40.0),
+                    effort_unit: "load",
+                    error: "ok".into(),
+                    ..Channel::default()
+                },
+                Channel {
+                    name: "shoulder-1".into(),
+                    position: Some(3.25),
+                    speed: Some(-6.0),
+                    effort: Some(812.0),
+                    effort_unit: "mA",
+                    enabled: Some(true),
+                    error: "no error".into(),
+                    failures: 2,
+                    ..Channel::default()
+                },
+            ],
+            t: 1.23456,
+            samples: 7,
+            ..Dashboard::default()
+        };
+        assert_eq!(
+            d.csv_header(),
+            "t_s,left_knee_deg,left_knee_deg_per_s,left_knee_load,\
+             shoulder_1_deg,shoulder_1_deg_per_s,shoulder_1_mA"
+        );
+        let v: serde_json::Value = serde_json::from_str(&d.json_line()).unwrap();
+        assert_eq!(v["t_s"], 1.2346);
+        assert_eq!(v["sample"], 7);
+        let knee = &v["channels"][0];
+        assert_eq!(knee["name"], "Left Knee");
+        assert_eq!(knee["position_deg"], -12.5);
+        assert!(knee["speed_deg_per_s"].is_null());
+        assert_eq!(knee["load"], 40.0);
+        assert!(knee.get("current_ma").is_none());
+        let sh = &v["channels"][1];
+        assert_eq!(sh["current_ma"], 812.0);
+        assert_eq!(sh["speed_deg_per_s"], -6.0);
+        assert_eq!(sh["enabled"], true);
+        assert_eq!(sh["failures"], 2);
     }
 
     #[test]

@@ -739,6 +739,8 @@ fn monitor_records_the_servo_positions_in_degrees() {
         "1",
         "--record",
         csv.to_str().unwrap(),
+        "--reply-margin",
+        MARGIN,
     ]);
     assert_eq!(r.code, Some(0), "{r:#?}");
     let text = std::fs::read_to_string(&csv).unwrap();
@@ -756,4 +758,174 @@ fn monitor_records_the_servo_positions_in_degrees() {
     // The degrees `wck status` prints: 127 -> 134.0°, 200 -> 211.0° (269° over 255 steps).
     assert!((last[1] - 133.97).abs() < 1.1, "{text}");
     assert!((last[4] - 210.98).abs() < 1.1, "{text}");
+}
+
+#[test]
+fn ctrl_c_during_a_timed_wheel_run_holds_the_servo_and_exits_130() {
+    let sim = Sim::start("0-1", &[]);
+    let child = Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .args(["wck", "--port", sim.port(), "--reply-margin", MARGIN])
+        .args(["--json", "wheel", "1", "ccw", "10", "--duration", "20"])
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The run holds the port (a second client is refused as busy, without a repeated
+    // message); let the wheel turn a while.
+    std::thread::sleep(Duration::from_millis(700));
+    let busy = sim.wck(&["status", "1"]);
+    assert_eq!(busy.code, Some(1), "{busy:#?}");
+    assert_eq!(busy.stderr.matches("is busy").count(), 1, "{}", busy.stderr);
+    let started = Instant::now();
+    let out = interrupt(child);
+    assert_eq!(out.status.code(), Some(130), "{out:#?}");
+    assert!(
+        started.elapsed() < Duration::from_secs(10),
+        "Ctrl-C ended the 20 s run"
+    );
+    // Held (the default --on-stop): it comes to rest and stays.
+    let resting = Instant::now();
+    let mut stopped = sim.position(1);
+    loop {
+        std::thread::sleep(Duration::from_millis(150));
+        let p = sim.position(1);
+        if p.abs_diff(stopped) <= 1 {
+            break;
+        }
+        stopped = p;
+        assert!(
+            resting.elapsed() < Duration::from_secs(3),
+            "never came to rest"
+        );
+    }
+    assert!(stopped.abs_diff(127) > 3, "the wheel turned (at {stopped})");
+    std::thread::sleep(Duration::from_millis(300));
+    assert!(sim.position(1).abs_diff(stopped) <= 2, "it holds still");
+}
+
+#[test]
+fn monitor_reads_a_robot_file_as_joint_angles() {
+    let sim = Sim::start("0-1", &[]);
+    sim.ok(&["move", "1", "200"]);
+    sim.wait_at(1, 200);
+    let dir = tempfile::tempdir().unwrap();
+    let robot = write(
+        dir.path(),
+        "robot.toml",
+        &format!(
+            r#"
+[buses.legs]
+kind = "wck"
+port = "{}"
+
+[[joints]]
+name = "left knee"
+bus = "legs"
+id = 1
+direction = -1
+offset = 0.05
+limits = [-1.5, 0.2]
+max_velocity = 1.0
+max_acceleration = 1.0
+
+[[joints]]
+name = "hip"
+bus = "legs"
+id = 0
+limits = [-1.0, 1.0]
+max_velocity = 1.0
+max_acceleration = 1.0
+"#,
+            sim.port()
+        ),
+    );
+    let csv = dir.path().join("robot.csv");
+    let r = robobus(&[
+        "--json",
+        "monitor",
+        "--robot",
+        robot.to_str().unwrap(),
+        "--rate-hz",
+        "10",
+        "--duration",
+        "1",
+        "--reply-margin",
+        MARGIN,
+        "--record",
+        csv.to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, Some(0), "{r:#?}");
+    let samples: Vec<Value> = r
+        .stdout
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{e}: {l}")))
+        .collect();
+    assert!(samples.len() >= 3, "{}", r.stdout);
+    let last = &samples.last().unwrap()["channels"];
+    // Step 200 is 73 steps of 269/255° past the centre (127); the knee is mirrored
+    // about 0.05 rad.
+    let knee = -(73.0 * 269.0 / 255.0 - 0.05f64.to_degrees());
+    let got = last[0]["position_deg"].as_f64().unwrap();
+    assert_eq!(last[0]["name"], "left knee");
+    assert!((got - knee).abs() < 1.1, "{got} vs {knee}: {last}");
+    assert!(
+        last[1]["position_deg"].as_f64().unwrap().abs() < 1.1,
+        "{last}"
+    );
+    assert!(last[1]["load"].is_number(), "{last}");
+    // The recording names the joints.
+    let text = std::fs::read_to_string(&csv).unwrap();
+    assert!(
+        text.lines().any(|l| l
+            == "t_s,left_knee_deg,left_knee_deg_per_s,left_knee_load,hip_deg,hip_deg_per_s,hip_load"),
+        "{text}"
+    );
+}
+
+#[test]
+fn monitor_refuses_robot_files_it_cannot_open() {
+    let dir = tempfile::tempdir().unwrap();
+    // A robot file the monitor cannot open: bad input, named.
+    let ext = write(
+        dir.path(),
+        "ext.toml",
+        "[buses.legs]\nkind = \"wck-external\"\n[[joints]]\nname = \"a\"\nbus = \"legs\"\n\
+         id = 0\nlimits = [-1.0, 1.0]\nmax_velocity = 1.0\nmax_acceleration = 1.0\n",
+    );
+    let r = robobus(&[
+        "monitor",
+        "--robot",
+        ext.to_str().unwrap(),
+        "--duration",
+        "1",
+    ]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    assert!(
+        r.stderr.contains("wck-external") && r.stderr.contains("legs"),
+        "{}",
+        r.stderr
+    );
+    // A port that is not there: no device (3).
+    let gone = write(
+        dir.path(),
+        "gone.toml",
+        &std::fs::read_to_string(&ext).unwrap().replace(
+            "wck-external\"",
+            "wck\"\nport = \"/dev/robobus-no-such-port\"",
+        ),
+    );
+    let r = robobus(&[
+        "monitor",
+        "--robot",
+        gone.to_str().unwrap(),
+        "--duration",
+        "1",
+    ]);
+    assert_eq!(r.code, Some(3), "{r:#?}");
+    assert!(
+        r.stderr.contains("/dev/robobus-no-such-port"),
+        "{}",
+        r.stderr
+    );
 }

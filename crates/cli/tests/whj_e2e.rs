@@ -419,3 +419,113 @@ fn whj_e2e_doctor_probes_the_joints() {
     let (_, v) = doctor();
     assert_eq!(status(&v, &format!("J1 on {bus}"), "iap"), "ok", "{v:#}");
 }
+
+/// `robobus monitor --robot FILE` on a robot of two buses (a WHJ arm on the UDP bus and a
+/// wCK leg on a `robobus sim wck` pty): every joint by name, in the file's order, as joint
+/// angles (offset and direction applied); the arm stays enabled afterwards (the monitor
+/// only reads: no safe stop).
+#[test]
+fn whj_e2e_monitor_reads_a_robot_file() {
+    use std::io::BufRead as _;
+    if !in_netns("whj_e2e_monitor_reads_a_robot_file") {
+        return;
+    }
+    let sim = Sim::start("udp:239.74.163.15:43125", &[]);
+    sim.json(&["enable", "2"]);
+    let mv = sim.json(&["move", "2", "12", "--max-speed", "60"]);
+    assert!((f(&mv[0]["position_deg"]) - 12.0).abs() <= 0.1, "{mv:?}");
+
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("wck");
+    let mut wck = Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .args(["sim", "wck", "--servos", "4", "--link"])
+        .arg(&link)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    std::io::BufReader::new(wck.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(120));
+
+    let robot = dir.path().join("robot.toml");
+    std::fs::write(
+        &robot,
+        format!(
+            r#"
+[buses.arm]
+kind = "whj-udp"
+group = "239.74.163.15"
+port = 43125
+
+[buses.leg]
+kind = "wck"
+port = "{}"
+
+[[joints]]
+name = "hip"
+bus = "leg"
+id = 4
+offset = 0.1
+limits = [-1.0, 1.0]
+max_velocity = 1.0
+max_acceleration = 1.0
+
+[[joints]]
+name = "elbow"
+bus = "arm"
+id = 2
+direction = -1
+offset = 0.05
+limits = [-1.0, 1.0]
+max_velocity = 1.0
+max_acceleration = 1.0
+"#,
+            link.display()
+        ),
+    )
+    .unwrap();
+    let r = common::robobus(&[
+        "--json",
+        "monitor",
+        "--robot",
+        robot.to_str().unwrap(),
+        "--rate-hz",
+        "10",
+        "--duration",
+        "1",
+        "--reply-margin",
+        "300",
+    ]);
+    let _ = wck.kill();
+    let _ = wck.wait();
+    assert_eq!(r.code, Some(0), "{r:#?}");
+    let samples: Vec<Value> = r
+        .stdout
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{e}: {l}")))
+        .collect();
+    assert!(samples.len() >= 3, "{}", r.stdout);
+    let last = &samples.last().unwrap()["channels"];
+    assert_eq!(last[0]["name"], "hip");
+    assert_eq!(last[1]["name"], "elbow");
+    // The wCK servo rests at step 127 (device angle 0): joint = 0 - 0.1 rad.
+    assert!(
+        (f(&last[0]["position_deg"]) + 0.1f64.to_degrees()).abs() < 0.6,
+        "{last}"
+    );
+    assert!(last[0]["load"].is_number(), "{last}");
+    // The joint at 12°, mirrored about 0.05 rad: -(12° - 2.865°).
+    assert!(
+        (f(&last[1]["position_deg"]) + (12.0 - 0.05f64.to_degrees())).abs() < 0.2,
+        "{last}"
+    );
+    assert_eq!(last[1]["enabled"], true, "{last}");
+    assert!(last[1]["current_ma"].is_number(), "{last}");
+    // Read only: the arm is still enabled after the monitor ended.
+    let st = sim.json(&["status", "2"]);
+    assert_eq!(st[0]["enabled"], true, "{st:?}");
+}

@@ -111,6 +111,17 @@ impl BusConfig {
         matches!(self, Self::Wck { .. } | Self::WckExternal { .. })
     }
 
+    /// The `kind` keyword of the file (`"wck"`, `"whj-udp"`, ...).
+    pub const fn kind(&self) -> &'static str {
+        match self {
+            Self::Wck { .. } => "wck",
+            Self::WhjUdp { .. } => "whj-udp",
+            Self::WhjCan { .. } => "whj-can",
+            Self::WckExternal { .. } => "wck-external",
+            Self::WhjExternal { .. } => "whj-external",
+        }
+    }
+
     /// The configured safe state.
     pub const fn safe_state(&self) -> SafeState {
         match self {
@@ -159,6 +170,24 @@ pub struct JointConfig {
 
 const fn default_direction() -> i8 {
     1
+}
+
+impl JointConfig {
+    /// How the device angle becomes this joint's angle (`offset`, `direction`).
+    pub fn map(&self) -> JointMap {
+        JointMap {
+            offset_rad: self.offset,
+            reversed: self.direction < 0,
+        }
+    }
+
+    /// The step-to-angle conversion of a wCK joint (`centre`, `offset`, `direction`).
+    pub fn wck_scale(&self) -> WckScale {
+        WckScale {
+            centre: self.centre.unwrap_or(WCK_DEFAULT_CENTRE),
+            map: self.map(),
+        }
+    }
 }
 
 /// A robot file: `watchdog_timeout` (s), `[buses.NAME]` tables and `[[joints]]`.
@@ -373,13 +402,7 @@ impl RobotConfig {
             }
         }
         if bus.is_wck() {
-            let scale = WckScale {
-                centre: joint.centre.unwrap_or(WCK_DEFAULT_CENTRE),
-                map: JointMap {
-                    offset_rad: joint.offset,
-                    reversed: joint.direction < 0,
-                },
-            };
+            let scale = joint.wck_scale();
             if joint.limits.iter().any(|&l| scale.to_position(l).is_none()) {
                 let a = scale.to_rad(Position::MIN);
                 let b = scale.to_rad(Position::MAX);

@@ -84,7 +84,7 @@ use crate::actuator::{
     whj_to_rad,
 };
 use crate::wck::{WckBus, WckError};
-use crate::whj::{JointBus, WhjError};
+use crate::whj::{JointBus, JointBusConfig, WhjError};
 
 /// A byte link a [`Robot`] can hold: any [`ByteLink`] that is `Send` and `Debug`.
 pub trait RobotByteLink: ByteLink + Send + fmt::Debug {}
@@ -567,7 +567,7 @@ impl RobotBuilder {
             if bus.is_wck() {
                 let wck = match self.wck.remove(name) {
                     Some(b) => b,
-                    None => open_wck(name, bus)?,
+                    None => open_wck_bus(name, bus)?,
                 };
                 let torque = TorqueLevel::new(bus.torque().unwrap_or(2)).map_err(|_| {
                     RobotError::Invalid {
@@ -587,7 +587,7 @@ impl RobotBuilder {
             } else {
                 let whj = match self.whj.remove(name) {
                     Some(b) => b,
-                    None => open_whj(name, bus)?,
+                    None => open_whj_bus(name, bus, JointBusConfig::default())?,
                 };
                 index.insert(name, whj_slots.len());
                 whj_slots.push(WhjSlot {
@@ -639,10 +639,7 @@ fn build_joint(
     index: &BTreeMap<&str, usize>,
     whj_slots: &[WhjSlot],
 ) -> Result<JointSlot, RobotError> {
-    let map = JointMap {
-        offset_rad: j.offset,
-        reversed: j.direction < 0,
-    };
+    let map = j.map();
     let limits = JointLimits {
         min_rad: j.limits[0],
         max_rad: j.limits[1],
@@ -658,11 +655,11 @@ fn build_joint(
     };
     let device = if config.buses.get(&j.bus).is_some_and(BusConfig::is_wck) {
         let id = ServoId::new(j.id).map_err(|e| invalid("id", j.id.to_string(), e.to_string()))?;
-        let scale = WckScale {
-            centre: j.centre.unwrap_or(crate::actuator::WCK_DEFAULT_CENTRE),
-            map,
-        };
-        Device::Wck { bus, id, scale }
+        Device::Wck {
+            bus,
+            id,
+            scale: j.wck_scale(),
+        }
     } else {
         let id = JointId::new(j.id).map_err(|e| invalid("id", j.id.to_string(), e.to_string()))?;
         let slot = whj_slots
@@ -689,7 +686,15 @@ fn build_joint(
     })
 }
 
-fn open_wck(name: &str, bus: &BusConfig) -> Result<WckBus<DynByteLink>, RobotError> {
+/// Opens the wCK bus `name` of a robot file on its serial port, without a [`Robot`]: no
+/// watchdog and no safe stop on drop, for tools that only read (such as a monitor).
+///
+/// # Errors
+///
+/// [`RobotError::Invalid`] for a baud rate the modules do not have,
+/// [`RobotError::OpenWck`] when the port cannot be opened, [`RobotError::MissingBus`]
+/// for a `wck-external` bus (the program supplies it) or a WHJ bus.
+pub fn open_wck_bus(name: &str, bus: &BusConfig) -> Result<WckBus<DynByteLink>, RobotError> {
     match bus {
         #[cfg(unix)]
         BusConfig::Wck { port, baud, .. } => {
@@ -713,15 +718,33 @@ fn open_wck(name: &str, bus: &BusConfig) -> Result<WckBus<DynByteLink>, RobotErr
                 .with_config(config)
                 .with_device_name(port.clone()))
         }
-        _ => Err(RobotError::MissingBus {
+        BusConfig::WckExternal { .. } => Err(RobotError::MissingBus {
             bus: name.to_owned(),
             kind: "wck-external",
             method: "wck_bus",
         }),
+        other => Err(RobotError::Invalid {
+            item: format!("bus {name}"),
+            field: "kind",
+            value: other.kind().to_owned(),
+            expected: "a wCK bus (wck)".into(),
+        }),
     }
 }
 
-fn open_whj(name: &str, bus: &BusConfig) -> Result<JointBus, RobotError> {
+/// Opens the WHJ bus `name` of a robot file (`whj-udp` or `whj-can`) with `config`,
+/// without a [`Robot`]: no joint is enabled, no watchdog and no safe stop on drop, for
+/// tools that only read (such as a monitor).
+///
+/// # Errors
+///
+/// [`RobotError::OpenWhj`] when the link cannot be opened, [`RobotError::MissingBus`] for
+/// a `whj-external` bus (the program supplies it) or a wCK bus.
+pub fn open_whj_bus(
+    name: &str,
+    bus: &BusConfig,
+    config: JointBusConfig,
+) -> Result<JointBus, RobotError> {
     let fail = |what: String, detail: String| RobotError::OpenWhj {
         bus: name.to_owned(),
         what,
@@ -740,19 +763,25 @@ fn open_whj(name: &str, bus: &BusConfig) -> Result<JointBus, RobotError> {
             let what = format!("UDP bus {}:{}", cfg.group, cfg.port);
             let link =
                 robobus_link::UdpBus::open(&cfg).map_err(|e| fail(what.clone(), e.to_string()))?;
-            JointBus::open(link).map_err(|e| fail(what, e.to_string()))
+            JointBus::open_with(link, config).map_err(|e| fail(what, e.to_string()))
         }
         #[cfg(target_os = "linux")]
         BusConfig::WhjCan { iface, .. } => {
             let what = format!("SocketCAN {iface}");
             let link = robobus_link::SocketCanLink::open(iface)
                 .map_err(|e| fail(what.clone(), e.to_string()))?;
-            JointBus::open(link).map_err(|e| fail(what, e.to_string()))
+            JointBus::open_with(link, config).map_err(|e| fail(what, e.to_string()))
         }
-        _ => Err(RobotError::MissingBus {
+        BusConfig::WhjExternal { .. } => Err(RobotError::MissingBus {
             bus: name.to_owned(),
             kind: "whj-external",
             method: "whj_bus",
+        }),
+        other => Err(RobotError::Invalid {
+            item: format!("bus {name}"),
+            field: "kind",
+            value: other.kind().to_owned(),
+            expected: "a WHJ bus (whj-udp or whj-can)".into(),
         }),
     }
 }
