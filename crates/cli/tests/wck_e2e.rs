@@ -929,3 +929,44 @@ fn monitor_refuses_robot_files_it_cannot_open() {
         r.stderr
     );
 }
+
+/// On a terminal, `scan` shows its progress on stderr (indicatif), and the table still
+/// goes to stdout.
+#[test]
+fn scan_shows_a_progress_bar_on_a_terminal() {
+    use robobus_link::{ByteLink as _, PtyOptions, PtyPair};
+
+    let sim = Sim::start("0-1", &[]);
+    let mut pair = PtyPair::open(&PtyOptions::default()).unwrap();
+    let tty = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(&pair.slave_path)
+        .unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .args(["wck", "--port", sim.port(), "--reply-margin", MARGIN])
+        .args(["scan", "--ids", "0-3"])
+        .env("COLUMNS", "100")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(tty)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(0), "{out:#?}");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.starts_with("ID"), "{stdout}");
+    let mut drawn = Vec::new();
+    let mut buf = [0u8; 4096];
+    let until = Instant::now() + Duration::from_millis(500);
+    while let Ok(n) = pair.master.read_some(&mut buf, until) {
+        if n == 0 {
+            break;
+        }
+        drawn.extend_from_slice(&buf[..n]);
+    }
+    let drawn = String::from_utf8_lossy(&drawn);
+    assert!(drawn.contains("scan"), "{drawn:?}");
+    assert!(drawn.contains("/4 IDs"), "{drawn:?}");
+    // The table is not on the terminal's stderr.
+    assert!(!drawn.contains("position"), "{drawn:?}");
+}
