@@ -1121,6 +1121,7 @@ mod tests {
             t: 2.0,
             samples: 40,
             recording: Some("run.csv".into()),
+            named_joints: false,
         };
         for k in 0..20 {
             d.t = f64::from(k) * 0.1;

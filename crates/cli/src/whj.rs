@@ -26,11 +26,15 @@ use crate::exit::usage;
 use crate::output::{self, WhjPlan};
 use crate::sim_whj::parse_bus;
 
-/// Largest |target angle| the CLI sends, degrees.
+/// Largest |target angle| the CLI sends, degrees: one turn either way (a host policy; the
+/// joint's own limits, 0x44..0x47, are checked as well once it is connected).
 pub(crate) const MAX_DEG: f64 = 360.0;
-/// Largest |target speed| the CLI sends, output RPM.
-pub(crate) const MAX_RPM: f64 = 60.0;
-/// Largest |target current| the CLI sends, mA.
+/// Largest |target speed| the CLI sends, output RPM: the highest published peak output
+/// speed of any model (WHJ10 / WHJ30, 37.5 RPM); once connected, the joint's own model's
+/// peak is checked as well.
+pub(crate) const MAX_RPM: f64 = 37.5;
+/// Largest |target current| the CLI sends, mA (a host policy: the vendor publishes no
+/// peak current; once connected, the joint's current limit 0x40 is checked as well).
 pub(crate) const MAX_MA: f64 = 30_000.0;
 
 const AFTER_HELP: &str = "\
@@ -38,8 +42,10 @@ Joint IDs are 1..=30 (0 is the interface board); lists and ranges are allowed wh
 argument says JOINTS: `1`, `1-7`, `1,3,5-7`.
 Units: angles in degrees (0.0001 deg per count), speeds in output RPM (0.002 RPM per
 count), currents in mA (1 mA per count; 2 mA on WHJ60/WHJ120: give --model).
-CLI safety limits: |angle| <= 360 deg, |speed| <= 60 RPM, |current| <= 30000 mA; the
-joint's own limit registers (0x40.., 0x44..0x47) apply as well.
+CLI safety limits: |angle| <= 360 deg, |speed| <= 37.5 RPM, |current| <= 30000 mA;
+once a joint is connected, and before any servo frame, its own bounds are checked too:
+angles within its position limits (0x44..0x47), speeds within its model's peak output
+speed (30 RPM on WHJ03/60/120), currents within its current limit (0x40).
 
 Without --dry-run the command runs on the bus: each joint is connected first (IAP
 release, identify), results are printed as a table (--json: one JSON object; fields carry
@@ -183,7 +189,7 @@ enum WhjCommand {
         #[arg(long, allow_hyphen_values = true, value_parser = parse_angle)]
         from: Option<f64>,
     },
-    /// Speed servo target (0x300+ID) in output RPM, -60..=60.
+    /// Speed servo target (0x300+ID) in output RPM, -37.5..=37.5.
     Speed {
         /// Joint ID, 1..=30.
         #[arg(value_parser = parse_joint)]

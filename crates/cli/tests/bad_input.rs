@@ -146,7 +146,10 @@ fn whj_values_out_of_range_are_refused_before_anything_is_opened() {
             &with(&["move", "1", "10", "--max-speed", "500"]),
             &["--max-speed", "500", "0.1..=180"],
         );
-        refused(&with(&["speed", "1", "-61"]), &["<RPM>", "-61", "-60..=60"]);
+        refused(
+            &with(&["speed", "1", "-38"]),
+            &["<RPM>", "-38", "-37.5..=37.5"],
+        );
         refused(&with(&["current", "1", "40000"]), &["<MILLIAMPS>", "40000"]);
         refused(
             &with(&["read", "1", "0x92"]),

@@ -68,10 +68,13 @@ struct Sim {
 
 impl Sim {
     fn start(bus: &str, extra: &[&str]) -> Self {
+        Self::start_model(bus, "whj30", extra)
+    }
+
+    fn start_model(bus: &str, model: &str, extra: &[&str]) -> Self {
         let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
-            .args([
-                "sim", "whj", "--joints", "1-7", "--model", "whj30", "--seed", "3",
-            ])
+            .args(["sim", "whj", "--joints", "1-7", "--model", model])
+            .args(["--seed", "3"])
             .args(["--bus", bus])
             .args(extra)
             .stdin(Stdio::null())
@@ -355,7 +358,7 @@ fn whj_e2e_timeouts_and_bad_input() {
     // Bad input: exit 2, the value and the allowed range named, nothing sent.
     for (args, needle) in [
         (vec!["move", "1", "400"], "-360..=360"),
-        (vec!["speed", "1", "99"], "-60..=60"),
+        (vec!["speed", "1", "99"], "-37.5..=37.5"),
         (vec!["status", "31"], "31"),
         (vec!["read", "1", "NOPE"], "NOPE"),
         (vec!["write", "1", "SYS_ENABLE_DRIVER", "2"], "0..=1"),
@@ -528,4 +531,81 @@ max_acceleration = 1.0
     // Read only: the arm is still enabled after the monitor ended.
     let st = sim.json(&["status", "2"]);
     assert_eq!(st[0]["enabled"], true, "{st:?}");
+}
+
+/// Motion commands are checked against the connected joint's own bounds before any servo
+/// frame: its model's peak speed (WHJ60: 30 RPM), its position limits, its current limit.
+#[test]
+fn whj_e2e_motion_is_checked_against_the_joints_own_bounds() {
+    if !in_netns("whj_e2e_motion_is_checked_against_the_joints_own_bounds") {
+        return;
+    }
+    let sim = Sim::start_model("udp:239.74.163.16:43126", "whj60", &[]);
+    let refused = |args: &[&str], needles: &[&str]| {
+        let r = sim.whj(args);
+        assert_eq!(r.code, Some(2), "{args:?}: {r:?}");
+        for n in needles {
+            assert!(r.stderr.contains(n), "{args:?}: {n} not in {}", r.stderr);
+        }
+    };
+
+    // Speed: 35 RPM passes the CLI's bound (37.5) but not a WHJ60's peak (30).
+    sim.json(&["mode", "2", "speed"]);
+    sim.json(&["enable", "2"]);
+    refused(&["speed", "2", "35"], &["35 RPM", "-30..=30", "WHJ60"]);
+    refused(
+        &[
+            "wave",
+            "2",
+            "--mode",
+            "speed",
+            "--amplitude",
+            "20",
+            "--offset",
+            "15",
+        ],
+        &["35 RPM", "WHJ60"],
+    );
+    // Nothing was sent: at 35 RPM (210°/s) the shaft would have turned by now.
+    std::thread::sleep(Duration::from_millis(200));
+    let st = sim.json(&["status", "2"]);
+    assert!(
+        f(&st[0]["position_deg"]).abs() < 0.5,
+        "nothing sent: {st:?}"
+    );
+    let sp = sim.json(&["speed", "2", "20"]);
+    assert_eq!(sp[0]["joint"], 2, "{sp:?}");
+    sim.json(&["speed", "2", "0"]);
+    sim.json(&["disable", "2"]);
+
+    // Position: the joint's upper limit, lowered to 20°.
+    sim.json(&["write", "3", "LIT_MAX_POSITION", "20"]);
+    sim.json(&["mode", "3", "position"]);
+    sim.json(&["enable", "3"]);
+    refused(&["move", "3", "30"], &["30 deg", "..=20 deg", "0x44"]);
+    refused(
+        &["wave", "3", "--amplitude", "15", "--offset", "10"],
+        &["25 deg", "..=20 deg"],
+    );
+    let st = sim.json(&["status", "3"]);
+    assert!(
+        f(&st[0]["position_deg"]).abs() < 0.1,
+        "did not move: {st:?}"
+    );
+    let mv = sim.json(&["move", "3", "15", "--max-speed", "60"]);
+    assert!((f(&mv[0]["position_deg"]) - 15.0).abs() <= 0.1, "{mv:?}");
+    sim.json(&["disable", "3"]);
+
+    // Current: the joint's limit register, set to 1000 mA.
+    sim.json(&["write", "4", "LIT_MAX_CURRENT", "1000"]);
+    sim.json(&["mode", "4", "current"]);
+    sim.json(&["enable", "4"]);
+    refused(
+        &["current", "4", "-1500"],
+        &["1500 mA", "-1000..=1000", "LIT_MAX_CURRENT"],
+    );
+    let cu = sim.json(&["current", "4", "400"]);
+    assert_eq!(cu[0]["joint"], 4, "{cu:?}");
+    sim.json(&["current", "4", "0"]);
+    sim.json(&["disable", "4"]);
 }

@@ -287,6 +287,17 @@ impl Model {
         }
     }
 
+    /// The peak output speed from the product pages, RPM, if known: 30 (WHJ03), 37.5
+    /// (WHJ10, WHJ30), 30 (WHJ60, WHJ120); each equals the factory speed limit 3000 (0x41)
+    /// divided by the reduction ratio (reference §9, C3).
+    pub const fn peak_output_speed_rpm(self) -> Option<f64> {
+        match self {
+            Self::Joint10 | Self::Joint30 => Some(37.5),
+            Self::Joint60 | Self::Joint120 | Self::Joint03 => Some(30.0),
+            Self::Gripper | Self::Unknown(_) => None,
+        }
+    }
+
     /// The gear reduction ratio from the product pages, if known.
     pub const fn reduction_ratio(self) -> Option<u16> {
         match self {
@@ -370,6 +381,23 @@ mod tests {
         assert_eq!(Model::from_code(4), Model::Joint60);
         assert_eq!(Model::Joint60.current_scale(), CurrentScale::TwoMilliamps);
         assert_eq!(Model::Joint30.current_scale(), CurrentScale::OneMilliamp);
+        // Peak speed = factory limit 3000 / ratio (C3), the published figures.
+        for m in [
+            Model::Joint03,
+            Model::Joint10,
+            Model::Joint30,
+            Model::Joint60,
+            Model::Joint120,
+        ] {
+            let (peak, ratio) = (
+                m.peak_output_speed_rpm().unwrap(),
+                m.reduction_ratio().unwrap(),
+            );
+            assert!((peak - 3000.0 / f64::from(ratio)).abs() < 1e-9, "{m}");
+        }
+        assert_eq!(Model::Joint10.peak_output_speed_rpm(), Some(37.5));
+        assert_eq!(Model::Joint120.peak_output_speed_rpm(), Some(30.0));
+        assert_eq!(Model::Gripper.peak_output_speed_rpm(), None);
         assert_eq!(std::format!("{}", FirmwareVersion(0xD522)), "D522");
         assert!(FirmwareVersion(0xD522).at_least_label(0x519));
         assert!(!FirmwareVersion(0xD510).at_least_label(0x519));

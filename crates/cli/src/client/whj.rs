@@ -336,12 +336,14 @@ fn run(bus: &JointBus, job: &WhjJob<'_>, extra: &mut Option<Value>) -> anyhow::R
         )?),
         WhjRun::Speed(id, rpm) => {
             let j = connect(bus, *id)?;
+            check_demand(&j, WaveLoop::Speed, *rpm, *rpm)?;
             let target = TargetSpeed::from_rpm(*rpm).map_err(|e| anyhow!("{e}"))?;
             let fb = j.command_speed(target).map_err(e)?;
             rows.push(feedback_row(*id, &fb.into(), scale_of(&j)));
         }
         WhjRun::Current(id, ma) => {
             let j = connect(bus, *id)?;
+            check_demand(&j, WaveLoop::Current, *ma, *ma)?;
             let fb = j.command_current(*ma).map_err(e)?;
             rows.push(feedback_row(*id, &fb.into(), scale_of(&j)));
         }
@@ -630,6 +632,59 @@ fn require(j: &Joint<'_>, want: WorkMode, what: &str) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Checks a motion command against what this joint allows, after connecting and before
+/// any servo frame is sent (the CLI's fixed bounds were checked while parsing): angles
+/// within its position limits (0x44..0x47), speeds within its model's published peak
+/// output speed, currents within its current limit register (0x40, when it holds a
+/// value). A refusal is a usage error (exit code 2) naming the value, the joint's bound
+/// and where it comes from.
+/// `lo..=hi` is the range of values the command asks of the loop `mode`, in its unit
+/// (degrees, RPM, mA).
+fn check_demand(j: &Joint<'_>, mode: WaveLoop, lo: f64, hi: f64) -> anyhow::Result<()> {
+    let id = j.id().get();
+    let worst = lo.abs().max(hi.abs());
+    match mode {
+        WaveLoop::Position => {
+            let (min, max) = j.position_limits().map_err(whj_error)?;
+            let (min, max) = (min.degrees(), max.degrees());
+            if lo < min || hi > max {
+                let asked = if lo < min { lo } else { hi };
+                return Err(crate::exit::usage(format!(
+                    "angle {asked} deg is outside joint {id}'s position limits \
+                     {min}..={max} deg (registers 0x44..0x47); nothing sent"
+                )));
+            }
+        }
+        WaveLoop::Speed => {
+            let model = j.identity().map_err(whj_error)?.model;
+            if let Some(peak) = model.peak_output_speed_rpm()
+                && worst > peak
+            {
+                return Err(crate::exit::usage(format!(
+                    "speed {worst} RPM is beyond joint {id}'s peak output speed: \
+                     -{peak}..={peak} RPM ({model}, product parameters); nothing sent"
+                )));
+            }
+        }
+        WaveLoop::Current => {
+            let limit = j
+                .read_register("LIT_MAX_CURRENT")
+                .map_err(whj_error)?
+                .value
+                .filter(|v| *v > 0.0);
+            if let Some(limit) = limit
+                && worst > limit
+            {
+                return Err(crate::exit::usage(format!(
+                    "current {worst} mA is beyond joint {id}'s current limit: \
+                     -{limit}..={limit} mA (register 0x40 LIT_MAX_CURRENT); nothing sent"
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
 fn smooth_move(
     bus: &JointBus,
     id: JointId,
@@ -641,6 +696,7 @@ fn smooth_move(
     arm_ctrlc();
     let j = connect(bus, id)?;
     require(&j, WorkMode::Position, "move")?;
+    check_demand(&j, WaveLoop::Position, degrees, degrees)?;
     let limits = MotionLimits {
         max_speed_deg_s: max_speed,
         max_accel_deg_s2: (max_speed * 4.0).max(10.0),
@@ -706,6 +762,20 @@ fn smooth_move(
     ])
 }
 
+/// Checks that `j` can run `wave` (enabled in the wave's mode, the values within its own
+/// bounds); the servo frame kind the wave sends.
+fn wave_ready(j: &Joint<'_>, wave: &Wave) -> anyhow::Result<ServoMode> {
+    let (mode, servo) = match wave.mode {
+        WaveLoop::Position => (WorkMode::Position, ServoMode::Position),
+        WaveLoop::Speed => (WorkMode::Speed, ServoMode::Speed),
+        WaveLoop::Current => (WorkMode::Current, ServoMode::Current),
+    };
+    require(j, mode, "wave")?;
+    let (lo, hi) = (wave.offset - wave.amplitude, wave.offset + wave.amplitude);
+    check_demand(j, wave.mode, lo, hi)?;
+    Ok(servo)
+}
+
 fn run_wave(
     bus: &JointBus,
     id: JointId,
@@ -714,12 +784,7 @@ fn run_wave(
 ) -> anyhow::Result<(Row, Value)> {
     arm_ctrlc();
     let j = connect(bus, id)?;
-    let (mode, servo) = match wave.mode {
-        WaveLoop::Position => (WorkMode::Position, ServoMode::Position),
-        WaveLoop::Speed => (WorkMode::Speed, ServoMode::Speed),
-        WaveLoop::Current => (WorkMode::Current, ServoMode::Current),
-    };
-    require(&j, mode, "wave")?;
+    let servo = wave_ready(&j, wave)?;
     let scale = scale_of(&j);
     let period = Duration::from_secs_f64(1.0 / wave.rate_hz);
     let target = |t: f64| -> anyhow::Result<i32> {
