@@ -466,11 +466,8 @@ impl Request {
             }
             | Self::CurrentServo {
                 target: Current(v), ..
-            } => {
-                buf[..4].copy_from_slice(&v.to_le_bytes());
-                4
-            }
-            Self::StatusQuery { .. } => 0,
+            } => return crate::fd_frame(self.can_id(), &v.to_le_bytes()),
+            Self::StatusQuery { .. } => return crate::fd_frame(self.can_id(), &[]),
             Self::BroadcastPosition(b) => {
                 b.encode(&mut buf);
                 64
