@@ -693,7 +693,8 @@ fn build_joint(
 ///
 /// [`RobotError::Invalid`] for a baud rate the modules do not have,
 /// [`RobotError::OpenWck`] when the port cannot be opened, [`RobotError::MissingBus`]
-/// for a `wck-external` bus (the program supplies it) or a WHJ bus.
+/// for a `wck-external` bus (the program supplies it), [`RobotError::Invalid`] (field
+/// `kind`) for a WHJ bus.
 pub fn open_wck_bus(name: &str, bus: &BusConfig) -> Result<WckBus<DynByteLink>, RobotError> {
     match bus {
         #[cfg(unix)]
@@ -739,7 +740,8 @@ pub fn open_wck_bus(name: &str, bus: &BusConfig) -> Result<WckBus<DynByteLink>, 
 /// # Errors
 ///
 /// [`RobotError::OpenWhj`] when the link cannot be opened, [`RobotError::MissingBus`] for
-/// a `whj-external` bus (the program supplies it) or a wCK bus.
+/// a `whj-external` bus (the program supplies it), [`RobotError::Invalid`] (field `kind`)
+/// for a wCK bus.
 pub fn open_whj_bus(
     name: &str,
     bus: &BusConfig,
