@@ -7,9 +7,8 @@
 
 mod common;
 
-use std::io::{BufRead as _, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use common::{Run, robobus};
@@ -31,48 +30,17 @@ fn interrupt(child: std::process::Child) -> std::process::Output {
     child.wait_with_output().unwrap()
 }
 
-/// `robobus sim wck` in its own process, stopped (SIGTERM) on drop.
-struct Sim {
-    child: Child,
-    link: PathBuf,
-    _dir: tempfile::TempDir,
-}
+/// `robobus sim wck` in its own process, driven through `robobus wck`.
+struct Sim(common::WckSim);
 
 impl Sim {
     /// Starts a simulated bus with `servos` (e.g. `0-2`) and waits until it is up.
     fn start(servos: &str, extra: &[&str]) -> Self {
-        let dir = tempfile::tempdir().unwrap();
-        let link = dir.path().join("wck");
-        let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
-            .args(["sim", "wck", "--servos", servos, "--eeprom-ms", "5"])
-            .args(extra)
-            .arg("--link")
-            .arg(&link)
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap();
-        let mut first = String::new();
-        BufReader::new(child.stdout.take().unwrap())
-            .read_line(&mut first)
-            .unwrap();
-        assert_eq!(
-            Path::new(first.trim()),
-            link,
-            "the sim prints the path first"
-        );
-        // Past the 65 ms a wCK module is deaf after power-up.
-        std::thread::sleep(Duration::from_millis(120));
-        Self {
-            child,
-            link,
-            _dir: dir,
-        }
+        Self(common::WckSim::start(servos, extra))
     }
 
     fn port(&self) -> &str {
-        self.link.to_str().unwrap()
+        self.0.port()
     }
 
     /// `robobus wck --port LINK --reply-margin MARGIN ARGS`.
@@ -113,6 +81,26 @@ impl Sim {
             .unwrap()
     }
 
+    /// Polls the position of `id` until two reads 150 ms apart differ by at most a step
+    /// (3 s at most); the position it came to rest at.
+    #[track_caller]
+    fn at_rest(&self, id: u8) -> u64 {
+        let resting = Instant::now();
+        let mut stopped = self.position(id);
+        loop {
+            std::thread::sleep(Duration::from_millis(150));
+            let p = self.position(id);
+            if p.abs_diff(stopped) <= 1 {
+                return stopped;
+            }
+            stopped = p;
+            assert!(
+                resting.elapsed() < Duration::from_secs(3),
+                "servo {id} never came to rest"
+            );
+        }
+    }
+
     /// Polls the position of `id` until it is within 3 steps of `target` (3 s at most;
     /// the simulated shaft settles within the controller's dead band).
     #[track_caller]
@@ -129,24 +117,6 @@ impl Sim {
             );
             std::thread::sleep(Duration::from_millis(50));
         }
-    }
-}
-
-impl Drop for Sim {
-    fn drop(&mut self) {
-        let _ = Command::new("kill")
-            .arg("-TERM")
-            .arg(self.child.id().to_string())
-            .status();
-        let deadline = Instant::now() + Duration::from_secs(5);
-        while Instant::now() < deadline {
-            if let Ok(Some(_)) = self.child.try_wait() {
-                return;
-            }
-            std::thread::sleep(Duration::from_millis(10));
-        }
-        let _ = self.child.kill();
-        let _ = self.child.wait();
     }
 }
 
@@ -241,7 +211,7 @@ fn a_servo_that_does_not_answer_is_exit_3_naming_the_port_and_the_servo() {
     assert_eq!(r.code, Some(3), "{r:#?}");
     assert!(r.stderr.contains("57600"), "{}", r.stderr);
     // A port that does not exist: exit 3, naming the path.
-    let missing = sim.link.with_file_name("nothing-here");
+    let missing = Path::new(sim.port()).with_file_name("nothing-here");
     let r = robobus(&["wck", "--port", missing.to_str().unwrap(), "status", "0"]);
     assert_eq!(r.code, Some(3), "{r:#?}");
     assert!(r.stderr.contains("nothing-here"), "{}", r.stderr);
@@ -480,20 +450,7 @@ fn passive_wheel_brake_and_sync_move() {
     assert!(r["ran_ms"].as_u64().unwrap() >= 300, "{r}");
     // It comes to rest (the hold target is the position read as the wheel stopped; a
     // stalled machine lets the shaft run on a little before the hold lands) and stays.
-    let resting = Instant::now();
-    let mut stopped = sim.position(1);
-    loop {
-        std::thread::sleep(Duration::from_millis(150));
-        let p = sim.position(1);
-        if p.abs_diff(stopped) <= 1 {
-            break;
-        }
-        stopped = p;
-        assert!(
-            resting.elapsed() < Duration::from_secs(3),
-            "never came to rest"
-        );
-    }
+    let stopped = sim.at_rest(1);
     assert_ne!(stopped, 110, "the wheel turned");
     std::thread::sleep(Duration::from_millis(200));
     assert!(sim.position(1).abs_diff(stopped) <= 2, "it holds still");
@@ -785,20 +742,7 @@ fn ctrl_c_during_a_timed_wheel_run_holds_the_servo_and_exits_130() {
         "Ctrl-C ended the 20 s run"
     );
     // Held (the default --on-stop): it comes to rest and stays.
-    let resting = Instant::now();
-    let mut stopped = sim.position(1);
-    loop {
-        std::thread::sleep(Duration::from_millis(150));
-        let p = sim.position(1);
-        if p.abs_diff(stopped) <= 1 {
-            break;
-        }
-        stopped = p;
-        assert!(
-            resting.elapsed() < Duration::from_secs(3),
-            "never came to rest"
-        );
-    }
+    let stopped = sim.at_rest(1);
     assert!(stopped.abs_diff(127) > 3, "the wheel turned (at {stopped})");
     std::thread::sleep(Duration::from_millis(300));
     assert!(sim.position(1).abs_diff(stopped) <= 2, "it holds still");
@@ -856,11 +800,7 @@ max_acceleration = 1.0
         csv.to_str().unwrap(),
     ]);
     assert_eq!(r.code, Some(0), "{r:#?}");
-    let samples: Vec<Value> = r
-        .stdout
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{e}: {l}")))
-        .collect();
+    let samples = common::json_lines(&r.stdout);
     assert!(samples.len() >= 3, "{}", r.stdout);
     let last = &samples.last().unwrap()["channels"];
     // Step 200 is 73 steps of 269/255° past the centre (127); the knee is mirrored

@@ -429,7 +429,6 @@ fn whj_e2e_doctor_probes_the_joints() {
 /// only reads: no safe stop).
 #[test]
 fn whj_e2e_monitor_reads_a_robot_file() {
-    use std::io::BufRead as _;
     if !in_netns("whj_e2e_monitor_reads_a_robot_file") {
         return;
     }
@@ -438,22 +437,8 @@ fn whj_e2e_monitor_reads_a_robot_file() {
     let mv = sim.json(&["move", "2", "12", "--max-speed", "60"]);
     assert!((f(&mv[0]["position_deg"]) - 12.0).abs() <= 0.1, "{mv:?}");
 
+    let wck = common::WckSim::start("4", &[]);
     let dir = tempfile::tempdir().unwrap();
-    let link = dir.path().join("wck");
-    let mut wck = Command::new(env!("CARGO_BIN_EXE_robobus"))
-        .args(["sim", "wck", "--servos", "4", "--link"])
-        .arg(&link)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut first = String::new();
-    std::io::BufReader::new(wck.stdout.take().unwrap())
-        .read_line(&mut first)
-        .unwrap();
-    std::thread::sleep(Duration::from_millis(120));
-
     let robot = dir.path().join("robot.toml");
     std::fs::write(
         &robot,
@@ -487,7 +472,7 @@ limits = [-1.0, 1.0]
 max_velocity = 1.0
 max_acceleration = 1.0
 "#,
-            link.display()
+            wck.port()
         ),
     )
     .unwrap();
@@ -503,14 +488,9 @@ max_acceleration = 1.0
         "--reply-margin",
         "300",
     ]);
-    let _ = wck.kill();
-    let _ = wck.wait();
+    drop(wck);
     assert_eq!(r.code, Some(0), "{r:#?}");
-    let samples: Vec<Value> = r
-        .stdout
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{e}: {l}")))
-        .collect();
+    let samples = common::json_lines(&r.stdout);
     assert!(samples.len() >= 3, "{}", r.stdout);
     let last = &samples.last().unwrap()["channels"];
     assert_eq!(last[0]["name"], "hip");

@@ -2,7 +2,10 @@
 
 #![allow(dead_code)] // each test file uses a different subset
 
-use std::process::{Command, Output, Stdio};
+use std::io::{BufRead as _, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
 
 /// The result of one run.
 #[derive(Debug)]
@@ -51,4 +54,78 @@ pub(crate) fn lines(stdout: &str) -> Vec<&str> {
         .lines()
         .filter(|l| !l.starts_with('#') && !l.is_empty())
         .collect()
+}
+
+/// The lines of `stdout` as JSON values (`--json` outputs of one object per line).
+#[track_caller]
+pub(crate) fn json_lines(stdout: &str) -> Vec<serde_json::Value> {
+    stdout
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{e}: {l}")))
+        .collect()
+}
+
+/// `robobus sim wck` in its own process on a pty symlink in a temporary directory, stopped
+/// (SIGTERM) on drop.
+pub(crate) struct WckSim {
+    child: Child,
+    link: PathBuf,
+    _dir: tempfile::TempDir,
+}
+
+impl WckSim {
+    /// Starts a simulated bus with `servos` (e.g. `0-2`) and waits until it is up.
+    pub(crate) fn start(servos: &str, extra: &[&str]) -> Self {
+        let dir = tempfile::tempdir().unwrap();
+        let link = dir.path().join("wck");
+        let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
+            .args(["sim", "wck", "--servos", servos, "--eeprom-ms", "5"])
+            .args(extra)
+            .arg("--link")
+            .arg(&link)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let mut first = String::new();
+        BufReader::new(child.stdout.take().unwrap())
+            .read_line(&mut first)
+            .unwrap();
+        assert_eq!(
+            Path::new(first.trim()),
+            link,
+            "the sim prints the path first"
+        );
+        // Past the 65 ms a wCK module is deaf after power-up.
+        std::thread::sleep(Duration::from_millis(120));
+        Self {
+            child,
+            link,
+            _dir: dir,
+        }
+    }
+
+    /// The path clients open.
+    pub(crate) fn port(&self) -> &str {
+        self.link.to_str().unwrap()
+    }
+}
+
+impl Drop for WckSim {
+    fn drop(&mut self) {
+        let _ = Command::new("kill")
+            .arg("-TERM")
+            .arg(self.child.id().to_string())
+            .status();
+        let deadline = Instant::now() + Duration::from_secs(5);
+        while Instant::now() < deadline {
+            if let Ok(Some(_)) = self.child.try_wait() {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
 }
