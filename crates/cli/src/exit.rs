@@ -1,11 +1,17 @@
 //! Exit codes, and the error kinds that select them.
 //!
-//! Every error is an [`anyhow::Error`]; its exit code is decided by [`Exit::of`] from the
-//! marker type at its root: [`Usage`] (code 2), [`Timeout`] (3), [`NotAvailable`] (4),
-//! [`ProblemsFound`] (5), [`Interrupted`] (130). Anything else is a runtime error (1).
+//! Every error is an [`anyhow::Error`]; its exit code is decided by [`Exit::of`]: a CLI
+//! marker type at its root ([`Usage`] (code 2), [`Timeout`] (3), [`NotAvailable`] (4),
+//! [`ProblemsFound`] (5), [`Interrupted`] (130)), else the [`ErrorKind`] of the library
+//! error in its chain ([`Exit::of_kind`], one `match`). Anything else is a runtime error (1).
 //! Errors from clap's own parsing exit with 2 as well (clap's convention).
 
 use std::fmt;
+
+use robobus::ops::OpError;
+use robobus::wck::WckError;
+use robobus::whj::WhjError;
+use robobus::{ActuatorError, ErrorKind, RobotError};
 
 /// The process exit codes, as `robobus --help` documents them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -26,7 +32,24 @@ pub(crate) enum Exit {
 }
 
 impl Exit {
-    /// The exit code for an error, from the marker type at the root of its chain.
+    /// The exit code of a library error kind: the one `match` from
+    /// [`robobus::ErrorKind`] to the documented table.
+    #[allow(clippy::match_same_arms)] // each documented kind named, the wildcard for new ones
+    pub(crate) const fn of_kind(kind: ErrorKind) -> Self {
+        match kind {
+            ErrorKind::BadInput | ErrorKind::Refused => Self::Usage,
+            ErrorKind::NoDevice => Self::Timeout,
+            ErrorKind::Device | ErrorKind::Link => Self::Runtime,
+            ErrorKind::Interrupted => Self::Interrupted,
+            ErrorKind::NotAvailable => Self::NotAvailable,
+            // ErrorKind is non_exhaustive: a kind added later is a runtime error until
+            // it is given its own code here.
+            _ => Self::Runtime,
+        }
+    }
+
+    /// The exit code for an error: the marker type at the root of its chain, else the
+    /// [`ErrorKind`] of the first library error in it, else a runtime error.
     pub(crate) fn of(err: &anyhow::Error) -> Self {
         if err.downcast_ref::<Usage>().is_some() {
             Self::Usage
@@ -38,10 +61,33 @@ impl Exit {
             Self::ProblemsFound
         } else if err.downcast_ref::<Interrupted>().is_some() {
             Self::Interrupted
+        } else if let Some(kind) = library_kind(err) {
+            Self::of_kind(kind)
         } else {
             Self::Runtime
         }
     }
+}
+
+/// The kind of the first library error in the chain, if any.
+fn library_kind(err: &anyhow::Error) -> Option<ErrorKind> {
+    err.chain().find_map(|cause| {
+        if let Some(e) = cause.downcast_ref::<OpError>() {
+            Some(e.kind())
+        } else if let Some(e) = cause.downcast_ref::<WckError>() {
+            Some(e.kind())
+        } else if let Some(e) = cause.downcast_ref::<WhjError>() {
+            Some(e.kind())
+        } else if let Some(e) = cause.downcast_ref::<RobotError>() {
+            Some(e.kind())
+        } else if let Some(e) = cause.downcast_ref::<ActuatorError>() {
+            Some(e.kind())
+        } else {
+            cause
+                .downcast_ref::<robobus_link::LinkError>()
+                .map(robobus::error::link_error_kind)
+        }
+    })
 }
 
 /// The text of an error and its causes, joined by `: `, leaving out a cause whose text
@@ -184,5 +230,28 @@ mod tests {
             Exit::of(&anyhow::Error::new(Interrupted)),
             Exit::Interrupted
         );
+    }
+
+    #[test]
+    fn every_library_error_kind_has_its_documented_code() {
+        use robobus::ErrorKind as K;
+        let table = [
+            (K::BadInput, 2),
+            (K::Refused, 2),
+            (K::NoDevice, 3),
+            (K::Device, 1),
+            (K::Link, 1),
+            (K::Interrupted, 130),
+            (K::NotAvailable, 4),
+        ];
+        for (kind, code) in table {
+            assert_eq!(Exit::of_kind(kind) as u8, code, "{kind}");
+        }
+        let e = anyhow::Error::new(OpError::Refused("no".into())).context("whj set-id");
+        assert_eq!(Exit::of(&e), Exit::Usage);
+        let e = anyhow::Error::new(robobus::whj::WhjError::Closed);
+        assert_eq!(Exit::of(&e), Exit::Runtime);
+        let e = anyhow::Error::new(OpError::Interrupted { detail: None });
+        assert_eq!(Exit::of(&e), Exit::Interrupted);
     }
 }

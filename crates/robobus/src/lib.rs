@@ -4,9 +4,12 @@
 //! only difference.
 
 pub mod actuator;
+pub mod error;
+pub mod ops;
 pub mod robot;
 pub mod wck;
 pub mod whj;
 
 pub use actuator::{Actuator, ActuatorError, ActuatorState, JointLimits};
+pub use error::ErrorKind;
 pub use robot::{Robot, RobotConfig, RobotError};

@@ -1,0 +1,144 @@
+//! Error kinds: one classification of every library error, for every front end.
+//!
+//! Each error type of the library has a `kind()`. A front end maps the kind once: the
+//! command line to its exit code, Python bindings to an exception class, a web server to
+//! an HTTP status. The kinds:
+//!
+//! | kind | meaning | `robobus` exit code |
+//! | --- | --- | --- |
+//! | [`ErrorKind::BadInput`] | a value out of range or malformed, a file that does not parse; nothing was sent | 2 |
+//! | [`ErrorKind::Refused`] | refused for safety or because of the device's state (a gated register, an ID in use, an implausible position); nothing was sent | 2 |
+//! | [`ErrorKind::NoDevice`] | no device answered in time, or the port / interface does not exist | 3 |
+//! | [`ErrorKind::Device`] | the device answered with an error, a malformed reply, or a state other than the one asked for | 1 |
+//! | [`ErrorKind::Link`] | the link failed (I/O error, port busy, permission, bus off) | 1 |
+//! | [`ErrorKind::Interrupted`] | stopped by the caller's stop token; devices were brought to the chosen safe state | 130 |
+//! | [`ErrorKind::NotAvailable`] | the operation needs something this build or machine does not have | 4 |
+
+use robobus_link::LinkError;
+use serde::Serialize;
+
+use crate::actuator::ActuatorError;
+use crate::robot::RobotError;
+use crate::wck::WckError;
+use crate::whj::WhjError;
+
+/// What kind of failure an error is (see the [module docs](self) for the table).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "kebab-case")]
+#[non_exhaustive]
+pub enum ErrorKind {
+    /// Bad input: nothing was sent.
+    BadInput,
+    /// Refused for safety or device state: nothing was sent.
+    Refused,
+    /// No device answered, or the device path does not exist.
+    NoDevice,
+    /// The device answered with an error or an implausible reply.
+    Device,
+    /// The link failed.
+    Link,
+    /// Stopped by the caller; devices are in the chosen safe state.
+    Interrupted,
+    /// Not available in this build or on this machine.
+    NotAvailable,
+}
+
+impl ErrorKind {
+    /// The kebab-case name used in JSON reports (`"no-device"`).
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::BadInput => "bad-input",
+            Self::Refused => "refused",
+            Self::NoDevice => "no-device",
+            Self::Device => "device",
+            Self::Link => "link",
+            Self::Interrupted => "interrupted",
+            Self::NotAvailable => "not-available",
+        }
+    }
+}
+
+impl core::fmt::Display for ErrorKind {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// The kind of a link error: a missing device is [`ErrorKind::NoDevice`], a timeout too;
+/// everything else is [`ErrorKind::Link`].
+pub fn link_error_kind(e: &LinkError) -> ErrorKind {
+    match e {
+        LinkError::Timeout { .. } | LinkError::NoSuchDevice { .. } => ErrorKind::NoDevice,
+        LinkError::UnsupportedBaud { .. } => ErrorKind::NotAvailable,
+        _ => ErrorKind::Link,
+    }
+}
+
+impl WckError {
+    /// What kind of failure this is.
+    pub fn kind(&self) -> ErrorKind {
+        match self {
+            Self::Timeout { .. } => ErrorKind::NoDevice,
+            Self::BadReply { .. }
+            | Self::Unconfirmed { .. }
+            | Self::NotApplied { .. }
+            | Self::NotVerified { .. } => ErrorKind::Device,
+            Self::IdInUse { .. } => ErrorKind::Refused,
+            Self::Link { source, .. } => link_error_kind(source),
+            Self::Value { .. } => ErrorKind::BadInput,
+        }
+    }
+}
+
+impl WhjError {
+    /// What kind of failure this is.
+    pub fn kind(&self) -> ErrorKind {
+        match self {
+            Self::Timeout { .. } | Self::Silent { .. } => ErrorKind::NoDevice,
+            Self::CmdErr { .. }
+            | Self::WriteRefused { .. }
+            | Self::EnableRefused { .. }
+            | Self::BadReply { .. }
+            | Self::Unverified { .. }
+            | Self::MoveIncomplete { .. } => ErrorKind::Device,
+            Self::SaveWhileEnabled { .. } | Self::StepTooLarge { .. } | Self::Busy { .. } => {
+                ErrorKind::Refused
+            }
+            Self::UnknownRegister { .. }
+            | Self::Request { .. }
+            | Self::Unit { .. }
+            | Self::InvalidConfig { .. } => ErrorKind::BadInput,
+            Self::Bus { .. } | Self::Link { .. } | Self::Closed => ErrorKind::Link,
+        }
+    }
+}
+
+impl ActuatorError {
+    /// What kind of failure this is.
+    pub fn kind(&self) -> ErrorKind {
+        match self {
+            Self::NotFinite { .. } | Self::OutOfDeviceRange { .. } => ErrorKind::BadInput,
+            Self::Wck { source, .. } => source.kind(),
+            Self::Whj { source, .. } => source.kind(),
+        }
+    }
+}
+
+impl RobotError {
+    /// What kind of failure this is.
+    pub fn kind(&self) -> ErrorKind {
+        match self {
+            Self::Parse { .. }
+            | Self::Invalid { .. }
+            | Self::Io { .. }
+            | Self::MissingBus { .. }
+            | Self::WrongBus { .. }
+            | Self::TargetCount { .. } => ErrorKind::BadInput,
+            Self::OpenWck { source, .. } => source.kind(),
+            Self::OpenWhj { .. } => ErrorKind::NoDevice,
+            Self::Actuator(e) => e.kind(),
+            Self::SafeStopped { .. } => ErrorKind::Refused,
+            Self::Ctrlc(_) | Self::Watchdog(_) => ErrorKind::NotAvailable,
+        }
+    }
+}
