@@ -32,6 +32,7 @@ mod demo;
 mod doctor;
 mod exit;
 mod generate;
+mod interrupt;
 mod monitor;
 mod output;
 mod plot;

@@ -29,8 +29,6 @@
 use std::fmt::Write as _;
 use std::io::{BufRead as _, IsTerminal as _};
 use std::path::PathBuf;
-use std::sync::Once;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
@@ -122,22 +120,13 @@ pub(crate) struct WckJob<'a> {
     pub(crate) json: bool,
 }
 
-/// Set by the Ctrl-C / SIGTERM handler.
-static STOP: AtomicBool = AtomicBool::new(false);
-
-/// Installs the Ctrl-C / SIGTERM handler (once): from then on a signal sets [`STOP`]
-/// instead of killing the process, so a loop can stop its servos first.
+/// Installs the one Ctrl-C / SIGTERM handler ([`crate::interrupt`]).
 fn arm_ctrlc() {
-    static ONCE: Once = Once::new();
-    ONCE.call_once(|| {
-        if let Err(e) = ctrlc::set_handler(|| STOP.store(true, Ordering::SeqCst)) {
-            tracing::warn!("cannot install the Ctrl-C handler: {e}");
-        }
-    });
+    let _ = crate::interrupt::stop_token();
 }
 
 fn stopped() -> bool {
-    STOP.load(Ordering::SeqCst)
+    crate::interrupt::stop_token().is_stopped()
 }
 
 /// Sleeps until `deadline`, waking early when Ctrl-C arrives; returns whether it did.

@@ -24,8 +24,6 @@
 
 use std::fmt::Write as _;
 use std::io::IsTerminal as _;
-use std::sync::Once;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, anyhow};
@@ -181,15 +179,9 @@ pub(crate) struct WhjJob<'a> {
     pub(crate) json: bool,
 }
 
-static STOP: AtomicBool = AtomicBool::new(false);
-
+/// Installs the one Ctrl-C / SIGTERM handler ([`crate::interrupt`]).
 fn arm_ctrlc() {
-    static ONCE: Once = Once::new();
-    ONCE.call_once(|| {
-        if let Err(e) = ctrlc::set_handler(|| STOP.store(true, Ordering::SeqCst)) {
-            tracing::warn!("cannot install the Ctrl-C handler: {e}");
-        }
-    });
+    let _ = crate::interrupt::stop_token();
 }
 
 /// Maps a client error to its exit code: timeouts (3) name the joint.
@@ -717,7 +709,7 @@ fn smooth_move(
     let mut settle: Option<Instant> = None;
     let mut frames = 0u64;
     let fb = loop {
-        if STOP.load(Ordering::SeqCst) {
+        if crate::interrupt::stop_token().is_stopped() {
             pb.finish_and_clear();
             return Err(interrupted(&j, on_stop, WaveLoop::Position));
         }
@@ -825,7 +817,7 @@ fn run_wave(
     let (mut err_sq, mut err_max, mut n) = (0.0f64, 0.0f64, 0u64);
     let mut last_fb = None;
     loop {
-        if STOP.load(Ordering::SeqCst) {
+        if crate::interrupt::stop_token().is_stopped() {
             let _ = cyc.stop();
             pb.finish_and_clear();
             return Err(interrupted(&j, on_stop, wave.mode));

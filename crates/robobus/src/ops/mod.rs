@@ -45,10 +45,13 @@ use std::time::{Duration, Instant};
 
 use serde::Serialize;
 
+mod ids;
+
 pub use crate::error::ErrorKind;
 pub use crate::robot::SafeState;
 use crate::wck::WckError;
 use crate::whj::WhjError;
+pub use ids::{IdList, ListId};
 
 /// A flag a caller sets to stop a running operation; clones share the flag.
 ///
