@@ -3,7 +3,13 @@
 //! The same API works on real hardware and on the robobus simulators; the link is the
 //! only difference.
 
+// Errors carry their facts by value (names, bytes, values): they are large, and they are
+// the cold path. Boxing each would cost every caller a pattern change for no gain.
+#![allow(clippy::result_large_err)]
+
 pub mod actuator;
+#[cfg(feature = "sim")]
+pub mod demo;
 pub mod error;
 pub mod ops;
 pub mod robot;

@@ -402,7 +402,6 @@ pub const DEFAULT_FILE_LIMIT: u64 = 4 << 20;
 
 /// Reads a whole text file of at most `limit` bytes: a larger file (or an endless one such
 /// as `/dev/zero`) is refused after reading `limit + 1` bytes, never read whole.
-#[allow(clippy::result_large_err)] // OpError carries the client errors by value, as they do
 pub fn read_bounded(path: &Path, limit: u64) -> Result<String, OpError> {
     use std::io::Read as _;
     let file_error = |reason: String, kind| OpError::File {
