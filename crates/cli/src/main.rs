@@ -23,6 +23,7 @@
 //! (nothing was opened or sent), 3 timeout or no device answered, 4 not available in this
 //! build, 5 `doctor` found a problem, 130 interrupted (Ctrl-C).
 
+use std::io::IsTerminal as _;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
@@ -142,6 +143,8 @@ enum SimCommand {
     Whj(sim_whj::Args),
 }
 
+/// Logs go to stderr, coloured only when stderr is a terminal (a pipe or a file gets plain
+/// text); a non-empty `NO_COLOR` also turns colour off.
 fn init_logging(verbose: u8) {
     let default = match verbose {
         0 => "warn",
@@ -149,13 +152,21 @@ fn init_logging(verbose: u8) {
         2 => "debug",
         _ => "trace",
     };
+    let colour = std::io::stderr().is_terminal()
+        && std::env::var_os("NO_COLOR").is_none_or(|v| v.is_empty());
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()
                 .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default)),
         )
         .with_writer(std::io::stderr)
+        .with_ansi(colour)
         .init();
+    tracing::debug!(
+        version = env!("CARGO_PKG_VERSION"),
+        colour,
+        "robobus logging"
+    );
 }
 
 fn main() -> ExitCode {

@@ -33,6 +33,7 @@ Recording format (CSV, what `robobus monitor` writes):
     e.g. `t_s` or `time_ms`), then one column per signal (`j1_deg`, `servo3_pos`, ...)
   * every further line: a time and one number per signal; an empty cell is a missing
     sample; times must not decrease
+  * limits: numbers within ±1e12, lines up to 64 KiB, files up to 64 MiB
 Example:
   t_s,j1_deg,j1_mA
   0.000,0.0,12
@@ -61,6 +62,17 @@ pub(crate) struct Args {
     height: u32,
 }
 
+/// The largest recording read, bytes (a 500 Hz recording of 14 signals for an hour is
+/// about 40 MiB).
+pub(crate) const MAX_CSV_BYTES: u64 = 64 << 20;
+
+/// The longest line, bytes.
+pub(crate) const MAX_LINE_BYTES: usize = 64 << 10;
+
+/// The largest magnitude of a time or a value: beyond it the axes cannot be drawn with
+/// meaningful ticks (and ±1e308 spans overflow to infinity).
+pub(crate) const MAX_ABS_VALUE: f64 = 1e12;
+
 /// A parsed recording.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct Recording {
@@ -84,6 +96,20 @@ pub(crate) struct CsvError {
 impl Recording {
     /// Parses the CSV text.
     pub(crate) fn parse(text: &str) -> Result<Self, CsvError> {
+        if let Some((i, l)) = text
+            .lines()
+            .enumerate()
+            .find(|(_, l)| l.len() > MAX_LINE_BYTES)
+        {
+            return Err(CsvError {
+                line: i + 1,
+                message: format!(
+                    "the line has {} bytes, more than the {MAX_LINE_BYTES} bytes (64 KiB) a \
+                     line may have",
+                    l.len()
+                ),
+            });
+        }
         let mut lines = text
             .lines()
             .enumerate()
@@ -129,19 +155,11 @@ impl Recording {
                     ),
                 });
             }
-            let mut values = cells.iter().zip(&names).enumerate().map(|(i, (c, n))| {
-                if c.is_empty() {
-                    return Ok(None);
-                }
-                c.parse::<f64>()
-                    .ok()
-                    .filter(|v| v.is_finite())
-                    .map(Some)
-                    .ok_or_else(|| CsvError {
-                        line,
-                        message: format!("column {} (`{n}`): `{c}` is not a number", i + 1),
-                    })
-            });
+            let mut values = cells
+                .iter()
+                .zip(&names)
+                .enumerate()
+                .map(|(i, (c, n))| cell(line, i, n, c));
             let t = values
                 .next()
                 .transpose()?
@@ -169,6 +187,31 @@ impl Recording {
         }
         Ok(rec)
     }
+}
+
+/// One cell: empty (a missing sample) or a finite number within [`MAX_ABS_VALUE`].
+fn cell(line: usize, i: usize, name: &str, c: &str) -> Result<Option<f64>, CsvError> {
+    if c.is_empty() {
+        return Ok(None);
+    }
+    let v = c
+        .parse::<f64>()
+        .ok()
+        .filter(|v| v.is_finite())
+        .ok_or_else(|| CsvError {
+            line,
+            message: format!("column {} (`{name}`): `{c}` is not a number", i + 1),
+        })?;
+    if v.abs() > MAX_ABS_VALUE {
+        return Err(CsvError {
+            line,
+            message: format!(
+                "column {} (`{name}`): {c} is out of the plottable range -1e12..=1e12",
+                i + 1
+            ),
+        });
+    }
+    Ok(Some(v))
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -210,8 +253,7 @@ fn register_font() -> anyhow::Result<()> {
 /// Runs `robobus plot`.
 pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     let format = format_of(&args.output)?;
-    let text = std::fs::read_to_string(&args.file)
-        .with_context(|| format!("cannot read {}", args.file.display()))?;
+    let text = read_bounded(&args.file)?;
     let mut rec = Recording::parse(&text)
         .map_err(|e| usage(format!("{}:{}: {}", args.file.display(), e.line, e.message)))?;
     if !args.signals.is_empty() {
@@ -265,6 +307,30 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     }
 }
 
+/// Reads the recording, refusing files over [`MAX_CSV_BYTES`] without reading further.
+fn read_bounded(path: &Path) -> anyhow::Result<String> {
+    use std::io::Read as _;
+    let file =
+        std::fs::File::open(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let mut bytes = Vec::new();
+    file.take(MAX_CSV_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .with_context(|| format!("cannot read {}", path.display()))?;
+    if bytes.len() as u64 > MAX_CSV_BYTES {
+        return Err(usage(format!(
+            "{}: larger than {MAX_CSV_BYTES} bytes (64 MiB), the limit for a recording",
+            path.display()
+        )));
+    }
+    String::from_utf8(bytes).map_err(|e| {
+        usage(format!(
+            "{}: not UTF-8 text (byte {} is invalid)",
+            path.display(),
+            e.utf8_error().valid_up_to()
+        ))
+    })
+}
+
 /// Draws `rec` to `output` (PNG or SVG by its extension) with `title`, 1200 x 600 pixels.
 /// For other commands that plot what they recorded (`robobus demo --plot`).
 pub(crate) fn write_image(rec: &Recording, output: &Path, title: &str) -> anyhow::Result<()> {
@@ -288,14 +354,18 @@ pub(crate) fn write_image(rec: &Recording, output: &Path, title: &str) -> anyhow
     Ok(())
 }
 
-/// The range of the data, widened where it is a single value.
+/// The range of the data, widened where it is a single value or too narrow for its
+/// magnitude (ticks need a span that `f64` can still subdivide).
 fn span(mut lo: f64, mut hi: f64) -> (f64, f64) {
-    if !lo.is_finite() || !hi.is_finite() {
+    if !lo.is_finite() || !hi.is_finite() || hi - lo > 4.0 * MAX_ABS_VALUE {
         return (0.0, 1.0);
     }
-    if hi - lo < 1e-12 {
-        lo -= 0.5;
-        hi += 0.5;
+    let least = (lo.abs().max(hi.abs()) * 1e-9).max(1e-12);
+    if hi - lo < least {
+        let mid = lo + (hi - lo) / 2.0;
+        let half = least.max(0.5 * (hi - lo)).max(0.5);
+        lo = mid - half;
+        hi = mid + half;
     } else {
         let pad = (hi - lo) * 0.05;
         lo -= pad;
@@ -316,7 +386,12 @@ where
     root.fill(&WHITE).map_err(e)?;
     let t0 = rec.time.first().copied().unwrap_or(0.0);
     let t1 = rec.time.last().copied().unwrap_or(1.0);
-    let (x0, x1) = if t1 > t0 { (t0, t1) } else { span(t0, t1) };
+    let least = (t0.abs().max(t1.abs()) * 1e-9).max(1e-12);
+    let (x0, x1) = if t1 - t0 >= least && t1 - t0 <= 2.0 * MAX_ABS_VALUE {
+        (t0, t1)
+    } else {
+        span(t0, t1)
+    };
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     for v in rec.signals.iter().flat_map(|(_, v)| v.iter().flatten()) {
         lo = lo.min(*v);
@@ -382,6 +457,22 @@ mod tests {
         assert_eq!(r.time, [0.0, 0.5]);
         assert_eq!(r.signals[0], ("a".into(), vec![Some(1.0), Some(2.0)]));
         assert_eq!(r.signals[1], ("b".into(), vec![None, Some(3.0)]));
+    }
+
+    #[test]
+    fn values_and_lines_are_bounded() {
+        let e = Recording::parse("t,a\n0,1\n1,-1e308\n").unwrap_err();
+        assert_eq!(e.line, 3);
+        assert!(e.message.contains("-1e12..=1e12"), "{}", e.message);
+        assert!(Recording::parse("t,a\n0,1e12\n1,-1e12\n").is_ok());
+        let long = format!("t,a\n0,{}\n", "1".repeat(MAX_LINE_BYTES));
+        let e = Recording::parse(&long).unwrap_err();
+        assert_eq!(e.line, 2);
+        assert!(e.message.contains("64 KiB"), "{}", e.message);
+        // Spans are widened to something f64 can subdivide.
+        let (lo, hi) = span(1e12, 1e12);
+        assert!(hi - lo >= 1e3 && lo < 1e12 && hi > 1e12);
+        assert_eq!(span(f64::NEG_INFINITY, 1.0), (0.0, 1.0));
     }
 
     #[test]

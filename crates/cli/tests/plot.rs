@@ -132,3 +132,109 @@ fn bad_csv_names_the_line() {
         r.stderr
     );
 }
+
+/// Runs `robobus ARGS`, killing it (and failing) if it is not done within 30 s: a plot
+/// that loops forever must fail the test, not hang it.
+fn robobus_bounded(args: &[&str]) -> common::Run {
+    use std::process::{Command, Stdio};
+    use std::time::{Duration, Instant};
+    let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .args(args)
+        .env_remove("RUST_LOG")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed() > Duration::from_secs(30) {
+            child.kill().unwrap();
+            panic!("robobus {args:?} still running after 30 s");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child.wait_with_output().unwrap().into()
+}
+
+#[test]
+fn absurd_ranges_are_refused_and_extreme_ones_still_plot() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("r.csv");
+    let out = dir.path().join("r.svg");
+    let run = |text: &str| {
+        std::fs::write(&csv, text).unwrap();
+        robobus_bounded(&["plot", csv.to_str().unwrap(), "-o", out.to_str().unwrap()])
+    };
+    for (text, needle) in [
+        (
+            "t,a\n-1e308,1\n1e308,2\n",
+            "r.csv:2: column 1 (`t`): -1e308",
+        ),
+        (
+            "t,a\n0,-1e308\n1,1e308\n",
+            "r.csv:2: column 2 (`a`): -1e308",
+        ),
+        ("t,a\n0,1\n1,1e13\n", "r.csv:3: column 2 (`a`): 1e13"),
+        ("t,a\n0,inf\n", "`inf` is not a number"),
+        ("t,a\n0,NaN\n", "`NaN` is not a number"),
+    ] {
+        let r = run(text);
+        assert_eq!(r.code, Some(2), "{text:?}: {r:#?}");
+        assert!(
+            r.stderr.contains(needle),
+            "{needle:?} missing: {}",
+            r.stderr
+        );
+        if needle.contains("1e") {
+            assert!(r.stderr.contains("-1e12..=1e12"), "{}", r.stderr);
+        }
+        assert!(!out.exists());
+    }
+    // At the limits: the widest span, a tiny span at a huge magnitude, a single time.
+    for text in [
+        "t,a\n0,-1e12\n1,1e12\n",
+        "t,a\n-1e12,0\n1e12,1e-300\n",
+        "t,a\n1e12,5\n1e12,5.000001\n",
+        "t,a\n999999999999.9999,1e12\n1e12,1e12\n",
+        "t,a\n7,7\n",
+    ] {
+        let r = run(text);
+        assert_eq!(r.code, Some(0), "{text:?}: {r:#?}");
+        assert!(std::fs::read_to_string(&out).unwrap().ends_with("</svg>\n"));
+        std::fs::remove_file(&out).unwrap();
+    }
+}
+
+#[test]
+fn oversized_files_and_lines_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("r.png");
+    // A line over 64 KiB.
+    let csv = dir.path().join("long.csv");
+    let mut text = String::from("t,a\n0,1\n1,");
+    text.push_str(&"1".repeat(70_000));
+    text.push('\n');
+    std::fs::write(&csv, &text).unwrap();
+    let r = robobus_bounded(&["plot", csv.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    assert!(
+        r.stderr.contains("long.csv:3:") && r.stderr.contains("64 KiB"),
+        "{}",
+        r.stderr
+    );
+    // A file over 64 MiB (sparse), and an endless device.
+    let big = dir.path().join("big.csv");
+    let f = std::fs::File::create(&big).unwrap();
+    f.set_len((64 << 20) + 1).unwrap();
+    for path in [big.to_str().unwrap(), "/dev/zero"] {
+        let r = robobus_bounded(&["plot", path, "-o", out.to_str().unwrap()]);
+        assert_eq!(r.code, Some(2), "{path}: {r:#?}");
+        assert!(
+            r.stderr.contains(path) && r.stderr.contains("64 MiB"),
+            "{}",
+            r.stderr
+        );
+    }
+    assert!(!out.exists());
+}

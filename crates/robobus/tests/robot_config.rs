@@ -236,3 +236,238 @@ fn opening_a_missing_port_names_the_bus_and_the_port() {
         "{msg}"
     );
 }
+
+/// The 1-based line of the first line containing `needle`.
+fn line_of(text: &str, needle: &str) -> usize {
+    text.lines().position(|l| l.contains(needle)).unwrap() + 1
+}
+
+#[test]
+fn limits_take_exactly_two_numbers() {
+    for limits in ["[-0.5, 0.5, 9.0]", "[-0.5, 0.5, \"x\", 1]", "[0.5]", "[]"] {
+        let text = GOOD.replace("limits = [-0.5, 0.5]", &format!("limits = {limits}"));
+        let e = RobotConfig::from_toml_str(&text).unwrap_err();
+        let RobotError::Parse { line, column, .. } = &e else {
+            panic!("{limits}: {e:?}");
+        };
+        assert_eq!(
+            *line,
+            line_of(&text, &format!("limits = {limits}")),
+            "{limits}: {e}"
+        );
+        assert!(*column > 1, "{e}");
+        assert!(e.to_string().contains("two numbers"), "{e}");
+    }
+}
+
+#[test]
+fn value_errors_give_the_line_and_column_of_the_value() {
+    let text = GOOD.replace("limits = [-0.5, 0.5]", "limits = [0.5, -0.5]");
+    let msg = err(&text);
+    let line = line_of(&text, "limits = [0.5");
+    assert!(
+        msg.contains(&format!("joint shoulder (line {line}, column 10)")),
+        "{msg}"
+    );
+    let text = GOOD.replace("torque = 1", "torque = 5");
+    let msg = err(&text);
+    let line = line_of(&text, "torque = 5");
+    assert!(
+        msg.contains(&format!("bus legs (line {line}, column 10)")),
+        "{msg}"
+    );
+    // A duplicate name is reported at the second joint's name.
+    let text = GOOD.replace("name = \"shoulder\"", "name = \"knee\"");
+    let msg = err(&text);
+    let second = text.match_indices("name = \"knee\"").nth(1).unwrap().0;
+    let line = text[..second].matches('\n').count() + 1;
+    assert!(msg.contains(&format!("(line {line}, column 8)")), "{msg}");
+}
+
+#[test]
+fn empty_and_jointless_files_are_refused() {
+    for text in ["", "   \n\t\n"] {
+        let e = RobotConfig::from_toml_str(text).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                RobotError::Parse {
+                    line: 1,
+                    column: 1,
+                    ..
+                }
+            ),
+            "{e:?}"
+        );
+        assert!(e.to_string().contains("empty"), "{e}");
+    }
+    let msg = err("# only a comment\nwatchdog_timeout = 0.1\n");
+    assert!(msg.contains("buses") || msg.contains("joints"), "{msg}");
+    let no_joints = r#"
+        joints = []
+        [buses.legs]
+        kind = "wck"
+        port = "/dev/ttyUSB0"
+    "#;
+    let msg = err(no_joints);
+    assert!(
+        msg.contains("joints = none") && msg.contains("at least one [[joints]]"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn non_finite_and_absurd_values_are_refused() {
+    let cases = [
+        ("offset = 0.1", "offset = nan", "offset"),
+        ("limits = [-0.5, 0.5]", "limits = [-inf, 0.5]", "limits"),
+        ("max_velocity = 0.5", "max_velocity = inf", "max_velocity"),
+        ("max_velocity = 0.5", "max_velocity = 1e300", "<= 100 rad/s"),
+        (
+            "max_acceleration = 2.0",
+            "max_acceleration = 1e9",
+            "<= 10000",
+        ),
+        // WHJ: device angles beyond the position registers (±214 748°).
+        (
+            "limits = [-0.5, 0.5]",
+            "limits = [-1e9, 1e9]",
+            "position registers",
+        ),
+        (
+            "limits = [-0.5, 0.5]",
+            "limits = [-0.5, 0.5]\noffset = 4000.0",
+            "offset 4000",
+        ),
+        // wCK: an offset that puts the limits beyond the servo's reach.
+        ("offset = 0.1", "offset = 5.0", "angles the servo can reach"),
+        ("name = \"knee\"", "name = \"\"", "a non-empty name"),
+        ("port = \"/dev/ttyUSB7\"", "port = \"\"", "port"),
+    ];
+    for (from, to, needle) in cases {
+        let text = GOOD.replace(from, to);
+        assert_ne!(text, GOOD, "{from}");
+        let msg = err(&text);
+        assert!(msg.contains(needle), "{to}: {needle:?} missing in {msg}");
+        assert!(msg.contains("line"), "{to}: no line in {msg}");
+    }
+}
+
+#[test]
+fn unknown_keys_are_refused_everywhere() {
+    for (from, to) in [
+        (
+            "watchdog_timeout = 0.05",
+            "watchdog_timeout = 0.05\nwatchdog = 1",
+        ),
+        ("baud = 57600", "baud = 57600\nparity = \"none\""),
+        ("centre = 120", "centre = 120\ngear = 2"),
+    ] {
+        let text = GOOD.replace(from, to);
+        let e = RobotConfig::from_toml_str(&text).unwrap_err();
+        assert!(
+            matches!(e, RobotError::Parse { line, .. } if line > 0),
+            "{e:?}"
+        );
+        let key = to.lines().nth(1).unwrap().split(' ').next().unwrap();
+        assert!(e.to_string().contains(key), "{key}: {e}");
+    }
+}
+
+#[test]
+fn files_over_the_size_limit_are_refused_without_reading_them_whole() {
+    let limit = RobotConfig::MAX_FILE_BYTES;
+    assert_eq!(limit, 1 << 20);
+    // Text: a valid file padded with comments past the limit.
+    let mut big = GOOD.to_owned();
+    while big.len() <= limit {
+        big.push_str("# padding padding padding padding padding padding padding\n");
+    }
+    let msg = err(&big);
+    assert!(msg.contains("1048576") && msg.contains("1 MiB"), "{msg}");
+    // Files: one byte over the limit, and an endless device.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("big.toml");
+    std::fs::write(&path, &big).unwrap();
+    let msg = RobotConfig::from_toml_file(&path).unwrap_err().to_string();
+    assert!(msg.contains("big.toml") && msg.contains("1 MiB"), "{msg}");
+    let msg = RobotConfig::from_toml_file("/dev/zero")
+        .unwrap_err()
+        .to_string();
+    assert!(msg.contains("/dev/zero") && msg.contains("1 MiB"), "{msg}");
+    // At the limit exactly: read and parsed.
+    let mut exact = GOOD.to_owned();
+    exact.push_str(&"#".repeat(limit - exact.len() - 1));
+    exact.push('\n');
+    assert_eq!(exact.len(), limit);
+    std::fs::write(&path, &exact).unwrap();
+    RobotConfig::from_toml_file(&path).unwrap();
+}
+
+#[test]
+fn a_file_that_is_not_utf8_names_the_byte() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bin.toml");
+    std::fs::write(&path, b"watchdog_timeout = 0.1\n\xff\xfe").unwrap();
+    let msg = RobotConfig::from_toml_file(&path).unwrap_err().to_string();
+    assert!(msg.contains("UTF-8") && msg.contains("byte 23"), "{msg}");
+}
+
+mod properties {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(256))]
+
+        /// Arbitrary bytes never panic the reader: an error or a checked config.
+        #[test]
+        fn arbitrary_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..512)) {
+            let dir = tempfile::tempdir().unwrap();
+            let path = dir.path().join("r.toml");
+            std::fs::write(&path, &bytes).unwrap();
+            if let Ok(c) = RobotConfig::from_toml_file(&path) {
+                prop_assert!(c.validate().is_ok() && !c.joints.is_empty());
+            }
+            let _ = RobotConfig::from_toml_str(&String::from_utf8_lossy(&bytes));
+        }
+
+        /// Mutations of a good file (a line dropped, duplicated or a token replaced)
+        /// never panic, and whatever parses passes validation.
+        #[test]
+        fn mutated_files_never_panic(
+            line in 0usize..40,
+            action in 0u8..3,
+            token in prop::sample::select(vec![
+                "nan", "inf", "-inf", "1e308", "-1e308", "[]", "[1, 2, 3]", "\"\"", "0",
+                "-1", "255", "{}", "[[joints]]", "[buses.x]", "= =",
+            ]),
+        ) {
+            let mut lines: Vec<String> = GOOD.lines().map(str::to_owned).collect();
+            let i = line % lines.len();
+            match action {
+                0 => { lines.remove(i); }
+                1 => { let l = lines[i].clone(); lines.insert(i, l); }
+                _ => {
+                    if let Some((key, _)) = lines[i].split_once(" = ") {
+                        lines[i] = format!("{key} = {token}");
+                    } else {
+                        lines[i] = token.to_owned();
+                    }
+                }
+            }
+            if let Ok(c) = RobotConfig::from_toml_str(&lines.join("\n")) {
+                prop_assert!(c.validate().is_ok());
+            }
+        }
+
+        /// Anything over the limit is refused, whatever it holds.
+        #[test]
+        fn oversized_input_is_refused(extra in 1usize..4096, fill in any::<u8>()) {
+            let c = char::from(b' ' + fill % 90);
+            let text: String = std::iter::repeat_n(c, RobotConfig::MAX_FILE_BYTES + extra).collect();
+            let msg = RobotConfig::from_toml_str(&text).unwrap_err().to_string();
+            prop_assert!(msg.contains("1 MiB"), "{}", msg);
+        }
+    }
+}

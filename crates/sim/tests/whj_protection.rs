@@ -229,6 +229,56 @@ fn end_board_mode_persists_and_needs_fw_519() {
 }
 
 #[test]
+fn firmware_gates_follow_the_register_table() {
+    // Every gated register of the table, on each firmware: present (writable, reads back)
+    // exactly when the table's gate admits the version. E2.XX is the multi-turn joints'
+    // broadcast line: it has the broadcast counter although its last digits are below 500.
+    use robobus_whj::units::FirmwareVersion;
+    for fw in [
+        0xD4FF, 0xD500, 0xD518, 0xD519, 0xD521, 0xD522, 0xDA05, 0xE200,
+    ] {
+        let version = FirmwareVersion(fw);
+        let mut cfg = JointConfig::new(1, WhjModel::Whj30);
+        cfg.firmware = version;
+        let mut bus = started(cfg);
+        write1(&mut bus, 1, 0x0A, 0, 1);
+        wait_ms(&mut bus, 6);
+        for info in robobus_whj::REGISTERS
+            .iter()
+            .filter(|r| r.firmware.is_some())
+        {
+            let a = info.addr.get();
+            let present = info.firmware.unwrap().gate().admits(version);
+            let value = if a == 0x4E { 7 } else { 1 };
+            write1(&mut bus, 1, a, value, u8::from(present));
+            let expect = if present { u16::from(value) } else { 0 };
+            assert_eq!(
+                read(&mut bus, 1, a, 1),
+                vec![expect],
+                "{} on {version}",
+                info.name
+            );
+        }
+    }
+    // The table's reading, spelled out: which of 0x1F, 0x4E, 0x69, 0x6A, 0x79 exist.
+    for (fw, present) in [
+        (0xD4FF, [false, false, false, false, false]),
+        (0xD519, [true, true, true, false, true]),
+        (0xD522, [true, true, true, true, true]),
+        (0xE200, [false, true, false, false, false]),
+    ] {
+        let mut cfg = JointConfig::new(1, WhjModel::Whj30);
+        cfg.firmware = FirmwareVersion(fw);
+        let mut bus = started(cfg);
+        write1(&mut bus, 1, 0x0A, 0, 1);
+        wait_ms(&mut bus, 6);
+        for (a, p) in [0x1F, 0x4E, 0x69, 0x6A, 0x79].into_iter().zip(present) {
+            write1(&mut bus, 1, a, 1, u8::from(p));
+        }
+    }
+}
+
+#[test]
 fn direct_brake_release_once_per_power_cycle() {
     let mut cfg = JointConfig::new(1, WhjModel::Whj30);
     cfg.load.gravity_nm = 20.0;

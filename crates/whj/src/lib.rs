@@ -3,7 +3,8 @@
 //! Both sides of the wire are covered: a host encodes [`Request`]s and decodes
 //! [`Reply`]s; a simulated joint decodes [`Request::from_frame`] (or learns exactly why a
 //! frame is [`Malformed`] and which `CMD_ERR` to answer) and encodes its [`Reply`]. The
-//! register table is data ([`REGISTERS`]), units are named conversions ([`units`]),
+//! register table is data ([`REGISTERS`], with the firmware gates [`FIRMWARE_GATES`]), the
+//! products are data ([`PRODUCTS`]: code, ratio, peak speed, current scale, features), units are named conversions ([`units`]),
 //! errors are a named bit set ([`ErrorCode`]), and [`timing`] gives each frame's exact
 //! duration on the wire. Sources: `whj-canfd-usage-demo.txt` and `whj-joint-protocol.md`
 //! (section numbers in the docs refer to the latter).
@@ -66,6 +67,7 @@ pub mod broadcast;
 pub mod error_code;
 pub mod frame;
 pub mod id;
+pub mod models;
 pub mod registers;
 pub mod reply;
 pub mod request;
@@ -80,7 +82,11 @@ pub use broadcast::{
 pub use error_code::{ErrorBitInfo, ErrorCode};
 pub use frame::{CanFrame, FrameError};
 pub use id::{Address, BroadcastFunction, Function, JointId, JointIdError};
-pub use registers::{REGISTERS, RegisterAddr, RegisterAddrError, RegisterInfo, WorkMode};
+pub use models::{PRODUCTS, ProductFacts};
+pub use registers::{
+    FIRMWARE_GATES, Feature, FirmwareGate, GateRefusal, REGISTERS, RegisterAddr, RegisterAddrError,
+    RegisterInfo, WorkMode, gated_write_allowed,
+};
 pub use reply::{
     BroadcastRegisterReply, CmdError, JointStatus, Reply, ReplyError, ReplyErrorReason,
     ServoFeedback, Words, WriteStatus,

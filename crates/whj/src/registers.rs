@@ -49,6 +49,11 @@ impl RegisterAddr {
         self.0
     }
 
+    /// The address as an index into a table of [`TABLE_LEN`] words (always in bounds).
+    pub const fn index(self) -> usize {
+        self.0 as usize
+    }
+
     /// The address `n` words further on, if still in the table.
     #[allow(clippy::cast_possible_truncation)] // checked < TABLE_LEN
     pub const fn offset(self, n: u8) -> Result<Self, RegisterAddrError> {
@@ -205,8 +210,9 @@ pub struct RegisterInfo {
     pub half: Half,
     /// Persistence class.
     pub persistence: Persistence,
-    /// Firmware or model gate, if any ("FW ≥ 519").
-    pub firmware: Option<&'static str>,
+    /// The feature whose firmware (and, for some, model) gate this register sits behind,
+    /// if any; [`Feature::gate`] has the rule and its source.
+    pub firmware: Option<Feature>,
     /// Source documents: EN = EN-MCT, ZH = ZH-MCT, 10 = V1.0, 11 = V1.1, GRIP, DEMO.
     pub sources: &'static str,
     /// Conflicts in §10 that concern this register ("C1", ...); empty if none.
@@ -224,7 +230,7 @@ const fn r(
     init: Option<i32>,
     half: Half,
     persistence: Persistence,
-    firmware: Option<&'static str>,
+    firmware: Option<Feature>,
     sources: &'static str,
     conflicts: &'static [&'static str],
 ) -> RegisterInfo {
@@ -279,7 +285,7 @@ pub static REGISTERS: [RegisterInfo; 70] = [
     r(0x14, "CUR_POSITION_L", "actual output position, low word", Unit::Position, I32, RO, None, L, Live, None, ALL, NONE),
     r(0x15, "CUR_POSITION_H", "actual output position, high word", Unit::Position, None, RO, None, H, Live, None, ALL, NONE),
     r(0x18, "ARM_CALIBRATION_STATE", "arm calibration state: 0 none, 1 running, 2 done", Unit::Enum, Some((0, 2)), UN, Some(0), S, Flash, None, "ZH", &["C34"]),
-    r(0x1F, "ON_DELAY", "0 = staggered (delayed) power-up, 1 = no delay", Unit::Flag, FLAG, RW, Some(0), S, Flash, Some("FW >= 519"), "EN 11 DEMO", &["C33"]),
+    r(0x1F, "ON_DELAY", "0 = staggered (delayed) power-up, 1 = no delay", Unit::Flag, FLAG, RW, Some(0), S, Flash, Some(Feature::PowerUpDelay), "EN 11 DEMO", &["C33"]),
     r(0x2A, "MOT_MODEL_ID0", "unique ID bits 15..0", Unit::Raw, None, RO, None, S, Fixed, None, ALL, NONE),
     r(0x2B, "MOT_MODEL_ID1", "unique ID bits 31..16", Unit::Raw, None, RO, None, S, Fixed, None, ALL, NONE),
     r(0x2C, "MOT_MODEL_ID2", "unique ID bits 47..32", Unit::Raw, None, RO, None, S, Fixed, None, ALL, NONE),
@@ -307,7 +313,7 @@ pub static REGISTERS: [RegisterInfo; 70] = [
     r(0x49, "IAP_FLAG", "0 = run the application, 1 = firmware update; write 0 after power-up", Unit::Flag, FLAG, RW, Some(0), S, Ram, None, ALL, &["C24"]),
     r(0x4B, "LIT_MAX_POS_DIFF_L", "maximum following error, low word (default 30°)", Unit::Position, I32, RW, Some(300_000), L, Flash, None, "ZH GRIP", &["C34"]),
     r(0x4C, "LIT_MAX_POS_DIFF_H", "maximum following error, high word", Unit::Position, None, RW, Some(4), H, Flash, None, "ZH GRIP", &["C34"]),
-    r(0x4E, "BROADCAST_COUNTER", "broadcast receive counter (write 0 to clear)", Unit::Raw, Some((0, 255)), UN, None, S, Ram, Some("FW D5.XX"), "11", NONE),
+    r(0x4E, "BROADCAST_COUNTER", "broadcast receive counter (write 0 to clear)", Unit::Raw, Some((0, 255)), UN, None, S, Ram, Some(Feature::Broadcast), "11", NONE),
     r(0x50, "SEV_PARAME_UPDATE", "load the gain registers into the control loops", Unit::Flag, FLAG, RW, Some(0), S, Trigger, None, "ZH", &["C34"]),
     r(0x51, "SEV_CURRENT_P", "current-loop P gain (factory-tuned)", Unit::Raw, None, RW, None, S, Flash, None, ALL, NONE),
     r(0x52, "SEV_CURRENT_I", "current-loop I gain (factory-tuned)", Unit::Raw, None, RW, None, S, Flash, None, ALL, NONE),
@@ -322,10 +328,10 @@ pub static REGISTERS: [RegisterInfo; 70] = [
     r(0x5B, "SEV_POSITION_DS", "position-loop P dead zone", Unit::Raw, None, RW, None, S, Flash, None, ALL, NONE),
     r(0x5C, "SEV_POS_SMOOTH", "position-loop smoothing (higher = tighter following)", Unit::Raw, None, RW, None, S, Flash, None, "EN 11", NONE),
     r(0x5D, "SEV_SPD_FF", "speed feed-forward coefficient (higher = tighter following)", Unit::Raw, None, RW, None, S, Flash, None, "EN 11", NONE),
-    r(0x69, "LOW_POWER_MODE", "1 = at most 80 W per joint", Unit::Flag, FLAG, RW, Some(0), S, Flash, Some("WHJ10N/30/60, FW >= 519"), "EN 11 DEMO", NONE),
-    r(0x6A, "STATE_BRK_DIRECT_ENABLE", "direct brake release for hard-stop recovery (once per power cycle)", Unit::Flag, FLAG, RW, Some(0), S, Ram, Some("WHJ30/60, FW DA05/DA24/D522+"), "11", NONE),
+    r(0x69, "LOW_POWER_MODE", "1 = at most 80 W per joint", Unit::Flag, FLAG, RW, Some(0), S, Flash, Some(Feature::LowPowerMode), "EN 11 DEMO", NONE),
+    r(0x6A, "STATE_BRK_DIRECT_ENABLE", "direct brake release for hard-stop recovery (once per power cycle)", Unit::Flag, FLAG, RW, Some(0), S, Ram, Some(Feature::BrakeRelease), "11", NONE),
     r(0x78, "ERROR", "error code (mirror of 0x04)", Unit::Raw, None, RO, Some(0), S, Live, None, ALL, &["C16"]),
-    r(0x79, "END_BOARD_MODE", "0 = end board is not a joint, 1 = it acts as a joint", Unit::Flag, FLAG, RW, Some(0), S, Flash, Some("FW >= 519"), "EN 11 DEMO", NONE),
+    r(0x79, "END_BOARD_MODE", "0 = end board is not a joint, 1 = it acts as a joint", Unit::Flag, FLAG, RW, Some(0), S, Flash, Some(Feature::EndBoardMode), "EN 11 DEMO", NONE),
 ];
 
 /// Index from address to position in [`REGISTERS`] (0xFF = reserved), built at compile time.
@@ -392,7 +398,213 @@ impl RegisterInfo {
     }
 }
 
-/// Addresses of the common registers.
+/// A feature that only newer firmware (and for some, only some products) has (§6.8,
+/// the broadcast protocol's preface, conflict C28).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Feature {
+    /// The broadcast protocol (0x2F / 0x4F / 0x0F / 0x7F frames) and its receive counter 0x4E.
+    Broadcast,
+    /// Staggered power-up switch 0x1F (`ON_DELAY`).
+    PowerUpDelay,
+    /// Low-power mode 0x69 (at most 80 W per joint); WHJ10N/30/60 only.
+    LowPowerMode,
+    /// End-board mode 0x79.
+    EndBoardMode,
+    /// Direct brake release 0x6A (hard-stop recovery); WHJ30/60 only.
+    BrakeRelease,
+}
+
+/// The lowest firmware version of one firmware line that has a feature.
+///
+/// The documents quote labels, not numbers: "519", "D5.XX" (normal joints), "E2.XX"
+/// (multi-turn joints), "DA05/DA24/D522". They read as register 0x03 printed as four hex
+/// digits (0xD519 → "D519"); that reading is inferred, so gates are soft (a client still
+/// checks the joint's acknowledgement, and the doctor reports a failed gate as a warning).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum VersionFloor {
+    /// A three-digit label ("519"): the last three hex digits reach it, on any line.
+    LastDigits(u16),
+    /// A four-digit label ("D522", "D5.XX" = 0xD500): the same leading hex digit and at
+    /// least this version.
+    SameLine(u16),
+}
+
+impl VersionFloor {
+    /// Whether `version` (the raw register 0x03) is at or above this floor.
+    pub const fn admits(self, version: u16) -> bool {
+        match self {
+            Self::LastDigits(min) => (version & 0x0FFF) >= (min & 0x0FFF),
+            Self::SameLine(min) => (version >> 12) == (min >> 12) && version >= min,
+        }
+    }
+}
+
+/// The firmware (and model) requirement of one [`Feature`], with its source.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FirmwareGate {
+    /// The feature.
+    pub feature: Feature,
+    /// What it is, for messages ("direct brake release 0x6A").
+    pub what: &'static str,
+    /// The version label the documents quote ("DA05 / DA24 / D522").
+    pub label: &'static str,
+    /// A version passes if any floor admits it.
+    pub floors: &'static [VersionFloor],
+    /// Whether only some products have it (see `models::ProductFacts::model_features`).
+    pub model_gated: bool,
+    /// Where the gate is documented (EN = EN-MCT, 11 = broadcast protocol V1.1, DEMO = the
+    /// usage demo; section of `whj-joint-protocol.md`).
+    pub source: &'static str,
+}
+
+impl FirmwareGate {
+    /// Whether firmware `version` has the feature (the model is not considered).
+    pub fn admits(&self, version: crate::units::FirmwareVersion) -> bool {
+        self.floors.iter().any(|f| f.admits(version.0))
+    }
+}
+
+use VersionFloor::{LastDigits, SameLine};
+
+const FW_519: &[VersionFloor] = &[LastDigits(0x519)];
+
+/// Every firmware gate, one per [`Feature`] (index = the feature's position in the enum).
+pub static FIRMWARE_GATES: [FirmwareGate; 5] = [
+    FirmwareGate {
+        feature: Feature::Broadcast,
+        what: "broadcast protocol (0x2F / 0x4F / 0x0F / 0x7F, receive counter 0x4E)",
+        label: "D5.XX (E2.XX on multi-turn joints)",
+        floors: &[SameLine(0xD500), SameLine(0xE200)],
+        model_gated: false,
+        source: "11 (preface); §7",
+    },
+    FirmwareGate {
+        feature: Feature::PowerUpDelay,
+        what: "staggered power-up switch 0x1F",
+        label: "519",
+        floors: FW_519,
+        model_gated: false,
+        source: "EN, 11, DEMO; §6.8",
+    },
+    FirmwareGate {
+        feature: Feature::LowPowerMode,
+        what: "low-power mode 0x69 (WHJ10N / WHJ30 / WHJ60)",
+        label: "519",
+        floors: FW_519,
+        model_gated: true,
+        source: "EN, 11, DEMO; §6.8",
+    },
+    FirmwareGate {
+        feature: Feature::EndBoardMode,
+        what: "end-board mode 0x79",
+        label: "519",
+        floors: FW_519,
+        model_gated: false,
+        source: "EN, 11, DEMO; §6.8",
+    },
+    FirmwareGate {
+        feature: Feature::BrakeRelease,
+        what: "direct brake release 0x6A (WHJ30 / WHJ60)",
+        label: "DA05 / DA24 / D522",
+        floors: &[SameLine(0xD522), SameLine(0xDA05), SameLine(0xDA24)],
+        model_gated: true,
+        source: "11 only; §6.8",
+    },
+];
+
+impl Feature {
+    /// The gate of this feature.
+    pub fn gate(self) -> &'static FirmwareGate {
+        let i = match self {
+            Self::Broadcast => 0,
+            Self::PowerUpDelay => 1,
+            Self::LowPowerMode => 2,
+            Self::EndBoardMode => 3,
+            Self::BrakeRelease => 4,
+        };
+        &FIRMWARE_GATES[i]
+    }
+}
+
+/// A write refused because the joint's firmware or model lacks the register's feature.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct GateRefusal {
+    /// The register's name.
+    pub register: &'static str,
+    /// Its address.
+    pub addr: RegisterAddr,
+    /// What the feature is.
+    pub what: &'static str,
+    /// The version label the documents require.
+    pub needs: &'static str,
+    /// The joint's firmware version.
+    pub firmware: crate::units::FirmwareVersion,
+    /// The joint's model.
+    pub model: crate::units::Model,
+    /// True if the model (not the firmware) lacks the feature.
+    pub model_lacks: bool,
+}
+
+impl fmt::Display for GateRefusal {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "register {} ({}) is the {}: ",
+            self.register, self.addr, self.what
+        )?;
+        if self.model_lacks {
+            write!(f, "a {} joint does not have it", self.model)
+        } else {
+            write!(
+                f,
+                "it needs firmware {} or later, this joint runs {}",
+                self.needs, self.firmware
+            )
+        }
+    }
+}
+
+impl core::error::Error for GateRefusal {}
+
+/// Whether a client may write `addr` on a joint of `model` running `firmware`: `Ok` for
+/// ungated registers and for gated ones whose gate passes; a [`GateRefusal`] naming the
+/// register, the feature, the required version and the joint's own otherwise. Reserved
+/// and read-only registers are not this function's business (see [`RegisterInfo::access`]).
+///
+/// For a model code several products share (WHJ10 with and without brake), a model-gated
+/// feature is allowed if any of them has it; the joint's acknowledgement decides.
+pub fn gated_write_allowed(
+    addr: RegisterAddr,
+    model: crate::units::Model,
+    firmware: crate::units::FirmwareVersion,
+) -> Result<(), GateRefusal> {
+    let Some(info) = addr.info() else {
+        return Ok(());
+    };
+    let Some(feature) = info.firmware else {
+        return Ok(());
+    };
+    let gate = feature.gate();
+    let refusal = |model_lacks| GateRefusal {
+        register: info.name,
+        addr,
+        what: gate.what,
+        needs: gate.label,
+        firmware,
+        model,
+        model_lacks,
+    };
+    if !model.may_have(feature) {
+        return Err(refusal(true));
+    }
+    if !gate.admits(firmware) {
+        return Err(refusal(false));
+    }
+    Ok(())
+}
+
+/// The address of every register in [`REGISTERS`], by its vendor name (a 32-bit pair by its
+/// base name for the low word and `_H` for the high word; 0x2A..=0x2F by its first word).
 pub mod addr {
     use super::RegisterAddr;
 
@@ -416,18 +628,32 @@ pub mod addr {
     pub const SYS_ENABLE_DRIVER: RegisterAddr = RegisterAddr::known(0x0A);
     /// 0x0B enable at power-up.
     pub const SYS_ENABLE_ON_POWER: RegisterAddr = RegisterAddr::known(0x0B);
+    /// 0x08 arbitration bit rate code.
+    pub const SYS_BPS_CANFD_BRT: RegisterAddr = RegisterAddr::known(0x08);
+    /// 0x09 data bit rate code.
+    pub const SYS_BPS_CANFD_DATA: RegisterAddr = RegisterAddr::known(0x09);
     /// 0x0C save to flash.
     pub const SYS_SAVE_TO_FLASH: RegisterAddr = RegisterAddr::known(0x0C);
+    /// 0x0D absolute-sensor auto-calibration trigger (never written by a client).
+    pub const SYS_DEMA_ABSPOS: RegisterAddr = RegisterAddr::known(0x0D);
     /// 0x0E set zero position.
     pub const SYS_SET_ZERO_POS: RegisterAddr = RegisterAddr::known(0x0E);
     /// 0x0F clear errors.
     pub const SYS_CLEAR_ERROR: RegisterAddr = RegisterAddr::known(0x0F);
     /// 0x10/0x11 actual current.
     pub const CUR_CURRENT: RegisterAddr = RegisterAddr::known(0x10);
+    /// 0x11 actual current, high word.
+    pub const CUR_CURRENT_H: RegisterAddr = RegisterAddr::known(0x11);
     /// 0x12/0x13 actual speed.
     pub const CUR_SPEED: RegisterAddr = RegisterAddr::known(0x12);
+    /// 0x13 actual speed, high word.
+    pub const CUR_SPEED_H: RegisterAddr = RegisterAddr::known(0x13);
     /// 0x14/0x15 actual position.
     pub const CUR_POSITION: RegisterAddr = RegisterAddr::known(0x14);
+    /// 0x15 actual position, high word.
+    pub const CUR_POSITION_H: RegisterAddr = RegisterAddr::known(0x15);
+    /// 0x18 arm calibration state.
+    pub const ARM_CALIBRATION_STATE: RegisterAddr = RegisterAddr::known(0x18);
     /// 0x1F power-up delay switch.
     pub const ON_DELAY: RegisterAddr = RegisterAddr::known(0x1F);
     /// 0x2A..=0x2F 96-bit unique ID.
@@ -438,10 +664,20 @@ pub mod addr {
     pub const TAG_OPEN_PWM: RegisterAddr = RegisterAddr::known(0x31);
     /// 0x32/0x33 target current.
     pub const TAG_CURRENT: RegisterAddr = RegisterAddr::known(0x32);
+    /// 0x33 target current, high word.
+    pub const TAG_CURRENT_H: RegisterAddr = RegisterAddr::known(0x33);
     /// 0x34/0x35 target speed.
     pub const TAG_SPEED: RegisterAddr = RegisterAddr::known(0x34);
+    /// 0x35 target speed, high word.
+    pub const TAG_SPEED_H: RegisterAddr = RegisterAddr::known(0x35);
     /// 0x36/0x37 target position.
     pub const TAG_POSITION: RegisterAddr = RegisterAddr::known(0x36);
+    /// 0x37 target position, high word.
+    pub const TAG_POSITION_H: RegisterAddr = RegisterAddr::known(0x37);
+    /// 0x38 servo reply format.
+    pub const TAG_SERVO_FLAG: RegisterAddr = RegisterAddr::known(0x38);
+    /// 0x39 speed feed-forward / following coefficient.
+    pub const SPEED_FF_FOLLOWING: RegisterAddr = RegisterAddr::known(0x39);
     /// 0x40 current limit.
     pub const LIT_MAX_CURRENT: RegisterAddr = RegisterAddr::known(0x40);
     /// 0x41 speed limit.
@@ -452,14 +688,48 @@ pub mod addr {
     pub const LIT_MAX_DEC: RegisterAddr = RegisterAddr::known(0x43);
     /// 0x44/0x45 lower position limit.
     pub const LIT_MIN_POSITION: RegisterAddr = RegisterAddr::known(0x44);
+    /// 0x45 lower position limit, high word.
+    pub const LIT_MIN_POSITION_H: RegisterAddr = RegisterAddr::known(0x45);
     /// 0x46/0x47 upper position limit.
     pub const LIT_MAX_POSITION: RegisterAddr = RegisterAddr::known(0x46);
+    /// 0x47 upper position limit, high word.
+    pub const LIT_MAX_POSITION_H: RegisterAddr = RegisterAddr::known(0x47);
     /// 0x49 IAP flag.
     pub const IAP_FLAG: RegisterAddr = RegisterAddr::known(0x49);
     /// 0x4B/0x4C maximum following error.
     pub const LIT_MAX_POS_DIFF: RegisterAddr = RegisterAddr::known(0x4B);
+    /// 0x4C maximum following error, high word.
+    pub const LIT_MAX_POS_DIFF_H: RegisterAddr = RegisterAddr::known(0x4C);
     /// 0x4E broadcast receive counter.
     pub const BROADCAST_COUNTER: RegisterAddr = RegisterAddr::known(0x4E);
+    /// 0x50 load the gains into the control loops.
+    pub const SEV_PARAME_UPDATE: RegisterAddr = RegisterAddr::known(0x50);
+    /// 0x51 current-loop P gain.
+    pub const SEV_CURRENT_P: RegisterAddr = RegisterAddr::known(0x51);
+    /// 0x52 current-loop I gain.
+    pub const SEV_CURRENT_I: RegisterAddr = RegisterAddr::known(0x52);
+    /// 0x53 current-loop D gain.
+    pub const SEV_CURRENT_D: RegisterAddr = RegisterAddr::known(0x53);
+    /// 0x54 speed-loop P gain.
+    pub const SEV_SPEED_P: RegisterAddr = RegisterAddr::known(0x54);
+    /// 0x55 speed-loop I gain.
+    pub const SEV_SPEED_I: RegisterAddr = RegisterAddr::known(0x55);
+    /// 0x56 speed-loop D gain.
+    pub const SEV_SPEED_D: RegisterAddr = RegisterAddr::known(0x56);
+    /// 0x57 speed-loop P dead zone.
+    pub const SEV_SPEED_DS: RegisterAddr = RegisterAddr::known(0x57);
+    /// 0x58 position-loop P gain.
+    pub const SEV_POSITION_P: RegisterAddr = RegisterAddr::known(0x58);
+    /// 0x59 position-loop I gain.
+    pub const SEV_POSITION_I: RegisterAddr = RegisterAddr::known(0x59);
+    /// 0x5A position-loop D gain.
+    pub const SEV_POSITION_D: RegisterAddr = RegisterAddr::known(0x5A);
+    /// 0x5B position-loop P dead zone.
+    pub const SEV_POSITION_DS: RegisterAddr = RegisterAddr::known(0x5B);
+    /// 0x5C position-loop smoothing.
+    pub const SEV_POS_SMOOTH: RegisterAddr = RegisterAddr::known(0x5C);
+    /// 0x5D speed feed-forward coefficient.
+    pub const SEV_SPD_FF: RegisterAddr = RegisterAddr::known(0x5D);
     /// 0x69 low-power mode.
     pub const LOW_POWER_MODE: RegisterAddr = RegisterAddr::known(0x69);
     /// 0x6A direct brake release.
@@ -639,6 +909,83 @@ mod tests {
         assert_eq!((t[0x4B], t[0x4C]), (0x93E0, 4));
         assert_eq!(join_i32(t[0x4B], t[0x4C]), 300_000);
         assert_eq!(t[0x16], 0); // reserved
+    }
+
+    #[test]
+    fn firmware_gates_are_data() {
+        use crate::units::{FirmwareVersion as Fw, Model};
+        for (i, g) in FIRMWARE_GATES.iter().enumerate() {
+            assert_eq!(
+                g.feature.gate(),
+                g,
+                "gate {i} is not at its feature's index"
+            );
+            assert!(!g.floors.is_empty() && !g.source.is_empty());
+        }
+        // Every gated register names a feature; the five gated ones are exactly these.
+        let gated: std::vec::Vec<u8> = REGISTERS
+            .iter()
+            .filter(|r| r.firmware.is_some())
+            .map(|r| r.addr.get())
+            .collect();
+        assert_eq!(gated, [0x1F, 0x4E, 0x69, 0x6A, 0x79]);
+        let b = Feature::Broadcast.gate();
+        assert!(b.admits(Fw(0xD500)) && b.admits(Fw(0xE2A0)));
+        assert!(!b.admits(Fw(0xD4FF)) && !b.admits(Fw(0x0522)) && !b.admits(Fw(0xE1FF)));
+        let fw519 = Feature::PowerUpDelay.gate();
+        assert!(fw519.admits(Fw(0xD519)) && fw519.admits(Fw(0x0519)));
+        assert!(!fw519.admits(Fw(0xD518)));
+        let brake = Feature::BrakeRelease.gate();
+        assert!(brake.admits(Fw(0xD522)) && brake.admits(Fw(0xDA05)) && brake.admits(Fw(0xDA24)));
+        assert!(!brake.admits(Fw(0xD521)) && !brake.admits(Fw(0xC522)));
+
+        // The client-side check: ungated registers always, gated ones by firmware and model.
+        let old = Fw(0xD505);
+        assert_eq!(
+            gated_write_allowed(addr::TAG_WORK_MODE, Model::Joint30, old),
+            Ok(())
+        );
+        assert_eq!(
+            gated_write_allowed(addr::ON_DELAY, Model::Joint30, Fw(0xD519)),
+            Ok(())
+        );
+        let e = gated_write_allowed(addr::ON_DELAY, Model::Joint30, old).unwrap_err();
+        assert!(!e.model_lacks && e.needs == "519" && e.register == "ON_DELAY");
+        assert_eq!(
+            std::format!("{e}"),
+            "register ON_DELAY (0x1f) is the staggered power-up switch 0x1F: it needs \
+             firmware 519 or later, this joint runs D505"
+        );
+        let e = gated_write_allowed(addr::STATE_BRK_DIRECT_ENABLE, Model::Joint120, Fw(0xD522))
+            .unwrap_err();
+        assert!(e.model_lacks, "{e}");
+        assert!(std::format!("{e}").contains("a WHJ120 joint does not have it"));
+        assert_eq!(
+            gated_write_allowed(addr::STATE_BRK_DIRECT_ENABLE, Model::Joint60, Fw(0xDA05)),
+            Ok(())
+        );
+        // A shared code (WHJ10 B / N): allowed, the joint decides.
+        assert_eq!(
+            gated_write_allowed(addr::LOW_POWER_MODE, Model::Joint10, Fw(0xD519)),
+            Ok(())
+        );
+    }
+
+    #[test]
+    fn named_addresses_match_the_table() {
+        for (a, name) in [
+            (addr::SYS_BPS_CANFD_BRT, "SYS_BPS_CANFD_BRT"),
+            (addr::SYS_DEMA_ABSPOS, "SYS_DEMA_ABSPOS"),
+            (addr::CUR_POSITION_H, "CUR_POSITION_H"),
+            (addr::TAG_SERVO_FLAG, "TAG_SERVO_FLAG"),
+            (addr::LIT_MAX_POS_DIFF_H, "LIT_MAX_POS_DIFF_H"),
+            (addr::SEV_PARAME_UPDATE, "SEV_PARAME_UPDATE"),
+            (addr::SEV_SPD_FF, "SEV_SPD_FF"),
+            (addr::END_BOARD_MODE, "END_BOARD_MODE"),
+            (addr::TAG_POSITION, "TAG_POSITION_L"),
+        ] {
+            assert_eq!(a.info().unwrap().name, name);
+        }
     }
 
     #[test]

@@ -279,31 +279,30 @@ impl Model {
         }
     }
 
-    /// The current LSB of this model (2 mA on Joint 60/120, else 1 mA; C2).
+    /// The current LSB of this model (2 mA on Joint 60/120, else 1 mA; C2), from
+    /// [`crate::PRODUCTS`]; 1 mA for the gripper and unknown codes.
     pub const fn current_scale(self) -> CurrentScale {
-        match self {
-            Self::Joint60 | Self::Joint120 => CurrentScale::TwoMilliamps,
-            _ => CurrentScale::OneMilliamp,
+        match self.facts() {
+            Some(p) => p.current_scale,
+            None => CurrentScale::OneMilliamp,
         }
     }
 
-    /// The peak output speed from the product pages, RPM, if known: 30 (WHJ03), 37.5
-    /// (WHJ10, WHJ30), 30 (WHJ60, WHJ120); each equals the factory speed limit 3000 (0x41)
-    /// divided by the reduction ratio (reference §9, C3).
+    /// The peak output speed from the product pages, RPM, if known (from
+    /// [`crate::PRODUCTS`]): 30 (WHJ03), 37.5 (WHJ10, WHJ30), 30 (WHJ60, WHJ120); each
+    /// equals the factory speed limit 3000 (0x41) divided by the reduction ratio (§9, C3).
     pub const fn peak_output_speed_rpm(self) -> Option<f64> {
-        match self {
-            Self::Joint10 | Self::Joint30 => Some(37.5),
-            Self::Joint60 | Self::Joint120 | Self::Joint03 => Some(30.0),
-            Self::Gripper | Self::Unknown(_) => None,
+        match self.facts() {
+            Some(p) => Some(p.peak_output_speed_rpm),
+            None => None,
         }
     }
 
-    /// The gear reduction ratio from the product pages, if known.
+    /// The gear reduction ratio from the product pages, if known (from [`crate::PRODUCTS`]).
     pub const fn reduction_ratio(self) -> Option<u16> {
-        match self {
-            Self::Joint10 | Self::Joint30 => Some(80),
-            Self::Joint60 | Self::Joint120 | Self::Joint03 => Some(100),
-            Self::Gripper | Self::Unknown(_) => None,
+        match self.facts() {
+            Some(p) => Some(p.reduction_ratio),
+            None => None,
         }
     }
 }
@@ -320,7 +319,8 @@ impl fmt::Display for Model {
 /// The firmware version in register 0x03 (§5.3, conflict C28), kept raw.
 ///
 /// Feature gates quote labels such as "519", "D5.XX" and "D522"; these read as the
-/// register printed as four hex digits, which is what [`fmt::Display`] shows.
+/// register printed as four hex digits, which is what [`fmt::Display`] shows. The gates
+/// themselves are data: [`crate::FIRMWARE_GATES`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct FirmwareVersion(pub u16);
 
@@ -336,12 +336,6 @@ impl FirmwareVersion {
     /// The low byte (minor in the V1.0/EN reading).
     pub const fn minor(self) -> u8 {
         self.0.to_be_bytes()[1]
-    }
-
-    /// Whether the last three hex digits reach `label` (0x519 for "519"); a soft gate,
-    /// since the meaning of the leading digit is not documented.
-    pub const fn at_least_label(self, label: u16) -> bool {
-        (self.0 & 0x0FFF) >= (label & 0x0FFF)
     }
 }
 
@@ -399,7 +393,5 @@ mod tests {
         assert_eq!(Model::Joint120.peak_output_speed_rpm(), Some(30.0));
         assert_eq!(Model::Gripper.peak_output_speed_rpm(), None);
         assert_eq!(std::format!("{}", FirmwareVersion(0xD522)), "D522");
-        assert!(FirmwareVersion(0xD522).at_least_label(0x519));
-        assert!(!FirmwareVersion(0xD510).at_least_label(0x519));
     }
 }

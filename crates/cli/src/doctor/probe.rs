@@ -7,8 +7,7 @@ use std::time::Duration;
 use robobus::wck::{ScanOptions, WckBus};
 use robobus::whj::{JointBus, WhjError};
 use robobus_link::ByteLink;
-use robobus_whj::units::FirmwareVersion;
-use robobus_whj::{JointId, Reply, Request};
+use robobus_whj::{FIRMWARE_GATES, JointId, Reply, Request};
 
 use super::{Finding, Status, finding};
 
@@ -18,32 +17,6 @@ const STATUS_WAIT: Duration = Duration::from_millis(50);
 /// How long after a status reply further replies from the same ID are counted (a second
 /// joint with the ID answers within a frame time or two).
 const DUPLICATE_WINDOW: Duration = Duration::from_millis(30);
-
-/// A firmware gate from the vendor's documents, by the label they quote (the register
-/// printed as four hex digits; the mapping is inferred, so gates are reported as warnings).
-struct Gate {
-    feature: &'static str,
-    label: &'static str,
-    ok: fn(FirmwareVersion) -> bool,
-}
-
-const GATES: [Gate; 3] = [
-    Gate {
-        feature: "broadcast protocol (0x2F/0x4F, `cyclic` Broadcast)",
-        label: "D5.XX (E2.XX on multi-turn joints)",
-        ok: |v| v.0 >= 0xD500 || v.major() == 0xE2,
-    },
-    Gate {
-        feature: "low power 0x69, end-board mode 0x79, staggered power-up 0x1F",
-        label: "519",
-        ok: |v| v.0 >= 0xD519 || v.major() == 0xE2,
-    },
-    Gate {
-        feature: "direct brake release 0x6A",
-        label: "DA05 / DA24 / D522",
-        ok: |v| v.0 >= 0xD522 || v.0 == 0xDA05 || v.0 == 0xDA24,
-    },
-];
 
 /// Probes WHJ joints `ids` on `bus`: running or in the bootloader (released if so), one
 /// joint per ID, firmware gates. `bus_name` names the bus in the findings.
@@ -166,10 +139,11 @@ fn firmware(bus: &JointBus, id: JointId, subject: &str) -> Finding {
         }
     };
     let v = identity.firmware;
-    let missing: Vec<String> = GATES
+    // The register table's gates, for the features this joint's model can have at all.
+    let missing: Vec<String> = FIRMWARE_GATES
         .iter()
-        .filter(|g| !(g.ok)(v))
-        .map(|g| format!("{} (needs {})", g.feature, g.label))
+        .filter(|g| identity.model.may_have(g.feature) && !g.admits(v))
+        .map(|g| format!("{} (needs {})", g.what, g.label))
         .collect();
     if missing.is_empty() {
         finding(
@@ -277,6 +251,7 @@ mod tests {
     use robobus_sim::wck::{Bus, BusConfig, Eeprom, Model, SimLink};
     use robobus_sim::whj::{JointConfig, WhjBus, WhjModel};
     use robobus_wck::{BaudRate, ExtServoId};
+    use robobus_whj::units::FirmwareVersion;
 
     fn status_of<'a>(findings: &'a [Finding], subject: &str, check: &str) -> &'a Finding {
         findings
@@ -383,6 +358,27 @@ mod tests {
         let j3 = status_of(&f, "J3 ", "iap");
         assert_eq!(j3.status, Status::Fail, "{f:#?}");
         assert!(j3.detail.contains("silent"), "{f:#?}");
+    }
+
+    #[test]
+    fn whj_firmware_gates_come_from_the_register_table_and_the_model() {
+        // A WHJ120 has neither low-power mode nor the direct brake release, whatever its
+        // firmware: only the gates its model can have are reported.
+        let mut j5 = JointConfig::new(5, WhjModel::Whj120);
+        j5.firmware = FirmwareVersion(0xD505);
+        let f = with_whj_bus(vec![j5], |bus| {
+            bus.joint_unchecked(JointId::new(5).unwrap())
+                .release_iap()
+                .unwrap();
+            whj(bus, "mem", &[5])
+        });
+        let fw = status_of(&f, "J5 ", "firmware");
+        assert_eq!(fw.status, Status::Warn, "{f:#?}");
+        assert_eq!(
+            fw.detail,
+            "WHJ120 firmware D505 lacks: staggered power-up switch 0x1F (needs 519); \
+             end-board mode 0x79 (needs 519)"
+        );
     }
 
     #[test]

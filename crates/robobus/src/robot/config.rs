@@ -4,7 +4,9 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::Duration;
 
-use serde::Deserialize;
+use serde::de::{self, IgnoredAny, SeqAccess, Visitor};
+use serde::{Deserialize, Deserializer};
+use toml::Spanned;
 
 use robobus_wck::Position;
 
@@ -158,7 +160,8 @@ pub struct JointConfig {
     /// `1` or `-1` (joint turns opposite to the device); default 1.
     #[serde(default = "default_direction")]
     pub direction: i8,
-    /// Soft position limits `[min, max]`, rad.
+    /// Soft position limits `[min, max]`, rad (exactly two numbers).
+    #[serde(deserialize_with = "exact_pair")]
     pub limits: [f64; 2],
     /// Largest commanded speed, rad/s.
     pub max_velocity: f64,
@@ -170,6 +173,75 @@ pub struct JointConfig {
 
 const fn default_direction() -> i8 {
     1
+}
+
+/// `[min, max]`: exactly two numbers (serde's array would drop the rest silently).
+fn exact_pair<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 2], D::Error> {
+    struct Pair;
+    impl<'de> Visitor<'de> for Pair {
+        type Value = [f64; 2];
+        fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+            f.write_str("exactly two numbers [min, max] in rad")
+        }
+        fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Self::Value, A::Error> {
+            let min: f64 = seq
+                .next_element()?
+                .ok_or_else(|| de::Error::invalid_length(0, &self))?;
+            let max: f64 = seq
+                .next_element()?
+                .ok_or_else(|| de::Error::invalid_length(1, &self))?;
+            let mut n = 2;
+            while seq.next_element::<IgnoredAny>()?.is_some() {
+                n += 1;
+            }
+            if n > 2 {
+                return Err(de::Error::invalid_length(n, &self));
+            }
+            Ok([min, max])
+        }
+    }
+    d.deserialize_seq(Pair)
+}
+
+/// The largest WHJ device angle, rad: the position registers hold ±2^31 counts of
+/// 0.0001° (±214 748°).
+const WHJ_MAX_DEVICE_RAD: f64 = (i32::MAX as f64) * 0.0001 * (std::f64::consts::PI / 180.0);
+
+/// Where a value error is, for its line and column.
+#[derive(Debug, Clone)]
+enum Site {
+    Robot(&'static str),
+    Bus(String, &'static str),
+    Joint(usize, &'static str),
+}
+
+/// The positions of the file's items, from a second, lenient parse (`Spanned` values).
+#[derive(Debug, Deserialize)]
+struct Spans {
+    watchdog_timeout: Option<Spanned<IgnoredAny>>,
+    #[serde(default)]
+    buses: BTreeMap<String, Spanned<BTreeMap<String, Spanned<IgnoredAny>>>>,
+    #[serde(default)]
+    joints: Vec<Spanned<BTreeMap<String, Spanned<IgnoredAny>>>>,
+}
+
+impl Spans {
+    /// Byte offset of the value of `site`'s field, else of its table.
+    fn offset(&self, site: &Site) -> Option<usize> {
+        let in_table = |t: &Spanned<BTreeMap<String, Spanned<IgnoredAny>>>, field: &str| -> usize {
+            t.get_ref()
+                .get(field)
+                .map_or(t.span().start, |v| v.span().start)
+        };
+        match site {
+            Site::Robot(field) => match *field {
+                "watchdog_timeout" => self.watchdog_timeout.as_ref().map(|v| v.span().start),
+                _ => Some(0),
+            },
+            Site::Bus(name, field) => self.buses.get(name).map(|t| in_table(t, field)),
+            Site::Joint(i, field) => self.joints.get(*i).map(|t| in_table(t, field)),
+        }
+    }
 }
 
 impl JointConfig {
@@ -249,9 +321,41 @@ const fn default_watchdog() -> f64 {
 }
 
 impl RobotConfig {
+    /// The largest robot file read (1 MiB): a real robot needs a few kB, and a file
+    /// argument such as `/dev/zero` must not grow memory without bound.
+    pub const MAX_FILE_BYTES: usize = 1 << 20;
+
+    /// The largest joint speed a robot file may ask for, rad/s (no wCK module or WHJ
+    /// joint turns faster than about 6 rad/s at its output).
+    pub const MAX_JOINT_VELOCITY: f64 = 100.0;
+
+    /// The largest joint acceleration a robot file may ask for, rad/s².
+    pub const MAX_JOINT_ACCELERATION: f64 = 10_000.0;
+
     /// Parses and checks a robot file. Syntax errors give the line and column; errors in
     /// the values name the joint or bus, the field and the value.
     pub fn from_toml_str(text: &str) -> Result<Self, RobotError> {
+        if text.len() > Self::MAX_FILE_BYTES {
+            return Err(RobotError::Parse {
+                line: 0,
+                column: 0,
+                message: format!(
+                    "the file has {} bytes, more than the {} bytes (1 MiB) \
+                     a robot file may have",
+                    text.len(),
+                    Self::MAX_FILE_BYTES
+                ),
+            });
+        }
+        if text.trim().is_empty() {
+            return Err(RobotError::Parse {
+                line: 1,
+                column: 1,
+                message: "the file is empty: a robot file needs [buses.NAME] tables and \
+                          [[joints]]"
+                    .into(),
+            });
+        }
         let config: Self = toml::from_str(text).map_err(|e| {
             let (line, column) = e.span().map_or((0, 0), |s| line_column(text, s.start));
             RobotError::Parse {
@@ -260,16 +364,49 @@ impl RobotConfig {
                 message: e.message().to_owned(),
             }
         })?;
-        config.validate()?;
+        if let Err(located) = config.check() {
+            let (site, mut error) = *located;
+            // Name the line and column of the offending value (or of its table).
+            let at = toml::from_str::<Spans>(text)
+                .ok()
+                .and_then(|spans| spans.offset(&site));
+            if let (Some(offset), RobotError::Invalid { item, .. }) = (at, &mut error) {
+                let (line, column) = line_column(text, offset);
+                *item = format!("{item} (line {line}, column {column})");
+            }
+            return Err(error);
+        }
         Ok(config)
     }
 
     /// Reads and parses the robot file at `path`.
+    /// Files larger than [`Self::MAX_FILE_BYTES`] are refused without reading further.
     pub fn from_toml_file(path: impl AsRef<Path>) -> Result<Self, RobotError> {
+        use std::io::Read as _;
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|source| RobotError::Io {
+        let io = |source| RobotError::Io {
             path: path.display().to_string(),
             source,
+        };
+        let file = std::fs::File::open(path).map_err(io)?;
+        let mut bytes = Vec::new();
+        file.take(Self::MAX_FILE_BYTES as u64 + 1)
+            .read_to_end(&mut bytes)
+            .map_err(io)?;
+        if bytes.len() > Self::MAX_FILE_BYTES {
+            return Err(io(std::io::Error::other(format!(
+                "larger than {} bytes (1 MiB), the limit for a robot file",
+                Self::MAX_FILE_BYTES
+            ))));
+        }
+        let text = String::from_utf8(bytes).map_err(|e| {
+            io(std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                format!(
+                    "not UTF-8 text (byte {} is invalid)",
+                    e.utf8_error().valid_up_to()
+                ),
+            ))
         })?;
         Self::from_toml_str(&text)
     }
@@ -282,13 +419,31 @@ impl RobotConfig {
     /// Checks the values (everything the parser cannot): unique joint names, known buses,
     /// IDs, limits, directions and safe states per family.
     pub fn validate(&self) -> Result<(), RobotError> {
+        self.check().map_err(|b| b.1)
+    }
+
+    fn check(&self) -> Result<(), Box<(Site, RobotError)>> {
         if !(self.watchdog_timeout.is_finite() && (0.001..=10.0).contains(&self.watchdog_timeout)) {
-            return Err(RobotError::Invalid {
-                item: "robot".into(),
-                field: "watchdog_timeout",
-                value: self.watchdog_timeout.to_string(),
-                expected: "0.001..=10 s".into(),
-            });
+            return Err(Box::new((
+                Site::Robot("watchdog_timeout"),
+                RobotError::Invalid {
+                    item: "robot".into(),
+                    field: "watchdog_timeout",
+                    value: self.watchdog_timeout.to_string(),
+                    expected: "0.001..=10 s".into(),
+                },
+            )));
+        }
+        if self.joints.is_empty() {
+            return Err(Box::new((
+                Site::Robot("joints"),
+                RobotError::Invalid {
+                    item: "robot".into(),
+                    field: "joints",
+                    value: "none".into(),
+                    expected: "at least one [[joints]] table".into(),
+                },
+            )));
         }
         for (name, bus) in &self.buses {
             let state = bus.safe_state();
@@ -298,42 +453,85 @@ impl RobotConfig {
                 matches!(state, SafeState::Hold | SafeState::Disable)
             };
             if !ok {
-                return Err(RobotError::Invalid {
-                    item: format!("bus {name}"),
-                    field: "safe_state",
-                    value: state.keyword().into(),
-                    expected: if bus.is_wck() {
-                        "\"passive\" or \"break\" on a wCK bus".into()
-                    } else {
-                        "\"hold\" or \"disable\" on a WHJ bus".into()
+                return Err(Box::new((
+                    Site::Bus(name.clone(), "safe_state"),
+                    RobotError::Invalid {
+                        item: format!("bus {name}"),
+                        field: "safe_state",
+                        value: state.keyword().into(),
+                        expected: if bus.is_wck() {
+                            "\"passive\" or \"break\" on a wCK bus".into()
+                        } else {
+                            "\"hold\" or \"disable\" on a WHJ bus".into()
+                        },
                     },
-                });
+                )));
             }
             if let Some(torque) = bus.torque()
                 && torque > 4
             {
-                return Err(RobotError::Invalid {
-                    item: format!("bus {name}"),
-                    field: "torque",
-                    value: torque.to_string(),
-                    expected: "0..=4".into(),
-                });
+                return Err(Box::new((
+                    Site::Bus(name.clone(), "torque"),
+                    RobotError::Invalid {
+                        item: format!("bus {name}"),
+                        field: "torque",
+                        value: torque.to_string(),
+                        expected: "0..=4".into(),
+                    },
+                )));
+            }
+            let names_something = |s: &str| !s.trim().is_empty() && !s.contains('\0');
+            let empty = match bus {
+                BusConfig::Wck { port, .. } => (!names_something(port)).then_some(("port", port)),
+                BusConfig::WhjCan { iface, .. } => {
+                    (!names_something(iface)).then_some(("iface", iface))
+                }
+                _ => None,
+            };
+            if let Some((field, value)) = empty {
+                return Err(Box::new((
+                    Site::Bus(name.clone(), field),
+                    RobotError::Invalid {
+                        item: format!("bus {name}"),
+                        field,
+                        value: format!("{value:?}"),
+                        expected: "a device name without NUL bytes".into(),
+                    },
+                )));
             }
         }
         for (i, joint) in self.joints.iter().enumerate() {
-            self.validate_joint(i, joint)?;
+            self.validate_joint(i, joint)
+                .map_err(|(field, e)| Box::new((Site::Joint(i, field), e)))?;
         }
         Ok(())
     }
 
-    fn validate_joint(&self, index: usize, joint: &JointConfig) -> Result<(), RobotError> {
+    #[allow(clippy::too_many_lines)] // one check per field, in the file's order
+    fn validate_joint(
+        &self,
+        index: usize,
+        joint: &JointConfig,
+    ) -> Result<(), (&'static str, RobotError)> {
         let item = format!("joint {}", joint.name);
-        let invalid = |field: &'static str, value: String, expected: &str| RobotError::Invalid {
-            item: item.clone(),
-            field,
-            value,
-            expected: expected.into(),
+        let invalid = |field: &'static str, value: String, expected: &str| {
+            (
+                field,
+                RobotError::Invalid {
+                    item: item.clone(),
+                    field,
+                    value,
+                    expected: expected.into(),
+                },
+            )
         };
+        if joint.name.trim().is_empty() {
+            return Err(invalid(
+                "name",
+                format!("{:?}", joint.name),
+                "a non-empty name",
+            ));
+        }
         if self.joints[..index].iter().any(|j| j.name == joint.name) {
             return Err(invalid("name", joint.name.clone(), "a name used once"));
         }
@@ -381,12 +579,45 @@ impl RobotConfig {
                 "[min, max] in rad with min <= max",
             ));
         }
-        for (field, value) in [
-            ("max_velocity", joint.max_velocity),
-            ("max_acceleration", joint.max_acceleration),
+        for (field, value, most, unit) in [
+            (
+                "max_velocity",
+                joint.max_velocity,
+                Self::MAX_JOINT_VELOCITY,
+                "rad/s",
+            ),
+            (
+                "max_acceleration",
+                joint.max_acceleration,
+                Self::MAX_JOINT_ACCELERATION,
+                "rad/s²",
+            ),
         ] {
-            if !(value.is_finite() && value > 0.0) {
-                return Err(invalid(field, value.to_string(), "a number > 0"));
+            if !(value.is_finite() && value > 0.0 && value <= most) {
+                return Err(invalid(
+                    field,
+                    value.to_string(),
+                    &format!("a number > 0 and <= {most} {unit}"),
+                ));
+            }
+        }
+        if !bus.is_wck() {
+            // The device angles of both limits (and of joint zero) must fit the joint's
+            // position registers.
+            let device =
+                |joint_angle: f64| joint.offset + f64::from(joint.direction.signum()) * joint_angle;
+            let worst = [device(min), device(max), joint.offset]
+                .into_iter()
+                .fold(0.0_f64, |m, a| m.max(a.abs()));
+            if worst > WHJ_MAX_DEVICE_RAD {
+                return Err(invalid(
+                    "limits",
+                    format!("[{min}, {max}] with offset {}", joint.offset),
+                    &format!(
+                        "joint angles whose device angle (offset + direction × angle) is \
+                         within ±{WHJ_MAX_DEVICE_RAD:.1} rad (the WHJ position registers)"
+                    ),
+                ));
             }
         }
         if let Some(centre) = joint.centre {

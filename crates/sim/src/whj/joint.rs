@@ -10,14 +10,16 @@ use core::time::Duration;
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use robobus_whj::registers::{self, Access, Half, Persistence, RegisterInfo, TABLE_LEN};
+use robobus_whj::registers::{
+    self, Access, Half, Persistence, RegisterInfo, TABLE_LEN, addr as reg,
+};
 use robobus_whj::reply::Reply as WireReply;
 use robobus_whj::units::{ActualSpeed, Current, Position, Temperature, Voltage};
 use robobus_whj::{
     BroadcastCurrent, BroadcastFeedback, BroadcastPosition, BroadcastRegister,
-    BroadcastRegisterReply, CanFrame, CmdError, ErrorCode, FeedForward, JointId, JointStatus,
-    Malformed, MalformedReason, RegisterAddr, RegisterOp, RegisterSlot, ReplyMask, Request,
-    ServoFeedback, Words, WriteData, WriteStatus,
+    BroadcastRegisterReply, CanFrame, CmdError, ErrorCode, Feature, FeedForward, JointId,
+    JointStatus, Malformed, MalformedReason, RegisterAddr, RegisterOp, RegisterSlot, ReplyMask,
+    Request, ServoFeedback, Words, WriteData, WriteStatus,
 };
 
 use super::config::{BroadcastReadReply, JointConfig, SpeedLimitUnit};
@@ -284,10 +286,10 @@ impl SimJoint {
             enabled: self.enabled,
             brake_locked: self.brake_locked(),
             error: ErrorCode(self.errors),
-            mode: self.ram[0x30],
-            target_position: self.get_i32(0x36),
-            target_speed: self.get_i32(0x34),
-            target_current: self.get_i32(0x32),
+            mode: self.ram[reg::TAG_WORK_MODE.index()],
+            target_position: self.get_i32(reg::TAG_POSITION),
+            target_speed: self.get_i32(reg::TAG_SPEED),
+            target_current: self.get_i32(reg::TAG_CURRENT),
             input_power_w: self.mech.input_power(),
         }
     }
@@ -365,11 +367,11 @@ impl SimJoint {
             match guard {
                 Guard::Position => {
                     let actual = self.reported_position();
-                    self.set_i32(0x36, actual);
+                    self.set_i32(reg::TAG_POSITION, actual);
                     self.speed_ff = 0.0;
                     self.current_ff = 0.0;
                 }
-                Guard::Current => self.set_i32(0x32, 0),
+                Guard::Current => self.set_i32(reg::TAG_CURRENT, 0),
             }
             tracing::debug!(id = self.bus_id, "communication watchdog expired");
         }
@@ -390,8 +392,9 @@ impl SimJoint {
         self.current_ff = 0.0;
         self.ram = self.flash.words;
         self.zero_offset = self.flash.zero_offset;
-        self.bus_id = u8::try_from(self.flash.words[0x01]).unwrap_or(1);
-        let delayed = self.flash.words[0x1F] == 0 && self.fw_519();
+        self.bus_id = u8::try_from(self.flash.words[reg::SYS_ID.index()]).unwrap_or(1);
+        let delayed =
+            self.flash.words[reg::ON_DELAY.index()] == 0 && self.has_feature(Feature::PowerUpDelay);
         let delay = if delayed {
             self.cfg.boot.boot_delay + self.cfg.boot.boot_delay_per_id * u32::from(self.bus_id)
         } else {
@@ -418,40 +421,38 @@ impl SimJoint {
                 }
             }
         }
-        self.ram[0x38] = 0;
+        self.ram[reg::TAG_SERVO_FLAG.index()] = 0;
         self.enabled = false;
         self.mech.reset_loops();
-        if self.ram[0x0B] == 1 {
+        if self.ram[reg::SYS_ENABLE_ON_POWER.index()] == 1 {
             let _ = self.enable();
         }
     }
 
     // ----- units ------------------------------------------------------------------------
 
-    fn fw_519(&self) -> bool {
-        self.cfg.firmware.at_least_label(0x519)
+    /// Whether a gated register exists on this model and firmware: the register table's
+    /// firmware gate, and for model-gated features the product's own feature list.
+    fn register_available(&self, addr: RegisterAddr) -> bool {
+        addr.info()
+            .and_then(|info| info.firmware)
+            .is_none_or(|feature| self.has_feature(feature))
     }
 
-    /// Whether a gated register exists on this model and firmware.
-    fn register_available(&self, addr: u8) -> bool {
-        match addr {
-            0x1F | 0x79 => self.fw_519(),
-            0x69 => self.fw_519() && self.cfg.model.supports_low_power(),
-            0x6A => {
-                self.cfg.model.supports_brake_release() && self.cfg.firmware.at_least_label(0x522)
-            }
-            0x4E => self.cfg.firmware.at_least_label(0x500),
-            _ => true,
-        }
+    /// Whether this joint's product and firmware have `feature`.
+    fn has_feature(&self, feature: Feature) -> bool {
+        self.cfg.model.facts().has(feature) && feature.gate().admits(self.cfg.firmware)
     }
 
-    fn get_i32(&self, low: usize) -> i32 {
+    fn get_i32(&self, low: RegisterAddr) -> i32 {
+        let low = low.index();
         let lo = u32::from(self.ram.get(low).copied().unwrap_or(0));
         let hi = u32::from(self.ram.get(low + 1).copied().unwrap_or(0));
         i32::from_ne_bytes(((hi << 16) | lo).to_ne_bytes())
     }
 
-    fn set_i32(&mut self, low: usize, value: i32) {
+    fn set_i32(&mut self, low: RegisterAddr, value: i32) {
+        let low = low.index();
         let bits = u32::from_ne_bytes(value.to_ne_bytes());
         if let Some(w) = self.ram.get_mut(low) {
             *w = (bits & 0xFFFF) as u16;
@@ -476,8 +477,8 @@ impl SimJoint {
     }
 
     fn position_limits(&self) -> (i32, i32) {
-        let lo = self.get_i32(0x44);
-        let hi = self.get_i32(0x46);
+        let lo = self.get_i32(reg::LIT_MIN_POSITION);
+        let hi = self.get_i32(reg::LIT_MAX_POSITION);
         if lo <= hi { (lo, hi) } else { (hi, lo) }
     }
 
@@ -492,14 +493,16 @@ impl SimJoint {
 
     fn limits(&self) -> DriveLimits {
         let p = &self.cfg.params;
-        let max_current = f64::from(self.ram[0x40]) * self.ma_per_count() / 1000.0;
-        let raw_speed = f64::from(self.ram[0x41]);
+        let max_current =
+            f64::from(self.ram[reg::LIT_MAX_CURRENT.index()]) * self.ma_per_count() / 1000.0;
+        let raw_speed = f64::from(self.ram[reg::LIT_MAX_SPEED.index()]);
         let max_speed_rpm = match self.cfg.speed_limit_unit {
             SpeedLimitUnit::PerRatio => raw_speed / f64::from(p.reduction_ratio.max(1)),
             SpeedLimitUnit::CentiRpm => raw_speed * 0.01,
         };
-        let max_accel = rpm_to_rad_s(f64::from(self.ram[0x42]) * 0.1);
-        let low_power = self.ram[0x69] == 1 && self.register_available(0x69);
+        let max_accel = rpm_to_rad_s(f64::from(self.ram[reg::LIT_MAX_ACC.index()]) * 0.1);
+        let low_power = self.ram[reg::LOW_POWER_MODE.index()] == 1
+            && self.register_available(reg::LOW_POWER_MODE);
         DriveLimits {
             max_current,
             max_speed: rpm_to_rad_s(max_speed_rpm),
@@ -518,19 +521,19 @@ impl SimJoint {
                 brake_locked: self.brake_locked(),
             };
         }
-        match self.ram[0x30] {
+        match self.ram[reg::TAG_WORK_MODE.index()] {
             0 => Drive::OpenLoop {
-                duty: f64::from(self.ram[0x31].min(100)) / 100.0,
+                duty: f64::from(self.ram[reg::TAG_OPEN_PWM.index()].min(100)) / 100.0,
             },
             1 => Drive::Current {
-                amps: f64::from(self.get_i32(0x32)) * self.ma_per_count() / 1000.0
+                amps: f64::from(self.get_i32(reg::TAG_CURRENT)) * self.ma_per_count() / 1000.0
                     + self.current_ff,
             },
             2 => Drive::Speed {
-                rad_s: rpm_to_rad_s(f64::from(self.get_i32(0x34)) * 0.002),
+                rad_s: rpm_to_rad_s(f64::from(self.get_i32(reg::TAG_SPEED)) * 0.002),
             },
             _ => {
-                let target = self.clamp_to_limits(self.get_i32(0x36));
+                let target = self.clamp_to_limits(self.get_i32(reg::TAG_POSITION));
                 Drive::Position {
                     target: self.counts_to_physical_rad(target),
                     speed_ff: self.speed_ff,
@@ -577,12 +580,12 @@ impl SimJoint {
             return;
         }
         let actual = self.physical_counts() - self.zero_offset;
-        if self.ram[0x30] == 3 {
+        if self.ram[reg::TAG_WORK_MODE.index()] == 3 {
             // Following error: the commanded trajectory (the target approached under the
             // speed and acceleration limits) minus the actual position. Comparing with the
             // final target instead would trip whenever a joint enabled outside its range
             // drives back to the limit (C9).
-            let max_diff = i64::from(self.get_i32(0x4B));
+            let max_diff = i64::from(self.get_i32(reg::LIT_MAX_POS_DIFF));
             let commanded =
                 round_i64(self.mech.reference().to_degrees() * COUNTS_PER_DEG) - self.zero_offset;
             if max_diff > 0 && (commanded - actual).abs() > max_diff {
@@ -633,9 +636,9 @@ impl SimJoint {
         let actual = self.reported_position();
         // Target := actual, clamped: a joint outside its range drives to the limit (C9).
         let target = self.clamp_to_limits(actual);
-        self.set_i32(0x36, target);
-        self.set_i32(0x34, 0);
-        self.set_i32(0x32, 0);
+        self.set_i32(reg::TAG_POSITION, target);
+        self.set_i32(reg::TAG_SPEED, 0);
+        self.set_i32(reg::TAG_CURRENT, 0);
         self.speed_ff = 0.0;
         self.current_ff = 0.0;
         let (lo, hi) = self.position_limits();
@@ -652,7 +655,7 @@ impl SimJoint {
     }
 
     fn change_mode(&mut self, mode: u16) {
-        self.ram[0x30] = mode;
+        self.ram[reg::TAG_WORK_MODE.index()] = mode;
         // No jump: position target := actual, speed and current targets := 0 (§6.2).
         let actual = self.reported_position();
         let target = if mode == 3 {
@@ -660,9 +663,9 @@ impl SimJoint {
         } else {
             actual
         };
-        self.set_i32(0x36, target);
-        self.set_i32(0x34, 0);
-        self.set_i32(0x32, 0);
+        self.set_i32(reg::TAG_POSITION, target);
+        self.set_i32(reg::TAG_SPEED, 0);
+        self.set_i32(reg::TAG_CURRENT, 0);
         self.speed_ff = 0.0;
         self.current_ff = 0.0;
         self.watchdog = None;
@@ -693,13 +696,13 @@ impl SimJoint {
         self.zero_offset = self.physical_counts();
         // Shift the targets by the same amount so an enabled joint stays still (§6.4).
         let shift = before;
-        let target = i64::from(self.get_i32(0x36)) - shift;
-        self.set_i32(0x36, saturate_i32(target));
+        let target = i64::from(self.get_i32(reg::TAG_POSITION)) - shift;
+        self.set_i32(reg::TAG_POSITION, saturate_i32(target));
     }
 
     /// Apply a new position target from any source; false if the step check rejected it.
     fn set_position_target(&mut self, counts: i32, from_register: bool) -> bool {
-        let mode3 = self.ram[0x30] == 3;
+        let mode3 = self.ram[reg::TAG_WORK_MODE.index()] == 3;
         let target = if mode3 {
             self.clamp_to_limits(counts)
         } else {
@@ -719,7 +722,7 @@ impl SimJoint {
                 return false;
             }
         }
-        self.set_i32(0x36, target);
+        self.set_i32(reg::TAG_POSITION, target);
         true
     }
 
@@ -829,7 +832,7 @@ impl SimJoint {
         if let Phase::Bootloader { .. } = self.phase {
             // The bootloader answers only writes to IAP_FLAG (§6.1).
             return match req {
-                Request::Write { joint, addr, data } if joint == me && addr.get() == 0x49 => {
+                Request::Write { joint, addr, data } if joint == me && addr == reg::IAP_FLAG => {
                     let (words, _) = data.words();
                     if words[0] == 0 {
                         self.start_application();
@@ -878,7 +881,7 @@ impl SimJoint {
             }
             Request::SpeedServo { joint, target } if joint == me => {
                 let feedback = self.servo_feedback();
-                self.set_i32(0x34, target.0);
+                self.set_i32(reg::TAG_SPEED, target.0);
                 Some(WireReply::ServoFeedback {
                     joint: me,
                     feedback,
@@ -886,7 +889,7 @@ impl SimJoint {
             }
             Request::CurrentServo { joint, target } if joint == me => {
                 let feedback = self.servo_feedback();
-                self.set_i32(0x32, target.0);
+                self.set_i32(reg::TAG_CURRENT, target.0);
                 Some(WireReply::ServoFeedback {
                     joint: me,
                     feedback,
@@ -960,8 +963,8 @@ impl SimJoint {
 
     fn arm_watchdog(&mut self, now: Duration, guard: Guard, with_data: bool) {
         let mode_ok = match guard {
-            Guard::Position => self.ram[0x30] == 3,
-            Guard::Current => self.ram[0x30] == 1,
+            Guard::Position => self.ram[reg::TAG_WORK_MODE.index()] == 3,
+            Guard::Current => self.ram[reg::TAG_WORK_MODE.index()] == 1,
         };
         let armed = self.watchdog.is_some_and(|(_, g)| g == guard);
         if self.enabled
@@ -1015,7 +1018,7 @@ impl SimJoint {
         let reply = self.broadcast_feedback(b.mask, me);
         let data = b.slots.get(slot).copied().flatten();
         if let Some(current) = data {
-            self.set_i32(0x32, current.0);
+            self.set_i32(reg::TAG_CURRENT, current.0);
         }
         if self.cfg.watchdog.guard_broadcast_current {
             self.arm_watchdog(now, Guard::Current, data.is_some());
@@ -1096,23 +1099,33 @@ impl SimJoint {
     fn read_word(&self, addr: u8, s: &Sample) -> u16 {
         let lo = |v: i32| (u32::from_ne_bytes(v.to_ne_bytes()) & 0xFFFF) as u16;
         let hi = |v: i32| (u32::from_ne_bytes(v.to_ne_bytes()) >> 16) as u16;
-        match addr {
-            0x00 => registers::SIGNATURE_VALUE,
-            0x04 | 0x78 => s.error,
-            0x05 => s.voltage.cast_unsigned(),
-            0x06 => s.temperature.cast_unsigned(),
-            0x0A => u16::from(s.enabled),
-            0x0C..=0x0F | 0x50 => 0,
-            0x10 => lo(s.current),
-            0x11 => hi(s.current),
-            0x12 => lo(s.speed),
-            0x13 => hi(s.speed),
-            0x14 => lo(s.position),
-            0x15 => hi(s.position),
-            0x4E if self.register_available(0x4E) => u16::from(s.broadcast_counter),
-            0x6A if self.register_available(0x6A) => u16::from(self.brake_released),
-            a if RegisterInfo::by_raw(a).is_none() || !self.register_available(a) => 0,
-            a => self.ram.get(usize::from(a)).copied().unwrap_or(0),
+        let Ok(a) = RegisterAddr::new(addr) else {
+            return 0;
+        };
+        match a {
+            reg::SIGNATURE => registers::SIGNATURE_VALUE,
+            reg::SYS_ERROR | reg::ERROR => s.error,
+            reg::SYS_VOLTAGE => s.voltage.cast_unsigned(),
+            reg::SYS_TEMP => s.temperature.cast_unsigned(),
+            reg::SYS_ENABLE_DRIVER => u16::from(s.enabled),
+            // Triggers read as 0.
+            reg::SYS_SAVE_TO_FLASH
+            | reg::SYS_DEMA_ABSPOS
+            | reg::SYS_SET_ZERO_POS
+            | reg::SYS_CLEAR_ERROR
+            | reg::SEV_PARAME_UPDATE => 0,
+            reg::CUR_CURRENT => lo(s.current),
+            reg::CUR_CURRENT_H => hi(s.current),
+            reg::CUR_SPEED => lo(s.speed),
+            reg::CUR_SPEED_H => hi(s.speed),
+            reg::CUR_POSITION => lo(s.position),
+            reg::CUR_POSITION_H => hi(s.position),
+            reg::BROADCAST_COUNTER if self.register_available(a) => u16::from(s.broadcast_counter),
+            reg::STATE_BRK_DIRECT_ENABLE if self.register_available(a) => {
+                u16::from(self.brake_released)
+            }
+            a if a.info().is_none() || !self.register_available(a) => 0,
+            a => self.ram.get(a.index()).copied().unwrap_or(0),
         }
     }
 
@@ -1133,7 +1146,7 @@ impl SimJoint {
         if info.access == Access::ReadOnly {
             return Err(WriteOutcome::Permission);
         }
-        if !self.register_available(addr) {
+        if !self.register_available(info.addr) {
             return Err(WriteOutcome::Ack(false));
         }
         if info.half == Half::Single && !info.in_range(i32::from(value.cast_signed())) {
@@ -1166,11 +1179,17 @@ impl SimJoint {
         let mut ok = true;
         let mut i = 0;
         while i < words.len() {
-            let a = usize::from(start) + i;
-            let Ok(a8) = u8::try_from(a) else { break };
+            let Some(a) = u8::try_from(usize::from(start) + i)
+                .ok()
+                .and_then(|a| RegisterAddr::new(a).ok())
+            else {
+                break;
+            };
             let w = words[i];
             // Targets are applied as one 32-bit value when both halves come together.
-            if matches!(a, 0x32 | 0x34 | 0x36) && i + 1 < words.len() {
+            if matches!(a, reg::TAG_CURRENT | reg::TAG_SPEED | reg::TAG_POSITION)
+                && i + 1 < words.len()
+            {
                 let value = i32::from_ne_bytes(
                     (u32::from(words[i + 1]) << 16 | u32::from(w)).to_ne_bytes(),
                 );
@@ -1178,14 +1197,14 @@ impl SimJoint {
                 i += 2;
                 continue;
             }
-            ok &= self.write_one(a8, w, now);
+            ok &= self.write_one(a, w, now);
             i += 1;
         }
         WriteOutcome::Ack(ok)
     }
 
-    fn write_target(&mut self, low: usize, value: i32) -> bool {
-        if low == 0x36 {
+    fn write_target(&mut self, low: RegisterAddr, value: i32) -> bool {
+        if low == reg::TAG_POSITION {
             self.set_position_target(value, true)
         } else {
             self.set_i32(low, value);
@@ -1193,17 +1212,17 @@ impl SimJoint {
         }
     }
 
-    fn write_one(&mut self, addr: u8, value: u16, now: Duration) -> bool {
-        let a = usize::from(addr);
+    fn write_one(&mut self, addr: RegisterAddr, value: u16, now: Duration) -> bool {
+        let a = addr.index();
         match addr {
-            0x01 => {
+            reg::SYS_ID => {
                 self.ram[a] = value;
                 if self.cfg.id_change_immediate {
                     self.bus_id = u8::try_from(value).unwrap_or(self.bus_id);
                 }
                 true
             }
-            0x0A => {
+            reg::SYS_ENABLE_DRIVER => {
                 if value == 1 {
                     self.enable()
                 } else {
@@ -1211,8 +1230,8 @@ impl SimJoint {
                     true
                 }
             }
-            0x0C => value == 0 || self.save(now),
-            0x0D => {
+            reg::SYS_SAVE_TO_FLASH => value == 0 || self.save(now),
+            reg::SYS_DEMA_ABSPOS => {
                 if value == 1 {
                     tracing::warn!(
                         id = self.bus_id,
@@ -1221,33 +1240,44 @@ impl SimJoint {
                 }
                 true
             }
-            0x0E => {
+            reg::SYS_SET_ZERO_POS => {
                 if value == 1 {
                     self.set_zero();
                 }
                 true
             }
-            0x0F => {
+            reg::SYS_CLEAR_ERROR => {
                 if value == 1 {
                     self.clear_errors();
                 }
                 true
             }
-            0x30 => {
+            reg::TAG_WORK_MODE => {
                 self.change_mode(value);
                 true
             }
-            0x32..=0x37 => {
+            reg::TAG_CURRENT
+            | reg::TAG_CURRENT_H
+            | reg::TAG_SPEED
+            | reg::TAG_SPEED_H
+            | reg::TAG_POSITION
+            | reg::TAG_POSITION_H => {
                 // A lone half: every 16-bit write applies at once (torn values possible).
-                let low = a & !1;
-                let mut words = [self.ram[low], self.ram[low + 1]];
-                words[a - low] = value;
+                let low = match addr.info().map(|i| i.half) {
+                    Some(Half::High) => addr.get().wrapping_sub(1),
+                    _ => addr.get(),
+                };
+                let Ok(low) = RegisterAddr::new(low) else {
+                    return false;
+                };
+                let mut words = [self.ram[low.index()], self.ram[low.index() + 1]];
+                words[a - low.index()] = value;
                 let v = i32::from_ne_bytes(
                     (u32::from(words[1]) << 16 | u32::from(words[0])).to_ne_bytes(),
                 );
                 self.write_target(low, v)
             }
-            0x49 => {
+            reg::IAP_FLAG => {
                 if value == 1 {
                     // Firmware update requested: back to the bootloader.
                     self.enabled = false;
@@ -1256,12 +1286,12 @@ impl SimJoint {
                 }
                 true
             }
-            0x4E => {
+            reg::BROADCAST_COUNTER => {
                 self.counter = u8::try_from(value).unwrap_or(0);
                 true
             }
-            0x50 => true,
-            0x6A => self.write_brake_release(value),
+            reg::SEV_PARAME_UPDATE => true,
+            reg::STATE_BRK_DIRECT_ENABLE => self.write_brake_release(value),
             _ => {
                 if let Some(w) = self.ram.get_mut(a) {
                     *w = value;
@@ -1301,51 +1331,51 @@ fn factory_flash(cfg: &JointConfig) -> [u16; TABLE_LEN] {
         w[low + 1] = (bits >> 16) as u16;
     };
     put32(
-        0x44,
+        reg::LIT_MIN_POSITION.index(),
         saturate_i32(round_i64(cfg.position_limits_deg.0 * COUNTS_PER_DEG)),
     );
     put32(
-        0x46,
+        reg::LIT_MAX_POSITION.index(),
         saturate_i32(round_i64(cfg.position_limits_deg.1 * COUNTS_PER_DEG)),
     );
-    put32(0x4B, 300_000);
-    w[0x00] = registers::SIGNATURE_VALUE;
-    w[0x01] = u16::from(cfg.id);
-    w[0x02] = cfg.model.model().code();
-    w[0x03] = cfg.firmware.0;
-    w[0x07] = p.reduction_ratio;
+    put32(reg::LIT_MAX_POS_DIFF.index(), 300_000);
+    w[reg::SIGNATURE.index()] = registers::SIGNATURE_VALUE;
+    w[reg::SYS_ID.index()] = u16::from(cfg.id);
+    w[reg::SYS_MODEL_TYPE.index()] = cfg.model.model().code();
+    w[reg::SYS_FW_VERSION.index()] = cfg.firmware.0;
+    w[reg::SYS_REDU_RATIO.index()] = p.reduction_ratio;
     // C11: the bit-rate registers say what the bus really runs at (1M / 5M).
-    w[0x08] = 2;
-    w[0x09] = 5;
+    w[reg::SYS_BPS_CANFD_BRT.index()] = 2;
+    w[reg::SYS_BPS_CANFD_DATA.index()] = 5;
     let peak_counts = p.peak_current_a() * 1000.0 / p.ma_per_count();
-    w[0x40] = u16::try_from(round_i64(peak_counts)).unwrap_or(u16::MAX);
-    w[0x41] = match cfg.speed_limit_unit {
+    w[reg::LIT_MAX_CURRENT.index()] = u16::try_from(round_i64(peak_counts)).unwrap_or(u16::MAX);
+    w[reg::LIT_MAX_SPEED.index()] = match cfg.speed_limit_unit {
         SpeedLimitUnit::PerRatio => 3000,
         SpeedLimitUnit::CentiRpm => {
             u16::try_from(round_i64(p.peak_speed_rpm * 100.0)).unwrap_or(u16::MAX)
         }
     };
-    w[0x42] = 5000;
-    w[0x43] = 5000;
-    w[0x2A..0x30].copy_from_slice(&cfg.unique_id);
+    w[reg::LIT_MAX_ACC.index()] = 5000;
+    w[reg::LIT_MAX_DEC.index()] = 5000;
+    w[reg::MOT_MODEL_ID.index()..reg::MOT_MODEL_ID.index() + 6].copy_from_slice(&cfg.unique_id);
     // Factory gains: raw values, not used by the idealised loops [inf].
-    let gains: [(usize, u16); 13] = [
-        (0x51, 1200),
-        (0x52, 60),
-        (0x53, 0),
-        (0x54, 800),
-        (0x55, 20),
-        (0x56, 0),
-        (0x57, 0),
-        (0x58, 300),
-        (0x59, 0),
-        (0x5A, 0),
-        (0x5B, 0),
-        (0x5C, 50),
-        (0x5D, 50),
+    let gains: [(RegisterAddr, u16); 13] = [
+        (reg::SEV_CURRENT_P, 1200),
+        (reg::SEV_CURRENT_I, 60),
+        (reg::SEV_CURRENT_D, 0),
+        (reg::SEV_SPEED_P, 800),
+        (reg::SEV_SPEED_I, 20),
+        (reg::SEV_SPEED_D, 0),
+        (reg::SEV_SPEED_DS, 0),
+        (reg::SEV_POSITION_P, 300),
+        (reg::SEV_POSITION_I, 0),
+        (reg::SEV_POSITION_D, 0),
+        (reg::SEV_POSITION_DS, 0),
+        (reg::SEV_POS_SMOOTH, 50),
+        (reg::SEV_SPD_FF, 50),
     ];
     for (a, v) in gains {
-        w[a] = v;
+        w[a.index()] = v;
     }
     w
 }

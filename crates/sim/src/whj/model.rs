@@ -1,5 +1,8 @@
 //! Product parameters of the simulated WHJ models (§9 of `whj-joint-protocol.md`).
 //!
+//! The published facts (code, ratio, peak speed, current scale, brake, features, torque,
+//! power, inertia, mass) come from the one product table, [`robobus_whj::PRODUCTS`].
+//!
 //! The published data gives ratio, rated / peak torque, peak output speed, rated power and
 //! current, weight and rotor inertia. Everything else a physics model needs (torque
 //! constant, winding resistance, thermal time constant, friction) is not published; the
@@ -9,6 +12,8 @@
 use core::fmt;
 use core::str::FromStr;
 
+use robobus_whj::models::{PRODUCTS, ProductFacts};
+use robobus_whj::registers::Feature;
 use robobus_whj::units::{CurrentScale, Model};
 
 /// One of the simulated WHJ joint products.
@@ -39,15 +44,22 @@ impl WhjModel {
         Self::Whj120,
     ];
 
+    /// This product's row of [`robobus_whj::PRODUCTS`].
+    pub fn facts(self) -> &'static ProductFacts {
+        let i = match self {
+            Self::Whj03 => 0,
+            Self::Whj10B => 1,
+            Self::Whj10N => 2,
+            Self::Whj30 => 3,
+            Self::Whj60 => 4,
+            Self::Whj120 => 5,
+        };
+        &PRODUCTS[i]
+    }
+
     /// The protocol-level model (register 0x02).
-    pub const fn model(self) -> Model {
-        match self {
-            Self::Whj03 => Model::Joint03,
-            Self::Whj10B | Self::Whj10N => Model::Joint10,
-            Self::Whj30 => Model::Joint30,
-            Self::Whj60 => Model::Joint60,
-            Self::Whj120 => Model::Joint120,
-        }
+    pub fn model(self) -> Model {
+        self.facts().model
     }
 
     /// Short name as accepted on the command line (`whj30`, `whj10n`, ...).
@@ -63,42 +75,40 @@ impl WhjModel {
     }
 
     /// Whether the product has a pin brake (the `B` suffix; C25: `N` models report 0).
-    pub const fn has_brake(self) -> bool {
-        !matches!(self, Self::Whj03 | Self::Whj10N)
+    pub fn has_brake(self) -> bool {
+        self.facts().pin_brake
     }
 
     /// Whether the low-power mode (0x69) exists on this model (WHJ10N/30/60, §6.8).
-    pub const fn supports_low_power(self) -> bool {
-        matches!(self, Self::Whj10N | Self::Whj30 | Self::Whj60)
+    pub fn supports_low_power(self) -> bool {
+        self.facts().has(Feature::LowPowerMode)
     }
 
     /// Whether the direct brake release (0x6A) exists on this model (WHJ30/60, §6.8).
-    pub const fn supports_brake_release(self) -> bool {
-        matches!(self, Self::Whj30 | Self::Whj60)
+    pub fn supports_brake_release(self) -> bool {
+        self.facts().has(Feature::BrakeRelease)
     }
 
     /// The product parameters of this model.
     pub fn params(self) -> ModelParams {
-        // (ratio, rated N·m, peak N·m, peak RPM, rated W, rated A, rotor kg·m², mass kg)
-        let (ratio, rated, peak, rpm, watts, amps, rotor, mass) = match self {
-            Self::Whj03 => (100, 3.0, 9.0, 30.0, 20.0, 0.8, 1.52e-6, 0.170),
-            Self::Whj10B => (80, 10.0, 30.0, 37.5, 63.0, 2.6, 1.13e-5, 0.445),
-            Self::Whj10N => (80, 10.0, 30.0, 37.5, 63.0, 2.6, 1.09e-5, 0.400),
-            Self::Whj30 => (80, 30.0, 90.0, 37.5, 188.0, 7.8, 2.98e-5, 0.730),
-            Self::Whj60 => (100, 60.0, 180.0, 30.0, 292.0, 12.0, 5.51e-5, 1.000),
-            Self::Whj120 => (100, 120.0, 360.0, 30.0, 628.0, 26.0, 1.37e-4, 1.800),
-        };
+        let f = self.facts();
+        let (rated, rpm, watts, amps) = (
+            f.rated_torque_nm,
+            f.peak_output_speed_rpm,
+            f.rated_power_w,
+            f.rated_current_a,
+        );
         ModelParams {
             model: self,
-            reduction_ratio: ratio,
+            reduction_ratio: f.reduction_ratio,
             rated_torque_nm: rated,
-            peak_torque_nm: peak,
+            peak_torque_nm: f.peak_torque_nm,
             peak_speed_rpm: rpm,
             rated_power_w: watts,
             rated_current_a: amps,
-            rotor_inertia_kgm2: rotor,
-            mass_kg: mass,
-            current_scale: self.model().current_scale(),
+            rotor_inertia_kgm2: f.rotor_inertia_kgm2,
+            mass_kg: f.mass_kg,
+            current_scale: f.current_scale,
             // [inf] Copper loss at rated current = 10 % of the rated power.
             winding_resistance_ohm: 0.10 * watts / (amps * amps),
             // [inf] Rated current held forever warms the joint by 40 K.
@@ -227,6 +237,8 @@ mod tests {
     fn names_parse_back() {
         for m in WhjModel::ALL {
             assert_eq!(m.name().parse::<WhjModel>(), Ok(m));
+            // The row of the product table is this product's.
+            assert!(m.facts().name.eq_ignore_ascii_case(m.name()), "{m}");
         }
         assert_eq!("WHJ10".parse::<WhjModel>(), Ok(WhjModel::Whj10B));
         let err = "whj7".parse::<WhjModel>().unwrap_err();
