@@ -7,7 +7,7 @@ checks that the 16-byte servo feedback follows. Prints one JSON line with the re
 exits 0 if the feedback followed, 1 if not, 2 if the joint did not answer.
 
 Runs over any python-can FD bus, e.g. the UDP multicast bus (inside a network namespace
-with `ip route add 224.0.0.0/4 dev lo`, see shared/docs/virtual-can.md):
+with `ip route add 224.0.0.0/4 dev lo`, see the robobus_link::udp docs):
 
     whj_position_client.py --interface udp_multicast --channel 239.74.163.2
 """

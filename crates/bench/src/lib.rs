@@ -5,7 +5,7 @@
 //! The program `robobus-bench` (run by `scripts/bench/run`) runs the suite and writes
 //! `report.md` with SVG latency histograms to `target/bench-report/`; `--smoke` runs every
 //! benchmark briefly, which is what the tests do. Method and formulas: `BENCHMARKS.md`
-//! and `shared/docs/wire-timing.md`.
+//! and the `timing` modules of `robobus_wck` and `robobus_whj`.
 //!
 //! Every control loop is reported as an efficiency: the modelled wire + device time of
 //! what was exchanged (from `robobus_wck::timing` and `robobus_whj::timing`) divided by the

@@ -390,7 +390,7 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
          command. Modelled round trip: commands first (they win arbitration), then the \
          feedback frames back to back; efficiency = modelled / link median. A rate whose \
          modelled round trip exceeds its period cannot be carried by the wire at all (14 \
-         joints at 1 kHz: `wire-timing.md` gives 609 Hz at most); commands then queue without \
+         joints at 1 kHz: the wire-time model gives 609 Hz at most); commands then queue without \
          bound and that row only shows that it fails; it is left out of the 97 % goal.\n\n\
          The client's own statistics are shown beside them: its deadline misses, and its \
          \"impossible\" round trips, shorter than 98 % of the modelled wire time: once one \
@@ -605,7 +605,8 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
     let _ = writeln!(
         o,
         "See `BENCHMARKS.md` (method, goals, how to reproduce) and \
-         `shared/docs/wire-timing.md` (the wire-time formulas). Efficiency = modelled wire \
+         the `timing` modules of `robobus_wck` / `robobus_whj` (the wire-time formulas). \
+         Efficiency = modelled wire \
          + device time / measured cycle time."
     );
     o

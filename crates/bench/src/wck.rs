@@ -306,7 +306,7 @@ mod tests {
         .as_secs_f64()
     }
 
-    /// The polling rates of `wire-timing.md`: 31 servos at 21.1 / 30.1 Hz with the
+    /// The polling rates of the wire-time model (`robobus_wck::timing`): 31 servos at 21.1 / 30.1 Hz with the
     /// turnaround, 61.9 / 495.5 Hz on the wire alone.
     #[test]
     fn modelled_polling_rates_match_the_wire_timing_table() {

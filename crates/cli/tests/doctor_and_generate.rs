@@ -99,3 +99,38 @@ fn man_pages_are_written_for_every_subcommand() {
     let move_page = std::fs::read_to_string(dir.path().join("robobus-wck-move.1")).unwrap();
     assert!(move_page.contains("torque"), "{move_page}");
 }
+
+#[test]
+fn doctor_refuses_overlong_names_without_panicking() {
+    let long = "a".repeat(65_536);
+    let long_path = format!("/dev/{long}");
+    for (option, value, limit) in [
+        ("--can", long.as_str(), "1..=15 bytes"),
+        ("--port", long_path.as_str(), "1..=4095 bytes"),
+        ("--wck-port", long_path.as_str(), "1..=4095 bytes"),
+        ("--whj-bus", long.as_str(), "1..=15 bytes"),
+        ("--can", "can0/../x", "no `/`"),
+    ] {
+        let r = robobus(&["doctor", option, value]);
+        assert_eq!(r.code, Some(2), "{option}: {r:#?}");
+        assert!(
+            r.stderr.contains(option) && r.stderr.contains(limit),
+            "{option}: {}",
+            r.stderr
+        );
+        assert!(!r.stderr.contains("panicked"), "{}", r.stderr);
+        assert!(
+            r.stderr.len() < 300,
+            "the value is not echoed in full: {}",
+            r.stderr
+        );
+        assert!(r.stdout.is_empty(), "nothing checked: {}", r.stdout);
+    }
+    // The longest valid interface name is checked (and missing), not refused.
+    let r = robobus(&["doctor", "--can", "abcdefghijklmno"]);
+    assert_eq!(r.code, Some(5), "{r:#?}");
+    assert!(
+        r.stdout
+            .contains("sample-point 0.8 dbitrate 5000000 dsample-point 0.75")
+    );
+}

@@ -295,3 +295,29 @@ fn joints_without_a_slot_ignore_broadcast_frames() {
     assert!(bus.request(position_frame(targets, 0x0F)).is_empty());
     assert_eq!(bus.joint(9).unwrap().state().target_position, 0);
 }
+
+#[test]
+fn firmware_before_the_broadcast_gate_ignores_broadcast_frames() {
+    // Joints 1 and 2 on D4FF (before D5.XX), joint 3 on the multi-turn line E200, the
+    // rest on the simulator's default: the register table's broadcast gate decides.
+    let cfgs = (1..=7).map(|id| {
+        let mut c = JointConfig::new(id, WhjModel::Whj30);
+        c.firmware = robobus_whj::units::FirmwareVersion(match id {
+            1 | 2 => 0xD4FF,
+            3 => 0xE200,
+            _ => 0xD522,
+        });
+        c
+    });
+    let mut bus = WhjBus::with_configs(cfgs, 3);
+    for id in 1..=7 {
+        write1(&mut bus, id, 0x49, 0, 1);
+    }
+    wait_ms(&mut bus, 1);
+    let replies = bus.request(status_frame(0x0F));
+    assert_eq!(ids(&replies), vec![0x84, 0x85, 0x86, 0x88, 0x5FE]);
+    let targets = [Some(0), Some(0), None, None, None, None, None];
+    // Mask 0x1 asks joints 1..=4 for feedback: only the two with broadcast firmware answer.
+    let replies = bus.request(position_frame(targets, 0x01));
+    assert_eq!(ids(&replies), vec![0x84, 0x85]);
+}

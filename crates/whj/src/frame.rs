@@ -4,7 +4,7 @@
 //! builds and parses it, links send and receive it, captures read and write it. It holds
 //! an 11-bit or 29-bit identifier (`embedded_can::Id`), a payload of a legal length, and
 //! the FD flags (FDF, BRS, ESI). WHJ joints use CAN FD base frames with BRS on
-//! (`../shared/reference/whj-joint-protocol.md` §1.1); classic frames stay representable
+//! (the vendor tables' control bits: FDF = 1, BRS = 1, ESI = 0); classic frames stay representable
 //! because a bus may carry them.
 
 use core::fmt;

@@ -1,5 +1,5 @@
 //! Exact frame duration on the wire, bit stuffing counted from the frame's real bits
-//! (`wire-timing.md`; ISO 11898-1:2015).
+//! (ISO 11898-1:2015; the numbers are pinned by `tests/timing_golden.rs`).
 //!
 //! A CAN FD base frame with BRS costs `(28 + s_arb)` nominal bits (SOF, 11 ID bits, RRS,
 //! IDE, FDF, res, ACK slot and delimiter, 7 EOF, 3 IFS), one nominal plus one data bit for

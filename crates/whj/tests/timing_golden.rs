@@ -1,4 +1,4 @@
-//! Golden tests of the frame-time function against `wire-timing.md`.
+//! Golden tests of the frame-time function: the wire-timing table of CAN FD frames.
 
 // Test and bench code: a failed unwrap is a failed test.
 #![allow(clippy::unwrap_used, clippy::panic)]
@@ -33,7 +33,7 @@ impl SplitMix {
     }
 }
 
-/// wire-timing.md: (payload, best, typical, worst) in µs.
+/// The table: (payload, best, typical, worst) in µs.
 const TABLE: [(usize, f64, f64, f64); 5] = [
     (0, 35.8, 37.0, 38.8),
     (4, 42.0, 43.4, 46.6),
@@ -92,7 +92,7 @@ fn best_typical_worst_match_the_table() {
 
 #[test]
 fn stuff_bounds_match_the_documented_ranges() {
-    // wire-timing.md: s_dat is 1 for 0 bytes, 0..8 for 4 bytes, 0..32 for 16 bytes.
+    // The table: s_dat is 1 for 0 bytes, 0..8 for 4 bytes, 0..32 for 16 bytes.
     assert_eq!(fd_data_stuff_bounds(0x201, 0, false), Some((1, 1)));
     assert_eq!(fd_data_stuff_bounds(0x201, 4, false), Some((0, 8)));
     assert_eq!(fd_data_stuff_bounds(0x501, 16, false), Some((0, 32)));

@@ -16,7 +16,7 @@ use std::process::Command;
 use serde_json::json;
 
 use crate::Global;
-use crate::exit::ProblemsFound;
+use crate::exit::{ProblemsFound, usage};
 
 mod probe;
 
@@ -115,8 +115,83 @@ fn finding(
     }
 }
 
+/// The widest SUBJECT / CHECK column of the table; longer values run over.
+const MAX_COLUMN: usize = 40;
+
+/// The longest network interface name, bytes (`IFNAMSIZ` 16 with its NUL).
+pub(crate) const MAX_IFACE_BYTES: usize = 15;
+
+/// The longest path, bytes (`PATH_MAX` 4096 with its NUL).
+pub(crate) const MAX_PATH_BYTES: usize = 4095;
+
+/// `value` for an error message: the first 32 characters and the length if it is longer.
+fn shown(value: &str) -> String {
+    if value.chars().count() <= 32 {
+        format!("`{value}`")
+    } else {
+        let head: String = value.chars().take(32).collect();
+        format!("`{head}...` ({} bytes)", value.len())
+    }
+}
+
+/// A SocketCAN interface name: 1..=15 bytes, no `/`, no whitespace, not `.` or `..`.
+pub(crate) fn check_iface(option: &str, name: &str) -> anyhow::Result<()> {
+    if name.is_empty() || name.len() > MAX_IFACE_BYTES {
+        return Err(usage(format!(
+            "{option} {}: an interface name has 1..={MAX_IFACE_BYTES} bytes",
+            shown(name)
+        )));
+    }
+    if name == "." || name == ".." || name.chars().any(|c| c == '/' || c.is_whitespace()) {
+        return Err(usage(format!(
+            "{option} {}: an interface name has no `/` or whitespace and is not `.` or `..`",
+            shown(name)
+        )));
+    }
+    Ok(())
+}
+
+/// A device path: 1..=4095 bytes.
+pub(crate) fn check_path(option: &str, path: &std::ffi::OsStr) -> anyhow::Result<()> {
+    let len = path.len();
+    if len == 0 || len > MAX_PATH_BYTES {
+        return Err(usage(format!(
+            "{option} {}: a path has 1..={MAX_PATH_BYTES} bytes",
+            shown(&path.to_string_lossy())
+        )));
+    }
+    Ok(())
+}
+
+/// Every name the user typed, checked before anything is looked at.
+fn check_args(args: &Args) -> anyhow::Result<()> {
+    for p in &args.port {
+        check_path("--port", p.as_os_str())?;
+    }
+    for c in &args.can {
+        check_iface("--can", c)?;
+    }
+    if let Some(p) = &args.wck_port {
+        check_path("--wck-port", std::ffi::OsStr::new(p))?;
+    }
+    if let Some(b) = &args.whj_bus {
+        if b == "udp" || b.starts_with("udp:") {
+            if b.len() > 64 {
+                return Err(usage(format!(
+                    "--whj-bus {}: a UDP bus is `udp` or `udp:GROUP:PORT` (at most 64 bytes)",
+                    shown(b)
+                )));
+            }
+        } else {
+            check_iface("--whj-bus", b)?;
+        }
+    }
+    Ok(())
+}
+
 /// Runs `robobus doctor`.
 pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
+    check_args(args)?;
     let ports = if args.port.is_empty() && args.can.is_empty() {
         find_serial_ports()
     } else {
@@ -225,13 +300,13 @@ fn table(findings: &[Finding]) -> String {
         .map(|f| f.subject.chars().count())
         .max()
         .unwrap_or(7)
-        .max(7);
+        .clamp(7, MAX_COLUMN);
     let w_check = findings
         .iter()
         .map(|f| f.check.len())
         .max()
         .unwrap_or(5)
-        .max(5);
+        .clamp(5, MAX_COLUMN);
     let mut s = String::new();
     let _ = writeln!(
         s,
@@ -459,6 +534,11 @@ fn check_can_kernel() -> Vec<Finding> {
     }]
 }
 
+/// The WHJ joints' bit timing as `ip link ... type can` arguments: 1 Mbit/s arbitration
+/// with its sample point at 80 %, 5 Mbit/s data at 75 % (the vendor's usage demo).
+pub(crate) const CAN_FD_TIMING: &str =
+    "bitrate 1000000 sample-point 0.8 dbitrate 5000000 dsample-point 0.75 fd on";
+
 /// Checks a SocketCAN interface under `net_dir`: exists, is CAN, is up, is FD-capable, and
 /// (via `ip -details -json`) its bit rates and FD mode.
 pub(crate) fn check_can(net_dir: &Path, iface: &str) -> Vec<Finding> {
@@ -471,8 +551,8 @@ pub(crate) fn check_can(net_dir: &Path, iface: &str) -> Vec<Finding> {
         )
     } else {
         format!(
-            "sudo ip link set {iface} down && sudo ip link set {iface} type can bitrate \
-             1000000 dbitrate 5000000 fd on && sudo ip link set {iface} up"
+            "sudo ip link set {iface} down && sudo ip link set {iface} type can {CAN_FD_TIMING} \
+             && sudo ip link set {iface} up"
         )
     };
     if !dir.exists() {
@@ -484,10 +564,11 @@ pub(crate) fn check_can(net_dir: &Path, iface: &str) -> Vec<Finding> {
             Some(if is_virtual {
                 setup
             } else {
-                "plug in the CAN FD adapter and check `ip link`; or test with a virtual bus: \
-                 sudo modprobe vcan && sudo ip link add dev vcan0 type vcan && sudo ip link \
-                 set vcan0 mtu 72 up"
-                    .to_owned()
+                format!(
+                    "plug in the CAN FD adapter, check `ip link`, then: {setup}; or test with a \
+                     virtual bus: sudo modprobe vcan && sudo ip link add dev vcan0 type vcan && \
+                     sudo ip link set vcan0 mtu 72 up"
+                )
             }),
         )];
     }
@@ -597,13 +678,38 @@ pub(crate) fn bit_rate_finding(iface: &str, data: &serde_json::Value, setup: &st
         .get("ctrlmode")
         .and_then(serde_json::Value::as_array)
         .is_some_and(|m| m.iter().any(|x| x.as_str() == Some("FD")));
+    // `ip -json` prints sample points as strings ("0.800"); accept numbers too.
+    let sample_point = |pointer: &str| {
+        data.pointer(pointer).and_then(|v| {
+            v.as_f64()
+                .or_else(|| v.as_str().and_then(|s| s.trim().parse().ok()))
+        })
+    };
+    let sp = sample_point("/bittiming/sample_point");
+    let dsp = sample_point("/data_bittiming/sample_point");
     let detail = format!(
         "bitrate {}, dbitrate {}, fd {}",
         bitrate.map_or_else(|| "?".into(), |b| b.to_string()),
         dbitrate.map_or_else(|| "?".into(), |b| b.to_string()),
         if fd { "on" } else { "off" }
     );
-    if bitrate == Some(1_000_000) && dbitrate == Some(5_000_000) && fd {
+    let points_off = [(sp, 0.8), (dsp, 0.75)]
+        .iter()
+        .any(|(got, want)| got.is_some_and(|g| (g - want).abs() > 0.0125));
+    if bitrate == Some(1_000_000) && dbitrate == Some(5_000_000) && fd && points_off {
+        let show = |v: Option<f64>| v.map_or_else(|| "?".into(), |v| format!("{v:.3}"));
+        finding(
+            iface,
+            "bit rates",
+            Status::Warn,
+            format!(
+                "{detail}, sample points {} / {}; the WHJ joints sample at 0.800 / 0.750",
+                show(sp),
+                show(dsp)
+            ),
+            Some(setup.to_owned()),
+        )
+    } else if bitrate == Some(1_000_000) && dbitrate == Some(5_000_000) && fd {
         finding(iface, "bit rates", Status::Ok, detail, None)
     } else {
         finding(
@@ -735,5 +841,59 @@ mod tests {
         assert_eq!(f.status, Status::Fail);
         assert!(f.detail.contains("500000") && f.detail.contains("fd off"));
         assert_eq!(f.fix.as_deref(), Some("setup"));
+        // Right rates, wrong sample points (as `ip -json` prints them): a warning.
+        let points: serde_json::Value = serde_json::from_str(
+            r#"{"ctrlmode":["FD"],"bittiming":{"bitrate":1000000,"sample_point":"0.875"},
+                "data_bittiming":{"bitrate":5000000,"sample_point":"0.750"}}"#,
+        )
+        .unwrap();
+        let f = bit_rate_finding("can0", &points, "setup");
+        assert_eq!(f.status, Status::Warn, "{f:?}");
+        assert!(f.detail.contains("0.875 / 0.750"), "{}", f.detail);
+        let right: serde_json::Value = serde_json::from_str(
+            r#"{"ctrlmode":["FD"],"bittiming":{"bitrate":1000000,"sample_point":"0.800"},
+                "data_bittiming":{"bitrate":5000000,"sample_point":0.75}}"#,
+        )
+        .unwrap();
+        assert_eq!(bit_rate_finding("can0", &right, "x").status, Status::Ok);
+    }
+
+    #[test]
+    fn the_can_fd_fix_sets_the_demo_sample_points() {
+        let dir = tempfile::tempdir().unwrap();
+        let f = check_can(dir.path(), "can3");
+        let fix = f[0].fix.as_deref().unwrap();
+        assert!(
+            fix.contains(
+                "ip link set can3 type can bitrate 1000000 sample-point 0.8 dbitrate 5000000 \
+                 dsample-point 0.75 fd on"
+            ),
+            "{fix}"
+        );
+    }
+
+    #[test]
+    fn names_are_bounded() {
+        assert!(check_iface("--can", "can0").is_ok());
+        assert!(check_iface("--can", "abcdefghijklmno").is_ok()); // 15 bytes
+        let e = check_iface("--can", "abcdefghijklmnop")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("--can `abcdefghijklmnop`: an interface name has 1..=15"),
+            "{e}"
+        );
+        let long = "a".repeat(65_536);
+        let e = check_iface("--can", &long).unwrap_err().to_string();
+        assert!(e.contains("(65536 bytes)") && e.len() < 200, "{e}");
+        assert!(check_iface("--can", "").is_err());
+        assert!(check_iface("--can", "../x").is_err());
+        assert!(check_iface("--can", "can 0").is_err());
+        let ok = "/".repeat(4095);
+        assert!(check_path("--port", std::ffi::OsStr::new(&ok)).is_ok());
+        let e = check_path("--port", std::ffi::OsStr::new(&"/".repeat(4096)))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("--port") && e.contains("1..=4095 bytes"), "{e}");
     }
 }

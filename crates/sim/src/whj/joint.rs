@@ -899,6 +899,15 @@ impl SimJoint {
                 joint: me,
                 status: self.status(),
             }),
+            // Firmware older than the broadcast gate (D5.XX / E2.XX) ignores broadcast frames.
+            Request::BroadcastPosition(_)
+            | Request::BroadcastCurrent(_)
+            | Request::BroadcastRegister(_)
+            | Request::BroadcastStatus(_)
+                if !self.has_feature(Feature::Broadcast) =>
+            {
+                None
+            }
             Request::BroadcastPosition(b) => self.broadcast_position(&b, me, now),
             Request::BroadcastCurrent(b) => self.broadcast_current(&b, me, now),
             Request::BroadcastRegister(b) => self.broadcast_register(&b, me, now),
