@@ -1371,6 +1371,10 @@ impl WckState {
             }
             if b == robobus_wck::HEADER {
                 self.flush_noise(out);
+                // Half duplex: a new packet means the reply to the last one is over.
+                if self.waiting.is_some() {
+                    self.end_wait(&format!("the next packet (line {line})"), out);
+                }
             }
             if self.decoder.is_idle() {
                 self.packet.clear();
@@ -1402,7 +1406,6 @@ impl WckState {
             .with_bytes(&raw);
             match event {
                 Ok(command) => {
-                    self.end_wait(&format!("the next command (line {start_line})"), out);
                     let mut e = e;
                     e.device = servo_of(&command);
                     e.command = Some(command.name().into());
@@ -1553,10 +1556,10 @@ mod tests {
             (2, EntryKind::Malformed, "MALFORMED: 1 byte outside a packet (no 0xFF header before)".into()),
             (2, EntryKind::Malformed, "MALFORMED: truncated packet: new header after 2 bytes of 4".into()),
             (3, EntryKind::Request, "position move servo 3 to 127 (torque 0)".into()),
-            (4, EntryKind::Malformed, "MALFORMED: truncated reply to position move: 1 of 2 bytes before the next command (line 5)".into()),
+            (4, EntryKind::Malformed, "MALFORMED: truncated reply to position move: 1 of 2 bytes before the next packet (line 5)".into()),
             (5, EntryKind::Request, "position move servo 3 to 127 (torque 0)".into()),
+            (5, EntryKind::Missing, "NO REPLY to position move (none before the next packet (line 6))".into()),
             (6, EntryKind::Malformed, "MALFORMED: truncated packet: the capture ends after 2 bytes".into()),
-            (5, EntryKind::Missing, "NO REPLY to position move (none before the end of the capture)".into()),
         ];
         assert_eq!(got, want);
     }
