@@ -22,8 +22,8 @@ use robobus_whj::broadcast::BroadcastPosition;
 use robobus_whj::units::Position;
 use robobus_whj::{CanFrame, JointId, ReplyMask, Request};
 
-fn replay_file(path: &Path, options: &ReplayOptions) -> Vec<Entry> {
-    replay::open(path, options)
+fn replay_file(path: &Path, options: ReplayOptions) -> Vec<Entry> {
+    replay::open(path, &options)
         .unwrap()
         .collect::<Result<_, _>>()
         .unwrap()
@@ -92,7 +92,7 @@ fn whj_capture_replays_with_registers_units_and_error_bits() {
     drop(link);
     drop(sim);
 
-    let entries = replay_file(&path, &ReplayOptions::default());
+    let entries = replay_file(&path, ReplayOptions::default());
     assert!(entries.iter().all(|e| e.iface.as_deref() == Some("can0")));
     let got = meanings(&entries);
     let to = Direction::ToDevice;
@@ -145,7 +145,7 @@ fn whj_error_bits_by_name_and_bad_lines_flagged() {
          (100.000005) can0 00000001##5011402\n",
     )
     .unwrap();
-    let entries = replay_file(&path, &ReplayOptions::default());
+    let entries = replay_file(&path, ReplayOptions::default());
     let got: Vec<(u64, EntryKind, String)> = entries
         .iter()
         .map(|e| (e.line, e.kind, e.text.clone()))
@@ -204,7 +204,7 @@ fn wck_capture_replays_commands_and_replies_from_either_side() {
     );
     drop(link);
 
-    let host = replay_file(&path, &ReplayOptions::default());
+    let host = replay_file(&path, ReplayOptions::default());
     let got = meanings(&host);
     let to = Direction::ToDevice;
     let from = Direction::FromDevice;
@@ -245,24 +245,18 @@ fn wck_capture_replays_commands_and_replies_from_either_side() {
     // comment): detected as the device's side, the same meanings.
     let text = std::fs::read_to_string(&path).unwrap();
     // The side comment is replaced by one that does not name a side (same line numbers).
-    let device_log: String = text
-        .lines()
-        .map(|l| {
-            if l.starts_with('#') {
-                "# a simulator's capture"
-            } else {
-                l
-            }
-        })
-        .map(|l| {
-            let swapped = if l.contains(" > ") {
-                l.replace(" > ", " < ")
-            } else {
-                l.replace(" < ", " > ")
-            };
-            format!("{swapped}\n")
-        })
-        .collect();
+    let mut device_log = String::new();
+    for l in text.lines() {
+        let l = if l.starts_with('#') {
+            "# a simulator's capture".to_owned()
+        } else if l.contains(" > ") {
+            l.replace(" > ", " < ")
+        } else {
+            l.replace(" < ", " > ")
+        };
+        device_log.push_str(&l);
+        device_log.push('\n');
+    }
     let device_path = dir.path().join("device.log");
     std::fs::write(&device_path, device_log).unwrap();
     let mut r = replay::open(&device_path, &ReplayOptions::default()).unwrap();
@@ -272,7 +266,7 @@ fn wck_capture_replays_commands_and_replies_from_either_side() {
     // Given the wrong side, the replies are not taken for commands silently.
     let wrong = replay_file(
         &device_path,
-        &ReplayOptions {
+        ReplayOptions {
             side: Side::Host,
             ..ReplayOptions::default()
         },
