@@ -9,6 +9,7 @@
 //! | [`demo`] | `robobus demo` (the built-in simulated robot) |
 //! | [`monitor`] | `robobus monitor` (live dashboard) |
 //! | [`plot`] | `robobus plot FILE.csv -o FILE.png\|svg` |
+//! | [`replay`] | `robobus replay FILE` (decode a capture file) |
 //! | [`doctor`] | `robobus doctor` (setup checks) |
 //! | [`generate`] | `robobus completions SHELL`, `robobus man` |
 //! | [`sim_wck`], [`sim_whj`] | `robobus sim wck`, `robobus sim whj` |
@@ -37,6 +38,7 @@ mod interrupt;
 mod monitor;
 mod output;
 mod plot;
+mod replay;
 mod sim_wck;
 mod sim_whj;
 mod wck;
@@ -124,6 +126,11 @@ enum Command {
     Monitor(monitor::Args),
     /// Plot a recording (CSV) to a PNG or SVG file.
     Plot(plot::Args),
+    /// Print what every frame or packet of a capture file means (candump or hex log).
+    ///
+    /// WHJ frames with joint, command, registers by name in units, error bits by name;
+    /// wCK commands and each reply decoded against its command; malformed entries marked.
+    Replay(replay::Args),
     /// Check the machine's setup: serial ports, USB latency, SocketCAN, the UDP bus.
     Doctor(doctor::Args),
     /// Print a shell completion script (bash, zsh, fish, elvish, powershell).
@@ -179,6 +186,7 @@ fn main() -> ExitCode {
         Command::Whj(args) => whj::run(g, &args),
         Command::Monitor(args) => monitor::run(g, &args),
         Command::Plot(args) => plot::run(g, &args),
+        Command::Replay(args) => replay::run(g, &args),
         Command::Doctor(args) => doctor::run(g, &args),
         Command::Completions(args) => generate::completions(&args),
         Command::Man(args) => generate::man(&args),

@@ -45,7 +45,9 @@ use std::time::{Duration, Instant};
 
 use serde::Serialize;
 
+pub mod capture;
 mod ids;
+pub mod replay;
 
 pub use crate::error::ErrorKind;
 pub use crate::robot::SafeState;

@@ -1,0 +1,98 @@
+//! Capture: record everything a link sends and receives to a file, as it goes.
+//!
+//! A front end that offers `--capture FILE` wraps the link it opened with
+//! [`capture_byte_link`] (wCK: a hex log) or [`capture_frame_link`] (WHJ: a candump log)
+//! before handing it to the client. The file is created new (an existing file is refused
+//! unless [`Overwrite::Yes`] is given) and written through a line buffer, so every line
+//! reaches the file when it is complete: a Ctrl-C or a crash loses at most the line being
+//! written. [`super::replay`] reads both formats back.
+
+use std::fs::{File, OpenOptions};
+use std::io::{LineWriter, Write as _};
+use std::path::Path;
+
+use robobus_link::{ByteLink, CaptureByteLink, CaptureFrameLink, FrameLink};
+
+use super::replay::HOST_SIDE_COMMENT;
+use super::{ErrorKind, OpError};
+
+/// Whether an existing capture file may be replaced.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Overwrite {
+    /// Refuse an existing file (the default).
+    #[default]
+    No,
+    /// Truncate and replace it.
+    Yes,
+}
+
+/// The file a capture writes into: line-buffered (each line is flushed when complete).
+pub type CaptureFile = LineWriter<File>;
+
+#[allow(clippy::result_large_err)] // OpError, as every operation returns
+fn create(path: &Path, overwrite: Overwrite) -> Result<CaptureFile, OpError> {
+    let mut options = OpenOptions::new();
+    options.write(true);
+    match overwrite {
+        Overwrite::No => options.create_new(true),
+        Overwrite::Yes => options.create(true).truncate(true),
+    };
+    let file = options.open(path).map_err(|e| {
+        let (reason, kind) = if e.kind() == std::io::ErrorKind::AlreadyExists {
+            (
+                "already exists; not overwritten (choose another file, or allow overwriting)"
+                    .to_owned(),
+                ErrorKind::Refused,
+            )
+        } else {
+            (
+                format!("cannot create the capture file: {e}"),
+                ErrorKind::BadInput,
+            )
+        };
+        OpError::File {
+            path: path.to_path_buf(),
+            reason,
+            kind,
+        }
+    })?;
+    Ok(LineWriter::new(file))
+}
+
+/// Wraps a byte link (wCK) so every write and read is logged to `path` as a hex log; the
+/// first line is a comment saying it is the host's side, so a replay reads `>` as the
+/// host's commands.
+#[allow(clippy::result_large_err)] // OpError, as every operation returns
+pub fn capture_byte_link<L: ByteLink>(
+    link: L,
+    path: &Path,
+    overwrite: Overwrite,
+) -> Result<CaptureByteLink<L, CaptureFile>, OpError> {
+    let mut out = create(path, overwrite)?;
+    writeln!(out, "{HOST_SIDE_COMMENT}").map_err(|e| OpError::File {
+        path: path.to_path_buf(),
+        reason: format!("cannot write the capture file: {e}"),
+        kind: ErrorKind::Link,
+    })?;
+    Ok(CaptureByteLink::new(link, out))
+}
+
+/// Wraps a frame link (WHJ) so every frame sent and received is logged to `path` as a
+/// candump log under the interface name `iface` (what `candump -L` would write; the
+/// file can be played back with can-utils' `canplayer`).
+#[allow(clippy::result_large_err)] // OpError, as every operation returns
+pub fn capture_frame_link<L: FrameLink>(
+    link: L,
+    path: &Path,
+    iface: &str,
+    overwrite: Overwrite,
+) -> Result<CaptureFrameLink<L, CaptureFile>, OpError> {
+    if iface.is_empty() || iface.chars().any(|c| c.is_whitespace() || c.is_control()) {
+        return Err(OpError::invalid(
+            "interface name",
+            format!("{iface:?}"),
+            "one word without spaces (`can0`, `vcan0`)",
+        ));
+    }
+    Ok(CaptureFrameLink::new(link, create(path, overwrite)?, iface))
+}
