@@ -85,7 +85,7 @@ pub use fault::{FaultConfig, FaultStats, FaultyByteLink, FaultyFrameLink};
 pub use frame_link::{BusErrorKind, FrameLink, FrameLinkError, IdFilter, Received};
 pub use memory::{MemoryBus, MemoryBusEndpoint, MemoryByteLink};
 #[cfg(unix)]
-pub use pty::{PtyLink, PtyOptions, PtyPair};
+pub use pty::{PtyLink, PtyOptions, PtyPair, PtySymlink};
 #[cfg(unix)]
 pub use serial::{SerialLink, set_usb_latency_timer, usb_latency_timer};
 #[cfg(target_os = "linux")]
