@@ -59,8 +59,8 @@ fn wck_sim(link: &Path, args: &[&str]) -> (Child, Instant) {
 fn status(port: &mut SerialLink, id: u8, wait: Duration) -> Option<[u8; 2]> {
     let cmd = 0xA0 | id;
     port.discard_input().unwrap();
-    port.write_all(&[0xFF, cmd, 0x00, (cmd ^ 0x00) & 0x7F])
-        .unwrap();
+    // Checksum: (command ^ argument) & 0x7F, the argument being 0.
+    port.write_all(&[0xFF, cmd, 0x00, cmd & 0x7F]).unwrap();
     let mut reply = [0u8; 2];
     match port.read_exact(&mut reply, Instant::now() + wait) {
         Ok(()) => Some(reply),
