@@ -4,7 +4,14 @@
 //! Both sides are put in raw mode (`cfmakeraw`) before anything else can touch them, so
 //! no byte is ever echoed, translated or swallowed as a control character. A pty does not
 //! pace bytes: the baud rate is only a termios setting, and any wire timing must come from
-//! the simulator (`../shared/docs/wire-timing.md`).
+//! the simulator.
+//!
+//! A pty has no modem lines: `TIOCMGET` / `TIOCMSET` / `TIOCMBIS` / `TIOCMBIC` (DTR, RTS,
+//! CTS, DSR) fail with `ENOTTY` on either side. Programs that only use termios work
+//! (pyserial, which ignores `ENOTTY` when it sets DTR / RTS on open, but raises if they
+//! are set or read later; minicom, picocom, screen, this crate's [`crate::SerialLink`]);
+//! programs that insist on the modem lines cannot open a pty, for example .NET / mono
+//! `System.IO.Ports` (`SerialPort.Open` sets DTR and RTS).
 
 use std::fs::File;
 use std::io::{self, Read, Write};

@@ -6,7 +6,7 @@
 //! `IP_MULTICAST_LOOP = 1`, TTL 1, and the group is joined on 127.0.0.1, so nothing leaves
 //! the machine. python-can itself sets its sockets up without an interface address; to mix
 //! with python-can peers, run both inside a private network namespace with
-//! `ip link set lo up; ip route add 224.0.0.0/4 dev lo` (`../shared/docs/virtual-can.md`).
+//! `ip link set lo up; ip route add 224.0.0.0/4 dev lo` (this crate's tests do exactly that).
 //!
 //! A sender receives its own datagrams back (multicast loop); [`UdpBus`] drops them by
 //! remembering the exact bytes of its recent datagrams. Timestamps are float64 seconds and
