@@ -1,7 +1,9 @@
 //! `robobus sim wck`: simulated wCK servos behind a pseudo-terminal.
 //!
 //! Prints the path clients open (the `--link` symlink if given, else the pty slave) as the
-//! only line on stdout, then serves until SIGINT / SIGTERM, and removes the symlink.
+//! only line on stdout once the simulated servos listen (past the manual's 65 ms of
+//! deafness after power-up, unless `--power-up-on-open`), then serves until SIGINT /
+//! SIGTERM, and removes the symlink if it still points to its own pty.
 
 use std::io::Write as _;
 use std::os::fd::AsFd as _;
@@ -10,13 +12,42 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
-use anyhow::{Context as _, bail};
-use robobus_link::{FaultConfig, FaultyByteLink, PtyOptions, PtyPair};
+use std::ops::RangeInclusive;
+
+use anyhow::Context as _;
+use robobus_link::{FaultConfig, FaultyByteLink, LinkError, PtyOptions, PtyPair, PtySymlink};
+use robobus_sim::faults::{DeviceFault, DeviceFaultKind, FaultSchedule};
 use robobus_sim::wck::{Bus, BusConfig, Eeprom, Endpoint, Model, Timing};
 use robobus_wck::{BaudRate, ExtServoId};
 
+use crate::exit::usage;
+
+/// What `robobus sim wck --help` adds after the options.
+const AFTER_LONG_HELP: &str = "\
+Readiness: the path is printed (and the --link symlink made) only once the simulated servos
+listen, as on real hardware, where the modules were powered long before the host connects.
+--power-up-on-open instead powers them up the moment the path appears: a command sent in
+the first 65 ms is then lost, as the manual says.
+
+The link is a pseudo-terminal (pty). Programs that open it like a serial port through
+termios work: pyserial (serial.Serial(PATH, 115200)), minicom, picocom, screen, the
+robobus client, anything that sets the baud rate with tcsetattr (the simulator follows
+it). A pty has no modem lines: the TIOCMGET / TIOCMSET / TIOCMBIS / TIOCMBIC ioctls fail
+with ENOTTY (\"Inappropriate ioctl for device\"). pyserial opens it (it ignores ENOTTY
+when it sets DTR / RTS on open), but setting ser.dtr or ser.rts later, or reading
+ser.cts / ser.dsr, raises OSError. Programs that insist on the modem lines when opening
+cannot use it: .NET / mono System.IO.Ports (SerialPort.Open sets DTR and RTS) fails.
+Such programs need a real serial port (a USB-serial adapter wired to the servos).
+
+Faults: --drop / --flip / --duplicate / --truncate / --delay / --disconnect-after act on
+the wire (both directions) through the link layer's seeded fault injector: the same
+--fault-seed and the same traffic give the same faults. --fault-silent and
+--fault-power-cycle act on one servo at a time after the path appears (repeat them for
+more).";
+
 /// Options of `robobus sim wck`.
 #[derive(Debug, clap::Args)]
+#[command(after_long_help = AFTER_LONG_HELP)]
 pub(crate) struct Args {
     /// Servo IDs on the bus: a list of IDs and ranges, e.g. `0-5`, `0,2,4-6`. A repeated
     /// ID puts two modules with the same ID on the bus (their replies collide).
@@ -29,10 +60,16 @@ pub(crate) struct Args {
     /// 921600). A client at another rate gets garbage, as on a real bus.
     #[arg(long, default_value_t = 115_200)]
     baud: u32,
-    /// Also make this symlink to the pty (removed on exit).
+    /// Also make this symlink to the pty (removed on exit if it still points to it). Only
+    /// a stale link of a simulator is replaced; a file or another live simulator's link
+    /// there is an error (exit 2).
     #[arg(long)]
     link: Option<PathBuf>,
-    /// Seed for the turnaround spread between modules and for injected faults.
+    /// Power the servos up when the path appears (they ignore the bus for the manual's
+    /// 65 ms), instead of before.
+    #[arg(long)]
+    power_up_on_open: bool,
+    /// Seed for the turnaround spread between modules (and the faults' default seed).
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// Module turnaround in microseconds (default 1006.6, from the manual); 0 for
@@ -46,11 +83,113 @@ pub(crate) struct Args {
     #[arg(long)]
     eeprom_file: Option<PathBuf>,
     /// Probability that a byte (either direction) is lost on the wire.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     drop: f64,
     /// Probability that a byte (either direction) has a bit flipped on the wire.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(
+        long,
+        visible_alias = "corrupt",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
     flip: f64,
+    #[command(flatten)]
+    faults: LinkFaultArgs,
+    /// Servo ID stops answering (powered off) SECONDS after the path appears: `ID@SECONDS`,
+    /// e.g. `3@2.5`. Repeatable.
+    #[arg(long, value_name = "ID@SECONDS")]
+    fault_silent: Vec<String>,
+    /// Servo ID browns out (power-cycled: runtime state lost, deaf for 65 ms) SECONDS after
+    /// the path appears: `ID@SECONDS`. Repeatable.
+    #[arg(long, value_name = "ID@SECONDS")]
+    fault_power_cycle: Vec<String>,
+}
+
+/// Link faults shared by both simulators (besides `--drop` and the corruption option).
+#[derive(Debug, Clone, clap::Args)]
+pub(crate) struct LinkFaultArgs {
+    /// Probability that a byte / frame (either direction) is sent twice.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub(crate) duplicate: f64,
+    /// Probability that a write / frame is cut short.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub(crate) truncate: f64,
+    /// Probability that a write / read / frame is held back by --delay-ms.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub(crate) delay: f64,
+    /// How long a delayed operation waits, ms (0..=10000).
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+    pub(crate) delay_ms: f64,
+    /// The link closes (the simulator stops) after this many reads + writes.
+    #[arg(long, value_name = "N")]
+    pub(crate) disconnect_after: Option<u64>,
+    /// Seed of the link faults (default: --seed): the same seed and traffic give the same
+    /// faults.
+    #[arg(long, value_name = "N")]
+    pub(crate) fault_seed: Option<u64>,
+}
+
+impl LinkFaultArgs {
+    /// The fault injector's configuration, validated; `None` when no fault is asked for.
+    pub(crate) fn config(
+        &self,
+        seed: u64,
+        drop: (&str, f64),
+        corrupt: (&str, f64),
+    ) -> anyhow::Result<Option<FaultConfig>> {
+        if !(0.0..=10_000.0).contains(&self.delay_ms) {
+            return Err(usage(format!(
+                "--delay-ms {} out of range (allowed: 0..=10000)",
+                self.delay_ms
+            )));
+        }
+        let delay_by = duration_of("delay-ms", self.delay_ms, 1e-3)?;
+        let cfg = FaultConfig {
+            drop: probability(drop.0, drop.1)?,
+            corrupt: probability(corrupt.0, corrupt.1)?,
+            duplicate: probability("duplicate", self.duplicate)?,
+            truncate: probability("truncate", self.truncate)?,
+            delay: probability("delay", self.delay)?,
+            delay_by,
+            disconnect_after: self.disconnect_after,
+            ..FaultConfig::seeded(self.fault_seed.unwrap_or(seed))
+        };
+        let any = [
+            cfg.drop,
+            cfg.corrupt,
+            cfg.duplicate,
+            cfg.truncate,
+            cfg.delay,
+        ]
+        .iter()
+        .any(|p| *p > 0.0)
+            || cfg.disconnect_after.is_some();
+        Ok(any.then_some(cfg))
+    }
+}
+
+/// Parses every `--fault-silent` / `--fault-power-cycle` (and, for WHJ, `--fault-error`)
+/// value; every ID must be on the simulated bus.
+pub(crate) fn device_faults(
+    groups: &[(&str, DeviceFaultKind, &[String])],
+    ids: RangeInclusive<u8>,
+    present: &[u8],
+) -> anyhow::Result<Vec<DeviceFault>> {
+    let mut out = Vec::new();
+    for (option, kind, values) in groups {
+        for v in *values {
+            let f = DeviceFault::parse(v, *kind, ids.clone(), option)
+                .map_err(|e| usage(e.to_string()))?;
+            if !present.contains(&f.id) {
+                return Err(usage(format!(
+                    "{option} {v:?}: no device with ID {} is simulated (IDs on the bus: {present:?})",
+                    f.id
+                )));
+            }
+            out.push(f);
+        }
+    }
+    Ok(out)
 }
 
 /// Parses `0-5,7,9-10` into IDs, in order (repeats kept).
@@ -64,41 +203,49 @@ fn parse_ids(spec: &str) -> anyhow::Result<Vec<u8>> {
         let parse = |s: &str| -> anyhow::Result<u8> {
             let v: u8 = s
                 .parse()
-                .with_context(|| format!("--servos: `{s}` is not an ID (0..=253)"))?;
-            ExtServoId::new(v).map_err(|e| anyhow::anyhow!("--servos: {e}"))?;
+                .map_err(|_| usage(format!("--servos: `{s}` is not an ID (allowed: 0..=253)")))?;
+            ExtServoId::new(v).map_err(|e| usage(format!("--servos: {e}")))?;
             Ok(v)
         };
         let (lo, hi) = (parse(lo)?, parse(hi)?);
         if lo > hi {
-            bail!("--servos: range {lo}-{hi} runs backwards");
+            return Err(usage(format!(
+                "--servos: range {lo}-{hi} runs backwards (write the lower ID first)"
+            )));
         }
         ids.extend(lo..=hi);
     }
     if ids.is_empty() {
-        bail!("--servos: no IDs given (e.g. `--servos 0-5`)");
+        return Err(usage("--servos: no IDs given (e.g. `--servos 0-5`)"));
     }
     Ok(ids)
 }
 
-fn probability(name: &str, p: f64) -> anyhow::Result<f64> {
+pub(crate) fn probability(name: &str, p: f64) -> anyhow::Result<f64> {
     if (0.0..=1.0).contains(&p) {
         Ok(p)
     } else {
-        bail!("--{name} {p} is out of range 0..=1")
+        Err(usage(format!("--{name} {p} out of range (allowed: 0..=1)")))
     }
 }
 
 fn duration_of(name: &str, value: f64, unit: f64) -> anyhow::Result<Duration> {
-    Duration::try_from_secs_f64(value * unit)
-        .map_err(|_| anyhow::anyhow!("--{name} {value} must be a non-negative number"))
+    Duration::try_from_secs_f64(value * unit).map_err(|_| {
+        usage(format!(
+            "--{name} {value} out of range (allowed: a non-negative number)"
+        ))
+    })
 }
 
 /// Serves the simulated bus until interrupted.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let ids = parse_ids(&args.servos)?;
-    let model: Model = args.model.parse()?;
+    let model: Model = args
+        .model
+        .parse()
+        .map_err(|e| usage(format!("--model: {e}")))?;
     let baud =
-        BaudRate::from_bits_per_second(args.baud).map_err(|e| anyhow::anyhow!("--baud: {e}"))?;
+        BaudRate::from_bits_per_second(args.baud).map_err(|e| usage(format!("--baud: {e}")))?;
     let mut timing = Timing::MANUAL;
     if let Some(us) = args.turnaround_us {
         timing.turnaround = duration_of("turnaround-us", us, 1e-6)?;
@@ -106,10 +253,10 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     if let Some(ms) = args.eeprom_ms {
         timing.eeprom_write = duration_of("eeprom-ms", ms, 1e-3)?;
     }
-    let (lose, flip) = (
-        probability("drop", args.drop)?,
-        probability("flip", args.flip)?,
-    );
+    let (wire_faults, device) = faults_of(args, &ids)?;
+    if let Some(link) = &args.link {
+        check_link_path(link)?;
+    }
     let config = BusConfig {
         host_baud: baud,
         timing,
@@ -122,29 +269,42 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     {
         bus.load_eeproms(path)?;
     }
+    if !args.power_up_on_open {
+        // Powered long before anyone connects, as real modules are: past the manual's
+        // 65 ms of deafness before the path appears.
+        bus.advance(timing.power_up_deaf);
+    }
+    let opened_at = bus.now();
+    let mut schedule = FaultSchedule::new(device).shifted(opened_at);
 
     let pair = PtyPair::open(&PtyOptions {
         baud: args.baud,
-        symlink: args.link.clone(),
+        symlink: None,
     })
     .context("creating the pseudo-terminal")?;
-    let shown = args.link.clone().unwrap_or_else(|| pair.slave_path.clone());
+    let slave_path = pair.slave_path.clone();
     // The endpoint keeps its own slave descriptor; clients open the path.
     drop(pair.slave);
-    let endpoint = if lose > 0.0 || flip > 0.0 {
+    let endpoint = if let Some(faults) = wire_faults {
         // Wire faults through the link layer's seeded fault injector, both directions.
         let termios = pair.master.as_fd().try_clone_to_owned()?;
-        let faults = FaultConfig {
-            drop: lose,
-            corrupt: flip,
-            ..FaultConfig::seeded(args.seed)
-        };
         let link = FaultyByteLink::new(pair.master, faults);
-        Endpoint::spawn_link(bus, link, Some(termios), shown.clone())
+        Endpoint::spawn_link(bus, link, Some(termios), slave_path.clone())
     } else {
-        Endpoint::spawn(bus, pair.master, shown.clone())
+        Endpoint::spawn(bus, pair.master, slave_path.clone())
     }
     .context("starting the simulator thread")?;
+    // The servos listen now: only now does the stable path appear.
+    let symlink = match &args.link {
+        Some(link) => Some(PtySymlink::create(link, &slave_path).map_err(|e| match e {
+            LinkError::PathInUse { .. } => usage(format!("--link: {e}")),
+            e => anyhow::Error::new(e),
+        })?),
+        None => None,
+    };
+    let shown = symlink
+        .as_ref()
+        .map_or_else(|| slave_path.clone(), |l| l.path().to_path_buf());
 
     let stop = Arc::new(AtomicBool::new(false));
     let flag = Arc::clone(&stop);
@@ -161,17 +321,73 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         args.servos,
         args.baud,
         shown.display(),
-        pair.slave_path.display(),
+        slave_path.display(),
     );
 
-    while !stop.load(Ordering::Relaxed) && endpoint.is_running() {
-        std::thread::sleep(Duration::from_millis(50));
-    }
+    serve_until_stopped(&endpoint, &mut schedule, opened_at, &stop);
     let eeproms: Option<Vec<Eeprom>> = endpoint.with_bus(|bus| bus.eeproms());
-    let stats = endpoint.stop()?;
+    let stats = endpoint.stop();
+    // After the pty is closed; removed only if it still points to our pty.
+    drop(symlink);
+    let stats = stats?;
     if let (Some(path), Some(eeproms)) = (&args.eeprom_file, eeproms) {
         Eeprom::save(&eeproms, path)?;
     }
+    report(&stats);
+    Ok(())
+}
+
+/// The wire faults (if any) and the device faults, validated.
+fn faults_of(args: &Args, ids: &[u8]) -> anyhow::Result<(Option<FaultConfig>, Vec<DeviceFault>)> {
+    let wire_faults = args
+        .faults
+        .config(args.seed, ("drop", args.drop), ("flip", args.flip))?;
+    let device = device_faults(
+        &[
+            (
+                "--fault-silent",
+                DeviceFaultKind::Silent,
+                &args.fault_silent,
+            ),
+            (
+                "--fault-power-cycle",
+                DeviceFaultKind::PowerCycle,
+                &args.fault_power_cycle,
+            ),
+        ],
+        0..=253,
+        ids,
+    )?;
+    Ok((wire_faults, device))
+}
+
+/// Applies the device faults at their times until Ctrl-C or the endpoint stops.
+fn serve_until_stopped(
+    endpoint: &Endpoint,
+    schedule: &mut FaultSchedule,
+    opened_at: Duration,
+    stop: &AtomicBool,
+) {
+    let t0 = std::time::Instant::now();
+    while !stop.load(Ordering::Relaxed) && endpoint.is_running() {
+        let now = opened_at + t0.elapsed();
+        if schedule.next_due().is_some_and(|t| t <= now) {
+            let due: Vec<DeviceFault> = schedule.take_due(now).to_vec();
+            endpoint.with_bus(move |bus| {
+                for f in &due {
+                    let hit = bus.apply_fault(f);
+                    eprintln!("robobus sim wck: fault: servo {f} ({hit} module(s))");
+                }
+            });
+        }
+        let nap = schedule.next_due().map_or(Duration::from_millis(50), |t| {
+            t.saturating_sub(now).min(Duration::from_millis(50))
+        });
+        std::thread::sleep(nap);
+    }
+}
+
+fn report(stats: &robobus_sim::wck::EndpointStats) {
     let mean_late = u32::try_from(stats.bytes_out)
         .ok()
         .filter(|n| *n > 0)
@@ -187,7 +403,28 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         mean_late,
         stats.late_max,
     );
-    Ok(())
+}
+
+/// Refuses a `--link` path that is plainly not ours before anything is opened: a regular
+/// file, a directory, a device (the full check, against live simulators too, is
+/// [`PtySymlink::create`]).
+fn check_link_path(link: &std::path::Path) -> anyhow::Result<()> {
+    match std::fs::symlink_metadata(link) {
+        Ok(meta) if !meta.file_type().is_symlink() => {
+            let kind = if meta.is_dir() {
+                "a directory"
+            } else if meta.is_file() {
+                "a regular file"
+            } else {
+                "a file that is not a symlink"
+            };
+            Err(usage(format!(
+                "--link {}: {kind} is there (left untouched); remove it or pick another path",
+                link.display()
+            )))
+        }
+        _ => Ok(()),
+    }
 }
 
 #[cfg(test)]

@@ -10,13 +10,29 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
-use anyhow::{Context, bail};
-use robobus_link::FrameLink;
+use anyhow::Context;
 use robobus_link::udp::{UdpBus, UdpBusConfig};
-use robobus_sim::whj::{JointConfig, WhjBus, WhjModel, serve};
+use robobus_link::{FaultyFrameLink, FrameLink};
+use robobus_sim::faults::{DeviceFaultKind, FaultSchedule};
+use robobus_sim::whj::{JointConfig, WhjBus, WhjModel, serve_with};
+
+use crate::exit::usage;
+use crate::sim_wck::{LinkFaultArgs, device_faults};
+
+/// What `robobus sim whj --help` adds after the options.
+const AFTER_LONG_HELP: &str = "\
+Readiness: the line \"serving ...\" appears on stderr once the simulator takes frames;
+nothing a client sends from then on is missed.
+
+Faults: --drop / --corrupt / --duplicate / --truncate / --delay / --disconnect-after act
+on every frame (both directions) through the link layer's seeded fault injector: the same
+--fault-seed and the same traffic give the same faults. --fault-error, --fault-silent and
+--fault-power-cycle act on one joint at a time, SECONDS after serving starts (repeat them
+for more).";
 
 /// Options of `robobus sim whj`.
 #[derive(Debug, clap::Args)]
+#[command(after_long_help = AFTER_LONG_HELP)]
 pub(crate) struct Args {
     /// Node IDs of the simulated joints: a range `1-7`, a list `1,2,5`, or both `1-3,9`.
     #[arg(long, default_value = "1-7", value_parser = parse_joints)]
@@ -44,6 +60,26 @@ pub(crate) struct Args {
     /// Initial output angle of every joint, degrees.
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     initial_deg: f64,
+    /// Probability that a frame (either direction) is lost.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    drop: f64,
+    /// Probability that a frame (either direction) has one payload bit flipped.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    corrupt: f64,
+    #[command(flatten)]
+    faults: LinkFaultArgs,
+    /// Joint latches error BITS (e.g. 0x4000) SECONDS after serving starts:
+    /// `JOINT:BITS@SECONDS`, e.g. `1:0x4000@2.5`. Repeatable.
+    #[arg(long, value_name = "JOINT:BITS@SECONDS")]
+    fault_error: Vec<String>,
+    /// Joint stops answering (until power-cycled) SECONDS after serving starts:
+    /// `JOINT@SECONDS`. Repeatable.
+    #[arg(long, value_name = "JOINT@SECONDS")]
+    fault_silent: Vec<String>,
+    /// Joint browns out (power-cycled: RAM lost, back in the bootloader unless --no-iap)
+    /// SECONDS after serving starts: `JOINT@SECONDS`. Repeatable.
+    #[arg(long, value_name = "JOINT@SECONDS")]
+    fault_power_cycle: Vec<String>,
 }
 
 /// Parsed `--joints`.
@@ -153,7 +189,9 @@ fn open_link(spec: &BusSpec) -> anyhow::Result<Box<dyn FrameLink>> {
         )),
         #[cfg(not(target_os = "linux"))]
         BusSpec::SocketCan(iface) => {
-            bail!("SocketCAN interface {iface}: SocketCAN exists on Linux only; use --bus udp")
+            anyhow::bail!(
+                "SocketCAN interface {iface}: SocketCAN exists on Linux only; use --bus udp"
+            )
         }
     }
 }
@@ -168,17 +206,41 @@ fn describe(spec: &BusSpec) -> String {
 /// Serves the simulated bus until interrupted.
 pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     if !args.current_noise_ma.is_finite() || args.current_noise_ma < 0.0 {
-        bail!(
+        return Err(usage(format!(
             "--current-noise-ma {} out of range (allowed: 0 or more)",
             args.current_noise_ma
-        );
+        )));
     }
     if !args.initial_deg.is_finite() || args.initial_deg.abs() > 214_748.0 {
-        bail!(
+        return Err(usage(format!(
             "--initial-deg {} out of range (allowed: -214748..=214748)",
             args.initial_deg
-        );
+        )));
     }
+    let wire_faults =
+        args.faults
+            .config(args.seed, ("drop", args.drop), ("corrupt", args.corrupt))?;
+    let device = device_faults(
+        &[
+            (
+                "--fault-error",
+                DeviceFaultKind::Error(0),
+                &args.fault_error,
+            ),
+            (
+                "--fault-silent",
+                DeviceFaultKind::Silent,
+                &args.fault_silent,
+            ),
+            (
+                "--fault-power-cycle",
+                DeviceFaultKind::PowerCycle,
+                &args.fault_power_cycle,
+            ),
+        ],
+        1..=30,
+        &args.joints.0,
+    )?;
     let configs = args.joints.0.iter().map(|&id| {
         let mut cfg = JointConfig::new(id, args.model);
         cfg.current_noise_ma = args.current_noise_ma;
@@ -189,6 +251,9 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     });
     let mut bus = WhjBus::with_configs(configs, args.seed);
     let mut link = open_link(&args.bus)?;
+    if let Some(faults) = wire_faults {
+        link = Box::new(FaultyFrameLink::new(link, faults));
+    }
 
     let stop = Arc::new(AtomicBool::new(false));
     let flag = Arc::clone(&stop);
@@ -196,14 +261,23 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         .context("installing the Ctrl-C / SIGTERM handler")?;
 
     let ids: Vec<String> = args.joints.0.iter().map(u8::to_string).collect();
-    eprintln!(
-        "robobus sim whj: serving {} joint(s) [{}] ({}) on {}; Ctrl-C to stop",
-        ids.len(),
-        ids.join(","),
-        args.model,
-        describe(&args.bus)
-    );
-    let stats = serve(&mut bus, &mut *link, &stop).context("serving the simulated bus")?;
+    let announce = || {
+        eprintln!(
+            "robobus sim whj: serving {} joint(s) [{}] ({}) on {}; Ctrl-C to stop",
+            ids.len(),
+            ids.join(","),
+            args.model,
+            describe(&args.bus)
+        );
+    };
+    let stats = serve_with(
+        &mut bus,
+        &mut *link,
+        &stop,
+        FaultSchedule::new(device),
+        announce,
+    )
+    .context("serving the simulated bus")?;
     eprintln!(
         "robobus sim whj: stopped after {:.3} s: {} frames in, {} frames out, max lateness {} µs",
         bus.now().as_secs_f64(),

@@ -4,7 +4,7 @@
 //! ±2° move and checks that the feedback follows.
 //!
 //! Both processes run inside a private network namespace (`unshare -n`, loopback up, a
-//! multicast route on `lo`), as the `robobus_link::udp` docs explain, so no datagram can
+//! multicast route on `lo`, as the `robobus-link` UDP docs explain), so no datagram can
 //! leave the machine. The test provisions python-can itself (`scripts/py/ensure-venv`)
 //! and fails loudly if it cannot.
 

@@ -66,6 +66,15 @@ pub enum LinkError {
         /// The path that was opened.
         path: PathBuf,
     },
+    /// A stable link path cannot be taken: another live simulator serves it, or something
+    /// that is not a stale link of ours is there (left untouched).
+    #[error("cannot create the link {path}: {reason}")]
+    PathInUse {
+        /// The link path asked for.
+        path: PathBuf,
+        /// What is there and what to do.
+        reason: String,
+    },
     /// The baud rate cannot be set on this link.
     #[error("baud rate {baud} is not supported by {context}")]
     UnsupportedBaud {

@@ -1,8 +1,12 @@
 //! Seeded, reproducible fault injection for byte links and frame links.
 //!
 //! [`FaultyByteLink`] and [`FaultyFrameLink`] wrap any link and implement the same trait.
-//! Every random decision comes from one `ChaCha8` stream seeded by [`FaultConfig::seed`], so
-//! the same seed and the same traffic give the same faults, run after run.
+//! Every random decision comes from `ChaCha8` streams seeded by [`FaultConfig::seed`], so
+//! the same seed and the same traffic give the same faults, run after run: one stream per
+//! direction for the per-byte / per-frame decisions, and one each for the per-call ones
+//! (delay; cutting a write short). The faults a byte meets therefore depend only on its
+//! place in its direction's traffic, not on how the operating system happened to split
+//! that traffic into reads and writes, nor on how the two directions interleaved.
 //!
 //! Units: on a byte link `drop`, `corrupt` and `duplicate` apply per byte, `truncate` and
 //! `delay` per write (or read) call; on a frame link everything applies per frame
@@ -14,7 +18,7 @@ use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
 use rand_chacha::ChaCha8Rng;
-use rand_chacha::rand_core::{Rng, SeedableRng};
+use rand_chacha::rand_core::{Rng as RngCore, SeedableRng};
 use robobus_whj::frame::{CanFrame, dlc_to_len};
 
 use crate::byte::{ByteLink, LinkError};
@@ -80,10 +84,23 @@ pub struct FaultStats {
     pub delayed: u64,
 }
 
+/// Which random stream a decision draws from (see the [module docs](self)).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Stream {
+    /// Per byte / frame, outgoing.
+    Tx = 0,
+    /// Per byte / frame, incoming.
+    Rx = 1,
+    /// Per call: delay.
+    Delay = 2,
+    /// Per write: cutting it short.
+    Cut = 3,
+}
+
 /// The shared random decision maker.
 #[derive(Debug)]
 struct Dice {
-    rng: ChaCha8Rng,
+    streams: [ChaCha8Rng; 4],
     cfg: FaultConfig,
     calls: u64,
     stats: FaultStats,
@@ -91,24 +108,37 @@ struct Dice {
 
 impl Dice {
     fn new(cfg: FaultConfig) -> Self {
+        // The outgoing stream is the seed's own stream (as before the streams were split).
+        let stream = |salt: u64| ChaCha8Rng::seed_from_u64(cfg.seed ^ salt);
         Self {
-            rng: ChaCha8Rng::seed_from_u64(cfg.seed),
+            streams: [
+                stream(0),
+                stream(0x5258_5f72_785f_5258),
+                stream(0x4445_4c41_595f_646c),
+                stream(0x4355_545f_6375_745f),
+            ],
             cfg,
             calls: 0,
             stats: FaultStats::default(),
         }
     }
 
+    fn next(&mut self, s: Stream) -> u64 {
+        self.streams
+            .get_mut(s as usize)
+            .map_or(0, RngCore::next_u64)
+    }
+
     /// True with probability `p` (always consumes one draw, so decisions stay aligned).
-    fn chance(&mut self, p: f64) -> bool {
-        let x = (self.rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
+    fn chance(&mut self, s: Stream, p: f64) -> bool {
+        let x = (self.next(s) >> 11) as f64 / (1u64 << 53) as f64;
         x < p
     }
 
     /// A uniform number in `0..n` (`n` > 0).
-    fn below(&mut self, n: usize) -> usize {
+    fn below(&mut self, s: Stream, n: usize) -> usize {
         let n64 = n as u64;
-        usize::try_from(self.rng.next_u64() % n64.max(1)).unwrap_or(0)
+        usize::try_from(self.next(s) % n64.max(1)).unwrap_or(0)
     }
 
     fn disconnected(&self) -> bool {
@@ -116,27 +146,27 @@ impl Dice {
     }
 
     fn maybe_delay(&mut self) {
-        if self.chance(self.cfg.delay) {
+        if self.chance(Stream::Delay, self.cfg.delay) {
             self.stats.delayed += 1;
             std::thread::sleep(self.cfg.delay_by);
         }
     }
 
-    /// Applies the per-byte faults to `bytes`.
-    fn mangle_bytes(&mut self, bytes: &[u8]) -> Vec<u8> {
+    /// Applies the per-byte faults to `bytes` travelling in direction `s`.
+    fn mangle_bytes(&mut self, s: Stream, bytes: &[u8]) -> Vec<u8> {
         let mut out = Vec::with_capacity(bytes.len() + 4);
         for &b in bytes {
-            if self.chance(self.cfg.drop) {
+            if self.chance(s, self.cfg.drop) {
                 self.stats.dropped += 1;
                 continue;
             }
             let mut b = b;
-            if self.chance(self.cfg.corrupt) {
+            if self.chance(s, self.cfg.corrupt) {
                 self.stats.corrupted += 1;
-                b ^= 1 << self.below(8);
+                b ^= 1 << self.below(s, 8);
             }
             out.push(b);
-            if self.chance(self.cfg.duplicate) {
+            if self.chance(s, self.cfg.duplicate) {
                 self.stats.duplicated += 1;
                 out.push(b);
             }
@@ -144,9 +174,10 @@ impl Dice {
         out
     }
 
-    /// Applies the per-frame faults; returns the frames to deliver (0, 1 or 2).
-    fn mangle_frame(&mut self, frame: &CanFrame) -> Vec<CanFrame> {
-        if self.chance(self.cfg.drop) {
+    /// Applies the per-frame faults to a frame travelling in direction `s`; returns the
+    /// frames to deliver (0, 1 or 2).
+    fn mangle_frame(&mut self, s: Stream, frame: &CanFrame) -> Vec<CanFrame> {
+        if self.chance(s, self.cfg.drop) {
             self.stats.dropped += 1;
             return Vec::new();
         }
@@ -154,14 +185,14 @@ impl Dice {
         let len = frame.len();
         data[..len].copy_from_slice(frame.data());
         let mut new_len = len;
-        if self.chance(self.cfg.corrupt) && len > 0 {
+        if self.chance(s, self.cfg.corrupt) && len > 0 {
             self.stats.corrupted += 1;
-            let bit = self.below(len * 8);
+            let bit = self.below(s, len * 8);
             if let Some(b) = data.get_mut(bit / 8) {
                 *b ^= 1 << (bit % 8);
             }
         }
-        if self.chance(self.cfg.truncate) && len > 0 {
+        if self.chance(s, self.cfg.truncate) && len > 0 {
             self.stats.truncated += 1;
             // A shorter legal length for the frame's kind.
             let shorter: Vec<usize> = if frame.is_fd() {
@@ -172,7 +203,10 @@ impl Dice {
             } else {
                 (0..len).collect()
             };
-            new_len = shorter.get(self.below(shorter.len())).copied().unwrap_or(0);
+            new_len = shorter
+                .get(self.below(s, shorter.len()))
+                .copied()
+                .unwrap_or(0);
         }
         let payload = data.get(..new_len).unwrap_or_default();
         let rebuilt = if frame.is_fd() {
@@ -183,7 +217,7 @@ impl Dice {
         };
         // The lengths chosen above are always legal; keep the original if not.
         let out = rebuilt.unwrap_or(*frame);
-        if self.chance(self.cfg.duplicate) {
+        if self.chance(s, self.cfg.duplicate) {
             self.stats.duplicated += 1;
             vec![out, out]
         } else {
@@ -237,10 +271,10 @@ impl<L: ByteLink> ByteLink for FaultyByteLink<L> {
             return self.inner.write_all(bytes);
         }
         self.dice.maybe_delay();
-        let mut out = self.dice.mangle_bytes(bytes);
-        if self.dice.chance(self.dice.cfg.truncate) && !out.is_empty() {
+        let mut out = self.dice.mangle_bytes(Stream::Tx, bytes);
+        if self.dice.chance(Stream::Cut, self.dice.cfg.truncate) && !out.is_empty() {
             self.dice.stats.truncated += 1;
-            let keep = self.dice.below(out.len());
+            let keep = self.dice.below(Stream::Cut, out.len());
             out.truncate(keep);
         }
         self.dice.calls += 1;
@@ -268,7 +302,7 @@ impl<L: ByteLink> ByteLink for FaultyByteLink<L> {
             let got = tmp.get(..n).unwrap_or_default();
             if self.dice.cfg.rx {
                 self.dice.maybe_delay();
-                self.pending.extend(self.dice.mangle_bytes(got));
+                self.pending.extend(self.dice.mangle_bytes(Stream::Rx, got));
             } else {
                 self.pending.extend(got);
             }
@@ -334,7 +368,7 @@ impl<L: FrameLink> FrameLink for FaultyFrameLink<L> {
             return self.inner.send(frame);
         }
         self.dice.maybe_delay();
-        for f in self.dice.mangle_frame(frame) {
+        for f in self.dice.mangle_frame(Stream::Tx, frame) {
             self.inner.send(&f)?;
         }
         Ok(())
@@ -352,7 +386,7 @@ impl<L: FrameLink> FrameLink for FaultyFrameLink<L> {
             let r = self.inner.recv(deadline)?;
             if self.dice.cfg.rx {
                 self.dice.maybe_delay();
-                for frame in self.dice.mangle_frame(&r.frame) {
+                for frame in self.dice.mangle_frame(Stream::Rx, &r.frame) {
                     self.pending.push_back(Received {
                         frame,
                         timestamp: r.timestamp,

@@ -49,9 +49,18 @@
 //! # Ok::<(), robobus_link::LinkError>(())
 //! ```
 //!
-//! Virtual CAN without kernel support, User-Mode Linux for real `SocketCAN`, and the
-//! python-can wire format: `../shared/docs/virtual-can.md`. Wire timing (a pty does not
-//! pace bytes; FTDI latency timer): `../shared/docs/wire-timing.md`.
+//! Virtual CAN without kernel support: [`UdpBus`] (python-can's wire format, in
+//! [`pycan`]); real `SocketCAN` on a kernel without CAN: User-Mode Linux (below). A pty
+//! does not pace bytes and has no modem lines ([`pty`]); FTDI adapters hold short replies
+//! back for their latency timer ([`serial`]).
+//!
+//! # Waiting for a deadline
+//!
+//! Every wait ends at its exact deadline, not at the next kernel tick: the pty and UDP
+//! links wait in `ppoll` (nanosecond timeout), `SocketCanLink` polls its non-blocking
+//! socket the same way (`SO_RCVTIMEO`, which Linux rounds up to whole ticks of 4-20 ms,
+//! made replies one to two ticks late), `SerialLink` through `serialport`'s `ppoll`, the
+//! memory links on a condition variable.
 //!
 //! # Tests that provision outside programs
 //!
@@ -85,7 +94,7 @@ pub use fault::{FaultConfig, FaultStats, FaultyByteLink, FaultyFrameLink};
 pub use frame_link::{BusErrorKind, FrameLink, FrameLinkError, IdFilter, Received};
 pub use memory::{MemoryBus, MemoryBusEndpoint, MemoryByteLink};
 #[cfg(unix)]
-pub use pty::{PtyLink, PtyOptions, PtyPair};
+pub use pty::{PtyLink, PtyOptions, PtyPair, PtySymlink};
 #[cfg(unix)]
 pub use serial::{SerialLink, set_usb_latency_timer, usb_latency_timer};
 #[cfg(target_os = "linux")]

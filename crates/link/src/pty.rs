@@ -4,7 +4,14 @@
 //! Both sides are put in raw mode (`cfmakeraw`) before anything else can touch them, so
 //! no byte is ever echoed, translated or swallowed as a control character. A pty does not
 //! pace bytes: the baud rate is only a termios setting, and any wire timing must come from
-//! the simulator (`../shared/docs/wire-timing.md`).
+//! the simulator.
+//!
+//! A pty has no modem lines: `TIOCMGET` / `TIOCMSET` / `TIOCMBIS` / `TIOCMBIC` (DTR, RTS,
+//! CTS, DSR) fail with `ENOTTY` on either side. Programs that only use termios work
+//! (pyserial, which ignores `ENOTTY` when it sets DTR / RTS on open, but raises if they
+//! are set or read later; minicom, picocom, screen, this crate's [`crate::SerialLink`]);
+//! programs that insist on the modem lines cannot open a pty, for example .NET / mono
+//! `System.IO.Ports` (`SerialPort.Open` sets DTR and RTS).
 
 use std::fs::File;
 use std::io::{self, Read, Write};
@@ -91,8 +98,9 @@ pub struct PtyOptions {
     /// Initial baud rate recorded in termios (no pacing happens). Default 115200.
     pub baud: u32,
     /// If set, a symbolic link at this path points to the slave device (e.g.
-    /// `/tmp/robobus-wck`), so programs can use a stable name. A stale symlink there is
-    /// replaced; anything else there is an error. Removed when the master is dropped.
+    /// `/tmp/robobus-wck`), so programs can use a stable name. Only a stale link of its
+    /// own kind there is replaced; anything else is an error ([`PtySymlink::create`]).
+    /// Removed when the master is dropped, if it still points to this pty.
     pub symlink: Option<PathBuf>,
 }
 
@@ -151,10 +159,7 @@ impl PtyPair {
             .try_clone()
             .map_err(|e| LinkError::io("duplicating the pty slave descriptor", e))?;
         let symlink = match &options.symlink {
-            Some(link) => {
-                make_symlink(&slave_path, link)?;
-                Some(link.clone())
-            }
+            Some(link) => Some(PtySymlink::create(link, &slave_path)?),
             None => None,
         };
         let name = slave_path.display().to_string();
@@ -180,23 +185,159 @@ impl PtyPair {
     }
 }
 
-fn make_symlink(target: &Path, link: &Path) -> Result<(), LinkError> {
-    match std::fs::symlink_metadata(link) {
-        Ok(meta) if meta.file_type().is_symlink() => std::fs::remove_file(link)
-            .map_err(|e| LinkError::io(format!("removing stale symlink {}", link.display()), e))?,
-        Ok(_) => {
-            return Err(LinkError::io(
-                format!("creating pty symlink {}", link.display()),
-                io::Error::new(
-                    io::ErrorKind::AlreadyExists,
-                    "a file that is not a symlink is in the way; remove it or pick another path",
-                ),
-            ));
-        }
-        Err(_) => {}
+/// Where pty slave devices live; a dangling symlink into here is a stale pty link.
+const PTS_DIR: &str = "/dev/pts/";
+
+/// A symbolic link at a stable path (e.g. `/tmp/wck0`) to a pty slave, owned by this
+/// process: made by [`PtySymlink::create`], removed on drop, but only if it still points to
+/// our pty (another simulator may have taken the path over since).
+///
+/// While it lives, an exclusive `flock` on `PATH.lock` (holding our process ID) marks the
+/// path as served by a live simulator. [`PtySymlink::create`] replaces only a stale link
+/// of its own kind: a dangling symlink into `/dev/pts/`, or a symlink left by a simulator
+/// that is gone (its lock file is still there, but nobody holds it). It refuses, with
+/// [`LinkError::PathInUse`], a path another live simulator serves, a symlink somebody else
+/// made to an existing file, and anything that is not a symlink (a regular file, a
+/// directory, a device): none of these is touched.
+#[derive(Debug)]
+pub struct PtySymlink {
+    path: PathBuf,
+    target: PathBuf,
+    lock_path: PathBuf,
+    _lock: nix::fcntl::Flock<File>,
+}
+
+fn in_use(path: &Path, reason: impl Into<String>) -> LinkError {
+    LinkError::PathInUse {
+        path: path.to_path_buf(),
+        reason: reason.into(),
     }
-    std::os::unix::fs::symlink(target, link)
-        .map_err(|e| LinkError::io(format!("creating pty symlink {}", link.display()), e))
+}
+
+impl PtySymlink {
+    /// Makes `link` point to `target` (a pty slave, `/dev/pts/N`), replacing only a stale
+    /// link of its own kind (see the [type docs](Self)).
+    pub fn create(link: &Path, target: &Path) -> Result<Self, LinkError> {
+        let mut lock_path = link.as_os_str().to_owned();
+        lock_path.push(".lock");
+        let lock_path = PathBuf::from(lock_path);
+        let lock_existed = std::fs::symlink_metadata(&lock_path).is_ok();
+        let file = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(&lock_path)
+            .map_err(|e| {
+                LinkError::io(format!("creating the lock file {}", lock_path.display()), e)
+            })?;
+        let mut lock =
+            match nix::fcntl::Flock::lock(file, nix::fcntl::FlockArg::LockExclusiveNonblock) {
+                Ok(lock) => lock,
+                Err((mut file, Errno::EWOULDBLOCK)) => {
+                    let mut pid = String::new();
+                    let _ = file.read_to_string(&mut pid);
+                    let pid = pid.trim();
+                    let who = if pid.is_empty() {
+                        "another simulator".to_owned()
+                    } else {
+                        format!("another simulator (process {pid})")
+                    };
+                    return Err(in_use(
+                        link,
+                        format!(
+                            "{who} serves it (its lock {} is held); stop it or pick another path",
+                            lock_path.display()
+                        ),
+                    ));
+                }
+                Err((_, e)) => {
+                    return Err(LinkError::io(
+                        format!("locking {}", lock_path.display()),
+                        errno_io(e),
+                    ));
+                }
+            };
+        let claim = |lock: &mut nix::fcntl::Flock<File>| -> Result<(), LinkError> {
+            match std::fs::symlink_metadata(link) {
+                Err(e) if e.kind() == io::ErrorKind::NotFound => {}
+                Err(e) => return Err(LinkError::io(format!("examining {}", link.display()), e)),
+                Ok(meta) if meta.file_type().is_symlink() => {
+                    let old = std::fs::read_link(link).map_err(|e| {
+                        LinkError::io(format!("reading symlink {}", link.display()), e)
+                    })?;
+                    let dangling = std::fs::metadata(link).is_err();
+                    let stale_pty = dangling && old.starts_with(PTS_DIR);
+                    // A lock file nobody held: the simulator that made the link is gone.
+                    if !(stale_pty || lock_existed) {
+                        return Err(in_use(
+                            link,
+                            format!(
+                                "it is a symlink to {} that robobus did not make; remove it \
+                                 yourself if it is stale, or pick another path",
+                                old.display()
+                            ),
+                        ));
+                    }
+                    std::fs::remove_file(link).map_err(|e| {
+                        LinkError::io(format!("removing stale symlink {}", link.display()), e)
+                    })?;
+                }
+                Ok(meta) => {
+                    let kind = if meta.is_dir() {
+                        "a directory"
+                    } else if meta.is_file() {
+                        "a regular file"
+                    } else {
+                        "a file that is not a symlink"
+                    };
+                    return Err(in_use(
+                        link,
+                        format!("{kind} is there (left untouched); remove it or pick another path"),
+                    ));
+                }
+            }
+            lock.set_len(0)
+                .and_then(|()| lock.write_all(format!("{}\n", std::process::id()).as_bytes()))
+                .map_err(|e| LinkError::io(format!("writing {}", lock_path.display()), e))?;
+            std::os::unix::fs::symlink(target, link)
+                .map_err(|e| LinkError::io(format!("creating pty symlink {}", link.display()), e))
+        };
+        if let Err(e) = claim(&mut lock) {
+            if !lock_existed {
+                let _ = std::fs::remove_file(&lock_path);
+            }
+            return Err(e);
+        }
+        Ok(Self {
+            path: link.to_path_buf(),
+            target: target.to_path_buf(),
+            lock_path,
+            _lock: lock,
+        })
+    }
+
+    /// The link's path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The pty slave it points to.
+    pub fn target(&self) -> &Path {
+        &self.target
+    }
+}
+
+impl Drop for PtySymlink {
+    fn drop(&mut self) {
+        // Only our own link: another simulator may have replaced it (after we were
+        // stopped and restarted, say), and a user may have put a file there.
+        if std::fs::read_link(&self.path).is_ok_and(|t| t == self.target) {
+            let _ = std::fs::remove_file(&self.path);
+        }
+        // Still locked by us here, so nobody else's lock file is removed.
+        let _ = std::fs::remove_file(&self.lock_path);
+    }
 }
 
 /// One side of a pseudo-terminal pair (see [`PtyPair`]).
@@ -206,7 +347,7 @@ pub struct PtyLink {
     baud: u32,
     name: String,
     _keep_slave: Option<OwnedFd>,
-    symlink: Option<PathBuf>,
+    symlink: Option<PtySymlink>,
     write_timeout: Duration,
 }
 
@@ -219,7 +360,7 @@ impl PtyLink {
 
     /// The stable symlink this master created, if any.
     pub fn symlink(&self) -> Option<&Path> {
-        self.symlink.as_deref()
+        self.symlink.as_ref().map(PtySymlink::path)
     }
 
     fn closed_or_io(&self, what: &str, e: io::Error) -> LinkError {
@@ -230,15 +371,6 @@ impl PtyLink {
             }
         } else {
             LinkError::io(format!("{what} {}", self.name), e)
-        }
-    }
-}
-
-impl Drop for PtyLink {
-    fn drop(&mut self) {
-        if let Some(link) = &self.symlink {
-            // Best effort: the link may have been removed by someone else already.
-            let _ = std::fs::remove_file(link);
         }
     }
 }

@@ -5,8 +5,7 @@
 //! `flock`, so a second robobus program gets [`LinkError::Busy`]). Reads return as soon as
 //! any byte is there ("low latency" at this level). On FTDI adapters the chip itself holds
 //! short replies back until its latency timer runs out (16 ms by default on Linux):
-//! [`usb_latency_timer`] reads it and [`set_usb_latency_timer`] lowers it
-//! (`../shared/docs/wire-timing.md`).
+//! [`usb_latency_timer`] reads it and [`set_usb_latency_timer`] lowers it.
 
 use std::io::{self, Read, Write};
 use std::path::{Path, PathBuf};

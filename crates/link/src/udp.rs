@@ -6,7 +6,7 @@
 //! `IP_MULTICAST_LOOP = 1`, TTL 1, and the group is joined on 127.0.0.1, so nothing leaves
 //! the machine. python-can itself sets its sockets up without an interface address; to mix
 //! with python-can peers, run both inside a private network namespace with
-//! `ip link set lo up; ip route add 224.0.0.0/4 dev lo` (`../shared/docs/virtual-can.md`).
+//! `ip link set lo up; ip route add 224.0.0.0/4 dev lo` (this crate's tests do exactly that).
 //!
 //! A sender receives its own datagrams back (multicast loop); [`UdpBus`] drops them by
 //! remembering the exact bytes of its recent datagrams. Timestamps are float64 seconds and
@@ -34,6 +34,12 @@ pub const DEFAULT_GROUP: Ipv4Addr = Ipv4Addr::new(239, 74, 163, 2);
 pub const DEFAULT_PORT: u16 = 43113;
 /// How many of our own datagrams are remembered for echo filtering.
 const ECHO_MEMORY: usize = 1024;
+/// Datagrams `recv` skips (echoes, filtered, malformed) before it checks its deadline.
+const SKIP_BEFORE_DEADLINE_CHECK: u32 = 64;
+/// Malformed datagrams logged one by one (at WARN) before the rest are only counted.
+const MALFORMED_LOGGED: u64 = 5;
+/// After the first [`MALFORMED_LOGGED`], at most one summary line per this interval.
+const MALFORMED_SUMMARY_EVERY: Duration = Duration::from_secs(1);
 
 /// Where a [`UdpBus`] lives.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -64,7 +70,8 @@ impl Default for UdpBusConfig {
 pub struct UdpBusStats {
     /// Our own datagrams that came back and were dropped.
     pub echoes: u64,
-    /// Datagrams that were not valid python-can messages (logged and skipped).
+    /// Datagrams that were not valid python-can messages (skipped; the first few logged
+    /// one by one, then one summary line per second at most).
     pub malformed: u64,
     /// Valid python-can messages a [`CanFrame`] cannot carry (remote / error frames).
     pub unsupported: u64,
@@ -92,6 +99,9 @@ pub struct UdpBus {
     last_timestamp: f64,
     filters: Vec<IdFilter>,
     stats: UdpBusStats,
+    /// Malformed datagrams not logged yet, and when the last line about them was.
+    malformed_unlogged: u64,
+    malformed_logged_at: Option<Instant>,
 }
 
 impl UdpBus {
@@ -147,7 +157,51 @@ impl UdpBus {
             last_timestamp: 0.0,
             filters: Vec::new(),
             stats: UdpBusStats::default(),
+            malformed_unlogged: 0,
+            malformed_logged_at: None,
         })
+    }
+
+    /// Counts a malformed datagram and logs it, rate-limited: the first
+    /// [`MALFORMED_LOGGED`] one by one, then one summary per [`MALFORMED_SUMMARY_EVERY`],
+    /// so a flood cannot flood the log.
+    fn note_malformed(&mut self, error: &pycan::DecodeError, len: usize) {
+        self.stats.malformed += 1;
+        let now = Instant::now();
+        if self.stats.malformed <= MALFORMED_LOGGED {
+            tracing::warn!(bus = %self.dest, error = %error, len, "skipping malformed datagram");
+            if self.stats.malformed == MALFORMED_LOGGED {
+                tracing::warn!(
+                    bus = %self.dest,
+                    "further malformed datagrams are counted and summarised at most once per second"
+                );
+            }
+            self.malformed_logged_at = Some(now);
+            return;
+        }
+        self.malformed_unlogged += 1;
+        let due = self
+            .malformed_logged_at
+            .is_none_or(|t| now.duration_since(t) >= MALFORMED_SUMMARY_EVERY);
+        if due {
+            self.log_malformed_summary(Some(error));
+            self.malformed_logged_at = Some(now);
+        }
+    }
+
+    fn log_malformed_summary(&mut self, last: Option<&pycan::DecodeError>) {
+        if self.malformed_unlogged == 0 {
+            return;
+        }
+        let last = last.map(ToString::to_string).unwrap_or_default();
+        tracing::warn!(
+            bus = %self.dest,
+            skipped = self.malformed_unlogged,
+            total = self.stats.malformed,
+            last_error = %last,
+            "skipped more malformed datagrams"
+        );
+        self.malformed_unlogged = 0;
     }
 
     /// What was dropped so far.
@@ -214,6 +268,12 @@ impl UdpBus {
     }
 }
 
+impl Drop for UdpBus {
+    fn drop(&mut self) {
+        self.log_malformed_summary(None);
+    }
+}
+
 impl FrameLink for UdpBus {
     fn send(&mut self, frame: &CanFrame) -> Result<(), FrameLinkError> {
         self.send_datagram(frame).map(drop)
@@ -221,6 +281,7 @@ impl FrameLink for UdpBus {
 
     fn recv(&mut self, deadline: Instant) -> Result<Received, FrameLinkError> {
         let mut buf = [0u8; 2048];
+        let mut skipped = 0u32;
         loop {
             let n = match self.socket.recv(&mut buf) {
                 Ok(n) => n,
@@ -255,10 +316,14 @@ impl FrameLink for UdpBus {
                     self.stats.unsupported += 1;
                     tracing::debug!(bus = %self.dest, error = %e, "skipping datagram");
                 }
-                Err(e) => {
-                    self.stats.malformed += 1;
-                    tracing::warn!(bus = %self.dest, error = %e, len = n, "skipping malformed datagram");
-                }
+                Err(e) => self.note_malformed(&e, n),
+            }
+            // A stream of datagrams we skip must not hold a caller past its deadline (a
+            // few are still looked through, so a deadline in the past finds a frame
+            // queued behind an echo).
+            skipped += 1;
+            if skipped >= SKIP_BEFORE_DEADLINE_CHECK && Instant::now() >= deadline {
+                return Err(FrameLinkError::Timeout);
             }
         }
     }

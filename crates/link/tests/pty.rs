@@ -7,7 +7,7 @@
 use std::time::{Duration, Instant};
 
 use robobus_link::pty::termios_speed;
-use robobus_link::{ByteLink, LinkError, PtyOptions, PtyPair, SerialLink};
+use robobus_link::{ByteLink, LinkError, PtyOptions, PtyPair, PtySymlink, SerialLink};
 
 /// The wCK baud codes (manual §"Baud rate").
 const BAUDS: [u32; 8] = [
@@ -193,6 +193,54 @@ fn stable_symlink_is_created_replaced_and_removed() {
     .unwrap_err();
     assert!(err.to_string().contains("robobus-wck"), "{err}");
     assert_eq!(std::fs::read_to_string(&link).unwrap(), "keep me");
+}
+
+#[test]
+fn a_pty_symlink_takes_only_stale_links_of_its_own_and_removes_only_its_own() {
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("wck");
+    let a = PtyPair::open(&PtyOptions::default()).unwrap();
+    let b = PtyPair::open(&PtyOptions::default()).unwrap();
+
+    let first = PtySymlink::create(&link, &a.slave_path).unwrap();
+    assert_eq!(std::fs::read_link(&link).unwrap(), a.slave_path);
+    // A live one's link is not taken over: the error names the process holding it.
+    let e = PtySymlink::create(&link, &b.slave_path).unwrap_err();
+    assert!(
+        matches!(&e, LinkError::PathInUse { path, .. } if path == &link),
+        "{e}"
+    );
+    assert!(
+        e.to_string().contains(&std::process::id().to_string()),
+        "{e}"
+    );
+    assert_eq!(std::fs::read_link(&link).unwrap(), a.slave_path);
+
+    // Somebody replaces the link while it lives: dropping ours leaves theirs alone.
+    std::fs::remove_file(&link).unwrap();
+    std::os::unix::fs::symlink(&b.slave_path, &link).unwrap();
+    drop(first);
+    assert_eq!(std::fs::read_link(&link).unwrap(), b.slave_path);
+
+    // Somebody else's symlink to an existing file is refused.
+    let e = PtySymlink::create(&link, &a.slave_path).unwrap_err();
+    assert!(e.to_string().contains("did not make"), "{e}");
+    assert_eq!(std::fs::read_link(&link).unwrap(), b.slave_path);
+
+    // A directory is refused; a dangling link into /dev/pts is stale and replaced.
+    std::fs::remove_file(&link).unwrap();
+    std::fs::create_dir(&link).unwrap();
+    let e = PtySymlink::create(&link, &a.slave_path).unwrap_err();
+    assert!(e.to_string().contains("a directory"), "{e}");
+    std::fs::remove_dir(&link).unwrap();
+    std::os::unix::fs::symlink("/dev/pts/robobus-gone", &link).unwrap();
+    let ours = PtySymlink::create(&link, &a.slave_path).unwrap();
+    assert_eq!(ours.path(), link);
+    drop(ours);
+    assert!(std::fs::symlink_metadata(&link).is_err());
+    let mut lock = link.as_os_str().to_owned();
+    lock.push(".lock");
+    assert!(std::fs::symlink_metadata(&lock).is_err(), "lock file left");
 }
 
 #[test]

@@ -4,7 +4,7 @@
 //! - datagrams: our encoding is byte-identical to python-can's, and python-can decodes ours;
 //! - a live exchange of 4-, 16- and 64-byte BRS frames both ways between a python-can
 //!   process and this test, inside a private network namespace (`unshare -n`, as
-//!   `../shared/docs/virtual-can.md` describes) on python-can's default group and port;
+//!   the `robobus-link` docs describe) on python-can's default group and port;
 //! - candump logs written by us read back by python-can's `CanutilsLogReader`.
 
 // Helpers outside #[test] functions may unwrap and panic too: a failure is a failed test.

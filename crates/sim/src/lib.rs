@@ -5,5 +5,6 @@
 //! In tests the simulators run on a virtual clock (deterministic, faster than real time);
 //! behind an endpoint they follow the wall clock.
 
+pub mod faults;
 pub mod wck;
 pub mod whj;

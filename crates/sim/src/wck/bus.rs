@@ -12,6 +12,7 @@ use super::model::Model;
 use super::params::{Eeprom, EepromFileError};
 use super::servo::{Servo, Timing};
 use super::uart::{Frame, Line, Receiver, RxByte, bit_boundary};
+use crate::faults::{DeviceFault, DeviceFaultKind};
 
 /// Seeded, reproducible faults on the wire.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -416,6 +417,27 @@ impl Bus {
             s.plugged = true;
         }
         self.power_on(i);
+    }
+
+    /// Applies a scheduled device fault now to every module with its ID, and returns how
+    /// many it hit: [`DeviceFaultKind::Silent`] powers the module off (it answers nothing
+    /// from now on), [`DeviceFaultKind::PowerCycle`] is a brown-out (runtime state lost,
+    /// deaf for 65 ms). wCK modules have no error bits: [`DeviceFaultKind::Error`] hits
+    /// nothing.
+    pub fn apply_fault(&mut self, fault: &DeviceFault) -> usize {
+        let slots: Vec<usize> = self
+            .slots
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.servo.id().get() == fault.id)
+            .map(|(i, _)| i)
+            .collect();
+        match fault.kind {
+            DeviceFaultKind::Silent => slots.iter().for_each(|&i| self.power_off(i)),
+            DeviceFaultKind::PowerCycle => slots.iter().for_each(|&i| self.power_cycle(i)),
+            DeviceFaultKind::Error(_) => return 0,
+        }
+        slots.len()
     }
 
     /// Whether slot `i` is plugged in.

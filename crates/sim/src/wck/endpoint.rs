@@ -6,6 +6,9 @@
 //! master and slave, so a client's `tcsetattr` is seen here and a mismatch garbles the
 //! bytes as on a real bus). It writes each reply byte to the master the moment its stop
 //! bit would leave the wire, sleeping in `ppoll` with a 1 µs timer slack until then.
+//! Input is taken from the pty no faster than the wire carries it (a few milliseconds
+//! ahead at most), so a client that floods the port blocks in its write, as on a real
+//! port, and a command after the flood is answered within a bounded time.
 //! Other threads reach the bus through [`Endpoint::with_bus`] (a small command queue),
 //! so the test API (push, hold, set the A/D input, power-cycle) works while it serves.
 
@@ -26,6 +29,13 @@ use super::bus::Bus;
 /// How long the serving thread sleeps at most when nothing is due (it then checks for
 /// stop requests, queued commands and the client's baud rate).
 const IDLE: Duration = Duration::from_millis(10);
+
+/// Input backpressure: the client's bytes are taken from the pty only while the simulated
+/// wire has less than this much of them still to carry. A real port accepts bytes only at
+/// the wire rate, so a flood fills the kernel's buffer and blocks the writer instead of
+/// queueing minutes of traffic in the simulator (which would leave it deaf to a command
+/// sent after the flood for as long).
+const INPUT_AHEAD: Duration = Duration::from_millis(5);
 
 /// What the serving thread did, returned by [`Endpoint::stop`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -156,6 +166,15 @@ fn thread_cpu() -> Duration {
     })
 }
 
+/// A little past the instant there is room again, so one wake-up finds it.
+const BYTE_SLACK: Duration = Duration::from_micros(100);
+
+/// How many 8N1 bytes (10 bits each) the wire carries in `d` at `bps`.
+fn bytes_in(d: Duration, bps: u32) -> usize {
+    let bits = d.as_nanos() * u128::from(bps) / 1_000_000_000;
+    usize::try_from(bits / 10).unwrap_or(usize::MAX)
+}
+
 fn follow_client_baud(bus: &mut Bus, termios: Option<&OwnedFd>) {
     if let Some(fd) = termios
         && let Ok(Some(bps)) = termios_speed(fd)
@@ -181,6 +200,7 @@ fn serve<L: ByteLink>(
     let mut buf = [0u8; 512];
     let mut out: Vec<u8> = Vec::with_capacity(64);
     let mut next_baud_check = Duration::ZERO;
+    let mut wire_free = Duration::ZERO;
     while !stop.load(Ordering::Relaxed) {
         let now = sim_now();
         while let Ok(job) = jobs.try_recv() {
@@ -204,13 +224,24 @@ fn serve<L: ByteLink>(
             stats.bytes_out += out.len() as u64;
         }
         let wake = bus.next_event().map_or(now + IDLE, |t| t.min(now + IDLE));
+        // Wire time still ahead for the bytes already taken: read again only once it is
+        // below INPUT_AHEAD, and only as many bytes as fit in the rest of that window.
+        let ahead = wire_free.saturating_sub(now);
+        if ahead >= INPUT_AHEAD {
+            let until = wake.min(wire_free.saturating_sub(INPUT_AHEAD) + BYTE_SLACK);
+            std::thread::sleep(
+                (t0 + until.saturating_sub(offset)).saturating_duration_since(Instant::now()),
+            );
+            continue;
+        }
+        let room = bytes_in(INPUT_AHEAD.saturating_sub(ahead), bus.host_bps()).clamp(1, buf.len());
         let deadline = t0 + wake.saturating_sub(offset);
-        match master.read_some(&mut buf, deadline) {
+        match master.read_some(buf.get_mut(..room).unwrap_or_default(), deadline) {
             Ok(n) => {
                 let at = sim_now();
                 bus.advance(at);
                 follow_client_baud(&mut bus, termios);
-                bus.host_send(at, buf.get(..n).unwrap_or_default());
+                wire_free = bus.host_send(at, buf.get(..n).unwrap_or_default());
                 stats.bytes_in += n as u64;
             }
             Err(LinkError::Timeout { .. }) => {}

@@ -20,6 +20,7 @@ use robobus_whj::timing::{self, BitRates};
 use super::config::JointConfig;
 use super::joint::SimJoint;
 use super::model::WhjModel;
+use crate::faults::{DeviceFault, DeviceFaultKind};
 
 /// Who put a frame on the wire.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -310,6 +311,24 @@ impl WhjBus {
     pub fn advance(&mut self, d: Duration) -> Vec<Delivered> {
         let t = self.now + d;
         self.run_until(t)
+    }
+
+    /// Applies a scheduled device fault at the bus's current time to the joint with its
+    /// ID; returns whether there is one. [`DeviceFaultKind::Silent`]: it answers nothing
+    /// until power-cycled; [`DeviceFaultKind::PowerCycle`]: a brown-out (RAM lost, back
+    /// through power-up and the bootloader); [`DeviceFaultKind::Error`]: it latches the
+    /// bits.
+    pub fn apply_fault(&mut self, fault: &DeviceFault) -> bool {
+        let now = self.now;
+        let Some(joint) = self.joint_mut(fault.id) else {
+            return false;
+        };
+        match fault.kind {
+            DeviceFaultKind::Silent => joint.fall_silent(now),
+            DeviceFaultKind::PowerCycle => joint.power_cycle(now),
+            DeviceFaultKind::Error(bits) => joint.inject_error(bits, now),
+        }
+        true
     }
 
     /// Switch every joint off and on again now.

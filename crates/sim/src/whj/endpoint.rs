@@ -13,6 +13,7 @@ use std::time::{Duration, Instant};
 use robobus_link::{FrameLink, FrameLinkError};
 
 use super::bus::WhjBus;
+use crate::faults::FaultSchedule;
 
 /// How long [`serve`] waits at most between two looks at `stop` (and at the joints'
 /// timers).
@@ -40,12 +41,37 @@ pub fn serve<L: FrameLink + ?Sized>(
     link: &mut L,
     stop: &AtomicBool,
 ) -> Result<ServeStats, FrameLinkError> {
+    serve_with(bus, link, stop, FaultSchedule::default(), || {})
+}
+
+/// [`serve`] with device faults applied at their simulation times, and `on_serving`
+/// called once the loop is about to take its first frame (announce readiness there:
+/// nothing a client sends is missed from then on).
+pub fn serve_with<L: FrameLink + ?Sized>(
+    bus: &mut WhjBus,
+    link: &mut L,
+    stop: &AtomicBool,
+    mut faults: FaultSchedule,
+    on_serving: impl FnOnce(),
+) -> Result<ServeStats, FrameLinkError> {
     let origin = Instant::now()
         .checked_sub(bus.now())
         .unwrap_or_else(Instant::now);
     let mut stats = ServeStats::default();
+    let mut on_serving = Some(on_serving);
     while !stop.load(Ordering::Relaxed) {
         let now = origin.elapsed();
+        while let Some(due) = faults.next_due().filter(|t| *t <= now) {
+            // Frames up to the fault's instant first, then the fault.
+            for d in bus.run_until(due) {
+                link.send(&d.frame)?;
+                stats.sent += 1;
+            }
+            for f in faults.take_due(due) {
+                tracing::info!(fault = %f, "device fault");
+                bus.apply_fault(f);
+            }
+        }
         for d in bus.run_until(now) {
             tracing::trace!(frame = ?d.frame, due = ?d.at, "tx");
             link.send(&d.frame)?;
@@ -56,7 +82,12 @@ pub fn serve<L: FrameLink + ?Sized>(
         }
         let wake = bus
             .next_event()
-            .map_or(now + MAX_WAIT, |t| t.min(now + MAX_WAIT));
+            .into_iter()
+            .chain(faults.next_due())
+            .fold(now + MAX_WAIT, Duration::min);
+        if let Some(ready) = on_serving.take() {
+            ready();
+        }
         match link.recv(origin + wake) {
             Ok(rx) => {
                 tracing::trace!(frame = ?rx.frame, "rx");

@@ -252,6 +252,20 @@ impl SimJoint {
         self.power_on(now);
     }
 
+    /// Fault injection: latch the error `bits` at `now`, as the firmware does when it
+    /// detects a fault (bits that disable the drive disable it).
+    pub fn inject_error(&mut self, bits: u16, now: Duration) {
+        self.advance(now);
+        self.latch(bits);
+    }
+
+    /// Fault injection: from `now` on the joint answers nothing (a broken transceiver, a
+    /// cut cable) until it is power-cycled.
+    pub fn fall_silent(&mut self, now: Duration) {
+        self.advance(now);
+        self.quiet_until = Duration::MAX;
+    }
+
     /// Change the supply voltage (a sagging battery, a bad PSU).
     pub fn set_supply_voltage(&mut self, volts: f64) {
         self.env.supply_v = volts;

@@ -47,6 +47,6 @@ pub use bus::{BusStats, Delivered, Node, WhjBus, WireFrame};
 pub use config::{
     BootConfig, BroadcastReadReply, JointConfig, Load, SpeedLimitUnit, StepConfig, WatchdogConfig,
 };
-pub use endpoint::{ServeStats, serve};
+pub use endpoint::{ServeStats, serve, serve_with};
 pub use joint::{JointState, Phase, Reply, Sample, SimJoint};
 pub use model::{ModelParams, UnknownModel, WhjModel};

@@ -1,0 +1,275 @@
+//! The simulators' fault injection, as `robobus sim wck` / `robobus sim whj` apply it from
+//! the command line, seen through the client library with the simulators in process:
+//!
+//! - link faults (`FaultyByteLink` / `FaultyFrameLink`: drop, corrupt, duplicate,
+//!   truncate) repeat from their seed: the same seed gives the same outcome of every
+//!   transaction, another seed another one;
+//! - device faults on a schedule (`robobus_sim::faults`): a silent servo / joint gives the
+//!   client a timeout that names it, a power-cycled servo is deaf for 65 ms and then
+//!   answers, a power-cycled joint is back in its bootloader until connected again, a
+//!   joint that latches error bits reports them in its status.
+
+#![allow(clippy::unwrap_used, clippy::panic)] // test code
+#![cfg(target_os = "linux")]
+
+mod wck_support;
+mod whj_common;
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use robobus::wck::{WckBus, WckConfig};
+use robobus::whj::{JointBus, JointBusConfig};
+use robobus_link::{FaultConfig, FaultyByteLink, FaultyFrameLink, FrameLink, MemoryBus};
+use robobus_sim::faults::{DeviceFault, DeviceFaultKind, FaultSchedule};
+use robobus_sim::whj::{WhjBus, serve_with};
+use robobus_wck::{BaudRate, ServoId};
+use robobus_whj::JointId;
+
+fn link_faults(seed: u64) -> FaultConfig {
+    FaultConfig {
+        drop: 0.02,
+        corrupt: 0.02,
+        duplicate: 0.02,
+        truncate: 0.02,
+        ..FaultConfig::seeded(seed)
+    }
+}
+
+/// 300 status reads of servo 1 through a faulty link, no retries: what each one gave.
+///
+/// The faults act on the commands (`rx: false`): which reply bytes a client reads and
+/// which it flushes as stale depends on the wall clock the in-process link follows, and
+/// on the receiving side each byte read draws from the seeded stream. The servo is held
+/// (a command corrupted into a move cannot turn it), so every answer reads 127.
+fn wck_outcomes(seed: u64) -> Vec<String> {
+    let mut sim = wck_support::serve_fast(&[1], BaudRate::B115200);
+    sim.with_bus(|b| b.servo_mut(0).unwrap().hold(true));
+    let link = FaultyByteLink::new(
+        sim.link(),
+        FaultConfig {
+            rx: false,
+            ..link_faults(seed)
+        },
+    );
+    let config = WckConfig {
+        retries: 0,
+        ..WckConfig::default()
+    };
+    let mut bus = WckBus::new(link, BaudRate::B115200)
+        .unwrap()
+        .with_config(config);
+    (0..300)
+        .map(|_| match bus.servo(ServoId::new(1).unwrap()).status() {
+            Ok(s) => format!("ok {}", s.position.get()),
+            Err(e) => format!("err timeout={}", e.is_timeout()),
+        })
+        .collect()
+}
+
+#[test]
+fn wck_link_faults_repeat_from_their_seed() {
+    let a = wck_outcomes(42);
+    assert_eq!(a, wck_outcomes(42), "same seed, same outcome");
+    let failed = a.iter().filter(|o| o.starts_with("err")).count();
+    assert!(
+        (5..295).contains(&failed),
+        "faults should hit some reads: {failed} of 300 failed"
+    );
+    assert_ne!(a, wck_outcomes(43), "another seed, other faults");
+}
+
+#[test]
+fn wck_device_faults_on_schedule_as_the_client_sees_them() {
+    let sim = wck_support::serve_fast(&[1, 2], BaudRate::B115200);
+    let start = sim.with_bus(|b| b.now());
+    let at = start + Duration::from_millis(200);
+    let mut schedule = FaultSchedule::new(vec![
+        DeviceFault {
+            at,
+            id: 1,
+            kind: DeviceFaultKind::Silent,
+        },
+        DeviceFault {
+            at,
+            id: 2,
+            kind: DeviceFaultKind::PowerCycle,
+        },
+    ]);
+    let mut sim = sim;
+    let handle = sim.handle.clone();
+    let config = WckConfig {
+        retries: 0,
+        ..WckConfig::default()
+    };
+    let mut bus = WckBus::new(sim.link(), BaudRate::B115200)
+        .unwrap()
+        .with_config(config);
+    let s1 = ServoId::new(1).unwrap();
+    let s2 = ServoId::new(2).unwrap();
+    // Before the faults both answer, every time.
+    while handle.with_bus(|b| b.now()) < at {
+        bus.servo(s1).status().unwrap();
+        bus.servo(s2).status().unwrap();
+    }
+    let hit: usize = handle.with_bus(|b| {
+        let now = b.now();
+        schedule
+            .take_due(now)
+            .iter()
+            .map(|f| b.apply_fault(f))
+            .sum()
+    });
+    assert_eq!(hit, 2);
+    // Servo 1 is silent: a timeout naming it.
+    let e = bus.servo(s1).status().unwrap_err();
+    assert!(e.is_timeout(), "{e}");
+    assert!(e.to_string().contains('1'), "{e}");
+    // Servo 2 browned out: deaf for the 65 ms after power-up, then back.
+    let e = bus.servo(s2).status().unwrap_err();
+    assert!(e.is_timeout(), "{e}");
+    let back = handle.with_bus(|b| b.now()) + Duration::from_millis(70);
+    while handle.with_bus(|b| b.now()) < back {
+        let _ = bus.servo(s2).status();
+    }
+    bus.servo(s2).status().unwrap();
+    assert!(bus.servo(s1).status().unwrap_err().is_timeout());
+}
+
+/// The WHJ simulator served on a memory bus with a fault schedule.
+struct WhjSim {
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl WhjSim {
+    fn serve(
+        mut bus: WhjBus,
+        mut link: impl FrameLink + Send + 'static,
+        faults: FaultSchedule,
+    ) -> Self {
+        let stop = Arc::new(AtomicBool::new(false));
+        let flag = Arc::clone(&stop);
+        let (ready_tx, ready_rx) = std::sync::mpsc::channel();
+        let thread = std::thread::spawn(move || {
+            serve_with(&mut bus, &mut link, &flag, faults, move || {
+                let _ = ready_tx.send(());
+            })
+            .unwrap();
+        });
+        ready_rx.recv().unwrap();
+        Self {
+            stop,
+            thread: Some(thread),
+        }
+    }
+}
+
+impl Drop for WhjSim {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+fn j(n: u8) -> JointId {
+    JointId::new(n).unwrap()
+}
+
+/// 200 status queries of joint 1 through a faulty client link, no retries.
+fn whj_outcomes(seed: u64) -> Vec<String> {
+    let wire = MemoryBus::new();
+    let _sim = WhjSim::serve(
+        whj_common::chain(1),
+        wire.endpoint(),
+        FaultSchedule::default(),
+    );
+    let config = JointBusConfig {
+        retries: 0,
+        ..whj_common::config()
+    };
+    let clean = JointBus::open_with(wire.endpoint(), config).unwrap();
+    clean.joint(j(1)).unwrap(); // out of the bootloader
+    drop(clean);
+    let bus = JointBus::open_with(
+        FaultyFrameLink::new(wire.endpoint(), link_faults(seed)),
+        config,
+    )
+    .unwrap();
+    let joint = bus.joint_unchecked(j(1));
+    (0..200)
+        .map(|_| match joint.status() {
+            Ok(s) => format!("ok {:#06x}", s.error.bits()),
+            Err(e) => format!("err timeout={}", e.is_timeout()),
+        })
+        .collect()
+}
+
+#[test]
+fn whj_link_faults_repeat_from_their_seed() {
+    let a = whj_outcomes(42);
+    assert_eq!(a, whj_outcomes(42), "same seed, same outcome");
+    let failed = a.iter().filter(|o| o.starts_with("err")).count();
+    assert!(
+        (3..197).contains(&failed),
+        "faults should hit some queries: {failed} of 200 failed"
+    );
+    assert_ne!(a, whj_outcomes(43), "another seed, other faults");
+}
+
+#[test]
+fn whj_device_faults_on_schedule_as_the_client_sees_them() {
+    let at = Duration::from_millis(600);
+    let faults = FaultSchedule::new(vec![
+        DeviceFault {
+            at,
+            id: 1,
+            kind: DeviceFaultKind::Error(0x4000),
+        },
+        DeviceFault {
+            at,
+            id: 2,
+            kind: DeviceFaultKind::Silent,
+        },
+        DeviceFault {
+            at,
+            id: 3,
+            kind: DeviceFaultKind::PowerCycle,
+        },
+    ]);
+    let wire = MemoryBus::new();
+    let t0 = std::time::Instant::now();
+    let _sim = WhjSim::serve(whj_common::chain(3), wire.endpoint(), faults);
+    let config = JointBusConfig {
+        retries: 0,
+        ..whj_common::config()
+    };
+    let bus = JointBus::open_with(wire.endpoint(), config).unwrap();
+    let joints: Vec<_> = (1..=3).map(|n| bus.joint(j(n)).unwrap()).collect();
+    let before: Vec<u16> = joints
+        .iter()
+        .map(|jt| jt.status().unwrap().error.bits())
+        .collect();
+    assert!(
+        t0.elapsed() < at,
+        "the machine stalled past the faults before the first look ({:?})",
+        t0.elapsed()
+    );
+    assert_eq!(before, [0, 0, 0]);
+    std::thread::sleep((at + Duration::from_millis(50)).saturating_sub(t0.elapsed()));
+
+    // Joint 1 reports the latched bits.
+    assert_eq!(joints[0].status().unwrap().error.bits() & 0x4000, 0x4000);
+    // Joint 2 is silent: a timeout that names it.
+    let e = joints[1].status().unwrap_err();
+    assert!(e.is_timeout() && e.to_string().contains("J2"), "{e}");
+    // Joint 3 browned out: back in its bootloader, silent to a status query until it is
+    // connected (released) again.
+    assert!(joints[2].status().unwrap_err().is_timeout());
+    let again = bus.joint(j(3)).unwrap();
+    assert_eq!(again.status().unwrap().error.bits(), 0);
+}
