@@ -368,9 +368,10 @@ fn set_id_and_set_baud_are_verified_and_take_effect() {
     assert_eq!(sim.position(7), 127);
     let r = sim.wck(&["status", "1"]);
     assert_eq!(r.code, Some(3), "the old ID no longer answers: {r:#?}");
-    // An ID that is taken is refused (the client checks first).
+    // An ID that is taken is refused (the client checks first): a refusal, exit code 2
+    // (the library's error kind `refused`; nothing changed on the servo).
     let r = sim.wck(&["--yes", "set-id", "7", "0"]);
-    assert_eq!(r.code, Some(1), "{r:#?}");
+    assert_eq!(r.code, Some(2), "{r:#?}");
     assert!(r.stderr.contains("already answers"), "{}", r.stderr);
     sim.ok(&["--yes", "set-id", "7", "1"]);
     assert_eq!(sim.position(1), 127);

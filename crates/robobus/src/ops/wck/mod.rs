@@ -54,8 +54,8 @@
 //! use robobus_sim::wck::{Bus, BusConfig, Model, SimLink};
 //! use robobus_wck::{BaudRate, Rotation, ServoId, WheelSpeed};
 //!
-//! let link = SimLink::new(Bus::with_servos(BusConfig::default(), Model::W1108, [0, 1]));
-//! link.fast_forward(Duration::from_millis(70)); // the modules power up
+//! let (link, _sim) = SimLink::new(Bus::with_servos(BusConfig::default(), Model::W1108, [0, 1]));
+//! std::thread::sleep(Duration::from_millis(70)); // the modules power up
 //! let mut bus = WckBus::new(link, BaudRate::B115200)?;
 //! let args = WheelArgs {
 //!     id: ServoId::new(1)?,
@@ -95,7 +95,8 @@ pub use report::{BREAK_CLEAN, BREAK_COLLIDED, FieldValue, Fields, reply_fields};
 pub use run::{
     ASSUMED_POSITION, Found, PlayReport, ScanArgs, ScanOpReport, SharedId, StepResult, StepsReport,
     TeachArgs, TeachEvent, TeachReport, TeachTrigger, WHEEL_WATCH_PERIOD, WheelArgs, WheelReport,
-    apply, apply_each, check_rate, ids_text, play, run_steps, scan, target_value, teach, wheel,
+    apply, apply_each, check_rate, confirm_reads_for, ids_text, play, run_steps, scan,
+    target_value, teach, wheel,
 };
 pub use shared::{SharedServo, SharedWckBus};
 

@@ -1,6 +1,6 @@
 //! The result of one wCK command as named fields (the JSON keys and the table columns).
 
-use robobus_wck::{Command, Position, Reply, Target};
+use robobus_wck::{Command, Position, Reply};
 use serde::ser::{Serialize, SerializeMap, Serializer};
 
 /// A field value: a whole number, a number of degrees / volts (two decimals), a text, a
@@ -104,21 +104,14 @@ impl Serialize for Fields {
     }
 }
 
-fn target_value(t: Target) -> FieldValue {
-    match t {
-        Target::Servo(id) => id.get().into(),
-        Target::Extended(id) => id.get().into(),
-        Target::Broadcast => "all".into(),
-    }
-}
-
-/// The fields of a command and its reply. Units are in the names: `position` (0..=254
+/// The fields of a command and its reply (the servo's `id` is beside them, in
+/// [`crate::ops::DeviceResult`]). Units are in the names: `position` (0..=254
 /// steps), `position10` (0..=1023), `degrees`, `load`, `milliamps`, `baud` (bit/s),
 /// `adc_volts`; a move's reply is the status *before* it (`load_before`,
 /// `position_before`). A break on a shared bus: see [`break_fields`].
 #[allow(clippy::too_many_lines)] // one arm per reply shape
 pub fn reply_fields(command: &Command, reply: Option<Reply>) -> Fields {
-    let mut row = Fields(vec![("id", target_value(command.target()))]);
+    let mut row = Fields::default();
     let moving = matches!(command, Command::Move { .. } | Command::Move10 { .. });
     match *command {
         Command::Move {

@@ -188,6 +188,29 @@ pub fn run_steps<L: ByteLink>(
     })
 }
 
+/// How many equal replies a read of `plan` needs ([`crate::wck::WckConfig::confirm_reads`]):
+/// with `verify` unset, 2 when the plan is one-shot parameter reads (gains, I gain, speed,
+/// over-load, bounds, I/O: a wrong value there would be believed and copied), otherwise 1;
+/// `Some(true)` 2 for every read, `Some(false)` 1. A confirmed read costs one more exchange
+/// (about 1.5 ms at 115200 bit/s) and retries until two replies agree.
+pub fn confirm_reads_for(plan: &WckPlan, verify: Option<bool>) -> u8 {
+    let parameter_read = |c: &Command| {
+        matches!(
+            c,
+            Command::GainRead { .. }
+                | Command::IGainRead { .. }
+                | Command::SpeedRead { .. }
+                | Command::OverloadRead { .. }
+                | Command::BoundaryRead { .. }
+                | Command::IoRead { .. }
+        )
+    };
+    let verify = verify.unwrap_or_else(|| {
+        !plan.steps.is_empty() && plan.steps.iter().all(|s| parameter_read(&s.command))
+    });
+    if verify { 2 } else { 1 }
+}
+
 // ----- scan -----
 
 /// What to scan (the command's IDs and rates).
@@ -756,7 +779,11 @@ pub fn teach<L: ByteLink>(
                     if now >= next {
                         break;
                     }
-                    if events((next - now).min(Duration::from_millis(20))) == TeachEvent::Finish {
+                    let event = events((next - now).min(Duration::from_millis(20)));
+                    if control.stopped() {
+                        return Err(stop(bus));
+                    }
+                    if event == TeachEvent::Finish {
                         return finish(bus, args, count);
                     }
                 }
@@ -773,7 +800,11 @@ pub fn teach<L: ByteLink>(
                 if control.stopped() {
                     return Err(stop(bus));
                 }
-                match events(Duration::from_millis(50)) {
+                let event = events(Duration::from_millis(50));
+                if control.stopped() {
+                    return Err(stop(bus));
+                }
+                match event {
                     TeachEvent::Record => record(bus, pose_ms, control)?,
                     TeachEvent::Finish => return finish(bus, args, count),
                     TeachEvent::Nothing => {}
