@@ -1,6 +1,11 @@
 //! `robobus::ops::wck` against the simulator: what a real run sends is, packet by packet,
 //! the plan a dry-run shows; per-servo results; stop, progress and the safe state.
-#![allow(clippy::unwrap_used, clippy::panic, clippy::result_large_err, missing_docs)]
+#![allow(
+    clippy::unwrap_used,
+    clippy::panic,
+    clippy::result_large_err,
+    missing_docs
+)]
 
 mod wck_support;
 
@@ -160,7 +165,11 @@ fn status_of_many_servos_reports_each_one_past_a_silent_one() {
         plan.push(Command::StatusRead { id: id(i) });
     }
     let report = wck::run_steps(&mut bus, "status", &plan, &mut Control::none()).unwrap();
-    let ok: Vec<bool> = report.results.iter().map(robobus::ops::DeviceResult::is_ok).collect();
+    let ok: Vec<bool> = report
+        .results
+        .iter()
+        .map(robobus::ops::DeviceResult::is_ok)
+        .collect();
     assert_eq!(ok, [true, false, true]);
     let silent = report.results[1].failure().unwrap();
     assert_eq!(silent.kind, ErrorKind::NoDevice);
