@@ -274,3 +274,32 @@ fn one_shot_parameter_reads_are_confirmed_by_default() {
     assert_eq!(wck::confirm_reads_for(&status, None), 1);
     assert_eq!(wck::confirm_reads_for(&status, Some(true)), 2);
 }
+
+#[test]
+fn a_scan_with_one_percent_byte_loss_finds_16_servos_and_no_false_duplicate() {
+    use robobus_link::{FaultConfig, FaultyByteLink};
+    let ids: Vec<u8> = (0..16).collect();
+    for seed in [1, 2, 3] {
+        let mut sim = wck_support::serve_fast(&ids, BaudRate::B115200);
+        let faults = FaultConfig {
+            drop: 0.01,
+            ..FaultConfig::seeded(seed)
+        };
+        let mut bus = WckBus::new(FaultyByteLink::new(sim.link(), faults), BaudRate::B115200)
+            .unwrap()
+            .with_device_name(DEVICE);
+        let args = ScanArgs::new((0..=15).map(id).collect(), BaudRate::B115200, false);
+        let report = wck::scan(&mut bus, &args, &mut Control::none()).unwrap();
+        let found: Vec<u8> = report.found.iter().map(|f| f.id).collect();
+        assert!(
+            report.duplicates.is_empty(),
+            "seed {seed}: false duplicates {:?} (dropped {})",
+            report.duplicates,
+            bus.link().stats().dropped
+        );
+        assert_eq!(
+            found, ids,
+            "seed {seed}: every servo that answered is listed"
+        );
+    }
+}
