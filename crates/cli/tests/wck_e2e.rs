@@ -465,6 +465,17 @@ fn passive_wheel_brake_and_sync_move() {
     // Break: every servo answers at once; the command is heard.
     let out = sim.ok(&["brake"]);
     assert!(out.starts_with("ID"), "{out}");
+    // On a shared bus the reply proves only that the break was heard: the output says so
+    // instead of presenting it as one servo's position.
+    assert!(out.contains("read each servo's status"), "{out}");
+    let r = sim.result(&["brake"]);
+    assert!(
+        r["meaning"]
+            .as_str()
+            .unwrap()
+            .contains("the break was heard"),
+        "{r}"
+    );
     let r = sim.wck(&["wheel", "1", "up", "3"]);
     assert_eq!(r.code, Some(2), "{r:#?}");
     let r = sim.wck(&["wheel", "1", "ccw", "16"]);
@@ -608,7 +619,7 @@ fn ctrl_c_ends_teach_keeps_the_recording_and_exits_130() {
     let dir = tempfile::tempdir().unwrap();
     let f = dir.path().join("taught.txt");
     // At a rate without --duration: until Enter or Ctrl-C; stdin stays open (a pipe).
-    let child = Command::new(env!("CARGO_BIN_EXE_robobus"))
+    let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
         .args([
             "wck",
             "--port",
@@ -627,8 +638,11 @@ fn ctrl_c_ends_teach_keeps_the_recording_and_exits_130() {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
+    // Stdin stays open (wait_with_output would close it: an end of input ends teach).
+    let stdin = child.stdin.take();
     std::thread::sleep(Duration::from_millis(500));
     let out = interrupt(child);
+    drop(stdin);
     assert_eq!(out.status.code(), Some(130), "{out:?}");
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("hold"), "{stderr}");
@@ -638,6 +652,26 @@ fn ctrl_c_ends_teach_keeps_the_recording_and_exits_130() {
     // --on-stop hold: a position move to where each servo stood (nobody moved them).
     assert_eq!(sim.position(0), 127);
     assert_eq!(sim.position(1), 127);
+
+    // Without -o the poses go to stdout as they are recorded: Ctrl-C keeps them too.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .args(["wck", "--port", sim.port(), "--reply-margin", MARGIN])
+        .args(["teach", "0-1", "--rate-hz", "20"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Stdin stays open (wait_with_output would close it: an end of input ends teach).
+    let stdin = child.stdin.take();
+    std::thread::sleep(Duration::from_millis(500));
+    let out = interrupt(child);
+    drop(stdin);
+    assert_eq!(out.status.code(), Some(130), "{out:?}");
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.starts_with("# robobus keyframe motion\n"), "{text}");
+    let poses = text.lines().filter(|l| l.starts_with("pose 50 ")).count();
+    assert!(poses >= 2, "the poses so far are on stdout: {text}");
 }
 
 #[test]

@@ -545,3 +545,68 @@ mod tests {
         assert_eq!(Motion::parse(&m.to_text(&ids)).unwrap(), m);
     }
 }
+
+#[cfg(test)]
+mod limits {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// Any text parses or fails with a position inside it; never panics.
+        #[test]
+        fn any_text_parses_or_points_into_itself(text in "(?s).{0,400}") {
+            match Motion::parse(&text) {
+                Ok(m) => prop_assert!(m.servos() >= 1 && m.servos() <= 31),
+                Err(e) => {
+                    prop_assert!(e.line >= 1 && e.line <= text.lines().count().max(1));
+                    prop_assert!(e.column >= 1);
+                }
+            }
+        }
+
+        /// Valid motions round-trip through their text form, and their streamed moves end
+        /// on the last pose.
+        #[test]
+        fn motions_round_trip_and_end_on_the_last_pose(
+            poses in proptest::collection::vec((0u32..2000, proptest::collection::vec(0u8..=254, 3)), 1..8),
+            rate in 1.0f64..200.0,
+        ) {
+            let mut text = String::from("torque 2\n");
+            for (ms, ps) in &poses {
+                let ps: Vec<String> = ps.iter().map(ToString::to_string).collect();
+                text.push_str(&format!("pose {ms} {}\n", ps.join(" ")));
+            }
+            let m = Motion::parse(&text).unwrap();
+            let ids: Vec<ServoId> = (0..3).map(|i| ServoId::new(i).unwrap()).collect();
+            prop_assert_eq!(&Motion::parse(&m.to_text(&ids)).unwrap(), &m);
+            let last = m.moves(rate).last().unwrap();
+            let Command::SyncMove(s) = last.command else { panic!() };
+            let want: Vec<u8> = poses.last().unwrap().1.clone();
+            prop_assert_eq!(s.positions().iter().map(|p| p.get()).collect::<Vec<_>>(), want);
+            prop_assert_eq!(m.plan(rate).steps.len(), m.moves(rate).count());
+        }
+    }
+
+    #[test]
+    fn files_are_read_with_a_limit() {
+        let e = Motion::load(Path::new("/dev/zero")).unwrap_err();
+        assert_eq!(e.kind(), crate::ErrorKind::BadInput);
+        assert!(e.to_string().contains("limit of 4 MiB"), "{e}");
+    }
+
+    #[test]
+    fn long_motions_are_streamed_not_expanded() {
+        // 1000 transitions of 10 minutes at 200 Hz: 120 million moves if expanded whole.
+        let mut text = String::from("pose 0 0\n");
+        for i in 0..1000 {
+            text.push_str(&format!("pose 600000 {}\n", (i % 2) * 254));
+        }
+        let m = Motion::parse(&text).unwrap();
+        let start = std::time::Instant::now();
+        let first: Vec<WckStep> = m.moves(200.0).take(3).collect();
+        assert_eq!(first.len(), 3);
+        assert_eq!(first[2].at_ms, Some(10));
+        assert!(start.elapsed() < std::time::Duration::from_secs(1));
+        assert_eq!(m.end_ms(), 600_000_000);
+    }
+}
