@@ -574,7 +574,7 @@ mod limits {
             let mut text = String::from("torque 2\n");
             for (ms, ps) in &poses {
                 let ps: Vec<String> = ps.iter().map(ToString::to_string).collect();
-                text.push_str(&format!("pose {ms} {}\n", ps.join(" ")));
+                let _ = writeln!(text, "pose {ms} {}", ps.join(" "));
             }
             let m = Motion::parse(&text).unwrap();
             let ids: Vec<ServoId> = (0..3).map(|i| ServoId::new(i).unwrap()).collect();
@@ -599,7 +599,7 @@ mod limits {
         // 1000 transitions of 10 minutes at 200 Hz: 120 million moves if expanded whole.
         let mut text = String::from("pose 0 0\n");
         for i in 0..1000 {
-            text.push_str(&format!("pose 600000 {}\n", (i % 2) * 254));
+            let _ = writeln!(text, "pose 600000 {}", (i % 2) * 254);
         }
         let m = Motion::parse(&text).unwrap();
         let start = std::time::Instant::now();
