@@ -284,3 +284,37 @@ fn whj_wave_has_one_frame_per_period() {
     let t: Vec<f64> = frames.iter().map(|f| f["t_ms"].as_f64().unwrap()).collect();
     assert_eq!(t, [0.0, 250.0, 500.0, 750.0]);
 }
+
+#[test]
+fn wck_timed_wheel_shows_the_watch_reads_and_the_stop() {
+    let out = ok(&[
+        "wck",
+        "--port",
+        PORT,
+        "--dry-run",
+        "--json",
+        "wheel",
+        "1",
+        "ccw",
+        "10",
+        "--duration",
+        "0.5",
+        "--on-stop",
+        "hold",
+    ]);
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let packets = v["packets"].as_array().unwrap();
+    let seen: Vec<(Option<u64>, &str)> = packets
+        .iter()
+        .map(|p| (p["t_ms"].as_u64(), p["command"].as_str().unwrap()))
+        .collect();
+    assert_eq!(seen.len(), 5, "{out}");
+    assert_eq!(seen[0].0, Some(0));
+    assert_eq!(seen[1].0, Some(200));
+    assert_eq!(seen[2].0, Some(400));
+    assert_eq!(seen[3].0, Some(500));
+    assert_eq!(seen[1].1, seen[3].1, "status reads");
+    assert_eq!(seen[4], (None, "position move"));
+    let notes = v["notes"].to_string();
+    assert!(notes.contains("assumed 127"), "{notes}");
+}

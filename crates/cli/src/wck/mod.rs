@@ -4,8 +4,8 @@
 //! ([`robobus_wck::Command`]). Arguments are parsed into the protocol crate's range-checked
 //! newtypes by clap value parsers, so an out-of-range value is refused (exit code 2, the
 //! message names the value, the range and the argument) before anything is opened. The
-//! subcommand then builds a [`WckPlan`]; `--dry-run` prints it (see [`crate::output`]),
-//! otherwise [`crate::client::execute`] runs it.
+//! subcommand then asks the library ([`robobus::ops::wck`]) for its plan; `--dry-run`
+//! prints it, otherwise [`crate::client::execute`] runs the library's operation on it.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
