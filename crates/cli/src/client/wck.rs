@@ -480,3 +480,21 @@ fn teach<L: ByteLink>(
     result?;
     printed
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use robobus::ops::wck::FieldValue;
+
+    #[test]
+    fn tables_align_columns_and_put_a_meaning_below() {
+        let mut a = Fields::default();
+        a.0.push(("degrees", FieldValue::real(134.0)));
+        let mut b = Fields::default();
+        b.0.push(("degrees", FieldValue::real(1.5)));
+        b.push("meaning", "heard");
+        let t = table(&[&a, &b], &["3".into(), "12".into()]);
+        let lines: Vec<&str> = t.lines().collect();
+        assert_eq!(lines, ["ID  DEGREES", "3   134.0", "12  1.5", "# heard"]);
+    }
+}
