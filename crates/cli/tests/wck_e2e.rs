@@ -206,6 +206,30 @@ fn a_servo_that_does_not_answer_is_exit_3_naming_the_port_and_the_servo() {
     assert_eq!(r.code, Some(3), "{r:#?}");
     assert!(r.stderr.contains("servo 2"), "{}", r.stderr);
     assert_eq!(r.stdout.lines().count(), 3, "{}", r.stdout);
+    // A silent servo does not hide the ones after it.
+    let r = sim.wck(&["status", "2,0,1"]);
+    assert_eq!(r.code, Some(3), "{r:#?}");
+    assert_eq!(
+        r.stdout.lines().count(),
+        3,
+        "servos 0 and 1 are shown: {}",
+        r.stdout
+    );
+    assert!(r.stderr.contains("servo 2"), "{}", r.stderr);
+    let v: Value = serde_json::from_str(&sim.wck(&["--json", "status", "2,0,1"]).stdout).unwrap();
+    assert_eq!(v["results"][0]["kind"], "no-device", "{v}");
+    assert_eq!(v["results"][1]["position"], 127, "{v}");
+    // Confirmed reads: on request for any read, never both ways at once.
+    assert_eq!(
+        sim.result(&["--verify-reads", "status", "0"])["position"],
+        127
+    );
+    assert_eq!(
+        sim.result(&["--no-verify-reads", "get", "gains", "0"])["id"],
+        0
+    );
+    let r = sim.wck(&["--verify-reads", "--no-verify-reads", "status", "0"]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
     // A wrong baud rate: nobody answers.
     let r = sim.wck(&["--baud", "57600", "get", "gains", "0"]);
     assert_eq!(r.code, Some(3), "{r:#?}");

@@ -303,3 +303,28 @@ fn a_scan_with_one_percent_byte_loss_finds_16_servos_and_no_false_duplicate() {
         );
     }
 }
+
+#[test]
+fn a_shared_bus_serves_servo_handles_on_other_threads() {
+    use robobus::ops::wck::SharedWckBus;
+    let mut sim = serve_ids(&[0, 1]);
+    let shared = SharedWckBus::new(sim.bus());
+    let handles: Vec<_> = [0, 1]
+        .into_iter()
+        .map(|i| {
+            let servo = shared.servo(id(i));
+            std::thread::spawn(move || servo.status().unwrap().position.get())
+        })
+        .collect();
+    let positions: Vec<u8> = handles.into_iter().map(|h| h.join().unwrap()).collect();
+    assert_eq!(positions, [127, 127]);
+    let report = shared.with(|bus| {
+        wck::run_steps(
+            bus,
+            "status",
+            &WckPlan::one(Command::StatusRead { id: id(1) }),
+            &mut Control::none(),
+        )
+    });
+    assert!(report.unwrap().results[0].is_ok());
+}
