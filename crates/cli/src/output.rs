@@ -1,7 +1,7 @@
 //! What a wCK or WHJ command would send, and how `--dry-run` prints it.
 //!
-//! Every `robobus wck` / `robobus whj` subcommand first builds a plan ([`WckPlan`],
-//! [`WhjPlan`]): the validated, typed commands in the order they go on the wire, with the
+//! Every `robobus wck` / `robobus whj` subcommand first builds a plan (wCK: the library's
+//! [`robobus::ops::wck::WckPlan`], [`WhjPlan`]): the validated, typed commands in the order they go on the wire, with the
 //! time each is due. `--dry-run` prints the plan; a real run hands it to [`crate::client`].
 //!
 //! # Text format (stdout)
@@ -25,97 +25,8 @@
 use std::fmt::Write as _;
 use std::io::Write as _;
 
-use robobus_wck::{BaudRate, Command};
 use robobus_whj::{CanFrame, Request};
 use serde_json::{Value, json};
-
-/// One wCK packet to send.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub(crate) struct WckStep {
-    /// When it is due, ms after the start; `None` = right after the previous exchange.
-    pub(crate) at_ms: Option<u64>,
-    /// The baud rate it goes at, if the plan switches rates (`scan --all-bauds`).
-    pub(crate) baud: Option<BaudRate>,
-    /// The command.
-    pub(crate) command: Command,
-}
-
-/// The packets a `robobus wck` command sends, in order.
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
-pub(crate) struct WckPlan {
-    /// Notes printed as comments (assumptions, pacing).
-    pub(crate) notes: Vec<String>,
-    /// The packets.
-    pub(crate) steps: Vec<WckStep>,
-}
-
-impl WckPlan {
-    /// A plan of one command.
-    pub(crate) fn one(command: Command) -> Self {
-        Self {
-            notes: Vec::new(),
-            steps: vec![WckStep {
-                at_ms: None,
-                baud: None,
-                command,
-            }],
-        }
-    }
-
-    /// Appends a command sent right after the previous exchange.
-    pub(crate) fn push(&mut self, command: Command) {
-        self.steps.push(WckStep {
-            at_ms: None,
-            baud: None,
-            command,
-        });
-    }
-
-    /// The text form (see the module docs), one line per packet or comment.
-    pub(crate) fn to_text(&self) -> String {
-        let mut s = String::new();
-        for n in &self.notes {
-            let _ = writeln!(s, "# {n}");
-        }
-        let mut baud = None;
-        for step in &self.steps {
-            if step.baud.is_some() && step.baud != baud {
-                if let Some(b) = step.baud {
-                    let _ = writeln!(s, "# {b}");
-                }
-                baud = step.baud;
-            }
-            let _ = writeln!(s, "{}", step.command.encode());
-        }
-        s
-    }
-
-    /// The JSON form (see the module docs).
-    pub(crate) fn to_json(&self, port: &str, baud: BaudRate) -> Value {
-        let packets: Vec<Value> = self
-            .steps
-            .iter()
-            .map(|st| {
-                let p = st.command.encode();
-                json!({
-                    "t_ms": st.at_ms,
-                    "baud": st.baud.unwrap_or(baud).bits_per_second(),
-                    "command": st.command.name(),
-                    "target": st.command.target().to_string(),
-                    "hex": p.to_string(),
-                    "bytes": p.as_bytes(),
-                    "reply_len": st.command.reply_len(),
-                })
-            })
-            .collect();
-        json!({
-            "dry_run": true,
-            "bus": {"kind": "wck", "port": port, "baud": baud.bits_per_second()},
-            "notes": self.notes,
-            "packets": packets,
-        })
-    }
-}
 
 /// One WHJ request to send.
 #[derive(Debug, Clone, PartialEq, Eq)]

@@ -94,7 +94,10 @@ fn wck_values_out_of_range_are_refused_before_anything_is_opened() {
             &with(&["set-id", "3", "254"]),
             &["<NEW_ID>", "254", "0..=253"],
         );
-        refused(&with(&["status", "0-31"]), &["<IDS>", "servo id 31"]);
+        refused(
+            &with(&["status", "0-31"]),
+            &["<IDS>", "servo ID 31", "0..=30"],
+        );
         refused(&with(&["status", "5-2"]), &["<IDS>", "backwards"]);
         refused(
             &with(&["move", "3", "x"]),

@@ -100,11 +100,15 @@ fn wck_program_check_reports_line_and_column() {
 
 #[test]
 fn wck_scan_reads_every_id_and_all_bauds_switch_rates() {
+    // The dry-run assumes that nobody answers: each ID is read twice (the real run's
+    // second probe of a silent ID), as the plan's note says.
     let packets = wck(&["scan"]);
-    assert_eq!(packets.len(), 31);
+    assert_eq!(packets.len(), 62);
     assert_eq!(packets[0], "FF A0 00 20");
+    assert_eq!(packets[1], "FF A0 00 20");
     let out = ok(&["wck", "--dry-run", "scan", "--all-bauds", "--ids", "0-1"]);
-    assert_eq!(lines(&out).len(), 16);
+    assert!(out.contains("2 times if it stays silent"), "{out}");
+    assert_eq!(lines(&out).len(), 32);
     assert!(out.contains("# 4800 bit/s\nFF A0 00 20\n"), "{out}");
     assert!(out.contains("# 921600 bit/s\n"), "{out}");
 }
@@ -279,4 +283,38 @@ fn whj_wave_has_one_frame_per_period() {
     );
     let t: Vec<f64> = frames.iter().map(|f| f["t_ms"].as_f64().unwrap()).collect();
     assert_eq!(t, [0.0, 250.0, 500.0, 750.0]);
+}
+
+#[test]
+fn wck_timed_wheel_shows_the_watch_reads_and_the_stop() {
+    let out = ok(&[
+        "wck",
+        "--port",
+        PORT,
+        "--dry-run",
+        "--json",
+        "wheel",
+        "1",
+        "ccw",
+        "10",
+        "--duration",
+        "0.5",
+        "--on-stop",
+        "hold",
+    ]);
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let packets = v["packets"].as_array().unwrap();
+    let seen: Vec<(Option<u64>, &str)> = packets
+        .iter()
+        .map(|p| (p["t_ms"].as_u64(), p["command"].as_str().unwrap()))
+        .collect();
+    assert_eq!(seen.len(), 5, "{out}");
+    assert_eq!(seen[0].0, Some(0));
+    assert_eq!(seen[1].0, Some(200));
+    assert_eq!(seen[2].0, Some(400));
+    assert_eq!(seen[3].0, Some(500));
+    assert_eq!(seen[1].1, seen[3].1, "status reads");
+    assert_eq!(seen[4], (None, "position move"));
+    let notes = v["notes"].to_string();
+    assert!(notes.contains("assumed 127"), "{notes}");
 }

@@ -206,6 +206,30 @@ fn a_servo_that_does_not_answer_is_exit_3_naming_the_port_and_the_servo() {
     assert_eq!(r.code, Some(3), "{r:#?}");
     assert!(r.stderr.contains("servo 2"), "{}", r.stderr);
     assert_eq!(r.stdout.lines().count(), 3, "{}", r.stdout);
+    // A silent servo does not hide the ones after it.
+    let r = sim.wck(&["status", "2,0,1"]);
+    assert_eq!(r.code, Some(3), "{r:#?}");
+    assert_eq!(
+        r.stdout.lines().count(),
+        3,
+        "servos 0 and 1 are shown: {}",
+        r.stdout
+    );
+    assert!(r.stderr.contains("servo 2"), "{}", r.stderr);
+    let v: Value = serde_json::from_str(&sim.wck(&["--json", "status", "2,0,1"]).stdout).unwrap();
+    assert_eq!(v["results"][0]["kind"], "no-device", "{v}");
+    assert_eq!(v["results"][1]["position"], 127, "{v}");
+    // Confirmed reads: on request for any read, never both ways at once.
+    assert_eq!(
+        sim.result(&["--verify-reads", "status", "0"])["position"],
+        127
+    );
+    assert_eq!(
+        sim.result(&["--no-verify-reads", "get", "gains", "0"])["id"],
+        0
+    );
+    let r = sim.wck(&["--verify-reads", "--no-verify-reads", "status", "0"]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
     // A wrong baud rate: nobody answers.
     let r = sim.wck(&["--baud", "57600", "get", "gains", "0"]);
     assert_eq!(r.code, Some(3), "{r:#?}");
@@ -368,9 +392,10 @@ fn set_id_and_set_baud_are_verified_and_take_effect() {
     assert_eq!(sim.position(7), 127);
     let r = sim.wck(&["status", "1"]);
     assert_eq!(r.code, Some(3), "the old ID no longer answers: {r:#?}");
-    // An ID that is taken is refused (the client checks first).
+    // An ID that is taken is refused (the client checks first): a refusal, exit code 2
+    // (the library's error kind `refused`; nothing changed on the servo).
     let r = sim.wck(&["--yes", "set-id", "7", "0"]);
-    assert_eq!(r.code, Some(1), "{r:#?}");
+    assert_eq!(r.code, Some(2), "{r:#?}");
     assert!(r.stderr.contains("already answers"), "{}", r.stderr);
     sim.ok(&["--yes", "set-id", "7", "1"]);
     assert_eq!(sim.position(1), 127);
@@ -464,6 +489,17 @@ fn passive_wheel_brake_and_sync_move() {
     // Break: every servo answers at once; the command is heard.
     let out = sim.ok(&["brake"]);
     assert!(out.starts_with("ID"), "{out}");
+    // On a shared bus the reply proves only that the break was heard: the output says so
+    // instead of presenting it as one servo's position.
+    assert!(out.contains("read each servo's status"), "{out}");
+    let r = sim.result(&["brake"]);
+    assert!(
+        r["meaning"]
+            .as_str()
+            .unwrap()
+            .contains("the break was heard"),
+        "{r}"
+    );
     let r = sim.wck(&["wheel", "1", "up", "3"]);
     assert_eq!(r.code, Some(2), "{r:#?}");
     let r = sim.wck(&["wheel", "1", "ccw", "16"]);
@@ -607,7 +643,7 @@ fn ctrl_c_ends_teach_keeps_the_recording_and_exits_130() {
     let dir = tempfile::tempdir().unwrap();
     let f = dir.path().join("taught.txt");
     // At a rate without --duration: until Enter or Ctrl-C; stdin stays open (a pipe).
-    let child = Command::new(env!("CARGO_BIN_EXE_robobus"))
+    let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
         .args([
             "wck",
             "--port",
@@ -626,8 +662,11 @@ fn ctrl_c_ends_teach_keeps_the_recording_and_exits_130() {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
+    // Stdin stays open (wait_with_output would close it: an end of input ends teach).
+    let stdin = child.stdin.take();
     std::thread::sleep(Duration::from_millis(500));
     let out = interrupt(child);
+    drop(stdin);
     assert_eq!(out.status.code(), Some(130), "{out:?}");
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("hold"), "{stderr}");
@@ -637,6 +676,26 @@ fn ctrl_c_ends_teach_keeps_the_recording_and_exits_130() {
     // --on-stop hold: a position move to where each servo stood (nobody moved them).
     assert_eq!(sim.position(0), 127);
     assert_eq!(sim.position(1), 127);
+
+    // Without -o the poses go to stdout as they are recorded: Ctrl-C keeps them too.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .args(["wck", "--port", sim.port(), "--reply-margin", MARGIN])
+        .args(["teach", "0-1", "--rate-hz", "20"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Stdin stays open (wait_with_output would close it: an end of input ends teach).
+    let stdin = child.stdin.take();
+    std::thread::sleep(Duration::from_millis(500));
+    let out = interrupt(child);
+    drop(stdin);
+    assert_eq!(out.status.code(), Some(130), "{out:?}");
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.starts_with("# robobus keyframe motion\n"), "{text}");
+    let poses = text.lines().filter(|l| l.starts_with("pose 50 ")).count();
+    assert!(poses >= 2, "the poses so far are on stdout: {text}");
 }
 
 #[test]

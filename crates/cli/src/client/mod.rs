@@ -1,11 +1,11 @@
 //! The one place where a planned command meets a device.
 //!
 //! Every `robobus wck` / `robobus whj` subcommand validates its arguments and builds a plan
-//! ([`crate::output::WckPlan`] / [`crate::output::WhjPlan`]) before anything is opened.
+//! ([`robobus::ops::wck::WckPlan`] / [`crate::output::WhjPlan`]) before anything is opened.
 //! `--dry-run` prints the plan; otherwise the plan comes here, to [`execute`].
 //!
-//! - wCK plans run through the `robobus` client library ([`robobus::wck::WckBus`]): see
-//!   [`wck`] for how each kind of run prints its results and maps errors to exit codes.
+//! - wCK plans run through the library's operations ([`robobus::ops::wck`]): see [`wck`]
+//!   for how each report is rendered.
 //! - WHJ plans run through [`robobus::whj::JointBus`]: see [`whj`] (the plan is what
 //!   `--dry-run` prints; the run is the typed [`whj::WhjRun`]).
 
@@ -14,7 +14,9 @@ use std::io::{BufRead as _, IsTerminal as _, Write as _};
 use robobus_whj::{Request, registers};
 
 use crate::exit::usage;
-use crate::output::{WckPlan, WhjPlan};
+use robobus::ops::wck::WckPlan;
+
+use crate::output::WhjPlan;
 
 pub(crate) mod wck;
 pub(crate) mod whj;
@@ -32,10 +34,12 @@ pub(crate) enum Job<'a> {
         baud: robobus_wck::BaudRate,
         /// `--reply-margin`, if given.
         margin: Option<core::time::Duration>,
+        /// Equal replies a read needs (`--verify-reads`).
+        confirm_reads: u8,
         /// What to send.
         plan: &'a WckPlan,
         /// How to run the plan (one exchange per step, or a scan / teach / play loop).
-        run: wck::WckRun<'a>,
+        run: wck::WckRun,
         /// `--json`: one JSON document on stdout instead of a table.
         json: bool,
     },
@@ -60,7 +64,7 @@ impl Job<'_> {
     /// Whether the plan rewrites a device's non-volatile memory (wCK EEPROM, WHJ flash).
     pub(crate) fn rewrites_memory(&self) -> bool {
         match self {
-            Job::Wck { plan, .. } => plan.steps.iter().any(|s| s.command.writes_eeprom()),
+            Job::Wck { plan, .. } => plan.writes_eeprom(),
             Job::Whj { plan, .. } => plan.steps.iter().any(|s| {
                 matches!(s.request, Request::Write { addr, .. }
                     if addr == registers::addr::SYS_SAVE_TO_FLASH || addr == registers::addr::SYS_ID)
@@ -107,6 +111,7 @@ pub(crate) fn execute(job: &Job<'_>, yes: bool) -> anyhow::Result<()> {
             port,
             baud,
             margin,
+            confirm_reads,
             plan,
             run,
             json,
@@ -115,6 +120,7 @@ pub(crate) fn execute(job: &Job<'_>, yes: bool) -> anyhow::Result<()> {
             port,
             baud: *baud,
             margin: *margin,
+            confirm_reads: *confirm_reads,
             plan,
             run,
             json: *json,

@@ -4,15 +4,19 @@
 //! ([`robobus_wck::Command`]). Arguments are parsed into the protocol crate's range-checked
 //! newtypes by clap value parsers, so an out-of-range value is refused (exit code 2, the
 //! message names the value, the range and the argument) before anything is opened. The
-//! subcommand then builds a [`WckPlan`]; `--dry-run` prints it (see [`crate::output`]),
-//! otherwise [`crate::client::execute`] runs it.
+//! subcommand then asks the library ([`robobus::ops::wck`]) for its plan; `--dry-run`
+//! prints it, otherwise [`crate::client::execute`] runs the library's operation on it.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use anyhow::Context as _;
 use clap::{Subcommand, ValueEnum};
+use robobus::ops::IdList;
+use robobus::ops::wck::{
+    FORMAT_HELP, Motion, ScanArgs, TeachArgs, TeachTrigger, WckPlan, WheelArgs, step_line,
+};
+use robobus::ops::{OpError, read_bounded};
 use robobus_wck::program::Program;
 use robobus_wck::{
     Accel, BaudRate, Boundaries, Command, DGain, DataByte, ExtServoId, IGain, IoBits, Overload,
@@ -22,12 +26,10 @@ use robobus_wck::{
 use serde_json::json;
 
 use crate::Global;
-use crate::client::wck::{OnStop, Teach, WckRun};
+use crate::client::wck::{OnStop, WckRun};
 use crate::client::{Job, execute};
 use crate::exit::usage;
-use crate::output::{self, WckPlan, WckStep};
-
-pub(crate) mod play;
+use crate::output;
 
 const AFTER_HELP: &str = "\
 IDs: 4- and 6-byte commands address servos 0..=30 (31 is the broadcast ID used by
@@ -64,6 +66,15 @@ pub(crate) struct Args {
     /// for a simulator on a heavily loaded machine.
     #[arg(long, value_name = "MS", value_parser = parse_margin, global = true)]
     reply_margin: Option<core::time::Duration>,
+    /// Accept a read only when two replies in a row agree (wCK replies carry no checksum,
+    /// so line noise can look like a value). On by default for `get` (gains, speed,
+    /// over-load, bounds, I/O); this turns it on for every read (status, scan excepted).
+    /// Costs one more exchange per read (about 1.5 ms at 115200 bit/s).
+    #[arg(long, global = true, conflicts_with = "no_verify_reads")]
+    verify_reads: bool,
+    /// Accept a `get` read from a single reply (faster, but noise may pass as a value).
+    #[arg(long, global = true)]
+    no_verify_reads: bool,
     /// What to do.
     #[command(subcommand)]
     command: WckCommand,
@@ -221,7 +232,7 @@ enum WckCommand {
     },
     /// Play a keyframe motion file: poses with transition times, interpolated and sent as
     /// synchronized moves.
-    #[command(after_help = play::FORMAT_HELP)]
+    #[command(after_help = FORMAT_HELP)]
     Play {
         /// The keyframe motion file.
         file: PathBuf,
@@ -386,8 +397,7 @@ comment.
   end";
 
 /// A parsed list of servo IDs (`0-5,7`), in the order given, without repeats.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub(crate) struct ServoIds(pub(crate) Vec<ServoId>);
+type ServoIds = IdList<ServoId>;
 
 /// Parses a number: decimal or `0x` hex.
 pub(crate) fn parse_u32(s: &str) -> Result<u32, String> {
@@ -504,43 +514,17 @@ fn parse_seconds(s: &str) -> Result<Duration, String> {
     }
 }
 
-/// Parses `0-5,7` into servo IDs 0..=30 (order kept, repeats dropped).
-pub(crate) fn parse_servo_ids(spec: &str) -> Result<ServoIds, String> {
-    let mut ids: Vec<ServoId> = Vec::new();
-    for part in spec.split(',').map(str::trim).filter(|p| !p.is_empty()) {
-        let (lo, hi) = if let Some((a, b)) = part.split_once('-') {
-            (parse_servo_id(a)?, parse_servo_id(b)?)
-        } else {
-            let id = parse_servo_id(part)?;
-            (id, id)
-        };
-        if lo > hi {
-            return Err(format!(
-                "range {lo}-{hi} runs backwards (write the lower ID first)"
-            ));
-        }
-        for raw in lo.get()..=hi.get() {
-            let id = ServoId::new(raw).map_err(|e| e.to_string())?;
-            if !ids.contains(&id) {
-                ids.push(id);
-            }
-        }
-    }
-    if ids.is_empty() {
-        return Err(format!(
-            "`{spec}` names no servo IDs (examples: `3`, `0-5,7`; allowed 0..=30)"
-        ));
-    }
-    Ok(ServoIds(ids))
+fn parse_servo_ids(spec: &str) -> Result<ServoIds, String> {
+    spec.parse()
 }
 
-fn read_file(path: &Path) -> anyhow::Result<String> {
-    std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))
-}
+/// The largest motion program file read (a program has at most 8 instructions).
+const PROGRAM_FILE_LIMIT: u64 = 64 << 10;
 
-/// Parses a motion program file; a syntax error is a usage error with `FILE:line:column`.
+/// Parses a motion program file of at most 64 KiB; a syntax error is a usage error with
+/// `FILE:line:column`.
 fn load_program(path: &Path) -> anyhow::Result<Program> {
-    let text = read_file(path)?;
+    let text = read_bounded(path, PROGRAM_FILE_LIMIT)?;
     Program::parse(&text).map_err(|e| {
         usage(format!(
             "{}:{}:{}: {}",
@@ -552,73 +536,86 @@ fn load_program(path: &Path) -> anyhow::Result<Program> {
     })
 }
 
+/// A keyframe file, bounded; a syntax error is a usage error with `FILE:line:column`.
+fn load_motion(path: &Path) -> anyhow::Result<Motion> {
+    Motion::load(path).map_err(|e| match e {
+        OpError::Invalid { value, .. } => usage(value),
+        other => other.into(),
+    })
+}
+
 /// Runs `robobus wck`.
 pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     let action = action_name(&args.command);
     if let WckCommand::Program(ProgramCommand::Check { file, id }) = &args.command {
         return check_program(g, file, *id);
     }
-    let plan = plan(args)?;
+    let (plan, run) = plan(args)?;
     if g.dry_run {
         let port = args.port.as_deref().unwrap_or("(none)");
-        return if g.json {
-            output::print_json(&plan.to_json(port, args.baud))
-        } else {
-            output::print(&plan.to_text())
-        };
+        return dry_run(g, &plan, &run, port, args.baud);
     }
     let Some(port) = args.port.as_deref() else {
         return Err(usage(
             "robobus wck: --port PATH is required (e.g. --port /dev/ttyUSB0), unless --dry-run is given",
         ));
     };
-    let teach;
-    let run = match &args.command {
-        WckCommand::Scan { all_bauds, ids } => WckRun::Scan {
-            ids: &ids.0,
-            all_bauds: *all_bauds,
+    let confirm_reads = robobus::ops::wck::confirm_reads_for(
+        &plan,
+        match (args.verify_reads, args.no_verify_reads) {
+            (true, _) => Some(true),
+            (_, true) => Some(false),
+            _ => None,
         },
-        WckCommand::Wheel {
-            duration, on_stop, ..
-        } => WckRun::Wheel {
-            duration: *duration,
-            on_stop: *on_stop,
-        },
-        WckCommand::Teach {
-            ids,
-            rate_hz,
-            duration,
-            pose_ms,
-            torque,
-            output,
-            on_stop,
-        } => {
-            teach = Teach {
-                ids: ids.0.clone(),
-                rate_hz: *rate_hz,
-                duration: *duration,
-                pose_ms: *pose_ms,
-                torque: *torque,
-                output: output.clone(),
-                on_stop: *on_stop,
-            };
-            WckRun::Teach(&teach)
-        }
-        WckCommand::Play { on_stop, .. } => WckRun::Play { on_stop: *on_stop },
-        _ => WckRun::Steps,
-    };
+    );
     execute(
         &Job::Wck {
             action,
             port,
             baud: args.baud,
             margin: args.reply_margin,
+            confirm_reads,
             plan: &plan,
             run,
             json: g.json,
         },
         g.yes,
     )
+}
+
+/// `--dry-run`: the plan; a keyframe motion's moves are streamed as text.
+fn dry_run(
+    g: Global,
+    plan: &WckPlan,
+    run: &WckRun,
+    port: &str,
+    baud: BaudRate,
+) -> anyhow::Result<()> {
+    if let WckRun::Play {
+        motion, rate_hz, ..
+    } = run
+    {
+        if g.json {
+            return output::print_json(&serde_json::to_value(
+                motion.plan(*rate_hz).dry_run(port, baud),
+            )?);
+        }
+        let mut text = format!("# {}\n", Motion::plan_note(*rate_hz));
+        let mut rate = None;
+        for step in motion.moves(*rate_hz) {
+            step_line(&mut text, &step, &mut rate);
+            if text.len() > 1 << 16 {
+                output::print(&text)?;
+                text.clear();
+            }
+        }
+        return output::print(&text);
+    }
+    if g.json {
+        output::print_json(&serde_json::to_value(plan.dry_run(port, baud))?)
+    } else {
+        output::print(&plan.to_text())
+    }
 }
 
 fn action_name(c: &WckCommand) -> &'static str {
@@ -644,38 +641,23 @@ fn action_name(c: &WckCommand) -> &'static str {
     }
 }
 
-/// The validated packets of a subcommand.
+/// The validated plan of a subcommand (the library's) and how it runs.
 #[allow(clippy::too_many_lines)] // one arm per subcommand
-fn plan(args: &Args) -> anyhow::Result<WckPlan> {
-    Ok(match &args.command {
+fn plan(args: &Args) -> anyhow::Result<(WckPlan, WckRun)> {
+    let one = |c| Ok((WckPlan::one(c), WckRun::Steps));
+    match &args.command {
         WckCommand::Scan { all_bauds, ids } => {
-            let bauds: Vec<BaudRate> = if *all_bauds {
-                BaudRate::ALL.to_vec()
-            } else {
-                vec![args.baud]
-            };
-            let mut plan = WckPlan::default();
-            plan.notes.push(
-                "a status read per ID; an ID that answers within the reply timeout is present"
-                    .into(),
-            );
-            for baud in bauds {
-                for &id in &ids.0 {
-                    plan.steps.push(WckStep {
-                        at_ms: None,
-                        baud: all_bauds.then_some(baud),
-                        command: Command::StatusRead { id },
-                    });
-                }
-            }
-            plan
+            let scan = ScanArgs::new(ids.as_slice().to_vec(), args.baud, *all_bauds);
+            Ok((scan.plan(&|_, _| false), WckRun::Scan(scan)))
         }
-        WckCommand::Status { ids } => each(ids, |id| Command::StatusRead { id }),
+        WckCommand::Status { ids } => {
+            Ok((each(ids, |id| Command::StatusRead { id }), WckRun::Steps))
+        }
         WckCommand::Move {
             id,
             position,
             torque,
-        } => WckPlan::one(Command::Move {
+        } => one(Command::Move {
             id: *id,
             torque: *torque,
             position: *position,
@@ -684,36 +666,42 @@ fn plan(args: &Args) -> anyhow::Result<WckPlan> {
             id,
             position,
             torque,
-        } => WckPlan::one(Command::Move10 {
+        } => one(Command::Move10 {
             id: *id,
             torque: *torque,
             position: *position,
         }),
-        WckCommand::Read10 { id } => WckPlan::one(Command::Read10 { id: *id }),
+        WckCommand::Read10 { id } => one(Command::Read10 { id: *id }),
         WckCommand::SyncMove { positions, torque } => {
             let sync = SyncMove::new(*torque, positions).map_err(|e| {
                 usage(format!(
                     "sync-move <POSITIONS>: {e} (one position per servo 0..=30)"
                 ))
             })?;
-            WckPlan::one(Command::SyncMove(sync))
+            one(Command::SyncMove(sync))
         }
-        WckCommand::Passive { ids } => each(ids, |id| Command::Passive { id }),
+        WckCommand::Passive { ids } => Ok((each(ids, |id| Command::Passive { id }), WckRun::Steps)),
         WckCommand::Wheel {
             id,
             direction,
             speed,
-            ..
-        } => WckPlan::one(Command::Wheel {
-            id: *id,
-            rotation: match direction {
-                Direction::Ccw => Rotation::Ccw,
-                Direction::Cw => Rotation::Cw,
-            },
-            speed: *speed,
-        }),
-        WckCommand::Brake => WckPlan::one(Command::Break),
-        WckCommand::Get(p) => WckPlan::one(match p {
+            duration,
+            on_stop,
+        } => {
+            let wheel = WheelArgs {
+                id: *id,
+                rotation: match direction {
+                    Direction::Ccw => Rotation::Ccw,
+                    Direction::Cw => Rotation::Cw,
+                },
+                speed: *speed,
+                duration: *duration,
+                on_stop: (*on_stop).into(),
+            };
+            Ok((wheel.plan(), WckRun::Wheel(wheel)))
+        }
+        WckCommand::Brake => one(Command::Break),
+        WckCommand::Get(p) => one(match p {
             GetParam::Gains(a) => Command::GainRead { id: a.id },
             GetParam::IGain(a) => Command::IGainRead { id: a.id },
             GetParam::Speed(a) => Command::SpeedRead { id: a.id },
@@ -721,80 +709,77 @@ fn plan(args: &Args) -> anyhow::Result<WckPlan> {
             GetParam::Bounds(a) => Command::BoundaryRead { id: a.id },
             GetParam::Io(a) => Command::IoRead { id: a.id },
         }),
-        WckCommand::Set(p) => WckPlan::one(set_command(p)?),
-        WckCommand::SetId { id, new_id } => WckPlan::one(Command::IdSet {
+        WckCommand::Set(p) => one(set_command(p)?),
+        WckCommand::SetId { id, new_id } => one(Command::IdSet {
             id: *id,
             new_id: *new_id,
         }),
-        WckCommand::SetBaud { id, rate } => WckPlan::one(Command::BaudSet {
+        WckCommand::SetBaud { id, rate } => one(Command::BaudSet {
             id: *id,
             baud: *rate,
         }),
-        WckCommand::Program(ProgramCommand::Upload { id, file }) => {
-            WckPlan::one(Command::MotionWrite {
-                id: *id,
-                program: load_program(file)?,
-            })
-        }
+        WckCommand::Program(ProgramCommand::Upload { id, file }) => one(Command::MotionWrite {
+            id: *id,
+            program: load_program(file)?,
+        }),
         WckCommand::Program(ProgramCommand::Download { id } | ProgramCommand::Check { id, .. }) => {
-            WckPlan::one(Command::MotionRead { id: *id })
+            one(Command::MotionRead { id: *id })
         }
         WckCommand::Teach {
             ids,
             rate_hz,
             duration,
-            ..
+            pose_ms,
+            torque,
+            output,
+            on_stop,
         } => {
-            check_teach_ids(ids)?;
-            let mut plan = each(ids, |id| Command::Passive { id });
-            let when = match (rate_hz, duration) {
-                (None, None) => "once per Enter until q / end of input / Ctrl-C".to_string(),
-                (rate, None) => format!(
-                    "{} times per second until Enter / Ctrl-C",
-                    rate.unwrap_or(10.0)
-                ),
-                (rate, Some(d)) => format!(
-                    "{} times per second for {} s",
-                    rate.unwrap_or(10.0),
-                    d.as_secs_f64()
-                ),
+            let trigger = match (rate_hz, duration) {
+                (None, None) => TeachTrigger::Events { pose_ms: *pose_ms },
+                (rate, duration) => TeachTrigger::Rate {
+                    rate_hz: rate.unwrap_or(10.0),
+                    duration: *duration,
+                },
             };
-            plan.notes.push(format!(
-                "teach: the passive round below repeats {when}; each reply's position is recorded"
-            ));
-            plan
+            let teach = TeachArgs {
+                ids: ids.as_slice().to_vec(),
+                trigger,
+                torque: *torque,
+                on_stop: (*on_stop).into(),
+            };
+            teach.check().map_err(|e| usage(e.to_string()))?;
+            let plan = teach.plan();
+            Ok((
+                plan,
+                WckRun::Teach {
+                    args: teach,
+                    output: output.clone(),
+                },
+            ))
         }
-        WckCommand::Play { file, rate_hz, .. } => {
-            let text = read_file(file)?;
-            let motion =
-                play::Motion::parse(&text).map_err(|e| usage(format!("{}:{e}", file.display())))?;
-            motion.plan(*rate_hz)
+        WckCommand::Play {
+            file,
+            rate_hz,
+            on_stop,
+        } => {
+            let motion = load_motion(file)?;
+            let mut plan = WckPlan::default();
+            plan.notes.push(Motion::plan_note(*rate_hz));
+            Ok((
+                plan,
+                WckRun::Play {
+                    motion,
+                    rate_hz: *rate_hz,
+                    on_stop: (*on_stop).into(),
+                },
+            ))
         }
-    })
-}
-
-/// A pose lists servos 0, 1, ... in order, so teach records exactly servos 0..N-1.
-fn check_teach_ids(ids: &ServoIds) -> anyhow::Result<()> {
-    let contiguous = ids
-        .0
-        .iter()
-        .enumerate()
-        .all(|(i, id)| usize::from(id.get()) == i);
-    if contiguous {
-        Ok(())
-    } else {
-        let given: Vec<String> = ids.0.iter().map(ToString::to_string).collect();
-        Err(usage(format!(
-            "teach <IDS>: got servo(s) {}; a keyframe file lists servos 0, 1, 2, ... in order, \
-             so teach records servos 0..N-1 (e.g. `0-5`)",
-            given.join(",")
-        )))
     }
 }
 
 fn each(ids: &ServoIds, f: impl Fn(ServoId) -> Command) -> WckPlan {
     let mut plan = WckPlan::default();
-    for &id in &ids.0 {
+    for &id in ids.as_slice() {
         plan.push(f(id));
     }
     plan

@@ -48,6 +48,7 @@ use serde::Serialize;
 pub mod capture;
 mod ids;
 pub mod replay;
+pub mod wck;
 
 pub use crate::error::ErrorKind;
 pub use crate::robot::SafeState;

@@ -356,21 +356,32 @@ impl Hardware {
     fn apply_safe_states(&mut self) -> Vec<String> {
         let mut errors = Vec::new();
         for (b, slot) in self.wck.iter_mut().enumerate() {
-            match slot.safe {
-                SafeState::Break => {
-                    if let Err(e) = slot.bus.break_all() {
-                        errors.push(format!("bus {}: break: {e}", slot.name));
-                    }
-                }
-                _ => {
-                    for joint in &self.joints {
-                        if let Device::Wck { bus, id, .. } = joint.device
-                            && bus == b
-                            && let Err(e) = slot.bus.servo(id).passive()
-                        {
-                            errors.push(format!("{}: passive: {e}", joint.name));
-                        }
-                    }
+            // The one wCK safe stop (`ops::wck::apply_each`); a robot's wCK bus is passive
+            // unless its file asks for the break.
+            let state = if slot.safe == SafeState::Break {
+                SafeState::Break
+            } else {
+                SafeState::Passive
+            };
+            let joints: Vec<(&str, robobus_wck::ServoId)> = self
+                .joints
+                .iter()
+                .filter_map(|j| match j.device {
+                    Device::Wck { bus, id, .. } if bus == b => Some((j.name.as_str(), id)),
+                    _ => None,
+                })
+                .collect();
+            let ids: Vec<robobus_wck::ServoId> = joints.iter().map(|(_, id)| *id).collect();
+            let failed = crate::ops::wck::apply_each(
+                &mut slot.bus,
+                &ids,
+                state,
+                robobus_wck::TorqueLevel::MIN,
+            );
+            for (id, e) in failed {
+                match id.and_then(|id| joints.iter().find(|(_, j)| *j == id)) {
+                    Some((name, _)) => errors.push(format!("{name}: passive: {e}")),
+                    None => errors.push(format!("bus {}: break: {e}", slot.name)),
                 }
             }
         }

@@ -21,6 +21,9 @@ pub const DEFAULT_MARGIN: Duration = Duration::from_millis(10);
 /// Default quiet time that ends the drain after a failed attempt.
 pub const DEFAULT_SETTLE: Duration = Duration::from_millis(2);
 
+/// Default time after a reply deadline during which a late reply may still arrive.
+pub const DEFAULT_LATE_WINDOW: Duration = Duration::from_millis(50);
+
 /// Longest a drain after a failed attempt may last, however noisy the line.
 const MAX_DRAIN: Duration = Duration::from_millis(50);
 
@@ -54,6 +57,15 @@ pub struct WckConfig {
     /// for the next one. Default
     /// [`DEFAULT_SETTLE`] (2 ms).
     pub settle: Duration,
+    /// How long after its deadline a reply may still arrive (a module, adapter or host
+    /// that was slow). wCK replies carry no ID, so such a reply would be taken for the
+    /// answer to whatever is asked next. After an attempt that timed out or got a garbled
+    /// reply, and after a success that needed a retry (an earlier attempt's reply may have
+    /// been taken, this attempt's own is then still on its way), the next packet waits
+    /// until this long after that attempt's deadline, dropping what arrives. Costs this
+    /// much per silent servo (a scan of 31 empty IDs at one rate: about 3 s more with the
+    /// default [`DEFAULT_LATE_WINDOW`], 50 ms); nothing while every reply is on time.
+    pub late_window: Duration,
 }
 
 impl Default for WckConfig {
@@ -63,6 +75,7 @@ impl Default for WckConfig {
             margin: DEFAULT_MARGIN,
             confirm_reads: 0,
             settle: DEFAULT_SETTLE,
+            late_window: DEFAULT_LATE_WINDOW,
         }
     }
 }
@@ -109,6 +122,10 @@ pub struct WckBus<L> {
     config: WckConfig,
     device: String,
     stats: WckStats,
+    /// The last attempt's reply deadline.
+    deadline: Option<Instant>,
+    /// Input is dropped until then before the next packet (a late reply may come).
+    quiet_until: Option<Instant>,
 }
 
 #[cfg(unix)]
@@ -155,6 +172,8 @@ impl<L: ByteLink> WckBus<L> {
             config: WckConfig::default(),
             device,
             stats: WckStats::default(),
+            deadline: None,
+            quiet_until: None,
         })
     }
 
@@ -373,21 +392,46 @@ impl<L: ByteLink> WckBus<L> {
 
     /// One attempt: flush, write, read two bytes before the deadline.
     pub(crate) fn exchange(&mut self, command: &Command) -> Result<[u8; 2], Failure> {
+        self.drain_late();
         self.link.discard_input().map_err(Failure::Link)?;
         let packet = command.encode();
         let wait = self.reply_wait(command);
         let start = Instant::now();
         self.link.write_all(&packet).map_err(Failure::Link)?;
         self.stats.attempts += 1;
+        self.deadline = Some(start + wait);
         let mut buf = [0u8; 2];
         match self.link.read_exact(&mut buf, start + wait) {
             Ok(()) => Ok(buf),
-            Err(LinkError::Timeout { received, .. }) => Err(Failure::Timeout {
-                received: buf.get(..received).unwrap_or_default().to_vec(),
-                waited: wait,
-            }),
+            Err(LinkError::Timeout { received, .. }) => {
+                self.expect_late();
+                Err(Failure::Timeout {
+                    received: buf.get(..received).unwrap_or_default().to_vec(),
+                    waited: wait,
+                })
+            }
             Err(e) => Err(Failure::Link(e)),
         }
+    }
+
+    /// A reply to the last attempt may still come (it timed out, its reply was garbled,
+    /// or it succeeded after a retry): the next packet waits out the late window first.
+    pub(crate) fn expect_late(&mut self) {
+        if let Some(d) = self.deadline {
+            let until = d + self.config.late_window;
+            self.quiet_until = Some(self.quiet_until.map_or(until, |q| q.max(until)));
+        }
+    }
+
+    /// Drops input until the late window of the last doubtful attempt has passed.
+    fn drain_late(&mut self) {
+        let Some(until) = self.quiet_until.take() else {
+            return;
+        };
+        // Until the link says the deadline has passed (a fast-forwarding simulator says
+        // so at once, on its own clock).
+        let mut buf = [0u8; 64];
+        while self.link.read_some(&mut buf, until).is_ok() {}
     }
 
     /// Bytes that arrive within `window` after a reply (a collision or line noise makes
@@ -414,6 +458,7 @@ impl<L: ByteLink> WckBus<L> {
         })?;
         command.decode_reply(&bytes).map_err(|reason| {
             self.stats.bad_replies += 1;
+            self.expect_late();
             Failure::Bad {
                 bytes: bytes.to_vec(),
                 reason,
@@ -423,6 +468,7 @@ impl<L: ByteLink> WckBus<L> {
 
     /// Sends a command without a reply, once.
     fn send(&mut self, command: &Command) -> Result<(), WckError> {
+        self.drain_late();
         self.link
             .discard_input()
             .and_then(|()| self.link.write_all(&command.encode()))
@@ -467,6 +513,10 @@ impl<L: ByteLink> WckBus<L> {
             match self.exchange(command) {
                 Ok(bytes) => match command.decode_reply(&bytes) {
                     Ok(reply) => {
+                        if failed {
+                            // This may be an earlier attempt's reply; this one's is late.
+                            self.expect_late();
+                        }
                         if previous == Some(bytes) {
                             streak += 1;
                         } else {
@@ -491,6 +541,7 @@ impl<L: ByteLink> WckBus<L> {
                     }
                     Err(reason) => {
                         self.stats.bad_replies += 1;
+                        self.expect_late();
                         self.settle();
                         failed = true;
                         let bytes = bytes.to_vec();

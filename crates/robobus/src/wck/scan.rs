@@ -29,6 +29,9 @@ pub struct ScanOptions {
     /// Whether to look for two modules sharing an ID (three extra reads per module
     /// found). Default on.
     pub check_duplicates: bool,
+    /// Further probes that must all show evidence before an ID is reported as shared
+    /// (line noise makes single probes look like a collision). Default 3.
+    pub confirm: u32,
 }
 
 impl Default for ScanOptions {
@@ -39,6 +42,7 @@ impl Default for ScanOptions {
             ids: 0..=30,
             probes: 2,
             check_duplicates: true,
+            confirm: 3,
         }
     }
 }
@@ -192,7 +196,7 @@ impl<L: ByteLink> WckBus<L> {
             for &baud in &bauds {
                 self.set_host_baud(baud)?;
                 for &id in &ids {
-                    match self.probe(id, options)? {
+                    match self.confirmed_probe(id, options)? {
                         Probe::Absent => {}
                         Probe::Found(status) => report.found.push(FoundServo { id, baud, status }),
                         Probe::Duplicate(evidence) => {
@@ -215,6 +219,40 @@ impl<L: ByteLink> WckBus<L> {
         result?;
         restored?;
         Ok(report)
+    }
+
+    /// One ID, with a suspected duplicate confirmed: a single garbled, truncated or
+    /// disagreeing reply is as likely line noise as two modules, so the ID is probed again
+    /// (up to [`ScanOptions::confirm`] more times, each probe reading it four ways). It is
+    /// reported as a duplicate only if every further probe shows evidence too; one clean
+    /// probe makes it a found servo (with that probe's status). A servo that answered is
+    /// never dropped: if the further probes neither confirm nor clear it, it stays a
+    /// suspected duplicate, with the evidence.
+    fn confirmed_probe(&mut self, id: ServoId, options: &ScanOptions) -> Result<Probe, WckError> {
+        let first = self.probe(id, options)?;
+        let Probe::Duplicate(evidence) = first else {
+            return Ok(first);
+        };
+        let mut seen = vec![evidence];
+        let mut answered = 0;
+        for _ in 0..options.confirm.saturating_mul(2) {
+            match self.probe(id, options)? {
+                Probe::Found(status) => return Ok(Probe::Found(status)),
+                Probe::Duplicate(e) => {
+                    seen.push(e);
+                    answered += 1;
+                    if answered >= options.confirm {
+                        break;
+                    }
+                }
+                Probe::Absent => {}
+            }
+        }
+        let probes = seen.len();
+        Ok(Probe::Duplicate(format!(
+            "{probes} probe(s), none clean: {}",
+            seen.join("; ")
+        )))
     }
 
     /// One ID at the current rate.

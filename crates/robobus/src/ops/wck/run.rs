@@ -1,0 +1,827 @@
+//! The wCK operations: plans and their execution.
+
+use std::time::{Duration, Instant};
+
+use robobus_link::ByteLink;
+use robobus_wck::{BaudRate, Command, Position, Reply, Rotation, ServoId, TorqueLevel, WheelSpeed};
+use serde::Serialize;
+
+use super::motion::{Motion, Pose};
+use super::plan::{WckPlan, WckStep};
+use super::report::{FieldValue, Fields, reply_fields};
+use crate::ErrorKind;
+use crate::ops::{Control, DeviceResult, Failure, OpError, Progress, SafeState};
+use crate::wck::{FoundServo, ScanOptions, WckBus, WckError};
+
+/// The position a plan shows for a step whose position is read from the device (a hold).
+pub const ASSUMED_POSITION: u8 = 127;
+
+/// How often a timed wheel run reads the servo's status to see that it still answers.
+pub const WHEEL_WATCH_PERIOD: Duration = Duration::from_millis(200);
+
+// ----- safe state -----
+
+/// Brings the servos `ids` to `state`, trying every servo even after a failure; returns the
+/// failures (`None` = the bus-wide break). The one safe stop of wCK servos: the CLI's
+/// Ctrl-C, timed runs and the robot watchdog use it.
+///
+/// - [`SafeState::Passive`] (and [`SafeState::Disable`], its wCK meaning): a passive
+///   command per servo.
+/// - [`SafeState::Break`]: the broadcast break (every module on the bus).
+/// - [`SafeState::Hold`]: a status read per servo, then a position move at `torque` to the
+///   position it reported.
+pub fn apply_each<L: ByteLink>(
+    bus: &mut WckBus<L>,
+    ids: &[ServoId],
+    state: SafeState,
+    torque: TorqueLevel,
+) -> Vec<(Option<ServoId>, WckError)> {
+    let mut failed = Vec::new();
+    match state {
+        SafeState::Break => {
+            if let Err(e) = bus.break_all() {
+                failed.push((None, e));
+            }
+        }
+        SafeState::Passive | SafeState::Disable => {
+            for &id in ids {
+                if let Err(e) = bus.servo(id).passive() {
+                    failed.push((Some(id), e));
+                }
+            }
+        }
+        SafeState::Hold => {
+            for &id in ids {
+                let mut servo = bus.servo(id);
+                let held = servo
+                    .status()
+                    .and_then(|s| servo.move_to(torque, s.position).map(drop));
+                if let Err(e) = held {
+                    failed.push((Some(id), e));
+                }
+            }
+        }
+    }
+    failed
+}
+
+/// [`apply_each`] as one result: the first failure, after trying every servo.
+#[allow(clippy::result_large_err)] // OpError carries the client errors by value
+pub fn apply<L: ByteLink>(
+    bus: &mut WckBus<L>,
+    ids: &[ServoId],
+    state: SafeState,
+    torque: TorqueLevel,
+) -> Result<(), OpError> {
+    match apply_each(bus, ids, state, torque).into_iter().next() {
+        None => Ok(()),
+        Some((_, e)) => Err(OpError::Wck(e)),
+    }
+}
+
+/// After a stop: the safe state, then [`OpError::Interrupted`] saying what it did.
+fn interrupted<L: ByteLink>(
+    bus: &mut WckBus<L>,
+    ids: &[ServoId],
+    state: SafeState,
+    torque: TorqueLevel,
+) -> OpError {
+    let detail = match apply(bus, ids, state, torque) {
+        Ok(()) => format!(
+            "servo(s) {} brought to {} state",
+            ids_text(ids),
+            state.keyword()
+        ),
+        Err(e) => format!("could not bring the servos to the safe state: {e}"),
+    };
+    OpError::Interrupted {
+        detail: Some(detail),
+    }
+}
+
+/// `0-2,5`: IDs as ranges.
+pub fn ids_text(ids: &[ServoId]) -> String {
+    let mut raw: Vec<u8> = ids.iter().map(|i| i.get()).collect();
+    raw.sort_unstable();
+    raw.dedup();
+    let mut runs: Vec<(u8, u8)> = Vec::new();
+    for id in raw {
+        match runs.last_mut() {
+            Some((_, hi)) if hi.checked_add(1) == Some(id) => *hi = id,
+            _ => runs.push((id, id)),
+        }
+    }
+    runs.iter()
+        .map(|&(lo, hi)| {
+            if lo == hi {
+                lo.to_string()
+            } else {
+                format!("{lo}-{hi}")
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(",")
+}
+
+// ----- one exchange per step -----
+
+/// One servo's row of a [`StepsReport`].
+pub type StepResult = DeviceResult<FieldValue, Fields>;
+
+/// The report of [`run_steps`]: `{"port", "baud", "command", "results": [...]}`, one
+/// result per step, `{"id", ...fields}` or `{"id", "kind", "error"}`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StepsReport {
+    /// The port.
+    pub port: String,
+    /// The rate, bit/s.
+    pub baud: u32,
+    /// The operation (`status`, `move`, ...).
+    pub command: &'static str,
+    /// One result per step.
+    pub results: Vec<StepResult>,
+}
+
+/// The target of a command as a field value (`3`, or `all`).
+pub fn target_value(command: &Command) -> FieldValue {
+    match command.target() {
+        robobus_wck::Target::Servo(id) => id.get().into(),
+        robobus_wck::Target::Extended(id) => id.get().into(),
+        robobus_wck::Target::Broadcast => "all".into(),
+    }
+}
+
+/// Runs each step of `plan` through [`WckBus::execute`] (retries, read-back, ID / baud
+/// verification), in order. A servo that fails is reported and the run carries on with the
+/// next (status of many servos shows every one that answered); a link failure (the port is
+/// gone) ends the run. Stops between steps when asked (no safe state: each step is one
+/// short command).
+#[allow(clippy::result_large_err)] // OpError carries the client errors by value
+pub fn run_steps<L: ByteLink>(
+    bus: &mut WckBus<L>,
+    command: &'static str,
+    plan: &WckPlan,
+    control: &mut Control<'_>,
+) -> Result<StepsReport, OpError> {
+    let mut results = Vec::with_capacity(plan.steps.len());
+    let total = plan.steps.len() as u64;
+    for (n, step) in plan.steps.iter().enumerate() {
+        if control.stopped() {
+            return Err(OpError::Interrupted { detail: None });
+        }
+        if let Some(b) = step.baud {
+            bus.set_host_baud(b)?;
+        }
+        let id = target_value(&step.command);
+        match bus.execute(&step.command) {
+            Ok(reply) => results.push(DeviceResult::ok(id, reply_fields(&step.command, reply))),
+            Err(e) if e.kind() == ErrorKind::Link => return Err(e.into()),
+            Err(e) => results.push(DeviceResult::failed(id, Failure::from(&e))),
+        }
+        control.report(&Progress::new(command, n as u64 + 1, Some(total)));
+    }
+    Ok(StepsReport {
+        port: bus.device().to_string(),
+        baud: bus.baud().bits_per_second(),
+        command,
+        results,
+    })
+}
+
+/// How many equal replies a read of `plan` needs ([`crate::wck::WckConfig::confirm_reads`]):
+/// with `verify` unset, 2 when the plan is one-shot parameter reads (gains, I gain, speed,
+/// over-load, bounds, I/O: a wrong value there would be believed and copied), otherwise 1;
+/// `Some(true)` 2 for every read, `Some(false)` 1. A confirmed read costs one more exchange
+/// (about 1.5 ms at 115200 bit/s) and retries until two replies agree.
+pub fn confirm_reads_for(plan: &WckPlan, verify: Option<bool>) -> u8 {
+    let parameter_read = |c: &Command| {
+        matches!(
+            c,
+            Command::GainRead { .. }
+                | Command::IGainRead { .. }
+                | Command::SpeedRead { .. }
+                | Command::OverloadRead { .. }
+                | Command::BoundaryRead { .. }
+                | Command::IoRead { .. }
+        )
+    };
+    let verify = verify.unwrap_or_else(|| {
+        !plan.steps.is_empty() && plan.steps.iter().all(|s| parameter_read(&s.command))
+    });
+    if verify { 2 } else { 1 }
+}
+
+// ----- scan -----
+
+/// What to scan (the command's IDs and rates).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ScanArgs {
+    /// The IDs, in order.
+    pub ids: Vec<ServoId>,
+    /// The rates, in order.
+    pub bauds: Vec<BaudRate>,
+    /// Status reads per ID before it counts as absent.
+    pub probes: u32,
+}
+
+impl ScanArgs {
+    /// `ids` at one rate, or at every rate (slowest first, as the CLI lists them).
+    pub fn new(ids: Vec<ServoId>, baud: BaudRate, all_bauds: bool) -> Self {
+        Self {
+            ids,
+            bauds: if all_bauds {
+                BaudRate::ALL.to_vec()
+            } else {
+                vec![baud]
+            },
+            probes: ScanOptions::default().probes,
+        }
+    }
+
+    /// The plan of the scan if the IDs for which `answers(baud, id)` holds answer cleanly
+    /// and the others stay silent: a silent ID is read `probes` times; an ID that answers
+    /// is read once and then three more ways (10-bit position, I gain, over-load) to rule
+    /// out two modules sharing it. The dry-run assumes that nobody answers; the real run
+    /// sends this plan for the servos it found (plus repeats where replies were garbled,
+    /// and the further probes that confirm a suspected duplicate).
+    pub fn plan(&self, answers: &dyn Fn(BaudRate, ServoId) -> bool) -> WckPlan {
+        let mut plan = WckPlan::default();
+        plan.notes.push(format!(
+            "a status read per ID, {} times if it stays silent; an ID that answers is then \
+             read three more ways (10-bit position, I gain, over-load) to rule out a shared ID",
+            self.probes.max(1)
+        ));
+        for &baud in &self.bauds {
+            for &id in &self.ids {
+                let step = |command| WckStep {
+                    at_ms: None,
+                    baud: (self.bauds.len() > 1).then_some(baud),
+                    command,
+                };
+                if answers(baud, id) {
+                    plan.steps.push(step(Command::StatusRead { id }));
+                    plan.steps.push(step(Command::Read10 { id: id.into() }));
+                    plan.steps.push(step(Command::IGainRead { id }));
+                    plan.steps.push(step(Command::OverloadRead { id }));
+                } else {
+                    for _ in 0..self.probes.max(1) {
+                        plan.steps.push(step(Command::StatusRead { id }));
+                    }
+                }
+            }
+        }
+        plan
+    }
+}
+
+/// A servo found by [`scan`].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Found {
+    /// Its ID.
+    pub id: u8,
+    /// Its rate, bit/s.
+    pub baud: u32,
+    /// Its load when probed.
+    pub load: u8,
+    /// Its position when probed, 0..=254.
+    pub position: u8,
+    /// The same in degrees.
+    pub degrees: f64,
+}
+
+impl From<&FoundServo> for Found {
+    fn from(f: &FoundServo) -> Self {
+        Self {
+            id: f.id.get(),
+            baud: f.baud.bits_per_second(),
+            load: f.status.load.get(),
+            position: f.status.position.get(),
+            degrees: (f.status.position.degrees() * 100.0).round() / 100.0,
+        }
+    }
+}
+
+/// An ID answered by more than one module (confirmed by repeated probes).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct SharedId {
+    /// The ID.
+    pub id: u8,
+    /// The rate, bit/s.
+    pub baud: u32,
+    /// What the probes showed.
+    pub evidence: String,
+}
+
+/// The report of [`scan`]: `{"port", "bauds_tried", "found": [{"id", "baud", "load",
+/// "position", "degrees"}], "duplicates": [{"id", "baud", "evidence"}]}`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ScanOpReport {
+    /// The port.
+    pub port: String,
+    /// The rates tried, bit/s.
+    pub bauds_tried: Vec<u32>,
+    /// The servos found, by rate and ID.
+    pub found: Vec<Found>,
+    /// IDs answered by more than one module.
+    pub duplicates: Vec<SharedId>,
+}
+
+impl ScanOpReport {
+    /// Whether nothing answered.
+    pub fn is_empty(&self) -> bool {
+        self.found.is_empty() && self.duplicates.is_empty()
+    }
+}
+
+/// Scans `args` ID by ID ([`WckBus::scan`] on each: status reads, duplicate check with
+/// confirmation), reporting progress after each ID and stopping between IDs when asked.
+/// Restores the bus's rate.
+#[allow(clippy::result_large_err)] // OpError carries the client errors by value
+pub fn scan<L: ByteLink>(
+    bus: &mut WckBus<L>,
+    args: &ScanArgs,
+    control: &mut Control<'_>,
+) -> Result<ScanOpReport, OpError> {
+    let original = bus.baud();
+    let total = (args.bauds.len() * args.ids.len()) as u64;
+    let mut found: Vec<FoundServo> = Vec::new();
+    let mut duplicates = Vec::new();
+    let mut done = 0;
+    let result = (|| {
+        for &baud in &args.bauds {
+            bus.set_host_baud(baud)?;
+            for &id in &args.ids {
+                if control.stopped() {
+                    return Err(OpError::Interrupted { detail: None });
+                }
+                let options = ScanOptions {
+                    bauds: Vec::new(),
+                    ids: id.get()..=id.get(),
+                    probes: args.probes,
+                    ..ScanOptions::default()
+                };
+                let part = bus.scan(&options, |_| {})?;
+                found.extend(part.found);
+                duplicates.extend(part.duplicates.iter().map(|d| SharedId {
+                    id: d.id.get(),
+                    baud: d.baud.bits_per_second(),
+                    evidence: d.evidence.clone(),
+                }));
+                done += 1;
+                control.report(&Progress::new("scan", done, Some(total)).with_note(format!(
+                    "{} bit/s, ID {id}: {} found",
+                    baud.bits_per_second(),
+                    found.len() + duplicates.len()
+                )));
+            }
+        }
+        Ok(())
+    })();
+    let restored = bus.set_host_baud(original);
+    result?;
+    restored?;
+    found.sort_by_key(|f| (f.baud, f.id));
+    Ok(ScanOpReport {
+        port: bus.device().to_string(),
+        bauds_tried: args.bauds.iter().map(|b| b.bits_per_second()).collect(),
+        found: found.iter().map(Found::from).collect(),
+        duplicates,
+    })
+}
+
+// ----- timed runs -----
+
+/// Runs a timed plan: each step at its time (a step without one right after the previous),
+/// stopping on the caller's token (then `ids` go to `state`). A step marked as taking its
+/// position from the device (a hold) is sent with the position the last status reply
+/// reported. Returns the replies in order.
+#[allow(clippy::result_large_err)] // OpError carries the client errors by value
+fn run_timed<L: ByteLink>(
+    bus: &mut WckBus<L>,
+    steps: impl IntoIterator<Item = WckStep>,
+    stage: &'static str,
+    total_ms: u64,
+    stop: (&[ServoId], SafeState, TorqueLevel),
+    control: &mut Control<'_>,
+    mut on_reply: impl FnMut(&WckStep, Option<Reply>),
+) -> Result<Instant, OpError> {
+    let start = Instant::now();
+    let mut last_position: Option<Position> = None;
+    for mut step in steps {
+        let due = start + Duration::from_millis(step.at_ms.unwrap_or(0));
+        if !control.sleep_until(due) {
+            return Err(interrupted(bus, stop.0, stop.1, stop.2));
+        }
+        if let (Command::Move { position, .. }, Some(p)) = (&mut step.command, last_position)
+            && step.at_ms.is_none()
+        {
+            *position = p;
+        }
+        let reply = match bus.execute(&step.command) {
+            Ok(r) => r,
+            Err(e) => {
+                // The device stopped answering (or the port went away): stop the others.
+                let _ = apply_each(bus, stop.0, stop.1, stop.2);
+                return Err(e.into());
+            }
+        };
+        if let Some(Reply::Status { position, .. }) = reply {
+            last_position = Some(position);
+        }
+        on_reply(&step, reply);
+        control.report(&Progress::new(
+            stage,
+            step.at_ms.unwrap_or(0),
+            Some(total_ms),
+        ));
+    }
+    Ok(start)
+}
+
+/// Arguments of a wheel run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct WheelArgs {
+    /// The servo.
+    pub id: ServoId,
+    /// Direction.
+    pub rotation: Rotation,
+    /// Speed 0..=15.
+    pub speed: WheelSpeed,
+    /// Turn this long, then stop per `on_stop`; `None` = leave it turning.
+    pub duration: Option<Duration>,
+    /// How it stops (after the duration, on a stop, when it stops answering).
+    pub on_stop: SafeState,
+}
+
+/// The torque of a hold after a wheel run.
+const WHEEL_HOLD_TORQUE: TorqueLevel = TorqueLevel::MIN;
+
+impl WheelArgs {
+    /// The plan: the wheel command at 0; with a duration, a status read every
+    /// [`WHEEL_WATCH_PERIOD`] (the run ends early, in the safe state, when the servo stops
+    /// answering), then the stop at the end: a passive command, the bus-wide break, or
+    /// (hold) a status read and a position move to the position it reports (the plan shows
+    /// [`ASSUMED_POSITION`]).
+    pub fn plan(&self) -> WckPlan {
+        let wheel = Command::Wheel {
+            id: self.id,
+            rotation: self.rotation,
+            speed: self.speed,
+        };
+        let Some(d) = self.duration else {
+            return WckPlan::one(wheel);
+        };
+        let id = self.id;
+        let mut plan = WckPlan::default();
+        let end = u64::try_from(d.as_millis()).unwrap_or(u64::MAX);
+        let period = u64::try_from(WHEEL_WATCH_PERIOD.as_millis()).unwrap_or(200);
+        plan.notes.push(format!(
+            "wheel for {} s, a status read every {period} ms to see that the servo still \
+             answers, then {}",
+            d.as_secs_f64(),
+            self.on_stop.keyword()
+        ));
+        plan.steps.push(WckStep::at(0, wheel));
+        let mut t = period;
+        while t < end {
+            plan.steps.push(WckStep::at(t, Command::StatusRead { id }));
+            t += period;
+        }
+        match self.on_stop {
+            SafeState::Break => plan.steps.push(WckStep::at(end, Command::Break)),
+            SafeState::Passive | SafeState::Disable => {
+                plan.steps.push(WckStep::at(end, Command::Passive { id }));
+            }
+            SafeState::Hold => {
+                plan.notes.push(format!(
+                    "hold: a position move to the position the last status read reports \
+                     (assumed {ASSUMED_POSITION} here)"
+                ));
+                plan.steps
+                    .push(WckStep::at(end, Command::StatusRead { id }));
+                plan.steps.push(WckStep::now(Command::Move {
+                    id,
+                    torque: WHEEL_HOLD_TORQUE,
+                    position: Position::new(ASSUMED_POSITION).unwrap_or(Position::MIN),
+                }));
+            }
+        }
+        plan
+    }
+}
+
+/// The report of [`wheel`]: the wheel command's fields, and for a timed run `ran_ms` and
+/// `stopped` (the safe state applied at the end).
+pub type WheelReport = StepResult;
+
+/// Wheel mode; with a duration, the timed plan of [`WheelArgs::plan`].
+#[allow(clippy::result_large_err)] // OpError carries the client errors by value
+pub fn wheel<L: ByteLink>(
+    bus: &mut WckBus<L>,
+    args: &WheelArgs,
+    control: &mut Control<'_>,
+) -> Result<WheelReport, OpError> {
+    let plan = args.plan();
+    let total = args
+        .duration
+        .map_or(0, |d| u64::try_from(d.as_millis()).unwrap_or(u64::MAX));
+    let mut first: Option<Fields> = None;
+    let start = run_timed(
+        bus,
+        plan.steps,
+        "wheel",
+        total,
+        (&[args.id], args.on_stop, WHEEL_HOLD_TORQUE),
+        control,
+        |step, reply| {
+            if first.is_none() {
+                first = Some(reply_fields(&step.command, reply));
+            }
+        },
+    )?;
+    let mut row = first.unwrap_or_default();
+    if args.duration.is_some() {
+        row.push(
+            "ran_ms",
+            u64::try_from(start.elapsed().as_millis()).unwrap_or(u64::MAX),
+        );
+        row.push("stopped", args.on_stop.keyword());
+    }
+    Ok(DeviceResult::ok(args.id.get().into(), row))
+}
+
+/// The report of [`play`]: `{"port", "command": "play", "moves", "sent", "planned_ms",
+/// "duration_ms", "last_positions"}`.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct PlayReport {
+    /// The port.
+    pub port: String,
+    /// Always `play`.
+    pub command: &'static str,
+    /// Moves planned.
+    pub moves: u64,
+    /// Moves sent.
+    pub sent: u64,
+    /// When the last move was due, ms.
+    pub planned_ms: u64,
+    /// How long the run took, ms.
+    pub duration_ms: u64,
+    /// The last pose sent.
+    pub last_positions: Vec<u8>,
+}
+
+/// Plays `motion` at `rate_hz` (0.1..=200): the moves of [`Motion::moves`], streamed, each
+/// at its time. On a stop, servos 0..n go to `on_stop` (hold at the motion's torque).
+#[allow(clippy::result_large_err)] // OpError carries the client errors by value
+pub fn play<L: ByteLink>(
+    bus: &mut WckBus<L>,
+    motion: &Motion,
+    rate_hz: f64,
+    on_stop: SafeState,
+    control: &mut Control<'_>,
+) -> Result<PlayReport, OpError> {
+    check_rate(rate_hz, "--rate-hz")?;
+    let ids: Vec<ServoId> = (0..motion.servos())
+        .filter_map(|i| u8::try_from(i).ok().and_then(|i| ServoId::new(i).ok()))
+        .collect();
+    let total = motion.end_ms();
+    let (mut sent, mut planned, mut last) = (0u64, 0u64, Vec::new());
+    let start = run_timed(
+        bus,
+        motion.moves(rate_hz),
+        "play",
+        total,
+        (&ids, on_stop, motion.torque),
+        control,
+        |step, _| {
+            sent += 1;
+            planned = planned.max(step.at_ms.unwrap_or(0));
+            if let Command::SyncMove(s) = &step.command {
+                last = s.positions().iter().map(|p| p.get()).collect();
+            }
+        },
+    )?;
+    Ok(PlayReport {
+        port: bus.device().to_string(),
+        command: "play",
+        moves: sent,
+        sent,
+        planned_ms: planned,
+        duration_ms: u64::try_from(start.elapsed().as_millis()).unwrap_or(u64::MAX),
+        last_positions: last,
+    })
+}
+
+/// A rate in Hz, 0.1..=200.
+#[allow(clippy::result_large_err)] // OpError carries the client errors by value
+pub fn check_rate(rate_hz: f64, option: &str) -> Result<(), OpError> {
+    if (0.1..=200.0).contains(&rate_hz) {
+        Ok(())
+    } else {
+        Err(OpError::invalid(option, rate_hz, "allowed: 0.1..=200 Hz"))
+    }
+}
+
+// ----- teach -----
+
+/// When `teach` records a pose.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum TeachTrigger {
+    /// At a rate (0.1..=200 Hz), for a time or until the caller says [`TeachEvent::Finish`].
+    Rate {
+        /// Poses per second.
+        rate_hz: f64,
+        /// How long; `None` = until finished.
+        duration: Option<Duration>,
+    },
+    /// One pose per [`TeachEvent::Record`], each with this transition time (ms).
+    Events {
+        /// The transition time written for each pose.
+        pose_ms: u32,
+    },
+}
+
+/// What the caller of [`teach`] says when asked (a key press, a web request...).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TeachEvent {
+    /// Record a pose now.
+    Record,
+    /// End the recording.
+    Finish,
+    /// Nothing yet.
+    Nothing,
+}
+
+/// Arguments of [`teach`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct TeachArgs {
+    /// Servos 0..n-1 (a pose lists servos 0, 1, ... in order).
+    pub ids: Vec<ServoId>,
+    /// When to record.
+    pub trigger: TeachTrigger,
+    /// Torque written into the file (and of a hold at the end).
+    pub torque: TorqueLevel,
+    /// What the servos do when recording ends (they are passive while it runs).
+    pub on_stop: SafeState,
+}
+
+impl TeachArgs {
+    /// Checks that the IDs are 0..n-1 and the rate is in range.
+    #[allow(clippy::result_large_err)] // OpError carries the client errors by value
+    pub fn check(&self) -> Result<(), OpError> {
+        let contiguous = self
+            .ids
+            .iter()
+            .enumerate()
+            .all(|(i, id)| usize::from(id.get()) == i);
+        if !contiguous || self.ids.is_empty() {
+            let given: Vec<String> = self.ids.iter().map(ToString::to_string).collect();
+            return Err(OpError::invalid(
+                "teach <IDS>",
+                format!("servo(s) {}", given.join(",")),
+                "a keyframe file lists servos 0, 1, 2, ... in order, so teach records \
+                 servos 0..N-1 (e.g. `0-5`)",
+            ));
+        }
+        if let TeachTrigger::Rate { rate_hz, .. } = self.trigger {
+            check_rate(rate_hz, "--rate-hz")?;
+        }
+        Ok(())
+    }
+
+    /// The plan: a passive command per servo (its reply is the position recorded),
+    /// repeated per pose.
+    pub fn plan(&self) -> WckPlan {
+        let mut plan = WckPlan::default();
+        for &id in &self.ids {
+            plan.push(Command::Passive { id });
+        }
+        let when = match self.trigger {
+            TeachTrigger::Events { .. } => {
+                "once per Enter until q / end of input / Ctrl-C".to_string()
+            }
+            TeachTrigger::Rate {
+                rate_hz,
+                duration: None,
+            } => format!("{rate_hz} times per second until Enter / Ctrl-C"),
+            TeachTrigger::Rate {
+                rate_hz,
+                duration: Some(d),
+            } => format!("{rate_hz} times per second for {} s", d.as_secs_f64()),
+        };
+        plan.notes.push(format!(
+            "teach: the passive round below repeats {when}; each reply's position is recorded"
+        ));
+        plan
+    }
+}
+
+/// The report of [`teach`]: how many poses were recorded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct TeachReport {
+    /// Poses recorded (each handed to the caller's `on_pose` as it was recorded).
+    pub poses: u64,
+}
+
+/// One passive round: the positions of `ids`, in order.
+#[allow(clippy::result_large_err)] // OpError carries the client errors by value
+fn read_pose<L: ByteLink>(bus: &mut WckBus<L>, ids: &[ServoId]) -> Result<Vec<Position>, OpError> {
+    let mut pose = Vec::with_capacity(ids.len());
+    for &id in ids {
+        pose.push(bus.servo(id).passive()?);
+    }
+    Ok(pose)
+}
+
+/// Records poses: every servo goes passive (the first round is the first pose), then a
+/// pose per trigger. Each pose goes to `on_pose` as soon as it is recorded (so a file
+/// written there keeps every pose however the recording ends); the library keeps none.
+/// `events` is asked, with the longest time it may wait, whether to record or finish.
+/// At the end the servos go to `on_stop` (they are passive already); on a stop, too, and
+/// the result is [`OpError::Interrupted`].
+#[allow(clippy::result_large_err)] // OpError carries the client errors by value
+pub fn teach<L: ByteLink>(
+    bus: &mut WckBus<L>,
+    args: &TeachArgs,
+    control: &mut Control<'_>,
+    events: &mut dyn FnMut(Duration) -> TeachEvent,
+    on_pose: &mut dyn FnMut(&Pose) -> Result<(), OpError>,
+) -> Result<TeachReport, OpError> {
+    args.check()?;
+    let ids = &args.ids;
+    let mut count = 0u64;
+    let mut record = |bus: &mut WckBus<L>, ms: u32, control: &mut Control<'_>| {
+        let pose = Pose {
+            ms,
+            positions: read_pose(bus, ids)?,
+        };
+        on_pose(&pose)?;
+        count += 1;
+        control.report(&Progress::new("teach", count, None));
+        Ok::<(), OpError>(())
+    };
+    let stop = |bus: &mut WckBus<L>| interrupted(bus, ids, args.on_stop, args.torque);
+    match args.trigger {
+        TeachTrigger::Rate { rate_hz, duration } => {
+            let period = Duration::from_secs_f64(1.0 / rate_hz);
+            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // 5..=10000 ms
+            let period_ms = (1000.0 / rate_hz).round() as u32;
+            let start = Instant::now();
+            record(bus, period_ms, control)?;
+            let mut next = start + period;
+            loop {
+                // Wait for the next pose, looking at the caller's events meanwhile.
+                loop {
+                    if control.stopped() {
+                        return Err(stop(bus));
+                    }
+                    let now = Instant::now();
+                    if now >= next {
+                        break;
+                    }
+                    let event = events((next - now).min(Duration::from_millis(20)));
+                    if control.stopped() {
+                        return Err(stop(bus));
+                    }
+                    if event == TeachEvent::Finish {
+                        return finish(bus, args, count);
+                    }
+                }
+                if duration.is_some_and(|d| start.elapsed() >= d) {
+                    return finish(bus, args, count);
+                }
+                record(bus, period_ms, control)?;
+                next += period;
+            }
+        }
+        TeachTrigger::Events { pose_ms } => {
+            record(bus, pose_ms, control)?;
+            loop {
+                if control.stopped() {
+                    return Err(stop(bus));
+                }
+                let event = events(Duration::from_millis(50));
+                if control.stopped() {
+                    return Err(stop(bus));
+                }
+                match event {
+                    TeachEvent::Record => record(bus, pose_ms, control)?,
+                    TeachEvent::Finish => return finish(bus, args, count),
+                    TeachEvent::Nothing => {}
+                }
+            }
+        }
+    }
+}
+
+#[allow(clippy::result_large_err)] // OpError carries the client errors by value
+fn finish<L: ByteLink>(
+    bus: &mut WckBus<L>,
+    args: &TeachArgs,
+    poses: u64,
+) -> Result<TeachReport, OpError> {
+    if !matches!(args.on_stop, SafeState::Passive | SafeState::Disable) {
+        apply(bus, &args.ids, args.on_stop, args.torque)?;
+    }
+    Ok(TeachReport { poses })
+}

@@ -1,0 +1,159 @@
+//! Late replies (issue: a reply must never be credited to another request): a scripted
+//! fake bus whose servos answer status reads after a delay, some of them 15-45 ms late.
+#![allow(clippy::unwrap_used, clippy::panic, missing_docs)]
+
+use std::collections::VecDeque;
+use std::time::{Duration, Instant};
+
+use robobus::ops::Control;
+use robobus::ops::wck::{WckPlan, run_steps};
+use robobus::wck::{WckBus, WckConfig};
+use robobus_link::{ByteLink, LinkError};
+use robobus_wck::{BaudRate, Command, ServoId};
+
+/// Servo `id` stands at position `10 * id + 10` and answers a status read after
+/// `delay(id)`; IDs without a delay are absent.
+struct LateBus {
+    delay: fn(u8) -> Option<Duration>,
+    /// Reply bytes with the time they arrive.
+    pending: VecDeque<(Instant, u8)>,
+}
+
+impl LateBus {
+    fn new(delay: fn(u8) -> Option<Duration>) -> Self {
+        Self {
+            delay,
+            pending: VecDeque::new(),
+        }
+    }
+}
+
+impl ByteLink for LateBus {
+    fn write_all(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
+        // A status read: FF, (5 << 5) | id, 0, checksum.
+        if let [0xFF, b1, _, _] = *bytes
+            && b1 >> 5 == 5
+        {
+            let id = b1 & 0x1F;
+            if let Some(d) = (self.delay)(id) {
+                // On the wire, bytes arrive in the order of their times.
+                let at = Instant::now() + d;
+                let i = self.pending.partition_point(|&(t, _)| t <= at);
+                self.pending.insert(i, (at, 10 * id + 10));
+                self.pending.insert(i, (at, 0)); // load 0
+            }
+        }
+        Ok(())
+    }
+
+    fn read_some(&mut self, buf: &mut [u8], deadline: Instant) -> Result<usize, LinkError> {
+        loop {
+            let now = Instant::now();
+            let mut n = 0;
+            while n < buf.len()
+                && let Some(&(at, b)) = self.pending.front()
+                && at <= now
+            {
+                buf[n] = b;
+                n += 1;
+                self.pending.pop_front();
+            }
+            if n > 0 {
+                return Ok(n);
+            }
+            if now >= deadline {
+                return Err(LinkError::Timeout {
+                    received: 0,
+                    expected: buf.len(),
+                });
+            }
+            let next = self
+                .pending
+                .front()
+                .map_or(deadline, |&(at, _)| at.min(deadline));
+            std::thread::sleep(
+                next.saturating_duration_since(now)
+                    .min(Duration::from_millis(1)),
+            );
+        }
+    }
+
+    fn discard_input(&mut self) -> Result<(), LinkError> {
+        // Only what has arrived; a reply still on its way is not in any buffer yet.
+        let now = Instant::now();
+        self.pending.retain(|&(at, _)| at > now);
+        Ok(())
+    }
+
+    fn set_baud(&mut self, _: u32) -> Result<(), LinkError> {
+        Ok(())
+    }
+
+    fn baud(&self) -> Option<u32> {
+        Some(115_200)
+    }
+}
+
+fn status_of(ids: std::ops::RangeInclusive<u8>) -> WckPlan {
+    let mut plan = WckPlan::default();
+    for id in ids {
+        plan.push(Command::StatusRead {
+            id: ServoId::new(id).unwrap(),
+        });
+    }
+    plan
+}
+
+/// Each servo's reported position is its own (or it failed); never another's.
+fn assert_no_reply_credited_elsewhere(link: LateBus, ids: std::ops::RangeInclusive<u8>) -> usize {
+    let mut bus = WckBus::new(link, BaudRate::B115200)
+        .unwrap()
+        .with_config(WckConfig {
+            margin: Duration::from_millis(10),
+            ..WckConfig::default()
+        });
+    let report = run_steps(&mut bus, "status", &status_of(ids), &mut Control::none()).unwrap();
+    let mut ok = 0;
+    for r in &report.results {
+        let id = r.id.cell().parse::<u8>().unwrap();
+        if let Some(v) = r.value() {
+            ok += 1;
+            assert_eq!(
+                v.get("position").unwrap().cell(),
+                (10 * id + 10).to_string(),
+                "servo {id} was credited with another servo's reply: {report:?}"
+            );
+        }
+    }
+    ok
+}
+
+#[test]
+fn a_reply_15_to_45_ms_late_is_never_credited_to_the_next_servo() {
+    // Servo 2 answers 30 ms late (its deadline is about 11 ms), servo 4 45 ms late,
+    // servo 1 15 ms late; the others at once.
+    let link = LateBus::new(|id| match id {
+        1 => Some(Duration::from_millis(15)),
+        2 => Some(Duration::from_millis(30)),
+        4 => Some(Duration::from_millis(45)),
+        0..=5 => Some(Duration::from_micros(1500)),
+        _ => None,
+    });
+    let ok = assert_no_reply_credited_elsewhere(link, 0..=5);
+    assert!(ok >= 3, "the punctual servos answer");
+}
+
+#[test]
+fn a_late_reply_after_a_retried_success_is_drained() {
+    // Servo 0 answers 18 ms late: its first attempt times out (deadline about 11.5 ms),
+    // the retry gets the first attempt's reply, and the retry's own reply is still on its
+    // way (due 13.5 ms after servo 0's success) while servos 1 and 2 are asked; servo 2
+    // answers 9 ms after it is asked, so the stale reply would come first.
+    let link = LateBus::new(|id| match id {
+        0 => Some(Duration::from_millis(18)),
+        1 => Some(Duration::from_millis(6)),
+        2 => Some(Duration::from_millis(9)),
+        _ => None,
+    });
+    assert_no_reply_credited_elsewhere(link, 0..=2);
+}
