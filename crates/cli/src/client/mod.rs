@@ -36,6 +36,8 @@ pub(crate) enum Job<'a> {
         margin: Option<core::time::Duration>,
         /// Equal replies a read needs (`--verify-reads`).
         confirm_reads: u8,
+        /// `--capture FILE`: log every byte written and read.
+        capture: Option<&'a std::path::Path>,
         /// What to send.
         plan: &'a WckPlan,
         /// How to run the plan (one exchange per step, or a scan / teach / play loop).
@@ -112,6 +114,7 @@ pub(crate) fn execute(job: &Job<'_>, yes: bool) -> anyhow::Result<()> {
             baud,
             margin,
             confirm_reads,
+            capture,
             plan,
             run,
             json,
@@ -121,6 +124,7 @@ pub(crate) fn execute(job: &Job<'_>, yes: bool) -> anyhow::Result<()> {
             baud: *baud,
             margin: *margin,
             confirm_reads: *confirm_reads,
+            capture: *capture,
             plan,
             run,
             json: *json,

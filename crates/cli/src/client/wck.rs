@@ -15,6 +15,7 @@ use std::time::Duration;
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use robobus::ErrorKind;
+use robobus::ops::capture::{Overwrite, capture_byte_link};
 use robobus::ops::wck::{
     self as ops, Fields, Motion, MotionWriter, Pose, ScanArgs, StepResult, TeachArgs, TeachEvent,
     TeachTrigger, WckPlan, WheelArgs,
@@ -90,6 +91,8 @@ pub(crate) struct WckJob<'a> {
     pub(crate) margin: Option<Duration>,
     /// `--verify-reads`: equal replies a read needs (see [`robobus::wck::WckConfig`]).
     pub(crate) confirm_reads: u8,
+    /// `--capture FILE`.
+    pub(crate) capture: Option<&'a std::path::Path>,
     /// The validated plan (for [`WckRun::Steps`]).
     pub(crate) plan: &'a WckPlan,
     /// How to run it.
@@ -100,6 +103,7 @@ pub(crate) struct WckJob<'a> {
 
 /// Opens the port and runs the job (a teach output file is created first: an unwritable
 /// path fails before any servo is touched).
+#[allow(clippy::result_large_err)] // the capture wrapper's OpError, converted at once
 pub(crate) fn execute(job: &WckJob<'_>) -> anyhow::Result<()> {
     tracing::debug!(port = job.port, baud = %job.baud, action = job.action, "wck run");
     let writer = match job.run {
@@ -109,12 +113,28 @@ pub(crate) fn execute(job: &WckJob<'_>) -> anyhow::Result<()> {
         } => Some(MotionWriter::create(path, &args.ids, args.torque)?),
         _ => None,
     };
-    let stop = crate::interrupt::stop_token();
     let mut bus = WckBus::open(job.port, job.baud)?;
     if let Some(margin) = job.margin {
         bus.config_mut().margin = margin;
     }
     bus.config_mut().confirm_reads = job.confirm_reads;
+    match job.capture {
+        Some(path) => run(
+            bus.try_map_link(|link| capture_byte_link(link, path, Overwrite::No))?,
+            job,
+            writer,
+        ),
+        None => run(bus, job, writer),
+    }
+}
+
+/// Runs the job on the opened bus.
+fn run<L: ByteLink>(
+    mut bus: WckBus<L>,
+    job: &WckJob<'_>,
+    writer: Option<MotionWriter>,
+) -> anyhow::Result<()> {
+    let stop = crate::interrupt::stop_token();
     let mut control = Control::new(&stop);
     match job.run {
         WckRun::Steps => steps(&mut bus, job, &mut control),

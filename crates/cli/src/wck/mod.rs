@@ -75,6 +75,11 @@ pub(crate) struct Args {
     /// Accept a `get` read from a single reply (faster, but noise may pass as a value).
     #[arg(long, global = true)]
     no_verify_reads: bool,
+    /// Record every byte written to and read from the port to FILE, a timestamped hex log
+    /// (`<seconds> > FF 03 7F 7C`, `<` for bytes read); `robobus replay FILE` decodes it.
+    /// An existing FILE is not overwritten.
+    #[arg(long, value_name = "FILE", global = true)]
+    capture: Option<PathBuf>,
     /// What to do.
     #[command(subcommand)]
     command: WckCommand,
@@ -575,6 +580,7 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
             baud: args.baud,
             margin: args.reply_margin,
             confirm_reads,
+            capture: args.capture.as_deref(),
             plan: &plan,
             run,
             json: g.json,

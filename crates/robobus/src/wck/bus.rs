@@ -242,6 +242,21 @@ impl<L: ByteLink> WckBus<L> {
         self.link
     }
 
+    /// The same bus (configuration, device name, statistics) over a wrapped link, for
+    /// example [`crate::ops::capture::capture_byte_link`] around the opened port; `wrap`'s
+    /// error is handed back as it is.
+    pub fn try_map_link<M, E>(self, wrap: impl FnOnce(L) -> Result<M, E>) -> Result<WckBus<M>, E> {
+        Ok(WckBus {
+            link: wrap(self.link)?,
+            baud: self.baud,
+            config: self.config,
+            device: self.device,
+            stats: self.stats,
+            deadline: self.deadline,
+            quiet_until: self.quiet_until,
+        })
+    }
+
     /// A handle on the module with ID `id` (0..=30).
     pub const fn servo(&mut self, id: ServoId) -> Servo<'_, L> {
         Servo::new(self, id)
