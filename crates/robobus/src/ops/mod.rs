@@ -46,6 +46,7 @@ use std::time::{Duration, Instant};
 use serde::Serialize;
 
 mod ids;
+pub mod whj;
 
 pub use crate::error::ErrorKind;
 pub use crate::robot::SafeState;
