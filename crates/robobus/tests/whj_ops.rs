@@ -354,3 +354,119 @@ fn enable_reports_the_state_the_joint_reports() {
     let r = ops::enable(&bus, &[id(2)], false);
     assert!(!r[0].value().unwrap().enabled);
 }
+
+#[test]
+fn scan_finds_two_joints_sharing_an_id_by_their_unique_ids() {
+    use robobus_sim::whj::{JointConfig, WhjModel};
+    let mut a = JointConfig::new(4, WhjModel::Whj30);
+    a.unique_id = [1, 2, 3, 4, 5, 6];
+    let mut b = JointConfig::new(4, WhjModel::Whj30);
+    b.unique_id = [9, 9, 9, 9, 9, 9];
+    let c = JointConfig::new(5, WhjModel::Whj30);
+    let (_sim, link) = memory(whj_common::configs(vec![a, b, c]));
+    let bus = JointBus::open_with(link, config()).unwrap();
+    let report = ops::scan(&bus, &[id(4), id(5)], &mut Control::none()).unwrap();
+    assert_eq!(report.found.len(), 2, "{report:?}");
+    assert_eq!(report.duplicates.len(), 1, "{report:?}");
+    assert_eq!(report.duplicates[0].id, 4);
+    assert_ne!(
+        report.duplicates[0].unique_ids[0],
+        report.duplicates[0].unique_ids[1]
+    );
+    // A joint alone at its ID is never called a duplicate.
+    assert!(ops::duplicates_of(&bus, id(5)).is_none());
+}
+
+#[test]
+fn register_writes_follow_their_safety_class() {
+    let (_sim, bus, log) = captured(1);
+    bus.joint(id(1)).unwrap();
+    let write = |addr: u8, value: u16| {
+        Request::write(id(1), robobus_whj::RegisterAddr::new(addr).unwrap(), value).unwrap()
+    };
+    log.clear();
+    // never: the absolute sensor calibration.
+    let e = ops::write_register(&bus, write(0x0D, 1), true).unwrap_err();
+    assert!(e.to_string().contains("never to write"), "{e}");
+    // motion target: refused with a pointer to the command.
+    let e = ops::write_register(
+        &bus,
+        Request::write_i32(id(1), robobus_whj::registers::addr::TAG_SPEED, 500_000).unwrap(),
+        true,
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("whj speed"), "{e}");
+    // confirm: IAP_FLAG := 1 needs the confirmation and says what it does.
+    let e = ops::write_register(&bus, write(0x49, 1), false).unwrap_err();
+    assert_eq!(e.kind(), ErrorKind::Refused);
+    assert!(
+        e.to_string().contains("bootloader") && e.to_string().contains("--yes"),
+        "{e}"
+    );
+    assert!(log.sent().is_empty(), "{:?}", log.sent());
+    // Inverted position limits are refused.
+    let e = ops::write_register(
+        &bus,
+        Request::write_i32(
+            id(1),
+            robobus_whj::registers::addr::LIT_MIN_POSITION,
+            4_000_000,
+        )
+        .unwrap(),
+        true,
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("inverted"), "{e}");
+    // plain: written and read back.
+    let r = ops::write_register(&bus, write(0x30, 2), false).unwrap();
+    assert_eq!(r[0].register, "TAG_WORK_MODE");
+    assert_eq!(r[0].raw, 2);
+}
+
+#[test]
+fn a_speed_target_checks_the_mode_and_stops_after_its_duration() {
+    let (_sim, bus, log) = captured(1);
+    let j = bus.joint(id(1)).unwrap();
+    let args = ops::TargetArgs {
+        joint: id(1),
+        servo: ServoLoop::Speed,
+        value: 2.0,
+        duration: Some(Duration::from_millis(200)),
+    };
+    // In position mode nothing moves: refused before any frame.
+    j.set_mode(WorkMode::Position).unwrap();
+    j.enable().unwrap();
+    log.clear();
+    let e = ops::run_target(&j, &args, &mut Control::none(), SafeState::Hold).unwrap_err();
+    assert!(e.to_string().contains("whj mode 1 speed"), "{e}");
+    assert!(servo_frames(&log.sent()).is_empty());
+    j.disable().unwrap();
+    j.set_mode(WorkMode::Speed).unwrap();
+    j.enable().unwrap();
+    log.clear();
+    let r = ops::run_target(&j, &args, &mut Control::none(), SafeState::Hold).unwrap();
+    assert!(!r.keeps_running);
+    let frames = servo_frames(&log.sent());
+    assert_eq!(frames.len(), 2, "{frames:?}");
+    assert_eq!(
+        frames[1],
+        Request::SpeedServo {
+            joint: id(1),
+            target: robobus_whj::units::TargetSpeed(0)
+        }
+        .to_frame()
+    );
+    // Without a duration the report says plainly that the joint keeps turning.
+    let r = ops::run_target(
+        &j,
+        &ops::TargetArgs {
+            duration: None,
+            ..args
+        },
+        &mut Control::none(),
+        SafeState::Hold,
+    )
+    .unwrap();
+    assert!(r.keeps_running);
+    assert!(r.note.contains("whj speed 1 0"), "{}", r.note);
+}

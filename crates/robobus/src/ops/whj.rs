@@ -1104,3 +1104,484 @@ pub fn execute_wave(
     }
     Ok(r)
 }
+
+// ---------------------------------------------------------------------------------------
+// Scan, info, modes, zero, save, release-IAP
+// ---------------------------------------------------------------------------------------
+
+/// A joint's identity (`whj scan`, `whj info`, `whj release-iap`).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct IdentityReport {
+    /// Model name.
+    pub model: &'static str,
+    /// Firmware version (four hex digits).
+    pub firmware: String,
+    /// Node ID register.
+    pub node_id: u16,
+    /// Gear reduction ratio.
+    pub reduction: u16,
+    /// 96-bit unique ID.
+    pub unique_id: String,
+}
+
+impl IdentityReport {
+    /// The report of an identity.
+    pub fn of(i: &crate::whj::Identity) -> Self {
+        Self {
+            model: i.model.name(),
+            firmware: i.firmware.to_string(),
+            node_id: i.node_id,
+            reduction: i.reduction_ratio,
+            unique_id: i.unique_id.to_string(),
+        }
+    }
+}
+
+/// Two joints answering at one ID (two different unique IDs 0x2A..0x2F to one read).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct Duplicate {
+    /// The shared ID.
+    pub id: u8,
+    /// The unique IDs that answered.
+    pub unique_ids: [String; 2],
+}
+
+/// What `whj scan` found.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ScanReport {
+    /// Joints that answered, in ID order.
+    pub found: Vec<DeviceResult<u8, IdentityReport>>,
+    /// IDs that more than one joint answers.
+    pub duplicates: Vec<Duplicate>,
+    /// IDs probed.
+    pub probed: usize,
+}
+
+/// Reads of the unique ID [`duplicates_of`] makes after the connect's own read.
+const DUPLICATE_PROBES: usize = 3;
+
+/// Whether more than one joint answers at `id` (already connected on `bus`): reads the
+/// unique ID a few more times; two joints at one ID both answer each read, and the bus
+/// records a second, differing unique ID ([`JointTelemetry::unique_id_conflict`]).
+/// `doctor` calls this too.
+///
+/// [`JointTelemetry::unique_id_conflict`]: crate::whj::JointTelemetry::unique_id_conflict
+pub fn duplicates_of(bus: &JointBus, id: JointId) -> Option<Duplicate> {
+    let j = bus.joint_unchecked(id);
+    for _ in 0..DUPLICATE_PROBES {
+        if bus.telemetry().joint(id).unique_id_conflict.is_some() {
+            break;
+        }
+        let _ = j.read_words(robobus_whj::registers::addr::MOT_MODEL_ID, 6);
+        // The second joint's reply comes after the first one's.
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    bus.telemetry()
+        .joint(id)
+        .unique_id_conflict
+        .map(|(a, b)| Duplicate {
+            id: id.get(),
+            unique_ids: [a.to_string(), b.to_string()],
+        })
+}
+
+/// `whj scan`: connects each ID (IAP release, identify; the bus's connect timeout is how
+/// long each absent ID costs) and checks each joint found for a second joint at its ID.
+/// IDs that stay silent are left out of `found`; other failures are kept.
+pub fn scan(
+    bus: &JointBus,
+    ids: &[JointId],
+    control: &mut Control<'_>,
+) -> Result<ScanReport, OpError> {
+    let mut report = ScanReport {
+        found: Vec::new(),
+        duplicates: Vec::new(),
+        probed: ids.len(),
+    };
+    for (k, &id) in ids.iter().enumerate() {
+        if control.stopped() {
+            return Err(OpError::Interrupted {
+                detail: Some(format!("scan stopped after {k} of {} IDs", ids.len())),
+            });
+        }
+        control.report(
+            &Progress::new("scan", k as u64, Some(ids.len() as u64))
+                .with_note(format!("J{}", id.get())),
+        );
+        match bus.joint(id) {
+            Ok(j) => {
+                let ident = j.identity().map_err(whj)?;
+                report
+                    .found
+                    .push(DeviceResult::ok(id.get(), IdentityReport::of(&ident)));
+                if let Some(d) = duplicates_of(bus, id) {
+                    report.duplicates.push(d);
+                }
+            }
+            Err(e) if e.is_timeout() => {}
+            Err(e) => report
+                .found
+                .push(DeviceResult::failed(id.get(), Failure::from(&e))),
+        }
+    }
+    control.report(&Progress::new(
+        "scan",
+        ids.len() as u64,
+        Some(ids.len() as u64),
+    ));
+    Ok(report)
+}
+
+/// `whj info`: identity, mode and position limits.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct InfoReport {
+    /// Identity.
+    #[serde(flatten)]
+    pub identity: IdentityReport,
+    /// Work mode.
+    pub mode: &'static str,
+    /// Lower position limit, degrees.
+    pub min_deg: f64,
+    /// Upper position limit, degrees.
+    pub max_deg: f64,
+}
+
+/// `whj info` of one joint.
+pub fn info(bus: &JointBus, id: JointId) -> Result<InfoReport, OpError> {
+    let j = bus.joint(id).map_err(whj)?;
+    let ident = j.identity().map_err(whj)?;
+    let (min, max) = j.position_limits().map_err(whj)?;
+    let mode = j.mode().map_err(whj)?;
+    Ok(InfoReport {
+        identity: IdentityReport::of(&ident),
+        mode: mode_name(mode),
+        min_deg: min.degrees(),
+        max_deg: max.degrees(),
+    })
+}
+
+/// The work mode a joint reports after `whj mode`.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct ModeReport {
+    /// Work mode read back.
+    pub mode: &'static str,
+}
+
+/// `whj mode`: sets the mode, reads it back (a joint that reports another mode fails).
+pub fn set_mode(
+    bus: &JointBus,
+    ids: &[JointId],
+    mode: WorkMode,
+) -> Vec<DeviceResult<u8, ModeReport>> {
+    per_joint(ids, |id| {
+        let j = bus.joint(id).map_err(whj)?;
+        j.set_mode(mode).map_err(whj)?;
+        let now = j.mode().map_err(whj)?;
+        if now != mode {
+            return Err(OpError::Device(format!(
+                "{id}: reports {} mode after the change to {}",
+                mode_name(now),
+                mode_name(mode)
+            )));
+        }
+        Ok(ModeReport {
+            mode: mode_name(now),
+        })
+    })
+}
+
+/// The position after `whj zero`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ZeroReport {
+    /// Position read after the zero, degrees.
+    pub position_deg: f64,
+}
+
+/// `whj zero`: the present position becomes 0 deg.
+pub fn zero(bus: &JointBus, id: JointId) -> Result<ZeroReport, OpError> {
+    let j = bus.joint(id).map_err(whj)?;
+    j.set_zero().map_err(whj)?;
+    Ok(ZeroReport {
+        position_deg: j.position().map_err(whj)?.degrees(),
+    })
+}
+
+/// `whj save`.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct SaveReport {
+    /// Saved.
+    pub saved: bool,
+}
+
+/// `whj save`: copies RAM to flash (refused while a joint is enabled).
+pub fn save(bus: &JointBus, ids: &[JointId]) -> Vec<DeviceResult<u8, SaveReport>> {
+    per_joint(ids, |id| {
+        let j = bus.joint(id).map_err(whj)?;
+        j.save_to_flash().map_err(whj)?;
+        Ok(SaveReport { saved: true })
+    })
+}
+
+/// `whj release-iap`: starts the application of joints in the bootloader.
+pub fn release_iap(bus: &JointBus, ids: &[JointId]) -> Vec<DeviceResult<u8, IdentityReport>> {
+    per_joint(ids, |id| {
+        let j = bus.joint_unchecked(id);
+        j.release_iap().map_err(whj)?;
+        Ok(IdentityReport::of(&j.identity().map_err(whj)?))
+    })
+}
+
+// ---------------------------------------------------------------------------------------
+// Registers
+// ---------------------------------------------------------------------------------------
+
+/// One register value (`whj read`, `whj write`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RegisterReport {
+    /// Address, `0x14`.
+    pub addr: String,
+    /// Name (a pair by its name without `_L`), or `(reserved)`.
+    pub register: &'static str,
+    /// Raw value.
+    pub raw: i64,
+    /// Value in its unit, where the register has a fixed scale.
+    pub value: Option<f64>,
+    /// Unit symbol.
+    pub unit: &'static str,
+}
+
+fn register_report(v: &crate::whj::RegisterValue) -> RegisterReport {
+    let info = v.info;
+    let name = if info.half == robobus_whj::registers::Half::Low {
+        info.name.strip_suffix("_L").unwrap_or(info.name)
+    } else {
+        info.name
+    };
+    RegisterReport {
+        addr: format!("0x{:02X}", info.addr.get()),
+        register: name,
+        raw: i64::from(v.raw),
+        value: v.value,
+        unit: v.unit,
+    }
+}
+
+/// `whj read`: a register (a pair as one value) by name with its unit when `count` is
+/// `None` and the address is a documented register, else `count` raw words.
+pub fn read_registers(
+    bus: &JointBus,
+    id: JointId,
+    addr: robobus_whj::RegisterAddr,
+    count: Option<u8>,
+) -> Result<Vec<RegisterReport>, OpError> {
+    let j = bus.joint(id).map_err(whj)?;
+    let info = robobus_whj::RegisterInfo::by_addr(addr);
+    if let (Some(info), None) = (info, count) {
+        let v = j.read_register(info.name).map_err(whj)?;
+        return Ok(vec![register_report(&v)]);
+    }
+    let words = j.read_words(addr, count.unwrap_or(1)).map_err(whj)?;
+    Ok((addr.get()..)
+        .zip(words)
+        .map(|(k, w)| RegisterReport {
+            addr: format!("0x{k:02X}"),
+            register: robobus_whj::RegisterAddr::new(k)
+                .ok()
+                .and_then(robobus_whj::RegisterInfo::by_addr)
+                .map_or("(reserved)", |i| i.name),
+            raw: i64::from(w),
+            value: None,
+            unit: "",
+        })
+        .collect())
+}
+
+/// Checks a register write against the register's safety class
+/// ([`robobus_whj::registers::safety_class`]): motion targets and `never` registers are
+/// refused with the reason (and the command to use); `confirm` registers need
+/// `confirmed` (the CLI's `--yes` or its prompt). Returns the text of what a `confirm`
+/// write does, if it is one.
+pub fn check_write(
+    addr: robobus_whj::RegisterAddr,
+    confirmed: bool,
+) -> Result<Option<&'static str>, OpError> {
+    use robobus_whj::registers::SafetyClass;
+    let name = robobus_whj::RegisterInfo::by_addr(addr).map_or("(reserved)", |i| i.name);
+    match robobus_whj::registers::safety_class(addr) {
+        SafetyClass::Plain => Ok(None),
+        SafetyClass::Confirm(what) if confirmed => Ok(Some(what)),
+        SafetyClass::Confirm(what) => Err(OpError::Refused(format!(
+            "write {name} ({:#04x}) {what}; confirm with --yes; nothing was sent",
+            addr.get()
+        ))),
+        SafetyClass::Motion(why) | SafetyClass::Never(why) => Err(OpError::Refused(format!(
+            "write {name} ({:#04x}) refused: {why}; nothing was sent",
+            addr.get()
+        ))),
+    }
+}
+
+/// The safety class of the register a request writes, if it is a confirm write: what it
+/// does (for a front end's confirmation prompt).
+pub fn confirm_text(request: &Request) -> Option<&'static str> {
+    match request {
+        Request::Write { addr, .. } => match robobus_whj::registers::safety_class(*addr) {
+            robobus_whj::registers::SafetyClass::Confirm(what) => Some(what),
+            _ => None,
+        },
+        _ => None,
+    }
+}
+
+/// `whj write`: sends the planned write request (the one a dry run prints) after
+/// [`check_write`], refuses position limits that would end up inverted (min > max), and
+/// reads the register back.
+pub fn write_register(
+    bus: &JointBus,
+    request: Request,
+    confirmed: bool,
+) -> Result<Vec<RegisterReport>, OpError> {
+    let Request::Write { joint, addr, data } = request else {
+        return Err(OpError::invalid(
+            "write",
+            format!("{request:?}"),
+            "not a register write",
+        ));
+    };
+    check_write(addr, confirmed)?;
+    let j = bus.joint(joint).map_err(whj)?;
+    let min_addr = robobus_whj::registers::addr::LIT_MIN_POSITION;
+    let max_addr = robobus_whj::registers::addr::LIT_MAX_POSITION;
+    if let robobus_whj::request::WriteData::Pair(v) = data
+        && (addr == min_addr || addr == max_addr)
+    {
+        let (min, max) = j.position_limits().map_err(whj)?;
+        let (lo, hi) = if addr == min_addr {
+            (v, max.raw())
+        } else {
+            (min.raw(), v)
+        };
+        if lo > hi {
+            return Err(OpError::Refused(format!(
+                "{joint}: position limits would be inverted: min {} deg > max {} deg; nothing \
+                 was sent",
+                Position(lo).degrees(),
+                Position(hi).degrees()
+            )));
+        }
+    }
+    match data {
+        robobus_whj::request::WriteData::Pair(v) => j.write_i32(addr, v),
+        robobus_whj::request::WriteData::Word(w) => j.write_word(addr, w),
+        robobus_whj::request::WriteData::Byte(b) => j.write_word(addr, u16::from(b)),
+    }
+    .map_err(whj)?;
+    let count = match data {
+        robobus_whj::request::WriteData::Pair(_) => Some(2),
+        _ => None,
+    };
+    match robobus_whj::RegisterInfo::by_addr(addr) {
+        Some(_) => read_registers(bus, joint, addr, None),
+        None => read_registers(bus, joint, addr, count.or(Some(1))),
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Speed and current targets
+// ---------------------------------------------------------------------------------------
+
+/// A speed or current target (`whj speed`, `whj current`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TargetArgs {
+    /// The joint.
+    pub joint: JointId,
+    /// [`ServoLoop::Speed`] (RPM) or [`ServoLoop::Current`] (mA).
+    pub servo: ServoLoop,
+    /// The target, in the loop's unit.
+    pub value: f64,
+    /// How long to keep it; then target 0 (also on stop). `None`: the joint keeps it.
+    pub duration: Option<Duration>,
+}
+
+/// What a speed or current target did.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TargetReport {
+    /// The feedback to the target frame.
+    #[serde(flatten)]
+    pub feedback: FeedbackReport,
+    /// Whether the joint still runs the target (no `--duration`).
+    pub keeps_running: bool,
+    /// What to do about it, or what was done.
+    pub note: String,
+}
+
+/// The frame of a target.
+pub fn target_request(args: &TargetArgs, scale: CurrentScale) -> Result<Request, OpError> {
+    Ok(match args.servo {
+        ServoLoop::Speed => Request::SpeedServo {
+            joint: args.joint,
+            target: TargetSpeed::from_rpm(args.value)
+                .map_err(|e| OpError::invalid("<RPM>", args.value, e.to_string()))?,
+        },
+        ServoLoop::Current => Request::CurrentServo {
+            joint: args.joint,
+            target: Current::from_milliamps(args.value, scale)
+                .map_err(|e| OpError::invalid("<MILLIAMPS>", args.value, e.to_string()))?,
+        },
+        ServoLoop::Position => {
+            return Err(OpError::invalid("target", "position", "use a move"));
+        }
+    })
+}
+
+/// Sends a speed or current target after checking the joint is enabled in that mode and
+/// the value within its bounds. With a duration: waits (stoppable), then target 0. On stop:
+/// `on_stop`.
+pub fn run_target(
+    j: &Joint<'_>,
+    args: &TargetArgs,
+    control: &mut Control<'_>,
+    on_stop: SafeState,
+) -> Result<TargetReport, OpError> {
+    let what = match args.servo {
+        ServoLoop::Speed => "speed",
+        _ => "current",
+    };
+    require_ready(j, args.servo, what)?;
+    check_demand(j, args.servo, args.value, args.value)?;
+    let scale = j.identity().map_err(whj)?.current_scale();
+    let request = target_request(args, scale)?;
+    let fb = j.servo_request(request).map_err(whj)?;
+    let id = j.id().get();
+    let Some(duration) = args.duration else {
+        #[allow(clippy::float_cmp)]
+        let idle = args.value == 0.0;
+        return Ok(TargetReport {
+            feedback: FeedbackReport::of(&fb, scale),
+            keeps_running: !idle,
+            note: if idle {
+                format!("{what} target 0")
+            } else {
+                format!(
+                    "the joint keeps this {what} target until told otherwise: stop it with \
+                     `robobus whj {what} {id} 0` or `robobus whj disable {id}`"
+                )
+            },
+        });
+    };
+    if !control.sleep_until(Instant::now() + duration) {
+        return Err(interrupted(j, on_stop, args.servo));
+    }
+    let zero = TargetArgs {
+        value: 0.0,
+        ..*args
+    };
+    let fb = j
+        .servo_request(target_request(&zero, scale)?)
+        .map_err(whj)?;
+    Ok(TargetReport {
+        feedback: FeedbackReport::of(&fb, scale),
+        keeps_running: false,
+        note: format!("{what} target 0 after {} s", duration.as_secs_f64()),
+    })
+}

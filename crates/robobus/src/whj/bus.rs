@@ -12,6 +12,7 @@ use std::time::Instant;
 
 use robobus_link::{BusErrorKind, FrameLink, FrameLinkError};
 use robobus_whj::frame::padded_len;
+use robobus_whj::registers::{self, UniqueId};
 use robobus_whj::units::{ActualSpeed, Current, Position, Temperature, Voltage};
 use robobus_whj::{CanFrame, ErrorCode, JointId, Reply, Request};
 
@@ -162,6 +163,11 @@ pub struct JointTelemetry {
     pub temperature: Option<Temperature>,
     /// Replies received from this joint.
     pub replies: u64,
+    /// The unique ID (0x2A..0x2F) last read from this joint ID.
+    pub unique_id: Option<UniqueId>,
+    /// Two different unique IDs answered reads at this joint ID: two joints share the ID
+    /// (the first seen and the differing one).
+    pub unique_id_conflict: Option<(UniqueId, UniqueId)>,
 }
 
 /// A snapshot of everything the bus thread knows: bus health and per-joint values.
@@ -216,7 +222,20 @@ impl Telemetry {
                 t.voltage = Some(f.voltage);
                 t.temperature = Some(f.temperature);
             }
-            Reply::Read { .. } => {
+            Reply::Read { addr, words, .. } => {
+                if *addr == registers::addr::MOT_MODEL_ID && words.len() >= 6 {
+                    let mut id = [0u16; 6];
+                    for (slot, w) in id.iter_mut().zip(words.as_slice()) {
+                        *slot = *w;
+                    }
+                    let id = UniqueId(id);
+                    match t.unique_id {
+                        Some(seen) if seen != id && t.unique_id_conflict.is_none() => {
+                            t.unique_id_conflict = Some((seen, id));
+                        }
+                        _ => t.unique_id = Some(id),
+                    }
+                }
                 if let Some(p) = reply.actual_position() {
                     t.position = Some(p);
                 }
