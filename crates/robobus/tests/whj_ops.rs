@@ -166,6 +166,7 @@ fn a_real_wave_sends_exactly_the_frames_its_dry_run_shows() {
         offset: 0.0,
         duration: 0.5,
         rate_hz: 100.0,
+        step_limit_deg: JointBusConfig::default().step_limit_deg,
     };
     let dry = ops::plan_wave(&args, 0.0, CurrentScale::OneMilliamp, true).unwrap();
     assert_eq!(dry.frames.len(), 50);

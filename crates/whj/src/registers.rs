@@ -602,14 +602,15 @@ pub fn safety_class(addr: RegisterAddr) -> SafetyClass {
         return *class;
     }
     if info.access == Access::ReadOnly {
-        return SafetyClass::Never("read only: the joint refuses the write");
+        return SafetyClass::Never("read-only: the joint refuses the write");
     }
     SafetyClass::Plain
 }
 
 /// The writable registers that are not [`SafetyClass::Plain`], by name (both halves of a
-/// pair are listed).
-pub const SAFETY_CLASSES: [(&str, SafetyClass); 26] = {
+/// pair are listed). Position limits are plain, but the client refuses a write that would
+/// leave them inverted (min > max).
+pub const SAFETY_CLASSES: [(&str, SafetyClass); 18] = {
     use SafetyClass::{Confirm, Motion, Never};
     const MOVE: SafetyClass =
         Motion("a position target: use `whj move` (limits and step-limit planner)");
@@ -617,8 +618,6 @@ pub const SAFETY_CLASSES: [(&str, SafetyClass); 26] = {
         Motion("a speed target: use `whj speed` (mode, enable and limit checks)");
     const CURRENT: SafetyClass =
         Motion("a current target: use `whj current` (mode, enable and limit checks)");
-    const LIMIT: SafetyClass =
-        Confirm("changes a position limit of the joint (the pair must stay min <= max)");
     [
         (
             "SYS_ID",
@@ -676,10 +675,6 @@ pub const SAFETY_CLASSES: [(&str, SafetyClass); 26] = {
         ("TAG_SPEED_H", SPEED),
         ("TAG_POSITION_L", MOVE),
         ("TAG_POSITION_H", MOVE),
-        ("LIT_MIN_POSITION_L", LIMIT),
-        ("LIT_MIN_POSITION_H", LIMIT),
-        ("LIT_MAX_POSITION_L", LIMIT),
-        ("LIT_MAX_POSITION_H", LIMIT),
         (
             "IAP_FLAG",
             Confirm(
@@ -691,22 +686,6 @@ pub const SAFETY_CLASSES: [(&str, SafetyClass); 26] = {
             Confirm(
                 "releases the brake directly (once per power cycle): an arm under load may fall",
             ),
-        ),
-        (
-            "SEV_PARAME_UPDATE",
-            Confirm("loads the gain registers into the running control loops"),
-        ),
-        (
-            "LIT_MAX_POS_DIFF_L",
-            Confirm("changes the largest allowed following error (a protection)"),
-        ),
-        (
-            "LIT_MAX_POS_DIFF_H",
-            Confirm("changes the largest allowed following error (a protection)"),
-        ),
-        (
-            "END_BOARD_MODE",
-            Confirm("makes the end board act as a joint (or not)"),
         ),
     ]
 };

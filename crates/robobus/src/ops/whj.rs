@@ -29,10 +29,10 @@
 //! - [`MoveReport`]: `from_deg`, `target_deg`, `position_deg` (a fresh reading after the
 //!   move settled), `frames`, `seconds`, `step_limited` (the plan ran slower than asked so
 //!   that no frame exceeds the step limit), `error`;
-//! - [`WaveReport`]: `cycles`, `missing_replies`, `deadline_misses`, `overruns`, `clamped`
+//! - [`WaveReport`]: `cycles`, `complete`, `missing_replies`, `deadline_misses`, `overruns`, `clamped`
 //!   (set-points the step limiter changed), `tracking_rms`, `tracking_max` (against the
 //!   *requested* target, in the loop's unit), `last` (the last feedback, or null when none
-//!   came), `stale` (true when the last cycle had no reply);
+//!   came), `stale` (true when the last cycle had no reply), `missing_at_end`;
 //! - [`SetIdReport`]: `new_id`, `saved`, `note`.
 
 // OpError carries the client errors by value, as they do (see `ops::read_bounded`).
@@ -776,6 +776,8 @@ pub struct WaveArgs {
     pub duration: f64,
     /// Frames per second.
     pub rate_hz: f64,
+    /// Largest step of one position frame, degrees (the bus's step limit).
+    pub step_limit_deg: f64,
 }
 
 /// Largest |angle| a wave may ask for, degrees.
@@ -811,6 +813,13 @@ impl WaveArgs {
                 "--rate-hz",
                 self.rate_hz,
                 "allowed: 1..=1000",
+            ));
+        }
+        if !(self.step_limit_deg.is_finite() && self.step_limit_deg > 0.0) {
+            return Err(OpError::invalid(
+                "step limit",
+                self.step_limit_deg,
+                "allowed: more than 0 deg",
             ));
         }
         if !(self.amplitude.is_finite() && self.amplitude >= 0.0) {
@@ -885,6 +894,10 @@ pub fn plan_wave(
         from_deg,
         MotionLimits {
             period,
+            // Never a frame beyond the step limit, however low the rate.
+            max_speed_deg_s: WAVE_LIMITS
+                .max_speed_deg_s
+                .min(args.step_limit_deg * args.rate_hz),
             ..WAVE_LIMITS
         },
     );
@@ -973,6 +986,8 @@ impl FeedbackReport {
 pub struct WaveReport {
     /// Frames sent.
     pub cycles: u64,
+    /// Frames answered.
+    pub complete: u64,
     /// Frames without a reply.
     pub missing_replies: u64,
     /// Frames sent more than one period late.
@@ -991,6 +1006,8 @@ pub struct WaveReport {
     pub last: Option<FeedbackReport>,
     /// Whether the last frame went without a reply (`last` is then older).
     pub stale: bool,
+    /// Frames without a reply in a row at the end of the wave.
+    pub missing_at_end: u64,
 }
 
 /// Runs a wave: checks the joint (enabled in the wave's mode, the values within its
@@ -1041,6 +1058,7 @@ pub fn execute_wave(
     let period = Duration::from_secs_f64(1.0 / args.rate_hz);
     let mut r = WaveReport {
         cycles: 0,
+        complete: 0,
         missing_replies: 0,
         deadline_misses: 0,
         overruns: 0,
@@ -1050,6 +1068,7 @@ pub fn execute_wave(
         unit: args.servo.unit(),
         last: None,
         stale: false,
+        missing_at_end: 0,
     };
     for (f, want) in plan.frames.iter().zip(&targets) {
         if let Request::PositionServo { target, .. } = f.request
@@ -1072,10 +1091,13 @@ pub fn execute_wave(
         }
         let Some(fb) = fb else {
             r.missing_replies += 1;
+            r.missing_at_end += 1;
             r.stale = true;
             return Ok(());
         };
         r.stale = false;
+        r.missing_at_end = 0;
+        r.complete += 1;
         if k > 0
             && let Some(want) = targets.get(k - 1)
         {
@@ -1584,4 +1606,106 @@ pub fn run_target(
         keeps_running: false,
         note: format!("{what} target 0 after {} s", duration.as_secs_f64()),
     })
+}
+
+/// The write request for `value` into the register at `addr` (in the register's unit, or
+/// counts with `raw`), converting units (`scale`: the joint's current LSB). The request a
+/// dry run prints and [`write`] sends.
+pub fn write_request(
+    joint: JointId,
+    addr: robobus_whj::RegisterAddr,
+    value: f64,
+    raw: bool,
+    scale: CurrentScale,
+) -> Result<Request, OpError> {
+    use robobus_whj::registers::{Half, Unit};
+    let info = robobus_whj::RegisterInfo::by_addr(addr);
+    let name = info.map_or("reserved register", |i| i.name);
+    let option = format!("write {name} <VALUE>");
+    if !value.is_finite() {
+        return Err(OpError::invalid(option, value, "not a finite number"));
+    }
+    let unit = info.map_or(Unit::Raw, |i| i.unit);
+    let per_count = if raw {
+        1.0
+    } else {
+        match unit {
+            Unit::Current => f64::from(scale.ma_per_count()),
+            Unit::SpeedLimit => {
+                return Err(OpError::invalid(
+                    format!("write {name}"),
+                    value,
+                    "its unit depends on the firmware (0.01 RPM or 1/ratio RPM, conflict C3); \
+                     give the value in counts with --raw",
+                ));
+            }
+            other => other.scale().unwrap_or(1.0),
+        }
+    };
+    let counts = (value / per_count).round();
+    if (counts - value / per_count).abs() > 1e-6 && (raw || unit.scale().is_none()) {
+        return Err(OpError::invalid(
+            option,
+            value,
+            "not a whole number of counts",
+        ));
+    }
+    if counts < f64::from(i32::MIN) || counts > f64::from(i32::MAX) {
+        return Err(OpError::invalid(
+            option,
+            value,
+            format!("{counts} counts, outside the 32-bit range"),
+        ));
+    }
+    #[allow(clippy::cast_possible_truncation)] // checked just above
+    let counts = counts as i32;
+    let bad = |e: robobus_whj::RequestError| {
+        OpError::invalid("write <REGISTER> <VALUE>", value, e.to_string())
+    };
+    if info.map(|i| i.half) == Some(Half::Low) {
+        return Request::write_i32(joint, addr, counts).map_err(bad);
+    }
+    let word = u16::try_from(counts).map_err(|_| {
+        OpError::invalid(
+            option.clone(),
+            value,
+            format!("{counts} counts is out of range 0..=65535 for a 16-bit register"),
+        )
+    })?;
+    Request::write(joint, addr, word).map_err(bad)
+}
+
+/// Whether a register's value depends on the joint's current scale (mA registers).
+pub fn needs_current_scale(addr: robobus_whj::RegisterAddr, raw: bool) -> bool {
+    !raw && robobus_whj::RegisterInfo::by_addr(addr)
+        .is_some_and(|i| i.unit == robobus_whj::registers::Unit::Current)
+}
+
+/// `whj write` by value: [`write_request`] with `scale` or (when `None`) the joint's own
+/// current scale, then [`write_register`].
+pub fn write(
+    bus: &JointBus,
+    joint: JointId,
+    addr: robobus_whj::RegisterAddr,
+    value: f64,
+    raw: bool,
+    scale: Option<CurrentScale>,
+    confirmed: bool,
+) -> Result<Vec<RegisterReport>, OpError> {
+    check_write(addr, confirmed)?;
+    let scale = match scale {
+        Some(s) => s,
+        None if needs_current_scale(addr, raw) => bus
+            .joint(joint)
+            .map_err(whj)?
+            .identity()
+            .map_err(whj)?
+            .current_scale(),
+        None => CurrentScale::OneMilliamp,
+    };
+    write_register(
+        bus,
+        write_request(joint, addr, value, raw, scale)?,
+        confirmed,
+    )
 }
