@@ -471,3 +471,22 @@ fn a_speed_target_checks_the_mode_and_stops_after_its_duration() {
     assert!(r.keeps_running);
     assert!(r.note.contains("whj speed 1 0"), "{}", r.note);
 }
+
+#[test]
+fn the_bus_keeps_joint_identities_and_owned_handles_cross_threads() {
+    let (_sim, bus, log) = captured(1);
+    let bus = Arc::new(bus);
+    let owned = bus.owned_joint(id(1)).unwrap();
+    log.clear();
+    // Short-lived handles, as a monitor makes every sample: no identity reads any more.
+    for _ in 0..3 {
+        assert_eq!(
+            bus.joint_unchecked(id(1)).identity().unwrap().model.name(),
+            "WHJ30"
+        );
+    }
+    assert!(log.sent().is_empty(), "{:?}", log.sent());
+    // The owned handle lives on another thread.
+    let h = std::thread::spawn(move || owned.joint().status().map(|s| s.is_enabled()));
+    assert!(h.join().unwrap().is_ok());
+}

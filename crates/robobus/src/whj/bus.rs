@@ -393,12 +393,41 @@ pub(crate) enum Command {
 #[derive(Debug, Default)]
 pub(crate) struct Shared {
     pub(crate) telemetry: Mutex<Telemetry>,
+    /// The identity of each joint, read once per bus (by index = joint ID), so short-lived
+    /// [`Joint`] handles do not read it again.
+    pub(crate) identities: Mutex<[Option<super::joint::Identity>; 31]>,
     fatal: Mutex<Option<String>>,
     cyclic_running: AtomicBool,
 }
 
 pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// A joint handle that owns a share of its bus (`Arc<JointBus>`): `Send + Sync + 'static`,
+/// so a web server, a Python binding or a bridge can keep it. [`OwnedJoint::joint`] lends
+/// the full [`Joint`] API; the identity comes from the bus's cache.
+#[derive(Debug, Clone)]
+pub struct OwnedJoint {
+    bus: Arc<JointBus>,
+    id: JointId,
+}
+
+impl OwnedJoint {
+    /// The joint's ID.
+    pub const fn id(&self) -> JointId {
+        self.id
+    }
+
+    /// The bus.
+    pub const fn bus(&self) -> &Arc<JointBus> {
+        &self.bus
+    }
+
+    /// The joint's handle (no frames: the identity is cached in the bus).
+    pub fn joint(&self) -> Joint<'_> {
+        self.bus.joint_unchecked(self.id)
+    }
 }
 
 /// A WHJ CAN FD bus: owns a [`FrameLink`] on a thread of its own and hands out [`Joint`]
@@ -478,9 +507,34 @@ impl JointBus {
     }
 
     /// A handle for joint `id` without the connect handshake (for a joint known to run its
-    /// application). Its identity is read on first use.
+    /// application). Its identity is read on first use, once per bus (the bus keeps it, so
+    /// a handle made every sample costs no extra frames).
     pub fn joint_unchecked(&self, id: JointId) -> Joint<'_> {
         Joint::unchecked(self, id)
+    }
+
+    /// The identity this bus has read from joint `id`, if any.
+    pub fn cached_identity(&self, id: JointId) -> Option<super::joint::Identity> {
+        lock(&self.shared.identities)
+            .get(usize::from(id.get()))
+            .copied()
+            .flatten()
+    }
+
+    pub(crate) fn cache_identity(&self, id: JointId, identity: super::joint::Identity) {
+        if let Some(slot) = lock(&self.shared.identities).get_mut(usize::from(id.get())) {
+            *slot = Some(identity);
+        }
+    }
+
+    /// Connects joint `id` ([`JointBus::joint`]) and returns a handle that owns (a share
+    /// of) the bus, for front ends that keep a joint for a long time or on another thread.
+    pub fn owned_joint(self: &Arc<Self>, id: JointId) -> Result<OwnedJoint, WhjError> {
+        self.joint(id)?;
+        Ok(OwnedJoint {
+            bus: Arc::clone(self),
+            id,
+        })
     }
 
     /// Sends one point-to-point request and waits for its reply (one attempt, no retry;

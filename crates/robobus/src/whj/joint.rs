@@ -108,6 +108,7 @@ impl<'a> Joint<'a> {
         joint.release_iap()?;
         let identity = joint.identify()?;
         let _ = joint.identity.set(identity);
+        bus.cache_identity(id, identity);
         Ok(joint)
     }
 
@@ -188,7 +189,11 @@ impl<'a> Joint<'a> {
         if let Some(i) = self.identity.get() {
             return Ok(*i);
         }
+        if let Some(i) = self.bus.cached_identity(self.id) {
+            return Ok(*self.identity.get_or_init(|| i));
+        }
         let i = self.identify()?;
+        self.bus.cache_identity(self.id, i);
         Ok(*self.identity.get_or_init(|| i))
     }
 
