@@ -243,16 +243,10 @@ fn run(bus: &JointBus, job: &WhjJob<'_>, stats: &mut Option<Value>) -> anyhow::R
         WhjRun::Move(args) => {
             let j = bus.joint(args.joint)?;
             let plan = ops::prepare_move(&j, args)?;
-            let pb = progress_bar(
-                plan.frames.len() as u64,
-                "move [{bar:30}] {pos}/{len} frames",
-            );
-            let mut on = |p: &Progress| pb.set_position(p.done);
-            let token = crate::interrupt::stop_token();
-            let mut control = Control::new(&token).with_progress(&mut on);
-            let report = ops::execute_move(&j, args, &plan, &mut control, safe);
-            pb.finish_and_clear();
-            one(args.joint, &report?)
+            let report = with_progress(&plan, "move [{bar:30}] {pos}/{len} frames", |c| {
+                Ok(ops::execute_move(&j, args, &plan, c, safe)?)
+            })?;
+            one(args.joint, &report)
         }
         WhjRun::Target(args) => {
             let j = bus.joint(args.joint)?;
@@ -332,6 +326,20 @@ fn scan(bus: &JointBus, ids: &[JointId], stats: &mut Option<Value>) -> anyhow::R
     Ok((rows, outcome))
 }
 
+/// Runs a planned operation with the one stop token and a progress bar over its frames.
+fn with_progress<T>(
+    plan: &ops::Plan,
+    template: &str,
+    f: impl FnOnce(&mut Control<'_>) -> anyhow::Result<T>,
+) -> anyhow::Result<T> {
+    let pb = progress_bar(plan.frames.len() as u64, template);
+    let mut on = |p: &Progress| pb.set_position(p.done);
+    let token = crate::interrupt::stop_token();
+    let result = f(&mut Control::new(&token).with_progress(&mut on));
+    pb.finish_and_clear();
+    result
+}
+
 /// Frames without a reply at the end of a wave after which the joint counts as gone
 /// (exit code 3): one lost reply is a glitch, ten in a row at the end are a silent joint.
 const GONE_AFTER: u64 = 10;
@@ -344,16 +352,9 @@ fn wave(
 ) -> anyhow::Result<Ran> {
     let j = bus.joint(args.joint)?;
     let plan = ops::prepare_wave(&j, args)?;
-    let pb = progress_bar(
-        plan.frames.len() as u64,
-        "wave [{bar:30}] {pos}/{len} cycles",
-    );
-    let mut on = |p: &Progress| pb.set_position(p.done);
-    let token = crate::interrupt::stop_token();
-    let mut control = Control::new(&token).with_progress(&mut on);
-    let report = ops::execute_wave(&j, args, &plan, &mut control, safe);
-    pb.finish_and_clear();
-    let report = report?;
+    let report = with_progress(&plan, "wave [{bar:30}] {pos}/{len} cycles", |c| {
+        Ok(ops::execute_wave(&j, args, &plan, c, safe)?)
+    })?;
     let mut r = match &report.last {
         Some(fb) => row(args.joint.get(), fb),
         None => row(args.joint.get(), &()),

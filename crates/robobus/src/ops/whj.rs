@@ -492,20 +492,7 @@ impl MoveArgs {
                 "allowed: more than 0 deg/s",
             ));
         }
-        if !(self.rate_hz.is_finite() && (1.0..=1000.0).contains(&self.rate_hz)) {
-            return Err(OpError::invalid(
-                "--rate-hz",
-                self.rate_hz,
-                "allowed: 1..=1000",
-            ));
-        }
-        if !(self.step_limit_deg.is_finite() && self.step_limit_deg > 0.0) {
-            return Err(OpError::invalid(
-                "step limit",
-                self.step_limit_deg,
-                "allowed: more than 0 deg",
-            ));
-        }
+        check_rate_and_step(self.rate_hz, self.step_limit_deg)?;
         Ok(())
     }
 
@@ -526,6 +513,21 @@ impl MoveArgs {
             ..MotionLimits::default()
         }
     }
+}
+
+/// Checks a frame rate (1..=1000 Hz) and a step limit (positive).
+fn check_rate_and_step(rate_hz: f64, step_limit_deg: f64) -> Result<(), OpError> {
+    if !(rate_hz.is_finite() && (1.0..=1000.0).contains(&rate_hz)) {
+        return Err(OpError::invalid("--rate-hz", rate_hz, "allowed: 1..=1000"));
+    }
+    if !(step_limit_deg.is_finite() && step_limit_deg > 0.0) {
+        return Err(OpError::invalid(
+            "step limit",
+            step_limit_deg,
+            "allowed: more than 0 deg",
+        ));
+    }
+    Ok(())
 }
 
 /// The most frames one move may take (an hour at 100 Hz).
@@ -808,20 +810,7 @@ impl WaveArgs {
 
     /// Checks the arguments (nothing is sent).
     pub fn validate(&self) -> Result<(), OpError> {
-        if !(self.rate_hz.is_finite() && (1.0..=1000.0).contains(&self.rate_hz)) {
-            return Err(OpError::invalid(
-                "--rate-hz",
-                self.rate_hz,
-                "allowed: 1..=1000",
-            ));
-        }
-        if !(self.step_limit_deg.is_finite() && self.step_limit_deg > 0.0) {
-            return Err(OpError::invalid(
-                "step limit",
-                self.step_limit_deg,
-                "allowed: more than 0 deg",
-            ));
-        }
+        check_rate_and_step(self.rate_hz, self.step_limit_deg)?;
         if !(self.amplitude.is_finite() && self.amplitude >= 0.0) {
             return Err(OpError::invalid(
                 "--amplitude",
