@@ -1698,3 +1698,42 @@ pub fn write(
         confirmed,
     )
 }
+
+// ---------------------------------------------------------------------------------------
+// Monitor sampling
+// ---------------------------------------------------------------------------------------
+
+/// One sample of one joint (`robobus monitor`): a status query and a speed read.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct JointSample {
+    /// Actual position, degrees.
+    pub position_deg: f64,
+    /// Actual speed, RPM (`None` when the speed read failed).
+    pub speed_rpm: Option<f64>,
+    /// Actual current, mA (`None` in the 12-byte status layout).
+    pub current_ma: Option<i64>,
+    /// Drive enabled.
+    pub enabled: bool,
+    /// Error bits.
+    pub error: String,
+}
+
+/// Samples joints once each, without the connect handshake (the bus caches identities, so
+/// a sample costs two frames per joint). A joint that does not answer is a failed result:
+/// the caller marks it missing, never shows older values as this sample's.
+pub fn sample(bus: &JointBus, ids: &[JointId]) -> Vec<DeviceResult<u8, JointSample>> {
+    per_joint(ids, |id| {
+        let j = bus.joint_unchecked(id);
+        let scale = j
+            .identity()
+            .map_or(CurrentScale::OneMilliamp, |i| i.current_scale());
+        let st = j.status().map_err(whj)?;
+        Ok(JointSample {
+            position_deg: st.position.degrees(),
+            speed_rpm: j.speed().ok().map(robobus_whj::units::ActualSpeed::rpm),
+            current_ma: st.current.map(|c| c.milliamps(scale)),
+            enabled: st.is_enabled(),
+            error: st.error.to_string(),
+        })
+    })
+}
