@@ -490,3 +490,57 @@ fn the_bus_keeps_joint_identities_and_owned_handles_cross_threads() {
     let h = std::thread::spawn(move || owned.joint().status().map(|s| s.is_enabled()));
     assert!(h.join().unwrap().is_ok());
 }
+
+/// A relay that sets error bit 0x0200 (position limit) in every status reply and servo
+/// feedback: a joint that accepts commands but reports an error.
+struct ErrorBits<L>(L);
+
+impl<L: FrameLink> FrameLink for ErrorBits<L> {
+    fn send(&mut self, frame: &CanFrame) -> Result<(), FrameLinkError> {
+        self.0.send(frame)
+    }
+    fn recv(&mut self, deadline: std::time::Instant) -> Result<Received, FrameLinkError> {
+        let mut r = self.0.recv(deadline)?;
+        match Reply::from_frame(&r.frame) {
+            Ok(Reply::Status { joint, mut status }) => {
+                status.error = robobus_whj::ErrorCode(0x0200);
+                r.frame = Reply::Status { joint, status }.to_frame();
+            }
+            Ok(Reply::ServoFeedback {
+                joint,
+                mut feedback,
+            }) => {
+                feedback.error = robobus_whj::ErrorCode(0x0200);
+                r.frame = Reply::ServoFeedback { joint, feedback }.to_frame();
+            }
+            _ => {}
+        }
+        Ok(r)
+    }
+    fn set_filters(&mut self, filters: &[IdFilter]) -> Result<(), FrameLinkError> {
+        self.0.set_filters(filters)
+    }
+}
+
+#[test]
+fn enable_and_move_fail_naming_the_error_bits_the_joint_reports() {
+    let (_sim, link) = memory(chain(1));
+    let bus = JointBus::open_with(ErrorBits(link), config()).unwrap();
+    let j = bus.joint(id(1)).unwrap();
+    j.set_mode(WorkMode::Position).unwrap();
+    let r = ops::enable(&bus, &[id(1)], true);
+    let f = r[0].failure().unwrap();
+    assert_eq!(f.kind, ErrorKind::Device, "{f:?}");
+    assert!(f.error.contains("position limit"), "{}", f.error);
+    // The joint is enabled (the write was acknowledged), but the move stops at the first
+    // feedback that carries the error bits.
+    let e = ops::run_move(
+        &j,
+        &move_args(1.0, 30.0, 100.0),
+        &mut Control::none(),
+        SafeState::Hold,
+    )
+    .unwrap_err();
+    assert_eq!(e.kind(), ErrorKind::Device, "{e}");
+    assert!(e.to_string().contains("position limit"), "{e}");
+}
