@@ -51,12 +51,18 @@ angles within its position limits (0x44..0x47), speeds within its model's peak o
 speed (30 RPM on WHJ03/60/120), currents within its current limit (0x40).
 
 Without --dry-run the command runs on the bus: each joint is connected first (IAP
-release, identify), results are printed as a table (--json: one JSON object; fields carry
-their units: position_deg, speed_rpm, current_ma). `move` streams a smooth, speed- and
-acceleration-limited profile; `wave` runs through the cyclic loop and reports cycles,
-deadline misses, latency and tracking. A joint that does not answer gives exit code 3
-(the message names it); `save` is refused while a joint is enabled. Ctrl-C during move
-or wave first brings the joint to the --on-stop state, then exits with 130.
+release, identify; up to 5 s, since joints with a staggered power-up stay silent for a few
+seconds), results are printed as a table, one row per joint (--json: one JSON object;
+fields carry their units: position_deg, speed_rpm, current_ma). `move` and `wave` send
+exactly the frames their dry run prints, planned from the measured position (a move that
+is too fast for the step limit is split into smaller steps); `wave` reports cycles,
+missing replies, deadline misses, overruns, clamps and tracking against the requested
+target. A joint that does not answer gives exit code 3 (the others are still reported);
+`save` is refused while a joint is enabled. `write` follows each register's safety class:
+motion targets and the drive switch are refused with the command to use, calibration,
+bit rates, IAP and brake need --yes. Without --duration, `speed` / `current` leave the
+joint running. Ctrl-C during move, wave, speed or current first brings the joint to the
+--on-stop state, then exits with 130.
 
 With --dry-run every subcommand prints the CAN FD frames it would send, one per line in
 cansend syntax (`001##1020A01`: ID 0x001, FD with bit-rate switch, data 02 0A 01); lines
