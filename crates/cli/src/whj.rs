@@ -158,6 +158,10 @@ enum WhjCommand {
         /// Joint IDs, e.g. `1-7`.
         #[arg(value_parser = parse_joints)]
         joints: Joints,
+        /// Ask joints 1..=7 with one broadcast status frame (0x7F) instead of one query
+        /// each; a joint that does not answer is named.
+        #[arg(long)]
+        broadcast: bool,
     },
     /// Enable the drive (register 0x0A := 1).
     Enable {
@@ -537,7 +541,10 @@ fn whj_run(args: &Args) -> WhjRun {
     match c {
         WhjCommand::Scan { joints } => WhjRun::Scan(joints.0.clone()),
         WhjCommand::Info { joint } => WhjRun::Info(*joint),
-        WhjCommand::Status { joints } => WhjRun::Status(joints.0.clone()),
+        WhjCommand::Status { joints, broadcast } if *broadcast => {
+            WhjRun::BroadcastStatus(joints.0.clone())
+        }
+        WhjCommand::Status { joints, .. } => WhjRun::Status(joints.0.clone()),
         WhjCommand::Enable { joints } => WhjRun::Enable(joints.0.clone(), true),
         WhjCommand::Disable { joints } => WhjRun::Enable(joints.0.clone(), false),
         WhjCommand::Mode { joints, mode } => WhjRun::Mode(joints.0.clone(), work_mode(*mode)),
@@ -663,7 +670,24 @@ fn plan(args: &Args, dry_run: bool) -> anyhow::Result<WhjPlan> {
             p.push(Request::StatusQuery { joint: *joint });
             p
         }
-        WhjCommand::Status { joints } => each(joints, |joint| Request::StatusQuery { joint }),
+        WhjCommand::Status { joints, broadcast } if *broadcast => {
+            let mask = ops::reply_mask(&joints.0)?;
+            let mut p = WhjPlan::default();
+            p.push(Request::BroadcastStatus(
+                robobus_whj::broadcast::BroadcastStatus::new(mask),
+            ));
+            p.notes.push(format!(
+                "one broadcast status query, reply mask {:#X} (joints {}); a real run \
+                 connects each joint first",
+                mask.get(),
+                mask.joints()
+                    .map(|j| j.get().to_string())
+                    .collect::<Vec<_>>()
+                    .join(",")
+            ));
+            p
+        }
+        WhjCommand::Status { joints, .. } => each(joints, |joint| Request::StatusQuery { joint }),
         WhjCommand::Enable { joints } => each(joints, |j| Request::enable(j, true)),
         WhjCommand::Disable { joints } => each(joints, |j| Request::enable(j, false)),
         WhjCommand::Mode { joints, mode } => {

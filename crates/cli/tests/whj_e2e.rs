@@ -182,6 +182,10 @@ fn whj_e2e_scan_info_enable_move_save_registers() {
     );
     assert_eq!(rows[2]["joint"], 8);
     assert_eq!(rows[2]["kind"], "no-device", "{rows:?}");
+    // The same by one broadcast status frame.
+    let bst = sim.json(&["status", "1-3", "--broadcast"]);
+    assert_eq!(bst.len(), 3, "{bst:?}");
+    assert!(bst.iter().all(|r| r["position_deg"].is_f64()), "{bst:?}");
     let st = sim.json(&["status", "1-2"]);
     assert_eq!(st.len(), 2);
     assert_eq!(st[0]["enabled"], false, "{st:?}");

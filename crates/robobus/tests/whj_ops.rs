@@ -544,3 +544,34 @@ fn enable_and_move_fail_naming_the_error_bits_the_joint_reports() {
     assert_eq!(e.kind(), ErrorKind::Device, "{e}");
     assert!(e.to_string().contains("position limit"), "{e}");
 }
+
+#[test]
+fn broadcast_status_reports_every_joint_and_names_the_silent_one() {
+    let sim_bus =
+        robobus_sim::whj::WhjBus::chain([1u8, 2, 4], robobus_sim::whj::WhjModel::Whj30, 5);
+    let (_sim, link) = memory(sim_bus);
+    let log = Shared::default();
+    let link = CaptureFrameLink::new(link, log.clone(), "rx").with_tx_iface("tx");
+    let bus = JointBus::open_with(link, config()).unwrap();
+    for j in [1, 2, 4] {
+        bus.joint(id(j)).unwrap();
+    }
+    // J1..J4: mask code 1 (J1-J4), the smallest that covers them.
+    assert_eq!(
+        ops::reply_mask(&[id(1), id(2), id(3), id(4)])
+            .unwrap()
+            .get(),
+        1
+    );
+    assert!(ops::reply_mask(&[id(8)]).is_err());
+    log.clear();
+    let r = ops::broadcast_status(&bus, &[id(1), id(2), id(3), id(4)]).unwrap();
+    // One frame out: the 0x7F query.
+    let sent = log.sent();
+    assert_eq!(sent.len(), 1, "{sent:?}");
+    assert_eq!(sent[0].raw_id(), 0x7F);
+    assert_eq!(r.len(), 4);
+    assert!(r[0].is_ok() && r[1].is_ok() && r[3].is_ok(), "{r:?}");
+    assert_eq!(r[2].failure().unwrap().kind, ErrorKind::NoDevice);
+    assert!(r[0].value().unwrap().position_deg.abs() < 1.0);
+}

@@ -1737,3 +1737,84 @@ pub fn sample(bus: &JointBus, ids: &[JointId]) -> Vec<DeviceResult<u8, JointSamp
         })
     })
 }
+
+// ---------------------------------------------------------------------------------------
+// Broadcast status (0x7F)
+// ---------------------------------------------------------------------------------------
+
+/// The smallest broadcast reply mask that selects every joint of `ids` (all 1..=7).
+pub fn reply_mask(ids: &[JointId]) -> Result<robobus_whj::broadcast::ReplyMask, OpError> {
+    use robobus_whj::broadcast::ReplyMask;
+    if let Some(bad) = ids.iter().find(|j| !j.has_broadcast_slot()) {
+        return Err(OpError::invalid(
+            "--broadcast JOINTS",
+            bad.get(),
+            "broadcast frames address joints 1..=7 only",
+        ));
+    }
+    (0..=0xFu8)
+        .filter_map(|code| ReplyMask::new(code).ok())
+        .filter(|m| ids.iter().all(|j| m.selects(*j)))
+        .min_by_key(|m| m.joints().count() + usize::from(m.selects_end_board()))
+        .ok_or_else(|| OpError::invalid("--broadcast JOINTS", ids.len(), "no reply mask fits"))
+}
+
+/// How long [`broadcast_status`] collects replies: seven 24-byte feedback frames take under
+/// 1 ms on the wire; a broadcast is not resent, so it waits five reply timeouts (100 ms by
+/// default) for slow links and simulators.
+pub fn broadcast_window(bus: &JointBus) -> Duration {
+    (bus.config().reply_timeout * 5).max(Duration::from_millis(5))
+}
+
+/// `whj status --broadcast`: one 0x7F frame asks joints `ids` (1..=7) for their status;
+/// every joint is reported, one that did not answer within [`broadcast_window`] as a
+/// no-device failure. Joints outside `ids` that the mask also selects are not reported.
+pub fn broadcast_status(
+    bus: &JointBus,
+    ids: &[JointId],
+) -> Result<Vec<DeviceResult<u8, StatusReport>>, OpError> {
+    let mask = reply_mask(ids)?;
+    let request = Request::BroadcastStatus(robobus_whj::broadcast::BroadcastStatus::new(mask));
+    let sent = bus.send_broadcast(request).map_err(whj)?;
+    let window = broadcast_window(bus);
+    std::thread::sleep(window);
+    let t = bus.telemetry();
+    Ok(ids
+        .iter()
+        .map(|&id| {
+            let jt = t.joint(id);
+            match (jt.updated, jt.position) {
+                (Some(at), Some(p)) if at > sent => {
+                    let scale = bus
+                        .cached_identity(id)
+                        .map_or(CurrentScale::OneMilliamp, |i| i.current_scale());
+                    DeviceResult::ok(
+                        id.get(),
+                        StatusReport {
+                            enabled: jt.enabled.unwrap_or(false),
+                            mode: "-",
+                            position_deg: p.degrees(),
+                            current_ma: jt.current.map(|c| c.milliamps(scale)),
+                            voltage_v: jt.voltage.map_or(f64::NAN, |v| f64::from(v.volts())),
+                            temperature_c: jt
+                                .temperature
+                                .map_or(f64::NAN, |v| f64::from(v.celsius())),
+                            brake: "-",
+                            error: jt.error.unwrap_or_default().to_string(),
+                        },
+                    )
+                }
+                _ => DeviceResult::failed(
+                    id.get(),
+                    Failure::of(
+                        super::ErrorKind::NoDevice,
+                        &format!(
+                            "{id}: no reply to the broadcast status query within {} ms",
+                            window.as_millis()
+                        ),
+                    ),
+                ),
+            }
+        })
+        .collect())
+}

@@ -386,6 +386,8 @@ pub(crate) enum Command {
     Transact(Txn),
     StartCyclic(Box<CyclicSetup>, SyncSender<Result<(), WhjError>>),
     StopCyclic(SyncSender<()>),
+    /// Send one broadcast frame (no reply is matched; replies land in the telemetry).
+    Broadcast(CanFrame, SyncSender<Result<Instant, WhjError>>),
     Shutdown,
 }
 
@@ -564,6 +566,23 @@ impl JointBus {
                 1,
             )),
         }
+    }
+
+    /// Sends one broadcast frame (0x7F status query, 0x0F register access, ...) outside a
+    /// cyclic loop and returns when it went out. Replies are not matched to it: they land
+    /// in [`Telemetry`] (newer than the returned instant), see
+    /// [`ops::whj::broadcast_status`](crate::ops::whj::broadcast_status). A point-to-point
+    /// request is refused ([`WhjError::InvalidConfig`]).
+    pub fn send_broadcast(&self, request: Request) -> Result<Instant, WhjError> {
+        if request.joint().is_some() {
+            return Err(WhjError::InvalidConfig {
+                reason: "send_broadcast takes broadcast frames only; use request()".into(),
+            });
+        }
+        let (done, rx) = mpsc::sync_channel(1);
+        self.send_command(Command::Broadcast(request.to_frame(), done))?;
+        rx.recv_timeout(Duration::from_secs(2))
+            .map_err(|_| self.closed_error())?
     }
 
     /// A snapshot of the bus health and the latest values from every joint.
@@ -825,6 +844,19 @@ impl<L: FrameLink> Worker<L> {
                 }
                 self.shared.cyclic_running.store(false, Ordering::Release);
                 let _ = done.send(());
+            }
+            Command::Broadcast(frame, done) => {
+                let r = if self.cyclic.is_some() {
+                    Err(WhjError::InvalidConfig {
+                        reason: "a cyclic loop is running on this bus".into(),
+                    })
+                } else {
+                    let at = Instant::now();
+                    self.send(&frame).map(|()| at).map_err(|e| WhjError::Link {
+                        detail: e.to_string(),
+                    })
+                };
+                let _ = done.send(r);
             }
             Command::Shutdown => return Flow::Stop,
         }
@@ -1151,6 +1183,9 @@ impl<L: FrameLink> Worker<L> {
                 }
                 Command::StopCyclic(done) => {
                     let _ = done.send(());
+                }
+                Command::Broadcast(_, done) => {
+                    let _ = done.send(Err(WhjError::Closed));
                 }
                 Command::Shutdown => {}
             }
