@@ -173,8 +173,32 @@ pub(crate) struct Channel {
     pub(crate) error: String,
     /// Failed samples.
     pub(crate) failures: u64,
+    /// The latest sample answered (`false`: the values shown are older, stale).
+    pub(crate) fresh: bool,
+    /// Samples answered in all.
+    pub(crate) answered: u64,
     /// (time, position) for the plot.
     pub(crate) history: VecDeque<(f64, f64)>,
+}
+
+impl Channel {
+    /// The device answered this sample.
+    fn got(&mut self) {
+        self.fresh = true;
+        self.answered += 1;
+    }
+
+    /// The device did not answer this sample: its values are stale from now on.
+    fn missed(&mut self, why: &str) {
+        self.fresh = false;
+        self.failures += 1;
+        why.clone_into(&mut self.error);
+    }
+
+    /// `value` if this sample answered, else `None` (never an older value as this one).
+    fn now(&self, value: Option<f64>) -> Option<f64> {
+        value.filter(|_| self.fresh)
+    }
 }
 
 /// What the dashboard shows.
@@ -233,17 +257,19 @@ impl Dashboard {
             .map(|c| {
                 let mut o = serde_json::Map::new();
                 o.insert("name".into(), c.name.clone().into());
-                o.insert("position_deg".into(), c.position.into());
-                o.insert(speed_key.clone(), c.speed.into());
+                o.insert("position_deg".into(), c.now(c.position).into());
+                o.insert(speed_key.clone(), c.now(c.speed).into());
                 let effort_key = if c.effort_unit == "mA" {
                     "current_ma"
                 } else {
                     "load"
                 };
-                o.insert(effort_key.into(), c.effort.into());
-                o.insert("enabled".into(), c.enabled.into());
+                o.insert(effort_key.into(), c.now(c.effort).into());
+                o.insert("enabled".into(), c.enabled.filter(|_| c.fresh).into());
                 o.insert("error".into(), c.error.clone().into());
                 o.insert("failures".into(), c.failures.into());
+                // A missing sample: its values are null, never the last good ones.
+                o.insert("stale".into(), (!c.fresh).into());
                 serde_json::Value::Object(o)
             })
             .collect();
@@ -262,9 +288,9 @@ impl Dashboard {
             let _ = write!(
                 s,
                 ",{},{},{}",
-                cell(c.position),
-                cell(c.speed),
-                cell(c.effort)
+                cell(c.now(c.position)),
+                cell(c.now(c.speed)),
+                cell(c.now(c.effort))
             );
         }
         s
@@ -273,7 +299,7 @@ impl Dashboard {
     fn plain_line(&self) -> String {
         let mut s = format!("t={:6.2}s", self.t);
         for c in &self.channels {
-            match c.position {
+            match c.now(c.position) {
                 Some(p) => {
                     let _ = write!(s, "  {} {p:8.3}", c.name);
                 }
@@ -352,14 +378,31 @@ pub(crate) fn render(f: &mut Frame<'_>, d: &Dashboard) {
         } else {
             Style::default().fg(Color::Red)
         };
+        // A missing sample shows the last values dimmed and marked stale.
+        let value_style = if c.fresh {
+            Style::default()
+        } else {
+            Style::default().fg(Color::DarkGray)
+        };
+        let stale = if c.fresh { "" } else { " stale" };
+        #[allow(clippy::cast_precision_loss)] // sample counts
+        let loss = if d.samples > 0 {
+            format!(
+                "{} ({:.0}%)",
+                c.failures,
+                100.0 * c.failures as f64 / d.samples as f64
+            )
+        } else {
+            c.failures.to_string()
+        };
         Row::new(vec![
             Cell::from(c.name.clone()),
-            Cell::from(cell(c.position, 3)),
-            Cell::from(cell(c.speed, 2)),
-            Cell::from(cell(c.effort, 0)),
-            Cell::from(en),
+            Cell::from(format!("{}{stale}", cell(c.position, 3))).style(value_style),
+            Cell::from(cell(c.speed, 2)).style(value_style),
+            Cell::from(cell(c.effort, 0)).style(value_style),
+            Cell::from(en).style(value_style),
             Cell::from(c.error.clone()).style(err_style),
-            Cell::from(c.failures.to_string()),
+            Cell::from(loss),
         ])
     });
     let header = Row::new(vec![
@@ -382,7 +425,7 @@ pub(crate) fn render(f: &mut Frame<'_>, d: &Dashboard) {
                 Constraint::Length(11),
                 Constraint::Length(8),
                 Constraint::Min(12),
-                Constraint::Length(7),
+                Constraint::Length(11),
             ],
         )
         .header(header)
@@ -478,40 +521,36 @@ fn sample_whj(
     joints: &[(usize, JointId, Option<JointMap>)],
     channels: &mut [Channel],
 ) {
-    for &(i, id, map) in joints {
+    let ids: Vec<JointId> = joints.iter().map(|(_, id, _)| *id).collect();
+    let results = robobus::ops::whj::sample(bus, &ids);
+    for (&(i, _, map), r) in joints.iter().zip(&results) {
         let Some(c) = channels.get_mut(i) else {
             continue;
         };
-        let j = bus.joint_unchecked(id);
-        let scale = j
-            .identity()
-            .map_or(robobus_whj::units::CurrentScale::OneMilliamp, |i| {
-                i.current_scale()
-            });
-        match j.status() {
-            Ok(st) => {
-                let rpm = j.speed().ok().map(robobus_whj::units::ActualSpeed::rpm);
+        match (r.value(), r.failure()) {
+            (Some(st), _) => {
                 if let Some(map) = map {
-                    c.position = Some(whj_to_rad(map, st.position).to_degrees());
-                    c.speed = rpm.map(|r| map.speed_to_joint(r * DEG_S_PER_RPM));
+                    c.position = Position::from_degrees(st.position_deg)
+                        .ok()
+                        .map(|p| whj_to_rad(map, p).to_degrees());
+                    c.speed = st.speed_rpm.map(|r| map.speed_to_joint(r * DEG_S_PER_RPM));
                 } else {
-                    c.position = Some(st.position.degrees());
-                    c.speed = rpm;
+                    c.position = Some(st.position_deg);
+                    c.speed = st.speed_rpm;
                 }
                 #[allow(clippy::cast_precision_loss)] // mA fit easily
-                let ma = st.current.map(|cu| cu.milliamps(scale) as f64);
+                let ma = st.current_ma.map(|m| m as f64);
                 c.effort = ma;
-                c.enabled = Some(st.is_enabled());
-                c.error = st.error.to_string();
+                c.enabled = Some(st.enabled);
+                c.error.clone_from(&st.error);
+                c.got();
             }
-            Err(e) => {
-                c.failures += 1;
-                c.error = if e.is_timeout() {
-                    "timeout".into()
-                } else {
-                    "bad reply".into()
-                };
-            }
+            (None, Some(f)) => c.missed(if f.kind == robobus::ErrorKind::NoDevice {
+                "timeout"
+            } else {
+                "bad reply"
+            }),
+            (None, None) => c.missed("no reply"),
         }
     }
 }
@@ -532,8 +571,9 @@ fn sample_sim(cyc: &mut robobus::whj::Cyclic<'_>, start: Instant, channels: &mut
                     c.effort = Some(ma);
                     c.enabled = Some(fb.enabled);
                     c.error = fb.error.to_string();
+                    c.got();
                 }
-                None => c.failures += 1,
+                None => c.missed("no reply"),
             }
         }
     }
@@ -572,9 +612,9 @@ fn sample_wck(
             c.position = Some(deg);
             c.effort = Some(f64::from(st.load.get()));
             c.error = "ok".into();
+            c.got();
         } else {
-            c.failures += 1;
-            c.error = "no reply".into();
+            c.missed("no reply");
         }
     }
 }
@@ -984,9 +1024,7 @@ fn watch(
         }
         None => None,
     };
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = Arc::clone(&stop);
-    let _ = ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst));
+    let stop = crate::interrupt::stop_token();
     let tui = !out.json && std::io::stdout().is_terminal();
     let mut terminal = if tui {
         Some(ratatui::try_init().context("setting up the terminal")?)
@@ -1001,7 +1039,7 @@ fn watch(
     let mut last_line = -1.0f64;
     let mut quit_by_key = false;
     loop {
-        if stop.load(Ordering::SeqCst) {
+        if stop.is_stopped() {
             break;
         }
         d.t = start.elapsed().as_secs_f64();
@@ -1031,7 +1069,7 @@ fn watch(
                 // A closed terminal (a killed tmux, a dropped SSH session) reads as end of
                 // file forever (crossterm then spins inside its reader thread, below): stop
                 // as if the user had quit (the hang-up signal also sets `stop`).
-                if stop.load(Ordering::SeqCst) || terminal_gone() {
+                if stop.is_stopped() || terminal_gone() {
                     quit_by_key = true;
                     break;
                 }
@@ -1068,10 +1106,33 @@ fn watch(
             p.display()
         );
     }
-    if stop.load(Ordering::SeqCst) {
+    if stop.is_stopped() {
         return Err(anyhow::Error::new(Interrupted));
     }
-    Ok(())
+    silent(&d)
+}
+
+/// Exit code 3 when a device stayed silent: it never answered, or its last sample was
+/// missing (its values shown last were stale).
+fn silent(d: &Dashboard) -> anyhow::Result<()> {
+    let gone: Vec<String> = d
+        .channels
+        .iter()
+        .filter(|c| d.samples > 0 && (!c.fresh || c.answered == 0))
+        .map(|c| {
+            format!(
+                "{} ({} of {} samples missing)",
+                c.name, c.failures, d.samples
+            )
+        })
+        .collect();
+    if gone.is_empty() {
+        return Ok(());
+    }
+    Err(anyhow::Error::new(crate::exit::Timeout(format!(
+        "silent at the end: {}",
+        gone.join(", ")
+    ))))
 }
 
 #[cfg(test)]
@@ -1158,6 +1219,7 @@ mod tests {
                     speed: Some(2.0),
                     effort: Some(3.0),
                     effort_unit: "load",
+                    fresh: true,
                     ..Channel::default()
                 },
                 Channel {
@@ -1192,6 +1254,7 @@ mod tests {
                     effort: Some(40.0),
                     effort_unit: "load",
                     error: "ok".into(),
+                    fresh: true,
                     ..Channel::default()
                 },
                 Channel {
@@ -1203,6 +1266,7 @@ mod tests {
                     enabled: Some(true),
                     error: "no error".into(),
                     failures: 2,
+                    fresh: true,
                     ..Channel::default()
                 },
             ],
@@ -1229,6 +1293,54 @@ mod tests {
         assert_eq!(sh["speed_deg_per_s"], -6.0);
         assert_eq!(sh["enabled"], true);
         assert_eq!(sh["failures"], 2);
+    }
+
+    #[test]
+    #[allow(clippy::many_single_char_names)]
+    fn a_silent_device_is_marked_stale_everywhere_and_exits_3() {
+        let mut c = Channel {
+            name: "J2".into(),
+            effort_unit: "mA",
+            ..Channel::default()
+        };
+        // One good sample, then the joint goes away.
+        c.position = Some(12.0);
+        c.speed = Some(1.0);
+        c.effort = Some(300.0);
+        c.enabled = Some(true);
+        c.got();
+        c.missed("timeout");
+        let d = Dashboard {
+            speed_unit: "RPM",
+            effort_name: "current mA",
+            channels: vec![c],
+            t: 2.0,
+            samples: 2,
+            ..Dashboard::default()
+        };
+        // CSV: an empty cell, never the last good value.
+        assert_eq!(d.csv_row(), "2.0000,,,");
+        // JSON: null values, marked stale.
+        let v: serde_json::Value = serde_json::from_str(&d.json_line()).unwrap();
+        let j = &v["channels"][0];
+        assert!(
+            j["position_deg"].is_null() && j["current_ma"].is_null(),
+            "{j}"
+        );
+        assert_eq!(j["stale"], true);
+        assert_eq!(j["error"], "timeout");
+        // Plain lines show the error instead of a value.
+        assert!(d.plain_line().contains("timeout"), "{}", d.plain_line());
+        // The dashboard shows the loss and marks the values stale.
+        let screen = screen(&d, 100, 20);
+        assert!(
+            screen.contains("stale") && screen.contains("1 (50%)"),
+            "{screen}"
+        );
+        // Exit code 3 at the end.
+        let e = silent(&d).unwrap_err();
+        assert_eq!(crate::exit::Exit::of(&e), crate::exit::Exit::Timeout);
+        assert!(e.to_string().contains("J2 (1 of 2 samples missing)"), "{e}");
     }
 
     #[test]

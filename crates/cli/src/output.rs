@@ -78,6 +78,22 @@ fn spaced_hex(bytes: &[u8]) -> String {
 }
 
 impl WhjPlan {
+    /// The library's plan of an operation ([`robobus::ops::whj::Plan`]): what it assumed
+    /// and its notes as comments, its reads, then its timed frames.
+    pub(crate) fn of(plan: &robobus::ops::whj::Plan) -> Self {
+        let mut p = Self::default();
+        p.notes.extend(plan.assumed.iter().cloned());
+        p.notes.extend(plan.notes.iter().cloned());
+        for r in &plan.reads {
+            p.push(*r);
+        }
+        for f in &plan.frames {
+            #[allow(clippy::cast_possible_truncation)] // at most hours, in µs
+            p.push_at(f.at.as_micros() as u64, f.request);
+        }
+        p
+    }
+
     /// Appends a request sent right after the previous exchange.
     pub(crate) fn push(&mut self, request: Request) {
         self.steps.push(WhjStep {

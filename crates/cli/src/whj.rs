@@ -11,20 +11,23 @@
 //! ±[`MAX_DEG`]°, speeds within ±[`MAX_RPM`] RPM, currents within ±[`MAX_MA`] mA; `move`
 //! steps at most `--max-speed` / `--rate-hz` degrees per frame.
 
-use std::f64::consts::PI;
 use std::fmt::Write as _;
+use std::time::Duration;
 
 use clap::{Subcommand, ValueEnum};
-use robobus_whj::registers::{Half, Unit};
-use robobus_whj::units::{Current, CurrentScale, Position, TargetSpeed};
+use robobus::ops::OpError;
+use robobus::ops::whj::{self as ops, MoveArgs, ServoLoop, TargetArgs, WaveArgs};
+use robobus::whj::JointBusConfig;
+use robobus_link::FrameLinkSpec;
+use robobus_whj::registers::Half;
+use robobus_whj::units::CurrentScale;
 use robobus_whj::{JointId, REGISTERS, RegisterAddr, RegisterInfo, Request, WorkMode, registers};
 
 use crate::Global;
-use crate::client::whj::{OnStop, Wave, WaveLoop, WhjRun};
+use crate::client::whj::{OnStop, WhjRun};
 use crate::client::{Job, execute};
 use crate::exit::usage;
 use crate::output::{self, WhjPlan};
-use crate::sim_whj::parse_bus;
 
 /// Largest |target angle| the CLI sends, degrees: one turn either way (a host policy; the
 /// joint's own limits, 0x44..0x47, are checked as well once it is connected).
@@ -48,12 +51,18 @@ angles within its position limits (0x44..0x47), speeds within its model's peak o
 speed (30 RPM on WHJ03/60/120), currents within its current limit (0x40).
 
 Without --dry-run the command runs on the bus: each joint is connected first (IAP
-release, identify), results are printed as a table (--json: one JSON object; fields carry
-their units: position_deg, speed_rpm, current_ma). `move` streams a smooth, speed- and
-acceleration-limited profile; `wave` runs through the cyclic loop and reports cycles,
-deadline misses, latency and tracking. A joint that does not answer gives exit code 3
-(the message names it); `save` is refused while a joint is enabled. Ctrl-C during move
-or wave first brings the joint to the --on-stop state, then exits with 130.
+release, identify; up to 5 s, since joints with a staggered power-up stay silent for a few
+seconds), results are printed as a table, one row per joint (--json: one JSON object;
+fields carry their units: position_deg, speed_rpm, current_ma). `move` and `wave` send
+exactly the frames their dry run prints, planned from the measured position (a move that
+is too fast for the step limit is split into smaller steps); `wave` reports cycles,
+missing replies, deadline misses, overruns, clamps and tracking against the requested
+target. A joint that does not answer gives exit code 3 (the others are still reported);
+`save` is refused while a joint is enabled. `write` follows each register's safety class:
+motion targets and the drive switch are refused with the command to use, calibration,
+bit rates, IAP and brake need --yes. Without --duration, `speed` / `current` leave the
+joint running. Ctrl-C during move, wave, speed or current first brings the joint to the
+--on-stop state, then exits with 130.
 
 With --dry-run every subcommand prints the CAN FD frames it would send, one per line in
 cansend syntax (`001##1020A01`: ID 0x001, FD with bit-rate switch, data 02 0A 01); lines
@@ -149,6 +158,10 @@ enum WhjCommand {
         /// Joint IDs, e.g. `1-7`.
         #[arg(value_parser = parse_joints)]
         joints: Joints,
+        /// Ask joints 1..=7 with one broadcast status frame (0x7F) instead of one query
+        /// each; a joint that does not answer is named.
+        #[arg(long)]
+        broadcast: bool,
     },
     /// Enable the drive (register 0x0A := 1).
     Enable {
@@ -197,6 +210,10 @@ enum WhjCommand {
         /// Target speed, RPM.
         #[arg(allow_hyphen_values = true, value_parser = parse_rpm)]
         rpm: f64,
+        /// Keep the target this many seconds (0.01..=3600), then target 0 (also on
+        /// Ctrl-C). Without it the joint keeps turning after the command exits.
+        #[arg(long, value_name = "SECS", value_parser = parse_duration)]
+        duration: Option<f64>,
     },
     /// Current servo target (0x400+ID) in mA, -30000..=30000.
     Current {
@@ -206,6 +223,10 @@ enum WhjCommand {
         /// Target current, mA.
         #[arg(allow_hyphen_values = true, value_parser = parse_ma)]
         milliamps: f64,
+        /// Keep the target this many seconds (0.01..=3600), then target 0 (also on
+        /// Ctrl-C). Without it the joint keeps the current after the command exits.
+        #[arg(long, value_name = "SECS", value_parser = parse_duration)]
+        duration: Option<f64>,
     },
     /// Make the present position 0 degrees (register 0x0E := 1).
     Zero {
@@ -405,11 +426,15 @@ fn parse_rpm(s: &str) -> Result<f64, String> {
 fn parse_ma(s: &str) -> Result<f64, String> {
     in_range(s, "current (mA)", -MAX_MA, MAX_MA)
 }
+fn parse_duration(s: &str) -> Result<f64, String> {
+    in_range(s, "duration (s)", 0.01, 3600.0)
+}
 
 /// Runs `robobus whj`.
 pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     if let Some(bus) = &args.bus {
-        parse_bus(bus).map_err(|e| usage(format!("--bus: {e}")))?;
+        bus.parse::<FrameLinkSpec>()
+            .map_err(|e| usage(format!("--bus: {e}")))?;
     }
     if matches!(args.command, WhjCommand::Registers) {
         return list_registers(g);
@@ -429,7 +454,7 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
              such as can0), unless --dry-run is given",
         ));
     };
-    let run = whj_run(&args.command);
+    let run = whj_run(args);
     execute(
         &Job::Whj {
             action: action_name(&args.command),
@@ -452,12 +477,74 @@ const fn work_mode(mode: ModeArg) -> WorkMode {
     }
 }
 
+/// The step limit moves are planned with (the client's, also for dry runs).
+fn step_limit() -> f64 {
+    JointBusConfig::default().step_limit_deg
+}
+
+fn move_args(joint: JointId, degrees: f64, max_speed: f64, rate_hz: f64) -> MoveArgs {
+    MoveArgs {
+        joint,
+        target_deg: degrees,
+        max_speed_deg_s: max_speed,
+        rate_hz,
+        step_limit_deg: step_limit(),
+    }
+}
+
+fn target_args(joint: JointId, servo: ServoLoop, value: f64, duration: Option<f64>) -> TargetArgs {
+    TargetArgs {
+        joint,
+        servo,
+        value,
+        duration: duration.map(Duration::from_secs_f64),
+    }
+}
+
+fn wave_args(c: &WhjCommand) -> Option<WaveArgs> {
+    let WhjCommand::Wave {
+        joint,
+        shape,
+        mode,
+        amplitude,
+        frequency,
+        offset,
+        duration,
+        rate_hz,
+    } = c
+    else {
+        return None;
+    };
+    Some(WaveArgs {
+        joint: *joint,
+        shape: match shape {
+            Shape::Sine => ops::Shape::Sine,
+            Shape::Square => ops::Shape::Square,
+        },
+        servo: match mode {
+            WaveMode::Position => ServoLoop::Position,
+            WaveMode::Speed => ServoLoop::Speed,
+            WaveMode::Current => ServoLoop::Current,
+        },
+        amplitude: *amplitude,
+        frequency: *frequency,
+        offset: *offset,
+        duration: *duration,
+        rate_hz: *rate_hz,
+        step_limit_deg: step_limit(),
+    })
+}
+
 /// How a (validated) command runs on the bus.
-fn whj_run(c: &WhjCommand) -> WhjRun {
+fn whj_run(args: &Args) -> WhjRun {
+    let c = &args.command;
     match c {
         WhjCommand::Scan { joints } => WhjRun::Scan(joints.0.clone()),
         WhjCommand::Info { joint } => WhjRun::Info(*joint),
-        WhjCommand::Status { joints } => WhjRun::Status(joints.0.clone()),
+        WhjCommand::Status { joints, broadcast } if *broadcast => {
+            WhjRun::BroadcastStatus(joints.0.clone())
+        }
+        WhjCommand::Status { joints, .. } => WhjRun::Status(joints.0.clone()),
         WhjCommand::Enable { joints } => WhjRun::Enable(joints.0.clone(), true),
         WhjCommand::Disable { joints } => WhjRun::Enable(joints.0.clone(), false),
         WhjCommand::Mode { joints, mode } => WhjRun::Mode(joints.0.clone(), work_mode(*mode)),
@@ -467,14 +554,22 @@ fn whj_run(c: &WhjCommand) -> WhjRun {
             max_speed,
             rate_hz,
             ..
-        } => WhjRun::Move {
-            joint: *joint,
-            degrees: *degrees,
-            max_speed: *max_speed,
-            rate_hz: *rate_hz,
-        },
-        WhjCommand::Speed { joint, rpm } => WhjRun::Speed(*joint, *rpm),
-        WhjCommand::Current { joint, milliamps } => WhjRun::Current(*joint, *milliamps),
+        } => WhjRun::Move(move_args(*joint, *degrees, *max_speed, *rate_hz)),
+        WhjCommand::Speed {
+            joint,
+            rpm,
+            duration,
+        } => WhjRun::Target(target_args(*joint, ServoLoop::Speed, *rpm, *duration)),
+        WhjCommand::Current {
+            joint,
+            milliamps,
+            duration,
+        } => WhjRun::Target(target_args(
+            *joint,
+            ServoLoop::Current,
+            *milliamps,
+            *duration,
+        )),
         WhjCommand::Zero { joint } => WhjRun::Zero(*joint),
         WhjCommand::Clear { joints } => WhjRun::Clear(joints.0.clone()),
         WhjCommand::Save { joints } => WhjRun::Save(joints.0.clone()),
@@ -485,7 +580,6 @@ fn whj_run(c: &WhjCommand) -> WhjRun {
         } => WhjRun::Read {
             joint: *joint,
             addr: register.addr,
-            info: register.info,
             count: *count,
         },
         WhjCommand::Write {
@@ -496,39 +590,18 @@ fn whj_run(c: &WhjCommand) -> WhjRun {
         } => WhjRun::Write {
             joint: *joint,
             addr: register.addr,
-            info: register.info,
             // Validated by the plan (a finite number).
             value: value.trim().parse().unwrap_or(0.0),
             raw: *raw,
+            scale: args.model.map(ModelArg::scale),
         },
         // Handled before a plan is made.
         WhjCommand::Registers => WhjRun::Status(Vec::new()),
         WhjCommand::SetId { joint, new_id } => WhjRun::SetId(*joint, *new_id),
-        WhjCommand::Wave {
-            joint,
-            shape,
-            mode,
-            amplitude,
-            frequency,
-            offset,
-            duration,
-            rate_hz,
-        } => WhjRun::Wave(
-            *joint,
-            Wave {
-                square: *shape == Shape::Square,
-                mode: match mode {
-                    WaveMode::Position => WaveLoop::Position,
-                    WaveMode::Speed => WaveLoop::Speed,
-                    WaveMode::Current => WaveLoop::Current,
-                },
-                amplitude: *amplitude,
-                frequency: *frequency,
-                offset: *offset,
-                duration: *duration,
-                rate_hz: *rate_hz,
-            },
-        ),
+        WhjCommand::Wave { .. } => match wave_args(c) {
+            Some(w) => WhjRun::Wave(w),
+            None => WhjRun::Status(Vec::new()),
+        },
         WhjCommand::ReleaseIap { joints } => WhjRun::ReleaseIap(joints.0.clone()),
     }
 }
@@ -597,7 +670,24 @@ fn plan(args: &Args, dry_run: bool) -> anyhow::Result<WhjPlan> {
             p.push(Request::StatusQuery { joint: *joint });
             p
         }
-        WhjCommand::Status { joints } => each(joints, |joint| Request::StatusQuery { joint }),
+        WhjCommand::Status { joints, broadcast } if *broadcast => {
+            let mask = ops::reply_mask(&joints.0)?;
+            let mut p = WhjPlan::default();
+            p.push(Request::BroadcastStatus(
+                robobus_whj::broadcast::BroadcastStatus::new(mask),
+            ));
+            p.notes.push(format!(
+                "one broadcast status query, reply mask {:#X} (joints {}); a real run \
+                 connects each joint first",
+                mask.get(),
+                mask.joints()
+                    .map(|j| j.get().to_string())
+                    .collect::<Vec<_>>()
+                    .join(",")
+            ));
+            p
+        }
+        WhjCommand::Status { joints, .. } => each(joints, |joint| Request::StatusQuery { joint }),
         WhjCommand::Enable { joints } => each(joints, |j| Request::enable(j, true)),
         WhjCommand::Disable { joints } => each(joints, |j| Request::enable(j, false)),
         WhjCommand::Mode { joints, mode } => {
@@ -610,26 +700,28 @@ fn plan(args: &Args, dry_run: bool) -> anyhow::Result<WhjPlan> {
             max_speed,
             rate_hz,
             from,
-        } => plan_move(*joint, *degrees, *max_speed, *rate_hz, *from)?,
-        WhjCommand::Speed { joint, rpm } => {
-            let target = TargetSpeed::from_rpm(*rpm).map_err(|e| usage(format!("<RPM>: {e}")))?;
-            let mut p = WhjPlan::default();
-            p.push(Request::SpeedServo {
-                joint: *joint,
-                target,
-            });
-            p
+        } => {
+            let args = move_args(*joint, *degrees, *max_speed, *rate_hz);
+            WhjPlan::of(&ops::plan_move(&args, from.unwrap_or(0.0), from.is_none())?)
         }
-        WhjCommand::Current { joint, milliamps } => {
+        WhjCommand::Speed {
+            joint,
+            rpm,
+            duration,
+        } => plan_target(
+            &target_args(*joint, ServoLoop::Speed, *rpm, *duration),
+            CurrentScale::OneMilliamp,
+        )?,
+        WhjCommand::Current {
+            joint,
+            milliamps,
+            duration,
+        } => {
             let scale = current_scale(args, dry_run, "current <MILLIAMPS>")?;
-            let target = Current::from_milliamps(*milliamps, scale)
-                .map_err(|e| usage(format!("<MILLIAMPS>: {e}")))?;
-            let mut p = WhjPlan::default();
-            p.push(Request::CurrentServo {
-                joint: *joint,
-                target,
-            });
-            p
+            plan_target(
+                &target_args(*joint, ServoLoop::Current, *milliamps, *duration),
+                scale,
+            )?
         }
         WhjCommand::Zero { joint } => {
             let mut p = WhjPlan::default();
@@ -664,9 +756,26 @@ fn plan(args: &Args, dry_run: bool) -> anyhow::Result<WhjPlan> {
             value,
             raw,
         } => {
-            let req = write_request(args, dry_run, *joint, *register, value, *raw)?;
+            let name = register.info.map_or("reserved register", |i| i.name);
+            let v: f64 = value
+                .trim()
+                .parse()
+                .map_err(|_| usage(format!("write {name} <VALUE>: `{value}` is not a number")))?;
+            // Motion targets and `never` registers are refused here, dry run or not.
+            if let Err(e @ OpError::Refused(_)) = ops::check_write(register.addr, true) {
+                return Err(usage(e.to_string()));
+            }
+            let scale = if ops::needs_current_scale(register.addr, *raw) {
+                current_scale(args, dry_run, &format!("write {name}"))?
+            } else {
+                CurrentScale::OneMilliamp
+            };
+            let req = ops::write_request(*joint, register.addr, v, *raw, scale)?;
             let mut p = WhjPlan::default();
             p.push(req);
+            if let Some(what) = ops::confirm_text(&req) {
+                p.notes.push(format!("{name}: {what} (needs --yes)"));
+            }
             p
         }
         WhjCommand::Registers => WhjPlan::default(),
@@ -686,219 +795,53 @@ fn plan(args: &Args, dry_run: bool) -> anyhow::Result<WhjPlan> {
             ));
             p
         }
-        WhjCommand::Wave {
-            joint,
-            shape,
-            mode,
-            amplitude,
-            frequency,
-            offset,
-            duration,
-            rate_hz,
-        } => {
+        WhjCommand::Wave { mode, .. } => {
             let scale = if *mode == WaveMode::Current {
                 current_scale(args, dry_run, "wave --mode current")?
             } else {
                 CurrentScale::OneMilliamp
             };
-            plan_wave(
-                *joint,
-                &WaveSpec {
-                    shape: *shape,
-                    mode: *mode,
-                    amplitude: *amplitude,
-                    frequency: *frequency,
-                    offset: *offset,
-                    duration: *duration,
-                    rate_hz: *rate_hz,
-                },
-                scale,
-            )?
+            let Some(w) = wave_args(&args.command) else {
+                return Ok(WhjPlan::default());
+            };
+            WhjPlan::of(&ops::plan_wave(&w, 0.0, scale, true)?)
         }
         WhjCommand::ReleaseIap { joints } => each(joints, Request::start_application),
     })
 }
 
-/// Position frames from `from` to `to`, each step at most `max_speed / rate_hz` degrees.
-fn plan_move(
-    joint: JointId,
-    to: f64,
-    max_speed: f64,
-    rate_hz: f64,
-    from: Option<f64>,
-) -> anyhow::Result<WhjPlan> {
+/// A speed or current target: the frame, and target 0 after `--duration`.
+fn plan_target(args: &TargetArgs, scale: CurrentScale) -> anyhow::Result<WhjPlan> {
     let mut p = WhjPlan::default();
-    let start = from.unwrap_or(0.0);
-    if from.is_none() {
-        p.notes.push(
-            "start angle assumed 0 deg (a real run reads the present position first; \
-             give --from DEG to plan from another angle)"
-                .into(),
-        );
-    }
-    let step_max = max_speed / rate_hz;
-    // The tolerance keeps float noise (30 - 29.9 = 0.1000000000000014) from adding a step.
-    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // <= 720 / 1e-4
-    let steps = ((to - start).abs() / step_max - 1e-9).ceil().max(1.0) as u64;
-    p.notes.push(format!(
-        "{steps} position frame(s), one every {:.3} ms, at most {step_max:.4} deg each; the \
-         joint must be enabled and in position mode",
-        1000.0 / rate_hz
-    ));
-    p.push(Request::read_position(joint));
-    for k in 1..=steps {
-        let deg = start + (to - start) * (k as f64 / steps as f64);
-        let target = Position::from_degrees(deg).map_err(|e| usage(format!("<DEGREES>: {e}")))?;
-        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
-        let at = ((k - 1) as f64 * 1e6 / rate_hz).round() as u64;
-        p.push_at(at, Request::PositionServo { joint, target });
+    p.push(ops::target_request(args, scale)?);
+    let what = if args.servo == ServoLoop::Speed {
+        "speed"
+    } else {
+        "current"
+    };
+    match args.duration {
+        Some(d) => {
+            let zero = TargetArgs {
+                value: 0.0,
+                ..*args
+            };
+            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // <= 3600 s
+            p.push_at(d.as_micros() as u64, ops::target_request(&zero, scale)?);
+            p.notes.push(format!(
+                "{what} target, then target 0 after {} s (also on Ctrl-C); the joint must be \
+                 enabled and in {what} mode",
+                d.as_secs_f64()
+            ));
+        }
+        None => p.notes.push(format!(
+            "the joint keeps this {what} target after the command exits: stop it with \
+             `robobus whj {what} {} 0` or `robobus whj disable {}`; the joint must be enabled \
+             and in {what} mode",
+            args.joint.get(),
+            args.joint.get()
+        )),
     }
     Ok(p)
-}
-
-/// A `wave` test signal.
-#[derive(Debug, Clone, Copy)]
-struct WaveSpec {
-    shape: Shape,
-    mode: WaveMode,
-    amplitude: f64,
-    frequency: f64,
-    offset: f64,
-    duration: f64,
-    rate_hz: f64,
-}
-
-fn plan_wave(joint: JointId, spec: &WaveSpec, scale: CurrentScale) -> anyhow::Result<WhjPlan> {
-    if spec.amplitude < 0.0 {
-        return Err(usage(format!(
-            "--amplitude {} is negative (allowed: >= 0)",
-            spec.amplitude
-        )));
-    }
-    let fmax = (spec.rate_hz / 4.0).min(20.0);
-    if !(0.01..=fmax).contains(&spec.frequency) {
-        return Err(usage(format!(
-            "--frequency {} Hz is out of range 0.01..={fmax} (at most 20 Hz and at most \
-             --rate-hz / 4)",
-            spec.frequency
-        )));
-    }
-    if !(0.01..=600.0).contains(&spec.duration) {
-        return Err(usage(format!(
-            "--duration {} s is out of range 0.01..=600",
-            spec.duration
-        )));
-    }
-    let (limit, unit) = match spec.mode {
-        WaveMode::Position => (MAX_DEG, "degrees"),
-        WaveMode::Speed => (MAX_RPM, "RPM"),
-        WaveMode::Current => (MAX_MA, "mA"),
-    };
-    let peak = spec.offset.abs() + spec.amplitude;
-    if peak > limit {
-        return Err(usage(format!(
-            "--offset {} and --amplitude {} reach {peak} {unit}, outside -{limit}..={limit} \
-             {unit}",
-            spec.offset, spec.amplitude
-        )));
-    }
-    let mut plan = WhjPlan::default();
-    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // <= 600_000
-    let count = (spec.duration * spec.rate_hz).round().max(1.0) as u64;
-    plan.notes.push(format!(
-        "{:?} wave, {count} frame(s) at {} Hz; the joint must be enabled and in {:?} mode",
-        spec.shape, spec.rate_hz, spec.mode
-    ));
-    for k in 0..count {
-        let t = k as f64 / spec.rate_hz;
-        let s = (2.0 * PI * spec.frequency * t).sin();
-        let v = match spec.shape {
-            Shape::Sine => spec.offset + spec.amplitude * s,
-            Shape::Square if s >= 0.0 => spec.offset + spec.amplitude,
-            Shape::Square => spec.offset - spec.amplitude,
-        };
-        let bad = |e: robobus_whj::units::UnitRangeError| usage(format!("wave: {e}"));
-        let request = match spec.mode {
-            WaveMode::Position => Request::PositionServo {
-                joint,
-                target: Position::from_degrees(v).map_err(bad)?,
-            },
-            WaveMode::Speed => Request::SpeedServo {
-                joint,
-                target: TargetSpeed::from_rpm(v).map_err(bad)?,
-            },
-            WaveMode::Current => Request::CurrentServo {
-                joint,
-                target: Current::from_milliamps(v, scale).map_err(bad)?,
-            },
-        };
-        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
-        let at = (t * 1e6).round() as u64;
-        plan.push_at(at, request);
-    }
-    Ok(plan)
-}
-
-/// The write request for `write REGISTER VALUE`, converting units.
-fn write_request(
-    args: &Args,
-    dry_run: bool,
-    joint: JointId,
-    register: Register,
-    value: &str,
-    raw: bool,
-) -> anyhow::Result<Request> {
-    let name = register.info.map_or("reserved register", |i| i.name);
-    let v: f64 = value
-        .trim()
-        .parse()
-        .map_err(|_| usage(format!("write {name} <VALUE>: `{value}` is not a number")))?;
-    if !v.is_finite() {
-        return Err(usage(format!(
-            "write {name} <VALUE>: `{value}` is not finite"
-        )));
-    }
-    let unit = register.info.map_or(Unit::Raw, |i| i.unit);
-    let per_count = if raw {
-        1.0
-    } else {
-        match unit {
-            Unit::Current => {
-                f64::from(current_scale(args, dry_run, &format!("write {name}"))?.ma_per_count())
-            }
-            Unit::SpeedLimit => {
-                return Err(usage(format!(
-                    "write {name}: its unit depends on the firmware (0.01 RPM or 1/ratio RPM, \
-                     conflict C3); give the value in counts with --raw"
-                )));
-            }
-            other => other.scale().unwrap_or(1.0),
-        }
-    };
-    let counts = (v / per_count).round();
-    if (counts - v / per_count).abs() > 1e-6 && (raw || unit.scale().is_none()) {
-        return Err(usage(format!(
-            "write {name} <VALUE>: `{value}` is not a whole number of counts"
-        )));
-    }
-    if counts < f64::from(i32::MIN) || counts > f64::from(i32::MAX) {
-        return Err(usage(format!(
-            "write {name} <VALUE>: {value} is {counts} counts, outside the 32-bit range"
-        )));
-    }
-    #[allow(clippy::cast_possible_truncation)] // checked just above
-    let counts = counts as i32;
-    let bad = |e: robobus_whj::RequestError| usage(format!("write <REGISTER> <VALUE>: {e}"));
-    if register.info.map(|i| i.half) == Some(Half::Low) {
-        return Request::write_i32(joint, register.addr, counts).map_err(bad);
-    }
-    let word = u16::try_from(counts).map_err(|_| {
-        usage(format!(
-            "write {name} <VALUE>: {counts} counts is out of range 0..=65535 for a 16-bit \
-             register"
-        ))
-    })?;
-    Request::write(joint, register.addr, word).map_err(bad)
 }
 
 /// `robobus whj registers`: the table as text or JSON.
@@ -966,22 +909,5 @@ mod tests {
         assert_eq!(parse_register("20").unwrap().addr.get(), 0x14);
         assert!(parse_register("0x92").unwrap_err().contains("0x92"));
         assert!(parse_register("nope").is_err());
-    }
-
-    #[test]
-    fn move_steps_never_exceed_the_step_limit() {
-        let j = JointId::new(1).unwrap();
-        let p = plan_move(j, 3.0, 10.0, 200.0, Some(1.0)).unwrap();
-        // 2 degrees at 0.05 deg per frame: 40 frames after the position read.
-        assert_eq!(p.steps.len(), 41);
-        let mut last = 1.0;
-        for st in &p.steps[1..] {
-            let Request::PositionServo { target, .. } = st.request else {
-                panic!("{:?}", st.request)
-            };
-            assert!((target.degrees() - last).abs() <= 0.05 + 1e-4);
-            last = target.degrees();
-        }
-        assert!((last - 3.0).abs() < 1e-9);
     }
 }

@@ -123,7 +123,8 @@ fn global_options_go_before_or_after_the_subcommand() {
 
 #[test]
 fn whj_raw_writes_refuse_fractions() {
-    let r = robobus(&["whj", "--dry-run", "write", "1", "0x36", "1.5", "--raw"]);
+    // LIT_MAX_ACC (0x42), a plain register.
+    let r = robobus(&["whj", "--dry-run", "write", "1", "0x42", "1.5", "--raw"]);
     assert_eq!(r.code, Some(2), "{r:#?}");
     assert!(r.stderr.contains("not a whole number"), "{}", r.stderr);
 }
@@ -208,6 +209,11 @@ fn whj_frames_match_the_usage_demo() {
         (&["zero", "1"], &["001##1020E01"]),
         (&["save", "1"], &["001##1020C01"]),
         (&["status", "1"], &["601##1"]),
+        // One 0x7F frame, reply mask 1 (J1-J4) covering J1-J3.
+        (
+            &["status", "1-3", "--broadcast"],
+            &["07F##1000000000000000000000000000000000000000000000001"],
+        ),
         (&["read", "1", "cur_position"], &["001##1011402"]),
         (&["read", "1", "0x06"], &["001##1010601"]),
         (
@@ -216,26 +222,45 @@ fn whj_frames_match_the_usage_demo() {
         ),
         (&["speed", "2", "1"], &["302##1F4010000"]),
         (
-            &["write", "1", "tag_position", "30"],
-            &["001##10236E0930400"],
+            &["speed", "2", "1", "--duration", "2"],
+            &["302##1F4010000", "302##100000000"],
         ),
         (
-            &["write", "1", "0x36", "300000", "--raw"],
-            &["001##10236E0930400"],
+            &["--model", "whj30", "write", "1", "lit_max_current", "5000"],
+            &["001##102408813"],
         ),
     ];
     for (args, frames) in cases {
         assert_eq!(whj(args), *frames, "robobus whj --dry-run {args:?}");
     }
+    // The usage demo's `02 36 E0 93 04 00` (TAG_POSITION := 30 deg) is a motion target: a
+    // register write of it would jump past the step limit, so it is refused, dry run or
+    // not, with a pointer to `whj move` (whose last frame carries the same 30 deg).
+    for args in [
+        &["whj", "--dry-run", "write", "1", "tag_position", "30"][..],
+        &["whj", "--dry-run", "write", "1", "0x36", "300000", "--raw"][..],
+    ] {
+        let r = robobus(args);
+        assert_eq!(r.code, Some(2), "{r:#?}");
+        assert!(r.stderr.contains("whj move"), "{}", r.stderr);
+        assert!(r.stdout.is_empty(), "{}", r.stdout);
+    }
+    let r = robobus(&["whj", "--dry-run", "write", "1", "SYS_DEMA_ABSPOS", "1"]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    assert!(r.stderr.contains("never to write"), "{}", r.stderr);
 }
 
 #[test]
 fn whj_move_steps_to_the_target_and_ends_on_it() {
-    // 30 deg from 0 at 10 deg/s and 200 Hz would be 600 frames; check a small one:
-    // 0 -> 0.2 deg at 10 deg/s, 100 Hz = 0.1 deg per frame: 2 frames.
+    // The plan is the library's smooth profile (the one a real run sends): a status query
+    // (the real run plans from the position it reads), then one frame per period, never
+    // faster than --max-speed, the last exactly on the target.
+    // 0 -> 0.2 deg at 10 deg/s (acceleration 40 deg/s^2), 100 Hz: 20 frames.
     let frames = whj(&["move", "1", "0.2", "--from", "0", "--rate-hz", "100"]);
-    assert_eq!(frames, ["001##1011402", "201##1E8030000", "201##1D0070000"]);
-    // The usage demo's 30 deg target in one frame: E0 93 04 00.
+    assert_eq!(frames.len(), 21, "{frames:?}");
+    assert_eq!(frames[0], "601##1");
+    assert_eq!(frames.last().unwrap(), "201##1D0070000");
+    // The usage demo's 30 deg target: E0 93 04 00 ends the move.
     let frames = whj(&[
         "move",
         "1",
@@ -248,7 +273,23 @@ fn whj_move_steps_to_the_target_and_ends_on_it() {
         "200",
     ]);
     assert_eq!(frames.last().unwrap(), "201##1E0930400");
-    assert_eq!(frames.len(), 2);
+    assert!(frames.len() < 40, "{frames:?}");
+    // Without --from the dry run says what it assumed.
+    let out = ok(&["whj", "--dry-run", "move", "1", "1"]);
+    assert!(out.contains("# start angle assumed 0 deg"), "{out}");
+    // Too fast for the step limit at this rate: split into smaller steps, said plainly.
+    let out = ok(&[
+        "whj",
+        "--dry-run",
+        "move",
+        "1",
+        "30",
+        "--max-speed",
+        "180",
+        "--rate-hz",
+        "1",
+    ]);
+    assert!(out.contains("split into smaller steps"), "{out}");
 }
 
 #[test]
@@ -260,7 +301,7 @@ fn whj_wave_has_one_frame_per_period() {
         "wave",
         "1",
         "--amplitude",
-        "10",
+        "4",
         "--frequency",
         "1",
         "--duration",
@@ -271,18 +312,21 @@ fn whj_wave_has_one_frame_per_period() {
     let v: serde_json::Value = serde_json::from_str(&out).unwrap();
     let frames = v["frames"].as_array().unwrap();
     let lines: Vec<&str> = frames.iter().map(|f| f["line"].as_str().unwrap()).collect();
-    // sin at 0, 90, 180, 270 degrees of phase: 0, +10, 0, -10 degrees.
+    // A status query first (a real run starts the step limiter where the joint is), then
+    // sin at 0, 90, 180, 270 degrees of phase: 0, +4, 0, -4 degrees (4 deg per frame is
+    // within the step limit, so nothing is clamped).
     assert_eq!(
         lines,
         [
+            "601##1",
             "201##100000000",
-            "201##1A0860100",
+            "201##1409C0000",
             "201##100000000",
-            "201##16079FEFF"
+            "201##1C063FFFF"
         ]
     );
-    let t: Vec<f64> = frames.iter().map(|f| f["t_ms"].as_f64().unwrap()).collect();
-    assert_eq!(t, [0.0, 250.0, 500.0, 750.0]);
+    let t: Vec<Option<f64>> = frames.iter().map(|f| f["t_ms"].as_f64()).collect();
+    assert_eq!(t, [None, Some(0.0), Some(250.0), Some(500.0), Some(750.0)]);
 }
 
 #[test]

@@ -166,6 +166,26 @@ fn whj_e2e_scan_info_enable_move_save_registers() {
     // Status after disable and after enable (the simulated joints power up enabled).
     let d = sim.json(&["disable", "1-2"]);
     assert!(d.iter().all(|r| r["enabled"] == false), "{d:?}");
+    // A silent joint among others: every joint reported, the silent one named, exit 3.
+    let r = sim.whj(&["--json", "status", "6-8"]);
+    assert_eq!(r.code, Some(3), "{r:?}");
+    let doc: Value = serde_json::from_str(&r.stdout).unwrap();
+    let rows = doc["results"].as_array().unwrap();
+    assert_eq!(rows.len(), 3, "{rows:?}");
+    assert_eq!(
+        (rows[0]["joint"].as_u64(), rows[1]["joint"].as_u64()),
+        (Some(6), Some(7))
+    );
+    assert!(
+        rows[0]["position_deg"].is_f64() && rows[1]["position_deg"].is_f64(),
+        "{rows:?}"
+    );
+    assert_eq!(rows[2]["joint"], 8);
+    assert_eq!(rows[2]["kind"], "no-device", "{rows:?}");
+    // The same by one broadcast status frame.
+    let bst = sim.json(&["status", "1-3", "--broadcast"]);
+    assert_eq!(bst.len(), 3, "{bst:?}");
+    assert!(bst.iter().all(|r| r["position_deg"].is_f64()), "{bst:?}");
     let st = sim.json(&["status", "1-2"]);
     assert_eq!(st.len(), 2);
     assert_eq!(st[0]["enabled"], false, "{st:?}");
@@ -188,9 +208,9 @@ fn whj_e2e_scan_info_enable_move_save_registers() {
     let mv = sim.json(&["move", "1", "-5", "--max-speed", "90"]);
     assert!((f(&mv[0]["position_deg"]) + 5.0).abs() <= 0.1, "{mv:?}");
 
-    // Save refused while enabled (exit 1, nothing written), allowed once disabled.
+    // Save refused while enabled (exit 2, nothing written), allowed once disabled.
     let r = sim.whj(&["--yes", "save", "1"]);
-    assert_eq!(r.code, Some(1), "{r:?}");
+    assert_eq!(r.code, Some(2), "{r:?}");
     assert!(r.stderr.contains("enabled"), "{}", r.stderr);
     // Without --yes and without a terminal: refused before anything is opened.
     let r = sim.whj(&["save", "2"]);
@@ -211,9 +231,10 @@ fn whj_e2e_scan_info_enable_move_save_registers() {
     assert!((f(&w[0]["value"]) - 20.0).abs() < 1e-6, "{w:?}");
     let r = sim.json(&["read", "2", "lit_max_pos_diff"]);
     assert_eq!(f(&r[0]["raw"]), 200_000.0, "{r:?}");
-    let w = sim.json(&["write", "2", "0x31", "7", "--raw"]);
+    // (0x39 SPEED_FF_FOLLOWING: a plain register; 0x31, the open-loop duty, is refused.)
+    let w = sim.json(&["write", "2", "0x39", "7", "--raw"]);
     assert_eq!(f(&w[0]["raw"]), 7.0, "{w:?}");
-    let words = sim.json(&["read", "2", "0x30", "2"]);
+    let words = sim.json(&["read", "2", "0x38", "2"]);
     assert_eq!(words.len(), 2, "{words:?}");
     assert_eq!(f(&words[1]["raw"]), 7.0, "{words:?}");
     // Temperature in its unit.
@@ -243,7 +264,7 @@ fn whj_e2e_wave_speed_current_and_interrupt() {
     // A wave needs the joint enabled in the matching mode: refused otherwise, nothing sent.
     sim.json(&["disable", "3"]);
     let r = sim.whj(&["wave", "3", "--amplitude", "5", "--duration", "0.5"]);
-    assert_eq!(r.code, Some(1), "{r:?}");
+    assert_eq!(r.code, Some(2), "{r:?}");
     assert!(r.stderr.contains("enable"), "{}", r.stderr);
 
     sim.json(&["mode", "3", "position"]);
@@ -266,8 +287,14 @@ fn whj_e2e_wave_speed_current_and_interrupt() {
     let stats = &doc["stats"];
     let cycles = f(&stats["cycles"]);
     assert!((250.0..=320.0).contains(&cycles), "{stats}");
-    assert!(f(&stats["tracking_rms_deg"]) < 1.0, "{stats}");
-    assert!(f(&stats["tracking_max_deg"]) < 3.0, "{stats}");
+    // Tracking against the requested target, in the wave's unit.
+    assert_eq!(stats["unit"], "deg", "{stats}");
+    assert!(f(&stats["tracking_rms"]) < 1.0, "{stats}");
+    assert!(f(&stats["tracking_max"]) < 3.0, "{stats}");
+    assert!(
+        stats["clamped"].is_u64() && stats["overruns"].is_u64(),
+        "{stats}"
+    );
     // Complete cycles are counted (the rate is the benchmark's business: a loaded
     // machine running a debug build misses some).
     assert!(f(&stats["complete"]) > 0.0, "{stats}");
@@ -361,7 +388,11 @@ fn whj_e2e_timeouts_and_bad_input() {
         (vec!["speed", "1", "99"], "-37.5..=37.5"),
         (vec!["status", "31"], "31"),
         (vec!["read", "1", "NOPE"], "NOPE"),
-        (vec!["write", "1", "SYS_ENABLE_DRIVER", "2"], "0..=1"),
+        (vec!["write", "1", "LOW_POWER_MODE", "2"], "0..=1"),
+        // A drive switch is refused with a pointer to the command that verifies it.
+        (vec!["write", "1", "SYS_ENABLE_DRIVER", "1"], "whj enable"),
+        // A confirm-class register says what it does and needs --yes.
+        (vec!["write", "1", "IAP_FLAG", "1"], "bootloader"),
         (
             vec!["wave", "1", "--amplitude", "5", "--frequency", "90"],
             "--frequency",

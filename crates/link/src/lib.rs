@@ -82,6 +82,7 @@ pub mod pycan;
 pub mod serial;
 #[cfg(target_os = "linux")]
 pub mod socketcan;
+pub mod spec;
 #[cfg(unix)]
 pub mod udp;
 
@@ -99,5 +100,6 @@ pub use pty::{PtyLink, PtyOptions, PtyPair, PtySymlink};
 pub use serial::{SerialLink, set_usb_latency_timer, usb_latency_timer};
 #[cfg(target_os = "linux")]
 pub use socketcan::SocketCanLink;
+pub use spec::{FrameLinkSpec, OpenError, SpecError};
 #[cfg(unix)]
 pub use udp::{UdpBus, UdpBusConfig, UdpBusStats};

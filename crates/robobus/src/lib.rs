@@ -37,6 +37,58 @@
 //! assert!((500..1000).contains(&last_ms));
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
+//!
+//! A smooth WHJ move from plain Rust, with its plan, a stop token and progress:
+//!
+//! ```
+//! use std::sync::{Arc, atomic::{AtomicBool, Ordering}};
+//! use robobus::ops::{Control, Progress, SafeState, StopToken};
+//! use robobus::ops::whj::{self as ops, MoveArgs};
+//! use robobus::whj::{JointBus, JointBusConfig};
+//! use robobus_whj::{JointId, WorkMode};
+//!
+//! // A simulated joint on an in-memory CAN FD bus (a SocketCAN link is the same call).
+//! let wire = robobus_link::MemoryBus::new();
+//! let mut sim_end = wire.endpoint();
+//! let halt = Arc::new(AtomicBool::new(false));
+//! let sim_halt = Arc::clone(&halt);
+//! let sim = std::thread::spawn(move || {
+//!     let mut sim = robobus_sim::whj::WhjBus::chain(1..=1, robobus_sim::whj::WhjModel::Whj30, 7);
+//!     robobus_sim::whj::serve(&mut sim, &mut sim_end, &sim_halt)
+//! });
+//! let bus = JointBus::open_with(wire.endpoint(), JointBusConfig::simulated())?;
+//! let joint = bus.joint(JointId::new(1)?)?;
+//! joint.set_mode(WorkMode::Position)?;
+//! joint.enable()?;
+//!
+//! let args = MoveArgs {
+//!     joint: JointId::new(1)?,
+//!     target_deg: 2.0,
+//!     max_speed_deg_s: 30.0,
+//!     rate_hz: 100.0,
+//!     step_limit_deg: bus.config().step_limit_deg,
+//! };
+//! // What a dry run shows: the exact frames, planned from an assumed start of 0 deg.
+//! let plan = ops::plan_move(&args, 0.0, true)?;
+//! // The real run: another thread (a signal handler, a web request) may call stop.stop();
+//! // the joint is then left holding where it is and the call returns Interrupted.
+//! let stop = StopToken::new();
+//! let mut frames_sent = 0;
+//! let mut on_progress = |p: &Progress| frames_sent = p.done;
+//! let mut control = Control::new(&stop).with_progress(&mut on_progress);
+//! let report = ops::run_move(&joint, &args, &mut control, SafeState::Hold)?;
+//! drop(control);
+//! assert_eq!(report.frames, plan.frames.len() as u64);
+//! assert_eq!(frames_sent, report.frames);
+//! assert!((report.position_deg - 2.0).abs() <= 0.1);
+//! println!("{}", serde_json::to_string(&report)?); // the CLI's --json row
+//!
+//! drop(joint);
+//! drop(bus);
+//! halt.store(true, Ordering::Relaxed);
+//! sim.join().unwrap()?;
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 
 // Errors carry their facts by value (names, bytes, values): they are large, and they are
 // the cold path. Boxing each would cost every caller a pattern change for no gain.

@@ -73,26 +73,43 @@ impl Job<'_> {
             }),
         }
     }
+
+    /// What the plan does that needs a confirmation (non-volatile memory, or a WHJ register
+    /// of the `confirm` safety class: bit rates, IAP, brake, calibration, ...), if anything.
+    pub(crate) fn needs_confirmation(&self) -> Option<String> {
+        // Only `whj write` goes by the register's class; the dedicated commands (zero,
+        // save, set-id, release-iap) have their own checks.
+        if let Job::Whj { plan, action, .. } = self
+            && *action == "write"
+            && let Some(what) = plan
+                .steps
+                .iter()
+                .find_map(|s| robobus::ops::whj::confirm_text(&s.request))
+        {
+            return Some(format!("This write {what}."));
+        }
+        self.rewrites_memory()
+            .then(|| "This rewrites the device's non-volatile memory (EEPROM / flash).".to_owned())
+    }
 }
 
 /// Asks before a plan that rewrites non-volatile memory: `--yes` skips the question; on a
 /// terminal the user answers y/N; without a terminal the command is refused (exit 2).
 pub(crate) fn confirm(job: &Job<'_>, yes: bool) -> anyhow::Result<()> {
-    if yes || !job.rewrites_memory() {
+    let Some(what) = job.needs_confirmation() else {
+        return Ok(());
+    };
+    if yes {
         return Ok(());
     }
     let stdin = std::io::stdin();
     if !stdin.is_terminal() {
-        return Err(usage(
-            "this command rewrites the device's non-volatile memory (EEPROM / flash); \
-             confirm with --yes",
-        ));
+        return Err(usage(format!(
+            "{what} Confirm with --yes; nothing was sent"
+        )));
     }
     let mut err = std::io::stderr().lock();
-    let _ = write!(
-        err,
-        "This rewrites the device's non-volatile memory (EEPROM / flash). Continue? [y/N] "
-    );
+    let _ = write!(err, "{what} Continue? [y/N] ");
     let _ = err.flush();
     let mut answer = String::new();
     stdin.lock().read_line(&mut answer)?;
@@ -144,6 +161,8 @@ pub(crate) fn execute(job: &Job<'_>, yes: bool) -> anyhow::Result<()> {
                 run,
                 on_stop: *on_stop,
                 json: *json,
+                // Confirmed by `confirm` above (or nothing needed it).
+                confirmed: true,
             })
         }
     }

@@ -49,6 +49,7 @@ pub mod capture;
 mod ids;
 pub mod replay;
 pub mod wck;
+pub mod whj;
 
 pub use crate::error::ErrorKind;
 pub use crate::robot::SafeState;

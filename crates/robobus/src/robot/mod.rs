@@ -393,12 +393,11 @@ impl Hardware {
                 continue;
             };
             let handle = slot.bus.joint_unchecked(id);
-            let result = match slot.safe {
-                SafeState::Disable => handle.disable(),
-                _ => handle
-                    .status()
-                    .and_then(|s| handle.command_position(s.position).map(|_| ())),
-            };
+            let result = crate::ops::whj::apply_safe_state(
+                &handle,
+                slot.safe,
+                crate::ops::whj::ServoLoop::Position,
+            );
             if let Err(e) = result {
                 errors.push(format!("{}: {}: {e}", joint.name, slot.safe.keyword()));
             }

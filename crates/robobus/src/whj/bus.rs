@@ -12,6 +12,7 @@ use std::time::Instant;
 
 use robobus_link::{BusErrorKind, FrameLink, FrameLinkError};
 use robobus_whj::frame::padded_len;
+use robobus_whj::registers::{self, UniqueId};
 use robobus_whj::units::{ActualSpeed, Current, Position, Temperature, Voltage};
 use robobus_whj::{CanFrame, ErrorCode, JointId, Reply, Request};
 
@@ -162,6 +163,11 @@ pub struct JointTelemetry {
     pub temperature: Option<Temperature>,
     /// Replies received from this joint.
     pub replies: u64,
+    /// The unique ID (0x2A..0x2F) last read from this joint ID.
+    pub unique_id: Option<UniqueId>,
+    /// Two different unique IDs answered reads at this joint ID: two joints share the ID
+    /// (the first seen and the differing one).
+    pub unique_id_conflict: Option<(UniqueId, UniqueId)>,
 }
 
 /// A snapshot of everything the bus thread knows: bus health and per-joint values.
@@ -216,7 +222,20 @@ impl Telemetry {
                 t.voltage = Some(f.voltage);
                 t.temperature = Some(f.temperature);
             }
-            Reply::Read { .. } => {
+            Reply::Read { addr, words, .. } => {
+                if *addr == registers::addr::MOT_MODEL_ID && words.len() >= 6 {
+                    let mut id = [0u16; 6];
+                    for (slot, w) in id.iter_mut().zip(words.as_slice()) {
+                        *slot = *w;
+                    }
+                    let id = UniqueId(id);
+                    match t.unique_id {
+                        Some(seen) if seen != id && t.unique_id_conflict.is_none() => {
+                            t.unique_id_conflict = Some((seen, id));
+                        }
+                        _ => t.unique_id = Some(id),
+                    }
+                }
                 if let Some(p) = reply.actual_position() {
                     t.position = Some(p);
                 }
@@ -367,6 +386,8 @@ pub(crate) enum Command {
     Transact(Txn),
     StartCyclic(Box<CyclicSetup>, SyncSender<Result<(), WhjError>>),
     StopCyclic(SyncSender<()>),
+    /// Send one broadcast frame (no reply is matched; replies land in the telemetry).
+    Broadcast(CanFrame, SyncSender<Result<Instant, WhjError>>),
     Shutdown,
 }
 
@@ -374,12 +395,41 @@ pub(crate) enum Command {
 #[derive(Debug, Default)]
 pub(crate) struct Shared {
     pub(crate) telemetry: Mutex<Telemetry>,
+    /// The identity of each joint, read once per bus (by index = joint ID), so short-lived
+    /// [`Joint`] handles do not read it again.
+    pub(crate) identities: Mutex<[Option<super::joint::Identity>; 31]>,
     fatal: Mutex<Option<String>>,
     cyclic_running: AtomicBool,
 }
 
 pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// A joint handle that owns a share of its bus (`Arc<JointBus>`): `Send + Sync + 'static`,
+/// so a web server, a Python binding or a bridge can keep it. [`OwnedJoint::joint`] lends
+/// the full [`Joint`] API; the identity comes from the bus's cache.
+#[derive(Debug, Clone)]
+pub struct OwnedJoint {
+    bus: Arc<JointBus>,
+    id: JointId,
+}
+
+impl OwnedJoint {
+    /// The joint's ID.
+    pub const fn id(&self) -> JointId {
+        self.id
+    }
+
+    /// The bus.
+    pub const fn bus(&self) -> &Arc<JointBus> {
+        &self.bus
+    }
+
+    /// The joint's handle (no frames: the identity is cached in the bus).
+    pub fn joint(&self) -> Joint<'_> {
+        self.bus.joint_unchecked(self.id)
+    }
 }
 
 /// A WHJ CAN FD bus: owns a [`FrameLink`] on a thread of its own and hands out [`Joint`]
@@ -459,9 +509,34 @@ impl JointBus {
     }
 
     /// A handle for joint `id` without the connect handshake (for a joint known to run its
-    /// application). Its identity is read on first use.
+    /// application). Its identity is read on first use, once per bus (the bus keeps it, so
+    /// a handle made every sample costs no extra frames).
     pub fn joint_unchecked(&self, id: JointId) -> Joint<'_> {
         Joint::unchecked(self, id)
+    }
+
+    /// The identity this bus has read from joint `id`, if any.
+    pub fn cached_identity(&self, id: JointId) -> Option<super::joint::Identity> {
+        lock(&self.shared.identities)
+            .get(usize::from(id.get()))
+            .copied()
+            .flatten()
+    }
+
+    pub(crate) fn cache_identity(&self, id: JointId, identity: super::joint::Identity) {
+        if let Some(slot) = lock(&self.shared.identities).get_mut(usize::from(id.get())) {
+            *slot = Some(identity);
+        }
+    }
+
+    /// Connects joint `id` ([`JointBus::joint`]) and returns a handle that owns (a share
+    /// of) the bus, for front ends that keep a joint for a long time or on another thread.
+    pub fn owned_joint(self: &Arc<Self>, id: JointId) -> Result<OwnedJoint, WhjError> {
+        self.joint(id)?;
+        Ok(OwnedJoint {
+            bus: Arc::clone(self),
+            id,
+        })
     }
 
     /// Sends one point-to-point request and waits for its reply (one attempt, no retry;
@@ -491,6 +566,23 @@ impl JointBus {
                 1,
             )),
         }
+    }
+
+    /// Sends one broadcast frame (0x7F status query, 0x0F register access, ...) outside a
+    /// cyclic loop and returns when it went out. Replies are not matched to it: they land
+    /// in [`Telemetry`] (newer than the returned instant), see
+    /// [`ops::whj::broadcast_status`](crate::ops::whj::broadcast_status). A point-to-point
+    /// request is refused ([`WhjError::InvalidConfig`]).
+    pub fn send_broadcast(&self, request: Request) -> Result<Instant, WhjError> {
+        if request.joint().is_some() {
+            return Err(WhjError::InvalidConfig {
+                reason: "send_broadcast takes broadcast frames only; use request()".into(),
+            });
+        }
+        let (done, rx) = mpsc::sync_channel(1);
+        self.send_command(Command::Broadcast(request.to_frame(), done))?;
+        rx.recv_timeout(Duration::from_secs(2))
+            .map_err(|_| self.closed_error())?
     }
 
     /// A snapshot of the bus health and the latest values from every joint.
@@ -752,6 +844,19 @@ impl<L: FrameLink> Worker<L> {
                 }
                 self.shared.cyclic_running.store(false, Ordering::Release);
                 let _ = done.send(());
+            }
+            Command::Broadcast(frame, done) => {
+                let r = if self.cyclic.is_some() {
+                    Err(WhjError::InvalidConfig {
+                        reason: "a cyclic loop is running on this bus".into(),
+                    })
+                } else {
+                    let at = Instant::now();
+                    self.send(&frame).map(|()| at).map_err(|e| WhjError::Link {
+                        detail: e.to_string(),
+                    })
+                };
+                let _ = done.send(r);
             }
             Command::Shutdown => return Flow::Stop,
         }
@@ -1078,6 +1183,9 @@ impl<L: FrameLink> Worker<L> {
                 }
                 Command::StopCyclic(done) => {
                     let _ = done.send(());
+                }
+                Command::Broadcast(_, done) => {
+                    let _ = done.send(Err(WhjError::Closed));
                 }
                 Command::Shutdown => {}
             }

@@ -108,6 +108,7 @@ impl<'a> Joint<'a> {
         joint.release_iap()?;
         let identity = joint.identify()?;
         let _ = joint.identity.set(identity);
+        bus.cache_identity(id, identity);
         Ok(joint)
     }
 
@@ -188,7 +189,11 @@ impl<'a> Joint<'a> {
         if let Some(i) = self.identity.get() {
             return Ok(*i);
         }
+        if let Some(i) = self.bus.cached_identity(self.id) {
+            return Ok(*self.identity.get_or_init(|| i));
+        }
         let i = self.identify()?;
+        self.bus.cache_identity(self.id, i);
         Ok(*self.identity.get_or_init(|| i))
     }
 
@@ -517,59 +522,75 @@ impl<'a> Joint<'a> {
         })
     }
 
+    /// Sends one servo frame of a plan (position, speed or current, for this joint) and
+    /// returns its feedback. A position target further than the step limit from the actual
+    /// position is refused on the host ([`WhjError::StepTooLarge`]), as in
+    /// [`Joint::command_position`]; any other request is [`WhjError::InvalidConfig`].
+    pub fn servo_request(&self, request: Request) -> Result<ServoFeedback, WhjError> {
+        match request {
+            Request::PositionServo { joint, target } if joint == self.id => {
+                self.command_position(target)
+            }
+            Request::SpeedServo { joint, .. } | Request::CurrentServo { joint, .. }
+                if joint == self.id =>
+            {
+                self.servo(request)
+            }
+            other => Err(WhjError::InvalidConfig {
+                reason: format!("{}: not a servo frame for this joint: {other:?}", self.id),
+            }),
+        }
+    }
+
     /// Moves to `target` along a smooth speed / acceleration-limited profile, streaming
     /// position servo frames every `limits.period`, so no step exceeds the joint's 10°
-    /// protection. Returns the last feedback once the actual position is within
-    /// `limits.tolerance_deg` of the target, or [`WhjError::MoveIncomplete`] if it is not
-    /// there `limits.settle_timeout` after the profile ended. The joint must be enabled in
-    /// position mode.
-    pub fn move_to(
-        &self,
-        target: Position,
-        limits: MotionLimits,
-    ) -> Result<ServoFeedback, WhjError> {
+    /// protection; then waits (status queries) until the actual position is within
+    /// `limits.tolerance_deg` of the target, and returns that fresh status. The set-points
+    /// are [`Profile::plan`]'s, the same plan `robobus whj move` shows and runs.
+    /// [`WhjError::MoveIncomplete`] if the joint is not there `limits.settle_timeout` after
+    /// the profile ended. The joint must be enabled in position mode.
+    pub fn move_to(&self, target: Position, limits: MotionLimits) -> Result<JointStatus, WhjError> {
         limits
             .validate()
             .map_err(|reason| WhjError::InvalidConfig { reason })?;
         let start_pos = self.status()?.position;
-        let mut profile = Profile::new(start_pos.degrees(), limits);
         let goal = target.degrees();
-        let dt = limits.period.as_secs_f64();
-        let mut next = Instant::now();
+        let points =
+            Profile::plan(start_pos.degrees(), goal, limits, 10_000_000).ok_or_else(|| {
+                WhjError::InvalidConfig {
+                    reason: format!("{}: move to {goal} deg needs too many set-points", self.id),
+                }
+            })?;
         let started = Instant::now();
-        let mut settle_since: Option<Instant> = None;
-        loop {
-            let cmd = profile.step(goal, dt);
+        let mut next = started;
+        for cmd in points {
             let setpoint = Position::from_degrees(cmd).map_err(|source| WhjError::Unit {
                 joint: self.id,
                 source,
             })?;
-            let fb = self.servo(Request::PositionServo {
-                joint: self.id,
-                target: setpoint,
-            })?;
-            if profile.at_rest(goal) {
-                if (fb.position.degrees() - goal).abs() <= limits.tolerance_deg {
-                    return Ok(fb);
-                }
-                let since = *settle_since.get_or_insert_with(Instant::now);
-                if since.elapsed() > limits.settle_timeout {
-                    return Err(WhjError::MoveIncomplete {
-                        joint: self.id,
-                        target_deg: goal,
-                        actual_deg: fb.position.degrees(),
-                        waited: started.elapsed(),
-                        code: fb.error,
-                    });
-                }
-            }
+            self.command_position(setpoint)?;
             next += limits.period;
             let now = Instant::now();
             if next > now {
                 std::thread::sleep(next - now);
-            } else {
-                next = now;
             }
+        }
+        let settle = Instant::now();
+        loop {
+            let st = self.status()?;
+            if (st.position.degrees() - goal).abs() <= limits.tolerance_deg {
+                return Ok(st);
+            }
+            if settle.elapsed() > limits.settle_timeout {
+                return Err(WhjError::MoveIncomplete {
+                    joint: self.id,
+                    target_deg: goal,
+                    actual_deg: st.position.degrees(),
+                    waited: started.elapsed(),
+                    code: st.error,
+                });
+            }
+            std::thread::sleep(limits.period);
         }
     }
 

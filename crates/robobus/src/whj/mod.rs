@@ -60,7 +60,9 @@ mod error;
 mod joint;
 mod trajectory;
 
-pub use bus::{BusHealth, BusState, JointBus, JointBusConfig, JointTelemetry, Telemetry};
+pub use bus::{
+    BusHealth, BusState, JointBus, JointBusConfig, JointTelemetry, OwnedJoint, Telemetry,
+};
 pub use cyclic::{
     CycleReport, Cyclic, CyclicConfig, CyclicStats, Feedback, Percentiles, Protocol, ServoMode,
 };

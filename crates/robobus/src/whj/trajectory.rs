@@ -107,6 +107,30 @@ impl Profile {
         self.speed = 0.0;
     }
 
+    /// Every set-point of a move from rest at `from_deg` to rest at `to_deg`, one per
+    /// `limits.period`, the last exactly on the target: the plan a move streams (its dry
+    /// run prints the same points). At most `max_points` points: `None` when the move would
+    /// need more (a tiny speed over a long way).
+    pub fn plan(
+        from_deg: f64,
+        to_deg: f64,
+        limits: MotionLimits,
+        max_points: usize,
+    ) -> Option<Vec<f64>> {
+        let dt = limits.period.as_secs_f64();
+        let mut p = Self::new(from_deg, limits);
+        let mut points = Vec::new();
+        loop {
+            if points.len() >= max_points {
+                return None;
+            }
+            points.push(p.step(to_deg, dt));
+            if p.at_rest(to_deg) {
+                return Some(points);
+            }
+        }
+    }
+
     /// Advances by `dt` seconds toward `target_deg` and returns the new set-point.
     pub fn step(&mut self, target_deg: f64, dt: f64) -> f64 {
         if !(dt.is_finite() && dt > 0.0 && target_deg.is_finite()) {

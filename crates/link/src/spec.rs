@@ -1,0 +1,232 @@
+//! Bus addresses: the one way to turn a user's `--bus` value into a CAN FD frame link.
+//!
+//! Syntax ([`FrameLinkSpec`]'s `FromStr`):
+//!
+//! - `udp`: python-can's `udp_multicast` bus on its default group and port
+//!   (239.74.163.2:43113), loopback only;
+//! - `udp:GROUP:PORT`: the same on another multicast group (224.0.0.0/4) and port 1..=65535;
+//! - anything else: a `SocketCAN` interface name (1..=15 characters, no `/`, `:` or space),
+//!   such as `can0` or `vcan0`.
+//!
+//! ```
+//! use robobus_link::FrameLinkSpec;
+//! let spec: FrameLinkSpec = "udp:239.1.2.3:5000".parse()?;
+//! assert_eq!(spec.to_string(), "udp:239.1.2.3:5000");
+//! assert_eq!("vcan0".parse::<FrameLinkSpec>()?, FrameLinkSpec::SocketCan("vcan0".into()));
+//! assert!("udp:10.0.0.1:5000".parse::<FrameLinkSpec>().is_err());
+//! # Ok::<(), robobus_link::SpecError>(())
+//! ```
+
+use std::fmt;
+use std::net::Ipv4Addr;
+use std::str::FromStr;
+
+use crate::frame_link::{FrameLink, FrameLinkError};
+
+/// Where a CAN FD bus is: the python-can compatible UDP multicast bus or a `SocketCAN`
+/// interface.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum FrameLinkSpec {
+    /// python-can `udp_multicast` on this group and port (loopback only).
+    Udp {
+        /// Multicast group.
+        group: Ipv4Addr,
+        /// UDP port.
+        port: u16,
+    },
+    /// A `SocketCAN` interface (`can0`, `vcan0`).
+    SocketCan(String),
+}
+
+/// A bus address that does not parse; the message names the value and the syntax.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("bus {value:?}: {reason}")]
+pub struct SpecError {
+    /// The address as given (at most its first 64 characters).
+    pub value: String,
+    /// What is wrong and what is allowed.
+    pub reason: String,
+}
+
+/// A bus that cannot be opened.
+#[derive(Debug, thiserror::Error)]
+pub enum OpenError {
+    /// The `SocketCAN` interface does not exist or cannot be opened (like a serial port
+    /// that is not there: no device).
+    #[error("opening SocketCAN interface {iface}: {source}")]
+    NoInterface {
+        /// The interface.
+        iface: String,
+        /// Why.
+        source: FrameLinkError,
+    },
+    /// The UDP bus cannot be joined.
+    #[error("joining the UDP bus {group}:{port}: {source}")]
+    Udp {
+        /// Multicast group.
+        group: Ipv4Addr,
+        /// Port.
+        port: u16,
+        /// Why.
+        source: FrameLinkError,
+    },
+    /// This kind of bus does not exist on this operating system.
+    #[error("{0}")]
+    Unsupported(String),
+}
+
+/// python-can's default `udp_multicast` group.
+const DEFAULT_GROUP: Ipv4Addr = Ipv4Addr::new(239, 74, 163, 2);
+/// python-can's default `udp_multicast` port.
+const DEFAULT_PORT: u16 = 43113;
+
+impl FrameLinkSpec {
+    /// The default UDP bus (`udp`).
+    pub const fn default_udp() -> Self {
+        Self::Udp {
+            group: DEFAULT_GROUP,
+            port: DEFAULT_PORT,
+        }
+    }
+
+    /// A human description: `udp_multicast 239.74.163.2:43113`, `SocketCAN vcan0`.
+    pub fn describe(&self) -> String {
+        match self {
+            Self::Udp { group, port } => format!("udp_multicast {group}:{port}"),
+            Self::SocketCan(iface) => format!("SocketCAN {iface}"),
+        }
+    }
+
+    /// Opens the link.
+    ///
+    /// # Errors
+    /// [`OpenError`] naming the interface or group.
+    pub fn open(&self) -> Result<Box<dyn FrameLink + Send>, OpenError> {
+        match self {
+            #[cfg(unix)]
+            Self::Udp { group, port } => {
+                let cfg = crate::udp::UdpBusConfig {
+                    group: *group,
+                    port: *port,
+                    ..crate::udp::UdpBusConfig::default()
+                };
+                crate::udp::UdpBus::open(&cfg)
+                    .map(|l| Box::new(l) as Box<dyn FrameLink + Send>)
+                    .map_err(|source| OpenError::Udp {
+                        group: *group,
+                        port: *port,
+                        source,
+                    })
+            }
+            #[cfg(not(unix))]
+            Self::Udp { .. } => Err(OpenError::Unsupported(
+                "the UDP multicast bus needs a Unix host".into(),
+            )),
+            #[cfg(target_os = "linux")]
+            Self::SocketCan(iface) => crate::socketcan::SocketCanLink::open(iface)
+                .map(|l| Box::new(l) as Box<dyn FrameLink + Send>)
+                .map_err(|source| OpenError::NoInterface {
+                    iface: iface.clone(),
+                    source,
+                }),
+            #[cfg(not(target_os = "linux"))]
+            Self::SocketCan(iface) => Err(OpenError::Unsupported(format!(
+                "SocketCAN interface {iface}: SocketCAN exists on Linux only; use --bus udp"
+            ))),
+        }
+    }
+}
+
+impl fmt::Display for FrameLinkSpec {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Udp { group, port } if *group == DEFAULT_GROUP && *port == DEFAULT_PORT => {
+                f.write_str("udp")
+            }
+            Self::Udp { group, port } => write!(f, "udp:{group}:{port}"),
+            Self::SocketCan(iface) => f.write_str(iface),
+        }
+    }
+}
+
+impl FromStr for FrameLinkSpec {
+    type Err = SpecError;
+
+    fn from_str(s: &str) -> Result<Self, SpecError> {
+        let err = |reason: String| SpecError {
+            value: s.chars().take(64).collect(),
+            reason,
+        };
+        if s == "udp" {
+            return Ok(Self::default_udp());
+        }
+        if let Some(rest) = s.strip_prefix("udp:") {
+            let (group, port) = rest.rsplit_once(':').ok_or_else(|| {
+                err("expected udp:GROUP:PORT, e.g. udp:239.74.163.2:43113".into())
+            })?;
+            let group: Ipv4Addr = group
+                .parse()
+                .map_err(|_| err(format!("{:?} is not an IPv4 address", short(group))))?;
+            if !group.is_multicast() {
+                return Err(err(format!(
+                    "{group} is not a multicast group (allowed: 224.0.0.0/4)"
+                )));
+            }
+            let port: u16 = port.parse().map_err(|_| {
+                err(format!(
+                    "port {:?} is not a number (allowed: 1..=65535)",
+                    short(port)
+                ))
+            })?;
+            if port == 0 {
+                return Err(err("port 0 (allowed: 1..=65535)".into()));
+            }
+            return Ok(Self::Udp { group, port });
+        }
+        if s.is_empty() || s.len() > 15 || s.contains(['/', ' ', ':']) {
+            return Err(err(
+                "expected udp, udp:GROUP:PORT, or a SocketCAN interface name such as vcan0 \
+                 (1..=15 characters, no '/', ':' or space)"
+                    .into(),
+            ));
+        }
+        Ok(Self::SocketCan(s.to_owned()))
+    }
+}
+
+/// At most 32 characters of a user's text, for messages.
+fn short(s: &str) -> String {
+    s.chars().take(32).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_every_form_and_refuses_the_rest() {
+        assert_eq!("udp".parse(), Ok(FrameLinkSpec::default_udp()));
+        assert_eq!(
+            "udp:239.1.2.3:5000".parse(),
+            Ok(FrameLinkSpec::Udp {
+                group: Ipv4Addr::new(239, 1, 2, 3),
+                port: 5000
+            })
+        );
+        let e = "udp:10.0.0.1:5000".parse::<FrameLinkSpec>().unwrap_err();
+        assert!(e.to_string().contains("224.0.0.0/4"), "{e}");
+        assert!("udp:239.1.2.3".parse::<FrameLinkSpec>().is_err());
+        assert!("udp:239.1.2.3:0".parse::<FrameLinkSpec>().is_err());
+        assert_eq!(
+            "vcan0".parse(),
+            Ok(FrameLinkSpec::SocketCan("vcan0".into()))
+        );
+        assert!("a/b".parse::<FrameLinkSpec>().is_err());
+        let long = "x".repeat(65_536);
+        let e = long.parse::<FrameLinkSpec>().unwrap_err();
+        assert!(e.to_string().len() < 300);
+        for s in ["udp", "udp:239.1.2.3:5000", "can0"] {
+            assert_eq!(s.parse::<FrameLinkSpec>().unwrap().to_string(), s);
+        }
+    }
+}

@@ -1,0 +1,577 @@
+//! `robobus::ops::whj` against the simulator: per-joint results, one plan for dry-run and
+//! real run (frames captured on the wire), stop with the safe state, progress, and the
+//! safety checks before a move.
+
+#![allow(clippy::unwrap_used, clippy::panic, clippy::float_cmp)] // tests
+
+mod whj_common;
+
+use std::io::Write;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use robobus::ops::whj::{self as ops, MoveArgs, ServoLoop, Shape, WaveArgs};
+use robobus::ops::{Control, ErrorKind, OpError, Progress, SafeState, StopToken};
+use robobus::whj::{JointBus, JointBusConfig};
+use robobus_link::{CaptureFrameLink, FrameLink, FrameLinkError, IdFilter, Received, read_candump};
+use robobus_whj::units::{CurrentScale, Position};
+use robobus_whj::{CanFrame, JointId, Reply, Request, WorkMode};
+use whj_common::{chain, config, memory};
+
+/// A capture buffer shared with the bus thread.
+#[derive(Clone, Default)]
+struct Shared(Arc<Mutex<Vec<u8>>>);
+
+impl Write for Shared {
+    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+        self.0.lock().unwrap().extend_from_slice(b);
+        Ok(b.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+impl Shared {
+    fn clear(&self) {
+        self.0.lock().unwrap().clear();
+    }
+    /// Frames the client sent (logged under `tx`).
+    fn sent(&self) -> Vec<CanFrame> {
+        let bytes = self.0.lock().unwrap().clone();
+        read_candump(&bytes[..])
+            .map(Result::unwrap)
+            .filter(|r| r.iface == "tx")
+            .map(|r| r.frame)
+            .collect()
+    }
+}
+
+fn id(n: u8) -> JointId {
+    JointId::new(n).unwrap()
+}
+
+/// A bus to `n` simulated joints whose sent frames are captured.
+fn captured(n: u8) -> (whj_common::Sim, JointBus, Shared) {
+    let (sim, link) = memory(chain(n));
+    let log = Shared::default();
+    let link = CaptureFrameLink::new(link, log.clone(), "rx").with_tx_iface("tx");
+    let bus = JointBus::open_with(link, config()).unwrap();
+    (sim, bus, log)
+}
+
+fn ready(bus: &JointBus, joint: JointId, mode: WorkMode) {
+    let j = bus.joint(joint).unwrap();
+    j.set_mode(mode).unwrap();
+    j.enable().unwrap();
+}
+
+fn servo_frames(frames: &[CanFrame]) -> Vec<CanFrame> {
+    frames
+        .iter()
+        .copied()
+        .filter(|f| matches!(f.raw_id() >> 8, 2..=4))
+        .collect()
+}
+
+fn plan_frames(plan: &ops::Plan) -> Vec<CanFrame> {
+    plan.frames.iter().map(|f| f.request.to_frame()).collect()
+}
+
+#[test]
+fn status_of_three_joints_with_the_middle_one_silent_reports_all_three() {
+    // Joints 1 and 3 on the bus, 2 missing.
+    let bus_sim = robobus_sim::whj::WhjBus::chain([1u8, 3], robobus_sim::whj::WhjModel::Whj30, 5);
+    let (_sim, link) = memory(bus_sim);
+    let bus = JointBus::open_with(
+        link,
+        JointBusConfig {
+            connect_timeout: Duration::from_millis(300),
+            ..config()
+        },
+    )
+    .unwrap();
+    let results = ops::status(&bus, &[id(1), id(2), id(3)]);
+    assert_eq!(results.len(), 3);
+    assert!(results[0].is_ok() && results[2].is_ok(), "{results:?}");
+    let f = results[1].failure().unwrap();
+    assert_eq!(f.kind, ErrorKind::NoDevice, "{f:?}");
+    assert!(
+        f.error.contains("J2") || f.error.contains('2'),
+        "{}",
+        f.error
+    );
+    assert_eq!(
+        robobus::ops::worst_kind(&results),
+        Some(ErrorKind::NoDevice)
+    );
+    let json = serde_json::to_value(&results).unwrap();
+    assert_eq!(json[0]["id"], 1);
+    assert_eq!(json[0]["mode"], "position");
+    assert_eq!(json[1]["kind"], "no-device");
+}
+
+fn move_args(target: f64, speed: f64, rate: f64) -> MoveArgs {
+    MoveArgs {
+        joint: id(1),
+        target_deg: target,
+        max_speed_deg_s: speed,
+        rate_hz: rate,
+        step_limit_deg: JointBusConfig::default().step_limit_deg,
+    }
+}
+
+#[test]
+fn a_real_move_sends_exactly_the_frames_its_dry_run_shows() {
+    let (_sim, bus, log) = captured(1);
+    ready(&bus, id(1), WorkMode::Position);
+    let args = move_args(3.0, 30.0, 100.0);
+    // The dry run from the same start (the simulated joint rests at 0 deg).
+    let dry = ops::plan_move(&args, 0.0, true).unwrap();
+    assert!(dry.assumed.as_deref().unwrap().contains("assumed 0 deg"));
+    let j = bus.joint(id(1)).unwrap();
+    log.clear();
+    let mut seen = Vec::new();
+    let mut on_progress = |p: &Progress| seen.push(p.done);
+    let stop = StopToken::new();
+    let mut control = Control::new(&stop).with_progress(&mut on_progress);
+    let report = ops::run_move(&j, &args, &mut control, SafeState::Hold).unwrap();
+    drop(control);
+    let sent = log.sent();
+    assert_eq!(
+        servo_frames(&sent),
+        plan_frames(&dry),
+        "servo frames differ from the dry run"
+    );
+    assert_eq!(report.frames, dry.frames.len() as u64);
+    assert_eq!(report.from_deg, 0.0);
+    // The final position is a fresh status reading after the last frame.
+    let last_frame = sent.iter().rposition(|f| f.raw_id() == 0x201).unwrap();
+    assert!(sent[last_frame + 1..].iter().any(|f| f.raw_id() == 0x601));
+    assert!((report.position_deg - 3.0).abs() <= 0.1, "{report:?}");
+    assert_eq!(report.error, "no error");
+    assert_eq!(seen.last().copied(), Some(dry.frames.len() as u64));
+}
+
+#[test]
+fn a_real_wave_sends_exactly_the_frames_its_dry_run_shows() {
+    let (_sim, bus, log) = captured(1);
+    ready(&bus, id(1), WorkMode::Position);
+    let args = WaveArgs {
+        joint: id(1),
+        shape: Shape::Square,
+        servo: ServoLoop::Position,
+        amplitude: 2.0,
+        frequency: 2.0,
+        offset: 0.0,
+        duration: 0.5,
+        rate_hz: 100.0,
+        step_limit_deg: JointBusConfig::default().step_limit_deg,
+    };
+    let dry = ops::plan_wave(&args, 0.0, CurrentScale::OneMilliamp, true).unwrap();
+    assert_eq!(dry.frames.len(), 50);
+    let j = bus.joint(id(1)).unwrap();
+    log.clear();
+    let (plan, report) = ops::run_wave(&j, &args, &mut Control::none(), SafeState::Hold).unwrap();
+    assert_eq!(plan.frames, dry.frames);
+    assert_eq!(servo_frames(&log.sent()), plan_frames(&dry));
+    assert_eq!(report.cycles, 50);
+    // A square wave is stepped through the limiter: the first set-points are clamped.
+    assert!(report.clamped > 0, "{report:?}");
+    // Tracking is against the requested target: a square wave of 2 deg cannot be
+    // followed exactly, so the largest error is at least a good part of the step.
+    assert!(report.tracking_max.unwrap() > 0.5, "{report:?}");
+    assert!(!report.stale);
+}
+
+#[test]
+fn a_stopped_move_leaves_the_joint_holding_and_says_so() {
+    let (_sim, bus, _log) = captured(1);
+    ready(&bus, id(1), WorkMode::Position);
+    let j = bus.joint(id(1)).unwrap();
+    let stop = StopToken::new();
+    let s = stop.clone();
+    let mut on_progress = move |p: &Progress| {
+        if p.done >= 16 {
+            s.stop();
+        }
+    };
+    let mut control = Control::new(&stop).with_progress(&mut on_progress);
+    let err = ops::run_move(
+        &j,
+        &move_args(20.0, 30.0, 100.0),
+        &mut control,
+        SafeState::Hold,
+    )
+    .unwrap_err();
+    drop(control);
+    assert_eq!(err.kind(), ErrorKind::Interrupted);
+    assert!(err.to_string().contains("joint 1 holding"), "{err}");
+    let st = j.status().unwrap();
+    assert!(st.is_enabled());
+    assert!(st.position.degrees() < 19.0, "{}", st.position.degrees());
+
+    // Disable as the safe state.
+    let stop = StopToken::new();
+    stop.stop();
+    let err = ops::run_move(
+        &j,
+        &move_args(0.0, 30.0, 100.0),
+        &mut Control::new(&stop),
+        SafeState::Disable,
+    )
+    .unwrap_err();
+    assert!(err.to_string().contains("disabled"), "{err}");
+    assert!(!j.is_enabled().unwrap());
+}
+
+/// A relay that rewrites the position of every status reply to 214748.36 deg (the
+/// implausible reading of issue 14, item 1).
+struct ImplausibleStatus<L>(L);
+
+impl<L: FrameLink> FrameLink for ImplausibleStatus<L> {
+    fn send(&mut self, frame: &CanFrame) -> Result<(), FrameLinkError> {
+        self.0.send(frame)
+    }
+    fn recv(&mut self, deadline: std::time::Instant) -> Result<Received, FrameLinkError> {
+        let mut r = self.0.recv(deadline)?;
+        if let Ok(Reply::Status { joint, mut status }) = Reply::from_frame(&r.frame) {
+            status.position = Position(2_147_483_600);
+            r.frame = Reply::Status { joint, status }.to_frame();
+        }
+        Ok(r)
+    }
+    fn set_filters(&mut self, filters: &[IdFilter]) -> Result<(), FrameLinkError> {
+        self.0.set_filters(filters)
+    }
+}
+
+#[test]
+fn a_move_is_not_planned_from_an_implausible_present_position() {
+    let (_sim, link) = memory(chain(1));
+    let log = Shared::default();
+    let link =
+        CaptureFrameLink::new(ImplausibleStatus(link), log.clone(), "rx").with_tx_iface("tx");
+    let bus = JointBus::open_with(link, config()).unwrap();
+    ready(&bus, id(1), WorkMode::Position);
+    let j = bus.joint(id(1)).unwrap();
+    log.clear();
+    let err = ops::run_move(
+        &j,
+        &move_args(15.0, 30.0, 100.0),
+        &mut Control::none(),
+        SafeState::Hold,
+    )
+    .unwrap_err();
+    assert_eq!(err.kind(), ErrorKind::Device, "{err}");
+    let msg = err.to_string();
+    assert!(
+        msg.contains("214748.36") && msg.contains("outside its position limits"),
+        "{msg}"
+    );
+    assert!(servo_frames(&log.sent()).is_empty());
+}
+
+#[test]
+fn a_move_needs_position_mode_and_an_enabled_joint() {
+    let (_sim, bus, log) = captured(1);
+    let j = bus.joint(id(1)).unwrap();
+    j.set_mode(WorkMode::Speed).unwrap();
+    log.clear();
+    let err = ops::run_move(
+        &j,
+        &move_args(1.0, 30.0, 100.0),
+        &mut Control::none(),
+        SafeState::Hold,
+    )
+    .unwrap_err();
+    assert_eq!(err.kind(), ErrorKind::Refused);
+    assert!(err.to_string().contains("whj mode 1 position"), "{err}");
+    assert!(servo_frames(&log.sent()).is_empty());
+}
+
+#[test]
+fn a_too_fast_move_is_split_into_steps_within_the_step_limit() {
+    // 180 deg/s at 1 Hz would be 180 deg per frame.
+    let args = move_args(30.0, 180.0, 1.0);
+    let plan = ops::plan_move(&args, 0.0, true).unwrap();
+    let mut last = 0.0;
+    for f in &plan.frames {
+        let Request::PositionServo { target, .. } = f.request else {
+            panic!()
+        };
+        assert!((target.degrees() - last).abs() <= args.step_limit_deg + 1e-4);
+        last = target.degrees();
+    }
+    assert!((last - 30.0).abs() < 1e-9);
+    assert!(
+        plan.notes
+            .iter()
+            .any(|n| n.contains("split into smaller steps")),
+        "{:?}",
+        plan.notes
+    );
+}
+
+#[test]
+fn set_id_is_refused_while_a_joint_answers_at_the_new_id() {
+    let (_sim, bus, log) = captured(2);
+    bus.joint(id(1)).unwrap();
+    log.clear();
+    let err = ops::set_id(&bus, id(1), id(2)).unwrap_err();
+    assert!(matches!(err, OpError::Refused(_)), "{err}");
+    assert!(err.to_string().contains("answers at ID 2"), "{err}");
+    // Only the probe of ID 2 went out: nothing to joint 1 (no disable, write or save).
+    assert!(
+        log.sent().iter().all(|f| f.raw_id() == 0x002),
+        "{:?}",
+        log.sent()
+    );
+}
+
+#[test]
+fn clear_shows_the_error_bits_before_and_after() {
+    let (_sim, bus, _log) = captured(1);
+    ready(&bus, id(1), WorkMode::Position);
+    // A 30 deg step (past the joint's 10 deg protection), sent around the client's check.
+    bus.request(Request::PositionServo {
+        joint: id(1),
+        target: Position::from_degrees(30.0).unwrap(),
+    })
+    .unwrap();
+    std::thread::sleep(Duration::from_millis(20));
+    let r = ops::clear(&bus, &[id(1)]);
+    let v = r[0].value().unwrap();
+    assert_ne!(v.error_before, "no error", "{v:?}");
+    assert_eq!(v.error_after, "no error", "{v:?}");
+}
+
+#[test]
+fn enable_reports_the_state_the_joint_reports() {
+    let (_sim, bus, _log) = captured(2);
+    let r = ops::enable(&bus, &[id(1), id(2)], true);
+    assert!(r.iter().all(robobus::ops::DeviceResult::is_ok), "{r:?}");
+    assert!(r[0].value().unwrap().enabled);
+    let r = ops::enable(&bus, &[id(2)], false);
+    assert!(!r[0].value().unwrap().enabled);
+}
+
+#[test]
+fn scan_finds_two_joints_sharing_an_id_by_their_unique_ids() {
+    use robobus_sim::whj::{JointConfig, WhjModel};
+    let mut a = JointConfig::new(4, WhjModel::Whj30);
+    a.unique_id = [1, 2, 3, 4, 5, 6];
+    let mut b = JointConfig::new(4, WhjModel::Whj30);
+    b.unique_id = [9, 9, 9, 9, 9, 9];
+    let c = JointConfig::new(5, WhjModel::Whj30);
+    let (_sim, link) = memory(whj_common::configs(vec![a, b, c]));
+    let bus = JointBus::open_with(link, config()).unwrap();
+    let report = ops::scan(&bus, &[id(4), id(5)], &mut Control::none()).unwrap();
+    assert_eq!(report.found.len(), 2, "{report:?}");
+    assert_eq!(report.duplicates.len(), 1, "{report:?}");
+    assert_eq!(report.duplicates[0].id, 4);
+    assert_ne!(
+        report.duplicates[0].unique_ids[0],
+        report.duplicates[0].unique_ids[1]
+    );
+    // A joint alone at its ID is never called a duplicate.
+    assert!(ops::duplicates_of(&bus, id(5)).is_none());
+}
+
+#[test]
+fn register_writes_follow_their_safety_class() {
+    let (_sim, bus, log) = captured(1);
+    bus.joint(id(1)).unwrap();
+    let write = |addr: u8, value: u16| {
+        Request::write(id(1), robobus_whj::RegisterAddr::new(addr).unwrap(), value).unwrap()
+    };
+    log.clear();
+    // never: the absolute sensor calibration.
+    let e = ops::write_register(&bus, write(0x0D, 1), true).unwrap_err();
+    assert!(e.to_string().contains("never to write"), "{e}");
+    // motion target: refused with a pointer to the command.
+    let e = ops::write_register(
+        &bus,
+        Request::write_i32(id(1), robobus_whj::registers::addr::TAG_SPEED, 500_000).unwrap(),
+        true,
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("whj speed"), "{e}");
+    // confirm: IAP_FLAG := 1 needs the confirmation and says what it does.
+    let e = ops::write_register(&bus, write(0x49, 1), false).unwrap_err();
+    assert_eq!(e.kind(), ErrorKind::Refused);
+    assert!(
+        e.to_string().contains("bootloader") && e.to_string().contains("--yes"),
+        "{e}"
+    );
+    assert!(log.sent().is_empty(), "{:?}", log.sent());
+    // Inverted position limits are refused.
+    let e = ops::write_register(
+        &bus,
+        Request::write_i32(
+            id(1),
+            robobus_whj::registers::addr::LIT_MIN_POSITION,
+            4_000_000,
+        )
+        .unwrap(),
+        true,
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("inverted"), "{e}");
+    // plain: written and read back.
+    let r = ops::write_register(&bus, write(0x30, 2), false).unwrap();
+    assert_eq!(r[0].register, "TAG_WORK_MODE");
+    assert_eq!(r[0].raw, 2);
+}
+
+#[test]
+fn a_speed_target_checks_the_mode_and_stops_after_its_duration() {
+    let (_sim, bus, log) = captured(1);
+    let j = bus.joint(id(1)).unwrap();
+    let args = ops::TargetArgs {
+        joint: id(1),
+        servo: ServoLoop::Speed,
+        value: 2.0,
+        duration: Some(Duration::from_millis(200)),
+    };
+    // In position mode nothing moves: refused before any frame.
+    j.set_mode(WorkMode::Position).unwrap();
+    j.enable().unwrap();
+    log.clear();
+    let e = ops::run_target(&j, &args, &mut Control::none(), SafeState::Hold).unwrap_err();
+    assert!(e.to_string().contains("whj mode 1 speed"), "{e}");
+    assert!(servo_frames(&log.sent()).is_empty());
+    j.disable().unwrap();
+    j.set_mode(WorkMode::Speed).unwrap();
+    j.enable().unwrap();
+    log.clear();
+    let r = ops::run_target(&j, &args, &mut Control::none(), SafeState::Hold).unwrap();
+    assert!(!r.keeps_running);
+    let frames = servo_frames(&log.sent());
+    assert_eq!(frames.len(), 2, "{frames:?}");
+    assert_eq!(
+        frames[1],
+        Request::SpeedServo {
+            joint: id(1),
+            target: robobus_whj::units::TargetSpeed(0)
+        }
+        .to_frame()
+    );
+    // Without a duration the report says plainly that the joint keeps turning.
+    let r = ops::run_target(
+        &j,
+        &ops::TargetArgs {
+            duration: None,
+            ..args
+        },
+        &mut Control::none(),
+        SafeState::Hold,
+    )
+    .unwrap();
+    assert!(r.keeps_running);
+    assert!(r.note.contains("whj speed 1 0"), "{}", r.note);
+}
+
+#[test]
+fn the_bus_keeps_joint_identities_and_owned_handles_cross_threads() {
+    let (_sim, bus, log) = captured(1);
+    let bus = Arc::new(bus);
+    let owned = bus.owned_joint(id(1)).unwrap();
+    log.clear();
+    // Short-lived handles, as a monitor makes every sample: no identity reads any more.
+    for _ in 0..3 {
+        assert_eq!(
+            bus.joint_unchecked(id(1)).identity().unwrap().model.name(),
+            "WHJ30"
+        );
+    }
+    assert!(log.sent().is_empty(), "{:?}", log.sent());
+    // The owned handle lives on another thread.
+    let h = std::thread::spawn(move || owned.joint().status().map(|s| s.is_enabled()));
+    assert!(h.join().unwrap().is_ok());
+}
+
+/// A relay that sets error bit 0x0200 (position limit) in every status reply and servo
+/// feedback: a joint that accepts commands but reports an error.
+struct ErrorBits<L>(L);
+
+impl<L: FrameLink> FrameLink for ErrorBits<L> {
+    fn send(&mut self, frame: &CanFrame) -> Result<(), FrameLinkError> {
+        self.0.send(frame)
+    }
+    fn recv(&mut self, deadline: std::time::Instant) -> Result<Received, FrameLinkError> {
+        let mut r = self.0.recv(deadline)?;
+        match Reply::from_frame(&r.frame) {
+            Ok(Reply::Status { joint, mut status }) => {
+                status.error = robobus_whj::ErrorCode(0x0200);
+                r.frame = Reply::Status { joint, status }.to_frame();
+            }
+            Ok(Reply::ServoFeedback {
+                joint,
+                mut feedback,
+            }) => {
+                feedback.error = robobus_whj::ErrorCode(0x0200);
+                r.frame = Reply::ServoFeedback { joint, feedback }.to_frame();
+            }
+            _ => {}
+        }
+        Ok(r)
+    }
+    fn set_filters(&mut self, filters: &[IdFilter]) -> Result<(), FrameLinkError> {
+        self.0.set_filters(filters)
+    }
+}
+
+#[test]
+fn enable_and_move_fail_naming_the_error_bits_the_joint_reports() {
+    let (_sim, link) = memory(chain(1));
+    let bus = JointBus::open_with(ErrorBits(link), config()).unwrap();
+    let j = bus.joint(id(1)).unwrap();
+    j.set_mode(WorkMode::Position).unwrap();
+    let r = ops::enable(&bus, &[id(1)], true);
+    let f = r[0].failure().unwrap();
+    assert_eq!(f.kind, ErrorKind::Device, "{f:?}");
+    assert!(f.error.contains("position limit"), "{}", f.error);
+    // The joint is enabled (the write was acknowledged), but the move stops at the first
+    // feedback that carries the error bits.
+    let e = ops::run_move(
+        &j,
+        &move_args(1.0, 30.0, 100.0),
+        &mut Control::none(),
+        SafeState::Hold,
+    )
+    .unwrap_err();
+    assert_eq!(e.kind(), ErrorKind::Device, "{e}");
+    assert!(e.to_string().contains("position limit"), "{e}");
+}
+
+#[test]
+fn broadcast_status_reports_every_joint_and_names_the_silent_one() {
+    let sim_bus =
+        robobus_sim::whj::WhjBus::chain([1u8, 2, 4], robobus_sim::whj::WhjModel::Whj30, 5);
+    let (_sim, link) = memory(sim_bus);
+    let log = Shared::default();
+    let link = CaptureFrameLink::new(link, log.clone(), "rx").with_tx_iface("tx");
+    let bus = JointBus::open_with(link, config()).unwrap();
+    for j in [1, 2, 4] {
+        bus.joint(id(j)).unwrap();
+    }
+    // J1..J4: mask code 1 (J1-J4), the smallest that covers them.
+    assert_eq!(
+        ops::reply_mask(&[id(1), id(2), id(3), id(4)])
+            .unwrap()
+            .get(),
+        1
+    );
+    assert!(ops::reply_mask(&[id(8)]).is_err());
+    log.clear();
+    let r = ops::broadcast_status(&bus, &[id(1), id(2), id(3), id(4)]).unwrap();
+    // One frame out: the 0x7F query.
+    let sent = log.sent();
+    assert_eq!(sent.len(), 1, "{sent:?}");
+    assert_eq!(sent[0].raw_id(), 0x7F);
+    assert_eq!(r.len(), 4);
+    assert!(r[0].is_ok() && r[1].is_ok() && r[3].is_ok(), "{r:?}");
+    assert_eq!(r[2].failure().unwrap().kind, ErrorKind::NoDevice);
+    assert!(r[0].value().unwrap().position_deg.abs() < 1.0);
+}
