@@ -24,6 +24,7 @@
 //! writes every sample in the format `robobus plot` reads; `--duration` ends the run by
 //! itself.
 
+use robobus::ops::capture::{Overwrite, capture_byte_link};
 use std::collections::VecDeque;
 use std::fmt::Write as _;
 use std::io::{IsTerminal as _, Write as _};
@@ -94,6 +95,11 @@ pub(crate) struct Args {
     /// Write every sample to this CSV file (the format `robobus plot` reads).
     #[arg(long, value_name = "FILE.csv")]
     record: Option<PathBuf>,
+    /// With --bus or --port: record every frame / byte on the bus to FILE (a candump log
+    /// for WHJ, a timestamped hex log for wCK); `robobus replay FILE` decodes it. An
+    /// existing FILE is not overwritten.
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["sim", "robot"])]
+    capture: Option<PathBuf>,
 }
 
 /// A list of IDs.
@@ -667,7 +673,7 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
         return run_robot(path, args, out);
     }
     if let Some(bus) = &args.bus {
-        let link = open_link(bus)?;
+        let link = open_link(bus, args.capture.as_deref())?;
         let jb = JointBus::open_with(link, whj_config()).map_err(whj_error)?;
         let joints: Vec<JointId> = args
             .joints
@@ -696,7 +702,10 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
                 .context(format!("opening {}", port.display()))
         })?;
         let config = *bus.config();
-        let link: DynByteLink = Box::new(bus.into_link());
+        let link: DynByteLink = match &args.capture {
+            Some(path) => Box::new(capture_byte_link(bus.into_link(), path, Overwrite::No)?),
+            None => Box::new(bus.into_link()),
+        };
         let bus = WckBus::new(link, baud)
             .map_err(|e| anyhow::anyhow!("{e}"))?
             .with_config(wck_config(config, args))

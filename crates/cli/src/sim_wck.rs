@@ -15,7 +15,10 @@ use std::time::Duration;
 use std::ops::RangeInclusive;
 
 use anyhow::Context as _;
-use robobus_link::{FaultConfig, FaultyByteLink, LinkError, PtyOptions, PtyPair, PtySymlink};
+use robobus::ops::capture::{Overwrite, capture_device_byte_link};
+use robobus_link::{
+    ByteLink, FaultConfig, FaultyByteLink, LinkError, PtyOptions, PtyPair, PtySymlink,
+};
 use robobus_sim::faults::{DeviceFault, DeviceFaultKind, FaultSchedule};
 use robobus_sim::wck::{Bus, BusConfig, Eeprom, Endpoint, Model, Timing};
 use robobus_wck::{BaudRate, ExtServoId};
@@ -65,6 +68,11 @@ pub(crate) struct Args {
     /// there is an error (exit 2).
     #[arg(long)]
     link: Option<PathBuf>,
+    /// Record every byte the simulated servos receive and send to FILE (a timestamped hex
+    /// log from the servos' side; `robobus replay FILE` decodes it). An existing FILE is
+    /// not overwritten.
+    #[arg(long, value_name = "FILE")]
+    capture: Option<PathBuf>,
     /// Power the servos up when the path appears (they ignore the bus for the manual's
     /// 65 ms), instead of before.
     #[arg(long)]
@@ -285,13 +293,21 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let slave_path = pair.slave_path.clone();
     // The endpoint keeps its own slave descriptor; clients open the path.
     drop(pair.slave);
-    let endpoint = if let Some(faults) = wire_faults {
-        // Wire faults through the link layer's seeded fault injector, both directions.
-        let termios = pair.master.as_fd().try_clone_to_owned()?;
-        let link = FaultyByteLink::new(pair.master, faults);
-        Endpoint::spawn_link(bus, link, Some(termios), slave_path.clone())
-    } else {
-        Endpoint::spawn(bus, pair.master, slave_path.clone())
+    let endpoint = match (wire_faults, &args.capture) {
+        (None, None) => Endpoint::spawn(bus, pair.master, slave_path.clone()),
+        (faults, capture) => {
+            // Wire faults through the link layer's seeded fault injector, both directions;
+            // the capture sees what the simulated servos received and sent.
+            let termios = pair.master.as_fd().try_clone_to_owned()?;
+            let mut link: Box<dyn ByteLink + Send> = Box::new(pair.master);
+            if let Some(faults) = faults {
+                link = Box::new(FaultyByteLink::new(link, faults));
+            }
+            if let Some(path) = capture {
+                link = Box::new(capture_device_byte_link(link, path, Overwrite::No)?);
+            }
+            Endpoint::spawn_link(bus, link, Some(termios), slave_path.clone())
+        }
     }
     .context("starting the simulator thread")?;
     // The servos listen now: only now does the stable path appear.

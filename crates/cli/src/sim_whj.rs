@@ -5,16 +5,17 @@
 //! the loopback interface; `--bus udp:GROUP:PORT` picks another group; any other value is
 //! a `SocketCAN` interface (`vcan0`, `can0`; Linux only).
 
-use std::net::Ipv4Addr;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use anyhow::Context;
-use robobus_link::udp::{UdpBus, UdpBusConfig};
-use robobus_link::{FaultyFrameLink, FrameLink};
+use robobus::ops::IdList;
+use robobus::ops::capture::{Overwrite, capture_frame_link};
+use robobus_link::{FaultyFrameLink, FrameLinkSpec};
 use robobus_sim::faults::{DeviceFaultKind, FaultSchedule};
 use robobus_sim::whj::{JointConfig, WhjBus, WhjModel, serve_with};
+use robobus_whj::JointId;
 
 use crate::exit::usage;
 use crate::sim_wck::{LinkFaultArgs, device_faults};
@@ -40,10 +41,15 @@ pub(crate) struct Args {
     /// Product: whj03, whj10 (= whj10b), whj10n, whj30, whj60, whj120.
     #[arg(long, default_value = "whj30")]
     model: WhjModel,
+    /// Record every frame the simulated joints receive and send to FILE as a candump log
+    /// (`candump -L`'s format; `robobus replay FILE` decodes it). An existing FILE is not
+    /// overwritten.
+    #[arg(long, value_name = "FILE")]
+    capture: Option<std::path::PathBuf>,
     /// The bus: `udp` (python-can `udp_multicast`, 239.74.163.2:43113), `udp:GROUP:PORT`, or
     /// a `SocketCAN` interface such as `vcan0`.
     #[arg(long, default_value = "udp", value_parser = parse_bus)]
-    bus: BusSpec,
+    bus: FrameLinkSpec,
     /// Seed of the simulated measurement noise (same seed, same noise).
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -86,121 +92,16 @@ pub(crate) struct Args {
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub(crate) struct JointIds(pub(crate) Vec<u8>);
 
-/// Parsed `--bus`.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub(crate) enum BusSpec {
-    /// python-can UDP multicast bus.
-    Udp {
-        /// Multicast group.
-        group: Ipv4Addr,
-        /// Port.
-        port: u16,
-    },
-    /// A `SocketCAN` interface.
-    SocketCan(String),
-}
-
 pub(crate) fn parse_joints(s: &str) -> Result<JointIds, String> {
-    let mut ids = Vec::new();
-    let id = |t: &str| -> Result<u8, String> {
-        let v: u8 = t
-            .trim()
-            .parse()
-            .map_err(|_| format!("joint ID {t:?} is not a number (allowed: 1..=30)"))?;
-        if (1..=30).contains(&v) {
-            Ok(v)
-        } else {
-            Err(format!("joint ID {v} out of range (allowed: 1..=30)"))
-        }
-    };
-    for part in s.split(',').filter(|p| !p.trim().is_empty()) {
-        if let Some((a, b)) = part.split_once('-') {
-            let (a, b) = (id(a)?, id(b)?);
-            if a > b {
-                return Err(format!(
-                    "joint range {a}-{b} is empty (write the lower ID first)"
-                ));
-            }
-            ids.extend(a..=b);
-        } else {
-            ids.push(id(part)?);
-        }
-    }
-    ids.sort_unstable();
-    ids.dedup();
-    if ids.is_empty() {
-        return Err("no joint IDs given (example: 1-7)".into());
-    }
-    Ok(JointIds(ids))
+    let ids: IdList<JointId> = s.parse()?;
+    Ok(JointIds(
+        ids.sorted().as_slice().iter().map(|j| j.get()).collect(),
+    ))
 }
 
-pub(crate) fn parse_bus(s: &str) -> Result<BusSpec, String> {
-    if s == "udp" {
-        let d = UdpBusConfig::default();
-        return Ok(BusSpec::Udp {
-            group: d.group,
-            port: d.port,
-        });
-    }
-    if let Some(rest) = s.strip_prefix("udp:") {
-        let (group, port) = rest.rsplit_once(':').ok_or_else(|| {
-            format!("bus {s:?}: expected udp:GROUP:PORT, e.g. udp:239.74.163.2:43113")
-        })?;
-        let group: Ipv4Addr = group
-            .parse()
-            .map_err(|_| format!("bus {s:?}: {group:?} is not an IPv4 address"))?;
-        if !group.is_multicast() {
-            return Err(format!(
-                "bus {s:?}: {group} is not a multicast group (allowed: 224.0.0.0/4)"
-            ));
-        }
-        let port: u16 = port.parse().map_err(|_| {
-            format!("bus {s:?}: port {port:?} is not a number (allowed: 1..=65535)")
-        })?;
-        if port == 0 {
-            return Err(format!("bus {s:?}: port 0 (allowed: 1..=65535)"));
-        }
-        return Ok(BusSpec::Udp { group, port });
-    }
-    if s.is_empty() || s.len() > 15 || s.contains(['/', ' ', ':']) {
-        return Err(format!(
-            "bus {s:?}: expected udp, udp:GROUP:PORT, or a SocketCAN interface name such as vcan0"
-        ));
-    }
-    Ok(BusSpec::SocketCan(s.to_owned()))
-}
-
-fn open_link(spec: &BusSpec) -> anyhow::Result<Box<dyn FrameLink>> {
-    match spec {
-        BusSpec::Udp { group, port } => {
-            let cfg = UdpBusConfig {
-                group: *group,
-                port: *port,
-                ..UdpBusConfig::default()
-            };
-            Ok(Box::new(UdpBus::open(&cfg).with_context(|| {
-                format!("joining the UDP bus {group}:{port}")
-            })?))
-        }
-        #[cfg(target_os = "linux")]
-        BusSpec::SocketCan(iface) => Ok(Box::new(
-            robobus_link::socketcan::SocketCanLink::open(iface)
-                .with_context(|| format!("opening SocketCAN interface {iface}"))?,
-        )),
-        #[cfg(not(target_os = "linux"))]
-        BusSpec::SocketCan(iface) => {
-            anyhow::bail!(
-                "SocketCAN interface {iface}: SocketCAN exists on Linux only; use --bus udp"
-            )
-        }
-    }
-}
-
-fn describe(spec: &BusSpec) -> String {
-    match spec {
-        BusSpec::Udp { group, port } => format!("udp_multicast {group}:{port}"),
-        BusSpec::SocketCan(iface) => format!("SocketCAN {iface}"),
-    }
+fn parse_bus(s: &str) -> Result<FrameLinkSpec, String> {
+    s.parse()
+        .map_err(|e: robobus_link::SpecError| e.to_string())
 }
 
 /// Serves the simulated bus until interrupted.
@@ -250,9 +151,14 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         cfg
     });
     let mut bus = WhjBus::with_configs(configs, args.seed);
-    let mut link = open_link(&args.bus)?;
+    let mut link = args.bus.open()?;
     if let Some(faults) = wire_faults {
         link = Box::new(FaultyFrameLink::new(link, faults));
+    }
+    if let Some(path) = &args.capture {
+        // What the simulated joints received and sent, as candump logs it.
+        let iface = args.bus.candump_iface();
+        link = Box::new(capture_frame_link(link, path, iface, Overwrite::No)?);
     }
 
     let stop = Arc::new(AtomicBool::new(false));
@@ -267,7 +173,7 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
             ids.len(),
             ids.join(","),
             args.model,
-            describe(&args.bus)
+            args.bus.describe()
         );
     };
     let stats = serve_with(
@@ -301,32 +207,5 @@ mod tests {
         assert!(parse_joints("5-2").unwrap_err().contains("5-2"));
         assert!(parse_joints("x").is_err());
         assert!(parse_joints("").is_err());
-    }
-
-    #[test]
-    fn bus_parses() {
-        assert_eq!(
-            parse_bus("udp"),
-            Ok(BusSpec::Udp {
-                group: Ipv4Addr::new(239, 74, 163, 2),
-                port: 43113
-            })
-        );
-        assert_eq!(
-            parse_bus("udp:239.1.2.3:5000"),
-            Ok(BusSpec::Udp {
-                group: Ipv4Addr::new(239, 1, 2, 3),
-                port: 5000
-            })
-        );
-        assert!(
-            parse_bus("udp:10.0.0.1:5000")
-                .unwrap_err()
-                .contains("multicast")
-        );
-        assert!(parse_bus("udp:239.1.2.3").is_err());
-        assert!(parse_bus("udp:239.1.2.3:0").is_err());
-        assert_eq!(parse_bus("vcan0"), Ok(BusSpec::SocketCan("vcan0".into())));
-        assert!(parse_bus("a/b").is_err());
     }
 }

@@ -85,6 +85,11 @@ pub(crate) struct Args {
     /// present position; speed / current waves get target 0) or disable.
     #[arg(long, value_enum, default_value = "hold", global = true)]
     on_stop: OnStop,
+    /// Record every frame sent and received to FILE as a candump log (`candump -L`'s
+    /// format: can-utils' canplayer plays it back; `robobus replay FILE` decodes it). An
+    /// existing FILE is not overwritten.
+    #[arg(long, value_name = "FILE", global = true)]
+    capture: Option<std::path::PathBuf>,
     /// What to do.
     #[command(subcommand)]
     command: WhjCommand,
@@ -459,6 +464,7 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
         &Job::Whj {
             action: action_name(&args.command),
             bus,
+            capture: args.capture.as_deref(),
             plan: &plan,
             run: &run,
             on_stop: args.on_stop,

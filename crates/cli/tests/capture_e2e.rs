@@ -11,8 +11,9 @@ use common::robobus;
 
 #[test]
 fn wck_capture_replays_as_the_command_and_its_reply() {
-    let sim = common::WckSim::start("0-2", &[]);
     let dir = tempfile::tempdir().unwrap();
+    let sim_file = dir.path().join("sim.log");
+    let sim = common::WckSim::start("0-2", &["--capture", sim_file.to_str().unwrap()]);
     let file = dir.path().join("wck.log");
     let file = file.to_str().unwrap();
     let wck = |extra: &[&str]| {
@@ -38,6 +39,30 @@ fn wck_capture_replays_as_the_command_and_its_reply() {
     assert_eq!(
         lines.last().copied(),
         Some("# 2 entries: 1 requests, 1 replies, 0 missing replies, 0 unexpected, 0 malformed")
+    );
+    // The simulator's own capture: the packet it read (`<`) and the reply it wrote (`>`),
+    // which the replay shows the host's way round, with the same meanings.
+    let raw = std::fs::read_to_string(&sim_file).unwrap();
+    let raw: Vec<&str> = raw.lines().collect();
+    assert!(raw[0].contains("device side"), "{raw:?}");
+    // The simulated wire releases each reply byte when its last bit is sent, so the reply
+    // may be logged in one write or two.
+    assert!(raw[1].ends_with(" < FF 02 C8 4A"), "{raw:?}");
+    let written: Vec<&str> = raw[2..]
+        .iter()
+        .filter_map(|l| l.split_once(" > ").map(|(_, hex)| hex))
+        .collect();
+    assert_eq!(written.join(" "), "00 7F", "{raw:?}");
+    let r = robobus(&["replay", sim_file.to_str().unwrap()]);
+    assert_eq!(r.code, Some(0), "{r:#?}");
+    let lines: Vec<&str> = r.stdout.lines().collect();
+    assert!(
+        lines[0].ends_with(" > FF 02 C8 4A  position move servo 2 to 200 (torque 0)"),
+        "{lines:?}"
+    );
+    assert!(
+        lines[1].ends_with(" < 00 7F  load 0, position 127"),
+        "{lines:?}"
     );
     // The file exists now: a second capture into it is refused before anything is sent.
     let before = std::fs::read_to_string(file).unwrap();

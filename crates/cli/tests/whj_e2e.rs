@@ -620,3 +620,39 @@ fn whj_e2e_motion_is_checked_against_the_joints_own_bounds() {
     sim.json(&["current", "4", "0"]);
     sim.json(&["disable", "4"]);
 }
+
+#[test]
+fn whj_e2e_capture_on_both_sides_replays_with_meanings() {
+    if !in_netns("whj_e2e_capture_on_both_sides_replays_with_meanings") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let sim_log = dir.path().join("sim.log");
+    let host_log = dir.path().join("host.log");
+    let sim = Sim::start(
+        "udp:239.74.163.14:43124",
+        &["--capture", sim_log.to_str().unwrap()],
+    );
+    let r = sim.whj(&["--capture", host_log.to_str().unwrap(), "status", "3"]);
+    assert_eq!(r.code, Some(0), "{r:?}");
+    drop(sim);
+    for (log, what) in [(&host_log, "host"), (&sim_log, "simulator")] {
+        let r = common::robobus(&["replay", log.to_str().unwrap()]);
+        assert_eq!(r.code, Some(0), "{what}: {r:?}");
+        // candump lines under the UDP bus's name; the IAP release and the status read of
+        // joint 3, and the joint's answers, decoded by register name.
+        assert!(
+            r.stdout.contains("> 003 02 49 00  J3 write IAP_FLAG 0"),
+            "{what}: {}",
+            r.stdout
+        );
+        assert!(r.stdout.contains("< 103 "), "{what}: {}", r.stdout);
+        assert!(r.stdout.contains(" 0 malformed"), "{what}: {}", r.stdout);
+        let text = std::fs::read_to_string(log).unwrap();
+        assert!(
+            text.lines()
+                .all(|l| l.starts_with('(') && l.contains(") udp ")),
+            "{what}: {text}"
+        );
+    }
+}

@@ -97,6 +97,15 @@ impl FrameLinkSpec {
         }
     }
 
+    /// The interface name a candump log of this bus carries: the `SocketCAN` interface,
+    /// or `udp` for the UDP bus.
+    pub fn candump_iface(&self) -> &str {
+        match self {
+            Self::SocketCan(iface) => iface,
+            Self::Udp { .. } => "udp",
+        }
+    }
+
     /// Opens the link.
     ///
     /// # Errors

@@ -51,6 +51,8 @@ pub(crate) enum Job<'a> {
         action: &'static str,
         /// The bus as given (`udp`, `udp:GROUP:PORT`, `can0`).
         bus: &'a str,
+        /// `--capture FILE`: log every frame sent and received.
+        capture: Option<&'a std::path::Path>,
         /// What to send.
         plan: &'a WhjPlan,
         /// How to run it on the bus.
@@ -149,6 +151,7 @@ pub(crate) fn execute(job: &Job<'_>, yes: bool) -> anyhow::Result<()> {
         Job::Whj {
             action,
             bus,
+            capture,
             plan,
             run,
             on_stop,
@@ -158,6 +161,7 @@ pub(crate) fn execute(job: &Job<'_>, yes: bool) -> anyhow::Result<()> {
             whj::execute(&whj::WhjJob {
                 action,
                 bus,
+                capture: *capture,
                 run,
                 on_stop: *on_stop,
                 json: *json,

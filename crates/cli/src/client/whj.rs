@@ -17,8 +17,10 @@
 
 use std::fmt::Write as _;
 use std::io::IsTerminal as _;
+use std::path::Path;
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use robobus::ops::capture::{Overwrite, capture_frame_link};
 use robobus::ops::whj::{self as ops, MoveArgs, TargetArgs, WaveArgs};
 use robobus::ops::{Control, DeviceResult, Progress, SafeState, worst_kind};
 use robobus::whj::{JointBus, JointBusConfig, WhjError};
@@ -115,6 +117,8 @@ pub(crate) struct WhjJob<'a> {
     pub(crate) action: &'static str,
     /// The bus as given.
     pub(crate) bus: &'a str,
+    /// `--capture FILE`.
+    pub(crate) capture: Option<&'a Path>,
     /// What to do.
     pub(crate) run: &'a WhjRun,
     /// Safe state after Ctrl-C.
@@ -126,15 +130,29 @@ pub(crate) struct WhjJob<'a> {
 }
 
 /// Opens the link of a `--bus` value; an interface that cannot be opened is "no device"
-/// (exit code 3), like a serial port that is not there.
-pub(crate) fn open_link(bus: &str) -> anyhow::Result<Box<dyn FrameLink + Send>> {
+/// (exit code 3), like a serial port that is not there. With `capture` every frame sent
+/// and received is logged there as a candump log (`--capture FILE`; an existing file is
+/// refused before anything is sent).
+pub(crate) fn open_link(
+    bus: &str,
+    capture: Option<&Path>,
+) -> anyhow::Result<Box<dyn FrameLink + Send>> {
     let spec: FrameLinkSpec = bus
         .parse()
         .map_err(|e| crate::exit::usage(format!("--bus: {e}")))?;
-    spec.open().map_err(|e| match e {
+    let link = spec.open().map_err(|e| match e {
         OpenError::NoInterface { .. } => anyhow::Error::new(Timeout(e.to_string())),
         other => anyhow::Error::new(other),
-    })
+    })?;
+    let Some(path) = capture else {
+        return Ok(link);
+    };
+    Ok(Box::new(capture_frame_link(
+        link,
+        path,
+        spec.candump_iface(),
+        Overwrite::No,
+    )?))
 }
 
 /// One table row / JSON object: field names and values.
@@ -188,7 +206,7 @@ fn kind_error(kind: robobus::ErrorKind, message: String) -> anyhow::Error {
 
 /// Runs a `robobus whj` command on the bus.
 pub(crate) fn execute(job: &WhjJob<'_>) -> anyhow::Result<()> {
-    let link = open_link(job.bus)?;
+    let link = open_link(job.bus, job.capture)?;
     let connect_timeout = match job.run {
         // A joint in its bootloader answers the IAP release at once; a scan must not wait
         // seconds for every absent ID.

@@ -246,7 +246,7 @@ fn probe_wck(
 }
 
 fn probe_whj(bus_name: &str, ids: &[u8]) -> Vec<Finding> {
-    let opened = crate::client::whj::open_link(bus_name).and_then(|link| {
+    let opened = crate::client::whj::open_link(bus_name, None).and_then(|link| {
         robobus::whj::JointBus::open_with(
             link,
             robobus::whj::JointBusConfig {

@@ -13,7 +13,7 @@ use std::path::Path;
 
 use robobus_link::{ByteLink, CaptureByteLink, CaptureFrameLink, FrameLink};
 
-use super::replay::HOST_SIDE_COMMENT;
+use super::replay::{DEVICE_SIDE_COMMENT, HOST_SIDE_COMMENT};
 use super::{ErrorKind, OpError};
 
 /// Whether an existing capture file may be replaced.
@@ -68,8 +68,29 @@ pub fn capture_byte_link<L: ByteLink>(
     path: &Path,
     overwrite: Overwrite,
 ) -> Result<CaptureByteLink<L, CaptureFile>, OpError> {
+    capture_with_comment(link, path, overwrite, HOST_SIDE_COMMENT)
+}
+
+/// Like [`capture_byte_link`], for the device's end of the line (a simulator): the first
+/// line says so, and a replay reads `<` as the commands the device received.
+#[allow(clippy::result_large_err)] // OpError, as every operation returns
+pub fn capture_device_byte_link<L: ByteLink>(
+    link: L,
+    path: &Path,
+    overwrite: Overwrite,
+) -> Result<CaptureByteLink<L, CaptureFile>, OpError> {
+    capture_with_comment(link, path, overwrite, DEVICE_SIDE_COMMENT)
+}
+
+#[allow(clippy::result_large_err)] // OpError, as every operation returns
+fn capture_with_comment<L: ByteLink>(
+    link: L,
+    path: &Path,
+    overwrite: Overwrite,
+    comment: &str,
+) -> Result<CaptureByteLink<L, CaptureFile>, OpError> {
     let mut out = create(path, overwrite)?;
-    writeln!(out, "{HOST_SIDE_COMMENT}").map_err(|e| OpError::File {
+    writeln!(out, "{comment}").map_err(|e| OpError::File {
         path: path.to_path_buf(),
         reason: format!("cannot write the capture file: {e}"),
         kind: ErrorKind::Link,

@@ -66,6 +66,10 @@ const SIDE_LOOKAHEAD: usize = 256;
 /// The comment [`super::capture::capture_byte_link`] writes first, naming the side.
 pub const HOST_SIDE_COMMENT: &str = "# robobus hex capture: host side (> host wrote, < host read)";
 
+/// The comment a simulator's capture writes first ([`super::capture::capture_device_byte_link`]).
+pub const DEVICE_SIDE_COMMENT: &str =
+    "# robobus hex capture: device side (< device read, > device wrote)";
+
 /// The capture format.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "kebab-case")]
