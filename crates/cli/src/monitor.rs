@@ -25,6 +25,7 @@
 //! itself.
 
 use robobus::ops::capture::{Overwrite, capture_byte_link};
+use robobus::ops::{IdList, ListId};
 use std::collections::VecDeque;
 use std::fmt::Write as _;
 use std::io::{IsTerminal as _, Write as _};
@@ -106,41 +107,22 @@ pub(crate) struct Args {
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub(crate) struct Ids(Vec<u8>);
 
-fn parse_ids(spec: &str, lo: u8, hi: u8) -> Result<Ids, String> {
-    let one = |t: &str| -> Result<u8, String> {
-        let v: u32 = t
-            .trim()
-            .parse()
-            .map_err(|_| format!("`{t}` is not an ID (allowed {lo}..={hi})"))?;
-        u8::try_from(v)
-            .ok()
-            .filter(|v| (lo..=hi).contains(v))
-            .ok_or_else(|| format!("ID {v} is out of range {lo}..={hi}"))
-    };
-    let mut ids = Vec::new();
-    for part in spec.split(',').map(str::trim).filter(|p| !p.is_empty()) {
-        let (a, b) = match part.split_once('-') {
-            Some((a, b)) => (one(a)?, one(b)?),
-            None => (one(part)?, one(part)?),
-        };
-        if a > b {
-            return Err(format!("range {a}-{b} runs backwards"));
-        }
-        ids.extend(a..=b);
-    }
-    ids.sort_unstable();
-    ids.dedup();
-    if ids.is_empty() {
-        return Err(format!("`{spec}` names no IDs (allowed {lo}..={hi})"));
-    }
-    Ok(Ids(ids))
+/// The IDs of an ID list, ascending ([`IdList`]: the one ID-list parser).
+fn raw_ids<T: ListId>(s: &str) -> Result<Ids, String> {
+    let ids: IdList<T> = s.parse()?;
+    let mut raw: Vec<u8> = ids
+        .as_slice()
+        .iter()
+        .filter_map(|id| u8::try_from(id.raw()).ok())
+        .collect();
+    raw.sort_unstable();
+    Ok(Ids(raw))
 }
-
 fn parse_ids_1_30(s: &str) -> Result<Ids, String> {
-    parse_ids(s, 1, 30)
+    raw_ids::<robobus_whj::JointId>(s)
 }
 fn parse_ids_0_30(s: &str) -> Result<Ids, String> {
-    parse_ids(s, 0, 30)
+    raw_ids::<robobus_wck::ServoId>(s)
 }
 fn parse_number(s: &str, what: &str, lo: f64, hi: f64) -> Result<f64, String> {
     let v: f64 = s

@@ -15,6 +15,7 @@ use std::fmt::Write as _;
 use std::time::Duration;
 
 use clap::{Subcommand, ValueEnum};
+use robobus::ops::IdList;
 use robobus::ops::OpError;
 use robobus::ops::whj::{self as ops, MoveArgs, ServoLoop, TargetArgs, WaveArgs};
 use robobus::whj::JointBusConfig;
@@ -342,33 +343,8 @@ fn parse_joint(s: &str) -> Result<JointId, String> {
 }
 
 fn parse_joints(spec: &str) -> Result<Joints, String> {
-    let mut ids = Vec::new();
-    for part in spec.split(',').map(str::trim).filter(|p| !p.is_empty()) {
-        let (lo, hi) = if let Some((a, b)) = part.split_once('-') {
-            (parse_joint(a)?, parse_joint(b)?)
-        } else {
-            let j = parse_joint(part)?;
-            (j, j)
-        };
-        if lo > hi {
-            return Err(format!(
-                "joint range {}-{} runs backwards (write the lower ID first)",
-                lo.get(),
-                hi.get()
-            ));
-        }
-        for raw in lo.get()..=hi.get() {
-            ids.push(JointId::new(raw).map_err(|e| e.to_string())?);
-        }
-    }
-    ids.sort_unstable();
-    ids.dedup();
-    if ids.is_empty() {
-        return Err(format!(
-            "`{spec}` names no joints (examples: `1`, `1-7`, `1,3`; allowed 1..=30)"
-        ));
-    }
-    Ok(Joints(ids))
+    let ids: IdList<JointId> = spec.parse()?;
+    Ok(Joints(ids.sorted().into_vec()))
 }
 
 fn parse_register(s: &str) -> Result<Register, String> {

@@ -81,7 +81,9 @@ for f in 001##1024900 001##1020F01 001##1023003 001##1020A01 601##1; do
     sleep 0.05
 done
 canplayer -I stream.log || exit 94
-sleep 0.3
+# Let the joint come to rest at the last target (the simulator may still be working off
+# the burst on a loaded machine).
+sleep 1
 cansend vcan0 601##1
 # Wait for the second status reply (the simulator may still be working off the burst on a
 # loaded machine); at most 5 s.
