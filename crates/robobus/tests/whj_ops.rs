@@ -575,3 +575,37 @@ fn broadcast_status_reports_every_joint_and_names_the_silent_one() {
     assert_eq!(r[2].failure().unwrap().kind, ErrorKind::NoDevice);
     assert!(r[0].value().unwrap().position_deg.abs() < 1.0);
 }
+
+#[test]
+fn a_register_the_firmware_lacks_is_refused_before_anything_is_sent() {
+    use robobus_sim::whj::{JointConfig, WhjModel};
+    use robobus_whj::units::FirmwareVersion;
+    // Firmware D510: before the "519" gate of the staggered power-up switch ON_DELAY (0x1F).
+    let mut old = JointConfig::new(1, WhjModel::Whj30);
+    old.firmware = FirmwareVersion(0xD510);
+    let (_sim, link) = memory(whj_common::configs(vec![old]));
+    let log = Shared::default();
+    let link = CaptureFrameLink::new(link, log.clone(), "rx").with_tx_iface("tx");
+    let bus = JointBus::open_with(link, config()).unwrap();
+    bus.joint(id(1)).unwrap().identity().unwrap();
+    log.clear();
+    let on_delay = Request::write(id(1), robobus_whj::registers::addr::ON_DELAY, 1).unwrap();
+    let e = ops::write_register(&bus, on_delay, true).unwrap_err();
+    assert_eq!(e.kind(), ErrorKind::Refused);
+    assert!(
+        e.to_string().contains("ON_DELAY") && e.to_string().contains("D510"),
+        "{e}"
+    );
+    // Connecting reads (IAP release, identity); the write itself (command 0x02 to 0x1F)
+    // never goes out.
+    let sent = log.sent();
+    assert!(
+        !sent.iter().any(|f| f.data().starts_with(&[0x02, 0x1F])),
+        "{sent:?}"
+    );
+    // The same write on the simulator's default firmware goes through.
+    let (_sim, link) = memory(chain(1));
+    let bus = JointBus::open_with(link, config()).unwrap();
+    let r = ops::write_register(&bus, on_delay, true).unwrap();
+    assert_eq!((r[0].register, r[0].raw), ("ON_DELAY", 1));
+}

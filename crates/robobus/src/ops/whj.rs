@@ -1445,8 +1445,9 @@ pub fn confirm_text(request: &Request) -> Option<&'static str> {
 }
 
 /// `whj write`: sends the planned write request (the one a dry run prints) after
-/// [`check_write`], refuses position limits that would end up inverted (min > max), and
-/// reads the register back.
+/// [`check_write`], refuses a register the joint's model or firmware lacks
+/// ([`robobus_whj::registers::gated_write_allowed`]) and position limits that would end up
+/// inverted (min > max), and reads the register back.
 pub fn write_register(
     bus: &JointBus,
     request: Request,
@@ -1461,6 +1462,16 @@ pub fn write_register(
     };
     check_write(addr, confirmed)?;
     let j = bus.joint(joint).map_err(whj)?;
+    // A register whose feature this joint's product or firmware lacks (the register
+    // table's firmware gates): refused on the host, not left to a puzzling write ack.
+    let identity = j.identity().map_err(whj)?;
+    if let Err(refusal) =
+        robobus_whj::registers::gated_write_allowed(addr, identity.model, identity.firmware)
+    {
+        return Err(OpError::Refused(format!(
+            "{joint}: {refusal}; the write was not sent"
+        )));
+    }
     let min_addr = robobus_whj::registers::addr::LIT_MIN_POSITION;
     let max_addr = robobus_whj::registers::addr::LIT_MAX_POSITION;
     if let robobus_whj::request::WriteData::Pair(v) = data

@@ -126,7 +126,7 @@ pub enum WhjError {
     /// A position command would step further than the step limit from the actual position.
     #[error(
         "{joint}: position command {to_deg:.4}° is {:.4}° from the actual {from_deg:.4}° \
-         (step limit {limit_deg}°; the joint would latch error 0x4000); use move_to for large moves",
+         (step limit {limit_deg}°; the joint would latch error 0x4000); a smooth move (`robobus whj move`, `Joint::move_to`) gets there in steps",
         (.to_deg - .from_deg).abs()
     )]
     StepTooLarge {
