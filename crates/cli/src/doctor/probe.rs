@@ -84,8 +84,17 @@ pub(crate) fn whj(bus: &JointBus, bus_name: &str, ids: &[u8]) -> Vec<Finding> {
     out
 }
 
-/// Two joints with one ID both answer a status query: more replies than queries.
+/// Two joints at one ID: two differing unique IDs (0x2A..0x2F) in the answers to the
+/// library's identity probes ([`robobus::ops::whj::duplicates_of`], what `whj scan` uses),
+/// or more replies than status queries.
 fn duplicate(bus: &JointBus, id: JointId, subject: &str, before: u64) -> Finding {
+    let fix = || {
+        Some(format!(
+            "connect the joints one at a time and give each its own ID (robobus whj \
+             --bus BUS set-id {} NEW, then save)",
+            id.get()
+        ))
+    };
     let mut queries = 0u64;
     for _ in 0..2 {
         if bus
@@ -108,11 +117,19 @@ fn duplicate(bus: &JointBus, id: JointId, subject: &str, before: u64) -> Finding
                 queries + 1,
                 id.get()
             ),
-            Some(format!(
-                "connect the joints one at a time and give each its own ID (robobus whj \
-                 --bus BUS set-id {} NEW, then save)",
-                id.get()
-            )),
+            fix(),
+        )
+    } else if let Some(d) = robobus::ops::whj::duplicates_of(bus, id) {
+        // Checked after the count: its identity probes add replies of their own.
+        finding(
+            subject,
+            "duplicate-id",
+            Status::Fail,
+            format!(
+                "two joints answer as ID {}: unique IDs {} and {}",
+                d.id, d.unique_ids[0], d.unique_ids[1]
+            ),
+            fix(),
         )
     } else {
         finding(
