@@ -9,7 +9,7 @@
 //!    simulator's CPU limits; the server thread's CPU time (from `/proc/thread-self/stat`)
 //!    gives the CPU cost per joint per 1 ms cycle and so the number of joints one core can
 //!    serve at 1 kHz. (On the real 1 / 5 Mbit/s wire, one bus carries at most 8 joints at
-//!    1 kHz: `wire-timing.md`.)
+//!    1 kHz: the wire-timing notes.)
 //!
 //! Run: `cargo run --release -p robobus-sim --example whj_capacity`.
 

@@ -1,5 +1,5 @@
 //! Every command of the manual's appendix A-1, sent as the manual's example packet (with
-//! the four misprinted checksums corrected, see wck-protocol-notes), answered byte for
+//! the four misprinted checksums corrected, see the wCK protocol notes), answered byte for
 //! byte as a module does.
 #![allow(clippy::unwrap_used)] // test helpers
 

@@ -56,7 +56,7 @@ fn frames_take_their_exact_wire_time_and_replies_follow_the_processing_delay() {
     );
     // Released to the host at its last bit.
     assert_eq!(replies[0].at, rep.end);
-    // A 4-byte command plus 16-byte feedback: 103.2..117.2 µs on the wire (wire-timing.md).
+    // A 4-byte command plus 16-byte feedback: 103.2..117.2 µs on the wire (the wire-timing notes).
     let wire = (req.end - req.start) + (rep.end - rep.start) + 2 * ifs;
     assert!(
         wire >= Duration::from_nanos(103_200) && wire <= Duration::from_nanos(117_200),

@@ -1,4 +1,4 @@
-//! Replay of every exchange in `whj-canfd-usage-demo.txt` against the simulator on the
+//! Replay of every exchange in the vendor's CAN FD usage demo against the simulator on the
 //! virtual clock. Each command frame gets a reply of exactly the demo's ID and length;
 //! the bytes equal the demo's where the simulated state was set up to match it (initial
 //! angle, supply voltage, temperature), and every other field equals the simulated state.

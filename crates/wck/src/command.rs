@@ -80,7 +80,7 @@ pub const fn xor7(bytes: &[u8]) -> u8 {
 }
 
 /// The index range of a complete packet (header included, checksum excluded) that its
-/// checksum covers, per family (wck-protocol-notes, "Packet shapes"):
+/// checksum covers, per family (the wCK protocol notes, "Packet shapes"):
 /// 4-byte and 6-byte commands, motion write and the 10-bit commands cover byte 2..N
 /// (index 1..len-1); the synchronized move covers only the position bytes (index 3..len-1).
 pub const fn checksum_range(packet: &[u8]) -> core::ops::Range<usize> {

@@ -1,6 +1,6 @@
 //! Wire time on a wCK bus (8N1 UART), as pure functions.
 //!
-//! The model is the one in robobus' `wire-timing.md`, fitted to the manual's section 2-3
+//! The model is the one in robobus' wire-timing notes, fitted to the manual's section 2-3
 //! (Communication, "Command Response Time"):
 //!
 //! - one byte costs 10 bit times: `10 / baud`;

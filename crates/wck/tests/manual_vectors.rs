@@ -3,7 +3,7 @@
 //!
 //! Four examples print a wrong checksum; they are tested at the value the manual's own
 //! formula gives, and the printed packet must be refused. See
-//! `wck-protocol-notes.md`, "Misprints in the manual".
+//! the wCK protocol notes, "Misprints in the manual".
 
 #![allow(clippy::unwrap_used)] // test and bench set-up: a failed unwrap is a failed run
 
@@ -146,7 +146,7 @@ fn a1_7_baud_rate_set_and_its_reply_slip() {
     };
     vector(cmd, &[0xFF, 0xE0, 0x08, 0x07, 0x07, 0x68]);
     // The manual prints the reply as 03 03, but the reply echoes the new code, 07 07
-    // (wck-protocol-notes.md, "Other slips", (7)).
+    // (the wCK protocol notes, "Other slips", (7)).
     assert_eq!(
         cmd.decode_reply(&[0x07, 0x07]),
         Ok(Reply::Baud(BaudRate::B115200))

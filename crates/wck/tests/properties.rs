@@ -249,7 +249,7 @@ fn device_reply(cmd: &Command, s: &DeviceState) -> Option<Reply> {
     })
 }
 
-/// The checksum rule of wck-protocol-notes.md, written independently of the crate.
+/// The checksum rule of the wCK protocol notes, written independently of the crate.
 fn reference_checksum_ok(packet: &[u8]) -> bool {
     let Some((&cs, body)) = packet.split_last() else {
         return false;

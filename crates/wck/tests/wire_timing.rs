@@ -1,4 +1,4 @@
-//! Golden tests: every number of the UART table in `wire-timing.md`, the polling figures,
+//! Golden tests: every number of the UART table in the wire-timing notes, the polling figures,
 //! and the manual's section 2-3 response times.
 
 #![allow(clippy::unwrap_used)] // test and bench set-up: a failed unwrap is a failed run

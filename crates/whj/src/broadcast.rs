@@ -1,4 +1,4 @@
-//! The broadcast-frame protocol V1.1 (§8 of `whj-joint-protocol.md`): one frame carries
+//! The broadcast-frame protocol V1.1 (§8 of the WHJ joint protocol reference): one frame carries
 //! data for joints 1..=7 and the end-effector board; the last byte holds a 4-bit reply mask.
 //!
 //! The types here are the payloads of [`Request::BroadcastPosition`](crate::Request) and

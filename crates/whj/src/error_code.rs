@@ -1,5 +1,5 @@
 //! The 16-bit error code (register 0x04/0x78, servo feedback D14–D15, status D0–D1,
-//! broadcast feedback D12–D13), §7 of `whj-joint-protocol.md`.
+//! broadcast feedback D12–D13), §7 of the WHJ joint protocol reference.
 
 use core::fmt;
 

@@ -1,7 +1,7 @@
 //! Node IDs, CAN-ID function offsets and the mapping between CAN IDs and their meaning.
 //!
 //! A point-to-point CAN ID is `function offset + node ID` (§1.4 of
-//! `whj-joint-protocol.md`): `0x201` is a position servo command for joint 1. Node 0 is
+//! the WHJ joint protocol reference): `0x201` is a position servo command for joint 1. Node 0 is
 //! the interface board, never a joint; it is reported as [`Address::InterfaceBoard`]. The
 //! broadcast protocol (§8) adds the function IDs 0x0F, 0x2F, 0x4F, 0x7F and its own reply
 //! IDs.

@@ -6,7 +6,7 @@
 //! register table is data ([`REGISTERS`], with the firmware gates [`FIRMWARE_GATES`]), the
 //! products are data ([`PRODUCTS`]: code, ratio, peak speed, current scale, features), units are named conversions ([`units`]),
 //! errors are a named bit set ([`ErrorCode`]), and [`timing`] gives each frame's exact
-//! duration on the wire. Sources: `whj-canfd-usage-demo.txt` and `whj-joint-protocol.md`
+//! duration on the wire. Sources: the vendor's CAN FD usage demo and the WHJ joint protocol reference
 //! (section numbers in the docs refer to the latter).
 //!
 //! # Conventions where the documents disagree (§10)

@@ -1,4 +1,4 @@
-//! The WHJ joint products as data (§9 of `whj-joint-protocol.md`: the vendor's product
+//! The WHJ joint products as data (§9 of the WHJ joint protocol reference: the vendor's product
 //! pages; §5.2 for the model codes; §6.8 for the model-gated features).
 //!
 //! [`PRODUCTS`] is the one table of model facts: every other layer (simulator, client,

@@ -1,4 +1,4 @@
-//! The memory control table (§4 of `whj-joint-protocol.md`) as data.
+//! The memory control table (§4 of the WHJ joint protocol reference) as data.
 //!
 //! Registers are 16-bit words addressed 0x00..=0x91. 32-bit values are L/H pairs: the low
 //! word at the lower address. [`REGISTERS`] lists every documented register once (each
@@ -453,7 +453,7 @@ pub struct FirmwareGate {
     /// Whether only some products have it (see `models::ProductFacts::model_features`).
     pub model_gated: bool,
     /// Where the gate is documented (EN = EN-MCT, 11 = broadcast protocol V1.1, DEMO = the
-    /// usage demo; section of `whj-joint-protocol.md`).
+    /// usage demo; section of the WHJ joint protocol reference).
     pub source: &'static str,
 }
 

@@ -1,5 +1,5 @@
 //! Units of the wire values, model codes and firmware versions (§5 of
-//! `whj-joint-protocol.md`).
+//! the WHJ joint protocol reference).
 //!
 //! Every wire value keeps its raw integer; the newtypes here only add named conversions.
 //! The scales are named constants in one place. Conversions use plain multiplication, so

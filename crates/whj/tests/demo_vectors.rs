@@ -1,5 +1,5 @@
-//! Every frame of the usage demo (`whj-canfd-usage-demo.txt`) and of the broadcast
-//! protocol's worked examples (V1.1 §二, decoded in `whj-joint-protocol.md` §8.11) as test
+//! Every frame of the usage demo (the vendor's CAN FD usage demo) and of the broadcast
+//! protocol's worked examples (V1.1 §二, decoded in the WHJ joint protocol reference §8.11) as test
 //! vectors in both directions, with the engineering values the documents state.
 
 // Test and bench code: a failed unwrap is a failed test.

@@ -41,7 +41,7 @@
 //! * See [`Servo`] for reads, baud set, boundaries, 10-bit torque and the motion program,
 //!   and [`mechanics`] for the physical model.
 //!
-//! Timing follows `wire-timing.md` through [`robobus_wck::timing`]: a reply starts
+//! Timing follows the wire-timing notes through [`robobus_wck::timing`]: a reply starts
 //! [`Timing::turnaround`] (1006.6 µs) after the last command byte, or
 //! [`Timing::eeprom_write`] (121 ms) after an EEPROM write, during which the module does
 //! not listen; a module is deaf for 65 ms after power-up. [`Timing::ZERO`] removes all of

@@ -18,11 +18,11 @@ use super::params::{Eeprom, Runtime};
 /// Mechanics tick as a [`Duration`].
 pub const TICK: Duration = Duration::from_nanos(TICK_NANOS);
 
-/// Turnaround and power-up timing of a module (section 2-3, `wire-timing.md`).
+/// Turnaround and power-up timing of a module (section 2-3, the wire-timing notes).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Timing {
     /// From the end of a command to the start of its reply, for operation, read and
-    /// runtime commands. Default 1006.6 µs (`wire-timing.md`: the manual's 1180 µs at
+    /// runtime commands. Default 1006.6 µs (the wire-timing notes: the manual's 1180 µs at
     /// 115200 and 1354 µs at 57600 minus the reply's wire time).
     pub turnaround: Duration,
     /// The same for commands that write EEPROM; the module ignores the bus meanwhile.

@@ -1,7 +1,7 @@
 //! Configuration of a simulated joint: product, initial physical state, and every
 //! behaviour the vendor documents disagree on, as a named option.
 //!
-//! Defaults follow the "Sim default" column of §10 of `whj-joint-protocol.md` and the
+//! Defaults follow the "Sim default" column of §10 of the WHJ joint protocol reference and the
 //! `\[inf\]` rules of §6; the doc of each field names the rule or conflict it settles.
 
 use core::time::Duration;

@@ -4,7 +4,7 @@
 //! [`SimJoint::handle`] takes a received frame and the time its last bit arrived and
 //! returns the reply (if any) with the time it is ready to be sent; [`SimJoint::advance`]
 //! integrates the mechanics up to a point in time. Rules and their sources are §6 of
-//! `whj-joint-protocol.md`; options for the conflicting ones are in [`JointConfig`].
+//! the WHJ joint protocol reference; options for the conflicting ones are in [`JointConfig`].
 
 use core::time::Duration;
 

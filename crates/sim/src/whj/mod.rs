@@ -3,13 +3,13 @@
 //! - [`SimJoint`]: one joint's firmware (memory table, flash, bootloader, work modes,
 //!   protection) over the device-side decoder of `robobus-whj`, driving a physics model
 //!   of motor, gearbox, load, heat and supply ([`WhjModel`] parameters from §9 of
-//!   `whj-joint-protocol.md`).
+//!   the WHJ joint protocol reference).
 //! - [`WhjBus`]: the wire: arbitration by CAN ID, exact frame durations, processing
 //!   delays; virtual clock in tests, wall clock behind an endpoint.
 //! - [`serve`]: the same bus on a real frame link (python-can UDP bus, `SocketCAN`) on the
 //!   wall clock.
 //! - Options for every rule the vendor documents disagree on: [`JointConfig`]; defaults
-//!   follow the "Sim default" column of §10 of `whj-joint-protocol.md`.
+//!   follow the "Sim default" column of §10 of the WHJ joint protocol reference.
 //!
 //! ```
 //! use core::time::Duration;

@@ -1,4 +1,4 @@
-//! Product parameters of the simulated WHJ models (§9 of `whj-joint-protocol.md`).
+//! Product parameters of the simulated WHJ models (§9 of the WHJ joint protocol reference).
 //!
 //! The published facts (code, ratio, peak speed, current scale, brake, features, torque,
 //! power, inertia, mass) come from the one product table, [`robobus_whj::PRODUCTS`].
