@@ -196,11 +196,35 @@ impl Eeprom {
         })
     }
 
-    /// Loads several EEPROMs from a file.
+    /// The largest EEPROM file [`Eeprom::load`] reads: 1 MiB (31 servos with full
+    /// programs take about 20 KiB).
+    pub const MAX_FILE_BYTES: u64 = 1 << 20;
+
+    /// Loads several EEPROMs from a file of at most [`Eeprom::MAX_FILE_BYTES`]: a larger
+    /// (or endless) file is refused after that many bytes, never read whole.
     pub fn load(path: &Path) -> Result<Vec<Self>, EepromFileError> {
-        let text = std::fs::read_to_string(path).map_err(|source| EepromFileError::Io {
+        use std::io::Read as _;
+        let io = |source| EepromFileError::Io {
             path: path.display().to_string(),
             source,
+        };
+        let mut bytes = Vec::new();
+        std::fs::File::open(path)
+            .map_err(io)?
+            .take(Self::MAX_FILE_BYTES + 1)
+            .read_to_end(&mut bytes)
+            .map_err(io)?;
+        if bytes.len() as u64 > Self::MAX_FILE_BYTES {
+            return Err(io(std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                "larger than the limit of 1 MiB",
+            )));
+        }
+        let text = String::from_utf8(bytes).map_err(|e| {
+            io(std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                format!("not UTF-8 text (byte {})", e.utf8_error().valid_up_to()),
+            ))
         })?;
         Self::from_text(&text)
     }
@@ -209,6 +233,15 @@ impl Eeprom {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_endless_or_oversized_file_is_refused_with_the_limit() {
+        let e = Eeprom::load(Path::new("/dev/zero")).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "EEPROM file /dev/zero: larger than the limit of 1 MiB"
+        );
+    }
 
     #[test]
     fn defaults_are_a5() {
