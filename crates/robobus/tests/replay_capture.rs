@@ -332,3 +332,50 @@ proptest! {
         }
     }
 }
+
+/// An endless hex log: a command and its reply, again and again.
+struct Endless(usize);
+
+impl std::io::Read for Endless {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        const PAIR: &[u8] = b"0.000100 > FF A3 00 23\n0.000900 < 00 7F\n";
+        let mut n = 0;
+        while n < buf.len() {
+            buf[n] = PAIR[self.0 % PAIR.len()];
+            self.0 += 1;
+            n += 1;
+        }
+        Ok(n)
+    }
+}
+
+#[test]
+fn a_capture_is_streamed_not_read_whole() {
+    // Only a streaming reader can hand out entries of a file that never ends.
+    let r = Replay::from_reader(
+        std::io::BufReader::new(Endless(0)),
+        "endless.log",
+        &ReplayOptions::default(),
+    )
+    .unwrap();
+    let entries: Vec<Entry> = r.take(20_000).map(Result::unwrap).collect();
+    assert_eq!(entries.len(), 20_000);
+    assert!(
+        entries
+            .iter()
+            .step_by(2)
+            .all(|e| e.text == "status read servo 3")
+    );
+    assert!(
+        entries
+            .iter()
+            .skip(1)
+            .step_by(2)
+            .all(|e| e.text == "load 0, position 127")
+    );
+    assert_eq!(entries[19_999].line, 20_000);
+    let dir = tempfile::tempdir().unwrap();
+    let err = replay::open(dir.path(), &ReplayOptions::default()).unwrap_err();
+    assert_eq!(err.kind(), ErrorKind::BadInput);
+    assert!(err.to_string().contains("is a directory"), "{err}");
+}

@@ -1567,4 +1567,54 @@ mod tests {
         ];
         assert_eq!(got, want);
     }
+
+    #[test]
+    fn wck_replies_split_over_reads_and_implausible_replies() {
+        // A reply read one byte at a time; a passive reply without the echoed mode byte;
+        // a packet written in two calls.
+        let log = "0.1 > FF 03 7F 7C\n0.2 < 12\n0.3 < 7F\n0.4 > FF C3 10 53\n0.5 < 11 7F\n0.6 > FF A3\n0.7 > 00 23\n0.8 < 00 7F\n";
+        let got: Vec<(u64, EntryKind, String, String)> = entries(log, ReplayOptions::default())
+            .into_iter()
+            .map(|e| (e.line, e.kind, e.bytes, e.text))
+            .collect();
+        let want: Vec<(u64, EntryKind, String, String)> = vec![
+            (
+                1,
+                EntryKind::Request,
+                "FF 03 7F 7C".into(),
+                "position move servo 3 to 127 (torque 0)".into(),
+            ),
+            (
+                2,
+                EntryKind::Reply,
+                "12 7F".into(),
+                "load 18, position 127".into(),
+            ),
+            (
+                4,
+                EntryKind::Request,
+                "FF C3 10 53".into(),
+                "passive servo 3".into(),
+            ),
+            (
+                5,
+                EntryKind::Malformed,
+                "11 7F".into(),
+                "MALFORMED: passive: reply mode byte is 17, but 16 was sent".into(),
+            ),
+            (
+                6,
+                EntryKind::Request,
+                "FF A3 00 23".into(),
+                "status read servo 3".into(),
+            ),
+            (
+                8,
+                EntryKind::Reply,
+                "00 7F".into(),
+                "load 0, position 127".into(),
+            ),
+        ];
+        assert_eq!(got, want);
+    }
 }
