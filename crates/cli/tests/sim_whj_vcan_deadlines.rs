@@ -3,10 +3,9 @@
 //! queries, each with a 5 ms reply timeout, first from a bare `SocketCanLink`, then through
 //! the client library (`JointBus`, `Joint::status`). When either side waited with
 //! `SO_RCVTIMEO`, which the kernel rounds up to whole ticks, the replies came one to two
-//! ticks late and most of these queries timed out (343 of 500). At most 2 % may miss: the
-//! guest's one CPU is shared with a loaded host, and a stall of the simulator process alone
-//! is invisible from here; the misses a witnessed guest stall explains are printed
-//! ([`StallWitness`]).
+//! ticks late and most of these queries timed out (343 of 500). A miss whose window saw the
+//! whole guest stalled by the shared host is excused ([`StallWitness`]); of the rest at most
+//! 2 % may miss (a stall of the simulator process alone is invisible from here).
 //!
 //! `bench_vcan0_round_trip_against_can_utils_echo` (ignored: a benchmark, run it by hand with
 //! `--ignored --nocapture`) prints the median and p99 round trip of the simulator against
@@ -249,16 +248,17 @@ fn inner_status_queries_5ms() {
     let stalls = witness.stop();
     summary("SocketCanLink -> robobus sim whj", rts, missed.len());
     println!("guest stalls over {STALL:?} seen: {}", stalls.len());
-    println!(
-        "misses no witnessed guest stall explains: {}",
-        unexplained(&missed, &stalls, TIMEOUT)
-    );
-    // The one guest CPU also stalls the simulator process alone, which the witness cannot
-    // see: allow 2 % misses. A deadline rounded up to kernel ticks (12-20 ms in UML)
-    // misses most of the 500 (before the fix: 343).
+    let unexcused = unexplained(&missed, &stalls, TIMEOUT);
+    println!("misses no witnessed guest stall explains: {unexcused}");
+    // A miss whose 5 ms window saw the guest stalled says nothing about the link (a loaded
+    // build machine stalls the one guest CPU thousands of times a run). Of the others at
+    // most 2 %: the guest can also stall the simulator process alone, which the witness
+    // cannot see. A deadline rounded up to kernel ticks (12-20 ms in UML) misses most of
+    // the 500 on a quiet machine (before the fix: 343).
     assert!(
-        missed.len() <= QUERIES / 50,
-        "{} of {QUERIES} unanswered within {TIMEOUT:?}",
+        unexcused <= QUERIES / 50,
+        "{unexcused} of {QUERIES} unanswered within {TIMEOUT:?} without a guest stall \
+         ({} missed in all)",
         missed.len()
     );
     drop(link);
@@ -290,16 +290,17 @@ fn inner_status_queries_5ms() {
     summary("JointBus -> robobus sim whj", rts, missed.len());
     println!("guest stalls over {STALL:?} seen: {}", stalls.len());
     assert!(failed.is_empty(), "{failed:?}");
-    println!(
-        "misses no witnessed guest stall explains: {}",
-        unexplained(&missed, &stalls, TIMEOUT)
-    );
-    // The one guest CPU also stalls the simulator process alone, which the witness cannot
-    // see: allow 2 % misses. A deadline rounded up to kernel ticks (12-20 ms in UML)
-    // misses most of the 500 (before the fix: 343).
+    let unexcused = unexplained(&missed, &stalls, TIMEOUT);
+    println!("misses no witnessed guest stall explains: {unexcused}");
+    // A miss whose 5 ms window saw the guest stalled says nothing about the link (a loaded
+    // build machine stalls the one guest CPU thousands of times a run). Of the others at
+    // most 2 %: the guest can also stall the simulator process alone, which the witness
+    // cannot see. A deadline rounded up to kernel ticks (12-20 ms in UML) misses most of
+    // the 500 on a quiet machine (before the fix: 343).
     assert!(
-        missed.len() <= QUERIES / 50,
-        "{} of {QUERIES} unanswered within {TIMEOUT:?}",
+        unexcused <= QUERIES / 50,
+        "{unexcused} of {QUERIES} unanswered within {TIMEOUT:?} without a guest stall \
+         ({} missed in all)",
         missed.len()
     );
     println!("inner_status_queries_5ms OK");
