@@ -683,6 +683,22 @@ fn decimals(unit: Unit) -> usize {
     }
 }
 
+/// The voltage and temperature fields every status-like reply carries.
+fn supply_fields(fields: &mut Vec<Field>, voltage: i16, temperature: i16, scale: CurrentScale) {
+    fields.push(unit_field(
+        "voltage",
+        Unit::Voltage,
+        i32::from(voltage),
+        scale,
+    ));
+    fields.push(unit_field(
+        "temperature",
+        Unit::Temperature,
+        i32::from(temperature),
+        scale,
+    ));
+}
+
 fn unit_field(name: impl Into<String>, unit: Unit, raw: i32, scale: CurrentScale) -> Field {
     let (value, symbol) = match unit {
         Unit::Current => (f64::from(raw) * f64::from(scale.ma_per_count()), "mA"),
@@ -1104,18 +1120,7 @@ impl WhjState {
                     e.fields
                         .push(unit_field("current", Unit::Current, c.0, scale));
                 }
-                e.fields.push(unit_field(
-                    "voltage",
-                    Unit::Voltage,
-                    i32::from(s.voltage.0),
-                    scale,
-                ));
-                e.fields.push(unit_field(
-                    "temperature",
-                    Unit::Temperature,
-                    i32::from(s.temperature.0),
-                    scale,
-                ));
+                supply_fields(&mut e.fields, s.voltage.0, s.temperature.0, scale);
                 let shown = join_fields(&e.fields);
                 e.fields.push(Field::raw("enabled", s.enable));
                 e.fields.push(Field::raw("brake", s.brake));
@@ -1145,18 +1150,7 @@ impl WhjState {
                     .push(unit_field("speed", Unit::ActualSpeed, f.speed.0, scale));
                 e.fields
                     .push(unit_field("current", Unit::Current, f.current.0, scale));
-                e.fields.push(unit_field(
-                    "voltage",
-                    Unit::Voltage,
-                    i32::from(f.voltage.0),
-                    scale,
-                ));
-                e.fields.push(unit_field(
-                    "temperature",
-                    Unit::Temperature,
-                    i32::from(f.temperature.0),
-                    scale,
-                ));
+                supply_fields(&mut e.fields, f.voltage.0, f.temperature.0, scale);
                 let shown = join_fields(&e.fields);
                 e.fields.push(Field::raw("state", f.state));
                 e.fields.push(Field::raw("counter", f.counter));
