@@ -172,4 +172,12 @@ impl<L: FrameLink> FrameLink for ObservedLink<L> {
     fn set_filters(&mut self, filters: &[IdFilter]) -> Result<(), FrameLinkError> {
         self.inner.set_filters(filters)
     }
+
+    fn now(&self) -> Instant {
+        self.inner.now()
+    }
+
+    fn sleep_until(&mut self, deadline: Instant) {
+        self.inner.sleep_until(deadline);
+    }
 }

@@ -313,6 +313,14 @@ impl<L: FrameLink, W: Write> FrameLink for CaptureFrameLink<L, W> {
     fn set_filters(&mut self, filters: &[IdFilter]) -> Result<(), FrameLinkError> {
         self.inner.set_filters(filters)
     }
+
+    fn now(&self) -> Instant {
+        self.inner.now()
+    }
+
+    fn sleep_until(&mut self, deadline: Instant) {
+        self.inner.sleep_until(deadline);
+    }
 }
 
 /// A frame link that plays a candump capture back: `recv` returns the records in order

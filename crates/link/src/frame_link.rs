@@ -212,6 +212,19 @@ pub trait FrameLink {
 
     /// Replaces the acceptance filters (empty = accept everything). See [`IdFilter`].
     fn set_filters(&mut self, filters: &[IdFilter]) -> Result<(), FrameLinkError>;
+
+    /// The link's clock: the instant deadlines passed to [`FrameLink::recv`] are compared
+    /// with. The wall clock, except on a simulated bus on virtual time.
+    fn now(&self) -> Instant {
+        Instant::now()
+    }
+
+    /// Lets the link's clock reach `deadline` (frames arriving meanwhile stay queued for
+    /// [`FrameLink::recv`]). Sleeps on the wall clock, except on a simulated bus on virtual
+    /// time, where simulated time advances at once.
+    fn sleep_until(&mut self, deadline: Instant) {
+        std::thread::sleep(deadline.saturating_duration_since(Instant::now()));
+    }
 }
 
 impl<T: FrameLink + ?Sized> FrameLink for &mut T {
@@ -224,6 +237,12 @@ impl<T: FrameLink + ?Sized> FrameLink for &mut T {
     fn set_filters(&mut self, filters: &[IdFilter]) -> Result<(), FrameLinkError> {
         (**self).set_filters(filters)
     }
+    fn now(&self) -> Instant {
+        (**self).now()
+    }
+    fn sleep_until(&mut self, deadline: Instant) {
+        (**self).sleep_until(deadline);
+    }
 }
 
 impl<T: FrameLink + ?Sized> FrameLink for Box<T> {
@@ -235,6 +254,12 @@ impl<T: FrameLink + ?Sized> FrameLink for Box<T> {
     }
     fn set_filters(&mut self, filters: &[IdFilter]) -> Result<(), FrameLinkError> {
         (**self).set_filters(filters)
+    }
+    fn now(&self) -> Instant {
+        (**self).now()
+    }
+    fn sleep_until(&mut self, deadline: Instant) {
+        (**self).sleep_until(deadline);
     }
 }
 

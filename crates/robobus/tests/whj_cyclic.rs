@@ -5,7 +5,7 @@
 
 mod whj_common;
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use robobus::whj::{CycleReport, Cyclic, CyclicConfig, JointBus, Protocol, ServoMode, WhjError};
 use robobus_whj::units::{Current, Position, TargetSpeed};
@@ -381,6 +381,14 @@ impl<L: robobus_link::FrameLink> robobus_link::FrameLink for StampingLink<L> {
         filters: &[robobus_link::IdFilter],
     ) -> Result<(), robobus_link::FrameLinkError> {
         self.inner.set_filters(filters)
+    }
+
+    fn now(&self) -> Instant {
+        self.inner.now()
+    }
+
+    fn sleep_until(&mut self, deadline: Instant) {
+        self.inner.sleep_until(deadline);
     }
 }
 

@@ -8,7 +8,7 @@ mod whj_common;
 
 use std::io::Write;
 use std::sync::{Arc, Mutex};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use robobus::ops::whj::{self as ops, MoveArgs, ServoLoop, Shape, WaveArgs};
 use robobus::ops::{Control, ErrorKind, OpError, Progress, SafeState, StopToken};
@@ -243,6 +243,14 @@ impl<L: FrameLink> FrameLink for ImplausibleStatus<L> {
     }
     fn set_filters(&mut self, filters: &[IdFilter]) -> Result<(), FrameLinkError> {
         self.0.set_filters(filters)
+    }
+
+    fn now(&self) -> Instant {
+        self.0.now()
+    }
+
+    fn sleep_until(&mut self, deadline: Instant) {
+        self.0.sleep_until(deadline);
     }
 }
 
@@ -519,6 +527,14 @@ impl<L: FrameLink> FrameLink for ErrorBits<L> {
     }
     fn set_filters(&mut self, filters: &[IdFilter]) -> Result<(), FrameLinkError> {
         self.0.set_filters(filters)
+    }
+
+    fn now(&self) -> Instant {
+        self.0.now()
+    }
+
+    fn sleep_until(&mut self, deadline: Instant) {
+        self.0.sleep_until(deadline);
     }
 }
 

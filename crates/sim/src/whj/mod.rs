@@ -6,6 +6,7 @@
 //!   the WHJ joint protocol reference).
 //! - [`WhjBus`]: the wire: arbitration by CAN ID, exact frame durations, processing
 //!   delays; virtual clock in tests, wall clock behind an endpoint.
+//! - [`WhjSimLink`]: the bus as an in-process frame link on a virtual clock (no thread).
 //! - [`serve`]: the same bus on a real frame link (python-can UDP bus, `SocketCAN`) on the
 //!   wall clock.
 //! - Options for every rule the vendor documents disagree on: [`JointConfig`]; defaults
@@ -40,6 +41,7 @@ mod bus;
 mod config;
 mod endpoint;
 mod joint;
+mod link;
 mod model;
 mod physics;
 
@@ -49,4 +51,5 @@ pub use config::{
 };
 pub use endpoint::{ServeStats, serve, serve_with};
 pub use joint::{JointState, Phase, Reply, Sample, SimJoint};
+pub use link::{WhjSimHandle, WhjSimLink};
 pub use model::{ModelParams, UnknownModel, WhjModel};
