@@ -1,24 +1,24 @@
-//! [`JointBus`]: one thread owns the frame link; callers talk to it through a small
-//! command interface (transactions, cyclic loop control) and read its telemetry.
+//! [`JointBus`]: the frame link and the client session behind one lock, driven by the
+//! caller's thread for request / reply work and by a thread of its own for the cyclic
+//! loop; [`Telemetry`] of what arrived.
 
 use core::fmt;
 use core::time::Duration;
-use std::collections::{HashMap, VecDeque};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender, SyncSender, TryRecvError};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender, TryRecvError};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::thread::JoinHandle;
 use std::time::Instant;
 
-use robobus_link::{BusErrorKind, FrameLink, FrameLinkError};
-use robobus_whj::frame::padded_len;
+use robobus_link::{FrameLink, FrameLinkError};
 use robobus_whj::registers::{self, UniqueId};
 use robobus_whj::units::{ActualSpeed, Current, Position, Temperature, Voltage};
-use robobus_whj::{CanFrame, ErrorCode, JointId, Reply, Request};
+use robobus_whj::{ErrorCode, JointId, Reply, Request};
 
-use super::cyclic::{CyclicRun, CyclicSetup};
+use super::cyclic::CyclicSetup;
 use super::error::WhjError;
 use super::joint::Joint;
+use super::session::{Attempt, Expect, Session, Txn, TxnId};
 
 /// Settings of a [`JointBus`]. `JointBusConfig::default()` follows the protocol reference.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -53,8 +53,8 @@ pub struct JointBusConfig {
     /// After an error-passive or error-warning report, how long without a new report
     /// before the bus counts as recovered (default 1 s).
     pub error_passive_hold: Duration,
-    /// How often the bus thread looks for new commands while it waits for frames
-    /// (default 0.5 ms).
+    /// The longest one receive or sleep of the driving thread lasts before it looks at
+    /// the session again and lets other threads in (default 0.5 ms).
     pub poll_interval: Duration,
 }
 
@@ -90,7 +90,7 @@ impl JointBusConfig {
     }
 }
 
-/// The CAN controller state as the bus thread last saw it.
+/// The CAN controller state as the client last saw it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub enum BusState {
     /// Error active: working normally.
@@ -141,7 +141,7 @@ pub struct BusHealth {
     pub malformed: u64,
 }
 
-/// The latest values the bus thread saw from one joint (servo feedback, status, register
+/// The latest values the client saw from one joint (servo feedback, status, register
 /// reads, broadcast feedback), in wire units with typed conversions.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct JointTelemetry {
@@ -170,7 +170,7 @@ pub struct JointTelemetry {
     pub unique_id_conflict: Option<(UniqueId, UniqueId)>,
 }
 
-/// A snapshot of everything the bus thread knows: bus health and per-joint values.
+/// A snapshot of everything the client knows: bus health and per-joint values.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct Telemetry {
     /// Bus counters and state.
@@ -191,7 +191,7 @@ impl Telemetry {
         self.joints.get_mut(usize::from(id.get()))
     }
 
-    fn record(&mut self, reply: &Reply, now: Instant) {
+    pub(crate) fn record(&mut self, reply: &Reply, now: Instant) {
         let Some(t) = self.joint_mut(reply.joint()) else {
             return;
         };
@@ -251,155 +251,16 @@ impl Telemetry {
     }
 }
 
-/// The outcome of one attempt of one transaction, as the bus thread reports it.
-#[derive(Debug, Clone)]
-pub(crate) enum Attempt {
-    /// The matching reply (a `CMD_ERR` included).
-    Reply {
-        /// The reply.
-        reply: Reply,
-    },
-    /// A frame arrived on the reply ID that claims to answer this request but cannot
-    /// (malformed, wrong length). Replies to other requests are ignored instead.
-    Mismatch(String),
-    /// Nothing arrived in time.
-    Timeout {
-        /// How long the attempt waited.
-        waited: Duration,
-        /// The controller state at the time.
-        state: BusState,
-    },
-    /// The controller went bus-off while the request was in flight, or did not recover
-    /// in time.
-    Bus {
-        /// The state.
-        state: BusState,
-        /// The link's message.
-        detail: String,
-        /// How long the request waited.
-        waited: Duration,
-    },
-    /// The link failed.
-    Link(String),
-    /// A cyclic loop owns the reply ID.
-    Busy,
-}
-
-/// What kind of reply a request expects.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Expect {
-    Read { addr: u8, count: u8 },
-    Write { addr: u8 },
-    Servo,
-    Status,
-}
-
-impl Expect {
-    pub(crate) fn of(request: &Request) -> Option<Self> {
-        match request {
-            Request::Read { range, .. } => Some(Self::Read {
-                addr: range.start().get(),
-                count: range.count(),
-            }),
-            Request::Write { addr, .. } => Some(Self::Write { addr: addr.get() }),
-            Request::PositionServo { .. }
-            | Request::SpeedServo { .. }
-            | Request::CurrentServo { .. } => Some(Self::Servo),
-            Request::StatusQuery { .. } => Some(Self::Status),
-            _ => None,
-        }
-    }
-
-    /// A name for error messages.
-    pub(crate) const fn name(self) -> &'static str {
-        match self {
-            Self::Read { .. } => "read reply",
-            Self::Write { .. } => "write ack",
-            Self::Servo => "servo feedback",
-            Self::Status => "status feedback",
-        }
-    }
-
-    /// Whether `reply` (carried by `frame`) answers a request of this kind.
-    fn check(self, reply: &Reply, frame: &CanFrame) -> Result<(), Unanswered> {
-        match (self, reply) {
-            (Self::Read { .. } | Self::Write { .. }, Reply::CmdErr { .. })
-            | (Self::Servo, Reply::ServoFeedback { .. })
-            | (Self::Status, Reply::Status { .. }) => Ok(()),
-            (Self::Read { addr, count }, Reply::Read { addr: a, words, .. }) => {
-                let want_len = padded_len(2 + 2 * usize::from(count));
-                if a.get() != addr {
-                    Err(Unanswered::Other(format!(
-                        "read reply for register {:#04x}, expected {addr:#04x}",
-                        a.get()
-                    )))
-                } else if want_len != Some(frame.len()) || words.len() < usize::from(count) {
-                    Err(Unanswered::Bad(format!(
-                        "read reply of {} bytes, expected {} for {count} register(s)",
-                        frame.len(),
-                        want_len.unwrap_or(0)
-                    )))
-                } else {
-                    Ok(())
-                }
-            }
-            (Self::Write { addr }, Reply::WriteAck { addr: a, .. }) if a.get() == addr => Ok(()),
-            (Self::Write { addr }, Reply::WriteAck { addr: a, .. }) => {
-                Err(Unanswered::Other(format!(
-                    "write ack for register {:#04x}, expected {addr:#04x}",
-                    a.get()
-                )))
-            }
-            (want, got) => Err(Unanswered::Other(format!(
-                "expected a {}, got {got:?}",
-                want.name()
-            ))),
-        }
-    }
-}
-
-/// Why a well-formed reply on a request's reply ID does not answer it.
-#[derive(Debug)]
-enum Unanswered {
-    /// It answers another request (another register, another kind): a late reply to an
-    /// earlier request that timed out, or one sent by another client. Ignored; the
-    /// request keeps waiting.
-    Other(String),
-    /// It claims to answer this request but has the wrong shape: an error.
-    Bad(String),
-}
-
-/// One transaction submitted to the bus thread.
-#[derive(Debug)]
-pub(crate) struct Txn {
-    request: Request,
-    expect: Expect,
-    timeout: Duration,
-    quiet_after: Duration,
-    submitted: Instant,
-    reply: SyncSender<Attempt>,
-}
-
-/// What callers ask the bus thread to do.
-#[derive(Debug)]
-pub(crate) enum Command {
-    Transact(Txn),
-    StartCyclic(Box<CyclicSetup>, SyncSender<Result<(), WhjError>>),
-    StopCyclic(SyncSender<()>),
-    /// Send one broadcast frame (no reply is matched; replies land in the telemetry).
-    Broadcast(CanFrame, SyncSender<Result<Instant, WhjError>>),
-    Shutdown,
-}
-
-/// State shared between the bus thread and callers.
+/// State shared by the session, the bus's thread and callers, readable without the
+/// session's lock.
 #[derive(Debug, Default)]
 pub(crate) struct Shared {
     pub(crate) telemetry: Mutex<Telemetry>,
     /// The identity of each joint, read once per bus (by index = joint ID), so short-lived
     /// [`Joint`] handles do not read it again.
     pub(crate) identities: Mutex<[Option<super::joint::Identity>; 31]>,
-    fatal: Mutex<Option<String>>,
-    cyclic_running: AtomicBool,
+    pub(crate) fatal: Mutex<Option<String>>,
+    pub(crate) cyclic_running: AtomicBool,
 }
 
 pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -432,15 +293,26 @@ impl OwnedJoint {
     }
 }
 
-/// A WHJ CAN FD bus: owns a [`FrameLink`] on a thread of its own and hands out [`Joint`]
-/// handles.
+/// A WHJ CAN FD bus: owns a [`FrameLink`] and hands out [`Joint`] handles.
 ///
-/// The bus thread sends every request, matches replies to requests by CAN ID and
-/// function (`0x100+ID` read / write / `CMD_ERR`, `0x500+ID` servo feedback, `0x700+ID`
-/// status), enforces per-request timeouts and settle times, runs the cyclic servo loop
-/// ([`JointBus::cyclic`]) and keeps [`Telemetry`]. At most one request per reply ID is in
-/// flight at a time, so a reply can only belong to that request; requests from several
-/// threads queue up.
+/// The bus keeps a sans-IO session (request matching, deadlines, settle times, bus-error
+/// state, the cyclic loop) next to its link, behind one lock. A request / reply is driven
+/// by the caller's own thread: it sends the request and receives on the link itself until
+/// its reply is there, with no hand-off to another thread. Whoever holds the lock drives
+/// the whole session, so frames for other requests, the cyclic loop's ticks and
+/// unsolicited frames are all handled by whichever thread is receiving. A thread of the
+/// bus's own runs the cyclic loop ([`JointBus::cyclic`]) and, while nothing else uses the
+/// bus, picks up unsolicited frames (other hosts' traffic, controller error reports) now
+/// and then for [`Telemetry`].
+///
+/// Replies are matched to requests by CAN ID and function (`0x100+ID` read / write /
+/// `CMD_ERR`, `0x500+ID` servo feedback, `0x700+ID` status). At most one request per
+/// reply ID is in flight at a time, so a reply can only belong to that request; requests
+/// from several threads queue up. [`JointBus::request_many`] sends requests to many
+/// joints at once and collects the replies.
+///
+/// Time comes from the link ([`FrameLink::now`], [`FrameLink::sleep_until`]): the wall
+/// clock on real links, virtual time on a simulated bus.
 ///
 /// Bus errors: a bus-off report fails the requests in flight ([`WhjError::Bus`]) and
 /// holds new ones until the bus has **recovered**, which means: the link reported a
@@ -450,10 +322,142 @@ impl OwnedJoint {
 /// operations are resent after a recovery; nothing else is.
 #[derive(Debug)]
 pub struct JointBus {
-    tx: Mutex<Sender<Command>>,
+    core: Arc<CoreLock>,
     shared: Arc<Shared>,
     config: JointBusConfig,
+    wake: Mutex<Sender<Wake>>,
     thread: Option<JoinHandle<()>>,
+}
+
+/// What the bus's own thread is told.
+#[derive(Debug)]
+enum Wake {
+    /// A cyclic loop started.
+    Cyclic,
+    Shutdown,
+}
+
+/// The link and the session, and how many threads wait for them.
+struct CoreLock {
+    core: Mutex<Core>,
+    /// Threads waiting for `core` (the bus thread lets them in between its steps).
+    waiters: AtomicUsize,
+}
+
+impl fmt::Debug for CoreLock {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("CoreLock").finish_non_exhaustive()
+    }
+}
+
+impl CoreLock {
+    fn lock(&self) -> MutexGuard<'_, Core> {
+        self.waiters.fetch_add(1, Ordering::AcqRel);
+        let g = lock(&self.core);
+        self.waiters.fetch_sub(1, Ordering::AcqRel);
+        g
+    }
+}
+
+/// The driver: the link and the session it feeds.
+struct Core {
+    link: Box<dyn FrameLink + Send>,
+    session: Session,
+    shared: Arc<Shared>,
+    last_drain: Instant,
+    closed: bool,
+}
+
+/// How often the bus thread reads unsolicited frames while nothing else uses the bus
+/// (rarely: on a link whose receive timeout rounds up to the kernel tick, an empty read
+/// costs a tick).
+const DRAIN_INTERVAL: Duration = Duration::from_millis(100);
+
+impl Core {
+    fn now(&self) -> Instant {
+        self.link.now()
+    }
+
+    /// One step of the session: time passes, due frames go out, then one frame (or
+    /// error) is received, or the link's clock is left to run, until the next event or
+    /// `until`, whichever is first.
+    fn step(&mut self, until: Instant) {
+        if self.closed {
+            return;
+        }
+        let now = self.link.now();
+        self.session.on_time(now);
+        while let Some(tx) = self.session.poll_transmit(now) {
+            match self.link.send(&tx.frame) {
+                Ok(()) => self.session.sent(),
+                Err(e) => {
+                    self.session.send_failed(&tx, &e, self.link.now());
+                    if matches!(e, FrameLinkError::Closed { .. }) {
+                        self.fatal(&e);
+                        return;
+                    }
+                }
+            }
+        }
+        let now = self.link.now();
+        let wake = self.session.next_wake(now).min(until).max(now);
+        if self.session.awaiting() {
+            self.last_drain = now;
+            match self.link.recv(wake) {
+                Ok(rx) => {
+                    let at = self.link.now();
+                    self.session.on_frame(&rx.frame, at);
+                }
+                Err(FrameLinkError::Timeout) => {}
+                Err(e) => self.link_error(&e),
+            }
+        } else if wake > now {
+            self.link.sleep_until(wake);
+        }
+        let now = self.link.now();
+        self.session.on_time(now);
+    }
+
+    /// Picks up frames that arrived while nothing was awaited, without waiting.
+    fn drain(&mut self) {
+        self.last_drain = self.link.now();
+        for _ in 0..64 {
+            if self.closed {
+                return;
+            }
+            let now = self.link.now();
+            match self.link.recv(now) {
+                Ok(rx) => self.session.on_frame(&rx.frame, now),
+                Err(FrameLinkError::Timeout) => return,
+                Err(e) => {
+                    self.link_error(&e);
+                    return;
+                }
+            }
+        }
+    }
+
+    fn link_error(&mut self, e: &FrameLinkError) {
+        let now = self.link.now();
+        self.session.on_link_error(e, now);
+        match e {
+            FrameLinkError::Closed { .. } => self.fatal(e),
+            FrameLinkError::BusOff { .. }
+            | FrameLinkError::ErrorPassive { .. }
+            | FrameLinkError::BusError { .. } => {}
+            // A transient operating-system error: back off briefly.
+            _ => self.link.sleep_until(now + Duration::from_millis(1)),
+        }
+    }
+
+    fn fatal(&mut self, e: &FrameLinkError) {
+        let detail = e.to_string();
+        tracing::error!(error = %detail, "WHJ bus link failed");
+        *lock(&self.shared.fatal) = Some(detail.clone());
+        lock(&self.shared.telemetry).bus.last_error = Some(detail.clone());
+        self.session.fail_all(&detail);
+        self.closed = true;
+    }
 }
 
 impl JointBus {
@@ -467,30 +471,31 @@ impl JointBus {
         link: L,
         config: JointBusConfig,
     ) -> Result<Self, WhjError> {
-        let (tx, rx) = mpsc::channel();
         let shared = Arc::new(Shared::default());
-        let worker = Worker {
-            link,
-            rx,
-            shared: Arc::clone(&shared),
-            config,
-            in_flight: HashMap::new(),
-            queued: VecDeque::new(),
-            quiet: HashMap::new(),
-            passive_since: None,
-            cyclic: None,
-            last_drain: Instant::now(),
-        };
+        let last_drain = link.now();
+        let core = Arc::new(CoreLock {
+            core: Mutex::new(Core {
+                link: Box::new(link),
+                session: Session::new(Arc::clone(&shared), config),
+                shared: Arc::clone(&shared),
+                last_drain,
+                closed: false,
+            }),
+            waiters: AtomicUsize::new(0),
+        });
+        let (tx, rx) = mpsc::channel();
+        let thread_core = Arc::clone(&core);
         let thread = std::thread::Builder::new()
             .name("whj-bus".into())
-            .spawn(move || worker.run())
+            .spawn(move || background(&thread_core, &rx))
             .map_err(|e| WhjError::Link {
                 detail: format!("cannot start the bus thread: {e}"),
             })?;
         Ok(Self {
-            tx: Mutex::new(tx),
+            core,
             shared,
             config,
+            wake: Mutex::new(tx),
             thread: Some(thread),
         })
     }
@@ -500,6 +505,24 @@ impl JointBus {
         &self.config
     }
 
+    /// The bus's clock: the link's ([`FrameLink::now`]). Instants in [`Telemetry`] and
+    /// cycle reports are on this clock.
+    pub fn now(&self) -> Instant {
+        self.core.lock().now()
+    }
+
+    /// Waits until the bus's clock reaches `deadline`, handling frames meanwhile (the
+    /// cyclic loop keeps its ticks). On a simulated bus on virtual time this returns as
+    /// soon as simulated time got there.
+    pub fn sleep_until(&self, deadline: Instant) {
+        loop {
+            let mut core = self.core.lock();
+            if core.now() >= deadline || core.closed {
+                return;
+            }
+            core.step(deadline);
+        }
+    }
     /// Connects to joint `id`: releases it from the bootloader (`IAP_FLAG := 0`, repeated
     /// for up to [`JointBusConfig::connect_timeout`]; harmless if the application already
     /// runs) and reads its identity. A joint that never answers gives
@@ -579,10 +602,30 @@ impl JointBus {
                 reason: "send_broadcast takes broadcast frames only; use request()".into(),
             });
         }
-        let (done, rx) = mpsc::sync_channel(1);
-        self.send_command(Command::Broadcast(request.to_frame(), done))?;
-        rx.recv_timeout(Duration::from_secs(2))
-            .map_err(|_| self.closed_error())?
+        let mut core = self.core.lock();
+        if core.closed {
+            return Err(self.closed_error());
+        }
+        if core.session.cyclic_running() {
+            return Err(WhjError::InvalidConfig {
+                reason: "a cyclic loop is running on this bus".into(),
+            });
+        }
+        let at = core.now();
+        match core.link.send(&request.to_frame()) {
+            Ok(()) => {
+                core.session.sent();
+                Ok(at)
+            }
+            Err(e) => {
+                if matches!(e, FrameLinkError::Closed { .. }) {
+                    core.fatal(&e);
+                }
+                Err(WhjError::Link {
+                    detail: e.to_string(),
+                })
+            }
+        }
     }
 
     /// A snapshot of the bus health and the latest values from every joint.
@@ -593,10 +636,6 @@ impl JointBus {
     /// Whether a cyclic loop is running.
     pub fn cyclic_running(&self) -> bool {
         self.shared.cyclic_running.load(Ordering::Acquire)
-    }
-
-    pub(crate) fn send_command(&self, cmd: Command) -> Result<(), WhjError> {
-        lock(&self.tx).send(cmd).map_err(|_| self.closed_error())
     }
 
     pub(crate) fn closed_error(&self) -> WhjError {
@@ -616,579 +655,116 @@ impl JointBus {
         let expect = Expect::of(&request).ok_or_else(|| WhjError::InvalidConfig {
             reason: "broadcast frames are not single requests".into(),
         })?;
-        let (reply, rx) = mpsc::sync_channel(1);
-        self.send_command(Command::Transact(Txn {
+        let mut core = self.core.lock();
+        if core.closed {
+            return Err(self.closed_error());
+        }
+        let submitted = core.now();
+        let id = core.session.submit(Txn {
             request,
             expect,
             timeout,
             quiet_after,
-            submitted: Instant::now(),
-            reply,
-        }))?;
-        // The thread always answers (every transaction has a deadline); the margin only
-        // guards against a thread that died.
-        let limit = timeout
+            submitted,
+        });
+        drop(core);
+        self.finish(id, submitted, timeout)
+    }
+
+    /// Drives the session until transaction `id` is finished.
+    fn finish(
+        &self,
+        id: TxnId,
+        submitted: Instant,
+        timeout: Duration,
+    ) -> Result<Attempt, WhjError> {
+        // Every transaction has a deadline, so the session always finishes it; the limit
+        // only guards against a session that lost it.
+        let limit = submitted
+            + timeout
             + self.config.bus_recovery_timeout
             + self.config.save_settle
             + Duration::from_secs(2);
-        rx.recv_timeout(limit).map_err(|_| self.closed_error())
+        loop {
+            let mut core = self.core.lock();
+            if let Some(outcome) = core.session.take(id) {
+                return Ok(outcome);
+            }
+            if core.closed || core.now() >= limit {
+                core.session.abandon(id);
+                return Err(self.closed_error());
+            }
+            core.step(limit);
+        }
     }
 
     pub(crate) fn start_cyclic(&self, setup: CyclicSetup) -> Result<(), WhjError> {
-        let (done, rx) = mpsc::sync_channel(1);
-        self.send_command(Command::StartCyclic(Box::new(setup), done))?;
-        rx.recv_timeout(Duration::from_secs(2))
-            .map_err(|_| self.closed_error())?
+        let mut core = self.core.lock();
+        if core.closed {
+            return Err(self.closed_error());
+        }
+        let now = core.now();
+        core.session.start_cyclic(setup, now)?;
+        drop(core);
+        let _ = lock(&self.wake).send(Wake::Cyclic);
+        Ok(())
     }
 
     pub(crate) fn stop_cyclic(&self) {
-        let (done, rx) = mpsc::sync_channel(1);
-        if self.send_command(Command::StopCyclic(done)).is_ok() {
-            let _ = rx.recv_timeout(Duration::from_secs(2));
-        }
+        self.core.lock().session.stop_cyclic();
     }
 }
 
 impl Drop for JointBus {
     fn drop(&mut self) {
-        let _ = lock(&self.tx).send(Command::Shutdown);
+        let _ = lock(&self.wake).send(Wake::Shutdown);
         if let Some(t) = self.thread.take() {
             let _ = t.join();
         }
     }
 }
 
-#[derive(Debug)]
-struct InFlight {
-    txn: Txn,
-    sent: Instant,
-    deadline: Instant,
-}
-
-/// The bus thread.
-struct Worker<L> {
-    link: L,
-    rx: Receiver<Command>,
-    shared: Arc<Shared>,
-    config: JointBusConfig,
-    in_flight: HashMap<u16, InFlight>,
-    queued: VecDeque<Txn>,
-    quiet: HashMap<u8, Instant>,
-    passive_since: Option<Instant>,
-    cyclic: Option<CyclicRun>,
-    last_drain: Instant,
-}
-
-/// How often the bus thread reads unsolicited frames while it awaits nothing (rarely: on
-/// a link whose receive timeout rounds up to the kernel tick, an empty read costs a tick).
-const DRAIN_INTERVAL: Duration = Duration::from_millis(100);
-
-enum Flow {
-    Continue,
-    Stop,
-}
-
-impl<L: FrameLink> Worker<L> {
-    fn run(mut self) {
+/// The bus's own thread: runs the cyclic loop while one runs; otherwise picks up
+/// unsolicited frames every [`DRAIN_INTERVAL`] while nothing else uses the bus.
+fn background(core: &CoreLock, wake: &Receiver<Wake>) {
+    let mut wait = DRAIN_INTERVAL;
+    loop {
+        match wake.recv_timeout(wait) {
+            Ok(Wake::Shutdown) | Err(RecvTimeoutError::Disconnected) => return,
+            Ok(Wake::Cyclic) | Err(RecvTimeoutError::Timeout) => {}
+        }
         loop {
-            if matches!(self.wait_for_work(), Flow::Stop) {
+            let mut c = core.lock();
+            if c.closed {
+                wait = DRAIN_INTERVAL;
                 break;
             }
-            let now = Instant::now();
-            self.recover_passive(now);
-            if let Some(c) = self.cyclic.as_mut()
-                && c.due(now)
+            if c.session.cyclic_running() {
+                let until = c.now() + DRAIN_INTERVAL;
+                c.step(until);
+                drop(c);
+                // Callers waiting for the lock go first.
+                for _ in 0..1000 {
+                    if core.waiters.load(Ordering::Acquire) == 0 {
+                        break;
+                    }
+                    std::thread::yield_now();
+                }
+                match wake.try_recv() {
+                    Ok(Wake::Shutdown) | Err(TryRecvError::Disconnected) => return,
+                    Ok(Wake::Cyclic) | Err(TryRecvError::Empty) => {}
+                }
+                continue;
+            }
+            let now = c.now();
+            if c.session.is_idle() && now.saturating_duration_since(c.last_drain) >= DRAIN_INTERVAL
             {
-                let frames = c.tick(now);
-                for frame in frames {
-                    if let Err(e) = self.send(&frame) {
-                        if let Some(c) = self.cyclic.as_mut() {
-                            c.send_failed(&frame, &e.to_string());
-                        }
-                        if matches!(e, FrameLinkError::Closed { .. }) {
-                            self.fatal(&e);
-                            return;
-                        }
-                    }
-                }
+                c.drain();
             }
-            self.start_queued(Instant::now());
-            if self.awaiting() {
-                let deadline = self.next_wake(Instant::now());
-                if self.receive(deadline) {
-                    return;
-                }
-            } else if self.drain_due(Instant::now()) {
-                // Nothing is awaited: pick up unsolicited frames (other hosts' traffic,
-                // controller error reports) now and then, without waiting.
-                self.last_drain = Instant::now();
-                for _ in 0..64 {
-                    match self.link.recv(Instant::now()) {
-                        Ok(rx) => self.dispatch(rx.frame),
-                        Err(FrameLinkError::Timeout) => break,
-                        Err(e) => {
-                            if self.link_error(e) {
-                                return;
-                            }
-                            break;
-                        }
-                    }
-                }
-            }
-            self.expire(Instant::now());
-        }
-        self.fail_all(|_| Attempt::Link("the bus was closed".into()));
-    }
-
-    /// Receives one frame (or error) until `deadline`; `true` if the thread must stop.
-    fn receive(&mut self, deadline: Instant) -> bool {
-        self.last_drain = Instant::now();
-        match self.link.recv(deadline) {
-            Ok(rx) => {
-                self.dispatch(rx.frame);
-                false
-            }
-            Err(FrameLinkError::Timeout) => false,
-            Err(e) => self.link_error(e),
-        }
-    }
-
-    /// Whether a frame is expected: a reply in flight, feedback of the running cycle, or a
-    /// bus-off recovery that queued requests wait for. Only then does the thread block in
-    /// the link's receive; otherwise it sleeps on the command channel, whose timeout is
-    /// precise (some links' receive timeouts round up to the kernel tick, e.g. UDP's
-    /// `SO_RCVTIMEO`), so cyclic ticks stay on time.
-    fn awaiting(&self) -> bool {
-        !self.in_flight.is_empty()
-            || self.cyclic.as_ref().is_some_and(CyclicRun::awaiting)
-            || (!self.queued.is_empty() && self.state() == BusState::BusOff)
-    }
-
-    fn drain_due(&self, now: Instant) -> bool {
-        self.cyclic.is_none()
-            && self.queued.is_empty()
-            && now.duration_since(self.last_drain) >= DRAIN_INTERVAL
-    }
-
-    /// Sleeps on the command channel until a command arrives or the next timed event
-    /// (cyclic tick, end of a settle time, drain), then takes every waiting command.
-    fn wait_for_work(&mut self) -> Flow {
-        if !self.awaiting() && self.queued.is_empty() {
-            let now = Instant::now();
-            let mut wake = self.last_drain + DRAIN_INTERVAL;
-            if let Some(c) = &self.cyclic {
-                wake = wake.min(c.next_event());
-            }
-            match self.rx.recv_timeout(wake.saturating_duration_since(now)) {
-                Ok(cmd) => {
-                    if matches!(self.command(cmd), Flow::Stop) {
-                        return Flow::Stop;
-                    }
-                }
-                Err(RecvTimeoutError::Timeout) => {}
-                Err(RecvTimeoutError::Disconnected) => return Flow::Stop,
-            }
-        } else if !self.awaiting() {
-            // Queued requests wait for a settle time to end (or for a busy reply ID).
-            let now = Instant::now();
-            let mut wake = now + self.config.poll_interval;
-            for until in self.quiet.values() {
-                if *until > now {
-                    wake = wake.min(*until);
-                }
-            }
-            if let Some(c) = &self.cyclic {
-                wake = wake.min(c.next_event());
-            }
-            match self.rx.recv_timeout(wake.saturating_duration_since(now)) {
-                Ok(cmd) => {
-                    if matches!(self.command(cmd), Flow::Stop) {
-                        return Flow::Stop;
-                    }
-                }
-                Err(RecvTimeoutError::Timeout) => {}
-                Err(RecvTimeoutError::Disconnected) => return Flow::Stop,
-            }
-        }
-        loop {
-            match self.rx.try_recv() {
-                Ok(cmd) => {
-                    if matches!(self.command(cmd), Flow::Stop) {
-                        return Flow::Stop;
-                    }
-                }
-                Err(TryRecvError::Empty) => return Flow::Continue,
-                Err(TryRecvError::Disconnected) => return Flow::Stop,
-            }
-        }
-    }
-
-    fn command(&mut self, cmd: Command) -> Flow {
-        match cmd {
-            Command::Transact(txn) => self.queued.push_back(txn),
-            Command::StartCyclic(setup, done) => {
-                let r = if self.cyclic.is_some() {
-                    Err(WhjError::InvalidConfig {
-                        reason: "a cyclic loop is already running on this bus".into(),
-                    })
-                } else {
-                    self.cyclic = Some(CyclicRun::new(*setup, Instant::now()));
-                    self.shared.cyclic_running.store(true, Ordering::Release);
-                    Ok(())
-                };
-                let _ = done.send(r);
-            }
-            Command::StopCyclic(done) => {
-                if let Some(c) = self.cyclic.take() {
-                    c.finish();
-                }
-                self.shared.cyclic_running.store(false, Ordering::Release);
-                let _ = done.send(());
-            }
-            Command::Broadcast(frame, done) => {
-                let r = if self.cyclic.is_some() {
-                    Err(WhjError::InvalidConfig {
-                        reason: "a cyclic loop is running on this bus".into(),
-                    })
-                } else {
-                    let at = Instant::now();
-                    self.send(&frame).map(|()| at).map_err(|e| WhjError::Link {
-                        detail: e.to_string(),
-                    })
-                };
-                let _ = done.send(r);
-            }
-            Command::Shutdown => return Flow::Stop,
-        }
-        Flow::Continue
-    }
-
-    fn state(&self) -> BusState {
-        lock(&self.shared.telemetry).bus.state
-    }
-
-    fn set_state(&self, state: BusState, detail: Option<String>) {
-        let mut t = lock(&self.shared.telemetry);
-        let was = t.bus.state;
-        if was != state && state == BusState::Active {
-            t.bus.recoveries += 1;
-            tracing::info!(from = %was, "CAN bus recovered");
-        }
-        t.bus.state = state;
-        if let Some(d) = detail {
-            t.bus.last_error = Some(d);
-        }
-    }
-
-    fn recover_passive(&mut self, now: Instant) {
-        if let Some(since) = self.passive_since
-            && now.duration_since(since) >= self.config.error_passive_hold
-        {
-            self.passive_since = None;
-            if matches!(
-                self.state(),
-                BusState::ErrorPassive | BusState::ErrorWarning
-            ) {
-                self.set_state(BusState::Active, None);
-            }
-        }
-    }
-
-    fn send(&mut self, frame: &CanFrame) -> Result<(), FrameLinkError> {
-        self.link.send(frame)?;
-        lock(&self.shared.telemetry).bus.frames_sent += 1;
-        Ok(())
-    }
-
-    fn start_queued(&mut self, now: Instant) {
-        let bus_off = self.state() == BusState::BusOff;
-        let mut i = 0;
-        while i < self.queued.len() {
-            let Some(txn) = self.queued.get(i) else { break };
-            let key = txn.request.reply_id().unwrap_or(0);
-            let joint = txn.request.joint().map_or(0, JointId::get);
-            let busy = self.in_flight.contains_key(&key);
-            let quiet = self.quiet.get(&joint).is_some_and(|t| *t > now);
-            if self.cyclic.as_ref().is_some_and(|c| c.owns(key)) {
-                if let Some(txn) = self.queued.remove(i) {
-                    let _ = txn.reply.send(Attempt::Busy);
-                }
-                continue;
-            }
-            if bus_off {
-                let waited = now.duration_since(txn.submitted);
-                if waited >= self.config.bus_recovery_timeout
-                    && let Some(txn) = self.queued.remove(i)
-                {
-                    let detail = self.last_error();
-                    let _ = txn.reply.send(Attempt::Bus {
-                        state: BusState::BusOff,
-                        detail,
-                        waited,
-                    });
-                    continue;
-                }
-                i += 1;
-                continue;
-            }
-            if busy || quiet {
-                i += 1;
-                continue;
-            }
-            let Some(txn) = self.queued.remove(i) else {
-                break;
-            };
-            let frame = txn.request.to_frame();
-            match self.send(&frame) {
-                Ok(()) => {
-                    let sent = Instant::now();
-                    self.in_flight.insert(
-                        key,
-                        InFlight {
-                            deadline: sent + txn.timeout,
-                            sent,
-                            txn,
-                        },
-                    );
-                }
-                Err(e @ (FrameLinkError::BusOff { .. } | FrameLinkError::ErrorPassive { .. })) => {
-                    self.link_error_state(&e);
-                    let _ = txn.reply.send(Attempt::Bus {
-                        state: self.state(),
-                        detail: e.to_string(),
-                        waited: Duration::ZERO,
-                    });
-                }
-                Err(e) => {
-                    let _ = txn.reply.send(Attempt::Link(e.to_string()));
-                    if matches!(e, FrameLinkError::Closed { .. }) {
-                        self.fatal(&e);
-                    }
-                }
-            }
-        }
-    }
-
-    fn last_error(&self) -> String {
-        lock(&self.shared.telemetry)
-            .bus
-            .last_error
-            .clone()
-            .unwrap_or_else(|| "no detail".into())
-    }
-
-    fn next_wake(&self, now: Instant) -> Instant {
-        let mut wake = now + self.config.poll_interval;
-        for f in self.in_flight.values() {
-            wake = wake.min(f.deadline);
-        }
-        if let Some(c) = &self.cyclic {
-            wake = wake.min(c.next_event());
-        }
-        for until in self.quiet.values() {
-            if *until > now {
-                wake = wake.min(*until);
-            }
-        }
-        wake.max(now)
-    }
-
-    fn dispatch(&mut self, frame: CanFrame) {
-        let now = Instant::now();
-        let decoded = Reply::from_frame(&frame);
-        {
-            let mut t = lock(&self.shared.telemetry);
-            t.bus.frames_received += 1;
-            match &decoded {
-                Ok(reply) => t.record(reply, now),
-                Err(_) => t.bus.malformed += 1,
-            }
-        }
-        if self.state() == BusState::BusOff {
-            self.set_state(BusState::Active, None);
-        }
-        if let (Ok(reply), Some(c)) = (&decoded, self.cyclic.as_mut())
-            && c.on_reply(reply, now)
-        {
-            return;
-        }
-        let key = frame.standard_raw_id().unwrap_or(0);
-        let Some(f) = self.in_flight.remove(&key) else {
-            lock(&self.shared.telemetry).bus.unmatched += 1;
-            return;
-        };
-        if let Ok(reply) = &decoded
-            && let Err(Unanswered::Other(reason)) = f.txn.expect.check(reply, &frame)
-        {
-            // A late reply to something else: the request is still waiting for its own.
-            tracing::debug!(%reason, "ignored a reply that answers another request");
-            lock(&self.shared.telemetry).bus.unmatched += 1;
-            self.in_flight.insert(key, f);
-            return;
-        }
-        let outcome = match decoded {
-            Ok(reply) => match f.txn.expect.check(&reply, &frame) {
-                Ok(()) => {
-                    let ok_write = matches!(
-                        reply,
-                        Reply::WriteAck { status, .. } if status.is_ok()
-                    );
-                    if ok_write && !f.txn.quiet_after.is_zero() {
-                        let joint = reply.joint().get();
-                        self.quiet.insert(joint, now + f.txn.quiet_after);
-                    }
-                    Attempt::Reply { reply }
-                }
-                Err(Unanswered::Bad(reason) | Unanswered::Other(reason)) => {
-                    Attempt::Mismatch(reason)
-                }
-            },
-            Err(e) => Attempt::Mismatch(e.to_string()),
-        };
-        let _ = f.txn.reply.send(outcome);
-    }
-
-    fn expire(&mut self, now: Instant) {
-        let expired: Vec<u16> = self
-            .in_flight
-            .iter()
-            .filter(|(_, f)| f.deadline <= now)
-            .map(|(k, _)| *k)
-            .collect();
-        let state = self.state();
-        for key in expired {
-            if let Some(f) = self.in_flight.remove(&key) {
-                let _ = f.txn.reply.send(Attempt::Timeout {
-                    waited: now.duration_since(f.sent),
-                    state,
-                });
-            }
-        }
-        self.quiet.retain(|_, until| *until > now);
-    }
-
-    fn link_error_state(&mut self, e: &FrameLinkError) {
-        let detail = Some(e.to_string());
-        let mut t = lock(&self.shared.telemetry);
-        match e {
-            FrameLinkError::BusOff { .. } => {
-                t.bus.bus_off_events += 1;
-                drop(t);
-                tracing::warn!(error = %e, "CAN bus-off");
-                self.set_state(BusState::BusOff, detail);
-            }
-            FrameLinkError::ErrorPassive { .. } => {
-                t.bus.error_passive_events += 1;
-                let state = t.bus.state;
-                drop(t);
-                self.passive_since = Some(Instant::now());
-                if state != BusState::BusOff {
-                    self.set_state(BusState::ErrorPassive, detail);
-                }
-            }
-            FrameLinkError::BusError { kind, .. } => {
-                t.bus.other_bus_errors += 1;
-                let state = t.bus.state;
-                drop(t);
-                match kind {
-                    BusErrorKind::Restarted => self.set_state(BusState::Active, detail),
-                    BusErrorKind::BusOff => self.set_state(BusState::BusOff, detail),
-                    BusErrorKind::ErrorPassive => {
-                        self.passive_since = Some(Instant::now());
-                        if state != BusState::BusOff {
-                            self.set_state(BusState::ErrorPassive, detail);
-                        }
-                    }
-                    BusErrorKind::ErrorWarning => {
-                        self.passive_since = Some(Instant::now());
-                        if state == BusState::Active {
-                            self.set_state(BusState::ErrorWarning, detail);
-                        }
-                    }
-                    BusErrorKind::NoAck | BusErrorKind::Other { .. } => {
-                        t = lock(&self.shared.telemetry);
-                        t.bus.last_error = detail;
-                    }
-                }
-            }
-            _ => {
-                t.bus.last_error = detail;
-            }
-        }
-    }
-
-    /// Handles a receive error; returns `true` if the thread must stop.
-    fn link_error(&mut self, e: FrameLinkError) -> bool {
-        match e {
-            FrameLinkError::BusOff { .. }
-            | FrameLinkError::ErrorPassive { .. }
-            | FrameLinkError::BusError { .. } => {
-                self.link_error_state(&e);
-                if self.state() == BusState::BusOff {
-                    let detail = e.to_string();
-                    let now = Instant::now();
-                    let failed: Vec<u16> = self.in_flight.keys().copied().collect();
-                    for key in failed {
-                        if let Some(f) = self.in_flight.remove(&key) {
-                            let _ = f.txn.reply.send(Attempt::Bus {
-                                state: BusState::BusOff,
-                                detail: detail.clone(),
-                                waited: now.duration_since(f.sent),
-                            });
-                        }
-                    }
-                }
-                false
-            }
-            FrameLinkError::Closed { .. } => {
-                self.fatal(&e);
-                true
-            }
-            other => {
-                // A transient operating-system error: report it, back off briefly.
-                tracing::warn!(error = %other, "WHJ bus receive error");
-                lock(&self.shared.telemetry).bus.last_error = Some(other.to_string());
-                std::thread::sleep(Duration::from_millis(1));
-                false
-            }
-        }
-    }
-
-    fn fatal(&mut self, e: &FrameLinkError) {
-        let detail = e.to_string();
-        tracing::error!(error = %detail, "WHJ bus link failed; bus thread stops");
-        *lock(&self.shared.fatal) = Some(detail.clone());
-        lock(&self.shared.telemetry).bus.last_error = Some(detail.clone());
-        self.fail_all(|_| Attempt::Link(detail.clone()));
-        if let Some(c) = self.cyclic.take() {
-            c.finish();
-        }
-        self.shared.cyclic_running.store(false, Ordering::Release);
-    }
-
-    fn fail_all(&mut self, outcome: impl Fn(&Txn) -> Attempt) {
-        for (_, f) in self.in_flight.drain() {
-            let _ = f.txn.reply.send(outcome(&f.txn));
-        }
-        for txn in self.queued.drain(..) {
-            let _ = txn.reply.send(outcome(&txn));
-        }
-        while let Ok(cmd) = self.rx.try_recv() {
-            match cmd {
-                Command::Transact(txn) => {
-                    let _ = txn.reply.send(outcome(&txn));
-                }
-                Command::StartCyclic(_, done) => {
-                    let _ = done.send(Err(WhjError::Closed));
-                }
-                Command::StopCyclic(done) => {
-                    let _ = done.send(());
-                }
-                Command::Broadcast(_, done) => {
-                    let _ = done.send(Err(WhjError::Closed));
-                }
-                Command::Shutdown => {}
-            }
+            wait = (c.last_drain + DRAIN_INTERVAL)
+                .saturating_duration_since(now)
+                .max(Duration::from_millis(1));
+            break;
         }
     }
 }

@@ -269,7 +269,7 @@ pub(crate) fn owed_expiry(period: Duration) -> Duration {
 /// Keep at most this many latency samples (about 30 min at 500 Hz).
 const MAX_SAMPLES: usize = 1_000_000;
 
-/// State shared by the loop (on the bus thread) and its [`Cyclic`] handle.
+/// State shared by the loop (in the bus's session) and its [`Cyclic`] handle.
 #[derive(Debug, Default)]
 pub(crate) struct CyclicShared {
     targets: Mutex<Vec<i32>>,
@@ -278,7 +278,7 @@ pub(crate) struct CyclicShared {
     cv: Condvar,
 }
 
-/// Everything the bus thread needs to start a loop.
+/// Everything the session needs to start a loop.
 #[derive(Debug)]
 pub(crate) struct CyclicSetup {
     config: CyclicConfig,
@@ -298,7 +298,7 @@ struct InCycle {
     last_reply: Option<Instant>,
 }
 
-/// The loop as the bus thread runs it.
+/// The loop as the session runs it.
 #[derive(Debug)]
 pub(crate) struct CyclicRun {
     config: CyclicConfig,

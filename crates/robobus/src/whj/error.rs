@@ -211,14 +211,15 @@ pub enum WhjError {
         /// Why.
         reason: String,
     },
-    /// The link failed (closed, I/O error); the bus thread has stopped.
+    /// The link failed (closed, I/O error); the bus has stopped.
     #[error("WHJ bus link failed: {detail}")]
     Link {
         /// The link's message.
         detail: String,
     },
-    /// The bus thread is gone (the bus was closed or its thread panicked).
-    #[error("WHJ bus thread is not running")]
+    /// The bus stopped working without a link error (a request that outlived every
+    /// deadline the session gives it).
+    #[error("WHJ bus is not running")]
     Closed,
 }
 

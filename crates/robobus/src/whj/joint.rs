@@ -2,7 +2,6 @@
 
 use core::time::Duration;
 use std::sync::OnceLock;
-use std::time::Instant;
 
 use robobus_whj::registers::{self, Half, Persistence, RegisterInfo, UniqueId, Unit};
 use robobus_whj::units::{
@@ -13,8 +12,9 @@ use robobus_whj::{
     WorkMode, WriteData,
 };
 
-use super::bus::{Attempt, Expect, JointBus};
+use super::bus::JointBus;
 use super::error::WhjError;
+use super::session::{Attempt, Expect};
 use super::trajectory::{MotionLimits, Profile};
 
 /// What a joint says about itself (registers 0x00..=0x07 and 0x2A..=0x2F).
@@ -127,7 +127,7 @@ impl<'a> Joint<'a> {
     /// passes. Any answer counts: a joint already in its application acknowledges too.
     pub fn release_iap(&self) -> Result<(), WhjError> {
         let cfg = self.bus.config();
-        let start = Instant::now();
+        let start = self.bus.now();
         let mut attempts = 0;
         loop {
             attempts += 1;
@@ -147,14 +147,16 @@ impl<'a> Joint<'a> {
                     return Err(attempt_error(self.id, &describe(&req), &req, a, attempts));
                 }
                 Attempt::Mismatch(_) | Attempt::Timeout { .. } | Attempt::Bus { .. } => {
-                    if start.elapsed() >= cfg.connect_timeout {
+                    let now = self.bus.now();
+                    let waited = now.saturating_duration_since(start);
+                    if waited >= cfg.connect_timeout {
                         return Err(WhjError::Silent {
                             joint: self.id,
-                            waited: start.elapsed(),
+                            waited,
                             attempts,
                         });
                     }
-                    std::thread::sleep(Duration::from_millis(5));
+                    self.bus.sleep_until(now + Duration::from_millis(5));
                 }
             }
         }
@@ -561,7 +563,7 @@ impl<'a> Joint<'a> {
                     reason: format!("{}: move to {goal} deg needs too many set-points", self.id),
                 }
             })?;
-        let started = Instant::now();
+        let started = self.bus.now();
         let mut next = started;
         for cmd in points {
             let setpoint = Position::from_degrees(cmd).map_err(|source| WhjError::Unit {
@@ -570,34 +572,32 @@ impl<'a> Joint<'a> {
             })?;
             self.command_position(setpoint)?;
             next += limits.period;
-            let now = Instant::now();
-            if next > now {
-                std::thread::sleep(next - now);
-            }
+            self.bus.sleep_until(next);
         }
-        let settle = Instant::now();
+        let settle = self.bus.now();
         loop {
             let st = self.status()?;
             if (st.position.degrees() - goal).abs() <= limits.tolerance_deg {
                 return Ok(st);
             }
-            if settle.elapsed() > limits.settle_timeout {
+            let now = self.bus.now();
+            if now.saturating_duration_since(settle) > limits.settle_timeout {
                 return Err(WhjError::MoveIncomplete {
                     joint: self.id,
                     target_deg: goal,
                     actual_deg: st.position.degrees(),
-                    waited: started.elapsed(),
+                    waited: now.saturating_duration_since(started),
                     code: st.error,
                 });
             }
-            std::thread::sleep(limits.period);
+            self.bus.sleep_until(now + limits.period);
         }
     }
 
     fn recent_position(&self) -> Result<Position, WhjError> {
         let t = *self.bus.telemetry().joint(self.id);
         if let (Some(p), Some(at)) = (t.position, t.updated)
-            && at.elapsed() < Duration::from_millis(100)
+            && self.bus.now().saturating_duration_since(at) < Duration::from_millis(100)
         {
             return Ok(p);
         }

@@ -1,9 +1,9 @@
-//! WHJ joints (RealMan, CAN FD): a [`JointBus`] owns the frame link on its own thread,
-//! [`Joint`] handles borrow it.
+//! WHJ joints (RealMan, CAN FD): a [`JointBus`] owns the frame link and a sans-IO client
+//! session, [`Joint`] handles borrow it.
 //!
 //! - [`JointBus::open`] takes any [`FrameLink`](robobus_link::FrameLink): `SocketCAN`
 //!   on real hardware, the python-can compatible UDP bus, or an in-memory bus with the
-//!   simulator on the other end: the code path is the same. The bus thread matches
+//!   simulator on the other end: the code path is the same. The session matches
 //!   replies to requests by CAN ID and function, applies per-request timeouts and the
 //!   documented settle times, surfaces bus errors and waits for recovery, and keeps
 //!   [`Telemetry`] (the small command / telemetry interface that displays and bridges
@@ -58,6 +58,7 @@ mod bus;
 mod cyclic;
 mod error;
 mod joint;
+mod session;
 mod trajectory;
 
 pub use bus::{
