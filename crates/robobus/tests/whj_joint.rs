@@ -1,18 +1,18 @@
-//! Every public `Joint` operation against the simulated joints, over the in-process
-//! memory bus with the simulator serving on its own thread (the code path a real link
-//! uses: `JointBus` → `FrameLink` → `serve` → simulated joint firmware).
+//! Every public `Joint` operation against the simulated joints, on the simulator's
+//! virtual clock (`WhjSimLink`: the client drives the simulated bus itself, no thread, no
+//! wall clock), so times and counts are exact.
 
 #![allow(clippy::unwrap_used, clippy::panic, clippy::float_cmp)]
 
 mod whj_common;
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-use robobus::whj::{JointBus, JointBusConfig, MotionLimits, WhjError};
+use robobus::whj::{JointBusConfig, MotionLimits, WhjError};
 use robobus_sim::whj::{JointConfig, WhjModel};
 use robobus_whj::units::{Position, TargetSpeed};
 use robobus_whj::{ErrorCode, JointId, Reply, Request, WorkMode};
-use whj_common::{chain, configs, memory};
+use whj_common::{chain, configs, virtual_bus, virtual_bus_with};
 
 fn j(n: u8) -> JointId {
     JointId::new(n).unwrap()
@@ -26,7 +26,7 @@ fn deg(d: f64) -> Position {
 fn strict() -> JointBusConfig {
     JointBusConfig {
         retries: 0,
-        ..whj_common::config()
+        ..whj_common::virtual_config()
     }
 }
 
@@ -34,8 +34,7 @@ fn strict() -> JointBusConfig {
 fn connect_releases_iap_and_identifies() {
     let mut cfg = JointConfig::new(3, WhjModel::Whj60);
     cfg.unique_id = [0x1111, 0x2222, 0x3333, 0x4444, 0x5555, 0x6666];
-    let (_sim, link) = memory(configs(vec![cfg]));
-    let bus = JointBus::open_with(link, strict()).unwrap();
+    let (bus, _sim) = virtual_bus_with(configs(vec![cfg]), strict());
 
     // Still in the bootloader: a read is dropped, and the timeout names the joint and
     // the reply it waited for.
@@ -70,35 +69,38 @@ fn connect_releases_iap_and_identifies() {
 fn connect_keeps_trying_through_a_staggered_power_up() {
     let mut cfg = JointConfig::new(2, WhjModel::Whj10B);
     cfg.boot.boot_delay = Duration::from_millis(300);
-    let (_sim, link) = memory(configs(vec![cfg]));
-    let bus = JointBus::open_with(link, whj_common::config()).unwrap();
-    let t = Instant::now();
+    let (bus, _sim) = virtual_bus(configs(vec![cfg]));
+    let t = bus.now();
     let joint = bus.joint(j(2)).unwrap();
+    // The joint answers from 300 ms on; a release goes out at most one reply timeout plus
+    // the 5 ms pause later and is answered within a millisecond.
+    let took = bus.now() - t;
+    let timeout = bus.config().reply_timeout;
     assert!(
-        t.elapsed() >= Duration::from_millis(250),
-        "{:?}",
-        t.elapsed()
+        took >= Duration::from_millis(300) && took <= Duration::from_millis(306) + timeout,
+        "{took:?}"
     );
     assert_eq!(joint.identity().unwrap().model.name(), "WHJ10");
 }
 
 #[test]
 fn a_silent_joint_gives_a_clear_message() {
-    let (_sim, link) = memory(chain(2));
-    let bus = JointBus::open_with(
-        link,
-        // Nothing answers: the default reply timeout, several attempts within 150 ms.
+    let (bus, _sim) = virtual_bus_with(
+        chain(2),
+        // Nothing answers: the default reply timeout, 150 ms of attempts.
         JointBusConfig {
             connect_timeout: Duration::from_millis(150),
             ..JointBusConfig::default()
         },
-    )
-    .unwrap();
-    let t = Instant::now();
+    );
+    let t = bus.now();
     let err = bus.joint(j(5)).unwrap_err();
-    assert!(t.elapsed() < Duration::from_secs(2));
+    // Attempt k ends at 20 k + 5 (k - 1) ms (20 ms timeout, 5 ms pause): the first end at
+    // or past 150 ms is the seventh, at 170 ms.
+    assert_eq!(bus.now() - t, Duration::from_millis(170));
     assert!(
-        matches!(err, WhjError::Silent { joint, attempts, .. } if joint == j(5) && attempts >= 2)
+        matches!(err, WhjError::Silent { joint, attempts: 7, waited } if joint == j(5) && waited == Duration::from_millis(170)),
+        "{err:?}"
     );
     let msg = err.to_string();
     for needle in ["J5", "IAP", "node ID", "1 Mbit/s", "5 Mbit/s"] {
@@ -110,8 +112,7 @@ fn a_silent_joint_gives_a_clear_message() {
 
 #[test]
 fn enable_disable_modes_and_settle_times() {
-    let (sim, link) = memory(chain(1));
-    let bus = JointBus::open_with(link, strict()).unwrap();
+    let (bus, sim) = virtual_bus_with(chain(1), strict());
     let joint = bus.joint(j(1)).unwrap();
     assert_eq!(joint.mode().unwrap(), WorkMode::Position);
     joint.set_mode(WorkMode::Speed).unwrap();
@@ -125,24 +126,28 @@ fn enable_disable_modes_and_settle_times() {
     assert!(joint.is_enabled().unwrap());
     assert!(joint.status().unwrap().is_enabled());
     // The simulator drops every frame for 5 ms after a disable; with no retries, the read
-    // right after only succeeds because the bus holds it back for the settle time.
+    // right after only succeeds because the bus holds it back for the settle time: it
+    // goes out exactly 5 ms after the disable's acknowledgement and is answered within
+    // 1 ms.
     for _ in 0..3 {
         joint.disable().unwrap();
-        let t = Instant::now();
+        let t = bus.now();
         assert!(!joint.is_enabled().unwrap());
-        assert!(t.elapsed() >= Duration::from_millis(4), "{:?}", t.elapsed());
+        let took = bus.now() - t;
+        assert!(
+            took > Duration::from_millis(5) && took < Duration::from_millis(6),
+            "{took:?}"
+        );
         joint.enable().unwrap();
     }
     joint.disable().unwrap();
     drop(bus);
-    let (sim_bus, _) = sim.stop();
-    assert!(!sim_bus.joint(1).unwrap().state().enabled);
+    assert!(!sim.with_bus(|b| b.joint(1).unwrap().state().enabled));
 }
 
 #[test]
 fn save_to_flash_is_refused_while_enabled_and_settles_after() {
-    let (sim, link) = memory(chain(1));
-    let bus = JointBus::open_with(link, strict()).unwrap();
+    let (bus, sim) = virtual_bus_with(chain(1), strict());
     let joint = bus.joint(j(1)).unwrap();
     joint.set_position_limits(deg(-45.0), deg(45.0)).unwrap();
     joint.enable().unwrap();
@@ -158,27 +163,22 @@ fn save_to_flash_is_refused_while_enabled_and_settles_after() {
     joint.disable().unwrap();
     joint.save_to_flash().unwrap();
     // 50 ms busy after the save: the next request waits instead of being dropped.
-    let t = Instant::now();
+    let t = bus.now();
     assert_eq!(joint.position_limits().unwrap(), (deg(-45.0), deg(45.0)));
+    let took = bus.now() - t;
     assert!(
-        t.elapsed() >= Duration::from_millis(45),
-        "{:?}",
-        t.elapsed()
+        took > Duration::from_millis(50) && took < Duration::from_millis(51),
+        "{took:?}"
     );
     // The limits survive a power cycle now.
-    drop(bus);
-    let (mut sim_bus, _) = sim.stop();
-    sim_bus.power_cycle_all();
-    let (_sim, link) = memory(sim_bus);
-    let bus = JointBus::open_with(link, strict()).unwrap();
+    sim.with_bus(robobus_sim::whj::WhjBus::power_cycle_all);
     let joint = bus.joint(j(1)).unwrap();
     assert_eq!(joint.position_limits().unwrap(), (deg(-45.0), deg(45.0)));
 }
 
 #[test]
 fn limits_and_registers_by_name_with_units() {
-    let (_sim, link) = memory(chain(1));
-    let bus = JointBus::open_with(link, whj_common::config()).unwrap();
+    let (bus, _sim) = virtual_bus(chain(1));
     let joint = bus.joint(j(1)).unwrap();
     assert_eq!(joint.position_limits().unwrap(), (deg(-360.0), deg(360.0)));
     joint.set_position_limits(deg(-90.0), deg(120.5)).unwrap();
@@ -252,8 +252,7 @@ fn limits_and_registers_by_name_with_units() {
 
 #[test]
 fn position_commands_step_limit_and_smooth_moves() {
-    let (_sim, link) = memory(chain(1));
-    let bus = JointBus::open_with(link, whj_common::config()).unwrap();
+    let (bus, _sim) = virtual_bus(chain(1));
     let joint = bus.joint(j(1)).unwrap();
     joint.set_mode(WorkMode::Position).unwrap();
     joint.enable().unwrap();
@@ -263,7 +262,7 @@ fn position_commands_step_limit_and_smooth_moves() {
         fb.position.degrees().abs() < 0.01,
         "feedback is the position before moving"
     );
-    std::thread::sleep(Duration::from_millis(600));
+    bus.sleep_until(bus.now() + Duration::from_millis(600));
     assert!((joint.position().unwrap().degrees() - 4.0).abs() < 0.05);
 
     // 30° away: refused on the host before anything is sent.
@@ -279,12 +278,12 @@ fn position_commands_step_limit_and_smooth_moves() {
         max_accel_deg_s2: 360.0,
         ..MotionLimits::default()
     };
-    let t = Instant::now();
+    let t = bus.now();
     let fb = joint.move_to(deg(90.0), limits).unwrap();
     assert!((fb.position.degrees() - 90.0).abs() <= 0.1, "{fb:?}");
     assert!(fb.error.is_empty(), "{:?}", fb.error);
     assert!(
-        t.elapsed() >= Duration::from_millis(900),
+        bus.now() - t >= Duration::from_millis(950),
         "a 86° move at 90 °/s takes > 0.95 s"
     );
     let back = joint.move_to(deg(-20.0), limits).unwrap();
@@ -302,8 +301,7 @@ fn position_commands_step_limit_and_smooth_moves() {
 
 #[test]
 fn step_error_clear_error_and_refused_enable() {
-    let (_sim, link) = memory(chain(1));
-    let bus = JointBus::open_with(link, whj_common::config()).unwrap();
+    let (bus, _sim) = virtual_bus(chain(1));
     let joint = bus.joint(j(1)).unwrap();
     joint.enable().unwrap();
     // Bypass the host's check with a raw request: a 20° step latches 0x4000.
@@ -332,12 +330,11 @@ fn step_error_clear_error_and_refused_enable() {
 
 #[test]
 fn set_zero_makes_the_present_position_zero() {
-    let (_sim, link) = memory(configs(vec![{
+    let (bus, _sim) = virtual_bus(configs(vec![{
         let mut c = JointConfig::new(1, WhjModel::Whj30);
         c.initial_position_deg = 12.5;
         c
     }]));
-    let bus = JointBus::open_with(link, whj_common::config()).unwrap();
     let joint = bus.joint(j(1)).unwrap();
     assert!((joint.position().unwrap().degrees() - 12.5).abs() < 0.01);
     joint.set_zero().unwrap();
@@ -346,8 +343,7 @@ fn set_zero_makes_the_present_position_zero() {
 
 #[test]
 fn speed_and_current_commands_with_feedback() {
-    let (_sim, link) = memory(chain(2));
-    let bus = JointBus::open_with(link, whj_common::config()).unwrap();
+    let (bus, _sim) = virtual_bus(chain(2));
     let joint = bus.joint(j(2)).unwrap();
     joint.set_mode(WorkMode::Speed).unwrap();
     joint.enable().unwrap();
@@ -355,12 +351,12 @@ fn speed_and_current_commands_with_feedback() {
         .command_speed(TargetSpeed::from_rpm(5.0).unwrap())
         .unwrap();
     assert!(fb.is_enabled());
-    std::thread::sleep(Duration::from_millis(500));
+    bus.sleep_until(bus.now() + Duration::from_millis(500));
     let rpm = joint.speed().unwrap().rpm();
     assert!((rpm - 5.0).abs() < 0.5, "{rpm} RPM");
     let fb = joint.command_speed(TargetSpeed(0)).unwrap();
     assert!((fb.speed.rpm() - 5.0).abs() < 0.5);
-    std::thread::sleep(Duration::from_millis(300));
+    bus.sleep_until(bus.now() + Duration::from_millis(300));
     assert!(joint.speed().unwrap().rpm().abs() < 0.2);
 
     joint.disable().unwrap();
@@ -377,8 +373,7 @@ fn speed_and_current_commands_with_feedback() {
 
 #[test]
 fn status_and_telemetry() {
-    let (_sim, link) = memory(chain(2));
-    let bus = JointBus::open_with(link, whj_common::config()).unwrap();
+    let (bus, _sim) = virtual_bus(chain(2));
     let joint = bus.joint(j(1)).unwrap();
     joint.disable().unwrap();
     let s = joint.status().unwrap();
@@ -394,7 +389,8 @@ fn status_and_telemetry() {
     let jt = t.joint(j(1));
     assert_eq!(jt.enabled, Some(false));
     assert_eq!(jt.voltage, Some(s.voltage));
-    assert!(jt.replies >= 4);
+    // IAP release, the two identity reads, the disable and the status query.
+    assert_eq!(jt.replies, 5);
     assert!(t.joint(j(2)).updated.is_none());
     assert_eq!(t.bus.state, robobus::whj::BusState::Active);
     assert_eq!(t.bus.frames_sent, t.bus.frames_received);
@@ -402,18 +398,18 @@ fn status_and_telemetry() {
     assert_eq!(joint.id(), j(1));
     assert_eq!(
         joint.bus().config().reply_timeout,
-        whj_common::REPLY_TIMEOUT
+        JointBusConfig::default().reply_timeout
     );
 
     // Raw requests: one attempt with the timeout given; broadcast frames are refused.
-    let t = Instant::now();
+    let t = bus.now();
     let err = bus
         .request_with_timeout(
             Request::StatusQuery { joint: j(9) },
             Duration::from_millis(5),
         )
         .unwrap_err();
-    assert!(t.elapsed() >= Duration::from_millis(5) && t.elapsed() < Duration::from_secs(2));
+    assert_eq!(bus.now() - t, Duration::from_millis(5));
     assert!(
         matches!(
             err,
@@ -436,8 +432,7 @@ fn status_and_telemetry() {
 
 #[test]
 fn handles_work_from_several_threads() {
-    let (_sim, link) = memory(chain(3));
-    let bus = JointBus::open_with(link, whj_common::config()).unwrap();
+    let (bus, _sim) = virtual_bus(chain(3));
     for n in 1..=3 {
         bus.joint(j(n)).unwrap();
     }
@@ -459,4 +454,89 @@ fn handles_work_from_several_threads() {
             });
         }
     });
+}
+
+#[test]
+fn pipelined_requests_go_out_together_and_each_reply_is_credited_to_its_own() {
+    let (bus, sim) = virtual_bus(chain(3).with_trace());
+    for n in 1..=3 {
+        bus.joint(j(n)).unwrap();
+    }
+    let traced = sim.with_bus(|b| b.trace().len());
+    let t = bus.now();
+    // Joint 4 does not exist; the three others answer, each its own request.
+    let requests = [4, 3, 1, 2].map(|n| Request::StatusQuery { joint: j(n) });
+    let replies = bus.request_many(&requests).unwrap();
+    assert!(
+        matches!(&replies[0], Err(WhjError::Timeout { joint, attempts: 1, reply_id: 0x704, .. }) if *joint == j(4)),
+        "{:?}",
+        replies[0]
+    );
+    for (reply, n) in replies[1..].iter().zip([3, 1, 2]) {
+        assert!(
+            matches!(reply, Ok(Reply::Status { joint, .. }) if *joint == j(n)),
+            "{reply:?}"
+        );
+    }
+    // The batch took exactly the one reply timeout of the silent joint.
+    assert_eq!(bus.now() - t, bus.config().reply_timeout);
+    // All four requests were on the wire before the first reply (send all, then collect).
+    let wire = sim.with_bus(|b| b.trace()[traced..].to_vec());
+    let sources: Vec<bool> = wire
+        .iter()
+        .map(|w| w.source == robobus_sim::whj::Node::Host)
+        .collect();
+    assert_eq!(sources, [true, true, true, true, false, false, false]);
+    // Broadcast requests and oversized batches are refused before anything is sent.
+    let sent = bus.telemetry().bus.frames_sent;
+    let broadcast = Request::BroadcastStatus(robobus_whj::BroadcastStatus::new(
+        robobus_whj::ReplyMask::ALL,
+    ));
+    assert!(matches!(
+        bus.request_many(&[requests[1], broadcast]),
+        Err(WhjError::InvalidConfig { .. })
+    ));
+    let many = vec![requests[1]; robobus::whj::MAX_PIPELINED + 1];
+    assert!(matches!(
+        bus.request_many(&many),
+        Err(WhjError::InvalidConfig { .. })
+    ));
+    assert_eq!(bus.telemetry().bus.frames_sent, sent);
+}
+
+#[test]
+fn connecting_many_joints_costs_an_absent_ones_connect_timeout_once() {
+    let (bus, _sim) = virtual_bus_with(
+        chain(3),
+        JointBusConfig {
+            connect_timeout: Duration::from_millis(150),
+            ..JointBusConfig::default()
+        },
+    );
+    let t = bus.now();
+    let joints = bus.joints(&[j(1), j(5), j(2), j(6), j(3)]);
+    // Two absent IDs, tried together: 7 attempts each, 170 ms (see
+    // a_silent_joint_gives_a_clear_message), then the three joints found are identified.
+    let took = bus.now() - t;
+    assert!(
+        took >= Duration::from_millis(170) && took < Duration::from_millis(175),
+        "{took:?}"
+    );
+    let ok: Vec<u8> = joints
+        .iter()
+        .filter_map(|r| r.as_ref().ok().map(|jt| jt.id().get()))
+        .collect();
+    assert_eq!(ok, [1, 2, 3]);
+    for (r, n) in [(&joints[1], 5), (&joints[3], 6)] {
+        assert!(
+            matches!(r, Err(WhjError::Silent { joint, attempts: 7, .. }) if *joint == j(n)),
+            "{:?}",
+            r.as_ref().err()
+        );
+    }
+    assert_eq!(
+        joints[2].as_ref().unwrap().identity().unwrap().node_id,
+        2,
+        "identified at connect"
+    );
 }

@@ -180,11 +180,15 @@ pub fn joint_status(j: &Joint<'_>) -> Result<StatusReport, WhjError> {
     })
 }
 
-/// `whj status`: connects each joint and reads its status; a silent joint is a failed
-/// result, the others are still read.
+/// `whj status`: connects the joints (IAP releases pipelined, [`JointBus::joints`]) and
+/// reads each one's status; a silent joint is a failed result, the others are still read.
 pub fn status(bus: &JointBus, ids: &[JointId]) -> Vec<DeviceResult<u8, StatusReport>> {
-    per_joint(ids, |id| {
-        let j = bus.joint(id).map_err(whj)?;
+    let mut joints = bus.joints(ids).into_iter();
+    per_joint(ids, |_| {
+        let j = joints
+            .next()
+            .unwrap_or(Err(WhjError::Closed))
+            .map_err(whj)?;
         joint_status(&j).map_err(whj)
     })
 }
@@ -1185,7 +1189,7 @@ pub fn duplicates_of(bus: &JointBus, id: JointId) -> Option<Duplicate> {
         }
         let _ = j.read_words(robobus_whj::registers::addr::MOT_MODEL_ID, 6);
         // The second joint's reply comes after the first one's.
-        std::thread::sleep(Duration::from_millis(5));
+        bus.sleep_until(bus.now() + Duration::from_millis(5));
     }
     bus.telemetry()
         .joint(id)
@@ -1196,9 +1200,10 @@ pub fn duplicates_of(bus: &JointBus, id: JointId) -> Option<Duplicate> {
         })
 }
 
-/// `whj scan`: connects each ID (IAP release, identify; the bus's connect timeout is how
-/// long each absent ID costs) and checks each joint found for a second joint at its ID.
-/// IDs that stay silent are left out of `found`; other failures are kept.
+/// `whj scan`: connects every ID at once (IAP releases pipelined, then identify; the bus's
+/// connect timeout is what the absent IDs cost, once for all of them) and checks each
+/// joint found for a second joint at its ID. IDs that stay silent are left out of
+/// `found`; other failures are kept.
 pub fn scan(
     bus: &JointBus,
     ids: &[JointId],
@@ -1209,7 +1214,14 @@ pub fn scan(
         duplicates: Vec::new(),
         probed: ids.len(),
     };
-    for (k, &id) in ids.iter().enumerate() {
+    if control.stopped() {
+        return Err(OpError::Interrupted {
+            detail: Some(format!("scan stopped after 0 of {} IDs", ids.len())),
+        });
+    }
+    control.report(&Progress::new("scan", 0, Some(ids.len() as u64)).with_note("connecting"));
+    let connected = bus.joints(ids);
+    for (k, (&id, joint)) in ids.iter().zip(connected).enumerate() {
         if control.stopped() {
             return Err(OpError::Interrupted {
                 detail: Some(format!("scan stopped after {k} of {} IDs", ids.len())),
@@ -1219,7 +1231,7 @@ pub fn scan(
             &Progress::new("scan", k as u64, Some(ids.len() as u64))
                 .with_note(format!("J{}", id.get())),
         );
-        match bus.joint(id) {
+        match joint {
             Ok(j) => {
                 let ident = j.identity().map_err(whj)?;
                 report
@@ -1788,7 +1800,7 @@ pub fn broadcast_status(
     let request = Request::BroadcastStatus(robobus_whj::broadcast::BroadcastStatus::new(mask));
     let sent = bus.send_broadcast(request).map_err(whj)?;
     let window = broadcast_window(bus);
-    std::thread::sleep(window);
+    bus.sleep_until(sent + window);
     let t = bus.telemetry();
     Ok(ids
         .iter()

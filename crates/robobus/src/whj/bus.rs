@@ -368,6 +368,9 @@ struct Core {
     closed: bool,
 }
 
+/// The most requests [`JointBus::request_many`] takes in one batch.
+pub const MAX_PIPELINED: usize = 256;
+
 /// How often the bus thread reads unsolicited frames while nothing else uses the bus
 /// (rarely: on a link whose receive timeout rounds up to the kernel tick, an empty read
 /// costs a tick).
@@ -380,8 +383,9 @@ impl Core {
 
     /// One step of the session: time passes, due frames go out, then one frame (or
     /// error) is received, or the link's clock is left to run, until the next event or
-    /// `until`, whichever is first.
-    fn step(&mut self, until: Instant) {
+    /// `until`, whichever is first. With `listen`, the step receives even when the session
+    /// awaits nothing (frames that answer a broadcast land in the telemetry).
+    fn step(&mut self, until: Instant, listen: bool) {
         if self.closed {
             return;
         }
@@ -401,7 +405,7 @@ impl Core {
         }
         let now = self.link.now();
         let wake = self.session.next_wake(now).min(until).max(now);
-        if self.session.awaiting() {
+        if listen || self.session.awaiting() {
             self.last_drain = now;
             match self.link.recv(wake) {
                 Ok(rx) => {
@@ -511,8 +515,8 @@ impl JointBus {
         self.core.lock().now()
     }
 
-    /// Waits until the bus's clock reaches `deadline`, handling frames meanwhile (the
-    /// cyclic loop keeps its ticks). On a simulated bus on virtual time this returns as
+    /// Waits until the bus's clock reaches `deadline`, receiving frames meanwhile (into
+    /// [`Telemetry`]; the cyclic loop keeps its ticks). On a simulated bus on virtual time this returns as
     /// soon as simulated time got there.
     pub fn sleep_until(&self, deadline: Instant) {
         loop {
@@ -520,7 +524,7 @@ impl JointBus {
             if core.now() >= deadline || core.closed {
                 return;
             }
-            core.step(deadline);
+            core.step(deadline, true);
         }
     }
     /// Connects to joint `id`: releases it from the bootloader (`IAP_FLAG := 0`, repeated
@@ -529,6 +533,13 @@ impl JointBus {
     /// [`WhjError::Silent`], which names the likely causes (IAP, ID, bit rate).
     pub fn joint(&self, id: JointId) -> Result<Joint<'_>, WhjError> {
         Joint::connect(self, id)
+    }
+
+    /// Connects many joints at once ([`JointBus::joint`] for each, with the IAP releases
+    /// pipelined: an absent joint costs the connect timeout once for the whole batch, not
+    /// once per joint). Results in `ids` order.
+    pub fn joints(&self, ids: &[JointId]) -> Vec<Result<Joint<'_>, WhjError>> {
+        Joint::connect_many(self, ids)
     }
 
     /// A handle for joint `id` without the connect handshake (for a joint known to run its
@@ -678,24 +689,129 @@ impl JointBus {
         submitted: Instant,
         timeout: Duration,
     ) -> Result<Attempt, WhjError> {
+        let mut out = self.finish_all(&[id], submitted, timeout);
+        out.pop().unwrap_or_else(|| Err(self.closed_error()))
+    }
+
+    /// Drives the session until every transaction of `ids` is finished; their outcomes in
+    /// the same order.
+    fn finish_all(
+        &self,
+        ids: &[TxnId],
+        submitted: Instant,
+        timeout: Duration,
+    ) -> Vec<Result<Attempt, WhjError>> {
         // Every transaction has a deadline, so the session always finishes it; the limit
-        // only guards against a session that lost it.
+        // only guards against a session that lost one. Requests on one reply ID go one
+        // after another, so the limit grows with the batch.
+        let batch = u32::try_from(ids.len().clamp(1, MAX_PIPELINED)).unwrap_or(1);
         let limit = submitted
-            + timeout
+            + timeout * batch
             + self.config.bus_recovery_timeout
             + self.config.save_settle
             + Duration::from_secs(2);
+        let mut out: Vec<Option<Result<Attempt, WhjError>>> = ids.iter().map(|_| None).collect();
         loop {
             let mut core = self.core.lock();
-            if let Some(outcome) = core.session.take(id) {
-                return Ok(outcome);
+            for (slot, id) in out.iter_mut().zip(ids) {
+                if slot.is_none() {
+                    *slot = core.session.take(*id).map(Ok);
+                }
+            }
+            if out.iter().all(Option::is_some) {
+                break;
             }
             if core.closed || core.now() >= limit {
-                core.session.abandon(id);
-                return Err(self.closed_error());
+                for (slot, id) in out.iter_mut().zip(ids) {
+                    if slot.is_none() {
+                        core.session.abandon(*id);
+                        *slot = Some(Err(self.closed_error()));
+                    }
+                }
+                break;
             }
-            core.step(limit);
+            core.step(limit, false);
         }
+        out.into_iter()
+            .map(|o| o.unwrap_or_else(|| Err(self.closed_error())))
+            .collect()
+    }
+
+    /// One attempt of each of `requests`, pipelined: all are queued at once, each goes out
+    /// as soon as its reply ID is free (at once for requests to different joints), and
+    /// each reply is credited to its own request only. Outcomes in request order.
+    pub(crate) fn attempt_many(
+        &self,
+        requests: &[Request],
+        timeout: Duration,
+    ) -> Result<Vec<Result<Attempt, WhjError>>, WhjError> {
+        let mut txns = Vec::with_capacity(requests.len());
+        for request in requests {
+            let expect = Expect::of(request).ok_or_else(|| WhjError::InvalidConfig {
+                reason: "broadcast frames are not single requests".into(),
+            })?;
+            txns.push((*request, expect));
+        }
+        let mut core = self.core.lock();
+        if core.closed {
+            return Err(self.closed_error());
+        }
+        let submitted = core.now();
+        let ids: Vec<TxnId> = txns
+            .into_iter()
+            .map(|(request, expect)| {
+                core.session.submit(Txn {
+                    request,
+                    expect,
+                    timeout,
+                    quiet_after: Duration::ZERO,
+                    submitted,
+                })
+            })
+            .collect();
+        drop(core);
+        Ok(self.finish_all(&ids, submitted, timeout))
+    }
+
+    /// Point-to-point requests to many joints at once (send all, then collect): one
+    /// attempt each, no retry, timeout [`JointBusConfig::reply_timeout`]. Each reply is
+    /// credited only to the request it answers; results are in request order, a
+    /// `CMD_ERR` reply returned as a reply. At most [`MAX_PIPELINED`] requests; broadcast
+    /// requests are refused ([`WhjError::InvalidConfig`]).
+    pub fn request_many(
+        &self,
+        requests: &[Request],
+    ) -> Result<Vec<Result<Reply, WhjError>>, WhjError> {
+        if requests.len() > MAX_PIPELINED {
+            return Err(WhjError::InvalidConfig {
+                reason: format!(
+                    "{} requests given, at most {MAX_PIPELINED} go in one pipelined batch",
+                    requests.len()
+                ),
+            });
+        }
+        let mut joints = Vec::with_capacity(requests.len());
+        for r in requests {
+            joints.push(r.joint().ok_or_else(|| WhjError::InvalidConfig {
+                reason:
+                    "broadcast frames are sent by the cyclic loop, not as single requests".into(),
+            })?);
+        }
+        let outcomes = self.attempt_many(requests, self.config.reply_timeout)?;
+        Ok(outcomes
+            .into_iter()
+            .zip(requests.iter().zip(joints))
+            .map(|(outcome, (request, joint))| match outcome? {
+                Attempt::Reply { reply } => Ok(reply),
+                other => Err(super::joint::attempt_error(
+                    joint,
+                    &super::joint::describe(request),
+                    request,
+                    other,
+                    1,
+                )),
+            })
+            .collect())
     }
 
     pub(crate) fn start_cyclic(&self, setup: CyclicSetup) -> Result<(), WhjError> {
@@ -741,7 +857,7 @@ fn background(core: &CoreLock, wake: &Receiver<Wake>) {
             }
             if c.session.cyclic_running() {
                 let until = c.now() + DRAIN_INTERVAL;
-                c.step(until);
+                c.step(until, false);
                 drop(c);
                 // Callers waiting for the lock go first.
                 for _ in 0..1000 {

@@ -126,40 +126,28 @@ impl<'a> Joint<'a> {
     /// joint answers or [`JointBusConfig::connect_timeout`](super::JointBusConfig::connect_timeout)
     /// passes. Any answer counts: a joint already in its application acknowledges too.
     pub fn release_iap(&self) -> Result<(), WhjError> {
-        let cfg = self.bus.config();
-        let start = self.bus.now();
-        let mut attempts = 0;
-        loop {
-            attempts += 1;
-            match self.bus.attempt(
-                Request::start_application(self.id),
-                cfg.reply_timeout,
-                Duration::ZERO,
-            )? {
-                Attempt::Reply { reply, .. } => {
-                    if !matches!(reply, Reply::WriteAck { status, .. } if status.is_ok()) {
-                        tracing::warn!(joint = %self.id, ?reply, "IAP release not acknowledged with success; continuing");
-                    }
-                    return Ok(());
-                }
-                a @ (Attempt::Link(_) | Attempt::Busy) => {
-                    let req = Request::start_application(self.id);
-                    return Err(attempt_error(self.id, &describe(&req), &req, a, attempts));
-                }
-                Attempt::Mismatch(_) | Attempt::Timeout { .. } | Attempt::Bus { .. } => {
-                    let now = self.bus.now();
-                    let waited = now.saturating_duration_since(start);
-                    if waited >= cfg.connect_timeout {
-                        return Err(WhjError::Silent {
-                            joint: self.id,
-                            waited,
-                            attempts,
-                        });
-                    }
-                    self.bus.sleep_until(now + Duration::from_millis(5));
-                }
-            }
-        }
+        release_iap_many(self.bus, &[self.id])
+            .pop()
+            .unwrap_or(Err(WhjError::Closed))
+    }
+
+    /// [`JointBus::joint`] for many joints at once: the IAP releases are pipelined (sent
+    /// to every joint, then collected; repeated for the joints that did not answer until
+    /// the connect timeout), then each joint that answered is identified. Results in `ids`
+    /// order.
+    pub(crate) fn connect_many(bus: &'a JointBus, ids: &[JointId]) -> Vec<Result<Self, WhjError>> {
+        release_iap_many(bus, ids)
+            .into_iter()
+            .zip(ids)
+            .map(|(released, &id)| {
+                released?;
+                let joint = Self::unchecked(bus, id);
+                let identity = joint.identify()?;
+                let _ = joint.identity.set(identity);
+                bus.cache_identity(id, identity);
+                Ok(joint)
+            })
+            .collect()
     }
 
     /// Reads model, firmware version, node ID, gear ratio and unique ID.
@@ -692,6 +680,76 @@ impl<'a> Joint<'a> {
             max,
         ))
     }
+}
+
+/// Writes `IAP_FLAG := 0` to every joint of `ids` at once, then again to those that did
+/// not answer, until all answered or the connect timeout passed (see
+/// [`Joint::release_iap`]). Results in `ids` order.
+fn release_iap_many(bus: &JointBus, ids: &[JointId]) -> Vec<Result<(), WhjError>> {
+    let cfg = bus.config();
+    let start = bus.now();
+    let mut results: Vec<Option<Result<(), WhjError>>> = ids.iter().map(|_| None).collect();
+    let mut attempts = vec![0u32; ids.len()];
+    let mut pending: Vec<usize> = (0..ids.len()).collect();
+    while !pending.is_empty() {
+        let requests: Vec<Request> = pending
+            .iter()
+            .filter_map(|&i| ids.get(i).map(|id| Request::start_application(*id)))
+            .collect();
+        let outcomes = match bus.attempt_many(&requests, cfg.reply_timeout) {
+            Ok(o) => o,
+            Err(e) => {
+                let detail = e.to_string();
+                for &i in &pending {
+                    results[i] = Some(Err(WhjError::Link {
+                        detail: detail.clone(),
+                    }));
+                }
+                break;
+            }
+        };
+        let mut again = Vec::new();
+        for ((&i, outcome), req) in pending.iter().zip(outcomes).zip(&requests) {
+            attempts[i] += 1;
+            let id = ids[i];
+            match outcome {
+                Err(e) => results[i] = Some(Err(e)),
+                Ok(Attempt::Reply { reply }) => {
+                    if !matches!(reply, Reply::WriteAck { status, .. } if status.is_ok()) {
+                        tracing::warn!(joint = %id, ?reply, "IAP release not acknowledged with success; continuing");
+                    }
+                    results[i] = Some(Ok(()));
+                }
+                Ok(a @ (Attempt::Link(_) | Attempt::Busy)) => {
+                    results[i] = Some(Err(attempt_error(id, &describe(req), req, a, attempts[i])));
+                }
+                Ok(Attempt::Mismatch(_) | Attempt::Timeout { .. } | Attempt::Bus { .. }) => {
+                    again.push(i);
+                }
+            }
+        }
+        pending = again;
+        if pending.is_empty() {
+            break;
+        }
+        let now = bus.now();
+        let waited = now.saturating_duration_since(start);
+        if waited >= cfg.connect_timeout {
+            for &i in &pending {
+                results[i] = Some(Err(WhjError::Silent {
+                    joint: ids[i],
+                    waited,
+                    attempts: attempts[i],
+                }));
+            }
+            break;
+        }
+        bus.sleep_until(now + Duration::from_millis(5));
+    }
+    results
+        .into_iter()
+        .map(|r| r.unwrap_or(Err(WhjError::Closed)))
+        .collect()
 }
 
 /// Whether a write to `addr` may be resent: every write except the self-clearing

@@ -62,7 +62,8 @@ mod session;
 mod trajectory;
 
 pub use bus::{
-    BusHealth, BusState, JointBus, JointBusConfig, JointTelemetry, OwnedJoint, Telemetry,
+    BusHealth, BusState, JointBus, JointBusConfig, JointTelemetry, MAX_PIPELINED, OwnedJoint,
+    Telemetry,
 };
 pub use cyclic::{
     CycleReport, Cyclic, CyclicConfig, CyclicStats, Feedback, Percentiles, Protocol, ServoMode,

@@ -11,7 +11,7 @@ use core::time::Duration;
 
 use robobus::whj::JointBusConfig;
 use robobus_link::{FrameLink, MemoryBus, MemoryBusEndpoint};
-use robobus_sim::whj::{JointConfig, ServeStats, WhjBus, WhjModel};
+use robobus_sim::whj::{JointConfig, ServeStats, WhjBus, WhjModel, WhjSimHandle, WhjSimLink};
 
 /// A simulated WHJ bus served on its own thread.
 pub struct Sim {
@@ -84,4 +84,26 @@ pub fn config() -> JointBusConfig {
     };
     debug_assert_eq!(config.reply_timeout, REPLY_TIMEOUT);
     config
+}
+
+/// A client bus on `bus` on the simulator's virtual clock ([`WhjSimLink`]: no thread, no
+/// wall clock; time moves only as the client waits), with a handle on the simulation.
+pub fn virtual_bus(bus: WhjBus) -> (robobus::whj::JointBus, WhjSimHandle) {
+    virtual_bus_with(bus, virtual_config())
+}
+
+/// [`virtual_bus`] with its own client configuration.
+pub fn virtual_bus_with(
+    bus: WhjBus,
+    config: JointBusConfig,
+) -> (robobus::whj::JointBus, WhjSimHandle) {
+    let (link, handle) = WhjSimLink::new(bus);
+    let bus = robobus::whj::JointBus::open_with(link, config).unwrap();
+    (bus, handle)
+}
+
+/// The client configuration on the virtual clock: the library's defaults (20 ms reply
+/// timeout, 2 retries), since nothing can stall a simulated reply there.
+pub fn virtual_config() -> JointBusConfig {
+    JointBusConfig::default()
 }
