@@ -1,6 +1,7 @@
 //! Fault tests with the seeded fault injector and scripted bus errors: corrupted frames
 //! never become wrong values, an unplugged joint gives a timeout that names it, bus-off
-//! is surfaced and recovered from.
+//! is surfaced and recovered from. On the simulator's virtual clock (`WhjSimLink`), so
+//! times are exact and seeded faults give the same counts on every run.
 
 #![allow(clippy::unwrap_used, clippy::panic)]
 
@@ -16,7 +17,7 @@ use robobus_link::{
 };
 use robobus_sim::whj::{JointConfig, WhjModel};
 use robobus_whj::{CanFrame, JointId};
-use whj_common::{chain, configs, memory};
+use whj_common::{chain, configs, sim_link, virtual_config};
 
 fn j(n: u8) -> JointId {
     JointId::new(n).unwrap()
@@ -27,7 +28,7 @@ fn ten_thousand_reads_through_one_percent_corrupted_frames_return_no_wrong_value
     // A disabled joint at 12.3456° (brake locked: it does not move).
     let mut cfg = JointConfig::new(1, WhjModel::Whj30);
     cfg.initial_position_deg = 12.3456;
-    let (_sim, link) = memory(configs(vec![cfg]));
+    let (link, _sim) = sim_link(configs(vec![cfg]));
     let faulty = FaultyFrameLink::new(
         link,
         FaultConfig {
@@ -38,33 +39,35 @@ fn ten_thousand_reads_through_one_percent_corrupted_frames_return_no_wrong_value
     let bus = JointBus::open_with(
         faulty,
         // A short timeout (a corrupted reply is ignored as an answer to something else,
-        // and costs one) and many retries (a stalled machine can hold the simulator's
-        // thread past several of them).
+        // and costs one) and enough retries for a run of corrupted frames.
         JointBusConfig {
             verify_reads: true,
             reply_timeout: Duration::from_millis(5),
-            retries: 40,
-            ..whj_common::config()
+            retries: 10,
+            ..virtual_config()
         },
     )
     .unwrap();
     let joint = bus.joint(j(1)).unwrap();
     joint.disable().unwrap();
-    let start = Instant::now();
+    let start = bus.now();
     for i in 0..10_000 {
         let p = joint.position().unwrap_or_else(|e| panic!("read {i}: {e}"));
         assert_eq!(p.raw(), 123_456, "read {i} returned a wrong value");
     }
     let t = bus.telemetry();
     eprintln!(
-        "10 000 verified reads in {:?}; bus {:?}",
-        start.elapsed(),
+        "10 000 verified reads in {:?} of simulated time; bus {:?}",
+        bus.now() - start,
         t.bus
     );
     // Corruption really happened and was caught: replies that did not fit their request
-    // or did not parse, and more frames than two per read.
-    assert!(t.bus.frames_sent > 20_200, "{:?}", t.bus);
-    assert!(t.bus.malformed > 0, "{:?}", t.bus);
+    // (ignored, the attempt timed out) or did not parse, and more frames than two per
+    // read. The fault injector is seeded and the clock virtual: the counts are exact.
+    assert_eq!(t.bus.frames_sent, 20_498, "{:?}", t.bus);
+    assert_eq!(t.bus.frames_received, 20_498, "{:?}", t.bus);
+    assert_eq!(t.bus.unmatched, 99, "{:?}", t.bus);
+    assert_eq!(t.bus.malformed, 43, "{:?}", t.bus);
 }
 
 #[test]
@@ -74,7 +77,7 @@ fn without_read_verification_corrupted_payloads_would_slip_through() {
     // plausible value. This is why `verify_reads` exists.
     let mut cfg = JointConfig::new(1, WhjModel::Whj30);
     cfg.initial_position_deg = 12.3456;
-    let (_sim, link) = memory(configs(vec![cfg]));
+    let (link, _sim) = sim_link(configs(vec![cfg]));
     let faulty = FaultyFrameLink::new(
         link,
         FaultConfig {
@@ -83,15 +86,15 @@ fn without_read_verification_corrupted_payloads_would_slip_through() {
             ..FaultConfig::seeded(7)
         },
     );
-    let bus = JointBus::open_with(faulty, whj_common::config()).unwrap();
+    let bus = JointBus::open_with(faulty, virtual_config()).unwrap();
     let joint = bus.joint(j(1)).unwrap();
     joint.disable().unwrap();
     let wrong = (0..2_000)
         .filter(|_| joint.position().unwrap().raw() != 123_456)
         .count();
-    assert!(
-        wrong > 0,
-        "no corrupted value got through without verification"
+    assert_eq!(
+        wrong, 72,
+        "corrupted values that got through without verification"
     );
 }
 
@@ -101,7 +104,7 @@ fn without_verification_corruption_is_still_never_a_mismatched_reply() {
     // read of another register or count) or a corrupted header is retried, never returned.
     let mut cfg = JointConfig::new(1, WhjModel::Whj30);
     cfg.initial_position_deg = -3.0;
-    let (_sim, link) = memory(configs(vec![cfg]));
+    let (link, _sim) = sim_link(configs(vec![cfg]));
     let faulty = FaultyFrameLink::new(
         link,
         FaultConfig {
@@ -111,7 +114,7 @@ fn without_verification_corruption_is_still_never_a_mismatched_reply() {
             ..FaultConfig::seeded(3)
         },
     );
-    let bus = JointBus::open_with(faulty, whj_common::config()).unwrap();
+    let bus = JointBus::open_with(faulty, virtual_config()).unwrap();
     let joint = bus.joint(j(1)).unwrap();
     joint.disable().unwrap();
     for i in 0..2_000 {
@@ -122,18 +125,17 @@ fn without_verification_corruption_is_still_never_a_mismatched_reply() {
 
 #[test]
 fn an_unplugged_joint_gives_a_timeout_naming_it() {
-    let (sim, link) = memory(chain(2));
-    let bus = JointBus::open_with(link, whj_common::config()).unwrap();
+    let (link, sim) = sim_link(chain(2));
+    let bus = JointBus::open_with(link, virtual_config()).unwrap();
     let joint = bus.joint(j(2)).unwrap();
     for _ in 0..100 {
         joint.position().unwrap();
     }
-    drop(sim.stop()); // unplugged
-    let t = Instant::now();
+    sim.set_unplugged(true);
+    let t = bus.now();
     let err = joint.position().unwrap_err();
-    // Three attempts of the reply timeout each (plus any stall of the machine).
-    let three = whj_common::REPLY_TIMEOUT * 3;
-    assert!(t.elapsed() >= three && t.elapsed() < three + Duration::from_secs(2));
+    // Three attempts of the reply timeout each, back to back.
+    assert_eq!(bus.now() - t, bus.config().reply_timeout * 3);
     let msg = err.to_string();
     assert!(
         matches!(err, WhjError::Timeout { joint, attempts: 3, reply_id: 0x102, .. } if joint == j(2)),
@@ -153,7 +155,7 @@ fn an_unplugged_joint_gives_a_timeout_naming_it() {
 
 #[test]
 fn a_closed_link_stops_the_bus_with_a_clear_error() {
-    let (_sim, link) = memory(chain(1));
+    let (link, _sim) = sim_link(chain(1));
     let faulty = FaultyFrameLink::new(
         link,
         FaultConfig {
@@ -161,7 +163,7 @@ fn a_closed_link_stops_the_bus_with_a_clear_error() {
             ..FaultConfig::seeded(1)
         },
     );
-    let bus = JointBus::open_with(faulty, whj_common::config()).unwrap();
+    let bus = JointBus::open_with(faulty, virtual_config()).unwrap();
     let joint = bus.joint(j(1)).unwrap();
     let err = loop {
         if let Err(e) = joint.position() {
@@ -212,13 +214,13 @@ fn bus_off() -> FrameLinkError {
 
 #[test]
 fn bus_off_is_surfaced_and_reads_recover() {
-    let (_sim, link) = memory(chain(1));
+    let (link, _sim) = sim_link(chain(1));
     let script = Arc::new(Mutex::new(VecDeque::new()));
     let link = ScriptedErrors {
         inner: link,
         script: Arc::clone(&script),
     };
-    let bus = JointBus::open_with(link, whj_common::config()).unwrap();
+    let bus = JointBus::open_with(link, virtual_config()).unwrap();
     let joint = bus.joint(j(1)).unwrap();
     joint.disable().unwrap();
     let before = joint.position().unwrap();
@@ -235,7 +237,7 @@ fn bus_off_is_surfaced_and_reads_recover() {
 
     // Without retries the caller sees the bus-off, naming joint and request.
     drop(bus);
-    let (_sim2, link2) = memory(chain(1));
+    let (link2, _sim2) = sim_link(chain(1));
     let bus = JointBus::open_with(
         ScriptedErrors {
             inner: link2,
@@ -243,7 +245,7 @@ fn bus_off_is_surfaced_and_reads_recover() {
         },
         JointBusConfig {
             retries: 0,
-            ..whj_common::config()
+            ..virtual_config()
         },
     )
     .unwrap();
@@ -276,7 +278,7 @@ fn bus_off_is_surfaced_and_reads_recover() {
 
 #[test]
 fn error_passive_is_reported_and_does_not_stop_traffic() {
-    let (_sim, link) = memory(chain(1));
+    let (link, _sim) = sim_link(chain(1));
     let script = Arc::new(Mutex::new(VecDeque::new()));
     let bus = JointBus::open_with(
         ScriptedErrors {
@@ -285,7 +287,7 @@ fn error_passive_is_reported_and_does_not_stop_traffic() {
         },
         JointBusConfig {
             error_passive_hold: Duration::from_millis(100),
-            ..whj_common::config()
+            ..virtual_config()
         },
     )
     .unwrap();
@@ -301,7 +303,7 @@ fn error_passive_is_reported_and_does_not_stop_traffic() {
     assert_eq!(t.state, BusState::ErrorPassive);
     assert_eq!(t.error_passive_events, 1);
     // No new report for the hold time: recovered.
-    std::thread::sleep(Duration::from_millis(150));
+    bus.sleep_until(bus.now() + Duration::from_millis(150));
     joint.status().unwrap();
     let t = bus.telemetry().bus;
     assert_eq!(t.state, BusState::Active);

@@ -107,3 +107,8 @@ pub fn virtual_bus_with(
 pub fn virtual_config() -> JointBusConfig {
     JointBusConfig::default()
 }
+
+/// The simulated bus as a frame link on the virtual clock, and a handle on it.
+pub fn sim_link(bus: WhjBus) -> (WhjSimLink, WhjSimHandle) {
+    WhjSimLink::new(bus)
+}
