@@ -1,6 +1,7 @@
 //! `robobus::ops::whj` against the simulator: per-joint results, one plan for dry-run and
 //! real run (frames captured on the wire), stop with the safe state, progress, and the
-//! safety checks before a move.
+//! safety checks before a move. On the simulator's virtual clock (`WhjSimLink`): timed
+//! operations (moves, waves, settle times) take simulated time only.
 
 #![allow(clippy::unwrap_used, clippy::panic, clippy::float_cmp)] // tests
 
@@ -16,7 +17,7 @@ use robobus::whj::{JointBus, JointBusConfig};
 use robobus_link::{CaptureFrameLink, FrameLink, FrameLinkError, IdFilter, Received, read_candump};
 use robobus_whj::units::{CurrentScale, Position};
 use robobus_whj::{CanFrame, JointId, Reply, Request, WorkMode};
-use whj_common::{chain, config, memory};
+use whj_common::{chain, sim_link, virtual_config as config};
 
 /// A capture buffer shared with the bus thread.
 #[derive(Clone, Default)]
@@ -52,8 +53,8 @@ fn id(n: u8) -> JointId {
 }
 
 /// A bus to `n` simulated joints whose sent frames are captured.
-fn captured(n: u8) -> (whj_common::Sim, JointBus, Shared) {
-    let (sim, link) = memory(chain(n));
+fn captured(n: u8) -> (robobus_sim::whj::WhjSimHandle, JointBus, Shared) {
+    let (link, sim) = sim_link(chain(n));
     let log = Shared::default();
     let link = CaptureFrameLink::new(link, log.clone(), "rx").with_tx_iface("tx");
     let bus = JointBus::open_with(link, config()).unwrap();
@@ -82,7 +83,7 @@ fn plan_frames(plan: &ops::Plan) -> Vec<CanFrame> {
 fn status_of_three_joints_with_the_middle_one_silent_reports_all_three() {
     // Joints 1 and 3 on the bus, 2 missing.
     let bus_sim = robobus_sim::whj::WhjBus::chain([1u8, 3], robobus_sim::whj::WhjModel::Whj30, 5);
-    let (_sim, link) = memory(bus_sim);
+    let (link, _sim) = sim_link(bus_sim);
     let bus = JointBus::open_with(
         link,
         JointBusConfig {
@@ -91,7 +92,16 @@ fn status_of_three_joints_with_the_middle_one_silent_reports_all_three() {
         },
     )
     .unwrap();
+    let t = bus.now();
     let results = ops::status(&bus, &[id(1), id(2), id(3)]);
+    // J2's IAP release is tried for the connect timeout while J1 and J3 answer at once:
+    // attempt k of J2 ends at 20 k + 5 (k - 1) ms, the thirteenth at 320 ms is the first
+    // past 300 ms; then J1 and J3 are identified and read (about 1 ms of wire time).
+    let took = bus.now() - t;
+    assert!(
+        took >= Duration::from_millis(320) && took < Duration::from_millis(325),
+        "{took:?}"
+    );
     assert_eq!(results.len(), 3);
     assert!(results[0].is_ok() && results[2].is_ok(), "{results:?}");
     let f = results[1].failure().unwrap();
@@ -177,10 +187,20 @@ fn a_real_wave_sends_exactly_the_frames_its_dry_run_shows() {
     assert_eq!(servo_frames(&log.sent()), plan_frames(&dry));
     assert_eq!(report.cycles, 50);
     // A square wave is stepped through the limiter: the first set-points are clamped.
-    assert!(report.clamped > 0, "{report:?}");
+    assert_eq!(report.clamped, 16, "{report:?}");
     // Tracking is against the requested target: a square wave of 2 deg cannot be
     // followed exactly, so the largest error is at least a good part of the step.
-    assert!(report.tracking_max.unwrap() > 0.5, "{report:?}");
+    assert_eq!(
+        report.tracking_max.unwrap(),
+        3.847_000_000_000_000_4,
+        "{report:?}"
+    );
+    // On the virtual clock every frame goes out on time and is answered.
+    assert_eq!(
+        (report.complete, report.deadline_misses, report.overruns),
+        (50, 0, 0),
+        "{report:?}"
+    );
     assert!(!report.stale);
 }
 
@@ -256,7 +276,7 @@ impl<L: FrameLink> FrameLink for ImplausibleStatus<L> {
 
 #[test]
 fn a_move_is_not_planned_from_an_implausible_present_position() {
-    let (_sim, link) = memory(chain(1));
+    let (link, _sim) = sim_link(chain(1));
     let log = Shared::default();
     let link =
         CaptureFrameLink::new(ImplausibleStatus(link), log.clone(), "rx").with_tx_iface("tx");
@@ -347,7 +367,7 @@ fn clear_shows_the_error_bits_before_and_after() {
         target: Position::from_degrees(30.0).unwrap(),
     })
     .unwrap();
-    std::thread::sleep(Duration::from_millis(20));
+    bus.sleep_until(bus.now() + Duration::from_millis(20));
     let r = ops::clear(&bus, &[id(1)]);
     let v = r[0].value().unwrap();
     assert_ne!(v.error_before, "no error", "{v:?}");
@@ -372,7 +392,7 @@ fn scan_finds_two_joints_sharing_an_id_by_their_unique_ids() {
     let mut b = JointConfig::new(4, WhjModel::Whj30);
     b.unique_id = [9, 9, 9, 9, 9, 9];
     let c = JointConfig::new(5, WhjModel::Whj30);
-    let (_sim, link) = memory(whj_common::configs(vec![a, b, c]));
+    let (link, _sim) = sim_link(whj_common::configs(vec![a, b, c]));
     let bus = JointBus::open_with(link, config()).unwrap();
     let report = ops::scan(&bus, &[id(4), id(5)], &mut Control::none()).unwrap();
     assert_eq!(report.found.len(), 2, "{report:?}");
@@ -540,7 +560,7 @@ impl<L: FrameLink> FrameLink for ErrorBits<L> {
 
 #[test]
 fn enable_and_move_fail_naming_the_error_bits_the_joint_reports() {
-    let (_sim, link) = memory(chain(1));
+    let (link, _sim) = sim_link(chain(1));
     let bus = JointBus::open_with(ErrorBits(link), config()).unwrap();
     let j = bus.joint(id(1)).unwrap();
     j.set_mode(WorkMode::Position).unwrap();
@@ -565,7 +585,7 @@ fn enable_and_move_fail_naming_the_error_bits_the_joint_reports() {
 fn broadcast_status_reports_every_joint_and_names_the_silent_one() {
     let sim_bus =
         robobus_sim::whj::WhjBus::chain([1u8, 2, 4], robobus_sim::whj::WhjModel::Whj30, 5);
-    let (_sim, link) = memory(sim_bus);
+    let (link, _sim) = sim_link(sim_bus);
     let log = Shared::default();
     let link = CaptureFrameLink::new(link, log.clone(), "rx").with_tx_iface("tx");
     let bus = JointBus::open_with(link, config()).unwrap();
@@ -599,7 +619,7 @@ fn a_register_the_firmware_lacks_is_refused_before_anything_is_sent() {
     // Firmware D510: before the "519" gate of the staggered power-up switch ON_DELAY (0x1F).
     let mut old = JointConfig::new(1, WhjModel::Whj30);
     old.firmware = FirmwareVersion(0xD510);
-    let (_sim, link) = memory(whj_common::configs(vec![old]));
+    let (link, _sim) = sim_link(whj_common::configs(vec![old]));
     let log = Shared::default();
     let link = CaptureFrameLink::new(link, log.clone(), "rx").with_tx_iface("tx");
     let bus = JointBus::open_with(link, config()).unwrap();
@@ -620,7 +640,7 @@ fn a_register_the_firmware_lacks_is_refused_before_anything_is_sent() {
         "{sent:?}"
     );
     // The same write on the simulator's default firmware goes through.
-    let (_sim, link) = memory(chain(1));
+    let (link, _sim) = sim_link(chain(1));
     let bus = JointBus::open_with(link, config()).unwrap();
     let r = ops::write_register(&bus, on_delay, true).unwrap();
     assert_eq!((r[0].register, r[0].raw), ("ON_DELAY", 1));

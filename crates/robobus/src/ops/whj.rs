@@ -120,6 +120,22 @@ fn whj(e: WhjError) -> OpError {
     OpError::Whj(e)
 }
 
+/// Waits on the bus's clock until `deadline` unless stopped first (looking at the stop
+/// token at least every 5 ms of it); `false` when stopped.
+fn pause_until(bus: &JointBus, control: &Control<'_>, deadline: Instant) -> bool {
+    const SLICE: Duration = Duration::from_millis(5);
+    loop {
+        if control.stopped() {
+            return false;
+        }
+        let now = bus.now();
+        if now >= deadline {
+            return true;
+        }
+        bus.sleep_until(deadline.min(now + SLICE));
+    }
+}
+
 fn per_joint<T>(
     ids: &[JointId],
     mut f: impl FnMut(JointId) -> Result<T, OpError>,
@@ -641,15 +657,16 @@ fn send_frames(
     stage: &'static str,
     mut on_frame: impl FnMut(usize, Option<&ServoFeedback>, Duration) -> Result<(), OpError>,
 ) -> Result<Result<u64, ()>, OpError> {
-    let start = Instant::now();
+    let bus = j.bus();
+    let start = bus.now();
     let total = plan.frames.len() as u64;
     let mut sent = 0u64;
     for (k, f) in plan.frames.iter().enumerate() {
         let due = start + f.at;
-        if control.stopped() || !control.sleep_until(due) {
+        if control.stopped() || !pause_until(bus, control, due) {
             return Ok(Err(()));
         }
-        let late = Instant::now().saturating_duration_since(due);
+        let late = bus.now().saturating_duration_since(due);
         let fb = match j.servo_request(f.request) {
             Ok(fb) => Some(fb),
             Err(e) if e.is_timeout() => None,
@@ -687,7 +704,8 @@ pub fn execute_move(
     on_stop: SafeState,
 ) -> Result<MoveReport, OpError> {
     let id = j.id();
-    let began = Instant::now();
+    let bus = j.bus();
+    let began = bus.now();
     let from_deg = plan.start_deg.unwrap_or(f64::NAN);
     let Ok(sent) = send_frames(j, plan, control, "move", |_, fb, _| {
         if let Some(fb) = fb
@@ -705,7 +723,7 @@ pub fn execute_move(
         return Err(interrupted(j, on_stop, ServoLoop::Position));
     };
     let limits = args.limits();
-    let settle_start = Instant::now();
+    let settle_start = bus.now();
     let status = loop {
         if control.stopped() {
             return Err(interrupted(j, on_stop, ServoLoop::Position));
@@ -723,16 +741,17 @@ pub fn execute_move(
         if (st.position.degrees() - args.target_deg).abs() <= limits.tolerance_deg {
             break st;
         }
-        if settle_start.elapsed() > limits.settle_timeout {
+        let now = bus.now();
+        if now.saturating_duration_since(settle_start) > limits.settle_timeout {
             return Err(whj(WhjError::MoveIncomplete {
                 joint: id,
                 target_deg: args.target_deg,
                 actual_deg: st.position.degrees(),
-                waited: began.elapsed(),
+                waited: now.saturating_duration_since(began),
                 code: st.error,
             }));
         }
-        if !control.sleep_until(Instant::now() + limits.period) {
+        if !pause_until(bus, control, now + limits.period) {
             return Err(interrupted(j, on_stop, ServoLoop::Position));
         }
     };
@@ -743,7 +762,7 @@ pub fn execute_move(
         target_deg: args.target_deg,
         position_deg: status.position.degrees(),
         frames: sent,
-        seconds: began.elapsed().as_secs_f64(),
+        seconds: bus.now().saturating_duration_since(began).as_secs_f64(),
         step_limited,
         error: status.error.to_string(),
     })
@@ -1071,9 +1090,10 @@ pub fn execute_wave(
         }
     }
     let (mut sq, mut max, mut n) = (0.0f64, 0.0f64, 0u64);
-    let mut last_sent = Instant::now();
+    let bus = j.bus();
+    let mut last_sent = bus.now();
     let outcome = send_frames(j, plan, control, "wave", |k, fb, late| {
-        let now = Instant::now();
+        let now = bus.now();
         if k > 0 && now.duration_since(last_sent) > period * 2 {
             r.overruns += 1;
         }
@@ -1603,7 +1623,7 @@ pub fn run_target(
             },
         });
     };
-    if !control.sleep_until(Instant::now() + duration) {
+    if !pause_until(j.bus(), control, j.bus().now() + duration) {
         return Err(interrupted(j, on_stop, args.servo));
     }
     let zero = TargetArgs {
