@@ -180,4 +180,8 @@ impl<L: FrameLink> FrameLink for ObservedLink<L> {
     fn sleep_until(&mut self, deadline: Instant) {
         self.inner.sleep_until(deadline);
     }
+
+    fn virtual_time(&self) -> bool {
+        self.inner.virtual_time()
+    }
 }

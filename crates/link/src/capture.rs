@@ -321,6 +321,10 @@ impl<L: FrameLink, W: Write> FrameLink for CaptureFrameLink<L, W> {
     fn sleep_until(&mut self, deadline: Instant) {
         self.inner.sleep_until(deadline);
     }
+
+    fn virtual_time(&self) -> bool {
+        self.inner.virtual_time()
+    }
 }
 
 /// A frame link that plays a candump capture back: `recv` returns the records in order

@@ -409,4 +409,8 @@ impl<L: FrameLink> FrameLink for FaultyFrameLink<L> {
     fn sleep_until(&mut self, deadline: Instant) {
         self.inner.sleep_until(deadline);
     }
+
+    fn virtual_time(&self) -> bool {
+        self.inner.virtual_time()
+    }
 }

@@ -225,6 +225,13 @@ pub trait FrameLink {
     fn sleep_until(&mut self, deadline: Instant) {
         std::thread::sleep(deadline.saturating_duration_since(Instant::now()));
     }
+
+    /// Whether the link's clock is virtual: it moves only while the link is driven
+    /// (receive, sleep), so nothing may wait on the wall clock for it. `false` except on
+    /// a simulated bus on virtual time.
+    fn virtual_time(&self) -> bool {
+        false
+    }
 }
 
 impl<T: FrameLink + ?Sized> FrameLink for &mut T {
@@ -243,6 +250,9 @@ impl<T: FrameLink + ?Sized> FrameLink for &mut T {
     fn sleep_until(&mut self, deadline: Instant) {
         (**self).sleep_until(deadline);
     }
+    fn virtual_time(&self) -> bool {
+        (**self).virtual_time()
+    }
 }
 
 impl<T: FrameLink + ?Sized> FrameLink for Box<T> {
@@ -260,6 +270,9 @@ impl<T: FrameLink + ?Sized> FrameLink for Box<T> {
     }
     fn sleep_until(&mut self, deadline: Instant) {
         (**self).sleep_until(deadline);
+    }
+    fn virtual_time(&self) -> bool {
+        (**self).virtual_time()
     }
 }
 

@@ -1,5 +1,7 @@
-//! The cyclic servo loop against seven simulated joints on the in-process bus:
-//! point-to-point and broadcast, statistics, trajectory splitting of far targets.
+//! The cyclic servo loop against seven simulated joints: point-to-point and broadcast,
+//! statistics, trajectory splitting of far targets on the simulator's virtual clock
+//! (`WhjSimLink`: exact counts, no misses); the matching of late and lost feedback with
+//! the simulator served on a thread (a relay on the wall clock holds frames back).
 
 #![allow(clippy::unwrap_used, clippy::panic, clippy::cast_precision_loss)]
 
@@ -10,9 +12,9 @@ use std::time::{Duration, Instant};
 use robobus::whj::{CycleReport, Cyclic, CyclicConfig, JointBus, Protocol, ServoMode, WhjError};
 use robobus_whj::units::{Current, Position, TargetSpeed};
 use robobus_whj::{ErrorCode, JointId, WorkMode};
-use whj_common::{chain, memory};
+use whj_common::{chain, virtual_bus};
 
-/// Each test runs a real-time loop against a simulator on the wall clock: one at a time,
+/// The tests on the wall clock run a real-time loop against a simulator: one at a time,
 /// so that they do not starve each other on a small machine.
 static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
@@ -50,9 +52,7 @@ fn ready(bus: &JointBus, joints: &[JointId], mode: WorkMode) {
 
 #[test]
 fn seven_joints_point_to_point_far_targets_become_smooth_moves() {
-    let _serial = serial();
-    let (_sim, link) = memory(chain(7));
-    let bus = JointBus::open_with(link, whj_common::config()).unwrap();
+    let (bus, _sim) = virtual_bus(chain(7));
     let joints = ids(7);
     ready(&bus, &joints, WorkMode::Position);
     let cyc = bus
@@ -109,19 +109,22 @@ fn seven_joints_point_to_point_far_targets_become_smooth_moves() {
         "joints did not reach their targets: {:?}",
         cyc.latest()
     );
-    // Set-points move by 30 °/s × 4 ms per cycle. When a stalled machine holds the
-    // simulated joint back, the client's step clamp (5° from the actual position; the
-    // joint trips at 10°) holds the set-point, which rejoins the profile once released:
-    // never a step beyond the clamp.
-    assert!(max_step <= 5.0, "largest set-point step {max_step}°");
+    // Set-points move by at most 30 °/s × 4 ms = 0.12° per cycle along the profile.
+    assert!(
+        max_step <= 0.12 + 1e-9,
+        "largest set-point step {max_step}°"
+    );
     let stats = cyc.stop();
     assert!(!bus.cyclic_running());
     eprintln!("point-to-point stats: {stats:#?}");
-    assert!(stats.cycles >= 300, "{stats:?}");
-    // Cycles complete (the benchmark measures how many; a loaded or stalling machine makes
-    // some miss, and their feedback is then counted late, not taken for the next cycle's).
-    assert!(stats.complete >= 20, "too many misses: {stats:?}");
-    assert_eq!(stats.complete + stats.deadline_misses, stats.cycles);
+    // On the virtual clock every cycle completes.
+    assert_eq!(stats.cycles, 384, "{stats:?}");
+    assert_eq!(stats.complete, stats.cycles, "{stats:?}");
+    assert_eq!(
+        (stats.deadline_misses, stats.late_replies),
+        (0, 0),
+        "{stats:?}"
+    );
     assert_eq!(stats.round_trip.samples as u64, stats.complete);
     assert!(stats.round_trip.p50 > Duration::ZERO && stats.round_trip.p50 <= stats.round_trip.p99);
     assert!(stats.round_trip.p99 <= stats.round_trip.max);
@@ -135,9 +138,7 @@ fn seven_joints_point_to_point_far_targets_become_smooth_moves() {
 
 #[test]
 fn broadcast_position_for_a_seven_joint_chain() {
-    let _serial = serial();
-    let (sim, link) = memory(chain(7));
-    let bus = JointBus::open_with(link, whj_common::config()).unwrap();
+    let (bus, sim) = virtual_bus(chain(7));
     let joints = ids(7);
     ready(&bus, &joints, WorkMode::Position);
     let cyc = bus
@@ -148,17 +149,18 @@ fn broadcast_position_for_a_seven_joint_chain() {
         .unwrap();
     let targets: Vec<Position> = (0..7).map(|i| deg(f64::from(i) - 3.0)).collect();
     cyc.set_positions(&targets).unwrap();
-    // Within 0.05° of the targets, in well under a second (up to 5 s on a stalled machine).
+    let before = sim.with_bus(|b| b.stats());
+    // Within 0.05° of the targets, in well under a second.
     let near = |r: &CycleReport| {
         r.feedback
             .iter()
             .zip(&targets)
             .all(|(fb, t)| fb.is_some_and(|f| (f.position.degrees() - t.degrees()).abs() < 0.05))
     };
-    let start = std::time::Instant::now();
+    let start = bus.now();
     let mut r = complete_cycle(&cyc);
-    while !near(&r) && start.elapsed() < Duration::from_secs(5) {
-        std::thread::sleep(Duration::from_millis(50));
+    while !near(&r) && bus.now() - start < Duration::from_secs(1) {
+        bus.sleep_until(bus.now() + Duration::from_millis(50));
         r = complete_cycle(&cyc);
     }
     for ((fb, t), id) in r.feedback.iter().zip(&targets).zip(&joints) {
@@ -171,27 +173,32 @@ fn broadcast_position_for_a_seven_joint_chain() {
     }
     let stats = cyc.stop();
     eprintln!("broadcast stats: {stats:#?}");
-    // The loop ran, and cycles completed (the benchmark measures how many; a shared
-    // machine that stalls the simulator's thread makes some miss).
-    assert!(stats.cycles >= 50, "{stats:?}");
-    assert!(stats.complete >= 20, "{stats:?}");
-    drop(bus);
-    // One 0x2F frame per cycle, not seven point-to-point frames.
-    let (sim_bus, serve) = sim.stop();
-    let host_frames = sim_bus.stats().host_frames;
-    assert!(
-        host_frames < stats.cycles + 200,
-        "{host_frames} host frames for {} cycles",
-        stats.cycles
+    // On the virtual clock every cycle completes.
+    assert_eq!(stats.cycles, 157, "{stats:?}");
+    assert_eq!(stats.complete, stats.cycles, "{stats:?}");
+    assert_eq!(
+        (stats.deadline_misses, stats.late_replies),
+        (0, 0),
+        "{stats:?}"
     );
-    assert!(serve.sent >= stats.complete * 7);
+    // One 0x2F frame per cycle, not seven point-to-point frames; seven feedback frames
+    // to each.
+    let after = sim.with_bus(|b| b.stats());
+    assert_eq!(
+        after.host_frames - before.host_frames,
+        stats.cycles,
+        "{after:?}"
+    );
+    assert_eq!(
+        after.joint_frames - before.joint_frames,
+        7 * stats.cycles,
+        "{after:?}"
+    );
 }
 
 #[test]
 fn current_loop_point_to_point_and_broadcast() {
-    let _serial = serial();
-    let (_sim, link) = memory(chain(2));
-    let bus = JointBus::open_with(link, whj_common::config()).unwrap();
+    let (bus, _sim) = virtual_bus(chain(2));
     let joints = ids(2);
     ready(&bus, &joints, WorkMode::Current);
     for protocol in [Protocol::PointToPoint, Protocol::Broadcast] {
@@ -211,8 +218,8 @@ fn current_loop_point_to_point_and_broadcast() {
             "{err}"
         );
         assert!(cyc.set_currents(&[Current(1)]).is_err());
-        std::thread::sleep(Duration::from_millis(100));
-        // At least eleven complete cycles, each commanding and reading back both joints.
+        bus.sleep_until(bus.now() + Duration::from_millis(100));
+        // Eleven more complete cycles, each commanding and reading back both joints.
         for _ in 0..11 {
             let r = complete_cycle(&cyc);
             assert_eq!(r.commanded, vec![100, -100]);
@@ -223,15 +230,15 @@ fn current_loop_point_to_point_and_broadcast() {
         }
         cyc.set_currents(&[Current(0), Current(0)]).unwrap();
         let stats = cyc.stop();
-        assert!(stats.complete > 10, "{protocol:?}: {stats:?}");
+        // 100 ms at 5 ms, and the eleven: every cycle complete.
+        assert_eq!(stats.cycles, 31, "{protocol:?}: {stats:?}");
+        assert_eq!(stats.complete, stats.cycles, "{protocol:?}: {stats:?}");
     }
 }
 
 #[test]
 fn speed_loop_point_to_point() {
-    let _serial = serial();
-    let (_sim, link) = memory(chain(3));
-    let bus = JointBus::open_with(link, whj_common::config()).unwrap();
+    let (bus, _sim) = virtual_bus(chain(3));
     let joints = ids(3);
     ready(&bus, &joints, WorkMode::Speed);
     let cyc = bus
@@ -245,8 +252,8 @@ fn speed_loop_point_to_point() {
     assert_eq!(cyc.config().mode, ServoMode::Speed);
     let rpm = |r: f64| TargetSpeed::from_rpm(r).unwrap();
     cyc.set_speeds(&[rpm(2.0), rpm(-3.0), rpm(0.0)]).unwrap();
-    // At speed in well under a second (up to 5 s on a stalled machine).
-    let start = std::time::Instant::now();
+    // At speed in well under a second.
+    let start = bus.now();
     let at_speed = |speeds: &[f64]| {
         speeds.len() == 3
             && speeds
@@ -255,8 +262,8 @@ fn speed_loop_point_to_point() {
                 .all(|(got, want)| (got - want).abs() < 0.3)
     };
     let mut speeds: Vec<f64> = Vec::new();
-    while !at_speed(&speeds) && start.elapsed() < Duration::from_secs(5) {
-        std::thread::sleep(Duration::from_millis(50));
+    while !at_speed(&speeds) && bus.now() - start < Duration::from_secs(1) {
+        bus.sleep_until(bus.now() + Duration::from_millis(50));
         let r = complete_cycle(&cyc);
         speeds = r.feedback.iter().map(|f| f.unwrap().speed.rpm()).collect();
     }
@@ -268,18 +275,13 @@ fn speed_loop_point_to_point() {
     }
     cyc.set_speeds(&[rpm(0.0); 3]).unwrap();
     let stats = cyc.stop();
-    assert!(stats.complete >= 10, "{stats:?}");
-    assert_eq!(
-        stats.complete + stats.deadline_misses,
-        stats.cycles,
-        "{stats:?}"
-    );
+    assert_eq!(stats.cycles, 21, "{stats:?}");
+    assert_eq!(stats.complete, stats.cycles, "{stats:?}");
 }
 
 #[test]
 fn invalid_configurations_are_refused() {
-    let (_sim, link) = memory(chain(1));
-    let bus = JointBus::open_with(link, whj_common::config()).unwrap();
+    let (bus, _sim) = virtual_bus(chain(1));
     let j8 = JointId::new(8).unwrap();
     let cases = [
         (
@@ -389,6 +391,10 @@ impl<L: robobus_link::FrameLink> robobus_link::FrameLink for StampingLink<L> {
 
     fn sleep_until(&mut self, deadline: Instant) {
         self.inner.sleep_until(deadline);
+    }
+
+    fn virtual_time(&self) -> bool {
+        self.inner.virtual_time()
     }
 }
 

@@ -204,6 +204,10 @@ impl<L: FrameLink> FrameLink for ScriptedErrors<L> {
     fn sleep_until(&mut self, deadline: Instant) {
         self.inner.sleep_until(deadline);
     }
+
+    fn virtual_time(&self) -> bool {
+        self.inner.virtual_time()
+    }
 }
 
 fn bus_off() -> FrameLinkError {

@@ -272,6 +272,10 @@ impl<L: FrameLink> FrameLink for ImplausibleStatus<L> {
     fn sleep_until(&mut self, deadline: Instant) {
         self.0.sleep_until(deadline);
     }
+
+    fn virtual_time(&self) -> bool {
+        self.0.virtual_time()
+    }
 }
 
 #[test]
@@ -555,6 +559,10 @@ impl<L: FrameLink> FrameLink for ErrorBits<L> {
 
     fn sleep_until(&mut self, deadline: Instant) {
         self.0.sleep_until(deadline);
+    }
+
+    fn virtual_time(&self) -> bool {
+        self.0.virtual_time()
     }
 }
 

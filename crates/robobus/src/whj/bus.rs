@@ -303,7 +303,9 @@ impl OwnedJoint {
 /// unsolicited frames are all handled by whichever thread is receiving. A thread of the
 /// bus's own runs the cyclic loop ([`JointBus::cyclic`]) and, while nothing else uses the
 /// bus, picks up unsolicited frames (other hosts' traffic, controller error reports) now
-/// and then for [`Telemetry`].
+/// and then for [`Telemetry`]. On a link with a virtual clock there is no such thread:
+/// the cyclic loop then runs while a caller waits (a request, [`JointBus::sleep_until`],
+/// [`Cyclic::next_report`](super::Cyclic::next_report)).
 ///
 /// Replies are matched to requests by CAN ID and function (`0x100+ID` read / write /
 /// `CMD_ERR`, `0x500+ID` servo feedback, `0x700+ID` status). At most one request per
@@ -325,6 +327,7 @@ pub struct JointBus {
     core: Arc<CoreLock>,
     shared: Arc<Shared>,
     config: JointBusConfig,
+    virtual_time: bool,
     wake: Mutex<Sender<Wake>>,
     thread: Option<JoinHandle<()>>,
 }
@@ -477,6 +480,7 @@ impl JointBus {
     ) -> Result<Self, WhjError> {
         let shared = Arc::new(Shared::default());
         let last_drain = link.now();
+        let virtual_time = link.virtual_time();
         let core = Arc::new(CoreLock {
             core: Mutex::new(Core {
                 link: Box::new(link),
@@ -488,19 +492,29 @@ impl JointBus {
             waiters: AtomicUsize::new(0),
         });
         let (tx, rx) = mpsc::channel();
-        let thread_core = Arc::clone(&core);
-        let thread = std::thread::Builder::new()
-            .name("whj-bus".into())
-            .spawn(move || background(&thread_core, &rx))
-            .map_err(|e| WhjError::Link {
-                detail: format!("cannot start the bus thread: {e}"),
-            })?;
+        // On virtual time the clock moves only when someone drives the link: the cyclic
+        // loop runs whenever a caller waits ([`JointBus::sleep_until`], a request, a
+        // cycle report), and no thread may run it ahead on the wall clock.
+        let thread = if virtual_time {
+            None
+        } else {
+            let thread_core = Arc::clone(&core);
+            Some(
+                std::thread::Builder::new()
+                    .name("whj-bus".into())
+                    .spawn(move || background(&thread_core, &rx))
+                    .map_err(|e| WhjError::Link {
+                        detail: format!("cannot start the bus thread: {e}"),
+                    })?,
+            )
+        };
         Ok(Self {
             core,
             shared,
             config,
+            virtual_time,
             wake: Mutex::new(tx),
-            thread: Some(thread),
+            thread,
         })
     }
 
@@ -513,6 +527,11 @@ impl JointBus {
     /// cycle reports are on this clock.
     pub fn now(&self) -> Instant {
         self.core.lock().now()
+    }
+
+    /// Whether the bus runs on a virtual clock ([`FrameLink::virtual_time`]).
+    pub const fn virtual_time(&self) -> bool {
+        self.virtual_time
     }
 
     /// Waits until the bus's clock reaches `deadline`, receiving frames meanwhile (into

@@ -719,8 +719,12 @@ impl Cyclic<'_> {
     }
 
     /// Waits up to `timeout` for the next cycle's report (oldest first). `None` on
-    /// timeout or once the loop has stopped.
+    /// timeout or once the loop has stopped. On a bus with a virtual clock the wait runs
+    /// the bus, and `timeout` is of its time.
     pub fn next_report(&self, timeout: Duration) -> Option<CycleReport> {
+        if self.bus.virtual_time() {
+            return self.drive_to_report(timeout);
+        }
         let deadline = Instant::now() + timeout;
         let mut r = lock(&self.shared.reports);
         loop {
@@ -739,6 +743,28 @@ impl Cyclic<'_> {
                 .cv
                 .wait_timeout(r, deadline - now)
                 .map_or_else(|e| e.into_inner().0, |(g, _)| g);
+        }
+    }
+
+    /// [`Cyclic::next_report`] on a virtual clock: runs the bus (and so the loop) until a
+    /// report is there or `timeout` of the bus's time has passed.
+    fn drive_to_report(&self, timeout: Duration) -> Option<CycleReport> {
+        let deadline = self.bus.now() + timeout;
+        loop {
+            {
+                let mut r = lock(&self.shared.reports);
+                if let Some(rep) = r.queue.pop_front() {
+                    return Some(rep);
+                }
+                if r.finished {
+                    return None;
+                }
+            }
+            let now = self.bus.now();
+            if now >= deadline {
+                return None;
+            }
+            self.bus.sleep_until(deadline.min(now + self.config.period));
         }
     }
 

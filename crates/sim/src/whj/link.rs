@@ -216,6 +216,10 @@ impl FrameLink for WhjSimLink {
         self.shared.base + self.shared.lock().bus.now()
     }
 
+    fn virtual_time(&self) -> bool {
+        true
+    }
+
     fn sleep_until(&mut self, deadline: Instant) {
         let until = self.shared.sim_time(deadline);
         let mut s = self.shared.lock();
