@@ -1,7 +1,7 @@
 //! The cyclic servo loop against seven simulated joints: point-to-point and broadcast,
 //! statistics, trajectory splitting of far targets on the simulator's virtual clock
-//! (`WhjSimLink`: exact counts, no misses); the matching of late and lost feedback with
-//! the simulator served on a thread (a relay on the wall clock holds frames back).
+//! (`WhjSimLink`: exact counts, no misses), and the matching of late and lost feedback
+//! (a relay holds feedback frames back by exact amounts of simulated time).
 
 #![allow(clippy::unwrap_used, clippy::panic, clippy::cast_precision_loss)]
 
@@ -13,16 +13,6 @@ use robobus::whj::{CycleReport, Cyclic, CyclicConfig, JointBus, Protocol, ServoM
 use robobus_whj::units::{Current, Position, TargetSpeed};
 use robobus_whj::{ErrorCode, JointId, WorkMode};
 use whj_common::{chain, virtual_bus};
-
-/// The tests on the wall clock run a real-time loop against a simulator: one at a time,
-/// so that they do not starve each other on a small machine.
-static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
-
-fn serial() -> std::sync::MutexGuard<'static, ()> {
-    SERIAL
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner)
-}
 
 fn ids(n: u8) -> Vec<JointId> {
     (1..=n).map(|i| JointId::new(i).unwrap()).collect()
@@ -329,53 +319,91 @@ fn invalid_configurations_are_refused() {
     assert!(!bus.cyclic_running());
 }
 
-/// The simulator's side of the bus. Every servo feedback of joint 1 is held back by
-/// `base` (so real round trips are at least that long); the one answering command number
-/// `slow_index` is held back by `slow` instead, or dropped if `drop` is set. Each
-/// feedback's current field is replaced by the number of the command it answers (0, 1,
-/// ...), so the client side can tell which command a feedback frame answers.
+/// The client's side of the bus: every servo feedback frame of joint 1 is held back by
+/// `base` of the link's (virtual) time, so round trips are at least that long; the one
+/// answering command number `slow_index` is held back by `slow` instead, or dropped if
+/// `drop` is set. Each feedback's current field is replaced by the number of the command
+/// it answers (0, 1, ...: the joint answers every command, in order), so the test can tell
+/// which command a feedback frame answers.
 struct StampingLink<L> {
     inner: L,
-    commands: i32,
+    answered: i32,
     slow_index: i32,
     base: Duration,
     slow: Duration,
     drop: bool,
+    /// Held-back frames with their release instants, in arrival (and release) order.
+    held: std::collections::VecDeque<(Instant, robobus_link::Received)>,
+}
+
+impl<L: robobus_link::FrameLink> StampingLink<L> {
+    /// `at`, or later if a frame held before is released later.
+    fn ready_after(&self, at: Instant) -> Instant {
+        self.held.back().map_or(at, |(last, _)| at.max(*last))
+    }
+
+    fn hold(&mut self, rx: robobus_link::Received) {
+        let Ok(robobus_whj::Reply::ServoFeedback {
+            joint,
+            mut feedback,
+        }) = robobus_whj::Reply::from_frame(&rx.frame)
+        else {
+            let at = self.ready_after(self.inner.now());
+            self.held.push_back((at, rx));
+            return;
+        };
+        let n = self.answered;
+        self.answered += 1;
+        if n == self.slow_index && self.drop {
+            return;
+        }
+        let delay = if n == self.slow_index {
+            self.slow
+        } else {
+            self.base
+        };
+        feedback.current = Current(n);
+        let frame = robobus_whj::Reply::ServoFeedback { joint, feedback }.to_frame();
+        // One joint's frames stay in order (a held-back frame holds back the next).
+        let at = self.ready_after(self.inner.now() + delay);
+        self.held
+            .push_back((at, robobus_link::Received { frame, ..rx }));
+    }
 }
 
 impl<L: robobus_link::FrameLink> robobus_link::FrameLink for StampingLink<L> {
     fn send(&mut self, frame: &robobus_whj::CanFrame) -> Result<(), robobus_link::FrameLinkError> {
-        if let Ok(robobus_whj::Reply::ServoFeedback {
-            joint,
-            mut feedback,
-        }) = robobus_whj::Reply::from_frame(frame)
-        {
-            let n = self.commands - 1;
-            if n == self.slow_index && self.drop {
-                return Ok(());
-            }
-            std::thread::sleep(if n == self.slow_index {
-                self.slow
-            } else {
-                self.base
-            });
-            feedback.current = Current(n);
-            let stamped = robobus_whj::Reply::ServoFeedback { joint, feedback }.to_frame();
-            return self.inner.send(&stamped);
-        }
         self.inner.send(frame)
     }
 
     fn recv(
         &mut self,
-        deadline: std::time::Instant,
+        deadline: Instant,
     ) -> Result<robobus_link::Received, robobus_link::FrameLinkError> {
-        let rx = self.inner.recv(deadline)?;
-        // Current servo commands to joint 1.
-        if rx.frame.standard_raw_id() == Some(0x401) {
-            self.commands += 1;
+        loop {
+            let now = self.inner.now();
+            if let Some((at, _)) = self.held.front()
+                && *at <= now
+                && let Some((_, rx)) = self.held.pop_front()
+            {
+                return Ok(rx);
+            }
+            let until = self
+                .held
+                .front()
+                .map_or(deadline, |(at, _)| deadline.min(*at));
+            match self.inner.recv(until) {
+                Ok(rx) => self.hold(rx),
+                Err(e) if e.is_timeout() => {
+                    if self.inner.now() >= deadline
+                        && self.held.front().is_none_or(|(at, _)| *at > deadline)
+                    {
+                        return Err(e);
+                    }
+                }
+                Err(e) => return Err(e),
+            }
         }
-        Ok(rx)
     }
 
     fn set_filters(
@@ -398,40 +426,31 @@ impl<L: robobus_link::FrameLink> robobus_link::FrameLink for StampingLink<L> {
     }
 }
 
-/// Runs a current loop for joint 1 over a [`StampingLink`] whose feedback to command 5
-/// takes `slow` (or is dropped), until four complete cycles after cycle 7; `None` if the
-/// machine stalled the test (a cycle started more than half a period late, or the setup
-/// timed out), which makes the scenario a different one.
+/// Runs a current loop for joint 1 on the virtual clock over a [`StampingLink`] whose
+/// feedback to command 5 takes `slow` (or is dropped), until four complete cycles after
+/// cycle 7.
 fn stamped_run(
     period: Duration,
     base: Duration,
     slow: Duration,
     drop: bool,
-) -> Option<(Vec<CycleReport>, robobus::whj::CyclicStats)> {
-    let wire = robobus_link::MemoryBus::new();
-    let _sim = whj_common::Sim::serve(
-        chain(1),
-        StampingLink {
-            inner: wire.endpoint(),
-            commands: 0,
-            slow_index: 5,
-            base,
-            slow,
-            drop,
-        },
-    );
-    let bus = JointBus::open_with(wire.endpoint(), whj_common::config()).unwrap();
-    let joints = ids(1);
-    let setup = |bus: &JointBus| -> Result<(), WhjError> {
-        let j = bus.joint(joints[0])?;
-        j.disable()?;
-        j.set_mode(WorkMode::Current)?;
-        j.enable()
+) -> (Vec<CycleReport>, robobus::whj::CyclicStats) {
+    let (link, _sim) = whj_common::sim_link(chain(1));
+    let link = StampingLink {
+        inner: link,
+        answered: 0,
+        slow_index: 5,
+        base,
+        slow,
+        drop,
+        held: std::collections::VecDeque::new(),
     };
-    if let Err(e) = setup(&bus) {
-        eprintln!("stalled, scenario run again: {e}");
-        return None;
-    }
+    let bus = JointBus::open_with(link, whj_common::virtual_config()).unwrap();
+    let joints = ids(1);
+    let j = bus.joint(joints[0]).unwrap();
+    j.disable().unwrap();
+    j.set_mode(WorkMode::Current).unwrap();
+    j.enable().unwrap();
     let cyc = bus
         .cyclic(CyclicConfig {
             mode: ServoMode::Current,
@@ -441,14 +460,12 @@ fn stamped_run(
         .unwrap();
     let mut reports: Vec<CycleReport> = Vec::new();
     while reports.iter().filter(|r| r.cycle > 7 && !r.missed).count() < 4 {
-        let r = cyc.next_report(Duration::from_secs(3)).unwrap();
-        if r.start_lateness > period / 2 || reports.len() > 30 {
-            eprintln!("stalled, scenario run again: {r:?}");
-            return None;
-        }
+        let r = cyc.next_report(period * 2).unwrap();
+        assert_eq!(r.start_lateness, Duration::ZERO, "{r:?}");
+        assert!(reports.len() < 30, "{reports:?}");
         reports.push(r);
     }
-    Some((reports, cyc.stop()))
+    (reports, cyc.stop())
 }
 
 /// Every complete cycle holds the answer to its own command, never an earlier one.
@@ -468,19 +485,15 @@ fn assert_matched(reports: &[CycleReport], base: Duration) {
 
 #[test]
 fn feedback_later_than_the_next_tick_counts_as_late_and_later_cycles_stay_matched() {
-    let _serial = serial();
-    // Long periods, so that the stalls of a shared machine rarely disturb the scenario.
     let period = Duration::from_millis(200);
     let base = Duration::from_millis(10);
     // Past the next tick: the feedback of cycle 5 arrives during cycle 6.
     let slow = period + Duration::from_millis(60);
-    let (reports, stats) = (0..10)
-        .find_map(|_| stamped_run(period, base, slow, false))
-        .expect("the machine stalled every run");
+    let (reports, stats) = stamped_run(period, base, slow, false);
     assert_eq!(stats.send_errors, 0, "{stats:?}");
     assert!(reports[5].missed, "{:?}", reports[5]);
     assert_eq!(reports[5].feedback, vec![None]);
-    assert!(stats.late_replies >= 1, "{stats:?}");
+    assert_eq!(stats.late_replies, 1, "{stats:?}");
     // Cycle 6 still gets its own feedback (after the late one), and so does every later one.
     assert!(!reports[6].missed, "{:?}", reports[6]);
     assert_matched(&reports, base);
@@ -489,12 +502,9 @@ fn feedback_later_than_the_next_tick_counts_as_late_and_later_cycles_stay_matche
 
 #[test]
 fn a_lost_feedback_frame_costs_one_more_cycle_then_feedback_is_matched_again() {
-    let _serial = serial();
     let period = Duration::from_millis(200);
     let base = Duration::from_millis(10);
-    let (reports, stats) = (0..10)
-        .find_map(|_| stamped_run(period, base, Duration::ZERO, true))
-        .expect("the machine stalled every run");
+    let (reports, stats) = stamped_run(period, base, Duration::ZERO, true);
     // Cycle 5's feedback never comes; cycle 6's frame is taken for it (frames carry no
     // sequence number), so cycle 6 misses too; from cycle 7 on every cycle is matched.
     assert!(reports[5].missed && reports[6].missed, "{reports:?}");
