@@ -603,3 +603,92 @@ impl Session {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+
+    use super::*;
+    use robobus_whj::RegisterAddr;
+    use robobus_whj::request::ReadRange;
+
+    fn j1() -> JointId {
+        JointId::new(1).unwrap()
+    }
+
+    fn read(addr: u8, count: u8) -> (Request, ReadRange) {
+        let range = ReadRange::new(RegisterAddr::new(addr).unwrap(), count).unwrap();
+        (Request::Read { joint: j1(), range }, range)
+    }
+
+    fn txn(request: Request, submitted: Instant) -> Txn {
+        Txn {
+            request,
+            expect: Expect::of(&request).unwrap(),
+            timeout: Duration::from_millis(20),
+            quiet_after: Duration::ZERO,
+            submitted,
+        }
+    }
+
+    #[test]
+    fn a_reply_to_another_register_is_not_credited_and_the_deadline_is_exact() {
+        let t0 = Instant::now();
+        let mut s = Session::new(Arc::default(), JointBusConfig::default());
+        let (req, _) = read(0x14, 2);
+        let id = s.submit(txn(req, t0));
+        let tx = s.poll_transmit(t0).unwrap();
+        assert_eq!(tx.frame, req.to_frame());
+        // A second request on the same reply ID waits for the first.
+        let (other, other_range) = read(0x2A, 6);
+        let second = s.submit(txn(other, t0));
+        assert!(s.poll_transmit(t0).is_none());
+        // A late reply for register 0x2A arrives: it answers another request, so the read
+        // of 0x14 keeps waiting.
+        let late = Reply::read(j1(), other_range, &[0; 6]).unwrap();
+        s.on_frame(&late.to_frame(), t0 + Duration::from_millis(1));
+        assert!(s.take(id).is_none());
+        // Nothing else comes: it times out exactly at its deadline, not before.
+        s.on_time(t0 + Duration::from_micros(19_999));
+        assert!(s.take(id).is_none());
+        s.on_time(t0 + Duration::from_millis(20));
+        assert!(matches!(
+            s.take(id),
+            Some(Attempt::Timeout { waited, state: BusState::Active }) if waited == Duration::from_millis(20)
+        ));
+        // Now the second request goes out, and the same reply is credited to it.
+        let t1 = t0 + Duration::from_millis(20);
+        assert_eq!(s.poll_transmit(t1).unwrap().frame, other.to_frame());
+        s.on_frame(&late.to_frame(), t1);
+        let got = s.take(second);
+        assert!(
+            matches!(&got, Some(Attempt::Reply { reply: Reply::Read { addr, words, .. } }) if addr.get() == 0x2A && words.len() >= 6),
+            "{got:?}"
+        );
+    }
+
+    #[test]
+    fn a_settle_time_holds_the_next_request_to_the_joint_until_it_ends() {
+        let t0 = Instant::now();
+        let mut s = Session::new(Arc::default(), JointBusConfig::default());
+        let write = Request::write(j1(), RegisterAddr::new(0x0A).unwrap(), 0).unwrap();
+        let id = s.submit(Txn {
+            quiet_after: Duration::from_millis(5),
+            ..txn(write, t0)
+        });
+        s.poll_transmit(t0).unwrap();
+        let ack = Reply::WriteAck {
+            joint: j1(),
+            addr: RegisterAddr::new(0x0A).unwrap(),
+            status: robobus_whj::reply::WriteStatus::Ok,
+        };
+        s.on_frame(&ack.to_frame(), t0);
+        assert!(matches!(s.take(id), Some(Attempt::Reply { .. })));
+        let (req, _) = read(0x14, 2);
+        s.submit(txn(req, t0));
+        let settled = t0 + Duration::from_millis(5);
+        assert_eq!(s.next_wake(t0), t0 + Duration::from_micros(500));
+        assert!(s.poll_transmit(t0 + Duration::from_micros(4_999)).is_none());
+        assert_eq!(s.poll_transmit(settled).unwrap().frame, req.to_frame());
+    }
+}
