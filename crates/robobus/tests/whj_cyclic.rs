@@ -31,6 +31,20 @@ fn complete_cycle(cyc: &Cyclic<'_>) -> CycleReport {
         .expect("no complete cycle in 100")
 }
 
+/// On the virtual clock every cycle completes: `cycles` cycles, no miss, no late reply.
+fn all_complete(stats: &robobus::whj::CyclicStats, cycles: u64) {
+    assert_eq!(
+        (
+            stats.cycles,
+            stats.complete,
+            stats.deadline_misses,
+            stats.late_replies
+        ),
+        (cycles, cycles, 0, 0),
+        "{stats:?}"
+    );
+}
+
 fn ready(bus: &JointBus, joints: &[JointId], mode: WorkMode) {
     for &id in joints {
         let j = bus.joint(id).unwrap();
@@ -107,14 +121,7 @@ fn seven_joints_point_to_point_far_targets_become_smooth_moves() {
     let stats = cyc.stop();
     assert!(!bus.cyclic_running());
     eprintln!("point-to-point stats: {stats:#?}");
-    // On the virtual clock every cycle completes.
-    assert_eq!(stats.cycles, 384, "{stats:?}");
-    assert_eq!(stats.complete, stats.cycles, "{stats:?}");
-    assert_eq!(
-        (stats.deadline_misses, stats.late_replies),
-        (0, 0),
-        "{stats:?}"
-    );
+    all_complete(&stats, 384);
     assert_eq!(stats.round_trip.samples as u64, stats.complete);
     assert!(stats.round_trip.p50 > Duration::ZERO && stats.round_trip.p50 <= stats.round_trip.p99);
     assert!(stats.round_trip.p99 <= stats.round_trip.max);
@@ -163,14 +170,7 @@ fn broadcast_position_for_a_seven_joint_chain() {
     }
     let stats = cyc.stop();
     eprintln!("broadcast stats: {stats:#?}");
-    // On the virtual clock every cycle completes.
-    assert_eq!(stats.cycles, 157, "{stats:?}");
-    assert_eq!(stats.complete, stats.cycles, "{stats:?}");
-    assert_eq!(
-        (stats.deadline_misses, stats.late_replies),
-        (0, 0),
-        "{stats:?}"
-    );
+    all_complete(&stats, 157);
     // One 0x2F frame per cycle, not seven point-to-point frames; seven feedback frames
     // to each.
     let after = sim.with_bus(|b| b.stats());
@@ -221,8 +221,7 @@ fn current_loop_point_to_point_and_broadcast() {
         cyc.set_currents(&[Current(0), Current(0)]).unwrap();
         let stats = cyc.stop();
         // 100 ms at 5 ms, and the eleven: every cycle complete.
-        assert_eq!(stats.cycles, 31, "{protocol:?}: {stats:?}");
-        assert_eq!(stats.complete, stats.cycles, "{protocol:?}: {stats:?}");
+        all_complete(&stats, 31);
     }
 }
 
@@ -265,8 +264,7 @@ fn speed_loop_point_to_point() {
     }
     cyc.set_speeds(&[rpm(0.0); 3]).unwrap();
     let stats = cyc.stop();
-    assert_eq!(stats.cycles, 21, "{stats:?}");
-    assert_eq!(stats.complete, stats.cycles, "{stats:?}");
+    all_complete(&stats, 21);
 }
 
 #[test]
