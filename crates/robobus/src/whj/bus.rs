@@ -392,19 +392,8 @@ impl Core {
         if self.closed {
             return;
         }
-        let now = self.link.now();
-        self.session.on_time(now);
-        while let Some(tx) = self.session.poll_transmit(now) {
-            match self.link.send(&tx.frame) {
-                Ok(()) => self.session.sent(),
-                Err(e) => {
-                    self.session.send_failed(&tx, &e, self.link.now());
-                    if matches!(e, FrameLinkError::Closed { .. }) {
-                        self.fatal(&e);
-                        return;
-                    }
-                }
-            }
+        if !self.transmit() {
+            return;
         }
         let now = self.link.now();
         let wake = self.session.next_wake(now).min(until).max(now);
@@ -421,8 +410,29 @@ impl Core {
         } else if wake > now {
             self.link.sleep_until(wake);
         }
+        // Whatever became due meanwhile (a tick, the next queued request) goes out now.
+        if !self.closed {
+            self.transmit();
+        }
+    }
+
+    /// Lets time pass in the session and sends what is due; `false` if the link closed.
+    fn transmit(&mut self) -> bool {
         let now = self.link.now();
         self.session.on_time(now);
+        while let Some(tx) = self.session.poll_transmit(now) {
+            match self.link.send(&tx.frame) {
+                Ok(()) => self.session.sent(),
+                Err(e) => {
+                    self.session.send_failed(&tx, &e, self.link.now());
+                    if matches!(e, FrameLinkError::Closed { .. }) {
+                        self.fatal(&e);
+                        return false;
+                    }
+                }
+            }
+        }
+        true
     }
 
     /// Picks up frames that arrived while nothing was awaited, without waiting.
