@@ -17,6 +17,10 @@
 //!   any size along a smooth [`Profile`].
 //! - [`JointBus::cyclic`]: a fixed-rate servo loop for N joints, point-to-point or with
 //!   the broadcast protocol, with deadline-miss and latency statistics.
+//! - Request / reply work runs on the caller's thread (no hand-off to a bus thread);
+//!   [`JointBus::request_many`] and [`JointBus::joints`] pipeline requests to many joints
+//!   (send all, then collect). All time comes from the link's clock, so on
+//!   `robobus_sim::whj::WhjSimLink` the client runs on the simulator's virtual clock.
 //! - Retries only for reads and idempotent operations; a reply that does not answer the
 //!   request is never returned as a value. Errors ([`WhjError`]) name the joint, the
 //!   register and the reply that was expected.
