@@ -71,7 +71,9 @@ impl Shared {
     }
 }
 
-/// A client's end of a simulated WHJ bus on virtual time (see the [module](self) notes).
+/// A client's end of a simulated WHJ bus on virtual time: no serving thread; a receive
+/// runs the simulation to the next frame for the host or to its deadline and returns at
+/// once, and the link's clock is a fixed base instant plus simulated time.
 ///
 /// ```
 /// use core::time::Duration;
