@@ -1039,7 +1039,12 @@ impl Hardware {
             };
             let t = t.joint(id);
             let actual = match (t.position, t.updated) {
-                (Some(p), Some(at)) if at.elapsed() < Duration::from_millis(100) => p,
+                (Some(p), Some(at))
+                    if slot.bus.now().saturating_duration_since(at)
+                        < Duration::from_millis(100) =>
+                {
+                    p
+                }
                 _ => {
                     let status = slot.bus.joint_unchecked(id).status().map_err(|source| {
                         ActuatorError::Whj {
