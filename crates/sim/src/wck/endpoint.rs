@@ -52,6 +52,9 @@ pub struct EndpointStats {
     pub late_max: Duration,
     /// Sum of the lateness of every written byte (divide by `bytes_out` for the mean).
     pub late_total: Duration,
+    /// Times the serving thread woke up (client input, a reply byte due, a queued
+    /// command, or the idle tick).
+    pub wakeups: u64,
 }
 
 /// Why serving stopped with an error.
@@ -183,6 +186,20 @@ fn follow_client_baud(bus: &mut Bus, termios: Option<&OwnedFd>) {
     }
 }
 
+/// Runs the model ahead of the present, through the events before `wire_free` (the end
+/// of the client's bytes already on the simulated wire), until a reply byte is on its way
+/// to the client: one wake-up for that byte instead of one per byte a module receives.
+/// The client cannot change that stretch: bytes it writes meanwhile go on the wire after
+/// `wire_free` anyway. Reply bytes are still written no earlier than their instant.
+fn run_ahead(bus: &mut Bus, wire_free: Duration) {
+    while bus.peek_received().is_none() {
+        match bus.next_event() {
+            Some(t) if t <= wire_free => bus.advance(t.max(bus.now() + Duration::from_nanos(100))),
+            _ => break,
+        }
+    }
+}
+
 fn serve<L: ByteLink>(
     mut bus: Bus,
     mut master: L,
@@ -202,6 +219,7 @@ fn serve<L: ByteLink>(
     let mut next_baud_check = Duration::ZERO;
     let mut wire_free = Duration::ZERO;
     while !stop.load(Ordering::Relaxed) {
+        stats.wakeups += 1;
         let now = sim_now();
         while let Ok(job) = jobs.try_recv() {
             bus.advance(now);
@@ -213,7 +231,8 @@ fn serve<L: ByteLink>(
         }
         bus.advance(now);
         out.clear();
-        while let Some((due, byte)) = bus.pop_received() {
+        while let Some((due, byte)) = bus.peek_received().filter(|&(due, _)| due <= now) {
+            bus.pop_received();
             let late = now.saturating_sub(due);
             stats.late_max = stats.late_max.max(late);
             stats.late_total += late;
@@ -223,7 +242,13 @@ fn serve<L: ByteLink>(
             master.write_all(&out)?;
             stats.bytes_out += out.len() as u64;
         }
-        let wake = bus.next_event().map_or(now + IDLE, |t| t.min(now + IDLE));
+        run_ahead(&mut bus, wire_free);
+        let due = bus.peek_received().map(|(due, _)| due);
+        let next = match (due, bus.next_event()) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        };
+        let wake = next.map_or(now + IDLE, |t| t.min(now + IDLE));
         // Wire time still ahead for the bytes already taken: read again only once it is
         // below INPUT_AHEAD, and only as many bytes as fit in the rest of that window.
         let ahead = wire_free.saturating_sub(now);
