@@ -257,6 +257,17 @@ impl<L: ByteLink> WckBus<L> {
         })
     }
 
+    /// The link's clock (the wall clock, or a simulator's virtual clock): every deadline
+    /// of the bus is taken from it.
+    pub fn now(&self) -> Instant {
+        self.link.now()
+    }
+
+    /// Waits until `deadline` on the link's clock, reading nothing.
+    pub fn sleep_until(&mut self, deadline: Instant) {
+        self.link.sleep_until(deadline);
+    }
+
     /// A handle on the module with ID `id` (0..=30).
     pub const fn servo(&mut self, id: ServoId) -> Servo<'_, L> {
         Servo::new(self, id)
@@ -411,7 +422,7 @@ impl<L: ByteLink> WckBus<L> {
         self.link.discard_input().map_err(Failure::Link)?;
         let packet = command.encode();
         let wait = self.reply_wait(command);
-        let start = Instant::now();
+        let start = self.link.now();
         self.link.write_all(&packet).map_err(Failure::Link)?;
         self.stats.attempts += 1;
         self.deadline = Some(start + wait);
@@ -452,7 +463,7 @@ impl<L: ByteLink> WckBus<L> {
     /// Bytes that arrive within `window` after a reply (a collision or line noise makes
     /// them; a single clean module sends none). Used by the scan.
     pub(crate) fn trailing_bytes(&mut self, window: Duration) -> Result<usize, WckError> {
-        let deadline = Instant::now() + window;
+        let deadline = self.link.now() + window;
         let mut buf = [0u8; 16];
         let mut n = 0;
         loop {
@@ -730,10 +741,10 @@ impl<L: ByteLink> WckBus<L> {
     /// Reads and drops input until the line is quiet for [`WckConfig::settle`] (at most
     /// 50 ms or twice the settle time), then flushes.
     pub(crate) fn settle(&mut self) {
-        let cap = Instant::now() + MAX_DRAIN.max(self.config.settle.saturating_mul(2));
+        let cap = self.link.now() + MAX_DRAIN.max(self.config.settle.saturating_mul(2));
         let mut buf = [0u8; 64];
         loop {
-            let now = Instant::now();
+            let now = self.link.now();
             if now >= cap {
                 break;
             }
