@@ -1,5 +1,6 @@
 //! Late replies (issue: a reply must never be credited to another request): a scripted
-//! fake bus whose servos answer status reads after a delay, some of them 15-45 ms late.
+//! fake bus whose servos answer status reads after a delay, some of them 15-45 ms late,
+//! on a virtual clock of its own (time moves only when the client waits).
 #![allow(clippy::unwrap_used, clippy::panic, missing_docs)]
 
 use std::collections::VecDeque;
@@ -17,6 +18,8 @@ struct LateBus {
     delay: fn(u8) -> Option<Duration>,
     /// Reply bytes with the time they arrive.
     pending: VecDeque<(Instant, u8)>,
+    /// The link's clock.
+    now: Instant,
 }
 
 impl LateBus {
@@ -24,6 +27,7 @@ impl LateBus {
         Self {
             delay,
             pending: VecDeque::new(),
+            now: Instant::now(),
         }
     }
 }
@@ -37,7 +41,7 @@ impl ByteLink for LateBus {
             let id = b1 & 0x1F;
             if let Some(d) = (self.delay)(id) {
                 // On the wire, bytes arrive in the order of their times.
-                let at = Instant::now() + d;
+                let at = self.now + d;
                 let i = self.pending.partition_point(|&(t, _)| t <= at);
                 self.pending.insert(i, (at, 10 * id + 10));
                 self.pending.insert(i, (at, 0)); // load 0
@@ -48,7 +52,7 @@ impl ByteLink for LateBus {
 
     fn read_some(&mut self, buf: &mut [u8], deadline: Instant) -> Result<usize, LinkError> {
         loop {
-            let now = Instant::now();
+            let now = self.now;
             let mut n = 0;
             while n < buf.len()
                 && let Some(&(at, b)) = self.pending.front()
@@ -71,16 +75,13 @@ impl ByteLink for LateBus {
                 .pending
                 .front()
                 .map_or(deadline, |&(at, _)| at.min(deadline));
-            std::thread::sleep(
-                next.saturating_duration_since(now)
-                    .min(Duration::from_millis(1)),
-            );
+            self.now = next;
         }
     }
 
     fn discard_input(&mut self) -> Result<(), LinkError> {
         // Only what has arrived; a reply still on its way is not in any buffer yet.
-        let now = Instant::now();
+        let now = self.now;
         self.pending.retain(|&(at, _)| at > now);
         Ok(())
     }
@@ -91,6 +92,14 @@ impl ByteLink for LateBus {
 
     fn baud(&self) -> Option<u32> {
         Some(115_200)
+    }
+
+    fn now(&self) -> Instant {
+        self.now
+    }
+
+    fn sleep_until(&mut self, deadline: Instant) {
+        self.now = self.now.max(deadline);
     }
 }
 
@@ -104,8 +113,9 @@ fn status_of(ids: std::ops::RangeInclusive<u8>) -> WckPlan {
     plan
 }
 
-/// Each servo's reported position is its own (or it failed); never another's.
-fn assert_no_reply_credited_elsewhere(link: LateBus, ids: std::ops::RangeInclusive<u8>) -> usize {
+/// Each servo's reported position is its own (or it failed); never another's. Returns
+/// the servos that answered.
+fn assert_no_reply_credited_elsewhere(link: LateBus, ids: std::ops::RangeInclusive<u8>) -> Vec<u8> {
     let mut bus = WckBus::new(link, BaudRate::B115200)
         .unwrap()
         .with_config(WckConfig {
@@ -113,11 +123,11 @@ fn assert_no_reply_credited_elsewhere(link: LateBus, ids: std::ops::RangeInclusi
             ..WckConfig::default()
         });
     let report = run_steps(&mut bus, "status", &status_of(ids), &mut Control::none()).unwrap();
-    let mut ok = 0;
+    let mut ok = Vec::new();
     for r in &report.results {
         let id = r.id.cell().parse::<u8>().unwrap();
         if let Some(v) = r.value() {
-            ok += 1;
+            ok.push(id);
             assert_eq!(
                 v.get("position").unwrap().cell(),
                 (10 * id + 10).to_string(),
@@ -140,7 +150,9 @@ fn a_reply_15_to_45_ms_late_is_never_credited_to_the_next_servo() {
         _ => None,
     });
     let ok = assert_no_reply_credited_elsewhere(link, 0..=5);
-    assert!(ok >= 3, "the punctual servos answer");
+    // Servos 1, 2 and 4 answer every attempt after its deadline: each reply lands in the
+    // late window and is dropped, so they fail; the punctual ones answer.
+    assert_eq!(ok, [0, 3, 5]);
 }
 
 #[test]
@@ -155,5 +167,7 @@ fn a_late_reply_after_a_retried_success_is_drained() {
         2 => Some(Duration::from_millis(9)),
         _ => None,
     });
-    assert_no_reply_credited_elsewhere(link, 0..=2);
+    // On this clock every attempt's reply lands in the late window of the attempt before
+    // and is dropped, so servo 0 fails; servos 1 and 2 get their own replies.
+    assert_eq!(assert_no_reply_credited_elsewhere(link, 0..=2), [1, 2]);
 }
