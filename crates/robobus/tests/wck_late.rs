@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use robobus::ops::Control;
 use robobus::ops::wck::{WckPlan, run_steps};
-use robobus::wck::{WckBus, WckConfig};
+use robobus::wck::{ScanOptions, WckBus, WckConfig};
 use robobus_link::{ByteLink, LinkError};
 use robobus_wck::{BaudRate, Command, ServoId};
 
@@ -170,4 +170,62 @@ fn a_late_reply_after_a_retried_success_is_drained() {
     // On this clock every attempt's reply lands in the late window of the attempt before
     // and is dropped, so servo 0 fails; servos 1 and 2 get their own replies.
     assert_eq!(assert_no_reply_credited_elsewhere(link, 0..=2), [1, 2]);
+}
+
+/// Scans `ids` (status reads only) and returns the IDs found, with the time it took on
+/// the link's clock.
+fn scan_late(link: LateBus, ids: std::ops::RangeInclusive<u8>) -> (Vec<u8>, Duration) {
+    let mut bus = WckBus::new(link, BaudRate::B115200).unwrap();
+    let start = bus.now();
+    let options = ScanOptions {
+        check_duplicates: false,
+        ..ScanOptions::default().ids(ids)
+    };
+    let report = bus.scan(&options, |_| {}).unwrap();
+    let found = report.found.iter().map(|f| f.id.get()).collect();
+    (found, bus.now().saturating_duration_since(start))
+}
+
+#[test]
+fn a_scan_never_takes_a_late_reply_for_the_next_id() {
+    // Servo 1 answers 30 ms after it is asked, past its deadline (11.5 ms), while ID 2
+    // (absent) is probed: that reply must not make a servo 2. Servo 3 answers 1.5 ms late,
+    // within its deadline, right after the silent ID 2.
+    let link = LateBus::new(|id| match id {
+        1 => Some(Duration::from_millis(30)),
+        3 => Some(Duration::from_micros(1500)),
+        _ => None,
+    });
+    let (found, _) = scan_late(link, 0..=4);
+    assert_eq!(found, [3]);
+    // Every probe of servo 1's is answered 30 ms late: the second probe of ID 1 and both of
+    // ID 2 come within its replies' late windows.
+    let link = LateBus::new(|id| match id {
+        1 => Some(Duration::from_millis(30)),
+        _ => None,
+    });
+    assert_eq!(scan_late(link, 0..=4).0, Vec::<u8>::new());
+}
+
+#[test]
+fn a_scan_of_silent_ids_costs_only_their_reply_waits() {
+    // 31 IDs, 2 probes each, each waiting 11.53 ms (1.53 ms modelled + 10 ms margin): no
+    // late window between them.
+    let (found, took) = scan_late(LateBus::new(|_| None), 0..=30);
+    assert!(found.is_empty());
+    assert_eq!(took, 62 * Duration::from_nanos(11_527_433));
+    // Two servos: each found after silent IDs waits out one late window (50 ms) and is
+    // asked again.
+    let link = LateBus::new(|id| match id {
+        5 | 20 => Some(Duration::from_micros(1500)),
+        _ => None,
+    });
+    let (found, took) = scan_late(link, 0..=30);
+    assert_eq!(found, [5, 20]);
+    let wait = Duration::from_nanos(11_527_433);
+    let reply = Duration::from_micros(1500);
+    assert_eq!(
+        took,
+        58 * wait + 2 * (wait + Duration::from_millis(50) + reply)
+    );
 }

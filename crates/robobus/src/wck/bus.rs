@@ -63,8 +63,10 @@ pub struct WckConfig {
     /// reply, and after a success that needed a retry (an earlier attempt's reply may have
     /// been taken, this attempt's own is then still on its way), the next packet waits
     /// until this long after that attempt's deadline, dropping what arrives. Costs this
-    /// much per silent servo (a scan of 31 empty IDs at one rate: about 3 s more with the
-    /// default [`DEFAULT_LATE_WINDOW`], 50 ms); nothing while every reply is on time.
+    /// much per silent servo; nothing while every reply is on time. A scan does not wait
+    /// before each probe: it sends the next one at once and credits nothing that arrives
+    /// while the window is open (it waits the window out and asks that ID again), so an
+    /// empty ID costs only its reply waits (see [`WckBus::scan`]).
     pub late_window: Duration,
 }
 
@@ -419,6 +421,18 @@ impl<L: ByteLink> WckBus<L> {
     /// One attempt: flush, write, read two bytes before the deadline.
     pub(crate) fn exchange(&mut self, command: &Command) -> Result<[u8; 2], Failure> {
         self.drain_late();
+        self.exchange_now(command)
+    }
+
+    /// Whether a reply to an earlier attempt may still arrive (its late window is open).
+    pub(crate) fn late_reply_possible(&self) -> bool {
+        self.quiet_until.is_some_and(|q| q > self.link.now())
+    }
+
+    /// One attempt without waiting out an open late window first: what it receives may
+    /// be an earlier attempt's late reply, so the caller must not credit it while
+    /// [`WckBus::late_reply_possible`] said so (see the scan).
+    pub(crate) fn exchange_now(&mut self, command: &Command) -> Result<[u8; 2], Failure> {
         self.link.discard_input().map_err(Failure::Link)?;
         let packet = command.encode();
         let wait = self.reply_wait(command);

@@ -241,7 +241,10 @@ impl ScanArgs {
     /// The plan of the scan if the IDs for which `answers(baud, id)` holds answer cleanly
     /// and the others stay silent: a silent ID is read `probes` times; an ID that answers
     /// is read once and then three more ways (10-bit position, I gain, over-load) to rule
-    /// out two modules sharing it. The dry-run assumes that nobody answers; the real run
+    /// out two modules sharing it; right after a silent ID it is read once more first (that
+    /// first answer may be the silent ID's late reply, so it is not credited: the ID is
+    /// asked again once the late window has passed). The dry-run assumes that nobody
+    /// answers; the real run
     /// sends this plan for the servos it found (plus repeats where replies were garbled,
     /// and the further probes that confirm a suspected duplicate).
     pub fn plan(&self, answers: &dyn Fn(BaudRate, ServoId) -> bool) -> WckPlan {
@@ -251,6 +254,7 @@ impl ScanArgs {
              read three more ways (10-bit position, I gain, over-load) to rule out a shared ID",
             self.probes.max(1)
         ));
+        let mut after_silent = false;
         for &baud in &self.bauds {
             for &id in &self.ids {
                 let step = |command| WckStep {
@@ -258,7 +262,12 @@ impl ScanArgs {
                     baud: (self.bauds.len() > 1).then_some(baud),
                     command,
                 };
-                if answers(baud, id) {
+                let answering = answers(baud, id);
+                if answering && after_silent {
+                    plan.steps.push(step(Command::StatusRead { id }));
+                }
+                after_silent = !answering;
+                if answering {
                     plan.steps.push(step(Command::StatusRead { id }));
                     plan.steps.push(step(Command::Read10 { id: id.into() }));
                     plan.steps.push(step(Command::IGainRead { id }));
