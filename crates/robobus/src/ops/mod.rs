@@ -523,6 +523,21 @@ mod tests {
     }
 
     #[test]
+    fn a_sleep_on_a_link_takes_the_link_clock_and_stops_on_the_token() {
+        use robobus_sim::wck::{Bus, BusConfig, SimLink};
+        let (mut link, _handle) = SimLink::virtual_clock(Bus::new(BusConfig::default()));
+        let token = StopToken::new();
+        let start = link.now();
+        let deadline = start + Duration::from_secs(60);
+        // A minute of the simulator's clock, in no wall time.
+        assert!(token.sleep_on(&mut link, deadline));
+        assert_eq!(link.now(), deadline);
+        token.stop();
+        assert!(!token.sleep_on(&mut link, deadline + Duration::from_secs(1)));
+        assert_eq!(link.now(), deadline);
+    }
+
+    #[test]
     fn stop_token_wakes_a_sleeper_early() {
         let token = StopToken::new();
         let t = token.clone();
