@@ -8,7 +8,10 @@
 //! bit would leave the wire, sleeping in `ppoll` with a 1 µs timer slack until then.
 //! Input is taken from the pty no faster than the wire carries it (a few milliseconds
 //! ahead at most), so a client that floods the port blocks in its write, as on a real
-//! port, and a command after the flood is answered within a bounded time.
+//! port, and a command after the flood is answered within a bounded time. While the
+//! client's bytes are on the simulated wire the model runs ahead through them (nothing the
+//! client writes meanwhile can come earlier on the wire), so the thread wakes for a
+//! command and for each reply byte, not for every byte a module receives.
 //! Other threads reach the bus through [`Endpoint::with_bus`] (a small command queue),
 //! so the test API (push, hold, set the A/D input, power-cycle) works while it serves.
 
@@ -123,7 +126,9 @@ impl Endpoint {
     }
 
     /// Runs `f` on the bus in the serving thread (after bringing the bus to the current
-    /// time) and returns its result, or `None` if the thread has stopped.
+    /// time; while a client's command is still on the simulated wire the bus may already
+    /// stand at a later instant of it, see the module notes) and returns its result, or
+    /// `None` if the thread has stopped.
     pub fn with_bus<R: Send + 'static>(
         &self,
         f: impl FnOnce(&mut Bus) -> R + Send + 'static,
