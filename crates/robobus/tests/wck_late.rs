@@ -156,11 +156,10 @@ fn a_reply_15_to_45_ms_late_is_never_credited_to_the_next_servo() {
 }
 
 #[test]
-fn a_late_reply_after_a_retried_success_is_drained() {
-    // Servo 0 answers 18 ms late: its first attempt times out (deadline about 11.5 ms),
-    // the retry gets the first attempt's reply, and the retry's own reply is still on its
-    // way (due 13.5 ms after servo 0's success) while servos 1 and 2 are asked; servo 2
-    // answers 9 ms after it is asked, so the stale reply would come first.
+fn a_servo_18_ms_late_every_time_fails_and_none_of_its_replies_reaches_the_next() {
+    // Servo 0 answers 18 ms late (deadline about 11.5 ms): each reply comes within the late
+    // window of its attempt, which the retry waits out. Servos 1 and 2 answer 6 and 9 ms
+    // after they are asked, so a stale reply of servo 0 would come before theirs.
     let link = LateBus::new(|id| match id {
         0 => Some(Duration::from_millis(18)),
         1 => Some(Duration::from_millis(6)),
