@@ -120,20 +120,14 @@ fn whj(e: WhjError) -> OpError {
     OpError::Whj(e)
 }
 
-/// Waits on the bus's clock until `deadline` unless stopped first (looking at the stop
-/// token at least every 5 ms of it); `false` when stopped.
+/// Waits on the bus's clock until `deadline` unless stopped first; `false` when stopped.
 fn pause_until(bus: &JointBus, control: &Control<'_>, deadline: Instant) -> bool {
-    const SLICE: Duration = Duration::from_millis(5);
-    loop {
-        if control.stopped() {
-            return false;
+    control.sleep_with(deadline, |until| {
+        if let Some(t) = until {
+            bus.sleep_until(t);
         }
-        let now = bus.now();
-        if now >= deadline {
-            return true;
-        }
-        bus.sleep_until(deadline.min(now + SLICE));
-    }
+        bus.now()
+    })
 }
 
 fn per_joint<T>(
