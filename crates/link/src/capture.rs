@@ -314,17 +314,7 @@ impl<L: FrameLink, W: Write> FrameLink for CaptureFrameLink<L, W> {
         self.inner.set_filters(filters)
     }
 
-    fn now(&self) -> Instant {
-        self.inner.now()
-    }
-
-    fn sleep_until(&mut self, deadline: Instant) {
-        self.inner.sleep_until(deadline);
-    }
-
-    fn virtual_time(&self) -> bool {
-        self.inner.virtual_time()
-    }
+    crate::forward_frame_link_clock!(inner);
 }
 
 /// A frame link that plays a candump capture back: `recv` returns the records in order

@@ -427,15 +427,5 @@ impl<L: FrameLink> FrameLink for FaultyFrameLink<L> {
         self.inner.set_filters(filters)
     }
 
-    fn now(&self) -> Instant {
-        self.inner.now()
-    }
-
-    fn sleep_until(&mut self, deadline: Instant) {
-        self.inner.sleep_until(deadline);
-    }
-
-    fn virtual_time(&self) -> bool {
-        self.inner.virtual_time()
-    }
+    crate::forward_frame_link_clock!(inner);
 }

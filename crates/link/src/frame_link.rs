@@ -234,6 +234,26 @@ pub trait FrameLink {
     }
 }
 
+/// The clock methods of a [`FrameLink`] that wraps another, forwarded to the wrapped
+/// link (the field named): `now`, `sleep_until`, `virtual_time`. For use inside an
+/// `impl FrameLink for Wrapper` block.
+#[macro_export]
+macro_rules! forward_frame_link_clock {
+    ($field:tt) => {
+        fn now(&self) -> ::std::time::Instant {
+            $crate::FrameLink::now(&self.$field)
+        }
+
+        fn sleep_until(&mut self, deadline: ::std::time::Instant) {
+            $crate::FrameLink::sleep_until(&mut self.$field, deadline);
+        }
+
+        fn virtual_time(&self) -> bool {
+            $crate::FrameLink::virtual_time(&self.$field)
+        }
+    };
+}
+
 impl<T: FrameLink + ?Sized> FrameLink for &mut T {
     fn send(&mut self, frame: &CanFrame) -> Result<(), FrameLinkError> {
         (**self).send(frame)

@@ -411,17 +411,7 @@ impl<L: robobus_link::FrameLink> robobus_link::FrameLink for StampingLink<L> {
         self.inner.set_filters(filters)
     }
 
-    fn now(&self) -> Instant {
-        self.inner.now()
-    }
-
-    fn sleep_until(&mut self, deadline: Instant) {
-        self.inner.sleep_until(deadline);
-    }
-
-    fn virtual_time(&self) -> bool {
-        self.inner.virtual_time()
-    }
+    robobus_link::forward_frame_link_clock!(inner);
 }
 
 /// Runs a current loop for joint 1 on the virtual clock over a [`StampingLink`] whose

@@ -197,17 +197,7 @@ impl<L: FrameLink> FrameLink for ScriptedErrors<L> {
         self.inner.set_filters(filters)
     }
 
-    fn now(&self) -> Instant {
-        self.inner.now()
-    }
-
-    fn sleep_until(&mut self, deadline: Instant) {
-        self.inner.sleep_until(deadline);
-    }
-
-    fn virtual_time(&self) -> bool {
-        self.inner.virtual_time()
-    }
+    robobus_link::forward_frame_link_clock!(inner);
 }
 
 fn bus_off() -> FrameLinkError {

@@ -9,7 +9,7 @@ mod whj_common;
 
 use std::io::Write;
 use std::sync::{Arc, Mutex};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use robobus::ops::whj::{self as ops, MoveArgs, ServoLoop, Shape, WaveArgs};
 use robobus::ops::{Control, ErrorKind, OpError, Progress, SafeState, StopToken};
@@ -265,17 +265,7 @@ impl<L: FrameLink> FrameLink for ImplausibleStatus<L> {
         self.0.set_filters(filters)
     }
 
-    fn now(&self) -> Instant {
-        self.0.now()
-    }
-
-    fn sleep_until(&mut self, deadline: Instant) {
-        self.0.sleep_until(deadline);
-    }
-
-    fn virtual_time(&self) -> bool {
-        self.0.virtual_time()
-    }
+    robobus_link::forward_frame_link_clock!(0);
 }
 
 #[test]
@@ -553,17 +543,7 @@ impl<L: FrameLink> FrameLink for ErrorBits<L> {
         self.0.set_filters(filters)
     }
 
-    fn now(&self) -> Instant {
-        self.0.now()
-    }
-
-    fn sleep_until(&mut self, deadline: Instant) {
-        self.0.sleep_until(deadline);
-    }
-
-    fn virtual_time(&self) -> bool {
-        self.0.virtual_time()
-    }
+    robobus_link::forward_frame_link_clock!(0);
 }
 
 #[test]
