@@ -609,3 +609,73 @@ fn a_register_the_firmware_lacks_is_refused_before_anything_is_sent() {
     let r = ops::write_register(&bus, on_delay, true).unwrap();
     assert_eq!((r[0].register, r[0].raw), ("ON_DELAY", 1));
 }
+
+/// A speed wave stopped halfway with `Hold`: the last frame is a speed target of 0 and the
+/// joint stays enabled (held in its loop, not in position mode).
+#[test]
+fn a_stopped_speed_wave_holds_the_joint_at_speed_zero() {
+    let (_sim, bus, log) = captured(1);
+    ready(&bus, id(1), WorkMode::Speed);
+    let j = bus.joint(id(1)).unwrap();
+    let args = WaveArgs {
+        joint: id(1),
+        shape: Shape::Sine,
+        servo: ServoLoop::Speed,
+        amplitude: 5.0,
+        frequency: 1.0,
+        offset: 5.0,
+        duration: 10.0,
+        rate_hz: 100.0,
+        step_limit_deg: JointBusConfig::default().step_limit_deg,
+    };
+    let stop = StopToken::new();
+    let s = stop.clone();
+    let mut on_progress = move |p: &Progress| {
+        if p.done >= 20 {
+            s.stop();
+        }
+    };
+    let mut control = Control::new(&stop).with_progress(&mut on_progress);
+    let err = ops::run_wave(&j, &args, &mut control, SafeState::Hold).unwrap_err();
+    drop(control);
+    assert_eq!(err.to_string(), "interrupted: joint 1 holding");
+    let servo = servo_frames(&log.sent());
+    assert!(servo.len() >= 21, "{}", servo.len());
+    assert_eq!(
+        Request::from_frame(servo.last().unwrap()).unwrap(),
+        Request::SpeedServo {
+            joint: id(1),
+            target: robobus_whj::units::TargetSpeed(0)
+        }
+    );
+    assert!(j.is_enabled().unwrap());
+    assert_eq!(j.mode().unwrap(), WorkMode::Speed);
+}
+
+/// `SafeState::apply` on several joints disables each past a silent one and names it.
+#[test]
+fn the_safe_state_reaches_every_joint_past_a_silent_one() {
+    use robobus::ops::safe::{SafeDevice, WhjJoints};
+    let (_sim, bus, _log) = captured(2);
+    ready(&bus, id(1), WorkMode::Position);
+    ready(&bus, id(2), WorkMode::Position);
+    let joints = [
+        bus.joint_unchecked(id(1)),
+        bus.joint_unchecked(id(3)),
+        bus.joint_unchecked(id(2)),
+    ];
+    let failed = SafeState::Disable.apply(&mut WhjJoints {
+        joints: &joints,
+        servo: ServoLoop::Position,
+    });
+    let devices: Vec<SafeDevice> = failed.iter().map(|f| f.device).collect();
+    assert_eq!(devices, [SafeDevice::Joint(3)]);
+    assert_eq!(failed[0].error.kind(), ErrorKind::NoDevice, "{}", failed[0]);
+    assert!(
+        failed[0].to_string().starts_with("joint 3: "),
+        "{}",
+        failed[0]
+    );
+    assert!(!joints[0].is_enabled().unwrap());
+    assert!(!joints[2].is_enabled().unwrap());
+}

@@ -48,6 +48,7 @@ use serde::Serialize;
 pub mod capture;
 mod ids;
 pub mod replay;
+pub mod safe;
 pub mod wck;
 pub mod whj;
 

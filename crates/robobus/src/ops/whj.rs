@@ -4,7 +4,7 @@
 //! a typed report. Operations on many joints return one [`DeviceResult`] per joint and carry
 //! on past a silent one; the caller picks the exit code (the CLI: 3 when any was silent).
 //! Long operations ([`run_move`], [`run_wave`]) take a [`Control`]; on stop they apply the
-//! caller's [`SafeState`] through [`apply_safe_state`] (the same function the robot watchdog
+//! caller's [`SafeState`] through [`SafeState::apply`] (the same function the robot watchdog
 //! uses) and return [`OpError::Interrupted`].
 //!
 //! # One plan
@@ -46,6 +46,7 @@ use robobus_whj::units::{Current, CurrentScale, Position, TargetSpeed};
 use robobus_whj::{JointId, Request, WorkMode};
 use serde::Serialize;
 
+use super::safe::WhjJoints;
 use super::{Control, DeviceResult, Failure, OpError, Progress, SafeState};
 use crate::whj::{Joint, JointBus, MotionLimits, Profile, WhjError};
 
@@ -310,42 +311,13 @@ pub fn set_id(bus: &JointBus, id: JointId, new_id: JointId) -> Result<SetIdRepor
 // Safe state
 // ---------------------------------------------------------------------------------------
 
-/// Brings a joint to `safe`: [`SafeState::Disable`] disables the drive; any other state
-/// holds ([`ServoLoop::Position`]: a position frame at the actual angle; speed / current:
-/// target 0). Returns what was done (`"holding"`, `"disabled"`). The one safe stop of WHJ
-/// joints: the CLI's Ctrl-C, the operations' stop and the robot watchdog all call it.
-pub fn apply_safe_state(
-    j: &Joint<'_>,
-    safe: SafeState,
-    servo: ServoLoop,
-) -> Result<&'static str, WhjError> {
-    if safe == SafeState::Disable {
-        j.disable()?;
-        return Ok("disabled");
-    }
-    match servo {
-        ServoLoop::Position => {
-            let at = j.status()?.position;
-            j.command_position(at)?;
-        }
-        ServoLoop::Speed => {
-            j.command_speed(TargetSpeed(0))?;
-        }
-        ServoLoop::Current => {
-            j.command_current(0.0)?;
-        }
-    }
-    Ok("holding")
-}
-
+/// After a stop: the joint to `safe` ([`SafeState::apply`]), then [`OpError::Interrupted`]
+/// saying what it did.
 fn interrupted(j: &Joint<'_>, safe: SafeState, servo: ServoLoop) -> OpError {
-    let detail = match apply_safe_state(j, safe, servo) {
-        Ok(state) => format!("joint {} {state}", j.id().get()),
-        Err(e) => format!("could not bring the joint to the safe state: {e}"),
-    };
-    OpError::Interrupted {
-        detail: Some(detail),
-    }
+    safe.interrupted(&mut WhjJoints {
+        joints: core::slice::from_ref(j),
+        servo,
+    })
 }
 
 // ---------------------------------------------------------------------------------------
