@@ -64,7 +64,8 @@ pub use bus::{
     BusHealth, BusState, JointBus, JointBusConfig, JointTelemetry, OwnedJoint, Telemetry,
 };
 pub use cyclic::{
-    CycleReport, Cyclic, CyclicConfig, CyclicStats, Feedback, Percentiles, Protocol, ServoMode,
+    CycleReport, Cyclic, CyclicConfig, CyclicStats, Feedback, OwnedCyclic, Percentiles, Protocol,
+    ServoMode,
 };
 pub use error::WhjError;
 pub use joint::{Identity, Joint, RegisterValue};
