@@ -57,8 +57,8 @@ seconds), results are printed as a table, one row per joint (--json: one JSON ob
 fields carry their units: position_deg, speed_rpm, current_ma). `move` and `wave` send
 exactly the frames their dry run prints, planned from the measured position (a move that
 is too fast for the step limit is split into smaller steps); `wave` reports cycles,
-missing replies, deadline misses, overruns, clamps and tracking against the requested
-target. A joint that does not answer gives exit code 3 (the others are still reported);
+missing replies, deadline misses, overruns, clamps, tracking against the requested
+target and the round trip of each frame to its feedback (p50 / p99 / max, µs). A joint that does not answer gives exit code 3 (the others are still reported);
 `save` is refused while a joint is enabled. `write` follows each register's safety class:
 motion targets and the drive switch are refused with the command to use, calibration,
 bit rates, IAP and brake need --yes. Without --duration, `speed` / `current` leave the

@@ -679,3 +679,56 @@ fn the_safe_state_reaches_every_joint_past_a_silent_one() {
     assert!(!joints[0].is_enabled().unwrap());
     assert!(!joints[2].is_enabled().unwrap());
 }
+
+/// A relay that holds every servo feedback frame (`0x500+ID`) back by `delay`.
+struct DelayedFeedback<L>(L, Duration);
+
+impl<L: FrameLink> FrameLink for DelayedFeedback<L> {
+    fn send(&mut self, frame: &CanFrame) -> Result<(), FrameLinkError> {
+        self.0.send(frame)
+    }
+    fn recv(&mut self, deadline: std::time::Instant) -> Result<Received, FrameLinkError> {
+        let r = self.0.recv(deadline)?;
+        if r.frame.raw_id() >> 8 == 5 {
+            std::thread::sleep(self.1);
+        }
+        Ok(r)
+    }
+    fn set_filters(&mut self, filters: &[IdFilter]) -> Result<(), FrameLinkError> {
+        self.0.set_filters(filters)
+    }
+}
+
+/// A wave reports the round trip of its frames (send to feedback): with every feedback
+/// held back 4 ms, no percentile is below 4 ms, and they are in order.
+#[test]
+fn a_wave_reports_the_round_trip_of_its_frames() {
+    let (_sim, link) = memory(chain(1));
+    let link = DelayedFeedback(link, Duration::from_millis(4));
+    let bus = JointBus::open_with(link, config()).unwrap();
+    ready(&bus, id(1), WorkMode::Position);
+    let args = WaveArgs {
+        joint: id(1),
+        shape: Shape::Sine,
+        servo: ServoLoop::Position,
+        amplitude: 1.0,
+        frequency: 1.0,
+        offset: 0.0,
+        duration: 0.3,
+        rate_hz: 100.0,
+        step_limit_deg: JointBusConfig::default().step_limit_deg,
+    };
+    let j = bus.joint(id(1)).unwrap();
+    let (_, report) = ops::run_wave(&j, &args, &mut Control::none(), SafeState::Hold).unwrap();
+    assert_eq!(report.cycles, 30);
+    assert!(report.complete > 0, "{report:?}");
+    let p50 = report.round_trip_p50_us.unwrap();
+    let p99 = report.round_trip_p99_us.unwrap();
+    let max = report.round_trip_max_us.unwrap();
+    assert!(p50 >= 4_000, "{report:?}");
+    assert!(p50 <= p99 && p99 <= max, "{report:?}");
+    // Within the reply timeout (a frame without feedback is not a round trip).
+    assert!(max < 250_000, "{report:?}");
+    let json = serde_json::to_value(&report).unwrap();
+    assert_eq!(json["round_trip_p50_us"], p50);
+}

@@ -32,7 +32,9 @@
 //! - [`WaveReport`]: `cycles`, `complete`, `missing_replies`, `deadline_misses`, `overruns`, `clamped`
 //!   (set-points the step limiter changed), `tracking_rms`, `tracking_max` (against the
 //!   *requested* target, in the loop's unit), `last` (the last feedback, or null when none
-//!   came), `stale` (true when the last cycle had no reply), `missing_at_end`;
+//!   came), `stale` (true when the last cycle had no reply), `missing_at_end`,
+//!   `round_trip_p50_us`, `round_trip_p99_us`, `round_trip_max_us` (send to feedback of the
+//!   answered frames; null without replies);
 //! - [`SetIdReport`]: `new_id`, `saved`, `note`.
 
 // OpError carries the client errors by value, as they do (see `ops::read_bounded`).
@@ -48,7 +50,7 @@ use serde::Serialize;
 
 use super::safe::WhjJoints;
 use super::{Control, DeviceResult, Failure, OpError, Progress, SafeState};
-use crate::whj::{Joint, JointBus, MotionLimits, Profile, WhjError};
+use crate::whj::{Joint, JointBus, MotionLimits, Percentiles, Profile, WhjError};
 
 /// A frame of a plan and when it goes out, from the start of the plan.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -602,12 +604,21 @@ pub fn prepare_move(j: &Joint<'_>, args: &MoveArgs) -> Result<Plan, OpError> {
 /// Sends the timed frames of `plan` at their times. Returns the last feedback, the number
 /// of frames sent, and per-frame feedback to `on_frame` (index, feedback or `None` when
 /// the frame got no reply, how late it went out).
+/// When a planned frame went out and how long its exchange took.
+#[derive(Debug, Clone, Copy)]
+struct FrameTimes {
+    /// How late after its planned time the frame was handed to the bus.
+    late: Duration,
+    /// From handing the frame to the bus to its feedback (`None`: no feedback came).
+    round_trip: Option<Duration>,
+}
+
 fn send_frames(
     j: &Joint<'_>,
     plan: &Plan,
     control: &mut Control<'_>,
     stage: &'static str,
-    mut on_frame: impl FnMut(usize, Option<&ServoFeedback>, Duration) -> Result<(), OpError>,
+    mut on_frame: impl FnMut(usize, Option<&ServoFeedback>, FrameTimes) -> Result<(), OpError>,
 ) -> Result<Result<u64, ()>, OpError> {
     let start = Instant::now();
     let total = plan.frames.len() as u64;
@@ -617,14 +628,16 @@ fn send_frames(
         if control.stopped() || !control.sleep_until(due) {
             return Ok(Err(()));
         }
-        let late = Instant::now().saturating_duration_since(due);
+        let sent_at = Instant::now();
+        let late = sent_at.saturating_duration_since(due);
         let fb = match j.servo_request(f.request) {
             Ok(fb) => Some(fb),
             Err(e) if e.is_timeout() => None,
             Err(e) => return Err(whj(e)),
         };
+        let round_trip = fb.is_some().then(|| sent_at.elapsed());
         sent += 1;
-        on_frame(k, fb.as_ref(), late)?;
+        on_frame(k, fb.as_ref(), FrameTimes { late, round_trip })?;
         if sent.is_multiple_of(16) || sent == total {
             control.report(&Progress::new(stage, sent, Some(total)));
         }
@@ -969,6 +982,13 @@ pub struct WaveReport {
     pub stale: bool,
     /// Frames without a reply in a row at the end of the wave.
     pub missing_at_end: u64,
+    /// Round trip of the answered frames, from handing a frame to the bus to its
+    /// feedback: median, µs (`None` without replies).
+    pub round_trip_p50_us: Option<u64>,
+    /// The 99th percentile (nearest rank), µs.
+    pub round_trip_p99_us: Option<u64>,
+    /// The longest, µs.
+    pub round_trip_max_us: Option<u64>,
 }
 
 /// Runs a wave: checks the joint (enabled in the wave's mode, the values within its
@@ -1030,6 +1050,9 @@ pub fn execute_wave(
         last: None,
         stale: false,
         missing_at_end: 0,
+        round_trip_p50_us: None,
+        round_trip_p99_us: None,
+        round_trip_max_us: None,
     };
     for (f, want) in plan.frames.iter().zip(&targets) {
         if let Request::PositionServo { target, .. } = f.request
@@ -1040,7 +1063,10 @@ pub fn execute_wave(
     }
     let (mut sq, mut max, mut n) = (0.0f64, 0.0f64, 0u64);
     let mut last_sent = Instant::now();
-    let outcome = send_frames(j, plan, control, "wave", |k, fb, late| {
+    let mut round_trips = Vec::with_capacity(plan.frames.len());
+    let outcome = send_frames(j, plan, control, "wave", |k, fb, times| {
+        let late = times.late;
+        round_trips.extend(times.round_trip);
         let now = Instant::now();
         if k > 0 && now.duration_since(last_sent) > period * 2 {
             r.overruns += 1;
@@ -1084,6 +1110,13 @@ pub fn execute_wave(
         let rms = (sq / n as f64).sqrt();
         r.tracking_rms = Some(rms);
         r.tracking_max = Some(max);
+    }
+    if !round_trips.is_empty() {
+        let p = Percentiles::of(&round_trips);
+        let us = |d: Duration| u64::try_from(d.as_micros()).unwrap_or(u64::MAX);
+        r.round_trip_p50_us = Some(us(p.p50));
+        r.round_trip_p99_us = Some(us(p.p99));
+        r.round_trip_max_us = Some(us(p.max));
     }
     Ok(r)
 }
