@@ -24,7 +24,7 @@ use robobus::ops::capture::{Overwrite, capture_frame_link};
 use robobus::ops::whj::{self as ops, MoveArgs, TargetArgs, WaveArgs};
 use robobus::ops::{Control, DeviceResult, Progress, SafeState, worst_kind};
 use robobus::whj::{JointBus, JointBusConfig, WhjError};
-use robobus_link::{FrameLink, FrameLinkSpec, OpenError};
+use robobus_link::{FrameLink, FrameLinkSpec};
 use robobus_whj::units::CurrentScale;
 use robobus_whj::{JointId, RegisterAddr, WorkMode};
 use serde::Serialize;
@@ -140,10 +140,8 @@ pub(crate) fn open_link(
     let spec: FrameLinkSpec = bus
         .parse()
         .map_err(|e| crate::exit::usage(format!("--bus: {e}")))?;
-    let link = spec.open().map_err(|e| match e {
-        OpenError::NoInterface { .. } => anyhow::Error::new(Timeout(e.to_string())),
-        other => anyhow::Error::new(other),
-    })?;
+    // Its exit code is the error's kind (`robobus::error::open_error_kind`).
+    let link = spec.open()?;
     let Some(path) = capture else {
         return Ok(link);
     };
