@@ -93,6 +93,7 @@ impl Limiter {
 }
 
 #[cfg(test)]
+#[allow(clippy::float_cmp)] // the limiter lands exactly: exact values are the point
 mod tests {
     use super::*;
     use proptest::prelude::*;

@@ -225,20 +225,16 @@ fn a_stopped_move_leaves_the_joint_holding_and_says_so() {
     assert!(!j.is_enabled().unwrap());
 }
 
-/// A relay that rewrites the position of every status reply to 214748.36 deg (the
-/// implausible reading of issue 14, item 1).
-struct ImplausibleStatus<L>(L);
+/// A relay that lets `on_recv` change (or hold back) every frame the client receives.
+struct OnReceive<L, F>(L, F);
 
-impl<L: FrameLink> FrameLink for ImplausibleStatus<L> {
+impl<L: FrameLink, F: FnMut(&mut Received)> FrameLink for OnReceive<L, F> {
     fn send(&mut self, frame: &CanFrame) -> Result<(), FrameLinkError> {
         self.0.send(frame)
     }
     fn recv(&mut self, deadline: std::time::Instant) -> Result<Received, FrameLinkError> {
         let mut r = self.0.recv(deadline)?;
-        if let Ok(Reply::Status { joint, mut status }) = Reply::from_frame(&r.frame) {
-            status.position = Position(2_147_483_600);
-            r.frame = Reply::Status { joint, status }.to_frame();
-        }
+        (self.1)(&mut r);
         Ok(r)
     }
     fn set_filters(&mut self, filters: &[IdFilter]) -> Result<(), FrameLinkError> {
@@ -246,12 +242,21 @@ impl<L: FrameLink> FrameLink for ImplausibleStatus<L> {
     }
 }
 
+/// Rewrites the position of every status reply to 214748.36 deg (the implausible reading
+/// of issue 14, item 1).
+fn implausible_status(r: &mut Received) {
+    if let Ok(Reply::Status { joint, mut status }) = Reply::from_frame(&r.frame) {
+        status.position = Position(2_147_483_600);
+        r.frame = Reply::Status { joint, status }.to_frame();
+    }
+}
+
 #[test]
 fn a_move_is_not_planned_from_an_implausible_present_position() {
     let (_sim, link) = memory(chain(1));
     let log = Shared::default();
-    let link =
-        CaptureFrameLink::new(ImplausibleStatus(link), log.clone(), "rx").with_tx_iface("tx");
+    let link = CaptureFrameLink::new(OnReceive(link, implausible_status), log.clone(), "rx")
+        .with_tx_iface("tx");
     let bus = JointBus::open_with(link, config()).unwrap();
     ready(&bus, id(1), WorkMode::Position);
     let j = bus.joint(id(1)).unwrap();
@@ -680,31 +685,17 @@ fn the_safe_state_reaches_every_joint_past_a_silent_one() {
     assert!(!joints[2].is_enabled().unwrap());
 }
 
-/// A relay that holds every servo feedback frame (`0x500+ID`) back by `delay`.
-struct DelayedFeedback<L>(L, Duration);
-
-impl<L: FrameLink> FrameLink for DelayedFeedback<L> {
-    fn send(&mut self, frame: &CanFrame) -> Result<(), FrameLinkError> {
-        self.0.send(frame)
-    }
-    fn recv(&mut self, deadline: std::time::Instant) -> Result<Received, FrameLinkError> {
-        let r = self.0.recv(deadline)?;
-        if r.frame.raw_id() >> 8 == 5 {
-            std::thread::sleep(self.1);
-        }
-        Ok(r)
-    }
-    fn set_filters(&mut self, filters: &[IdFilter]) -> Result<(), FrameLinkError> {
-        self.0.set_filters(filters)
-    }
-}
-
 /// A wave reports the round trip of its frames (send to feedback): with every feedback
 /// held back 4 ms, no percentile is below 4 ms, and they are in order.
 #[test]
 fn a_wave_reports_the_round_trip_of_its_frames() {
     let (_sim, link) = memory(chain(1));
-    let link = DelayedFeedback(link, Duration::from_millis(4));
+    // Every servo feedback frame (0x500+ID) held back 4 ms.
+    let link = OnReceive(link, |r: &mut Received| {
+        if r.frame.raw_id() >> 8 == 5 {
+            std::thread::sleep(Duration::from_millis(4));
+        }
+    });
     let bus = JointBus::open_with(link, config()).unwrap();
     ready(&bus, id(1), WorkMode::Position);
     let args = WaveArgs {

@@ -384,17 +384,9 @@ impl Hardware {
                 torque: slot.torque,
             });
             for f in failed {
-                match name_of(&self.joints, f.device) {
-                    Some(name) => {
-                        errors.push(format!("{name}: {}: {}", slot.safe.keyword(), f.error))
-                    }
-                    None => errors.push(format!(
-                        "bus {}: {}: {}",
-                        slot.name,
-                        slot.safe.keyword(),
-                        f.error
-                    )),
-                }
+                let name =
+                    name_of(&self.joints, f.device).unwrap_or_else(|| format!("bus {}", slot.name));
+                errors.push(format!("{name}: {}: {}", slot.safe.keyword(), f.error));
             }
         }
         for (b, slot) in self.whj.iter().enumerate() {

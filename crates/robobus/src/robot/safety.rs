@@ -69,6 +69,7 @@ impl RateLimiter {
 }
 
 #[cfg(test)]
+#[allow(clippy::float_cmp)] // the limiter lands exactly on the target
 mod tests {
     use super::*;
 
