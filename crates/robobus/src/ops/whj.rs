@@ -410,7 +410,7 @@ pub fn check_demand(j: &Joint<'_>, servo: ServoLoop, lo: f64, hi: f64) -> Result
 
 /// How far outside its limits a joint may read before the reading counts as implausible,
 /// degrees (a joint may overshoot a limit slightly).
-const LIMIT_SLACK_DEG: f64 = 1.0;
+pub const LIMIT_SLACK_DEG: f64 = 1.0;
 
 /// Reads the present position and checks it is plausible: within the joint's position
 /// limits (plus [`LIMIT_SLACK_DEG`]). A move is never planned from an implausible reading.
@@ -1615,7 +1615,7 @@ pub fn run_target(
 
 /// The write request for `value` into the register at `addr` (in the register's unit, or
 /// counts with `raw`), converting units (`scale`: the joint's current LSB). The request a
-/// dry run prints and [`write`] sends.
+/// dry run prints and [`write()`] sends.
 pub fn write_request(
     joint: JointId,
     addr: robobus_whj::RegisterAddr,
