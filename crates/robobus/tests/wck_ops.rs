@@ -348,14 +348,18 @@ fn a_stopped_wheel_run_leaves_the_servo_in_each_safe_state() {
             duration: Some(Duration::from_secs(20)),
             on_stop: state,
         };
+        // Stopped after the watch read at 400 ms of the 20 s run (the virtual clock).
         let stop = StopToken::new();
         let stopper = stop.clone();
-        let t = std::thread::spawn(move || {
-            std::thread::sleep(Duration::from_millis(300));
-            stopper.stop();
-        });
-        let err = wck::wheel(&mut bus, &args, &mut Control::new(&stop)).unwrap_err();
-        t.join().unwrap();
+        let mut on_progress = |p: &Progress| {
+            if p.done >= 400 {
+                stopper.stop();
+            }
+        };
+        let mut control = Control::new(&stop).with_progress(&mut on_progress);
+        let err = wck::wheel(&mut bus, &args, &mut control).unwrap_err();
+        drop(control);
+        assert!(sim.now() < Duration::from_secs(1), "{:?}", sim.now());
         assert_eq!(err.kind(), ErrorKind::Interrupted);
         assert_eq!(err.to_string(), format!("interrupted: {says}"));
         let (mode_now, mode_other) = sim.with_bus(|b| {
