@@ -400,7 +400,14 @@ pub(crate) struct Shared {
     pub(crate) identities: Mutex<[Option<super::joint::Identity>; 31]>,
     fatal: Mutex<Option<String>>,
     cyclic_running: AtomicBool,
+    /// The latest frames on broadcast reply IDs (joints' 0x8x / 0xFx, the end board's 0x87
+    /// / 0xF7) with their receive instants, oldest first, at most [`BROADCAST_LOG`].
+    broadcast_log: Mutex<VecDeque<(Instant, CanFrame)>>,
 }
+
+/// How many broadcast replies [`JointBus::broadcast_replies_since`] keeps: eight nodes
+/// answer one broadcast frame, so this holds the answers to the last eight.
+pub const BROADCAST_LOG: usize = 64;
 
 pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(PoisonError::into_inner)
@@ -585,6 +592,18 @@ impl JointBus {
             .map_err(|_| self.closed_error())?
     }
 
+    /// The frames received on broadcast reply IDs (joints' `0x80+ID+1` / `0xF0+ID+1`,
+    /// J6's 0x5FE / 0x3FE, the end board's 0x87 / 0xF7) strictly after `since` (the instant
+    /// [`JointBus::send_broadcast`] returned), with their receive instants, oldest first.
+    /// The bus keeps the last [`BROADCAST_LOG`] of them.
+    pub fn broadcast_replies_since(&self, since: Instant) -> Vec<(Instant, CanFrame)> {
+        lock(&self.shared.broadcast_log)
+            .iter()
+            .filter(|(at, _)| *at > since)
+            .copied()
+            .collect()
+    }
+
     /// A snapshot of the bus health and the latest values from every joint.
     pub fn telemetry(&self) -> Telemetry {
         lock(&self.shared.telemetry).clone()
@@ -681,6 +700,18 @@ struct Worker<L> {
 
 /// How often the bus thread reads unsolicited frames while it awaits nothing (rarely: on
 /// a link whose receive timeout rounds up to the kernel tick, an empty read costs a tick).
+/// Whether `raw` is an ID on which joints or the end board answer broadcast frames.
+fn is_broadcast_reply_id(raw: u16) -> bool {
+    use robobus_whj::Address;
+    matches!(
+        Address::from_raw(raw),
+        Address::BroadcastFeedback(_)
+            | Address::BroadcastRegisterReply(_)
+            | Address::EndBoardFeedback
+            | Address::EndBoardRegisterReply
+    )
+}
+
 const DRAIN_INTERVAL: Duration = Duration::from_millis(100);
 
 enum Flow {
@@ -996,6 +1027,13 @@ impl<L: FrameLink> Worker<L> {
     fn dispatch(&mut self, frame: CanFrame) {
         let now = Instant::now();
         let decoded = Reply::from_frame(&frame);
+        if frame.standard_raw_id().is_some_and(is_broadcast_reply_id) {
+            let mut log = lock(&self.shared.broadcast_log);
+            if log.len() >= BROADCAST_LOG {
+                log.pop_front();
+            }
+            log.push_back((now, frame));
+        }
         {
             let mut t = lock(&self.shared.telemetry);
             t.bus.frames_received += 1;
