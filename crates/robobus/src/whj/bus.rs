@@ -407,7 +407,7 @@ pub(crate) struct Shared {
 
 /// How many broadcast replies [`JointBus::broadcast_replies_since`] keeps: eight nodes
 /// answer one broadcast frame, so this holds the answers to the last eight.
-pub const BROADCAST_LOG: usize = 64;
+const BROADCAST_LOG: usize = 64;
 
 pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(PoisonError::into_inner)
@@ -595,7 +595,7 @@ impl JointBus {
     /// The frames received on broadcast reply IDs (joints' `0x80+ID+1` / `0xF0+ID+1`,
     /// J6's 0x5FE / 0x3FE, the end board's 0x87 / 0xF7) strictly after `since` (the instant
     /// [`JointBus::send_broadcast`] returned), with their receive instants, oldest first.
-    /// The bus keeps the last [`BROADCAST_LOG`] of them.
+    /// The bus keeps the last 64 of them.
     pub fn broadcast_replies_since(&self, since: Instant) -> Vec<(Instant, CanFrame)> {
         lock(&self.shared.broadcast_log)
             .iter()
