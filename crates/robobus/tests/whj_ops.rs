@@ -789,3 +789,61 @@ fn broadcast_sampling_sends_one_status_query_per_sample() {
     assert_eq!(r[1].failure().unwrap().kind, ErrorKind::NoDevice);
     assert_eq!(r[0].value().unwrap().speed_rpm, Some(0.0));
 }
+
+#[test]
+fn a_broadcast_wave_sends_exactly_its_dry_run_as_0x2f_frames() {
+    let (_sim, bus, log) = captured(2);
+    ready(&bus, id(2), WorkMode::Position);
+    let args = WaveArgs {
+        joint: id(2),
+        shape: Shape::Sine,
+        servo: ServoLoop::Position,
+        amplitude: 1.0,
+        frequency: 2.0,
+        offset: 0.0,
+        duration: 0.5,
+        rate_hz: 100.0,
+        step_limit_deg: JointBusConfig::default().step_limit_deg,
+    };
+    let dry = ops::plan_broadcast_wave(&args, 0.0, CurrentScale::OneMilliamp, true).unwrap();
+    assert_eq!(dry.frames.len(), 50);
+    // J2's slot carries the target, every other slot "no data", mask 8 (J2 only).
+    let first = dry.frames[1].request.to_frame();
+    assert_eq!(first.raw_id(), 0x2F);
+    assert_eq!(first.data()[..8], robobus_whj::broadcast::POSITION_NO_DATA);
+    assert_ne!(first.data()[11], 0x7F);
+    assert_eq!(first.data()[63], 8);
+    let j = bus.joint(id(2)).unwrap();
+    let plan = ops::prepare_broadcast_wave(&j, &args).unwrap();
+    log.clear();
+    let report =
+        ops::execute_wave(&j, &args, &plan, &mut Control::none(), SafeState::Hold).unwrap();
+    assert_eq!(plan.frames, dry.frames);
+    let sent: Vec<_> = log
+        .sent()
+        .into_iter()
+        .filter(|f| f.raw_id() == 0x2F)
+        .collect();
+    assert_eq!(sent, plan_frames(&dry));
+    assert_eq!(report.cycles, 50);
+    assert!(report.complete >= 45, "{report:?}");
+    assert!(report.tracking_max.unwrap() < 1.0, "{report:?}");
+    // Speed waves have no broadcast frame; a position stream slower than 100 Hz would trip
+    // the joints' 20 ms watchdog between frames.
+    let speed = WaveArgs {
+        servo: ServoLoop::Speed,
+        ..args
+    };
+    let e = ops::plan_broadcast_wave(&speed, 0.0, CurrentScale::OneMilliamp, true).unwrap_err();
+    assert_eq!(e.kind(), ErrorKind::BadInput);
+    let slow = WaveArgs {
+        rate_hz: 40.0,
+        frequency: 1.0,
+        ..args
+    };
+    let e = ops::plan_broadcast_wave(&slow, 0.0, CurrentScale::OneMilliamp, true).unwrap_err();
+    assert!(
+        e.to_string().contains("--rate-hz") && e.to_string().contains("20 ms"),
+        "{e}"
+    );
+}

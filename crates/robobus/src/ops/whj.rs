@@ -646,10 +646,14 @@ fn send_frames(
             return Ok(Err(()));
         }
         let late = Instant::now().saturating_duration_since(due);
-        let fb = match j.servo_request(f.request) {
-            Ok(fb) => Some(fb),
-            Err(e) if e.is_timeout() => None,
-            Err(e) => return Err(whj(e)),
+        let fb = if f.request.joint().is_none() {
+            broadcast::broadcast_servo(j, f.request).map_err(whj)?
+        } else {
+            match j.servo_request(f.request) {
+                Ok(fb) => Some(fb),
+                Err(e) if e.is_timeout() => None,
+                Err(e) => return Err(whj(e)),
+            }
         };
         sent += 1;
         on_frame(k, fb.as_ref(), late)?;
@@ -1773,7 +1777,7 @@ pub fn sample(bus: &JointBus, ids: &[JointId]) -> Vec<DeviceResult<u8, JointSamp
 mod broadcast;
 
 pub use broadcast::{
-    BroadcastPlan, EndBoardArg, Slot, broadcast_read, broadcast_status, broadcast_window,
-    broadcast_write, plan_broadcast_read, plan_broadcast_write, reply_mask, run_broadcast_plan,
-    sample_broadcast,
+    BROADCAST_WAVE_MIN_HZ, BroadcastPlan, EndBoardArg, Slot, broadcast_read, broadcast_status,
+    broadcast_window, broadcast_write, plan_broadcast_read, plan_broadcast_wave,
+    plan_broadcast_write, prepare_broadcast_wave, reply_mask, run_broadcast_plan, sample_broadcast,
 };

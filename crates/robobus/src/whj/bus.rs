@@ -487,6 +487,7 @@ impl JointBus {
             passive_since: None,
             cyclic: None,
             last_drain: Instant::now(),
+            broadcast_until: None,
         };
         let thread = std::thread::Builder::new()
             .name("whj-bus".into())
@@ -696,10 +697,11 @@ struct Worker<L> {
     passive_since: Option<Instant>,
     cyclic: Option<CyclicRun>,
     last_drain: Instant,
+    /// Until when replies to the last broadcast frame are awaited (received at once
+    /// rather than at the next drain).
+    broadcast_until: Option<Instant>,
 }
 
-/// How often the bus thread reads unsolicited frames while it awaits nothing (rarely: on
-/// a link whose receive timeout rounds up to the kernel tick, an empty read costs a tick).
 /// Whether `raw` is an ID on which joints or the end board answer broadcast frames.
 fn is_broadcast_reply_id(raw: u16) -> bool {
     use robobus_whj::Address;
@@ -712,6 +714,8 @@ fn is_broadcast_reply_id(raw: u16) -> bool {
     )
 }
 
+/// How often the bus thread reads unsolicited frames while it awaits nothing (rarely: on
+/// a link whose receive timeout rounds up to the kernel tick, an empty read costs a tick).
 const DRAIN_INTERVAL: Duration = Duration::from_millis(100);
 
 enum Flow {
@@ -784,13 +788,15 @@ impl<L: FrameLink> Worker<L> {
         }
     }
 
-    /// Whether a frame is expected: a reply in flight, feedback of the running cycle, or a
+    /// Whether a frame is expected: a reply in flight, replies to a broadcast frame just
+    /// sent (for five reply timeouts), feedback of the running cycle, or a
     /// bus-off recovery that queued requests wait for. Only then does the thread block in
     /// the link's receive; otherwise it sleeps on the command channel, whose timeout is
     /// precise (some links' receive timeouts round up to the kernel tick, e.g. UDP's
     /// `SO_RCVTIMEO`), so cyclic ticks stay on time.
     fn awaiting(&self) -> bool {
         !self.in_flight.is_empty()
+            || self.broadcast_until.is_some_and(|t| t > Instant::now())
             || self.cyclic.as_ref().is_some_and(CyclicRun::awaiting)
             || (!self.queued.is_empty() && self.state() == BusState::BusOff)
     }
@@ -883,6 +889,7 @@ impl<L: FrameLink> Worker<L> {
                     })
                 } else {
                     let at = Instant::now();
+                    self.broadcast_until = Some(at + self.config.reply_timeout * 5);
                     self.send(&frame).map(|()| at).map_err(|e| WhjError::Link {
                         detail: e.to_string(),
                     })
