@@ -254,20 +254,28 @@ enum WhjCommand {
     },
     /// Read registers by name (`cur_position`, `SYS_TEMP`) or address (`0x14`, `20`).
     Read {
-        /// Joint ID, 1..=30.
-        #[arg(value_parser = parse_joint)]
-        joint: JointId,
+        /// Joint ID, 1..=30 (with --broadcast: joints 1..=7, e.g. `1-7`).
+        #[arg(value_parser = parse_joints)]
+        joints: Joints,
         /// Register name or address (0x00..=0x91).
         #[arg(value_parser = parse_register)]
         register: Register,
         /// Number of registers, 1..=31 (default: 2 for a 32-bit pair, else 1).
         count: Option<u8>,
+        /// Read the register of joints 1..=7 with one broadcast frame (0x0F) instead of
+        /// one request each; a joint that does not answer is named.
+        #[arg(long)]
+        broadcast: bool,
+        /// With --broadcast: also read this register of the end board's own map (name
+        /// or address, e.g. EB_SW_VERSION or 0x03).
+        #[arg(long, value_name = "REGISTER", requires = "broadcast", value_parser = parse_end_board_register)]
+        end_board: Option<u8>,
     },
     /// Write a register by name or address, in its unit (degrees, RPM, mA, V, ...).
     Write {
-        /// Joint ID, 1..=30.
-        #[arg(value_parser = parse_joint)]
-        joint: JointId,
+        /// Joint ID, 1..=30 (with --broadcast: joints 1..=7, e.g. `1-7`).
+        #[arg(value_parser = parse_joints)]
+        joints: Joints,
         /// Register name or address (0x00..=0x91).
         #[arg(value_parser = parse_register)]
         register: Register,
@@ -278,6 +286,14 @@ enum WhjCommand {
         /// The value is in raw counts.
         #[arg(long)]
         raw: bool,
+        /// Write the register of joints 1..=7 with one broadcast frame (0x0F), then read
+        /// it back with a second one; a joint that does not answer is named.
+        #[arg(long)]
+        broadcast: bool,
+        /// With --broadcast: also write a register of the end board's own map,
+        /// `REGISTER=VALUE` (e.g. EB_IO1_MODE=1, 0x07=3); needs --yes.
+        #[arg(long, value_name = "REGISTER=VALUE", requires = "broadcast", value_parser = parse_end_board_write)]
+        end_board: Option<ops::EndBoardArg>,
     },
     /// List the register table: address, name, unit, range, access, meaning.
     Registers,
@@ -316,6 +332,11 @@ enum WhjCommand {
         /// Frames per second (1..=1000).
         #[arg(long, default_value_t = 200.0, value_parser = parse_frame_rate)]
         rate_hz: f64,
+        /// Send the wave as broadcast frames (0x2F position, 0x4F current; joints
+        /// 1..=7; position waves at --rate-hz >= 100, since a joint stops a broadcast
+        /// position stream after 20 ms without a frame).
+        #[arg(long)]
+        broadcast: bool,
     },
     /// Start the application on joints waiting in the bootloader (`IAP_FLAG` 0x49 := 0).
     ReleaseIap {
@@ -369,6 +390,40 @@ fn parse_register(s: &str) -> Result<Register, String> {
                  SYS_TEMP, cur_position; or an address 0x00..=0x91)"
             )
         })
+}
+
+fn parse_end_board_register(s: &str) -> Result<u8, String> {
+    let t = s.trim();
+    if let Ok(v) = crate::wck::parse_u32(t) {
+        return u8::try_from(v)
+            .ok()
+            .filter(|a| *a < 0x80)
+            .ok_or_else(|| format!("end-board register {v:#x} is out of range 0x00..=0x7F"));
+    }
+    robobus_whj::broadcast::EndBoardRegister::by_name(t)
+        .map(|r| r.addr)
+        .ok_or_else(|| {
+            format!(
+                "no end-board register is named `{t}` (names: {})",
+                robobus_whj::broadcast::END_BOARD_REGISTERS
+                    .iter()
+                    .map(|r| r.name)
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )
+        })
+}
+
+fn parse_end_board_write(s: &str) -> Result<ops::EndBoardArg, String> {
+    let (reg, value) = s
+        .split_once('=')
+        .ok_or_else(|| format!("`{s}` is not REGISTER=VALUE (e.g. EB_IO1_MODE=1)"))?;
+    let v = crate::wck::parse_u32(value.trim())?;
+    let value = u16::try_from(v).map_err(|_| format!("value {v} is out of range 0..=65535"))?;
+    Ok(ops::EndBoardArg {
+        addr: parse_end_board_register(reg)?,
+        value: Some(value),
+    })
 }
 
 fn parse_finite(s: &str) -> Result<f64, String> {
@@ -493,6 +548,7 @@ fn wave_args(c: &WhjCommand) -> Option<WaveArgs> {
         offset,
         duration,
         rate_hz,
+        ..
     } = c
     else {
         return None;
@@ -556,32 +612,38 @@ fn whj_run(args: &Args) -> WhjRun {
         WhjCommand::Clear { joints } => WhjRun::Clear(joints.0.clone()),
         WhjCommand::Save { joints } => WhjRun::Save(joints.0.clone()),
         WhjCommand::Read {
-            joint,
+            joints,
             register,
             count,
+            broadcast,
+            end_board,
         } => WhjRun::Read {
-            joint: *joint,
+            joints: joints.0.clone(),
             addr: register.addr,
             count: *count,
+            broadcast: broadcast.then_some(*end_board),
         },
         WhjCommand::Write {
-            joint,
+            joints,
             register,
             value,
             raw,
+            broadcast,
+            end_board,
         } => WhjRun::Write {
-            joint: *joint,
+            joints: joints.0.clone(),
             addr: register.addr,
             // Validated by the plan (a finite number).
             value: value.trim().parse().unwrap_or(0.0),
             raw: *raw,
             scale: args.model.map(ModelArg::scale),
+            broadcast: broadcast.then_some(*end_board),
         },
         // Handled before a plan is made.
         WhjCommand::Registers => WhjRun::Status(Vec::new()),
         WhjCommand::SetId { joint, new_id } => WhjRun::SetId(*joint, *new_id),
-        WhjCommand::Wave { .. } => match wave_args(c) {
-            Some(w) => WhjRun::Wave(w),
+        WhjCommand::Wave { broadcast, .. } => match wave_args(c) {
+            Some(w) => WhjRun::Wave(w, *broadcast),
             None => WhjRun::Status(Vec::new()),
         },
         WhjCommand::ReleaseIap { joints } => WhjRun::ReleaseIap(joints.0.clone()),
@@ -718,10 +780,24 @@ fn plan(args: &Args, dry_run: bool) -> anyhow::Result<WhjPlan> {
             p
         }
         WhjCommand::Read {
-            joint,
+            joints,
             register,
             count,
+            broadcast: true,
+            end_board,
+        } => broadcast_plan(&ops::plan_broadcast_read(
+            &joints.0,
+            register.addr,
+            *count,
+            *end_board,
+        )?),
+        WhjCommand::Read {
+            joints,
+            register,
+            count,
+            ..
         } => {
+            let joint = &one_joint(joints, "read")?;
             let count = count.unwrap_or(match register.info.map(|i| i.half) {
                 Some(Half::Low) => 2,
                 _ => 1,
@@ -733,10 +809,12 @@ fn plan(args: &Args, dry_run: bool) -> anyhow::Result<WhjPlan> {
             p
         }
         WhjCommand::Write {
-            joint,
+            joints,
             register,
             value,
             raw,
+            broadcast,
+            end_board,
         } => {
             let name = register.info.map_or("reserved register", |i| i.name);
             let v: f64 = value
@@ -752,6 +830,17 @@ fn plan(args: &Args, dry_run: bool) -> anyhow::Result<WhjPlan> {
             } else {
                 CurrentScale::OneMilliamp
             };
+            if *broadcast {
+                return Ok(broadcast_plan(&ops::plan_broadcast_write(
+                    &joints.0,
+                    register.addr,
+                    v,
+                    *raw,
+                    &|_| scale,
+                    *end_board,
+                )?));
+            }
+            let joint = &one_joint(joints, "write")?;
             let req = ops::write_request(*joint, register.addr, v, *raw, scale)?;
             let mut p = WhjPlan::default();
             p.push(req);
@@ -777,7 +866,9 @@ fn plan(args: &Args, dry_run: bool) -> anyhow::Result<WhjPlan> {
             ));
             p
         }
-        WhjCommand::Wave { mode, .. } => {
+        WhjCommand::Wave {
+            mode, broadcast, ..
+        } => {
             let scale = if *mode == WaveMode::Current {
                 current_scale(args, dry_run, "wave --mode current")?
             } else {
@@ -786,10 +877,36 @@ fn plan(args: &Args, dry_run: bool) -> anyhow::Result<WhjPlan> {
             let Some(w) = wave_args(&args.command) else {
                 return Ok(WhjPlan::default());
             };
-            WhjPlan::of(&ops::plan_wave(&w, 0.0, scale, true)?)
+            if *broadcast {
+                WhjPlan::of(&ops::plan_broadcast_wave(&w, 0.0, scale, true)?)
+            } else {
+                WhjPlan::of(&ops::plan_wave(&w, 0.0, scale, true)?)
+            }
         }
         WhjCommand::ReleaseIap { joints } => each(joints, Request::start_application),
     })
+}
+
+/// The one joint of a command without --broadcast.
+fn one_joint(joints: &Joints, what: &str) -> anyhow::Result<JointId> {
+    match joints.0.as_slice() {
+        [one] => Ok(*one),
+        _ => Err(usage(format!(
+            "{what} <JOINT>: one joint without --broadcast (got {}); with --broadcast, \
+             joints 1..=7 share one frame",
+            joints.0.len()
+        ))),
+    }
+}
+
+/// A broadcast register plan: its frames and notes.
+fn broadcast_plan(b: &ops::BroadcastPlan) -> WhjPlan {
+    let mut p = WhjPlan::default();
+    for f in &b.frames {
+        p.push(*f);
+    }
+    p.notes.clone_from(&b.notes);
+    p
 }
 
 /// A speed or current target: the frame, and target 0 after `--duration`.

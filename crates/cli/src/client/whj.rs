@@ -82,17 +82,19 @@ pub(crate) enum WhjRun {
     Save(Vec<JointId>),
     /// Read registers.
     Read {
-        /// The joint.
-        joint: JointId,
+        /// The joint (one without a broadcast).
+        joints: Vec<JointId>,
         /// First register.
         addr: RegisterAddr,
         /// Registers to read; `None` = the register (or pair) by name.
         count: Option<u8>,
+        /// By one broadcast frame (`Some`), with the end board's register if given.
+        broadcast: Option<Option<u8>>,
     },
     /// Write a register and read it back.
     Write {
-        /// The joint.
-        joint: JointId,
+        /// The joint (one without a broadcast).
+        joints: Vec<JointId>,
         /// The register.
         addr: RegisterAddr,
         /// The value (unit of the register, or counts with `raw`).
@@ -101,11 +103,13 @@ pub(crate) enum WhjRun {
         raw: bool,
         /// `--model`'s current scale, if given.
         scale: Option<CurrentScale>,
+        /// By one broadcast frame (`Some`), with the end board's write if given.
+        broadcast: Option<Option<ops::EndBoardArg>>,
     },
     /// New ID, saved to flash.
     SetId(JointId, JointId),
-    /// A test signal.
-    Wave(WaveArgs),
+    /// A test signal (`true`: as broadcast frames).
+    Wave(WaveArgs, bool),
     /// Start the application of joints in the bootloader.
     ReleaseIap(Vec<JointId>),
 }
@@ -158,8 +162,9 @@ pub(crate) fn open_link(
 /// One table row / JSON object: field names and values.
 type Row = Map<String, Value>;
 
-/// A report as a row, with the joint's ID first (`joint`).
-fn row(joint: u8, report: &impl Serialize) -> Row {
+/// A report as a row, with the joint's ID first (`joint`; a broadcast's end board:
+/// `"end-board"`).
+fn row(joint: impl Serialize, report: &impl Serialize) -> Row {
     let mut r = Row::new();
     r.insert("joint".into(), json!(joint));
     if let Ok(Value::Object(fields)) = serde_json::to_value(report) {
@@ -171,13 +176,15 @@ fn row(joint: u8, report: &impl Serialize) -> Row {
 }
 
 /// Per-joint results as rows (`id` becomes `joint`); the worst failure, for the exit code.
-fn rows_of<T: Serialize>(results: &[DeviceResult<u8, T>]) -> (Vec<Row>, anyhow::Result<()>) {
+fn rows_of<I: Serialize, T: Serialize>(
+    results: &[DeviceResult<I, T>],
+) -> (Vec<Row>, anyhow::Result<()>) {
     let rows = results
         .iter()
         .map(|r| match (r.value(), r.failure()) {
-            (Some(v), _) => row(r.id, v),
-            (None, Some(f)) => row(r.id, f),
-            (None, None) => row(r.id, &()),
+            (Some(v), _) => row(&r.id, v),
+            (None, Some(f)) => row(&r.id, f),
+            (None, None) => row(&r.id, &()),
         })
         .collect();
     let outcome = match worst_kind(results) {
@@ -288,22 +295,62 @@ fn run(bus: &JointBus, job: &WhjJob<'_>, stats: &mut Option<Value>) -> anyhow::R
         WhjRun::Zero(id) => one(*id, &ops::zero(bus, *id)?),
         WhjRun::Clear(ids) => rows_of(&ops::clear(bus, ids)),
         WhjRun::Save(ids) => rows_of(&ops::save(bus, ids)),
-        WhjRun::Read { joint, addr, count } => {
-            let regs = ops::read_registers(bus, *joint, *addr, *count)?;
-            (regs.iter().map(|r| row(joint.get(), r)).collect(), Ok(()))
+        WhjRun::Read {
+            joints,
+            addr,
+            count,
+            broadcast: Some(end_board),
+        } => rows_of(&ops::broadcast_read(bus, joints, *addr, *count, *end_board)?.1),
+        WhjRun::Read {
+            joints,
+            addr,
+            count,
+            ..
+        } => {
+            let mut out = Vec::new();
+            for &joint in joints {
+                let regs = ops::read_registers(bus, joint, *addr, *count)?;
+                out.extend(regs.iter().map(|r| row(joint.get(), r)));
+            }
+            (out, Ok(()))
         }
         WhjRun::Write {
-            joint,
+            joints,
             addr,
             value,
             raw,
             scale,
+            broadcast: Some(end_board),
+        } => rows_of(
+            &ops::broadcast_write(
+                bus,
+                joints,
+                *addr,
+                *value,
+                *raw,
+                *scale,
+                *end_board,
+                job.confirmed,
+            )?
+            .1,
+        ),
+        WhjRun::Write {
+            joints,
+            addr,
+            value,
+            raw,
+            scale,
+            ..
         } => {
-            let regs = ops::write(bus, *joint, *addr, *value, *raw, *scale, job.confirmed)?;
-            (regs.iter().map(|r| row(joint.get(), r)).collect(), Ok(()))
+            let mut out = Vec::new();
+            for &joint in joints {
+                let regs = ops::write(bus, joint, *addr, *value, *raw, *scale, job.confirmed)?;
+                out.extend(regs.iter().map(|r| row(joint.get(), r)));
+            }
+            (out, Ok(()))
         }
         WhjRun::SetId(id, new_id) => one(*id, &ops::set_id(bus, *id, *new_id)?),
-        WhjRun::Wave(args) => wave(bus, args, safe, stats)?,
+        WhjRun::Wave(args, broadcast) => wave(bus, args, *broadcast, safe, stats)?,
         WhjRun::ReleaseIap(ids) => {
             let results = ops::release_iap(bus, ids);
             let (mut rows, outcome) = rows_of(&results);
@@ -375,11 +422,16 @@ const GONE_AFTER: u64 = 10;
 fn wave(
     bus: &JointBus,
     args: &WaveArgs,
+    broadcast: bool,
     safe: SafeState,
     stats: &mut Option<Value>,
 ) -> anyhow::Result<Ran> {
     let j = bus.joint(args.joint)?;
-    let plan = ops::prepare_wave(&j, args)?;
+    let plan = if broadcast {
+        ops::prepare_broadcast_wave(&j, args)?
+    } else {
+        ops::prepare_wave(&j, args)?
+    };
     let report = with_progress(&plan, "wave [{bar:30}] {pos}/{len} cycles", |c| {
         Ok(ops::execute_wave(&j, args, &plan, c, safe)?)
     })?;

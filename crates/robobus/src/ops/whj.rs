@@ -1443,12 +1443,30 @@ pub fn check_write(
 
 /// The safety class of the register a request writes, if it is a confirm write: what it
 /// does (for a front end's confirmation prompt).
+/// A broadcast register frame: the first confirm write among its slots, or the end
+/// board's write ([`END_BOARD_WRITE_TEXT`]).
 pub fn confirm_text(request: &Request) -> Option<&'static str> {
+    use robobus_whj::{RegisterOp, RegisterSlot};
+    let of = |addr| match robobus_whj::registers::safety_class(addr) {
+        robobus_whj::registers::SafetyClass::Confirm(what) => Some(what),
+        _ => None,
+    };
     match request {
-        Request::Write { addr, .. } => match robobus_whj::registers::safety_class(*addr) {
-            robobus_whj::registers::SafetyClass::Confirm(what) => Some(what),
-            _ => None,
-        },
+        Request::Write { addr, .. } => of(*addr),
+        Request::BroadcastRegister(b) => b
+            .slots
+            .iter()
+            .find_map(|s| match s {
+                RegisterSlot::Op(RegisterOp::Write { addr, .. }) => of(*addr),
+                _ => None,
+            })
+            .or_else(|| {
+                matches!(
+                    robobus_whj::EndBoardOp::decode(&b.end_board),
+                    Some(robobus_whj::EndBoardOp::Write { .. })
+                )
+                .then_some(broadcast::END_BOARD_WRITE_TEXT)
+            }),
         _ => None,
     }
 }
@@ -1777,7 +1795,7 @@ pub fn sample(bus: &JointBus, ids: &[JointId]) -> Vec<DeviceResult<u8, JointSamp
 mod broadcast;
 
 pub use broadcast::{
-    BROADCAST_WAVE_MIN_HZ, BroadcastPlan, EndBoardArg, Slot, broadcast_read, broadcast_status,
-    broadcast_window, broadcast_write, plan_broadcast_read, plan_broadcast_wave,
+    BROADCAST_WAVE_MIN_HZ, BroadcastPlan, END_BOARD_WRITE_TEXT, EndBoardArg, Slot, broadcast_read,
+    broadcast_status, broadcast_window, broadcast_write, plan_broadcast_read, plan_broadcast_wave,
     plan_broadcast_write, prepare_broadcast_wave, reply_mask, run_broadcast_plan, sample_broadcast,
 };

@@ -249,6 +249,10 @@ pub fn sample_broadcast(
 // 0x0F register read / write
 // ---------------------------------------------------------------------------------------
 
+/// What an end-board write does, for a confirmation prompt.
+pub const END_BOARD_WRITE_TEXT: &str =
+    "switches what is attached to the tool (power, IO, Modbus) through the end board";
+
 fn end_board_register(addr: u8) -> &'static str {
     EndBoardRegister::by_addr(addr).map_or("(reserved)", |r| r.name)
 }
@@ -421,11 +425,9 @@ pub fn plan_broadcast_write(
         plan.notes.push(format!("{name}: {what} (needs --yes)"));
     }
     if end_board.is_some() {
-        plan.notes.push(
-            "an end-board write switches what is attached to the tool (power, IO, Modbus): \
-             needs --yes"
-                .into(),
-        );
+        plan.notes.push(format!(
+            "an end-board write {END_BOARD_WRITE_TEXT} (needs --yes)"
+        ));
     }
     plan.notes
         .push("a real run connects each joint first and checks its firmware".into());
@@ -455,8 +457,8 @@ pub fn run_broadcast_plan(
             && !confirmed
         {
             return Err(OpError::Refused(format!(
-                "write end-board {} ({:#04x}) switches what is attached to the tool; confirm \
-                 with --yes; nothing was sent",
+                "write end-board {} ({:#04x}) {END_BOARD_WRITE_TEXT}; confirm with --yes; \
+                 nothing was sent",
                 end_board_register(e.addr),
                 e.addr
             )));
