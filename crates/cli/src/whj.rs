@@ -65,6 +65,14 @@ bit rates, IAP and brake need --yes. Without --duration, `speed` / `current` lea
 joint running. Ctrl-C during move, wave, speed or current first brings the joint to the
 --on-stop state, then exits with 130.
 
+--broadcast (status, read, write, wave; joints 1..=7) uses the broadcast protocol: one
+frame for every joint (and with --end-board the end-effector board's own registers)
+instead of one per joint. Each joint is still reported, one that does not answer named;
+broadcast writes follow the same safety classes and are read back by a second frame;
+end-board writes need --yes. Broadcast waves need --rate-hz >= 100 (a joint stops a
+broadcast position stream after 20 ms without a frame). Whether it is worth it (frames
+and wire time per cycle): docs/hardware.md.
+
 With --dry-run every subcommand prints the CAN FD frames it would send, one per line in
 cansend syntax (`001##1020A01`: ID 0x001, FD with bit-rate switch, data 02 0A 01); lines
 starting with `#` are comments; --json prints them as JSON.";
