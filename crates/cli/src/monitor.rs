@@ -519,18 +519,16 @@ fn sample_whj(
 ) {
     let ids: Vec<JointId> = joints.iter().map(|(_, id, _)| *id).collect();
     let results = if broadcast {
-        match robobus::ops::whj::sample_broadcast(bus, &ids) {
-            Ok(r) => r,
+        let Ok(r) = robobus::ops::whj::sample_broadcast(bus, &ids) else {
             // A frame that could not be sent: a missed sample of every joint.
-            Err(_) => {
-                for &(i, _, _) in joints {
-                    if let Some(c) = channels.get_mut(i) {
-                        c.missed("not sent");
-                    }
+            for &(i, _, _) in joints {
+                if let Some(c) = channels.get_mut(i) {
+                    c.missed("not sent");
                 }
-                return;
             }
-        }
+            return;
+        };
+        r
     } else {
         robobus::ops::whj::sample(bus, &ids)
     };

@@ -275,7 +275,7 @@ enum WhjCommand {
         #[arg(long)]
         broadcast: bool,
         /// With --broadcast: also read this register of the end board's own map (name
-        /// or address, e.g. EB_SW_VERSION or 0x03).
+        /// or address, e.g. `EB_SW_VERSION` or 0x03).
         #[arg(long, value_name = "REGISTER", requires = "broadcast", value_parser = parse_end_board_register)]
         end_board: Option<u8>,
     },
@@ -299,7 +299,7 @@ enum WhjCommand {
         #[arg(long)]
         broadcast: bool,
         /// With --broadcast: also write a register of the end board's own map,
-        /// `REGISTER=VALUE` (e.g. EB_IO1_MODE=1, 0x07=3); needs --yes.
+        /// `REGISTER=VALUE` (e.g. `EB_IO1_MODE=1`, 0x07=3); needs --yes.
         #[arg(long, value_name = "REGISTER=VALUE", requires = "broadcast", value_parser = parse_end_board_write)]
         end_board: Option<ops::EndBoardArg>,
     },
@@ -629,7 +629,8 @@ fn whj_run(args: &Args) -> WhjRun {
             joints: joints.0.clone(),
             addr: register.addr,
             count: *count,
-            broadcast: broadcast.then_some(*end_board),
+            broadcast: *broadcast,
+            end_board: *end_board,
         },
         WhjCommand::Write {
             joints,
@@ -645,7 +646,8 @@ fn whj_run(args: &Args) -> WhjRun {
             value: value.trim().parse().unwrap_or(0.0),
             raw: *raw,
             scale: args.model.map(ModelArg::scale),
-            broadcast: broadcast.then_some(*end_board),
+            broadcast: *broadcast,
+            end_board: *end_board,
         },
         // Handled before a plan is made.
         WhjCommand::Registers => WhjRun::Status(Vec::new()),

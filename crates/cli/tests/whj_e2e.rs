@@ -691,8 +691,8 @@ fn dry_frames(args: &[&str]) -> Vec<String> {
 }
 
 #[test]
-fn whj_e2e_broadcast_registers_wave_and_monitor() {
-    if !in_netns("whj_e2e_broadcast_registers_wave_and_monitor") {
+fn whj_e2e_broadcast_registers_with_the_end_board() {
+    if !in_netns("whj_e2e_broadcast_registers_with_the_end_board") {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -767,7 +767,14 @@ fn whj_e2e_broadcast_registers_wave_and_monitor() {
     // A dangerous register is refused before anything is sent, broadcast or not.
     let r = sim.whj(&["write", "--broadcast", "1-2", "SYS_DEMA_ABSPOS", "1"]);
     assert_eq!(r.code, Some(2), "{r:?}");
+}
 
+#[test]
+fn whj_e2e_broadcast_wave_and_monitor() {
+    if !in_netns("whj_e2e_broadcast_wave_and_monitor") {
+        return;
+    }
+    let sim = Sim::start("udp:239.74.163.18:43128", &["--fault-silent", "3@0"]);
     // A wave as broadcast position frames, and the monitor sampling by 0x7F.
     let wv = sim.json(&[
         "wave",
@@ -784,7 +791,7 @@ fn whj_e2e_broadcast_registers_wave_and_monitor() {
         "--json",
         "monitor",
         "--bus",
-        "udp:239.74.163.17:43127",
+        "udp:239.74.163.18:43128",
         "--broadcast",
         "--joints",
         "1-3",

@@ -724,7 +724,7 @@ impl EndBoardOp {
         field.fill(fill);
         match self {
             Self::Read { index, count } => {
-                field[..3].copy_from_slice(&[END_BOARD_READ, *index, *count])
+                field[..3].copy_from_slice(&[END_BOARD_READ, *index, *count]);
             }
             Self::Write { index, len, .. } => {
                 field[..3].copy_from_slice(&[END_BOARD_WRITE, *index, *len]);

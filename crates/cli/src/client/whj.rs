@@ -88,8 +88,10 @@ pub(crate) enum WhjRun {
         addr: RegisterAddr,
         /// Registers to read; `None` = the register (or pair) by name.
         count: Option<u8>,
-        /// By one broadcast frame (`Some`), with the end board's register if given.
-        broadcast: Option<Option<u8>>,
+        /// By one broadcast frame.
+        broadcast: bool,
+        /// With `broadcast`: the end board's register too.
+        end_board: Option<u8>,
     },
     /// Write a register and read it back.
     Write {
@@ -103,8 +105,10 @@ pub(crate) enum WhjRun {
         raw: bool,
         /// `--model`'s current scale, if given.
         scale: Option<CurrentScale>,
-        /// By one broadcast frame (`Some`), with the end board's write if given.
-        broadcast: Option<Option<ops::EndBoardArg>>,
+        /// By one broadcast frame (and its read-back).
+        broadcast: bool,
+        /// With `broadcast`: the end board's write too.
+        end_board: Option<ops::EndBoardArg>,
     },
     /// New ID, saved to flash.
     SetId(JointId, JointId),
@@ -295,11 +299,31 @@ fn run(bus: &JointBus, job: &WhjJob<'_>, stats: &mut Option<Value>) -> anyhow::R
         WhjRun::Zero(id) => one(*id, &ops::zero(bus, *id)?),
         WhjRun::Clear(ids) => rows_of(&ops::clear(bus, ids)),
         WhjRun::Save(ids) => rows_of(&ops::save(bus, ids)),
+        WhjRun::Read { .. } | WhjRun::Write { .. } => registers(bus, job)?,
+        WhjRun::SetId(id, new_id) => one(*id, &ops::set_id(bus, *id, *new_id)?),
+        WhjRun::Wave(args, broadcast) => wave(bus, args, *broadcast, safe, stats)?,
+        WhjRun::ReleaseIap(ids) => {
+            let results = ops::release_iap(bus, ids);
+            let (mut rows, outcome) = rows_of(&results);
+            for (r, res) in rows.iter_mut().zip(&results) {
+                if res.is_ok() {
+                    r.insert("released".into(), json!(true));
+                }
+            }
+            (rows, outcome)
+        }
+    })
+}
+
+/// `whj read` / `whj write`, point-to-point or by broadcast frames.
+fn registers(bus: &JointBus, job: &WhjJob<'_>) -> anyhow::Result<Ran> {
+    Ok(match job.run {
         WhjRun::Read {
             joints,
             addr,
             count,
-            broadcast: Some(end_board),
+            broadcast: true,
+            end_board,
         } => rows_of(&ops::broadcast_read(bus, joints, *addr, *count, *end_board)?.1),
         WhjRun::Read {
             joints,
@@ -320,7 +344,8 @@ fn run(bus: &JointBus, job: &WhjJob<'_>, stats: &mut Option<Value>) -> anyhow::R
             value,
             raw,
             scale,
-            broadcast: Some(end_board),
+            broadcast: true,
+            end_board,
         } => rows_of(
             &ops::broadcast_write(
                 bus,
@@ -349,18 +374,7 @@ fn run(bus: &JointBus, job: &WhjJob<'_>, stats: &mut Option<Value>) -> anyhow::R
             }
             (out, Ok(()))
         }
-        WhjRun::SetId(id, new_id) => one(*id, &ops::set_id(bus, *id, *new_id)?),
-        WhjRun::Wave(args, broadcast) => wave(bus, args, *broadcast, safe, stats)?,
-        WhjRun::ReleaseIap(ids) => {
-            let results = ops::release_iap(bus, ids);
-            let (mut rows, outcome) = rows_of(&results);
-            for (r, res) in rows.iter_mut().zip(&results) {
-                if res.is_ok() {
-                    r.insert("released".into(), json!(true));
-                }
-            }
-            (rows, outcome)
-        }
+        _ => (Vec::new(), Ok(())),
     })
 }
 
