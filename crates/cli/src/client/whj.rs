@@ -315,6 +315,18 @@ fn run(bus: &JointBus, job: &WhjJob<'_>, stats: &mut Option<Value>) -> anyhow::R
     })
 }
 
+/// Register reports of each joint as rows (point-to-point: the first error ends the run).
+fn joint_rows(
+    joints: &[JointId],
+    f: impl Fn(JointId) -> anyhow::Result<Vec<ops::RegisterReport>>,
+) -> anyhow::Result<Ran> {
+    let mut out = Vec::new();
+    for &joint in joints {
+        out.extend(f(joint)?.iter().map(|r| row(joint.get(), r)));
+    }
+    Ok((out, Ok(())))
+}
+
 /// `whj read` / `whj write`, point-to-point or by broadcast frames.
 fn registers(bus: &JointBus, job: &WhjJob<'_>) -> anyhow::Result<Ran> {
     Ok(match job.run {
@@ -322,21 +334,14 @@ fn registers(bus: &JointBus, job: &WhjJob<'_>) -> anyhow::Result<Ran> {
             joints,
             addr,
             count,
-            broadcast: true,
+            broadcast,
             end_board,
-        } => rows_of(&ops::broadcast_read(bus, joints, *addr, *count, *end_board)?.1),
-        WhjRun::Read {
-            joints,
-            addr,
-            count,
-            ..
         } => {
-            let mut out = Vec::new();
-            for &joint in joints {
-                let regs = ops::read_registers(bus, joint, *addr, *count)?;
-                out.extend(regs.iter().map(|r| row(joint.get(), r)));
+            if *broadcast {
+                rows_of(&ops::broadcast_read(bus, joints, *addr, *count, *end_board)?.1)
+            } else {
+                joint_rows(joints, |j| Ok(ops::read_registers(bus, j, *addr, *count)?))?
             }
-            (out, Ok(()))
         }
         WhjRun::Write {
             joints,
@@ -344,35 +349,19 @@ fn registers(bus: &JointBus, job: &WhjJob<'_>) -> anyhow::Result<Ran> {
             value,
             raw,
             scale,
-            broadcast: true,
+            broadcast,
             end_board,
-        } => rows_of(
-            &ops::broadcast_write(
-                bus,
-                joints,
-                *addr,
-                *value,
-                *raw,
-                *scale,
-                *end_board,
-                job.confirmed,
-            )?
-            .1,
-        ),
-        WhjRun::Write {
-            joints,
-            addr,
-            value,
-            raw,
-            scale,
-            ..
         } => {
-            let mut out = Vec::new();
-            for &joint in joints {
-                let regs = ops::write(bus, joint, *addr, *value, *raw, *scale, job.confirmed)?;
-                out.extend(regs.iter().map(|r| row(joint.get(), r)));
+            let (v, raw, scale, yes) = (*value, *raw, *scale, job.confirmed);
+            if *broadcast {
+                let (_, results) =
+                    ops::broadcast_write(bus, joints, *addr, v, raw, scale, *end_board, yes)?;
+                rows_of(&results)
+            } else {
+                joint_rows(joints, |j| {
+                    Ok(ops::write(bus, j, *addr, v, raw, scale, yes)?)
+                })?
             }
-            (out, Ok(()))
         }
         _ => (Vec::new(), Ok(())),
     })

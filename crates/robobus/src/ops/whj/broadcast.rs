@@ -184,6 +184,24 @@ fn status_query(
     }))
 }
 
+/// One 0x7F frame; each joint's report made by `report` from its feedback, or a
+/// no-device failure.
+fn per_joint_status<T>(
+    bus: &JointBus,
+    ids: &[JointId],
+    report: impl Fn(JointId, &BroadcastFeedback) -> T,
+) -> Result<Vec<DeviceResult<u8, T>>, OpError> {
+    let found = status_query(bus, ids)?;
+    Ok(ids
+        .iter()
+        .zip(found)
+        .map(|(&id, fb)| match fb {
+            Some(f) => DeviceResult::ok(id.get(), report(id, &f)),
+            None => DeviceResult::failed(id.get(), silent(Slot::Joint(id), "status query", bus)),
+        })
+        .collect())
+}
+
 /// `whj status --broadcast`: one 0x7F frame asks joints `ids` (1..=7) for their status;
 /// every joint is reported, one that did not answer within [`broadcast_window`] as a
 /// no-device failure. Joints outside `ids` that the mask also selects are not reported.
@@ -191,31 +209,20 @@ pub fn broadcast_status(
     bus: &JointBus,
     ids: &[JointId],
 ) -> Result<Vec<DeviceResult<u8, StatusReport>>, OpError> {
-    let found = status_query(bus, ids)?;
-    Ok(ids
-        .iter()
-        .zip(found)
-        .map(|(&id, fb)| match fb {
-            Some(f) => DeviceResult::ok(
-                id.get(),
-                StatusReport {
-                    enabled: f.is_enabled(),
-                    mode: "-",
-                    position_deg: f.position.degrees(),
-                    current_ma: Some(f.current.milliamps(scale_of(bus, id))),
-                    voltage_v: f64::from(f.voltage.volts()),
-                    temperature_c: f64::from(f.temperature.celsius()),
-                    brake: if f.brake_locked() {
-                        "locked"
-                    } else {
-                        "released"
-                    },
-                    error: f.error.to_string(),
-                },
-            ),
-            None => DeviceResult::failed(id.get(), silent(Slot::Joint(id), "status query", bus)),
-        })
-        .collect())
+    per_joint_status(bus, ids, |id, f| StatusReport {
+        enabled: f.is_enabled(),
+        mode: "-",
+        position_deg: f.position.degrees(),
+        current_ma: Some(f.current.milliamps(scale_of(bus, id))),
+        voltage_v: f64::from(f.voltage.volts()),
+        temperature_c: f64::from(f.temperature.celsius()),
+        brake: if f.brake_locked() {
+            "locked"
+        } else {
+            "released"
+        },
+        error: f.error.to_string(),
+    })
 }
 
 /// `monitor --broadcast`: samples joints `ids` (1..=7) with one 0x7F frame, instead of
@@ -225,24 +232,13 @@ pub fn sample_broadcast(
     bus: &JointBus,
     ids: &[JointId],
 ) -> Result<Vec<DeviceResult<u8, JointSample>>, OpError> {
-    let found = status_query(bus, ids)?;
-    Ok(ids
-        .iter()
-        .zip(found)
-        .map(|(&id, fb)| match fb {
-            Some(f) => DeviceResult::ok(
-                id.get(),
-                JointSample {
-                    position_deg: f.position.degrees(),
-                    speed_rpm: Some(f.speed.rpm()),
-                    current_ma: Some(f.current.milliamps(scale_of(bus, id))),
-                    enabled: f.is_enabled(),
-                    error: f.error.to_string(),
-                },
-            ),
-            None => DeviceResult::failed(id.get(), silent(Slot::Joint(id), "status query", bus)),
-        })
-        .collect())
+    per_joint_status(bus, ids, |id, f| JointSample {
+        position_deg: f.position.degrees(),
+        speed_rpm: Some(f.speed.rpm()),
+        current_ma: Some(f.current.milliamps(scale_of(bus, id))),
+        enabled: f.is_enabled(),
+        error: f.error.to_string(),
+    })
 }
 
 // ---------------------------------------------------------------------------------------
