@@ -847,3 +847,48 @@ fn a_broadcast_wave_sends_exactly_its_dry_run_as_0x2f_frames() {
         "{e}"
     );
 }
+
+/// A relay that turns joint 1's first broadcast register reply into an answer for
+/// SYS_VOLTAGE (0x05) and drops its later ones.
+struct OneWrongRegisterReply<L>(L, bool);
+
+impl<L: FrameLink> FrameLink for OneWrongRegisterReply<L> {
+    fn send(&mut self, frame: &CanFrame) -> Result<(), FrameLinkError> {
+        self.0.send(frame)
+    }
+    fn recv(&mut self, deadline: std::time::Instant) -> Result<Received, FrameLinkError> {
+        loop {
+            let mut r = self.0.recv(deadline)?;
+            if r.frame.raw_id() != 0xF2 {
+                return Ok(r);
+            }
+            if !self.1 {
+                self.1 = true;
+                let mut d = r.frame.data().to_vec();
+                d[1] = 0x05;
+                r.frame = CanFrame::new_fd(r.frame.id(), &d).unwrap();
+                return Ok(r);
+            }
+        }
+    }
+    fn set_filters(&mut self, filters: &[IdFilter]) -> Result<(), FrameLinkError> {
+        self.0.set_filters(filters)
+    }
+}
+
+#[test]
+fn a_broadcast_reply_counts_only_for_its_register_and_only_after_its_frame() {
+    let (_sim, link) = memory(chain(2));
+    let bus = JointBus::open_with(OneWrongRegisterReply(link, false), config()).unwrap();
+    let ids = [id(1), id(2)];
+    let temp = robobus_whj::registers::addr::SYS_TEMP;
+    let volts = robobus_whj::registers::addr::SYS_VOLTAGE;
+    // Joint 1's reply answers SYS_VOLTAGE: not credited to a SYS_TEMP read.
+    let (_, r) = ops::broadcast_read(&bus, &ids, temp, None, None).unwrap();
+    assert_eq!(r[0].failure().unwrap().kind, ErrorKind::NoDevice, "{r:?}");
+    assert_eq!(r[1].value().unwrap().register, "SYS_TEMP");
+    // Nor to the next SYS_VOLTAGE read: it arrived before that frame was sent.
+    let (_, r) = ops::broadcast_read(&bus, &ids, volts, None, None).unwrap();
+    assert_eq!(r[0].failure().unwrap().kind, ErrorKind::NoDevice, "{r:?}");
+    assert_eq!(r[1].value().unwrap().register, "SYS_VOLTAGE");
+}
