@@ -135,7 +135,8 @@ pub enum EntryKind {
     Request,
     /// A reply or feedback from a device.
     Reply,
-    /// A frame of a known kind this decoder does not look into (end board, firmware data).
+    /// A frame of a known kind that is not matched to a request: interface-board frames and
+    /// firmware data (not decoded), end-board replies (decoded by register name).
     Other,
     /// A command's reply that never came (the next command, or the end of the capture,
     /// came first).
