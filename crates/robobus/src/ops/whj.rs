@@ -34,6 +34,10 @@
 //!   *requested* target, in the loop's unit), `last` (the last feedback, or null when none
 //!   came), `stale` (true when the last cycle had no reply), `missing_at_end`;
 //! - [`SetIdReport`]: `new_id`, `saved`, `note`.
+//! - broadcast register reads and writes ([`broadcast_read`], [`broadcast_write`]): one
+//!   [`RegisterReport`] per register and [`Slot`], whose `id` is the joint's number or
+//!   `"end-board"` (the end board's registers by their names in its own map, raw values);
+//!   a slot without a credited reply is `{"id", "kind": "no-device", "error"}`.
 
 // OpError carries the client errors by value, as they do (see `ops::read_bounded`).
 #![allow(clippy::result_large_err)]
