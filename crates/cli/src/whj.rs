@@ -176,6 +176,10 @@ enum WhjCommand {
         /// each; a joint that does not answer is named.
         #[arg(long)]
         broadcast: bool,
+        /// With --broadcast: the end board answers the same frame (IO modes and levels,
+        /// buttons, gripper / hand in position, error byte).
+        #[arg(long, requires = "broadcast")]
+        end_board: bool,
     },
     /// Enable the drive (register 0x0A := 1).
     Enable {
@@ -587,9 +591,11 @@ fn whj_run(args: &Args) -> WhjRun {
     match c {
         WhjCommand::Scan { joints } => WhjRun::Scan(joints.0.clone()),
         WhjCommand::Info { joint } => WhjRun::Info(*joint),
-        WhjCommand::Status { joints, broadcast } if *broadcast => {
-            WhjRun::BroadcastStatus(joints.0.clone())
-        }
+        WhjCommand::Status {
+            joints,
+            broadcast: true,
+            end_board,
+        } => WhjRun::BroadcastStatus(joints.0.clone(), *end_board),
         WhjCommand::Status { joints, .. } => WhjRun::Status(joints.0.clone()),
         WhjCommand::Enable { joints } => WhjRun::Enable(joints.0.clone(), true),
         WhjCommand::Disable { joints } => WhjRun::Enable(joints.0.clone(), false),
@@ -724,20 +730,29 @@ fn plan(args: &Args, dry_run: bool) -> anyhow::Result<WhjPlan> {
             p.push(Request::StatusQuery { joint: *joint });
             p
         }
-        WhjCommand::Status { joints, broadcast } if *broadcast => {
-            let mask = ops::reply_mask(&joints.0)?;
+        WhjCommand::Status {
+            joints,
+            broadcast: true,
+            end_board,
+        } => {
+            let mask = ops::reply_mask_with(&joints.0, *end_board)?;
             let mut p = WhjPlan::default();
             p.push(Request::BroadcastStatus(
                 robobus_whj::broadcast::BroadcastStatus::new(mask),
             ));
             p.notes.push(format!(
-                "one broadcast status query, reply mask {:#X} (joints {}); a real run \
+                "one broadcast status query, reply mask {:#X} (joints {}{}); a real run \
                  connects each joint first",
                 mask.get(),
                 mask.joints()
                     .map(|j| j.get().to_string())
                     .collect::<Vec<_>>()
-                    .join(",")
+                    .join(","),
+                if mask.selects_end_board() {
+                    " and the end board"
+                } else {
+                    ""
+                }
             ));
             p
         }

@@ -764,6 +764,15 @@ fn whj_e2e_broadcast_registers_with_the_end_board() {
         (Some("end-board"), 1.0)
     );
     assert_eq!(register_broadcasts(&log), dry_frames(&write));
+    // The end board answers a status query in the same frame as the joints: IO1 is now an
+    // output.
+    let st = sim.json(&["status", "--broadcast", "1-2", "--end-board"]);
+    assert_eq!(st.len(), 3, "{st:?}");
+    assert_eq!(
+        (&st[2]["joint"], &st[2]["io1_output"]),
+        (&Value::from("end-board"), &Value::from(true))
+    );
+    assert_eq!(st[2]["io2_output"], false, "{st:?}");
     // A dangerous register is refused before anything is sent, broadcast or not.
     let r = sim.whj(&["write", "--broadcast", "1-2", "SYS_DEMA_ABSPOS", "1"]);
     assert_eq!(r.code, Some(2), "{r:?}");

@@ -574,6 +574,15 @@ fn broadcast_status_reports_every_joint_and_names_the_silent_one() {
     assert!(r[0].is_ok() && r[1].is_ok() && r[3].is_ok(), "{r:?}");
     assert_eq!(r[2].failure().unwrap().kind, ErrorKind::NoDevice);
     assert!(r[0].value().unwrap().position_deg.abs() < 1.0);
+    // No end board on this bus: asked for, it is named as silent; the joints still answer.
+    let (joints, board) = ops::broadcast_status_with_end_board(&bus, &[id(1), id(2)]).unwrap();
+    assert!(
+        joints.iter().all(robobus::ops::DeviceResult::is_ok),
+        "{joints:?}"
+    );
+    let f = board.failure().unwrap();
+    assert_eq!(f.kind, ErrorKind::NoDevice);
+    assert!(f.error.starts_with("end board: no reply"), "{f:?}");
 }
 
 #[test]
@@ -710,6 +719,17 @@ fn broadcast_register_write_sends_its_dry_run_and_reads_back() {
         assert_eq!((v.register, v.raw), ("TAG_WORK_MODE", 2), "{r:?}");
     }
     assert_eq!(r[3].value().unwrap().raw, 1);
+    // One 0x7F frame for the joints and the end board (mask F): IO1 is an output now.
+    log.clear();
+    let (joints, board) = ops::broadcast_status_with_end_board(&bus, &ids).unwrap();
+    assert_eq!(log.sent().len(), 1);
+    assert_eq!(log.sent()[0].data()[23], 0x0F);
+    assert!(
+        joints.iter().all(robobus::ops::DeviceResult::is_ok),
+        "{joints:?}"
+    );
+    let b = board.value().unwrap();
+    assert!(b.io1_output && !b.io2_output, "{b:?}");
     drop(bus);
     let (sim_bus, _) = sim.stop();
     assert_eq!(sim_bus.end_board().unwrap().register(0x1D), 1);

@@ -64,8 +64,8 @@ pub(crate) enum WhjRun {
     Info(JointId),
     /// Status of joints.
     Status(Vec<JointId>),
-    /// Status of joints 1..=7 by one broadcast frame.
-    BroadcastStatus(Vec<JointId>),
+    /// Status of joints 1..=7 by one broadcast frame (`true`: and of the end board).
+    BroadcastStatus(Vec<JointId>, bool),
     /// Enable (`true`) or disable drives.
     Enable(Vec<JointId>, bool),
     /// Set the work mode.
@@ -269,13 +269,21 @@ fn run(bus: &JointBus, job: &WhjJob<'_>, stats: &mut Option<Value>) -> anyhow::R
         WhjRun::Scan(ids) => scan(bus, ids, stats)?,
         WhjRun::Info(id) => one(*id, &ops::info(bus, *id)?),
         WhjRun::Status(ids) => rows_of(&ops::status(bus, ids)),
-        WhjRun::BroadcastStatus(ids) => {
+        WhjRun::BroadcastStatus(ids, end_board) => {
             // Connect each joint (IAP release, identity for the current scale); a silent
             // one is named by the broadcast's result.
             for &id in ids {
                 let _ = bus.joint(id);
             }
-            rows_of(&ops::broadcast_status(bus, ids)?)
+            if *end_board {
+                let (joints, board) = ops::broadcast_status_with_end_board(bus, ids)?;
+                let (mut rows, outcome) = rows_of(&joints);
+                let (board_row, board_outcome) = rows_of(&[board]);
+                rows.extend(board_row);
+                (rows, outcome.and(board_outcome))
+            } else {
+                rows_of(&ops::broadcast_status(bus, ids)?)
+            }
         }
         WhjRun::Enable(ids, on) => rows_of(&ops::enable(bus, ids, *on)),
         WhjRun::Mode(ids, mode) => rows_of(&ops::set_mode(bus, ids, *mode)),

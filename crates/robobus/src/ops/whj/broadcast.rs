@@ -98,10 +98,11 @@ pub struct BroadcastPlan {
 
 /// The smallest broadcast reply mask that selects every joint of `ids` (all 1..=7).
 pub fn reply_mask(ids: &[JointId]) -> Result<ReplyMask, OpError> {
-    mask_for(ids, false)
+    reply_mask_with(ids, false)
 }
 
-fn mask_for(ids: &[JointId], end_board: bool) -> Result<ReplyMask, OpError> {
+/// [`reply_mask`] that also selects the end board when `end_board` is set.
+pub fn reply_mask_with(ids: &[JointId], end_board: bool) -> Result<ReplyMask, OpError> {
     if let Some(bad) = ids.iter().find(|j| !j.has_broadcast_slot()) {
         return Err(OpError::invalid(
             "--broadcast JOINTS",
@@ -164,24 +165,55 @@ fn scale_of(bus: &JointBus, id: JointId) -> CurrentScale {
 // 0x7F status
 // ---------------------------------------------------------------------------------------
 
-/// One 0x7F frame to joints `ids`; each joint's 24-byte feedback, `None` when none came.
+/// One answer to a 0x7F frame.
+enum Answer {
+    Joint(BroadcastFeedback),
+    EndBoard(EndBoardReply),
+}
+
+/// One 0x7F frame to joints `ids` (and the end board); each joint's 24-byte feedback and
+/// the end board's reply, `None` when none came.
 fn status_query(
     bus: &JointBus,
     ids: &[JointId],
-) -> Result<Vec<Option<BroadcastFeedback>>, OpError> {
-    let mask = reply_mask(ids)?;
+    end_board: bool,
+) -> Result<(Vec<Option<BroadcastFeedback>>, Option<EndBoardReply>), OpError> {
+    let mask = reply_mask_with(ids, end_board)?;
     let sent = bus
         .send_broadcast(Request::BroadcastStatus(BroadcastStatus::new(mask)))
         .map_err(whj)?;
-    let slots: Vec<Slot> = ids.iter().map(|&j| Slot::Joint(j)).collect();
-    Ok(collect(bus, sent, &slots, |slot, f| {
-        match (slot, Reply::from_frame(f)) {
-            (Slot::Joint(id), Ok(Reply::BroadcastFeedback { joint, feedback })) if joint == id => {
-                Some(feedback)
+    let mut slots: Vec<Slot> = ids.iter().map(|&j| Slot::Joint(j)).collect();
+    if end_board {
+        slots.push(Slot::EndBoard);
+    }
+    let mut found = collect(bus, sent, &slots, |slot, f| match slot {
+        Slot::Joint(id) => match Reply::from_frame(f) {
+            Ok(Reply::BroadcastFeedback { joint, feedback }) if joint == id => {
+                Some(Answer::Joint(feedback))
             }
             _ => None,
+        },
+        Slot::EndBoard => (f.standard_raw_id().map(Address::from_raw)
+            == Some(Address::EndBoardFeedback))
+        .then(|| EndBoardReply::decode(f.data()).map(Answer::EndBoard))
+        .flatten(),
+    });
+    let board = if end_board {
+        match found.pop() {
+            Some(Some(Answer::EndBoard(r))) => Some(r),
+            _ => None,
         }
-    }))
+    } else {
+        None
+    };
+    let joints = found
+        .into_iter()
+        .map(|a| match a {
+            Some(Answer::Joint(f)) => Some(f),
+            _ => None,
+        })
+        .collect();
+    Ok((joints, board))
 }
 
 /// One 0x7F frame; each joint's report made by `report` from its feedback, or a
@@ -191,25 +223,27 @@ fn per_joint_status<T>(
     ids: &[JointId],
     report: impl Fn(JointId, &BroadcastFeedback) -> T,
 ) -> Result<Vec<DeviceResult<u8, T>>, OpError> {
-    let found = status_query(bus, ids)?;
-    Ok(ids
-        .iter()
+    let (found, _) = status_query(bus, ids, false)?;
+    Ok(joint_results(bus, ids, found, report))
+}
+
+fn joint_results<T>(
+    bus: &JointBus,
+    ids: &[JointId],
+    found: Vec<Option<BroadcastFeedback>>,
+    report: impl Fn(JointId, &BroadcastFeedback) -> T,
+) -> Vec<DeviceResult<u8, T>> {
+    ids.iter()
         .zip(found)
         .map(|(&id, fb)| match fb {
             Some(f) => DeviceResult::ok(id.get(), report(id, &f)),
             None => DeviceResult::failed(id.get(), silent(Slot::Joint(id), "status query", bus)),
         })
-        .collect())
+        .collect()
 }
 
-/// `whj status --broadcast`: one 0x7F frame asks joints `ids` (1..=7) for their status;
-/// every joint is reported, one that did not answer within [`broadcast_window`] as a
-/// no-device failure. Joints outside `ids` that the mask also selects are not reported.
-pub fn broadcast_status(
-    bus: &JointBus,
-    ids: &[JointId],
-) -> Result<Vec<DeviceResult<u8, StatusReport>>, OpError> {
-    per_joint_status(bus, ids, |id, f| StatusReport {
+fn status_report(bus: &JointBus, id: JointId, f: &BroadcastFeedback) -> StatusReport {
+    StatusReport {
         enabled: f.is_enabled(),
         mode: "-",
         position_deg: f.position.degrees(),
@@ -222,7 +256,79 @@ pub fn broadcast_status(
             "released"
         },
         error: f.error.to_string(),
-    })
+    }
+}
+
+/// `whj status --broadcast`: one 0x7F frame asks joints `ids` (1..=7) for their status;
+/// every joint is reported, one that did not answer within [`broadcast_window`] as a
+/// no-device failure. Joints outside `ids` that the mask also selects are not reported.
+pub fn broadcast_status(
+    bus: &JointBus,
+    ids: &[JointId],
+) -> Result<Vec<DeviceResult<u8, StatusReport>>, OpError> {
+    per_joint_status(bus, ids, |id, f| status_report(bus, id, f))
+}
+
+/// The end board's state in its answer to a status query (status0 bits, §8.10).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct EndBoardStatus {
+    /// Digital channel 1 is an output.
+    pub io1_output: bool,
+    /// Digital channel 2 is an output.
+    pub io2_output: bool,
+    /// Digital channel 1 is high.
+    pub io1_high: bool,
+    /// Digital channel 2 is high.
+    pub io2_high: bool,
+    /// The teach button is pressed.
+    pub teach_button: bool,
+    /// The replay button is pressed.
+    pub replay_button: bool,
+    /// The gripper reports "in position".
+    pub gripper_in_position: bool,
+    /// The dexterous hand reports "in position".
+    pub hand_in_position: bool,
+    /// The board's system error byte, hex.
+    pub error: String,
+}
+
+impl EndBoardStatus {
+    /// The state in a reply's status bytes.
+    pub fn of(r: &EndBoardReply) -> Self {
+        let bit = |n: u8| r.status0 & (1 << n) != 0;
+        Self {
+            io1_output: bit(7),
+            io2_output: bit(6),
+            teach_button: bit(5),
+            replay_button: bit(4),
+            io1_high: bit(3),
+            gripper_in_position: bit(2),
+            hand_in_position: bit(1),
+            io2_high: bit(0),
+            error: format!("0x{:02X}", r.sys_error),
+        }
+    }
+}
+
+/// `whj status --broadcast --end-board`: [`broadcast_status`] and, in the same 0x7F frame,
+/// the end board's state (or a no-device failure when it did not answer).
+pub fn broadcast_status_with_end_board(
+    bus: &JointBus,
+    ids: &[JointId],
+) -> Result<
+    (
+        Vec<DeviceResult<u8, StatusReport>>,
+        DeviceResult<Slot, EndBoardStatus>,
+    ),
+    OpError,
+> {
+    let (found, board) = status_query(bus, ids, true)?;
+    let joints = joint_results(bus, ids, found, |id, f| status_report(bus, id, f));
+    let board = match board {
+        Some(r) => DeviceResult::ok(Slot::EndBoard, EndBoardStatus::of(&r)),
+        None => DeviceResult::failed(Slot::EndBoard, silent(Slot::EndBoard, "status query", bus)),
+    };
+    Ok((joints, board))
 }
 
 /// `monitor --broadcast`: samples joints `ids` (1..=7) with one 0x7F frame, instead of
@@ -297,7 +403,7 @@ pub fn plan_broadcast_read(
         .map(|a| EndBoardOp::read(a, 1))
         .transpose()
         .map_err(|e| OpError::invalid("--end-board", format!("{end_board:?}"), e.to_string()))?;
-    let mask = mask_for(ids, eb.is_some())?;
+    let mask = reply_mask_with(ids, eb.is_some())?;
     let ops: Vec<_> = ids.iter().map(|&j| (j, RegisterOp::Read(range))).collect();
     let frame = register_frame(mask, &ops, eb)?;
     let mut notes = vec![format!(
@@ -388,7 +494,7 @@ pub fn plan_broadcast_write(
             )
         }
     };
-    let mask = mask_for(ids, eb.is_some())?;
+    let mask = reply_mask_with(ids, eb.is_some())?;
     let write = register_frame(mask, &ops, eb)?;
     let unnamed_count = match ops.first() {
         Some((
