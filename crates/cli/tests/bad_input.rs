@@ -213,30 +213,14 @@ fn whj_values_out_of_range_are_refused_before_anything_is_opened() {
             &with(&["write", "--broadcast", "1-2", "sys_dema_abspos", "1"]),
             &["SYS_DEMA_ABSPOS", "never"],
         );
-        refused(
-            &with(&[
-                "wave",
-                "1",
-                "--amplitude",
-                "1",
-                "--broadcast",
-                "--mode",
-                "speed",
-            ]),
-            &["--broadcast", "speed", "0x2F"],
-        );
-        refused(
-            &with(&[
-                "wave",
-                "1",
-                "--amplitude",
-                "1",
-                "--broadcast",
-                "--rate-hz",
-                "50",
-            ]),
-            &["--rate-hz", "50", "100..=1000"],
-        );
+        for (extra, want) in [
+            (["--mode", "speed"], ["--broadcast", "speed", "0x2F"]),
+            (["--rate-hz", "50"], ["--rate-hz", "50", "100..=1000"]),
+        ] {
+            let mut args = with(&["wave", "1", "--amplitude", "1", "--broadcast"]);
+            args.extend_from_slice(&extra);
+            refused(&args, &want);
+        }
     }
     refused(
         &["whj", "--bus", "udp:1.2.3.4:5", "--dry-run", "enable", "1"],

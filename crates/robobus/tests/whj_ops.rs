@@ -869,7 +869,7 @@ fn a_broadcast_wave_sends_exactly_its_dry_run_as_0x2f_frames() {
 }
 
 /// A relay that turns joint 1's first broadcast register reply into an answer for
-/// SYS_VOLTAGE (0x05) and drops its later ones.
+/// `SYS_VOLTAGE` (0x05) and drops its later ones.
 struct OneWrongRegisterReply<L>(L, bool);
 
 impl<L: FrameLink> FrameLink for OneWrongRegisterReply<L> {

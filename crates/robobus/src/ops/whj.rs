@@ -1800,7 +1800,8 @@ mod broadcast;
 
 pub use broadcast::{
     BROADCAST_WAVE_MIN_HZ, BroadcastPlan, END_BOARD_WRITE_TEXT, EndBoardArg, EndBoardStatus, Slot,
-    broadcast_read, broadcast_status, broadcast_status_with_end_board, broadcast_window,
-    broadcast_write, plan_broadcast_read, plan_broadcast_wave, plan_broadcast_write,
-    prepare_broadcast_wave, reply_mask, reply_mask_with, run_broadcast_plan, sample_broadcast,
+    StatusWithEndBoard, broadcast_read, broadcast_status, broadcast_status_with_end_board,
+    broadcast_window, broadcast_write, plan_broadcast_read, plan_broadcast_wave,
+    plan_broadcast_write, prepare_broadcast_wave, reply_mask, reply_mask_with, run_broadcast_plan,
+    sample_broadcast,
 };

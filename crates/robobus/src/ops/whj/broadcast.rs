@@ -271,6 +271,7 @@ pub fn broadcast_status(
 
 /// The end board's state in its answer to a status query (status0 bits, §8.10).
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[allow(clippy::struct_excessive_bools)] // eight independent status bits, as JSON booleans
 pub struct EndBoardStatus {
     /// Digital channel 1 is an output.
     pub io1_output: bool,
@@ -310,18 +311,18 @@ impl EndBoardStatus {
     }
 }
 
+/// The joints' and the end board's results of one status query.
+pub type StatusWithEndBoard = (
+    Vec<DeviceResult<u8, StatusReport>>,
+    DeviceResult<Slot, EndBoardStatus>,
+);
+
 /// `whj status --broadcast --end-board`: [`broadcast_status`] and, in the same 0x7F frame,
 /// the end board's state (or a no-device failure when it did not answer).
 pub fn broadcast_status_with_end_board(
     bus: &JointBus,
     ids: &[JointId],
-) -> Result<
-    (
-        Vec<DeviceResult<u8, StatusReport>>,
-        DeviceResult<Slot, EndBoardStatus>,
-    ),
-    OpError,
-> {
+) -> Result<StatusWithEndBoard, OpError> {
     let (found, board) = status_query(bus, ids, true)?;
     let joints = joint_results(bus, ids, found, |id, f| status_report(bus, id, f));
     let board = match board {
