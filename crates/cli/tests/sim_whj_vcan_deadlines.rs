@@ -30,6 +30,7 @@ use std::time::{Duration, Instant};
 
 use robobus::whj::{JointBus, JointBusConfig};
 use robobus_link::{FrameLink, IdFilter, SocketCanLink};
+use robobus_whj::timing::{BitRates, frame_duration};
 use robobus_whj::{CanFrame, JointId, Request};
 
 const IN_UML_ENV: &str = "ROBOBUS_CLI_IN_UML";
@@ -395,6 +396,31 @@ fn inner_bench_round_trip() {
     let sim = Sim::start(dir.path());
     let (rts, missed) = round_trips(&mut link, &query, 0x701, n, timeout);
     let ours = summary("robobus sim whj", rts, missed.len());
+    drop(link);
+
+    // The same queries through the client library (`Joint::status`: request, matching,
+    // decoding), against the same simulator.
+    let config = JointBusConfig {
+        reply_timeout: timeout,
+        retries: 0,
+        ..JointBusConfig::default()
+    };
+    let bus = JointBus::open_with(SocketCanLink::open("vcan0").unwrap(), config).unwrap();
+    let joint = bus.joint_unchecked(JointId::new(1).unwrap());
+    for _ in 0..5 {
+        let _ = joint.status();
+    }
+    let mut rts = Vec::with_capacity(n);
+    let mut missed = 0;
+    for _ in 0..n {
+        let t0 = Instant::now();
+        match joint.status() {
+            Ok(_) => rts.push(t0.elapsed()),
+            Err(_) => missed += 1,
+        }
+    }
+    let client = summary("JointBus::status -> robobus sim whj", rts, missed);
+    drop(bus);
     drop(sim);
     let ratio = |a: Duration, b: Duration| a.as_secs_f64() / b.as_secs_f64().max(1e-9);
     println!(
@@ -403,6 +429,25 @@ fn inner_bench_round_trip() {
         ratio(ours.1, gw.1),
         ratio(ours.0, user.0),
         ratio(ours.1, user.1),
+    );
+    // The simulator holds each reply back until the modelled wire (1 / 5 Mbit/s) and the
+    // joint's 20 µs processing would have let it go: an echo has no such floor.
+    let reply = CanFrame::new_fd(CanFrame::standard_id(0x701).unwrap(), &[0x55; 16]).unwrap();
+    let floor = frame_duration(&query, BitRates::WHJ)
+        + frame_duration(&reply, BitRates::WHJ)
+        + Duration::from_micros(20);
+    println!(
+        "modelled floor of the simulator's round trip (wire + processing): {:.1} µs; \
+         sim median / floor {:.2}",
+        floor.as_secs_f64() * 1e6,
+        ratio(ours.0, floor)
+    );
+    println!(
+        "ratio client / cangw: median {:.2}, p99 {:.2}; client / bare link: median {:.2}, p99 {:.2}",
+        ratio(client.0, gw.0),
+        ratio(client.1, gw.1),
+        ratio(client.0, ours.0),
+        ratio(client.1, ours.1),
     );
     println!("inner_bench_round_trip OK");
 }

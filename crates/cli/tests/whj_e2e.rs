@@ -254,6 +254,49 @@ fn whj_e2e_scan_info_enable_move_save_registers() {
     assert_eq!(sid[0]["new_id"], 9);
 }
 
+/// `sim whj` prints its "serving" line only once its serving loop takes frames: a client
+/// that sends the moment the line appears (here the IAP release each joint waits for after
+/// power-up) is answered, 20 simulator starts in a row. A frame sent before the loop
+/// listens is lost for good, so the window is generous (1 s) for a machine that stalls.
+#[test]
+fn whj_e2e_the_first_frame_after_the_serving_line_is_answered_20_times() {
+    use robobus_link::{FrameLink as _, UdpBus, UdpBusConfig};
+    use robobus_whj::registers::addr;
+    use robobus_whj::{JointId, Reply, Request};
+
+    if !in_netns("whj_e2e_the_first_frame_after_the_serving_line_is_answered_20_times") {
+        return;
+    }
+    let config = UdpBusConfig {
+        group: "239.74.163.12".parse().unwrap(),
+        port: 43122,
+        ..UdpBusConfig::default()
+    };
+    let release = Request::write(JointId::new(1).unwrap(), addr::IAP_FLAG, 0)
+        .unwrap()
+        .to_frame();
+    for run in 0..20 {
+        // Our socket first, so that only the simulator's readiness is under test.
+        let mut link = UdpBus::open(&config).unwrap();
+        let sim = Sim::start("udp:239.74.163.12:43122", &[]);
+        link.send(&release).unwrap();
+        let deadline = Instant::now() + Duration::from_secs(1);
+        let reply = loop {
+            let rx = link
+                .recv(deadline)
+                .unwrap_or_else(|e| panic!("run {run}: no reply to the first frame: {e}"));
+            if let Ok(r) = Reply::from_frame(&rx.frame) {
+                break r;
+            }
+        };
+        assert!(
+            matches!(reply, Reply::WriteAck { joint, addr: a, .. } if joint.get() == 1 && a == addr::IAP_FLAG),
+            "run {run}: {reply:?}"
+        );
+        drop(sim);
+    }
+}
+
 #[test]
 fn whj_e2e_wave_speed_current_and_interrupt() {
     if !in_netns("whj_e2e_wave_speed_current_and_interrupt") {
