@@ -848,6 +848,18 @@ fn a_broadcast_wave_sends_exactly_its_dry_run_as_0x2f_frames() {
     assert_eq!(report.cycles, 50);
     assert!(report.complete >= 45, "{report:?}");
     assert!(report.tracking_max.unwrap() < 1.0, "{report:?}");
+    // A current wave goes out as 0x4F frames with the target in J2's slot, mask 8.
+    let current = WaveArgs {
+        servo: ServoLoop::Current,
+        amplitude: 100.0,
+        ..args
+    };
+    let cur = ops::plan_broadcast_wave(&current, 0.0, CurrentScale::OneMilliamp, true).unwrap();
+    let f = cur.frames[1].request.to_frame();
+    assert_eq!((f.raw_id(), f.len()), (0x4F, 48));
+    assert_eq!(f.data()[..4], robobus_whj::broadcast::CURRENT_NO_DATA);
+    assert_ne!(f.data()[4..8], robobus_whj::broadcast::CURRENT_NO_DATA);
+    assert_eq!(f.data()[47], 8);
     // Speed waves have no broadcast frame; a position stream slower than 100 Hz would trip
     // the joints' 20 ms watchdog between frames.
     let speed = WaveArgs {
