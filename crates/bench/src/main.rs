@@ -3,19 +3,23 @@
 //! ```text
 //! robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]
 //! robobus-bench serve-whj --joints N --delay-us D [--fast-wire]
+//! robobus-bench poll-wck --servos N --baud B --secs S [--turnaround]
 //! ```
+//!
+//! `poll-wck` runs the wCK polling case alone, once, and prints its rate as a share of the
+//! wire (for a quick look, or under `strace`).
 
 use std::io::Write as _;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 
-use robobus_bench::{Options, report, run, whj};
+use robobus_bench::{Options, report, run, wck, whj};
 
 fn usage() -> ExitCode {
     let _ = writeln!(
         std::io::stderr(),
-        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire]"
+        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround]"
     );
     ExitCode::from(2)
 }
@@ -50,10 +54,66 @@ fn serve_whj(args: &[String]) -> ExitCode {
     }
 }
 
+fn poll_wck(args: &[String]) -> ExitCode {
+    let mut spec = wck::PollSpec {
+        servos: 1,
+        baud: robobus_wck::BaudRate::B115200,
+        manual_turnaround: false,
+    };
+    let mut secs = 1.0_f64;
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--servos" => match it.next().and_then(|v| v.parse().ok()) {
+                Some(n) if (1..=31).contains(&n) => spec.servos = n,
+                _ => return usage(),
+            },
+            "--baud" => match it
+                .next()
+                .and_then(|v| v.parse().ok())
+                .and_then(|b| robobus_wck::BaudRate::from_bits_per_second(b).ok())
+            {
+                Some(b) => spec.baud = b,
+                None => return usage(),
+            },
+            "--secs" => match it.next().and_then(|v| v.parse().ok()) {
+                Some(s) if (0.01..=600.0).contains(&s) => secs = s,
+                _ => return usage(),
+            },
+            "--turnaround" => spec.manual_turnaround = true,
+            _ => return usage(),
+        }
+    }
+    match wck::poll(spec, Duration::from_secs_f64(secs), None) {
+        Ok(r) => {
+            let _ = writeln!(
+                std::io::stdout(),
+                "{} servo(s) at {}: {} cycles, {} errors, {:.1} Hz, {:.1} % of the wire, \
+                 client CPU {:.1} µs/cycle",
+                spec.servos,
+                spec.baud,
+                r.cycles,
+                r.errors,
+                r.rate_hz(),
+                r.efficiency() * 100.0,
+                r.cpu_per_cycle_us()
+            );
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            let _ = writeln!(std::io::stderr(), "poll-wck: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     if args.first().map(String::as_str) == Some("serve-whj") {
         return serve_whj(args.get(1..).unwrap_or_default());
+    }
+    if args.first().map(String::as_str) == Some("poll-wck") {
+        return poll_wck(args.get(1..).unwrap_or_default());
     }
     let mut opts = Options {
         smoke: false,

@@ -152,6 +152,18 @@ pub trait ByteLink {
 
     /// The current line rate, if the link has one.
     fn baud(&self) -> Option<u32>;
+
+    /// The link's clock: what its deadlines are measured against. The wall clock, unless
+    /// the link is a simulation on a clock of its own (a virtual-clock simulator, where
+    /// time moves only when the client waits).
+    fn now(&self) -> Instant {
+        Instant::now()
+    }
+
+    /// Waits until `deadline` on the link's clock (see [`ByteLink::now`]) without reading.
+    fn sleep_until(&mut self, deadline: Instant) {
+        std::thread::sleep(deadline.saturating_duration_since(Instant::now()));
+    }
 }
 
 impl<T: ByteLink + ?Sized> ByteLink for &mut T {
@@ -173,6 +185,12 @@ impl<T: ByteLink + ?Sized> ByteLink for &mut T {
     fn baud(&self) -> Option<u32> {
         (**self).baud()
     }
+    fn now(&self) -> Instant {
+        (**self).now()
+    }
+    fn sleep_until(&mut self, deadline: Instant) {
+        (**self).sleep_until(deadline);
+    }
 }
 
 impl<T: ByteLink + ?Sized> ByteLink for Box<T> {
@@ -193,5 +211,11 @@ impl<T: ByteLink + ?Sized> ByteLink for Box<T> {
     }
     fn baud(&self) -> Option<u32> {
         (**self).baud()
+    }
+    fn now(&self) -> Instant {
+        (**self).now()
+    }
+    fn sleep_until(&mut self, deadline: Instant) {
+        (**self).sleep_until(deadline);
     }
 }

@@ -487,9 +487,9 @@ impl<L: ByteLink, W: Write> CaptureByteLink<L, W> {
     /// Wraps `inner`; the log's clock starts now.
     pub fn new(inner: L, out: W) -> Self {
         Self {
+            start: inner.now(),
             inner,
             out,
-            start: Instant::now(),
         }
     }
 
@@ -501,7 +501,7 @@ impl<L: ByteLink, W: Write> CaptureByteLink<L, W> {
 
     fn record(&mut self, dir: Dir, bytes: &[u8]) -> Result<(), LinkError> {
         let rec = HexRecord {
-            at: self.start.elapsed(),
+            at: self.inner.now().saturating_duration_since(self.start),
             dir,
             bytes: bytes.to_vec(),
         };
@@ -533,6 +533,14 @@ impl<L: ByteLink, W: Write> ByteLink for CaptureByteLink<L, W> {
 
     fn baud(&self) -> Option<u32> {
         self.inner.baud()
+    }
+
+    fn now(&self) -> Instant {
+        self.inner.now()
+    }
+
+    fn sleep_until(&mut self, deadline: Instant) {
+        self.inner.sleep_until(deadline);
     }
 }
 

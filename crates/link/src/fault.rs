@@ -146,10 +146,17 @@ impl Dice {
     }
 
     fn maybe_delay(&mut self) {
-        if self.chance(Stream::Delay, self.cfg.delay) {
-            self.stats.delayed += 1;
-            std::thread::sleep(self.cfg.delay_by);
+        if let Some(d) = self.delay_due() {
+            std::thread::sleep(d);
         }
+    }
+
+    /// Whether this call is delayed, and by how much.
+    fn delay_due(&mut self) -> Option<Duration> {
+        self.chance(Stream::Delay, self.cfg.delay).then(|| {
+            self.stats.delayed += 1;
+            self.cfg.delay_by
+        })
     }
 
     /// Applies the per-byte faults to `bytes` travelling in direction `s`.
@@ -270,7 +277,7 @@ impl<L: ByteLink> ByteLink for FaultyByteLink<L> {
             self.dice.calls += 1;
             return self.inner.write_all(bytes);
         }
-        self.dice.maybe_delay();
+        self.delay();
         let mut out = self.dice.mangle_bytes(Stream::Tx, bytes);
         if self.dice.chance(Stream::Cut, self.dice.cfg.truncate) && !out.is_empty() {
             self.dice.stats.truncated += 1;
@@ -301,7 +308,7 @@ impl<L: ByteLink> ByteLink for FaultyByteLink<L> {
             let n = self.inner.read_some(&mut tmp, deadline)?;
             let got = tmp.get(..n).unwrap_or_default();
             if self.dice.cfg.rx {
-                self.dice.maybe_delay();
+                self.delay();
                 self.pending.extend(self.dice.mangle_bytes(Stream::Rx, got));
             } else {
                 self.pending.extend(got);
@@ -320,6 +327,24 @@ impl<L: ByteLink> ByteLink for FaultyByteLink<L> {
 
     fn baud(&self) -> Option<u32> {
         self.inner.baud()
+    }
+
+    fn now(&self) -> Instant {
+        self.inner.now()
+    }
+
+    fn sleep_until(&mut self, deadline: Instant) {
+        self.inner.sleep_until(deadline);
+    }
+}
+
+impl<L: ByteLink> FaultyByteLink<L> {
+    /// An injected delay, on the inner link's clock.
+    fn delay(&mut self) {
+        if let Some(d) = self.dice.delay_due() {
+            let until = self.inner.now() + d;
+            self.inner.sleep_until(until);
+        }
     }
 }
 

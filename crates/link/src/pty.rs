@@ -22,7 +22,7 @@ use std::time::{Duration, Instant};
 use nix::errno::Errno;
 use nix::fcntl::{FcntlArg, OFlag};
 use nix::poll::{PollFd, PollFlags};
-use nix::sys::termios::{self, BaudRate, FlushArg, SetArg};
+use nix::sys::termios::{self, BaudRate, SetArg, SpecialCharacterIndices};
 use nix::sys::time::TimeSpec;
 
 use crate::byte::{ByteLink, LinkError};
@@ -64,7 +64,8 @@ fn make_raw(fd: impl AsFd, baud: BaudRate) -> Result<(), Errno> {
     let mut t = termios::tcgetattr(&fd)?;
     termios::cfmakeraw(&mut t);
     termios::cfsetspeed(&mut t, baud)?;
-    // cfmakeraw leaves VMIN=1/VTIME=0; reads are gated by poll anyway.
+    // cfmakeraw leaves VMIN=1/VTIME=0; the slave side's reads raise VMIN to the bytes
+    // they wait for (see `PtyLink::read_exact`).
     termios::tcsetattr(&fd, SetArg::TCSANOW, &t)
 }
 
@@ -171,6 +172,7 @@ impl PtyPair {
                 _keep_slave: Some(keep_slave),
                 symlink,
                 write_timeout: WRITE_TIMEOUT,
+                vmin: None,
             },
             slave: PtyLink {
                 file: File::from(pty.slave),
@@ -179,6 +181,7 @@ impl PtyPair {
                 _keep_slave: None,
                 symlink: None,
                 write_timeout: WRITE_TIMEOUT,
+                vmin: Some(1),
             },
             slave_path,
         })
@@ -340,7 +343,17 @@ impl Drop for PtySymlink {
     }
 }
 
+/// How many bytes one drain of the input reads at most (a pty holds a few kilobytes;
+/// a peer that writes faster than this is drained cannot keep a discard going).
+const MAX_DISCARD: usize = 64 * 1024;
+
 /// One side of a pseudo-terminal pair (see [`PtyPair`]).
+///
+/// A read of the slave side that waits for `n` bytes ([`ByteLink::read_exact`]) sets the
+/// terminal's VMIN to `n` (at most 255; kept until another count is needed), so the
+/// kernel reports the descriptor readable only once all of them are there: one `ppoll`
+/// and one `read` per reply, however the other side paces its bytes. VMIN stays 1 on the
+/// master side (termios calls on a master reach the slave's settings).
 #[derive(Debug)]
 pub struct PtyLink {
     file: File,
@@ -349,6 +362,8 @@ pub struct PtyLink {
     _keep_slave: Option<OwnedFd>,
     symlink: Option<PtySymlink>,
     write_timeout: Duration,
+    /// The VMIN termios holds for this side; `None` on the master, which leaves it alone.
+    vmin: Option<u8>,
 }
 
 impl PtyLink {
@@ -361,6 +376,44 @@ impl PtyLink {
     /// The stable symlink this master created, if any.
     pub fn symlink(&self) -> Option<&Path> {
         self.symlink.as_ref().map(PtySymlink::path)
+    }
+
+    /// Makes the descriptor readable only once `n` bytes (1..=255) are there (slave side;
+    /// a termios call only when the count changes).
+    fn wake_at(&mut self, n: usize) -> Result<(), LinkError> {
+        let want = u8::try_from(n.clamp(1, 255)).unwrap_or(u8::MAX);
+        if self.vmin.is_none_or(|v| v == want) {
+            return Ok(());
+        }
+        let mut t = termios::tcgetattr(&self.file)
+            .map_err(|e| LinkError::io(format!("reading termios of {}", self.name), errno_io(e)))?;
+        if let Some(c) = t
+            .control_chars
+            .get_mut(SpecialCharacterIndices::VMIN as usize)
+        {
+            *c = want;
+        }
+        termios::tcsetattr(&self.file, SetArg::TCSANOW, &t)
+            .map_err(|e| LinkError::io(format!("setting VMIN on {}", self.name), errno_io(e)))?;
+        self.vmin = Some(want);
+        Ok(())
+    }
+
+    /// Reads what is there without waiting: `Ok(None)` when nothing is.
+    fn read_now(&mut self, buf: &mut [u8]) -> Result<Option<usize>, LinkError> {
+        loop {
+            match self.file.read(buf) {
+                Ok(0) if !buf.is_empty() => {
+                    return Err(LinkError::Closed {
+                        context: format!("{}: end of file", self.name),
+                    });
+                }
+                Ok(n) => return Ok(Some(n)),
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => return Ok(None),
+                Err(e) => return Err(self.closed_or_io("reading from", e)),
+            }
+        }
     }
 
     fn closed_or_io(&self, what: &str, e: io::Error) -> LinkError {
@@ -403,6 +456,7 @@ impl ByteLink for PtyLink {
         if buf.is_empty() {
             return Ok(0);
         }
+        self.wake_at(1)?;
         loop {
             let ready = wait_readable(&self.file, deadline)
                 .map_err(|e| LinkError::io(format!("waiting on {}", self.name), e))?;
@@ -412,38 +466,41 @@ impl ByteLink for PtyLink {
                     expected: buf.len(),
                 });
             }
-            match self.file.read(buf) {
-                Ok(0) => {
-                    return Err(LinkError::Closed {
-                        context: format!("{}: end of file", self.name),
-                    });
-                }
-                Ok(n) => return Ok(n),
-                Err(e)
-                    if matches!(
-                        e.kind(),
-                        io::ErrorKind::Interrupted | io::ErrorKind::WouldBlock
-                    ) => {}
-                Err(e) => return Err(self.closed_or_io("reading from", e)),
+            if let Some(n) = self.read_now(buf)? {
+                return Ok(n);
             }
         }
     }
 
+    fn read_exact(&mut self, buf: &mut [u8], deadline: Instant) -> Result<(), LinkError> {
+        let mut filled = 0;
+        while let Some(rest) = buf.get_mut(filled..).filter(|r| !r.is_empty()) {
+            let want = rest.len();
+            self.wake_at(want)?;
+            let ready = wait_readable(&self.file, deadline)
+                .map_err(|e| LinkError::io(format!("waiting on {}", self.name), e))?;
+            // After a timeout this collects what did arrive (fewer than VMIN bytes).
+            filled += self.read_now(rest)?.unwrap_or(0);
+            if !ready && filled < buf.len() {
+                return Err(LinkError::Timeout {
+                    received: filled,
+                    expected: buf.len(),
+                });
+            }
+        }
+        Ok(())
+    }
+
     fn discard_input(&mut self) -> Result<(), LinkError> {
-        termios::tcflush(&self.file, FlushArg::TCIFLUSH)
-            .map_err(|e| LinkError::io(format!("flushing input of {}", self.name), errno_io(e)))?;
-        // tcflush on a pty master does not always reach data already queued for it:
-        // drain whatever is readable right now as well.
+        // A read that finds nothing first waits for the bytes the other side has written
+        // but the kernel has not yet passed on, so draining by reads drops everything
+        // written before the call (one `read` when nothing is there).
         let mut scratch = [0u8; 256];
-        while wait_readable(&self.file, Instant::now())
-            .map_err(|e| LinkError::io(format!("waiting on {}", self.name), e))?
-        {
-            match self.file.read(&mut scratch) {
-                Ok(0) => break,
-                Ok(_) => {}
-                Err(e) if e.kind() == io::ErrorKind::WouldBlock => break,
-                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
-                Err(e) => return Err(self.closed_or_io("reading from", e)),
+        let mut dropped = 0;
+        while dropped < MAX_DISCARD {
+            match self.read_now(&mut scratch)? {
+                Some(n) => dropped += n,
+                None => break,
             }
         }
         Ok(())

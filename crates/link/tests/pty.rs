@@ -131,6 +131,52 @@ fn reads_with_nothing_to_read_time_out_near_their_deadline() {
 }
 
 #[test]
+fn a_reply_read_whole_waits_for_its_last_byte_and_single_bytes_still_wake_reads() {
+    let PtyPair {
+        mut master,
+        mut slave,
+        ..
+    } = PtyPair::open(&PtyOptions::default()).unwrap();
+    // The two bytes of a reply written 40 ms apart: the read waits for both (the slave
+    // is readable only once both are there) and returns them together.
+    let t = std::thread::spawn(move || {
+        master.write_all(&[7]).unwrap();
+        std::thread::sleep(Duration::from_millis(40));
+        master.write_all(&[8]).unwrap();
+        master
+    });
+    let mut two = [0u8; 2];
+    slave.read_exact(&mut two, soon()).unwrap();
+    assert_eq!(two, [7, 8]);
+    let mut master = t.join().unwrap();
+    // Only one byte of two by the deadline: the timeout keeps it.
+    master.write_all(&[9]).unwrap();
+    let err = slave
+        .read_exact(&mut two, Instant::now() + Duration::from_millis(30))
+        .unwrap_err();
+    assert!(
+        matches!(
+            err,
+            LinkError::Timeout {
+                received: 1,
+                expected: 2
+            }
+        ),
+        "{err:?}"
+    );
+    assert_eq!(two[0], 9);
+    // A read of whatever comes is woken by a single byte again.
+    master.write_all(&[10]).unwrap();
+    let mut buf = [0u8; 8];
+    assert_eq!(slave.read_some(&mut buf, soon()).unwrap(), 1);
+    assert_eq!(buf[0], 10);
+    // The master side is woken by single bytes whatever the slave asked for.
+    slave.write_all(&[11]).unwrap();
+    assert_eq!(master.read_some(&mut buf, soon()).unwrap(), 1);
+    assert_eq!(buf[0], 11);
+}
+
+#[test]
 fn discard_input_drops_pending_bytes() {
     let PtyPair {
         mut master,

@@ -64,7 +64,7 @@ struct Rig {
 
 /// wCK servos `wck_ids` on `legs`, WHJ joints 1..=`whj_n` on `arm`.
 fn rig(config: RobotConfig, wck_ids: &[u8], whj_n: u8) -> Rig {
-    let mut wck = wck_support::serve_ids(wck_ids);
+    let mut wck = wck_support::serve_ids_wall(wck_ids);
     let (whj, link) = whj_common::memory(whj_common::chain(whj_n));
     let robot = Robot::builder(config)
         .wck_bus("legs", wck.bus())
@@ -487,7 +487,7 @@ fn bad_targets_are_refused_before_anything_is_sent() {
 fn a_supplied_bus_must_match_the_file() {
     let _serial = serial();
     let joints = joint("hip", "legs", 0, [-1.0, 1.0], 2.0, 20.0);
-    let mut wck = wck_support::serve_ids(&[0]);
+    let mut wck = wck_support::serve_ids_wall(&[0]);
     let err = Robot::builder(config(1.0, "passive", "hold", &joints))
         .wck_bus("arm", wck.bus())
         .open()
@@ -527,7 +527,7 @@ const LIMITS: JointLimits = JointLimits {
 #[test]
 fn actuators_of_both_families_move_with_the_same_code() {
     let _serial = serial();
-    let mut wck_sim = wck_support::serve_ids(&[3]);
+    let mut wck_sim = wck_support::serve_ids_wall(&[3]);
     let mut wck: WckBus<SimLink> = wck_sim.bus();
     let scale = WckScale {
         centre: 100,

@@ -1,5 +1,6 @@
 //! Late replies (issue: a reply must never be credited to another request): a scripted
-//! fake bus whose servos answer status reads after a delay, some of them 15-45 ms late.
+//! fake bus whose servos answer status reads after a delay, some of them 15-45 ms late,
+//! on a virtual clock of its own (time moves only when the client waits).
 #![allow(clippy::unwrap_used, clippy::panic, missing_docs)]
 
 use std::collections::VecDeque;
@@ -7,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use robobus::ops::Control;
 use robobus::ops::wck::{WckPlan, run_steps};
-use robobus::wck::{WckBus, WckConfig};
+use robobus::wck::{ScanOptions, WckBus, WckConfig};
 use robobus_link::{ByteLink, LinkError};
 use robobus_wck::{BaudRate, Command, ServoId};
 
@@ -17,6 +18,8 @@ struct LateBus {
     delay: fn(u8) -> Option<Duration>,
     /// Reply bytes with the time they arrive.
     pending: VecDeque<(Instant, u8)>,
+    /// The link's clock.
+    now: Instant,
 }
 
 impl LateBus {
@@ -24,6 +27,7 @@ impl LateBus {
         Self {
             delay,
             pending: VecDeque::new(),
+            now: Instant::now(),
         }
     }
 }
@@ -37,7 +41,7 @@ impl ByteLink for LateBus {
             let id = b1 & 0x1F;
             if let Some(d) = (self.delay)(id) {
                 // On the wire, bytes arrive in the order of their times.
-                let at = Instant::now() + d;
+                let at = self.now + d;
                 let i = self.pending.partition_point(|&(t, _)| t <= at);
                 self.pending.insert(i, (at, 10 * id + 10));
                 self.pending.insert(i, (at, 0)); // load 0
@@ -48,7 +52,7 @@ impl ByteLink for LateBus {
 
     fn read_some(&mut self, buf: &mut [u8], deadline: Instant) -> Result<usize, LinkError> {
         loop {
-            let now = Instant::now();
+            let now = self.now;
             let mut n = 0;
             while n < buf.len()
                 && let Some(&(at, b)) = self.pending.front()
@@ -71,16 +75,13 @@ impl ByteLink for LateBus {
                 .pending
                 .front()
                 .map_or(deadline, |&(at, _)| at.min(deadline));
-            std::thread::sleep(
-                next.saturating_duration_since(now)
-                    .min(Duration::from_millis(1)),
-            );
+            self.now = next;
         }
     }
 
     fn discard_input(&mut self) -> Result<(), LinkError> {
         // Only what has arrived; a reply still on its way is not in any buffer yet.
-        let now = Instant::now();
+        let now = self.now;
         self.pending.retain(|&(at, _)| at > now);
         Ok(())
     }
@@ -91,6 +92,14 @@ impl ByteLink for LateBus {
 
     fn baud(&self) -> Option<u32> {
         Some(115_200)
+    }
+
+    fn now(&self) -> Instant {
+        self.now
+    }
+
+    fn sleep_until(&mut self, deadline: Instant) {
+        self.now = self.now.max(deadline);
     }
 }
 
@@ -104,8 +113,9 @@ fn status_of(ids: std::ops::RangeInclusive<u8>) -> WckPlan {
     plan
 }
 
-/// Each servo's reported position is its own (or it failed); never another's.
-fn assert_no_reply_credited_elsewhere(link: LateBus, ids: std::ops::RangeInclusive<u8>) -> usize {
+/// Each servo's reported position is its own (or it failed); never another's. Returns
+/// the servos that answered.
+fn assert_no_reply_credited_elsewhere(link: LateBus, ids: std::ops::RangeInclusive<u8>) -> Vec<u8> {
     let mut bus = WckBus::new(link, BaudRate::B115200)
         .unwrap()
         .with_config(WckConfig {
@@ -113,11 +123,11 @@ fn assert_no_reply_credited_elsewhere(link: LateBus, ids: std::ops::RangeInclusi
             ..WckConfig::default()
         });
     let report = run_steps(&mut bus, "status", &status_of(ids), &mut Control::none()).unwrap();
-    let mut ok = 0;
+    let mut ok = Vec::new();
     for r in &report.results {
         let id = r.id.cell().parse::<u8>().unwrap();
         if let Some(v) = r.value() {
-            ok += 1;
+            ok.push(id);
             assert_eq!(
                 v.get("position").unwrap().cell(),
                 (10 * id + 10).to_string(),
@@ -140,20 +150,81 @@ fn a_reply_15_to_45_ms_late_is_never_credited_to_the_next_servo() {
         _ => None,
     });
     let ok = assert_no_reply_credited_elsewhere(link, 0..=5);
-    assert!(ok >= 3, "the punctual servos answer");
+    // Servos 1, 2 and 4 answer every attempt after its deadline: each reply lands in the
+    // late window and is dropped, so they fail; the punctual ones answer.
+    assert_eq!(ok, [0, 3, 5]);
 }
 
 #[test]
-fn a_late_reply_after_a_retried_success_is_drained() {
-    // Servo 0 answers 18 ms late: its first attempt times out (deadline about 11.5 ms),
-    // the retry gets the first attempt's reply, and the retry's own reply is still on its
-    // way (due 13.5 ms after servo 0's success) while servos 1 and 2 are asked; servo 2
-    // answers 9 ms after it is asked, so the stale reply would come first.
+fn a_servo_18_ms_late_every_time_fails_and_none_of_its_replies_reaches_the_next() {
+    // Servo 0 answers 18 ms late (deadline about 11.5 ms): each reply comes within the late
+    // window of its attempt, which the retry waits out. Servos 1 and 2 answer 6 and 9 ms
+    // after they are asked, so a stale reply of servo 0 would come before theirs.
     let link = LateBus::new(|id| match id {
         0 => Some(Duration::from_millis(18)),
         1 => Some(Duration::from_millis(6)),
         2 => Some(Duration::from_millis(9)),
         _ => None,
     });
-    assert_no_reply_credited_elsewhere(link, 0..=2);
+    // On this clock every attempt's reply lands in the late window of the attempt before
+    // and is dropped, so servo 0 fails; servos 1 and 2 get their own replies.
+    assert_eq!(assert_no_reply_credited_elsewhere(link, 0..=2), [1, 2]);
+}
+
+/// Scans `ids` (status reads only) and returns the IDs found, with the time it took on
+/// the link's clock.
+fn scan_late(link: LateBus, ids: std::ops::RangeInclusive<u8>) -> (Vec<u8>, Duration) {
+    let mut bus = WckBus::new(link, BaudRate::B115200).unwrap();
+    let start = bus.now();
+    let options = ScanOptions {
+        check_duplicates: false,
+        ..ScanOptions::default().ids(ids)
+    };
+    let report = bus.scan(&options, |_| {}).unwrap();
+    let found = report.found.iter().map(|f| f.id.get()).collect();
+    (found, bus.now().saturating_duration_since(start))
+}
+
+#[test]
+fn a_scan_never_takes_a_late_reply_for_the_next_id() {
+    // Servo 1 answers 30 ms after it is asked, past its deadline (11.5 ms), while ID 2
+    // (absent) is probed: that reply must not make a servo 2. Servo 3 answers 1.5 ms late,
+    // within its deadline, right after the silent ID 2.
+    let link = LateBus::new(|id| match id {
+        1 => Some(Duration::from_millis(30)),
+        3 => Some(Duration::from_micros(1500)),
+        _ => None,
+    });
+    let (found, _) = scan_late(link, 0..=4);
+    assert_eq!(found, [3]);
+    // Every probe of servo 1's is answered 30 ms late: the second probe of ID 1 and both of
+    // ID 2 come within its replies' late windows.
+    let link = LateBus::new(|id| match id {
+        1 => Some(Duration::from_millis(30)),
+        _ => None,
+    });
+    assert_eq!(scan_late(link, 0..=4).0, Vec::<u8>::new());
+}
+
+#[test]
+fn a_scan_of_silent_ids_costs_only_their_reply_waits() {
+    // 31 IDs, 2 probes each, each waiting 11.53 ms (1.53 ms modelled + 10 ms margin): no
+    // late window between them.
+    let (found, took) = scan_late(LateBus::new(|_| None), 0..=30);
+    assert!(found.is_empty());
+    assert_eq!(took, 62 * Duration::from_nanos(11_527_433));
+    // Two servos: each found after silent IDs waits out one late window (50 ms) and is
+    // asked again.
+    let link = LateBus::new(|id| match id {
+        5 | 20 => Some(Duration::from_micros(1500)),
+        _ => None,
+    });
+    let (found, took) = scan_late(link, 0..=30);
+    assert_eq!(found, [5, 20]);
+    let wait = Duration::from_nanos(11_527_433);
+    let reply = Duration::from_micros(1500);
+    assert_eq!(
+        took,
+        58 * wait + 2 * (wait + Duration::from_millis(50) + reply)
+    );
 }

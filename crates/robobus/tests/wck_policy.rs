@@ -7,7 +7,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use robobus::wck::{Gains, RetryClass, WckBus, WckConfig, WckError, read_back, retry_class};
-use robobus_link::{ByteLink, LinkError, MemoryByteLink};
+use robobus_link::{ByteLink, LinkError};
 use robobus_wck::program::{Instruction, Program};
 use robobus_wck::{
     BaudRate, Command, DGain, ExtServoId, IGain, PGain, Position, ServoId, StreamDecoder,
@@ -24,7 +24,7 @@ enum Step {
 }
 use Step::{Reply, Silent};
 
-/// The fake module's log. Its thread ends when the bus (the link's other end) is dropped.
+/// The fake module's log.
 struct Fake {
     log: Arc<Mutex<Vec<Command>>>,
 }
@@ -39,34 +39,81 @@ impl Fake {
     }
 }
 
-/// A bus whose other end is a fake module following `script`, one step per decoded
-/// command (silent once the script is used up).
-fn fake_module(script: Vec<Step>, config: WckConfig) -> (WckBus<MemoryByteLink>, Fake) {
-    let (host, mut device) = MemoryByteLink::pair();
-    let log = Arc::new(Mutex::new(Vec::new()));
-    let seen = Arc::clone(&log);
-    std::thread::spawn(move || {
-        let mut script: VecDeque<Step> = script.into();
-        let mut decoder = StreamDecoder::new();
-        let mut buf = [0u8; 64];
-        loop {
-            let n = match device.read_some(&mut buf, Instant::now() + Duration::from_millis(20)) {
-                Ok(n) => n,
-                Err(LinkError::Timeout { .. }) => continue,
-                Err(_) => return,
-            };
-            let commands: Vec<Command> = decoder.feed(&buf[..n]).filter_map(Result::ok).collect();
-            for command in commands {
-                seen.lock().unwrap().push(command);
-                if let Some(Reply(bytes)) = script.pop_front()
-                    && device.write_all(&bytes).is_err()
-                {
-                    return;
-                }
+/// The link to the fake module, on a virtual clock of its own: a scripted reply is there
+/// as soon as its command is written, and a read that finds nothing moves the clock to
+/// its deadline.
+struct FakeLink {
+    script: VecDeque<Step>,
+    decoder: StreamDecoder,
+    log: Arc<Mutex<Vec<Command>>>,
+    pending: VecDeque<u8>,
+    now: Instant,
+}
+
+impl ByteLink for FakeLink {
+    fn write_all(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
+        let commands: Vec<Command> = self.decoder.feed(bytes).filter_map(Result::ok).collect();
+        for command in commands {
+            self.log.lock().unwrap().push(command);
+            if let Some(Reply(reply)) = self.script.pop_front() {
+                self.pending.extend(reply);
             }
         }
-    });
-    let bus = WckBus::new(host, BaudRate::B115200)
+        Ok(())
+    }
+
+    fn read_some(&mut self, buf: &mut [u8], deadline: Instant) -> Result<usize, LinkError> {
+        if buf.is_empty() {
+            return Ok(0);
+        }
+        if self.pending.is_empty() {
+            self.now = self.now.max(deadline);
+            return Err(LinkError::Timeout {
+                received: 0,
+                expected: buf.len(),
+            });
+        }
+        let n = buf.len().min(self.pending.len());
+        for (slot, b) in buf.iter_mut().zip(self.pending.drain(..n)) {
+            *slot = b;
+        }
+        Ok(n)
+    }
+
+    fn discard_input(&mut self) -> Result<(), LinkError> {
+        self.pending.clear();
+        Ok(())
+    }
+
+    fn set_baud(&mut self, _: u32) -> Result<(), LinkError> {
+        Ok(())
+    }
+
+    fn baud(&self) -> Option<u32> {
+        Some(115_200)
+    }
+
+    fn now(&self) -> Instant {
+        self.now
+    }
+
+    fn sleep_until(&mut self, deadline: Instant) {
+        self.now = self.now.max(deadline);
+    }
+}
+
+/// A bus whose other end is a fake module following `script`, one step per decoded
+/// command (silent once the script is used up).
+fn fake_module(script: Vec<Step>, config: WckConfig) -> (WckBus<FakeLink>, Fake) {
+    let log = Arc::new(Mutex::new(Vec::new()));
+    let link = FakeLink {
+        script: script.into(),
+        decoder: StreamDecoder::new(),
+        log: Arc::clone(&log),
+        pending: VecDeque::new(),
+        now: Instant::now(),
+    };
+    let bus = WckBus::new(link, BaudRate::B115200)
         .unwrap()
         .with_device_name("fake")
         .with_config(config);
@@ -75,8 +122,6 @@ fn fake_module(script: Vec<Step>, config: WckConfig) -> (WckBus<MemoryByteLink>,
 
 fn quick() -> WckConfig {
     WckConfig {
-        // Room for the fake module's thread to be scheduled on a busy 2-core machine: one
-        // late answer would shift every scripted step after it.
         margin: Duration::from_millis(25),
         ..WckConfig::default()
     }
@@ -349,7 +394,6 @@ fn commands_without_reply_are_sent_once() {
     let p = Position::new(100).unwrap();
     bus.sync_move(TorqueLevel::new(1).unwrap(), &[p, p, p])
         .unwrap();
-    std::thread::sleep(Duration::from_millis(30));
     assert_eq!(fake.commands().len(), 1);
     assert_eq!(bus.stats().attempts, 1);
 }
@@ -419,7 +463,10 @@ fn the_reply_deadline_is_the_wire_time_model_plus_the_margin() {
         bus.reply_wait(&eeprom),
         robobus_wck::timing::transaction_time(&eeprom, BaudRate::B115200) + margin
     );
-    assert!(bus.reply_wait(&eeprom) > Duration::from_millis(121));
+    assert_eq!(
+        bus.reply_wait(&eeprom),
+        robobus_wck::timing::wire_time(8, BaudRate::B115200) + Duration::from_millis(121) + margin
+    );
     let err = bus.servo(id(0)).status().unwrap_err();
     assert!(
         matches!(err, WckError::Timeout { waited, .. } if waited == bus.reply_wait(&status)),

@@ -37,27 +37,23 @@ fn moves_status_10_bit_passive_and_wheel() {
     // A move replies the status before moving.
     let before = servo.move_to(torque(0), pos(200)).unwrap();
     assert_eq!(before.position, pos(127));
-    std::thread::sleep(Duration::from_millis(600));
+    sim.sleep(Duration::from_millis(600));
     let now = servo.status().unwrap();
-    assert!(now.position.get().abs_diff(200) <= 1, "{now:?}");
+    assert_eq!(now.position, pos(200));
     // The 10-bit read agrees with the 8-bit one in degrees.
     let p10 = servo.read10().unwrap();
-    assert!(
-        (p10.degrees() - now.position.degrees()).abs() < 1.5,
-        "{p10} vs {}",
-        now.position
-    );
+    assert_eq!(p10.get(), 648, "{p10} vs {}", now.position); // 211° both
     let target = Position10::new(300).unwrap();
     let before10 = servo.move10(DataByte::new(0).unwrap(), target).unwrap();
     assert_eq!(before10, p10);
-    std::thread::sleep(Duration::from_millis(600));
+    sim.sleep(Duration::from_millis(600));
     let p10 = servo.read10().unwrap();
-    assert!(p10.get().abs_diff(300) <= 4, "{p10}");
+    assert_eq!(p10.get(), 300);
     // Servo 0 did not move.
     assert_eq!(bus.servo(id(0)).status().unwrap().position, pos(127));
 
     let at = bus.servo(id(1)).passive().unwrap();
-    assert!(at.degrees().abs_diff_deg(p10.degrees()) < 1.5, "{at}");
+    assert_eq!(at, pos(93), "{at}"); // the 10-bit 300 (97.5°) in 8-bit steps
     assert_eq!(slot_mode(&sim, 1), Mode::Passive);
     // Passive: turned by hand, it still reads.
     sim.with_bus(|b| b.servo_mut(1).unwrap().set_position(60));
@@ -69,20 +65,11 @@ fn moves_status_10_bit_passive_and_wheel() {
         .unwrap();
     assert_eq!(wheel.position, pos(60));
     assert_eq!(slot_mode(&sim, 1), Mode::Wheel);
-    std::thread::sleep(Duration::from_millis(200));
+    sim.sleep(Duration::from_millis(200));
     let moved = bus.servo(id(1)).status().unwrap().position;
-    assert_ne!(moved, pos(60), "the wheel turns");
+    assert_eq!(moved, pos(106), "the wheel turns: 60 -> 106 in 200 ms");
     bus.servo(id(1)).move_to(torque(0), pos(127)).unwrap();
     assert_eq!(slot_mode(&sim, 1), Mode::Position);
-}
-
-trait AbsDiffDeg {
-    fn abs_diff_deg(self, other: f64) -> f64;
-}
-impl AbsDiffDeg for f64 {
-    fn abs_diff_deg(self, other: f64) -> f64 {
-        (self - other).abs()
-    }
 }
 
 #[test]
@@ -175,12 +162,9 @@ fn gains_speed_overload_boundaries_and_io() {
     assert_eq!(s.boundaries().unwrap(), bounds);
     assert_eq!(eeprom(&sim).bounds, bounds);
     s.move_to(torque(0), pos(250)).unwrap();
-    std::thread::sleep(Duration::from_millis(500));
+    sim.sleep(Duration::from_millis(500));
     let p = s.status().unwrap().position.get();
-    assert!(
-        p.abs_diff(200) <= 1,
-        "stopped at the upper boundary, got {p}"
-    );
+    assert_eq!(p, 200, "stopped at the upper boundary");
 
     // I/O.
     sim.with_bus(|b| b.servo_mut(0).unwrap().set_adc(123));
@@ -225,15 +209,16 @@ fn motion_program_upload_is_verified_and_count_reads_back() {
     );
     // The program runs: the shaft swings between 82 and 172.
     let (mut low, mut high) = (u8::MAX, 0);
-    let start = std::time::Instant::now();
-    while (low > 90 || high < 165) && start.elapsed() < Duration::from_secs(5) {
+    let start = sim.now();
+    while (low > 90 || high < 165) && sim.now().saturating_sub(start) < Duration::from_secs(5) {
         let p = bus.servo(id(2)).status().unwrap().position.get();
         (low, high) = (low.min(p), high.max(p));
-        std::thread::sleep(Duration::from_millis(20));
+        sim.sleep(Duration::from_millis(20));
     }
-    assert!(
-        low <= 90 && high >= 165,
-        "the shaft stayed within {low}..={high}"
+    assert_eq!(
+        (low, high),
+        (82, 167),
+        "the shaft swings between 82 and 172"
     );
     // An empty program switches it off.
     bus.servo(id(2)).upload_program(&Program::EMPTY).unwrap();
@@ -268,7 +253,7 @@ fn id_change_is_verified_at_the_new_id_and_refused_when_taken() {
         .set_id(ExtServoId::new(200).unwrap())
         .unwrap();
     let p = bus.read10(ExtServoId::new(200).unwrap()).unwrap();
-    assert!((p.degrees() - pos(127).degrees()).abs() < 1.0, "{p}");
+    assert_eq!(p.get(), 412, "{p}"); // 127 × 1.055° in steps of 0.325°
     let before = bus
         .move10(
             ExtServoId::new(200).unwrap(),
@@ -304,19 +289,24 @@ fn sync_move_moves_every_servo_and_break_stops_them_all() {
     let mut bus = sim.bus();
     bus.sync_move(torque(0), &[pos(60), pos(127), pos(200)])
         .unwrap();
-    std::thread::sleep(Duration::from_millis(700));
+    sim.sleep(Duration::from_millis(700));
     for (n, want) in [(0, 60), (1, 127), (2, 200)] {
         let p = bus.servo(id(n)).status().unwrap().position.get();
-        assert!(p.abs_diff(want) <= 1, "servo {n}: {p}, want {want}");
+        assert_eq!(p, want, "servo {n}");
     }
     let err = bus.sync_move(torque(0), &[]).unwrap_err();
     assert!(matches!(err, WckError::Value { .. }), "{err}");
 
     // Three modules answer a break at once: the command was heard either way.
+    // Their replies collide on the wired-AND line: IDs 0 & 1 & 2, positions 60 & 127 & 200.
     let reply = bus.break_all().unwrap();
-    if let Some(r) = reply {
-        assert!(matches!(r, Reply::Break { .. }), "{r:?}");
-    }
+    assert_eq!(
+        reply,
+        Some(Reply::Break {
+            id: id(0),
+            position: pos(0b0011_1100 & 0b0111_1111 & 0b1100_1000) // 8
+        })
+    );
     for n in 0..3 {
         assert_eq!(slot_mode(&sim, n), Mode::Break, "servo {n}");
     }

@@ -90,3 +90,32 @@ fn endpoint_serves_paced_replies_follows_the_client_baud_and_takes_commands() {
     assert!(stats.bytes_in >= 24 && stats.bytes_out >= 8, "{stats:?}");
     assert!(stats.cpu < stats.wall, "{stats:?}");
 }
+
+#[test]
+fn a_status_read_wakes_the_serving_thread_for_the_command_and_each_reply_byte_only() {
+    let pair = PtyPair::open(&PtyOptions::default()).unwrap();
+    let mut bus = Bus::with_servos(BusConfig::default(), Model::W1108, [0]);
+    bus.advance(Duration::from_millis(70));
+    let endpoint = Endpoint::spawn(bus, pair.master, pair.slave_path.clone()).unwrap();
+    let mut client = pair.slave;
+    let reads = 200u64;
+    let t0 = Instant::now();
+    for _ in 0..reads {
+        let (reply, _) = transact(
+            &mut client,
+            &[0xFF, 0xA0, 0x00, 0x20],
+            Duration::from_secs(1),
+        );
+        assert_eq!(reply, [0x00, 0x7F]);
+    }
+    let wall = t0.elapsed();
+    let stats = endpoint.stop().unwrap();
+    // The command, each of the two reply bytes, and the 10 ms idle ticks; not every byte
+    // a module receives (four per command, which would make seven).
+    let ticks = u64::try_from(wall.as_millis() / 10).unwrap() + 2;
+    assert!(
+        stats.wakeups <= 3 * reads + ticks,
+        "{} wake-ups for {reads} reads in {wall:?}",
+        stats.wakeups
+    );
+}

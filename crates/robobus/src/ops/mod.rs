@@ -43,6 +43,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+use robobus_link::ByteLink;
 use serde::Serialize;
 
 pub mod capture;
@@ -88,7 +89,6 @@ impl StopToken {
     /// Sleeps until `deadline` or until the token is set, whichever comes first; returns
     /// `false` when it was stopped. Wakes at least every 5 ms to look at the flag.
     pub fn sleep_until(&self, deadline: Instant) -> bool {
-        const SLICE: Duration = Duration::from_millis(5);
         loop {
             if self.is_stopped() {
                 return false;
@@ -97,10 +97,28 @@ impl StopToken {
             if now >= deadline {
                 return true;
             }
-            std::thread::sleep((deadline - now).min(SLICE));
+            std::thread::sleep((deadline - now).min(STOP_SLICE));
+        }
+    }
+
+    /// Like [`StopToken::sleep_until`], on `link`'s clock ([`ByteLink::now`]): a
+    /// simulator's virtual clock jumps, the wall clock sleeps.
+    pub fn sleep_on<L: ByteLink + ?Sized>(&self, link: &mut L, deadline: Instant) -> bool {
+        loop {
+            if self.is_stopped() {
+                return false;
+            }
+            let now = link.now();
+            if now >= deadline {
+                return true;
+            }
+            link.sleep_until((now + STOP_SLICE).min(deadline));
         }
     }
 }
+
+/// How long a sleep goes on at most before it looks at its stop token again.
+const STOP_SLICE: Duration = Duration::from_millis(5);
 
 /// How far a long operation has come.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -191,6 +209,12 @@ impl<'a> Control<'a> {
     /// Sleeps until `deadline` unless stopped first; `false` when stopped.
     pub fn sleep_until(&self, deadline: Instant) -> bool {
         self.stop.sleep_until(deadline)
+    }
+
+    /// Sleeps until `deadline` on `link`'s clock unless stopped first; `false` when
+    /// stopped.
+    pub fn sleep_on<L: ByteLink + ?Sized>(&self, link: &mut L, deadline: Instant) -> bool {
+        self.stop.sleep_on(link, deadline)
     }
 }
 
@@ -496,6 +520,21 @@ mod tests {
         );
         assert_eq!(worst_kind(&results), Some(ErrorKind::Device));
         assert_eq!(worst_kind(&results[..1]), None);
+    }
+
+    #[test]
+    fn a_sleep_on_a_link_takes_the_link_clock_and_stops_on_the_token() {
+        use robobus_sim::wck::{Bus, BusConfig, SimLink};
+        let (mut link, _handle) = SimLink::virtual_clock(Bus::new(BusConfig::default()));
+        let token = StopToken::new();
+        let start = link.now();
+        let deadline = start + Duration::from_secs(60);
+        // A minute of the simulator's clock, in no wall time.
+        assert!(token.sleep_on(&mut link, deadline));
+        assert_eq!(link.now(), deadline);
+        token.stop();
+        assert!(!token.sleep_on(&mut link, deadline + Duration::from_secs(1)));
+        assert_eq!(link.now(), deadline);
     }
 
     #[test]

@@ -63,8 +63,10 @@ pub struct WckConfig {
     /// reply, and after a success that needed a retry (an earlier attempt's reply may have
     /// been taken, this attempt's own is then still on its way), the next packet waits
     /// until this long after that attempt's deadline, dropping what arrives. Costs this
-    /// much per silent servo (a scan of 31 empty IDs at one rate: about 3 s more with the
-    /// default [`DEFAULT_LATE_WINDOW`], 50 ms); nothing while every reply is on time.
+    /// much per silent servo; nothing while every reply is on time. A scan does not wait
+    /// before each probe: it sends the next one at once and credits nothing that arrives
+    /// while the window is open (it waits the window out and asks that ID again), so an
+    /// empty ID costs only its reply waits (see [`WckBus::scan`]).
     pub late_window: Duration,
 }
 
@@ -257,6 +259,17 @@ impl<L: ByteLink> WckBus<L> {
         })
     }
 
+    /// The link's clock (the wall clock, or a simulator's virtual clock): every deadline
+    /// of the bus is taken from it.
+    pub fn now(&self) -> Instant {
+        self.link.now()
+    }
+
+    /// Waits until `deadline` on the link's clock, reading nothing.
+    pub fn sleep_until(&mut self, deadline: Instant) {
+        self.link.sleep_until(deadline);
+    }
+
     /// A handle on the module with ID `id` (0..=30).
     pub const fn servo(&mut self, id: ServoId) -> Servo<'_, L> {
         Servo::new(self, id)
@@ -408,10 +421,22 @@ impl<L: ByteLink> WckBus<L> {
     /// One attempt: flush, write, read two bytes before the deadline.
     pub(crate) fn exchange(&mut self, command: &Command) -> Result<[u8; 2], Failure> {
         self.drain_late();
+        self.exchange_now(command)
+    }
+
+    /// Whether a reply to an earlier attempt may still arrive (its late window is open).
+    pub(crate) fn late_reply_possible(&self) -> bool {
+        self.quiet_until.is_some_and(|q| q > self.link.now())
+    }
+
+    /// One attempt without waiting out an open late window first: what it receives may
+    /// be an earlier attempt's late reply, so the caller must not credit it while
+    /// [`WckBus::late_reply_possible`] said so (see the scan).
+    pub(crate) fn exchange_now(&mut self, command: &Command) -> Result<[u8; 2], Failure> {
         self.link.discard_input().map_err(Failure::Link)?;
         let packet = command.encode();
         let wait = self.reply_wait(command);
-        let start = Instant::now();
+        let start = self.link.now();
         self.link.write_all(&packet).map_err(Failure::Link)?;
         self.stats.attempts += 1;
         self.deadline = Some(start + wait);
@@ -452,7 +477,7 @@ impl<L: ByteLink> WckBus<L> {
     /// Bytes that arrive within `window` after a reply (a collision or line noise makes
     /// them; a single clean module sends none). Used by the scan.
     pub(crate) fn trailing_bytes(&mut self, window: Duration) -> Result<usize, WckError> {
-        let deadline = Instant::now() + window;
+        let deadline = self.link.now() + window;
         let mut buf = [0u8; 16];
         let mut n = 0;
         loop {
@@ -730,10 +755,10 @@ impl<L: ByteLink> WckBus<L> {
     /// Reads and drops input until the line is quiet for [`WckConfig::settle`] (at most
     /// 50 ms or twice the settle time), then flushes.
     pub(crate) fn settle(&mut self) {
-        let cap = Instant::now() + MAX_DRAIN.max(self.config.settle.saturating_mul(2));
+        let cap = self.link.now() + MAX_DRAIN.max(self.config.settle.saturating_mul(2));
         let mut buf = [0u8; 64];
         loop {
-            let now = Instant::now();
+            let now = self.link.now();
             if now >= cap {
                 break;
             }

@@ -155,7 +155,10 @@ impl<L: ByteLink> WckBus<L> {
     /// `progress` after each ID. Restores the bus's baud rate at the end.
     ///
     /// An ID counts as absent when [`ScanOptions::probes`] status reads bring no byte at
-    /// all. With [`ScanOptions::check_duplicates`], a module that answers is read three
+    /// all. A silent ID costs only those reads' reply waits: the next probe goes out at
+    /// once, and a reply that arrives while a silent attempt's late window
+    /// ([`WckConfig::late_window`](super::WckConfig::late_window)) is still open is not
+    /// credited; the window is waited out and the ID asked again. With [`ScanOptions::check_duplicates`], a module that answers is read three
     /// more ways, and the ID is reported as a [`Duplicate`] instead of a [`FoundServo`]
     /// if anything shows that more than one module answers, where a single module
     /// would answer cleanly:
@@ -261,7 +264,7 @@ impl<L: ByteLink> WckBus<L> {
         let mut evidence: Vec<String> = Vec::new();
         let mut clean = None;
         for _ in 0..options.probes.max(1) {
-            match self.exchange(&status_read) {
+            match self.scan_exchange(&status_read) {
                 Ok(bytes) => {
                     clean = Some(bytes);
                     break;
@@ -304,6 +307,31 @@ impl<L: ByteLink> WckBus<L> {
             (Some(status), true) => Probe::Found(status),
             _ => Probe::Duplicate(evidence.join("; ")),
         })
+    }
+
+    /// A status read of the scan. After a silent attempt the read is sent at once, without
+    /// waiting out that attempt's late window (most IDs of a scan are silent: waiting
+    /// would cost the whole window per probe). Nothing that comes back while the window is
+    /// open is credited: it may be the late reply of the ID before. The window (of the
+    /// earlier attempts and of this one) is then waited out, dropping everything, and the
+    /// ID is asked again; only that answer counts. A late reply can so never be taken for
+    /// the next ID's, as long as it comes within [`late_window`](super::WckConfig::late_window) of its
+    /// deadline, the same bound every other transaction relies on.
+    fn scan_exchange(&mut self, command: &Command) -> Result<[u8; 2], Failure> {
+        if !self.late_reply_possible() {
+            return self.exchange(command);
+        }
+        match self.exchange_now(command) {
+            Err(Failure::Timeout { received, waited }) if received.is_empty() => {
+                Err(Failure::Timeout { received, waited })
+            }
+            Err(Failure::Link(e)) => Err(Failure::Link(e)),
+            _ => {
+                // This attempt's own reply may still be on its way, too.
+                self.expect_late();
+                self.exchange(command)
+            }
+        }
     }
 
     /// The duplicate checks after a clean status reply.

@@ -1,6 +1,7 @@
 //! Helpers shared by the wCK client tests: the simulator in process behind a
-//! [`SimLink`] (answers that do not depend on thread scheduling), or served on a pty as
-//! `robobus sim wck` serves it, with a client opening the pty like a real port.
+//! [`SimLink`] on its virtual clock (the client takes every instant from the link, so
+//! replies, timeouts and durations are exact and take no wall time), or served on a pty
+//! as `robobus sim wck` serves it, with a client opening the pty like a real port.
 #![allow(dead_code, unreachable_pub, clippy::unwrap_used)]
 
 use core::time::Duration;
@@ -52,11 +53,32 @@ impl Sim {
     pub fn with_bus<R>(&self, f: impl FnOnce(&mut Bus) -> R) -> R {
         self.handle.with_bus(f)
     }
+
+    /// Lets `d` of simulated time pass (at once: the clock is virtual).
+    pub fn sleep(&self, d: Duration) {
+        self.handle.sleep(d);
+    }
+
+    /// Simulated time now.
+    pub fn now(&self) -> Duration {
+        self.handle.now()
+    }
 }
 
-/// Connects to `bus` in process and waits until its modules are awake.
+/// Connects to `bus` in process on the virtual clock, with its modules awake.
 pub fn serve(bus: Bus) -> Sim {
-    let (link, handle) = SimLink::new(bus);
+    let (link, handle) = SimLink::virtual_clock(bus);
+    handle.sleep(AWAKE.saturating_sub(handle.now()));
+    Sim {
+        handle,
+        link: Some(link),
+    }
+}
+
+/// Like [`serve_ids`], on the wall clock ([`SimLink::new`]): for a client that mixes
+/// the wCK bus with wall-clock parts (a robot's watchdog, a WHJ bus).
+pub fn serve_ids_wall(ids: &[u8]) -> Sim {
+    let (link, handle) = SimLink::new(bus_with_ids(ids, BaudRate::B115200));
     std::thread::sleep(AWAKE.saturating_sub(handle.now()));
     Sim {
         handle,
@@ -64,15 +86,10 @@ pub fn serve(bus: Bus) -> Sim {
     }
 }
 
-/// Like [`serve_at`], on a fast-forwarding link ([`SimLink::fast_forward`]): long
-/// transaction loops run as fast as the processor allows.
+/// Like [`serve_at`] (the virtual clock runs long transaction loops as fast as the
+/// processor allows).
 pub fn serve_fast(ids: &[u8], baud: BaudRate) -> Sim {
-    let (link, handle) = SimLink::fast_forward(bus_with_ids(ids, baud));
-    std::thread::sleep(AWAKE.saturating_sub(handle.now()));
-    Sim {
-        handle,
-        link: Some(link),
-    }
+    serve_at(ids, baud)
 }
 
 /// A simulated bus with one 1108 module per ID (factory defaults, shaft at 127).

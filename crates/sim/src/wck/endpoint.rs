@@ -8,7 +8,10 @@
 //! bit would leave the wire, sleeping in `ppoll` with a 1 µs timer slack until then.
 //! Input is taken from the pty no faster than the wire carries it (a few milliseconds
 //! ahead at most), so a client that floods the port blocks in its write, as on a real
-//! port, and a command after the flood is answered within a bounded time.
+//! port, and a command after the flood is answered within a bounded time. While the
+//! client's bytes are on the simulated wire the model runs ahead through them (nothing the
+//! client writes meanwhile can come earlier on the wire), so the thread wakes for a
+//! command and for each reply byte, not for every byte a module receives.
 //! Other threads reach the bus through [`Endpoint::with_bus`] (a small command queue),
 //! so the test API (push, hold, set the A/D input, power-cycle) works while it serves.
 
@@ -52,6 +55,9 @@ pub struct EndpointStats {
     pub late_max: Duration,
     /// Sum of the lateness of every written byte (divide by `bytes_out` for the mean).
     pub late_total: Duration,
+    /// Times the serving thread woke up (client input, a reply byte due, a queued
+    /// command, or the idle tick).
+    pub wakeups: u64,
 }
 
 /// Why serving stopped with an error.
@@ -120,7 +126,9 @@ impl Endpoint {
     }
 
     /// Runs `f` on the bus in the serving thread (after bringing the bus to the current
-    /// time) and returns its result, or `None` if the thread has stopped.
+    /// time; while a client's command is still on the simulated wire the bus may already
+    /// stand at a later instant of it, see the module notes) and returns its result, or
+    /// `None` if the thread has stopped.
     pub fn with_bus<R: Send + 'static>(
         &self,
         f: impl FnOnce(&mut Bus) -> R + Send + 'static,
@@ -183,6 +191,20 @@ fn follow_client_baud(bus: &mut Bus, termios: Option<&OwnedFd>) {
     }
 }
 
+/// Runs the model ahead of the present, through the events before `wire_free` (the end
+/// of the client's bytes already on the simulated wire), until a reply byte is on its way
+/// to the client: one wake-up for that byte instead of one per byte a module receives.
+/// The client cannot change that stretch: bytes it writes meanwhile go on the wire after
+/// `wire_free` anyway. Reply bytes are still written no earlier than their instant.
+fn run_ahead(bus: &mut Bus, wire_free: Duration) {
+    while bus.peek_received().is_none() {
+        match bus.next_event() {
+            Some(t) if t <= wire_free => bus.advance(t.max(bus.now() + Duration::from_nanos(100))),
+            _ => break,
+        }
+    }
+}
+
 fn serve<L: ByteLink>(
     mut bus: Bus,
     mut master: L,
@@ -202,6 +224,7 @@ fn serve<L: ByteLink>(
     let mut next_baud_check = Duration::ZERO;
     let mut wire_free = Duration::ZERO;
     while !stop.load(Ordering::Relaxed) {
+        stats.wakeups += 1;
         let now = sim_now();
         while let Ok(job) = jobs.try_recv() {
             bus.advance(now);
@@ -213,7 +236,8 @@ fn serve<L: ByteLink>(
         }
         bus.advance(now);
         out.clear();
-        while let Some((due, byte)) = bus.pop_received() {
+        while let Some((due, byte)) = bus.peek_received().filter(|&(due, _)| due <= now) {
+            bus.pop_received();
             let late = now.saturating_sub(due);
             stats.late_max = stats.late_max.max(late);
             stats.late_total += late;
@@ -223,7 +247,13 @@ fn serve<L: ByteLink>(
             master.write_all(&out)?;
             stats.bytes_out += out.len() as u64;
         }
-        let wake = bus.next_event().map_or(now + IDLE, |t| t.min(now + IDLE));
+        run_ahead(&mut bus, wire_free);
+        let due = bus.peek_received().map(|(due, _)| due);
+        let next = match (due, bus.next_event()) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        };
+        let wake = next.map_or(now + IDLE, |t| t.min(now + IDLE));
         // Wire time still ahead for the bytes already taken: read again only once it is
         // below INPUT_AHEAD, and only as many bytes as fit in the rest of that window.
         let ahead = wire_free.saturating_sub(now);

@@ -4,7 +4,9 @@
 //! same [`Bus`] from any thread (push a shaft, unplug a module, read its mode). There is
 //! no serving thread: the bus is brought up to the present whenever the link or a handle
 //! touches it, and simulated time is the wall time since [`SimLink::new`] (plus the bus's
-//! own time then).
+//! own time then). On a [`SimLink::virtual_clock`] link there is no wall clock at all:
+//! simulated time moves only when the client waits, and the link's
+//! [`ByteLink::now`] tells it.
 //!
 //! Unlike a pty endpoint, where the simulator is a thread that must be scheduled to
 //! answer in time, the answer is here a consequence of the model: a read returns every
@@ -22,11 +24,55 @@ use robobus_link::{ByteLink, LinkError};
 
 use super::bus::Bus;
 
-#[derive(Debug)]
 struct State {
     bus: Bus,
-    /// How far simulated time has been fast-forwarded past the wall clock.
+    /// How far simulated time has been moved past the wall clock (fast-forward), or how
+    /// far it has moved at all (virtual clock).
     skew: Duration,
+    /// Changes to make at simulated instants ([`SimHandle::at`]), in the order given.
+    jobs: Vec<(Duration, Job)>,
+}
+
+type Job = Box<dyn FnOnce(&mut Bus) + Send>;
+
+impl core::fmt::Debug for State {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("State")
+            .field("bus", &self.bus)
+            .field("skew", &self.skew)
+            .field("jobs", &self.jobs.len())
+            .finish()
+    }
+}
+
+impl State {
+    /// The earliest instant a job is due.
+    fn next_job(&self) -> Option<Duration> {
+        self.jobs.iter().map(|(t, _)| *t).min()
+    }
+
+    /// Brings the bus to `now`, running every job due by then at its instant.
+    fn advance(&mut self, now: Duration) {
+        while let Some(t) = self.next_job().filter(|t| *t <= now) {
+            self.bus.advance(t);
+            if let Some(i) = self.jobs.iter().position(|(at, _)| *at == t) {
+                let (_, job) = self.jobs.remove(i);
+                job(&mut self.bus);
+            }
+        }
+        self.bus.advance(now);
+    }
+}
+
+/// Where simulated time comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Clock {
+    /// The wall clock; a read that would wait sleeps.
+    Wall,
+    /// The wall clock, but a read that would wait jumps ahead instead.
+    FastForward,
+    /// No wall clock: time moves only when the client waits.
+    Virtual,
 }
 
 #[derive(Debug)]
@@ -34,13 +80,17 @@ struct Shared {
     state: Mutex<State>,
     t0: Instant,
     offset: Duration,
-    fast_forward: bool,
+    clock: Clock,
 }
 
 impl Shared {
-    /// Simulated time of a wall-clock instant (at the current fast-forward skew).
+    /// Simulated time of an instant on the link's clock.
     fn sim_time(&self, state: &State, at: Instant) -> Duration {
-        self.offset + at.saturating_duration_since(self.t0) + state.skew
+        let since = at.saturating_duration_since(self.t0);
+        match self.clock {
+            Clock::Virtual => self.offset + since,
+            Clock::Wall | Clock::FastForward => self.offset + since + state.skew,
+        }
     }
 
     /// The bus, brought up to the present; returns it with the present's simulated time.
@@ -51,9 +101,38 @@ impl Shared {
             .state
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner);
-        let now = self.sim_time(&state, Instant::now()).max(state.bus.now());
-        state.bus.advance(now);
+        let now = match self.clock {
+            Clock::Virtual => self.offset + state.skew,
+            Clock::Wall | Clock::FastForward => self.sim_time(&state, Instant::now()),
+        }
+        .max(state.bus.now());
+        state.advance(now);
         (state, now)
+    }
+
+    /// The link clock's instant of the present (the inverse of [`Shared::sim_time`]).
+    fn now(&self) -> Instant {
+        let (state, now) = self.present();
+        let skew = match self.clock {
+            Clock::Virtual => Duration::ZERO,
+            Clock::Wall | Clock::FastForward => state.skew,
+        };
+        self.t0 + now.saturating_sub(self.offset + skew)
+    }
+
+    /// Lets simulated time pass until `from + wait` (`from` is the present the wait was
+    /// measured from): a sleep on the wall clock, a jump otherwise.
+    fn wait(&self, from: Duration, wait: Duration) {
+        match self.clock {
+            Clock::Wall => std::thread::sleep(wait),
+            Clock::FastForward => self.present().0.skew += wait,
+            Clock::Virtual => {
+                let (mut state, _) = self.present();
+                // The model may have run ahead of `from` (it is deterministic): the clock
+                // goes to the end of the wait, not past it.
+                state.skew = state.skew.max((from + wait).saturating_sub(self.offset));
+            }
+        }
     }
 }
 
@@ -90,7 +169,7 @@ impl SimLink {
     /// A link to `bus`, whose simulated time continues from its current time, and a
     /// handle on the bus. The link starts at the bus's host baud rate.
     pub fn new(bus: Bus) -> (Self, SimHandle) {
-        Self::with_clock(bus, false)
+        Self::with_clock(bus, Clock::Wall)
     }
 
     /// Like [`SimLink::new`], but a read that would wait skips the wait instead:
@@ -98,19 +177,30 @@ impl SimLink {
     /// timeouts and the servos' motion are what they would be; a long loop of
     /// transactions runs as fast as the processor allows.
     pub fn fast_forward(bus: Bus) -> (Self, SimHandle) {
-        Self::with_clock(bus, true)
+        Self::with_clock(bus, Clock::FastForward)
     }
 
-    fn with_clock(bus: Bus, fast_forward: bool) -> (Self, SimHandle) {
+    /// Like [`SimLink::new`], on a virtual clock: simulated time stands still until the
+    /// client waits, and then jumps at once to the moment the wait ends (the reply's last
+    /// byte, or the deadline). [`ByteLink::now`] is a fixed instant (taken when the link
+    /// was made) plus the simulated time since; deadlines and [`ByteLink::sleep_until`]
+    /// are measured on that clock, so a client that takes its time only from the link runs
+    /// the same way on any machine, however loaded, and in no wall time.
+    pub fn virtual_clock(bus: Bus) -> (Self, SimHandle) {
+        Self::with_clock(bus, Clock::Virtual)
+    }
+
+    fn with_clock(bus: Bus, clock: Clock) -> (Self, SimHandle) {
         let baud = bus.host_bps();
         let shared = Arc::new(Shared {
             offset: bus.now(),
             state: Mutex::new(State {
                 bus,
                 skew: Duration::ZERO,
+                jobs: Vec::new(),
             }),
             t0: Instant::now(),
-            fast_forward,
+            clock,
         });
         let handle = SimHandle {
             shared: Arc::clone(&shared),
@@ -137,6 +227,23 @@ impl SimHandle {
     pub fn now(&self) -> Duration {
         self.shared.present().1
     }
+
+    /// Runs `f` on the bus at simulated time `at` (at once if that has passed): an
+    /// unplugged module, a pushed shaft at an exact instant of a client's run. On the
+    /// virtual clock the client's waits stop there, so `f` sees the bus at `at` exactly.
+    pub fn at(&self, at: Duration, f: impl FnOnce(&mut Bus) + Send + 'static) {
+        let (mut state, _) = self.shared.present();
+        state.jobs.push((at, Box::new(f)));
+        let now = state.bus.now();
+        state.advance(now);
+    }
+
+    /// Lets `d` of simulated time pass: on a virtual-clock or fast-forwarding link at once,
+    /// on the wall clock by sleeping.
+    pub fn sleep(&self, d: Duration) {
+        let now = self.now();
+        self.shared.wait(now, d);
+    }
 }
 
 impl ByteLink for SimLink {
@@ -155,14 +262,16 @@ impl ByteLink for SimLink {
             self.shared.sim_time(&state, deadline)
         };
         loop {
-            let wait = {
+            let (from, wait) = {
                 let (mut state, now) = self.shared.present();
+                // Jobs still to come are after `now`; the model may not run past them.
+                let horizon = state.next_job().map_or(until, |t| t.min(until));
                 let bus = &mut state.bus;
                 // Run the model ahead (it is deterministic) until a byte has reached the
                 // host or the deadline: one sleep per byte instead of one per event.
                 while bus.peek_received().is_none() {
                     match bus.next_event() {
-                        Some(t) if t <= until => {
+                        Some(t) if t <= horizon => {
                             let step = t.max(bus.now() + Duration::from_nanos(100));
                             bus.advance(step);
                         }
@@ -185,8 +294,8 @@ impl ByteLink for SimLink {
                         }
                         return Ok(n);
                     }
-                    // Arrives before the deadline, in the future: wait for it.
-                    Some((at, _)) if at <= until => at.saturating_sub(now),
+                    // Arrives before the deadline (and the next job), in the future: wait.
+                    Some((at, _)) if at <= horizon => (now, at.saturating_sub(now)),
                     // Nothing before the deadline.
                     _ if now >= until => {
                         return Err(LinkError::Timeout {
@@ -194,15 +303,11 @@ impl ByteLink for SimLink {
                             expected: buf.len(),
                         });
                     }
-                    _ => until.saturating_sub(now),
+                    // Nothing before the next job (or the deadline): wait until then.
+                    _ => (now, horizon.saturating_sub(now)),
                 }
             };
-            if self.shared.fast_forward {
-                let (mut state, _) = self.shared.present();
-                state.skew += wait;
-            } else {
-                std::thread::sleep(wait);
-            }
+            self.shared.wait(from, wait);
         }
     }
 
@@ -221,5 +326,22 @@ impl ByteLink for SimLink {
 
     fn baud(&self) -> Option<u32> {
         Some(self.baud)
+    }
+
+    fn now(&self) -> Instant {
+        self.shared.now()
+    }
+
+    fn sleep_until(&mut self, deadline: Instant) {
+        let (now, wait) = {
+            let (state, now) = self.shared.present();
+            (
+                now,
+                self.shared.sim_time(&state, deadline).saturating_sub(now),
+            )
+        };
+        if !wait.is_zero() {
+            self.shared.wait(now, wait);
+        }
     }
 }

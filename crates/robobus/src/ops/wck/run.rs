@@ -241,7 +241,10 @@ impl ScanArgs {
     /// The plan of the scan if the IDs for which `answers(baud, id)` holds answer cleanly
     /// and the others stay silent: a silent ID is read `probes` times; an ID that answers
     /// is read once and then three more ways (10-bit position, I gain, over-load) to rule
-    /// out two modules sharing it. The dry-run assumes that nobody answers; the real run
+    /// out two modules sharing it; right after a silent ID it is read once more first (that
+    /// first answer may be the silent ID's late reply, so it is not credited: the ID is
+    /// asked again once the late window has passed). The dry-run assumes that nobody
+    /// answers; the real run
     /// sends this plan for the servos it found (plus repeats where replies were garbled,
     /// and the further probes that confirm a suspected duplicate).
     pub fn plan(&self, answers: &dyn Fn(BaudRate, ServoId) -> bool) -> WckPlan {
@@ -251,6 +254,7 @@ impl ScanArgs {
              read three more ways (10-bit position, I gain, over-load) to rule out a shared ID",
             self.probes.max(1)
         ));
+        let mut after_silent = false;
         for &baud in &self.bauds {
             for &id in &self.ids {
                 let step = |command| WckStep {
@@ -258,7 +262,12 @@ impl ScanArgs {
                     baud: (self.bauds.len() > 1).then_some(baud),
                     command,
                 };
-                if answers(baud, id) {
+                let answering = answers(baud, id);
+                if answering && after_silent {
+                    plan.steps.push(step(Command::StatusRead { id }));
+                }
+                after_silent = !answering;
+                if answering {
                     plan.steps.push(step(Command::StatusRead { id }));
                     plan.steps.push(step(Command::Read10 { id: id.into() }));
                     plan.steps.push(step(Command::IGainRead { id }));
@@ -405,11 +414,11 @@ fn run_timed<L: ByteLink>(
     control: &mut Control<'_>,
     mut on_reply: impl FnMut(&WckStep, Option<Reply>),
 ) -> Result<Instant, OpError> {
-    let start = Instant::now();
+    let start = bus.now();
     let mut last_position: Option<Position> = None;
     for mut step in steps {
         let due = start + Duration::from_millis(step.at_ms.unwrap_or(0));
-        if !control.sleep_until(due) {
+        if !control.sleep_on(bus.link_mut(), due) {
             return Err(interrupted(bus, stop.0, stop.1, stop.2));
         }
         if let (Command::Move { position, .. }, Some(p)) = (&mut step.command, last_position)
@@ -543,7 +552,8 @@ pub fn wheel<L: ByteLink>(
     if args.duration.is_some() {
         row.push(
             "ran_ms",
-            u64::try_from(start.elapsed().as_millis()).unwrap_or(u64::MAX),
+            u64::try_from(bus.now().saturating_duration_since(start).as_millis())
+                .unwrap_or(u64::MAX),
         );
         row.push("stopped", args.on_stop.keyword());
     }
@@ -607,7 +617,8 @@ pub fn play<L: ByteLink>(
         moves: sent,
         sent,
         planned_ms: planned,
-        duration_ms: u64::try_from(start.elapsed().as_millis()).unwrap_or(u64::MAX),
+        duration_ms: u64::try_from(bus.now().saturating_duration_since(start).as_millis())
+            .unwrap_or(u64::MAX),
         last_positions: last,
     })
 }
@@ -766,7 +777,7 @@ pub fn teach<L: ByteLink>(
             let period = Duration::from_secs_f64(1.0 / rate_hz);
             #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // 5..=10000 ms
             let period_ms = (1000.0 / rate_hz).round() as u32;
-            let start = Instant::now();
+            let start = bus.now();
             record(bus, period_ms, control)?;
             let mut next = start + period;
             loop {
@@ -775,19 +786,23 @@ pub fn teach<L: ByteLink>(
                     if control.stopped() {
                         return Err(stop(bus));
                     }
-                    let now = Instant::now();
+                    let now = bus.now();
                     if now >= next {
                         break;
                     }
-                    let event = events((next - now).min(Duration::from_millis(20)));
+                    let wait = (next - now).min(Duration::from_millis(20));
+                    let event = events(wait);
                     if control.stopped() {
                         return Err(stop(bus));
                     }
                     if event == TeachEvent::Finish {
                         return finish(bus, args, count);
                     }
+                    // `events` waited on the wall clock; the link's own clock (a
+                    // simulator's) moves only when waited on.
+                    bus.sleep_until(now + wait);
                 }
-                if duration.is_some_and(|d| start.elapsed() >= d) {
+                if duration.is_some_and(|d| bus.now().saturating_duration_since(start) >= d) {
                     return finish(bus, args, count);
                 }
                 record(bus, period_ms, control)?;
