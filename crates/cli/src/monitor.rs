@@ -4,7 +4,8 @@
 //!
 //! - `--bus BUS --joints 1-7`: WHJ joints, read-only: each sample is a status query
 //!   (position, current, enable, error bits) and a speed register read per joint, through
-//!   [`robobus::whj::JointBus`].
+//!   [`robobus::whj::JointBus`]; with `--broadcast`, one broadcast status frame (0x7F) for
+//!   all joints (1..=7), [`robobus::ops::whj::sample_broadcast`].
 //! - `--port PATH --servos 0-15`: wCK servos, read-only: a status read (position, load)
 //!   per servo ([`robobus::ops::monitor::WckSampler`]); the speed is the position's
 //!   derivative.
@@ -66,6 +67,10 @@ pub(crate) struct Args {
     /// WHJ joint IDs to watch, e.g. `1-7` or `1,3`.
     #[arg(long, default_value = "1-7", value_parser = parse_ids_1_30)]
     joints: Ids,
+    /// With --bus: sample joints 1..=7 with one broadcast status frame (0x7F) instead of
+    /// two requests per joint.
+    #[arg(long, requires = "bus")]
+    broadcast: bool,
     /// A wCK serial port (with --servos).
     #[arg(long, value_name = "PATH", conflicts_with_all = ["sim", "robot"])]
     port: Option<PathBuf>,
@@ -488,6 +493,8 @@ enum Source<'a> {
     Whj {
         bus: JointBus,
         joints: Vec<(usize, JointId)>,
+        /// One broadcast status frame per sample.
+        broadcast: bool,
     },
     Sim {
         cyc: robobus::whj::Cyclic<'a>,
@@ -509,9 +516,27 @@ fn missing_text(f: &robobus::ops::Failure) -> &'static str {
     }
 }
 
-fn sample_whj(bus: &JointBus, joints: &[(usize, JointId)], channels: &mut [Channel]) {
+fn sample_whj(
+    bus: &JointBus,
+    joints: &[(usize, JointId)],
+    broadcast: bool,
+    channels: &mut [Channel],
+) {
     let ids: Vec<JointId> = joints.iter().map(|(_, id)| *id).collect();
-    let results = robobus::ops::whj::sample(bus, &ids);
+    let results = if broadcast {
+        let Ok(r) = robobus::ops::whj::sample_broadcast(bus, &ids) else {
+            // A frame that could not be sent: a missed sample of every joint.
+            for &(i, _) in joints {
+                if let Some(c) = channels.get_mut(i) {
+                    c.missed("not sent");
+                }
+            }
+            return;
+        };
+        r
+    } else {
+        robobus::ops::whj::sample(bus, &ids)
+    };
     for (&(i, _), r) in joints.iter().zip(&results) {
         let Some(c) = channels.get_mut(i) else {
             continue;
@@ -611,7 +636,11 @@ fn sample_robot(sampler: &mut RobotSampler, now: f64, channels: &mut [Channel]) 
 fn sample(srcs: &mut [Source<'_>], d: &mut Dashboard) {
     for src in srcs {
         match src {
-            Source::Whj { bus, joints } => sample_whj(bus, joints, &mut d.channels),
+            Source::Whj {
+                bus,
+                joints,
+                broadcast,
+            } => sample_whj(bus, joints, *broadcast, &mut d.channels),
             Source::Sim { cyc, start } => sample_sim(cyc, *start, &mut d.channels),
             Source::Wck { bus, sampler } => sample_wck(bus, sampler, d.t, &mut d.channels),
             Source::Robot(sampler) => sample_robot(sampler, d.t, &mut d.channels),
@@ -655,14 +684,18 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
         return run_robot(path, args, out);
     }
     if let Some(bus) = &args.bus {
-        let link = open_link(bus, args.capture.as_deref())?;
-        let jb = JointBus::open_with(link, whj_config()).map_err(whj_error)?;
         let joints: Vec<JointId> = args
             .joints
             .0
             .iter()
             .filter_map(|&j| JointId::new(j).ok())
             .collect();
+        if args.broadcast {
+            robobus::ops::whj::reply_mask(&joints)
+                .map_err(|e| usage(format!("--broadcast --joints: {e}")))?;
+        }
+        let link = open_link(bus, args.capture.as_deref())?;
+        let jb = JointBus::open_with(link, whj_config()).map_err(whj_error)?;
         connect_joints(&jb, joints.iter().copied());
         let d = dashboard(
             format!("WHJ bus {bus}"),
@@ -672,7 +705,12 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
             args,
         );
         let joints = joints.into_iter().enumerate().collect();
-        return watch(&mut [Source::Whj { bus: jb, joints }], d, args, out);
+        let src = Source::Whj {
+            bus: jb,
+            joints,
+            broadcast: args.broadcast,
+        };
+        return watch(&mut [src], d, args, out);
     }
     if let Some(port) = &args.port {
         let bus = WckBus::open(port, baud).map_err(|e| {

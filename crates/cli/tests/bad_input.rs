@@ -177,6 +177,50 @@ fn whj_values_out_of_range_are_refused_before_anything_is_opened() {
             &["--frequency", "100", "0.01..="],
         );
         refused(&with(&["mode", "1", "torque"]), &["torque", "position"]);
+        // Broadcast: joints 1..=7 only, one joint without it, end-board registers checked.
+        refused(
+            &with(&["read", "--broadcast", "1-8", "sys_temp"]),
+            &["--broadcast JOINTS", "8", "1..=7"],
+        );
+        refused(
+            &with(&["read", "1-2", "sys_temp"]),
+            &["one joint", "--broadcast"],
+        );
+        refused(
+            &with(&[
+                "read",
+                "--broadcast",
+                "1",
+                "sys_temp",
+                "--end-board",
+                "0x80",
+            ]),
+            &["--end-board", "0x80", "0x00..=0x7F"],
+        );
+        refused(
+            &with(&[
+                "write",
+                "--broadcast",
+                "1",
+                "tag_work_mode",
+                "3",
+                "--end-board",
+                "eb_sw_version=1",
+            ]),
+            &["--end-board", "EB_SW_VERSION", "not a writable"],
+        );
+        refused(
+            &with(&["write", "--broadcast", "1-2", "sys_dema_abspos", "1"]),
+            &["SYS_DEMA_ABSPOS", "never"],
+        );
+        for (extra, want) in [
+            (["--mode", "speed"], ["--broadcast", "speed", "0x2F"]),
+            (["--rate-hz", "50"], ["--rate-hz", "50", "100..=1000"]),
+        ] {
+            let mut args = with(&["wave", "1", "--amplitude", "1", "--broadcast"]);
+            args.extend_from_slice(&extra);
+            refused(&args, &want);
+        }
     }
     refused(
         &["whj", "--bus", "udp:1.2.3.4:5", "--dry-run", "enable", "1"],

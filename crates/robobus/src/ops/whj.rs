@@ -36,6 +36,10 @@
 //!   `round_trip_p50_us`, `round_trip_p99_us`, `round_trip_max_us` (send to feedback of the
 //!   answered frames; null without replies);
 //! - [`SetIdReport`]: `new_id`, `saved`, `note`.
+//! - broadcast register reads and writes ([`broadcast_read`], [`broadcast_write`]): one
+//!   [`RegisterReport`] per register and [`Slot`], whose `id` is the joint's number or
+//!   `"end-board"` (the end board's registers by their names in its own map, raw values);
+//!   a slot without a credited reply is `{"id", "kind": "no-device", "error"}`.
 
 // OpError carries the client errors by value, as they do (see `ops::read_bounded`).
 #![allow(clippy::result_large_err)]
@@ -630,10 +634,14 @@ fn send_frames(
         }
         let sent_at = Instant::now();
         let late = sent_at.saturating_duration_since(due);
-        let fb = match j.servo_request(f.request) {
-            Ok(fb) => Some(fb),
-            Err(e) if e.is_timeout() => None,
-            Err(e) => return Err(whj(e)),
+        let fb = if f.request.joint().is_none() {
+            broadcast::broadcast_servo(j, f.request).map_err(whj)?
+        } else {
+            match j.servo_request(f.request) {
+                Ok(fb) => Some(fb),
+                Err(e) if e.is_timeout() => None,
+                Err(e) => return Err(whj(e)),
+            }
         };
         let round_trip = fb.is_some().then(|| sent_at.elapsed());
         sent += 1;
@@ -1397,9 +1405,14 @@ pub fn read_registers(
         return Ok(vec![register_report(&v)]);
     }
     let words = j.read_words(addr, count.unwrap_or(1)).map_err(whj)?;
-    Ok((addr.get()..)
+    Ok(word_reports(addr, &words))
+}
+
+/// Raw words read from `addr` on, one report each (named where the table names them).
+fn word_reports(addr: robobus_whj::RegisterAddr, words: &[u16]) -> Vec<RegisterReport> {
+    (addr.get()..)
         .zip(words)
-        .map(|(k, w)| RegisterReport {
+        .map(|(k, &w)| RegisterReport {
             addr: format!("0x{k:02X}"),
             register: robobus_whj::RegisterAddr::new(k)
                 .ok()
@@ -1409,7 +1422,7 @@ pub fn read_registers(
             value: None,
             unit: "",
         })
-        .collect())
+        .collect()
 }
 
 /// Checks a register write against the register's safety class
@@ -1439,36 +1452,44 @@ pub fn check_write(
 
 /// The safety class of the register a request writes, if it is a confirm write: what it
 /// does (for a front end's confirmation prompt).
+/// A broadcast register frame: the first confirm write among its slots, or the end
+/// board's write ([`END_BOARD_WRITE_TEXT`]).
 pub fn confirm_text(request: &Request) -> Option<&'static str> {
+    use robobus_whj::{RegisterOp, RegisterSlot};
+    let of = |addr| match robobus_whj::registers::safety_class(addr) {
+        robobus_whj::registers::SafetyClass::Confirm(what) => Some(what),
+        _ => None,
+    };
     match request {
-        Request::Write { addr, .. } => match robobus_whj::registers::safety_class(*addr) {
-            robobus_whj::registers::SafetyClass::Confirm(what) => Some(what),
-            _ => None,
-        },
+        Request::Write { addr, .. } => of(*addr),
+        Request::BroadcastRegister(b) => b
+            .slots
+            .iter()
+            .find_map(|s| match s {
+                RegisterSlot::Op(RegisterOp::Write { addr, .. }) => of(*addr),
+                _ => None,
+            })
+            .or_else(|| {
+                matches!(
+                    robobus_whj::EndBoardOp::decode(&b.end_board),
+                    Some(robobus_whj::EndBoardOp::Write { .. })
+                )
+                .then_some(broadcast::END_BOARD_WRITE_TEXT)
+            }),
         _ => None,
     }
 }
 
-/// `whj write`: sends the planned write request (the one a dry run prints) after
-/// [`check_write`], refuses a register the joint's model or firmware lacks
-/// ([`robobus_whj::registers::gated_write_allowed`]) and position limits that would end up
-/// inverted (min > max), and reads the register back.
-pub fn write_register(
-    bus: &JointBus,
-    request: Request,
-    confirmed: bool,
-) -> Result<Vec<RegisterReport>, OpError> {
-    let Request::Write { joint, addr, data } = request else {
-        return Err(OpError::invalid(
-            "write",
-            format!("{request:?}"),
-            "not a register write",
-        ));
-    };
-    check_write(addr, confirmed)?;
-    let j = bus.joint(joint).map_err(whj)?;
-    // A register whose feature this joint's product or firmware lacks (the register
-    // table's firmware gates): refused on the host, not left to a puzzling write ack.
+/// The checks of a register write that depend on the joint: a register whose feature its
+/// product or firmware lacks (the register table's firmware gates,
+/// [`robobus_whj::registers::gated_write_allowed`]) and position limits that would end up
+/// inverted (min > max) are refused before anything is sent.
+pub fn check_joint_write(
+    j: &Joint<'_>,
+    addr: robobus_whj::RegisterAddr,
+    data: robobus_whj::request::WriteData,
+) -> Result<(), OpError> {
+    let joint = j.id();
     let identity = j.identity().map_err(whj)?;
     if let Err(refusal) =
         robobus_whj::registers::gated_write_allowed(addr, identity.model, identity.firmware)
@@ -1497,6 +1518,28 @@ pub fn write_register(
             )));
         }
     }
+    Ok(())
+}
+
+/// `whj write`: sends the planned write request (the one a dry run prints) after
+/// [`check_write`], refuses a register the joint's model or firmware lacks
+/// ([`robobus_whj::registers::gated_write_allowed`]) and position limits that would end up
+/// inverted (min > max), and reads the register back.
+pub fn write_register(
+    bus: &JointBus,
+    request: Request,
+    confirmed: bool,
+) -> Result<Vec<RegisterReport>, OpError> {
+    let Request::Write { joint, addr, data } = request else {
+        return Err(OpError::invalid(
+            "write",
+            format!("{request:?}"),
+            "not a register write",
+        ));
+    };
+    check_write(addr, confirmed)?;
+    let j = bus.joint(joint).map_err(whj)?;
+    check_joint_write(&j, addr, data)?;
     match data {
         robobus_whj::request::WriteData::Pair(v) => j.write_i32(addr, v),
         robobus_whj::request::WriteData::Word(w) => j.write_word(addr, w),
@@ -1755,82 +1798,15 @@ pub fn sample(bus: &JointBus, ids: &[JointId]) -> Vec<DeviceResult<u8, JointSamp
 }
 
 // ---------------------------------------------------------------------------------------
-// Broadcast status (0x7F)
+// Broadcast frames (0x7F status, 0x0F registers, sampling)
 // ---------------------------------------------------------------------------------------
 
-/// The smallest broadcast reply mask that selects every joint of `ids` (all 1..=7).
-pub fn reply_mask(ids: &[JointId]) -> Result<robobus_whj::broadcast::ReplyMask, OpError> {
-    use robobus_whj::broadcast::ReplyMask;
-    if let Some(bad) = ids.iter().find(|j| !j.has_broadcast_slot()) {
-        return Err(OpError::invalid(
-            "--broadcast JOINTS",
-            bad.get(),
-            "broadcast frames address joints 1..=7 only",
-        ));
-    }
-    (0..=0xFu8)
-        .filter_map(|code| ReplyMask::new(code).ok())
-        .filter(|m| ids.iter().all(|j| m.selects(*j)))
-        .min_by_key(|m| m.joints().count() + usize::from(m.selects_end_board()))
-        .ok_or_else(|| OpError::invalid("--broadcast JOINTS", ids.len(), "no reply mask fits"))
-}
+mod broadcast;
 
-/// How long [`broadcast_status`] collects replies: seven 24-byte feedback frames take under
-/// 1 ms on the wire; a broadcast is not resent, so it waits five reply timeouts (100 ms by
-/// default) for slow links and simulators.
-pub fn broadcast_window(bus: &JointBus) -> Duration {
-    (bus.config().reply_timeout * 5).max(Duration::from_millis(5))
-}
-
-/// `whj status --broadcast`: one 0x7F frame asks joints `ids` (1..=7) for their status;
-/// every joint is reported, one that did not answer within [`broadcast_window`] as a
-/// no-device failure. Joints outside `ids` that the mask also selects are not reported.
-pub fn broadcast_status(
-    bus: &JointBus,
-    ids: &[JointId],
-) -> Result<Vec<DeviceResult<u8, StatusReport>>, OpError> {
-    let mask = reply_mask(ids)?;
-    let request = Request::BroadcastStatus(robobus_whj::broadcast::BroadcastStatus::new(mask));
-    let sent = bus.send_broadcast(request).map_err(whj)?;
-    let window = broadcast_window(bus);
-    std::thread::sleep(window);
-    let t = bus.telemetry();
-    Ok(ids
-        .iter()
-        .map(|&id| {
-            let jt = t.joint(id);
-            match (jt.updated, jt.position) {
-                (Some(at), Some(p)) if at > sent => {
-                    let scale = bus
-                        .cached_identity(id)
-                        .map_or(CurrentScale::OneMilliamp, |i| i.current_scale());
-                    DeviceResult::ok(
-                        id.get(),
-                        StatusReport {
-                            enabled: jt.enabled.unwrap_or(false),
-                            mode: "-",
-                            position_deg: p.degrees(),
-                            current_ma: jt.current.map(|c| c.milliamps(scale)),
-                            voltage_v: jt.voltage.map_or(f64::NAN, |v| f64::from(v.volts())),
-                            temperature_c: jt
-                                .temperature
-                                .map_or(f64::NAN, |v| f64::from(v.celsius())),
-                            brake: "-",
-                            error: jt.error.unwrap_or_default().to_string(),
-                        },
-                    )
-                }
-                _ => DeviceResult::failed(
-                    id.get(),
-                    Failure::of(
-                        super::ErrorKind::NoDevice,
-                        &format!(
-                            "{id}: no reply to the broadcast status query within {} ms",
-                            window.as_millis()
-                        ),
-                    ),
-                ),
-            }
-        })
-        .collect())
-}
+pub use broadcast::{
+    BROADCAST_WAVE_MIN_HZ, BroadcastPlan, END_BOARD_WRITE_TEXT, EndBoardArg, EndBoardStatus, Slot,
+    StatusWithEndBoard, broadcast_read, broadcast_status, broadcast_status_with_end_board,
+    broadcast_window, broadcast_write, plan_broadcast_read, plan_broadcast_wave,
+    plan_broadcast_write, prepare_broadcast_wave, reply_mask, reply_mask_with, run_broadcast_plan,
+    sample_broadcast,
+};

@@ -400,7 +400,14 @@ pub(crate) struct Shared {
     pub(crate) identities: Mutex<[Option<super::joint::Identity>; 31]>,
     fatal: Mutex<Option<String>>,
     cyclic_running: AtomicBool,
+    /// The latest frames on broadcast reply IDs (joints' 0x8x / 0xFx, the end board's 0x87
+    /// / 0xF7) with their receive instants, oldest first, at most [`BROADCAST_LOG`].
+    broadcast_log: Mutex<VecDeque<(Instant, CanFrame)>>,
 }
+
+/// How many broadcast replies [`JointBus::broadcast_replies_since`] keeps: eight nodes
+/// answer one broadcast frame, so this holds the answers to the last eight.
+const BROADCAST_LOG: usize = 64;
 
 pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(PoisonError::into_inner)
@@ -480,6 +487,7 @@ impl JointBus {
             passive_since: None,
             cyclic: None,
             last_drain: Instant::now(),
+            broadcast_until: None,
         };
         let thread = std::thread::Builder::new()
             .name("whj-bus".into())
@@ -585,6 +593,18 @@ impl JointBus {
             .map_err(|_| self.closed_error())?
     }
 
+    /// The frames received on broadcast reply IDs (joints' `0x80+ID+1` / `0xF0+ID+1`,
+    /// J6's 0x5FE / 0x3FE, the end board's 0x87 / 0xF7) strictly after `since` (the instant
+    /// [`JointBus::send_broadcast`] returned), with their receive instants, oldest first.
+    /// The bus keeps the last 64 of them.
+    pub fn broadcast_replies_since(&self, since: Instant) -> Vec<(Instant, CanFrame)> {
+        lock(&self.shared.broadcast_log)
+            .iter()
+            .filter(|(at, _)| *at > since)
+            .copied()
+            .collect()
+    }
+
     /// A snapshot of the bus health and the latest values from every joint.
     pub fn telemetry(&self) -> Telemetry {
         lock(&self.shared.telemetry).clone()
@@ -677,6 +697,21 @@ struct Worker<L> {
     passive_since: Option<Instant>,
     cyclic: Option<CyclicRun>,
     last_drain: Instant,
+    /// Until when replies to the last broadcast frame are awaited (received at once
+    /// rather than at the next drain).
+    broadcast_until: Option<Instant>,
+}
+
+/// Whether `raw` is an ID on which joints or the end board answer broadcast frames.
+fn is_broadcast_reply_id(raw: u16) -> bool {
+    use robobus_whj::Address;
+    matches!(
+        Address::from_raw(raw),
+        Address::BroadcastFeedback(_)
+            | Address::BroadcastRegisterReply(_)
+            | Address::EndBoardFeedback
+            | Address::EndBoardRegisterReply
+    )
 }
 
 /// How often the bus thread reads unsolicited frames while it awaits nothing (rarely: on
@@ -753,13 +788,15 @@ impl<L: FrameLink> Worker<L> {
         }
     }
 
-    /// Whether a frame is expected: a reply in flight, feedback of the running cycle, or a
+    /// Whether a frame is expected: a reply in flight, replies to a broadcast frame just
+    /// sent (for five reply timeouts), feedback of the running cycle, or a
     /// bus-off recovery that queued requests wait for. Only then does the thread block in
     /// the link's receive; otherwise it sleeps on the command channel, whose timeout is
     /// precise (some links' receive timeouts round up to the kernel tick, e.g. UDP's
     /// `SO_RCVTIMEO`), so cyclic ticks stay on time.
     fn awaiting(&self) -> bool {
         !self.in_flight.is_empty()
+            || self.broadcast_until.is_some_and(|t| t > Instant::now())
             || self.cyclic.as_ref().is_some_and(CyclicRun::awaiting)
             || (!self.queued.is_empty() && self.state() == BusState::BusOff)
     }
@@ -852,6 +889,7 @@ impl<L: FrameLink> Worker<L> {
                     })
                 } else {
                     let at = Instant::now();
+                    self.broadcast_until = Some(at + self.config.reply_timeout * 5);
                     self.send(&frame).map(|()| at).map_err(|e| WhjError::Link {
                         detail: e.to_string(),
                     })
@@ -996,6 +1034,13 @@ impl<L: FrameLink> Worker<L> {
     fn dispatch(&mut self, frame: CanFrame) {
         let now = Instant::now();
         let decoded = Reply::from_frame(&frame);
+        if frame.standard_raw_id().is_some_and(is_broadcast_reply_id) {
+            let mut log = lock(&self.shared.broadcast_log);
+            if log.len() >= BROADCAST_LOG {
+                log.pop_front();
+            }
+            log.push_back((now, frame));
+        }
         {
             let mut t = lock(&self.shared.telemetry);
             t.bus.frames_received += 1;

@@ -38,6 +38,7 @@
 
 mod bus;
 mod config;
+mod end_board;
 mod endpoint;
 mod joint;
 mod model;
@@ -47,6 +48,7 @@ pub use bus::{BusStats, Delivered, Node, WhjBus, WireFrame};
 pub use config::{
     BootConfig, BroadcastReadReply, JointConfig, Load, SpeedLimitUnit, StepConfig, WatchdogConfig,
 };
+pub use end_board::SimEndBoard;
 pub use endpoint::{ServeStats, serve, serve_with};
 pub use joint::{JointState, Phase, Reply, Sample, SimJoint};
 pub use model::{ModelParams, UnknownModel, WhjModel};
