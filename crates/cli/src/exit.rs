@@ -23,7 +23,7 @@ pub(crate) enum Exit {
     Usage = 2,
     /// No device answered in time.
     Timeout = 3,
-    /// The command needs a part that is not in this build.
+    /// The command needs something this build or machine does not have (e.g. SocketCAN).
     NotAvailable = 4,
     /// `robobus doctor` found at least one problem.
     ProblemsFound = 5,
@@ -82,6 +82,8 @@ fn library_kind(err: &anyhow::Error) -> Option<ErrorKind> {
             Some(e.kind())
         } else if let Some(e) = cause.downcast_ref::<ActuatorError>() {
             Some(e.kind())
+        } else if let Some(e) = cause.downcast_ref::<robobus_link::OpenError>() {
+            Some(robobus::error::open_error_kind(e))
         } else {
             cause
                 .downcast_ref::<robobus_link::LinkError>()

@@ -54,7 +54,8 @@ Exit codes:
   2    usage or validation error: a value is out of range or malformed; nothing was
        opened or sent
   3    timeout: no device answered
-  4    not available in this build (the command needs a part that is not built yet)
+  4    not available: the command needs something this build or machine lacks (such
+       as SocketCAN in the kernel)
   5    `robobus doctor` found at least one problem
   130  interrupted (Ctrl-C); devices were brought to their safe state first
 

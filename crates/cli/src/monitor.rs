@@ -4,15 +4,16 @@
 //!
 //! - `--bus BUS --joints 1-7`: WHJ joints, read-only: each sample is a status query
 //!   (position, current, enable, error bits) and a speed register read per joint, through
-//!   [`robobus::whj::JointBus`].
+//!   [`robobus::whj::JointBus`]; with `--broadcast`, one broadcast status frame (0x7F) for
+//!   all joints (1..=7), [`robobus::ops::whj::sample_broadcast`].
 //! - `--port PATH --servos 0-15`: wCK servos, read-only: a status read (position, load)
-//!   per servo through [`robobus::wck::WckBus`]; the speed is the position's derivative.
+//!   per servo ([`robobus::ops::monitor::WckSampler`]); the speed is the position's
+//!   derivative.
 //! - `--robot FILE.toml`: every joint of a robot file, by name, in the file's order, as
 //!   joint angles (the file's `offset`, `direction` and wCK `centre` applied) in degrees
-//!   and deg/s. The file's buses are opened for reading only
-//!   ([`robobus::robot::open_wck_bus`], [`robobus::robot::open_whj_bus`]), without a
-//!   [`robobus::robot::Robot`]: nothing is enabled, and ending the monitor neither
-//!   disables an arm nor releases a servo.
+//!   and deg/s ([`robobus::ops::monitor::RobotSampler`]). The file's buses are opened for
+//!   reading only, without a [`robobus::robot::Robot`]: nothing is enabled, and ending the
+//!   monitor neither disables an arm nor releases a servo.
 //! - `--sim`: the built-in simulated WHJ arm (joints 1..=7, in-process), which the monitor
 //!   itself drives along a slow sine through the cyclic loop, so there is something to
 //!   watch without hardware; the values are the loop's feedback.
@@ -41,8 +42,8 @@ use ratatui::style::{Color, Style, Stylize as _};
 use ratatui::symbols::Marker;
 use ratatui::text::Line;
 use ratatui::widgets::{Axis, Block, Cell, Chart, Dataset, GraphType, Paragraph, Row, Table};
-use robobus::actuator::{JointMap, WckScale, whj_to_rad};
-use robobus::robot::{BusConfig, DynByteLink, RobotConfig, RobotError};
+use robobus::ops::monitor::{RobotSampler, WckSampler, connect_joints};
+use robobus::robot::{DynByteLink, RobotConfig, RobotError};
 use robobus::wck::{WckBus, WckConfig};
 use robobus::whj::{CyclicConfig, JointBus, JointBusConfig, MotionLimits};
 use robobus_wck::{BaudRate, ServoId};
@@ -66,6 +67,10 @@ pub(crate) struct Args {
     /// WHJ joint IDs to watch, e.g. `1-7` or `1,3`.
     #[arg(long, default_value = "1-7", value_parser = parse_ids_1_30)]
     joints: Ids,
+    /// With --bus: sample joints 1..=7 with one broadcast status frame (0x7F) instead of
+    /// two requests per joint.
+    #[arg(long, requires = "bus")]
+    broadcast: bool,
     /// A wCK serial port (with --servos).
     #[arg(long, value_name = "PATH", conflicts_with_all = ["sim", "robot"])]
     port: Option<PathBuf>,
@@ -481,13 +486,15 @@ pub(crate) fn render(f: &mut Frame<'_>, d: &Dashboard) {
     );
 }
 
-/// Where samples come from: one source per bus. Each device fills the dashboard channel
-/// at its index; with a robot file's conversion it shows joint angles, else the device's
-/// own units.
+/// Where samples come from. The library samples ([`robobus::ops::whj::sample`],
+/// [`robobus::ops::monitor`]); each device's result fills the dashboard channel at its
+/// index.
 enum Source<'a> {
     Whj {
         bus: JointBus,
-        joints: Vec<(usize, JointId, Option<JointMap>)>,
+        joints: Vec<(usize, JointId)>,
+        /// One broadcast status frame per sample.
+        broadcast: bool,
     },
     Sim {
         cyc: robobus::whj::Cyclic<'a>,
@@ -495,37 +502,49 @@ enum Source<'a> {
     },
     Wck {
         bus: WckBus<DynByteLink>,
-        servos: Vec<(usize, ServoId, Option<WckScale>)>,
-        /// (time, degrees) of each servo's previous reading, for its speed.
-        last: Vec<Option<(f64, f64)>>,
+        sampler: WckSampler,
     },
+    Robot(RobotSampler),
 }
 
-/// RPM to degrees per second.
-const DEG_S_PER_RPM: f64 = 6.0;
+/// What a channel shows for a device that did not answer this sample.
+fn missing_text(f: &robobus::ops::Failure) -> &'static str {
+    if f.kind == robobus::ErrorKind::NoDevice {
+        "timeout"
+    } else {
+        "bad reply"
+    }
+}
 
 fn sample_whj(
     bus: &JointBus,
-    joints: &[(usize, JointId, Option<JointMap>)],
+    joints: &[(usize, JointId)],
+    broadcast: bool,
     channels: &mut [Channel],
 ) {
-    let ids: Vec<JointId> = joints.iter().map(|(_, id, _)| *id).collect();
-    let results = robobus::ops::whj::sample(bus, &ids);
-    for (&(i, _, map), r) in joints.iter().zip(&results) {
+    let ids: Vec<JointId> = joints.iter().map(|(_, id)| *id).collect();
+    let results = if broadcast {
+        let Ok(r) = robobus::ops::whj::sample_broadcast(bus, &ids) else {
+            // A frame that could not be sent: a missed sample of every joint.
+            for &(i, _) in joints {
+                if let Some(c) = channels.get_mut(i) {
+                    c.missed("not sent");
+                }
+            }
+            return;
+        };
+        r
+    } else {
+        robobus::ops::whj::sample(bus, &ids)
+    };
+    for (&(i, _), r) in joints.iter().zip(&results) {
         let Some(c) = channels.get_mut(i) else {
             continue;
         };
         match (r.value(), r.failure()) {
             (Some(st), _) => {
-                if let Some(map) = map {
-                    c.position = Position::from_degrees(st.position_deg)
-                        .ok()
-                        .map(|p| whj_to_rad(map, p).to_degrees());
-                    c.speed = st.speed_rpm.map(|r| map.speed_to_joint(r * DEG_S_PER_RPM));
-                } else {
-                    c.position = Some(st.position_deg);
-                    c.speed = st.speed_rpm;
-                }
+                c.position = Some(st.position_deg);
+                c.speed = st.speed_rpm;
                 #[allow(clippy::cast_precision_loss)] // mA fit easily
                 let ma = st.current_ma.map(|m| m as f64);
                 c.effort = ma;
@@ -533,11 +552,7 @@ fn sample_whj(
                 c.error.clone_from(&st.error);
                 c.got();
             }
-            (None, Some(f)) => c.missed(if f.kind == robobus::ErrorKind::NoDevice {
-                "timeout"
-            } else {
-                "bad reply"
-            }),
+            (None, Some(f)) => c.missed(missing_text(f)),
             (None, None) => c.missed("no reply"),
         }
     }
@@ -580,29 +595,40 @@ fn sample_sim(cyc: &mut robobus::whj::Cyclic<'_>, start: Instant, channels: &mut
 
 fn sample_wck(
     bus: &mut WckBus<DynByteLink>,
-    servos: &[(usize, ServoId, Option<WckScale>)],
-    last: &mut [Option<(f64, f64)>],
+    sampler: &mut WckSampler,
     now: f64,
     channels: &mut [Channel],
 ) {
-    for (&(i, id, scale), prev) in servos.iter().zip(last.iter_mut()) {
-        let Some(c) = channels.get_mut(i) else {
-            continue;
-        };
-        if let Ok(st) = bus.servo(id).status() {
-            let deg = match scale {
-                Some(scale) => scale.to_rad(st.position).to_degrees(),
-                // The same degrees `robobus wck status` prints (0..=269°).
-                None => st.position.degrees(),
-            };
-            c.speed = prev.and_then(|(t0, p0)| (now > t0).then(|| (deg - p0) / (now - t0)));
-            *prev = Some((now, deg));
-            c.position = Some(deg);
-            c.effort = Some(f64::from(st.load.get()));
-            c.error = "ok".into();
-            c.got();
-        } else {
-            c.missed("no reply");
+    for (c, r) in channels.iter_mut().zip(sampler.sample(bus, now)) {
+        match r.value() {
+            Some(st) => {
+                c.position = Some(st.position_deg);
+                c.speed = st.speed_deg_s;
+                c.effort = Some(f64::from(st.load));
+                c.error = "ok".into();
+                c.got();
+            }
+            None => c.missed("no reply"),
+        }
+    }
+}
+
+fn sample_robot(sampler: &mut RobotSampler, now: f64, channels: &mut [Channel]) {
+    let wck: Vec<bool> = sampler.joints().iter().map(|j| j.wck).collect();
+    for ((c, r), wck) in channels.iter_mut().zip(sampler.sample(now)).zip(wck) {
+        match (r.value(), r.failure()) {
+            (Some(st), _) => {
+                c.position = Some(st.position_deg);
+                c.speed = st.speed_deg_s;
+                #[allow(clippy::cast_precision_loss)] // mA fit easily
+                let effort = st.current_ma.map(|m| m as f64);
+                c.effort = effort.or_else(|| st.load.map(f64::from));
+                c.enabled = st.enabled;
+                c.error.clone_from(&st.error);
+                c.got();
+            }
+            (None, Some(f)) if !wck => c.missed(missing_text(f)),
+            _ => c.missed("no reply"),
         }
     }
 }
@@ -610,11 +636,14 @@ fn sample_wck(
 fn sample(srcs: &mut [Source<'_>], d: &mut Dashboard) {
     for src in srcs {
         match src {
-            Source::Whj { bus, joints } => sample_whj(bus, joints, &mut d.channels),
+            Source::Whj {
+                bus,
+                joints,
+                broadcast,
+            } => sample_whj(bus, joints, *broadcast, &mut d.channels),
             Source::Sim { cyc, start } => sample_sim(cyc, *start, &mut d.channels),
-            Source::Wck { bus, servos, last } => {
-                sample_wck(bus, servos, last, d.t, &mut d.channels);
-            }
+            Source::Wck { bus, sampler } => sample_wck(bus, sampler, d.t, &mut d.channels),
+            Source::Robot(sampler) => sample_robot(sampler, d.t, &mut d.channels),
         }
     }
     d.samples += 1;
@@ -655,15 +684,19 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
         return run_robot(path, args, out);
     }
     if let Some(bus) = &args.bus {
-        let link = open_link(bus, args.capture.as_deref())?;
-        let jb = JointBus::open_with(link, whj_config()).map_err(whj_error)?;
         let joints: Vec<JointId> = args
             .joints
             .0
             .iter()
             .filter_map(|&j| JointId::new(j).ok())
             .collect();
-        connect_joints(&jb, &joints);
+        if args.broadcast {
+            robobus::ops::whj::reply_mask(&joints)
+                .map_err(|e| usage(format!("--broadcast --joints: {e}")))?;
+        }
+        let link = open_link(bus, args.capture.as_deref())?;
+        let jb = JointBus::open_with(link, whj_config()).map_err(whj_error)?;
+        connect_joints(&jb, joints.iter().copied());
         let d = dashboard(
             format!("WHJ bus {bus}"),
             "RPM",
@@ -671,12 +704,13 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
             joints.iter().map(|j| (format!("J{}", j.get()), "mA")),
             args,
         );
-        let joints = joints
-            .into_iter()
-            .enumerate()
-            .map(|(i, id)| (i, id, None))
-            .collect();
-        return watch(&mut [Source::Whj { bus: jb, joints }], d, args, out);
+        let joints = joints.into_iter().enumerate().collect();
+        let src = Source::Whj {
+            bus: jb,
+            joints,
+            broadcast: args.broadcast,
+        };
+        return watch(&mut [src], d, args, out);
     }
     if let Some(port) = &args.port {
         let bus = WckBus::open(port, baud).map_err(|e| {
@@ -705,13 +739,8 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
             ids.iter().map(|s| (format!("S{}", s.get()), "load")),
             args,
         );
-        let last = vec![None; ids.len()];
-        let servos = ids
-            .into_iter()
-            .enumerate()
-            .map(|(i, id)| (i, id, None))
-            .collect();
-        return watch(&mut [Source::Wck { bus, servos, last }], d, args, out);
+        let sampler = WckSampler::new(&ids);
+        return watch(&mut [Source::Wck { bus, sampler }], d, args, out);
     }
     Err(usage(
         "robobus monitor: give --bus BUS (WHJ), --port PATH (wCK), --robot FILE.toml or \
@@ -743,16 +772,6 @@ fn wck_config(config: WckConfig, args: &Args) -> WckConfig {
     }
 }
 
-/// Joints wait in their bootloader after power-up until released (the vendor's required
-/// first operation): release and identify each; one that stays silent shows as `timeout`.
-fn connect_joints(bus: &JointBus, joints: &[JointId]) {
-    for &id in joints {
-        if let Err(e) = bus.joint(id) {
-            tracing::info!("joint {id}: {e}");
-        }
-    }
-}
-
 /// A robot-file error as the CLI reports it: a port or interface that cannot be opened is
 /// a missing device (exit code 3), anything else is bad input (2).
 fn robot_error(path: &std::path::Path, e: RobotError) -> anyhow::Error {
@@ -767,61 +786,10 @@ fn robot_error(path: &std::path::Path, e: RobotError) -> anyhow::Error {
 /// `monitor --robot FILE`: every joint of the file, read through the file's buses.
 fn run_robot(path: &std::path::Path, args: &Args, out: Output) -> anyhow::Result<()> {
     let config = RobotConfig::from_toml_file(path).map_err(|e| robot_error(path, e))?;
-    let mut sources = Vec::new();
-    let mut buses = Vec::new();
-    for (name, bus) in &config.buses {
-        let on_bus = || {
-            config
-                .joints
-                .iter()
-                .enumerate()
-                .filter(move |(_, j)| &j.bus == name)
-        };
-        match bus {
-            BusConfig::Wck { port, baud, .. } => {
-                let open =
-                    robobus::robot::open_wck_bus(name, bus).map_err(|e| robot_error(path, e))?;
-                let config = wck_config(*open.config(), args);
-                let servos: Vec<(usize, ServoId, Option<WckScale>)> = on_bus()
-                    .filter_map(|(i, j)| Some((i, ServoId::new(j.id).ok()?, Some(j.wck_scale()))))
-                    .collect();
-                buses.push(format!("{name}: wCK {port} at {baud} bit/s"));
-                sources.push(Source::Wck {
-                    bus: open.with_config(config),
-                    last: vec![None; servos.len()],
-                    servos,
-                });
-            }
-            BusConfig::WhjUdp { .. } | BusConfig::WhjCan { .. } => {
-                let jb = robobus::robot::open_whj_bus(name, bus, whj_config())
-                    .map_err(|e| robot_error(path, e))?;
-                let joints: Vec<(usize, JointId, Option<JointMap>)> = on_bus()
-                    .filter_map(|(i, j)| Some((i, JointId::new(j.id).ok()?, Some(j.map()))))
-                    .collect();
-                connect_joints(&jb, &joints.iter().map(|j| j.1).collect::<Vec<_>>());
-                buses.push(match bus {
-                    BusConfig::WhjCan { iface, .. } => format!("{name}: WHJ {iface}"),
-                    _ => format!("{name}: WHJ UDP"),
-                });
-                sources.push(Source::Whj { bus: jb, joints });
-            }
-            BusConfig::WckExternal { .. } | BusConfig::WhjExternal { .. } => {
-                return Err(usage(format!(
-                    "--robot {}: bus {name} has kind = \"{}\", which a program supplies; \
-                     the monitor opens buses of kind wck, whj-udp and whj-can",
-                    path.display(),
-                    bus.kind()
-                )));
-            }
-        }
-    }
-    let kinds: std::collections::BTreeSet<&str> = config
-        .joints
-        .iter()
-        .filter_map(|j| config.buses.get(&j.bus))
-        .map(|b| if b.is_wck() { "load" } else { "mA" })
-        .collect();
-    let effort_name = match (kinds.contains("mA"), kinds.contains("load")) {
+    let sampler = RobotSampler::open(&config, whj_config(), args.reply_margin)
+        .map_err(|e| robot_error(path, e))?;
+    let joints = sampler.joints();
+    let effort_name = match (joints.iter().any(|j| !j.wck), joints.iter().any(|j| j.wck)) {
         (true, true) => "mA / load",
         (false, true) => "load",
         _ => "current mA",
@@ -830,26 +798,21 @@ fn run_robot(path: &std::path::Path, args: &Args, out: Output) -> anyhow::Result
         format!(
             "{}: {} joints ({})",
             path.display(),
-            config.joints.len(),
-            buses.join("; ")
+            joints.len(),
+            sampler.buses().join("; ")
         ),
         "deg/s",
         effort_name,
-        config.joints.iter().map(|j| {
-            let unit = if config.buses.get(&j.bus).is_some_and(BusConfig::is_wck) {
-                "load"
-            } else {
-                "mA"
-            };
-            (j.name.clone(), unit)
-        }),
+        joints
+            .iter()
+            .map(|j| (j.name.clone(), if j.wck { "load" } else { "mA" })),
         args,
     );
     let d = Dashboard {
         named_joints: true,
         ..d
     };
-    watch(&mut sources, d, args, out)
+    watch(&mut [Source::Robot(sampler)], d, args, out)
 }
 
 fn dashboard(

@@ -57,6 +57,10 @@ pub(crate) struct Args {
     /// usage demo shows a few mA at standstill).
     #[arg(long, default_value_t = 5.0)]
     current_noise_ma: f64,
+    /// Put an end board on the bus too: it answers the end-board field of broadcast
+    /// frames (0xF7 / 0x87) with its own small register map.
+    #[arg(long)]
+    end_board: bool,
     /// Boot straight into the application instead of waiting for `IAP_FLAG := 0`.
     #[arg(long)]
     no_iap: bool,
@@ -151,6 +155,9 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
         cfg
     });
     let mut bus = WhjBus::with_configs(configs, args.seed);
+    if args.end_board {
+        bus = bus.with_end_board();
+    }
     let mut link = args.bus.open()?;
     if let Some(faults) = wire_faults {
         link = Box::new(FaultyFrameLink::new(link, faults));

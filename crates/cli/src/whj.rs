@@ -57,13 +57,21 @@ seconds), results are printed as a table, one row per joint (--json: one JSON ob
 fields carry their units: position_deg, speed_rpm, current_ma). `move` and `wave` send
 exactly the frames their dry run prints, planned from the measured position (a move that
 is too fast for the step limit is split into smaller steps); `wave` reports cycles,
-missing replies, deadline misses, overruns, clamps and tracking against the requested
-target. A joint that does not answer gives exit code 3 (the others are still reported);
+missing replies, deadline misses, overruns, clamps, tracking against the requested
+target and the round trip of each frame to its feedback (p50 / p99 / max, µs). A joint that does not answer gives exit code 3 (the others are still reported);
 `save` is refused while a joint is enabled. `write` follows each register's safety class:
 motion targets and the drive switch are refused with the command to use, calibration,
 bit rates, IAP and brake need --yes. Without --duration, `speed` / `current` leave the
 joint running. Ctrl-C during move, wave, speed or current first brings the joint to the
 --on-stop state, then exits with 130.
+
+--broadcast (status, read, write, wave; joints 1..=7) uses the broadcast protocol: one
+frame for every joint (and with --end-board the end-effector board's own registers)
+instead of one per joint. Each joint is still reported, one that does not answer named;
+broadcast writes follow the same safety classes and are read back by a second frame;
+end-board writes need --yes. Broadcast waves need --rate-hz >= 100 (a joint stops a
+broadcast position stream after 20 ms without a frame). Whether it is worth it (frames
+and wire time per cycle): docs/hardware.md.
 
 With --dry-run every subcommand prints the CAN FD frames it would send, one per line in
 cansend syntax (`001##1020A01`: ID 0x001, FD with bit-rate switch, data 02 0A 01); lines
@@ -168,6 +176,10 @@ enum WhjCommand {
         /// each; a joint that does not answer is named.
         #[arg(long)]
         broadcast: bool,
+        /// With --broadcast: the end board answers the same frame (IO modes and levels,
+        /// buttons, gripper / hand in position, error byte).
+        #[arg(long, requires = "broadcast")]
+        end_board: bool,
     },
     /// Enable the drive (register 0x0A := 1).
     Enable {
@@ -254,20 +266,28 @@ enum WhjCommand {
     },
     /// Read registers by name (`cur_position`, `SYS_TEMP`) or address (`0x14`, `20`).
     Read {
-        /// Joint ID, 1..=30.
-        #[arg(value_parser = parse_joint)]
-        joint: JointId,
+        /// Joint ID, 1..=30 (with --broadcast: joints 1..=7, e.g. `1-7`).
+        #[arg(value_parser = parse_joints)]
+        joints: Joints,
         /// Register name or address (0x00..=0x91).
         #[arg(value_parser = parse_register)]
         register: Register,
         /// Number of registers, 1..=31 (default: 2 for a 32-bit pair, else 1).
         count: Option<u8>,
+        /// Read the register of joints 1..=7 with one broadcast frame (0x0F) instead of
+        /// one request each; a joint that does not answer is named.
+        #[arg(long)]
+        broadcast: bool,
+        /// With --broadcast: also read this register of the end board's own map (name
+        /// or address, e.g. `EB_SW_VERSION` or 0x03).
+        #[arg(long, value_name = "REGISTER", requires = "broadcast", value_parser = parse_end_board_register)]
+        end_board: Option<u8>,
     },
     /// Write a register by name or address, in its unit (degrees, RPM, mA, V, ...).
     Write {
-        /// Joint ID, 1..=30.
-        #[arg(value_parser = parse_joint)]
-        joint: JointId,
+        /// Joint ID, 1..=30 (with --broadcast: joints 1..=7, e.g. `1-7`).
+        #[arg(value_parser = parse_joints)]
+        joints: Joints,
         /// Register name or address (0x00..=0x91).
         #[arg(value_parser = parse_register)]
         register: Register,
@@ -278,6 +298,14 @@ enum WhjCommand {
         /// The value is in raw counts.
         #[arg(long)]
         raw: bool,
+        /// Write the register of joints 1..=7 with one broadcast frame (0x0F), then read
+        /// it back with a second one; a joint that does not answer is named.
+        #[arg(long)]
+        broadcast: bool,
+        /// With --broadcast: also write a register of the end board's own map,
+        /// `REGISTER=VALUE` (e.g. `EB_IO1_MODE=1`, 0x07=3); needs --yes.
+        #[arg(long, value_name = "REGISTER=VALUE", requires = "broadcast", value_parser = parse_end_board_write)]
+        end_board: Option<ops::EndBoardArg>,
     },
     /// List the register table: address, name, unit, range, access, meaning.
     Registers,
@@ -316,6 +344,11 @@ enum WhjCommand {
         /// Frames per second (1..=1000).
         #[arg(long, default_value_t = 200.0, value_parser = parse_frame_rate)]
         rate_hz: f64,
+        /// Send the wave as broadcast frames (0x2F position, 0x4F current; joints
+        /// 1..=7; position waves at --rate-hz >= 100, since a joint stops a broadcast
+        /// position stream after 20 ms without a frame).
+        #[arg(long)]
+        broadcast: bool,
     },
     /// Start the application on joints waiting in the bootloader (`IAP_FLAG` 0x49 := 0).
     ReleaseIap {
@@ -369,6 +402,40 @@ fn parse_register(s: &str) -> Result<Register, String> {
                  SYS_TEMP, cur_position; or an address 0x00..=0x91)"
             )
         })
+}
+
+fn parse_end_board_register(s: &str) -> Result<u8, String> {
+    let t = s.trim();
+    if let Ok(v) = crate::wck::parse_u32(t) {
+        return u8::try_from(v)
+            .ok()
+            .filter(|a| *a < 0x80)
+            .ok_or_else(|| format!("end-board register {v:#x} is out of range 0x00..=0x7F"));
+    }
+    robobus_whj::broadcast::EndBoardRegister::by_name(t)
+        .map(|r| r.addr)
+        .ok_or_else(|| {
+            format!(
+                "no end-board register is named `{t}` (names: {})",
+                robobus_whj::broadcast::END_BOARD_REGISTERS
+                    .iter()
+                    .map(|r| r.name)
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )
+        })
+}
+
+fn parse_end_board_write(s: &str) -> Result<ops::EndBoardArg, String> {
+    let (reg, value) = s
+        .split_once('=')
+        .ok_or_else(|| format!("`{s}` is not REGISTER=VALUE (e.g. EB_IO1_MODE=1)"))?;
+    let v = crate::wck::parse_u32(value.trim())?;
+    let value = u16::try_from(v).map_err(|_| format!("value {v} is out of range 0..=65535"))?;
+    Ok(ops::EndBoardArg {
+        addr: parse_end_board_register(reg)?,
+        value: Some(value),
+    })
 }
 
 fn parse_finite(s: &str) -> Result<f64, String> {
@@ -493,6 +560,7 @@ fn wave_args(c: &WhjCommand) -> Option<WaveArgs> {
         offset,
         duration,
         rate_hz,
+        ..
     } = c
     else {
         return None;
@@ -523,9 +591,11 @@ fn whj_run(args: &Args) -> WhjRun {
     match c {
         WhjCommand::Scan { joints } => WhjRun::Scan(joints.0.clone()),
         WhjCommand::Info { joint } => WhjRun::Info(*joint),
-        WhjCommand::Status { joints, broadcast } if *broadcast => {
-            WhjRun::BroadcastStatus(joints.0.clone())
-        }
+        WhjCommand::Status {
+            joints,
+            broadcast: true,
+            end_board,
+        } => WhjRun::BroadcastStatus(joints.0.clone(), *end_board),
         WhjCommand::Status { joints, .. } => WhjRun::Status(joints.0.clone()),
         WhjCommand::Enable { joints } => WhjRun::Enable(joints.0.clone(), true),
         WhjCommand::Disable { joints } => WhjRun::Enable(joints.0.clone(), false),
@@ -556,32 +626,40 @@ fn whj_run(args: &Args) -> WhjRun {
         WhjCommand::Clear { joints } => WhjRun::Clear(joints.0.clone()),
         WhjCommand::Save { joints } => WhjRun::Save(joints.0.clone()),
         WhjCommand::Read {
-            joint,
+            joints,
             register,
             count,
+            broadcast,
+            end_board,
         } => WhjRun::Read {
-            joint: *joint,
+            joints: joints.0.clone(),
             addr: register.addr,
             count: *count,
+            broadcast: *broadcast,
+            end_board: *end_board,
         },
         WhjCommand::Write {
-            joint,
+            joints,
             register,
             value,
             raw,
+            broadcast,
+            end_board,
         } => WhjRun::Write {
-            joint: *joint,
+            joints: joints.0.clone(),
             addr: register.addr,
             // Validated by the plan (a finite number).
             value: value.trim().parse().unwrap_or(0.0),
             raw: *raw,
             scale: args.model.map(ModelArg::scale),
+            broadcast: *broadcast,
+            end_board: *end_board,
         },
         // Handled before a plan is made.
         WhjCommand::Registers => WhjRun::Status(Vec::new()),
         WhjCommand::SetId { joint, new_id } => WhjRun::SetId(*joint, *new_id),
-        WhjCommand::Wave { .. } => match wave_args(c) {
-            Some(w) => WhjRun::Wave(w),
+        WhjCommand::Wave { broadcast, .. } => match wave_args(c) {
+            Some(w) => WhjRun::Wave(w, *broadcast),
             None => WhjRun::Status(Vec::new()),
         },
         WhjCommand::ReleaseIap { joints } => WhjRun::ReleaseIap(joints.0.clone()),
@@ -652,20 +730,29 @@ fn plan(args: &Args, dry_run: bool) -> anyhow::Result<WhjPlan> {
             p.push(Request::StatusQuery { joint: *joint });
             p
         }
-        WhjCommand::Status { joints, broadcast } if *broadcast => {
-            let mask = ops::reply_mask(&joints.0)?;
+        WhjCommand::Status {
+            joints,
+            broadcast: true,
+            end_board,
+        } => {
+            let mask = ops::reply_mask_with(&joints.0, *end_board)?;
             let mut p = WhjPlan::default();
             p.push(Request::BroadcastStatus(
                 robobus_whj::broadcast::BroadcastStatus::new(mask),
             ));
             p.notes.push(format!(
-                "one broadcast status query, reply mask {:#X} (joints {}); a real run \
+                "one broadcast status query, reply mask {:#X} (joints {}{}); a real run \
                  connects each joint first",
                 mask.get(),
                 mask.joints()
                     .map(|j| j.get().to_string())
                     .collect::<Vec<_>>()
-                    .join(",")
+                    .join(","),
+                if mask.selects_end_board() {
+                    " and the end board"
+                } else {
+                    ""
+                }
             ));
             p
         }
@@ -718,10 +805,24 @@ fn plan(args: &Args, dry_run: bool) -> anyhow::Result<WhjPlan> {
             p
         }
         WhjCommand::Read {
-            joint,
+            joints,
             register,
             count,
+            broadcast: true,
+            end_board,
+        } => broadcast_plan(&ops::plan_broadcast_read(
+            &joints.0,
+            register.addr,
+            *count,
+            *end_board,
+        )?),
+        WhjCommand::Read {
+            joints,
+            register,
+            count,
+            ..
         } => {
+            let joint = &one_joint(joints, "read")?;
             let count = count.unwrap_or(match register.info.map(|i| i.half) {
                 Some(Half::Low) => 2,
                 _ => 1,
@@ -733,10 +834,12 @@ fn plan(args: &Args, dry_run: bool) -> anyhow::Result<WhjPlan> {
             p
         }
         WhjCommand::Write {
-            joint,
+            joints,
             register,
             value,
             raw,
+            broadcast,
+            end_board,
         } => {
             let name = register.info.map_or("reserved register", |i| i.name);
             let v: f64 = value
@@ -752,6 +855,17 @@ fn plan(args: &Args, dry_run: bool) -> anyhow::Result<WhjPlan> {
             } else {
                 CurrentScale::OneMilliamp
             };
+            if *broadcast {
+                return Ok(broadcast_plan(&ops::plan_broadcast_write(
+                    &joints.0,
+                    register.addr,
+                    v,
+                    *raw,
+                    &|_| scale,
+                    *end_board,
+                )?));
+            }
+            let joint = &one_joint(joints, "write")?;
             let req = ops::write_request(*joint, register.addr, v, *raw, scale)?;
             let mut p = WhjPlan::default();
             p.push(req);
@@ -777,7 +891,9 @@ fn plan(args: &Args, dry_run: bool) -> anyhow::Result<WhjPlan> {
             ));
             p
         }
-        WhjCommand::Wave { mode, .. } => {
+        WhjCommand::Wave {
+            mode, broadcast, ..
+        } => {
             let scale = if *mode == WaveMode::Current {
                 current_scale(args, dry_run, "wave --mode current")?
             } else {
@@ -786,10 +902,36 @@ fn plan(args: &Args, dry_run: bool) -> anyhow::Result<WhjPlan> {
             let Some(w) = wave_args(&args.command) else {
                 return Ok(WhjPlan::default());
             };
-            WhjPlan::of(&ops::plan_wave(&w, 0.0, scale, true)?)
+            if *broadcast {
+                WhjPlan::of(&ops::plan_broadcast_wave(&w, 0.0, scale, true)?)
+            } else {
+                WhjPlan::of(&ops::plan_wave(&w, 0.0, scale, true)?)
+            }
         }
         WhjCommand::ReleaseIap { joints } => each(joints, Request::start_application),
     })
+}
+
+/// The one joint of a command without --broadcast.
+fn one_joint(joints: &Joints, what: &str) -> anyhow::Result<JointId> {
+    match joints.0.as_slice() {
+        [one] => Ok(*one),
+        _ => Err(usage(format!(
+            "{what} <JOINT>: one joint without --broadcast (got {}); with --broadcast, \
+             joints 1..=7 share one frame",
+            joints.0.len()
+        ))),
+    }
+}
+
+/// A broadcast register plan: its frames and notes.
+fn broadcast_plan(b: &ops::BroadcastPlan) -> WhjPlan {
+    let mut p = WhjPlan::default();
+    for f in &b.frames {
+        p.push(*f);
+    }
+    p.notes.clone_from(&b.notes);
+    p
 }
 
 /// A speed or current target: the frame, and target 0 after `--duration`.

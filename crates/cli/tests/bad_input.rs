@@ -177,6 +177,50 @@ fn whj_values_out_of_range_are_refused_before_anything_is_opened() {
             &["--frequency", "100", "0.01..="],
         );
         refused(&with(&["mode", "1", "torque"]), &["torque", "position"]);
+        // Broadcast: joints 1..=7 only, one joint without it, end-board registers checked.
+        refused(
+            &with(&["read", "--broadcast", "1-8", "sys_temp"]),
+            &["--broadcast JOINTS", "8", "1..=7"],
+        );
+        refused(
+            &with(&["read", "1-2", "sys_temp"]),
+            &["one joint", "--broadcast"],
+        );
+        refused(
+            &with(&[
+                "read",
+                "--broadcast",
+                "1",
+                "sys_temp",
+                "--end-board",
+                "0x80",
+            ]),
+            &["--end-board", "0x80", "0x00..=0x7F"],
+        );
+        refused(
+            &with(&[
+                "write",
+                "--broadcast",
+                "1",
+                "tag_work_mode",
+                "3",
+                "--end-board",
+                "eb_sw_version=1",
+            ]),
+            &["--end-board", "EB_SW_VERSION", "not a writable"],
+        );
+        refused(
+            &with(&["write", "--broadcast", "1-2", "sys_dema_abspos", "1"]),
+            &["SYS_DEMA_ABSPOS", "never"],
+        );
+        for (extra, want) in [
+            (["--mode", "speed"], ["--broadcast", "speed", "0x2F"]),
+            (["--rate-hz", "50"], ["--rate-hz", "50", "100..=1000"]),
+        ] {
+            let mut args = with(&["wave", "1", "--amplitude", "1", "--broadcast"]);
+            args.extend_from_slice(&extra);
+            refused(&args, &want);
+        }
     }
     refused(
         &["whj", "--bus", "udp:1.2.3.4:5", "--dry-run", "enable", "1"],
@@ -195,9 +239,11 @@ fn execution_opens_the_port_and_names_it_when_it_is_missing() {
     assert!(r.stderr.contains(PORT), "{}", r.stderr);
     assert!(r.stderr.contains("does not exist"), "{}", r.stderr);
     // WHJ runs through the client too: a SocketCAN interface that does not exist is
-    // "no device" (exit 3), and the message names it.
+    // "no device" (exit 3) on a kernel with SocketCAN, "not available" (4) on one without
+    // (see `socketcan_on_a_kernel_without_it_is_exit_4_naming_the_interface`), and the
+    // message names it.
     let r = robobus(&["whj", "--bus", "vcan99", "enable", "1"]);
-    assert_eq!(r.code, Some(3), "{r:#?}");
+    assert_eq!(r.code, Some(missing_can_interface()), "{r:#?}");
     assert!(r.stderr.contains("vcan99"), "{}", r.stderr);
     // Without --dry-run the port / bus is required.
     let r = robobus(&["wck", "move", "3", "127"]);
@@ -206,6 +252,38 @@ fn execution_opens_the_port_and_names_it_when_it_is_missing() {
     let r = robobus(&["whj", "enable", "1"]);
     assert_eq!(r.code, Some(2), "{r:#?}");
     assert!(r.stderr.contains("--bus"), "{}", r.stderr);
+}
+
+/// The exit code of opening a SocketCAN interface that does not exist: 3 (no device) on a
+/// kernel with SocketCAN, 4 (not available) on one without.
+fn missing_can_interface() -> i32 {
+    if robobus_link::socketcan::kernel_has_can() {
+        3
+    } else {
+        4
+    }
+}
+
+/// Exit code 4 end to end: a SocketCAN bus on a kernel without SocketCAN (`socket(AF_CAN)`
+/// fails with EAFNOSUPPORT, as on the development machine, whose CAN tests run in
+/// User-Mode Linux). Nothing is opened; the message names the interface and says what
+/// is missing. On a kernel with SocketCAN the same command is a missing interface (3).
+#[test]
+fn socketcan_on_a_kernel_without_it_is_exit_4_naming_the_interface() {
+    let r = robobus(&["whj", "--bus", "vcan0", "status", "1"]);
+    assert!(r.stdout.is_empty(), "{r:#?}");
+    assert!(r.stderr.contains("vcan0"), "{}", r.stderr);
+    if robobus_link::socketcan::kernel_has_can() {
+        assert_eq!(r.code, Some(3), "{r:#?}");
+        assert!(r.stderr.contains("ip link"), "{}", r.stderr);
+    } else {
+        assert_eq!(r.code, Some(4), "{r:#?}");
+        assert!(
+            r.stderr.contains("no SocketCAN support") && r.stderr.contains("EAFNOSUPPORT"),
+            "{}",
+            r.stderr
+        );
+    }
 }
 
 #[test]
@@ -217,7 +295,10 @@ fn memory_rewrites_need_confirmation_without_a_terminal() {
             &["wck", "--port", PORT, "set", "gains", "3", "30", "20"][..],
             3,
         ),
-        (&["whj", "--bus", "vcan99", "save", "1"][..], 3),
+        (
+            &["whj", "--bus", "vcan99", "save", "1"][..],
+            missing_can_interface(),
+        ),
     ] {
         let r = robobus(args);
         assert_eq!(r.code, Some(2), "{args:?}: {r:#?}");

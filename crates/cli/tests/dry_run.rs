@@ -255,12 +255,15 @@ fn whj_move_steps_to_the_target_and_ends_on_it() {
     // The plan is the library's smooth profile (the one a real run sends): a status query
     // (the real run plans from the position it reads), then one frame per period, never
     // faster than --max-speed, the last exactly on the target.
-    // 0 -> 0.2 deg at 10 deg/s (acceleration 40 deg/s^2), 100 Hz: 20 frames.
+    // 0 -> 0.2 deg at 10 deg/s (acceleration 40 deg/s^2), 100 Hz: the speed changes by
+    // 0.4 deg/s a frame, so the move is 50 units of 0.004 deg; speeds of 1, 2, .., 7, .., 1
+    // units cover 49, one more frame the 50th: 14 frames.
     let frames = whj(&["move", "1", "0.2", "--from", "0", "--rate-hz", "100"]);
-    assert_eq!(frames.len(), 21, "{frames:?}");
+    assert_eq!(frames.len(), 1 + 14, "{frames:?}");
     assert_eq!(frames[0], "601##1");
     assert_eq!(frames.last().unwrap(), "201##1D0070000");
-    // The usage demo's 30 deg target: E0 93 04 00 ends the move.
+    // The usage demo's 30 deg target: E0 93 04 00 ends the move. 20 deg/s (80 deg/s^2) at
+    // 200 Hz: 0.4 deg/s a frame, 0.1 deg = 50 units of 0.002 deg: again 14 frames.
     let frames = whj(&[
         "move",
         "1",
@@ -273,7 +276,7 @@ fn whj_move_steps_to_the_target_and_ends_on_it() {
         "200",
     ]);
     assert_eq!(frames.last().unwrap(), "201##1E0930400");
-    assert!(frames.len() < 40, "{frames:?}");
+    assert_eq!(frames.len(), 1 + 14, "{frames:?}");
     // Without --from the dry run says what it assumed.
     let out = ok(&["whj", "--dry-run", "move", "1", "1"]);
     assert!(out.contains("# start angle assumed 0 deg"), "{out}");

@@ -341,6 +341,9 @@ fn whj_e2e_wave_speed_current_and_interrupt() {
     // Complete cycles are counted (the rate is the benchmark's business: a loaded
     // machine running a debug build misses some).
     assert!(f(&stats["complete"]) > 0.0, "{stats}");
+    // The round trip of the answered frames, send to feedback, in µs.
+    let rt = ["p50", "p99", "max"].map(|p| f(&stats[format!("round_trip_{p}_us")]));
+    assert!(rt[0] > 0.0 && rt.is_sorted_by(|a, b| a <= b), "{stats}");
 
     // Square wave, plain text with a summary.
     let out = sim.whj(&[
@@ -698,4 +701,173 @@ fn whj_e2e_capture_on_both_sides_replays_with_meanings() {
             "{what}: {text}"
         );
     }
+}
+
+/// A CAN FD frame in cansend syntax without its flags nibble (a candump log adds the FD
+/// flag to it): `00F##<data>`.
+fn id_and_data(frame: &str) -> String {
+    match frame.split_once("##") {
+        Some((id, rest)) => format!("{id}##{}", rest.get(1..).unwrap_or("")),
+        None => frame.to_owned(),
+    }
+}
+
+/// The 0x0F frames (only the host sends them) of a candump log.
+fn register_broadcasts(log: &std::path::Path) -> Vec<String> {
+    std::fs::read_to_string(log)
+        .unwrap()
+        .lines()
+        .filter_map(|l| l.split_whitespace().nth(2))
+        .filter(|f| f.starts_with("00F##"))
+        .map(id_and_data)
+        .collect()
+}
+
+/// The frames of a dry run's text, in cansend syntax.
+fn dry_frames(args: &[&str]) -> Vec<String> {
+    let mut all = vec!["whj", "--dry-run"];
+    all.extend_from_slice(args);
+    let r = common::robobus(&all);
+    assert_eq!(r.code, Some(0), "{r:?}");
+    r.stdout
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(id_and_data)
+        .collect()
+}
+
+#[test]
+fn whj_e2e_broadcast_registers_with_the_end_board() {
+    if !in_netns("whj_e2e_broadcast_registers_with_the_end_board") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let sim = Sim::start(
+        "udp:239.74.163.17:43127",
+        &["--end-board", "--fault-silent", "3@0"],
+    );
+    // One 0x0F frame reads SYS_TEMP on joints 1..4 and the end board's version; joint 3
+    // is silent: every slot is reported, joint 3 as no-device, exit code 3.
+    let read = [
+        "read",
+        "--broadcast",
+        "1-4",
+        "SYS_TEMP",
+        "--end-board",
+        "EB_SW_VERSION",
+    ];
+    let log = dir.path().join("read.log");
+    let mut args = vec!["--json", "--capture", log.to_str().unwrap()];
+    args.extend_from_slice(&read);
+    let r = sim.whj(&args);
+    assert_eq!(r.code, Some(3), "{r:?}");
+    let doc: Value = serde_json::from_str(&r.stdout).unwrap();
+    let rows = doc["results"].as_array().unwrap();
+    assert_eq!(rows.len(), 5, "{rows:?}");
+    for k in [0, 1, 3] {
+        assert_eq!(rows[k]["unit"], "°C", "{rows:?}");
+        assert!((0.0..100.0).contains(&f(&rows[k]["value"])), "{rows:?}");
+    }
+    assert_eq!(
+        (rows[2]["joint"].as_u64(), &rows[2]["kind"]),
+        (Some(3), &Value::from("no-device"))
+    );
+    assert_eq!(rows[4]["joint"], "end-board");
+    assert_eq!(
+        (f(&rows[4]["raw"]), &rows[4]["register"]),
+        (515.0, &Value::from("EB_SW_VERSION"))
+    );
+    // The real run sent exactly the dry run's frame.
+    assert_eq!(register_broadcasts(&log), dry_frames(&read));
+
+    // A broadcast write: refused without --yes when the end board is written (nothing is
+    // opened), then confirmed: written and read back in a second frame.
+    let write = [
+        "write",
+        "--broadcast",
+        "1-2",
+        "TAG_WORK_MODE",
+        "3",
+        "--end-board",
+        "EB_IO1_MODE=1",
+    ];
+    let r = sim.whj(&write);
+    assert_eq!(r.code, Some(2), "{r:?}");
+    assert!(r.stderr.contains("--yes"), "{}", r.stderr);
+    let log = dir.path().join("write.log");
+    let mut args = vec!["--yes", "--capture", log.to_str().unwrap()];
+    args.extend_from_slice(&write);
+    let w = sim.json(&args);
+    assert_eq!(w.len(), 3, "{w:?}");
+    assert!(
+        w[..2]
+            .iter()
+            .all(|r| r["raw"] == 3 && r["register"] == "TAG_WORK_MODE"),
+        "{w:?}"
+    );
+    assert_eq!(
+        (w[2]["joint"].as_str(), f(&w[2]["raw"])),
+        (Some("end-board"), 1.0)
+    );
+    assert_eq!(register_broadcasts(&log), dry_frames(&write));
+    // The end board answers a status query in the same frame as the joints: IO1 is now an
+    // output.
+    let st = sim.json(&["status", "--broadcast", "1-2", "--end-board"]);
+    assert_eq!(st.len(), 3, "{st:?}");
+    assert_eq!(
+        (&st[2]["joint"], &st[2]["io1_output"]),
+        (&Value::from("end-board"), &Value::from(true))
+    );
+    assert_eq!(st[2]["io2_output"], false, "{st:?}");
+    // A dangerous register is refused before anything is sent, broadcast or not.
+    let r = sim.whj(&["write", "--broadcast", "1-2", "SYS_DEMA_ABSPOS", "1"]);
+    assert_eq!(r.code, Some(2), "{r:?}");
+}
+
+#[test]
+fn whj_e2e_broadcast_wave_and_monitor() {
+    if !in_netns("whj_e2e_broadcast_wave_and_monitor") {
+        return;
+    }
+    let sim = Sim::start("udp:239.74.163.18:43128", &["--fault-silent", "3@0"]);
+    // A wave as broadcast position frames, and the monitor sampling by 0x7F.
+    let wv = sim.json(&[
+        "wave",
+        "1",
+        "--broadcast",
+        "--amplitude",
+        "1",
+        "--duration",
+        "0.3",
+    ]);
+    assert_eq!(f(&wv[0]["cycles"]), 60.0, "{wv:?}");
+    assert_eq!(wv[0]["stale"], false, "{wv:?}");
+    let r = common::robobus(&[
+        "--json",
+        "monitor",
+        "--bus",
+        "udp:239.74.163.18:43128",
+        "--broadcast",
+        "--joints",
+        "1-3",
+        "--rate-hz",
+        "10",
+        "--duration",
+        "1",
+    ]);
+    // Joint 3 stays silent: exit 3, its values null and stale, the others fresh.
+    assert_eq!(r.code, Some(3), "{r:?}");
+    let last: Value = serde_json::from_str(r.stdout.lines().last().unwrap()).unwrap();
+    let ch = last["channels"].as_array().unwrap();
+    assert!(
+        ch[0]["position_deg"].is_f64() && ch[1]["position_deg"].is_f64(),
+        "{ch:?}"
+    );
+    assert_eq!(
+        (ch[2]["stale"].as_bool(), ch[2]["position_deg"].is_null()),
+        (Some(true), true)
+    );
+    let r = common::robobus(&["monitor", "--bus", "udp", "--broadcast", "--joints", "8"]);
+    assert_eq!(r.code, Some(2), "{r:?}");
+    assert!(r.stderr.contains("1..=7"), "{}", r.stderr);
 }

@@ -30,7 +30,8 @@ impl SerialLink {
     /// Opens `path` at `baud`, 8N1, no flow control, exclusive.
     ///
     /// Errors name the path: [`LinkError::NoSuchDevice`], [`LinkError::Busy`],
-    /// [`LinkError::PermissionDenied`], or [`LinkError::Io`].
+    /// [`LinkError::PermissionDenied`], [`LinkError::UnsupportedBaud`] (the port runs at
+    /// another rate than `baud`, more than 2 % off), or [`LinkError::Io`].
     pub fn open(path: impl AsRef<Path>, baud: u32) -> Result<Self, LinkError> {
         let path = path.as_ref().to_path_buf();
         match std::fs::metadata(&path) {
@@ -59,7 +60,25 @@ impl SerialLink {
             .exclusive(true)
             .open_native()
             .map_err(|e| map_open_error(&path, &e))?;
-        Ok(Self { port, path, baud })
+        let link = Self { port, path, baud };
+        link.check_baud(baud)?;
+        Ok(link)
+    }
+
+    /// Refuses a rate the port did not take: a UART whose clock cannot make it runs at
+    /// another rate without an error (an 8250 with a 115200 bit/s base clock asked for
+    /// 921600), and every reply would then be lost for a reason no one could see.
+    fn check_baud(&self, baud: u32) -> Result<(), LinkError> {
+        match self.port.baud_rate() {
+            Ok(actual) if !baud_close_enough(baud, actual) => Err(LinkError::UnsupportedBaud {
+                baud,
+                context: format!(
+                    "{} (it runs at {actual} bit/s instead)",
+                    self.path.display()
+                ),
+            }),
+            _ => Ok(()),
+        }
     }
 
     /// The path the port was opened with.
@@ -177,6 +196,7 @@ impl ByteLink for SerialLink {
                 baud,
                 context: format!("{} ({e})", self.path.display()),
             })?;
+        self.check_baud(baud)?;
         self.baud = baud;
         Ok(())
     }
@@ -184,6 +204,13 @@ impl ByteLink for SerialLink {
     fn baud(&self) -> Option<u32> {
         Some(self.baud)
     }
+}
+
+/// Whether a port running at `actual` bit/s talks to one at `asked`: within 2 % (what
+/// asynchronous serial tolerates; USB adapters round a rate to their divider, e.g. an FTDI
+/// chip makes 921600 as 923077).
+fn baud_close_enough(asked: u32, actual: u32) -> bool {
+    u64::from(asked.abs_diff(actual)) * 50 <= u64::from(asked)
 }
 
 /// The sysfs directory where Linux lists USB-serial ports.
@@ -244,6 +271,16 @@ pub fn set_latency_timer_at(sysfs: &Path, path: &Path, ms: u32) -> Result<(), Li
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_rate_the_port_changed_is_refused_a_divider_rounding_is_not() {
+        assert!(baud_close_enough(921_600, 921_600));
+        assert!(baud_close_enough(921_600, 923_077)); // FTDI's divider
+        assert!(baud_close_enough(115_200, 117_504)); // +2.0 %
+        assert!(!baud_close_enough(115_200, 117_600)); // +2.1 %
+        assert!(!baud_close_enough(921_600, 115_200)); // an 8250's base clock
+        assert!(!baud_close_enough(4_800, 0));
+    }
 
     #[test]
     fn latency_timer_resolves_symlinks_and_reads_sysfs() {

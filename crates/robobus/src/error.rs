@@ -14,7 +14,7 @@
 //! | [`ErrorKind::Interrupted`] | stopped by the caller's stop token; devices were brought to the chosen safe state | 130 |
 //! | [`ErrorKind::NotAvailable`] | the operation needs something this build or machine does not have | 4 |
 
-use robobus_link::LinkError;
+use robobus_link::{FrameLinkError, LinkError, OpenError};
 use serde::Serialize;
 
 use crate::actuator::ActuatorError;
@@ -71,6 +71,22 @@ pub fn link_error_kind(e: &LinkError) -> ErrorKind {
         LinkError::Timeout { .. } | LinkError::NoSuchDevice { .. } => ErrorKind::NoDevice,
         LinkError::UnsupportedBaud { .. } => ErrorKind::NotAvailable,
         _ => ErrorKind::Link,
+    }
+}
+
+/// The kind of a bus that cannot be opened ([`robobus_link::FrameLinkSpec::open`]): a
+/// kernel without SocketCAN (or an OS without the bus) is [`ErrorKind::NotAvailable`], an
+/// interface that is missing or unusable [`ErrorKind::NoDevice`], a UDP bus that cannot be
+/// joined [`ErrorKind::Link`].
+pub const fn open_error_kind(e: &OpenError) -> ErrorKind {
+    match e {
+        OpenError::NoInterface {
+            source: FrameLinkError::NoCanSupport { .. },
+            ..
+        }
+        | OpenError::Unsupported(_) => ErrorKind::NotAvailable,
+        OpenError::NoInterface { .. } => ErrorKind::NoDevice,
+        OpenError::Udp { .. } => ErrorKind::Link,
     }
 }
 

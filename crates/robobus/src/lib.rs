@@ -98,6 +98,7 @@ pub mod actuator;
 #[cfg(feature = "sim")]
 pub mod demo;
 pub mod error;
+pub mod motion;
 pub mod ops;
 pub mod robot;
 pub mod wck;

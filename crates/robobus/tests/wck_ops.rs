@@ -328,3 +328,93 @@ fn a_shared_bus_serves_servo_handles_on_other_threads() {
     });
     assert!(report.unwrap().results[0].is_ok());
 }
+
+/// A timed wheel run stopped halfway leaves the servo in the chosen safe state (one
+/// `SafeState::apply` for the operations and the robot watchdog).
+#[test]
+fn a_stopped_wheel_run_leaves_the_servo_in_each_safe_state() {
+    use robobus_sim::wck::Mode;
+    for (state, mode, says) in [
+        (SafeState::Passive, Mode::Passive, "servo(s) 1 passive"),
+        (SafeState::Break, Mode::Break, "servo(s) 1 braked"),
+        (SafeState::Hold, Mode::Position, "servo(s) 1 holding"),
+    ] {
+        let mut sim = serve_ids(&[0, 1]);
+        let mut bus = sim.bus();
+        let args = WheelArgs {
+            id: id(1),
+            rotation: Rotation::Ccw,
+            speed: WheelSpeed::new(10).unwrap(),
+            duration: Some(Duration::from_secs(20)),
+            on_stop: state,
+        };
+        // Stopped after the watch read at 400 ms of the 20 s run (the virtual clock).
+        let stop = StopToken::new();
+        let stopper = stop.clone();
+        let mut on_progress = |p: &Progress| {
+            if p.done >= 400 {
+                stopper.stop();
+            }
+        };
+        let mut control = Control::new(&stop).with_progress(&mut on_progress);
+        let err = wck::wheel(&mut bus, &args, &mut control).unwrap_err();
+        drop(control);
+        assert!(sim.now() < Duration::from_secs(1), "{:?}", sim.now());
+        assert_eq!(err.kind(), ErrorKind::Interrupted);
+        assert_eq!(err.to_string(), format!("interrupted: {says}"));
+        let (mode_now, mode_other) = sim.with_bus(|b| {
+            let m = |id| b.servo(b.slot_of(id).unwrap()).unwrap().mode();
+            (m(1), m(0))
+        });
+        assert_eq!(mode_now, mode, "{state:?}");
+        // The break is one broadcast: servo 0 brakes too; otherwise it is left alone.
+        let other = if state == SafeState::Break {
+            Mode::Break
+        } else {
+            Mode::Passive
+        };
+        assert_eq!(mode_other, other, "{state:?}");
+    }
+}
+
+/// `SafeState::apply` tries every servo past a silent one and names each failure.
+#[test]
+fn the_safe_state_reaches_every_servo_past_a_silent_one() {
+    use robobus::ops::safe::{SafeDevice, WckServos};
+    use robobus_sim::wck::Mode;
+    let mut sim = serve_ids(&[0, 2]);
+    let mut bus = sim.bus();
+    sim.with_bus(|b| {
+        for id in [0, 2] {
+            let slot = b.slot_of(id).unwrap();
+            assert_eq!(b.servo(slot).unwrap().mode(), Mode::Passive);
+        }
+    });
+    // Hold first (every module is passive at power-up): servos 0 and 2 go to position
+    // control, servo 1 does not answer.
+    let ids = [id(0), id(1), id(2)];
+    let failed = SafeState::Hold.apply(&mut WckServos {
+        bus: &mut bus,
+        ids: &ids,
+        torque: TorqueLevel::MIN,
+    });
+    let devices: Vec<SafeDevice> = failed.iter().map(|f| f.device).collect();
+    assert_eq!(devices, [SafeDevice::Servo(1)]);
+    assert_eq!(failed[0].error.kind(), ErrorKind::NoDevice, "{}", failed[0]);
+    assert!(
+        failed[0].to_string().starts_with("servo 1: "),
+        "{}",
+        failed[0]
+    );
+    let modes = sim.with_bus(|b| [0, 2].map(|id| b.servo(b.slot_of(id).unwrap()).unwrap().mode()));
+    assert_eq!(modes, [Mode::Position, Mode::Position]);
+    // Passive: the same, back to passive.
+    let failed = SafeState::Passive.apply(&mut WckServos {
+        bus: &mut bus,
+        ids: &ids,
+        torque: TorqueLevel::MIN,
+    });
+    assert_eq!(failed.len(), 1);
+    let modes = sim.with_bus(|b| [0, 2].map(|id| b.servo(b.slot_of(id).unwrap()).unwrap().mode()));
+    assert_eq!(modes, [Mode::Passive, Mode::Passive]);
+}

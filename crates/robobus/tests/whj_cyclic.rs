@@ -121,7 +121,7 @@ fn seven_joints_point_to_point_far_targets_become_smooth_moves() {
     let stats = cyc.stop();
     assert!(!bus.cyclic_running());
     eprintln!("point-to-point stats: {stats:#?}");
-    all_complete(&stats, 384);
+    all_complete(&stats, 387);
     assert_eq!(stats.round_trip.samples as u64, stats.complete);
     assert!(stats.round_trip.p50 > Duration::ZERO && stats.round_trip.p50 <= stats.round_trip.p99);
     assert!(stats.round_trip.p99 <= stats.round_trip.max);
@@ -499,4 +499,56 @@ fn a_lost_feedback_frame_costs_one_more_cycle_then_feedback_is_matched_again() {
     assert!(reports[7..].iter().all(|r| !r.missed), "{reports:?}");
     assert_matched(&reports, base);
     assert_eq!(stats.late_replies, 1, "{stats:?}");
+}
+
+/// The owning form of the loop crosses threads: it holds an `Arc` of the bus, runs on a
+/// thread of its own while the caller's bus handle is gone, and stops when that thread
+/// drops it.
+#[test]
+fn an_owned_loop_runs_on_another_thread() {
+    fn send_static<T: Send + 'static>(t: T) -> T {
+        t
+    }
+    let (bus, _sim) = virtual_bus(chain(2));
+    let bus = std::sync::Arc::new(bus);
+    let joints = ids(2);
+    ready(&bus, &joints, WorkMode::Position);
+    let cyc = send_static(
+        bus.cyclic_owned(CyclicConfig::position(
+            joints.clone(),
+            Duration::from_millis(4),
+        ))
+        .unwrap(),
+    );
+    let watcher = std::sync::Arc::downgrade(&bus);
+    let check = std::sync::Arc::clone(&bus);
+    drop(bus);
+    // The loop keeps the bus alive and running after the caller's last handle is gone.
+    assert!(watcher.upgrade().is_some());
+    assert!(check.cyclic_running());
+    drop(check);
+    let worker = std::thread::spawn(move || {
+        cyc.set_positions(&[deg(2.0), deg(-3.0)]).unwrap();
+        let mut last = complete_cycle(&cyc);
+        for _ in 0..200 {
+            let at: Vec<f64> = last
+                .feedback
+                .iter()
+                .map(|f| f.as_ref().unwrap().position.degrees())
+                .collect();
+            if (at[0] - 2.0).abs() < 0.05 && (at[1] + 3.0).abs() < 0.05 {
+                return (at, cyc.stop());
+            }
+            last = complete_cycle(&cyc);
+        }
+        panic!("never reached the targets: {last:?}");
+    });
+    let (at, stats) = worker.join().unwrap();
+    assert!(
+        (at[0] - 2.0).abs() < 0.05 && (at[1] + 3.0).abs() < 0.05,
+        "{at:?}"
+    );
+    assert_eq!(stats.complete, stats.cycles, "{stats:?}");
+    // Stopped with the thread's handle; the bus went with it (no handle is left).
+    assert!(watcher.upgrade().is_none());
 }

@@ -321,3 +321,45 @@ fn firmware_before_the_broadcast_gate_ignores_broadcast_frames() {
     let replies = bus.request(position_frame(targets, 0x01));
     assert_eq!(ids(&replies), vec![0x84, 0x85]);
 }
+
+#[test]
+fn the_end_board_answers_its_field_when_the_mask_selects_it() {
+    let mut bus = arm().with_end_board();
+    // The worked example: 0x7F `02 07 01 03 00…`, mask E (tool power := 24 V) -> 0x87
+    // `counter 00 00 00 00 02 07 01 01`; no joint answers.
+    let mut d = [0u8; 24];
+    d[..4].copy_from_slice(&[2, 7, 1, 3]);
+    d[23] = 0x0E;
+    let r = bus.request(frame(0x7F, &d));
+    assert_eq!(ids(&r), [0x87]);
+    assert_eq!(r[0].frame.data()[1..9], [0, 0, 0, 0, 2, 7, 1, 1]);
+    assert_eq!(r[0].frame.data()[0], 1);
+    assert_eq!(bus.end_board().unwrap().register(7), 3);
+    // 0x0F with D50.. `02 1D 01 01` (IO1 := output), mask F: seven joints stay silent (no
+    // operation in their slots), the end board answers on 0xF7 with status0 bit 7 set.
+    let mut d = [0xFFu8; 64];
+    d[50..54].copy_from_slice(&[2, 0x1D, 1, 1]);
+    d[63] = 0x0F;
+    let r = bus.request(frame(0x0F, &d));
+    assert_eq!(ids(&r), [0xF7]);
+    assert_eq!(r[0].frame.data()[..9], [2, 0x80, 0, 0, 0, 2, 0x1D, 1, 1]);
+    // A read of the software version with J1 reading its temperature: both answer.
+    let mut d = [0xFFu8; 64];
+    d[..7].copy_from_slice(&[4, 1, 0x06, 1, 0, 0xFF, 0xFF]);
+    d[50..53].copy_from_slice(&[1, 0x03, 1]);
+    d[63] = 0x0F;
+    let r = bus.request(frame(0x0F, &d));
+    assert_eq!(ids(&r), [0xF2, 0xF7]);
+    assert_eq!(r[1].frame.data()[5..10], [1, 3, 2, 0x03, 0x02]);
+    // A write to a read-only register fails and changes nothing; mask 7 (J1 only) keeps
+    // the end board silent, but it still counts the frame.
+    let mut d = [0xFFu8; 64];
+    d[50..54].copy_from_slice(&[2, 0x03, 1, 9]);
+    d[63] = 0x0E;
+    let r = bus.request(frame(0x0F, &d));
+    assert_eq!(r[0].frame.data()[5..9], [2, 3, 1, 0]);
+    assert_eq!(bus.end_board().unwrap().register(3), 0x0203);
+    let r = bus.request(status_frame(7));
+    assert_eq!(ids(&r), [0x82]);
+    assert_eq!(bus.end_board().unwrap().counter(), 5);
+}

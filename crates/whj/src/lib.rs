@@ -76,8 +76,8 @@ pub mod units;
 
 pub use broadcast::{
     BroadcastCurrent, BroadcastFeedback, BroadcastPosition, BroadcastRegister, BroadcastStatus,
-    FeedForward, FeedForwardBits, FeedForwardLayout, PositionSlot, RegisterOp, RegisterSlot,
-    ReplyMask,
+    EndBoardOp, EndBoardReply, FeedForward, FeedForwardBits, FeedForwardLayout, PositionSlot,
+    RegisterOp, RegisterSlot, ReplyMask,
 };
 pub use error_code::{ErrorBitInfo, ErrorCode};
 pub use frame::{CanFrame, FrameError};

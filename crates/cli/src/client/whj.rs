@@ -24,7 +24,7 @@ use robobus::ops::capture::{Overwrite, capture_frame_link};
 use robobus::ops::whj::{self as ops, MoveArgs, TargetArgs, WaveArgs};
 use robobus::ops::{Control, DeviceResult, Progress, SafeState, worst_kind};
 use robobus::whj::{JointBus, JointBusConfig, WhjError};
-use robobus_link::{FrameLink, FrameLinkSpec, OpenError};
+use robobus_link::{FrameLink, FrameLinkSpec};
 use robobus_whj::units::CurrentScale;
 use robobus_whj::{JointId, RegisterAddr, WorkMode};
 use serde::Serialize;
@@ -64,8 +64,8 @@ pub(crate) enum WhjRun {
     Info(JointId),
     /// Status of joints.
     Status(Vec<JointId>),
-    /// Status of joints 1..=7 by one broadcast frame.
-    BroadcastStatus(Vec<JointId>),
+    /// Status of joints 1..=7 by one broadcast frame (`true`: and of the end board).
+    BroadcastStatus(Vec<JointId>, bool),
     /// Enable (`true`) or disable drives.
     Enable(Vec<JointId>, bool),
     /// Set the work mode.
@@ -82,17 +82,21 @@ pub(crate) enum WhjRun {
     Save(Vec<JointId>),
     /// Read registers.
     Read {
-        /// The joint.
-        joint: JointId,
+        /// The joint (one without a broadcast).
+        joints: Vec<JointId>,
         /// First register.
         addr: RegisterAddr,
         /// Registers to read; `None` = the register (or pair) by name.
         count: Option<u8>,
+        /// By one broadcast frame.
+        broadcast: bool,
+        /// With `broadcast`: the end board's register too.
+        end_board: Option<u8>,
     },
     /// Write a register and read it back.
     Write {
-        /// The joint.
-        joint: JointId,
+        /// The joint (one without a broadcast).
+        joints: Vec<JointId>,
         /// The register.
         addr: RegisterAddr,
         /// The value (unit of the register, or counts with `raw`).
@@ -101,11 +105,15 @@ pub(crate) enum WhjRun {
         raw: bool,
         /// `--model`'s current scale, if given.
         scale: Option<CurrentScale>,
+        /// By one broadcast frame (and its read-back).
+        broadcast: bool,
+        /// With `broadcast`: the end board's write too.
+        end_board: Option<ops::EndBoardArg>,
     },
     /// New ID, saved to flash.
     SetId(JointId, JointId),
-    /// A test signal.
-    Wave(WaveArgs),
+    /// A test signal (`true`: as broadcast frames).
+    Wave(WaveArgs, bool),
     /// Start the application of joints in the bootloader.
     ReleaseIap(Vec<JointId>),
 }
@@ -140,10 +148,8 @@ pub(crate) fn open_link(
     let spec: FrameLinkSpec = bus
         .parse()
         .map_err(|e| crate::exit::usage(format!("--bus: {e}")))?;
-    let link = spec.open().map_err(|e| match e {
-        OpenError::NoInterface { .. } => anyhow::Error::new(Timeout(e.to_string())),
-        other => anyhow::Error::new(other),
-    })?;
+    // Its exit code is the error's kind (`robobus::error::open_error_kind`).
+    let link = spec.open()?;
     let Some(path) = capture else {
         return Ok(link);
     };
@@ -158,8 +164,9 @@ pub(crate) fn open_link(
 /// One table row / JSON object: field names and values.
 type Row = Map<String, Value>;
 
-/// A report as a row, with the joint's ID first (`joint`).
-fn row(joint: u8, report: &impl Serialize) -> Row {
+/// A report as a row, with the joint's ID first (`joint`; a broadcast's end board:
+/// `"end-board"`).
+fn row(joint: impl Serialize, report: &impl Serialize) -> Row {
     let mut r = Row::new();
     r.insert("joint".into(), json!(joint));
     if let Ok(Value::Object(fields)) = serde_json::to_value(report) {
@@ -171,13 +178,15 @@ fn row(joint: u8, report: &impl Serialize) -> Row {
 }
 
 /// Per-joint results as rows (`id` becomes `joint`); the worst failure, for the exit code.
-fn rows_of<T: Serialize>(results: &[DeviceResult<u8, T>]) -> (Vec<Row>, anyhow::Result<()>) {
+fn rows_of<I: Serialize, T: Serialize>(
+    results: &[DeviceResult<I, T>],
+) -> (Vec<Row>, anyhow::Result<()>) {
     let rows = results
         .iter()
         .map(|r| match (r.value(), r.failure()) {
-            (Some(v), _) => row(r.id, v),
-            (None, Some(f)) => row(r.id, f),
-            (None, None) => row(r.id, &()),
+            (Some(v), _) => row(&r.id, v),
+            (None, Some(f)) => row(&r.id, f),
+            (None, None) => row(&r.id, &()),
         })
         .collect();
     let outcome = match worst_kind(results) {
@@ -258,13 +267,21 @@ fn run(bus: &JointBus, job: &WhjJob<'_>, stats: &mut Option<Value>) -> anyhow::R
         WhjRun::Scan(ids) => scan(bus, ids, stats)?,
         WhjRun::Info(id) => one(*id, &ops::info(bus, *id)?),
         WhjRun::Status(ids) => rows_of(&ops::status(bus, ids)),
-        WhjRun::BroadcastStatus(ids) => {
+        WhjRun::BroadcastStatus(ids, end_board) => {
             // Connect each joint (IAP release, identity for the current scale); a silent
             // one is named by the broadcast's result.
             for &id in ids {
                 let _ = bus.joint(id);
             }
-            rows_of(&ops::broadcast_status(bus, ids)?)
+            if *end_board {
+                let (joints, board) = ops::broadcast_status_with_end_board(bus, ids)?;
+                let (mut rows, outcome) = rows_of(&joints);
+                let (board_row, board_outcome) = rows_of(&[board]);
+                rows.extend(board_row);
+                (rows, outcome.and(board_outcome))
+            } else {
+                rows_of(&ops::broadcast_status(bus, ids)?)
+            }
         }
         WhjRun::Enable(ids, on) => rows_of(&ops::enable(bus, ids, *on)),
         WhjRun::Mode(ids, mode) => rows_of(&ops::set_mode(bus, ids, *mode)),
@@ -288,22 +305,9 @@ fn run(bus: &JointBus, job: &WhjJob<'_>, stats: &mut Option<Value>) -> anyhow::R
         WhjRun::Zero(id) => one(*id, &ops::zero(bus, *id)?),
         WhjRun::Clear(ids) => rows_of(&ops::clear(bus, ids)),
         WhjRun::Save(ids) => rows_of(&ops::save(bus, ids)),
-        WhjRun::Read { joint, addr, count } => {
-            let regs = ops::read_registers(bus, *joint, *addr, *count)?;
-            (regs.iter().map(|r| row(joint.get(), r)).collect(), Ok(()))
-        }
-        WhjRun::Write {
-            joint,
-            addr,
-            value,
-            raw,
-            scale,
-        } => {
-            let regs = ops::write(bus, *joint, *addr, *value, *raw, *scale, job.confirmed)?;
-            (regs.iter().map(|r| row(joint.get(), r)).collect(), Ok(()))
-        }
+        WhjRun::Read { .. } | WhjRun::Write { .. } => registers(bus, job)?,
         WhjRun::SetId(id, new_id) => one(*id, &ops::set_id(bus, *id, *new_id)?),
-        WhjRun::Wave(args) => wave(bus, args, safe, stats)?,
+        WhjRun::Wave(args, broadcast) => wave(bus, args, *broadcast, safe, stats)?,
         WhjRun::ReleaseIap(ids) => {
             let results = ops::release_iap(bus, ids);
             let (mut rows, outcome) = rows_of(&results);
@@ -314,6 +318,58 @@ fn run(bus: &JointBus, job: &WhjJob<'_>, stats: &mut Option<Value>) -> anyhow::R
             }
             (rows, outcome)
         }
+    })
+}
+
+/// Register reports of each joint as rows (point-to-point: the first error ends the run).
+fn joint_rows(
+    joints: &[JointId],
+    f: impl Fn(JointId) -> anyhow::Result<Vec<ops::RegisterReport>>,
+) -> anyhow::Result<Ran> {
+    let mut out = Vec::new();
+    for &joint in joints {
+        out.extend(f(joint)?.iter().map(|r| row(joint.get(), r)));
+    }
+    Ok((out, Ok(())))
+}
+
+/// `whj read` / `whj write`, point-to-point or by broadcast frames.
+fn registers(bus: &JointBus, job: &WhjJob<'_>) -> anyhow::Result<Ran> {
+    Ok(match job.run {
+        WhjRun::Read {
+            joints,
+            addr,
+            count,
+            broadcast,
+            end_board,
+        } => {
+            if *broadcast {
+                rows_of(&ops::broadcast_read(bus, joints, *addr, *count, *end_board)?.1)
+            } else {
+                joint_rows(joints, |j| Ok(ops::read_registers(bus, j, *addr, *count)?))?
+            }
+        }
+        WhjRun::Write {
+            joints,
+            addr,
+            value,
+            raw,
+            scale,
+            broadcast,
+            end_board,
+        } => {
+            let (v, raw, scale, yes) = (*value, *raw, *scale, job.confirmed);
+            if *broadcast {
+                let (_, results) =
+                    ops::broadcast_write(bus, joints, *addr, v, raw, scale, *end_board, yes)?;
+                rows_of(&results)
+            } else {
+                joint_rows(joints, |j| {
+                    Ok(ops::write(bus, j, *addr, v, raw, scale, yes)?)
+                })?
+            }
+        }
+        _ => (Vec::new(), Ok(())),
     })
 }
 
@@ -375,11 +431,16 @@ const GONE_AFTER: u64 = 10;
 fn wave(
     bus: &JointBus,
     args: &WaveArgs,
+    broadcast: bool,
     safe: SafeState,
     stats: &mut Option<Value>,
 ) -> anyhow::Result<Ran> {
     let j = bus.joint(args.joint)?;
-    let plan = ops::prepare_wave(&j, args)?;
+    let plan = if broadcast {
+        ops::prepare_broadcast_wave(&j, args)?
+    } else {
+        ops::prepare_wave(&j, args)?
+    };
     let report = with_progress(&plan, "wave [{bar:30}] {pos}/{len} cycles", |c| {
         Ok(ops::execute_wave(&j, args, &plan, c, safe)?)
     })?;

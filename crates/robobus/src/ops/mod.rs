@@ -48,7 +48,9 @@ use serde::Serialize;
 
 pub mod capture;
 mod ids;
+pub mod monitor;
 pub mod replay;
+pub mod safe;
 pub mod wck;
 pub mod whj;
 
@@ -305,6 +307,16 @@ pub enum Outcome<T> {
     Ok(T),
     /// The device failed.
     Failed(Failure),
+}
+
+impl<T> Outcome<T> {
+    /// The value converted by `f`; a failure stays as it is.
+    pub fn map<U>(self, f: impl FnOnce(T) -> U) -> Outcome<U> {
+        match self {
+            Self::Ok(v) => Outcome::Ok(f(v)),
+            Self::Failed(e) => Outcome::Failed(e),
+        }
+    }
 }
 
 impl<I, T> DeviceResult<I, T> {

@@ -135,7 +135,8 @@ pub enum EntryKind {
     Request,
     /// A reply or feedback from a device.
     Reply,
-    /// A frame of a known kind this decoder does not look into (end board, firmware data).
+    /// A frame of a known kind that is not matched to a request: interface-board frames and
+    /// firmware data (not decoded), end-board replies (decoded by register name).
     Other,
     /// A command's reply that never came (the next command, or the end of the capture,
     /// came first).
@@ -871,8 +872,13 @@ impl WhjState {
             }
             Address::EndBoardFeedback | Address::EndBoardRegisterReply => {
                 e.direction = Direction::FromDevice;
-                e.text = "end-board frame (not decoded)".into();
-                e
+                match robobus_whj::EndBoardReply::decode(frame.data()) {
+                    Some(r) => {
+                        e.text = end_board_text(&r);
+                        e
+                    }
+                    None => e.malformed("end-board reply shorter than its 8-byte header"),
+                }
             }
             Address::IapData => {
                 e.direction = Direction::ToDevice;
@@ -1494,6 +1500,33 @@ impl WckState {
     }
 }
 
+/// An end-board reply in words: the register answered (by its name in the end board's
+/// map), the data, and the status byte.
+fn end_board_text(r: &robobus_whj::EndBoardReply) -> String {
+    let name = robobus_whj::broadcast::EndBoardRegister::by_addr(r.index)
+        .map_or("(reserved)", |reg| reg.name);
+    let what = match r.cmd {
+        robobus_whj::broadcast::END_BOARD_READ => {
+            let n = usize::from(r.len / 2).min(r.data().len() / 2);
+            let words: Vec<String> = (0..n)
+                .filter_map(|i| r.word(i))
+                .map(|w| format!("{w:#06x}"))
+                .collect();
+            format!("read {:#04x} {name} = {}", r.index, words.join(" "))
+        }
+        robobus_whj::broadcast::END_BOARD_WRITE => format!(
+            "write {:#04x} {name} {}",
+            r.index,
+            if r.write_ok() { "ok" } else { "failed" }
+        ),
+        _ => "no operation".into(),
+    };
+    format!(
+        "end board: {what} (counter {}, status0 {:#04x}, error {:#04x})",
+        r.counter, r.status0, r.sys_error
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1503,6 +1536,29 @@ mod tests {
             .unwrap()
             .collect::<Result<_, _>>()
             .unwrap()
+    }
+
+    #[test]
+    fn end_board_replies_are_decoded_by_register_name() {
+        // The worked examples: tool power := 24 V answered on 0x87, IO1 := output on
+        // 0xF7; a version read; a frame shorter than the header.
+        let log = "(0.1) can0 087##5B80900000002070101000000\n\
+                   (0.2) can0 0F7##50F81000000021D0101000000\n\
+                   (0.3) can0 0F7##5010900000001030203020000\n\
+                   (0.4) can0 087##50102\n";
+        let got: Vec<String> = entries(log, ReplayOptions::default())
+            .into_iter()
+            .map(|e| e.text)
+            .collect();
+        assert_eq!(
+            got,
+            [
+                "end board: write 0x07 EB_VOLTAGE_OUTPUT ok (counter 184, status0 0x09, error 0x00)",
+                "end board: write 0x1d EB_IO1_MODE ok (counter 15, status0 0x81, error 0x00)",
+                "end board: read 0x03 EB_SW_VERSION = 0x0203 (counter 1, status0 0x09, error 0x00)",
+                "MALFORMED: end-board reply shorter than its 8-byte header",
+            ]
+        );
     }
 
     #[test]

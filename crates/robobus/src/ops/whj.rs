@@ -4,7 +4,7 @@
 //! a typed report. Operations on many joints return one [`DeviceResult`] per joint and carry
 //! on past a silent one; the caller picks the exit code (the CLI: 3 when any was silent).
 //! Long operations ([`run_move`], [`run_wave`]) take a [`Control`]; on stop they apply the
-//! caller's [`SafeState`] through [`apply_safe_state`] (the same function the robot watchdog
+//! caller's [`SafeState`] through [`SafeState::apply`] (the same function the robot watchdog
 //! uses) and return [`OpError::Interrupted`].
 //!
 //! # One plan
@@ -32,8 +32,14 @@
 //! - [`WaveReport`]: `cycles`, `complete`, `missing_replies`, `deadline_misses`, `overruns`, `clamped`
 //!   (set-points the step limiter changed), `tracking_rms`, `tracking_max` (against the
 //!   *requested* target, in the loop's unit), `last` (the last feedback, or null when none
-//!   came), `stale` (true when the last cycle had no reply), `missing_at_end`;
+//!   came), `stale` (true when the last cycle had no reply), `missing_at_end`,
+//!   `round_trip_p50_us`, `round_trip_p99_us`, `round_trip_max_us` (send to feedback of the
+//!   answered frames; null without replies);
 //! - [`SetIdReport`]: `new_id`, `saved`, `note`.
+//! - broadcast register reads and writes ([`broadcast_read`], [`broadcast_write`]): one
+//!   [`RegisterReport`] per register and [`Slot`], whose `id` is the joint's number or
+//!   `"end-board"` (the end board's registers by their names in its own map, raw values);
+//!   a slot without a credited reply is `{"id", "kind": "no-device", "error"}`.
 
 // OpError carries the client errors by value, as they do (see `ops::read_bounded`).
 #![allow(clippy::result_large_err)]
@@ -46,8 +52,9 @@ use robobus_whj::units::{Current, CurrentScale, Position, TargetSpeed};
 use robobus_whj::{JointId, Request, WorkMode};
 use serde::Serialize;
 
+use super::safe::WhjJoints;
 use super::{Control, DeviceResult, Failure, OpError, Progress, SafeState};
-use crate::whj::{Joint, JointBus, MotionLimits, Profile, WhjError};
+use crate::whj::{Joint, JointBus, MotionLimits, Percentiles, Profile, WhjError};
 
 /// A frame of a plan and when it goes out, from the start of the plan.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -324,42 +331,13 @@ pub fn set_id(bus: &JointBus, id: JointId, new_id: JointId) -> Result<SetIdRepor
 // Safe state
 // ---------------------------------------------------------------------------------------
 
-/// Brings a joint to `safe`: [`SafeState::Disable`] disables the drive; any other state
-/// holds ([`ServoLoop::Position`]: a position frame at the actual angle; speed / current:
-/// target 0). Returns what was done (`"holding"`, `"disabled"`). The one safe stop of WHJ
-/// joints: the CLI's Ctrl-C, the operations' stop and the robot watchdog all call it.
-pub fn apply_safe_state(
-    j: &Joint<'_>,
-    safe: SafeState,
-    servo: ServoLoop,
-) -> Result<&'static str, WhjError> {
-    if safe == SafeState::Disable {
-        j.disable()?;
-        return Ok("disabled");
-    }
-    match servo {
-        ServoLoop::Position => {
-            let at = j.status()?.position;
-            j.command_position(at)?;
-        }
-        ServoLoop::Speed => {
-            j.command_speed(TargetSpeed(0))?;
-        }
-        ServoLoop::Current => {
-            j.command_current(0.0)?;
-        }
-    }
-    Ok("holding")
-}
-
+/// After a stop: the joint to `safe` ([`SafeState::apply`]), then [`OpError::Interrupted`]
+/// saying what it did.
 fn interrupted(j: &Joint<'_>, safe: SafeState, servo: ServoLoop) -> OpError {
-    let detail = match apply_safe_state(j, safe, servo) {
-        Ok(state) => format!("joint {} {state}", j.id().get()),
-        Err(e) => format!("could not bring the joint to the safe state: {e}"),
-    };
-    OpError::Interrupted {
-        detail: Some(detail),
-    }
+    safe.interrupted(&mut WhjJoints {
+        joints: core::slice::from_ref(j),
+        servo,
+    })
 }
 
 // ---------------------------------------------------------------------------------------
@@ -450,7 +428,7 @@ pub fn check_demand(j: &Joint<'_>, servo: ServoLoop, lo: f64, hi: f64) -> Result
 
 /// How far outside its limits a joint may read before the reading counts as implausible,
 /// degrees (a joint may overshoot a limit slightly).
-const LIMIT_SLACK_DEG: f64 = 1.0;
+pub const LIMIT_SLACK_DEG: f64 = 1.0;
 
 /// Reads the present position and checks it is plausible: within the joint's position
 /// limits (plus [`LIMIT_SLACK_DEG`]). A move is never planned from an implausible reading.
@@ -644,12 +622,21 @@ pub fn prepare_move(j: &Joint<'_>, args: &MoveArgs) -> Result<Plan, OpError> {
 /// Sends the timed frames of `plan` at their times. Returns the last feedback, the number
 /// of frames sent, and per-frame feedback to `on_frame` (index, feedback or `None` when
 /// the frame got no reply, how late it went out).
+/// When a planned frame went out and how long its exchange took.
+#[derive(Debug, Clone, Copy)]
+struct FrameTimes {
+    /// How late after its planned time the frame was handed to the bus.
+    late: Duration,
+    /// From handing the frame to the bus to its feedback (`None`: no feedback came).
+    round_trip: Option<Duration>,
+}
+
 fn send_frames(
     j: &Joint<'_>,
     plan: &Plan,
     control: &mut Control<'_>,
     stage: &'static str,
-    mut on_frame: impl FnMut(usize, Option<&ServoFeedback>, Duration) -> Result<(), OpError>,
+    mut on_frame: impl FnMut(usize, Option<&ServoFeedback>, FrameTimes) -> Result<(), OpError>,
 ) -> Result<Result<u64, ()>, OpError> {
     let bus = j.bus();
     let start = bus.now();
@@ -660,14 +647,22 @@ fn send_frames(
         if control.stopped() || !pause_until(bus, control, due) {
             return Ok(Err(()));
         }
-        let late = bus.now().saturating_duration_since(due);
-        let fb = match j.servo_request(f.request) {
-            Ok(fb) => Some(fb),
-            Err(e) if e.is_timeout() => None,
-            Err(e) => return Err(whj(e)),
+        let sent_at = bus.now();
+        let late = sent_at.saturating_duration_since(due);
+        let fb = if f.request.joint().is_none() {
+            broadcast::broadcast_servo(j, f.request).map_err(whj)?
+        } else {
+            match j.servo_request(f.request) {
+                Ok(fb) => Some(fb),
+                Err(e) if e.is_timeout() => None,
+                Err(e) => return Err(whj(e)),
+            }
         };
+        let round_trip = fb
+            .is_some()
+            .then(|| bus.now().saturating_duration_since(sent_at));
         sent += 1;
-        on_frame(k, fb.as_ref(), late)?;
+        on_frame(k, fb.as_ref(), FrameTimes { late, round_trip })?;
         if sent.is_multiple_of(16) || sent == total {
             control.report(&Progress::new(stage, sent, Some(total)));
         }
@@ -1014,6 +1009,13 @@ pub struct WaveReport {
     pub stale: bool,
     /// Frames without a reply in a row at the end of the wave.
     pub missing_at_end: u64,
+    /// Round trip of the answered frames, from handing a frame to the bus to its
+    /// feedback: median, µs (`None` without replies).
+    pub round_trip_p50_us: Option<u64>,
+    /// The 99th percentile (nearest rank), µs.
+    pub round_trip_p99_us: Option<u64>,
+    /// The longest, µs.
+    pub round_trip_max_us: Option<u64>,
 }
 
 /// Runs a wave: checks the joint (enabled in the wave's mode, the values within its
@@ -1075,6 +1077,9 @@ pub fn execute_wave(
         last: None,
         stale: false,
         missing_at_end: 0,
+        round_trip_p50_us: None,
+        round_trip_p99_us: None,
+        round_trip_max_us: None,
     };
     for (f, want) in plan.frames.iter().zip(&targets) {
         if let Request::PositionServo { target, .. } = f.request
@@ -1086,7 +1091,10 @@ pub fn execute_wave(
     let (mut sq, mut max, mut n) = (0.0f64, 0.0f64, 0u64);
     let bus = j.bus();
     let mut last_sent = bus.now();
-    let outcome = send_frames(j, plan, control, "wave", |k, fb, late| {
+    let mut round_trips = Vec::with_capacity(plan.frames.len());
+    let outcome = send_frames(j, plan, control, "wave", |k, fb, times| {
+        let late = times.late;
+        round_trips.extend(times.round_trip);
         let now = bus.now();
         if k > 0 && now.duration_since(last_sent) > period * 2 {
             r.overruns += 1;
@@ -1130,6 +1138,13 @@ pub fn execute_wave(
         let rms = (sq / n as f64).sqrt();
         r.tracking_rms = Some(rms);
         r.tracking_max = Some(max);
+    }
+    if !round_trips.is_empty() {
+        let p = Percentiles::of(&round_trips);
+        let us = |d: Duration| u64::try_from(d.as_micros()).unwrap_or(u64::MAX);
+        r.round_trip_p50_us = Some(us(p.p50));
+        r.round_trip_p99_us = Some(us(p.p99));
+        r.round_trip_max_us = Some(us(p.max));
     }
     Ok(r)
 }
@@ -1418,9 +1433,14 @@ pub fn read_registers(
         return Ok(vec![register_report(&v)]);
     }
     let words = j.read_words(addr, count.unwrap_or(1)).map_err(whj)?;
-    Ok((addr.get()..)
+    Ok(word_reports(addr, &words))
+}
+
+/// Raw words read from `addr` on, one report each (named where the table names them).
+fn word_reports(addr: robobus_whj::RegisterAddr, words: &[u16]) -> Vec<RegisterReport> {
+    (addr.get()..)
         .zip(words)
-        .map(|(k, w)| RegisterReport {
+        .map(|(k, &w)| RegisterReport {
             addr: format!("0x{k:02X}"),
             register: robobus_whj::RegisterAddr::new(k)
                 .ok()
@@ -1430,7 +1450,7 @@ pub fn read_registers(
             value: None,
             unit: "",
         })
-        .collect())
+        .collect()
 }
 
 /// Checks a register write against the register's safety class
@@ -1460,36 +1480,44 @@ pub fn check_write(
 
 /// The safety class of the register a request writes, if it is a confirm write: what it
 /// does (for a front end's confirmation prompt).
+/// A broadcast register frame: the first confirm write among its slots, or the end
+/// board's write ([`END_BOARD_WRITE_TEXT`]).
 pub fn confirm_text(request: &Request) -> Option<&'static str> {
+    use robobus_whj::{RegisterOp, RegisterSlot};
+    let of = |addr| match robobus_whj::registers::safety_class(addr) {
+        robobus_whj::registers::SafetyClass::Confirm(what) => Some(what),
+        _ => None,
+    };
     match request {
-        Request::Write { addr, .. } => match robobus_whj::registers::safety_class(*addr) {
-            robobus_whj::registers::SafetyClass::Confirm(what) => Some(what),
-            _ => None,
-        },
+        Request::Write { addr, .. } => of(*addr),
+        Request::BroadcastRegister(b) => b
+            .slots
+            .iter()
+            .find_map(|s| match s {
+                RegisterSlot::Op(RegisterOp::Write { addr, .. }) => of(*addr),
+                _ => None,
+            })
+            .or_else(|| {
+                matches!(
+                    robobus_whj::EndBoardOp::decode(&b.end_board),
+                    Some(robobus_whj::EndBoardOp::Write { .. })
+                )
+                .then_some(broadcast::END_BOARD_WRITE_TEXT)
+            }),
         _ => None,
     }
 }
 
-/// `whj write`: sends the planned write request (the one a dry run prints) after
-/// [`check_write`], refuses a register the joint's model or firmware lacks
-/// ([`robobus_whj::registers::gated_write_allowed`]) and position limits that would end up
-/// inverted (min > max), and reads the register back.
-pub fn write_register(
-    bus: &JointBus,
-    request: Request,
-    confirmed: bool,
-) -> Result<Vec<RegisterReport>, OpError> {
-    let Request::Write { joint, addr, data } = request else {
-        return Err(OpError::invalid(
-            "write",
-            format!("{request:?}"),
-            "not a register write",
-        ));
-    };
-    check_write(addr, confirmed)?;
-    let j = bus.joint(joint).map_err(whj)?;
-    // A register whose feature this joint's product or firmware lacks (the register
-    // table's firmware gates): refused on the host, not left to a puzzling write ack.
+/// The checks of a register write that depend on the joint: a register whose feature its
+/// product or firmware lacks (the register table's firmware gates,
+/// [`robobus_whj::registers::gated_write_allowed`]) and position limits that would end up
+/// inverted (min > max) are refused before anything is sent.
+pub fn check_joint_write(
+    j: &Joint<'_>,
+    addr: robobus_whj::RegisterAddr,
+    data: robobus_whj::request::WriteData,
+) -> Result<(), OpError> {
+    let joint = j.id();
     let identity = j.identity().map_err(whj)?;
     if let Err(refusal) =
         robobus_whj::registers::gated_write_allowed(addr, identity.model, identity.firmware)
@@ -1518,6 +1546,28 @@ pub fn write_register(
             )));
         }
     }
+    Ok(())
+}
+
+/// `whj write`: sends the planned write request (the one a dry run prints) after
+/// [`check_write`], refuses a register the joint's model or firmware lacks
+/// ([`robobus_whj::registers::gated_write_allowed`]) and position limits that would end up
+/// inverted (min > max), and reads the register back.
+pub fn write_register(
+    bus: &JointBus,
+    request: Request,
+    confirmed: bool,
+) -> Result<Vec<RegisterReport>, OpError> {
+    let Request::Write { joint, addr, data } = request else {
+        return Err(OpError::invalid(
+            "write",
+            format!("{request:?}"),
+            "not a register write",
+        ));
+    };
+    check_write(addr, confirmed)?;
+    let j = bus.joint(joint).map_err(whj)?;
+    check_joint_write(&j, addr, data)?;
     match data {
         robobus_whj::request::WriteData::Pair(v) => j.write_i32(addr, v),
         robobus_whj::request::WriteData::Word(w) => j.write_word(addr, w),
@@ -1636,7 +1686,7 @@ pub fn run_target(
 
 /// The write request for `value` into the register at `addr` (in the register's unit, or
 /// counts with `raw`), converting units (`scale`: the joint's current LSB). The request a
-/// dry run prints and [`write`] sends.
+/// dry run prints and [`write()`] sends.
 pub fn write_request(
     joint: JointId,
     addr: robobus_whj::RegisterAddr,
@@ -1776,82 +1826,15 @@ pub fn sample(bus: &JointBus, ids: &[JointId]) -> Vec<DeviceResult<u8, JointSamp
 }
 
 // ---------------------------------------------------------------------------------------
-// Broadcast status (0x7F)
+// Broadcast frames (0x7F status, 0x0F registers, sampling)
 // ---------------------------------------------------------------------------------------
 
-/// The smallest broadcast reply mask that selects every joint of `ids` (all 1..=7).
-pub fn reply_mask(ids: &[JointId]) -> Result<robobus_whj::broadcast::ReplyMask, OpError> {
-    use robobus_whj::broadcast::ReplyMask;
-    if let Some(bad) = ids.iter().find(|j| !j.has_broadcast_slot()) {
-        return Err(OpError::invalid(
-            "--broadcast JOINTS",
-            bad.get(),
-            "broadcast frames address joints 1..=7 only",
-        ));
-    }
-    (0..=0xFu8)
-        .filter_map(|code| ReplyMask::new(code).ok())
-        .filter(|m| ids.iter().all(|j| m.selects(*j)))
-        .min_by_key(|m| m.joints().count() + usize::from(m.selects_end_board()))
-        .ok_or_else(|| OpError::invalid("--broadcast JOINTS", ids.len(), "no reply mask fits"))
-}
+mod broadcast;
 
-/// How long [`broadcast_status`] collects replies: seven 24-byte feedback frames take under
-/// 1 ms on the wire; a broadcast is not resent, so it waits five reply timeouts (100 ms by
-/// default) for slow links and simulators.
-pub fn broadcast_window(bus: &JointBus) -> Duration {
-    (bus.config().reply_timeout * 5).max(Duration::from_millis(5))
-}
-
-/// `whj status --broadcast`: one 0x7F frame asks joints `ids` (1..=7) for their status;
-/// every joint is reported, one that did not answer within [`broadcast_window`] as a
-/// no-device failure. Joints outside `ids` that the mask also selects are not reported.
-pub fn broadcast_status(
-    bus: &JointBus,
-    ids: &[JointId],
-) -> Result<Vec<DeviceResult<u8, StatusReport>>, OpError> {
-    let mask = reply_mask(ids)?;
-    let request = Request::BroadcastStatus(robobus_whj::broadcast::BroadcastStatus::new(mask));
-    let sent = bus.send_broadcast(request).map_err(whj)?;
-    let window = broadcast_window(bus);
-    bus.sleep_until(sent + window);
-    let t = bus.telemetry();
-    Ok(ids
-        .iter()
-        .map(|&id| {
-            let jt = t.joint(id);
-            match (jt.updated, jt.position) {
-                (Some(at), Some(p)) if at > sent => {
-                    let scale = bus
-                        .cached_identity(id)
-                        .map_or(CurrentScale::OneMilliamp, |i| i.current_scale());
-                    DeviceResult::ok(
-                        id.get(),
-                        StatusReport {
-                            enabled: jt.enabled.unwrap_or(false),
-                            mode: "-",
-                            position_deg: p.degrees(),
-                            current_ma: jt.current.map(|c| c.milliamps(scale)),
-                            voltage_v: jt.voltage.map_or(f64::NAN, |v| f64::from(v.volts())),
-                            temperature_c: jt
-                                .temperature
-                                .map_or(f64::NAN, |v| f64::from(v.celsius())),
-                            brake: "-",
-                            error: jt.error.unwrap_or_default().to_string(),
-                        },
-                    )
-                }
-                _ => DeviceResult::failed(
-                    id.get(),
-                    Failure::of(
-                        super::ErrorKind::NoDevice,
-                        &format!(
-                            "{id}: no reply to the broadcast status query within {} ms",
-                            window.as_millis()
-                        ),
-                    ),
-                ),
-            }
-        })
-        .collect())
-}
+pub use broadcast::{
+    BROADCAST_WAVE_MIN_HZ, BroadcastPlan, END_BOARD_WRITE_TEXT, EndBoardArg, EndBoardStatus, Slot,
+    StatusWithEndBoard, broadcast_read, broadcast_status, broadcast_status_with_end_board,
+    broadcast_window, broadcast_write, plan_broadcast_read, plan_broadcast_wave,
+    plan_broadcast_write, prepare_broadcast_wave, reply_mask, reply_mask_with, run_broadcast_plan,
+    sample_broadcast,
+};

@@ -83,8 +83,10 @@ use crate::actuator::{
     ActuatorError, ActuatorState, JointLimits, JointMap, WckScale, rpm_to_rad_s, whj_position,
     whj_to_rad,
 };
+use crate::ops::safe::{SafeDevice, WckServos, WhjJoints};
+use crate::ops::whj::ServoLoop;
 use crate::wck::{WckBus, WckError};
-use crate::whj::{JointBus, JointBusConfig, WhjError};
+use crate::whj::{Joint, JointBus, JointBusConfig, WhjError};
 
 /// A byte link a [`Robot`] can hold: any [`ByteLink`] that is `Send` and `Debug`.
 pub trait RobotByteLink: ByteLink + Send + fmt::Debug {}
@@ -353,53 +355,57 @@ impl Shared {
 }
 
 impl Hardware {
+    /// Every bus to its safe state through [`SafeState::apply`] (the operations' safe stop
+    /// too); the failures, each naming its joint (or the bus, for the wCK break).
     fn apply_safe_states(&mut self) -> Vec<String> {
         let mut errors = Vec::new();
+        let name_of = |joints: &[JointSlot], device: SafeDevice| -> Option<String> {
+            joints
+                .iter()
+                .find(|j| match (j.device, device) {
+                    (Device::Wck { id, .. }, SafeDevice::Servo(s)) => id.get() == s,
+                    (Device::Whj { id, .. }, SafeDevice::Joint(s)) => id.get() == s,
+                    _ => false,
+                })
+                .map(|j| j.name.clone())
+        };
         for (b, slot) in self.wck.iter_mut().enumerate() {
-            // The one wCK safe stop (`ops::wck::apply_each`); a robot's wCK bus is passive
-            // unless its file asks for the break.
-            let state = if slot.safe == SafeState::Break {
-                SafeState::Break
-            } else {
-                SafeState::Passive
-            };
-            let joints: Vec<(&str, robobus_wck::ServoId)> = self
+            let ids: Vec<ServoId> = self
                 .joints
                 .iter()
                 .filter_map(|j| match j.device {
-                    Device::Wck { bus, id, .. } if bus == b => Some((j.name.as_str(), id)),
+                    Device::Wck { bus, id, .. } if bus == b => Some(id),
                     _ => None,
                 })
                 .collect();
-            let ids: Vec<robobus_wck::ServoId> = joints.iter().map(|(_, id)| *id).collect();
-            let failed = crate::ops::wck::apply_each(
-                &mut slot.bus,
-                &ids,
-                state,
-                robobus_wck::TorqueLevel::MIN,
-            );
-            for (id, e) in failed {
-                match id.and_then(|id| joints.iter().find(|(_, j)| *j == id)) {
-                    Some((name, _)) => errors.push(format!("{name}: passive: {e}")),
-                    None => errors.push(format!("bus {}: break: {e}", slot.name)),
-                }
+            let failed = slot.safe.apply(&mut WckServos {
+                bus: &mut slot.bus,
+                ids: &ids,
+                torque: slot.torque,
+            });
+            for f in failed {
+                let name =
+                    name_of(&self.joints, f.device).unwrap_or_else(|| format!("bus {}", slot.name));
+                errors.push(format!("{name}: {}: {}", slot.safe.keyword(), f.error));
             }
         }
-        for joint in &self.joints {
-            let Device::Whj { bus, id, .. } = joint.device else {
-                continue;
-            };
-            let Some(slot) = self.whj.get(bus) else {
-                continue;
-            };
-            let handle = slot.bus.joint_unchecked(id);
-            let result = crate::ops::whj::apply_safe_state(
-                &handle,
-                slot.safe,
-                crate::ops::whj::ServoLoop::Position,
-            );
-            if let Err(e) = result {
-                errors.push(format!("{}: {}: {e}", joint.name, slot.safe.keyword()));
+        for (b, slot) in self.whj.iter().enumerate() {
+            let handles: Vec<Joint<'_>> = self
+                .joints
+                .iter()
+                .filter_map(|j| match j.device {
+                    Device::Whj { bus, id, .. } if bus == b => Some(slot.bus.joint_unchecked(id)),
+                    _ => None,
+                })
+                .collect();
+            let failed = slot.safe.apply(&mut WhjJoints {
+                joints: &handles,
+                servo: ServoLoop::Position,
+            });
+            for f in failed {
+                let name =
+                    name_of(&self.joints, f.device).unwrap_or_else(|| format!("bus {}", slot.name));
+                errors.push(format!("{name}: {}: {}", slot.safe.keyword(), f.error));
             }
         }
         errors

@@ -4,6 +4,7 @@
 
 use core::fmt;
 use core::time::Duration;
+use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender, TryRecvError};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
@@ -13,7 +14,7 @@ use std::time::Instant;
 use robobus_link::{FrameLink, FrameLinkError};
 use robobus_whj::registers::{self, UniqueId};
 use robobus_whj::units::{ActualSpeed, Current, Position, Temperature, Voltage};
-use robobus_whj::{ErrorCode, JointId, Reply, Request};
+use robobus_whj::{CanFrame, ErrorCode, JointId, Reply, Request};
 
 use super::cyclic::CyclicSetup;
 use super::error::WhjError;
@@ -261,7 +262,14 @@ pub(crate) struct Shared {
     pub(crate) identities: Mutex<[Option<super::joint::Identity>; 31]>,
     pub(crate) fatal: Mutex<Option<String>>,
     pub(crate) cyclic_running: AtomicBool,
+    /// The latest frames on broadcast reply IDs (joints' 0x8x / 0xFx, the end board's 0x87
+    /// / 0xF7) with their receive instants, oldest first, at most [`BROADCAST_LOG`].
+    pub(crate) broadcast_log: Mutex<VecDeque<(Instant, CanFrame)>>,
 }
+
+/// How many broadcast replies [`JointBus::broadcast_replies_since`] keeps: eight nodes
+/// answer one broadcast frame, so this holds the answers to the last eight.
+pub(crate) const BROADCAST_LOG: usize = 64;
 
 pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(PoisonError::into_inner)
@@ -335,8 +343,8 @@ pub struct JointBus {
 /// What the bus's own thread is told.
 #[derive(Debug)]
 enum Wake {
-    /// A cyclic loop started.
-    Cyclic,
+    /// A cyclic loop started, or replies to a broadcast frame are due.
+    Work,
     Shutdown,
 }
 
@@ -397,7 +405,7 @@ impl Core {
         }
         let now = self.link.now();
         let wake = self.session.next_wake(now).min(until).max(now);
-        if listen || self.session.awaiting() {
+        if listen || self.session.awaiting() || self.session.broadcast_pending(now) {
             self.last_drain = now;
             match self.link.recv(wake) {
                 Ok(rx) => {
@@ -655,6 +663,10 @@ impl JointBus {
         match core.link.send(&request.to_frame()) {
             Ok(()) => {
                 core.session.sent();
+                core.session.broadcast_sent(at);
+                drop(core);
+                // The bus's thread receives the replies meanwhile.
+                let _ = lock(&self.wake).send(Wake::Work);
                 Ok(at)
             }
             Err(e) => {
@@ -666,6 +678,18 @@ impl JointBus {
                 })
             }
         }
+    }
+
+    /// The frames received on broadcast reply IDs (joints' `0x80+ID+1` / `0xF0+ID+1`,
+    /// J6's 0x5FE / 0x3FE, the end board's 0x87 / 0xF7) strictly after `since` (the instant
+    /// [`JointBus::send_broadcast`] returned), with their receive instants, oldest first.
+    /// The bus keeps the last 64 of them.
+    pub fn broadcast_replies_since(&self, since: Instant) -> Vec<(Instant, CanFrame)> {
+        lock(&self.shared.broadcast_log)
+            .iter()
+            .filter(|(at, _)| *at > since)
+            .copied()
+            .collect()
     }
 
     /// A snapshot of the bus health and the latest values from every joint.
@@ -851,7 +875,7 @@ impl JointBus {
         let now = core.now();
         core.session.start_cyclic(setup, now)?;
         drop(core);
-        let _ = lock(&self.wake).send(Wake::Cyclic);
+        let _ = lock(&self.wake).send(Wake::Work);
         Ok(())
     }
 
@@ -869,14 +893,15 @@ impl Drop for JointBus {
     }
 }
 
-/// The bus's own thread: runs the cyclic loop while one runs; otherwise picks up
-/// unsolicited frames every [`DRAIN_INTERVAL`] while nothing else uses the bus.
+/// The bus's own thread: runs the cyclic loop while one runs, receives the replies to a
+/// broadcast frame while they are due; otherwise picks up unsolicited frames every
+/// [`DRAIN_INTERVAL`] while nothing else uses the bus.
 fn background(core: &CoreLock, wake: &Receiver<Wake>) {
     let mut wait = DRAIN_INTERVAL;
     loop {
         match wake.recv_timeout(wait) {
             Ok(Wake::Shutdown) | Err(RecvTimeoutError::Disconnected) => return,
-            Ok(Wake::Cyclic) | Err(RecvTimeoutError::Timeout) => {}
+            Ok(Wake::Work) | Err(RecvTimeoutError::Timeout) => {}
         }
         loop {
             let mut c = core.lock();
@@ -884,8 +909,9 @@ fn background(core: &CoreLock, wake: &Receiver<Wake>) {
                 wait = DRAIN_INTERVAL;
                 break;
             }
-            if c.session.cyclic_running() {
-                let until = c.now() + DRAIN_INTERVAL;
+            let now = c.now();
+            if c.session.cyclic_running() || c.session.broadcast_pending(now) {
+                let until = now + DRAIN_INTERVAL;
                 c.step(until, false);
                 drop(c);
                 // Callers waiting for the lock go first.
@@ -897,7 +923,7 @@ fn background(core: &CoreLock, wake: &Receiver<Wake>) {
                 }
                 match wake.try_recv() {
                     Ok(Wake::Shutdown) | Err(TryRecvError::Disconnected) => return,
-                    Ok(Wake::Cyclic) | Err(TryRecvError::Empty) => {}
+                    Ok(Wake::Work) | Err(TryRecvError::Empty) => {}
                 }
                 continue;
             }

@@ -29,6 +29,9 @@ use super::bus::{JointBus, lock};
 use super::error::WhjError;
 use super::trajectory::{MotionLimits, Profile};
 
+mod owned;
+pub use owned::OwnedCyclic;
+
 /// Which servo frames the loop sends.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum ServoMode {
@@ -616,7 +619,7 @@ fn best_mask(joints: &[JointId]) -> ReplyMask {
 /// with [`Cyclic::stats`].
 #[derive(Debug)]
 pub struct Cyclic<'a> {
-    bus: &'a JointBus,
+    bus: owned::BusRef<'a>,
     shared: Arc<CyclicShared>,
     config: CyclicConfig,
     stopped: bool,
@@ -657,7 +660,7 @@ impl JointBus {
             step_limit_deg: self.config().step_limit_deg,
         })?;
         Ok(Cyclic {
-            bus: self,
+            bus: owned::BusRef::Borrowed(self),
             shared,
             config,
             stopped: false,

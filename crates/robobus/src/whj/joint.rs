@@ -55,6 +55,36 @@ pub struct RegisterValue {
     pub unit: &'static str,
 }
 
+impl RegisterValue {
+    /// The value of `info` from the words read at its address (a pair: low word first;
+    /// missing words count as 0), converted with the joint's current scale.
+    pub fn of(info: &'static RegisterInfo, words: &[u16], scale: CurrentScale) -> Self {
+        let at = |i: usize| words.get(i).copied().unwrap_or(0);
+        let raw = match (info.half, info.unit) {
+            (Half::Low, _) => registers::join_i32(at(0), at(1)),
+            (_, Unit::Raw | Unit::Enum | Unit::Flag) => i32::from(at(0)),
+            #[allow(clippy::cast_possible_wrap)] // registers are signed 16-bit words
+            _ => i32::from(at(0) as i16),
+        };
+        let (value, unit) = unit_scale(info, scale);
+        Self {
+            info,
+            raw,
+            value: value.map(|s| f64::from(raw) * s),
+            unit,
+        }
+    }
+}
+
+/// The scale (per count) and unit symbol of a register's value.
+fn unit_scale(info: &RegisterInfo, scale: CurrentScale) -> (Option<f64>, &'static str) {
+    match info.unit {
+        Unit::Current => (Some(f64::from(scale.ma_per_count())), info.unit.symbol()),
+        Unit::SpeedLimit => (None, ""),
+        u => (u.scale(), u.symbol()),
+    }
+}
+
 impl core::fmt::Display for RegisterValue {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self.value {
@@ -306,20 +336,11 @@ impl<'a> Joint<'a> {
         let info = lookup(name)?;
         let count = if info.half == Half::Low { 2 } else { 1 };
         let w = self.read_words(info.addr, count)?;
-        let at = |i: usize| w.get(i).copied().unwrap_or(0);
-        let raw = match (info.half, info.unit) {
-            (Half::Low, _) => registers::join_i32(at(0), at(1)),
-            (_, Unit::Raw | Unit::Enum | Unit::Flag) => i32::from(at(0)),
-            #[allow(clippy::cast_possible_wrap)] // registers are signed 16-bit words
-            _ => i32::from(at(0) as i16),
+        let scale = match info.unit {
+            Unit::Current => self.current_scale()?,
+            _ => CurrentScale::OneMilliamp,
         };
-        let (value, unit) = self.scale(info)?;
-        Ok(RegisterValue {
-            info,
-            raw,
-            value: value.map(|s| f64::from(raw) * s),
-            unit,
-        })
+        Ok(RegisterValue::of(info, &w, scale))
     }
 
     /// Writes a register by name with a value in its unit (degrees for positions, RPM
@@ -609,14 +630,11 @@ impl<'a> Joint<'a> {
     }
 
     fn scale(&self, info: &RegisterInfo) -> Result<(Option<f64>, &'static str), WhjError> {
-        Ok(match info.unit {
-            Unit::Current => (
-                Some(f64::from(self.current_scale()?.ma_per_count())),
-                info.unit.symbol(),
-            ),
-            Unit::SpeedLimit => (None, ""),
-            u => (u.scale(), u.symbol()),
-        })
+        let scale = match info.unit {
+            Unit::Current => self.current_scale()?,
+            _ => CurrentScale::OneMilliamp,
+        };
+        Ok(unit_scale(info, scale))
     }
 
     fn check_ack(&self, reply: &Reply, addr: RegisterAddr, value: i32) -> Result<(), WhjError> {

@@ -70,7 +70,8 @@ pub use bus::{
     Telemetry,
 };
 pub use cyclic::{
-    CycleReport, Cyclic, CyclicConfig, CyclicStats, Feedback, Percentiles, Protocol, ServoMode,
+    CycleReport, Cyclic, CyclicConfig, CyclicStats, Feedback, OwnedCyclic, Percentiles, Protocol,
+    ServoMode,
 };
 pub use error::WhjError;
 pub use joint::{Identity, Joint, RegisterValue};

@@ -21,7 +21,7 @@ use robobus_link::{BusErrorKind, FrameLinkError};
 use robobus_whj::frame::padded_len;
 use robobus_whj::{CanFrame, JointId, Reply, Request};
 
-use super::bus::{BusState, JointBusConfig, Shared, lock};
+use super::bus::{BROADCAST_LOG, BusState, JointBusConfig, Shared, lock};
 use super::cyclic::{CyclicRun, CyclicSetup};
 use super::error::WhjError;
 
@@ -172,6 +172,18 @@ struct InFlight {
     deadline: Instant,
 }
 
+/// Whether `raw` is an ID on which joints or the end board answer broadcast frames.
+fn is_broadcast_reply_id(raw: u16) -> bool {
+    use robobus_whj::Address;
+    matches!(
+        Address::from_raw(raw),
+        Address::BroadcastFeedback(_)
+            | Address::BroadcastRegisterReply(_)
+            | Address::EndBoardFeedback
+            | Address::EndBoardRegisterReply
+    )
+}
+
 /// At most this many finished attempts wait to be taken (their callers gave up).
 const MAX_DONE: usize = 4096;
 
@@ -188,6 +200,9 @@ pub(crate) struct Session {
     passive_since: Option<Instant>,
     cyclic: Option<CyclicRun>,
     to_send: VecDeque<CanFrame>,
+    /// Until when replies to the last broadcast frame are awaited (received at once
+    /// rather than at the next drain).
+    broadcast_until: Option<Instant>,
 }
 
 impl Session {
@@ -203,6 +218,7 @@ impl Session {
             passive_since: None,
             cyclic: None,
             to_send: VecDeque::new(),
+            broadcast_until: None,
         }
     }
 
@@ -229,6 +245,17 @@ impl Session {
             self.done.clear();
         }
         self.done.insert(id, outcome);
+    }
+
+    /// A broadcast frame went out at `now`: its replies are awaited for five reply
+    /// timeouts.
+    pub(crate) fn broadcast_sent(&mut self, now: Instant) {
+        self.broadcast_until = Some(now + self.config.reply_timeout * 5);
+    }
+
+    /// Whether replies to a broadcast frame are still awaited at `now`.
+    pub(crate) fn broadcast_pending(&self, now: Instant) -> bool {
+        self.broadcast_until.is_some_and(|t| t > now)
     }
 
     /// Whether a cyclic loop runs.
@@ -399,6 +426,13 @@ impl Session {
     /// A frame arrived at `now`.
     pub(crate) fn on_frame(&mut self, frame: &CanFrame, now: Instant) {
         let decoded = Reply::from_frame(frame);
+        if frame.standard_raw_id().is_some_and(is_broadcast_reply_id) {
+            let mut log = lock(&self.shared.broadcast_log);
+            if log.len() >= BROADCAST_LOG {
+                log.pop_front();
+            }
+            log.push_back((now, *frame));
+        }
         {
             let mut t = lock(&self.shared.telemetry);
             t.bus.frames_received += 1;

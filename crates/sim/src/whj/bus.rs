@@ -18,6 +18,7 @@ use robobus_whj::CanFrame;
 use robobus_whj::timing::{self, BitRates};
 
 use super::config::JointConfig;
+use super::end_board::SimEndBoard;
 use super::joint::SimJoint;
 use super::model::WhjModel;
 use crate::faults::{DeviceFault, DeviceFaultKind};
@@ -29,6 +30,8 @@ pub enum Node {
     Host,
     /// The joint at this index in [`WhjBus::joints`].
     Joint(usize),
+    /// The end board ([`WhjBus::with_end_board`]).
+    EndBoard,
 }
 
 /// A frame that occupied the wire.
@@ -83,6 +86,7 @@ pub struct BusStats {
 #[derive(Debug)]
 pub struct WhjBus {
     joints: Vec<SimJoint>,
+    end_board: Option<SimEndBoard>,
     rates: BitRates,
     now: Duration,
     wire_free: Duration,
@@ -99,6 +103,7 @@ impl WhjBus {
     pub fn new(joints: Vec<SimJoint>) -> Self {
         Self {
             joints,
+            end_board: None,
             rates: BitRates::WHJ,
             now: Duration::ZERO,
             wire_free: Duration::ZERO,
@@ -125,6 +130,23 @@ impl WhjBus {
                 .map(|cfg| SimJoint::new(cfg, seed))
                 .collect(),
         )
+    }
+
+    /// Put an end board on the bus (it answers the end-board field of broadcast frames).
+    #[must_use]
+    pub fn with_end_board(mut self) -> Self {
+        self.end_board = Some(SimEndBoard::new());
+        self
+    }
+
+    /// The end board, if there is one.
+    pub const fn end_board(&self) -> Option<&SimEndBoard> {
+        self.end_board.as_ref()
+    }
+
+    /// The end board, if there is one.
+    pub const fn end_board_mut(&mut self) -> Option<&mut SimEndBoard> {
+        self.end_board.as_mut()
     }
 
     /// Use other bit rates (default 1 Mbit/s nominal, 5 Mbit/s data).
@@ -257,7 +279,7 @@ impl WhjBus {
             self.stats.busy += duration;
             match p.source {
                 Node::Host => self.stats.host_frames += 1,
-                Node::Joint(_) => self.stats.joint_frames += 1,
+                Node::Joint(_) | Node::EndBoard => self.stats.joint_frames += 1,
             }
         }
         self.now = self.now.max(t);
@@ -289,6 +311,14 @@ impl WhjBus {
             if let Some(reply) = self.joints[i].handle(&wire.frame, wire.end) {
                 self.push(reply.frame, reply.ready_at, Node::Joint(i));
             }
+        }
+        if wire.source != Node::EndBoard
+            && let Some(reply) = self
+                .end_board
+                .as_mut()
+                .and_then(|b| b.handle(&wire.frame, wire.end))
+        {
+            self.push(reply.frame, reply.ready_at, Node::EndBoard);
         }
     }
 

@@ -39,6 +39,7 @@
 
 mod bus;
 mod config;
+mod end_board;
 mod endpoint;
 mod joint;
 mod link;
@@ -49,6 +50,7 @@ pub use bus::{BusStats, Delivered, Node, WhjBus, WireFrame};
 pub use config::{
     BootConfig, BroadcastReadReply, JointConfig, Load, SpeedLimitUnit, StepConfig, WatchdogConfig,
 };
+pub use end_board::SimEndBoard;
 pub use endpoint::{ServeStats, serve, serve_with};
 pub use joint::{JointState, Phase, Reply, Sample, SimJoint};
 pub use link::{WhjSimHandle, WhjSimLink};

@@ -13,7 +13,7 @@
 //! | wheel (timed, watched) | [`WheelArgs::plan`] | [`wheel`] | [`WheelReport`] |
 //! | play a keyframe motion | [`Motion::moves`] (streamed) | [`play`] | [`PlayReport`] |
 //! | teach | [`TeachArgs::plan`] | [`teach`] (each pose to the caller as recorded) | [`TeachReport`] |
-//! | safe stop | | [`apply`] / [`apply_each`] | |
+//! | safe stop | | [`SafeState::apply`] with [`WckServos`](crate::ops::safe::WckServos) | |
 //!
 //! # Report schema (the CLI's `--json`)
 //!
@@ -41,7 +41,7 @@
 //! Long operations (scan, timed wheel, play, teach) take a [`Control`](crate::ops::Control):
 //! they report [`Progress`](crate::ops::Progress) and look at its stop token between
 //! packets and while they wait. On a stop they bring the servos to the caller's
-//! [`SafeState`] through [`apply`] (the same function the robot watchdog uses) and return
+//! [`SafeState`] through [`SafeState::apply`] (the same function the robot watchdog uses) and return
 //! [`OpError::Interrupted`](crate::ops::OpError::Interrupted).
 //!
 //! A timed wheel run on the simulator, stopped from another thread:
@@ -95,8 +95,7 @@ pub use report::{BREAK_CLEAN, BREAK_COLLIDED, FieldValue, Fields, reply_fields};
 pub use run::{
     ASSUMED_POSITION, Found, PlayReport, ScanArgs, ScanOpReport, SharedId, StepResult, StepsReport,
     TeachArgs, TeachEvent, TeachReport, TeachTrigger, WHEEL_WATCH_PERIOD, WheelArgs, WheelReport,
-    apply, apply_each, check_rate, confirm_reads_for, ids_text, play, run_steps, scan,
-    target_value, teach, wheel,
+    check_rate, confirm_reads_for, ids_text, play, run_steps, scan, target_value, teach, wheel,
 };
 pub use shared::{SharedServo, SharedWckBus};
 

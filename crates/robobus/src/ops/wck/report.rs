@@ -108,7 +108,7 @@ impl Serialize for Fields {
 /// [`crate::ops::DeviceResult`]). Units are in the names: `position` (0..=254
 /// steps), `position10` (0..=1023), `degrees`, `load`, `milliamps`, `baud` (bit/s),
 /// `adc_volts`; a move's reply is the status *before* it (`load_before`,
-/// `position_before`). A break on a shared bus: see [`break_fields`].
+/// `position_before`). A break on a shared bus: see [`BREAK_CLEAN`] and [`BREAK_COLLIDED`].
 #[allow(clippy::too_many_lines)] // one arm per reply shape
 pub fn reply_fields(command: &Command, reply: Option<Reply>) -> Fields {
     let mut row = Fields::default();

@@ -10,8 +10,9 @@ use super::motion::{Motion, Pose};
 use super::plan::{WckPlan, WckStep};
 use super::report::{FieldValue, Fields, reply_fields};
 use crate::ErrorKind;
+use crate::ops::safe::WckServos;
 use crate::ops::{Control, DeviceResult, Failure, OpError, Progress, SafeState};
-use crate::wck::{FoundServo, ScanOptions, WckBus, WckError};
+use crate::wck::{FoundServo, ScanOptions, WckBus};
 
 /// The position a plan shows for a step whose position is read from the device (a hold).
 pub const ASSUMED_POSITION: u8 = 127;
@@ -21,82 +22,15 @@ pub const WHEEL_WATCH_PERIOD: Duration = Duration::from_millis(200);
 
 // ----- safe state -----
 
-/// Brings the servos `ids` to `state`, trying every servo even after a failure; returns the
-/// failures (`None` = the bus-wide break). The one safe stop of wCK servos: the CLI's
-/// Ctrl-C, timed runs and the robot watchdog use it.
-///
-/// - [`SafeState::Passive`] (and [`SafeState::Disable`], its wCK meaning): a passive
-///   command per servo.
-/// - [`SafeState::Break`]: the broadcast break (every module on the bus).
-/// - [`SafeState::Hold`]: a status read per servo, then a position move at `torque` to the
-///   position it reported.
-pub fn apply_each<L: ByteLink>(
-    bus: &mut WckBus<L>,
-    ids: &[ServoId],
-    state: SafeState,
-    torque: TorqueLevel,
-) -> Vec<(Option<ServoId>, WckError)> {
-    let mut failed = Vec::new();
-    match state {
-        SafeState::Break => {
-            if let Err(e) = bus.break_all() {
-                failed.push((None, e));
-            }
-        }
-        SafeState::Passive | SafeState::Disable => {
-            for &id in ids {
-                if let Err(e) = bus.servo(id).passive() {
-                    failed.push((Some(id), e));
-                }
-            }
-        }
-        SafeState::Hold => {
-            for &id in ids {
-                let mut servo = bus.servo(id);
-                let held = servo
-                    .status()
-                    .and_then(|s| servo.move_to(torque, s.position).map(drop));
-                if let Err(e) = held {
-                    failed.push((Some(id), e));
-                }
-            }
-        }
-    }
-    failed
-}
-
-/// [`apply_each`] as one result: the first failure, after trying every servo.
-#[allow(clippy::result_large_err)] // OpError carries the client errors by value
-pub fn apply<L: ByteLink>(
-    bus: &mut WckBus<L>,
-    ids: &[ServoId],
-    state: SafeState,
-    torque: TorqueLevel,
-) -> Result<(), OpError> {
-    match apply_each(bus, ids, state, torque).into_iter().next() {
-        None => Ok(()),
-        Some((_, e)) => Err(OpError::Wck(e)),
-    }
-}
-
-/// After a stop: the safe state, then [`OpError::Interrupted`] saying what it did.
+/// After a stop: the safe state ([`SafeState::apply`]), then [`OpError::Interrupted`]
+/// saying what it did.
 fn interrupted<L: ByteLink>(
     bus: &mut WckBus<L>,
     ids: &[ServoId],
     state: SafeState,
     torque: TorqueLevel,
 ) -> OpError {
-    let detail = match apply(bus, ids, state, torque) {
-        Ok(()) => format!(
-            "servo(s) {} brought to {} state",
-            ids_text(ids),
-            state.keyword()
-        ),
-        Err(e) => format!("could not bring the servos to the safe state: {e}"),
-    };
-    OpError::Interrupted {
-        detail: Some(detail),
-    }
+    state.interrupted(&mut WckServos { bus, ids, torque })
 }
 
 /// `0-2,5`: IDs as ranges.
@@ -430,7 +364,11 @@ fn run_timed<L: ByteLink>(
             Ok(r) => r,
             Err(e) => {
                 // The device stopped answering (or the port went away): stop the others.
-                let _ = apply_each(bus, stop.0, stop.1, stop.2);
+                let _ = stop.1.apply(&mut WckServos {
+                    bus,
+                    ids: stop.0,
+                    torque: stop.2,
+                });
                 return Err(e.into());
             }
         };
@@ -836,7 +774,14 @@ fn finish<L: ByteLink>(
     poses: u64,
 ) -> Result<TeachReport, OpError> {
     if !matches!(args.on_stop, SafeState::Passive | SafeState::Disable) {
-        apply(bus, &args.ids, args.on_stop, args.torque)?;
+        let failed = args.on_stop.apply(&mut WckServos {
+            bus,
+            ids: &args.ids,
+            torque: args.torque,
+        });
+        if let Some(f) = failed.into_iter().next() {
+            return Err(f.error);
+        }
     }
     Ok(TeachReport { poses })
 }
