@@ -320,9 +320,11 @@ fn invalid_configurations_are_refused() {
 /// The client's side of the bus: every servo feedback frame of joint 1 is held back by
 /// `base` of the link's (virtual) time, so round trips are at least that long; the one
 /// answering command number `slow_index` is held back by `slow` instead, or dropped if
-/// `drop` is set. Each feedback's current field is replaced by the number of the command
-/// it answers (0, 1, ...: the joint answers every command, in order), so the test can tell
-/// which command a feedback frame answers.
+/// `drop` is set; with `after_tick`, the `slow_count` frames from there on are held back
+/// instead until `after_tick` past the tick that follows their command's (the loop's ticks
+/// are exact on the virtual clock). Each feedback's current field is replaced by the number
+/// of the command it answers (0, 1, ...: the joint answers every command, in order), so the
+/// test can tell which command a feedback frame answers.
 struct StampingLink<L> {
     inner: L,
     answered: i32,
@@ -330,6 +332,9 @@ struct StampingLink<L> {
     base: Duration,
     slow: Duration,
     drop: bool,
+    after_tick: Option<(Duration, i32, Duration)>,
+    /// When each current command to joint 1 went out.
+    sent: Vec<Instant>,
     /// Held-back frames with their release instants, in arrival (and release) order.
     held: std::collections::VecDeque<(Instant, robobus_link::Received)>,
 }
@@ -360,10 +365,17 @@ impl<L: robobus_link::FrameLink> StampingLink<L> {
         } else {
             self.base
         };
+        let mut at = self.inner.now() + delay;
+        if let Some((period, count, after)) = self.after_tick
+            && (self.slow_index..self.slow_index + count).contains(&n)
+            && let Some(sent) = usize::try_from(n).ok().and_then(|n| self.sent.get(n))
+        {
+            at = *sent + period + after;
+        }
         feedback.current = Current(n);
         let frame = robobus_whj::Reply::ServoFeedback { joint, feedback }.to_frame();
         // One joint's frames stay in order (a held-back frame holds back the next).
-        let at = self.ready_after(self.inner.now() + delay);
+        let at = self.ready_after(at);
         self.held
             .push_back((at, robobus_link::Received { frame, ..rx }));
     }
@@ -371,6 +383,9 @@ impl<L: robobus_link::FrameLink> StampingLink<L> {
 
 impl<L: robobus_link::FrameLink> robobus_link::FrameLink for StampingLink<L> {
     fn send(&mut self, frame: &robobus_whj::CanFrame) -> Result<(), robobus_link::FrameLinkError> {
+        if frame.raw_id() == 0x401 {
+            self.sent.push(self.inner.now());
+        }
         self.inner.send(frame)
     }
 
@@ -423,6 +438,18 @@ fn stamped_run(
     slow: Duration,
     drop: bool,
 ) -> (Vec<CycleReport>, robobus::whj::CyclicStats) {
+    stamped_run_with(period, base, slow, drop, None)
+}
+
+/// [`stamped_run`] with [`StampingLink`]'s `after_tick` (`count` frames, `after` past the
+/// next tick).
+fn stamped_run_with(
+    period: Duration,
+    base: Duration,
+    slow: Duration,
+    drop: bool,
+    after_tick: Option<(i32, Duration)>,
+) -> (Vec<CycleReport>, robobus::whj::CyclicStats) {
     let (link, _sim) = whj_common::sim_link(chain(1));
     let link = StampingLink {
         inner: link,
@@ -431,6 +458,8 @@ fn stamped_run(
         base,
         slow,
         drop,
+        after_tick: after_tick.map(|(count, after)| (period, count, after)),
+        sent: Vec::new(),
         held: std::collections::VecDeque::new(),
     };
     let bus = JointBus::open_with(link, whj_common::virtual_config()).unwrap();
@@ -499,6 +528,26 @@ fn a_lost_feedback_frame_costs_one_more_cycle_then_feedback_is_matched_again() {
     assert!(reports[7..].iter().all(|r| !r.missed), "{reports:?}");
     assert_matched(&reports, base);
     assert_eq!(stats.late_replies, 1, "{stats:?}");
+}
+
+#[test]
+fn feedback_just_after_the_next_tick_twice_in_a_row_is_never_taken_for_a_later_cycle() {
+    // The feedback to commands 5 and 6 each comes 20 µs after the next tick, before the
+    // next command can have been answered (a servo frame and its feedback take about
+    // 125 µs on the wire). Both are late replies of their own cycles; cycle 7 and every
+    // later one get their own feedback, never the one before (whose round trip would be
+    // shorter than the wire allows).
+    let period = Duration::from_millis(2);
+    let base = Duration::from_micros(300);
+    let after = Duration::from_micros(20);
+    let (reports, stats) = stamped_run_with(period, base, base, false, Some((2, after)));
+    assert!(reports[5].missed && reports[6].missed, "{reports:?}");
+    assert_eq!(reports[5].feedback, vec![None]);
+    assert_eq!(reports[6].feedback, vec![None]);
+    assert!(reports[7..].iter().all(|r| !r.missed), "{reports:?}");
+    assert_matched(&reports, base);
+    assert_eq!(stats.late_replies, 2, "{stats:?}");
+    assert_eq!(stats.deadline_misses, 2, "{stats:?}");
 }
 
 /// The owning form of the loop crosses threads: it holds an `Arc` of the bus, runs on a

@@ -426,6 +426,16 @@ impl Core {
 
     /// Lets time pass in the session and sends what is due; `false` if the link closed.
     fn transmit(&mut self) -> bool {
+        if self.session.cyclic_due(self.link.now()) {
+            // Frames received before the next cycle's command goes out answer earlier
+            // commands: take them before the tick (the loop does not read between a
+            // closed cycle and the next tick, and a late-running thread reaches the tick
+            // with frames still queued).
+            self.drain();
+            if self.closed {
+                return false;
+            }
+        }
         let now = self.link.now();
         self.session.on_time(now);
         while let Some(tx) = self.session.poll_transmit(now) {

@@ -7,10 +7,16 @@
 //! that command. When a cycle closes without a joint's feedback, that feedback is owed:
 //! the joint's next feedback frame is counted as a late reply of the closed cycle, not as
 //! the new cycle's feedback (which would leave every later cycle holding the previous
-//! command's answer). The frames carry no sequence number, so a feedback frame that is
-//! lost outright cannot be told from a late one. Two rules keep a lost frame from
-//! shifting the matching for good: a cycle in which the joint's only frame paid an older
-//! debt owes nothing more (the joint answered once for one command), and an owed reply is
+//! command's answer). A frame received before the running cycle's command can have been
+//! answered (the command frame and the feedback frame each take their wire time at the
+//! WHJ bit rates) is never that cycle's feedback. Before the next cycle's frames go out,
+//! the driver reads every frame already received, so a frame that came before the next
+//! command is credited to the cycle it answers (and a cycle whose last feedback came after
+//! its deadline is reported as missed). The frames carry no sequence number, so a
+//! feedback frame that is lost outright cannot be told from a late one. Two rules keep a
+//! lost frame from shifting the matching for good: a cycle in which the joint's only frame
+//! paid an older debt, at a time when it could also have answered this cycle's command,
+//! owes nothing more (the joint answered once for one command), and an owed reply is
 //! given up as lost once it is four periods (at least 20 ms) old. A lost frame therefore
 //! costs one more missed cycle, and feedback is matched again from the cycle after.
 
@@ -19,6 +25,7 @@ use std::collections::VecDeque;
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::Instant;
 
+use robobus_whj::timing::{BitRates, frame_duration};
 use robobus_whj::units::{ActualSpeed, Current, Position, TargetSpeed};
 use robobus_whj::{
     BroadcastCurrent, BroadcastFeedback, BroadcastPosition, CanFrame, ErrorCode, Function, JointId,
@@ -169,14 +176,15 @@ pub struct CycleReport {
     /// How late its frames went out.
     pub start_lateness: Duration,
     /// From the first frame sent to the last feedback received (`None` if feedback was
-    /// missing).
+    /// missing; present but `missed` if the last feedback came after the deadline).
     pub round_trip: Option<Duration>,
     /// The raw targets sent, per joint (after smoothing and step clamping): 0.0001° for
     /// position, 0.002 RPM for speed, current counts for current.
     pub commanded: Vec<i32>,
     /// The feedback per joint (`None` = did not arrive within the cycle).
     pub feedback: Vec<Option<Feedback>>,
-    /// Whether the cycle missed its deadline (feedback missing at the next tick).
+    /// Whether the cycle missed its deadline (feedback missing at the next tick, or
+    /// received after it was due).
     pub missed: bool,
 }
 
@@ -299,6 +307,17 @@ struct InCycle {
     feedback: Vec<Option<Feedback>>,
     remaining: usize,
     last_reply: Option<Instant>,
+    /// Per joint: the wire time of the command frame it answers.
+    command_time: Vec<Duration>,
+}
+
+impl InCycle {
+    /// Whether `reply`, received at `now`, can answer this cycle's command to joint `i`:
+    /// not before the command and then the reply itself have crossed the wire.
+    fn can_answer(&self, i: usize, reply: &CanFrame, now: Instant) -> bool {
+        let command = self.command_time.get(i).copied().unwrap_or_default();
+        now >= self.started + command + frame_duration(reply, BitRates::WHJ)
+    }
 }
 
 /// The loop as the session runs it.
@@ -382,6 +401,15 @@ impl CyclicRun {
         let commanded = self.commands(&targets);
         let frames = self.frames(&commanded);
         let n = self.config.joints.len();
+        let command_time = (0..n)
+            .map(|i| {
+                frames
+                    .get(i)
+                    .or_else(|| frames.first())
+                    .map(|f| frame_duration(f, BitRates::WHJ))
+                    .unwrap_or_default()
+            })
+            .collect();
         self.current = Some(InCycle {
             cycle: self.cycle,
             scheduled,
@@ -390,6 +418,7 @@ impl CyclicRun {
             feedback: vec![None; n],
             remaining: n,
             last_reply: None,
+            command_time,
         });
         self.cycle += 1;
         self.next_tick += self.config.period;
@@ -478,8 +507,8 @@ impl CyclicRun {
         }
     }
 
-    /// Takes a reply if it belongs to this loop.
-    pub(crate) fn on_reply(&mut self, reply: &Reply, now: Instant) -> bool {
+    /// Takes a reply (decoded from `frame`) if it belongs to this loop.
+    pub(crate) fn on_reply(&mut self, reply: &Reply, frame: &CanFrame, now: Instant) -> bool {
         let (joint, fb) = match (self.config.protocol, reply) {
             (Protocol::PointToPoint, Reply::ServoFeedback { joint, feedback }) => {
                 (*joint, Feedback::from(*feedback))
@@ -495,6 +524,10 @@ impl CyclicRun {
         if let Some(a) = self.actual.get_mut(i) {
             *a = Some(fb.position);
         }
+        let answerable = self
+            .current
+            .as_ref()
+            .is_some_and(|c| c.can_answer(i, frame, now));
         if let Some(owed) = self.owed.get_mut(i) {
             let expiry = owed_expiry(self.config.period);
             while owed
@@ -505,13 +538,21 @@ impl CyclicRun {
                 owed.pop_front();
             }
             if owed.pop_front().is_some() {
-                // The answer to an earlier cycle's command, which closed without it.
-                if let Some(p) = self.paid.get_mut(i) {
+                // The answer to an earlier cycle's command, which closed without it. Only
+                // if it came when it could also have answered this cycle's command may
+                // this cycle's own answer have been lost instead.
+                if answerable && let Some(p) = self.paid.get_mut(i) {
                     *p = true;
                 }
                 lock(&self.shared.acc).stats.late_replies += 1;
                 return true;
             }
+        }
+        if !answerable {
+            // Too early for the running cycle's command (or no cycle runs): the answer to
+            // an earlier one.
+            lock(&self.shared.acc).stats.late_replies += 1;
+            return true;
         }
         let slot = self.current.as_mut().and_then(|c| {
             c.feedback
@@ -541,7 +582,10 @@ impl CyclicRun {
         let Some(c) = self.current.take() else {
             return;
         };
-        let complete = c.remaining == 0;
+        // Feedback read after the cycle's deadline (the next tick) is late, even if the
+        // next cycle's frames had not gone out yet.
+        let deadline = c.scheduled + self.config.period;
+        let complete = c.remaining == 0 && c.last_reply.is_none_or(|t| t <= deadline);
         for ((owed, paid), fb) in self.owed.iter_mut().zip(&mut self.paid).zip(&c.feedback) {
             // A joint that answered once in this cycle (paying an older debt) owes
             // nothing more for it: its frame for an earlier command was lost.
@@ -553,7 +597,7 @@ impl CyclicRun {
             }
             *paid = false;
         }
-        let round_trip = if complete {
+        let round_trip = if c.remaining == 0 {
             c.last_reply.map(|t| t.saturating_duration_since(c.started))
         } else {
             None
@@ -568,6 +612,7 @@ impl CyclicRun {
                 acc.stats.missing_replies += c.remaining as u64;
             }
             if let Some(rt) = round_trip
+                && complete
                 && acc.round_trips.len() < MAX_SAMPLES
             {
                 acc.round_trips.push(rt);

@@ -288,6 +288,12 @@ impl Session {
         self.shared.cyclic_running.store(false, Ordering::Release);
     }
 
+    /// Whether the cyclic loop's next tick is due at `now`: frames already received are
+    /// read first, so that none is taken for the next cycle's.
+    pub(crate) fn cyclic_due(&self, now: Instant) -> bool {
+        self.cyclic.as_ref().is_some_and(|c| c.due(now))
+    }
+
     /// Lets time pass: bus-error holds end, the cyclic loop ticks, attempts time out,
     /// settle times end.
     pub(crate) fn on_time(&mut self, now: Instant) {
@@ -445,7 +451,7 @@ impl Session {
             self.set_state(BusState::Active, None);
         }
         if let (Ok(reply), Some(c)) = (&decoded, self.cyclic.as_mut())
-            && c.on_reply(reply, now)
+            && c.on_reply(reply, frame, now)
         {
             return;
         }
