@@ -393,11 +393,13 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
          joints at 1 kHz: the wire-time model gives 609 Hz at most); commands then queue without \
          bound and that row only shows that it fails; it is left out of the 97 % goal.\n\n\
          The client's own statistics are shown beside them: its deadline misses, and its \
-         \"impossible\" round trips, shorter than 98 % of the modelled wire time: once one \
-         cycle's feedback comes after the next tick, the loop takes it for the next cycle's \
-         and stays one cycle behind (WHJ servo feedback carries no cycle number, and the \
-         loop does not read the link between cycles), so its own round-trip figures are \
-         wrong from then on.\n"
+         \"impossible\" round trips, shorter than 98 % of the modelled wire time, which would \
+         mean a feedback frame credited to a cycle whose command it cannot have answered \
+         (the loop reads every frame already received before each tick and never takes a \
+         frame that came before its cycle's command can have been answered, so this should be 0). \
+         The client counts a cycle as missed when its last feedback came after the next \
+         tick was due, even if the next command went out later; the link counts it \
+         against the next command, so after a late tick the client reports more misses.\n"
     );
     let _ = writeln!(
         o,

@@ -285,8 +285,8 @@ pub struct FixedResult {
     /// physically possible ones (see `impossible`).
     pub round_trip_us: Vec<f64>,
     /// Complete cycles whose round trip was shorter than the wire allows (below 98 % of
-    /// the modelled round trip): the client took feedback of an earlier cycle, which came
-    /// late, for this cycle's. Left out of `round_trip_us`.
+    /// the modelled round trip): the client would have taken feedback of an earlier
+    /// cycle for this cycle's. Left out of `round_trip_us`.
     pub impossible: u64,
     /// How late each cycle started, µs.
     pub lateness_us: Vec<f64>,
@@ -375,7 +375,7 @@ pub fn fixed_rate(
             continue;
         };
         lateness_us.push(r.start_lateness.as_secs_f64() * 1e6);
-        if let Some(rt) = r.round_trip {
+        if let Some(rt) = r.round_trip.filter(|_| !r.missed) {
             round_trip_us.push(rt.as_secs_f64() * 1e6);
             if first.is_none() {
                 first = Some(r);

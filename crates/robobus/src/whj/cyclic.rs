@@ -307,7 +307,8 @@ struct InCycle {
     feedback: Vec<Option<Feedback>>,
     remaining: usize,
     last_reply: Option<Instant>,
-    /// Per joint: the wire time of the command frame it answers.
+    /// Per joint: the wire time of the command frame it answers and of the frames that
+    /// go before it.
     command_time: Vec<Duration>,
 }
 
@@ -318,6 +319,16 @@ impl InCycle {
         let command = self.command_time.get(i).copied().unwrap_or_default();
         now >= self.started + command + frame_duration(reply, BitRates::WHJ)
     }
+}
+
+/// A feedback frame a closed cycle did not get.
+#[derive(Debug, Clone, Copy)]
+struct Debt {
+    /// When the command it answers went out.
+    sent: Instant,
+    /// Owed only perhaps (the joint's frame in that cycle may have been its answer, if
+    /// the frame for an earlier command was lost).
+    perhaps: bool,
 }
 
 /// The loop as the session runs it.
@@ -334,7 +345,7 @@ pub(crate) struct CyclicRun {
     mask: ReplyMask,
     /// Per joint: when the frames of closed cycles still owed a feedback frame by the
     /// joint went out, oldest first.
-    owed: Vec<VecDeque<Instant>>,
+    owed: Vec<VecDeque<Debt>>,
     /// Per joint: whether a feedback frame in the running cycle paid an owed one.
     paid: Vec<bool>,
 }
@@ -402,12 +413,19 @@ impl CyclicRun {
         let frames = self.frames(&commanded);
         let n = self.config.joints.len();
         let command_time = (0..n)
-            .map(|i| {
-                frames
-                    .get(i)
-                    .or_else(|| frames.first())
-                    .map(|f| frame_duration(f, BitRates::WHJ))
+            .map(|i| match frames.get(i) {
+                // Point-to-point: a frame sent earlier with a lower ID goes first.
+                Some(own) if frames.len() == n => frames
+                    .get(..=i)
                     .unwrap_or_default()
+                    .iter()
+                    .filter(|f| f.raw_id() <= own.raw_id())
+                    .map(|f| frame_duration(f, BitRates::WHJ))
+                    .sum(),
+                _ => frames
+                    .first()
+                    .map(|f| frame_duration(f, BitRates::WHJ))
+                    .unwrap_or_default(),
             })
             .collect();
         self.current = Some(InCycle {
@@ -530,11 +548,12 @@ impl CyclicRun {
             .is_some_and(|c| c.can_answer(i, frame, now));
         if let Some(owed) = self.owed.get_mut(i) {
             let expiry = owed_expiry(self.config.period);
-            while owed
-                .front()
-                .is_some_and(|sent| now.saturating_duration_since(*sent) > expiry)
-            {
-                // Too old to still be on its way: that feedback frame was lost.
+            while owed.front().is_some_and(|d| {
+                // Too old to still be on its way: that feedback frame was lost. Or owed
+                // only perhaps, and this frame can be the running cycle's answer: then
+                // that frame was lost.
+                now.saturating_duration_since(d.sent) > expiry || (d.perhaps && answerable)
+            }) {
                 owed.pop_front();
             }
             if owed.pop_front().is_some() {
@@ -587,13 +606,18 @@ impl CyclicRun {
         let deadline = c.scheduled + self.config.period;
         let complete = c.remaining == 0 && c.last_reply.is_none_or(|t| t <= deadline);
         for ((owed, paid), fb) in self.owed.iter_mut().zip(&mut self.paid).zip(&c.feedback) {
-            // A joint that answered once in this cycle (paying an older debt) owes
-            // nothing more for it: its frame for an earlier command was lost.
-            if fb.is_none() && !*paid {
+            // A joint that answered once in this cycle (paying an older debt, when its
+            // frame could also have been this cycle's answer) owes this cycle's frame
+            // only perhaps: its frame for the earlier command may have been lost. The
+            // next frame settles it: one too early for the next cycle's command pays it.
+            if fb.is_none() {
                 if owed.len() >= MAX_OWED {
                     owed.pop_front();
                 }
-                owed.push_back(c.started);
+                owed.push_back(Debt {
+                    sent: c.started,
+                    perhaps: *paid,
+                });
             }
             *paid = false;
         }
