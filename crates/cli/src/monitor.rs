@@ -31,8 +31,6 @@ use std::collections::VecDeque;
 use std::fmt::Write as _;
 use std::io::{IsTerminal as _, Write as _};
 use std::path::PathBuf;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
@@ -45,10 +43,9 @@ use ratatui::widgets::{Axis, Block, Cell, Chart, Dataset, GraphType, Paragraph, 
 use robobus::ops::monitor::{RobotSampler, WckSampler, connect_joints};
 use robobus::robot::{DynByteLink, RobotConfig, RobotError};
 use robobus::wck::{WckBus, WckConfig};
-use robobus::whj::{CyclicConfig, JointBus, JointBusConfig, MotionLimits};
+use robobus::whj::{JointBus, JointBusConfig};
 use robobus_wck::{BaudRate, ServoId};
 use robobus_whj::JointId;
-use robobus_whj::units::Position;
 
 use crate::Global;
 use crate::client::whj::{open_link, whj_error};
@@ -489,17 +486,14 @@ pub(crate) fn render(f: &mut Frame<'_>, d: &Dashboard) {
 /// Where samples come from. The library samples ([`robobus::ops::whj::sample`],
 /// [`robobus::ops::monitor`]); each device's result fills the dashboard channel at its
 /// index.
-enum Source<'a> {
+enum Source {
     Whj {
         bus: JointBus,
         joints: Vec<(usize, JointId)>,
         /// One broadcast status frame per sample.
         broadcast: bool,
     },
-    Sim {
-        cyc: robobus::whj::Cyclic<'a>,
-        start: Instant,
-    },
+    Sim(robobus::demo::SimArm),
     Wck {
         bus: WckBus<DynByteLink>,
         sampler: WckSampler,
@@ -558,39 +552,28 @@ fn sample_whj(
     }
 }
 
-fn sample_sim(cyc: &mut robobus::whj::Cyclic<'_>, start: Instant, channels: &mut [Channel]) {
-    let t = start.elapsed().as_secs_f64();
-    if let Some(r) = cyc.latest() {
-        for (c, fb) in channels.iter_mut().zip(&r.feedback) {
-            match fb {
-                Some(fb) => {
-                    c.position = Some(fb.position.degrees());
-                    c.speed = Some(fb.speed.rpm());
-                    #[allow(clippy::cast_precision_loss)]
-                    let ma = fb
-                        .current
-                        .milliamps(robobus_whj::units::CurrentScale::OneMilliamp)
-                        as f64;
-                    c.effort = Some(ma);
-                    c.enabled = Some(fb.enabled);
-                    c.error = fb.error.to_string();
-                    c.got();
-                }
-                None => c.missed("no reply"),
+fn sample_sim(arm: &robobus::demo::SimArm, channels: &mut [Channel]) {
+    let Some(r) = arm.sample() else {
+        return;
+    };
+    for (c, fb) in channels.iter_mut().zip(&r.feedback) {
+        match fb {
+            Some(fb) => {
+                c.position = Some(fb.position.degrees());
+                c.speed = Some(fb.speed.rpm());
+                #[allow(clippy::cast_precision_loss)]
+                let ma = fb
+                    .current
+                    .milliamps(robobus_whj::units::CurrentScale::OneMilliamp)
+                    as f64;
+                c.effort = Some(ma);
+                c.enabled = Some(fb.enabled);
+                c.error = fb.error.to_string();
+                c.got();
             }
+            None => c.missed("no reply"),
         }
     }
-    let targets: Vec<Position> = (0..channels.len())
-        .filter_map(|i| {
-            #[allow(clippy::cast_precision_loss)]
-            let phase = i as f64 * 0.5;
-            Position::from_degrees(
-                15.0 * (std::f64::consts::TAU * 0.2 * t + phase).sin() - 15.0 * phase.sin(),
-            )
-            .ok()
-        })
-        .collect();
-    let _ = cyc.set_positions(&targets);
 }
 
 fn sample_wck(
@@ -633,7 +616,7 @@ fn sample_robot(sampler: &mut RobotSampler, now: f64, channels: &mut [Channel]) 
     }
 }
 
-fn sample(srcs: &mut [Source<'_>], d: &mut Dashboard) {
+fn sample(srcs: &mut [Source], d: &mut Dashboard) {
     for src in srcs {
         match src {
             Source::Whj {
@@ -641,7 +624,7 @@ fn sample(srcs: &mut [Source<'_>], d: &mut Dashboard) {
                 joints,
                 broadcast,
             } => sample_whj(bus, joints, *broadcast, &mut d.channels),
-            Source::Sim { cyc, start } => sample_sim(cyc, *start, &mut d.channels),
+            Source::Sim(arm) => sample_sim(arm, &mut d.channels),
             Source::Wck { bus, sampler } => sample_wck(bus, sampler, d.t, &mut d.channels),
             Source::Robot(sampler) => sample_robot(sampler, d.t, &mut d.channels),
         }
@@ -840,61 +823,21 @@ fn dashboard(
 }
 
 fn run_sim(args: &Args, out: Output) -> anyhow::Result<()> {
-    use robobus_sim::whj::{WhjBus, WhjModel};
     let joints: Vec<u8> = args.joints.0.clone();
-    let wire = robobus_link::MemoryBus::new();
-    let mut sim_end = wire.endpoint();
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = Arc::clone(&stop);
-    let ids = joints.clone();
-    let sim = std::thread::spawn(move || {
-        let mut sim = WhjBus::chain(ids, WhjModel::Whj30, 5);
-        robobus_sim::whj::serve(&mut sim, &mut sim_end, &flag)
-    });
-    let result = (|| {
-        let bus = JointBus::open_with(wire.endpoint(), robobus::whj::JointBusConfig::simulated())
-            .map_err(whj_error)?;
-        let ids: Vec<JointId> = joints
-            .iter()
-            .filter_map(|&j| JointId::new(j).ok())
-            .collect();
-        for &id in &ids {
-            let j = bus.joint(id).map_err(whj_error)?;
-            j.disable().map_err(whj_error)?;
-            j.set_mode(robobus_whj::WorkMode::Position)
-                .map_err(whj_error)?;
-            j.enable().map_err(whj_error)?;
-        }
-        let cyc = bus
-            .cyclic(CyclicConfig {
-                smooth: Some(MotionLimits::default()),
-                ..CyclicConfig::position(ids.clone(), Duration::from_millis(5))
-            })
-            .map_err(whj_error)?;
-        let d = dashboard(
-            format!("simulated WHJ30 arm, joints {}", ids_text(&joints)),
-            "RPM",
-            "current mA",
-            ids.iter().map(|j| (format!("J{}", j.get()), "mA")),
-            args,
-        );
-        let mut src = [Source::Sim {
-            cyc,
-            start: Instant::now(),
-        }];
-        let r = watch(&mut src, d, args, out);
-        let [src] = src;
-        if let Source::Sim { cyc, .. } = src {
-            let _ = cyc.stop();
-        }
-        for &id in &ids {
-            let _ = bus.joint_unchecked(id).disable();
-        }
-        r
-    })();
-    stop.store(true, Ordering::Relaxed);
-    let _ = sim.join();
-    result
+    let ids: Vec<JointId> = joints
+        .iter()
+        .filter_map(|&j| JointId::new(j).ok())
+        .collect();
+    let arm = robobus::demo::SimArm::start(&ids)?;
+    let d = dashboard(
+        format!("simulated WHJ30 arm, joints {}", ids_text(&joints)),
+        "RPM",
+        "current mA",
+        ids.iter().map(|j| (format!("J{}", j.get()), "mA")),
+        args,
+    );
+    // Dropping the arm disables its joints and stops the simulator.
+    watch(&mut [Source::Sim(arm)], d, args, out)
 }
 
 fn ids_text(ids: &[u8]) -> String {
@@ -960,12 +903,7 @@ fn quit_key(
     }
 }
 
-fn watch(
-    srcs: &mut [Source<'_>],
-    mut d: Dashboard,
-    args: &Args,
-    out: Output,
-) -> anyhow::Result<()> {
+fn watch(srcs: &mut [Source], mut d: Dashboard, args: &Args, out: Output) -> anyhow::Result<()> {
     let mut csv = match &args.record {
         Some(p) => {
             let mut f = std::io::BufWriter::new(

@@ -150,6 +150,39 @@ fn round_trips(
     (rts, missed)
 }
 
+/// `n` status queries of joint 1 through the client library (`Joint::status`, a
+/// `reply_timeout` of `timeout` and no retries) on vcan0, after 5 unmeasured ones (the
+/// joint's identity is cached on first use, and the guest schedules the client for the
+/// first time): the round trips of the answered ones, the send instants of the timed-out
+/// ones, and any other failure.
+fn client_round_trips(n: usize, timeout: Duration) -> (Vec<Duration>, Vec<Instant>, Vec<String>) {
+    let config = JointBusConfig {
+        reply_timeout: timeout,
+        retries: 0,
+        ..JointBusConfig::default()
+    };
+    let bus = JointBus::open_with(SocketCanLink::open("vcan0").unwrap(), config).unwrap();
+    let joint = bus.joint_unchecked(JointId::new(1).unwrap());
+    for _ in 0..5 {
+        let _ = joint.status();
+    }
+    let mut failed = Vec::new();
+    let mut missed = Vec::new();
+    let mut rts = Vec::with_capacity(n);
+    for i in 0..n {
+        let t0 = Instant::now();
+        match joint.status() {
+            Ok(_) => rts.push(t0.elapsed()),
+            Err(e) if e.is_timeout() => {
+                println!("query {i}: {e}");
+                missed.push(t0);
+            }
+            Err(e) => failed.push(format!("query {i}: {e}")),
+        }
+    }
+    (rts, missed, failed)
+}
+
 fn percentile(sorted: &[Duration], p: f64) -> Duration {
     if sorted.is_empty() {
         return Duration::ZERO;
@@ -265,33 +298,8 @@ fn inner_status_queries_5ms() {
     drop(link);
 
     // 2. The client library: Joint::status with a 5 ms reply timeout and no retries.
-    let config = JointBusConfig {
-        reply_timeout: TIMEOUT,
-        retries: 0,
-        ..JointBusConfig::default()
-    };
-    let bus = JointBus::open_with(SocketCanLink::open("vcan0").unwrap(), config).unwrap();
-    let joint = bus.joint_unchecked(JointId::new(1).unwrap());
-    // Warm-up, not measured: the bus thread's first reads (the joint's identity is cached
-    // on first use) and the guest's first scheduling of it.
-    for _ in 0..5 {
-        let _ = joint.status();
-    }
-    let mut failed = Vec::new();
-    let mut missed = Vec::new();
-    let mut rts = Vec::with_capacity(QUERIES);
     let witness = StallWitness::start();
-    for i in 0..QUERIES {
-        let t0 = Instant::now();
-        match joint.status() {
-            Ok(_) => rts.push(t0.elapsed()),
-            Err(e) if e.is_timeout() => {
-                println!("query {i}: {e}");
-                missed.push(t0);
-            }
-            Err(e) => failed.push(format!("query {i}: {e}")),
-        }
-    }
+    let (rts, missed, failed) = client_round_trips(QUERIES, TIMEOUT);
     let stalls = witness.stop();
     summary("JointBus -> robobus sim whj", rts, missed.len());
     println!("guest stalls over {STALL:?} seen: {}", stalls.len());
@@ -400,27 +408,12 @@ fn inner_bench_round_trip() {
 
     // The same queries through the client library (`Joint::status`: request, matching,
     // decoding), against the same simulator.
-    let config = JointBusConfig {
-        reply_timeout: timeout,
-        retries: 0,
-        ..JointBusConfig::default()
-    };
-    let bus = JointBus::open_with(SocketCanLink::open("vcan0").unwrap(), config).unwrap();
-    let joint = bus.joint_unchecked(JointId::new(1).unwrap());
-    for _ in 0..5 {
-        let _ = joint.status();
-    }
-    let mut rts = Vec::with_capacity(n);
-    let mut missed = 0;
-    for _ in 0..n {
-        let t0 = Instant::now();
-        match joint.status() {
-            Ok(_) => rts.push(t0.elapsed()),
-            Err(_) => missed += 1,
-        }
-    }
-    let client = summary("JointBus::status -> robobus sim whj", rts, missed);
-    drop(bus);
+    let (rts, missed, failed) = client_round_trips(n, timeout);
+    let client = summary(
+        "JointBus::status -> robobus sim whj",
+        rts,
+        missed.len() + failed.len(),
+    );
     drop(sim);
     let ratio = |a: Duration, b: Duration| a.as_secs_f64() / b.as_secs_f64().max(1e-9);
     println!(

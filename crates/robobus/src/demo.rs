@@ -515,20 +515,7 @@ fn arm(
     wall: Instant,
     trace: &mut Trace,
 ) -> Result<WhjReport, OpError> {
-    use robobus_sim::whj::{WhjBus, WhjModel};
-
-    let wire = MemoryBus::new();
-    let mut sim_end = wire.endpoint();
-    let sim_stop = Arc::new(AtomicBool::new(false));
-    let flag = Arc::clone(&sim_stop);
-    let sim = std::thread::Builder::new()
-        .name("demo-whj-sim".into())
-        .spawn(move || {
-            let mut sim = WhjBus::chain(1..=JOINTS, WhjModel::Whj30, 7);
-            robobus_sim::whj::serve(&mut sim, &mut sim_end, &flag)
-        })
-        .map_err(|e| internal("starting the simulated WHJ arm", e))?;
-    let bus = JointBus::open_with(wire.endpoint(), JointBusConfig::simulated())?;
+    let (arm_server, bus) = ArmServer::start((1..=JOINTS).collect(), 7)?;
     let result = arm_run(&bus, control, seconds, wall, trace);
     // Safe state whatever happened: every joint disabled.
     for id in 1..=JOINTS {
@@ -537,11 +524,7 @@ fn arm(
         }
     }
     drop(bus);
-    sim_stop.store(true, Ordering::Relaxed);
-    let served = sim
-        .join()
-        .map_err(|_| internal("the WHJ arm's thread", "panicked"))?
-        .map_err(|e| internal("the WHJ arm", e))?;
+    let served = arm_server.stop()?;
     let mut report = result?;
     report.simulator_frames_in = served.received;
     report.simulator_frames_out = served.sent;
@@ -724,4 +707,122 @@ fn arm_run(
         stats,
         cycle_wire,
     })
+}
+
+/// Simulated WHJ30 joints served on a thread of their own over an in-process CAN FD bus.
+#[derive(Debug)]
+struct ArmServer {
+    stop: Arc<AtomicBool>,
+    thread:
+        std::thread::JoinHandle<Result<robobus_sim::whj::ServeStats, robobus_link::FrameLinkError>>,
+}
+
+impl ArmServer {
+    /// Joints `ids` (simulation seed `seed`), and a client bus to them.
+    fn start(ids: Vec<u8>, seed: u64) -> Result<(Self, JointBus), OpError> {
+        use robobus_sim::whj::{WhjBus, WhjModel};
+
+        let wire = MemoryBus::new();
+        let mut sim_end = wire.endpoint();
+        let stop = Arc::new(AtomicBool::new(false));
+        let flag = Arc::clone(&stop);
+        let thread = std::thread::Builder::new()
+            .name("sim-whj-arm".into())
+            .spawn(move || {
+                let mut sim = WhjBus::chain(ids, WhjModel::Whj30, seed);
+                robobus_sim::whj::serve(&mut sim, &mut sim_end, &flag)
+            })
+            .map_err(|e| internal("starting the simulated WHJ arm", e))?;
+        let server = Self { stop, thread };
+        let bus = JointBus::open_with(wire.endpoint(), JointBusConfig::simulated())?;
+        Ok((server, bus))
+    }
+
+    /// Stops serving; what the simulator served.
+    fn stop(self) -> Result<robobus_sim::whj::ServeStats, OpError> {
+        self.stop.store(true, Ordering::Relaxed);
+        self.thread
+            .join()
+            .map_err(|_| internal("the WHJ arm's thread", "panicked"))?
+            .map_err(|e| internal("the WHJ arm", e))
+    }
+}
+
+/// A simulated WHJ30 arm in this process that moves by itself: each joint follows a slow
+/// sine (15° amplitude, 0.2 Hz, phase 0.5 rad per joint, starting from 0°) through a
+/// 200 Hz smoothed cyclic loop, so that a monitor has something to show without hardware
+/// (`robobus monitor --sim`). [`SimArm::sample`] gives the loop's latest feedback; the
+/// joints are disabled and the simulator stopped when the arm is dropped.
+#[derive(Debug)]
+pub struct SimArm {
+    ids: Vec<JointId>,
+    cyc: Option<crate::whj::OwnedCyclic>,
+    bus: Arc<JointBus>,
+    server: Option<ArmServer>,
+    start: Instant,
+}
+
+impl SimArm {
+    /// Starts the simulator with joints `ids`, connects them, enables them in position
+    /// mode and starts the loop.
+    pub fn start(ids: &[JointId]) -> Result<Self, OpError> {
+        let (server, bus) = ArmServer::start(ids.iter().map(|j| j.get()).collect(), 5)?;
+        let mut arm = Self {
+            ids: ids.to_vec(),
+            cyc: None,
+            bus: Arc::new(bus),
+            server: Some(server),
+            start: Instant::now(),
+        };
+        for &id in ids {
+            let j = arm.bus.joint(id)?;
+            j.disable()?;
+            j.set_mode(robobus_whj::WorkMode::Position)?;
+            j.enable()?;
+        }
+        arm.cyc = Some(arm.bus.cyclic_owned(CyclicConfig {
+            smooth: Some(crate::whj::MotionLimits::default()),
+            ..CyclicConfig::position(ids.to_vec(), Duration::from_millis(5))
+        })?);
+        arm.start = Instant::now();
+        Ok(arm)
+    }
+
+    /// The joints.
+    #[must_use]
+    pub fn joints(&self) -> &[JointId] {
+        &self.ids
+    }
+
+    /// The loop's latest cycle (feedback per joint, `None` for a joint that did not answer
+    /// in it), after which the sine's next targets are set.
+    pub fn sample(&self) -> Option<crate::whj::CycleReport> {
+        let cyc = self.cyc.as_ref()?;
+        let latest = cyc.latest();
+        let t = self.start.elapsed().as_secs_f64();
+        let targets: Vec<Position> = (0..self.ids.len())
+            .filter_map(|i| {
+                #[allow(clippy::cast_precision_loss)] // at most 30 joints
+                let phase = i as f64 * 0.5;
+                Position::from_degrees(15.0 * (TAU * 0.2 * t + phase).sin() - 15.0 * phase.sin())
+                    .ok()
+            })
+            .collect();
+        let _ = cyc.set_positions(&targets);
+        latest
+    }
+}
+
+impl Drop for SimArm {
+    fn drop(&mut self) {
+        if let Some(cyc) = self.cyc.take() {
+            let _ = cyc.stop();
+        }
+        for &id in &self.ids {
+            let _ = self.bus.joint_unchecked(id).disable();
+        }
+        if let Some(server) = self.server.take() {
+            let _ = server.stop();
+        }
+    }
 }
