@@ -896,6 +896,86 @@ mod tests {
         assert_eq!(Percentiles::of(&[]), Percentiles::default());
     }
 
+    /// A current loop for joint 1 at 2 ms, driven by hand from `t0`.
+    fn one_joint_loop(t0: Instant) -> (CyclicRun, Arc<CyclicShared>) {
+        let shared = Arc::new(CyclicShared {
+            targets: Mutex::new(vec![0]),
+            ..CyclicShared::default()
+        });
+        let mut config =
+            CyclicConfig::position(vec![JointId::new(1).unwrap()], Duration::from_millis(2));
+        config.mode = ServoMode::Current;
+        config.smooth = None;
+        let setup = CyclicSetup {
+            config,
+            shared: Arc::clone(&shared),
+            initial: vec![0],
+            step_limit_deg: 10.0,
+        };
+        (CyclicRun::new(setup, t0), shared)
+    }
+
+    fn feedback_frame() -> (Reply, CanFrame) {
+        let reply = Reply::ServoFeedback {
+            joint: JointId::new(1).unwrap(),
+            feedback: ServoFeedback {
+                current: Current(0),
+                speed: ActualSpeed(0),
+                position: Position(0),
+                enable: 1,
+                error: ErrorCode::NONE,
+            },
+        };
+        let frame = reply.to_frame();
+        (reply, frame)
+    }
+
+    #[test]
+    fn feedback_read_after_the_deadline_marks_the_cycle_missed() {
+        let t0 = Instant::now();
+        let (mut run, shared) = one_joint_loop(t0);
+        let (reply, frame) = feedback_frame();
+        run.tick(t0);
+        // Read 1 µs after the next tick was due, but before the loop ticked: it answers
+        // cycle 0, late.
+        let late = t0 + Duration::from_micros(2001);
+        assert!(run.on_reply(&reply, &frame, late));
+        let r = lock(&shared.reports).queue.pop_front().unwrap();
+        assert_eq!(r.cycle, 0);
+        assert!(r.missed);
+        assert_eq!(r.round_trip, Some(Duration::from_micros(2001)));
+        assert!(r.feedback[0].is_some());
+        let stats = lock(&shared.acc).stats.clone();
+        assert_eq!(
+            (stats.complete, stats.deadline_misses, stats.late_replies),
+            (0, 1, 0)
+        );
+        assert!(lock(&shared.acc).round_trips.is_empty());
+    }
+
+    #[test]
+    fn feedback_before_the_command_can_have_been_answered_is_not_the_cycles() {
+        let t0 = Instant::now();
+        let (mut run, shared) = one_joint_loop(t0);
+        let (reply, frame) = feedback_frame();
+        run.tick(t0);
+        let floor = frame_duration(&run.frames(&[0])[0], BitRates::WHJ)
+            + frame_duration(&frame, BitRates::WHJ);
+        // One nanosecond too early: an earlier command's answer, counted late.
+        assert!(run.on_reply(
+            &reply,
+            &frame,
+            t0 + floor.saturating_sub(Duration::from_nanos(1))
+        ));
+        assert!(run.awaiting());
+        assert_eq!(lock(&shared.acc).stats.late_replies, 1);
+        // At the floor it can be this cycle's answer.
+        assert!(run.on_reply(&reply, &frame, t0 + floor));
+        assert!(!run.awaiting());
+        let r = lock(&shared.reports).queue.pop_front().unwrap();
+        assert_eq!((r.missed, r.round_trip), (false, Some(floor)));
+    }
+
     #[test]
     fn masks_cover_the_joints_with_the_fewest_extra_nodes() {
         let j = |n| JointId::new(n).unwrap();
