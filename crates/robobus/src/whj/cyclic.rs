@@ -896,8 +896,10 @@ mod tests {
         assert_eq!(Percentiles::of(&[]), Percentiles::default());
     }
 
-    /// A current loop for joint 1 at 2 ms, driven by hand from `t0`.
-    fn one_joint_loop(t0: Instant) -> (CyclicRun, Arc<CyclicShared>) {
+    /// A current loop for joint 1 at 2 ms, driven by hand: its first cycle started at the
+    /// returned instant; and a feedback frame of joint 1.
+    fn one_joint_loop() -> (Instant, CyclicRun, Arc<CyclicShared>, Reply, CanFrame) {
+        let t0 = Instant::now();
         let shared = Arc::new(CyclicShared {
             targets: Mutex::new(vec![0]),
             ..CyclicShared::default()
@@ -912,10 +914,8 @@ mod tests {
             initial: vec![0],
             step_limit_deg: 10.0,
         };
-        (CyclicRun::new(setup, t0), shared)
-    }
-
-    fn feedback_frame() -> (Reply, CanFrame) {
+        let mut run = CyclicRun::new(setup, t0);
+        run.tick(t0);
         let reply = Reply::ServoFeedback {
             joint: JointId::new(1).unwrap(),
             feedback: ServoFeedback {
@@ -927,15 +927,12 @@ mod tests {
             },
         };
         let frame = reply.to_frame();
-        (reply, frame)
+        (t0, run, shared, reply, frame)
     }
 
     #[test]
     fn feedback_read_after_the_deadline_marks_the_cycle_missed() {
-        let t0 = Instant::now();
-        let (mut run, shared) = one_joint_loop(t0);
-        let (reply, frame) = feedback_frame();
-        run.tick(t0);
+        let (t0, mut run, shared, reply, frame) = one_joint_loop();
         // Read 1 µs after the next tick was due, but before the loop ticked: it answers
         // cycle 0, late.
         let late = t0 + Duration::from_micros(2001);
@@ -955,10 +952,7 @@ mod tests {
 
     #[test]
     fn feedback_before_the_command_can_have_been_answered_is_not_the_cycles() {
-        let t0 = Instant::now();
-        let (mut run, shared) = one_joint_loop(t0);
-        let (reply, frame) = feedback_frame();
-        run.tick(t0);
+        let (t0, mut run, shared, reply, frame) = one_joint_loop();
         let floor = frame_duration(&run.frames(&[0])[0], BitRates::WHJ)
             + frame_duration(&frame, BitRates::WHJ);
         // One nanosecond too early: an earlier command's answer, counted late.
