@@ -16,8 +16,10 @@
 //! feedback frame that is lost outright cannot be told from a late one. Two rules keep a
 //! lost frame from shifting the matching for good: a cycle in which the joint's only frame
 //! paid an older debt, at a time when it could also have answered this cycle's command,
-//! owes nothing more (the joint answered once for one command), and an owed reply is
-//! given up as lost once it is four periods (at least 20 ms) old. A lost frame therefore
+//! owes its own frame only perhaps, and the joint's next frame gives that debt up (the
+//! joint answered once for one command) if it comes as late in its cycle as the joint's
+//! feedback ever has, else pays it; and an owed reply is given up as lost once it is four
+//! periods (at least 20 ms) old. A lost frame therefore
 //! costs one more missed cycle, and feedback is matched again from the cycle after.
 
 use core::time::Duration;
@@ -348,6 +350,8 @@ pub(crate) struct CyclicRun {
     owed: Vec<VecDeque<Debt>>,
     /// Per joint: whether a feedback frame in the running cycle paid an owed one.
     paid: Vec<bool>,
+    /// Per joint: the shortest time from a cycle's start to its feedback seen so far.
+    fastest: Vec<Option<Duration>>,
 }
 
 impl CyclicRun {
@@ -366,6 +370,7 @@ impl CyclicRun {
         let mask = best_mask(&setup.config.joints);
         let owed = vec![VecDeque::new(); setup.config.joints.len()];
         let paid = vec![false; setup.config.joints.len()];
+        let fastest = vec![None; setup.config.joints.len()];
         Self {
             config: setup.config,
             shared: setup.shared,
@@ -378,6 +383,7 @@ impl CyclicRun {
             mask,
             owed,
             paid,
+            fastest,
         }
     }
 
@@ -546,13 +552,23 @@ impl CyclicRun {
             .current
             .as_ref()
             .is_some_and(|c| c.can_answer(i, frame, now));
+        let since_start = self
+            .current
+            .as_ref()
+            .map(|c| now.saturating_duration_since(c.started));
+        // As late in the cycle as the joint's feedback has ever come: only then is a frame
+        // taken for this cycle's rather than for one owed perhaps.
+        let typical = answerable
+            && since_start
+                .zip(self.fastest.get(i).copied().flatten())
+                .is_none_or(|(t, fastest)| t >= fastest);
         if let Some(owed) = self.owed.get_mut(i) {
             let expiry = owed_expiry(self.config.period);
             while owed.front().is_some_and(|d| {
                 // Too old to still be on its way: that feedback frame was lost. Or owed
                 // only perhaps, and this frame can be the running cycle's answer: then
                 // that frame was lost.
-                now.saturating_duration_since(d.sent) > expiry || (d.perhaps && answerable)
+                now.saturating_duration_since(d.sent) > expiry || (d.perhaps && typical)
             }) {
                 owed.pop_front();
             }
@@ -580,6 +596,9 @@ impl CyclicRun {
         });
         match slot {
             Some((s @ None, remaining, last)) => {
+                if let (Some(f), Some(t)) = (self.fastest.get_mut(i), since_start) {
+                    *f = Some(f.map_or(t, |f| f.min(t)));
+                }
                 *s = Some(fb);
                 *remaining -= 1;
                 *last = Some(now);
