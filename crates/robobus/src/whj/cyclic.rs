@@ -279,6 +279,11 @@ const MAX_OWED: usize = 8;
 pub(crate) fn owed_expiry(period: Duration) -> Duration {
     (period * 4).max(Duration::from_millis(20))
 }
+/// Three nominal bit times at the joints' 1 Mbit/s arbitration rate.
+fn intermission() -> Duration {
+    Duration::from_nanos(3_000_000_000 / u64::from(BitRates::WHJ.nominal.get()))
+}
+
 /// Keep at most this many latency samples (about 30 min at 500 Hz).
 const MAX_SAMPLES: usize = 1_000_000;
 
@@ -312,14 +317,21 @@ struct InCycle {
     /// Per joint: the wire time of the command frame it answers and of the frames that
     /// go before it.
     command_time: Vec<Duration>,
+    /// Wire time of the feedback frames credited to this cycle so far.
+    feedback_wire: Duration,
 }
 
 impl InCycle {
     /// Whether `reply`, received at `now`, can answer this cycle's command to joint `i`:
-    /// not before the command and then the reply itself have crossed the wire.
+    /// not before the command, the feedback frames already credited to this cycle and the
+    /// reply itself have crossed the wire (one bus carries them one after the other, all
+    /// after the cycle started).
+    /// A receiver has a frame at the end of its EOF, the 3-bit intermission before the
+    /// wire is free (which [`frame_duration`] includes): the last frame's is not waited.
     fn can_answer(&self, i: usize, reply: &CanFrame, now: Instant) -> bool {
         let command = self.command_time.get(i).copied().unwrap_or_default();
-        now >= self.started + command + frame_duration(reply, BitRates::WHJ)
+        let wire = command + self.feedback_wire + frame_duration(reply, BitRates::WHJ);
+        now >= self.started + wire.saturating_sub(intermission())
     }
 }
 
@@ -443,6 +455,7 @@ impl CyclicRun {
             remaining: n,
             last_reply: None,
             command_time,
+            feedback_wire: Duration::ZERO,
         });
         self.cycle += 1;
         self.next_tick += self.config.period;
@@ -592,16 +605,17 @@ impl CyclicRun {
         let slot = self.current.as_mut().and_then(|c| {
             c.feedback
                 .get_mut(i)
-                .map(|s| (s, &mut c.remaining, &mut c.last_reply))
+                .map(|s| (s, &mut c.remaining, &mut c.last_reply, &mut c.feedback_wire))
         });
         match slot {
-            Some((s @ None, remaining, last)) => {
+            Some((s @ None, remaining, last, wire)) => {
                 if let (Some(f), Some(t)) = (self.fastest.get_mut(i), since_start) {
                     *f = Some(f.map_or(t, |f| f.min(t)));
                 }
                 *s = Some(fb);
                 *remaining -= 1;
                 *last = Some(now);
+                *wire += frame_duration(frame, BitRates::WHJ);
                 if *remaining == 0 {
                     self.close_cycle();
                 }
@@ -973,7 +987,7 @@ mod tests {
     fn feedback_before_the_command_can_have_been_answered_is_not_the_cycles() {
         let (t0, mut run, shared, reply, frame) = one_joint_loop();
         let floor = frame_duration(&run.frames(&[0])[0], BitRates::WHJ)
-            + frame_duration(&frame, BitRates::WHJ);
+            + frame_duration(&frame, BitRates::WHJ).saturating_sub(intermission());
         // One nanosecond too early: an earlier command's answer, counted late.
         assert!(run.on_reply(
             &reply,
@@ -987,6 +1001,67 @@ mod tests {
         assert!(!run.awaiting());
         let r = lock(&shared.reports).queue.pop_front().unwrap();
         assert_eq!((r.missed, r.round_trip), (false, Some(floor)));
+    }
+
+    /// Two joints: the second feedback frame of a cycle cannot come before both commands
+    /// and both feedback frames have crossed the one wire, even when it comes late enough
+    /// for its own command alone (a frame of an earlier cycle would otherwise complete
+    /// this one with a round trip shorter than the wire allows).
+    #[test]
+    fn a_cycles_last_feedback_waits_for_every_frame_of_the_cycle_on_the_wire() {
+        let t0 = Instant::now();
+        let shared = Arc::new(CyclicShared {
+            targets: Mutex::new(vec![0, 0]),
+            ..CyclicShared::default()
+        });
+        let joints = vec![JointId::new(1).unwrap(), JointId::new(2).unwrap()];
+        let mut config = CyclicConfig::position(joints.clone(), Duration::from_millis(2));
+        config.mode = ServoMode::Current;
+        config.smooth = None;
+        let mut run = CyclicRun::new(
+            CyclicSetup {
+                config,
+                shared: Arc::clone(&shared),
+                initial: vec![0, 0],
+                step_limit_deg: 10.0,
+            },
+            t0,
+        );
+        let commands = run.tick(t0);
+        let feedback = |joint| {
+            let reply = Reply::ServoFeedback {
+                joint,
+                feedback: ServoFeedback {
+                    current: Current(0),
+                    speed: ActualSpeed(0),
+                    position: Position(0),
+                    enable: 1,
+                    error: ErrorCode::NONE,
+                },
+            };
+            let frame = reply.to_frame();
+            (reply, frame)
+        };
+        let (r1, f1) = feedback(joints[0]);
+        let (r2, f2) = feedback(joints[1]);
+        let wire = |f: &CanFrame| frame_duration(f, BitRates::WHJ);
+        let both_commands =
+            (wire(&commands[0]) + wire(&commands[1])).saturating_sub(intermission());
+        // Joint 1 answers as early as the wire allows.
+        let first = (wire(&commands[0]) + wire(&f1)).saturating_sub(intermission());
+        assert!(run.on_reply(&r1, &f1, t0 + first));
+        // Joint 2's frame once its own command and itself could have crossed, but before
+        // joint 1's feedback could have too: not this cycle's.
+        let alone = both_commands + wire(&f2);
+        assert!(run.on_reply(&r2, &f2, t0 + alone));
+        assert!(run.awaiting());
+        assert_eq!(lock(&shared.acc).stats.late_replies, 1);
+        // After every frame of the cycle: its answer.
+        let all = both_commands + wire(&f1) + wire(&f2);
+        assert!(run.on_reply(&r2, &f2, t0 + all));
+        assert!(!run.awaiting());
+        let r = lock(&shared.reports).queue.pop_front().unwrap();
+        assert_eq!((r.missed, r.round_trip), (false, Some(all)));
     }
 
     #[test]
