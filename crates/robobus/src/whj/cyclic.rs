@@ -8,8 +8,9 @@
 //! the joint's next feedback frame is counted as a late reply of the closed cycle, not as
 //! the new cycle's feedback (which would leave every later cycle holding the previous
 //! command's answer). A frame received before the running cycle's command can have been
-//! answered (the command frame and the feedback frame each take their wire time at the
-//! WHJ bit rates) is never that cycle's feedback. Before the next cycle's frames go out,
+//! answered is never that cycle's feedback: one bus carries the command, the feedback
+//! frames already credited to the cycle and this frame one after the other, each for its
+//! wire time at the WHJ bit rates. Before the next cycle's frames go out,
 //! the driver reads every frame already received, so a frame that came before the next
 //! command is credited to the cycle it answers (and a cycle whose last feedback came after
 //! its deadline is reported as missed). The frames carry no sequence number, so a
