@@ -932,26 +932,32 @@ mod tests {
 
     /// A current loop for joint 1 at 2 ms, driven by hand: its first cycle started at the
     /// returned instant; and a feedback frame of joint 1.
-    fn one_joint_loop() -> (Instant, CyclicRun, Arc<CyclicShared>, Reply, CanFrame) {
+    /// A current loop of `joints` at 2 ms, ticked once at the returned instant; the frames
+    /// that tick sent.
+    fn loop_of(joints: &[JointId]) -> (Instant, CyclicRun, Arc<CyclicShared>, Vec<CanFrame>) {
         let t0 = Instant::now();
         let shared = Arc::new(CyclicShared {
-            targets: Mutex::new(vec![0]),
+            targets: Mutex::new(vec![0; joints.len()]),
             ..CyclicShared::default()
         });
-        let mut config =
-            CyclicConfig::position(vec![JointId::new(1).unwrap()], Duration::from_millis(2));
+        let mut config = CyclicConfig::position(joints.to_vec(), Duration::from_millis(2));
         config.mode = ServoMode::Current;
         config.smooth = None;
         let setup = CyclicSetup {
             config,
             shared: Arc::clone(&shared),
-            initial: vec![0],
+            initial: vec![0; joints.len()],
             step_limit_deg: 10.0,
         };
         let mut run = CyclicRun::new(setup, t0);
-        run.tick(t0);
+        let commands = run.tick(t0);
+        (t0, run, shared, commands)
+    }
+
+    /// Joint `joint`'s servo feedback, and its frame.
+    fn feedback(joint: JointId) -> (Reply, CanFrame) {
         let reply = Reply::ServoFeedback {
-            joint: JointId::new(1).unwrap(),
+            joint,
             feedback: ServoFeedback {
                 current: Current(0),
                 speed: ActualSpeed(0),
@@ -961,6 +967,13 @@ mod tests {
             },
         };
         let frame = reply.to_frame();
+        (reply, frame)
+    }
+
+    fn one_joint_loop() -> (Instant, CyclicRun, Arc<CyclicShared>, Reply, CanFrame) {
+        let joint = JointId::new(1).unwrap();
+        let (t0, run, shared, _) = loop_of(&[joint]);
+        let (reply, frame) = feedback(joint);
         (t0, run, shared, reply, frame)
     }
 
@@ -1010,39 +1023,8 @@ mod tests {
     /// this one with a round trip shorter than the wire allows).
     #[test]
     fn a_cycles_last_feedback_waits_for_every_frame_of_the_cycle_on_the_wire() {
-        let t0 = Instant::now();
-        let shared = Arc::new(CyclicShared {
-            targets: Mutex::new(vec![0, 0]),
-            ..CyclicShared::default()
-        });
-        let joints = vec![JointId::new(1).unwrap(), JointId::new(2).unwrap()];
-        let mut config = CyclicConfig::position(joints.clone(), Duration::from_millis(2));
-        config.mode = ServoMode::Current;
-        config.smooth = None;
-        let mut run = CyclicRun::new(
-            CyclicSetup {
-                config,
-                shared: Arc::clone(&shared),
-                initial: vec![0, 0],
-                step_limit_deg: 10.0,
-            },
-            t0,
-        );
-        let commands = run.tick(t0);
-        let feedback = |joint| {
-            let reply = Reply::ServoFeedback {
-                joint,
-                feedback: ServoFeedback {
-                    current: Current(0),
-                    speed: ActualSpeed(0),
-                    position: Position(0),
-                    enable: 1,
-                    error: ErrorCode::NONE,
-                },
-            };
-            let frame = reply.to_frame();
-            (reply, frame)
-        };
+        let joints = [JointId::new(1).unwrap(), JointId::new(2).unwrap()];
+        let (t0, mut run, shared, commands) = loop_of(&joints);
         let (r1, f1) = feedback(joints[0]);
         let (r2, f2) = feedback(joints[1]);
         let wire = |f: &CanFrame| frame_duration(f, BitRates::WHJ);
