@@ -427,6 +427,10 @@ pub enum OpError {
     /// Not available in this build or on this machine.
     #[error("{0}")]
     NotAvailable(String),
+    /// A device stopped answering during an operation (the message names it and says what
+    /// was done about it).
+    #[error("{0}")]
+    NoDevice(String),
 }
 
 impl OpError {
@@ -441,6 +445,7 @@ impl OpError {
             Self::Interrupted { .. } => ErrorKind::Interrupted,
             Self::File { kind, .. } => *kind,
             Self::NotAvailable(_) => ErrorKind::NotAvailable,
+            Self::NoDevice(_) => ErrorKind::NoDevice,
         }
     }
 

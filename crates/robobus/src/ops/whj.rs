@@ -566,6 +566,7 @@ pub fn plan_move(args: &MoveArgs, from_deg: f64, assumed: bool) -> Result<Plan, 
             },
         });
     }
+    stream::check_plan_steps(&plan, args.step_limit_deg, "--max-speed / --rate-hz")?;
     let speed = args.planned_speed();
     plan.notes.push(format!(
         "{} position frame(s), one every {:.3} ms, at most {speed} deg/s (acceleration {} \
@@ -619,9 +620,6 @@ pub fn prepare_move(j: &Joint<'_>, args: &MoveArgs) -> Result<Plan, OpError> {
     plan_move(args, from, false)
 }
 
-/// Sends the timed frames of `plan` at their times. Returns the last feedback, the number
-/// of frames sent, and per-frame feedback to `on_frame` (index, feedback or `None` when
-/// the frame got no reply, how late it went out).
 /// When a planned frame went out and how long its exchange took.
 #[derive(Debug, Clone, Copy)]
 struct FrameTimes {
@@ -631,43 +629,10 @@ struct FrameTimes {
     round_trip: Option<Duration>,
 }
 
-fn send_frames(
-    j: &Joint<'_>,
-    plan: &Plan,
-    control: &mut Control<'_>,
-    stage: &'static str,
-    mut on_frame: impl FnMut(usize, Option<&ServoFeedback>, FrameTimes) -> Result<(), OpError>,
-) -> Result<Result<u64, ()>, OpError> {
-    let bus = j.bus();
-    let start = bus.now();
-    let total = plan.frames.len() as u64;
-    let mut sent = 0u64;
-    for (k, f) in plan.frames.iter().enumerate() {
-        let due = start + f.at;
-        if control.stopped() || !pause_until(bus, control, due) {
-            return Ok(Err(()));
-        }
-        let sent_at = bus.now();
-        let late = sent_at.saturating_duration_since(due);
-        let fb = if f.request.joint().is_none() {
-            broadcast::broadcast_servo(j, f.request).map_err(whj)?
-        } else {
-            match j.servo_request(f.request) {
-                Ok(fb) => Some(fb),
-                Err(e) if e.is_timeout() => None,
-                Err(e) => return Err(whj(e)),
-            }
-        };
-        let round_trip = fb
-            .is_some()
-            .then(|| bus.now().saturating_duration_since(sent_at));
-        sent += 1;
-        on_frame(k, fb.as_ref(), FrameTimes { late, round_trip })?;
-        if sent.is_multiple_of(16) || sent == total {
-            control.report(&Progress::new(stage, sent, Some(total)));
-        }
-    }
-    Ok(Ok(sent))
+/// The joint's position limits in degrees (what feedback is checked against).
+fn degree_limits(j: &Joint<'_>) -> Result<(f64, f64), OpError> {
+    let (min, max) = j.position_limits().map_err(whj)?;
+    Ok((min.degrees(), max.degrees()))
 }
 
 /// Runs a move: [`prepare_move`], then the plan's frames at their times, then status
@@ -696,19 +661,14 @@ pub fn execute_move(
     let bus = j.bus();
     let began = bus.now();
     let from_deg = plan.start_deg.unwrap_or(f64::NAN);
-    let Ok(sent) = send_frames(j, plan, control, "move", |_, fb, _| {
-        if let Some(fb) = fb
-            && (!fb.is_enabled() || !fb.error.is_empty())
-        {
-            return Err(OpError::Device(format!(
-                "{id}: {} during the move (error bits: {}); move stopped",
-                if fb.is_enabled() { "error" } else { "disabled" },
-                fb.error
-            )));
-        }
-        Ok(())
-    })?
-    else {
+    let watch = stream::Watch {
+        servo: ServoLoop::Position,
+        on_stop,
+        limits: degree_limits(j)?,
+        step_limit_deg: args.step_limit_deg,
+        stage: "move",
+    };
+    let Ok(sent) = stream::send_frames(j, plan, control, &watch, |_, _, _| {})? else {
         return Err(interrupted(j, on_stop, ServoLoop::Position));
     };
     let limits = args.limits();
@@ -939,6 +899,11 @@ pub fn plan_wave(
             request,
         });
     }
+    stream::check_plan_steps(
+        &plan,
+        args.step_limit_deg,
+        "--amplitude / --frequency / --rate-hz",
+    )?;
     plan.notes.push(format!(
         "{:?} wave, {} frame(s) at {} Hz; the joint must be enabled and in {} mode{}",
         args.shape,
@@ -1092,7 +1057,14 @@ pub fn execute_wave(
     let bus = j.bus();
     let mut last_sent = bus.now();
     let mut round_trips = Vec::with_capacity(plan.frames.len());
-    let outcome = send_frames(j, plan, control, "wave", |k, fb, times| {
+    let watch = stream::Watch {
+        servo: args.servo,
+        on_stop,
+        limits: degree_limits(j)?,
+        step_limit_deg: args.step_limit_deg,
+        stage: "wave",
+    };
+    let outcome = stream::send_frames(j, plan, control, &watch, |k, fb, times| {
         let late = times.late;
         round_trips.extend(times.round_trip);
         let now = bus.now();
@@ -1108,7 +1080,7 @@ pub fn execute_wave(
             r.missing_replies += 1;
             r.missing_at_end += 1;
             r.stale = true;
-            return Ok(());
+            return;
         };
         r.stale = false;
         r.missing_at_end = 0;
@@ -1128,7 +1100,6 @@ pub fn execute_wave(
             n += 1;
         }
         r.last = Some(FeedbackReport::of(fb, scale));
-        Ok(())
     })?;
     if outcome.is_err() {
         return Err(interrupted(j, on_stop, args.servo));
@@ -1632,8 +1603,14 @@ pub fn target_request(args: &TargetArgs, scale: CurrentScale) -> Result<Request,
     })
 }
 
+/// How often a timed speed or current target reads the joint's status while it runs.
+pub const TARGET_POLL: Duration = Duration::from_millis(50);
+
 /// Sends a speed or current target after checking the joint is enabled in that mode and
-/// the value within its bounds. With a duration: waits (stoppable), then target 0. On stop:
+/// the value within its bounds. With a duration: runs it (stoppable), reading the joint's
+/// status every [`TARGET_POLL`], then sends target 0. Error bits, a disabled drive or an
+/// implausible reading (at any point, the last feedback included) stop it in the safe
+/// state as a *device* error; a joint that stops answering as *no device*. On stop:
 /// `on_stop`.
 pub fn run_target(
     j: &Joint<'_>,
@@ -1667,16 +1644,35 @@ pub fn run_target(
             },
         });
     };
-    if !pause_until(j.bus(), control, j.bus().now() + duration) {
-        return Err(interrupted(j, on_stop, args.servo));
+    let watch = stream::Watch {
+        servo: args.servo,
+        on_stop,
+        limits: degree_limits(j)?,
+        step_limit_deg: j.bus().config().step_limit_deg,
+        stage: what,
+    };
+    stream::check_feedback(j, &watch, &fb, "after the target frame")?;
+    let bus = j.bus();
+    let end = bus.now() + duration;
+    loop {
+        let now = bus.now();
+        if now >= end {
+            break;
+        }
+        if !pause_until(bus, control, end.min(now + TARGET_POLL)) {
+            return Err(interrupted(j, on_stop, args.servo));
+        }
+        stream::check_status(j, &watch)?;
     }
     let zero = TargetArgs {
         value: 0.0,
         ..*args
     };
-    let fb = j
-        .servo_request(target_request(&zero, scale)?)
-        .map_err(whj)?;
+    let fb = match j.servo_request(target_request(&zero, scale)?) {
+        Ok(fb) => fb,
+        Err(e) => return Err(stream::stop_with(j, &watch, whj(e))),
+    };
+    stream::check_feedback(j, &watch, &fb, "at the end")?;
     Ok(TargetReport {
         feedback: FeedbackReport::of(&fb, scale),
         keeps_running: false,
@@ -1830,6 +1826,9 @@ pub fn sample(bus: &JointBus, ids: &[JointId]) -> Vec<DeviceResult<u8, JointSamp
 // ---------------------------------------------------------------------------------------
 
 mod broadcast;
+mod stream;
+
+pub use stream::{FOLLOW_STEPS, SILENT_AFTER, SILENT_FRAMES, check_plan_steps};
 
 pub use broadcast::{
     BROADCAST_WAVE_MIN_HZ, BroadcastPlan, END_BOARD_WRITE_TEXT, EndBoardArg, EndBoardStatus, Slot,

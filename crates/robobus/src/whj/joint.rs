@@ -553,6 +553,32 @@ impl<'a> Joint<'a> {
         }
     }
 
+    /// Sends one servo frame of a plan whose steps were checked before its first frame
+    /// (`ops::whj::check_plan_steps`) and returns its feedback. Unlike
+    /// [`Joint::servo_request`] it does not measure a position target against the last
+    /// feedback, which lags the plan by a frame or two: a checked plan is sent as planned,
+    /// and the caller watches the feedback. The frame is sent once, never retried. Any request but this joint's servo frames is
+    /// [`WhjError::InvalidConfig`].
+    pub fn send_planned(&self, request: Request) -> Result<ServoFeedback, WhjError> {
+        match request {
+            Request::PositionServo { joint, .. }
+            | Request::SpeedServo { joint, .. }
+            | Request::CurrentServo { joint, .. }
+                if joint == self.id =>
+            {
+                // Sent once: the plan's next frame follows in one period, and a resent
+                // frame would go out of its time.
+                match self.transact(request, false, Duration::ZERO)? {
+                    Reply::ServoFeedback { feedback, .. } => Ok(feedback),
+                    other => Err(self.unexpected(request, &other)),
+                }
+            }
+            other => Err(WhjError::InvalidConfig {
+                reason: format!("{}: not a servo frame for this joint: {other:?}", self.id),
+            }),
+        }
+    }
+
     /// Moves to `target` along a smooth speed / acceleration-limited profile, streaming
     /// position servo frames every `limits.period`, so no step exceeds the joint's 10°
     /// protection; then waits (status queries) until the actual position is within
