@@ -97,6 +97,7 @@ impl WckError {
             Self::Timeout { .. } => ErrorKind::NoDevice,
             Self::BadReply { .. }
             | Self::Unconfirmed { .. }
+            | Self::Unattributable { .. }
             | Self::NotApplied { .. }
             | Self::NotVerified { .. } => ErrorKind::Device,
             Self::IdInUse { .. } => ErrorKind::Refused,

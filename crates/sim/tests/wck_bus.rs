@@ -257,6 +257,7 @@ fn faulty_run(seed: u64) -> Vec<u8> {
         flip_host: 0.05,
         drop_reply: 0.05,
         flip_reply: 0.05,
+        ..Faults::default()
     };
     let config = BusConfig {
         seed,

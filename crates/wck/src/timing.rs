@@ -77,6 +77,26 @@ pub const fn response_time(command: &Command, baud: BaudRate) -> Duration {
     turnaround(command).saturating_add(wire_time(command.reply_len(), baud))
 }
 
+/// The earliest instant, counted from the first command bit, at which a module's reply
+/// can begin: the command's wire time plus the module's [`turnaround`]. A byte the host
+/// receives before then cannot belong to the reply (its first byte is complete one byte
+/// time later still): it is a stray byte (line noise, an earlier reply, a duplicate).
+/// Zero for commands without a reply.
+///
+/// ```
+/// use core::time::Duration;
+/// use robobus_wck::{BaudRate, Command, ServoId, timing};
+/// let status = Command::StatusRead { id: ServoId::new(0).unwrap() };
+/// // 4 command bytes at 115200 bit/s (347.2 µs) + 1006.6 µs.
+/// assert_eq!(timing::earliest_reply(&status, BaudRate::B115200), Duration::from_nanos(1_353_822));
+/// ```
+pub const fn earliest_reply(command: &Command, baud: BaudRate) -> Duration {
+    if command.reply_len() == 0 {
+        return Duration::ZERO;
+    }
+    wire_time(command.encoded_len(), baud).saturating_add(turnaround(command))
+}
+
 /// Modelled time of a whole transaction: command wire time + turnaround + reply wire time
 /// (just the command wire time when there is no reply).
 pub const fn transaction_time(command: &Command, baud: BaudRate) -> Duration {

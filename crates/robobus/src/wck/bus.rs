@@ -24,8 +24,14 @@ pub const DEFAULT_SETTLE: Duration = Duration::from_millis(2);
 /// Default time after a reply deadline during which a late reply may still arrive.
 pub const DEFAULT_LATE_WINDOW: Duration = Duration::from_millis(50);
 
+/// Default quiet time after a reply before it is credited: one module turnaround.
+pub const DEFAULT_GUARD: Duration = timing::T_PROC;
+
 /// Longest a drain after a failed attempt may last, however noisy the line.
 const MAX_DRAIN: Duration = Duration::from_millis(50);
+
+/// Most bytes one attempt keeps for its error message (the rest is only counted).
+const KEEP_BYTES: usize = 16;
 
 /// How a [`WckBus`] talks: retries, reply margin, confirmation of reads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -68,6 +74,16 @@ pub struct WckConfig {
     /// while the window is open (it waits the window out and asks that ID again), so an
     /// empty ID costs only its reply waits (see [`WckBus::scan`]).
     pub late_window: Duration,
+    /// How long the line must stay quiet after a complete reply before the reply is
+    /// credited. A wCK reply carries no ID, so a byte that follows it within this time
+    /// (a duplicated byte, a module answering twice, a second module) means the bytes
+    /// received are not one module's one answer: the attempt fails (it is never "the first
+    /// two bytes win"), the late window is waited out and the command is asked again.
+    /// Default [`DEFAULT_GUARD`] (one module turnaround, 1006.6 µs): whatever answers the
+    /// same command answers within a turnaround of the first answer. Bytes that arrive
+    /// later still fall before the next command's earliest reply instant and fail that
+    /// attempt instead (see [`WckBus::reply_wait`]).
+    pub guard: Duration,
 }
 
 impl Default for WckConfig {
@@ -78,6 +94,7 @@ impl Default for WckConfig {
             confirm_reads: 0,
             settle: DEFAULT_SETTLE,
             late_window: DEFAULT_LATE_WINDOW,
+            guard: DEFAULT_GUARD,
         }
     }
 }
@@ -97,14 +114,70 @@ pub struct WckStats {
     pub bad_replies: u64,
     /// Confirmed reads whose reply differed from the one before.
     pub mismatches: u64,
+    /// Attempts whose bytes could not all be the command's one reply: bytes that arrived
+    /// before any module could have answered, or more bytes than one reply (see
+    /// [`WckConfig::guard`]).
+    pub unattributable: u64,
 }
 
 /// Why one attempt failed.
 #[derive(Debug)]
 pub(crate) enum Failure {
-    Timeout { received: Vec<u8>, waited: Duration },
-    Bad { bytes: Vec<u8>, reason: ReplyError },
+    Timeout {
+        received: Vec<u8>,
+        waited: Duration,
+    },
+    Bad {
+        bytes: Vec<u8>,
+        reason: ReplyError,
+    },
+    /// Bytes that cannot be this command's one reply (see [`Anomaly`]).
+    Unattributable {
+        bytes: Vec<u8>,
+        anomaly: Anomaly,
+    },
     Link(LinkError),
+}
+
+/// Why the bytes of an attempt cannot be the command's one reply.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Anomaly {
+    /// `early` bytes arrived before any module can have answered
+    /// ([`timing::earliest_reply`]): stray bytes (an earlier reply, a duplicate, noise).
+    Early { early: usize },
+    /// More bytes than one reply arrived within the guard time after it: more than one
+    /// answer.
+    Extra { total: usize },
+}
+
+impl Anomaly {
+    /// The error text: what arrived and why it cannot be the reply.
+    pub(crate) fn describe(self, bytes: &[u8], reply_len: usize) -> String {
+        match self {
+            Self::Early { early } => format!(
+                "{early} of the {} byte(s) ({}) arrived before any module can have answered",
+                bytes.len().max(early),
+                super::error::Hex(bytes)
+            ),
+            Self::Extra { total } => {
+                let first = bytes.get(..reply_len).unwrap_or_default();
+                let second = bytes.get(reply_len..reply_len * 2).unwrap_or_default();
+                if second.len() == reply_len && first != second {
+                    format!(
+                        "more than one answer: two different replies ({} and {})",
+                        super::error::Hex(first),
+                        super::error::Hex(second)
+                    )
+                } else {
+                    format!(
+                        "more than one answer: {total} bytes ({}) where one {reply_len}-byte \
+                         reply was due",
+                        super::error::Hex(bytes)
+                    )
+                }
+            }
+        }
+    }
 }
 
 /// A wCK bus: one UART line with up to 31 modules (IDs 0..=30; up to 254 with the
@@ -158,7 +231,8 @@ impl WckBus<robobus_link::SerialLink> {
 
 impl<L: ByteLink> WckBus<L> {
     /// A bus over any byte link (a pty, a fault-injecting wrapper, an in-memory pair),
-    /// switched to `baud`. Errors name the device as `wCK bus` until
+    /// switched to `baud`. Input already waiting is drained until the line has been quiet
+    /// for [`WckConfig::settle`] (2 ms; a late reply to a previous process is nobody's). Errors name the device as `wCK bus` until
     /// [`WckBus::with_device_name`] names it.
     pub fn new(mut link: L, baud: BaudRate) -> Result<Self, WckError> {
         let device = String::from("wCK bus");
@@ -168,7 +242,7 @@ impl<L: ByteLink> WckBus<L> {
                 command: "set baud rate",
                 source,
             })?;
-        Ok(Self {
+        let mut bus = Self {
             link,
             baud,
             config: WckConfig::default(),
@@ -176,7 +250,11 @@ impl<L: ByteLink> WckBus<L> {
             stats: WckStats::default(),
             deadline: None,
             quiet_until: None,
-        })
+        };
+        // Input waiting before the first command (a late reply to a previous process,
+        // still trickling in) is nobody's reply.
+        bus.settle();
+        Ok(bus)
     }
 
     /// Names the device in error messages (for example the path of a pty).
@@ -378,6 +456,11 @@ impl<L: ByteLink> WckBus<L> {
                     }
                     last = Some((received, waited, attempt));
                 }
+                Err(Failure::Unattributable { .. }) => {
+                    // Bytes came back (several modules answer at once): it was heard.
+                    self.settle();
+                    return Ok(None);
+                }
                 Err(failure) => return Err(self.failure_error(&command, failure, attempt)),
             }
         }
@@ -439,19 +522,64 @@ impl<L: ByteLink> WckBus<L> {
         let start = self.link.now();
         self.link.write_all(&packet).map_err(Failure::Link)?;
         self.stats.attempts += 1;
-        self.deadline = Some(start + wait);
-        let mut buf = [0u8; 2];
-        match self.link.read_exact(&mut buf, start + wait) {
-            Ok(()) => Ok(buf),
-            Err(LinkError::Timeout { received, .. }) => {
-                self.expect_late();
-                Err(Failure::Timeout {
-                    received: buf.get(..received).unwrap_or_default().to_vec(),
-                    waited: wait,
-                })
+        let deadline = start + wait;
+        self.deadline = Some(deadline);
+        let earliest = start + timing::earliest_reply(command, self.baud);
+        let reply_len = command.reply_len();
+        let guard = self.config.guard;
+        let mut kept: Vec<u8> = Vec::with_capacity(reply_len);
+        let (mut total, mut early) = (0usize, 0usize);
+        let mut until = deadline;
+        let mut buf = [0u8; KEEP_BYTES];
+        loop {
+            match self.link.read_some(&mut buf, until) {
+                Ok(n) => {
+                    // Received by now: a byte read before the earliest reply instant
+                    // arrived before any module can have started answering.
+                    let at = self.link.now();
+                    if at < earliest {
+                        early += n;
+                    }
+                    total += n;
+                    let room = KEEP_BYTES.saturating_sub(kept.len());
+                    kept.extend(buf.iter().take(n.min(room)));
+                    if total - early >= reply_len {
+                        // A reply's worth: the line must now stay quiet for the guard
+                        // time (an anomaly is read on until quiet, at most that long
+                        // past the deadline, for the error message).
+                        until = (at + guard).min(deadline + guard);
+                    }
+                }
+                Err(LinkError::Timeout { .. }) => break,
+                Err(e) => return Err(Failure::Link(e)),
             }
-            Err(e) => Err(Failure::Link(e)),
         }
+        let answered = total - early;
+        let anomaly = if early > 0 && answered > 0 {
+            Some(Anomaly::Early { early })
+        } else if answered > reply_len {
+            Some(Anomaly::Extra { total })
+        } else {
+            None
+        };
+        if let Some(anomaly) = anomaly {
+            self.stats.unattributable += 1;
+            self.expect_late();
+            return Err(Failure::Unattributable {
+                bytes: kept,
+                anomaly,
+            });
+        }
+        if answered == reply_len
+            && let Some(&[a, b]) = kept.get(early..).map(|k| k.get(..2).unwrap_or_default())
+        {
+            return Ok([a, b]);
+        }
+        self.expect_late();
+        Err(Failure::Timeout {
+            received: kept.get(early..).unwrap_or_default().to_vec(),
+            waited: wait,
+        })
     }
 
     /// A reply to the last attempt may still come (it timed out, its reply was garbled,
@@ -594,6 +722,11 @@ impl<L: ByteLink> WckBus<L> {
                 },
                 Err(Failure::Link(source)) => {
                     return Err(self.link_error(command.name(), source));
+                }
+                Err(failure @ Failure::Unattributable { .. }) => {
+                    self.settle();
+                    failed = true;
+                    last_error = Some(self.failure_error(command, failure, limit));
                 }
                 Err(failure) => {
                     self.stats.timeouts += 1;
@@ -805,6 +938,14 @@ impl<L: ByteLink> WckBus<L> {
                 reason,
                 attempts,
             },
+            Failure::Unattributable { bytes, anomaly } => WckError::Unattributable {
+                device: self.device.clone(),
+                target: command.target(),
+                command: command.name(),
+                detail: anomaly.describe(&bytes, command.reply_len()),
+                bytes,
+                attempts,
+            },
             Failure::Link(source) => self.link_error(command.name(), source),
         }
     }
@@ -858,6 +999,10 @@ fn describe(write: &Result<Reply, Failure>) -> String {
         Err(Failure::Bad { bytes, reason }) => format!(
             "its reply was implausible ({}: {reason})",
             super::error::Hex(bytes)
+        ),
+        Err(Failure::Unattributable { bytes, anomaly }) => format!(
+            "its reply could not be attributed ({})",
+            anomaly.describe(bytes, 2)
         ),
         Err(Failure::Link(e)) => format!("link error: {e}"),
     }

@@ -101,6 +101,28 @@ pub enum WckError {
         /// Attempts made.
         attempts: u32,
     },
+    /// The bytes received cannot be the command's one reply, on every attempt: some
+    /// arrived before any module can have answered (stray bytes), or more than one
+    /// reply's worth arrived (more than one answer; two different replies are named).
+    /// wCK replies carry no ID, so such bytes are never credited: no value is returned.
+    #[error(
+        "{device}: the bytes received from {target} for {command} cannot be its one reply \
+         ({detail}), after {attempts} attempt(s)"
+    )]
+    Unattributable {
+        /// The device.
+        device: String,
+        /// The addressed module(s).
+        target: Target,
+        /// The command.
+        command: &'static str,
+        /// The bytes of the last attempt (at most 16).
+        bytes: Vec<u8>,
+        /// What arrived and why it cannot be the reply.
+        detail: String,
+        /// Attempts made.
+        attempts: u32,
+    },
     /// A setting was sent, but reading it back shows another value (or the module still
     /// answers at its old ID / baud rate): the change did not take.
     #[error("{device}: {command} to {target} did not take: expected {expected}, found {found}")]
@@ -174,6 +196,7 @@ impl WckError {
             Self::Timeout { device, .. }
             | Self::BadReply { device, .. }
             | Self::Unconfirmed { device, .. }
+            | Self::Unattributable { device, .. }
             | Self::NotApplied { device, .. }
             | Self::NotVerified { device, .. }
             | Self::IdInUse { device, .. }

@@ -51,7 +51,9 @@ mod policy;
 mod scan;
 mod servo;
 
-pub use bus::{DEFAULT_LATE_WINDOW, DEFAULT_MARGIN, DEFAULT_SETTLE, WckBus, WckConfig, WckStats};
+pub use bus::{
+    DEFAULT_GUARD, DEFAULT_LATE_WINDOW, DEFAULT_MARGIN, DEFAULT_SETTLE, WckBus, WckConfig, WckStats,
+};
 pub use error::{Hex, WckError};
 pub use policy::{RetryClass, needs_confirmation, read_back, retry_class};
 pub use scan::{Duplicate, FoundServo, ScanOptions, ScanProgress, ScanReport};

@@ -7,7 +7,7 @@ use core::time::Duration;
 use robobus_link::ByteLink;
 use robobus_wck::{BaudRate, Command, ExtServoId, Position10, Reply, ServoId, timing};
 
-use super::bus::{Failure, WckBus};
+use super::bus::{Anomaly, Failure, WckBus};
 use super::error::{Hex, WckError};
 use super::servo::Status;
 
@@ -279,7 +279,14 @@ impl<L: ByteLink> WckBus<L> {
                     ));
                 }
                 Err(Failure::Link(source)) => return Err(self.link_error("scan", source)),
-                Err(Failure::Bad { .. }) => {}
+                Err(Failure::Unattributable {
+                    bytes,
+                    anomaly: anomaly @ Anomaly::Extra { .. },
+                }) => {
+                    self.settle();
+                    evidence.push(format!("status read: {}", anomaly.describe(&bytes, 2)));
+                }
+                Err(Failure::Bad { .. } | Failure::Unattributable { .. }) => self.settle(),
             }
         }
         let Some(bytes) = clean else {
@@ -404,7 +411,22 @@ impl<L: ByteLink> WckBus<L> {
                     return Ok(None);
                 }
                 Err(Failure::Link(source)) => return Err(self.link_error("scan", source)),
-                Err(Failure::Bad { .. }) => return Ok(None),
+                Err(Failure::Unattributable {
+                    bytes,
+                    anomaly: anomaly @ Anomaly::Extra { .. },
+                }) => {
+                    self.settle();
+                    evidence.push(format!(
+                        "{}: {}",
+                        command.name(),
+                        anomaly.describe(&bytes, 2)
+                    ));
+                    return Ok(None);
+                }
+                Err(Failure::Bad { .. } | Failure::Unattributable { .. }) => {
+                    self.settle();
+                    return Ok(None);
+                }
             }
         }
         evidence.push(format!(

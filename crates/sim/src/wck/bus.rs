@@ -25,6 +25,16 @@ pub struct Faults {
     pub drop_reply: f64,
     /// Probability that a reply byte has one bit flipped on the way to the host.
     pub flip_reply: f64,
+    /// Probability that a module answers a command twice: the same reply again,
+    /// [`Faults::double_gap`] after the first one's last stop bit.
+    pub double_reply: f64,
+    /// Quiet time between the two answers of a doubled reply.
+    pub double_gap: Duration,
+    /// Probability that a reply leaves [`Faults::late_by`] later than the module's
+    /// turnaround says (held up on its way: a slow adapter, a module that hiccups).
+    pub late_reply: f64,
+    /// How much later a late reply leaves.
+    pub late_by: Duration,
 }
 
 /// How a bus is set up.
@@ -71,6 +81,12 @@ pub struct BusStats {
     pub replies: u64,
     /// Bytes delivered to the host.
     pub received_bytes: u64,
+    /// Replies sent twice ([`Faults::double_reply`]).
+    pub doubled_replies: u64,
+    /// Replies sent late ([`Faults::late_reply`]).
+    pub late_replies: u64,
+    /// Stray bytes put on the reply line by [`Bus::inject_to_host`].
+    pub stray_bytes: u64,
 }
 
 #[derive(Debug, Clone)]
@@ -81,6 +97,8 @@ struct Slot {
     busy_until: u64,
     plugged: bool,
     skew: u64,
+    /// Answers every command twice, this long (ns) apart ([`Bus::set_answers_twice`]).
+    double: Option<u64>,
 }
 
 /// A simulated wCK bus: servos on one UART wire, with exact wire timing.
@@ -178,6 +196,7 @@ impl Bus {
             busy_until: 0,
             plugged: true,
             skew,
+            double: None,
         });
         self.slots.len() - 1
     }
@@ -319,13 +338,19 @@ impl Bus {
                 continue;
             };
             slot.rx = rx.clone();
+            let mut wire = Wire {
+                up: &mut self.up,
+                stats: &mut self.stats,
+                faults: &self.config.faults,
+                rng: &mut self.fault_rng,
+            };
             for b in bytes {
-                if let Some(bps) = deliver(slot, *b, &mut self.up, &mut self.stats) {
+                if let Some(bps) = deliver(slot, *b, &mut wire) {
                     // The module changed its baud rate: it listens at the new rate once
                     // its reply is out; read the rest of the wire at that rate.
                     slot.rx = Receiver::new(bps, slot.busy_until);
                     while let Some(b) = slot.rx.poll(&self.down, to) {
-                        if let Some(bps) = deliver(slot, b, &mut self.up, &mut self.stats) {
+                        if let Some(bps) = deliver(slot, b, &mut wire) {
                             slot.rx = Receiver::new(bps, slot.busy_until);
                         }
                     }
@@ -366,6 +391,25 @@ impl Bus {
     /// Bytes received and not taken yet.
     pub fn received_len(&self) -> usize {
         self.received.len()
+    }
+
+    /// Puts `bytes` on the reply line at the host's rate from `at` (or now, if that has
+    /// passed), as if a module sent them: stray bytes the host receives whatever it asked
+    /// (a late reply to a previous program, noise). Returns when the last stop bit ends.
+    pub fn inject_to_host(&mut self, at: Duration, bytes: &[u8]) -> Duration {
+        let start = ns(at).max(self.now);
+        self.stats.stray_bytes += bytes.len() as u64;
+        let baud = self.host_bps;
+        let mut k = 0;
+        for &byte in bytes {
+            self.up.push(Frame {
+                start: bit_boundary(start, baud, 10 * k),
+                baud,
+                byte,
+            });
+            k += 1;
+        }
+        dur(bit_boundary(start, baud, 10 * k))
     }
 
     // ----- servo faults -----
@@ -440,6 +484,14 @@ impl Bus {
         slots.len()
     }
 
+    /// Makes slot `i` answer every command twice, the second answer `gap` after the first
+    /// one's last stop bit (a firmware or adapter fault); `None` cures it.
+    pub fn set_answers_twice(&mut self, i: usize, gap: Option<Duration>) {
+        if let Some(s) = self.slots.get_mut(i) {
+            s.double = gap.map(ns);
+        }
+    }
+
     /// Whether slot `i` is plugged in.
     pub fn is_plugged(&self, i: usize) -> bool {
         self.slots.get(i).is_some_and(|s| s.plugged)
@@ -471,9 +523,41 @@ impl Bus {
     }
 }
 
+/// What a module's reply goes onto: the reply line, the counters and the reply faults.
+struct Wire<'a> {
+    up: &'a mut Line,
+    stats: &'a mut BusStats,
+    faults: &'a Faults,
+    rng: &'a mut ChaCha8Rng,
+}
+
+impl Wire<'_> {
+    /// Whether a fault of probability `p` happens (no draw at all when `p` is 0, so a
+    /// seed's other faults stay where they were).
+    fn chance(&mut self, p: f64) -> bool {
+        p > 0.0 && self.rng.random_bool(p.min(1.0))
+    }
+
+    /// Puts `bytes` on the reply line from `start` (ns) at `baud`, back to back; returns
+    /// when the last stop bit ends.
+    fn send(&mut self, start: u64, baud: u32, bytes: &[u8]) -> u64 {
+        let mut k = 0;
+        for &byte in bytes {
+            self.up.push(Frame {
+                start: bit_boundary(start, baud, 10 * k),
+                baud,
+                byte,
+            });
+            k += 1;
+        }
+        bit_boundary(start, baud, 10 * k)
+    }
+}
+
 /// Hands one received byte to a module: decode, act, schedule the reply on the up line.
 /// Returns the module's new baud rate if it just changed it.
-fn deliver(slot: &mut Slot, b: RxByte, up: &mut Line, stats: &mut BusStats) -> Option<u32> {
+fn deliver(slot: &mut Slot, b: RxByte, wire: &mut Wire<'_>) -> Option<u32> {
+    let stats = &mut *wire.stats;
     let t = dur(b.at);
     if !slot.plugged || !slot.servo.listens_at(t) || b.at < slot.busy_until {
         slot.decoder.reset();
@@ -490,16 +574,27 @@ fn deliver(slot: &mut Slot, b: RxByte, up: &mut Line, stats: &mut BusStats) -> O
     let mut busy_until = b.at + ns(out.busy);
     if let Some(answer) = out.answer {
         stats.replies += 1;
-        let start = b.at + ns(answer.delay) + slot.skew;
-        for (k, byte) in (0u64..).zip(answer.bytes) {
-            let at = bit_boundary(start, tx_baud, 10 * k);
-            up.push(Frame {
-                start: at,
-                baud: tx_baud,
-                byte,
-            });
+        let on_time = b.at + ns(answer.delay) + slot.skew;
+        busy_until = busy_until.max(bit_boundary(on_time, tx_baud, 20));
+        let faults = *wire.faults;
+        let start = if wire.chance(faults.late_reply) {
+            wire.stats.late_replies += 1;
+            on_time + ns(faults.late_by)
+        } else {
+            on_time
+        };
+        let bytes = answer.bytes;
+        let end = wire.send(start, tx_baud, &bytes);
+        let double = match slot.double {
+            Some(gap) => Some(gap),
+            None => wire
+                .chance(faults.double_reply)
+                .then(|| ns(faults.double_gap)),
+        };
+        if let Some(gap) = double {
+            wire.stats.doubled_replies += 1;
+            wire.send(end + gap, tx_baud, &bytes);
         }
-        busy_until = busy_until.max(bit_boundary(start, tx_baud, 20));
     }
     slot.busy_until = busy_until;
     out.new_baud.map(BaudRate::bits_per_second)
