@@ -578,8 +578,10 @@ fn broadcast_status_reports_every_joint_and_names_the_silent_one() {
     let log = Shared::default();
     let link = CaptureFrameLink::new(link, log.clone(), "rx").with_tx_iface("tx");
     let bus = JointBus::open_with(link, config()).unwrap();
+    // Readings are checked against each joint's position limits, which the bus reads once
+    // (here, ahead of the broadcast frames counted below).
     for j in [1, 2, 4] {
-        bus.joint(id(j)).unwrap();
+        bus.joint(id(j)).unwrap().position_limits().unwrap();
     }
     // J1..J4: mask code 1 (J1-J4), the smallest that covers them.
     assert_eq!(
@@ -847,7 +849,11 @@ fn broadcast_register_write_sends_its_dry_run_and_reads_back() {
         assert_eq!((v.register, v.raw), ("TAG_WORK_MODE", 2), "{r:?}");
     }
     assert_eq!(r[3].value().unwrap().raw, 1);
-    // One 0x7F frame for the joints and the end board (mask F): IO1 is an output now.
+    // One 0x7F frame for the joints and the end board (mask F): IO1 is an output now. (The
+    // joints' position limits, which readings are checked against, are read once first.)
+    for j in ids {
+        bus.joint(j).unwrap().position_limits().unwrap();
+    }
     log.clear();
     let (joints, board) = ops::broadcast_status_with_end_board(&bus, &ids).unwrap();
     assert_eq!(log.sent().len(), 1);
@@ -925,6 +931,8 @@ fn a_refused_broadcast_write_sends_nothing() {
 #[test]
 fn broadcast_sampling_sends_one_status_query_per_sample() {
     let (_sim, bus, log) = captured_with_end_board(&[1, 3]);
+    // The first sample also reads each answering joint's position limits (once per bus).
+    ops::sample_broadcast(&bus, &[id(1), id(2), id(3)]).unwrap();
     log.clear();
     let r = ops::sample_broadcast(&bus, &[id(1), id(2), id(3)]).unwrap();
     let sent = log.sent();
@@ -1052,4 +1060,86 @@ fn a_broadcast_reply_counts_only_for_its_register_and_only_after_its_frame() {
     let (_, r) = ops::broadcast_read(&bus, &ids, volts, None, None).unwrap();
     assert_eq!(r[0].failure().unwrap().kind, ErrorKind::NoDevice, "{r:?}");
     assert_eq!(r[1].value().unwrap().register, "SYS_VOLTAGE");
+}
+
+/// Rewrites joint 2's position in every broadcast feedback frame to 214748.3647 deg.
+fn implausible_broadcast(r: &mut Received) {
+    if let Ok(Reply::BroadcastFeedback {
+        joint,
+        mut feedback,
+    }) = Reply::from_frame(&r.frame)
+        && joint == id(2)
+    {
+        feedback.position = Position(i32::MAX);
+        r.frame = Reply::BroadcastFeedback { joint, feedback }.to_frame();
+    }
+}
+
+/// An implausible reading is never shown as the joint's state: `status`, broadcast
+/// `status` and both monitor samplings report it as a device failure naming the value,
+/// and the other joints as usual.
+#[test]
+fn implausible_readings_are_failures_in_status_and_samples() {
+    let (link, _sim) = sim_link(chain(2));
+    let link = OnReceive(link, |r: &mut Received| {
+        if let Ok(Reply::Status { joint, .. }) = Reply::from_frame(&r.frame)
+            && joint == id(2)
+        {
+            implausible_status(r);
+        }
+        implausible_broadcast(r);
+    });
+    let bus = JointBus::open_with(link, config()).unwrap();
+    let ids = [id(1), id(2)];
+    let check = |what: &str, failure: Option<&robobus::ops::Failure>| {
+        let f = failure.unwrap_or_else(|| panic!("{what}: joint 2 read as valid"));
+        assert_eq!(f.kind, ErrorKind::Device, "{what}: {f:?}");
+        assert!(
+            f.error.contains("214748.36") && f.error.contains("implausible"),
+            "{what}: {}",
+            f.error
+        );
+    };
+    let r = ops::status(&bus, &ids);
+    assert!(r[0].is_ok(), "{r:?}");
+    check("status", r[1].failure());
+    let r = ops::sample(&bus, &ids);
+    assert!(r[0].is_ok(), "{r:?}");
+    check("sample", r[1].failure());
+    let r = ops::broadcast_status(&bus, &ids).unwrap();
+    assert!(r[0].is_ok(), "{r:?}");
+    check("broadcast status", r[1].failure());
+    let r = ops::sample_broadcast(&bus, &ids).unwrap();
+    assert!(r[0].is_ok(), "{r:?}");
+    check("broadcast sample", r[1].failure());
+    assert_eq!(robobus::ops::worst_kind(&r), Some(ErrorKind::Device));
+}
+
+/// Implausible broadcast feedback stops a broadcast wave as a device failure: it never
+/// enters the tracking figures.
+#[test]
+fn a_broadcast_wave_stops_at_implausible_feedback() {
+    let (link, _sim) = sim_link(chain(2));
+    let bus = JointBus::open_with(OnReceive(link, implausible_broadcast), config()).unwrap();
+    ready(&bus, id(2), WorkMode::Position);
+    let args = WaveArgs {
+        joint: id(2),
+        shape: Shape::Sine,
+        servo: ServoLoop::Position,
+        amplitude: 1.0,
+        frequency: 2.0,
+        offset: 0.0,
+        duration: 0.5,
+        rate_hz: 100.0,
+        step_limit_deg: JointBusConfig::default().step_limit_deg,
+    };
+    let j = bus.joint(id(2)).unwrap();
+    let plan = ops::prepare_broadcast_wave(&j, &args).unwrap();
+    let e = ops::execute_wave(&j, &args, &plan, &mut Control::none(), SafeState::Hold).unwrap_err();
+    assert_eq!(e.kind(), ErrorKind::Device, "{e}");
+    let text = e.to_string();
+    assert!(
+        text.contains("214748.3647") && text.contains("implausible"),
+        "{text}"
+    );
 }

@@ -174,10 +174,12 @@ pub struct StatusReport {
     pub error: String,
 }
 
-/// Reads the status of one connected joint.
-pub fn joint_status(j: &Joint<'_>) -> Result<StatusReport, WhjError> {
-    let st = j.status()?;
-    let mode = j.mode()?;
+/// Reads the status of one connected joint; an implausible reading ([`check_reading`]) is a
+/// device failure naming it.
+pub fn joint_status(j: &Joint<'_>) -> Result<StatusReport, OpError> {
+    let st = j.status().map_err(whj)?;
+    check_reading(j, st.position.degrees(), None)?;
+    let mode = j.mode().map_err(whj)?;
     let scale = j
         .identity()
         .map_or(CurrentScale::OneMilliamp, |i| i.current_scale());
@@ -206,7 +208,7 @@ pub fn status(bus: &JointBus, ids: &[JointId]) -> Vec<DeviceResult<u8, StatusRep
             .next()
             .unwrap_or(Err(WhjError::Closed))
             .map_err(whj)?;
-        joint_status(&j).map_err(whj)
+        joint_status(&j)
     })
 }
 
@@ -430,17 +432,69 @@ pub fn check_demand(j: &Joint<'_>, servo: ServoLoop, lo: f64, hi: f64) -> Result
 /// degrees (a joint may overshoot a limit slightly).
 pub const LIMIT_SLACK_DEG: f64 = 1.0;
 
+/// How far beyond its model's peak output speed a joint may read before the reading
+/// counts as implausible (a joint back-driven by a load can exceed its peak a little).
+pub const SPEED_SLACK: f64 = 1.5;
+
+/// The one plausibility rule for what a joint reports (status, monitor samples, broadcast
+/// feedback, the feedback of every timed run): a finite position within its position limits
+/// `limits` (degrees) plus [`LIMIT_SLACK_DEG`], and a speed within [`SPEED_SLACK`] times its
+/// model's peak output speed. `None` if the reading is plausible, else what is wrong with it.
+pub fn reading_fault(
+    position_deg: f64,
+    limits: (f64, f64),
+    speed: Option<(f64, robobus_whj::units::Model)>,
+) -> Option<String> {
+    let (min, max) = limits;
+    if !(position_deg.is_finite()
+        && position_deg >= min - LIMIT_SLACK_DEG
+        && position_deg <= max + LIMIT_SLACK_DEG)
+    {
+        return Some(format!(
+            "position {position_deg:.4} deg is outside its position limits {min}..={max} deg: \
+             the reading is implausible"
+        ));
+    }
+    if let Some((rpm, model)) = speed
+        && let Some(peak) = model.peak_output_speed_rpm()
+        && !(rpm.is_finite() && rpm.abs() <= peak * SPEED_SLACK)
+    {
+        return Some(format!(
+            "speed {rpm:.3} RPM is beyond {SPEED_SLACK} times its peak output speed of {peak} \
+             RPM ({model}): the reading is implausible"
+        ));
+    }
+    None
+}
+
+/// Checks a reading of joint `j` with [`reading_fault`], against the position limits the
+/// bus knows ([`Joint::known_position_limits`]: read once, again after a write that can
+/// change them) and its model. An implausible reading is a *device* failure that names
+/// the value; it is never reported as the joint's state.
+pub fn check_reading(
+    j: &Joint<'_>,
+    position_deg: f64,
+    speed_rpm: Option<f64>,
+) -> Result<(), OpError> {
+    let (min, max) = j.known_position_limits().map_err(whj)?;
+    let model = j.identity().ok().map(|i| i.model);
+    let speed = speed_rpm.zip(model);
+    match reading_fault(position_deg, (min.degrees(), max.degrees()), speed) {
+        None => Ok(()),
+        Some(fault) => Err(OpError::Device(format!("joint {}: {fault}", j.id().get()))),
+    }
+}
+
 /// Reads the present position and checks it is plausible: within the joint's position
-/// limits (plus [`LIMIT_SLACK_DEG`]). A move is never planned from an implausible reading.
+/// limits, read now (plus [`LIMIT_SLACK_DEG`]). A move is never planned from an implausible
+/// reading.
 pub fn plausible_position(j: &Joint<'_>) -> Result<f64, OpError> {
     let at = j.status().map_err(whj)?.position.degrees();
     let (min, max) = j.position_limits().map_err(whj)?;
-    let (min, max) = (min.degrees(), max.degrees());
-    if !(at.is_finite() && at >= min - LIMIT_SLACK_DEG && at <= max + LIMIT_SLACK_DEG) {
+    if let Some(fault) = reading_fault(at, (min.degrees(), max.degrees()), None) {
         return Err(OpError::Device(format!(
-            "joint {}: present position {at:.4} deg is outside its position limits \
-             {min}..={max} deg: the reading is implausible (or the joint is out of range); no \
-             move planned, nothing sent",
+            "joint {}: present {fault} (or the joint is out of range); no move planned, \
+             nothing sent",
             j.id().get()
         )));
     }
@@ -1811,9 +1865,11 @@ pub fn sample(bus: &JointBus, ids: &[JointId]) -> Vec<DeviceResult<u8, JointSamp
             .identity()
             .map_or(CurrentScale::OneMilliamp, |i| i.current_scale());
         let st = j.status().map_err(whj)?;
+        let speed_rpm = j.speed().ok().map(robobus_whj::units::ActualSpeed::rpm);
+        check_reading(&j, st.position.degrees(), speed_rpm)?;
         Ok(JointSample {
             position_deg: st.position.degrees(),
-            speed_rpm: j.speed().ok().map(robobus_whj::units::ActualSpeed::rpm),
+            speed_rpm,
             current_ma: st.current.map(|c| c.milliamps(scale)),
             enabled: st.is_enabled(),
             error: st.error.to_string(),

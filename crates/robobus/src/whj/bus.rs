@@ -260,6 +260,10 @@ pub(crate) struct Shared {
     /// The identity of each joint, read once per bus (by index = joint ID), so short-lived
     /// [`Joint`] handles do not read it again.
     pub(crate) identities: Mutex<[Option<super::joint::Identity>; 31]>,
+    /// Each joint's position limits (0x44..0x47) as last read, forgotten when a frame that
+    /// can write them goes out ([`JointBus::forget_limits_written_by`]).
+    pub(crate) limits:
+        Mutex<[Option<(robobus_whj::units::Position, robobus_whj::units::Position)>; 31]>,
     pub(crate) fatal: Mutex<Option<String>>,
     pub(crate) cyclic_running: AtomicBool,
     /// The latest frames on broadcast reply IDs (joints' 0x8x / 0xFx, the end board's 0x87
@@ -596,6 +600,61 @@ impl JointBus {
         Joint::unchecked(self, id)
     }
 
+    /// Joint `id`'s position limits as this bus last read them, if it did.
+    pub(crate) fn cached_limits(
+        &self,
+        id: JointId,
+    ) -> Option<(robobus_whj::units::Position, robobus_whj::units::Position)> {
+        lock(&self.shared.limits)
+            .get(usize::from(id.get()))
+            .copied()
+            .flatten()
+    }
+
+    pub(crate) fn cache_limits(
+        &self,
+        id: JointId,
+        limits: (robobus_whj::units::Position, robobus_whj::units::Position),
+    ) {
+        if let Some(slot) = lock(&self.shared.limits).get_mut(usize::from(id.get())) {
+            *slot = Some(limits);
+        }
+    }
+
+    /// Forgets the cached position limits that `request` may change: a write into
+    /// 0x44..=0x47, point-to-point or in a joint's slot of a 0x0F frame, forgets that
+    /// joint's.
+    fn forget_limits_written_by(&self, request: &Request) {
+        use robobus_whj::broadcast::{RegisterOp, RegisterSlot};
+        use robobus_whj::registers::addr;
+        let lo = addr::LIT_MIN_POSITION.get();
+        let hi = addr::LIT_MAX_POSITION.get() + 1;
+        let touches = |addr: robobus_whj::RegisterAddr, data: robobus_whj::WriteData| {
+            let first = addr.get();
+            let words = u8::try_from(data.to_bytes().1.div_ceil(2)).unwrap_or(2);
+            first <= hi && first + words > lo
+        };
+        let mut limits = lock(&self.shared.limits);
+        match *request {
+            Request::Write { joint, addr, data } if touches(addr, data) => {
+                if let Some(slot) = limits.get_mut(usize::from(joint.get())) {
+                    *slot = None;
+                }
+            }
+            Request::BroadcastRegister(ref b) => {
+                for (k, slot) in b.slots.iter().enumerate() {
+                    if let RegisterSlot::Op(RegisterOp::Write { addr, data }) = *slot
+                        && touches(addr, data)
+                        && let Some(cached) = limits.get_mut(k + 1)
+                    {
+                        *cached = None;
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+
     /// The identity this bus has read from joint `id`, if any.
     pub fn cached_identity(&self, id: JointId) -> Option<super::joint::Identity> {
         lock(&self.shared.identities)
@@ -669,6 +728,7 @@ impl JointBus {
                 reason: "a cyclic loop is running on this bus".into(),
             });
         }
+        self.forget_limits_written_by(&request);
         let at = core.now();
         match core.link.send(&request.to_frame()) {
             Ok(()) => {
@@ -729,6 +789,7 @@ impl JointBus {
         let expect = Expect::of(&request).ok_or_else(|| WhjError::InvalidConfig {
             reason: "broadcast frames are not single requests".into(),
         })?;
+        self.forget_limits_written_by(&request);
         let mut core = self.core.lock();
         if core.closed {
             return Err(self.closed_error());
@@ -813,6 +874,7 @@ impl JointBus {
             let expect = Expect::of(request).ok_or_else(|| WhjError::InvalidConfig {
                 reason: "broadcast frames are not single requests".into(),
             })?;
+            self.forget_limits_written_by(request);
             txns.push((*request, expect));
         }
         let mut core = self.core.lock();

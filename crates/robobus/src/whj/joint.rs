@@ -307,10 +307,22 @@ impl<'a> Joint<'a> {
     pub fn position_limits(&self) -> Result<(Position, Position), WhjError> {
         let w = self.read_words(registers::addr::LIT_MIN_POSITION, 4)?;
         let at = |i: usize| w.get(i).copied().unwrap_or(0);
-        Ok((
+        let limits = (
             Position(registers::join_i32(at(0), at(1))),
             Position(registers::join_i32(at(2), at(3))),
-        ))
+        );
+        self.bus.cache_limits(self.id, limits);
+        Ok(limits)
+    }
+
+    /// The position limits as this bus last read them ([`Joint::position_limits`]), read
+    /// now if it has not, or if a frame that can write them went out since. For checking
+    /// readings, where one more request per reading would cost the bus its rate.
+    pub fn known_position_limits(&self) -> Result<(Position, Position), WhjError> {
+        match self.bus.cached_limits(self.id) {
+            Some(limits) => Ok(limits),
+            None => self.position_limits(),
+        }
     }
 
     /// Sets the position limits (each pair in one 4-byte write). Refused on the host

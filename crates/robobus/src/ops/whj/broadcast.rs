@@ -28,8 +28,8 @@ use serde::Serialize;
 
 use super::{
     JointSample, Plan, RegisterReport, ServoLoop, StatusReport, WaveArgs, check_joint_write,
-    check_write, confirm_text, plan_wave, prepare_wave, register_report, whj, word_reports,
-    write_request,
+    check_reading, check_write, confirm_text, plan_wave, prepare_wave, register_report, whj,
+    word_reports, write_request,
 };
 use crate::ops::{DeviceResult, ErrorKind, Failure, OpError};
 use crate::whj::{Joint, JointBus, RegisterValue, WhjError};
@@ -238,7 +238,16 @@ fn joint_results<T>(
     ids.iter()
         .zip(found)
         .map(|(&id, fb)| match fb {
-            Some(f) => DeviceResult::ok(id.get(), report(id, &f)),
+            // The joint's limits are read once per bus (a joint the broadcast reached but
+            // the bus never spoke to costs one register read here, the first time).
+            Some(f) => match check_reading(
+                &bus.joint_unchecked(id),
+                f.position.degrees(),
+                Some(f.speed.rpm()),
+            ) {
+                Ok(()) => DeviceResult::ok(id.get(), report(id, &f)),
+                Err(e) => DeviceResult::failed(id.get(), Failure::from(&e)),
+            },
             None => DeviceResult::failed(id.get(), silent(Slot::Joint(id), "status query", bus)),
         })
         .collect()

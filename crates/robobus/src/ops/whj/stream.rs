@@ -12,9 +12,8 @@
 //!   state, and the run fails as *no device* (exit 3), naming the joint;
 //! - **the device's own state**: feedback with error bits or a disabled drive stops the run
 //!   at once (safe state, *device* error naming the bits);
-//! - **implausible feedback**: a position outside the joint's limits (plus
-//!   [`LIMIT_SLACK_DEG`](super::LIMIT_SLACK_DEG)) is never used: the run stops as a
-//!   *device* error;
+//! - **implausible feedback** ([`reading_fault`](super::reading_fault): a position outside
+//!   the joint's limits) is never used: the run stops as a *device* error;
 //! - **not following**: a position frame about to go out further than
 //!   [`FOLLOW_STEPS`] step limits from the joint's reported position means the joint is not
 //!   following the plan (stalled, blocked, or commanded by someone else): the run stops as a
@@ -25,7 +24,7 @@ use std::time::{Duration, Instant};
 use robobus_whj::Request;
 use robobus_whj::reply::ServoFeedback;
 
-use super::{FrameTimes, LIMIT_SLACK_DEG, OpError, Plan, ServoLoop, broadcast, pause_until, whj};
+use super::{FrameTimes, OpError, Plan, ServoLoop, broadcast, pause_until, reading_fault, whj};
 use crate::ops::safe::WhjJoints;
 use crate::ops::{Control, Progress, SafeState};
 use crate::whj::Joint;
@@ -244,14 +243,12 @@ fn check_state(
     when: &str,
 ) -> Result<(), OpError> {
     let id = j.id().get();
-    let (min, max) = watch.limits;
-    if !(at.is_finite() && at >= min - LIMIT_SLACK_DEG && at <= max + LIMIT_SLACK_DEG) {
+    if let Some(fault) = reading_fault(at, watch.limits, None) {
         return Err(stop_with(
             j,
             watch,
             OpError::Device(format!(
-                "joint {id}: position {at:.4} deg {when} is outside its position limits \
-                 {min}..={max} deg: the reading is implausible; {} stopped",
+                "joint {id}: {fault} ({when}); {} stopped",
                 watch.stage
             )),
         ));
