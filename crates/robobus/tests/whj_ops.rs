@@ -1143,3 +1143,66 @@ fn a_broadcast_wave_stops_at_implausible_feedback() {
         "{text}"
     );
 }
+
+/// A relay after which joint 1 answers every broadcast frame twice: its own feedback,
+/// then the same frame with the position at 50 deg (what two joints on one ID, or one
+/// answering twice, put in one slot).
+struct AnswersTwice<L> {
+    inner: L,
+    queued: Option<Received>,
+}
+
+impl<L: FrameLink> FrameLink for AnswersTwice<L> {
+    fn send(&mut self, frame: &CanFrame) -> Result<(), FrameLinkError> {
+        self.inner.send(frame)
+    }
+    fn recv(&mut self, deadline: std::time::Instant) -> Result<Received, FrameLinkError> {
+        if let Some(r) = self.queued.take() {
+            return Ok(r);
+        }
+        let r = self.inner.recv(deadline)?;
+        if let Ok(Reply::BroadcastFeedback {
+            joint,
+            mut feedback,
+        }) = Reply::from_frame(&r.frame)
+            && joint == id(1)
+        {
+            feedback.position = Position::from_degrees(50.0).unwrap();
+            let mut second = r;
+            second.frame = Reply::BroadcastFeedback { joint, feedback }.to_frame();
+            self.queued = Some(second);
+        }
+        Ok(r)
+    }
+    fn set_filters(&mut self, filters: &[IdFilter]) -> Result<(), FrameLinkError> {
+        self.inner.set_filters(filters)
+    }
+
+    robobus_link::forward_frame_link_clock!(inner);
+}
+
+/// Two different answers in one joint's broadcast slot: that slot is a device failure
+/// naming both, never the first (or a neighbour's) value; the other joint reads as usual.
+#[test]
+fn two_different_answers_in_one_broadcast_slot_are_a_fault() {
+    let (link, _sim) = sim_link(chain(2));
+    let link = AnswersTwice {
+        inner: link,
+        queued: None,
+    };
+    let bus = JointBus::open_with(link, config()).unwrap();
+    for j in [1, 2] {
+        bus.joint(id(j)).unwrap();
+    }
+    for round in 0..4 {
+        let r = ops::broadcast_status(&bus, &[id(1), id(2)]).unwrap();
+        let f = r[0]
+            .failure()
+            .unwrap_or_else(|| panic!("round {round}: {r:?}"));
+        assert_eq!(f.kind, ErrorKind::Device, "{f:?}");
+        assert!(f.error.contains("two different answers"), "{}", f.error);
+        assert!(r[1].value().unwrap().position_deg.abs() < 1.0, "{r:?}");
+        let s = ops::sample_broadcast(&bus, &[id(1), id(2)]).unwrap();
+        assert_eq!(s[0].failure().unwrap().kind, ErrorKind::Device, "{s:?}");
+    }
+}

@@ -124,27 +124,57 @@ pub fn broadcast_window(bus: &JointBus) -> Duration {
     (bus.config().reply_timeout * 5).max(Duration::from_millis(5))
 }
 
-/// Waits until `credit` accepts a reply for every slot or [`broadcast_window`] ends;
-/// each slot gets the first reply received after `sent` that `credit` accepts.
-fn collect<T>(
+/// How long a broadcast's replies are still collected after every slot has answered, to
+/// see a second answer in a slot: two nodes that answer as one (a duplicate ID, a node
+/// answering twice) go out back to back by CAN arbitration, well within this time (a
+/// 24-byte reply takes about 0.1 ms at 1 / 5 Mbit/s).
+pub const SECOND_ANSWER_GUARD: Duration = Duration::from_millis(1);
+
+/// Waits until `credit` accepts a reply for every slot (then [`SECOND_ANSWER_GUARD`]
+/// longer) or [`broadcast_window`] ends. Each slot gets the reply received after `sent`
+/// that `credit` accepts (`Ok(None)`: none); two different ones in one slot are a device
+/// failure naming both, never "the first wins".
+fn collect<T: PartialEq + fmt::Debug>(
     bus: &JointBus,
     sent: Instant,
     slots: &[Slot],
     credit: impl Fn(Slot, &CanFrame) -> Option<T>,
-) -> Vec<Option<T>> {
+) -> Vec<Result<Option<T>, Failure>> {
     let deadline = bus.now() + broadcast_window(bus);
+    let mut settle: Option<Instant> = None;
     loop {
         let got = bus.broadcast_replies_since(sent);
-        let found: Vec<Option<T>> = slots
-            .iter()
-            .map(|&slot| got.iter().find_map(|(_, f)| credit(slot, f)))
-            .collect();
         let now = bus.now();
-        if found.iter().all(Option::is_some) || now >= deadline {
-            return found;
+        let complete = slots
+            .iter()
+            .all(|&slot| got.iter().any(|(_, f)| credit(slot, f).is_some()));
+        if complete && settle.is_none() {
+            settle = Some(now + SECOND_ANSWER_GUARD);
+        }
+        let until = settle.map_or(deadline, |s| s.min(deadline));
+        if now >= until {
+            return slots
+                .iter()
+                .map(|&slot| {
+                    let mut answers = got.iter().filter_map(|(_, f)| credit(slot, f));
+                    let first = answers.next();
+                    let other = answers.find(|a| Some(a) != first.as_ref());
+                    match (first, other) {
+                        (Some(a), Some(b)) => Err(Failure::of(
+                            ErrorKind::Device,
+                            &format!(
+                                "{slot}: two different answers to one broadcast frame ({a:?} \
+                                 and {b:?}): two nodes answer as one, or one answers twice; \
+                                 neither is credited"
+                            ),
+                        )),
+                        (first, _) => Ok(first),
+                    }
+                })
+                .collect();
         }
         // Receives meanwhile (on a simulated bus on virtual time, simulates meanwhile).
-        bus.sleep_until(deadline.min(now + Duration::from_millis(2)));
+        bus.sleep_until(until.min(now + Duration::from_millis(2)));
     }
 }
 
@@ -168,6 +198,7 @@ fn scale_of(bus: &JointBus, id: JointId) -> CurrentScale {
 // ---------------------------------------------------------------------------------------
 
 /// One answer to a 0x7F frame.
+#[derive(Debug, PartialEq)]
 enum Answer {
     Joint(BroadcastFeedback),
     EndBoard(EndBoardReply),
@@ -175,11 +206,18 @@ enum Answer {
 
 /// One 0x7F frame to joints `ids` (and the end board); each joint's 24-byte feedback and
 /// the end board's reply, `None` when none came.
+#[allow(clippy::type_complexity)] // one result per slot, and the end board's
 fn status_query(
     bus: &JointBus,
     ids: &[JointId],
     end_board: bool,
-) -> Result<(Vec<Option<BroadcastFeedback>>, Option<EndBoardReply>), OpError> {
+) -> Result<
+    (
+        Vec<Result<Option<BroadcastFeedback>, Failure>>,
+        Result<Option<EndBoardReply>, Failure>,
+    ),
+    OpError,
+> {
     let mask = reply_mask_with(ids, end_board)?;
     let sent = bus
         .send_broadcast(Request::BroadcastStatus(BroadcastStatus::new(mask)))
@@ -202,17 +240,19 @@ fn status_query(
     });
     let board = if end_board {
         match found.pop() {
-            Some(Some(Answer::EndBoard(r))) => Some(r),
-            _ => None,
+            Some(Ok(Some(Answer::EndBoard(r)))) => Ok(Some(r)),
+            Some(Err(f)) => Err(f),
+            _ => Ok(None),
         }
     } else {
-        None
+        Ok(None)
     };
     let joints = found
         .into_iter()
         .map(|a| match a {
-            Some(Answer::Joint(f)) => Some(f),
-            _ => None,
+            Ok(Some(Answer::Joint(f))) => Ok(Some(f)),
+            Err(f) => Err(f),
+            _ => Ok(None),
         })
         .collect();
     Ok((joints, board))
@@ -232,15 +272,16 @@ fn per_joint_status<T>(
 fn joint_results<T>(
     bus: &JointBus,
     ids: &[JointId],
-    found: Vec<Option<BroadcastFeedback>>,
+    found: Vec<Result<Option<BroadcastFeedback>, Failure>>,
     report: impl Fn(JointId, &BroadcastFeedback) -> T,
 ) -> Vec<DeviceResult<u8, T>> {
     ids.iter()
         .zip(found)
         .map(|(&id, fb)| match fb {
+            Err(failure) => DeviceResult::failed(id.get(), failure),
             // The joint's limits are read once per bus (a joint the broadcast reached but
             // the bus never spoke to costs one register read here, the first time).
-            Some(f) => match check_reading(
+            Ok(Some(f)) => match check_reading(
                 &bus.joint_unchecked(id),
                 f.position.degrees(),
                 Some(f.speed.rpm()),
@@ -248,7 +289,9 @@ fn joint_results<T>(
                 Ok(()) => DeviceResult::ok(id.get(), report(id, &f)),
                 Err(e) => DeviceResult::failed(id.get(), Failure::from(&e)),
             },
-            None => DeviceResult::failed(id.get(), silent(Slot::Joint(id), "status query", bus)),
+            Ok(None) => {
+                DeviceResult::failed(id.get(), silent(Slot::Joint(id), "status query", bus))
+            }
         })
         .collect()
 }
@@ -337,8 +380,11 @@ pub fn broadcast_status_with_end_board(
     let (found, board) = status_query(bus, ids, true)?;
     let joints = joint_results(bus, ids, found, |id, f| status_report(bus, id, f));
     let board = match board {
-        Some(r) => DeviceResult::ok(Slot::EndBoard, EndBoardStatus::of(&r)),
-        None => DeviceResult::failed(Slot::EndBoard, silent(Slot::EndBoard, "status query", bus)),
+        Ok(Some(r)) => DeviceResult::ok(Slot::EndBoard, EndBoardStatus::of(&r)),
+        Ok(None) => {
+            DeviceResult::failed(Slot::EndBoard, silent(Slot::EndBoard, "status query", bus))
+        }
+        Err(failure) => DeviceResult::failed(Slot::EndBoard, failure),
     };
     Ok((joints, board))
 }
@@ -591,12 +637,13 @@ pub fn run_broadcast_plan(
         });
         for ((slot, ack), fail) in slots.iter().zip(acks).zip(&mut failed) {
             *fail = match ack {
-                None => Some(silent(*slot, "register write", bus)),
-                Some(false) => Some(Failure::of(
+                Err(failure) => Some(failure),
+                Ok(None) => Some(silent(*slot, "register write", bus)),
+                Ok(Some(false)) => Some(Failure::of(
                     ErrorKind::Device,
                     &format!("{slot}: refused the broadcast write (status 0)"),
                 )),
-                Some(true) => None,
+                Ok(Some(true)) => None,
             };
         }
     }
@@ -616,6 +663,13 @@ pub fn run_broadcast_plan(
             out.push(DeviceResult::failed(slot, f));
             continue;
         }
+        let read = match read {
+            Ok(read) => read,
+            Err(failure) => {
+                out.push(DeviceResult::failed(slot, failure));
+                continue;
+            }
+        };
         match (slot, read) {
             (_, None) => out.push(DeviceResult::failed(
                 slot,
@@ -659,6 +713,7 @@ fn op_of(frame: &BroadcastRegister, j: JointId) -> Result<RegisterOp, OpError> {
     }
 }
 
+#[derive(Debug, PartialEq)]
 enum Read {
     Joint(Vec<u16>),
     EndBoard { index: u8, word: u16 },
@@ -887,18 +942,38 @@ pub(super) fn broadcast_servo(
     let bus = j.bus();
     let sent = bus.send_broadcast(request)?;
     let deadline = sent + bus.config().reply_timeout;
+    let mut settle: Option<Instant> = None;
     loop {
-        let fb =
-            bus.broadcast_replies_since(sent).iter().find_map(|(_, f)| {
-                match Reply::from_frame(f) {
-                    Ok(Reply::BroadcastFeedback { joint, feedback }) if joint == j.id() => {
-                        Some(feedback)
-                    }
-                    _ => None,
+        let replies = bus.broadcast_replies_since(sent);
+        let mut answers = replies
+            .iter()
+            .filter_map(|(_, f)| match Reply::from_frame(f) {
+                Ok(Reply::BroadcastFeedback { joint, feedback }) if joint == j.id() => {
+                    Some(feedback)
                 }
+                _ => None,
             });
-        if let Some(f) = fb {
-            return Ok(Some(ServoFeedback {
+        let first = answers.next();
+        let other = answers.find(|a| Some(a) != first.as_ref());
+        let now = bus.now();
+        if let (Some(a), Some(b)) = (first, other) {
+            return Err(WhjError::BadReply {
+                joint: j.id(),
+                request: "broadcast servo frame".into(),
+                reason: format!(
+                    "two different answers to one frame (positions {:.4} and {:.4} deg): two \
+                     joints answer as one, or one answers twice; neither is credited",
+                    a.position.degrees(),
+                    b.position.degrees()
+                ),
+                attempts: 1,
+            });
+        }
+        if first.is_some() && settle.is_none() {
+            settle = Some(now + SECOND_ANSWER_GUARD);
+        }
+        if (first.is_some() && settle.is_some_and(|s| now >= s)) || now >= deadline {
+            return Ok(first.map(|f| ServoFeedback {
                 current: f.current,
                 speed: f.speed,
                 position: f.position,
@@ -906,10 +981,7 @@ pub(super) fn broadcast_servo(
                 error: f.error,
             }));
         }
-        let now = bus.now();
-        if now >= deadline {
-            return Ok(None);
-        }
-        bus.sleep_until(deadline.min(now + Duration::from_micros(200)));
+        let until = settle.unwrap_or(deadline).min(deadline);
+        bus.sleep_until(until.min(now + Duration::from_micros(200)));
     }
 }
