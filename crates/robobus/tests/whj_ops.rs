@@ -353,6 +353,44 @@ fn set_id_is_refused_while_a_joint_answers_at_the_new_id() {
 }
 
 #[test]
+fn writing_sys_id_is_refused_while_a_joint_answers_at_that_id() {
+    let (_sim, bus, log) = captured(2);
+    bus.joint(id(1)).unwrap();
+    log.clear();
+    let sys_id = robobus_whj::registers::addr::SYS_ID;
+    let err = ops::write(&bus, id(1), sys_id, 2.0, false, None, true).unwrap_err();
+    assert!(matches!(err, OpError::Refused(_)), "{err}");
+    assert!(err.to_string().contains("answers at ID 2"), "{err}");
+    assert!(
+        log.sent().iter().all(|f| f.raw_id() == 0x002),
+        "{:?}",
+        log.sent()
+    );
+}
+
+#[test]
+fn set_id_reads_the_new_id_back_before_saving() {
+    let (_sim, bus, log) = captured(1);
+    bus.joint(id(1)).unwrap();
+    log.clear();
+    let r = ops::set_id(&bus, id(1), id(5)).unwrap();
+    assert_eq!((r.new_id, r.read_back), (5, 5), "{r:?}");
+    // The read of SYS_ID (0x01) goes out after the write and before the save.
+    let sent = log.sent();
+    let to_1: Vec<&[u8]> = sent
+        .iter()
+        .filter(|f| f.raw_id() == 0x001 || f.raw_id() == 0x005)
+        .map(|f| f.data())
+        .collect();
+    let write = to_1.iter().position(|d| d[..2] == [0x02, 0x01]).unwrap();
+    let read = to_1
+        .iter()
+        .position(|d| d[..3] == [0x01, 0x01, 0x01])
+        .unwrap();
+    assert!(write < read, "{to_1:02X?}");
+}
+
+#[test]
 fn clear_shows_the_error_bits_before_and_after() {
     let (_sim, bus, _log) = captured(1);
     ready(&bus, id(1), WorkMode::Position);

@@ -236,3 +236,32 @@ fn a_timed_speed_target_fails_when_its_joint_falls_silent() {
     assert_eq!(e.kind(), ErrorKind::NoDevice, "{e}");
     assert!(e.to_string().contains("fell silent"), "{e}");
 }
+
+#[test]
+fn joints_for_a_broadcast_connect_together_so_absent_ones_cost_one_timeout() {
+    // Joints 1..=3 on the bus, 4..=7 absent.
+    let (link, _sim) = WhjSimLink::new(chain(3));
+    let bus = JointBus::open_with(link, config()).unwrap();
+    let ids: Vec<JointId> = (1..=7).map(id).collect();
+    let t0 = bus.now();
+    assert_eq!(ops::connect_for_broadcast(&bus, &ids), 3);
+    let took = bus.now() - t0;
+    let timeout = config().connect_timeout;
+    // One connect timeout for all four absent joints (and the last attempt's reply
+    // timeout), not four of them in turn.
+    assert!(
+        took >= timeout && took < timeout + Duration::from_millis(50),
+        "{took:?} for a connect timeout of {timeout:?}"
+    );
+    let r = ops::broadcast_status(&bus, &ids).unwrap();
+    assert!(
+        r[..3].iter().all(robobus::ops::DeviceResult::is_ok),
+        "{r:?}"
+    );
+    assert!(
+        r[3..]
+            .iter()
+            .all(|r| r.failure().is_some_and(|f| f.kind == ErrorKind::NoDevice)),
+        "{r:?}"
+    );
+}

@@ -268,11 +268,7 @@ fn run(bus: &JointBus, job: &WhjJob<'_>, stats: &mut Option<Value>) -> anyhow::R
         WhjRun::Info(id) => one(*id, &ops::info(bus, *id)?),
         WhjRun::Status(ids) => rows_of(&ops::status(bus, ids)),
         WhjRun::BroadcastStatus(ids, end_board) => {
-            // Connect each joint (IAP release, identity for the current scale); a silent
-            // one is named by the broadcast's result.
-            for &id in ids {
-                let _ = bus.joint(id);
-            }
+            ops::connect_for_broadcast(bus, ids);
             if *end_board {
                 let (joints, board) = ops::broadcast_status_with_end_board(bus, ids)?;
                 let (mut rows, outcome) = rows_of(&joints);

@@ -290,6 +290,11 @@ pub fn answers(bus: &JointBus, id: JointId) -> Result<bool, OpError> {
 pub struct SetIdReport {
     /// The new ID.
     pub new_id: u8,
+    /// `SYS_ID` as read back after the write.
+    pub read_back: u8,
+    /// The ID the read-back was answered at: the old one (the new ID applies after a power
+    /// cycle), or the new one (firmware that applies it at once).
+    pub answered_at: u8,
     /// Saved to flash.
     pub saved: bool,
     /// When it applies.
@@ -306,6 +311,47 @@ pub fn set_id(bus: &JointBus, id: JointId, new_id: JointId) -> Result<SetIdRepor
             "the joint already has this ID",
         ));
     }
+    check_id_free(bus, id, new_id)?;
+    let j = bus.joint(id).map_err(whj)?;
+    j.disable().map_err(whj)?;
+    j.write_register_raw("SYS_ID", i32::from(new_id.get()))
+        .map_err(whj)?;
+    // Read back: at the old ID (the new one applies after a power cycle), or at the new
+    // one where the firmware applies it at once.
+    let (at, read_back) = match j.read_words(robobus_whj::registers::addr::SYS_ID, 1) {
+        Ok(w) => (j, w),
+        Err(e) if e.is_timeout() => {
+            let k = bus.joint_unchecked(new_id);
+            let w = k
+                .read_words(robobus_whj::registers::addr::SYS_ID, 1)
+                .map_err(whj)?;
+            (k, w)
+        }
+        Err(e) => return Err(whj(e)),
+    };
+    let read_back = read_back.first().copied().unwrap_or(0);
+    if read_back != u16::from(new_id.get()) {
+        return Err(OpError::Device(format!(
+            "set-id {} {}: SYS_ID reads back {read_back} at ID {}; the ID did not take (not \
+             saved)",
+            id.get(),
+            new_id.get(),
+            at.id().get()
+        )));
+    }
+    at.save_to_flash().map_err(whj)?;
+    Ok(SetIdReport {
+        new_id: new_id.get(),
+        read_back: u8::try_from(read_back).unwrap_or(u8::MAX),
+        answered_at: at.id().get(),
+        saved: true,
+        note: "the new ID applies after a power cycle of the joint",
+    })
+}
+
+/// Refuses an ID change of joint `id` to `new_id` while a joint answers at `new_id` (two
+/// joints would share it after the next power cycle); nothing is sent to joint `id`.
+pub fn check_id_free(bus: &JointBus, id: JointId, new_id: JointId) -> Result<(), OpError> {
     if answers(bus, new_id)? {
         return Err(OpError::Refused(format!(
             "set-id {} {}: a joint answers at ID {} already; after the next power cycle two \
@@ -317,16 +363,7 @@ pub fn set_id(bus: &JointBus, id: JointId, new_id: JointId) -> Result<SetIdRepor
             id.get()
         )));
     }
-    let j = bus.joint(id).map_err(whj)?;
-    j.disable().map_err(whj)?;
-    j.write_register_raw("SYS_ID", i32::from(new_id.get()))
-        .map_err(whj)?;
-    j.save_to_flash().map_err(whj)?;
-    Ok(SetIdReport {
-        new_id: new_id.get(),
-        saved: true,
-        note: "the new ID applies after a power cycle of the joint",
-    })
+    Ok(())
 }
 
 // ---------------------------------------------------------------------------------------
@@ -1819,6 +1856,16 @@ pub fn write(
     confirmed: bool,
 ) -> Result<Vec<RegisterReport>, OpError> {
     check_write(addr, confirmed)?;
+    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // 1..=30 checked
+    if addr == robobus_whj::registers::addr::SYS_ID
+        && value.fract() == 0.0
+        && (1.0..=30.0).contains(&value)
+        && let Ok(new_id) = JointId::new(value as u8)
+        && new_id != joint
+    {
+        // The same rule as `set-id`: never an ID that another joint answers at.
+        check_id_free(bus, joint, new_id)?;
+    }
     let scale = match scale {
         Some(s) => s,
         None if needs_current_scale(addr, raw) => bus
@@ -1889,7 +1936,7 @@ pub use stream::{FOLLOW_STEPS, SILENT_AFTER, SILENT_FRAMES, check_plan_steps};
 pub use broadcast::{
     BROADCAST_WAVE_MIN_HZ, BroadcastPlan, END_BOARD_WRITE_TEXT, EndBoardArg, EndBoardStatus,
     SECOND_ANSWER_GUARD, Slot, StatusWithEndBoard, broadcast_read, broadcast_status,
-    broadcast_status_with_end_board, broadcast_window, broadcast_write, plan_broadcast_read,
-    plan_broadcast_wave, plan_broadcast_write, prepare_broadcast_wave, reply_mask, reply_mask_with,
-    run_broadcast_plan, sample_broadcast,
+    broadcast_status_with_end_board, broadcast_window, broadcast_write, connect_for_broadcast,
+    plan_broadcast_read, plan_broadcast_wave, plan_broadcast_write, prepare_broadcast_wave,
+    reply_mask, reply_mask_with, run_broadcast_plan, sample_broadcast,
 };

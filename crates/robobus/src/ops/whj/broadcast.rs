@@ -313,6 +313,14 @@ fn status_report(bus: &JointBus, id: JointId, f: &BroadcastFeedback) -> StatusRe
     }
 }
 
+/// Connects joints `ids` before a broadcast (IAP releases pipelined, identities read for
+/// their current scales: [`JointBus::joints`]), so absent joints cost one connect timeout
+/// in all, not one each. A joint that does not connect is named by the broadcast's own
+/// result (as silent); this returns how many connected.
+pub fn connect_for_broadcast(bus: &JointBus, ids: &[JointId]) -> usize {
+    bus.joints(ids).iter().filter(|j| j.is_ok()).count()
+}
+
 /// `whj status --broadcast`: one 0x7F frame asks joints `ids` (1..=7) for their status;
 /// every joint is reported, one that did not answer within [`broadcast_window`] as a
 /// no-device failure. Joints outside `ids` that the mask also selects are not reported.
