@@ -380,7 +380,7 @@ fn set_id_reads_the_new_id_back_before_saving() {
     let to_1: Vec<&[u8]> = sent
         .iter()
         .filter(|f| f.raw_id() == 0x001 || f.raw_id() == 0x005)
-        .map(|f| f.data())
+        .map(CanFrame::data)
         .collect();
     let write = to_1.iter().position(|d| d[..2] == [0x02, 0x01]).unwrap();
     let read = to_1
