@@ -284,9 +284,15 @@ fn scan_finds_servos_flags_duplicates_and_fails_on_an_empty_bus() {
 fn scan_flags_two_servos_sharing_an_id() {
     // At 921600 bit/s the replies of two modules with one ID collide visibly.
     let sim = Sim::start("0,1,1", &["--baud", "921600"]);
-    let out = sim.ok(&["--baud", "921600", "scan", "--ids", "0-2"]);
-    assert!(out.contains("DUPLICATE  ID 1"), "{out}");
-    let v = sim.json(&["--baud", "921600", "scan", "--ids", "0-2"]);
+    // The table names the duplicate, and the exit code is 1 (a device fault), as for
+    // `whj scan`.
+    let r = sim.wck(&["--baud", "921600", "scan", "--ids", "0-2"]);
+    assert_eq!(r.code, Some(1), "{r:#?}");
+    assert!(r.stdout.contains("DUPLICATE  ID 1"), "{r:#?}");
+    assert!(r.stderr.contains("more than one module answers at ID 1"), "{r:#?}");
+    let r = sim.wck(&["--json", "--baud", "921600", "scan", "--ids", "0-2"]);
+    assert_eq!(r.code, Some(1), "{r:#?}");
+    let v: Value = serde_json::from_str(&r.stdout).unwrap();
     let dups = v["duplicates"].as_array().unwrap();
     assert_eq!(dups.len(), 1, "{v}");
     assert_eq!(dups[0]["id"], 1);

@@ -320,6 +320,19 @@ fn scan<L: ByteLink>(bus: &mut WckBus<L>, job: &WckJob<'_>, args: &ScanArgs) -> 
         );
         output::print(&text)?;
     }
+    if !report.duplicates.is_empty() {
+        // As `whj scan`: an ID that more than one module answers is a device fault (exit 1).
+        let ids: Vec<String> = report
+            .duplicates
+            .iter()
+            .map(|d| format!("ID {} at {} bit/s", d.id, d.baud))
+            .collect();
+        return Err(anyhow::Error::new(robobus::ops::OpError::Device(format!(
+            "{}: more than one module answers at {}; give each module its own ID",
+            job.port,
+            ids.join(", ")
+        ))));
+    }
     if report.is_empty() {
         let rates: Vec<String> = args.bauds.iter().map(ToString::to_string).collect();
         return Err(anyhow::Error::new(Timeout(format!(
