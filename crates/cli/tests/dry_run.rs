@@ -355,13 +355,15 @@ fn wck_timed_wheel_shows_the_watch_reads_and_the_stop() {
         .iter()
         .map(|p| (p["t_ms"].as_u64(), p["command"].as_str().unwrap()))
         .collect();
-    assert_eq!(seen.len(), 5, "{out}");
+    assert_eq!(seen.len(), 6, "{out}");
     assert_eq!(seen[0].0, Some(0));
     assert_eq!(seen[1].0, Some(200));
     assert_eq!(seen[2].0, Some(400));
     assert_eq!(seen[3].0, Some(500));
     assert_eq!(seen[1].1, seen[3].1, "status reads");
     assert_eq!(seen[4], (None, "position move"));
+    // Then where the shaft came to rest.
+    assert_eq!(seen[5], (None, seen[1].1));
     let notes = v["notes"].to_string();
     assert!(notes.contains("assumed 127"), "{notes}");
 }

@@ -289,7 +289,10 @@ fn scan_flags_two_servos_sharing_an_id() {
     let r = sim.wck(&["--baud", "921600", "scan", "--ids", "0-2"]);
     assert_eq!(r.code, Some(1), "{r:#?}");
     assert!(r.stdout.contains("DUPLICATE  ID 1"), "{r:#?}");
-    assert!(r.stderr.contains("more than one module answers at ID 1"), "{r:#?}");
+    assert!(
+        r.stderr.contains("more than one module answers at ID 1"),
+        "{r:#?}"
+    );
     let r = sim.wck(&["--json", "--baud", "921600", "scan", "--ids", "0-2"]);
     assert_eq!(r.code, Some(1), "{r:#?}");
     let v: Value = serde_json::from_str(&r.stdout).unwrap();

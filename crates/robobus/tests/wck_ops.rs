@@ -78,13 +78,23 @@ fn a_timed_wheel_run_sends_its_dry_run_and_is_watched() {
         on_stop: SafeState::Passive,
     };
     let plan = args.plan();
-    // Wheel at 0, status reads at 200, 400, 600 ms, passive at 650 ms.
+    // Wheel at 0, status reads at 200, 400, 600 ms, passive at 650 ms, then the status
+    // read of where it came to rest.
     let times: Vec<Option<u64>> = plan.steps.iter().map(|s| s.at_ms).collect();
-    assert_eq!(times, [Some(0), Some(200), Some(400), Some(600), Some(650)]);
+    assert_eq!(
+        times,
+        [Some(0), Some(200), Some(400), Some(600), Some(650), None]
+    );
     let report = wck::wheel(&mut bus, &args, &mut Control::none()).unwrap();
     let row = report.value().unwrap();
     assert_eq!(row.get("stopped").unwrap().cell(), "passive");
+    // Where it came to rest (the plan's last status read), not where it started.
+    let start = row.get("position").unwrap().cell();
+    let rest = row.get("stopped_at").unwrap().cell();
+    assert_ne!(rest, start, "{row:?}");
     assert_sent_as_planned(&written(bus), &plan);
+    let now = sim.with_bus(|b| b.servo(1).unwrap().position());
+    assert_eq!(rest, now.to_string(), "{row:?}");
 }
 
 #[test]

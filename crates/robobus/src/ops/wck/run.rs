@@ -453,12 +453,16 @@ impl WheelArgs {
                 }));
             }
         }
+        plan.notes
+            .push("then a status read: where the shaft came to rest".into());
+        plan.steps.push(WckStep::now(Command::StatusRead { id }));
         plan
     }
 }
 
-/// The report of [`wheel`]: the wheel command's fields, and for a timed run `ran_ms` and
-/// `stopped` (the safe state applied at the end).
+/// The report of [`wheel`]: the wheel command's fields, and for a timed run `ran_ms`,
+/// `stopped` (the safe state applied at the end) and `stopped_at` / `stopped_load` (a
+/// status read after it).
 pub type WheelReport = StepResult;
 
 /// Wheel mode; with a duration, the timed plan of [`WheelArgs::plan`].
@@ -473,6 +477,7 @@ pub fn wheel<L: ByteLink>(
         .duration
         .map_or(0, |d| u64::try_from(d.as_millis()).unwrap_or(u64::MAX));
     let mut first: Option<Fields> = None;
+    let mut rest: Option<Fields> = None;
     let start = run_timed(
         bus,
         plan.steps,
@@ -483,6 +488,8 @@ pub fn wheel<L: ByteLink>(
         |step, reply| {
             if first.is_none() {
                 first = Some(reply_fields(&step.command, reply));
+            } else if matches!(step.command, Command::StatusRead { .. }) {
+                rest = Some(reply_fields(&step.command, reply));
             }
         },
     )?;
@@ -494,6 +501,14 @@ pub fn wheel<L: ByteLink>(
                 .unwrap_or(u64::MAX),
         );
         row.push("stopped", args.on_stop.keyword());
+        // Where the shaft came to rest: the plan's last status read, after the safe
+        // state, not the wheel command's reply (the position before the run).
+        let rest = rest.unwrap_or_default();
+        for (key, name) in [("position", "stopped_at"), ("load", "stopped_load")] {
+            if let Some(v) = rest.get(key) {
+                row.push(name, v.clone());
+            }
+        }
     }
     Ok(DeviceResult::ok(args.id.get().into(), row))
 }
