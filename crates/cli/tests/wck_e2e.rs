@@ -531,7 +531,13 @@ fn play_ends_at_the_last_pose() {
     let took = start.elapsed();
     assert_eq!(v["last_positions"], serde_json::json!([140, 110]));
     assert_eq!(v["planned_ms"], 800);
-    assert_eq!(v["sent"], v["moves"]);
+    // One status read every 200 ms watches the servos: at 200, 400, 600 and 800 ms.
+    assert_eq!(v["watch_reads"], 4, "{v}");
+    assert_eq!(
+        v["sent"].as_u64().unwrap(),
+        v["moves"].as_u64().unwrap() + 4,
+        "{v}"
+    );
     assert!(v["duration_ms"].as_u64().unwrap() >= 800, "{v}");
     assert!(took >= Duration::from_millis(800), "{took:?}");
     sim.wait_at(0, 140);
@@ -608,8 +614,10 @@ fn teach_at_a_rate_writes_a_file_that_play_accepts() {
     let dry = common::ok(&["wck", "--dry-run", "play", f.to_str().unwrap()]);
     let packets = common::lines(&dry);
     assert!(!packets.is_empty());
+    // (and the status reads that watch servos 0, 1, 2 in turn)
     assert!(
-        packets.iter().all(|l| l.starts_with("FF 1F 03 7F 7F 7F ")),
+        packets.iter().all(|l| l.starts_with("FF 1F 03 7F 7F 7F ")
+            || ["FF A0 00 20", "FF A1 00 21", "FF A2 00 22"].contains(l)),
         "{dry}"
     );
     // Playing it back works on the device too.

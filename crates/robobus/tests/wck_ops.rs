@@ -228,6 +228,35 @@ fn a_stopped_play_brings_the_servos_to_the_safe_state() {
     );
 }
 
+/// Synchronized moves have no reply: the status reads that watch the servos end a play
+/// whose servo stops answering, in the safe state, naming the servo (exit 3), instead of
+/// reporting every move as played.
+#[test]
+fn a_play_ends_when_a_servo_stops_answering() {
+    let mut sim = serve_ids(&[0, 1]);
+    let handle = sim.handle.clone();
+    let mut bus = sim.bus();
+    let motion = Motion::parse("pose 0 100 100\npose 5000 200 200\n").unwrap();
+    let mut unplugged = false;
+    let mut on_progress = |p: &Progress| {
+        if p.done >= 1000 && !unplugged {
+            unplugged = true;
+            handle.with_bus(|b| b.unplug(1));
+        }
+    };
+    let stop = StopToken::new();
+    let mut control = Control::new(&stop).with_progress(&mut on_progress);
+    let t0 = bus.now();
+    let err = wck::play(&mut bus, &motion, 50.0, SafeState::Passive, &mut control).unwrap_err();
+    drop(control);
+    assert_eq!(err.kind(), ErrorKind::NoDevice, "{err}");
+    assert!(err.to_string().contains("servo 1"), "{err}");
+    // Found by a watch read of servo 1 (every other read: within 400 ms, then its
+    // retries), not at the end of the 5 s motion.
+    let took = bus.now() - t0;
+    assert!(took < Duration::from_millis(1800), "{took:?}");
+}
+
 #[test]
 fn teach_hands_over_each_pose_as_it_is_recorded_and_keeps_them_on_stop() {
     let mut sim = serve_ids(&[0, 1]);

@@ -375,10 +375,12 @@ fn play<L: ByteLink>(
             .map(ToString::to_string)
             .collect();
         output::print(&format!(
-            "played {} synchronized moves in {} ms (planned {} ms); last pose: {}\n",
-            report.sent,
+            "played {} synchronized moves in {} ms (planned {} ms; {} status reads watched \
+             the servos); last pose: {}\n",
+            report.moves,
             report.duration_ms,
             report.planned_ms,
+            report.watch_reads,
             ps.join(" ")
         ))
     }

@@ -88,7 +88,8 @@ mod run;
 mod shared;
 
 pub use motion::{
-    FORMAT_HELP, Frame, MOTION_FILE_LIMIT, Motion, MotionWriter, Moves, ParseError, Pose,
+    FORMAT_HELP, Frame, MOTION_FILE_LIMIT, Motion, MotionWriter, Moves, PLAY_WATCH_MS, ParseError,
+    Pose,
 };
 pub use plan::{DryRun, DryRunBus, PlanPacket, WckPlan, WckStep, step_line};
 pub use report::{BREAK_CLEAN, BREAK_COLLIDED, FieldValue, Fields, reply_fields};

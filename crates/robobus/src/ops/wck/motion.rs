@@ -300,6 +300,9 @@ impl Motion {
             prev: None,
             step: 0,
             steps: 0,
+            watch_at: PLAY_WATCH_MS,
+            watched: 0,
+            pending: None,
         }
     }
 
@@ -406,12 +409,47 @@ pub struct Moves<'a> {
     /// The move within the current transition (1..=steps), 0 = not started.
     step: u64,
     steps: u64,
+    /// When the next watch read is due, ms.
+    watch_at: u64,
+    /// Watch reads so far (the next one asks servo `watched % servos`).
+    watched: usize,
+    /// The watch read that goes right after the move just returned.
+    pending: Option<WckStep>,
 }
+
+/// How often a played motion reads one servo's status (round robin over its servos, right
+/// after the first move due at or after each multiple of this), ms:
+/// synchronized moves have no reply, so without it a servo (or a whole bus) that stops
+/// answering would go unnoticed. A read that gets no answer ends the run in the safe state.
+pub const PLAY_WATCH_MS: u64 = 200;
 
 impl Iterator for Moves<'_> {
     type Item = WckStep;
 
     fn next(&mut self) -> Option<WckStep> {
+        if let Some(read) = self.pending.take() {
+            return Some(read);
+        }
+        let step = self.next_move()?;
+        let at = step.at_ms.unwrap_or(0);
+        let servos = self.motion.servos();
+        if at >= self.watch_at && servos > 0 {
+            // Right after the move (which keeps its time), never before it.
+            while self.watch_at <= at {
+                self.watch_at += PLAY_WATCH_MS;
+            }
+            let id = u8::try_from(self.watched % servos)
+                .ok()
+                .and_then(|i| ServoId::new(i).ok());
+            self.watched += 1;
+            self.pending = id.map(|id| WckStep::now(Command::StatusRead { id }));
+        }
+        Some(step)
+    }
+}
+
+impl Moves<'_> {
+    fn next_move(&mut self) -> Option<WckStep> {
         loop {
             let frame = self.motion.frames.get(self.frame)?;
             match frame {

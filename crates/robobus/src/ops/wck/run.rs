@@ -350,7 +350,10 @@ fn run_timed<L: ByteLink>(
 ) -> Result<Instant, OpError> {
     let start = bus.now();
     let mut last_position: Option<Position> = None;
+    // A step without a time goes right after the one before (and counts as its time).
+    let mut at_ms = 0;
     for mut step in steps {
+        at_ms = step.at_ms.unwrap_or(at_ms);
         let due = start + Duration::from_millis(step.at_ms.unwrap_or(0));
         if !control.sleep_on(bus.link_mut(), due) {
             return Err(interrupted(bus, stop.0, stop.1, stop.2));
@@ -376,11 +379,7 @@ fn run_timed<L: ByteLink>(
             last_position = Some(position);
         }
         on_reply(&step, reply);
-        control.report(&Progress::new(
-            stage,
-            step.at_ms.unwrap_or(0),
-            Some(total_ms),
-        ));
+        control.report(&Progress::new(stage, at_ms, Some(total_ms)));
     }
     Ok(start)
 }
@@ -521,10 +520,13 @@ pub struct PlayReport {
     pub port: String,
     /// Always `play`.
     pub command: &'static str,
-    /// Moves planned.
+    /// Synchronized moves sent.
     pub moves: u64,
-    /// Moves sent.
+    /// Packets sent: the moves and the watch reads ([`PLAY_WATCH_MS`](super::PLAY_WATCH_MS)).
     pub sent: u64,
+    /// Status reads that watched the servos while the motion played (each answered: a
+    /// servo that does not answer ends the run in the safe state, with an error).
+    pub watch_reads: u64,
     /// When the last move was due, ms.
     pub planned_ms: u64,
     /// How long the run took, ms.
@@ -534,7 +536,9 @@ pub struct PlayReport {
 }
 
 /// Plays `motion` at `rate_hz` (0.1..=200): the moves of [`Motion::moves`], streamed, each
-/// at its time. On a stop, servos 0..n go to `on_stop` (hold at the motion's torque).
+/// at its time, with a status read of one servo every [`PLAY_WATCH_MS`](super::PLAY_WATCH_MS)
+/// (moves have no reply). On a stop, or when a watched servo does not answer, servos 0..n
+/// go to `on_stop` (hold at the motion's torque); the silent servo is the error.
 #[allow(clippy::result_large_err)] // OpError carries the client errors by value
 pub fn play<L: ByteLink>(
     bus: &mut WckBus<L>,
@@ -548,7 +552,7 @@ pub fn play<L: ByteLink>(
         .filter_map(|i| u8::try_from(i).ok().and_then(|i| ServoId::new(i).ok()))
         .collect();
     let total = motion.end_ms();
-    let (mut sent, mut planned, mut last) = (0u64, 0u64, Vec::new());
+    let (mut sent, mut moves, mut planned, mut last) = (0u64, 0u64, 0u64, Vec::new());
     let start = run_timed(
         bus,
         motion.moves(rate_hz),
@@ -560,6 +564,7 @@ pub fn play<L: ByteLink>(
             sent += 1;
             planned = planned.max(step.at_ms.unwrap_or(0));
             if let Command::SyncMove(s) = &step.command {
+                moves += 1;
                 last = s.positions().iter().map(|p| p.get()).collect();
             }
         },
@@ -567,8 +572,9 @@ pub fn play<L: ByteLink>(
     Ok(PlayReport {
         port: bus.device().to_string(),
         command: "play",
-        moves: sent,
+        moves,
         sent,
+        watch_reads: sent - moves,
         planned_ms: planned,
         duration_ms: u64::try_from(bus.now().saturating_duration_since(start).as_millis())
             .unwrap_or(u64::MAX),
