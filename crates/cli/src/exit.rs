@@ -69,6 +69,23 @@ impl Exit {
     }
 }
 
+/// The kind of an error as `--json` names it: the library's [`ErrorKind::name`] where the
+/// chain holds a library error, else the CLI marker's own (`bad-input`, `no-device`,
+/// `not-available`, `problems-found`, `interrupted`), else `runtime`.
+pub(crate) fn kind_name(err: &anyhow::Error) -> &'static str {
+    if let Some(kind) = library_kind(err) {
+        return kind.name();
+    }
+    match Exit::of(err) {
+        Exit::Usage => ErrorKind::BadInput.name(),
+        Exit::Timeout => ErrorKind::NoDevice.name(),
+        Exit::NotAvailable => ErrorKind::NotAvailable.name(),
+        Exit::ProblemsFound => "problems-found",
+        Exit::Interrupted => ErrorKind::Interrupted.name(),
+        Exit::Runtime => "runtime",
+    }
+}
+
 /// The kind of the first library error in the chain, if any.
 fn library_kind(err: &anyhow::Error) -> Option<ErrorKind> {
     err.chain().find_map(|cause| {

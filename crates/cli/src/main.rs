@@ -27,7 +27,7 @@
 use std::io::IsTerminal as _;
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory as _, FromArgMatches as _, Parser, Subcommand};
 
 mod client;
 mod demo;
@@ -177,10 +177,52 @@ fn init_logging(verbose: u8) {
     );
 }
 
+/// Every argument that takes a value takes a negative number too (`move 3 -1`,
+/// `--offset -5`), so that the command's own range check names the value, the allowed
+/// range and the option, instead of clap taking `-1` for an unknown flag.
+fn negative_numbers(cmd: clap::Command) -> clap::Command {
+    cmd.mut_args(|a| {
+        if a.get_action().takes_values() {
+            a.allow_negative_numbers(true)
+        } else {
+            a
+        }
+    })
+    .mut_subcommands(negative_numbers)
+}
+
+/// A command line clap refused (exit 2; help and version exit 0). Under `--json` the
+/// error is JSON with its kind, as every other error is.
+fn usage_error(e: &clap::Error) -> ExitCode {
+    use clap::error::ErrorKind as K;
+    let json = std::env::args_os().any(|a| a == "--json");
+    if json && !matches!(e.kind(), K::DisplayHelp | K::DisplayVersion) {
+        let text = e.to_string();
+        let message = text
+            .lines()
+            .next()
+            .unwrap_or_default()
+            .trim_start_matches("error: ");
+        let v = serde_json::json!({
+            "error": { "kind": "bad-input", "message": message, "exit_code": 2 }
+        });
+        eprintln!("{v}");
+        return ExitCode::from(Exit::Usage as u8);
+    }
+    e.exit()
+}
+
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let parsed = negative_numbers(Cli::command())
+        .try_get_matches()
+        .and_then(|m| Cli::from_arg_matches(&m));
+    let cli = match parsed {
+        Ok(cli) => cli,
+        Err(e) => return usage_error(&e),
+    };
     init_logging(cli.global.verbose);
     let g = cli.global;
+    let json = g.json;
     let result = match cli.command {
         Command::Demo(args) => demo::run(g, &args),
         Command::Wck(args) => wck::run(g, &args),
@@ -198,7 +240,20 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
             let code = Exit::of(&err);
-            eprintln!("robobus: error: {}", exit::message(&err));
+            if json {
+                // Under --json the error is JSON too, with its kind (on stderr, as the
+                // text form; stdout keeps only reports).
+                let v = serde_json::json!({
+                    "error": {
+                        "kind": exit::kind_name(&err),
+                        "message": exit::message(&err),
+                        "exit_code": code as u8,
+                    }
+                });
+                eprintln!("{v}");
+            } else {
+                eprintln!("robobus: error: {}", exit::message(&err));
+            }
             ExitCode::from(code as u8)
         }
     }

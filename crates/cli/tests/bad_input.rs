@@ -323,3 +323,57 @@ fn memory_rewrites_need_confirmation_without_a_terminal() {
     assert_eq!(r.code, Some(3), "{r:#?}");
     assert!(r.stderr.contains(PORT), "{}", r.stderr);
 }
+
+#[test]
+fn negative_values_get_the_range_error_not_an_unknown_flag() {
+    refused(
+        &["wck", "--port", PORT, "move", "3", "-1"],
+        &["position -1 is out of range 0..=254", "<POSITION>"],
+    );
+    refused(
+        &["wck", "--port", PORT, "wheel", "1", "ccw", "-3"],
+        &["wheel speed -3 is out of range 0..=15", "<SPEED>"],
+    );
+    refused(&["wck", "--port", PORT, "status", "-2"], &["-2"]);
+}
+
+#[test]
+fn empty_items_of_an_id_list_are_refused() {
+    refused(
+        &["wck", "--port", PORT, "status", "1,,2"],
+        &["item 2 is empty"],
+    );
+    refused(
+        &["whj", "--bus", "udp", "status", "1,"],
+        &["item 2 is empty"],
+    );
+}
+
+#[test]
+fn under_json_an_error_is_json_with_its_kind() {
+    let r = robobus(&["--json", "wck", "--port", PORT, "status", "1"]);
+    assert_eq!(r.code, Some(3), "{r:#?}");
+    let v: serde_json::Value = serde_json::from_str(r.stderr.trim()).unwrap();
+    assert_eq!(v["error"]["kind"], "no-device", "{v}");
+    assert_eq!(v["error"]["exit_code"], 3, "{v}");
+    assert!(
+        v["error"]["message"].as_str().unwrap().contains(PORT),
+        "{v}"
+    );
+    // A refused value under --json: bad input, exit 2.
+    let r = robobus(&[
+        "--json",
+        "whj",
+        "--bus",
+        "udp",
+        "--dry-run",
+        "move",
+        "1",
+        "30",
+        "--rate-hz",
+        "0",
+    ]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    let v: serde_json::Value = serde_json::from_str(r.stderr.trim()).unwrap();
+    assert_eq!(v["error"]["kind"], "bad-input", "{v}");
+}

@@ -417,6 +417,16 @@ pub(crate) fn parse_u32(s: &str) -> Result<u32, String> {
 /// Parses a byte-sized value with a protocol constructor; values above 255 get the same
 /// message as the constructor's own range error.
 fn ranged<T>(s: &str, new: impl Fn(u8) -> Result<T, RangeError>) -> Result<T, String> {
+    // A negative number is out of range, not "not a number": name the range.
+    if let Some(magnitude) = s.trim().strip_prefix('-')
+        && parse_u32(magnitude).is_ok()
+    {
+        let (what, min, max) = (0..=u8::MAX)
+            .find_map(|b| new(b).err())
+            .or_else(|| new(u8::MAX).err())
+            .map_or(("value", 0, 255), |e| (e.what, e.min, e.max));
+        return Err(format!("{what} {} is out of range {min}..={max}", s.trim()));
+    }
     let v = parse_u32(s)?;
     match u8::try_from(v) {
         Ok(b) => new(b).map_err(|e| e.to_string()),

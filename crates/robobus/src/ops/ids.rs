@@ -127,7 +127,16 @@ impl<T: ListId> FromStr for IdList<T> {
             Ok(v)
         };
         let mut ids = Vec::new();
-        for part in spec.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+        let parts: Vec<&str> = spec.split(',').map(str::trim).collect();
+        if !spec.trim().is_empty()
+            && let Some(k) = parts.iter().position(|p| p.is_empty())
+        {
+            return Err(format!(
+                "`{spec}`: item {} is empty (separate IDs by single commas: `1,2,5-7`)",
+                k + 1
+            ));
+        }
+        for part in parts.into_iter().filter(|p| !p.is_empty()) {
             let (lo, hi) = if let Some((a, b)) = part.split_once('-') {
                 (one(a)?, one(b)?)
             } else {
@@ -174,10 +183,27 @@ mod tests {
         assert_eq!(e, "joint ID 0 is out of range 1..=30");
         let e = "4-2".parse::<IdList<JointId>>().unwrap_err();
         assert_eq!(e, "range 4-2 runs backwards (write the lower ID first)");
-        let e = " , ".parse::<IdList<ServoId>>().unwrap_err();
+        let e = "  ".parse::<IdList<ServoId>>().unwrap_err();
         assert!(
             e.contains("names no servo IDs") && e.contains("0..=30"),
             "{e}"
+        );
+        // Empty items are refused, never skipped.
+        let e = "1,,2".parse::<IdList<ServoId>>().unwrap_err();
+        assert_eq!(
+            e,
+            "`1,,2`: item 2 is empty (separate IDs by single commas: `1,2,5-7`)"
+        );
+        assert!(
+            "1,".parse::<IdList<JointId>>()
+                .unwrap_err()
+                .contains("item 2 is empty")
+        );
+        assert!(
+            " , "
+                .parse::<IdList<JointId>>()
+                .unwrap_err()
+                .contains("item 1 is empty")
         );
         let e = "x".parse::<IdList<ServoId>>().unwrap_err();
         assert_eq!(e, "`x` is not a whole number");
