@@ -11,6 +11,7 @@
 //! | [`plot`] | `robobus plot FILE.csv -o FILE.png\|svg` |
 //! | [`replay`] | `robobus replay FILE` (decode a capture file) |
 //! | [`doctor`] | `robobus doctor` (setup checks) |
+//! | [`run`] | `robobus run FILE.json`, `robobus schema` (the catalogue's requests) |
 //! | [`generate`] | `robobus completions SHELL`, `robobus man` |
 //! | [`sim_wck`], [`sim_whj`] | `robobus sim wck`, `robobus sim whj` |
 //!
@@ -39,6 +40,7 @@ mod monitor;
 mod output;
 mod plot;
 mod replay;
+mod run;
 mod sim_wck;
 mod sim_whj;
 mod wck;
@@ -141,6 +143,16 @@ enum Command {
     /// Run a simulated bus that other programs can talk to like real hardware.
     #[command(subcommand)]
     Sim(SimCommand),
+    /// Run requests given as JSON (one, or an array) and print their reports as JSON.
+    ///
+    /// Each request names an operation (`wck.status`, `whj.move`, ...) and its arguments,
+    /// as the subcommands take them: `{"op": "whj.move", "joint": 1, "degrees": 30}`
+    /// (docs/catalogue.md; `robobus schema request`). Without --wck-port, --whj-bus and
+    /// --robot they run on the built-in simulated robot. Writes to EEPROM / flash / IDs
+    /// need `"confirm": true` in the request.
+    Run(run::Args),
+    /// Print the JSON Schema of requests, reports, plans, or the host bounds table.
+    Schema(run::SchemaArgs),
 }
 
 #[derive(Debug, Subcommand)]
@@ -235,6 +247,8 @@ fn main() -> ExitCode {
         Command::Man(args) => generate::man(&args),
         Command::Sim(SimCommand::Wck(args)) => sim_wck::run(&args),
         Command::Sim(SimCommand::Whj(args)) => sim_whj::run(&args),
+        Command::Run(args) => run::run(g, &args),
+        Command::Schema(args) => run::schema(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

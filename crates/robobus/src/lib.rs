@@ -95,6 +95,7 @@
 #![allow(clippy::result_large_err)]
 
 pub mod actuator;
+pub mod catalogue;
 #[cfg(feature = "sim")]
 pub mod demo;
 pub mod error;

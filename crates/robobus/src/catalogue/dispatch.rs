@@ -1,0 +1,476 @@
+//! The one dispatcher: [`plan`] and [`run`] of every [`Request`].
+
+use robobus_wck::{BaudRate, Command};
+use robobus_whj::REGISTERS;
+use serde::Serialize;
+use serde_json::{Map, Value, json};
+
+use super::bounds::{ConfirmClass, refused};
+use super::plan::Plan;
+use super::station::{Station, WckPort, WhjPort};
+use super::{Family, Report, Request, wck, whj};
+use crate::ops::wck as wops;
+use crate::ops::whj as hops;
+use crate::ops::{Control, DeviceResult, ErrorKind, OpError, worst_kind};
+use crate::whj::JointBus;
+
+/// Frames without a reply at the end of a wave after which the joint counts as gone (a
+/// no-device failure): one lost reply is a glitch, ten in a row at the end a silent joint.
+pub const GONE_AFTER: u64 = 10;
+
+/// The plan of `request`: the exact packets / frames a run sends (its text form is what
+/// the CLI's `--dry-run` prints), validated against the protocol's ranges and the host
+/// bounds. Nothing is opened; the wCK packets are shown at 115200 bit/s (`wck.scan`
+/// scans at that rate).
+pub fn plan(request: &Request) -> Result<Plan, OpError> {
+    plan_at(request, BaudRate::B115200)
+}
+
+fn plan_at(request: &Request, baud: BaudRate) -> Result<Plan, OpError> {
+    let op = request.op();
+    Ok(match request.family() {
+        Family::Wck => {
+            let p = wck::prepare(request, baud)?;
+            let mut plan = Plan::wck(&op, &p.plan, baud);
+            plan.confirm = p.confirm;
+            plan.truncated = matches!(p.job, wck::Job::Play(..))
+                && p.plan.steps.len() >= super::plan::MAX_PLAN_STEPS;
+            plan
+        }
+        Family::Whj => {
+            let p = whj::prepare(request, true)?;
+            let mut plan = Plan::whj(&op, &p.plan);
+            plan.confirm = p.confirm;
+            plan
+        }
+    })
+}
+
+/// Runs `request` on the station's bus it names (or the station's only bus of the
+/// family): validates and plans it, refuses it when it needs confirmation and lacks it
+/// ([`ErrorKind::Refused`], nothing sent), then executes the plan through the operation
+/// of [`crate::ops`] with `control`'s stop token and progress. Device failures are in the
+/// report (`failed`); an error is a failure of the whole request.
+pub fn run(
+    station: &Station,
+    request: &Request,
+    control: &mut Control<'_>,
+) -> Result<Report, OpError> {
+    let op = request.op();
+    match request.family() {
+        Family::Wck => {
+            let port = station.wck(request.bus())?;
+            let baud = port.lock().baud();
+            let p = wck::prepare(request, baud)?;
+            if p.confirm != ConfirmClass::None && !p.confirmed {
+                return Err(refused(wck::confirm_text(p.confirm)));
+            }
+            run_wck(&port, &op, p, control)
+        }
+        Family::Whj => {
+            let p = whj::prepare(request, false)?;
+            if p.confirm != ConfirmClass::None && !p.confirmed {
+                return Err(refused(&p.confirm_text));
+            }
+            if matches!(p.job, whj::Job::Registers) {
+                return Ok(registers_report(&op));
+            }
+            let port = station.whj(request.bus())?;
+            run_whj(&port, &op, &p, control)
+        }
+    }
+}
+
+/// A row: `id` first, then the value's fields.
+fn row(id: impl Serialize, value: &impl Serialize) -> Value {
+    let mut r = Map::new();
+    r.insert("id".into(), json!(id));
+    if let Ok(Value::Object(fields)) = serde_json::to_value(value) {
+        for (k, v) in fields {
+            r.insert(k, v);
+        }
+    }
+    Value::Object(r)
+}
+
+fn report(op: &str, bus: &str, results: Vec<Value>) -> Report {
+    Report {
+        op: op.to_owned(),
+        bus: bus.to_owned(),
+        results,
+        summary: None,
+        failed: None,
+        error: None,
+    }
+}
+
+/// Per-device results as rows, with the worst failure.
+fn device_report<I: Serialize, T: Serialize>(
+    op: &str,
+    bus: &str,
+    results: &[DeviceResult<I, T>],
+) -> Report {
+    let mut r = report(
+        op,
+        bus,
+        results
+            .iter()
+            .map(|d| serde_json::to_value(d).unwrap_or(Value::Null))
+            .collect(),
+    );
+    fail_with(
+        &mut r,
+        worst_kind(results),
+        results
+            .iter()
+            .filter_map(|d| d.failure().map(|f| f.error.clone())),
+    );
+    r
+}
+
+fn fail_with(r: &mut Report, kind: Option<ErrorKind>, messages: impl Iterator<Item = String>) {
+    if let Some(k) = kind {
+        r.failed = Some(k.name().to_owned());
+        let text: Vec<String> = messages.collect();
+        r.error = Some(text.join("; "));
+    }
+}
+
+fn summary(value: &impl Serialize) -> Option<Value> {
+    serde_json::to_value(value).ok()
+}
+
+// ----- wCK -----
+
+fn run_wck(
+    port: &WckPort,
+    op: &str,
+    p: wck::Prepared,
+    control: &mut Control<'_>,
+) -> Result<Report, OpError> {
+    let name = port.name().to_owned();
+    let mut guard = port.lock();
+    let bus = &mut *guard;
+    Ok(match p.job {
+        wck::Job::Steps(action) => {
+            let saved = bus.config_mut().confirm_reads;
+            bus.config_mut().confirm_reads = wck::confirm_reads_for(&p.plan, None);
+            let result = wops::run_steps(bus, action, &p.plan, control);
+            bus.config_mut().confirm_reads = saved;
+            device_report(op, &name, &result?.results)
+        }
+        wck::Job::Scan(args) => {
+            let r = wops::scan(bus, &args, control)?;
+            let mut out = report(
+                op,
+                &name,
+                r.found
+                    .iter()
+                    .map(|f| serde_json::to_value(f).unwrap_or(Value::Null))
+                    .collect(),
+            );
+            out.summary = summary(&r);
+            if r.is_empty() {
+                out.failed = Some(ErrorKind::NoDevice.name().into());
+                out.error = Some(format!(
+                    "{name}: no servo answered at any of the scanned IDs ({})",
+                    wops::ids_text(&args.ids)
+                ));
+            }
+            out
+        }
+        wck::Job::Wheel(args) => {
+            let r = wops::wheel(bus, &args, control)?;
+            device_report(op, &name, std::slice::from_ref(&r))
+        }
+        wck::Job::Teach(args) => {
+            let mut poses = Vec::new();
+            let mut events = |_| wops::TeachEvent::Nothing;
+            let mut on_pose = |pose: &wops::Pose| {
+                poses.push(pose.clone());
+                Ok(())
+            };
+            wops::teach(bus, &args, control, &mut events, &mut on_pose)?;
+            let mut out = report(op, &name, Vec::new());
+            out.summary = Some(json!({
+                "ids": args.ids.iter().map(|i| i.get()).collect::<Vec<_>>(),
+                "torque": args.torque.get(),
+                "poses": poses,
+            }));
+            out
+        }
+        wck::Job::Play(motion, rate, safe) => {
+            let r = wops::play(bus, &motion, rate, safe, control)?;
+            let mut out = report(op, &name, Vec::new());
+            out.summary = summary(&r);
+            out
+        }
+        wck::Job::Check(program, id) => {
+            let packet = Command::MotionWrite { id, program }.encode();
+            let instructions: Vec<Value> = program
+                .instructions()
+                .iter()
+                .map(|i| {
+                    let (c, d) = i.to_pair();
+                    json!({"text": i.to_string(), "command": c, "data": d})
+                })
+                .collect();
+            let mut out = report(op, &name, Vec::new());
+            out.summary = Some(json!({
+                "ok": true,
+                "instructions": instructions,
+                "upload_packet": {"id": id.get(), "hex": packet.to_string(), "bytes": packet.as_bytes()},
+            }));
+            out
+        }
+        wck::Job::Sample(ids) => {
+            let mut sampler = crate::ops::monitor::WckSampler::new(&ids);
+            let results = sampler.sample(bus, 0.0);
+            device_report(op, &name, &results)
+        }
+    })
+}
+
+// ----- WHJ -----
+
+fn registers_report(op: &str) -> Report {
+    let rows = REGISTERS
+        .iter()
+        .map(|r| {
+            json!({
+                "id": r.addr.get(),
+                "name": r.name,
+                "unit": r.unit.symbol(),
+                "scale": r.unit.scale(),
+                "range": r.range.map(|(a, b)| [a, b]),
+                "writable": r.access.is_writable(),
+                "meaning": r.meaning,
+            })
+        })
+        .collect();
+    report(op, "(none)", rows)
+}
+
+#[allow(clippy::too_many_lines)] // one arm per operation
+fn run_whj(
+    port: &WhjPort,
+    op: &str,
+    p: &whj::Prepared,
+    control: &mut Control<'_>,
+) -> Result<Report, OpError> {
+    use whj::Job as J;
+    let name = port.name();
+    let bus: &JointBus = port.bus();
+    let safe = p.on_stop.into();
+    let one = |id: u8, v: &dyn erased::Ser| report(op, name, vec![row(id, &erased::Wrap(v))]);
+    Ok(match &p.job {
+        J::Scan(ids) => {
+            let r = hops::scan(bus, ids, control)?;
+            let mut out = device_report(op, name, &r.found);
+            out.summary = Some(json!({ "duplicates": r.duplicates, "probed": r.probed }));
+            if r.found.is_empty() {
+                out.failed = Some(ErrorKind::NoDevice.name().into());
+                out.error = Some(format!(
+                    "no joint answered on IDs {}",
+                    ids.iter()
+                        .map(|j| j.get().to_string())
+                        .collect::<Vec<_>>()
+                        .join(",")
+                ));
+            } else if !r.duplicates.is_empty() && out.failed.is_none() {
+                out.failed = Some(ErrorKind::Device.name().into());
+                out.error = Some(
+                    r.duplicates
+                        .iter()
+                        .map(|d| {
+                            format!(
+                                "ID {} is answered by two joints (unique IDs {} and {})",
+                                d.id, d.unique_ids[0], d.unique_ids[1]
+                            )
+                        })
+                        .collect::<Vec<_>>()
+                        .join("; "),
+                );
+            }
+            out
+        }
+        J::Info(id) => one(id.get(), &hops::info(bus, *id)?),
+        J::Status(ids) => device_report(op, name, &hops::status(bus, ids)),
+        J::BroadcastStatus(ids, end_board) => {
+            // Connect each joint first (IAP release, identity for the current scale); a
+            // silent one is named by the broadcast's result.
+            let _ = bus.joints(ids);
+            if *end_board {
+                let (joints, board) = hops::broadcast_status_with_end_board(bus, ids)?;
+                let mut out = device_report(op, name, &joints);
+                let b = device_report(op, name, std::slice::from_ref(&board));
+                out.results.extend(b.results);
+                if out.failed.is_none() {
+                    out.failed = b.failed;
+                    out.error = b.error;
+                }
+                out
+            } else {
+                device_report(op, name, &hops::broadcast_status(bus, ids)?)
+            }
+        }
+        J::Enable(ids, on) => device_report(op, name, &hops::enable(bus, ids, *on)),
+        J::Mode(ids, mode) => device_report(op, name, &hops::set_mode(bus, ids, *mode)),
+        J::Move(args) => {
+            let j = bus.joint(args.joint)?;
+            let plan = hops::prepare_move(&j, args)?;
+            one(
+                args.joint.get(),
+                &hops::execute_move(&j, args, &plan, control, safe)?,
+            )
+        }
+        J::Target(args) => {
+            let j = bus.joint(args.joint)?;
+            one(
+                args.joint.get(),
+                &hops::run_target(&j, args, control, safe)?,
+            )
+        }
+        J::Zero(id) => one(id.get(), &hops::zero(bus, *id)?),
+        J::Clear(ids) => device_report(op, name, &hops::clear(bus, ids)),
+        J::Save(ids) => device_report(op, name, &hops::save(bus, ids)),
+        J::Read(joints, addr, count, broadcast, end_board) => {
+            if *broadcast {
+                device_report(
+                    op,
+                    name,
+                    &hops::broadcast_read(bus, joints, *addr, *count, *end_board)?.1,
+                )
+            } else {
+                let mut rows = Vec::new();
+                for &j in joints {
+                    rows.extend(
+                        hops::read_registers(bus, j, *addr, *count)?
+                            .iter()
+                            .map(|r| row(j.get(), r)),
+                    );
+                }
+                report(op, name, rows)
+            }
+        }
+        J::Write {
+            joints,
+            addr,
+            value,
+            raw,
+            scale,
+            broadcast,
+            end_board,
+        } => {
+            if *broadcast {
+                let (_, results) = hops::broadcast_write(
+                    bus,
+                    joints,
+                    *addr,
+                    *value,
+                    *raw,
+                    *scale,
+                    *end_board,
+                    p.confirmed,
+                )?;
+                device_report(op, name, &results)
+            } else {
+                let mut rows = Vec::new();
+                for &j in joints {
+                    rows.extend(
+                        hops::write(bus, j, *addr, *value, *raw, *scale, p.confirmed)?
+                            .iter()
+                            .map(|r| row(j.get(), r)),
+                    );
+                }
+                report(op, name, rows)
+            }
+        }
+        J::Registers => registers_report(op),
+        J::SetId(id, new_id) => one(id.get(), &hops::set_id(bus, *id, *new_id)?),
+        J::Wave(args, broadcast) => {
+            let j = bus.joint(args.joint)?;
+            let plan = if *broadcast {
+                hops::prepare_broadcast_wave(&j, args)?
+            } else {
+                hops::prepare_wave(&j, args)?
+            };
+            let r = hops::execute_wave(&j, args, &plan, control, safe)?;
+            let mut first = match &r.last {
+                Some(fb) => row(args.joint.get(), fb),
+                None => row(args.joint.get(), &()),
+            };
+            if let Value::Object(m) = &mut first {
+                m.insert("cycles".into(), json!(r.cycles));
+                m.insert("stale".into(), json!(r.stale || r.last.is_none()));
+            }
+            let mut out = report(op, name, vec![first]);
+            let mut s = serde_json::to_value(&r).unwrap_or(Value::Null);
+            if let Value::Object(m) = &mut s {
+                m.remove("last");
+            }
+            out.summary = Some(s);
+            let silent = if r.complete == 0 {
+                Some(format!(
+                    "joint {}: no reply to any of the {} wave frames",
+                    args.joint.get(),
+                    r.cycles
+                ))
+            } else if r.missing_at_end >= GONE_AFTER {
+                Some(format!(
+                    "joint {}: silent for the last {} wave frames ({} of {} without a reply; the last \
+                     values shown are stale)",
+                    args.joint.get(),
+                    r.missing_at_end,
+                    r.missing_replies,
+                    r.cycles
+                ))
+            } else {
+                None
+            };
+            if let Some(e) = silent {
+                out.failed = Some(ErrorKind::NoDevice.name().into());
+                out.error = Some(e);
+            }
+            out
+        }
+        J::ReleaseIap(ids) => {
+            let results = hops::release_iap(bus, ids);
+            let mut out = device_report(op, name, &results);
+            for (r, res) in out.results.iter_mut().zip(&results) {
+                if let (Value::Object(m), true) = (r, res.is_ok()) {
+                    m.insert("released".into(), json!(true));
+                }
+            }
+            out
+        }
+        J::Sample(ids, broadcast) => {
+            if *broadcast {
+                let _ = bus.joints(ids);
+                device_report(op, name, &hops::sample_broadcast(bus, ids)?)
+            } else {
+                device_report(op, name, &hops::sample(bus, ids))
+            }
+        }
+    })
+}
+
+/// `&dyn Serialize` without an extra crate: the rows only need `serde_json::to_value`.
+mod erased {
+    use serde::Serialize;
+
+    pub(super) trait Ser {
+        fn value(&self) -> serde_json::Value;
+    }
+    impl<T: Serialize> Ser for T {
+        fn value(&self) -> serde_json::Value {
+            serde_json::to_value(self).unwrap_or(serde_json::Value::Null)
+        }
+    }
+    pub(super) struct Wrap<'a>(pub(super) &'a dyn Ser);
+    impl Serialize for Wrap<'_> {
+        fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+            self.0.value().serialize(s)
+        }
+    }
+}

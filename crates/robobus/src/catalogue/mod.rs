@@ -1,0 +1,347 @@
+//! The catalogue: one request type for every device operation of both families, one
+//! dispatcher, a station of open buses, and a telemetry stream.
+//!
+//! A [`Request`] is plain data: the CLI's arguments, a JSON document from a web page or a
+//! pub/sub bridge, or Python keyword arguments all become one. [`plan`] turns it into the
+//! exact packets / frames the CLI's `--dry-run` prints ([`Plan::to_text`]); [`run`]
+//! executes the same plan on a [`Station`]'s bus and returns the [`Report`] envelope.
+//! Validation (the protocol's ranged newtypes, the host [`bounds`] table), the confirmation
+//! rule and the safe state on stop are decided here, not in a front end: a request that
+//! needs `confirm: true` and lacks it is refused with [`ErrorKind::Refused`] before
+//! anything is sent.
+//!
+//! # JSON form
+//!
+//! An object with the operation under `op` and its arguments beside it, named as the CLI's
+//! arguments and options (`--all-bauds` is `all_bauds`), in the CLI's units. Unknown
+//! fields are refused. `bus` names the station's bus when it holds more than one of the
+//! family. ID lists are the CLI's text (`"0-5,7"`) or an array (`[0, 1]`).
+//!
+//! ```json
+//! {"op": "wck.status", "ids": "0-2"}
+//! {"op": "whj.move", "joint": 1, "degrees": 30, "max_speed": 20}
+//! {"op": "whj.write", "joints": "1", "register": "SYS_ID", "value": 2, "confirm": true}
+//! ```
+//!
+//! # The operations
+//!
+//! | op | arguments (units) | report `results` / `summary` | confirm |
+//! |---|---|---|---|
+//! | `wck.scan` | `ids`="0-30", `all_bauds` | found servos; summary: scan report | - |
+//! | `wck.status` | `ids` | id, load, position, degrees | - |
+//! | `wck.move` | `id`, `position` (0..=254), `torque` (0..=4) | load_before, position_before | - |
+//! | `wck.move10` | `id` (0..=253), `position` (0..=1023), `torque` (0..=254) | reply fields | - |
+//! | `wck.read10` | `id` | position10 | - |
+//! | `wck.sync-move` | `positions` [0..=254], `torque` | (no reply) | - |
+//! | `wck.passive` | `ids` | position | - |
+//! | `wck.wheel` | `id`, `direction` (ccw/cw), `speed` (0..=15), `duration` s, `on_stop` | wheel fields, ran_ms | - |
+//! | `wck.brake` | - | break fields | - |
+//! | `wck.get` | `param` (gains, i-gain, speed, overload, bounds, io), `id` | the parameter | - |
+//! | `wck.set` | `param`, `id`, `p` `d` / `i` / `speed` `accel` / `milliamps` / `lower` `upper` / `outputs`, `runtime` | read-back | EEPROM unless runtime |
+//! | `wck.set-id` | `id`, `new_id` | verified at the new ID | ID |
+//! | `wck.set-baud` | `id`, `rate` bit/s | verified at the new rate | EEPROM |
+//! | `wck.program.upload` | `id`, `program` (text form) | read-back | EEPROM |
+//! | `wck.program.download` | `id` | the program | - |
+//! | `wck.program.check` | `id`, `program` | summary: instructions, upload packet (nothing sent) | - |
+//! | `wck.teach` | `ids` 0..N-1, `rate_hz` (0.1..=200), `duration` s (0.1..=3600), `torque`, `on_stop` | summary: poses | - |
+//! | `wck.play` | `motion` (keyframe text), `rate_hz`=50, `on_stop` | summary: play report | - |
+//! | `wck.sample` | `ids` | position_deg, speed_deg_s, load | - |
+//! | `whj.scan` | `joints`="1-30" | identity per joint; summary: duplicates | - |
+//! | `whj.info` | `joint` | identity, unique ID, limits, status | - |
+//! | `whj.status` | `joints`, `broadcast`, `end_board` | status per joint (and `end-board`) | - |
+//! | `whj.enable` / `whj.disable` | `joints` | enabled | - |
+//! | `whj.mode` | `joints`, `mode` (open-loop, current, speed, position) | mode | - |
+//! | `whj.move` | `joint`, `degrees` (±360), `max_speed` deg/s (0.1..=180)=10, `rate_hz` (1..=1000)=200, `from`, `on_stop` | move report | - |
+//! | `whj.speed` | `joint`, `rpm` (±37.5), `duration` s (0.01..=3600), `on_stop` | target report | - |
+//! | `whj.current` | `joint`, `milliamps` (±30000), `duration`, `model`, `on_stop` | target report | - |
+//! | `whj.zero` | `joint` | zero report | - |
+//! | `whj.clear` | `joints` | error before / after | - |
+//! | `whj.save` | `joints` | saved | flash |
+//! | `whj.read` | `joints`, `register` (name or address), `count`, `broadcast`, `end_board` | one row per register | - |
+//! | `whj.write` | `joints`, `register`, `value` (register unit; counts with `raw`), `broadcast`, `end_board` (`REG=VALUE`), `model` | read-back | register class / flash |
+//! | `whj.registers` | - | the register table (nothing sent) | - |
+//! | `whj.set-id` | `joint`, `new_id` | set-id report | ID |
+//! | `whj.wave` | `joint`, `shape`, `mode`, `amplitude`, `frequency` Hz=0.5, `offset`, `duration` s=4, `rate_hz`=200, `broadcast`, `model`, `on_stop` | last feedback; summary: wave statistics | - |
+//! | `whj.release-iap` | `joints` | identity (connect / IAP release) | - |
+//! | `whj.sample` | `joints`, `broadcast` | position, speed, current, enabled, error | - |
+//!
+//! # Report
+//!
+//! `{"op", "bus", "results": [...], "summary"?, "failed"?}`: `results` holds one object
+//! per device (or per register), its ID under `id` for both families (a broadcast's end
+//! board: `"end-board"`), beside the operation's typed report fields or `kind` and
+//! `error`; `summary` the operation's whole-run report (scan, play, wave statistics);
+//! `failed` the worst kind among the devices (`no-device` for a silent one), which a
+//! front end maps to its exit code. The CLI's `--json` uses the same field names (its WHJ
+//! rows name the ID `joint`).
+
+pub mod args;
+pub mod bounds;
+mod dispatch;
+pub mod plan;
+pub mod station;
+pub mod telemetry;
+pub mod wck;
+pub mod whj;
+
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+pub use crate::error::ErrorKind;
+pub use dispatch::{GONE_AFTER, plan, run};
+pub use plan::{Family, Plan, PlanStep};
+pub use station::{Station, StationConfig, WckPort, WhjPort};
+
+/// One request: an operation and its arguments (see the [module docs](self)).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(tag = "op")]
+#[allow(missing_docs)] // each variant is documented by its argument struct
+pub enum Request {
+    #[serde(rename = "wck.scan")]
+    WckScan(wck::Scan),
+    #[serde(rename = "wck.status")]
+    WckStatus(wck::Status),
+    #[serde(rename = "wck.move")]
+    WckMove(wck::Move),
+    #[serde(rename = "wck.move10")]
+    WckMove10(wck::Move10),
+    #[serde(rename = "wck.read10")]
+    WckRead10(wck::Read10),
+    #[serde(rename = "wck.sync-move")]
+    WckSyncMove(wck::SyncMove),
+    #[serde(rename = "wck.passive")]
+    WckPassive(wck::Passive),
+    #[serde(rename = "wck.wheel")]
+    WckWheel(wck::Wheel),
+    #[serde(rename = "wck.brake")]
+    WckBrake(wck::Brake),
+    #[serde(rename = "wck.get")]
+    WckGet(wck::Get),
+    #[serde(rename = "wck.set")]
+    WckSet(wck::Set),
+    #[serde(rename = "wck.set-id")]
+    WckSetId(wck::SetId),
+    #[serde(rename = "wck.set-baud")]
+    WckSetBaud(wck::SetBaud),
+    #[serde(rename = "wck.program.upload")]
+    WckProgramUpload(wck::ProgramUpload),
+    #[serde(rename = "wck.program.download")]
+    WckProgramDownload(wck::ProgramDownload),
+    #[serde(rename = "wck.program.check")]
+    WckProgramCheck(wck::ProgramCheck),
+    #[serde(rename = "wck.teach")]
+    WckTeach(wck::Teach),
+    #[serde(rename = "wck.play")]
+    WckPlay(wck::Play),
+    #[serde(rename = "wck.sample")]
+    WckSample(wck::Sample),
+    #[serde(rename = "whj.scan")]
+    WhjScan(whj::Scan),
+    #[serde(rename = "whj.info")]
+    WhjInfo(whj::Info),
+    #[serde(rename = "whj.status")]
+    WhjStatus(whj::Status),
+    #[serde(rename = "whj.enable")]
+    WhjEnable(whj::Enable),
+    #[serde(rename = "whj.disable")]
+    WhjDisable(whj::Disable),
+    #[serde(rename = "whj.mode")]
+    WhjMode(whj::Mode),
+    #[serde(rename = "whj.move")]
+    WhjMove(whj::Move),
+    #[serde(rename = "whj.speed")]
+    WhjSpeed(whj::Speed),
+    #[serde(rename = "whj.current")]
+    WhjCurrent(whj::Current),
+    #[serde(rename = "whj.zero")]
+    WhjZero(whj::Zero),
+    #[serde(rename = "whj.clear")]
+    WhjClear(whj::Clear),
+    #[serde(rename = "whj.save")]
+    WhjSave(whj::Save),
+    #[serde(rename = "whj.read")]
+    WhjRead(whj::Read),
+    #[serde(rename = "whj.write")]
+    WhjWrite(whj::Write),
+    #[serde(rename = "whj.registers")]
+    WhjRegisters(whj::Registers),
+    #[serde(rename = "whj.set-id")]
+    WhjSetId(whj::SetId),
+    #[serde(rename = "whj.wave")]
+    WhjWave(whj::Wave),
+    #[serde(rename = "whj.release-iap")]
+    WhjReleaseIap(whj::ReleaseIap),
+    #[serde(rename = "whj.sample")]
+    WhjSample(whj::Sample),
+}
+
+macro_rules! each_variant {
+    ($self:ident, $r:ident => $e:expr) => {
+        match $self {
+            Request::WckScan($r) => $e,
+            Request::WckStatus($r) => $e,
+            Request::WckMove($r) => $e,
+            Request::WckMove10($r) => $e,
+            Request::WckRead10($r) => $e,
+            Request::WckSyncMove($r) => $e,
+            Request::WckPassive($r) => $e,
+            Request::WckWheel($r) => $e,
+            Request::WckBrake($r) => $e,
+            Request::WckGet($r) => $e,
+            Request::WckSet($r) => $e,
+            Request::WckSetId($r) => $e,
+            Request::WckSetBaud($r) => $e,
+            Request::WckProgramUpload($r) => $e,
+            Request::WckProgramDownload($r) => $e,
+            Request::WckProgramCheck($r) => $e,
+            Request::WckTeach($r) => $e,
+            Request::WckPlay($r) => $e,
+            Request::WckSample($r) => $e,
+            Request::WhjScan($r) => $e,
+            Request::WhjInfo($r) => $e,
+            Request::WhjStatus($r) => $e,
+            Request::WhjEnable($r) => $e,
+            Request::WhjDisable($r) => $e,
+            Request::WhjMode($r) => $e,
+            Request::WhjMove($r) => $e,
+            Request::WhjSpeed($r) => $e,
+            Request::WhjCurrent($r) => $e,
+            Request::WhjZero($r) => $e,
+            Request::WhjClear($r) => $e,
+            Request::WhjSave($r) => $e,
+            Request::WhjRead($r) => $e,
+            Request::WhjWrite($r) => $e,
+            Request::WhjRegisters($r) => $e,
+            Request::WhjSetId($r) => $e,
+            Request::WhjWave($r) => $e,
+            Request::WhjReleaseIap($r) => $e,
+            Request::WhjSample($r) => $e,
+        }
+    };
+}
+
+impl Request {
+    /// The operation's name (`"wck.status"`).
+    pub fn op(&self) -> String {
+        serde_json::to_value(self)
+            .ok()
+            .and_then(|v| v.get("op").and_then(|o| o.as_str().map(str::to_owned)))
+            .unwrap_or_default()
+    }
+
+    /// The family the request is for.
+    pub const fn family(&self) -> Family {
+        match self {
+            Self::WckScan(_)
+            | Self::WckStatus(_)
+            | Self::WckMove(_)
+            | Self::WckMove10(_)
+            | Self::WckRead10(_)
+            | Self::WckSyncMove(_)
+            | Self::WckPassive(_)
+            | Self::WckWheel(_)
+            | Self::WckBrake(_)
+            | Self::WckGet(_)
+            | Self::WckSet(_)
+            | Self::WckSetId(_)
+            | Self::WckSetBaud(_)
+            | Self::WckProgramUpload(_)
+            | Self::WckProgramDownload(_)
+            | Self::WckProgramCheck(_)
+            | Self::WckTeach(_)
+            | Self::WckPlay(_)
+            | Self::WckSample(_) => Family::Wck,
+            _ => Family::Whj,
+        }
+    }
+
+    /// The bus it names, if any.
+    pub fn bus(&self) -> Option<&str> {
+        each_variant!(self, r => r.bus.as_deref())
+    }
+
+    /// Parses one request, or a JSON array of them, from JSON text. Unknown operations and
+    /// unknown fields are [`ErrorKind::BadInput`].
+    pub fn parse_many(text: &str) -> Result<Vec<Self>, crate::ops::OpError> {
+        let value: serde_json::Value = serde_json::from_str(text)
+            .map_err(|e| crate::ops::OpError::invalid("request", "JSON", e.to_string()))?;
+        let items = match value {
+            serde_json::Value::Array(items) => items,
+            one => vec![one],
+        };
+        items
+            .into_iter()
+            .enumerate()
+            .map(|(n, v)| {
+                serde_json::from_value(v).map_err(|e| {
+                    crate::ops::OpError::invalid(
+                        format!("request {}", n + 1),
+                        "JSON",
+                        e.to_string(),
+                    )
+                })
+            })
+            .collect()
+    }
+}
+
+/// What a request did: the envelope of every operation's report (see the
+/// [module docs](self)).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Report {
+    /// The operation (`"whj.status"`).
+    pub op: String,
+    /// The bus it ran on (the station's name).
+    pub bus: String,
+    /// One object per device (or register): `id` and the report's fields, or `id`,
+    /// `kind` and `error`.
+    pub results: Vec<serde_json::Value>,
+    /// The whole run's report, where the operation has one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub summary: Option<serde_json::Value>,
+    /// The worst failure kind among the devices (`no-device`, `device`, ...), if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub failed: Option<String>,
+    /// The message of that failure.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+}
+
+impl Report {
+    /// The worst failure as an [`ErrorKind`] (for an exit code), if any.
+    pub fn failed_kind(&self) -> Option<ErrorKind> {
+        let k = self.failed.as_deref()?;
+        [
+            ErrorKind::BadInput,
+            ErrorKind::Refused,
+            ErrorKind::NoDevice,
+            ErrorKind::Device,
+            ErrorKind::Link,
+            ErrorKind::Interrupted,
+            ErrorKind::NotAvailable,
+        ]
+        .into_iter()
+        .find(|e| kind_name(*e) == k)
+    }
+}
+
+/// The JSON name of an error kind (`no-device`).
+pub fn kind_name(k: ErrorKind) -> String {
+    k.name().to_owned()
+}
+
+/// The JSON Schema of [`Request`] (one of the operations, each with its arguments).
+pub fn request_schema() -> serde_json::Value {
+    serde_json::to_value(schemars::schema_for!(Request)).unwrap_or_default()
+}
+
+/// The JSON Schema of [`Report`].
+pub fn report_schema() -> serde_json::Value {
+    serde_json::to_value(schemars::schema_for!(Report)).unwrap_or_default()
+}
+
+/// The JSON Schema of [`Plan`].
+pub fn plan_schema() -> serde_json::Value {
+    serde_json::to_value(schemars::schema_for!(Plan)).unwrap_or_default()
+}

@@ -1,0 +1,341 @@
+//! The station: the long-lived set of open buses a server, a Python session or a bridge
+//! holds, with one cheap-to-clone handle type per family.
+//!
+//! A wCK port is driven by whichever thread holds its lock (one request at a time, in
+//! full: a scan or a motion is never interleaved with another request's packets); a WHJ
+//! bus is a [`JointBus`], whose own lock and thread do the same. Both handles are
+//! `Send + Sync` and clone as one `Arc`. Closing the station (or dropping it) brings every
+//! device to its safe state: the wCK bus-wide break, every connected WHJ joint disabled.
+
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex, MutexGuard};
+
+use robobus_wck::{BaudRate, TorqueLevel};
+use robobus_whj::JointId;
+
+use crate::ops::safe::{WckServos, WhjJoints};
+use crate::ops::whj::ServoLoop;
+use crate::ops::{OpError, SafeState};
+use crate::robot::DynByteLink;
+use crate::wck::WckBus;
+use crate::whj::{JointBus, JointBusConfig};
+
+/// A wCK port of a station (clones share the port).
+#[derive(Debug, Clone)]
+pub struct WckPort(Arc<WckInner>);
+
+#[derive(Debug)]
+struct WckInner {
+    name: String,
+    bus: Mutex<WckBus<DynByteLink>>,
+}
+
+impl WckPort {
+    /// A port over an open bus, named `name` in requests and reports.
+    pub fn new(name: impl Into<String>, bus: WckBus<DynByteLink>) -> Self {
+        Self(Arc::new(WckInner {
+            name: name.into(),
+            bus: Mutex::new(bus),
+        }))
+    }
+
+    /// Its name.
+    pub fn name(&self) -> &str {
+        &self.0.name
+    }
+
+    /// The bus, for one whole operation (a poisoned lock is recovered: the bus itself
+    /// holds no half-done state between transactions).
+    pub fn lock(&self) -> MutexGuard<'_, WckBus<DynByteLink>> {
+        self.0
+            .bus
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+}
+
+/// A WHJ bus of a station (clones share the bus).
+#[derive(Debug, Clone)]
+pub struct WhjPort(Arc<WhjInner>);
+
+#[derive(Debug)]
+struct WhjInner {
+    name: String,
+    bus: JointBus,
+}
+
+impl WhjPort {
+    /// A port over an open bus.
+    pub fn new(name: impl Into<String>, bus: JointBus) -> Self {
+        Self(Arc::new(WhjInner {
+            name: name.into(),
+            bus,
+        }))
+    }
+
+    /// Its name.
+    pub fn name(&self) -> &str {
+        &self.0.name
+    }
+
+    /// The bus.
+    pub fn bus(&self) -> &JointBus {
+        &self.0.bus
+    }
+}
+
+/// What a station opens: the CLI's `--wck-port`, `--whj-bus` and `--robot` values.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct StationConfig {
+    /// Serial ports of wCK buses (each opened at `wck_baud`).
+    pub wck_ports: Vec<String>,
+    /// The rate of the wCK ports.
+    pub wck_baud: Option<BaudRate>,
+    /// WHJ bus addresses (`udp`, `udp:GROUP:PORT`, `can0`).
+    pub whj_buses: Vec<String>,
+    /// A robot file whose buses are opened too (named as in the file).
+    pub robot: Option<PathBuf>,
+}
+
+/// The open buses (see the [module docs](self)).
+#[derive(Debug, Default)]
+pub struct Station {
+    wck: Vec<WckPort>,
+    whj: Vec<WhjPort>,
+    /// What keeps in-process simulators alive.
+    keep: Vec<Box<dyn std::fmt::Debug + Send + Sync>>,
+    closed: bool,
+}
+
+impl Station {
+    /// An empty station.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Opens every bus of `config`; the first that cannot be opened fails the whole.
+    pub fn open(config: &StationConfig) -> Result<Self, OpError> {
+        let mut s = Self::new();
+        let baud = config.wck_baud.unwrap_or(BaudRate::B115200);
+        for port in &config.wck_ports {
+            s.add_wck(port.clone(), open_wck(port, baud)?);
+        }
+        for addr in &config.whj_buses {
+            let spec: robobus_link::FrameLinkSpec = addr
+                .parse()
+                .map_err(|e| OpError::invalid("--whj-bus", addr, format!("{e}")))?;
+            let link = spec.open().map_err(|e| {
+                let kind = crate::error::open_error_kind(&e);
+                match kind {
+                    crate::ErrorKind::NotAvailable => OpError::NotAvailable(format!("{addr}: {e}")),
+                    _ => OpError::Device(format!("{addr}: {e}")),
+                }
+            })?;
+            s.add_whj(
+                addr.clone(),
+                JointBus::open_with(link, JointBusConfig::default())?,
+            );
+        }
+        if let Some(path) = &config.robot {
+            let text = crate::ops::read_bounded(path, 1 << 20)?;
+            let robot = crate::RobotConfig::from_toml_str(&text)
+                .map_err(|e| OpError::invalid("--robot", path.display(), e.to_string()))?;
+            for (name, bus) in &robot.buses {
+                let failed = |e: crate::RobotError| OpError::Device(e.to_string());
+                match bus {
+                    crate::robot::BusConfig::Wck { .. } => {
+                        s.add_wck(
+                            name.clone(),
+                            crate::robot::open_wck_bus(name, bus).map_err(failed)?,
+                        );
+                    }
+                    _ => {
+                        s.add_whj(
+                            name.clone(),
+                            crate::robot::open_whj_bus(name, bus, JointBusConfig::default())
+                                .map_err(failed)?,
+                        );
+                    }
+                }
+            }
+        }
+        Ok(s)
+    }
+
+    /// The built-in simulated robot of `robobus demo`, in-process on the simulators'
+    /// virtual clocks: 16 wCK servos (IDs 0..=15, W1108, 115200 bit/s) as `sim-wck` and 7
+    /// WHJ30 joints (IDs 1..=7) as `sim-whj`. No hardware, no wall-clock waits.
+    #[cfg(feature = "sim")]
+    pub fn simulated() -> Result<Self, OpError> {
+        use robobus_link::ByteLink as _;
+        use robobus_sim::wck::{Bus, BusConfig, Model, SimLink};
+        use robobus_sim::whj::{WhjBus, WhjModel, WhjSimLink};
+        let (mut link, wck_sim) = SimLink::virtual_clock(Bus::with_servos(
+            BusConfig::default(),
+            Model::W1108,
+            0..crate::demo::SERVOS,
+        ));
+        // The modules are deaf for 65 ms after power-up: wait that out on their clock.
+        let now = link.now();
+        link.sleep_until(
+            now + robobus_wck::timing::POWER_UP_DEAF + std::time::Duration::from_millis(5),
+        );
+        let bus = WckBus::new(Box::new(link) as DynByteLink, BaudRate::B115200)?
+            .with_device_name("sim-wck");
+        let (whj_link, whj_sim) =
+            WhjSimLink::new(WhjBus::chain(1..=crate::demo::JOINTS, WhjModel::Whj30, 11));
+        let mut s = Self::new();
+        s.add_wck("sim-wck", bus);
+        s.add_whj(
+            "sim-whj",
+            JointBus::open_with(whj_link, JointBusConfig::default())?,
+        );
+        s.keep.push(Box::new(Mutex::new(wck_sim)));
+        s.keep.push(Box::new(Mutex::new(whj_sim)));
+        Ok(s)
+    }
+
+    /// Adds a wCK bus named `name`.
+    pub fn add_wck(&mut self, name: impl Into<String>, bus: WckBus<DynByteLink>) -> WckPort {
+        let p = WckPort::new(name, bus);
+        self.wck.push(p.clone());
+        p
+    }
+
+    /// Adds a WHJ bus named `name`.
+    pub fn add_whj(&mut self, name: impl Into<String>, bus: JointBus) -> WhjPort {
+        let p = WhjPort::new(name, bus);
+        self.whj.push(p.clone());
+        p
+    }
+
+    /// Keeps `thing` (a simulator's handle) alive as long as the station.
+    pub fn keep(&mut self, thing: Box<dyn std::fmt::Debug + Send + Sync>) {
+        self.keep.push(thing);
+    }
+
+    /// The wCK port `name`, or the only one when `name` is `None`.
+    pub fn wck(&self, name: Option<&str>) -> Result<WckPort, OpError> {
+        pick(&self.wck, name, "wCK", WckPort::name)
+    }
+
+    /// The WHJ bus `name`, or the only one when `name` is `None`.
+    pub fn whj(&self, name: Option<&str>) -> Result<WhjPort, OpError> {
+        pick(&self.whj, name, "WHJ", WhjPort::name)
+    }
+
+    /// The names of the wCK ports and the WHJ buses.
+    pub fn names(&self) -> (Vec<String>, Vec<String>) {
+        (
+            self.wck.iter().map(|p| p.name().to_owned()).collect(),
+            self.whj.iter().map(|p| p.name().to_owned()).collect(),
+        )
+    }
+
+    /// Brings every device to its safe state (wCK: the bus-wide break; WHJ: every joint
+    /// the bus has connected disabled); the failures, one message per device.
+    pub fn close(mut self) -> Vec<String> {
+        self.safe_stop()
+    }
+
+    fn safe_stop(&mut self) -> Vec<String> {
+        if self.closed {
+            return Vec::new();
+        }
+        self.closed = true;
+        let mut failed = Vec::new();
+        for p in &self.wck {
+            let mut bus = p.lock();
+            let f = SafeState::Break.apply(&mut WckServos {
+                bus: &mut bus,
+                ids: &[],
+                torque: TorqueLevel::MIN,
+            });
+            failed.extend(f.into_iter().map(|f| format!("{}: {f}", p.name())));
+        }
+        for p in &self.whj {
+            let bus = p.bus();
+            let joints: Vec<_> = (1..=30)
+                .filter_map(|raw| JointId::new(raw).ok())
+                .filter(|id| bus.cached_identity(*id).is_some())
+                .map(|id| bus.joint_unchecked(id))
+                .collect();
+            if joints.is_empty() {
+                continue;
+            }
+            let f = SafeState::Disable.apply(&mut WhjJoints {
+                joints: &joints,
+                servo: ServoLoop::Position,
+            });
+            failed.extend(f.into_iter().map(|f| format!("{}: {f}", p.name())));
+        }
+        failed
+    }
+}
+
+impl Drop for Station {
+    fn drop(&mut self) {
+        for f in self.safe_stop() {
+            tracing::warn!("station close: {f}");
+        }
+    }
+}
+
+fn pick<T: Clone>(
+    all: &[T],
+    name: Option<&str>,
+    family: &str,
+    name_of: fn(&T) -> &str,
+) -> Result<T, OpError> {
+    let names = || {
+        all.iter()
+            .map(|p| name_of(p).to_owned())
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    match name {
+        Some(n) => all
+            .iter()
+            .find(|p| name_of(p) == n)
+            .cloned()
+            .ok_or_else(|| {
+                OpError::invalid(
+                    "bus",
+                    n,
+                    format!(
+                        "the station has no {family} bus of that name (it has: {})",
+                        names()
+                    ),
+                )
+            }),
+        None => match all {
+            [one] => Ok(one.clone()),
+            [] => Err(OpError::invalid(
+                "bus",
+                "(none)",
+                format!("the station has no {family} bus"),
+            )),
+            _ => Err(OpError::invalid(
+                "bus",
+                "(none)",
+                format!(
+                    "the station has several {family} buses: name one ({})",
+                    names()
+                ),
+            )),
+        },
+    }
+}
+
+#[cfg(unix)]
+fn open_wck(port: &str, baud: BaudRate) -> Result<WckBus<DynByteLink>, OpError> {
+    let bus = WckBus::open(port, baud)?;
+    Ok(bus.try_map_link(|l| Ok::<_, OpError>(Box::new(l) as DynByteLink))?)
+}
+
+#[cfg(not(unix))]
+fn open_wck(port: &str, _baud: BaudRate) -> Result<WckBus<DynByteLink>, OpError> {
+    Err(OpError::NotAvailable(format!(
+        "{port}: serial ports need a Unix host"
+    )))
+}

@@ -1,0 +1,1 @@
+//! The telemetry stream (placeholder module; see the stream below).
