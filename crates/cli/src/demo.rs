@@ -111,6 +111,7 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
                 p.display()
             )));
         }
+        crate::output::check_output_path(p, "--plot")?;
     }
     if g.dry_run {
         return Err(usage(

@@ -160,6 +160,29 @@ pub(crate) fn print(text: &str) -> anyhow::Result<()> {
     }
 }
 
+/// Refuses (bad input, before any work) an output file whose folder does not exist or is
+/// not a folder, so a long run never ends in "cannot write". `option` names the option.
+pub(crate) fn check_output_path(path: &std::path::Path, option: &str) -> anyhow::Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => std::path::Path::new("."),
+    };
+    if !dir.is_dir() {
+        return Err(crate::exit::usage(format!(
+            "{option} {}: the folder {} does not exist (create it first, or give another path)",
+            path.display(),
+            dir.display()
+        )));
+    }
+    if path.is_dir() {
+        return Err(crate::exit::usage(format!(
+            "{option} {}: is a folder; give a file name",
+            path.display()
+        )));
+    }
+    Ok(())
+}
+
 /// Writes a JSON value to stdout, pretty-printed, with a final newline.
 pub(crate) fn print_json(value: &Value) -> anyhow::Result<()> {
     let mut text = serde_json::to_string_pretty(value)?;

@@ -253,6 +253,7 @@ fn register_font() -> anyhow::Result<()> {
 /// Runs `robobus plot`.
 pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     let format = format_of(&args.output)?;
+    crate::output::check_output_path(&args.output, "--output")?;
     let text = read_bounded(&args.file)?;
     let mut rec = Recording::parse(&text)
         .map_err(|e| usage(format!("{}:{}: {}", args.file.display(), e.line, e.message)))?;
@@ -310,6 +311,13 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
 /// Reads the recording, refusing files over [`MAX_CSV_BYTES`] without reading further.
 fn read_bounded(path: &Path) -> anyhow::Result<String> {
     use std::io::Read as _;
+    // A file that is not there is bad input: exit 2, nothing drawn.
+    if !path.exists() {
+        return Err(usage(format!(
+            "{}: no such file (give a CSV recording, e.g. from `robobus monitor --record`)",
+            path.display()
+        )));
+    }
     let file =
         std::fs::File::open(path).with_context(|| format!("cannot read {}", path.display()))?;
     let mut bytes = Vec::new();

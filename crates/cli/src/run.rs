@@ -97,8 +97,7 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
         let text: String = plans.iter().map(catalogue::Plan::to_text).collect();
         return output::print(&text);
     }
-    let station = if args.wck_port.is_empty() && args.whj_bus.is_empty() && args.robot.is_none()
-    {
+    let station = if args.wck_port.is_empty() && args.whj_bus.is_empty() && args.robot.is_none() {
         Station::simulated()?
     } else {
         Station::open(&StationConfig {

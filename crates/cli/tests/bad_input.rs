@@ -377,3 +377,48 @@ fn under_json_an_error_is_json_with_its_kind() {
     let v: serde_json::Value = serde_json::from_str(r.stderr.trim()).unwrap();
     assert_eq!(v["error"]["kind"], "bad-input", "{v}");
 }
+
+#[test]
+fn missing_files_and_folders_are_bad_input_before_any_work() {
+    refused(
+        &[
+            "plot",
+            "/nonexistent/run.csv",
+            "-o",
+            "/tmp/robobus-plot.svg",
+        ],
+        &["/nonexistent/run.csv: no such file"],
+    );
+    refused(
+        &[
+            "plot",
+            "/nonexistent/run.csv",
+            "-o",
+            "/nonexistent/dir/x.svg",
+        ],
+        &["--output /nonexistent/dir/x.svg", "does not exist"],
+    );
+    // The demo checks its plot path before it runs (it would otherwise fail at the end).
+    let start = std::time::Instant::now();
+    refused(
+        &["demo", "--plot", "/nonexistent/dir/x.svg"],
+        &["--plot /nonexistent/dir/x.svg", "does not exist"],
+    );
+    assert!(start.elapsed() < std::time::Duration::from_secs(3));
+}
+
+#[test]
+fn fault_error_masks_need_their_hex_prefix() {
+    refused(
+        &[
+            "--dry-run",
+            "sim",
+            "whj",
+            "--bus",
+            "udp",
+            "--fault-error",
+            "2:4000@1",
+        ],
+        &["need the 0x prefix", "--fault-error"],
+    );
+}

@@ -124,10 +124,11 @@ fn bad_csv_names_the_line() {
     let r = robobus(&["plot", csv.to_str().unwrap(), "-o", "x.jpg"]);
     assert_eq!(r.code, Some(2));
     assert!(r.stderr.contains(".png or .svg"), "{}", r.stderr);
+    // A missing recording is bad input (exit 2), as every other bad argument is.
     let r = robobus(&["plot", "/nonexistent/rec.csv", "-o", "x.png"]);
-    assert_eq!(r.code, Some(1));
+    assert_eq!(r.code, Some(2));
     assert!(
-        r.stderr.contains("cannot read /nonexistent/rec.csv"),
+        r.stderr.contains("/nonexistent/rec.csv: no such file"),
         "{}",
         r.stderr
     );

@@ -107,10 +107,15 @@ impl DeviceFault {
         }
         let kind = match bits {
             Some(b) => {
-                let parsed = match b.strip_prefix("0x").or_else(|| b.strip_prefix("0X")) {
-                    Some(hex) => u32::from_str_radix(hex, 16).ok(),
-                    None => b.parse::<u32>().ok(),
+                // Error bits are a mask, written in hex as the documents write them: a
+                // bare `4000` would be read as decimal 4000 = 0x0FA0, six unrelated bits.
+                let Some(hex) = b.strip_prefix("0x").or_else(|| b.strip_prefix("0X")) else {
+                    return Err(err(format!(
+                        "error bits `{b}` need the 0x prefix: they are a hex mask \
+                         (allowed: 0x0001..=0xFFFF, for example 0x4000)"
+                    )));
                 };
+                let parsed = u32::from_str_radix(hex, 16).ok();
                 match parsed
                     .and_then(|v| u16::try_from(v).ok())
                     .filter(|v| *v != 0)
@@ -220,13 +225,14 @@ mod tests {
         assert_eq!(f.id, 7);
         for (text, want) in [
             ("31:0x1@1", "ID 31 out of range (allowed: 1..=30)"),
-            ("1:0@1", "allowed: 0x0001..=0xFFFF"),
+            ("1:0x0@1", "allowed: 0x0001..=0xFFFF"),
             ("1:0x10000@1", "allowed: 0x0001..=0xFFFF"),
             ("1:0x1@-1", "out of range (allowed: 0..=86400)"),
             ("1:0x1@NaN", "out of range"),
             ("1:0x1", "expected ID:BITS@SECONDS"),
             ("1@1", "expected ID:BITS@SECONDS"),
-            ("x:1@1", "`x` is not a number"),
+            ("x:0x1@1", "`x` is not a number"),
+            ("2:4000@1", "need the 0x prefix"),
         ] {
             let e = DeviceFault::parse(text, DeviceFaultKind::Error(0), 1..=30, "--fault-error")
                 .unwrap_err();
