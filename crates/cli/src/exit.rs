@@ -69,6 +69,35 @@ impl Exit {
     }
 }
 
+/// Longest run of non-blank characters an error message repeats whole.
+const LONGEST_ECHO: usize = 64;
+
+/// `text` with every run of non-blank characters longer than [`LONGEST_ECHO`] cut to its
+/// first characters and its length (`1234…(100000 characters)`): a 100,000-digit argument
+/// is named, not echoed whole.
+pub(crate) fn cut_long(text: &str) -> String {
+    let mut out = String::with_capacity(text.len().min(4096));
+    let mut rest = text;
+    while !rest.is_empty() {
+        let blank = rest
+            .find(|c: char| !c.is_whitespace())
+            .unwrap_or(rest.len());
+        out.push_str(&rest[..blank]);
+        rest = &rest[blank..];
+        let word = rest.find(char::is_whitespace).unwrap_or(rest.len());
+        let w = &rest[..word];
+        let chars = w.chars().count();
+        if chars > LONGEST_ECHO {
+            out.extend(w.chars().take(LONGEST_ECHO / 2));
+            out.push_str(&format!("…({chars} characters)"));
+        } else {
+            out.push_str(w);
+        }
+        rest = &rest[word..];
+    }
+    out
+}
+
 /// The kind of an error as `--json` names it: the library's [`ErrorKind::name`] where the
 /// chain holds a library error, else the CLI marker's own (`bad-input`, `no-device`,
 /// `not-available`, `problems-found`, `interrupted`), else `runtime`.
@@ -198,6 +227,20 @@ impl std::error::Error for Interrupted {}
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn long_values_are_cut_in_messages() {
+        let long = "9".repeat(100_000);
+        let text = cut_long(&format!("invalid value '{long}' for '<POSITION>'"));
+        assert_eq!(
+            text,
+            format!(
+                "invalid value '{}…(100002 characters) for '<POSITION>'",
+                "9".repeat(31)
+            )
+        );
+        assert_eq!(cut_long("a  b\nc"), "a  b\nc");
+    }
 
     #[test]
     fn a_cause_the_message_already_carries_is_said_once() {

@@ -209,7 +209,7 @@ fn usage_error(e: &clap::Error) -> ExitCode {
     use clap::error::ErrorKind as K;
     let json = std::env::args_os().any(|a| a == "--json");
     if json && !matches!(e.kind(), K::DisplayHelp | K::DisplayVersion) {
-        let text = e.to_string();
+        let text = exit::cut_long(&e.to_string());
         let message = text
             .lines()
             .next()
@@ -221,7 +221,14 @@ fn usage_error(e: &clap::Error) -> ExitCode {
         eprintln!("{v}");
         return ExitCode::from(Exit::Usage as u8);
     }
-    e.exit()
+    if matches!(e.kind(), K::DisplayHelp | K::DisplayVersion)
+        || e.kind() == K::DisplayHelpOnMissingArgumentOrSubcommand
+    {
+        e.exit()
+    }
+    // clap's own message, with any absurdly long value cut.
+    eprint!("{}", exit::cut_long(&e.render().to_string()));
+    ExitCode::from(Exit::Usage as u8)
 }
 
 fn main() -> ExitCode {
@@ -260,13 +267,13 @@ fn main() -> ExitCode {
                 let v = serde_json::json!({
                     "error": {
                         "kind": exit::kind_name(&err),
-                        "message": exit::message(&err),
+                        "message": exit::cut_long(&exit::message(&err)),
                         "exit_code": code as u8,
                     }
                 });
                 eprintln!("{v}");
             } else {
-                eprintln!("robobus: error: {}", exit::message(&err));
+                eprintln!("robobus: error: {}", exit::cut_long(&exit::message(&err)));
             }
             ExitCode::from(code as u8)
         }

@@ -422,3 +422,17 @@ fn fault_error_masks_need_their_hex_prefix() {
         &["need the 0x prefix", "--fault-error"],
     );
 }
+
+#[test]
+fn a_huge_value_is_named_not_echoed_whole() {
+    let huge = "9".repeat(100_000);
+    let r = robobus(&["wck", "--port", PORT, "move", "3", &huge]);
+    assert_eq!(r.code, Some(2), "exit");
+    assert!(
+        r.stderr.len() < 1000,
+        "{} bytes of error text",
+        r.stderr.len()
+    );
+    assert!(r.stderr.contains("(100002 characters)"), "{}", r.stderr);
+    assert!(r.stdout.is_empty());
+}
