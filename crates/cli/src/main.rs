@@ -259,6 +259,15 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        // Our own output went to a reader that stopped reading (`robobus replay | head`):
+        // the program ends quietly, as a pipeline expects.
+        Err(err)
+            if err
+                .downcast_ref::<std::io::Error>()
+                .is_some_and(|e| e.kind() == std::io::ErrorKind::BrokenPipe) =>
+        {
+            ExitCode::SUCCESS
+        }
         Err(err) => {
             let code = Exit::of(&err);
             if json {

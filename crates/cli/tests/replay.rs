@@ -57,9 +57,9 @@ fn replay_prints_one_line_per_packet_and_reply() {
         "\
 1795360410.000100 > 001 02 0A 01  J1 write SYS_ENABLE_DRIVER 1
 1795360410.000300 < 101 02 0A 01  J1 write ack SYS_ENABLE_DRIVER: ok
-1795360410.000500 < 501 F4 01 00 00 E8 03 00 00 A0 86 01 00 01 00 02 08  J1 servo feedback: position 10.0000 °, speed 20.00 RPM, current 500 mA, enabled, errors: over-voltage, following error
+1795360410.000500 < 501 F4 01 00 00 E8 03 00 00 A0 86 01 00 01 00 02 08  UNEXPECTED: no request to this joint was waiting for it: J1 servo feedback: position 10.0000 °, speed 20.00 RPM, current 500 mA, enabled, errors: over-voltage, following error (line 3)
 - ?  MALFORMED: expected `(seconds.micros) iface ID#data`: \"this is not a frame\" (line 4)
-# 4 entries: 1 requests, 2 replies, 0 missing replies, 0 unexpected, 1 malformed
+# 4 entries: 1 requests, 1 replies, 0 missing replies, 1 unexpected, 1 malformed
 "
     );
     // Joint 60 / 120: 2 mA per count.
@@ -151,4 +151,46 @@ fn replay_help_matches_its_snapshot() {
         std::fs::write(&path, &r.stdout).unwrap();
     }
     assert_eq!(std::fs::read_to_string(&path).unwrap(), r.stdout);
+}
+
+#[test]
+fn a_byte_order_mark_a_symlink_loop_and_a_closed_pipe_are_handled() {
+    let dir = tempfile::tempdir().unwrap();
+    // A UTF-8 byte-order mark before the first line is not part of the capture.
+    let p = dir.path().join("bom.log");
+    std::fs::write(&p, b"\xEF\xBB\xBF(100.000001) can0 601##1\n").unwrap();
+    let r = robobus(&["replay", p.to_str().unwrap()]);
+    assert_eq!(r.code, Some(0), "{r:#?}");
+    assert!(r.stdout.contains("J1 status query"), "{r:#?}");
+    // A symlink loop is a path that cannot be a file: bad input, exit 2.
+    let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+    std::os::unix::fs::symlink(&b, &a).unwrap();
+    std::os::unix::fs::symlink(&a, &b).unwrap();
+    let r = robobus(&["replay", a.to_str().unwrap()]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    assert!(r.stderr.contains("symbolic links"), "{r:#?}");
+    // A reader that stops reading (`| head`) ends the replay quietly.
+    let big = dir.path().join("big.log");
+    let text: String = (1..=20_000)
+        .map(|i| format!("(100.{i:06}) can0 601##1\n"))
+        .collect();
+    std::fs::write(&big, text).unwrap();
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .args(["replay", big.to_str().unwrap()])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    let mut out = std::io::BufReader::new(child.stdout.take().unwrap());
+    std::io::BufRead::read_line(&mut out, &mut line).unwrap();
+    drop(out);
+    let done = child.wait_with_output().unwrap();
+    assert!(line.contains("J1 status query"), "{line}");
+    assert_eq!(done.status.code(), Some(0), "{done:?}");
+    assert!(
+        done.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&done.stderr)
+    );
 }

@@ -153,7 +153,7 @@ fn whj_error_bits_by_name_and_bad_lines_flagged() {
     assert_eq!(
         got,
         [
-            (1, EntryKind::Reply, "J2 servo feedback: position 10.0000 °, speed 20.00 RPM, current 500 mA, enabled, errors: over-voltage, following error".into()),
+            (1, EntryKind::Unexpected, "UNEXPECTED: no request to this joint was waiting for it: J2 servo feedback: position 10.0000 °, speed 20.00 RPM, current 500 mA, enabled, errors: over-voltage, following error".into()),
             (2, EntryKind::Malformed, "MALFORMED: expected `(seconds.micros) iface ID#data`: \"garbage here\"".into()),
             (3, EntryKind::Malformed, "MALFORMED: classic CAN frame (WHJ joints take CAN FD frames only)".into()),
             (4, EntryKind::Malformed, "MALFORMED: CAN ID 0x7f7 is not a WHJ ID".into()),
@@ -377,4 +377,47 @@ fn a_capture_is_streamed_not_read_whole() {
     let err = replay::open(dir.path(), &ReplayOptions::default()).unwrap_err();
     assert_eq!(err.kind(), ErrorKind::BadInput);
     assert!(err.to_string().contains("is a directory"), "{err}");
+}
+
+/// Requests and replies are paired as the client pairs them: two unanswered queries are
+/// missing replies, a reply nobody asked for and a reply for another register are
+/// unexpected, and the summary counts them.
+#[test]
+fn whj_requests_and_replies_are_paired_and_the_summary_counts_what_is_missing() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("pairs.log");
+    std::fs::write(
+        &path,
+        // 1: J1 status query, never answered (J1 asked again at line 2).
+        // 2: J1 status query, answered at 3.
+        // 4: J2 read of 0x14 (2 registers), answered with a reply for 0x10: unexpected.
+        // 5: J3 status feedback nobody asked for: unexpected.
+        // J2's read is still waiting at the end: missing.
+        "(100.000001) can0 601##1\n\
+         (100.000002) can0 601##1\n\
+         (100.000003) can0 701##1000000000000000000000000F0000000\n\
+         (100.000004) can0 002##1011402\n\
+         (100.000005) can0 102##1011000000000\n\
+         (100.000006) can0 703##1000000000000000000000000F0000000\n",
+    )
+    .unwrap();
+    let mut replay = robobus::ops::replay::open(&path, &ReplayOptions::default()).unwrap();
+    let entries: Vec<_> = replay.by_ref().map(Result::unwrap).collect();
+    let kinds: Vec<(u64, EntryKind)> = entries.iter().map(|e| (e.line, e.kind)).collect();
+    assert_eq!(
+        kinds,
+        [
+            (1, EntryKind::Request),
+            (1, EntryKind::Missing),
+            (2, EntryKind::Request),
+            (3, EntryKind::Reply),
+            (4, EntryKind::Request),
+            (5, EntryKind::Unexpected),
+            (6, EntryKind::Unexpected),
+            (4, EntryKind::Missing),
+        ],
+        "{entries:#?}"
+    );
+    let s = replay.summary();
+    assert_eq!((s.missing, s.unexpected), (2, 2), "{s:?}");
 }

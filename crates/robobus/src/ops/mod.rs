@@ -502,7 +502,11 @@ fn io_kind(e: &std::io::Error) -> ErrorKind {
         std::io::ErrorKind::NotFound
         | std::io::ErrorKind::PermissionDenied
         | std::io::ErrorKind::IsADirectory
+        | std::io::ErrorKind::NotADirectory
+        | std::io::ErrorKind::InvalidFilename
         | std::io::ErrorKind::InvalidData => ErrorKind::BadInput,
+        // A symlink loop (ELOOP) is a path the user gave that cannot be a file.
+        _ if e.raw_os_error() == Some(40) => ErrorKind::BadInput,
         _ => ErrorKind::Link,
     }
 }

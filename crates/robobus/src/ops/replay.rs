@@ -348,6 +348,10 @@ impl<R: BufRead> Lines<R> {
         if self.buf.last() == Some(&b'\r') {
             self.buf.pop();
         }
+        // A UTF-8 byte-order mark (editors on Windows write one) is not part of the text.
+        if self.line == 1 && self.buf.starts_with(b"\xEF\xBB\xBF") {
+            self.buf.drain(..3);
+        }
         let text = std::str::from_utf8(&self.buf).map_err(|e| {
             self.error(
                 self.line,
@@ -510,7 +514,10 @@ impl<R: BufRead> Replay<R> {
             match self.format {
                 Format::Candump => match self.next_line()? {
                     Some((n, text)) => self.candump_line(n, &text),
-                    None => self.done = true,
+                    None => {
+                        self.out.extend(self.whj.finish());
+                        self.done = true;
+                    }
                 },
                 Format::Hex => self.hex_step()?,
             }
@@ -528,6 +535,9 @@ impl<R: BufRead> Replay<R> {
                 e.line = n;
                 e.time = Some(fmt_time(rec.timestamp));
                 e.iface = Some(rec.iface);
+                if let Some(missing) = self.whj.pair(&rec.frame, &mut e) {
+                    self.out.push_back(missing);
+                }
                 e
             }
             Err(kind) => Entry::new(n, None, Direction::Unknown, EntryKind::Malformed)
@@ -672,6 +682,121 @@ fn detect(line: &str) -> Option<Format> {
 #[derive(Debug, Default)]
 struct WhjState {
     asked: [Option<u8>; 31],
+    /// Per joint, the point-to-point request still waiting for its reply: its line, time,
+    /// what it expects and its description. Paired as the client pairs them
+    /// (`Expect::answers`): by the joint's reply ID and the reply's content.
+    waiting: [Option<Waited>; 31],
+}
+
+#[derive(Debug, Clone)]
+struct Waited {
+    line: u64,
+    time: Option<String>,
+    expect: crate::whj::session::Expect,
+    what: String,
+}
+
+impl WhjState {
+    /// Pairs entry `e` (just decoded from `frame`) with the requests waiting: a request
+    /// ends the wait of an earlier one to the same joint (that one is missing its reply,
+    /// returned here to be shown before `e`); a reply is credited to the request it
+    /// answers, else marked unexpected (nobody asked, or it answers another request).
+    fn pair(&mut self, frame: &CanFrame, e: &mut Entry) -> Option<Entry> {
+        match e.kind {
+            // A malformed request that a joint answers (with a command error) waits for it.
+            EntryKind::Malformed if e.direction == Direction::ToDevice => {
+                let (joint, _) = Request::decode(frame).err()?.response()?;
+                self.wait(
+                    joint,
+                    e,
+                    crate::whj::session::Expect::CmdErr,
+                    "a malformed request".into(),
+                )
+            }
+            EntryKind::Request => {
+                let req = Request::decode(frame).ok()?;
+                let joint = req.joint()?;
+                let expect = crate::whj::session::Expect::of(&req)?;
+                self.wait(joint, e, expect, crate::whj::joint::describe(&req))
+            }
+            EntryKind::Reply => {
+                let Ok(reply) = WhjReply::from_frame(frame) else {
+                    return None;
+                };
+                if matches!(
+                    reply,
+                    WhjReply::BroadcastFeedback { .. } | WhjReply::BroadcastRegister { .. }
+                ) {
+                    return None;
+                }
+                let slot = self.waiting.get_mut(usize::from(reply.joint().get()))?;
+                let why = match slot
+                    .as_ref()
+                    .map(|w| (w.line, w.expect.answers(&reply, frame)))
+                {
+                    Some((_, Ok(()))) => {
+                        *slot = None;
+                        return None;
+                    }
+                    Some((line, Err((_, why)))) => {
+                        format!("answers no waiting request ({why}; waiting since line {line})")
+                    }
+                    None => "no request to this joint was waiting for it".into(),
+                };
+                e.kind = EntryKind::Unexpected;
+                e.text = format!("UNEXPECTED: {why}: {}", e.text);
+                e.malformed = Some(why);
+                None
+            }
+            _ => None,
+        }
+    }
+
+    /// Joint `joint` now waits for `expect` (the request of entry `e`); an earlier wait of
+    /// the same joint ends as a missing reply, returned.
+    fn wait(
+        &mut self,
+        joint: JointId,
+        e: &Entry,
+        expect: crate::whj::session::Expect,
+        what: String,
+    ) -> Option<Entry> {
+        let slot = self.waiting.get_mut(usize::from(joint.get()))?;
+        let before = slot.take().map(|w| w.missing(&format!("line {}", e.line)));
+        *slot = Some(Waited {
+            line: e.line,
+            time: e.time.clone(),
+            expect,
+            what,
+        });
+        before
+    }
+
+    /// The requests still waiting at the end of the capture, as missing replies.
+    fn finish(&mut self) -> Vec<Entry> {
+        let mut out: Vec<Entry> = self
+            .waiting
+            .iter_mut()
+            .filter_map(Option::take)
+            .map(|w| w.missing("the end of the capture"))
+            .collect();
+        out.sort_by_key(|e| e.line);
+        out
+    }
+}
+
+impl Waited {
+    fn missing(self, before: &str) -> Entry {
+        let mut e = Entry::new(
+            self.line,
+            self.time,
+            Direction::FromDevice,
+            EntryKind::Missing,
+        );
+        e.text = format!("NO REPLY to {} (none before {before})", self.what);
+        e.command = Some(self.expect.name().into());
+        e
+    }
 }
 
 fn decimals(unit: Unit) -> usize {

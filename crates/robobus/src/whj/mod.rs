@@ -61,8 +61,8 @@
 mod bus;
 mod cyclic;
 mod error;
-mod joint;
-mod session;
+pub(crate) mod joint;
+pub(crate) mod session;
 mod trajectory;
 
 pub use bus::{

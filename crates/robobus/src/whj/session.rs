@@ -62,10 +62,18 @@ pub(crate) enum Attempt {
 /// What kind of reply a request expects.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Expect {
-    Read { addr: u8, count: u8 },
-    Write { addr: u8 },
+    Read {
+        addr: u8,
+        count: u8,
+    },
+    Write {
+        addr: u8,
+    },
     Servo,
     Status,
+    /// A command error: what a joint answers a malformed register request with (a capture
+    /// replay pairs it; the client never sends one).
+    CmdErr,
 }
 
 impl Expect {
@@ -91,13 +99,25 @@ impl Expect {
             Self::Write { .. } => "write ack",
             Self::Servo => "servo feedback",
             Self::Status => "status feedback",
+            Self::CmdErr => "command error",
         }
+    }
+
+    /// Whether `reply` (carried by `frame`) answers a request of this kind (`Ok`), or
+    /// why not: `Err(true)` for a reply to another request (another register or kind),
+    /// `Err(false)` for a malformed one. With the reason. (What `robobus replay` uses to
+    /// pair a capture's requests with their replies, as the client pairs them.)
+    pub(crate) fn answers(self, reply: &Reply, frame: &CanFrame) -> Result<(), (bool, String)> {
+        self.check(reply, frame).map_err(|u| match u {
+            Unanswered::Other(r) => (true, r),
+            Unanswered::Bad(r) => (false, r),
+        })
     }
 
     /// Whether `reply` (carried by `frame`) answers a request of this kind.
     fn check(self, reply: &Reply, frame: &CanFrame) -> Result<(), Unanswered> {
         match (self, reply) {
-            (Self::Read { .. } | Self::Write { .. }, Reply::CmdErr { .. })
+            (Self::Read { .. } | Self::Write { .. } | Self::CmdErr, Reply::CmdErr { .. })
             | (Self::Servo, Reply::ServoFeedback { .. })
             | (Self::Status, Reply::Status { .. }) => Ok(()),
             (Self::Read { addr, count }, Reply::Read { addr: a, words, .. }) => {
