@@ -116,6 +116,7 @@ impl WhjError {
             | Self::WriteRefused { .. }
             | Self::EnableRefused { .. }
             | Self::BadReply { .. }
+            | Self::DuplicateReply { .. }
             | Self::Unverified { .. }
             | Self::MoveIncomplete { .. } => ErrorKind::Device,
             Self::SaveWhileEnabled { .. } | Self::StepTooLarge { .. } | Self::Busy { .. } => {

@@ -303,3 +303,45 @@ fn error_passive_is_reported_and_does_not_stop_traffic() {
     assert_eq!(t.state, BusState::Active);
     assert_eq!(t.recoveries, 1);
 }
+
+/// Two WHJ30 joints that both answer as J1, at 0° and 50° (disabled: they stay there).
+fn two_at_one_id() -> robobus_sim::whj::WhjBus {
+    let a = JointConfig::new(1, WhjModel::Whj30);
+    let mut b = JointConfig::new(1, WhjModel::Whj30);
+    b.initial_position_deg = 50.0;
+    b.unique_id = [9, 9, 9, 9, 9, 9];
+    configs(vec![a, b])
+}
+
+#[test]
+fn two_joints_answering_as_one_id_are_a_duplicate_fault_naming_both_values_every_time() {
+    let (bus, _sim) = whj_common::virtual_bus(two_at_one_id());
+    // Every status, every time: never 0° or 50° as if one joint had answered.
+    for run in 0..4 {
+        let r = robobus::ops::whj::status(&bus, &[j(1)]);
+        let f = r[0].failure().unwrap_or_else(|| panic!("run {run}: {r:?}"));
+        assert_eq!(f.kind, robobus::ErrorKind::Device, "run {run}: {f:?}");
+        assert!(
+            f.error.contains("two different replies"),
+            "run {run}: {f:?}"
+        );
+        // Deterministic: the duplicate check finds them on every run.
+        let d = robobus::ops::whj::duplicates_of(&bus, j(1))
+            .unwrap_or_else(|| panic!("run {run}: no duplicate found"));
+        assert_eq!(d.id, 1);
+    }
+    // A position read names both positions.
+    let e = bus.joint_unchecked(j(1)).position().unwrap_err();
+    let text = e.to_string();
+    assert!(matches!(e, WhjError::DuplicateReply { .. }), "{e}");
+    assert!(
+        text.contains("0.0000") && text.contains("50.0000"),
+        "{text}"
+    );
+    assert_eq!(e.kind(), robobus::ErrorKind::Device);
+    assert!(
+        bus.telemetry().bus.duplicates >= 5,
+        "{:?}",
+        bus.telemetry().bus
+    );
+}

@@ -97,11 +97,23 @@ fn duplicate(bus: &JointBus, id: JointId, subject: &str, before: u64) -> Finding
     };
     let mut queries = 0u64;
     for _ in 0..2 {
-        if bus
-            .request_with_timeout(Request::StatusQuery { joint: id }, STATUS_WAIT)
-            .is_ok()
-        {
-            queries += 1;
+        match bus.request_with_timeout(Request::StatusQuery { joint: id }, STATUS_WAIT) {
+            Ok(_) => queries += 1,
+            // Two different answers to one query, within the bus's collision window.
+            Err(robobus::whj::WhjError::DuplicateReply { first, second, .. }) => {
+                return finding(
+                    subject,
+                    "duplicate-id",
+                    Status::Fail,
+                    format!(
+                        "two different replies to one status query ({first} and {second}): \
+                         more than one joint answers as ID {}",
+                        id.get()
+                    ),
+                    fix(),
+                );
+            }
+            Err(_) => {}
         }
     }
     std::thread::sleep(DUPLICATE_WINDOW);

@@ -34,7 +34,8 @@
 //!   *requested* target, in the loop's unit), `last` (the last feedback, or null when none
 //!   came), `stale` (true when the last cycle had no reply), `missing_at_end`,
 //!   `round_trip_p50_us`, `round_trip_p99_us`, `round_trip_max_us` (send to feedback of the
-//!   answered frames; null without replies);
+//!   answered frames, credited at the end of the bus's collision window; null without
+//!   replies);
 //! - [`SetIdReport`]: `new_id`, `saved`, `note`.
 //! - broadcast register reads and writes ([`broadcast_read`], [`broadcast_write`]): one
 //!   [`RegisterReport`] per register and [`Slot`], whose `id` is the joint's number or
@@ -1267,21 +1268,34 @@ pub struct ScanReport {
 const DUPLICATE_PROBES: usize = 3;
 
 /// Whether more than one joint answers at `id` (already connected on `bus`): reads the
-/// unique ID a few more times; two joints at one ID both answer each read, and the bus
-/// records a second, differing unique ID ([`JointTelemetry::unique_id_conflict`]).
-/// `doctor` calls this too.
+/// unique ID (0x2A..0x2F). Two joints at one ID both answer each read, the second within
+/// the bus's collision window ([`JointBusConfig::collision_window`]), so the read fails
+/// with [`WhjError::DuplicateReply`] and the bus records both unique IDs
+/// ([`JointTelemetry::unique_id_conflict`]) on the first read already; the further reads
+/// only matter without a collision window. `doctor` calls this too.
 ///
 /// [`JointTelemetry::unique_id_conflict`]: crate::whj::JointTelemetry::unique_id_conflict
+/// [`JointBusConfig::collision_window`]: crate::whj::JointBusConfig::collision_window
 pub fn duplicates_of(bus: &JointBus, id: JointId) -> Option<Duplicate> {
     let j = bus.joint_unchecked(id);
     for _ in 0..DUPLICATE_PROBES {
         if bus.telemetry().joint(id).unique_id_conflict.is_some() {
             break;
         }
-        let _ = j.read_words(robobus_whj::registers::addr::MOT_MODEL_ID, 6);
-        // The second joint's reply comes after the first one's.
-        bus.sleep_until(bus.now() + Duration::from_millis(5));
+        let read = j.read_words(robobus_whj::registers::addr::MOT_MODEL_ID, 6);
+        if matches!(read, Err(WhjError::DuplicateReply { .. })) {
+            break;
+        }
+        if bus.config().collision_window.is_zero() {
+            // The second joint's reply comes after the first one's.
+            bus.sleep_until(bus.now() + Duration::from_millis(5));
+        }
     }
+    conflict_of(bus, id)
+}
+
+/// The two unique IDs the bus has seen answer at `id`, if it saw two.
+fn conflict_of(bus: &JointBus, id: JointId) -> Option<Duplicate> {
     bus.telemetry()
         .joint(id)
         .unique_id_conflict
@@ -1333,9 +1347,18 @@ pub fn scan(
                 }
             }
             Err(e) if e.is_timeout() => {}
-            Err(e) => report
-                .found
-                .push(DeviceResult::failed(id.get(), Failure::from(&e))),
+            Err(e) => {
+                // Two joints at the ID fail its connect with a duplicate reply: named in
+                // the duplicates as well as in the joint's failure.
+                if matches!(e, WhjError::DuplicateReply { .. })
+                    && let Some(d) = conflict_of(bus, id).or_else(|| duplicates_of(bus, id))
+                {
+                    report.duplicates.push(d);
+                }
+                report
+                    .found
+                    .push(DeviceResult::failed(id.get(), Failure::from(&e)));
+            }
         }
     }
     control.report(&Progress::new(

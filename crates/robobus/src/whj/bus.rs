@@ -54,6 +54,13 @@ pub struct JointBusConfig {
     /// After an error-passive or error-warning report, how long without a new report
     /// before the bus counts as recovered (default 1 s).
     pub error_passive_hold: Duration,
+    /// How long a received reply is held before it is credited (default 0.5 ms): a
+    /// second, different reply to the same request within it (two nodes at one ID; the
+    /// one that lost arbitration follows the winner within one frame, about 0.15 ms at
+    /// 1 / 5 Mbit/s) fails the request with [`WhjError::DuplicateReply`] instead of
+    /// crediting either. The next request on that reply ID waits for the window too.
+    /// Zero credits the first reply at once (no duplicate detection).
+    pub collision_window: Duration,
     /// The longest one receive or sleep of the driving thread lasts before it looks at
     /// the session again and lets other threads in (default 0.5 ms).
     pub poll_interval: Duration,
@@ -71,6 +78,7 @@ impl Default for JointBusConfig {
             save_settle: Duration::from_millis(50),
             bus_recovery_timeout: Duration::from_secs(1),
             error_passive_hold: Duration::from_secs(1),
+            collision_window: Duration::from_micros(500),
             poll_interval: Duration::from_micros(500),
         }
     }
@@ -140,6 +148,8 @@ pub struct BusHealth {
     pub unmatched: u64,
     /// Received frames that are not valid joint replies.
     pub malformed: u64,
+    /// Requests answered by two different replies (two nodes at one ID).
+    pub duplicates: u64,
 }
 
 /// The latest values the client saw from one joint (servo feedback, status, register

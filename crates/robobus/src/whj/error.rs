@@ -99,6 +99,23 @@ pub enum WhjError {
         /// Attempts made.
         attempts: u32,
     },
+    /// Two different replies answered one request within the collision window
+    /// ([`JointBusConfig::collision_window`](super::JointBusConfig::collision_window)):
+    /// two joints (or another node) answer at this ID. Neither value is credited.
+    #[error(
+        "{joint}: two different replies to {request}: {first} and {second}; two joints \
+         answer at this ID (give one of them another ID)"
+    )]
+    DuplicateReply {
+        /// The joint ID both replies came from.
+        joint: JointId,
+        /// What was sent.
+        request: String,
+        /// The first reply, summarised.
+        first: String,
+        /// The second, different reply, summarised.
+        second: String,
+    },
     /// Two reads of the same registers disagreed on every attempt (with
     /// [`JointBusConfig::verify_reads`](super::JointBusConfig::verify_reads)).
     #[error(

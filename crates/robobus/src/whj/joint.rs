@@ -718,7 +718,10 @@ impl<'a> Joint<'a> {
                 Attempt::Reply { reply, .. } if !matches!(reply, Reply::CmdErr { .. }) => {
                     return Ok(reply);
                 }
-                a @ (Attempt::Reply { .. } | Attempt::Link(_) | Attempt::Busy) => {
+                a @ (Attempt::Reply { .. }
+                | Attempt::Link(_)
+                | Attempt::Busy
+                | Attempt::Duplicate { .. }) => {
                     return Err(attempt_error(self.id, &describe(&request), &request, a, n));
                 }
                 other => {
@@ -776,7 +779,7 @@ fn release_iap_many(bus: &JointBus, ids: &[JointId]) -> Vec<Result<(), WhjError>
                     }
                     results[i] = Some(Ok(()));
                 }
-                Ok(a @ (Attempt::Link(_) | Attempt::Busy)) => {
+                Ok(a @ (Attempt::Link(_) | Attempt::Busy | Attempt::Duplicate { .. })) => {
                     results[i] = Some(Err(attempt_error(id, &describe(req), req, a, attempts[i])));
                 }
                 Ok(Attempt::Mismatch(_) | Attempt::Timeout { .. } | Attempt::Bus { .. }) => {
@@ -898,6 +901,12 @@ pub(crate) fn attempt_error(
             joint,
             what: "single servo command refused",
         },
+        Attempt::Duplicate { first, second } => WhjError::DuplicateReply {
+            joint,
+            request: description.into(),
+            first: summarize(&first),
+            second: summarize(&second),
+        },
         Attempt::Reply {
             reply: Reply::CmdErr { error, code, .. },
             ..
@@ -912,6 +921,30 @@ pub(crate) fn attempt_error(
             request: description.into(),
             reason: format!("unexpected reply {reply:?}"),
             attempts,
+        },
+    }
+}
+
+/// A reply in a few words for error messages: its position and error bits where it has
+/// them, its register words otherwise.
+pub(crate) fn summarize(reply: &Reply) -> String {
+    match reply {
+        Reply::Read { addr, .. } if reply.actual_position().is_some() => format!(
+            "{} ({:#04x}): position {:.4}°",
+            RegisterInfo::by_addr(*addr).map_or("reserved", |i| i.name),
+            addr.get(),
+            reply.actual_position().map_or(0.0, Position::degrees)
+        ),
+        Reply::Read { addr, words, .. } => format!(
+            "{} ({:#04x}) = {:?}",
+            RegisterInfo::by_addr(*addr).map_or("reserved", |i| i.name),
+            addr.get(),
+            words.as_slice()
+        ),
+        other => match (other.actual_position(), other.error_code()) {
+            (Some(p), Some(e)) => format!("position {:.4}° (error {e:?})", p.degrees()),
+            (Some(p), None) => format!("position {:.4}°", p.degrees()),
+            _ => format!("{other:?}"),
         },
     }
 }

@@ -57,6 +57,15 @@ pub(crate) enum Attempt {
     Link(String),
     /// A cyclic loop owns the reply ID.
     Busy,
+    /// Two different replies answered the request within its collision window
+    /// ([`JointBusConfig::collision_window`]): two nodes answer at this ID. Neither is
+    /// credited.
+    Duplicate {
+        /// The first reply.
+        first: Reply,
+        /// The second, different one.
+        second: Reply,
+    },
 }
 
 /// What kind of reply a request expects.
@@ -192,6 +201,17 @@ struct InFlight {
     deadline: Instant,
 }
 
+/// A request whose reply arrived, held for the collision window: a second, different
+/// reply to it before `until` makes it a [`Attempt::Duplicate`].
+#[derive(Debug)]
+struct Credited {
+    id: TxnId,
+    expect: Expect,
+    frame: CanFrame,
+    reply: Reply,
+    until: Instant,
+}
+
 /// Whether `raw` is an ID on which joints or the end board answer broadcast frames.
 fn is_broadcast_reply_id(raw: u16) -> bool {
     use robobus_whj::Address;
@@ -215,6 +235,8 @@ pub(crate) struct Session {
     next_id: TxnId,
     queued: VecDeque<(TxnId, Txn)>,
     in_flight: HashMap<u16, InFlight>,
+    /// Replies received and held for the collision window, by reply ID.
+    credited: HashMap<u16, Credited>,
     done: HashMap<TxnId, Attempt>,
     quiet: HashMap<u8, Instant>,
     passive_since: Option<Instant>,
@@ -233,6 +255,7 @@ impl Session {
             next_id: 0,
             queued: VecDeque::new(),
             in_flight: HashMap::new(),
+            credited: HashMap::new(),
             done: HashMap::new(),
             quiet: HashMap::new(),
             passive_since: None,
@@ -362,7 +385,7 @@ impl Session {
                 i += 1;
                 continue;
             }
-            let busy = self.in_flight.contains_key(&key);
+            let busy = self.in_flight.contains_key(&key) || self.credited.contains_key(&key);
             let quiet = self.quiet.get(&joint).is_some_and(|t| *t > now);
             if busy || quiet {
                 i += 1;
@@ -419,13 +442,17 @@ impl Session {
     /// the link's receive; otherwise it sleeps.
     pub(crate) fn awaiting(&self) -> bool {
         !self.in_flight.is_empty()
+            || !self.credited.is_empty()
             || self.cyclic.as_ref().is_some_and(CyclicRun::awaiting)
             || (!self.queued.is_empty() && self.state() == BusState::BusOff)
     }
 
     /// Whether nothing is queued, in flight or cycling.
     pub(crate) fn is_idle(&self) -> bool {
-        self.queued.is_empty() && self.in_flight.is_empty() && self.cyclic.is_none()
+        self.queued.is_empty()
+            && self.in_flight.is_empty()
+            && self.credited.is_empty()
+            && self.cyclic.is_none()
     }
 
     /// When the driver must look again at the latest (a deadline, a tick, the end of a
@@ -434,6 +461,9 @@ impl Session {
         let mut wake = now + self.config.poll_interval;
         for f in self.in_flight.values() {
             wake = wake.min(f.deadline);
+        }
+        for c in self.credited.values() {
+            wake = wake.min(c.until);
         }
         if let Some(c) = &self.cyclic {
             wake = wake.min(c.next_event());
@@ -476,6 +506,29 @@ impl Session {
             return;
         }
         let key = frame.standard_raw_id().unwrap_or(0);
+        if let Some(c) = self.credited.get(&key) {
+            // The request was answered already; this is a second answer to it if it
+            // answers the same request, and a fault if it differs.
+            let answers = decoded
+                .as_ref()
+                .is_ok_and(|reply| c.expect.check(reply, frame).is_ok());
+            if let (true, Ok(second)) = (answers && c.frame != *frame, &decoded)
+                && let Some(c) = self.credited.remove(&key)
+            {
+                tracing::warn!(first = ?c.reply, second = ?second, "two different replies to one WHJ request");
+                lock(&self.shared.telemetry).bus.duplicates += 1;
+                self.finish(
+                    c.id,
+                    Attempt::Duplicate {
+                        first: c.reply,
+                        second: *second,
+                    },
+                );
+            } else {
+                lock(&self.shared.telemetry).bus.unmatched += 1;
+            }
+            return;
+        }
         let Some(f) = self.in_flight.remove(&key) else {
             lock(&self.shared.telemetry).bus.unmatched += 1;
             return;
@@ -500,7 +553,21 @@ impl Session {
                         let joint = reply.joint().get();
                         self.quiet.insert(joint, now + f.txn.quiet_after);
                     }
-                    Attempt::Reply { reply }
+                    if self.config.collision_window.is_zero() {
+                        Attempt::Reply { reply }
+                    } else {
+                        self.credited.insert(
+                            key,
+                            Credited {
+                                id: f.id,
+                                expect: f.txn.expect,
+                                frame: *frame,
+                                reply,
+                                until: now + self.config.collision_window,
+                            },
+                        );
+                        return;
+                    }
                 }
                 Err(Unanswered::Bad(reason) | Unanswered::Other(reason)) => {
                     Attempt::Mismatch(reason)
@@ -511,7 +578,23 @@ impl Session {
         self.finish(f.id, outcome);
     }
 
+    /// Credits the replies whose collision window closed by `now` (all with `None`).
+    fn credit_due(&mut self, now: Option<Instant>) {
+        let due: Vec<u16> = self
+            .credited
+            .iter()
+            .filter(|(_, c)| now.is_none_or(|t| c.until <= t))
+            .map(|(k, _)| *k)
+            .collect();
+        for key in due {
+            if let Some(c) = self.credited.remove(&key) {
+                self.finish(c.id, Attempt::Reply { reply: c.reply });
+            }
+        }
+    }
+
     fn expire(&mut self, now: Instant) {
+        self.credit_due(Some(now));
         let expired: Vec<u16> = self
             .in_flight
             .iter()
@@ -566,6 +649,7 @@ impl Session {
 
     /// The link is gone: every transaction fails with `detail`, the cyclic loop ends.
     pub(crate) fn fail_all(&mut self, detail: &str) {
+        self.credit_due(None);
         let in_flight: Vec<TxnId> = self.in_flight.drain().map(|(_, f)| f.id).collect();
         let queued: Vec<TxnId> = self.queued.drain(..).map(|(id, _)| id).collect();
         for id in in_flight.into_iter().chain(queued) {
@@ -681,6 +765,14 @@ mod tests {
         (Request::Read { joint: j1(), range }, range)
     }
 
+    /// Replies credited at once (the tests of other rules than the collision window).
+    fn no_window() -> JointBusConfig {
+        JointBusConfig {
+            collision_window: Duration::ZERO,
+            ..JointBusConfig::default()
+        }
+    }
+
     fn txn(request: Request, submitted: Instant) -> Txn {
         Txn {
             request,
@@ -694,7 +786,7 @@ mod tests {
     #[test]
     fn a_reply_to_another_register_is_not_credited_and_the_deadline_is_exact() {
         let t0 = Instant::now();
-        let mut s = Session::new(Arc::default(), JointBusConfig::default());
+        let mut s = Session::new(Arc::default(), no_window());
         let (req, _) = read(0x14, 2);
         let id = s.submit(txn(req, t0));
         let tx = s.poll_transmit(t0).unwrap();
@@ -730,7 +822,7 @@ mod tests {
     #[test]
     fn a_settle_time_holds_the_next_request_to_the_joint_until_it_ends() {
         let t0 = Instant::now();
-        let mut s = Session::new(Arc::default(), JointBusConfig::default());
+        let mut s = Session::new(Arc::default(), no_window());
         let write = Request::write(j1(), RegisterAddr::new(0x0A).unwrap(), 0).unwrap();
         let id = s.submit(Txn {
             quiet_after: Duration::from_millis(5),
@@ -750,5 +842,43 @@ mod tests {
         assert_eq!(s.next_wake(t0), t0 + Duration::from_micros(500));
         assert!(s.poll_transmit(t0 + Duration::from_micros(4_999)).is_none());
         assert_eq!(s.poll_transmit(settled).unwrap().frame, req.to_frame());
+    }
+
+    #[test]
+    fn a_second_different_reply_within_the_collision_window_is_a_duplicate_not_a_value() {
+        let t0 = Instant::now();
+        let window = JointBusConfig::default().collision_window;
+        assert_eq!(window, Duration::from_micros(500));
+        let mut s = Session::new(Arc::default(), JointBusConfig::default());
+        let (req, range) = read(0x14, 2);
+        let id = s.submit(txn(req, t0));
+        s.poll_transmit(t0).unwrap();
+        let first = Reply::read(j1(), range, &[0, 0]).unwrap();
+        let second = Reply::read(j1(), range, &[0x1A80, 0x0007]).unwrap();
+        let t1 = t0 + Duration::from_micros(200);
+        s.on_frame(&first.to_frame(), t1);
+        // Held for the window: not credited yet, and the reply ID stays busy.
+        assert!(s.take(id).is_none());
+        assert_eq!(s.next_wake(t1), t1 + window);
+        let next = s.submit(txn(req, t1));
+        assert!(s.poll_transmit(t1).is_none());
+        // The joint that lost arbitration answers too, differently: a fault.
+        s.on_frame(&second.to_frame(), t1 + Duration::from_micros(150));
+        let got = s.take(id);
+        assert!(
+            matches!(&got, Some(Attempt::Duplicate { first: f, second: g }) if *f == first && *g == second),
+            "{got:?}"
+        );
+        // The next request goes out, and one reply (or identical ones) is credited once
+        // the window closed, not before.
+        let t2 = t1 + Duration::from_micros(150);
+        assert!(s.poll_transmit(t2).is_some());
+        s.on_frame(&first.to_frame(), t2);
+        s.on_frame(&first.to_frame(), t2 + Duration::from_micros(100));
+        s.on_time(t2 + Duration::from_micros(499));
+        assert!(s.take(next).is_none());
+        s.on_time(t2 + window);
+        assert!(matches!(s.take(next), Some(Attempt::Reply { reply }) if reply == first));
+        assert_eq!(lock(&s.shared.telemetry).bus.duplicates, 1);
     }
 }
