@@ -349,6 +349,10 @@ enum WhjCommand {
         /// position stream after 20 ms without a frame).
         #[arg(long)]
         broadcast: bool,
+        /// Start angle of a position wave for --dry-run (a real run starts the step
+        /// limiter at the present position; without --from a dry run assumes 0).
+        #[arg(long, allow_hyphen_values = true, value_parser = parse_angle)]
+        from: Option<f64>,
     },
     /// Start the application on joints waiting in the bootloader (`IAP_FLAG` 0x49 := 0).
     ReleaseIap {
@@ -882,17 +886,25 @@ fn plan(args: &Args, dry_run: bool) -> anyhow::Result<WhjPlan> {
                 Request::write(*joint, registers::addr::SYS_ID, u16::from(new_id.get()))
                     .map_err(|e| usage(format!("set-id <NEW_ID>: {e}")))?,
             );
+            p.push(Request::Read {
+                joint: *joint,
+                range: robobus_whj::ReadRange::new(registers::addr::SYS_ID, 1)
+                    .map_err(|e| usage(format!("set-id: {e}")))?,
+            });
             p.push(Request::save_to_flash(*joint));
             p.notes.push(format!(
-                "disable, write SYS_ID, save; the new ID {} applies after a power cycle \
-                 (firmware V1.1 applies it at once: then save again with `robobus whj save {}`)",
+                "disable, write SYS_ID, read it back, save; the new ID {} applies after a power cycle \
+                 (firmware V1.1 applies it at once: the read-back and the save then go to ID {})",
                 new_id.get(),
                 new_id.get()
             ));
             p
         }
         WhjCommand::Wave {
-            mode, broadcast, ..
+            mode,
+            broadcast,
+            from,
+            ..
         } => {
             let scale = if *mode == WaveMode::Current {
                 current_scale(args, dry_run, "wave --mode current")?
@@ -902,10 +914,11 @@ fn plan(args: &Args, dry_run: bool) -> anyhow::Result<WhjPlan> {
             let Some(w) = wave_args(&args.command) else {
                 return Ok(WhjPlan::default());
             };
+            let start = from.unwrap_or(0.0);
             if *broadcast {
-                WhjPlan::of(&ops::plan_broadcast_wave(&w, 0.0, scale, true)?)
+                WhjPlan::of(&ops::plan_broadcast_wave(&w, start, scale, from.is_none())?)
             } else {
-                WhjPlan::of(&ops::plan_wave(&w, 0.0, scale, true)?)
+                WhjPlan::of(&ops::plan_wave(&w, start, scale, from.is_none())?)
             }
         }
         WhjCommand::ReleaseIap { joints } => each(joints, Request::start_application),

@@ -371,3 +371,33 @@ fn wck_timed_wheel_shows_the_watch_reads_and_the_stop() {
     let notes = v["notes"].to_string();
     assert!(notes.contains("assumed 127"), "{notes}");
 }
+
+#[test]
+fn whj_wave_from_plans_the_step_limiter_from_that_angle() {
+    let first_target = |extra: &[&str]| {
+        let mut args = vec![
+            "whj",
+            "--bus",
+            "udp",
+            "--dry-run",
+            "--json",
+            "wave",
+            "1",
+            "--amplitude",
+            "5",
+            "--frequency",
+            "0.5",
+            "--duration",
+            "0.1",
+        ];
+        args.extend_from_slice(extra);
+        let v: serde_json::Value = serde_json::from_str(&ok(&args)).unwrap();
+        v
+    };
+    let from_0 = first_target(&[]);
+    assert!(from_0.to_string().contains("assumed 0 deg"), "{from_0}");
+    let from_30 = first_target(&["--from", "30"]);
+    assert!(!from_30.to_string().contains("assumed"), "{from_30}");
+    // The limiter starts at 30 deg and steps towards the wave (at 0 deg at t = 0).
+    assert_ne!(from_0["frames"], from_30["frames"]);
+}

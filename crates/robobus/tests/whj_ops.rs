@@ -1253,3 +1253,35 @@ fn two_different_answers_in_one_broadcast_slot_are_a_fault() {
         assert_eq!(s[0].failure().unwrap().kind, ErrorKind::Device, "{s:?}");
     }
 }
+
+/// A broadcast wave counts the set-points its step limiter changed, as a point-to-point
+/// wave does (it reported 0 whatever it clamped).
+#[test]
+fn a_broadcast_wave_counts_its_clamped_set_points() {
+    let args = WaveArgs {
+        joint: id(2),
+        shape: Shape::Square,
+        servo: ServoLoop::Position,
+        amplitude: 10.0,
+        frequency: 1.0,
+        offset: 0.0,
+        duration: 1.0,
+        rate_hz: 100.0,
+        step_limit_deg: JointBusConfig::default().step_limit_deg,
+    };
+    let mut clamped = Vec::new();
+    for broadcast in [false, true] {
+        let (_sim, bus, _log) = captured(2);
+        ready(&bus, id(2), WorkMode::Position);
+        let j = bus.joint(id(2)).unwrap();
+        let plan = if broadcast {
+            ops::prepare_broadcast_wave(&j, &args).unwrap()
+        } else {
+            ops::prepare_wave(&j, &args).unwrap()
+        };
+        let r = ops::execute_wave(&j, &args, &plan, &mut Control::none(), SafeState::Hold).unwrap();
+        clamped.push(r.clamped);
+    }
+    assert!(clamped[0] > 0, "{clamped:?}");
+    assert_eq!(clamped[0], clamped[1], "point-to-point vs broadcast");
+}

@@ -1139,7 +1139,14 @@ pub fn execute_wave(
         round_trip_max_us: None,
     };
     for (f, want) in plan.frames.iter().zip(&targets) {
-        if let Request::PositionServo { target, .. } = f.request
+        // The set-point the frame carries for the wave's joint, point-to-point or in its
+        // slot of a 0x2F broadcast frame.
+        let sent = match f.request {
+            Request::PositionServo { target, .. } => Some(target),
+            Request::BroadcastPosition(b) => b.slot(args.joint).map(|s| s.position),
+            _ => None,
+        };
+        if let Some(target) = sent
             && (target.degrees() - want).abs() > 1e-3
         {
             r.clamped += 1;
