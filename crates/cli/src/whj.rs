@@ -714,8 +714,47 @@ fn current_scale(args: &Args, dry_run: bool, option: &str) -> anyhow::Result<Cur
     }
 }
 
-#[allow(clippy::too_many_lines)]
+/// The plan of a command, with the connect a real run makes first shown as comments (the
+/// frames of [`robobus::whj::Joint::connect_requests`] for each joint its frames address).
 fn plan(args: &Args, dry_run: bool) -> anyhow::Result<WhjPlan> {
+    let mut p = command_plan(args, dry_run)?;
+    let connects = !matches!(
+        args.command,
+        WhjCommand::Scan { .. } | WhjCommand::Registers | WhjCommand::ReleaseIap { .. }
+    );
+    let mut joints: Vec<JointId> = Vec::new();
+    for step in &p.steps {
+        if let Some(j) = step.request.joint()
+            && !joints.contains(&j)
+        {
+            joints.push(j);
+        }
+    }
+    if connects && !joints.is_empty() {
+        let each: Vec<String> = joints
+            .iter()
+            .map(|&j| {
+                let frames: Vec<String> = robobus::whj::Joint::connect_requests(j)
+                    .iter()
+                    .map(|r| crate::output::frame_line(&r.to_frame()))
+                    .collect();
+                format!("joint {}: {}", j.get(), frames.join(" "))
+            })
+            .collect();
+        p.notes.insert(
+            0,
+            format!(
+                "before these frames a real run connects each joint: its IAP release \
+                 (repeated until the joint answers), then its identity reads; {}",
+                each.join("; ")
+            ),
+        );
+    }
+    Ok(p)
+}
+
+#[allow(clippy::too_many_lines)]
+fn command_plan(args: &Args, dry_run: bool) -> anyhow::Result<WhjPlan> {
     Ok(match &args.command {
         WhjCommand::Scan { joints } => {
             let mut p = each(joints, Request::read_identity);

@@ -1285,3 +1285,17 @@ fn a_broadcast_wave_counts_its_clamped_set_points() {
     assert!(clamped[0] > 0, "{clamped:?}");
     assert_eq!(clamped[0], clamped[1], "point-to-point vs broadcast");
 }
+
+/// The connect a dry run shows is what a real connect sends (the release answered at
+/// once here, so it goes out once).
+#[test]
+fn a_connect_sends_the_frames_a_dry_run_shows_for_it() {
+    let (_sim, bus, log) = captured(1);
+    log.clear();
+    bus.joint(id(1)).unwrap();
+    let shown: Vec<CanFrame> = robobus::whj::Joint::connect_requests(id(1))
+        .iter()
+        .map(Request::to_frame)
+        .collect();
+    assert_eq!(log.sent(), shown);
+}

@@ -180,6 +180,24 @@ impl<'a> Joint<'a> {
             .collect()
     }
 
+    /// The frames a connect sends ([`JointBus::joint`]), in order, as a dry run shows
+    /// them: the IAP release (repeated until the joint answers, for at most the connect
+    /// timeout), then the identity reads of [`Joint::identify`].
+    pub fn connect_requests(id: JointId) -> Vec<Request> {
+        let read = |addr, count| {
+            robobus_whj::ReadRange::new(addr, count)
+                .ok()
+                .map(|range| Request::Read { joint: id, range })
+        };
+        core::iter::once(Some(Request::start_application(id)))
+            .chain([
+                read(registers::addr::SIGNATURE, 8),
+                read(registers::addr::MOT_MODEL_ID, 6),
+            ])
+            .flatten()
+            .collect()
+    }
+
     /// Reads model, firmware version, node ID, gear ratio and unique ID.
     pub fn identify(&self) -> Result<Identity, WhjError> {
         let head = self.read_words(registers::addr::SIGNATURE, 8)?;
