@@ -986,3 +986,29 @@ fn scan_shows_a_progress_bar_on_a_terminal() {
     // The table is not on the terminal's stderr.
     assert!(!drawn.contains("position"), "{drawn:?}");
 }
+
+#[test]
+fn teach_reading_keys_from_an_endless_input_ends_it_without_growing() {
+    let sim = Sim::start("0-1", &[]);
+    let start = Instant::now();
+    let out = Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .args([
+            "--json",
+            "wck",
+            "--port",
+            sim.port(),
+            "--reply-margin",
+            MARGIN,
+            "teach",
+            "0-1",
+            "--pose-ms",
+            "400",
+        ])
+        .stdin(std::fs::File::open("/dev/zero").unwrap())
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{out:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("more than 1024 bytes"), "{err}");
+    assert!(start.elapsed() < Duration::from_secs(10));
+}

@@ -386,17 +386,32 @@ fn play<L: ByteLink>(
     }
 }
 
+/// Longest line `teach` reads as a key press.
+const MAX_KEY_LINE: usize = 1024;
+
 /// Lines typed on stdin (Enter = a line, EOF ends), read in a thread so Ctrl-C is seen
 /// while waiting.
+/// Lines are bounded ([`MAX_KEY_LINE`]) and so is the queue (a few lines), so an endless
+/// input (`< /dev/zero`, `yes |`) costs no memory: an overlong line ends the input.
 fn stdin_lines() -> mpsc::Receiver<Option<String>> {
-    let (tx, rx) = mpsc::channel();
+    use std::io::Read as _;
+    let (tx, rx) = mpsc::sync_channel(4);
     std::thread::spawn(move || {
         let stdin = std::io::stdin();
         let mut lock = stdin.lock();
         loop {
             let mut line = String::new();
-            match lock.read_line(&mut line) {
+            let limit = MAX_KEY_LINE as u64 + 1;
+            match (&mut lock).take(limit).read_line(&mut line) {
                 Ok(0) | Err(_) => {
+                    let _ = tx.send(None);
+                    return;
+                }
+                Ok(n) if n > MAX_KEY_LINE && !line.ends_with('\n') => {
+                    eprintln!(
+                        "robobus: a line of more than {MAX_KEY_LINE} bytes on stdin: that is \
+                         not a key press; input ends here"
+                    );
                     let _ = tx.send(None);
                     return;
                 }
