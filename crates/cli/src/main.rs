@@ -252,8 +252,8 @@ fn main() -> ExitCode {
         Command::Doctor(args) => doctor::run(g, &args),
         Command::Completions(args) => generate::completions(&args),
         Command::Man(args) => generate::man(&args),
-        Command::Sim(SimCommand::Wck(args)) => sim_wck::run(&args),
-        Command::Sim(SimCommand::Whj(args)) => sim_whj::run(&args),
+        Command::Sim(SimCommand::Wck(args)) => sim_wck::run(&args, g.dry_run),
+        Command::Sim(SimCommand::Whj(args)) => sim_whj::run(&args, g.dry_run),
         Command::Run(args) => run::run(g, &args),
         Command::Schema(args) => run::schema(&args),
     };

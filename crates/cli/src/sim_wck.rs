@@ -246,7 +246,7 @@ fn duration_of(name: &str, value: f64, unit: f64) -> anyhow::Result<Duration> {
 }
 
 /// Serves the simulated bus until interrupted.
-pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
+pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
     let ids = parse_ids(&args.servos)?;
     let model: Model = args
         .model
@@ -285,6 +285,23 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let opened_at = bus.now();
     let mut schedule = FaultSchedule::new(device).shifted(opened_at);
 
+    if dry_run {
+        // A dry run opens nothing: no pty, no link, no EEPROM file written.
+        let ids: Vec<String> = ids.iter().map(u8::to_string).collect();
+        crate::output::print(&format!(
+            "# would serve {} simulated wCK {} servo(s) [{}] at {} bit/s on a new pty{}; \
+             nothing opened\n",
+            ids.len(),
+            args.model,
+            ids.join(","),
+            args.baud,
+            args.link
+                .as_ref()
+                .map(|l| format!(" linked from {}", l.display()))
+                .unwrap_or_default()
+        ))?;
+        return Ok(());
+    }
     let pair = PtyPair::open(&PtyOptions {
         baud: args.baud,
         symlink: None,

@@ -109,17 +109,35 @@ fn parse_bus(s: &str) -> Result<FrameLinkSpec, String> {
 }
 
 /// Serves the simulated bus until interrupted.
-pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
-    if !args.current_noise_ma.is_finite() || args.current_noise_ma < 0.0 {
+/// Largest current noise a simulated joint takes, mA (ten amperes of noise is no joint).
+const MAX_CURRENT_NOISE_MA: f64 = 10_000.0;
+
+/// Longest processing delay a simulated joint takes, µs (a joint answers within a
+/// millisecond; 100 ms is already a dead one).
+const MAX_PROCESSING_DELAY_US: u64 = 100_000;
+
+pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
+    if !(args.current_noise_ma.is_finite()
+        && (0.0..=MAX_CURRENT_NOISE_MA).contains(&args.current_noise_ma))
+    {
         return Err(usage(format!(
-            "--current-noise-ma {} out of range (allowed: 0 or more)",
+            "--current-noise-ma {} out of range (allowed: 0..={MAX_CURRENT_NOISE_MA})",
             args.current_noise_ma
         )));
     }
-    if !args.initial_deg.is_finite() || args.initial_deg.abs() > 214_748.0 {
+    // A joint starts inside its position limits (the simulated joints' are the defaults).
+    let (min, max) = JointConfig::new(1, args.model).position_limits_deg;
+    if !(args.initial_deg.is_finite() && (min..=max).contains(&args.initial_deg)) {
         return Err(usage(format!(
-            "--initial-deg {} out of range (allowed: -214748..=214748)",
+            "--initial-deg {} out of range (allowed: {min}..={max}, the joints' position \
+             limits)",
             args.initial_deg
+        )));
+    }
+    if args.processing_delay_us > MAX_PROCESSING_DELAY_US {
+        return Err(usage(format!(
+            "--processing-delay-us {} out of range (allowed: 0..={MAX_PROCESSING_DELAY_US})",
+            args.processing_delay_us
         )));
     }
     let wire_faults =
@@ -157,6 +175,23 @@ pub(crate) fn run(args: &Args) -> anyhow::Result<()> {
     let mut bus = WhjBus::with_configs(configs, args.seed);
     if args.end_board {
         bus = bus.with_end_board();
+    }
+    if dry_run {
+        // A dry run opens nothing: no bus joined, no socket.
+        let ids: Vec<String> = args.joints.0.iter().map(u8::to_string).collect();
+        crate::output::print(&format!(
+            "# would serve {} simulated {} joint(s) [{}] on {}{}; nothing opened\n",
+            ids.len(),
+            args.model,
+            ids.join(","),
+            args.bus.describe(),
+            if args.end_board {
+                ", with an end board"
+            } else {
+                ""
+            }
+        ))?;
+        return Ok(());
     }
     let mut link = args.bus.open()?;
     if let Some(faults) = wire_faults {

@@ -436,3 +436,38 @@ fn a_huge_value_is_named_not_echoed_whole() {
     assert!(r.stderr.contains("(100002 characters)"), "{}", r.stderr);
     assert!(r.stdout.is_empty());
 }
+
+#[test]
+fn simulator_values_have_ranges() {
+    refused(
+        &["sim", "whj", "--bus", "udp", "--current-noise-ma", "1e308"],
+        &["--current-noise-ma", "allowed: 0..=10000"],
+    );
+    refused(
+        &["sim", "whj", "--bus", "udp", "--initial-deg", "400"],
+        &["--initial-deg 400", "allowed: -360..=360"],
+    );
+}
+
+#[test]
+fn a_dry_run_of_a_simulator_opens_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("wck0");
+    let r = robobus(&[
+        "--dry-run",
+        "sim",
+        "wck",
+        "--servos",
+        "0-5",
+        "--link",
+        link.to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, Some(0), "{r:#?}");
+    assert!(r.stdout.contains("would serve 6 simulated wCK"), "{r:#?}");
+    assert!(!link.exists(), "a dry run made the link");
+    // (The UDP bus is multicast: a dry run must not join it, here in the machine's own
+    // network namespace.)
+    let r = robobus(&["--dry-run", "sim", "whj", "--bus", "udp", "--joints", "1-7"]);
+    assert_eq!(r.code, Some(0), "{r:#?}");
+    assert!(r.stdout.contains("nothing opened"), "{r:#?}");
+}
