@@ -510,12 +510,25 @@ fn missing_text(f: &robobus::ops::Failure) -> &'static str {
     }
 }
 
+/// The first failure of a sample that is the link's, not a device's (a capture file
+/// that cannot be written, a bus that went away): it ends the monitor, naming the cause,
+/// instead of marking every later sample missing.
+fn link_failure<'a, I: 'a, T: 'a>(
+    results: impl IntoIterator<Item = &'a robobus::ops::DeviceResult<I, T>>,
+) -> Option<String> {
+    results
+        .into_iter()
+        .filter_map(robobus::ops::DeviceResult::failure)
+        .find(|f| f.kind == robobus::ErrorKind::Link)
+        .map(|f| f.error.clone())
+}
+
 fn sample_whj(
     bus: &JointBus,
     joints: &[(usize, JointId)],
     broadcast: bool,
     channels: &mut [Channel],
-) {
+) -> Option<String> {
     let ids: Vec<JointId> = joints.iter().map(|(_, id)| *id).collect();
     let results = if broadcast {
         let Ok(r) = robobus::ops::whj::sample_broadcast(bus, &ids) else {
@@ -525,12 +538,15 @@ fn sample_whj(
                     c.missed("not sent");
                 }
             }
-            return;
+            return None;
         };
         r
     } else {
         robobus::ops::whj::sample(bus, &ids)
     };
+    if let Some(e) = link_failure(&results) {
+        return Some(e);
+    }
     for (&(i, _), r) in joints.iter().zip(&results) {
         let Some(c) = channels.get_mut(i) else {
             continue;
@@ -550,6 +566,7 @@ fn sample_whj(
             (None, None) => c.missed("no reply"),
         }
     }
+    None
 }
 
 fn sample_sim(arm: &robobus::demo::SimArm, channels: &mut [Channel]) {
@@ -581,8 +598,12 @@ fn sample_wck(
     sampler: &mut WckSampler,
     now: f64,
     channels: &mut [Channel],
-) {
-    for (c, r) in channels.iter_mut().zip(sampler.sample(bus, now)) {
+) -> Option<String> {
+    let results = sampler.sample(bus, now);
+    if let Some(e) = link_failure(&results) {
+        return Some(e);
+    }
+    for (c, r) in channels.iter_mut().zip(results) {
         match r.value() {
             Some(st) => {
                 c.position = Some(st.position_deg);
@@ -594,6 +615,7 @@ fn sample_wck(
             None => c.missed("no reply"),
         }
     }
+    None
 }
 
 fn sample_robot(sampler: &mut RobotSampler, now: f64, channels: &mut [Channel]) {
@@ -616,21 +638,34 @@ fn sample_robot(sampler: &mut RobotSampler, now: f64, channels: &mut [Channel]) 
     }
 }
 
-fn sample(srcs: &mut [Source], d: &mut Dashboard) {
+fn sample(srcs: &mut [Source], d: &mut Dashboard) -> anyhow::Result<()> {
     for src in srcs {
-        match src {
+        let failed = match src {
             Source::Whj {
                 bus,
                 joints,
                 broadcast,
             } => sample_whj(bus, joints, *broadcast, &mut d.channels),
-            Source::Sim(arm) => sample_sim(arm, &mut d.channels),
+            Source::Sim(arm) => {
+                sample_sim(arm, &mut d.channels);
+                None
+            }
             Source::Wck { bus, sampler } => sample_wck(bus, sampler, d.t, &mut d.channels),
-            Source::Robot(sampler) => sample_robot(sampler, d.t, &mut d.channels),
+            Source::Robot(sampler) => {
+                sample_robot(sampler, d.t, &mut d.channels);
+                None
+            }
+        };
+        if let Some(e) = failed {
+            return Err(anyhow::anyhow!(
+                "monitor stopped after {} sample(s): {e}",
+                d.samples
+            ));
         }
     }
     d.samples += 1;
     d.push_history();
+    Ok(())
 }
 
 /// Restores the terminal when dropped (also on errors and panics in the loop).
@@ -938,7 +973,7 @@ fn watch(srcs: &mut [Source], mut d: Dashboard, args: &Args, out: Output) -> any
         if args.duration.is_some_and(|limit| d.t >= limit) {
             break;
         }
-        sample(srcs, &mut d);
+        sample(srcs, &mut d)?;
         if let Some(f) = &mut csv {
             writeln!(f, "{}", d.csv_row())?;
             if d.samples.is_multiple_of(16) {

@@ -119,3 +119,29 @@ fn monitor_ends_when_its_terminal_hangs_up() {
         std::thread::sleep(Duration::from_millis(50));
     }
 }
+
+/// A capture file on a full disk ends the monitor naming the cause ("No space left on
+/// device"), exit 1, instead of marking every sample a bad reply. The full disk is a
+/// 16 KiB tmpfs in a private mount namespace (`unshare -m`, as root).
+#[test]
+fn a_capture_on_a_full_disk_ends_the_monitor_naming_the_cause() {
+    let sim = common::WckSim::start("0-1", &[]);
+    let dir = tempfile::tempdir().unwrap();
+    let mnt = dir.path().join("full");
+    std::fs::create_dir(&mnt).unwrap();
+    let script = format!(
+        "mount -t tmpfs -o size=16k robobus-full {mnt} && exec {bin} monitor --port {port} \
+         --servos 0-1 --rate-hz 200 --duration 20 --json --capture {mnt}/c.log",
+        mnt = mnt.display(),
+        bin = env!("CARGO_BIN_EXE_robobus"),
+        port = sim.port(),
+    );
+    let out = std::process::Command::new("unshare")
+        .args(["-m", "sh", "-c", &script])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("No space left on device"), "{err}");
+    assert!(err.contains("capture"), "{err}");
+}
