@@ -358,10 +358,24 @@ pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
     );
 
     serve_until_stopped(&endpoint, &mut schedule, opened_at, &stop);
-    let eeproms: Option<Vec<Eeprom>> = endpoint.with_bus(|bus| bus.eeproms());
-    let stats = endpoint.stop();
+    // The serving thread may be inside an injected delay (--delay-ms up to 10 s): Ctrl-C
+    // is answered within STOP_WAIT all the same; the process then ends without it.
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let eeproms: Option<Vec<Eeprom>> = endpoint.with_bus(|bus| bus.eeproms());
+        let _ = tx.send((eeproms, endpoint.stop()));
+    });
+    let stopped = rx.recv_timeout(STOP_WAIT);
     // After the pty is closed; removed only if it still points to our pty.
     drop(symlink);
+    let Ok((eeproms, stats)) = stopped else {
+        eprintln!(
+            "robobus sim wck: stopped while an injected delay was pending (after {} ms); \
+             statistics and the EEPROM file were not written",
+            STOP_WAIT.as_millis()
+        );
+        return Ok(());
+    };
     let stats = stats?;
     if let (Some(path), Some(eeproms)) = (&args.eeprom_file, eeproms) {
         Eeprom::save(&eeproms, path)?;
@@ -369,6 +383,9 @@ pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
     report(&stats);
     Ok(())
 }
+
+/// How long a stop waits for the serving thread before the process ends without it.
+const STOP_WAIT: Duration = Duration::from_millis(500);
 
 /// The wire faults (if any) and the device faults, validated.
 fn faults_of(args: &Args, ids: &[u8]) -> anyhow::Result<(Option<FaultConfig>, Vec<DeviceFault>)> {

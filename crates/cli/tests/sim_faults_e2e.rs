@@ -12,6 +12,8 @@
 #![allow(clippy::unwrap_used, clippy::panic, clippy::print_stdout)] // test code
 #![cfg(target_os = "linux")]
 
+mod common;
+
 use std::io::{BufRead as _, BufReader};
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
@@ -201,4 +203,23 @@ fn inner_sim_whj_faults() {
         "{text}"
     );
     println!("SIM WHJ FAULTS OK");
+}
+
+/// Ctrl-C stops a simulator at once even inside a long injected delay (it took 19.8 s).
+#[test]
+fn ctrl_c_stops_the_wck_simulator_inside_a_long_injected_delay() {
+    let mut sim = common::WckSim::start("0", &["--delay", "1", "--delay-ms", "10000"]);
+    // Traffic, so that the serving thread is inside a 10 s delay.
+    let r = common::robobus(&[
+        "wck",
+        "--port",
+        sim.port(),
+        "--reply-margin",
+        "50",
+        "status",
+        "0",
+    ]);
+    assert_ne!(r.code, Some(0), "{r:#?}");
+    let took = sim.interrupt(std::time::Duration::from_secs(8));
+    assert!(took < std::time::Duration::from_secs(2), "{took:?}");
 }

@@ -110,6 +110,22 @@ impl WckSim {
     pub(crate) fn port(&self) -> &str {
         self.link.to_str().unwrap()
     }
+
+    /// Sends SIGINT and returns how long the simulator took to exit (at most `limit`).
+    pub(crate) fn interrupt(&mut self, limit: Duration) -> Duration {
+        let start = Instant::now();
+        let _ = Command::new("kill")
+            .arg("-INT")
+            .arg(self.child.id().to_string())
+            .status();
+        while start.elapsed() < limit {
+            if let Ok(Some(_)) = self.child.try_wait() {
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        start.elapsed()
+    }
 }
 
 impl Drop for WckSim {
