@@ -141,8 +141,13 @@ pub fn poll(
     python: Option<&std::path::Path>,
 ) -> Result<PollResult, BenchError> {
     let rig = Rig::open(spec.servos, spec.baud, spec.timing())?;
-    let mut bus =
-        WckBus::new(rig.slave, spec.baud).map_err(|e| BenchError::new("opening WckBus", e))?;
+    let mut bus = WckBus::new(rig.slave, spec.baud)
+        .map_err(|e| BenchError::new("opening WckBus", e))?
+        .with_config(WckConfig {
+            // The simulated modules answer as soon as the command ends.
+            min_turnaround: (!spec.manual_turnaround).then_some(Duration::ZERO),
+            ..WckConfig::default()
+        });
     let ids: Vec<ServoId> = (0..spec.servos)
         .map(|i| ServoId::new(i).unwrap_or(ServoId::MAX))
         .collect();

@@ -6,7 +6,7 @@
 //! error in its chain ([`Exit::of_kind`], one `match`). Anything else is a runtime error (1).
 //! Errors from clap's own parsing exit with 2 as well (clap's convention).
 
-use std::fmt;
+use std::fmt::{self, Write as _};
 
 use robobus::ops::OpError;
 use robobus::wck::WckError;
@@ -89,7 +89,7 @@ pub(crate) fn cut_long(text: &str) -> String {
         let chars = w.chars().count();
         if chars > LONGEST_ECHO {
             out.extend(w.chars().take(LONGEST_ECHO / 2));
-            out.push_str(&format!("…({chars} characters)"));
+            let _ = write!(out, "…({chars} characters)");
         } else {
             out.push_str(w);
         }

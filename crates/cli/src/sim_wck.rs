@@ -17,7 +17,7 @@ use std::ops::RangeInclusive;
 use anyhow::Context as _;
 use robobus::ops::capture::{Overwrite, capture_device_byte_link};
 use robobus_link::{
-    ByteLink, FaultConfig, FaultyByteLink, LinkError, PtyOptions, PtyPair, PtySymlink,
+    ByteLink, FaultConfig, FaultyByteLink, LinkError, PtyLink, PtyOptions, PtyPair, PtySymlink,
 };
 use robobus_sim::faults::{DeviceFault, DeviceFaultKind, FaultSchedule};
 use robobus_sim::wck::{Bus, BusConfig, Eeprom, Endpoint, Model, Timing};
@@ -245,6 +245,63 @@ fn duration_of(name: &str, value: f64, unit: f64) -> anyhow::Result<Duration> {
     })
 }
 
+/// What a dry run prints: the bus it would serve; nothing is opened.
+fn print_dry_run(args: &Args, ids: &[u8]) -> anyhow::Result<()> {
+    // A dry run opens nothing: no pty, no link, no EEPROM file written.
+    let ids: Vec<String> = ids.iter().map(u8::to_string).collect();
+    crate::output::print(&format!(
+        "# would serve {} simulated wCK {} servo(s) [{}] at {} bit/s on a new pty{}; \
+         nothing opened\n",
+        ids.len(),
+        args.model,
+        ids.join(","),
+        args.baud,
+        args.link
+            .as_ref()
+            .map(|l| format!(" linked from {}", l.display()))
+            .unwrap_or_default()
+    ))
+}
+
+/// Starts the thread that serves `bus` on the pty master, through the wire faults and the
+/// capture when asked for.
+fn spawn_endpoint(
+    bus: Bus,
+    master: PtyLink,
+    slave_path: &std::path::Path,
+    wire_faults: Option<FaultConfig>,
+    capture: Option<&std::path::Path>,
+) -> anyhow::Result<Endpoint> {
+    Ok(match (wire_faults, capture) {
+        (None, None) => Endpoint::spawn(bus, master, slave_path.to_path_buf())?,
+        (faults, capture) => {
+            // Wire faults through the link layer's seeded fault injector, both directions;
+            // the capture sees what the simulated servos received and sent.
+            let termios = master.as_fd().try_clone_to_owned()?;
+            let mut link: Box<dyn ByteLink + Send> = Box::new(master);
+            if let Some(faults) = faults {
+                link = Box::new(FaultyByteLink::new(link, faults));
+            }
+            if let Some(path) = capture {
+                link = Box::new(capture_device_byte_link(link, path, Overwrite::No)?);
+            }
+            Endpoint::spawn_link(bus, link, Some(termios), slave_path.to_path_buf())?
+        }
+    })
+}
+
+/// The manual's timing with the turnaround and EEPROM write time asked for.
+fn timing_of(args: &Args) -> anyhow::Result<Timing> {
+    let mut timing = Timing::MANUAL;
+    if let Some(us) = args.turnaround_us {
+        timing.turnaround = duration_of("turnaround-us", us, 1e-6)?;
+    }
+    if let Some(ms) = args.eeprom_ms {
+        timing.eeprom_write = duration_of("eeprom-ms", ms, 1e-3)?;
+    }
+    Ok(timing)
+}
+
 /// Serves the simulated bus until interrupted.
 pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
     let ids = parse_ids(&args.servos)?;
@@ -254,13 +311,7 @@ pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
         .map_err(|e| usage(format!("--model: {e}")))?;
     let baud =
         BaudRate::from_bits_per_second(args.baud).map_err(|e| usage(format!("--baud: {e}")))?;
-    let mut timing = Timing::MANUAL;
-    if let Some(us) = args.turnaround_us {
-        timing.turnaround = duration_of("turnaround-us", us, 1e-6)?;
-    }
-    if let Some(ms) = args.eeprom_ms {
-        timing.eeprom_write = duration_of("eeprom-ms", ms, 1e-3)?;
-    }
+    let timing = timing_of(args)?;
     let (wire_faults, device) = faults_of(args, &ids)?;
     if let Some(link) = &args.link {
         check_link_path(link)?;
@@ -286,21 +337,7 @@ pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
     let mut schedule = FaultSchedule::new(device).shifted(opened_at);
 
     if dry_run {
-        // A dry run opens nothing: no pty, no link, no EEPROM file written.
-        let ids: Vec<String> = ids.iter().map(u8::to_string).collect();
-        crate::output::print(&format!(
-            "# would serve {} simulated wCK {} servo(s) [{}] at {} bit/s on a new pty{}; \
-             nothing opened\n",
-            ids.len(),
-            args.model,
-            ids.join(","),
-            args.baud,
-            args.link
-                .as_ref()
-                .map(|l| format!(" linked from {}", l.display()))
-                .unwrap_or_default()
-        ))?;
-        return Ok(());
+        return print_dry_run(args, &ids);
     }
     let pair = PtyPair::open(&PtyOptions {
         baud: args.baud,
@@ -310,22 +347,13 @@ pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
     let slave_path = pair.slave_path.clone();
     // The endpoint keeps its own slave descriptor; clients open the path.
     drop(pair.slave);
-    let endpoint = match (wire_faults, &args.capture) {
-        (None, None) => Endpoint::spawn(bus, pair.master, slave_path.clone()),
-        (faults, capture) => {
-            // Wire faults through the link layer's seeded fault injector, both directions;
-            // the capture sees what the simulated servos received and sent.
-            let termios = pair.master.as_fd().try_clone_to_owned()?;
-            let mut link: Box<dyn ByteLink + Send> = Box::new(pair.master);
-            if let Some(faults) = faults {
-                link = Box::new(FaultyByteLink::new(link, faults));
-            }
-            if let Some(path) = capture {
-                link = Box::new(capture_device_byte_link(link, path, Overwrite::No)?);
-            }
-            Endpoint::spawn_link(bus, link, Some(termios), slave_path.clone())
-        }
-    }
+    let endpoint = spawn_endpoint(
+        bus,
+        pair.master,
+        &slave_path,
+        wire_faults,
+        args.capture.as_deref(),
+    )
     .context("starting the simulator thread")?;
     // The servos listen now: only now does the stable path appear.
     let symlink = match &args.link {

@@ -108,7 +108,6 @@ fn parse_bus(s: &str) -> Result<FrameLinkSpec, String> {
         .map_err(|e: robobus_link::SpecError| e.to_string())
 }
 
-/// Serves the simulated bus until interrupted.
 /// Largest current noise a simulated joint takes, mA (ten amperes of noise is no joint).
 const MAX_CURRENT_NOISE_MA: f64 = 10_000.0;
 
@@ -116,7 +115,8 @@ const MAX_CURRENT_NOISE_MA: f64 = 10_000.0;
 /// millisecond; 100 ms is already a dead one).
 const MAX_PROCESSING_DELAY_US: u64 = 100_000;
 
-pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
+/// Refuses a noise, start angle or delay no joint has, before anything is opened.
+fn check_ranges(args: &Args) -> anyhow::Result<()> {
     if !(args.current_noise_ma.is_finite()
         && (0.0..=MAX_CURRENT_NOISE_MA).contains(&args.current_noise_ma))
     {
@@ -140,6 +140,12 @@ pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
             args.processing_delay_us
         )));
     }
+    Ok(())
+}
+
+/// Serves the simulated bus until interrupted.
+pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
+    check_ranges(args)?;
     let wire_faults =
         args.faults
             .config(args.seed, ("drop", args.drop), ("corrupt", args.corrupt))?;

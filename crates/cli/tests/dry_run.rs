@@ -394,10 +394,10 @@ fn whj_wave_from_plans_the_step_limiter_from_that_angle() {
         let v: serde_json::Value = serde_json::from_str(&ok(&args)).unwrap();
         v
     };
-    let from_0 = first_target(&[]);
-    assert!(from_0.to_string().contains("assumed 0 deg"), "{from_0}");
-    let from_30 = first_target(&["--from", "30"]);
-    assert!(!from_30.to_string().contains("assumed"), "{from_30}");
+    let at_zero = first_target(&[]);
+    assert!(at_zero.to_string().contains("assumed 0 deg"), "{at_zero}");
+    let at_thirty = first_target(&["--from", "30"]);
+    assert!(!at_thirty.to_string().contains("assumed"), "{at_thirty}");
     // The limiter starts at 30 deg and steps towards the wave (at 0 deg at t = 0).
-    assert_ne!(from_0["frames"], from_30["frames"]);
+    assert_ne!(at_zero["frames"], at_thirty["frames"]);
 }

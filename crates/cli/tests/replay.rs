@@ -5,6 +5,7 @@
 
 mod common;
 
+use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use common::robobus;
@@ -171,9 +172,10 @@ fn a_byte_order_mark_a_symlink_loop_and_a_closed_pipe_are_handled() {
     assert!(r.stderr.contains("symbolic links"), "{r:#?}");
     // A reader that stops reading (`| head`) ends the replay quietly.
     let big = dir.path().join("big.log");
-    let text: String = (1..=20_000)
-        .map(|i| format!("(100.{i:06}) can0 601##1\n"))
-        .collect();
+    let mut text = String::new();
+    for i in 1..=20_000 {
+        writeln!(text, "(100.{i:06}) can0 601##1").unwrap();
+    }
     std::fs::write(&big, text).unwrap();
     let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_robobus"))
         .args(["replay", big.to_str().unwrap()])

@@ -29,12 +29,12 @@
 //! |---|---|---|---|
 //! | `wck.scan` | `ids`="0-30", `all_bauds` | found servos; summary: scan report | - |
 //! | `wck.status` | `ids` | id, load, position, degrees | - |
-//! | `wck.move` | `id`, `position` (0..=254), `torque` (0..=4) | load_before, position_before | - |
+//! | `wck.move` | `id`, `position` (0..=254), `torque` (0..=4) | `load_before`, `position_before` | - |
 //! | `wck.move10` | `id` (0..=253), `position` (0..=1023), `torque` (0..=254) | reply fields | - |
 //! | `wck.read10` | `id` | position10 | - |
 //! | `wck.sync-move` | `positions` [0..=254], `torque` | (no reply) | - |
 //! | `wck.passive` | `ids` | position | - |
-//! | `wck.wheel` | `id`, `direction` (ccw/cw), `speed` (0..=15), `duration` s, `on_stop` | wheel fields, ran_ms | - |
+//! | `wck.wheel` | `id`, `direction` (ccw/cw), `speed` (0..=15), `duration` s, `on_stop` | wheel fields, `ran_ms` | - |
 //! | `wck.brake` | - | break fields | - |
 //! | `wck.get` | `param` (gains, i-gain, speed, overload, bounds, io), `id` | the parameter | - |
 //! | `wck.set` | `param`, `id`, `p` `d` / `i` / `speed` `accel` / `milliamps` / `lower` `upper` / `outputs`, `runtime` | read-back | EEPROM unless runtime |
@@ -45,7 +45,7 @@
 //! | `wck.program.check` | `id`, `program` | summary: instructions, upload packet (nothing sent) | - |
 //! | `wck.teach` | `ids` 0..N-1, `rate_hz` (0.1..=200), `duration` s (0.1..=3600), `torque`, `on_stop` | summary: poses | - |
 //! | `wck.play` | `motion` (keyframe text), `rate_hz`=50, `on_stop` | summary: play report | - |
-//! | `wck.sample` | `ids` | position_deg, speed_deg_s, load | - |
+//! | `wck.sample` | `ids` | `position_deg`, `speed_deg_s`, `load` | - |
 //! | `whj.scan` | `joints`="1-30" | identity per joint; summary: duplicates | - |
 //! | `whj.info` | `joint` | identity, unique ID, limits, status | - |
 //! | `whj.status` | `joints`, `broadcast`, `end_board` | status per joint (and `end-board`) | - |

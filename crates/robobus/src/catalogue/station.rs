@@ -330,7 +330,7 @@ fn pick<T: Clone>(
 #[cfg(unix)]
 fn open_wck(port: &str, baud: BaudRate) -> Result<WckBus<DynByteLink>, OpError> {
     let bus = WckBus::open(port, baud)?;
-    Ok(bus.try_map_link(|l| Ok::<_, OpError>(Box::new(l) as DynByteLink))?)
+    bus.try_map_link(|l| Ok::<_, OpError>(Box::new(l) as DynByteLink))
 }
 
 #[cfg(not(unix))]

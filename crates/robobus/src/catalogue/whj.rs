@@ -224,7 +224,7 @@ request!(
         mode: WaveMode,
         /// Amplitude, >= 0.
         amplitude: f64,
-        /// Hz, 0.01..=20 and at most rate_hz / 4.
+        /// Hz, 0.01..=20 and at most `rate_hz` / 4.
         #[serde(default = "d05")]
         frequency: f64,
         /// Offset.

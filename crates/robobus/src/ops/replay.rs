@@ -512,13 +512,14 @@ impl<R: BufRead> Replay<R> {
     fn fill(&mut self) -> Result<(), OpError> {
         while self.out.is_empty() && !self.done {
             match self.format {
-                Format::Candump => match self.next_line()? {
-                    Some((n, text)) => self.candump_line(n, &text),
-                    None => {
+                Format::Candump => {
+                    if let Some((n, text)) = self.next_line()? {
+                        self.candump_line(n, &text);
+                    } else {
                         self.out.extend(self.whj.finish());
                         self.done = true;
                     }
-                },
+                }
                 Format::Hex => self.hex_step()?,
             }
         }

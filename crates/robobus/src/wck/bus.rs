@@ -84,6 +84,12 @@ pub struct WckConfig {
     /// later still fall before the next command's earliest reply instant and fail that
     /// attempt instead (see [`WckBus::reply_wait`]).
     pub guard: Duration,
+    /// The earliest a module begins to answer after a command's last byte; bytes that
+    /// come sooner cannot be its reply (see [`robobus_wck::timing::earliest_reply`]).
+    /// `None` (the default): the manual's turnaround for the command (1006.6 µs, 121 ms
+    /// for EEPROM writes). Set it lower only for modules that answer faster, such as a
+    /// simulator without processing time.
+    pub min_turnaround: Option<Duration>,
 }
 
 impl Default for WckConfig {
@@ -95,6 +101,7 @@ impl Default for WckConfig {
             settle: DEFAULT_SETTLE,
             late_window: DEFAULT_LATE_WINDOW,
             guard: DEFAULT_GUARD,
+            min_turnaround: None,
         }
     }
 }
@@ -524,7 +531,14 @@ impl<L: ByteLink> WckBus<L> {
         self.stats.attempts += 1;
         let deadline = start + wait;
         self.deadline = Some(deadline);
-        let earliest = start + timing::earliest_reply(command, self.baud);
+        let earliest = start
+            + match self.config.min_turnaround {
+                Some(t) if command.reply_len() > 0 => {
+                    timing::wire_time(command.encoded_len(), self.baud)
+                        .saturating_add(t.min(timing::turnaround(command)))
+                }
+                _ => timing::earliest_reply(command, self.baud),
+            };
         let reply_len = command.reply_len();
         let guard = self.config.guard;
         let mut kept: Vec<u8> = Vec::with_capacity(reply_len);

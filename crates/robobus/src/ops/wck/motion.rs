@@ -617,8 +617,13 @@ mod limits {
             let m = Motion::parse(&text).unwrap();
             let ids: Vec<ServoId> = (0..3).map(|i| ServoId::new(i).unwrap()).collect();
             prop_assert_eq!(&Motion::parse(&m.to_text(&ids)).unwrap(), &m);
-            let last = m.moves(rate).last().unwrap();
-            let Command::SyncMove(s) = last.command else { panic!() };
+            // The last move (a watch read may follow it).
+            let last = m
+                .moves(rate)
+                .filter(|s| matches!(s.command, Command::SyncMove(_)))
+                .last()
+                .unwrap();
+            let Command::SyncMove(s) = last.command else { unreachable!() };
             let want: Vec<u8> = poses.last().unwrap().1.clone();
             prop_assert_eq!(s.positions().iter().map(|p| p.get()).collect::<Vec<_>>(), want);
             prop_assert_eq!(m.plan(rate).steps.len(), m.moves(rate).count());
