@@ -1162,6 +1162,34 @@ fn implausible_readings_are_failures_in_status_and_samples() {
     assert_eq!(robobus::ops::worst_kind(&r), Some(ErrorKind::Device));
 }
 
+/// `whj read` of the actual position or speed applies the same rule: an implausible value is
+/// a device failure naming it, never a row; other registers are reported as read.
+#[test]
+fn implausible_register_reads_of_position_and_speed_are_failures() {
+    let (link, _sim) = sim_link(chain(1));
+    let link = OnReceive(link, |r: &mut Received| {
+        let d = r.frame.data();
+        if r.frame.raw_id() == 0x101 && d.len() >= 6 && d[0] == 0x01 && matches!(d[1], 0x12 | 0x14)
+        {
+            let mut data = d.to_vec();
+            data[2..6].copy_from_slice(&[0xFF, 0xFF, 0xFF, 0x7F]);
+            r.frame = CanFrame::new_fd(r.frame.id(), &data).unwrap();
+        }
+    });
+    let bus = JointBus::open_with(link, config()).unwrap();
+    for name in ["CUR_POSITION", "CUR_SPEED"] {
+        let info = robobus_whj::RegisterInfo::by_name(name).unwrap();
+        let e = ops::read_registers(&bus, id(1), info.addr, None).unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::Device, "{name}: {e}");
+        assert!(e.to_string().contains("implausible"), "{name}: {e}");
+        // Raw words are what they are: reported, not judged.
+        let r = ops::read_registers(&bus, id(1), info.addr, Some(2)).unwrap();
+        assert_eq!(r.len(), 2, "{name}");
+    }
+    let info = robobus_whj::RegisterInfo::by_name("SYS_ID").unwrap();
+    assert!(ops::read_registers(&bus, id(1), info.addr, None).is_ok());
+}
+
 /// Implausible broadcast feedback stops a broadcast wave as a device failure: it never
 /// enters the tracking figures.
 #[test]

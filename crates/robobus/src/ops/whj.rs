@@ -493,16 +493,18 @@ pub fn reading_fault(
              the reading is implausible"
         ));
     }
-    if let Some((rpm, model)) = speed
-        && let Some(peak) = model.peak_output_speed_rpm()
-        && !(rpm.is_finite() && rpm.abs() <= peak * SPEED_SLACK)
-    {
-        return Some(format!(
+    speed.and_then(|(rpm, model)| speed_fault(rpm, model))
+}
+
+/// The speed half of [`reading_fault`].
+fn speed_fault(rpm: f64, model: robobus_whj::units::Model) -> Option<String> {
+    let peak = model.peak_output_speed_rpm()?;
+    (!(rpm.is_finite() && rpm.abs() <= peak * SPEED_SLACK)).then(|| {
+        format!(
             "speed {rpm:.3} RPM is beyond {SPEED_SLACK} times its peak output speed of {peak} \
              RPM ({model}): the reading is implausible"
-        ));
-    }
-    None
+        )
+    })
 }
 
 /// Checks a reading of joint `j` with [`reading_fault`], against the position limits the
@@ -1522,10 +1524,31 @@ pub fn read_registers(
     let info = robobus_whj::RegisterInfo::by_addr(addr);
     if let (Some(info), None) = (info, count) {
         let v = j.read_register(info.name).map_err(whj)?;
+        check_register_reading(&j, &v)?;
         return Ok(vec![register_report(&v)]);
     }
     let words = j.read_words(addr, count.unwrap_or(1)).map_err(whj)?;
     Ok(word_reports(addr, &words))
+}
+
+/// The plausibility rule ([`reading_fault`]) for a register read by name: the actual
+/// position (`CUR_POSITION`) against the joint's limits, the actual speed (`CUR_SPEED`)
+/// against its model's peak. Other registers are reported as read.
+fn check_register_reading(j: &Joint<'_>, v: &crate::whj::RegisterValue) -> Result<(), OpError> {
+    use robobus_whj::registers::addr as reg;
+    let Some(value) = v.value else {
+        return Ok(());
+    };
+    if v.info.addr == reg::CUR_POSITION {
+        check_reading(j, value, None)
+    } else if v.info.addr == reg::CUR_SPEED
+        && let Some(model) = j.identity().ok().map(|i| i.model)
+        && let Some(fault) = speed_fault(value, model)
+    {
+        Err(OpError::Device(format!("joint {}: {fault}", j.id().get())))
+    } else {
+        Ok(())
+    }
 }
 
 /// Raw words read from `addr` on, one report each (named where the table names them).
