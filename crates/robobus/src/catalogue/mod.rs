@@ -1,5 +1,6 @@
 //! The catalogue: one request type for every device operation of both families, one
-//! dispatcher, a station of open buses, and a telemetry stream.
+//! dispatcher and a station of open buses (the telemetry stream that front ends subscribe
+//! to is not built yet: `robobus monitor` samples on its own).
 //!
 //! A [`Request`] is plain data: the CLI's arguments, a JSON document from a web page or a
 //! pub/sub bridge, or Python keyword arguments all become one. [`plan`] turns it into the
@@ -80,7 +81,6 @@ pub mod bounds;
 mod dispatch;
 pub mod plan;
 pub mod station;
-pub mod telemetry;
 pub mod wck;
 pub mod whj;
 

@@ -1,1 +1,0 @@
-//! The telemetry stream (placeholder module; see the stream below).

@@ -1,0 +1,232 @@
+//! The catalogue: requests parse from their documented JSON and back, are planned and run on
+//! a station of simulated buses, and a request out of range, with an unknown field or
+//! needing a confirmation it lacks is refused with its kind before anything is sent.
+//! On the simulators' virtual clocks.
+
+#![allow(
+    clippy::unwrap_used,
+    clippy::panic,
+    clippy::result_large_err,
+    clippy::many_single_char_names
+)]
+
+use robobus::catalogue::bounds::ConfirmClass;
+use robobus::catalogue::{self, ErrorKind, Request, Station, WckPort, WhjPort};
+use robobus::ops::Control;
+use robobus::wck::WckBus;
+use robobus::whj::{JointBus, JointBusConfig};
+use robobus_link::ByteLink as _;
+use robobus_sim::wck::{Bus, BusConfig, Model, SimLink};
+use robobus_sim::whj::{WhjBus, WhjModel, WhjSimLink};
+use robobus_wck::BaudRate;
+
+/// The station and the handles are shared by a server's threads.
+const _: () = {
+    const fn send_sync<T: Send + Sync>() {}
+    send_sync::<Station>();
+    send_sync::<WckPort>();
+    send_sync::<WhjPort>();
+    send_sync::<Request>();
+};
+
+/// 3 wCK servos (0..=2) and 2 WHJ joints (1, 2) on the virtual clocks, and the handles
+/// that keep the simulators.
+fn station() -> (Station, WckPort, WhjPort) {
+    let (mut link, sim) =
+        SimLink::virtual_clock(Bus::with_servos(BusConfig::default(), Model::W1108, 0..3));
+    let now = link.now();
+    link.sleep_until(now + std::time::Duration::from_millis(100));
+    let wck = WckBus::new(
+        Box::new(link) as robobus::robot::DynByteLink,
+        BaudRate::B115200,
+    )
+    .unwrap();
+    let (whj_link, whj_sim) = WhjSimLink::new(WhjBus::chain(1..=2, WhjModel::Whj30, 11));
+    let whj = JointBus::open_with(whj_link, JointBusConfig::default()).unwrap();
+    let mut s = Station::new();
+    let w = s.add_wck("arm-wck", wck);
+    let j = s.add_whj("arm-whj", whj);
+    s.keep(Box::new(std::sync::Mutex::new(sim)));
+    s.keep(Box::new(std::sync::Mutex::new(whj_sim)));
+    (s, w, j)
+}
+
+fn parse(json: &str) -> Request {
+    let mut r = Request::parse_many(json).unwrap_or_else(|e| panic!("{json}: {e}"));
+    assert_eq!(r.len(), 1);
+    r.remove(0)
+}
+
+fn run(s: &Station, json: &str) -> Result<catalogue::Report, robobus::ops::OpError> {
+    catalogue::run(s, &parse(json), &mut Control::none())
+}
+
+/// What went out so far: wCK packets written, WHJ frames sent.
+fn sent(w: &WckPort, j: &WhjPort) -> (u64, u64) {
+    (
+        w.lock().stats().attempts,
+        j.bus().telemetry().bus.frames_sent,
+    )
+}
+
+#[test]
+fn the_documented_requests_parse_and_serialise_back_equal() {
+    for json in [
+        r#"{"op": "wck.status", "ids": "0-2"}"#,
+        r#"{"op": "whj.move", "joint": 1, "degrees": 30, "max_speed": 20}"#,
+        r#"{"op": "whj.write", "joints": "1", "register": "SYS_ID", "value": 2, "confirm": true}"#,
+        r#"{"op": "wck.status", "ids": [0, 1]}"#,
+        r#"{"op": "whj.status", "joints": "1-7", "broadcast": true}"#,
+    ] {
+        let r = parse(json);
+        let back = serde_json::to_string(&r).unwrap();
+        assert_eq!(parse(&back), r, "{json} -> {back}");
+        assert_eq!(r.op(), json.split('"').nth(3).unwrap());
+    }
+    // An array is a list of requests, in order.
+    let many = Request::parse_many(r#"[{"op": "wck.brake"}, {"op": "whj.registers"}]"#).unwrap();
+    assert_eq!(
+        many.iter().map(Request::op).collect::<Vec<_>>(),
+        ["wck.brake", "whj.registers"]
+    );
+}
+
+#[test]
+fn unknown_operations_and_fields_are_bad_input_naming_them() {
+    for (json, names) in [
+        (r#"{"op": "wck.status", "ids": "0", "idz": 1}"#, "idz"),
+        (r#"{"op": "whj.fly", "joint": 1}"#, "whj.fly"),
+        (r#"{"ids": "0"}"#, "op"),
+        (r#"[{"op": "wck.brake"}, {"op": "wck.nope"}]"#, "request 2"),
+    ] {
+        let e = Request::parse_many(json).unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::BadInput, "{json}: {e}");
+        assert!(e.to_string().contains(names), "{json}: {e}");
+    }
+}
+
+#[test]
+fn requests_out_of_range_are_refused_with_the_range_and_nothing_is_sent() {
+    let (s, w, j) = station();
+    let before = sent(&w, &j);
+    for (json, says) in [
+        (r#"{"op": "whj.move", "joint": 1, "degrees": 400}"#, "-360"),
+        (
+            r#"{"op": "whj.move", "joint": 1, "degrees": 10, "max_speed": 500}"#,
+            "180",
+        ),
+        (r#"{"op": "whj.speed", "joint": 1, "rpm": 99}"#, "37.5"),
+        (r#"{"op": "whj.status", "joints": "0"}"#, "1..=30"),
+        (
+            r#"{"op": "wck.move", "id": 3, "position": 255, "torque": 0}"#,
+            "254",
+        ),
+        (
+            r#"{"op": "wck.move", "id": 31, "position": 10, "torque": 0}"#,
+            "30",
+        ),
+    ] {
+        let r = parse(json);
+        let e = catalogue::plan(&r).unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::BadInput, "{json}: {e}");
+        assert!(e.to_string().contains(says), "{json}: {e}");
+        let e = catalogue::run(&s, &r, &mut Control::none()).unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::BadInput, "{json}: {e}");
+    }
+    assert_eq!(sent(&w, &j), before, "a refused request sent something");
+}
+
+#[test]
+fn writes_of_ids_eeprom_and_flash_need_confirm_and_without_it_nothing_is_sent() {
+    let (s, w, j) = station();
+    let before = sent(&w, &j);
+    for json in [
+        r#"{"op": "wck.set-id", "id": 1, "new_id": 5}"#,
+        r#"{"op": "wck.set", "param": "gains", "id": 1, "p": 10, "d": 5}"#,
+        r#"{"op": "whj.save", "joints": "1"}"#,
+        r#"{"op": "whj.set-id", "joint": 1, "new_id": 9}"#,
+    ] {
+        let e = run(&s, json).unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::Refused, "{json}: {e}");
+        assert!(e.to_string().contains("confirm"), "{json}: {e}");
+        // The plan says so too.
+        assert_ne!(
+            catalogue::plan(&parse(json)).unwrap().confirm,
+            ConfirmClass::None
+        );
+    }
+    assert_eq!(sent(&w, &j), before, "a refused request sent something");
+    // With confirm, the same write runs and is read back.
+    let r = run(
+        &s,
+        r#"{"op": "wck.set", "param": "gains", "id": 1, "p": 10, "d": 5, "confirm": true}"#,
+    )
+    .unwrap();
+    assert_eq!(r.failed, None, "{r:?}");
+    assert_ne!(sent(&w, &j), before);
+}
+
+#[test]
+fn reports_key_devices_by_id_for_both_families_and_mark_a_silent_one() {
+    let (s, _w, _j) = station();
+    let r = run(&s, r#"{"op": "wck.status", "ids": "0-3"}"#).unwrap();
+    assert_eq!((r.op.as_str(), r.bus.as_str()), ("wck.status", "arm-wck"));
+    let ids: Vec<_> = r.results.iter().map(|v| v["id"].clone()).collect();
+    assert_eq!(ids, [0, 1, 2, 3].map(|i| serde_json::json!(i)));
+    assert!(
+        r.results[..3].iter().all(|v| v["position"].is_u64()),
+        "{r:?}"
+    );
+    // Servo 3 does not exist: its row carries the failure, the report the worst kind.
+    assert_eq!(r.results[3]["kind"], "no-device", "{r:?}");
+    assert_eq!(r.failed_kind(), Some(ErrorKind::NoDevice));
+    let r = run(&s, r#"{"op": "whj.status", "joints": "1-3"}"#).unwrap();
+    assert_eq!(r.bus, "arm-whj");
+    let ids: Vec<_> = r.results.iter().map(|v| v["id"].clone()).collect();
+    assert_eq!(ids, [1, 2, 3].map(|i| serde_json::json!(i)));
+    assert_eq!(r.results[0]["mode"], "position", "{r:?}");
+    assert_eq!(r.results[2]["kind"], "no-device", "{r:?}");
+    assert_eq!(r.failed_kind(), Some(ErrorKind::NoDevice));
+}
+
+#[test]
+fn a_request_names_its_bus_when_the_station_has_more_than_one() {
+    let (mut s, _w, _j) = station();
+    let (link, sim) = WhjSimLink::new(WhjBus::chain(3..=3, WhjModel::Whj30, 12));
+    s.add_whj(
+        "gripper",
+        JointBus::open_with(link, JointBusConfig::default()).unwrap(),
+    );
+    s.keep(Box::new(std::sync::Mutex::new(sim)));
+    let e = run(&s, r#"{"op": "whj.status", "joints": "3"}"#).unwrap_err();
+    assert_eq!(e.kind(), ErrorKind::BadInput, "{e}");
+    let r = run(
+        &s,
+        r#"{"op": "whj.status", "joints": "3", "bus": "gripper"}"#,
+    )
+    .unwrap();
+    assert_eq!((r.bus.as_str(), r.failed.as_deref()), ("gripper", None));
+    let e = run(&s, r#"{"op": "whj.status", "joints": "3", "bus": "nope"}"#).unwrap_err();
+    assert!(e.to_string().contains("nope"), "{e}");
+}
+
+#[test]
+fn the_plan_is_what_the_run_sends() {
+    // A wCK move: the plan's packet, and the report of the move it made.
+    let r = parse(r#"{"op": "wck.move", "id": 1, "position": 200, "torque": 2}"#);
+    let plan = catalogue::plan(&r).unwrap();
+    assert_eq!(plan.steps.len(), 1, "{plan:?}");
+    let (s, w, _j) = station();
+    let before = w.lock().stats().attempts;
+    let rep = catalogue::run(&s, &r, &mut Control::none()).unwrap();
+    assert_eq!(rep.failed, None, "{rep:?}");
+    assert_eq!(w.lock().stats().attempts - before, 1);
+    // A WHJ status: one query frame per joint, as planned.
+    let r = parse(r#"{"op": "whj.status", "joints": "1-2"}"#);
+    let plan = catalogue::plan(&r).unwrap();
+    assert!(
+        plan.to_text().contains("0x601") || plan.to_text().contains("601#"),
+        "{}",
+        plan.to_text()
+    );
+}
