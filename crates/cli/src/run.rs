@@ -85,11 +85,22 @@ fn read_requests(args: &Args) -> anyhow::Result<(Vec<Request>, bool)> {
 /// Runs `robobus run`.
 pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     let (requests, many) = read_requests(args)?;
+    // Every request is checked before any is sent: bad input anywhere in a list sends
+    // nothing at all.
+    let plans = requests
+        .iter()
+        .enumerate()
+        .map(|(n, r)| {
+            catalogue::plan(r).map_err(|e| {
+                if many {
+                    anyhow::Error::new(e).context(format!("request {}", n + 1))
+                } else {
+                    e.into()
+                }
+            })
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
     if g.dry_run {
-        let plans = requests
-            .iter()
-            .map(catalogue::plan)
-            .collect::<Result<Vec<_>, _>>()?;
         if g.json {
             let v = serde_json::to_value(&plans)?;
             return output::print_json(&if many { v } else { first(v) });
@@ -140,8 +151,12 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     for f in &failures {
         eprintln!("robobus: safe stop: {f}");
     }
-    let v = Value::Array(reports);
-    output::print_json(&if many { v } else { first(v) })?;
+    // A list prints the reports of the requests that ran; a single request that failed
+    // as a whole prints none.
+    if many || !reports.is_empty() {
+        let v = Value::Array(reports);
+        output::print_json(&if many { v } else { first(v) })?;
+    }
     outcome
 }
 

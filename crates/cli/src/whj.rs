@@ -22,7 +22,7 @@ use robobus::whj::JointBusConfig;
 use robobus_link::FrameLinkSpec;
 use robobus_whj::registers::Half;
 use robobus_whj::units::CurrentScale;
-use robobus_whj::{JointId, REGISTERS, RegisterAddr, RegisterInfo, Request, WorkMode, registers};
+use robobus_whj::{JointId, REGISTERS, RegisterAddr, RegisterInfo, Request, WorkMode};
 
 use crate::Global;
 use crate::client::whj::{OnStop, WhjRun};
@@ -730,25 +730,8 @@ fn plan(args: &Args, dry_run: bool) -> anyhow::Result<WhjPlan> {
             joints.push(j);
         }
     }
-    if connects && !joints.is_empty() {
-        let each: Vec<String> = joints
-            .iter()
-            .map(|&j| {
-                let frames: Vec<String> = robobus::whj::Joint::connect_requests(j)
-                    .iter()
-                    .map(|r| crate::output::frame_line(&r.to_frame()))
-                    .collect();
-                format!("joint {}: {}", j.get(), frames.join(" "))
-            })
-            .collect();
-        p.notes.insert(
-            0,
-            format!(
-                "before these frames a real run connects each joint: its IAP release \
-                 (repeated until the joint answers), then its identity reads; {}",
-                each.join("; ")
-            ),
-        );
+    if connects && let Some(note) = robobus::catalogue::plan::connect_note(&joints) {
+        p.notes.insert(0, note);
     }
     Ok(p)
 }
@@ -919,24 +902,12 @@ fn command_plan(args: &Args, dry_run: bool) -> anyhow::Result<WhjPlan> {
         }
         WhjCommand::Registers => WhjPlan::default(),
         WhjCommand::SetId { joint, new_id } => {
+            let (frames, note) = ops::plan_set_id(*joint, *new_id)?;
             let mut p = WhjPlan::default();
-            p.push(Request::enable(*joint, false));
-            p.push(
-                Request::write(*joint, registers::addr::SYS_ID, u16::from(new_id.get()))
-                    .map_err(|e| usage(format!("set-id <NEW_ID>: {e}")))?,
-            );
-            p.push(Request::Read {
-                joint: *joint,
-                range: robobus_whj::ReadRange::new(registers::addr::SYS_ID, 1)
-                    .map_err(|e| usage(format!("set-id: {e}")))?,
-            });
-            p.push(Request::save_to_flash(*joint));
-            p.notes.push(format!(
-                "disable, write SYS_ID, read it back, save; the new ID {} applies after a power cycle \
-                 (firmware V1.1 applies it at once: the read-back and the save then go to ID {})",
-                new_id.get(),
-                new_id.get()
-            ));
+            for f in frames {
+                p.push(f);
+            }
+            p.notes.push(note);
             p
         }
         WhjCommand::Wave {

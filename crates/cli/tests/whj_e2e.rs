@@ -871,3 +871,49 @@ fn whj_e2e_broadcast_wave_and_monitor() {
     assert_eq!(r.code, Some(2), "{r:?}");
     assert!(r.stderr.contains("1..=7"), "{}", r.stderr);
 }
+
+/// `robobus run` with a request gives the report the subcommand gives with the same
+/// arguments, on the same simulated bus (rows keyed `id` there, `joint` in the CLI).
+#[test]
+fn whj_e2e_run_reports_what_the_subcommands_report() {
+    if !in_netns("whj_e2e_run_reports_what_the_subcommands_report") {
+        return;
+    }
+    let bus = "udp:239.74.163.19:43129";
+    // Without current noise: two reads of a joint at rest give the same values.
+    let sim = Sim::start(bus, &["--current-noise-ma", "0"]);
+    let dir = tempfile::tempdir().unwrap();
+    for (args, request) in [
+        (&["info", "2"][..], r#"{"op": "whj.info", "joint": 2}"#),
+        (
+            &["status", "1-3"][..],
+            r#"{"op": "whj.status", "joints": "1-3"}"#,
+        ),
+        (
+            &["read", "2", "SYS_ID"][..],
+            r#"{"op": "whj.read", "joints": "2", "register": "SYS_ID"}"#,
+        ),
+        (
+            &["status", "--broadcast", "1-7"][..],
+            r#"{"op": "whj.status", "joints": "1-7", "broadcast": true}"#,
+        ),
+    ] {
+        let want: Vec<Value> = sim
+            .json(args)
+            .into_iter()
+            .map(|mut row| {
+                let row = row.as_object_mut().unwrap();
+                let id = row.remove("joint").unwrap();
+                row.insert("id".into(), id);
+                Value::Object(row.clone())
+            })
+            .collect();
+        let file = dir.path().join("request.json");
+        std::fs::write(&file, request).unwrap();
+        let r = common::robobus(&["run", "--whj-bus", bus, file.to_str().unwrap()]);
+        assert_eq!(r.code, Some(0), "{request}: {}", r.stderr);
+        let report: Value = serde_json::from_str(&r.stdout).unwrap();
+        assert_eq!(report["bus"], bus, "{report}");
+        assert_eq!(report["results"].as_array().unwrap(), &want, "{request}");
+    }
+}

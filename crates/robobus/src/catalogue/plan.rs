@@ -62,6 +62,30 @@ pub struct Plan {
 /// below).
 pub const MAX_PLAN_STEPS: usize = 100_000;
 
+/// The note a WHJ plan opens with: the connect a real run sends each joint first (its
+/// IAP release, repeated until the joint answers, then its identity reads:
+/// [`crate::whj::Joint::connect_requests`]). `None` for no joints.
+pub fn connect_note(joints: &[robobus_whj::JointId]) -> Option<String> {
+    if joints.is_empty() {
+        return None;
+    }
+    let each: Vec<String> = joints
+        .iter()
+        .map(|&j| {
+            let frames: Vec<String> = crate::whj::Joint::connect_requests(j)
+                .iter()
+                .map(|r| frame_line(&r.to_frame()))
+                .collect();
+            format!("joint {}: {}", j.get(), frames.join(" "))
+        })
+        .collect();
+    Some(format!(
+        "before these frames a real run connects each joint: its IAP release (repeated \
+         until the joint answers), then its identity reads; {}",
+        each.join("; ")
+    ))
+}
+
 /// A frame in `cansend` syntax: `001##1020A01` (FD) or `001#0102` (classic).
 pub fn frame_line(f: &CanFrame) -> String {
     let mut s = String::with_capacity(8 + 2 * f.len());

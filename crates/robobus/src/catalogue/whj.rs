@@ -522,9 +522,29 @@ fn prepared(plan: WhjSteps, job: Job) -> Prepared {
     }
 }
 
-/// Validates and plans a WHJ request (`dry_run`: a plan only, so a current needs a model).
-#[allow(clippy::too_many_lines)] // one arm per operation
+/// Validates and plans a WHJ request (`dry_run`: a plan only, so a current needs a model),
+/// its notes headed by the connect a real run makes first (except where the operation is
+/// the connect or sends nothing to a joint).
 pub(crate) fn prepare(req: &super::Request, dry_run: bool) -> R<Prepared> {
+    let mut p = prepare_steps(req, dry_run)?;
+    if !matches!(p.job, Job::Scan(_) | Job::Registers | Job::ReleaseIap(_)) {
+        let mut joints: Vec<JointId> = Vec::new();
+        for (_, r) in &p.plan.steps {
+            if let Some(j) = r.joint()
+                && !joints.contains(&j)
+            {
+                joints.push(j);
+            }
+        }
+        if let Some(note) = super::plan::connect_note(&joints) {
+            p.plan.notes.insert(0, note);
+        }
+    }
+    Ok(p)
+}
+
+#[allow(clippy::too_many_lines)] // one arm per operation
+fn prepare_steps(req: &super::Request, dry_run: bool) -> R<Prepared> {
     use super::Request as Q;
     let js = |ids: &Ids| ids.parse_sorted::<JointId>("<JOINTS>");
     Ok(match req {
@@ -703,19 +723,12 @@ pub(crate) fn prepare(req: &super::Request, dry_run: bool) -> R<Prepared> {
         Q::WhjRegisters(_) => prepared(WhjSteps::default(), Job::Registers),
         Q::WhjSetId(r) => {
             let (j, new_id) = (joint("<JOINT>", r.joint)?, joint("<NEW_ID>", r.new_id)?);
+            let (frames, note) = ops::plan_set_id(j, new_id)?;
             let mut p = WhjSteps::default();
-            p.push(Wire::enable(j, false));
-            p.push(
-                Wire::write(j, registers::addr::SYS_ID, u16::from(new_id.get()))
-                    .map_err(|e| OpError::invalid("<NEW_ID>", r.new_id, e.to_string()))?,
-            );
-            p.push(Wire::save_to_flash(j));
-            p.notes.push(format!(
-                "disable, write SYS_ID, save; the new ID {} applies after a power cycle \
-                 (firmware V1.1 applies it at once: then save again with `robobus whj save {}`)",
-                new_id.get(),
-                new_id.get()
-            ));
+            for f in frames {
+                p.push(f);
+            }
+            p.notes.push(note);
             let mut p = prepared(p, Job::SetId(j, new_id));
             p.confirm = ConfirmClass::Id;
             p.confirm_text = NON_VOLATILE_TEXT.into();

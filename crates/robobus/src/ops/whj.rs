@@ -302,6 +302,30 @@ pub struct SetIdReport {
     pub note: &'static str,
 }
 
+/// The plan of `whj set-id`: the frames [`set_id`] sends (at the old ID; a joint whose
+/// firmware applies the ID at once gets the read-back and the save at the new one) and
+/// the note that says so.
+pub fn plan_set_id(id: JointId, new_id: JointId) -> Result<(Vec<Request>, String), OpError> {
+    let sys_id = robobus_whj::registers::addr::SYS_ID;
+    let frames = vec![
+        Request::enable(id, false),
+        Request::write(id, sys_id, u16::from(new_id.get()))
+            .map_err(|e| OpError::invalid("<NEW_ID>", new_id.get(), e.to_string()))?,
+        Request::Read {
+            joint: id,
+            range: robobus_whj::ReadRange::new(sys_id, 1)
+                .map_err(|e| OpError::invalid("<NEW_ID>", new_id.get(), e.to_string()))?,
+        },
+        Request::save_to_flash(id),
+    ];
+    let note = format!(
+        "disable, write SYS_ID, read it back, save; the new ID {n} applies after a power cycle \
+         (firmware V1.1 applies it at once: the read-back and the save then go to ID {n})",
+        n = new_id.get()
+    );
+    Ok((frames, note))
+}
+
 /// `whj set-id`: refused while a joint answers at the new ID (two joints would share it
 /// after the next power cycle); otherwise disable, write `SYS_ID`, save to flash.
 pub fn set_id(bus: &JointBus, id: JointId, new_id: JointId) -> Result<SetIdReport, OpError> {
