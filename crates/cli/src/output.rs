@@ -25,7 +25,7 @@
 use std::fmt::Write as _;
 use std::io::Write as _;
 
-use robobus_whj::{CanFrame, Request};
+use robobus_whj::Request;
 use serde_json::{Value, json};
 
 /// One WHJ request to send.
@@ -46,25 +46,7 @@ pub(crate) struct WhjPlan {
     pub(crate) steps: Vec<WhjStep>,
 }
 
-/// A frame in `cansend` syntax: `001##1020A01` (FD) or `001#0102` (classic).
-pub(crate) fn frame_line(f: &CanFrame) -> String {
-    let mut s = String::with_capacity(8 + 2 * f.len());
-    if f.is_extended() {
-        let _ = write!(s, "{:08X}", f.raw_id());
-    } else {
-        let _ = write!(s, "{:03X}", f.raw_id());
-    }
-    if f.is_fd() {
-        let flags = u8::from(f.brs()) | (u8::from(f.esi()) << 1);
-        let _ = write!(s, "##{flags:X}");
-    } else {
-        s.push('#');
-    }
-    for b in f.data() {
-        let _ = write!(s, "{b:02X}");
-    }
-    s
-}
+pub(crate) use robobus::catalogue::plan::frame_line;
 
 fn spaced_hex(bytes: &[u8]) -> String {
     let mut s = String::with_capacity(3 * bytes.len());
