@@ -230,3 +230,112 @@ fn the_plan_is_what_the_run_sends() {
         plan.to_text()
     );
 }
+
+#[test]
+fn telemetry_eight_subscribers_one_never_reading_the_others_lose_nothing() {
+    const SAMPLES: u64 = 300;
+    use robobus::catalogue::telemetry::{RecvError, Telemetry};
+    let (s, _w, _j) = station();
+    let s = std::sync::Arc::new(s);
+    let t = Telemetry::paused(
+        &s,
+        parse(r#"{"op": "whj.sample", "joints": "1-2"}"#),
+        1000.0,
+        Some(SAMPLES),
+    )
+    .unwrap();
+    // Seven readers with room for the whole run; one that never reads, with room for 8.
+    let readers: Vec<_> = (0..7)
+        .map(|_| t.subscribe(usize::try_from(SAMPLES).unwrap()).unwrap())
+        .collect();
+    let idle = t.subscribe(8).unwrap();
+    let threads: Vec<_> = readers
+        .into_iter()
+        .map(|sub| {
+            std::thread::spawn(move || {
+                let mut seqs = Vec::new();
+                let mut lost = 0;
+                for d in sub {
+                    lost += d.lost;
+                    let rep = d.sample.report.as_ref().expect("a report");
+                    assert_eq!(rep.results.len(), 2);
+                    assert!(rep.results.iter().all(|r| r["position_deg"].is_number()));
+                    seqs.push(d.sample.seq);
+                }
+                (seqs, lost)
+            })
+        })
+        .collect();
+    let stats = t.join();
+    assert_eq!(stats.samples, SAMPLES);
+    assert_eq!(stats.failed, 0);
+    for th in threads {
+        let (seqs, lost) = th.join().unwrap();
+        assert_eq!(lost, 0);
+        assert_eq!(seqs, (0..SAMPLES).collect::<Vec<_>>());
+    }
+    // The idle subscriber holds its last 8 samples and was told of the rest.
+    assert_eq!(idle.queued(), 8);
+    assert_eq!(idle.lost(), SAMPLES - 8);
+    let first = idle.try_recv().unwrap();
+    assert_eq!((first.sample.seq, first.lost), (SAMPLES - 8, SAMPLES - 8));
+    for _ in 1..8 {
+        assert_eq!(idle.try_recv().unwrap().lost, 0);
+    }
+    assert_eq!(idle.try_recv().unwrap_err(), RecvError::Ended);
+}
+
+#[test]
+fn telemetry_marks_a_silent_device_and_refuses_what_it_cannot_stream() {
+    use robobus::catalogue::telemetry::Telemetry;
+    let (s, _w, _j) = station();
+    let s = std::sync::Arc::new(s);
+    // Servo 3 does not exist: every sample has its row as a failure, never a value.
+    let t = Telemetry::start(
+        &s,
+        parse(r#"{"op": "wck.sample", "ids": "2-3"}"#),
+        50.0,
+        Some(3),
+    )
+    .unwrap();
+    let sub = t.subscribe(16).unwrap();
+    assert_eq!(t.join().samples, 3);
+    let got: Vec<_> = sub.collect();
+    assert_eq!(got.len(), 3);
+    for d in &got {
+        let rep = d.sample.report.as_ref().unwrap();
+        assert!(rep.results[0]["position_deg"].is_number(), "{rep:?}");
+        assert_eq!(rep.results[1]["kind"], "no-device", "{rep:?}");
+        assert_eq!(rep.failed.as_deref(), Some("no-device"));
+    }
+    // Only readings are streamed, at a rate in range, on a bus the station has.
+    for (json, rate) in [
+        (r#"{"op": "whj.move", "joint": 1, "degrees": 5}"#, 10.0),
+        (r#"{"op": "wck.status", "ids": "0"}"#, 0.0),
+        (r#"{"op": "wck.status", "ids": "0"}"#, f64::NAN),
+        (
+            r#"{"op": "whj.sample", "joints": "1", "bus": "nope"}"#,
+            10.0,
+        ),
+        (r#"{"op": "whj.sample", "joints": "0"}"#, 10.0),
+    ] {
+        let e = Telemetry::start(&s, parse(json), rate, None).unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::BadInput, "{json}: {e}");
+    }
+    // A queue is bounded.
+    let t = Telemetry::start(&s, parse(r#"{"op": "wck.status", "ids": "0"}"#), 10.0, None).unwrap();
+    assert_eq!(t.subscribe(0).unwrap_err().kind(), ErrorKind::BadInput);
+    assert_eq!(
+        t.subscribe(1 << 20).unwrap_err().kind(),
+        ErrorKind::BadInput
+    );
+    // Stopped while it runs: the subscriber gets what was queued, then the end.
+    let sub = t.subscribe(64).unwrap();
+    let first = sub
+        .recv_timeout(std::time::Duration::from_secs(10))
+        .unwrap();
+    let stats = t.stop();
+    assert!(stats.samples > first.sample.seq, "{stats:?}");
+    let last = sub.last().map_or(first.sample.seq, |d| d.sample.seq);
+    assert_eq!(last, stats.samples - 1, "{stats:?}");
+}

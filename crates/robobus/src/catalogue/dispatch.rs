@@ -445,8 +445,15 @@ fn run_whj(
             out
         }
         J::Sample(ids, broadcast) => {
+            // Joints this bus has not connected yet are connected first (together; a
+            // silent one shows in its row), as the monitor does once.
+            let fresh: Vec<robobus_whj::JointId> = ids
+                .iter()
+                .copied()
+                .filter(|&id| bus.cached_identity(id).is_none())
+                .collect();
+            let _ = bus.joints(&fresh);
             if *broadcast {
-                let _ = bus.joints(ids);
                 device_report(op, name, &hops::sample_broadcast(bus, ids)?)
             } else {
                 device_report(op, name, &hops::sample(bus, ids))

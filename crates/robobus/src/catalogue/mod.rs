@@ -1,6 +1,6 @@
 //! The catalogue: one request type for every device operation of both families, one
-//! dispatcher and a station of open buses (the telemetry stream that front ends subscribe
-//! to is not built yet: `robobus monitor` samples on its own).
+//! dispatcher, a station of open buses, and the [`telemetry`] stream that front ends
+//! subscribe to.
 //!
 //! A [`Request`] is plain data: the CLI's arguments, a JSON document from a web page or a
 //! pub/sub bridge, or Python keyword arguments all become one. [`plan`] turns it into the
@@ -81,6 +81,7 @@ pub mod bounds;
 mod dispatch;
 pub mod plan;
 pub mod station;
+pub mod telemetry;
 pub mod wck;
 pub mod whj;
 
@@ -91,6 +92,7 @@ pub use crate::error::ErrorKind;
 pub use dispatch::{GONE_AFTER, plan, run};
 pub use plan::{Family, Plan, PlanStep};
 pub use station::{Station, StationConfig, WckPort, WhjPort};
+pub use telemetry::{Delivery, Sample, Subscriber, Telemetry};
 
 /// One request: an operation and its arguments (see the [module docs](self)).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
