@@ -125,6 +125,17 @@ fn parse_timestamp(s: &str) -> Option<Duration> {
     Some(Duration::new(secs, nanos))
 }
 
+/// Writes a capture time as seconds with six decimals (candump's microseconds), or nine
+/// where it has nanoseconds, so that what was read is written back unchanged.
+fn write_time(s: &mut String, t: Duration) {
+    let nanos = t.subsec_nanos();
+    if nanos.is_multiple_of(1000) {
+        let _ = write!(s, "{}.{:06}", t.as_secs(), nanos / 1000);
+    } else {
+        let _ = write!(s, "{}.{nanos:09}", t.as_secs());
+    }
+}
+
 /// Parses one candump log line (without line-number context).
 pub fn parse_candump_line(line: &str) -> Result<CandumpRecord, CandumpErrorKind> {
     let mut parts = line.split_whitespace();
@@ -176,13 +187,9 @@ pub fn parse_candump_line(line: &str) -> Result<CandumpRecord, CandumpErrorKind>
 pub fn format_candump_line(rec: &CandumpRecord) -> String {
     let f = &rec.frame;
     let mut s = String::with_capacity(64 + 2 * f.len());
-    let _ = write!(
-        s,
-        "({}.{:06}) {} ",
-        rec.timestamp.as_secs(),
-        rec.timestamp.subsec_micros(),
-        rec.iface
-    );
+    s.push('(');
+    write_time(&mut s, rec.timestamp);
+    let _ = write!(s, ") {} ", rec.iface);
     if f.is_extended() {
         let _ = write!(s, "{:08X}", f.raw_id());
     } else {
@@ -420,15 +427,13 @@ pub struct HexLogError {
 
 /// Formats one hex log line (no newline).
 pub fn format_hex_line(rec: &HexRecord) -> String {
-    let mut s = format!(
-        "{}.{:06} {}",
-        rec.at.as_secs(),
-        rec.at.subsec_micros(),
-        match rec.dir {
-            Dir::Written => '>',
-            Dir::Read => '<',
-        }
-    );
+    let mut s = String::with_capacity(20 + 3 * rec.bytes.len());
+    write_time(&mut s, rec.at);
+    s.push(' ');
+    s.push(match rec.dir {
+        Dir::Written => '>',
+        Dir::Read => '<',
+    });
     for b in &rec.bytes {
         let _ = write!(s, " {b:02X}");
     }
@@ -640,6 +645,22 @@ mod tests {
 
     fn rec(line: &str) -> CandumpRecord {
         parse_candump_line(line).unwrap()
+    }
+
+    #[test]
+    fn times_with_nanoseconds_are_written_back_unchanged() {
+        // Found by the candump_line fuzz target: nine decimals were read, six written.
+        let r = rec("(12.000000001) can0 001##1024900");
+        assert_eq!(r.timestamp, Duration::new(12, 1));
+        let line = format_candump_line(&r);
+        assert_eq!(line, "(12.000000001) can0 001##5024900");
+        assert_eq!(rec(&line), r);
+        // Microseconds stay candump's six decimals.
+        assert!(format_candump_line(&rec("(1.5) can0 123#00")).starts_with("(1.500000) "));
+        let h = parse_hex_line("0.001500500 < 00 7F").unwrap().unwrap();
+        assert_eq!(format_hex_line(&h), "0.001500500 < 00 7F");
+        let h = parse_hex_line("0.0015 > FF").unwrap().unwrap();
+        assert_eq!(format_hex_line(&h), "0.001500 > FF");
     }
 
     #[test]

@@ -1,0 +1,4 @@
+//! Fuzz target: `robobus_fuzzing::whj_matching` (see its docs for the properties checked).
+#![no_main]
+
+robobus_fuzz::target!(whj_matching);
