@@ -85,28 +85,30 @@ fn read_requests(args: &Args) -> anyhow::Result<(Vec<Request>, bool)> {
 /// Runs `robobus run`.
 pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     let (requests, many) = read_requests(args)?;
-    // Every request is checked before any is sent: bad input anywhere in a list sends
-    // nothing at all.
-    let plans = requests
-        .iter()
-        .enumerate()
-        .map(|(n, r)| {
-            catalogue::plan(r).map_err(|e| {
-                if many {
-                    anyhow::Error::new(e).context(format!("request {}", n + 1))
-                } else {
-                    e.into()
-                }
-            })
-        })
-        .collect::<anyhow::Result<Vec<_>>>()?;
+    let numbered = |n: usize, e: OpError| -> anyhow::Error {
+        if many {
+            anyhow::Error::new(e).context(format!("request {}", n + 1))
+        } else {
+            e.into()
+        }
+    };
     if g.dry_run {
+        let plans = requests
+            .iter()
+            .enumerate()
+            .map(|(n, r)| catalogue::plan(r).map_err(|e| numbered(n, e)))
+            .collect::<anyhow::Result<Vec<_>>>()?;
         if g.json {
             let v = serde_json::to_value(&plans)?;
             return output::print_json(&if many { v } else { first(v) });
         }
         let text: String = plans.iter().map(catalogue::Plan::to_text).collect();
         return output::print(&text);
+    }
+    // Every request is checked before any is sent: bad input anywhere in a list sends
+    // nothing at all.
+    for (n, r) in requests.iter().enumerate() {
+        catalogue::validate(r).map_err(|e| numbered(n, e))?;
     }
     let station = if args.wck_port.is_empty() && args.whj_bus.is_empty() && args.robot.is_none() {
         Station::simulated()?

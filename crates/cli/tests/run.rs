@@ -214,3 +214,22 @@ fn run_reports_what_the_subcommand_reports_on_the_wck_simulator() {
         assert_eq!(rows(&run), rows(&cli), "{args} against {json}");
     }
 }
+
+#[test]
+fn a_current_target_runs_without_a_model_which_only_its_plan_needs() {
+    // A plan converts mA to counts with the model it is given; a run reads the joint's.
+    let dir = tempfile::tempdir().unwrap();
+    let file = request_file(
+        &dir,
+        r#"[{"op":"whj.mode","joints":"1","mode":"current"},
+            {"op":"whj.current","joint":1,"milliamps":100,"duration":0.05}]"#,
+    );
+    let r = robobus(&["run", &file]);
+    assert_eq!(r.code, Some(0), "{r:?}");
+    let reports: Value = serde_json::from_str(&r.stdout).unwrap();
+    assert_eq!(reports.as_array().unwrap().len(), 2, "{reports}");
+    assert_eq!(reports[1]["op"], "whj.current");
+    let plan = robobus(&["run", "--dry-run", &file]);
+    assert_eq!(plan.code, Some(2), "{plan:?}");
+    assert!(plan.stderr.contains("model"), "{}", plan.stderr);
+}

@@ -26,6 +26,16 @@ pub fn plan(request: &Request) -> Result<Plan, OpError> {
     plan_at(request, BaudRate::B115200)
 }
 
+/// Validates `request` as [`run`] will, without a station: its arguments against the
+/// protocol's ranges and the host bounds. (A plan of a WHJ current target needs the
+/// joint's model; a run reads it from the joint, so this does not ask for it.)
+pub fn validate(request: &Request) -> Result<(), OpError> {
+    match request.family() {
+        Family::Wck => wck::prepare(request, BaudRate::B115200).map(drop),
+        Family::Whj => whj::prepare(request, false).map(drop),
+    }
+}
+
 fn plan_at(request: &Request, baud: BaudRate) -> Result<Plan, OpError> {
     let op = request.op();
     Ok(match request.family() {

@@ -89,7 +89,7 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 pub use crate::error::ErrorKind;
-pub use dispatch::{GONE_AFTER, plan, run};
+pub use dispatch::{GONE_AFTER, plan, run, validate};
 pub use plan::{Family, Plan, PlanStep};
 pub use station::{Station, StationConfig, WckPort, WhjPort};
 pub use telemetry::{Delivery, Sample, Subscriber, Telemetry};
