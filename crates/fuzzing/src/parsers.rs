@@ -23,22 +23,16 @@ fn text_of(data: &[u8]) -> Option<&str> {
 }
 
 /// Whether (`line`, `column`), both from 1 with the column in characters, lies inside
-/// `text`: on one of its lines (split at `\n`, the `\r` of a `\r\n` not counted; an empty
-/// text has one line), at most one past that line's end.
+/// `text`: on one of its lines (split at `\n`; an empty text has one line), at most one
+/// past that line's last character (a `\r` is a character: an error at the end of a
+/// `\r\n` line may point at either).
 pub fn position_inside(text: &str, line: usize, column: usize) -> bool {
-    let lines: Vec<&str> = text.split('\n').collect();
-    let last = lines.len() - 1;
     line >= 1
         && column >= 1
-        && lines.get(line - 1).is_some_and(|l| {
-            // `\r\n` ends a line; a `\r` without `\n` after it is part of it.
-            let l = if line - 1 < last {
-                l.strip_suffix('\r').unwrap_or(l)
-            } else {
-                l
-            };
-            column <= l.chars().count() + 1
-        })
+        && text
+            .split('\n')
+            .nth(line - 1)
+            .is_some_and(|l| column <= l.chars().count() + 1)
 }
 
 /// One candump line: what parses formats back to a line that parses to the same record.

@@ -133,6 +133,9 @@ fn a_parser_position_outside_its_input_is_caught() {
     assert!(!position_inside(text, 0, 1));
     assert!(!position_inside(text, 1, 0));
     assert!(position_inside("", 1, 1));
+    // A `\r` is a character: the end of a `\r\n` line is at column 2 or 3 of `a\r\n`.
+    assert!(position_inside("a\r\nb", 1, 3));
+    assert!(!position_inside("a\r\nb", 1, 4));
     // Columns count characters, not bytes.
     assert!(position_inside("é", 1, 2));
     assert!(!position_inside("é", 1, 3));
