@@ -35,7 +35,13 @@ pub fn position_inside(text: &str, line: usize, column: usize) -> bool {
             .is_some_and(|l| column <= l.chars().count() + 1)
 }
 
-/// One candump line: what parses formats back to a line that parses to the same record.
+/// `t` to the microsecond, the resolution capture lines are written with.
+fn to_micros(t: std::time::Duration) -> std::time::Duration {
+    std::time::Duration::new(t.as_secs(), t.subsec_micros() * 1000)
+}
+
+/// One candump line: what parses formats back to a line that parses to the same record
+/// (times to the microsecond).
 pub fn candump_line(data: &[u8]) -> Checked {
     let Some(text) = text_of(data) else {
         return Ok(());
@@ -43,7 +49,10 @@ pub fn candump_line(data: &[u8]) -> Checked {
     let Some(line) = text.lines().next() else {
         return Ok(());
     };
-    if let Ok(record) = parse_candump_line(line) {
+    if let Ok(mut record) = parse_candump_line(line) {
+        // candump writes microseconds (canplayer requires six decimals): a time read with
+        // nanoseconds comes back to the microsecond.
+        record.timestamp = to_micros(record.timestamp);
         let again = format_candump_line(&record);
         let back = parse_candump_line(&again);
         ensure!(
@@ -62,7 +71,8 @@ pub fn hex_line(data: &[u8]) -> Checked {
     let Some(line) = text.lines().next() else {
         return Ok(());
     };
-    if let Ok(Some(record)) = parse_hex_line(line) {
+    if let Ok(Some(mut record)) = parse_hex_line(line) {
+        record.at = to_micros(record.at);
         let again = format_hex_line(&record);
         let back = parse_hex_line(&again);
         ensure!(

@@ -125,15 +125,10 @@ fn parse_timestamp(s: &str) -> Option<Duration> {
     Some(Duration::new(secs, nanos))
 }
 
-/// Writes a capture time as seconds with six decimals (candump's microseconds), or nine
-/// where it has nanoseconds, so that what was read is written back unchanged.
+/// Writes a capture time as seconds with six decimals, as candump writes it and canplayer
+/// requires (a time read with nanoseconds is written to the microsecond).
 fn write_time(s: &mut String, t: Duration) {
-    let nanos = t.subsec_nanos();
-    if nanos.is_multiple_of(1000) {
-        let _ = write!(s, "{}.{:06}", t.as_secs(), nanos / 1000);
-    } else {
-        let _ = write!(s, "{}.{nanos:09}", t.as_secs());
-    }
+    let _ = write!(s, "{}.{:06}", t.as_secs(), t.subsec_micros());
 }
 
 /// Parses one candump log line (without line-number context).
@@ -648,19 +643,14 @@ mod tests {
     }
 
     #[test]
-    fn times_with_nanoseconds_are_written_back_unchanged() {
-        // Found by the candump_line fuzz target: nine decimals were read, six written.
-        let r = rec("(12.000000001) can0 001##1024900");
-        assert_eq!(r.timestamp, Duration::new(12, 1));
-        let line = format_candump_line(&r);
-        assert_eq!(line, "(12.000000001) can0 001##5024900");
-        assert_eq!(rec(&line), r);
-        // Microseconds stay candump's six decimals.
+    fn times_are_written_with_six_decimals_as_canplayer_requires() {
+        // Nanoseconds are read (other tools write them) and written to the microsecond.
+        let r = rec("(12.000001999) can0 001##1024900");
+        assert_eq!(r.timestamp, Duration::new(12, 1999));
+        assert_eq!(format_candump_line(&r), "(12.000001) can0 001##5024900");
         assert!(format_candump_line(&rec("(1.5) can0 123#00")).starts_with("(1.500000) "));
         let h = parse_hex_line("0.001500500 < 00 7F").unwrap().unwrap();
-        assert_eq!(format_hex_line(&h), "0.001500500 < 00 7F");
-        let h = parse_hex_line("0.0015 > FF").unwrap().unwrap();
-        assert_eq!(format_hex_line(&h), "0.001500 > FF");
+        assert_eq!(format_hex_line(&h), "0.001500 < 00 7F");
     }
 
     #[test]
