@@ -54,6 +54,10 @@ impl<T> Clock<T> {
             .unwrap_or(self.due.len());
         self.due.insert(i, (at, item));
     }
+    /// Moves the clock to `t` (never back).
+    fn advance_to(&mut self, t: Instant) {
+        self.now = self.now.max(self.at(t));
+    }
     /// The first item due by `deadline` (the clock moves to it), else the clock moves to
     /// the deadline.
     fn next_by(&mut self, deadline: Instant) -> Option<T> {
@@ -64,7 +68,7 @@ impl<T> Clock<T> {
                 self.due.pop_front().map(|(_, x)| x)
             }
             _ => {
-                self.now = self.now.max(d);
+                self.advance_to(deadline);
                 None
             }
         }
@@ -184,8 +188,7 @@ impl ByteLink for WckDevice {
     }
 
     fn sleep_until(&mut self, deadline: Instant) {
-        let d = self.clock.at(deadline);
-        self.clock.now = self.clock.now.max(d);
+        self.clock.advance_to(deadline);
     }
 }
 
@@ -356,8 +359,7 @@ impl FrameLink for WhjDevice {
     }
 
     fn sleep_until(&mut self, deadline: Instant) {
-        let d = self.clock.at(deadline);
-        self.clock.now = self.clock.now.max(d);
+        self.clock.advance_to(deadline);
     }
 
     fn virtual_time(&self) -> bool {

@@ -269,7 +269,7 @@ impl Telemetry {
                 ),
             ));
         }
-        super::plan(&request)?;
+        super::validate(&request)?;
         // The bus it names must be there now, not at the first read.
         match request.family() {
             super::Family::Wck => drop(station.wck(request.bus())?),
