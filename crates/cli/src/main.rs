@@ -40,6 +40,7 @@ mod monitor;
 mod output;
 mod plot;
 mod replay;
+mod report;
 mod run;
 mod sim_wck;
 mod sim_whj;

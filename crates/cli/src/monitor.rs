@@ -48,7 +48,6 @@ use robobus_wck::{BaudRate, ServoId};
 use robobus_whj::JointId;
 
 use crate::Global;
-use crate::client::whj::{open_link, whj_error};
 use crate::exit::{Interrupted, usage};
 
 /// Seconds of history in the scrolling plot.
@@ -712,8 +711,8 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
             robobus::ops::whj::reply_mask(&joints)
                 .map_err(|e| usage(format!("--broadcast --joints: {e}")))?;
         }
-        let link = open_link(bus, args.capture.as_deref())?;
-        let jb = JointBus::open_with(link, whj_config()).map_err(whj_error)?;
+        let jb =
+            robobus::catalogue::station::open_whj_with(bus, args.capture.as_deref(), whj_config())?;
         connect_joints(&jb, joints.iter().copied());
         let d = dashboard(
             format!("WHJ bus {bus}"),

@@ -1,45 +1,38 @@
 //! `robobus whj`: drive WHJ joints on a CAN FD bus.
 //!
-//! Every subcommand maps onto requests of the WHJ protocol ([`robobus_whj::Request`]).
-//! Arguments are validated first (joint IDs 1..=30 by [`JointId`], registers by
-//! [`RegisterInfo`] with their documented ranges and units, motion values against the
-//! limits below); the subcommand builds a [`WhjPlan`], which `--dry-run` prints as
-//! `cansend` lines (see [`crate::output`]) and a real run hands to
-//! [`crate::client::execute`].
-//!
-//! Motion limits of the CLI (on top of the joint's own limit registers): targets within
-//! ±[`MAX_DEG`]°, speeds within ±[`MAX_RPM`] RPM, currents within ±[`MAX_MA`] mA; `move`
-//! steps at most `--max-speed` / `--rate-hz` degrees per frame.
+//! Each subcommand is one catalogue request ([`robobus::catalogue`]): its arguments are
+//! parsed (joint IDs 1..=30 by [`JointId`], registers by [`RegisterInfo`], motion values
+//! against the library's host bounds, [`robobus::catalogue::bounds`]), turned into the
+//! request, and handed to the library's dispatcher: `--dry-run` prints its plan as
+//! `cansend` lines, a real run goes through [`crate::report`].
 
 use std::fmt::Write as _;
-use std::time::Duration;
 
 use clap::{Subcommand, ValueEnum};
+use robobus::catalogue::args::{Ids, WhjOnStop};
+use robobus::catalogue::bounds::{self, Bound};
+use robobus::catalogue::station::{self, Station};
+use robobus::catalogue::{self, whj as cw};
 use robobus::ops::IdList;
-use robobus::ops::OpError;
-use robobus::ops::whj::{self as ops, MoveArgs, ServoLoop, TargetArgs, WaveArgs};
-use robobus::whj::JointBusConfig;
+use robobus::ops::whj as ops;
 use robobus_link::FrameLinkSpec;
-use robobus_whj::registers::Half;
-use robobus_whj::units::CurrentScale;
-use robobus_whj::{JointId, REGISTERS, RegisterAddr, RegisterInfo, Request, WorkMode};
+use robobus_whj::{JointId, REGISTERS, RegisterAddr, RegisterInfo};
 
 use crate::Global;
-use crate::client::whj::{OnStop, WhjRun};
-use crate::client::{Job, execute};
 use crate::exit::usage;
-use crate::output::{self, WhjPlan};
+use crate::{output, report};
 
-/// Largest |target angle| the CLI sends, degrees: one turn either way (a host policy; the
-/// joint's own limits, 0x44..0x47, are checked as well once it is connected).
-pub(crate) const MAX_DEG: f64 = 360.0;
-/// Largest |target speed| the CLI sends, output RPM: the highest published peak output
-/// speed of any model (WHJ10 / WHJ30, 37.5 RPM); once connected, the joint's own model's
-/// peak is checked as well.
-pub(crate) const MAX_RPM: f64 = 37.5;
-/// Largest |target current| the CLI sends, mA (a host policy: the vendor publishes no
-/// peak current; once connected, the joint's current limit 0x40 is checked as well).
-pub(crate) const MAX_MA: f64 = 30_000.0;
+/// What brings a joint to a safe state when `move` or `wave` is interrupted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ValueEnum)]
+pub(crate) enum OnStop {
+    // Plain comments: doc comments would become clap's per-value help and switch every
+    // `robobus whj` help page to the long layout; `--on-stop`'s own help explains them.
+    // Stay enabled and hold the present position (speed / current waves: target 0).
+    #[default]
+    Hold,
+    // Disable the drive.
+    Disable,
+}
 
 const AFTER_HELP: &str = "\
 Joint IDs are 1..=30 (0 is the interface board); lists and ranges are allowed where the
@@ -111,15 +104,6 @@ enum ModelArg {
     Whj30,
     Whj60,
     Whj120,
-}
-
-impl ModelArg {
-    fn scale(self) -> CurrentScale {
-        match self {
-            Self::Whj60 | Self::Whj120 => CurrentScale::TwoMilliamps,
-            _ => CurrentScale::OneMilliamp,
-        }
-    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -454,35 +438,33 @@ fn parse_finite(s: &str) -> Result<f64, String> {
     }
 }
 
-fn in_range(s: &str, what: &str, min: f64, max: f64) -> Result<f64, String> {
+/// A number within one of the library's host bounds (the message names the quantity).
+fn bounded(s: &str, bound: &Bound) -> Result<f64, String> {
     let v = parse_finite(s)?;
-    if (min..=max).contains(&v) {
-        Ok(v)
-    } else {
-        Err(format!("{what} {v} is out of range {min}..={max}"))
-    }
+    bound.message(v).map_or(Ok(v), Err)
 }
 
 fn parse_angle(s: &str) -> Result<f64, String> {
-    in_range(s, "angle (degrees)", -MAX_DEG, MAX_DEG)
+    bounded(s, &bounds::ANGLE_DEG)
 }
 fn parse_max_speed(s: &str) -> Result<f64, String> {
-    in_range(s, "speed (degrees/s)", 0.1, 180.0)
+    bounded(s, &bounds::MOVE_SPEED_DEG_S)
 }
 fn parse_frame_rate(s: &str) -> Result<f64, String> {
-    in_range(s, "rate (Hz)", 1.0, 1000.0)
+    bounded(s, &bounds::FRAME_RATE_HZ)
 }
 fn parse_rpm(s: &str) -> Result<f64, String> {
-    in_range(s, "speed (RPM)", -MAX_RPM, MAX_RPM)
+    bounded(s, &bounds::SPEED_RPM)
 }
 fn parse_ma(s: &str) -> Result<f64, String> {
-    in_range(s, "current (mA)", -MAX_MA, MAX_MA)
+    bounded(s, &bounds::CURRENT_MA)
 }
 fn parse_duration(s: &str) -> Result<f64, String> {
-    in_range(s, "duration (s)", 0.01, 3600.0)
+    bounded(s, &bounds::TARGET_DURATION_S)
 }
 
-/// Runs `robobus whj`.
+/// Runs `robobus whj`: the subcommand's request goes to the library's dispatcher
+/// (`--dry-run`: its plan).
 pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     if let Some(bus) = &args.bus {
         bus.parse::<FrameLinkSpec>()
@@ -491,13 +473,13 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     if matches!(args.command, WhjCommand::Registers) {
         return list_registers(g);
     }
-    let plan = plan(args, g.dry_run)?;
+    let request = request(args)?;
     if g.dry_run {
-        let bus = args.bus.as_deref().unwrap_or("(none)");
+        let plan = catalogue::plan(&request)?;
         return if g.json {
-            output::print_json(&plan.to_json(bus))
+            output::print_json(&serde_json::to_value(&plan)?)
         } else {
-            output::print(&plan.to_text())
+            output::print(plan.to_text())
         };
     }
     let Some(bus) = args.bus.as_deref() else {
@@ -506,359 +488,157 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
              such as can0), unless --dry-run is given",
         ));
     };
-    let run = whj_run(args);
-    execute(
-        &Job::Whj {
-            action: action_name(&args.command),
-            bus,
-            capture: args.capture.as_deref(),
-            plan: &plan,
-            run: &run,
-            on_stop: args.on_stop,
-            json: g.json,
-        },
-        g.yes,
-    )
+    let request = report::confirm(request, g.yes)?;
+    let mut station = Station::new();
+    station.add_whj(bus, station::open_whj(bus, args.capture.as_deref())?);
+    let result = report::run(&station, &request);
+    station.leave();
+    let report = result?;
+    if let Some(note) = report
+        .results
+        .first()
+        .filter(|r| r["keeps_running"] == true)
+        .and_then(|r| r["note"].as_str())
+    {
+        eprintln!("robobus: {note}");
+    }
+    report::print(&report, g.json, "joint")
 }
 
-const fn work_mode(mode: ModeArg) -> WorkMode {
-    match mode {
-        ModeArg::OpenLoop => WorkMode::OpenLoop,
-        ModeArg::Current => WorkMode::Current,
-        ModeArg::Speed => WorkMode::Speed,
-        ModeArg::Position => WorkMode::Position,
+/// The joints as a request's list.
+fn ids(joints: &Joints) -> Ids {
+    Ids::List(joints.0.iter().map(|j| u32::from(j.get())).collect())
+}
+
+fn joint(j: JointId) -> u32 {
+    u32::from(j.get())
+}
+
+const fn model(m: ModelArg) -> cw::Model {
+    match m {
+        ModelArg::Whj03 => cw::Model::Whj03,
+        ModelArg::Whj10 => cw::Model::Whj10,
+        ModelArg::Whj30 => cw::Model::Whj30,
+        ModelArg::Whj60 => cw::Model::Whj60,
+        ModelArg::Whj120 => cw::Model::Whj120,
     }
 }
 
-/// The step limit moves are planned with (the client's, also for dry runs).
-fn step_limit() -> f64 {
-    JointBusConfig::default().step_limit_deg
-}
-
-fn move_args(joint: JointId, degrees: f64, max_speed: f64, rate_hz: f64) -> MoveArgs {
-    MoveArgs {
-        joint,
-        target_deg: degrees,
-        max_speed_deg_s: max_speed,
-        rate_hz,
-        step_limit_deg: step_limit(),
+const fn on_stop(o: OnStop) -> WhjOnStop {
+    match o {
+        OnStop::Hold => WhjOnStop::Hold,
+        OnStop::Disable => WhjOnStop::Disable,
     }
 }
 
-fn target_args(joint: JointId, servo: ServoLoop, value: f64, duration: Option<f64>) -> TargetArgs {
-    TargetArgs {
-        joint,
-        servo,
-        value,
-        duration: duration.map(Duration::from_secs_f64),
-    }
-}
-
-fn wave_args(c: &WhjCommand) -> Option<WaveArgs> {
-    let WhjCommand::Wave {
-        joint,
-        shape,
-        mode,
-        amplitude,
-        frequency,
-        offset,
-        duration,
-        rate_hz,
-        ..
-    } = c
-    else {
-        return None;
-    };
-    Some(WaveArgs {
-        joint: *joint,
-        shape: match shape {
-            Shape::Sine => ops::Shape::Sine,
-            Shape::Square => ops::Shape::Square,
-        },
-        servo: match mode {
-            WaveMode::Position => ServoLoop::Position,
-            WaveMode::Speed => ServoLoop::Speed,
-            WaveMode::Current => ServoLoop::Current,
-        },
-        amplitude: *amplitude,
-        frequency: *frequency,
-        offset: *offset,
-        duration: *duration,
-        rate_hz: *rate_hz,
-        step_limit_deg: step_limit(),
-    })
-}
-
-/// How a (validated) command runs on the bus.
-fn whj_run(args: &Args) -> WhjRun {
-    let c = &args.command;
-    match c {
-        WhjCommand::Scan { joints } => WhjRun::Scan(joints.0.clone()),
-        WhjCommand::Info { joint } => WhjRun::Info(*joint),
-        WhjCommand::Status {
-            joints,
-            broadcast: true,
-            end_board,
-        } => WhjRun::BroadcastStatus(joints.0.clone(), *end_board),
-        WhjCommand::Status { joints, .. } => WhjRun::Status(joints.0.clone()),
-        WhjCommand::Enable { joints } => WhjRun::Enable(joints.0.clone(), true),
-        WhjCommand::Disable { joints } => WhjRun::Enable(joints.0.clone(), false),
-        WhjCommand::Mode { joints, mode } => WhjRun::Mode(joints.0.clone(), work_mode(*mode)),
-        WhjCommand::Move {
-            joint,
-            degrees,
-            max_speed,
-            rate_hz,
-            ..
-        } => WhjRun::Move(move_args(*joint, *degrees, *max_speed, *rate_hz)),
-        WhjCommand::Speed {
-            joint,
-            rpm,
-            duration,
-        } => WhjRun::Target(target_args(*joint, ServoLoop::Speed, *rpm, *duration)),
-        WhjCommand::Current {
-            joint,
-            milliamps,
-            duration,
-        } => WhjRun::Target(target_args(
-            *joint,
-            ServoLoop::Current,
-            *milliamps,
-            *duration,
-        )),
-        WhjCommand::Zero { joint } => WhjRun::Zero(*joint),
-        WhjCommand::Clear { joints } => WhjRun::Clear(joints.0.clone()),
-        WhjCommand::Save { joints } => WhjRun::Save(joints.0.clone()),
-        WhjCommand::Read {
-            joints,
-            register,
-            count,
-            broadcast,
-            end_board,
-        } => WhjRun::Read {
-            joints: joints.0.clone(),
-            addr: register.addr,
-            count: *count,
-            broadcast: *broadcast,
-            end_board: *end_board,
-        },
-        WhjCommand::Write {
-            joints,
-            register,
-            value,
-            raw,
-            broadcast,
-            end_board,
-        } => WhjRun::Write {
-            joints: joints.0.clone(),
-            addr: register.addr,
-            // Validated by the plan (a finite number).
-            value: value.trim().parse().unwrap_or(0.0),
-            raw: *raw,
-            scale: args.model.map(ModelArg::scale),
-            broadcast: *broadcast,
-            end_board: *end_board,
-        },
-        // Handled before a plan is made.
-        WhjCommand::Registers => WhjRun::Status(Vec::new()),
-        WhjCommand::SetId { joint, new_id } => WhjRun::SetId(*joint, *new_id),
-        WhjCommand::Wave { broadcast, .. } => match wave_args(c) {
-            Some(w) => WhjRun::Wave(w, *broadcast),
-            None => WhjRun::Status(Vec::new()),
-        },
-        WhjCommand::ReleaseIap { joints } => WhjRun::ReleaseIap(joints.0.clone()),
-    }
-}
-
-fn action_name(c: &WhjCommand) -> &'static str {
-    match c {
-        WhjCommand::Scan { .. } => "scan",
-        WhjCommand::Info { .. } => "info",
-        WhjCommand::Status { .. } => "status",
-        WhjCommand::Enable { .. } => "enable",
-        WhjCommand::Disable { .. } => "disable",
-        WhjCommand::Mode { .. } => "mode",
-        WhjCommand::Move { .. } => "move",
-        WhjCommand::Speed { .. } => "speed",
-        WhjCommand::Current { .. } => "current",
-        WhjCommand::Zero { .. } => "zero",
-        WhjCommand::Clear { .. } => "clear",
-        WhjCommand::Save { .. } => "save",
-        WhjCommand::Read { .. } => "read",
-        WhjCommand::Write { .. } => "write",
-        WhjCommand::Registers => "registers",
-        WhjCommand::SetId { .. } => "set-id",
-        WhjCommand::Wave { .. } => "wave",
-        WhjCommand::ReleaseIap { .. } => "release-iap",
-    }
-}
-
-fn each(joints: &Joints, f: impl Fn(JointId) -> Request) -> WhjPlan {
-    let mut plan = WhjPlan::default();
-    for &j in &joints.0 {
-        plan.push(f(j));
-    }
-    plan
-}
-
-/// The current scale for a command that needs one: --model, or (real runs) the joint's.
-fn current_scale(args: &Args, dry_run: bool, option: &str) -> anyhow::Result<CurrentScale> {
-    match args.model {
-        Some(m) => Ok(m.scale()),
-        None if dry_run => Err(usage(format!(
-            "{option}: converting mA to counts needs the joint model in a dry run: give \
-             --model whj03|whj10|whj30|whj60|whj120"
-        ))),
-        // A real run reads the model from the joint; the client does the scaling.
-        None => Ok(CurrentScale::OneMilliamp),
-    }
-}
-
-/// The plan of a command, with the connect a real run makes first shown as comments (the
-/// frames of [`robobus::whj::Joint::connect_requests`] for each joint its frames address).
-fn plan(args: &Args, dry_run: bool) -> anyhow::Result<WhjPlan> {
-    let mut p = command_plan(args, dry_run)?;
-    let connects = !matches!(
-        args.command,
-        WhjCommand::Scan { .. } | WhjCommand::Registers | WhjCommand::ReleaseIap { .. }
-    );
-    let mut joints: Vec<JointId> = Vec::new();
-    for step in &p.steps {
-        if let Some(j) = step.request.joint()
-            && !joints.contains(&j)
-        {
-            joints.push(j);
-        }
-    }
-    if connects && let Some(note) = robobus::catalogue::plan::connect_note(&joints) {
-        p.notes.insert(0, note);
-    }
-    Ok(p)
-}
-
-#[allow(clippy::too_many_lines)]
-fn command_plan(args: &Args, dry_run: bool) -> anyhow::Result<WhjPlan> {
+/// The catalogue request of a subcommand: its arguments under the request's names.
+#[allow(clippy::too_many_lines)] // one arm per subcommand
+fn request(args: &Args) -> anyhow::Result<catalogue::Request> {
+    use catalogue::Request as Q;
+    let on_stop = on_stop(args.on_stop);
+    let model = args.model.map(model);
     Ok(match &args.command {
-        WhjCommand::Scan { joints } => {
-            let mut p = each(joints, Request::read_identity);
-            p.notes.push(
-                "reads signature, ID, model and firmware of each ID; a joint that answers \
-                 is present"
-                    .into(),
-            );
-            p
-        }
-        WhjCommand::Info { joint } => {
-            let mut p = WhjPlan::default();
-            p.push(Request::read_identity(*joint));
-            p.push(Request::read_unique_id(*joint));
-            p.push(Request::read_position_limits(*joint));
-            p.push(Request::StatusQuery { joint: *joint });
-            p
-        }
+        WhjCommand::Scan { joints } => Q::WhjScan(cw::Scan {
+            bus: None,
+            joints: ids(joints),
+        }),
+        WhjCommand::Info { joint: j } => Q::WhjInfo(cw::Info {
+            bus: None,
+            joint: joint(*j),
+        }),
         WhjCommand::Status {
             joints,
-            broadcast: true,
+            broadcast,
             end_board,
-        } => {
-            let mask = ops::reply_mask_with(&joints.0, *end_board)?;
-            let mut p = WhjPlan::default();
-            p.push(Request::BroadcastStatus(
-                robobus_whj::broadcast::BroadcastStatus::new(mask),
-            ));
-            p.notes.push(format!(
-                "one broadcast status query, reply mask {:#X} (joints {}{}); a real run \
-                 connects each joint first",
-                mask.get(),
-                mask.joints()
-                    .map(|j| j.get().to_string())
-                    .collect::<Vec<_>>()
-                    .join(","),
-                if mask.selects_end_board() {
-                    " and the end board"
-                } else {
-                    ""
-                }
-            ));
-            p
-        }
-        WhjCommand::Status { joints, .. } => each(joints, |joint| Request::StatusQuery { joint }),
-        WhjCommand::Enable { joints } => each(joints, |j| Request::enable(j, true)),
-        WhjCommand::Disable { joints } => each(joints, |j| Request::enable(j, false)),
-        WhjCommand::Mode { joints, mode } => {
-            let mode = work_mode(*mode);
-            each(joints, |j| Request::set_mode(j, mode))
-        }
+        } => Q::WhjStatus(cw::Status {
+            bus: None,
+            joints: ids(joints),
+            broadcast: *broadcast,
+            end_board: *end_board,
+        }),
+        WhjCommand::Enable { joints } => Q::WhjEnable(cw::Enable {
+            bus: None,
+            joints: ids(joints),
+        }),
+        WhjCommand::Disable { joints } => Q::WhjDisable(cw::Disable {
+            bus: None,
+            joints: ids(joints),
+        }),
+        WhjCommand::Mode { joints, mode } => Q::WhjMode(cw::Mode {
+            bus: None,
+            joints: ids(joints),
+            mode: match mode {
+                ModeArg::OpenLoop => cw::ModeName::OpenLoop,
+                ModeArg::Current => cw::ModeName::Current,
+                ModeArg::Speed => cw::ModeName::Speed,
+                ModeArg::Position => cw::ModeName::Position,
+            },
+        }),
         WhjCommand::Move {
-            joint,
+            joint: j,
             degrees,
             max_speed,
             rate_hz,
             from,
-        } => {
-            let args = move_args(*joint, *degrees, *max_speed, *rate_hz);
-            WhjPlan::of(&ops::plan_move(&args, from.unwrap_or(0.0), from.is_none())?)
-        }
+        } => Q::WhjMove(cw::Move {
+            bus: None,
+            joint: joint(*j),
+            degrees: *degrees,
+            max_speed: *max_speed,
+            rate_hz: *rate_hz,
+            from: *from,
+            on_stop,
+        }),
         WhjCommand::Speed {
-            joint,
+            joint: j,
             rpm,
             duration,
-        } => plan_target(
-            &target_args(*joint, ServoLoop::Speed, *rpm, *duration),
-            CurrentScale::OneMilliamp,
-        )?,
+        } => Q::WhjSpeed(cw::Speed {
+            bus: None,
+            joint: joint(*j),
+            rpm: *rpm,
+            duration: *duration,
+            on_stop,
+        }),
         WhjCommand::Current {
-            joint,
+            joint: j,
             milliamps,
             duration,
-        } => {
-            let scale = current_scale(args, dry_run, "current <MILLIAMPS>")?;
-            plan_target(
-                &target_args(*joint, ServoLoop::Current, *milliamps, *duration),
-                scale,
-            )?
-        }
-        WhjCommand::Zero { joint } => {
-            let mut p = WhjPlan::default();
-            p.push(Request::set_zero(*joint));
-            p
-        }
-        WhjCommand::Clear { joints } => each(joints, Request::clear_error),
-        WhjCommand::Save { joints } => {
-            let mut p = each(joints, Request::save_to_flash);
-            p.notes
-                .push("the joints must be disabled; each needs ~50 ms to write flash".into());
-            p
-        }
+        } => Q::WhjCurrent(cw::Current {
+            bus: None,
+            joint: joint(*j),
+            milliamps: *milliamps,
+            duration: *duration,
+            model,
+            on_stop,
+        }),
+        WhjCommand::Zero { joint: j } => Q::WhjZero(cw::Zero {
+            bus: None,
+            joint: joint(*j),
+        }),
+        WhjCommand::Clear { joints } => Q::WhjClear(cw::Clear {
+            bus: None,
+            joints: ids(joints),
+        }),
+        WhjCommand::Save { joints } => Q::WhjSave(cw::Save {
+            bus: None,
+            joints: ids(joints),
+            confirm: false,
+        }),
         WhjCommand::Read {
             joints,
             register,
             count,
-            broadcast: true,
+            broadcast,
             end_board,
-        } => broadcast_plan(&ops::plan_broadcast_read(
-            &joints.0,
-            register.addr,
-            *count,
-            *end_board,
-        )?),
-        WhjCommand::Read {
-            joints,
-            register,
-            count,
-            ..
-        } => {
-            let joint = &one_joint(joints, "read")?;
-            let count = count.unwrap_or(match register.info.map(|i| i.half) {
-                Some(Half::Low) => 2,
-                _ => 1,
-            });
-            let req = Request::read(*joint, register.addr, count)
-                .map_err(|e| usage(format!("read <REGISTER> [COUNT]: {e}")))?;
-            let mut p = WhjPlan::default();
-            p.push(req);
-            p
-        }
+        } => Q::WhjRead(cw::Read {
+            bus: None,
+            joints: ids(joints),
+            register: format!("{:#04X}", register.addr.get()),
+            count: *count,
+            broadcast: *broadcast,
+            end_board: end_board.map(|a| format!("{a:#04X}")),
+        }),
         WhjCommand::Write {
             joints,
             register,
@@ -872,123 +652,64 @@ fn command_plan(args: &Args, dry_run: bool) -> anyhow::Result<WhjPlan> {
                 .trim()
                 .parse()
                 .map_err(|_| usage(format!("write {name} <VALUE>: `{value}` is not a number")))?;
-            // Motion targets and `never` registers are refused here, dry run or not.
-            if let Err(e @ OpError::Refused(_)) = ops::check_write(register.addr, true) {
-                return Err(usage(e.to_string()));
-            }
-            let scale = if ops::needs_current_scale(register.addr, *raw) {
-                current_scale(args, dry_run, &format!("write {name}"))?
-            } else {
-                CurrentScale::OneMilliamp
-            };
-            if *broadcast {
-                return Ok(broadcast_plan(&ops::plan_broadcast_write(
-                    &joints.0,
-                    register.addr,
-                    v,
-                    *raw,
-                    &|_| scale,
-                    *end_board,
-                )?));
-            }
-            let joint = &one_joint(joints, "write")?;
-            let req = ops::write_request(*joint, register.addr, v, *raw, scale)?;
-            let mut p = WhjPlan::default();
-            p.push(req);
-            if let Some(what) = ops::confirm_text(&req) {
-                p.notes.push(format!("{name}: {what} (needs --yes)"));
-            }
-            p
+            Q::WhjWrite(cw::Write {
+                bus: None,
+                joints: ids(joints),
+                register: format!("{:#04X}", register.addr.get()),
+                value: v,
+                raw: *raw,
+                broadcast: *broadcast,
+                end_board: end_board
+                    .map(|e| format!("{:#04X}={}", e.addr, e.value.unwrap_or_default())),
+                model,
+                confirm: false,
+            })
         }
-        WhjCommand::Registers => WhjPlan::default(),
-        WhjCommand::SetId { joint, new_id } => {
-            let (frames, note) = ops::plan_set_id(*joint, *new_id)?;
-            let mut p = WhjPlan::default();
-            for f in frames {
-                p.push(f);
-            }
-            p.notes.push(note);
-            p
-        }
+        WhjCommand::Registers => Q::WhjRegisters(cw::Registers { bus: None }),
+        WhjCommand::SetId { joint: j, new_id } => Q::WhjSetId(cw::SetId {
+            bus: None,
+            joint: joint(*j),
+            new_id: joint(*new_id),
+            confirm: false,
+        }),
         WhjCommand::Wave {
+            joint: j,
+            shape,
             mode,
+            amplitude,
+            frequency,
+            offset,
+            duration,
+            rate_hz,
             broadcast,
             from,
-            ..
-        } => {
-            let scale = if *mode == WaveMode::Current {
-                current_scale(args, dry_run, "wave --mode current")?
-            } else {
-                CurrentScale::OneMilliamp
-            };
-            let Some(w) = wave_args(&args.command) else {
-                return Ok(WhjPlan::default());
-            };
-            let start = from.unwrap_or(0.0);
-            if *broadcast {
-                WhjPlan::of(&ops::plan_broadcast_wave(&w, start, scale, from.is_none())?)
-            } else {
-                WhjPlan::of(&ops::plan_wave(&w, start, scale, from.is_none())?)
-            }
-        }
-        WhjCommand::ReleaseIap { joints } => each(joints, Request::start_application),
+        } => Q::WhjWave(cw::Wave {
+            bus: None,
+            joint: joint(*j),
+            shape: match shape {
+                Shape::Sine => cw::Shape::Sine,
+                Shape::Square => cw::Shape::Square,
+            },
+            mode: match mode {
+                WaveMode::Position => cw::WaveMode::Position,
+                WaveMode::Speed => cw::WaveMode::Speed,
+                WaveMode::Current => cw::WaveMode::Current,
+            },
+            amplitude: *amplitude,
+            frequency: *frequency,
+            offset: *offset,
+            duration: *duration,
+            rate_hz: *rate_hz,
+            broadcast: *broadcast,
+            from: *from,
+            model,
+            on_stop,
+        }),
+        WhjCommand::ReleaseIap { joints } => Q::WhjReleaseIap(cw::ReleaseIap {
+            bus: None,
+            joints: ids(joints),
+        }),
     })
-}
-
-/// The one joint of a command without --broadcast.
-fn one_joint(joints: &Joints, what: &str) -> anyhow::Result<JointId> {
-    match joints.0.as_slice() {
-        [one] => Ok(*one),
-        _ => Err(usage(format!(
-            "{what} <JOINT>: one joint without --broadcast (got {}); with --broadcast, \
-             joints 1..=7 share one frame",
-            joints.0.len()
-        ))),
-    }
-}
-
-/// A broadcast register plan: its frames and notes.
-fn broadcast_plan(b: &ops::BroadcastPlan) -> WhjPlan {
-    let mut p = WhjPlan::default();
-    for f in &b.frames {
-        p.push(*f);
-    }
-    p.notes.clone_from(&b.notes);
-    p
-}
-
-/// A speed or current target: the frame, and target 0 after `--duration`.
-fn plan_target(args: &TargetArgs, scale: CurrentScale) -> anyhow::Result<WhjPlan> {
-    let mut p = WhjPlan::default();
-    p.push(ops::target_request(args, scale)?);
-    let what = if args.servo == ServoLoop::Speed {
-        "speed"
-    } else {
-        "current"
-    };
-    match args.duration {
-        Some(d) => {
-            let zero = TargetArgs {
-                value: 0.0,
-                ..*args
-            };
-            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // <= 3600 s
-            p.push_at(d.as_micros() as u64, ops::target_request(&zero, scale)?);
-            p.notes.push(format!(
-                "{what} target, then target 0 after {} s (also on Ctrl-C); the joint must be \
-                 enabled and in {what} mode",
-                d.as_secs_f64()
-            ));
-        }
-        None => p.notes.push(format!(
-            "the joint keeps this {what} target after the command exits: stop it with \
-             `robobus whj {what} {} 0` or `robobus whj disable {}`; the joint must be enabled \
-             and in {what} mode",
-            args.joint.get(),
-            args.joint.get()
-        )),
-    }
-    Ok(p)
 }
 
 /// `robobus whj registers`: the table as text or JSON.

@@ -317,7 +317,7 @@ fn whj_wave_has_one_frame_per_period() {
         "4",
     ]);
     let v: serde_json::Value = serde_json::from_str(&out).unwrap();
-    let frames = v["frames"].as_array().unwrap();
+    let frames = v["steps"].as_array().unwrap();
     let lines: Vec<&str> = frames.iter().map(|f| f["line"].as_str().unwrap()).collect();
     // A status query first (a real run starts the step limiter where the joint is), then
     // sin at 0, 90, 180, 270 degrees of phase: 0, +4, 0, -4 degrees (4 deg per frame is
@@ -399,5 +399,5 @@ fn whj_wave_from_plans_the_step_limiter_from_that_angle() {
     let at_thirty = first_target(&["--from", "30"]);
     assert!(!at_thirty.to_string().contains("assumed"), "{at_thirty}");
     // The limiter starts at 30 deg and steps towards the wave (at 0 deg at t = 0).
-    assert_ne!(at_zero["frames"], at_thirty["frames"]);
+    assert_ne!(at_zero["steps"], at_thirty["steps"]);
 }

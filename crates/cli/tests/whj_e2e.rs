@@ -149,14 +149,16 @@ fn whj_e2e_scan_info_enable_move_save_registers() {
 
     // Scan: the seven joints, nothing at 8.
     let found = sim.json(&["scan", "--joints", "1-8"]);
-    let ids: Vec<u64> = found.iter().map(|r| r["joint"].as_u64().unwrap()).collect();
+    let ids: Vec<u64> = found.iter().map(|r| r["id"].as_u64().unwrap()).collect();
     assert_eq!(ids, [1, 2, 3, 4, 5, 6, 7]);
     assert!(found.iter().all(|r| r["model"] == "WHJ30"), "{found:?}");
     // The table form names its columns.
     let t = sim.whj(&["scan", "--joints", "1-2"]);
     assert_eq!(t.code, Some(0), "{}", t.stderr);
     assert!(t.stdout.starts_with("JOINT"), "{}", t.stdout);
-    assert_eq!(t.stdout.lines().count(), 3, "{}", t.stdout);
+    // Two joints, then the summary: how many IDs were probed (no duplicates to name).
+    assert_eq!(t.stdout.lines().count(), 4, "{}", t.stdout);
+    assert!(t.stdout.ends_with("probed: 2\n"), "{}", t.stdout);
 
     // Info: identity and limits.
     let info = sim.json(&["info", "1"]);
@@ -173,14 +175,14 @@ fn whj_e2e_scan_info_enable_move_save_registers() {
     let rows = doc["results"].as_array().unwrap();
     assert_eq!(rows.len(), 3, "{rows:?}");
     assert_eq!(
-        (rows[0]["joint"].as_u64(), rows[1]["joint"].as_u64()),
+        (rows[0]["id"].as_u64(), rows[1]["id"].as_u64()),
         (Some(6), Some(7))
     );
     assert!(
         rows[0]["position_deg"].is_f64() && rows[1]["position_deg"].is_f64(),
         "{rows:?}"
     );
-    assert_eq!(rows[2]["joint"], 8);
+    assert_eq!(rows[2]["id"], 8);
     assert_eq!(rows[2]["kind"], "no-device", "{rows:?}");
     // The same by one broadcast status frame.
     let bst = sim.json(&["status", "1-3", "--broadcast"]);
@@ -327,7 +329,7 @@ fn whj_e2e_wave_speed_current_and_interrupt() {
     ]);
     assert_eq!(out.code, Some(0), "{}", out.stderr);
     let doc: Value = serde_json::from_str(&out.stdout).unwrap();
-    let stats = &doc["stats"];
+    let stats = &doc["summary"];
     let cycles = f(&stats["cycles"]);
     assert!((250.0..=320.0).contains(&cycles), "{stats}");
     // Tracking against the requested target, in the wave's unit.
@@ -409,7 +411,7 @@ fn whj_e2e_wave_speed_current_and_interrupt() {
     sim.json(&["mode", "5", "current"]);
     sim.json(&["enable", "5"]);
     let cu = sim.json(&["current", "5", "200"]);
-    assert_eq!(cu[0]["joint"], 5, "{cu:?}");
+    assert_eq!(cu[0]["id"], 5, "{cu:?}");
     sim.json(&["disable", "4-5"]);
 }
 
@@ -631,7 +633,7 @@ fn whj_e2e_motion_is_checked_against_the_joints_own_bounds() {
         "nothing sent: {st:?}"
     );
     let sp = sim.json(&["speed", "2", "20"]);
-    assert_eq!(sp[0]["joint"], 2, "{sp:?}");
+    assert_eq!(sp[0]["id"], 2, "{sp:?}");
     sim.json(&["speed", "2", "0"]);
     sim.json(&["disable", "2"]);
 
@@ -662,7 +664,7 @@ fn whj_e2e_motion_is_checked_against_the_joints_own_bounds() {
         &["1500 mA", "-1000..=1000", "LIT_MAX_CURRENT"],
     );
     let cu = sim.json(&["current", "4", "400"]);
-    assert_eq!(cu[0]["joint"], 4, "{cu:?}");
+    assert_eq!(cu[0]["id"], 4, "{cu:?}");
     sim.json(&["current", "4", "0"]);
     sim.json(&["disable", "4"]);
 }
@@ -769,10 +771,10 @@ fn whj_e2e_broadcast_registers_with_the_end_board() {
         assert!((0.0..100.0).contains(&f(&rows[k]["value"])), "{rows:?}");
     }
     assert_eq!(
-        (rows[2]["joint"].as_u64(), &rows[2]["kind"]),
+        (rows[2]["id"].as_u64(), &rows[2]["kind"]),
         (Some(3), &Value::from("no-device"))
     );
-    assert_eq!(rows[4]["joint"], "end-board");
+    assert_eq!(rows[4]["id"], "end-board");
     assert_eq!(
         (f(&rows[4]["raw"]), &rows[4]["register"]),
         (515.0, &Value::from("EB_SW_VERSION"))
@@ -806,7 +808,7 @@ fn whj_e2e_broadcast_registers_with_the_end_board() {
         "{w:?}"
     );
     assert_eq!(
-        (w[2]["joint"].as_str(), f(&w[2]["raw"])),
+        (w[2]["id"].as_str(), f(&w[2]["raw"])),
         (Some("end-board"), 1.0)
     );
     assert_eq!(register_broadcasts(&log), dry_frames(&write));
@@ -815,7 +817,7 @@ fn whj_e2e_broadcast_registers_with_the_end_board() {
     let st = sim.json(&["status", "--broadcast", "1-2", "--end-board"]);
     assert_eq!(st.len(), 3, "{st:?}");
     assert_eq!(
-        (&st[2]["joint"], &st[2]["io1_output"]),
+        (&st[2]["id"], &st[2]["io1_output"]),
         (&Value::from("end-board"), &Value::from(true))
     );
     assert_eq!(st[2]["io2_output"], false, "{st:?}");
@@ -898,16 +900,8 @@ fn whj_e2e_run_reports_what_the_subcommands_report() {
             r#"{"op": "whj.status", "joints": "1-7", "broadcast": true}"#,
         ),
     ] {
-        let want: Vec<Value> = sim
-            .json(args)
-            .into_iter()
-            .map(|mut row| {
-                let row = row.as_object_mut().unwrap();
-                let id = row.remove("joint").unwrap();
-                row.insert("id".into(), id);
-                Value::Object(row.clone())
-            })
-            .collect();
+        // The subcommand's --json is the request's report.
+        let want: Vec<Value> = sim.json(args);
         let file = dir.path().join("request.json");
         std::fs::write(&file, request).unwrap();
         let r = common::robobus(&["run", "--whj-bus", bus, file.to_str().unwrap()]);

@@ -11,15 +11,10 @@
 
 use std::io::{BufRead as _, IsTerminal as _, Write as _};
 
-use robobus_whj::{Request, registers};
-
 use crate::exit::usage;
 use robobus::ops::wck::WckPlan;
 
-use crate::output::WhjPlan;
-
 pub(crate) mod wck;
-pub(crate) mod whj;
 
 /// A validated plan and the bus it is for.
 #[derive(Debug)]
@@ -45,23 +40,6 @@ pub(crate) enum Job<'a> {
         /// `--json`: one JSON document on stdout instead of a table.
         json: bool,
     },
-    /// WHJ joints on a CAN FD bus.
-    Whj {
-        /// The subcommand, e.g. `"enable"`.
-        action: &'static str,
-        /// The bus as given (`udp`, `udp:GROUP:PORT`, `can0`).
-        bus: &'a str,
-        /// `--capture FILE`: log every frame sent and received.
-        capture: Option<&'a std::path::Path>,
-        /// What to send.
-        plan: &'a WhjPlan,
-        /// How to run it on the bus.
-        run: &'a whj::WhjRun,
-        /// Safe state after Ctrl-C (move, wave).
-        on_stop: whj::OnStop,
-        /// `--json`: one JSON document on stdout instead of a table.
-        json: bool,
-    },
 }
 
 impl Job<'_> {
@@ -69,27 +47,12 @@ impl Job<'_> {
     pub(crate) fn rewrites_memory(&self) -> bool {
         match self {
             Job::Wck { plan, .. } => plan.writes_eeprom(),
-            Job::Whj { plan, .. } => plan.steps.iter().any(|s| {
-                matches!(s.request, Request::Write { addr, .. }
-                    if addr == registers::addr::SYS_SAVE_TO_FLASH || addr == registers::addr::SYS_ID)
-            }),
         }
     }
 
     /// What the plan does that needs a confirmation (non-volatile memory, or a WHJ register
     /// of the `confirm` safety class: bit rates, IAP, brake, calibration, ...), if anything.
     pub(crate) fn needs_confirmation(&self) -> Option<String> {
-        // Only `whj write` goes by the register's class; the dedicated commands (zero,
-        // save, set-id, release-iap) have their own checks.
-        if let Job::Whj { plan, action, .. } = self
-            && *action == "write"
-            && let Some(what) = plan
-                .steps
-                .iter()
-                .find_map(|s| robobus::ops::whj::confirm_text(&s.request))
-        {
-            return Some(format!("This write {what}."));
-        }
         self.rewrites_memory()
             .then(|| "This rewrites the device's non-volatile memory (EEPROM / flash).".to_owned())
     }
@@ -148,26 +111,5 @@ pub(crate) fn execute(job: &Job<'_>, yes: bool) -> anyhow::Result<()> {
             run,
             json: *json,
         }),
-        Job::Whj {
-            action,
-            bus,
-            capture,
-            plan,
-            run,
-            on_stop,
-            json,
-        } => {
-            tracing::debug!(%bus, frames = plan.steps.len(), "whj plan");
-            whj::execute(&whj::WhjJob {
-                action,
-                bus,
-                capture: *capture,
-                run,
-                on_stop: *on_stop,
-                json: *json,
-                // Confirmed by `confirm` above (or nothing needed it).
-                confirmed: true,
-            })
-        }
     }
 }

@@ -246,16 +246,14 @@ fn probe_wck(
 }
 
 fn probe_whj(bus_name: &str, ids: &[u8]) -> Vec<Finding> {
-    let opened = crate::client::whj::open_link(bus_name, None).and_then(|link| {
-        robobus::whj::JointBus::open_with(
-            link,
-            robobus::whj::JointBusConfig {
-                connect_timeout: std::time::Duration::from_millis(500),
-                ..robobus::whj::JointBusConfig::default()
-            },
-        )
-        .map_err(anyhow::Error::new)
-    });
+    let opened = robobus::catalogue::station::open_whj_with(
+        bus_name,
+        None,
+        robobus::whj::JointBusConfig {
+            connect_timeout: std::time::Duration::from_millis(500),
+            ..robobus::whj::JointBusConfig::default()
+        },
+    );
     match opened {
         Ok(bus) => probe::whj(&bus, bus_name, ids),
         Err(e) => vec![finding(

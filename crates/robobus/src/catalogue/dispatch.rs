@@ -36,6 +36,23 @@ pub fn validate(request: &Request) -> Result<(), OpError> {
     }
 }
 
+/// What `request` needs confirmed before it runs (the text a front end asks the user,
+/// the CLI's prompt), validated as [`run`] validates it; `None` when it runs without
+/// confirmation or carries `confirm: true` already.
+pub fn confirmation(request: &Request) -> Result<Option<String>, OpError> {
+    Ok(match request.family() {
+        Family::Wck => {
+            let p = wck::prepare(request, BaudRate::B115200)?;
+            (p.confirm != ConfirmClass::None && !p.confirmed)
+                .then(|| wck::confirm_text(p.confirm).to_owned())
+        }
+        Family::Whj => {
+            let p = whj::prepare(request, false)?;
+            (p.confirm != ConfirmClass::None && !p.confirmed).then_some(p.confirm_text)
+        }
+    })
+}
+
 fn plan_at(request: &Request, baud: BaudRate) -> Result<Plan, OpError> {
     let op = request.op();
     Ok(match request.family() {
@@ -43,6 +60,8 @@ fn plan_at(request: &Request, baud: BaudRate) -> Result<Plan, OpError> {
             let p = wck::prepare(request, baud)?;
             let mut plan = Plan::wck(&op, &p.plan, baud);
             plan.confirm = p.confirm;
+            plan.confirm_text =
+                (p.confirm != ConfirmClass::None).then(|| wck::confirm_text(p.confirm).to_owned());
             plan.truncated = matches!(p.job, wck::Job::Play(..))
                 && p.plan.steps.len() >= super::plan::MAX_PLAN_STEPS;
             plan
@@ -51,6 +70,7 @@ fn plan_at(request: &Request, baud: BaudRate) -> Result<Plan, OpError> {
             let p = whj::prepare(request, true)?;
             let mut plan = Plan::whj(&op, &p.plan);
             plan.confirm = p.confirm;
+            plan.confirm_text = (p.confirm != ConfirmClass::None).then(|| p.confirm_text.clone());
             plan
         }
     })

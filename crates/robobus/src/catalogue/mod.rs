@@ -89,7 +89,7 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 pub use crate::error::ErrorKind;
-pub use dispatch::{GONE_AFTER, plan, run, validate};
+pub use dispatch::{GONE_AFTER, confirmation, plan, run, validate};
 pub use plan::{Family, Plan, PlanStep};
 pub use station::{Station, StationConfig, WckPort, WhjPort};
 pub use telemetry::{Delivery, Sample, Subscriber, Telemetry};
@@ -255,6 +255,23 @@ impl Request {
             | Self::WckSample(_) => Family::Wck,
             _ => Family::Whj,
         }
+    }
+
+    /// The request with `confirm: true` (what a front end sends once the user has
+    /// confirmed; a request that needs no confirmation is returned as it is).
+    #[must_use]
+    pub fn confirmed(mut self) -> Self {
+        match &mut self {
+            Self::WckSet(r) => r.confirm = true,
+            Self::WckSetId(r) => r.confirm = true,
+            Self::WckSetBaud(r) => r.confirm = true,
+            Self::WckProgramUpload(r) => r.confirm = true,
+            Self::WhjSave(r) => r.confirm = true,
+            Self::WhjWrite(r) => r.confirm = true,
+            Self::WhjSetId(r) => r.confirm = true,
+            _ => {}
+        }
+        self
     }
 
     /// The bus it names, if any.

@@ -50,6 +50,10 @@ pub struct Plan {
     pub steps: Vec<PlanStep>,
     /// Whether the request needs `confirm: true`, and why.
     pub confirm: super::bounds::ConfirmClass,
+    /// What a front end asks before it sets `confirm: true` (the CLI's prompt), when the
+    /// request needs it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub confirm_text: Option<String>,
     /// `true` when the steps are a shortened view of a streamed plan (a keyframe motion's
     /// moves are generated as they are sent: the first ones are listed).
     pub truncated: bool,
@@ -129,6 +133,7 @@ impl Plan {
             notes: plan.notes.clone(),
             steps,
             confirm: super::bounds::ConfirmClass::None,
+            confirm_text: None,
             truncated: false,
             text: plan.to_text(),
         }
@@ -156,6 +161,7 @@ impl Plan {
             notes: plan.notes.clone(),
             steps,
             confirm: super::bounds::ConfirmClass::None,
+            confirm_text: None,
             truncated: false,
             text: String::new(),
         };
@@ -212,5 +218,24 @@ impl WhjSteps {
         }
         p.notes.clone_from(&b.notes);
         p
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use robobus_whj::JointId;
+
+    #[test]
+    fn frame_lines_use_cansend_syntax() {
+        let j1 = JointId::new(1).unwrap();
+        assert_eq!(
+            frame_line(&WhjWire::enable(j1, true).to_frame()),
+            "001##1020A01"
+        );
+        assert_eq!(
+            frame_line(&WhjWire::StatusQuery { joint: j1 }.to_frame()),
+            "601##1"
+        );
     }
 }

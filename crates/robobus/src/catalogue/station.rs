@@ -7,12 +7,13 @@
 //! `Send + Sync` and clone as one `Arc`. Closing the station (or dropping it) brings every
 //! device to its safe state: the wCK bus-wide break, every connected WHJ joint disabled.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, MutexGuard};
 
 use robobus_wck::{BaudRate, TorqueLevel};
 use robobus_whj::JointId;
 
+use crate::ops::capture::{Overwrite, capture_byte_link, capture_frame_link};
 use crate::ops::safe::{WckServos, WhjJoints};
 use crate::ops::whj::ServoLoop;
 use crate::ops::{OpError, SafeState};
@@ -121,20 +122,7 @@ impl Station {
             s.add_wck(port.clone(), open_wck(port, baud)?);
         }
         for addr in &config.whj_buses {
-            let spec: robobus_link::FrameLinkSpec = addr
-                .parse()
-                .map_err(|e| OpError::invalid("--whj-bus", addr, format!("{e}")))?;
-            let link = spec.open().map_err(|e| {
-                let kind = crate::error::open_error_kind(&e);
-                match kind {
-                    crate::ErrorKind::NotAvailable => OpError::NotAvailable(format!("{addr}: {e}")),
-                    _ => OpError::Device(format!("{addr}: {e}")),
-                }
-            })?;
-            s.add_whj(
-                addr.clone(),
-                JointBus::open_with(link, JointBusConfig::default())?,
-            );
+            s.add_whj(addr.clone(), open_whj(addr, None)?);
         }
         if let Some(path) = &config.robot {
             let text = crate::ops::read_bounded(path, 1 << 20)?;
@@ -238,6 +226,13 @@ impl Station {
         self.safe_stop()
     }
 
+    /// Closes the station leaving every device as the last request left it: what a
+    /// one-shot command wants (`robobus whj enable 1` must leave the joint enabled; an
+    /// interrupted request has brought its devices to its own `on_stop` state already).
+    pub fn leave(mut self) {
+        self.closed = true;
+    }
+
     fn safe_stop(&mut self) -> Vec<String> {
         if self.closed {
             return Vec::new();
@@ -327,15 +322,62 @@ fn pick<T: Clone>(
     }
 }
 
-#[cfg(unix)]
-fn open_wck(port: &str, baud: BaudRate) -> Result<WckBus<DynByteLink>, OpError> {
-    let bus = WckBus::open(port, baud)?;
-    bus.try_map_link(|l| Ok::<_, OpError>(Box::new(l) as DynByteLink))
+/// Opens the WHJ bus at `addr` (`udp`, `udp:GROUP:PORT`, a SocketCAN interface) as
+/// [`Station::open`] does, optionally logging every frame to `capture` as a candump log
+/// (an existing file is refused before anything is sent). An address that does not parse
+/// is bad input, an interface that is not there no device.
+pub fn open_whj(addr: &str, capture: Option<&Path>) -> Result<JointBus, OpError> {
+    open_whj_with(addr, capture, JointBusConfig::default())
 }
 
+/// [`open_whj`] with a client configuration.
+pub fn open_whj_with(
+    addr: &str,
+    capture: Option<&Path>,
+    config: JointBusConfig,
+) -> Result<JointBus, OpError> {
+    let spec: robobus_link::FrameLinkSpec = addr
+        .parse()
+        .map_err(|e| OpError::invalid("bus", addr, format!("{e}")))?;
+    let link = spec.open()?;
+    match capture {
+        None => Ok(JointBus::open_with(link, config)?),
+        Some(path) => {
+            let link = capture_frame_link(link, path, spec.candump_iface(), Overwrite::No)?;
+            Ok(JointBus::open_with(link, config)?)
+        }
+    }
+}
+
+/// Opens the wCK port `port` at `baud` as [`Station::open`] does, optionally logging
+/// every byte written and read to `capture` (an existing file is refused).
+#[cfg(unix)]
+pub fn open_wck_port(
+    port: &str,
+    baud: BaudRate,
+    capture: Option<&Path>,
+) -> Result<WckBus<DynByteLink>, OpError> {
+    let bus = WckBus::open(port, baud)?;
+    match capture {
+        None => bus.try_map_link(|l| Ok::<_, OpError>(Box::new(l) as DynByteLink)),
+        Some(path) => bus.try_map_link(|l| {
+            capture_byte_link(l, path, Overwrite::No).map(|l| Box::new(l) as DynByteLink)
+        }),
+    }
+}
+
+/// Not on this host: serial ports need a Unix host.
 #[cfg(not(unix))]
-fn open_wck(port: &str, _baud: BaudRate) -> Result<WckBus<DynByteLink>, OpError> {
+pub fn open_wck_port(
+    port: &str,
+    _baud: BaudRate,
+    _capture: Option<&Path>,
+) -> Result<WckBus<DynByteLink>, OpError> {
     Err(OpError::NotAvailable(format!(
         "{port}: serial ports need a Unix host"
     )))
+}
+
+fn open_wck(port: &str, baud: BaudRate) -> Result<WckBus<DynByteLink>, OpError> {
+    open_wck_port(port, baud, None)
 }

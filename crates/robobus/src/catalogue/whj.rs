@@ -239,6 +239,9 @@ request!(
         /// As broadcast frames (0x2F / 0x4F).
         #[serde(default)]
         broadcast: bool,
+        /// Where a plan assumes the joint starts, degrees (a run measures it).
+        #[serde(default)]
+        from: Option<f64>,
         /// Model for the current scale of a plan.
         #[serde(default)]
         model: Option<Model>,
@@ -460,7 +463,7 @@ fn scale_for(model: Option<Model>, dry_run: bool, option: &str) -> R<CurrentScal
         None if dry_run => Err(OpError::invalid(
             option,
             "(no model)",
-            "converting mA to counts needs the joint model in a plan: give model \
+            "converting mA to counts needs the joint model in a plan: give model (--model) \
              whj03|whj10|whj30|whj60|whj120",
         )),
         None => Ok(CurrentScale::OneMilliamp),
@@ -473,7 +476,7 @@ fn one_joint(joints: &[JointId], what: &str) -> R<JointId> {
         _ => Err(OpError::invalid(
             what,
             joints.len(),
-            "one joint without broadcast; with broadcast, joints 1..=7 share one frame",
+            "one joint without broadcast (--broadcast); with it, joints 1..=7 share one frame",
         )),
     }
 }
@@ -759,10 +762,15 @@ fn prepare_steps(req: &super::Request, dry_run: bool) -> R<Prepared> {
             } else {
                 CurrentScale::OneMilliamp
             };
+            let from = r
+                .from
+                .map(|f| bounds::ANGLE_DEG.check("--from", f))
+                .transpose()?;
+            let start = from.unwrap_or(0.0);
             let plan = if r.broadcast {
-                ops::plan_broadcast_wave(&args, 0.0, scale, true)?
+                ops::plan_broadcast_wave(&args, start, scale, from.is_none())?
             } else {
-                ops::plan_wave(&args, 0.0, scale, true)?
+                ops::plan_wave(&args, start, scale, from.is_none())?
             };
             let mut p = prepared(WhjSteps::of(&plan), Job::Wave(args, r.broadcast));
             p.on_stop = r.on_stop;

@@ -431,6 +431,9 @@ pub enum OpError {
     /// was done about it).
     #[error("{0}")]
     NoDevice(String),
+    /// A bus could not be opened (no such interface, no CAN FD support, the UDP socket).
+    #[error(transparent)]
+    Open(#[from] robobus_link::OpenError),
 }
 
 impl OpError {
@@ -446,6 +449,7 @@ impl OpError {
             Self::File { kind, .. } => *kind,
             Self::NotAvailable(_) => ErrorKind::NotAvailable,
             Self::NoDevice(_) => ErrorKind::NoDevice,
+            Self::Open(e) => crate::error::open_error_kind(e),
         }
     }
 

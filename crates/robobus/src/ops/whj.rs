@@ -1338,9 +1338,14 @@ fn conflict_of(bus: &JointBus, id: JointId) -> Option<Duplicate> {
         })
 }
 
-/// `whj scan`: connects every ID at once (IAP releases pipelined, then identify; the bus's
-/// connect timeout is what the absent IDs cost, once for all of them) and checks each
-/// joint found for a second joint at its ID. IDs that stay silent are left out of
+/// How long a scan waits for joints to answer their IAP release: a joint in its
+/// bootloader answers at once, so an absent ID costs this, not the bus's connect timeout
+/// (which allows for joints still powering up).
+pub const SCAN_CONNECT_TIMEOUT: Duration = Duration::from_millis(150);
+
+/// `whj scan`: connects every ID at once (IAP releases pipelined, then identify;
+/// [`SCAN_CONNECT_TIMEOUT`] is what the absent IDs cost, once for all of them) and checks
+/// each joint found for a second joint at its ID. IDs that stay silent are left out of
 /// `found`; other failures are kept.
 pub fn scan(
     bus: &JointBus,
@@ -1358,7 +1363,7 @@ pub fn scan(
         });
     }
     control.report(&Progress::new("scan", 0, Some(ids.len() as u64)).with_note("connecting"));
-    let connected = bus.joints(ids);
+    let connected = bus.joints_within(ids, SCAN_CONNECT_TIMEOUT);
     for (k, (&id, joint)) in ids.iter().zip(connected).enumerate() {
         if control.stopped() {
             return Err(OpError::Interrupted {

@@ -600,7 +600,18 @@ impl JointBus {
     /// pipelined: an absent joint costs the connect timeout once for the whole batch, not
     /// once per joint). Results in `ids` order.
     pub fn joints(&self, ids: &[JointId]) -> Vec<Result<Joint<'_>, WhjError>> {
-        Joint::connect_many(self, ids)
+        Joint::connect_many(self, ids, self.config().connect_timeout)
+    }
+
+    /// [`JointBus::joints`] waiting at most `timeout` for the joints to answer instead of
+    /// [`JointBusConfig::connect_timeout`] (a scan: a joint in its bootloader answers the
+    /// release at once, an absent ID must not cost seconds).
+    pub fn joints_within(
+        &self,
+        ids: &[JointId],
+        timeout: Duration,
+    ) -> Vec<Result<Joint<'_>, WhjError>> {
+        Joint::connect_many(self, ids, timeout)
     }
 
     /// A handle for joint `id` without the connect handshake (for a joint known to run its

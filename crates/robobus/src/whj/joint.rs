@@ -156,7 +156,7 @@ impl<'a> Joint<'a> {
     /// joint answers or [`JointBusConfig::connect_timeout`](super::JointBusConfig::connect_timeout)
     /// passes. Any answer counts: a joint already in its application acknowledges too.
     pub fn release_iap(&self) -> Result<(), WhjError> {
-        release_iap_many(self.bus, &[self.id])
+        release_iap_many(self.bus, &[self.id], self.bus.config().connect_timeout)
             .pop()
             .unwrap_or(Err(WhjError::Closed))
     }
@@ -165,8 +165,12 @@ impl<'a> Joint<'a> {
     /// to every joint, then collected; repeated for the joints that did not answer until
     /// the connect timeout), then each joint that answered is identified. Results in `ids`
     /// order.
-    pub(crate) fn connect_many(bus: &'a JointBus, ids: &[JointId]) -> Vec<Result<Self, WhjError>> {
-        release_iap_many(bus, ids)
+    pub(crate) fn connect_many(
+        bus: &'a JointBus,
+        ids: &[JointId],
+        timeout: Duration,
+    ) -> Vec<Result<Self, WhjError>> {
+        release_iap_many(bus, ids, timeout)
             .into_iter()
             .zip(ids)
             .map(|(released, &id)| {
@@ -762,7 +766,11 @@ impl<'a> Joint<'a> {
 /// Writes `IAP_FLAG := 0` to every joint of `ids` at once, then again to those that did
 /// not answer, until all answered or the connect timeout passed (see
 /// [`Joint::release_iap`]). Results in `ids` order.
-fn release_iap_many(bus: &JointBus, ids: &[JointId]) -> Vec<Result<(), WhjError>> {
+fn release_iap_many(
+    bus: &JointBus,
+    ids: &[JointId],
+    timeout: Duration,
+) -> Vec<Result<(), WhjError>> {
     let cfg = bus.config();
     let start = bus.now();
     let mut results: Vec<Option<Result<(), WhjError>>> = ids.iter().map(|_| None).collect();
@@ -811,7 +819,7 @@ fn release_iap_many(bus: &JointBus, ids: &[JointId]) -> Vec<Result<(), WhjError>
         }
         let now = bus.now();
         let waited = now.saturating_duration_since(start);
-        if waited >= cfg.connect_timeout {
+        if waited >= timeout {
             for &i in &pending {
                 results[i] = Some(Err(WhjError::Silent {
                     joint: ids[i],
