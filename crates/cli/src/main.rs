@@ -30,7 +30,6 @@ use std::process::ExitCode;
 
 use clap::{CommandFactory as _, FromArgMatches as _, Parser, Subcommand};
 
-mod client;
 mod demo;
 mod doctor;
 mod exit;

@@ -14,7 +14,7 @@ use std::io::{BufRead as _, IsTerminal as _, Write as _};
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use robobus::ErrorKind;
-use robobus::catalogue::{self, Report, Request, Station};
+use robobus::catalogue::{self, Interaction, NoInteraction, Report, Request, Station};
 use robobus::ops::{Control, OpError, Progress};
 use serde_json::{Map, Value};
 
@@ -52,6 +52,15 @@ pub(crate) fn confirm(request: Request, yes: bool) -> anyhow::Result<Request> {
 /// Runs `request` on `station` with the stop token of the one Ctrl-C handler and, on a
 /// terminal, a progress bar fed by the operation's progress events.
 pub(crate) fn run(station: &Station, request: &Request) -> anyhow::Result<Report> {
+    run_with(station, request, &mut NoInteraction)
+}
+
+/// [`run`] with the front end's side of an interactive operation (teach's key presses).
+pub(crate) fn run_with(
+    station: &Station,
+    request: &Request,
+    interaction: &mut dyn Interaction,
+) -> anyhow::Result<Report> {
     let pb = progress_bar(&request.op());
     let mut on_progress = |p: &Progress| {
         if let Some(total) = p.total {
@@ -63,10 +72,11 @@ pub(crate) fn run(station: &Station, request: &Request) -> anyhow::Result<Report
         }
     };
     let stop = crate::interrupt::stop_token();
-    let report = catalogue::run(
+    let report = catalogue::run_with(
         station,
         request,
         &mut Control::new(&stop).with_progress(&mut on_progress),
+        interaction,
     );
     pb.finish_and_clear();
     Ok(report?)
@@ -85,9 +95,18 @@ fn progress_bar(op: &str) -> ProgressBar {
     pb
 }
 
-/// Prints `report` (`--json`: the report itself; else its table, `id_header` naming the
-/// ID column, then its summary) and returns its worst failure as the exit code's error.
-pub(crate) fn print(report: &Report, json: bool, id_header: &str) -> anyhow::Result<()> {
+/// How a family's tables look.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Style {
+    /// The header of the `id` column (`JOINT`, `ID`).
+    pub(crate) id_header: &'static str,
+    /// Decimals of a float cell.
+    pub(crate) decimals: usize,
+}
+
+/// Prints `report` (`--json`: the report itself; else its table, then its summary) and
+/// returns its worst failure as the exit code's error.
+pub(crate) fn print(report: &Report, json: bool, style: &Style) -> anyhow::Result<()> {
     if json {
         output::print_json(&serde_json::to_value(report)?)?;
     } else {
@@ -99,7 +118,7 @@ pub(crate) fn print(report: &Report, json: bool, id_header: &str) -> anyhow::Res
         let mut text = if rows.is_empty() {
             String::new()
         } else {
-            table(&rows, id_header)
+            table(&rows, style)
         };
         // The summary's fields below the table (an empty list says nothing).
         if let Some(Value::Object(s)) = &report.summary {
@@ -107,7 +126,7 @@ pub(crate) fn print(report: &Report, json: bool, id_header: &str) -> anyhow::Res
                 if v.as_array().is_some_and(Vec::is_empty) {
                     continue;
                 }
-                let _ = writeln!(text, "{k}: {}", cell(v));
+                let _ = writeln!(text, "{k}: {}", cell(v, style.decimals));
             }
         }
         output::print(&text)?;
@@ -135,15 +154,15 @@ pub(crate) fn kind_error(kind: ErrorKind, message: String) -> anyhow::Error {
     }
 }
 
-/// One value as table text: floats with 4 decimals, null as `-`.
-pub(crate) fn cell(v: &Value) -> String {
+/// One value as table text: floats with `decimals` decimals, null as `-`.
+pub(crate) fn cell(v: &Value, decimals: usize) -> String {
     match v {
         Value::Null => "-".to_owned(),
         Value::String(s) => s.clone(),
         Value::Number(n) => n
             .as_f64()
             .filter(|_| n.is_f64())
-            .map_or_else(|| n.to_string(), |f| format!("{f:.4}")),
+            .map_or_else(|| n.to_string(), |f| format!("{f:.decimals$}")),
         other => other.to_string(),
     }
 }
@@ -177,18 +196,58 @@ const COLUMNS: &[&str] = &[
     "frames",
     "seconds",
     "error_before",
+    // wCK replies, in the order of a reply's fields.
+    "baud",
+    "target_position",
+    "target_position10",
+    "target_degrees",
+    "positions",
+    "torque",
+    "speed",
+    "accel",
+    "load_before",
+    "position_before",
+    "position10_before",
+    "degrees_before",
+    "load",
+    "rotations",
+    "answered_by",
+    "position",
+    "position10",
+    "degrees",
+    "p_gain",
+    "d_gain",
+    "i_gain",
+    "new_id",
+    "milliamps",
+    "overload_code",
+    "lower",
+    "lower_degrees",
+    "upper",
+    "upper_degrees",
+    "outputs",
+    "do1",
+    "do2",
+    "adc",
+    "adc_volts",
+    "instructions",
+    "reply",
     "error_after",
     "error",
     "kind",
 ];
 
-/// Rows as an aligned table; columns in [`COLUMNS`] order, the `id` column headed
-/// `id_header`.
-pub(crate) fn table(rows: &[Map<String, Value>], id_header: &str) -> String {
-    let mut cols: Vec<&str> = Vec::new();
-    for r in rows {
+/// Rows as an aligned table; columns in [`COLUMNS`] order, the `id` column headed as
+/// `style` says; a row's `meaning` (what a reply means) is a `# ` note below the table.
+pub(crate) fn table(rows: &[Map<String, Value>], style: &Style) -> String {
+    let id_header = style.id_header;
+    // A device that failed has `kind` and `error` only: its row names the kind (the
+    // message goes to stderr with the exit code).
+    let failed = |r: &Map<String, Value>| r.contains_key("kind") && r.contains_key("error");
+    let mut cols: Vec<&str> = vec!["id"];
+    for r in rows.iter().filter(|r| !failed(r)) {
         for k in r.keys() {
-            if !cols.contains(&k.as_str()) {
+            if k != "meaning" && !cols.contains(&k.as_str()) {
                 cols.push(k);
             }
         }
@@ -200,12 +259,22 @@ pub(crate) fn table(rows: &[Map<String, Value>], id_header: &str) -> String {
             .unwrap_or(COLUMNS.len())
     };
     cols.sort_by(|a, b| rank(a).cmp(&rank(b)).then(a.cmp(b)));
-    let cells: Vec<Vec<String>> = rows
+    // `Err((id, kind))` for a failed device's row.
+    let cells: Vec<Result<Vec<String>, (String, String)>> = rows
         .iter()
         .map(|r| {
-            cols.iter()
-                .map(|c| r.get(*c).map_or_else(String::new, cell))
-                .collect()
+            if failed(r) {
+                let id = r.get("id").map_or_else(String::new, |v| cell(v, 0));
+                let kind = r.get("kind").map_or_else(String::new, |v| cell(v, 0));
+                return Err((id, kind));
+            }
+            Ok(cols
+                .iter()
+                .map(|c| {
+                    r.get(*c)
+                        .map_or_else(String::new, |v| cell(v, style.decimals))
+                })
+                .collect())
         })
         .collect();
     let header = |c: &str| {
@@ -221,7 +290,10 @@ pub(crate) fn table(rows: &[Map<String, Value>], id_header: &str) -> String {
         .map(|(i, c)| {
             cells
                 .iter()
-                .filter_map(|r| r.get(i).map(String::len))
+                .filter_map(|r| match r {
+                    Ok(r) => r.get(i).map(String::len),
+                    Err((id, _)) => (i == 0).then_some(id.len()),
+                })
                 .chain([header(c).len()])
                 .max()
                 .unwrap_or(0)
@@ -236,8 +308,17 @@ pub(crate) fn table(rows: &[Map<String, Value>], id_header: &str) -> String {
         let _ = writeln!(s, "{}", parts.join("  ").trim_end());
     };
     line(&mut s, &mut cols.iter().map(|c| header(c)));
+    let id_width = widths.first().copied().unwrap_or(0);
     for r in &cells {
-        line(&mut s, &mut r.iter().cloned());
+        match r {
+            Ok(r) => line(&mut s, &mut r.iter().cloned()),
+            Err((id, kind)) => {
+                let _ = writeln!(s, "{id:<id_width$}  ({kind})");
+            }
+        }
+    }
+    for m in rows.iter().filter_map(|r| r.get("meaning")) {
+        let _ = writeln!(s, "# {}", cell(m, style.decimals));
     }
     s
 }
@@ -255,10 +336,51 @@ mod tests {
         let mut b = Map::new();
         b.insert("id".into(), json!(12));
         b.insert("value".into(), Value::Null);
-        let t = table(&[a, b], "joint");
+        let style = Style {
+            id_header: "joint",
+            decimals: 4,
+        };
+        let t = table(&[a, b], &style);
         let lines: Vec<&str> = t.lines().collect();
         assert_eq!(lines[0], "JOINT  VALUE  ERROR");
         assert_eq!(lines[1], "1             none");
         assert_eq!(lines[2], "12     -");
+    }
+
+    #[test]
+    fn a_meaning_goes_below_the_table_and_floats_get_the_styles_decimals() {
+        let mut a = Map::new();
+        a.insert("id".into(), json!(3));
+        a.insert("degrees".into(), json!(134.0));
+        let mut b = Map::new();
+        b.insert("id".into(), json!(12));
+        b.insert("degrees".into(), json!(1.5));
+        b.insert("meaning".into(), json!("heard"));
+        let style = Style {
+            id_header: "id",
+            decimals: 1,
+        };
+        let t = table(&[a, b], &style);
+        let lines: Vec<&str> = t.lines().collect();
+        assert_eq!(lines, ["ID  DEGREES", "3   134.0", "12  1.5", "# heard"]);
+    }
+
+    #[test]
+    fn a_failed_device_has_its_row_with_the_kind_only() {
+        let mut a = Map::new();
+        a.insert("id".into(), json!(7));
+        a.insert("kind".into(), json!("no-device"));
+        a.insert("error".into(), json!("servo 7 did not answer"));
+        let mut b = Map::new();
+        b.insert("id".into(), json!(1));
+        b.insert("position".into(), json!(127));
+        let style = Style {
+            id_header: "id",
+            decimals: 1,
+        };
+        let t = table(&[a.clone(), b], &style);
+        let lines: Vec<&str> = t.lines().collect();
+        assert_eq!(lines, ["ID  POSITION", "7   (no-device)", "1   127"]);
+        assert_eq!(table(&[a], &style), "ID\n7   (no-device)\n");
     }
 }

@@ -502,8 +502,14 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     {
         eprintln!("robobus: {note}");
     }
-    report::print(&report, g.json, "joint")
+    report::print(&report, g.json, &WHJ_TABLE)
 }
+
+/// How WHJ tables look: the `JOINT` column, four decimals.
+const WHJ_TABLE: report::Style = report::Style {
+    id_header: "joint",
+    decimals: 4,
+};
 
 /// The joints as a request's list.
 fn ids(joints: &Joints) -> Ids {

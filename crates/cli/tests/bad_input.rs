@@ -80,7 +80,7 @@ fn wck_values_out_of_range_are_refused_before_anything_is_opened() {
         );
         refused(
             &with(&["set", "bounds", "3", "100", "50"]),
-            &["set bounds", "lower 100", "upper 50"],
+            &["<UPPER>", "lower 100", "upper 50"],
         );
         refused(
             &with(&["set", "io", "3", "4"]),

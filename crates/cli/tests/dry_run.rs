@@ -142,13 +142,14 @@ fn wck_json_form_is_machine_readable() {
         "127",
     ]);
     let v: serde_json::Value = serde_json::from_str(&out).unwrap();
-    assert_eq!(v["dry_run"], true);
-    assert_eq!(v["bus"]["port"], PORT);
-    let p = &v["packets"][0];
-    assert_eq!(p["hex"], "FF 03 7F 7C");
+    // The library's plan: the operation, then each packet with its rate and bytes.
+    assert_eq!(v["op"], "wck.move");
+    assert_eq!(v["family"], "wck");
+    let p = &v["steps"][0];
+    assert_eq!(p["line"], "FF 03 7F 7C");
     assert_eq!(p["bytes"], serde_json::json!([255, 3, 127, 124]));
-    assert_eq!(p["command"], "position move");
-    assert_eq!(p["reply_len"], 2);
+    assert_eq!(p["what"], "position move servo 3");
+    assert_eq!(p["baud"], 115_200);
 }
 
 #[test]
@@ -182,13 +183,13 @@ fn wck_play_interpolates_keyframes_into_sync_moves() {
     );
     let out = ok(&["wck", "--dry-run", "--json", "play", f]);
     let v: serde_json::Value = serde_json::from_str(&out).unwrap();
-    let times: Vec<u64> = v["packets"]
+    let times: Vec<f64> = v["steps"]
         .as_array()
         .unwrap()
         .iter()
-        .filter_map(|p| p["t_ms"].as_u64())
+        .filter_map(|p| p["t_ms"].as_f64())
         .collect();
-    assert_eq!(times, [0, 520, 540, 560, 580, 600, 640]);
+    assert_eq!(times, [0.0, 520.0, 540.0, 560.0, 580.0, 600.0, 640.0]);
 }
 
 #[test]
@@ -354,18 +355,18 @@ fn wck_timed_wheel_shows_the_watch_reads_and_the_stop() {
         "hold",
     ]);
     let v: serde_json::Value = serde_json::from_str(&out).unwrap();
-    let packets = v["packets"].as_array().unwrap();
-    let seen: Vec<(Option<u64>, &str)> = packets
+    let packets = v["steps"].as_array().unwrap();
+    let seen: Vec<(Option<f64>, &str)> = packets
         .iter()
-        .map(|p| (p["t_ms"].as_u64(), p["command"].as_str().unwrap()))
+        .map(|p| (p["t_ms"].as_f64(), p["what"].as_str().unwrap()))
         .collect();
     assert_eq!(seen.len(), 6, "{out}");
-    assert_eq!(seen[0].0, Some(0));
-    assert_eq!(seen[1].0, Some(200));
-    assert_eq!(seen[2].0, Some(400));
-    assert_eq!(seen[3].0, Some(500));
+    assert_eq!(seen[0].0, Some(0.0));
+    assert_eq!(seen[1].0, Some(200.0));
+    assert_eq!(seen[2].0, Some(400.0));
+    assert_eq!(seen[3].0, Some(500.0));
     assert_eq!(seen[1].1, seen[3].1, "status reads");
-    assert_eq!(seen[4], (None, "position move"));
+    assert_eq!(seen[4], (None, "position move servo 1"));
     // Then where the shaft came to rest.
     assert_eq!(seen[5], (None, seen[1].1));
     let notes = v["notes"].to_string();

@@ -144,9 +144,8 @@ fn status_move_and_10_bit_moves_show_their_effect() {
     }
     // JSON: stable fields with units in their names.
     let v = sim.json(&["status", "1"]);
-    assert_eq!(v["command"], "status");
-    assert_eq!(v["port"], sim.port());
-    assert_eq!(v["baud"], 115_200);
+    assert_eq!(v["op"], "wck.status");
+    assert_eq!(v["bus"], sim.port());
     let r = &v["results"][0];
     assert_eq!(r["id"], 1);
     assert_eq!(r["position"], 127);
@@ -201,18 +200,27 @@ fn a_servo_that_does_not_answer_is_exit_3_naming_the_port_and_the_servo() {
     assert_eq!(r.code, Some(3), "{r:#?}");
     assert!(r.stderr.contains(sim.port()), "{}", r.stderr);
     assert!(r.stderr.contains("servo 9"), "{}", r.stderr);
-    // The servos before the silent one are printed, then the error.
+    // Every servo has its row, the silent one marked as such, then the error.
     let r = sim.wck(&["status", "0-2"]);
     assert_eq!(r.code, Some(3), "{r:#?}");
     assert!(r.stderr.contains("servo 2"), "{}", r.stderr);
-    assert_eq!(r.stdout.lines().count(), 3, "{}", r.stdout);
+    let lines: Vec<&str> = r.stdout.lines().collect();
+    assert_eq!(lines.len(), 4, "{}", r.stdout);
+    assert!(
+        lines[3].starts_with("2 ") && lines[3].contains("no-device"),
+        "{}",
+        r.stdout
+    );
+    assert!(!lines[1].contains("no-device"), "{}", r.stdout);
     // A silent servo does not hide the ones after it.
     let r = sim.wck(&["status", "2,0,1"]);
     assert_eq!(r.code, Some(3), "{r:#?}");
-    assert_eq!(
-        r.stdout.lines().count(),
-        3,
-        "servos 0 and 1 are shown: {}",
+    let lines: Vec<&str> = r.stdout.lines().collect();
+    assert_eq!(lines.len(), 4, "servos 0 and 1 are shown: {}", r.stdout);
+    assert!(lines[1].contains("no-device"), "{}", r.stdout);
+    assert!(
+        lines[2].contains(" 127 ") && lines[3].contains(" 127 "),
+        "{}",
         r.stdout
     );
     assert!(r.stderr.contains("servo 2"), "{}", r.stderr);
@@ -256,19 +264,25 @@ fn scan_finds_servos_flags_duplicates_and_fails_on_an_empty_bus() {
 
     // Every rate: the servos are found at theirs.
     let v = sim.json(&["scan", "--all-bauds", "--ids", "0-2"]);
-    assert_eq!(v["bauds_tried"].as_array().unwrap().len(), 8, "{v}");
-    let found = v["found"].as_array().unwrap();
+    assert_eq!(v["op"], "wck.scan");
+    assert_eq!(
+        v["summary"]["bauds_tried"].as_array().unwrap().len(),
+        8,
+        "{v}"
+    );
+    let found = v["results"].as_array().unwrap();
     assert_eq!(found.len(), 2, "{v}");
     assert!(found.iter().all(|f| f["baud"] == 115_200), "{v}");
     assert_eq!(found[0]["id"], 0);
     assert_eq!(found[0]["position"], 127);
-    assert_eq!(v["duplicates"].as_array().unwrap().len(), 0);
+    assert_eq!(v["summary"]["duplicates"].as_array().unwrap().len(), 0);
 
     // Nobody at these IDs: the empty result, then exit 3.
     let r = sim.wck(&["--json", "scan", "--ids", "5-7"]);
     assert_eq!(r.code, Some(3), "{r:#?}");
     let v: Value = serde_json::from_str(&r.stdout).unwrap();
-    assert_eq!(v["found"].as_array().unwrap().len(), 0);
+    assert_eq!(v["results"].as_array().unwrap().len(), 0);
+    assert_eq!(v["failed"], "no-device");
     assert!(
         r.stderr.contains("5-7") && r.stderr.contains(sim.port()),
         "{}",
@@ -296,11 +310,12 @@ fn scan_flags_two_servos_sharing_an_id() {
     let r = sim.wck(&["--json", "--baud", "921600", "scan", "--ids", "0-2"]);
     assert_eq!(r.code, Some(1), "{r:#?}");
     let v: Value = serde_json::from_str(&r.stdout).unwrap();
-    let dups = v["duplicates"].as_array().unwrap();
+    assert_eq!(v["failed"], "device");
+    let dups = v["summary"]["duplicates"].as_array().unwrap();
     assert_eq!(dups.len(), 1, "{v}");
     assert_eq!(dups[0]["id"], 1);
     assert!(!dups[0]["evidence"].as_str().unwrap().is_empty());
-    let found: Vec<&Value> = v["found"].as_array().unwrap().iter().collect();
+    let found: Vec<&Value> = v["results"].as_array().unwrap().iter().collect();
     assert_eq!(found.len(), 1, "{v}");
     assert_eq!(found[0]["id"], 0);
 }
@@ -527,7 +542,7 @@ fn play_ends_at_the_last_pose() {
         "torque 0\npose 200 100 150\npose 300 160 90\nhold 100\npose 200 140 110\n",
     );
     let start = Instant::now();
-    let v = sim.json(&["play", f.to_str().unwrap(), "--rate-hz", "25"]);
+    let v = sim.json(&["play", f.to_str().unwrap(), "--rate-hz", "25"])["summary"].clone();
     let took = start.elapsed();
     assert_eq!(v["last_positions"], serde_json::json!([140, 110]));
     assert_eq!(v["planned_ms"], 800);
@@ -641,7 +656,10 @@ fn teach_at_a_rate_writes_a_file_that_play_accepts() {
     let out = child.wait_with_output().unwrap();
     assert!(out.status.success(), "{out:?}");
     let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["op"], "wck.teach");
+    let v = &v["summary"];
     assert_eq!(v["ids"], serde_json::json!([0, 1]));
+    assert_eq!(v["recorded"], 3);
     let poses = v["poses"].as_array().unwrap();
     assert_eq!(poses.len(), 3, "the first pose and one per Enter: {v}");
     assert!(poses.iter().all(|p| p["ms"] == 400));
@@ -982,7 +1000,10 @@ fn scan_shows_a_progress_bar_on_a_terminal() {
     }
     let drawn = String::from_utf8_lossy(&drawn);
     assert!(drawn.contains("scan"), "{drawn:?}");
-    assert!(drawn.contains("/4 IDs"), "{drawn:?}");
+    assert!(
+        drawn.contains("wck.scan") && drawn.contains("/4"),
+        "{drawn:?}"
+    );
     // The table is not on the terminal's stderr.
     assert!(!drawn.contains("position"), "{drawn:?}");
 }

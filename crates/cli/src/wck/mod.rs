@@ -4,32 +4,43 @@
 //! ([`robobus_wck::Command`]). Arguments are parsed into the protocol crate's range-checked
 //! newtypes by clap value parsers, so an out-of-range value is refused (exit code 2, the
 //! message names the value, the range and the argument) before anything is opened. The
-//! subcommand then asks the library ([`robobus::ops::wck`]) for its plan; `--dry-run`
-//! prints it, otherwise [`crate::client::execute`] runs the library's operation on it.
+//! subcommand then becomes its catalogue request ([`robobus::catalogue::wck`]); the library
+//! validates and plans it: `--dry-run` prints the plan, otherwise [`crate::report`] runs it
+//! on a station holding the one port.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use clap::{Subcommand, ValueEnum};
-use robobus::ops::IdList;
-use robobus::ops::wck::{
-    FORMAT_HELP, Motion, ScanArgs, TeachArgs, TeachTrigger, WckPlan, WheelArgs, step_line,
-};
-use robobus::ops::{OpError, read_bounded};
-use robobus_wck::program::Program;
+use robobus::catalogue::args::{Ids, WckOnStop};
+use robobus::catalogue::station::{self, Station, WckPort};
+use robobus::catalogue::{self, Report, Request, wck as cw};
+use robobus::ops::wck::{FORMAT_HELP, MOTION_FILE_LIMIT};
+use robobus::ops::{Control, IdList, OpError, read_bounded};
 use robobus_wck::{
-    Accel, BaudRate, Boundaries, Command, DGain, DataByte, ExtServoId, IGain, IoBits, Overload,
-    PGain, Position, Position10, RangeError, Rotation, ServoId, Speed, SyncMove, TorqueLevel,
-    WheelSpeed,
+    Accel, BaudRate, DGain, DataByte, ExtServoId, IGain, IoBits, Overload, PGain, Position,
+    Position10, RangeError, ServoId, Speed, TorqueLevel, WheelSpeed,
 };
-use serde_json::json;
+use serde_json::{Map, Value};
 
 use crate::Global;
-use crate::client::wck::{OnStop, WckRun};
-use crate::client::{Job, execute};
 use crate::exit::usage;
-use crate::output;
+use crate::{output, report};
+
+mod teach;
+
+/// The safe state of a loop that ends early (play, teach, timed wheel) or, for teach and
+/// wheel, when it ends at all.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum OnStop {
+    /// Release the torque (the servos turn freely).
+    Passive,
+    /// Dynamic brake on every servo of the bus (A-1 (6) break mode).
+    Break,
+    /// Keep the current position, with torque (a position move to where each servo is).
+    Hold,
+}
 
 const AFTER_HELP: &str = "\
 IDs: 4- and 6-byte commands address servos 0..=30 (31 is the broadcast ID used by
@@ -536,345 +547,426 @@ fn parse_servo_ids(spec: &str) -> Result<ServoIds, String> {
 /// The largest motion program file read (a program has at most 8 instructions).
 const PROGRAM_FILE_LIMIT: u64 = 64 << 10;
 
-/// Parses a motion program file of at most 64 KiB; a syntax error is a usage error with
-/// `FILE:line:column`.
-fn load_program(path: &Path) -> anyhow::Result<Program> {
-    let text = read_bounded(path, PROGRAM_FILE_LIMIT)?;
-    Program::parse(&text).map_err(|e| {
-        usage(format!(
-            "{}:{}:{}: {}",
-            path.display(),
-            e.line,
-            e.column,
-            e.kind
-        ))
-    })
+/// Reads a program or motion file (bounded) as the text a request carries.
+fn file_text(path: &Path, limit: u64) -> anyhow::Result<String> {
+    Ok(read_bounded(path, limit)?)
 }
 
-/// A keyframe file, bounded; a syntax error is a usage error with `FILE:line:column`.
-fn load_motion(path: &Path) -> anyhow::Result<Motion> {
-    Motion::load(path).map_err(|e| match e {
-        OpError::Invalid { value, .. } => usage(value),
-        other => other.into(),
-    })
-}
-
-/// Runs `robobus wck`.
-pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
-    let action = action_name(&args.command);
-    if let WckCommand::Program(ProgramCommand::Check { file, id }) = &args.command {
-        return check_program(g, file, *id);
+/// A catalogue error about a file's text (`motion` / `program`: `line:column` and what
+/// is wrong) as `FILE:line:column: ...` (exit 2); other errors as they are.
+fn in_file(e: OpError, path: Option<&Path>) -> anyhow::Error {
+    match (e, path) {
+        (
+            OpError::Invalid {
+                option,
+                value,
+                reason,
+            },
+            Some(path),
+        ) if option == "motion" || option == "program" => {
+            usage(format!("{}:{value}: {reason}", path.display()))
+        }
+        (e, _) => e.into(),
     }
-    let (plan, run) = plan(args)?;
+}
+
+/// The file a subcommand reads, if any (for [`in_file`]).
+fn input_file(c: &WckCommand) -> Option<&Path> {
+    match c {
+        WckCommand::Play { file, .. }
+        | WckCommand::Program(
+            ProgramCommand::Upload { file, .. } | ProgramCommand::Check { file, .. },
+        ) => Some(file),
+        _ => None,
+    }
+}
+
+/// Runs `robobus wck`: the subcommand's request, planned (`--dry-run` prints the plan)
+/// or confirmed and run on the port, its report printed.
+pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
+    let file = input_file(&args.command);
+    let request = request(args)?;
+    if let WckCommand::Program(ProgramCommand::Check { file, .. }) = &args.command {
+        return check_program(g, file, &request);
+    }
     if g.dry_run {
-        let port = args.port.as_deref().unwrap_or("(none)");
-        return dry_run(g, &plan, &run, port, args.baud);
+        let plan = catalogue::plan_at(&request, args.baud).map_err(|e| in_file(e, file))?;
+        return if g.json {
+            output::print_json(&serde_json::to_value(&plan)?)
+        } else {
+            output::print(plan.to_text())
+        };
     }
     let Some(port) = args.port.as_deref() else {
         return Err(usage(
             "robobus wck: --port PATH is required (e.g. --port /dev/ttyUSB0), unless --dry-run is given",
         ));
     };
-    let confirm_reads = robobus::ops::wck::confirm_reads_for(
-        &plan,
-        match (args.verify_reads, args.no_verify_reads) {
-            (true, _) => Some(true),
-            (_, true) => Some(false),
-            _ => None,
-        },
-    );
-    execute(
-        &Job::Wck {
-            action,
-            port,
-            baud: args.baud,
-            margin: args.reply_margin,
-            confirm_reads,
-            capture: args.capture.as_deref(),
-            plan: &plan,
-            run,
-            json: g.json,
-        },
-        g.yes,
-    )
-}
-
-/// `--dry-run`: the plan; a keyframe motion's moves are streamed as text.
-fn dry_run(
-    g: Global,
-    plan: &WckPlan,
-    run: &WckRun,
-    port: &str,
-    baud: BaudRate,
-) -> anyhow::Result<()> {
-    if let WckRun::Play {
-        motion, rate_hz, ..
-    } = run
-    {
-        if g.json {
-            return output::print_json(&serde_json::to_value(
-                motion.plan(*rate_hz).dry_run(port, baud),
-            )?);
+    // Validated (and confirmed) before anything is opened.
+    catalogue::validate(&request).map_err(|e| in_file(e, file))?;
+    let request = report::confirm(request, g.yes)?;
+    // A teach output file is created before the port is opened: an unwritable path fails
+    // before any servo is touched.
+    let mut teacher = match &args.command {
+        WckCommand::Teach { output, .. } => {
+            Some(teach::Teacher::new(&request, output.as_deref(), g.json)?)
         }
-        let mut text = format!("# {}\n", Motion::plan_note(*rate_hz));
-        let mut rate = None;
-        for step in motion.moves(*rate_hz) {
-            step_line(&mut text, &step, &mut rate);
-            if text.len() > 1 << 16 {
-                output::print(&text)?;
-                text.clear();
-            }
-        }
-        return output::print(&text);
+        _ => None,
+    };
+    let mut bus = station::open_wck_port(port, args.baud, args.capture.as_deref())?;
+    if let Some(margin) = args.reply_margin {
+        bus.config_mut().margin = margin;
     }
+    let verify = match (args.verify_reads, args.no_verify_reads) {
+        (true, _) => Some(true),
+        (_, true) => Some(false),
+        _ => None,
+    };
+    let mut station = Station::new();
+    station.add_wck_port(WckPort::with_verify_reads(port, bus, verify));
+    let report = match teacher.as_mut() {
+        Some(t) => report::run_with(&station, &request, t),
+        None => report::run(&station, &request),
+    };
+    station.leave();
+    let report = report?;
     if g.json {
-        output::print_json(&serde_json::to_value(plan.dry_run(port, baud))?)
-    } else {
-        output::print(&plan.to_text())
+        return report::print(&report, true, &WCK_TABLE);
     }
-}
-
-fn action_name(c: &WckCommand) -> &'static str {
-    match c {
-        WckCommand::Scan { .. } => "scan",
-        WckCommand::Status { .. } => "status",
-        WckCommand::Move { .. } => "move",
-        WckCommand::Move10 { .. } => "move10",
-        WckCommand::Read10 { .. } => "read10",
-        WckCommand::SyncMove { .. } => "sync-move",
-        WckCommand::Passive { .. } => "passive",
-        WckCommand::Wheel { .. } => "wheel",
-        WckCommand::Brake => "brake",
-        WckCommand::Get(_) => "get",
-        WckCommand::Set(_) => "set",
-        WckCommand::SetId { .. } => "set-id",
-        WckCommand::SetBaud { .. } => "set-baud",
-        WckCommand::Program(ProgramCommand::Upload { .. }) => "program upload",
-        WckCommand::Program(ProgramCommand::Download { .. }) => "program download",
-        WckCommand::Program(ProgramCommand::Check { .. }) => "program check",
-        WckCommand::Teach { .. } => "teach",
-        WckCommand::Play { .. } => "play",
-    }
-}
-
-/// The validated plan of a subcommand (the library's) and how it runs.
-#[allow(clippy::too_many_lines)] // one arm per subcommand
-fn plan(args: &Args) -> anyhow::Result<(WckPlan, WckRun)> {
-    let one = |c| Ok((WckPlan::one(c), WckRun::Steps));
     match &args.command {
-        WckCommand::Scan { all_bauds, ids } => {
-            let scan = ScanArgs::new(ids.as_slice().to_vec(), args.baud, *all_bauds);
-            Ok((scan.plan(&|_, _| false), WckRun::Scan(scan)))
+        WckCommand::Scan { .. } => print_scan(&report),
+        WckCommand::Play { .. } => print_play(&report),
+        WckCommand::Teach { output, .. } => {
+            teacher.map_or(Ok(()), |t| t.finish(&report, output.as_deref()))?;
+            report::outcome(&report)
         }
-        WckCommand::Status { ids } => {
-            Ok((each(ids, |id| Command::StatusRead { id }), WckRun::Steps))
-        }
+        _ => report::print(&report, false, &WCK_TABLE),
+    }
+}
+
+/// How wCK tables look: the ID column, degrees with one decimal.
+const WCK_TABLE: report::Style = report::Style {
+    id_header: "ID",
+    decimals: 1,
+};
+
+/// `scan`: the servos found, each duplicate ID, a count.
+fn print_scan(r: &Report) -> anyhow::Result<()> {
+    let rows: Vec<Map<String, Value>> = r
+        .results
+        .iter()
+        .filter_map(|v| v.as_object().cloned())
+        .collect();
+    let mut text = if rows.is_empty() {
+        String::new()
+    } else {
+        report::table(&rows, &WCK_TABLE)
+    };
+    let none = Vec::new();
+    let dups = r
+        .summary
+        .as_ref()
+        .and_then(|s| s["duplicates"].as_array())
+        .unwrap_or(&none);
+    for d in dups {
+        let _ = writeln!(
+            text,
+            "DUPLICATE  ID {} at {} bit/s: more than one module answers ({})",
+            d["id"],
+            d["baud"],
+            d["evidence"].as_str().unwrap_or("")
+        );
+    }
+    let _ = writeln!(
+        text,
+        "# {} servo(s) found, {} duplicate ID(s)",
+        rows.len(),
+        dups.len()
+    );
+    output::print(&text)?;
+    report::outcome(r)
+}
+
+/// `play`: one line of what was played.
+fn print_play(r: &Report) -> anyhow::Result<()> {
+    if let Some(s) = &r.summary {
+        let last: Vec<String> = s["last_positions"]
+            .as_array()
+            .map(|a| a.iter().map(ToString::to_string).collect())
+            .unwrap_or_default();
+        output::print(&format!(
+            "played {} synchronized moves in {} ms (planned {} ms; {} status reads watched \
+             the servos); last pose: {}\n",
+            s["moves"],
+            s["duration_ms"],
+            s["planned_ms"],
+            s["watch_reads"],
+            last.join(" ")
+        ))?;
+    }
+    report::outcome(r)
+}
+
+fn ids(list: &ServoIds) -> Ids {
+    Ids::List(list.as_slice().iter().map(|i| u32::from(i.get())).collect())
+}
+
+fn id(i: ServoId) -> u32 {
+    u32::from(i.get())
+}
+
+const fn on_stop(o: OnStop) -> WckOnStop {
+    match o {
+        OnStop::Passive => WckOnStop::Passive,
+        OnStop::Break => WckOnStop::Break,
+        OnStop::Hold => WckOnStop::Hold,
+    }
+}
+
+/// The catalogue request of a subcommand (its files read as text); the library
+/// validates it again and plans it.
+#[allow(clippy::too_many_lines)] // one arm per subcommand
+fn request(args: &Args) -> anyhow::Result<Request> {
+    use Request as Q;
+    Ok(match &args.command {
+        WckCommand::Scan {
+            all_bauds,
+            ids: list,
+        } => Q::WckScan(cw::Scan {
+            bus: None,
+            ids: ids(list),
+            all_bauds: *all_bauds,
+        }),
+        WckCommand::Status { ids: list } => Q::WckStatus(cw::Status {
+            bus: None,
+            ids: ids(list),
+        }),
         WckCommand::Move {
-            id,
+            id: i,
             position,
             torque,
-        } => one(Command::Move {
-            id: *id,
-            torque: *torque,
-            position: *position,
+        } => Q::WckMove(cw::Move {
+            bus: None,
+            id: id(*i),
+            position: u32::from(position.get()),
+            torque: u32::from(torque.get()),
         }),
         WckCommand::Move10 {
-            id,
+            id: i,
             position,
             torque,
-        } => one(Command::Move10 {
-            id: *id,
-            torque: *torque,
-            position: *position,
+        } => Q::WckMove10(cw::Move10 {
+            bus: None,
+            id: u32::from(i.get()),
+            position: u32::from(position.get()),
+            torque: u32::from(torque.get()),
         }),
-        WckCommand::Read10 { id } => one(Command::Read10 { id: *id }),
-        WckCommand::SyncMove { positions, torque } => {
-            let sync = SyncMove::new(*torque, positions).map_err(|e| {
-                usage(format!(
-                    "sync-move <POSITIONS>: {e} (one position per servo 0..=30)"
-                ))
-            })?;
-            one(Command::SyncMove(sync))
-        }
-        WckCommand::Passive { ids } => Ok((each(ids, |id| Command::Passive { id }), WckRun::Steps)),
+        WckCommand::Read10 { id: i } => Q::WckRead10(cw::Read10 {
+            bus: None,
+            id: u32::from(i.get()),
+        }),
+        WckCommand::SyncMove { positions, torque } => Q::WckSyncMove(cw::SyncMove {
+            bus: None,
+            positions: positions.iter().map(|p| u32::from(p.get())).collect(),
+            torque: u32::from(torque.get()),
+        }),
+        WckCommand::Passive { ids: list } => Q::WckPassive(cw::Passive {
+            bus: None,
+            ids: ids(list),
+        }),
         WckCommand::Wheel {
-            id,
+            id: i,
             direction,
             speed,
             duration,
-            on_stop,
-        } => {
-            let wheel = WheelArgs {
-                id: *id,
-                rotation: match direction {
-                    Direction::Ccw => Rotation::Ccw,
-                    Direction::Cw => Rotation::Cw,
-                },
-                speed: *speed,
-                duration: *duration,
-                on_stop: (*on_stop).into(),
+            on_stop: o,
+        } => Q::WckWheel(cw::Wheel {
+            bus: None,
+            id: id(*i),
+            direction: match direction {
+                Direction::Ccw => cw::Direction::Ccw,
+                Direction::Cw => cw::Direction::Cw,
+            },
+            speed: u32::from(speed.get()),
+            duration: duration.map(|d| d.as_secs_f64()),
+            on_stop: on_stop(*o),
+        }),
+        WckCommand::Brake => Q::WckBrake(cw::Brake { bus: None }),
+        WckCommand::Get(p) => {
+            let (param, a) = match p {
+                GetParam::Gains(a) => (cw::Param::Gains, a),
+                GetParam::IGain(a) => (cw::Param::IGain, a),
+                GetParam::Speed(a) => (cw::Param::Speed, a),
+                GetParam::Overload(a) => (cw::Param::Overload, a),
+                GetParam::Bounds(a) => (cw::Param::Bounds, a),
+                GetParam::Io(a) => (cw::Param::Io, a),
             };
-            Ok((wheel.plan(), WckRun::Wheel(wheel)))
+            Q::WckGet(cw::Get {
+                bus: None,
+                param,
+                id: id(a.id),
+            })
         }
-        WckCommand::Brake => one(Command::Break),
-        WckCommand::Get(p) => one(match p {
-            GetParam::Gains(a) => Command::GainRead { id: a.id },
-            GetParam::IGain(a) => Command::IGainRead { id: a.id },
-            GetParam::Speed(a) => Command::SpeedRead { id: a.id },
-            GetParam::Overload(a) => Command::OverloadRead { id: a.id },
-            GetParam::Bounds(a) => Command::BoundaryRead { id: a.id },
-            GetParam::Io(a) => Command::IoRead { id: a.id },
+        WckCommand::Set(p) => Q::WckSet(set_request(p)),
+        WckCommand::SetId { id: i, new_id } => Q::WckSetId(cw::SetId {
+            bus: None,
+            id: id(*i),
+            new_id: u32::from(new_id.get()),
+            confirm: false,
         }),
-        WckCommand::Set(p) => one(set_command(p)?),
-        WckCommand::SetId { id, new_id } => one(Command::IdSet {
-            id: *id,
-            new_id: *new_id,
+        WckCommand::SetBaud { id: i, rate } => Q::WckSetBaud(cw::SetBaud {
+            bus: None,
+            id: id(*i),
+            rate: rate.bits_per_second(),
+            confirm: false,
         }),
-        WckCommand::SetBaud { id, rate } => one(Command::BaudSet {
-            id: *id,
-            baud: *rate,
-        }),
-        WckCommand::Program(ProgramCommand::Upload { id, file }) => one(Command::MotionWrite {
-            id: *id,
-            program: load_program(file)?,
-        }),
-        WckCommand::Program(ProgramCommand::Download { id } | ProgramCommand::Check { id, .. }) => {
-            one(Command::MotionRead { id: *id })
+        WckCommand::Program(ProgramCommand::Upload { id: i, file }) => {
+            Q::WckProgramUpload(cw::ProgramUpload {
+                bus: None,
+                id: id(*i),
+                program: file_text(file, PROGRAM_FILE_LIMIT)?,
+                confirm: false,
+            })
+        }
+        WckCommand::Program(ProgramCommand::Download { id: i }) => {
+            Q::WckProgramDownload(cw::ProgramDownload {
+                bus: None,
+                id: id(*i),
+            })
+        }
+        WckCommand::Program(ProgramCommand::Check { id: i, file }) => {
+            Q::WckProgramCheck(cw::ProgramCheck {
+                bus: None,
+                id: id(*i),
+                program: file_text(file, PROGRAM_FILE_LIMIT)?,
+            })
         }
         WckCommand::Teach {
-            ids,
+            ids: list,
             rate_hz,
             duration,
             pose_ms,
             torque,
-            output,
-            on_stop,
-        } => {
-            let trigger = match (rate_hz, duration) {
-                (None, None) => TeachTrigger::Events { pose_ms: *pose_ms },
-                (rate, duration) => TeachTrigger::Rate {
-                    rate_hz: rate.unwrap_or(10.0),
-                    duration: *duration,
-                },
-            };
-            let teach = TeachArgs {
-                ids: ids.as_slice().to_vec(),
-                trigger,
-                torque: *torque,
-                on_stop: (*on_stop).into(),
-            };
-            teach.check().map_err(|e| usage(e.to_string()))?;
-            let plan = teach.plan();
-            Ok((
-                plan,
-                WckRun::Teach {
-                    args: teach,
-                    output: output.clone(),
-                },
-            ))
-        }
+            output: _,
+            on_stop: o,
+        } => Q::WckTeach(cw::Teach {
+            bus: None,
+            ids: ids(list),
+            rate_hz: *rate_hz,
+            duration: duration.map(|d| d.as_secs_f64()),
+            pose_ms: *pose_ms,
+            torque: u32::from(torque.get()),
+            on_stop: on_stop(*o),
+        }),
         WckCommand::Play {
             file,
             rate_hz,
-            on_stop,
-        } => {
-            let motion = load_motion(file)?;
-            let mut plan = WckPlan::default();
-            plan.notes.push(Motion::plan_note(*rate_hz));
-            Ok((
-                plan,
-                WckRun::Play {
-                    motion,
-                    rate_hz: *rate_hz,
-                    on_stop: (*on_stop).into(),
-                },
-            ))
-        }
-    }
+            on_stop: o,
+        } => Q::WckPlay(cw::Play {
+            bus: None,
+            motion: file_text(file, MOTION_FILE_LIMIT)?,
+            rate_hz: *rate_hz,
+            on_stop: on_stop(*o),
+        }),
+    })
 }
 
-fn each(ids: &ServoIds, f: impl Fn(ServoId) -> Command) -> WckPlan {
-    let mut plan = WckPlan::default();
-    for &id in ids.as_slice() {
-        plan.push(f(id));
-    }
-    plan
-}
-
-fn set_command(p: &SetParam) -> anyhow::Result<Command> {
-    Ok(match *p {
-        SetParam::Gains { id, p, d, runtime } => {
-            if runtime {
-                Command::RuntimeGainSet { id, p, d }
-            } else {
-                Command::GainSet { id, p, d }
-            }
-        }
-        SetParam::IGain { id, i, runtime } => {
-            if runtime {
-                Command::RuntimeIGainSet { id, i }
-            } else {
-                Command::IGainSet { id, i }
-            }
-        }
+fn set_request(p: &SetParam) -> cw::Set {
+    let base = |param, id: ServoId| cw::Set {
+        bus: None,
+        param,
+        id: u32::from(id.get()),
+        p: None,
+        d: None,
+        i: None,
+        speed: None,
+        accel: None,
+        milliamps: None,
+        lower: None,
+        upper: None,
+        outputs: None,
+        runtime: false,
+        confirm: false,
+    };
+    match *p {
+        SetParam::Gains { id, p, d, runtime } => cw::Set {
+            p: Some(u32::from(p.get())),
+            d: Some(u32::from(d.get())),
+            runtime,
+            ..base(cw::Param::Gains, id)
+        },
+        SetParam::IGain { id, i, runtime } => cw::Set {
+            i: Some(u32::from(i.get())),
+            runtime,
+            ..base(cw::Param::IGain, id)
+        },
         SetParam::Speed {
             id,
             speed,
             accel,
             runtime,
-        } => {
-            if runtime {
-                Command::RuntimeSpeedSet { id, speed, accel }
-            } else {
-                Command::SpeedSet { id, speed, accel }
-            }
-        }
-        SetParam::Overload { id, milliamps } => Command::OverloadSet {
-            id,
-            overload: milliamps,
+        } => cw::Set {
+            speed: Some(u32::from(speed.get())),
+            accel: Some(u32::from(accel.get())),
+            runtime,
+            ..base(cw::Param::Speed, id)
         },
-        SetParam::Bounds { id, lower, upper } => Command::BoundarySet {
-            id,
-            bounds: Boundaries::new(lower, upper)
-                .map_err(|e| usage(format!("set bounds <LOWER> <UPPER>: {e}")))?,
+        SetParam::Overload { id, milliamps } => cw::Set {
+            milliamps: Some(u32::from(milliamps.milliamps())),
+            ..base(cw::Param::Overload, id)
         },
-        SetParam::Io { id, outputs } => Command::IoWrite { id, outputs },
-    })
+        SetParam::Bounds { id, lower, upper } => cw::Set {
+            lower: Some(u32::from(lower.get())),
+            upper: Some(u32::from(upper.get())),
+            ..base(cw::Param::Bounds, id)
+        },
+        SetParam::Io { id, outputs } => cw::Set {
+            outputs: Some(u32::from(outputs.get())),
+            ..base(cw::Param::Io, id)
+        },
+    }
 }
 
-/// `program check`: parse, list the instructions, print the upload packet.
-fn check_program(g: Global, file: &Path, id: ServoId) -> anyhow::Result<()> {
-    let program = load_program(file)?;
-    let command = Command::MotionWrite { id, program };
-    let packet = command.encode();
+/// `program check`: the library's check of the program (nothing is opened): the
+/// instructions and the upload packet (`--json`: the report).
+fn check_program(g: Global, file: &Path, request: &Request) -> anyhow::Result<()> {
+    let report = catalogue::run(
+        &Station::new(),
+        request,
+        &mut Control::new(&crate::interrupt::stop_token()),
+    )
+    .map_err(|e| in_file(e, Some(file)))?;
     if g.json {
-        let instructions: Vec<_> = program
-            .instructions()
-            .iter()
-            .map(|i| {
-                let (c, d) = i.to_pair();
-                json!({"text": i.to_string(), "command": c, "data": d})
-            })
-            .collect();
-        return output::print_json(&json!({
-            "file": file.display().to_string(),
-            "ok": true,
-            "instructions": instructions,
-            "upload_packet": {"id": id.get(), "hex": packet.to_string(), "bytes": packet.as_bytes()},
-        }));
+        return output::print_json(&serde_json::to_value(&report)?);
     }
+    let none = Value::Null;
+    let s = report.summary.as_ref().unwrap_or(&none);
+    let instructions = s["instructions"].as_array().map_or(&[][..], Vec::as_slice);
     let mut text = format!(
         "# {}: OK, {} instruction(s)\n",
         file.display(),
-        program.len()
+        instructions.len()
     );
-    if program.is_empty() {
+    if instructions.is_empty() {
         text.push_str("# an empty program: uploading it switches the servo's program off\n");
     }
-    for (n, i) in program.instructions().iter().enumerate() {
-        let (c, d) = i.to_pair();
-        let _ = writeln!(text, "# {:>2}  {c:02X} {d:02X}  {i}", n + 1);
+    for (n, i) in instructions.iter().enumerate() {
+        let byte = |k: &str| i[k].as_u64().unwrap_or(0);
+        let _ = writeln!(
+            text,
+            "# {:>2}  {:02X} {:02X}  {}",
+            n + 1,
+            byte("command"),
+            byte("data"),
+            i["text"].as_str().unwrap_or("")
+        );
     }
-    let _ = writeln!(text, "# upload packet for servo {id}:\n{packet}");
+    let packet = &s["upload_packet"];
+    let _ = writeln!(
+        text,
+        "# upload packet for servo {}:\n{}",
+        packet["id"],
+        packet["hex"].as_str().unwrap_or("")
+    );
     output::print(&text)
 }

@@ -1,5 +1,7 @@
 //! The one dispatcher: [`plan`] and [`run`] of every [`Request`].
 
+use std::time::Duration;
+
 use robobus_wck::{BaudRate, Command};
 use robobus_whj::REGISTERS;
 use serde::Serialize;
@@ -53,7 +55,9 @@ pub fn confirmation(request: &Request) -> Result<Option<String>, OpError> {
     })
 }
 
-fn plan_at(request: &Request, baud: BaudRate) -> Result<Plan, OpError> {
+/// [`plan`] with the wCK packets shown at `baud` (the rate of the port a run would use;
+/// `wck.scan` starts there). WHJ plans do not depend on it.
+pub fn plan_at(request: &Request, baud: BaudRate) -> Result<Plan, OpError> {
     let op = request.op();
     Ok(match request.family() {
         Family::Wck => {
@@ -76,6 +80,38 @@ fn plan_at(request: &Request, baud: BaudRate) -> Result<Plan, OpError> {
     })
 }
 
+/// What an interactive operation asks of its front end while it runs (today: `wck.teach`
+/// by events, and each pose as it is recorded). The defaults suit a front end with no
+/// user at hand: no events (a recording by events then runs until the stop token), the
+/// poses kept in the report's summary.
+pub trait Interaction {
+    /// `wck.teach` by events: waits at most `wait` for the user's next action.
+    fn teach_event(&mut self, wait: Duration) -> wops::TeachEvent {
+        std::thread::sleep(wait);
+        wops::TeachEvent::Nothing
+    }
+
+    /// `wck.teach`: a pose was recorded (an error ends the recording, the servos in their
+    /// `on_stop` state).
+    #[allow(clippy::result_large_err)] // OpError carries the client errors by value
+    fn pose(&mut self, pose: &wops::Pose) -> Result<(), OpError> {
+        let _ = pose;
+        Ok(())
+    }
+
+    /// Whether the report's summary lists every pose (`false`: only their count, for a
+    /// front end that writes them elsewhere as they come).
+    fn keep_poses(&self) -> bool {
+        true
+    }
+}
+
+/// The [`Interaction`] of a front end without one: the defaults.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct NoInteraction;
+
+impl Interaction for NoInteraction {}
+
 /// Runs `request` on the station's bus it names (or the station's only bus of the
 /// family): validates and plans it, refuses it when it needs confirmation and lacks it
 /// ([`ErrorKind::Refused`], nothing sent), then executes the plan through the operation
@@ -86,16 +122,33 @@ pub fn run(
     request: &Request,
     control: &mut Control<'_>,
 ) -> Result<Report, OpError> {
+    run_with(station, request, control, &mut NoInteraction)
+}
+
+/// [`run`] with a front end's [`Interaction`] (key presses and live poses of a teach).
+pub fn run_with(
+    station: &Station,
+    request: &Request,
+    control: &mut Control<'_>,
+    interaction: &mut dyn Interaction,
+) -> Result<Report, OpError> {
     let op = request.op();
     match request.family() {
         Family::Wck => {
+            // A program check sends nothing: it needs no port.
+            if matches!(request, Request::WckProgramCheck(_)) {
+                let p = wck::prepare(request, BaudRate::B115200)?;
+                if let wck::Job::Check(program, id) = p.job {
+                    return Ok(check_report(&op, request.bus().unwrap_or(""), program, id));
+                }
+            }
             let port = station.wck(request.bus())?;
             let baud = port.lock().baud();
             let p = wck::prepare(request, baud)?;
             if p.confirm != ConfirmClass::None && !p.confirmed {
                 return Err(refused(wck::confirm_text(p.confirm)));
             }
-            run_wck(&port, &op, p, control)
+            run_wck(&port, &op, p, control, interaction)
         }
         Family::Whj => {
             let p = whj::prepare(request, false)?;
@@ -177,6 +230,7 @@ fn run_wck(
     op: &str,
     p: wck::Prepared,
     control: &mut Control<'_>,
+    interaction: &mut dyn Interaction,
 ) -> Result<Report, OpError> {
     let name = port.name().to_owned();
     let mut guard = port.lock();
@@ -184,7 +238,7 @@ fn run_wck(
     Ok(match p.job {
         wck::Job::Steps(action) => {
             let saved = bus.config_mut().confirm_reads;
-            bus.config_mut().confirm_reads = wck::confirm_reads_for(&p.plan, None);
+            bus.config_mut().confirm_reads = wck::confirm_reads_for(&p.plan, port.verify_reads());
             let result = wops::run_steps(bus, action, &p.plan, control);
             bus.config_mut().confirm_reads = saved;
             device_report(op, &name, &result?.results)
@@ -199,12 +253,30 @@ fn run_wck(
                     .map(|f| serde_json::to_value(f).unwrap_or(Value::Null))
                     .collect(),
             );
-            out.summary = summary(&r);
-            if r.is_empty() {
+            out.summary = Some(json!({
+                "bauds_tried": r.bauds_tried,
+                "duplicates": r.duplicates,
+            }));
+            if !r.duplicates.is_empty() {
+                // As whj.scan: an ID that more than one module answers is a device fault.
+                let ids: Vec<String> = r
+                    .duplicates
+                    .iter()
+                    .map(|d| format!("ID {} at {} bit/s", d.id, d.baud))
+                    .collect();
+                out.failed = Some(ErrorKind::Device.name().into());
+                out.error = Some(format!(
+                    "{name}: more than one module answers at {}; give each module its own ID",
+                    ids.join(", ")
+                ));
+            } else if r.is_empty() {
+                let rates: Vec<String> = args.bauds.iter().map(ToString::to_string).collect();
                 out.failed = Some(ErrorKind::NoDevice.name().into());
                 out.error = Some(format!(
-                    "{name}: no servo answered at any of the scanned IDs ({})",
-                    wops::ids_text(&args.ids)
+                    "{name}: no servo answered at any of the scanned IDs ({}) at {}; check \
+                     power, wiring and the baud rate (--all-bauds tries every rate)",
+                    wops::ids_text(&args.ids),
+                    rates.join(", ")
                 ));
             }
             out
@@ -214,19 +286,36 @@ fn run_wck(
             device_report(op, &name, std::slice::from_ref(&r))
         }
         wck::Job::Teach(args) => {
+            let keep = interaction.keep_poses();
             let mut poses = Vec::new();
-            let mut events = |_| wops::TeachEvent::Nothing;
-            let mut on_pose = |pose: &wops::Pose| {
-                poses.push(pose.clone());
-                Ok(())
+            let mut count = 0u64;
+            let result = {
+                let cell = std::cell::RefCell::new(&mut *interaction);
+                let mut events = |wait| cell.borrow_mut().teach_event(wait);
+                let mut on_pose = |pose: &wops::Pose| {
+                    count += 1;
+                    if keep {
+                        poses.push(pose.clone());
+                    }
+                    cell.borrow_mut().pose(pose)
+                };
+                wops::teach(bus, &args, control, &mut events, &mut on_pose)
             };
-            wops::teach(bus, &args, control, &mut events, &mut on_pose)?;
+            // The poses recorded before a stop or a failure are the report's still.
             let mut out = report(op, &name, Vec::new());
-            out.summary = Some(json!({
+            if let Err(e) = result {
+                out.failed = Some(e.kind().name().to_owned());
+                out.error = Some(e.to_string());
+            }
+            let mut summary = json!({
                 "ids": args.ids.iter().map(|i| i.get()).collect::<Vec<_>>(),
                 "torque": args.torque.get(),
-                "poses": poses,
-            }));
+                "recorded": count,
+            });
+            if keep && let Value::Object(m) = &mut summary {
+                m.insert("poses".into(), json!(poses));
+            }
+            out.summary = Some(summary);
             out
         }
         wck::Job::Play(motion, rate, safe) => {
@@ -235,30 +324,38 @@ fn run_wck(
             out.summary = summary(&r);
             out
         }
-        wck::Job::Check(program, id) => {
-            let packet = Command::MotionWrite { id, program }.encode();
-            let instructions: Vec<Value> = program
-                .instructions()
-                .iter()
-                .map(|i| {
-                    let (c, d) = i.to_pair();
-                    json!({"text": i.to_string(), "command": c, "data": d})
-                })
-                .collect();
-            let mut out = report(op, &name, Vec::new());
-            out.summary = Some(json!({
-                "ok": true,
-                "instructions": instructions,
-                "upload_packet": {"id": id.get(), "hex": packet.to_string(), "bytes": packet.as_bytes()},
-            }));
-            out
-        }
+        wck::Job::Check(program, id) => check_report(op, &name, program, id),
         wck::Job::Sample(ids) => {
             let mut sampler = crate::ops::monitor::WckSampler::new(&ids);
             let results = sampler.sample(bus, 0.0);
             device_report(op, &name, &results)
         }
     })
+}
+
+/// `wck.program.check`: the program's instructions and its upload packet.
+fn check_report(
+    op: &str,
+    bus: &str,
+    program: robobus_wck::program::Program,
+    id: robobus_wck::ServoId,
+) -> Report {
+    let packet = Command::MotionWrite { id, program }.encode();
+    let instructions: Vec<Value> = program
+        .instructions()
+        .iter()
+        .map(|i| {
+            let (c, d) = i.to_pair();
+            json!({"text": i.to_string(), "command": c, "data": d})
+        })
+        .collect();
+    let mut out = report(op, bus, Vec::new());
+    out.summary = Some(json!({
+        "ok": true,
+        "instructions": instructions,
+        "upload_packet": {"id": id.get(), "hex": packet.to_string(), "bytes": packet.as_bytes()},
+    }));
+    out
 }
 
 // ----- WHJ -----

@@ -3,7 +3,7 @@
 //! subscribe to.
 //!
 //! A [`Request`] is plain data: the CLI's arguments, a JSON document from a web page or a
-//! pub/sub bridge, or Python keyword arguments all become one. [`plan`] turns it into the
+//! pub/sub bridge, or Python keyword arguments all become one. [`plan()`] turns it into the
 //! exact packets / frames the CLI's `--dry-run` prints ([`Plan::to_text`]); [`run`]
 //! executes the same plan on a [`Station`]'s bus and returns the [`Report`] envelope.
 //! Validation (the protocol's ranged newtypes, the host [`bounds`] table), the confirmation
@@ -89,7 +89,9 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 pub use crate::error::ErrorKind;
-pub use dispatch::{GONE_AFTER, confirmation, plan, run, validate};
+pub use dispatch::{
+    GONE_AFTER, Interaction, NoInteraction, confirmation, plan, plan_at, run, run_with, validate,
+};
 pub use plan::{Family, Plan, PlanStep};
 pub use station::{Station, StationConfig, WckPort, WhjPort};
 pub use telemetry::{Delivery, Sample, Subscriber, Telemetry};

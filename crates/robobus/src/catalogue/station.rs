@@ -29,15 +29,33 @@ pub struct WckPort(Arc<WckInner>);
 struct WckInner {
     name: String,
     bus: Mutex<WckBus<DynByteLink>>,
+    verify_reads: Option<bool>,
 }
 
 impl WckPort {
     /// A port over an open bus, named `name` in requests and reports.
     pub fn new(name: impl Into<String>, bus: WckBus<DynByteLink>) -> Self {
+        Self::with_verify_reads(name, bus, None)
+    }
+
+    /// [`WckPort::new`] with the reads of every request confirmed by a second equal reply
+    /// (`Some(true)`, the CLI's `--verify-reads`), never (`Some(false)`), or as each plan
+    /// decides (`None`: reads that decide what is written next are confirmed).
+    pub fn with_verify_reads(
+        name: impl Into<String>,
+        bus: WckBus<DynByteLink>,
+        verify_reads: Option<bool>,
+    ) -> Self {
         Self(Arc::new(WckInner {
             name: name.into(),
             bus: Mutex::new(bus),
+            verify_reads,
         }))
+    }
+
+    /// The port's read confirmation rule (see [`WckPort::with_verify_reads`]).
+    pub fn verify_reads(&self) -> Option<bool> {
+        self.0.verify_reads
     }
 
     /// Its name.
@@ -188,6 +206,12 @@ impl Station {
         let p = WckPort::new(name, bus);
         self.wck.push(p.clone());
         p
+    }
+
+    /// Adds a wCK port made by the caller ([`WckPort::with_verify_reads`]).
+    pub fn add_wck_port(&mut self, port: WckPort) -> WckPort {
+        self.wck.push(port.clone());
+        port
     }
 
     /// Adds a WHJ bus named `name`.

@@ -24,6 +24,9 @@ fn default_scan_ids() -> Ids {
 const fn default_rate() -> f64 {
     50.0
 }
+const fn default_pose_ms() -> u32 {
+    1000
+}
 const fn default_hold() -> WckOnStop {
     WckOnStop::Hold
 }
@@ -235,10 +238,18 @@ request!(
     Teach {
         /// Servos 0..N-1.
         ids: Ids,
-        /// Poses per second, 0.1..=200.
-        rate_hz: f64,
-        /// Seconds, 0.1..=3600.
-        duration: f64,
+        /// Poses per second, 0.1..=200 (10 when only `duration` is given). Without it and
+        /// without `duration` a pose is recorded at each of the front end's record
+        /// events ([`super::Interaction::teach_event`]) until its finish event.
+        #[serde(default)]
+        rate_hz: Option<f64>,
+        /// Seconds, 0.1..=3600; without it a recording at a rate runs until the front
+        /// end's finish event or a stop.
+        #[serde(default)]
+        duration: Option<f64>,
+        /// Transition time written for each pose recorded by an event, ms (0..=600000).
+        #[serde(default = "default_pose_ms")]
+        pose_ms: u32,
         /// Torque level written into the poses (and of a hold at the end).
         #[serde(default)]
         torque: u32,
@@ -319,6 +330,9 @@ pub(crate) struct Prepared {
 }
 
 type R<T> = Result<T, OpError>;
+
+/// The longest transition time a pose recorded by an event gets, ms.
+pub const MAX_POSE_MS: u32 = 600_000;
 
 fn sid(v: u32) -> R<ServoId> {
     byte("<ID>", v, ServoId::new)
@@ -506,12 +520,23 @@ pub(crate) fn prepare(req: &super::Request, baud: BaudRate) -> R<Prepared> {
             })
         }
         Q::WckTeach(r) => {
+            if r.pose_ms > MAX_POSE_MS {
+                return Err(OpError::invalid(
+                    "--pose-ms",
+                    r.pose_ms,
+                    format!("allowed: 0..={MAX_POSE_MS} ms"),
+                ));
+            }
+            let trigger = match (r.rate_hz, r.duration) {
+                (None, None) => TeachTrigger::Events { pose_ms: r.pose_ms },
+                (rate, duration) => TeachTrigger::Rate {
+                    rate_hz: bounds::WCK_RATE_HZ.check("--rate-hz", rate.unwrap_or(10.0))?,
+                    duration: duration.map(|d| secs("--duration", d)).transpose()?,
+                },
+            };
             let teach = TeachArgs {
                 ids: r.ids.parse("<IDS>")?,
-                trigger: TeachTrigger::Rate {
-                    rate_hz: bounds::WCK_RATE_HZ.check("--rate-hz", r.rate_hz)?,
-                    duration: Some(secs("--duration", r.duration)?),
-                },
+                trigger,
                 torque: torque(r.torque)?,
                 on_stop: r.on_stop.into(),
             };
@@ -526,7 +551,7 @@ pub(crate) fn prepare(req: &super::Request, baud: BaudRate) -> R<Prepared> {
         Q::WckPlay(r) => {
             let rate = bounds::WCK_RATE_HZ.check("--rate-hz", r.rate_hz)?;
             let motion = Motion::parse(&r.motion).map_err(|e| {
-                OpError::invalid("motion", format!("line {}", e.line), e.to_string())
+                OpError::invalid("motion", format!("{}:{}", e.line, e.column), e.message)
             })?;
             let mut plan = WckPlan::default();
             plan.notes.push(Motion::plan_note(rate));
