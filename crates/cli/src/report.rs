@@ -110,16 +110,7 @@ pub(crate) fn print(report: &Report, json: bool, style: &Style) -> anyhow::Resul
     if json {
         output::print_json(&serde_json::to_value(report)?)?;
     } else {
-        let rows: Vec<Map<String, Value>> = report
-            .results
-            .iter()
-            .filter_map(|r| r.as_object().cloned())
-            .collect();
-        let mut text = if rows.is_empty() {
-            String::new()
-        } else {
-            table(&rows, style)
-        };
+        let mut text = results_table(report, style);
         // The summary's fields below the table (an empty list says nothing).
         if let Some(Value::Object(s)) = &report.summary {
             for (k, v) in s {
@@ -132,6 +123,20 @@ pub(crate) fn print(report: &Report, json: bool, style: &Style) -> anyhow::Resul
         output::print(&text)?;
     }
     outcome(report)
+}
+
+/// The report's per-device results as a [`table`] (empty without results).
+pub(crate) fn results_table(report: &Report, style: &Style) -> String {
+    let rows: Vec<Map<String, Value>> = report
+        .results
+        .iter()
+        .filter_map(|r| r.as_object().cloned())
+        .collect();
+    if rows.is_empty() {
+        String::new()
+    } else {
+        table(&rows, style)
+    }
 }
 
 /// The report's worst failure as an error with its exit code (`Ok` when every device
@@ -150,6 +155,7 @@ pub(crate) fn kind_error(kind: ErrorKind, message: String) -> anyhow::Error {
         ErrorKind::NoDevice => anyhow::Error::new(Timeout(message)),
         ErrorKind::Interrupted => anyhow::Error::new(Interrupted).context(message),
         ErrorKind::BadInput | ErrorKind::Refused => usage(message),
+        ErrorKind::NotAvailable => anyhow::Error::new(OpError::NotAvailable(message)),
         _ => anyhow::Error::new(OpError::Device(message)),
     }
 }
@@ -363,6 +369,24 @@ mod tests {
         let t = table(&[a, b], &style);
         let lines: Vec<&str> = t.lines().collect();
         assert_eq!(lines, ["ID  DEGREES", "3   134.0", "12  1.5", "# heard"]);
+    }
+
+    #[test]
+    fn a_reports_failure_kind_gives_that_kinds_exit_code() {
+        use crate::exit::Exit;
+        for kind in [
+            ErrorKind::BadInput,
+            ErrorKind::Refused,
+            ErrorKind::NoDevice,
+            ErrorKind::Device,
+            ErrorKind::Link,
+            ErrorKind::Interrupted,
+            ErrorKind::NotAvailable,
+        ] {
+            let e = kind_error(kind, "what failed".into());
+            assert_eq!(Exit::of(&e), Exit::of_kind(kind), "{kind:?}");
+            assert!(format!("{e:#}").contains("what failed"), "{kind:?}: {e:#}");
+        }
     }
 
     #[test]

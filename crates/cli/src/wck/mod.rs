@@ -22,7 +22,7 @@ use robobus_wck::{
     Accel, BaudRate, DGain, DataByte, ExtServoId, IGain, IoBits, Overload, PGain, Position,
     Position10, RangeError, ServoId, Speed, TorqueLevel, WheelSpeed,
 };
-use serde_json::{Map, Value};
+use serde_json::Value;
 
 use crate::Global;
 use crate::exit::usage;
@@ -547,11 +547,6 @@ fn parse_servo_ids(spec: &str) -> Result<ServoIds, String> {
 /// The largest motion program file read (a program has at most 8 instructions).
 const PROGRAM_FILE_LIMIT: u64 = 64 << 10;
 
-/// Reads a program or motion file (bounded) as the text a request carries.
-fn file_text(path: &Path, limit: u64) -> anyhow::Result<String> {
-    Ok(read_bounded(path, limit)?)
-}
-
 /// A catalogue error about a file's text (`motion` / `program`: `line:column` and what
 /// is wrong) as `FILE:line:column: ...` (exit 2); other errors as they are.
 fn in_file(e: OpError, path: Option<&Path>) -> anyhow::Error {
@@ -652,16 +647,7 @@ const WCK_TABLE: report::Style = report::Style {
 
 /// `scan`: the servos found, each duplicate ID, a count.
 fn print_scan(r: &Report) -> anyhow::Result<()> {
-    let rows: Vec<Map<String, Value>> = r
-        .results
-        .iter()
-        .filter_map(|v| v.as_object().cloned())
-        .collect();
-    let mut text = if rows.is_empty() {
-        String::new()
-    } else {
-        report::table(&rows, &WCK_TABLE)
-    };
+    let mut text = report::results_table(r, &WCK_TABLE);
     let none = Vec::new();
     let dups = r
         .summary
@@ -680,7 +666,7 @@ fn print_scan(r: &Report) -> anyhow::Result<()> {
     let _ = writeln!(
         text,
         "# {} servo(s) found, {} duplicate ID(s)",
-        rows.len(),
+        r.results.len(),
         dups.len()
     );
     output::print(&text)?;
@@ -824,7 +810,7 @@ fn request(args: &Args) -> anyhow::Result<Request> {
             Q::WckProgramUpload(cw::ProgramUpload {
                 bus: None,
                 id: id(*i),
-                program: file_text(file, PROGRAM_FILE_LIMIT)?,
+                program: read_bounded(file, PROGRAM_FILE_LIMIT)?,
                 confirm: false,
             })
         }
@@ -838,7 +824,7 @@ fn request(args: &Args) -> anyhow::Result<Request> {
             Q::WckProgramCheck(cw::ProgramCheck {
                 bus: None,
                 id: id(*i),
-                program: file_text(file, PROGRAM_FILE_LIMIT)?,
+                program: read_bounded(file, PROGRAM_FILE_LIMIT)?,
             })
         }
         WckCommand::Teach {
@@ -864,7 +850,7 @@ fn request(args: &Args) -> anyhow::Result<Request> {
             on_stop: o,
         } => Q::WckPlay(cw::Play {
             bus: None,
-            motion: file_text(file, MOTION_FILE_LIMIT)?,
+            motion: read_bounded(file, MOTION_FILE_LIMIT)?,
             rate_hz: *rate_hz,
             on_stop: on_stop(*o),
         }),
