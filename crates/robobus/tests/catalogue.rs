@@ -339,3 +339,54 @@ fn telemetry_marks_a_silent_device_and_refuses_what_it_cannot_stream() {
     let last = sub.last().map_or(first.sample.seq, |d| d.sample.seq);
     assert_eq!(last, stats.samples - 1, "{stats:?}");
 }
+
+/// Runs `json`, stopping its token once a progress event has `done == at`.
+fn run_stopped_at(s: &Station, json: &str, at: u64) -> catalogue::Report {
+    let stop = robobus::ops::StopToken::new();
+    let token = stop.clone();
+    let mut on_progress = |p: &robobus::ops::Progress| {
+        if p.done == at {
+            token.stop();
+        }
+    };
+    catalogue::run(
+        s,
+        &parse(json),
+        &mut Control::new(&stop).with_progress(&mut on_progress),
+    )
+    .unwrap()
+}
+
+#[test]
+fn a_stopped_scan_keeps_what_it_found_and_says_how_far_it_got() {
+    let (s, _, _) = station();
+    // wCK: progress after each ID; stopped after IDs 0 and 1 of 0..=5.
+    let r = run_stopped_at(&s, r#"{"op": "wck.scan", "ids": "0-5"}"#, 2);
+    let ids: Vec<u64> = r
+        .results
+        .iter()
+        .map(|v| v["id"].as_u64().unwrap())
+        .collect();
+    assert_eq!(ids, [0, 1]);
+    assert_eq!(r.failed.as_deref(), Some("interrupted"));
+    assert_eq!(
+        r.error.as_deref(),
+        Some("arm-wck: scan stopped after 2 of 6 probes")
+    );
+    // WHJ: progress before each ID; the stop asked before J2 is seen before J3.
+    let r = run_stopped_at(&s, r#"{"op": "whj.scan", "joints": "1-5"}"#, 1);
+    let ids: Vec<u64> = r
+        .results
+        .iter()
+        .map(|v| v["id"].as_u64().unwrap())
+        .collect();
+    assert_eq!(ids, [1, 2]);
+    assert_eq!(r.failed.as_deref(), Some("interrupted"));
+    assert_eq!(
+        r.error.as_deref(),
+        Some("arm-whj: scan stopped after 2 of 5 IDs")
+    );
+    // Not stopped, the same scans report every servo / joint and no failure.
+    let r = run(&s, r#"{"op": "whj.scan", "joints": "1-5"}"#).unwrap();
+    assert_eq!((r.results.len(), r.failed), (2, None));
+}

@@ -257,7 +257,11 @@ fn run_wck(
                 "bauds_tried": r.bauds_tried,
                 "duplicates": r.duplicates,
             }));
-            if !r.duplicates.is_empty() {
+            if let Some(why) = &r.stopped {
+                // What it found before the stop stays in the report.
+                out.failed = Some(ErrorKind::Interrupted.name().into());
+                out.error = Some(format!("{name}: {why}"));
+            } else if !r.duplicates.is_empty() {
                 // As whj.scan: an ID that more than one module answers is a device fault.
                 let ids: Vec<String> = r
                     .duplicates
@@ -395,7 +399,11 @@ fn run_whj(
             let r = hops::scan(bus, ids, control)?;
             let mut out = device_report(op, name, &r.found);
             out.summary = Some(json!({ "duplicates": r.duplicates, "probed": r.probed }));
-            if r.found.is_empty() {
+            if let Some(why) = &r.stopped {
+                // What it found before the stop stays in the report.
+                out.failed = Some(ErrorKind::Interrupted.name().into());
+                out.error = Some(format!("{name}: {why}"));
+            } else if r.found.is_empty() {
                 out.failed = Some(ErrorKind::NoDevice.name().into());
                 out.error = Some(format!(
                     "no joint answered on IDs {}",

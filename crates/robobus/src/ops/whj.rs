@@ -1295,6 +1295,10 @@ pub struct ScanReport {
     pub duplicates: Vec<Duplicate>,
     /// IDs probed.
     pub probed: usize,
+    /// Set when the scan was stopped before its last ID (`found` holds what it found
+    /// until then): how far it got.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stopped: Option<String>,
 }
 
 /// Reads of the unique ID [`duplicates_of`] makes after the connect's own read.
@@ -1346,7 +1350,8 @@ pub const SCAN_CONNECT_TIMEOUT: Duration = Duration::from_millis(150);
 /// `whj scan`: connects every ID at once (IAP releases pipelined, then identify;
 /// [`SCAN_CONNECT_TIMEOUT`] is what the absent IDs cost, once for all of them) and checks
 /// each joint found for a second joint at its ID. IDs that stay silent are left out of
-/// `found`; other failures are kept.
+/// `found`; other failures are kept. Stopped by `control`, it returns what it found so
+/// far with [`ScanReport::stopped`] set.
 pub fn scan(
     bus: &JointBus,
     ids: &[JointId],
@@ -1356,19 +1361,19 @@ pub fn scan(
         found: Vec::new(),
         duplicates: Vec::new(),
         probed: ids.len(),
+        stopped: None,
     };
+    let stopped_after = |k: usize| Some(format!("scan stopped after {k} of {} IDs", ids.len()));
     if control.stopped() {
-        return Err(OpError::Interrupted {
-            detail: Some(format!("scan stopped after 0 of {} IDs", ids.len())),
-        });
+        report.stopped = stopped_after(0);
+        return Ok(report);
     }
     control.report(&Progress::new("scan", 0, Some(ids.len() as u64)).with_note("connecting"));
     let connected = bus.joints_within(ids, SCAN_CONNECT_TIMEOUT);
     for (k, (&id, joint)) in ids.iter().zip(connected).enumerate() {
         if control.stopped() {
-            return Err(OpError::Interrupted {
-                detail: Some(format!("scan stopped after {k} of {} IDs", ids.len())),
-            });
+            report.stopped = stopped_after(k);
+            return Ok(report);
         }
         control.report(
             &Progress::new("scan", k as u64, Some(ids.len() as u64))

@@ -267,6 +267,10 @@ pub struct ScanOpReport {
     pub found: Vec<Found>,
     /// IDs answered by more than one module.
     pub duplicates: Vec<SharedId>,
+    /// Set when the scan was stopped before its last ID (`found` holds what it found
+    /// until then): how far it got.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stopped: Option<String>,
 }
 
 impl ScanOpReport {
@@ -290,12 +294,14 @@ pub fn scan<L: ByteLink>(
     let mut found: Vec<FoundServo> = Vec::new();
     let mut duplicates = Vec::new();
     let mut done = 0;
+    let mut stopped = None;
     let result = (|| {
         for &baud in &args.bauds {
             bus.set_host_baud(baud)?;
             for &id in &args.ids {
                 if control.stopped() {
-                    return Err(OpError::Interrupted { detail: None });
+                    stopped = Some(format!("scan stopped after {done} of {total} probes"));
+                    return Ok::<(), OpError>(());
                 }
                 let options = ScanOptions {
                     bauds: Vec::new(),
@@ -329,6 +335,7 @@ pub fn scan<L: ByteLink>(
         bauds_tried: args.bauds.iter().map(|b| b.bits_per_second()).collect(),
         found: found.iter().map(Found::from).collect(),
         duplicates,
+        stopped,
     })
 }
 
