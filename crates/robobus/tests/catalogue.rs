@@ -291,7 +291,7 @@ fn telemetry_marks_a_silent_device_and_refuses_what_it_cannot_stream() {
     let (s, _w, _j) = station();
     let s = std::sync::Arc::new(s);
     // Servo 3 does not exist: every sample has its row as a failure, never a value.
-    let t = Telemetry::start(
+    let t = Telemetry::paused(
         &s,
         parse(r#"{"op": "wck.sample", "ids": "2-3"}"#),
         50.0,
@@ -302,11 +302,18 @@ fn telemetry_marks_a_silent_device_and_refuses_what_it_cannot_stream() {
     assert_eq!(t.join().samples, 3);
     let got: Vec<_> = sub.collect();
     assert_eq!(got.len(), 3);
-    for d in &got {
+    for (k, d) in got.iter().enumerate() {
         let rep = d.sample.report.as_ref().unwrap();
         assert!(rep.results[0]["position_deg"].is_number(), "{rep:?}");
         assert_eq!(rep.results[1]["kind"], "no-device", "{rep:?}");
         assert_eq!(rep.failed.as_deref(), Some("no-device"));
+        // Servo 2 rests: no speed from its first reading, 0 deg/s from two.
+        let speed = &rep.results[0]["speed_deg_s"];
+        if k == 0 {
+            assert!(speed.is_null(), "{rep:?}");
+        } else {
+            assert_eq!(speed.as_f64(), Some(0.0), "{rep:?}");
+        }
     }
     // Only readings are streamed, at a rate in range, on a bus the station has.
     for (json, rate) in [

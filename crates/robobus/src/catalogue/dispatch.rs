@@ -176,7 +176,7 @@ fn row(id: impl Serialize, value: &impl Serialize) -> Value {
     Value::Object(r)
 }
 
-fn report(op: &str, bus: &str, results: Vec<Value>) -> Report {
+pub(super) fn report(op: &str, bus: &str, results: Vec<Value>) -> Report {
     Report {
         op: op.to_owned(),
         bus: bus.to_owned(),
@@ -581,13 +581,9 @@ fn run_whj(
         }
         J::Sample(ids, broadcast) => {
             // Joints this bus has not connected yet are connected first (together; a
-            // silent one shows in its row), as the monitor does once.
-            let fresh: Vec<robobus_whj::JointId> = ids
-                .iter()
-                .copied()
-                .filter(|&id| bus.cached_identity(id).is_none())
-                .collect();
-            let _ = bus.joints(&fresh);
+            // silent one shows in its row), once per station: a telemetry stream does not
+            // wait for a silent joint's connect at every sample.
+            let _ = bus.joints(&port.untried(ids));
             if *broadcast {
                 device_report(op, name, &hops::sample_broadcast(bus, ids)?)
             } else {

@@ -81,6 +81,8 @@ pub struct WhjPort(Arc<WhjInner>);
 struct WhjInner {
     name: String,
     bus: JointBus,
+    /// Joints a sample has tried to connect (by ID), answered or not.
+    tried: Mutex<[bool; 31]>,
 }
 
 impl WhjPort {
@@ -89,7 +91,28 @@ impl WhjPort {
         Self(Arc::new(WhjInner {
             name: name.into(),
             bus,
+            tried: Mutex::new([false; 31]),
         }))
+    }
+
+    /// Of `ids`, those neither connected on this bus nor tried by an earlier call, now
+    /// marked as tried: a sample connects each joint once per station, so a silent joint
+    /// costs one connect timeout, not one per sample (sampling itself needs no connect).
+    pub(crate) fn untried(&self, ids: &[JointId]) -> Vec<JointId> {
+        let mut tried = self
+            .0
+            .tried
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        ids.iter()
+            .copied()
+            .filter(|&id| {
+                let slot = &mut tried[usize::from(id.get()).min(30)];
+                let first = !*slot && self.0.bus.cached_identity(id).is_none();
+                *slot = true;
+                first
+            })
+            .collect()
     }
 
     /// Its name.

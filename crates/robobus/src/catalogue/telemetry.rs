@@ -40,10 +40,16 @@ pub struct Sample {
     /// The read started more than one period after its slot (the bus or the host could not
     /// keep the rate): the stream's timing, not the values, is off.
     pub late: bool,
-    /// The request's report: one row per device, failures included.
+    /// The request's report: one row per device, failures included. In a `wck.sample`
+    /// stream a servo's `speed_deg_s` is its position's change since its previous
+    /// reading in this stream (`null` until it has two).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub report: Option<Report>,
-    /// Why the read failed as a whole (`kind`: message), if it did.
+    /// The kind of the failure, if the read failed as a whole (a frame that could not be
+    /// sent, a link that went away): the [`ErrorKind`](crate::ErrorKind) name.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub failed: Option<String>,
+    /// Why the read failed as a whole, if it did.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
     #[serde(skip)]
@@ -394,6 +400,7 @@ fn sample_loop(
     limit: Option<u64>,
 ) -> StreamStats {
     let mut stats = StreamStats::default();
+    let mut speeds = matches!(request, Request::WckSample(_)).then(Speeds::default);
     let mut slot = Instant::now();
     while !stop.is_stopped() && limit.is_none_or(|n| stats.samples < n) {
         let start = Instant::now();
@@ -403,11 +410,20 @@ fn sample_loop(
         let unix_ms = SystemTime::now()
             .duration_since(SystemTime::UNIX_EPOCH)
             .map_or(0.0, |d| d.as_secs_f64() * 1e3);
-        let (report, error) = match outcome {
-            Ok(r) => (Some(r), None),
+        let (report, failed, error) = match outcome {
+            Ok(mut r) => {
+                if let Some(speeds) = &mut speeds {
+                    speeds.fill(&mut r, done);
+                }
+                (Some(r), None, None)
+            }
             Err(e) => {
                 stats.failed += 1;
-                (None, Some(format!("{}: {e}", kind_name(e.kind()))))
+                (
+                    None,
+                    Some(kind_name(e.kind()).to_owned()),
+                    Some(e.to_string()),
+                )
             }
         };
         let sample = Arc::new(Sample {
@@ -416,6 +432,7 @@ fn sample_loop(
             read_ms: done.saturating_duration_since(start).as_secs_f64() * 1e3,
             late,
             report,
+            failed,
             error,
             at: Some(done),
         });
@@ -433,4 +450,72 @@ fn sample_loop(
     }
     hub.end();
     stats
+}
+
+/// Each servo's previous reading in a `wck.sample` stream, for its speed.
+#[derive(Debug, Default)]
+struct Speeds {
+    last: std::collections::HashMap<u64, (Instant, f64)>,
+}
+
+impl Speeds {
+    /// Fills each answered row's `speed_deg_s` from its previous reading.
+    fn fill(&mut self, report: &mut Report, at: Instant) {
+        for row in &mut report.results {
+            let (Some(id), Some(deg)) = (row["id"].as_u64(), row["position_deg"].as_f64()) else {
+                continue;
+            };
+            if let Some((t0, d0)) = self.last.insert(id, (at, deg)) {
+                let dt = at.saturating_duration_since(t0).as_secs_f64();
+                if dt > 0.0 && row["speed_deg_s"].is_null() {
+                    row["speed_deg_s"] = serde_json::json!((deg - d0) / dt);
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn report(rows: serde_json::Value) -> Report {
+        super::super::dispatch::report(
+            "wck.sample",
+            "legs",
+            rows.as_array().cloned().unwrap_or_default(),
+        )
+    }
+
+    #[test]
+    fn a_servos_speed_is_its_change_since_its_previous_reading() {
+        let mut speeds = Speeds::default();
+        let t0 = Instant::now();
+        let mut first = report(serde_json::json!([
+            {"id": 1, "position_deg": 10.0, "speed_deg_s": null},
+            {"id": 2, "kind": "no-device", "error": "silent"},
+        ]));
+        speeds.fill(&mut first, t0);
+        assert!(first.results[0]["speed_deg_s"].is_null());
+        // Half a second later servo 1 is 10 degrees on; servo 2 answers for the first time.
+        let mut second = report(serde_json::json!([
+            {"id": 1, "position_deg": 20.0, "speed_deg_s": null},
+            {"id": 2, "position_deg": 5.0, "speed_deg_s": null},
+        ]));
+        speeds.fill(&mut second, t0 + Duration::from_millis(500));
+        assert_eq!(second.results[0]["speed_deg_s"].as_f64(), Some(20.0));
+        assert!(second.results[1]["speed_deg_s"].is_null());
+        // A silent reading keeps the last one it had: the next speed spans the gap.
+        let mut third = report(serde_json::json!([
+            {"id": 1, "kind": "no-device", "error": "silent"},
+            {"id": 2, "position_deg": 4.0, "speed_deg_s": null},
+        ]));
+        speeds.fill(&mut third, t0 + Duration::from_millis(1000));
+        assert_eq!(third.results[1]["speed_deg_s"].as_f64(), Some(-2.0));
+        let mut fourth = report(serde_json::json!([
+            {"id": 1, "position_deg": 30.0, "speed_deg_s": null},
+        ]));
+        speeds.fill(&mut fourth, t0 + Duration::from_millis(1500));
+        assert_eq!(fourth.results[0]["speed_deg_s"].as_f64(), Some(10.0));
+    }
 }
