@@ -419,11 +419,7 @@ fn sample_loop(
             }
             Err(e) => {
                 stats.failed += 1;
-                (
-                    None,
-                    Some(kind_name(e.kind()).to_owned()),
-                    Some(e.to_string()),
-                )
+                (None, Some(kind_name(e.kind())), Some(e.to_string()))
             }
         };
         let sample = Arc::new(Sample {
@@ -479,7 +475,7 @@ impl Speeds {
 mod tests {
     use super::*;
 
-    fn report(rows: serde_json::Value) -> Report {
+    fn report(rows: &serde_json::Value) -> Report {
         super::super::dispatch::report(
             "wck.sample",
             "legs",
@@ -491,14 +487,14 @@ mod tests {
     fn a_servos_speed_is_its_change_since_its_previous_reading() {
         let mut speeds = Speeds::default();
         let t0 = Instant::now();
-        let mut first = report(serde_json::json!([
+        let mut first = report(&serde_json::json!([
             {"id": 1, "position_deg": 10.0, "speed_deg_s": null},
             {"id": 2, "kind": "no-device", "error": "silent"},
         ]));
         speeds.fill(&mut first, t0);
         assert!(first.results[0]["speed_deg_s"].is_null());
         // Half a second later servo 1 is 10 degrees on; servo 2 answers for the first time.
-        let mut second = report(serde_json::json!([
+        let mut second = report(&serde_json::json!([
             {"id": 1, "position_deg": 20.0, "speed_deg_s": null},
             {"id": 2, "position_deg": 5.0, "speed_deg_s": null},
         ]));
@@ -506,13 +502,13 @@ mod tests {
         assert_eq!(second.results[0]["speed_deg_s"].as_f64(), Some(20.0));
         assert!(second.results[1]["speed_deg_s"].is_null());
         // A silent reading keeps the last one it had: the next speed spans the gap.
-        let mut third = report(serde_json::json!([
+        let mut third = report(&serde_json::json!([
             {"id": 1, "kind": "no-device", "error": "silent"},
             {"id": 2, "position_deg": 4.0, "speed_deg_s": null},
         ]));
-        speeds.fill(&mut third, t0 + Duration::from_millis(1000));
+        speeds.fill(&mut third, t0 + Duration::from_secs(1));
         assert_eq!(third.results[1]["speed_deg_s"].as_f64(), Some(-2.0));
-        let mut fourth = report(serde_json::json!([
+        let mut fourth = report(&serde_json::json!([
             {"id": 1, "position_deg": 30.0, "speed_deg_s": null},
         ]));
         speeds.fill(&mut fourth, t0 + Duration::from_millis(1500));
