@@ -2,13 +2,17 @@
 //!
 //! Sources ([`Source`]):
 //!
-//! - `--bus BUS --joints 1-7`: WHJ joints, read-only: each sample is a status query
-//!   (position, current, enable, error bits) and a speed register read per joint, through
-//!   [`robobus::whj::JointBus`]; with `--broadcast`, one broadcast status frame (0x7F) for
-//!   all joints (1..=7), [`robobus::ops::whj::sample_broadcast`].
-//! - `--port PATH --servos 0-15`: wCK servos, read-only: a status read (position, load)
-//!   per servo ([`robobus::ops::monitor::WckSampler`]); the speed is the position's
-//!   derivative.
+//! - `--bus BUS --joints 1-7`: WHJ joints, read-only: the monitor is one subscriber of the
+//!   library's telemetry stream ([`robobus::catalogue::Telemetry`]) of the request
+//!   `whj.sample` on a station holding that bus: each sample is a status query (position,
+//!   current, enable, error bits) and a speed register read per joint; with `--broadcast`,
+//!   one broadcast status frame (0x7F) for all joints (1..=7).
+//! - `--port PATH --servos 0-15`: wCK servos, read-only, the stream of `wck.sample`: a
+//!   status read (position, load) per servo; the speed is the position's derivative.
+//!
+//! A stream keeps its own rate: a dashboard that falls behind loses its oldest samples
+//! (shown as "not shown", and as `lost` in JSON lines), never slows the bus. A sample's
+//! time is when its read completed.
 //! - `--robot FILE.toml`: every joint of a robot file, by name, in the file's order, as
 //!   joint angles (the file's `offset`, `direction` and wCK `centre` applied) in degrees
 //!   and deg/s ([`robobus::ops::monitor::RobotSampler`]). The file's buses are opened for
@@ -25,12 +29,14 @@
 //! writes every sample in the format `robobus plot` reads; `--duration` ends the run by
 //! itself.
 
-use robobus::ops::capture::{Overwrite, capture_byte_link};
+use robobus::catalogue::telemetry::RecvError;
+use robobus::catalogue::{self, Delivery, Request, Station, Subscriber, Telemetry, station};
 use robobus::ops::{IdList, ListId};
 use std::collections::VecDeque;
 use std::fmt::Write as _;
 use std::io::{IsTerminal as _, Write as _};
 use std::path::PathBuf;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
@@ -40,10 +46,9 @@ use ratatui::style::{Color, Style, Stylize as _};
 use ratatui::symbols::Marker;
 use ratatui::text::Line;
 use ratatui::widgets::{Axis, Block, Cell, Chart, Dataset, GraphType, Paragraph, Row, Table};
-use robobus::ops::monitor::{RobotSampler, WckSampler, connect_joints};
-use robobus::robot::{DynByteLink, RobotConfig, RobotError};
-use robobus::wck::{WckBus, WckConfig};
-use robobus::whj::{JointBus, JointBusConfig};
+use robobus::ops::monitor::RobotSampler;
+use robobus::robot::{RobotConfig, RobotError};
+use robobus::whj::JointBusConfig;
 use robobus_wck::{BaudRate, ServoId};
 use robobus_whj::JointId;
 
@@ -209,6 +214,10 @@ pub(crate) struct Dashboard {
     pub(crate) recording: Option<String>,
     /// Channels are a robot file's joints (named), not device IDs.
     pub(crate) named_joints: bool,
+    /// Samples of the stream the monitor lost (it fell behind by a whole queue).
+    pub(crate) lost: u64,
+    /// The latest sample's read started more than one period after its slot.
+    pub(crate) late: bool,
 }
 
 impl Dashboard {
@@ -265,6 +274,8 @@ impl Dashboard {
         serde_json::json!({
             "t_s": (self.t * 1e4).round() / 1e4,
             "sample": self.samples,
+            "late": self.late,
+            "lost": self.lost,
             "channels": channels,
         })
         .to_string()
@@ -343,6 +354,11 @@ pub(crate) fn render(f: &mut Frame<'_>, d: &Dashboard) {
             "robobus monitor ".bold(),
             d.title.clone().into(),
             format!("   t = {:.1} s, {} samples", d.t, d.samples).into(),
+            if d.lost > 0 {
+                format!(", {} not shown (the terminal fell behind)", d.lost).yellow()
+            } else {
+                "".into()
+            },
         ])),
         head,
     );
@@ -482,22 +498,115 @@ pub(crate) fn render(f: &mut Frame<'_>, d: &Dashboard) {
     );
 }
 
-/// Where samples come from. The library samples ([`robobus::ops::whj::sample`],
-/// [`robobus::ops::monitor`]); each device's result fills the dashboard channel at its
-/// index.
+/// Where samples come from: a one-bus station's telemetry stream (WHJ `whj.sample`, wCK
+/// `wck.sample`), or a source the monitor samples itself on its own clock (the simulated
+/// arm, a robot file's joints).
 enum Source {
-    Whj {
-        bus: JointBus,
-        joints: Vec<(usize, JointId)>,
-        /// One broadcast status frame per sample.
-        broadcast: bool,
-    },
+    Stream(Stream),
     Sim(robobus::demo::SimArm),
-    Wck {
-        bus: WckBus<DynByteLink>,
-        sampler: WckSampler,
-    },
     Robot(RobotSampler),
+}
+
+/// The monitor as one subscriber of a telemetry stream ([`Telemetry`]) on a station that
+/// holds only the watched bus: each delivery's report rows fill the channels by device ID.
+struct Stream {
+    telemetry: Option<Telemetry>,
+    sub: Subscriber,
+    station: Option<Arc<Station>>,
+    /// The device ID of each channel, in channel order.
+    ids: Vec<u64>,
+    whj: bool,
+}
+
+/// Samples a subscriber may fall behind by before it loses the oldest (the dashboard
+/// draws far faster than the bus samples, so only a stalled terminal loses any).
+const QUEUE: usize = 256;
+
+impl Stream {
+    /// A paused stream of `request` on `station` (sampling starts with [`Source::begin`]).
+    fn new(
+        station: Station,
+        request: Request,
+        rate_hz: f64,
+        ids: Vec<u64>,
+    ) -> anyhow::Result<Self> {
+        let whj = request.family() == robobus::catalogue::Family::Whj;
+        let station = Arc::new(station);
+        let telemetry = Telemetry::paused(&station, request, rate_hz, None)?;
+        let sub = telemetry.subscribe(QUEUE)?;
+        Ok(Self {
+            telemetry: Some(telemetry),
+            sub,
+            station: Some(station),
+            ids,
+            whj,
+        })
+    }
+
+    /// Fills the channels from one delivery; the link's error if the bus itself failed
+    /// (a capture file that cannot be written, a bus that went away).
+    fn apply(&self, delivery: &Delivery, channels: &mut [Channel]) -> Result<(), String> {
+        let sample = &delivery.sample;
+        let Some(report) = &sample.report else {
+            let why = sample.error.clone().unwrap_or_default();
+            if sample.failed.as_deref() == Some("link") {
+                return Err(why);
+            }
+            // A read that could not be sent: a missed sample of every device.
+            for c in channels.iter_mut() {
+                c.missed("not sent");
+            }
+            return Ok(());
+        };
+        if let Some(e) = report.results.iter().find(|r| r["kind"] == "link") {
+            return Err(e["error"].as_str().unwrap_or("link failed").to_owned());
+        }
+        for (c, id) in channels.iter_mut().zip(&self.ids) {
+            let Some(r) = report
+                .results
+                .iter()
+                .find(|r| r["id"].as_u64() == Some(*id))
+            else {
+                c.missed("no reply");
+                continue;
+            };
+            match r["kind"].as_str() {
+                Some(_) if !self.whj => c.missed("no reply"),
+                Some("no-device") => c.missed("timeout"),
+                Some(_) => c.missed("bad reply"),
+                None if self.whj => {
+                    c.position = r["position_deg"].as_f64();
+                    c.speed = r["speed_rpm"].as_f64();
+                    c.effort = r["current_ma"].as_f64();
+                    c.enabled = r["enabled"].as_bool();
+                    r["error"]
+                        .as_str()
+                        .unwrap_or_default()
+                        .clone_into(&mut c.error);
+                    c.got();
+                }
+                None => {
+                    c.position = r["position_deg"].as_f64();
+                    c.speed = r["speed_deg_s"].as_f64();
+                    c.effort = r["load"].as_f64();
+                    c.error = "ok".into();
+                    c.got();
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Stream {
+    fn drop(&mut self) {
+        // Stops the sampler (its read under way completes), then closes the station
+        // leaving every device as it was: the monitor only reads.
+        drop(self.telemetry.take());
+        if let Some(station) = self.station.take().and_then(|s| Arc::try_unwrap(s).ok()) {
+            station.leave();
+        }
+    }
 }
 
 /// What a channel shows for a device that did not answer this sample.
@@ -507,65 +616,6 @@ fn missing_text(f: &robobus::ops::Failure) -> &'static str {
     } else {
         "bad reply"
     }
-}
-
-/// The first failure of a sample that is the link's, not a device's (a capture file
-/// that cannot be written, a bus that went away): it ends the monitor, naming the cause,
-/// instead of marking every later sample missing.
-fn link_failure<'a, I: 'a, T: 'a>(
-    results: impl IntoIterator<Item = &'a robobus::ops::DeviceResult<I, T>>,
-) -> Option<String> {
-    results
-        .into_iter()
-        .filter_map(robobus::ops::DeviceResult::failure)
-        .find(|f| f.kind == robobus::ErrorKind::Link)
-        .map(|f| f.error.clone())
-}
-
-fn sample_whj(
-    bus: &JointBus,
-    joints: &[(usize, JointId)],
-    broadcast: bool,
-    channels: &mut [Channel],
-) -> Option<String> {
-    let ids: Vec<JointId> = joints.iter().map(|(_, id)| *id).collect();
-    let results = if broadcast {
-        let Ok(r) = robobus::ops::whj::sample_broadcast(bus, &ids) else {
-            // A frame that could not be sent: a missed sample of every joint.
-            for &(i, _) in joints {
-                if let Some(c) = channels.get_mut(i) {
-                    c.missed("not sent");
-                }
-            }
-            return None;
-        };
-        r
-    } else {
-        robobus::ops::whj::sample(bus, &ids)
-    };
-    if let Some(e) = link_failure(&results) {
-        return Some(e);
-    }
-    for (&(i, _), r) in joints.iter().zip(&results) {
-        let Some(c) = channels.get_mut(i) else {
-            continue;
-        };
-        match (r.value(), r.failure()) {
-            (Some(st), _) => {
-                c.position = Some(st.position_deg);
-                c.speed = st.speed_rpm;
-                #[allow(clippy::cast_precision_loss)] // mA fit easily
-                let ma = st.current_ma.map(|m| m as f64);
-                c.effort = ma;
-                c.enabled = Some(st.enabled);
-                c.error.clone_from(&st.error);
-                c.got();
-            }
-            (None, Some(f)) => c.missed(missing_text(f)),
-            (None, None) => c.missed("no reply"),
-        }
-    }
-    None
 }
 
 fn sample_sim(arm: &robobus::demo::SimArm, channels: &mut [Channel]) {
@@ -592,31 +642,6 @@ fn sample_sim(arm: &robobus::demo::SimArm, channels: &mut [Channel]) {
     }
 }
 
-fn sample_wck(
-    bus: &mut WckBus<DynByteLink>,
-    sampler: &mut WckSampler,
-    now: f64,
-    channels: &mut [Channel],
-) -> Option<String> {
-    let results = sampler.sample(bus, now);
-    if let Some(e) = link_failure(&results) {
-        return Some(e);
-    }
-    for (c, r) in channels.iter_mut().zip(results) {
-        match r.value() {
-            Some(st) => {
-                c.position = Some(st.position_deg);
-                c.speed = st.speed_deg_s;
-                c.effort = Some(f64::from(st.load));
-                c.error = "ok".into();
-                c.got();
-            }
-            None => c.missed("no reply"),
-        }
-    }
-    None
-}
-
 fn sample_robot(sampler: &mut RobotSampler, now: f64, channels: &mut [Channel]) {
     let wck: Vec<bool> = sampler.joints().iter().map(|j| j.wck).collect();
     for ((c, r), wck) in channels.iter_mut().zip(sampler.sample(now)).zip(wck) {
@@ -637,34 +662,108 @@ fn sample_robot(sampler: &mut RobotSampler, now: f64, channels: &mut [Channel]) 
     }
 }
 
-fn sample(srcs: &mut [Source], d: &mut Dashboard) -> anyhow::Result<()> {
-    for src in srcs {
-        let failed = match src {
-            Source::Whj {
-                bus,
-                joints,
-                broadcast,
-            } => sample_whj(bus, joints, *broadcast, &mut d.channels),
-            Source::Sim(arm) => {
-                sample_sim(arm, &mut d.channels);
-                None
-            }
-            Source::Wck { bus, sampler } => sample_wck(bus, sampler, d.t, &mut d.channels),
-            Source::Robot(sampler) => {
-                sample_robot(sampler, d.t, &mut d.channels);
-                None
-            }
-        };
-        if let Some(e) = failed {
-            return Err(anyhow::anyhow!(
-                "monitor stopped after {} sample(s): {e}",
-                d.samples
-            ));
+/// What waiting for a stream's next sample gave.
+enum Waited {
+    Sample(Delivery),
+    /// A quit key, the terminal hung up, the duration is over, the run was stopped or
+    /// the stream ended.
+    End,
+}
+
+/// How often a wait for a stream's sample looks at the keys.
+const KEY_SLICE: Duration = Duration::from_millis(50);
+
+/// Takes the next sample into `d` (a stream's: waiting for it, reading keys meanwhile);
+/// `false` when the run ends instead (a quit key, the duration, a stop), the link's error
+/// when the bus itself failed.
+fn take_sample(
+    src: &mut Source,
+    d: &mut Dashboard,
+    start: Instant,
+    stop: &robobus::ops::StopToken,
+    keys: Option<&std::sync::mpsc::Receiver<ratatui::crossterm::event::KeyEvent>>,
+    end: Option<Instant>,
+) -> Result<bool, String> {
+    match src {
+        Source::Stream(s) => {
+            let Waited::Sample(delivery) = wait_stream(s, stop, keys, end) else {
+                return Ok(false);
+            };
+            // The time its read completed, not the time it is shown.
+            d.t = start
+                .elapsed()
+                .saturating_sub(delivery.sample.age())
+                .as_secs_f64();
+            d.lost += delivery.lost;
+            d.late = delivery.sample.late;
+            s.apply(&delivery, &mut d.channels)?;
+        }
+        Source::Sim(arm) => {
+            d.t = start.elapsed().as_secs_f64();
+            sample_sim(arm, &mut d.channels);
+        }
+        Source::Robot(sampler) => {
+            d.t = start.elapsed().as_secs_f64();
+            sample_robot(sampler, d.t, &mut d.channels);
         }
     }
-    d.samples += 1;
-    d.push_history();
-    Ok(())
+    Ok(true)
+}
+
+/// Waits until `next`, the next sample's slot, reading keys meanwhile (at least once per
+/// sample); whether the user quit.
+fn wait_slot(
+    next: Instant,
+    stop: &robobus::ops::StopToken,
+    keys: Option<&std::sync::mpsc::Receiver<ratatui::crossterm::event::KeyEvent>>,
+) -> bool {
+    loop {
+        let now = Instant::now();
+        if keys.is_some() {
+            // A closed terminal (a killed tmux, a dropped SSH session) reads as end of
+            // file forever (crossterm then spins inside its reader thread): stop as if the
+            // user had quit (the hang-up signal also sets `stop`).
+            if stop.is_stopped() || terminal_gone() {
+                return true;
+            }
+            let wait = next.saturating_duration_since(now).min(KEY_SLICE);
+            if quit_key(keys, wait) {
+                return true;
+            }
+        } else if now < next {
+            std::thread::sleep(next - now);
+        }
+        if Instant::now() >= next {
+            return false;
+        }
+    }
+}
+
+/// Waits for `stream`'s next sample, reading keys meanwhile, until `end`.
+fn wait_stream(
+    stream: &Stream,
+    stop: &robobus::ops::StopToken,
+    keys: Option<&std::sync::mpsc::Receiver<ratatui::crossterm::event::KeyEvent>>,
+    end: Option<Instant>,
+) -> Waited {
+    loop {
+        if stop.is_stopped() {
+            return Waited::End;
+        }
+        if keys.is_some() && (terminal_gone() || quit_key(keys, Duration::ZERO)) {
+            return Waited::End;
+        }
+        let now = Instant::now();
+        if end.is_some_and(|e| now >= e) {
+            return Waited::End;
+        }
+        let wait = end.map_or(KEY_SLICE, |e| (e - now).min(KEY_SLICE));
+        match stream.sub.recv_timeout(wait) {
+            Ok(d) => return Waited::Sample(d),
+            Err(RecvError::Timeout) => {}
+            Err(RecvError::Ended) => return Waited::End,
+        }
+    }
 }
 
 /// Restores the terminal when dropped (also on errors and panics in the loop).
@@ -711,9 +810,7 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
             robobus::ops::whj::reply_mask(&joints)
                 .map_err(|e| usage(format!("--broadcast --joints: {e}")))?;
         }
-        let jb =
-            robobus::catalogue::station::open_whj_with(bus, args.capture.as_deref(), whj_config())?;
-        connect_joints(&jb, joints.iter().copied());
+        let jb = station::open_whj_with(bus, args.capture.as_deref(), whj_config())?;
         let d = dashboard(
             format!("WHJ bus {bus}"),
             "RPM",
@@ -721,28 +818,24 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
             joints.iter().map(|j| (format!("J{}", j.get()), "mA")),
             args,
         );
-        let joints = joints.into_iter().enumerate().collect();
-        let src = Source::Whj {
-            bus: jb,
-            joints,
+        let mut station = Station::new();
+        station.add_whj(bus.as_str(), jb);
+        let ids: Vec<u64> = joints.iter().map(|j| u64::from(j.get())).collect();
+        let request = Request::WhjSample(catalogue::whj::Sample {
+            bus: None,
+            joints: id_list(&ids),
             broadcast: args.broadcast,
-        };
-        return watch(&mut [src], d, args, out);
+        });
+        let src = Stream::new(station, request, args.rate_hz, ids)?;
+        return watch(&mut Source::Stream(src), d, args, out);
     }
     if let Some(port) = &args.port {
-        let bus = WckBus::open(port, baud).map_err(|e| {
-            anyhow::Error::new(crate::exit::Timeout(e.to_string()))
-                .context(format!("opening {}", port.display()))
-        })?;
-        let config = *bus.config();
-        let link: DynByteLink = match &args.capture {
-            Some(path) => Box::new(capture_byte_link(bus.into_link(), path, Overwrite::No)?),
-            None => Box::new(bus.into_link()),
-        };
-        let bus = WckBus::new(link, baud)
-            .map_err(|e| anyhow::anyhow!("{e}"))?
-            .with_config(wck_config(config, args))
-            .with_device_name(port.display().to_string());
+        let name = port.display().to_string();
+        let mut bus = station::open_wck_port(&name, baud, args.capture.as_deref())
+            .with_context(|| format!("opening {name}"))?;
+        if let Some(margin) = args.reply_margin {
+            bus.config_mut().margin = margin;
+        }
         let ids: Vec<ServoId> = args
             .servos
             .0
@@ -750,14 +843,21 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
             .filter_map(|&s| ServoId::new(s).ok())
             .collect();
         let d = dashboard(
-            format!("wCK port {} at {} bit/s", port.display(), args.baud),
+            format!("wCK port {name} at {} bit/s", args.baud),
             "deg/s",
             "load",
             ids.iter().map(|s| (format!("S{}", s.get()), "load")),
             args,
         );
-        let sampler = WckSampler::new(&ids);
-        return watch(&mut [Source::Wck { bus, sampler }], d, args, out);
+        let mut station = Station::new();
+        station.add_wck(name, bus);
+        let ids: Vec<u64> = ids.iter().map(|s| u64::from(s.get())).collect();
+        let request = Request::WckSample(catalogue::wck::Sample {
+            bus: None,
+            ids: id_list(&ids),
+        });
+        let src = Stream::new(station, request, args.rate_hz, ids)?;
+        return watch(&mut Source::Stream(src), d, args, out);
     }
     Err(usage(
         "robobus monitor: give --bus BUS (WHJ), --port PATH (wCK), --robot FILE.toml or \
@@ -778,14 +878,6 @@ fn whj_config() -> JointBusConfig {
     JointBusConfig {
         connect_timeout: Duration::from_millis(300),
         ..JointBusConfig::default()
-    }
-}
-
-/// `--reply-margin` applied to a wCK bus's settings.
-fn wck_config(config: WckConfig, args: &Args) -> WckConfig {
-    WckConfig {
-        margin: args.reply_margin.unwrap_or(config.margin),
-        ..config
     }
 }
 
@@ -829,7 +921,7 @@ fn run_robot(path: &std::path::Path, args: &Args, out: Output) -> anyhow::Result
         named_joints: true,
         ..d
     };
-    watch(&mut [Source::Robot(sampler)], d, args, out)
+    watch(&mut Source::Robot(sampler), d, args, out)
 }
 
 fn dashboard(
@@ -871,7 +963,7 @@ fn run_sim(args: &Args, out: Output) -> anyhow::Result<()> {
         args,
     );
     // Dropping the arm disables its joints and stops the simulator.
-    watch(&mut [Source::Sim(arm)], d, args, out)
+    watch(&mut Source::Sim(arm), d, args, out)
 }
 
 fn ids_text(ids: &[u8]) -> String {
@@ -881,6 +973,11 @@ fn ids_text(ids: &[u8]) -> String {
         }
         _ => ids.iter().map(u8::to_string).collect::<Vec<_>>().join(","),
     }
+}
+
+/// Device IDs as a request's ID list.
+fn id_list(ids: &[u64]) -> catalogue::args::Ids {
+    catalogue::args::Ids::List(ids.iter().filter_map(|&i| u32::try_from(i).ok()).collect())
 }
 
 /// Whether the terminal on stdin has hung up (reads would only return end of file).
@@ -937,7 +1034,7 @@ fn quit_key(
     }
 }
 
-fn watch(srcs: &mut [Source], mut d: Dashboard, args: &Args, out: Output) -> anyhow::Result<()> {
+fn watch(src: &mut Source, mut d: Dashboard, args: &Args, out: Output) -> anyhow::Result<()> {
     let mut csv = match &args.record {
         Some(p) => {
             let mut f = std::io::BufWriter::new(
@@ -961,18 +1058,30 @@ fn watch(srcs: &mut [Source], mut d: Dashboard, args: &Args, out: Output) -> any
     let keys = tui.then(key_reader);
     let period = Duration::from_secs_f64(1.0 / args.rate_hz);
     let start = Instant::now();
+    let end = args.duration.map(|s| start + Duration::from_secs_f64(s));
+    if let Source::Stream(s) = src
+        && let Some(t) = &s.telemetry
+    {
+        t.resume();
+    }
     let mut next = start;
     let mut last_line = -1.0f64;
-    let mut quit_by_key = false;
     loop {
-        if stop.is_stopped() {
+        if stop.is_stopped() || end.is_some_and(|e| Instant::now() >= e) {
             break;
         }
-        d.t = start.elapsed().as_secs_f64();
-        if args.duration.is_some_and(|limit| d.t >= limit) {
-            break;
+        match take_sample(src, &mut d, start, &stop, keys.as_ref(), end) {
+            Ok(true) => {}
+            Ok(false) => break,
+            Err(e) => {
+                return Err(anyhow::anyhow!(
+                    "monitor stopped after {} sample(s): {e}",
+                    d.samples
+                ));
+            }
         }
-        sample(srcs, &mut d)?;
+        d.samples += 1;
+        d.push_history();
         if let Some(f) = &mut csv {
             writeln!(f, "{}", d.csv_row())?;
             if d.samples.is_multiple_of(16) {
@@ -987,33 +1096,12 @@ fn watch(srcs: &mut [Source], mut d: Dashboard, args: &Args, out: Output) -> any
             last_line = d.t;
             crate::output::print(&format!("{}\n", d.plain_line()))?;
         }
-        next += period;
-        // Wait for the next sample, reading keys meanwhile (at least once per sample).
-        loop {
-            let now = Instant::now();
-            if tui {
-                // A closed terminal (a killed tmux, a dropped SSH session) reads as end of
-                // file forever (crossterm then spins inside its reader thread, below): stop
-                // as if the user had quit (the hang-up signal also sets `stop`).
-                if stop.is_stopped() || terminal_gone() {
-                    quit_by_key = true;
-                    break;
-                }
-                let wait = next
-                    .saturating_duration_since(now)
-                    .min(Duration::from_millis(50));
-                if quit_key(keys.as_ref(), wait) {
-                    quit_by_key = true;
-                    break;
-                }
-            } else if now < next {
-                std::thread::sleep(next - now);
-            }
-            if Instant::now() >= next {
-                break;
-            }
+        if matches!(src, Source::Stream(_)) {
+            // The stream keeps its own rate; the next wait reads the keys.
+            continue;
         }
-        if quit_by_key {
+        next += period;
+        if wait_slot(next, &stop, keys.as_ref()) {
             break;
         }
         if Instant::now() > next + period * 10 {
@@ -1109,6 +1197,7 @@ mod tests {
             samples: 40,
             recording: Some("run.csv".into()),
             named_joints: false,
+            ..Dashboard::default()
         };
         for k in 0..20 {
             d.t = f64::from(k) * 0.1;

@@ -811,6 +811,48 @@ fn monitor_records_the_servo_positions_in_degrees() {
     assert!((last[4] - 210.98).abs() < 1.1, "{text}");
 }
 
+/// The monitor is a subscriber of the library's telemetry stream: JSON lines number the
+/// samples from 0 in order, say none was lost, and give a servo's speed from its second
+/// reading on (a standing servo: 0).
+#[test]
+fn monitor_json_lines_come_from_the_telemetry_stream() {
+    let sim = Sim::start("0-1", &[]);
+    let r = robobus(&[
+        "--json",
+        "monitor",
+        "--port",
+        sim.port(),
+        "--servos",
+        "0-1",
+        "--rate-hz",
+        "10",
+        "--duration",
+        "1",
+        "--reply-margin",
+        MARGIN,
+    ]);
+    assert_eq!(r.code, Some(0), "{r:#?}");
+    let samples = common::json_lines(&r.stdout);
+    assert!(samples.len() >= 3, "{}", r.stdout);
+    let mut t = -1.0;
+    for (n, s) in samples.iter().enumerate() {
+        assert_eq!(s["sample"], n as u64 + 1, "{s}");
+        assert_eq!(s["lost"], 0, "{s}");
+        assert!(s["late"].is_boolean(), "{s}");
+        let ts = s["t_s"].as_f64().unwrap();
+        assert!(ts > t, "{s}");
+        t = ts;
+        for c in s["channels"].as_array().unwrap() {
+            assert_eq!(c["stale"], false, "{s}");
+            if n == 0 {
+                assert!(c["speed_deg_per_s"].is_null(), "{s}");
+            } else {
+                assert_eq!(c["speed_deg_per_s"].as_f64(), Some(0.0), "{s}");
+            }
+        }
+    }
+}
+
 #[test]
 fn ctrl_c_during_a_timed_wheel_run_holds_the_servo_and_exits_130() {
     let sim = Sim::start("0-1", &[]);
