@@ -34,6 +34,7 @@ pub mod report;
 pub mod simspeed;
 pub mod stats;
 pub mod svg;
+pub mod telemetry;
 pub mod wck;
 pub mod whj;
 
@@ -172,6 +173,8 @@ pub struct Results {
     pub udp: Vec<whj::FreeResult>,
     /// Simulator speed on the virtual clock.
     pub sims: Vec<simspeed::SimSpeed>,
+    /// The telemetry stream with one subscriber and with eight (one never reading).
+    pub telemetry: Vec<telemetry::FanOut>,
     /// Benchmarks that failed or were skipped, and why.
     pub notes: Vec<String>,
     /// How many benchmarks failed.
@@ -309,6 +312,21 @@ pub fn run(opts: &Options, mut log: impl FnMut(&str)) -> Results {
     if opts.python.is_none() {
         r.notes
             .push("Python peers skipped (no Python given)".into());
+    }
+
+    for rate in if smoke {
+        &[1000.0][..]
+    } else {
+        &[200.0, 1000.0][..]
+    } {
+        for subs in [1, 8] {
+            let what = format!("telemetry at {rate} Hz, {subs} subscriber(s)");
+            log(&what);
+            match telemetry::fan_out(*rate, subs, secs(3.0, 0.3)) {
+                Ok(t) => r.telemetry.push(t),
+                Err(e) => fail(&mut r, &mut log, &what, &e),
+            }
+        }
     }
 
     log("simulator speed");

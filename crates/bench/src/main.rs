@@ -4,9 +4,11 @@
 //! robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]
 //! robobus-bench serve-whj --joints N --delay-us D [--fast-wire]
 //! robobus-bench poll-wck --servos N --baud B --secs S [--turnaround]
+//! robobus-bench telemetry --secs S
 //! ```
 //!
-//! `poll-wck` runs the wCK polling case alone, once, and prints its rate as a share of the
+//! `telemetry` runs the telemetry fan-out cases alone and prints their section of the
+//! report. `poll-wck` runs the wCK polling case alone, once, and prints its rate as a share of the
 //! wire (for a quick look, or under `strace`).
 
 use std::io::Write as _;
@@ -19,7 +21,7 @@ use robobus_bench::{Options, report, run, wck, whj};
 fn usage() -> ExitCode {
     let _ = writeln!(
         std::io::stderr(),
-        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround]"
+        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround]\n       robobus-bench telemetry --secs S"
     );
     ExitCode::from(2)
 }
@@ -107,10 +109,38 @@ fn poll_wck(args: &[String]) -> ExitCode {
     }
 }
 
+fn telemetry(args: &[String]) -> ExitCode {
+    let secs = match args {
+        [] => 3.0,
+        [flag, v] if flag == "--secs" => match v.parse::<f64>() {
+            Ok(s) if (0.01..=600.0).contains(&s) => s,
+            _ => return usage(),
+        },
+        _ => return usage(),
+    };
+    let mut r = robobus_bench::Results::default();
+    for rate in [200.0, 1000.0] {
+        for subs in [1, 8] {
+            match robobus_bench::telemetry::fan_out(rate, subs, Duration::from_secs_f64(secs)) {
+                Ok(t) => r.telemetry.push(t),
+                Err(e) => {
+                    let _ = writeln!(std::io::stderr(), "telemetry: {e}");
+                    return ExitCode::FAILURE;
+                }
+            }
+        }
+    }
+    let _ = write!(std::io::stdout(), "{}", report::telemetry_markdown(&r));
+    ExitCode::SUCCESS
+}
+
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     if args.first().map(String::as_str) == Some("serve-whj") {
         return serve_whj(args.get(1..).unwrap_or_default());
+    }
+    if args.first().map(String::as_str) == Some("telemetry") {
+        return telemetry(args.get(1..).unwrap_or_default());
     }
     if args.first().map(String::as_str) == Some("poll-wck") {
         return poll_wck(args.get(1..).unwrap_or_default());

@@ -7,12 +7,15 @@ use robobus::whj::Protocol;
 
 use crate::codec::{describe, us};
 use crate::stats::Summary;
-use crate::{BenchError, Results, svg};
+use crate::{BenchError, Results, svg, telemetry};
 
 /// Control-loop goal: this share of the modelled physical limit.
 pub const LOOP_GOAL: f64 = 0.97;
 /// Peer goal: ours at least this many times the Python peer's cycle rate.
 pub const PEER_GOAL: f64 = 5.0;
+/// Telemetry goal: with eight subscribers (one idle) the stream keeps this share of its
+/// rate with one.
+pub const TELEMETRY_GOAL: f64 = 0.98;
 /// Codec goal, ns per packet.
 pub const CODEC_GOAL_NS: f64 = 50.0;
 
@@ -135,6 +138,71 @@ pub fn peer_ratios(r: &Results) -> Vec<(String, f64, f64)> {
     v
 }
 
+/// Each telemetry run with eight subscribers against the run at the same rate with one:
+/// (rate, rate with 8 / rate with 1).
+pub fn telemetry_ratios(r: &Results) -> Vec<(f64, f64)> {
+    r.telemetry
+        .iter()
+        .filter(|t| t.subscribers > 1)
+        .filter_map(|many| {
+            let one = r
+                .telemetry
+                .iter()
+                .find(|t| t.subscribers == 1 && t.rate_hz.total_cmp(&many.rate_hz).is_eq())?;
+            Some((many.rate_hz, many.rate() / one.rate().max(1e-9)))
+        })
+        .collect()
+}
+
+/// The report's telemetry section alone.
+pub fn telemetry_markdown(r: &Results) -> String {
+    let mut o = String::new();
+    telemetry_section(&mut o, r);
+    o
+}
+
+fn telemetry_section(o: &mut String, r: &Results) {
+    let _ = writeln!(o, "## Telemetry\n");
+    let _ = writeln!(
+        o,
+        "`robobus::catalogue::Telemetry` streaming `whj.sample` of the built-in simulated \
+         robot's 7 joints (two frames per joint per sample, in-process simulator), each \
+         subscriber with a queue of {} samples. With eight subscribers, seven read on their \
+         own threads and one never reads.\n",
+        telemetry::QUEUE
+    );
+    let _ = writeln!(
+        o,
+        "| requested | subscribers | samples/s | of requested | late | lost by readers | fewest received | idle queue / lost |\n|---|---|---|---|---|---|---|---|"
+    );
+    for t in &r.telemetry {
+        let idle = if t.subscribers > 1 {
+            format!("{} / {}", t.idle_queued, t.idle_lost)
+        } else {
+            "–".into()
+        };
+        let _ = writeln!(
+            o,
+            "| {:.0} Hz | {} | {:.1} | {} | {} | {} | {} | {idle} |",
+            t.rate_hz,
+            t.subscribers,
+            t.rate(),
+            pct(t.rate() / t.rate_hz),
+            t.late,
+            t.lost_by_readers,
+            t.min_received,
+        );
+    }
+    let _ = writeln!(o);
+    for (hz, ratio) in telemetry_ratios(r) {
+        let _ = writeln!(
+            o,
+            "- At {hz:.0} Hz, the rate with eight subscribers is {ratio:.3}× the rate with one."
+        );
+    }
+    let _ = writeln!(o);
+}
+
 #[allow(clippy::too_many_lines, clippy::many_single_char_names)] // one report, section by section
 fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
     let mut o = String::new();
@@ -177,6 +245,13 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
             c.name,
             c.ns_per_packet(),
             mark(c.ns_per_packet() < CODEC_GOAL_NS)
+        );
+    }
+    for (hz, ratio) in telemetry_ratios(r) {
+        let _ = writeln!(
+            o,
+            "| telemetry keeps its rate with 8 subscribers (one idle): {hz:.0} Hz | {ratio:.3}× the rate with one | {} |",
+            mark(ratio >= TELEMETRY_GOAL)
         );
     }
     let _ = writeln!(o);
@@ -542,6 +617,8 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
         }
     }
     let _ = writeln!(o);
+
+    telemetry_section(&mut o, r);
 
     // Simulator.
     let _ = writeln!(o, "## Simulator\n");

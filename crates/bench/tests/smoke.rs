@@ -54,6 +54,7 @@ fn smoke_run_writes_the_report_with_every_section() {
         "## WHJ free-running",
         "## WHJ fixed rate",
         "## Peers",
+        "## Telemetry",
         "## Simulator",
     ] {
         assert!(report.contains(section), "no {section:?} in:\n{report}");
