@@ -112,6 +112,82 @@ const PAIRS: &[(&str, &str)] = &[
         "whj release-iap 1",
         r#"{"op":"whj.release-iap","joints":"1"}"#,
     ),
+    (
+        "wck get i-gain 3",
+        r#"{"op":"wck.get","param":"i-gain","id":3}"#,
+    ),
+    (
+        "wck get speed 3",
+        r#"{"op":"wck.get","param":"speed","id":3}"#,
+    ),
+    (
+        "wck get overload 3",
+        r#"{"op":"wck.get","param":"overload","id":3}"#,
+    ),
+    ("wck get io 3", r#"{"op":"wck.get","param":"io","id":3}"#),
+    (
+        "wck set i-gain 3 4 --runtime",
+        r#"{"op":"wck.set","param":"i-gain","id":3,"i":4,"runtime":true}"#,
+    ),
+    (
+        "wck set speed 3 20 30 --yes",
+        r#"{"op":"wck.set","param":"speed","id":3,"speed":20,"accel":30,"confirm":true}"#,
+    ),
+    (
+        "wck set overload 3 800 --yes",
+        r#"{"op":"wck.set","param":"overload","id":3,"milliamps":800,"confirm":true}"#,
+    ),
+    (
+        "wck set bounds 3 10 240 --yes",
+        r#"{"op":"wck.set","param":"bounds","id":3,"lower":10,"upper":240,"confirm":true}"#,
+    ),
+    (
+        "wck set io 3 2",
+        r#"{"op":"wck.set","param":"io","id":3,"outputs":2}"#,
+    ),
+    (
+        "wck program download 0",
+        r#"{"op":"wck.program.download","id":0}"#,
+    ),
+    (
+        "wck teach 0-2 --rate-hz 10 --duration 0.3",
+        r#"{"op":"wck.teach","ids":"0-2","rate_hz":10,"duration":0.3}"#,
+    ),
+    (
+        "whj status --broadcast --end-board 1-3",
+        r#"{"op":"whj.status","joints":"1-3","broadcast":true,"end_board":true}"#,
+    ),
+    (
+        "whj read --broadcast 1-3 SYS_ID",
+        r#"{"op":"whj.read","joints":"1-3","register":"SYS_ID","broadcast":true}"#,
+    ),
+    (
+        "whj write --broadcast 1-3 SYS_ID 2 --yes",
+        r#"{"op":"whj.write","joints":"1-3","register":"SYS_ID","value":2,"broadcast":true,"confirm":true}"#,
+    ),
+    (
+        "whj wave --broadcast 1 --amplitude 5 --duration 0.05",
+        r#"{"op":"whj.wave","joint":1,"amplitude":5,"duration":0.05,"broadcast":true}"#,
+    ),
+];
+
+/// The subcommands that read a file, and the requests that carry its text.
+const PROGRAM: &str = "move 82 torque 0\ndelay 266ms\nmove 172 torque 0\ndelay 266ms\n";
+const MOTION: &str = "torque 1\npose 500 100 200\npose 100 120 180\nhold 40\npose 0 0 0\n";
+const FILE_PAIRS: &[(&str, &str)] = &[
+    (
+        "wck program upload 0 PROGRAM --yes",
+        r#"{"op":"wck.program.upload","id":0,"program":PROGRAM,"confirm":true}"#,
+    ),
+    (
+        "wck program check PROGRAM",
+        r#"{"op":"wck.program.check","program":PROGRAM}"#,
+    ),
+    ("wck play MOTION", r#"{"op":"wck.play","motion":MOTION}"#),
+    (
+        "wck play MOTION --rate-hz 25",
+        r#"{"op":"wck.play","motion":MOTION,"rate_hz":25}"#,
+    ),
 ];
 
 fn request_file(dir: &tempfile::TempDir, json: &str) -> String {
@@ -133,6 +209,42 @@ fn every_request_plans_what_its_subcommand_dry_run_prints() {
         let run = robobus(&["run", "--dry-run", &file]);
         assert_eq!(run.code, Some(0), "{json}: {}", run.stderr);
         assert_eq!(run.stdout, cli.stdout, "{args} against {json}");
+    }
+}
+
+#[test]
+fn requests_carrying_a_file_plan_what_the_subcommand_reading_it_prints() {
+    let dir = tempfile::tempdir().unwrap();
+    let program = dir.path().join("swing.wck");
+    let motion = dir.path().join("wave.motion");
+    std::fs::write(&program, PROGRAM).unwrap();
+    std::fs::write(&motion, MOTION).unwrap();
+    let text = |s: &str| serde_json::to_string(s).unwrap();
+    for (args, json) in FILE_PAIRS {
+        let args = args
+            .replace("PROGRAM", program.to_str().unwrap())
+            .replace("MOTION", motion.to_str().unwrap());
+        let json = json
+            .replace("PROGRAM", &text(PROGRAM))
+            .replace("MOTION", &text(MOTION));
+        let mut words: Vec<&str> = args.split(' ').collect();
+        // `program check` needs no port and has no dry run: it prints its plan.
+        if !args.contains(" check ") {
+            words.insert(1, "--dry-run");
+        }
+        let cli = robobus(&words);
+        assert_eq!(cli.code, Some(0), "{args}: {}", cli.stderr);
+        let file = request_file(&dir, &json);
+        let run = robobus(&["run", "--dry-run", &file]);
+        assert_eq!(run.code, Some(0), "{json}: {}", run.stderr);
+        assert!(run.stdout.contains("FF "), "{json}: {}", run.stdout);
+        if args.contains(" check ") {
+            // The check's output is the plan's packet plus its listing.
+            let packet = run.stdout.lines().find(|l| l.starts_with("FF ")).unwrap();
+            assert!(cli.stdout.lines().any(|l| l == packet), "{}", cli.stdout);
+        } else {
+            assert_eq!(run.stdout, cli.stdout, "{args} against {json}");
+        }
     }
 }
 

@@ -227,7 +227,8 @@ request!(
 request!(
     /// `wck.program.check`: parse a program and show its upload packet (nothing sent).
     ProgramCheck {
-        /// Servo ID the packet is for, 0..=30.
+        /// Servo ID the packet is for, 0..=30 (the CLI's `--id`, default 0).
+        #[serde(default)]
         id: u32,
         /// The program text.
         program: String,
