@@ -9,18 +9,18 @@
 //!   one broadcast status frame (0x7F) for all joints (1..=7).
 //! - `--port PATH --servos 0-15`: wCK servos, read-only, the stream of `wck.sample`: a
 //!   status read (position, load) per servo; the speed is the position's derivative.
+//! - `--robot FILE.toml`: every joint of a robot file, by name, in the file's order, as
+//!   joint angles (the file's `offset`, `direction` and wCK `centre` applied) in degrees
+//!   and deg/s: the stream of `robot.sample` on a station opened from the file. The
+//!   file's buses are only read, without a [`robobus::robot::Robot`]: nothing is enabled,
+//!   and ending the monitor neither disables an arm nor releases a servo.
+//! - `--sim`: the built-in simulated WHJ arm (joints 1..=7, in-process), which the monitor
+//!   itself drives along a slow sine through the cyclic loop, so there is something to
+//!   watch without hardware; the values are the loop's feedback.
 //!
 //! A stream keeps its own rate: a dashboard that falls behind loses its oldest samples
 //! (shown as "not shown", and as `lost` in JSON lines), never slows the bus. A sample's
 //! time is when its read completed.
-//! - `--robot FILE.toml`: every joint of a robot file, by name, in the file's order, as
-//!   joint angles (the file's `offset`, `direction` and wCK `centre` applied) in degrees
-//!   and deg/s ([`robobus::ops::monitor::RobotSampler`]). The file's buses are opened for
-//!   reading only, without a [`robobus::robot::Robot`]: nothing is enabled, and ending the
-//!   monitor neither disables an arm nor releases a servo.
-//! - `--sim`: the built-in simulated WHJ arm (joints 1..=7, in-process), which the monitor
-//!   itself drives along a slow sine through the cyclic loop, so there is something to
-//!   watch without hardware; the values are the loop's feedback.
 //!
 //! On a terminal it draws a table (position, speed, current / load, enable, errors) and a
 //! scrolling plot of the positions with ratatui; `q`, `Esc` or Ctrl-C quit and the terminal
@@ -30,7 +30,9 @@
 //! itself.
 
 use robobus::catalogue::telemetry::RecvError;
-use robobus::catalogue::{self, Delivery, Request, Station, Subscriber, Telemetry, station};
+use robobus::catalogue::{
+    self, Delivery, Request, Station, StationConfig, Subscriber, Telemetry, station,
+};
 use robobus::ops::{IdList, ListId};
 use std::collections::VecDeque;
 use std::fmt::Write as _;
@@ -46,8 +48,7 @@ use ratatui::style::{Color, Style, Stylize as _};
 use ratatui::symbols::Marker;
 use ratatui::text::Line;
 use ratatui::widgets::{Axis, Block, Cell, Chart, Dataset, GraphType, Paragraph, Row, Table};
-use robobus::ops::monitor::RobotSampler;
-use robobus::robot::{RobotConfig, RobotError};
+use robobus::ops::monitor::{bus_description, monitored_joints};
 use robobus::whj::JointBusConfig;
 use robobus_wck::{BaudRate, ServoId};
 use robobus_whj::JointId;
@@ -498,24 +499,32 @@ pub(crate) fn render(f: &mut Frame<'_>, d: &Dashboard) {
     );
 }
 
-/// Where samples come from: a one-bus station's telemetry stream (WHJ `whj.sample`, wCK
-/// `wck.sample`), or a source the monitor samples itself on its own clock (the simulated
-/// arm, a robot file's joints).
+/// Where samples come from: a station's telemetry stream (WHJ `whj.sample`, wCK
+/// `wck.sample`, a robot file's `robot.sample`), or the simulated arm the monitor drives
+/// and samples itself on its own clock.
 enum Source {
     Stream(Stream),
     Sim(robobus::demo::SimArm),
-    Robot(RobotSampler),
+}
+
+/// What a stream's rows are.
+enum Rows {
+    Wck,
+    Whj,
+    /// A robot file's joints: whether each channel is a wCK servo.
+    Robot(Vec<bool>),
 }
 
 /// The monitor as one subscriber of a telemetry stream ([`Telemetry`]) on a station that
-/// holds only the watched bus: each delivery's report rows fill the channels by device ID.
+/// holds only the watched buses: each delivery's report rows fill the channels by device
+/// ID (a robot file's joints: by name).
 struct Stream {
     telemetry: Option<Telemetry>,
     sub: Subscriber,
     station: Option<Arc<Station>>,
-    /// The device ID of each channel, in channel order.
-    ids: Vec<u64>,
-    whj: bool,
+    /// The row `id` of each channel, in channel order.
+    ids: Vec<serde_json::Value>,
+    rows: Rows,
 }
 
 /// Samples a subscriber may fall behind by before it loses the oldest (the dashboard
@@ -528,9 +537,9 @@ impl Stream {
         station: Station,
         request: Request,
         rate_hz: f64,
-        ids: Vec<u64>,
+        ids: Vec<serde_json::Value>,
+        rows: Rows,
     ) -> anyhow::Result<Self> {
-        let whj = request.family() == robobus::catalogue::Family::Whj;
         let station = Arc::new(station);
         let telemetry = Telemetry::paused(&station, request, rate_hz, None)?;
         let sub = telemetry.subscribe(QUEUE)?;
@@ -539,7 +548,7 @@ impl Stream {
             sub,
             station: Some(station),
             ids,
-            whj,
+            rows,
         })
     }
 
@@ -561,35 +570,30 @@ impl Stream {
         if let Some(e) = report.results.iter().find(|r| r["kind"] == "link") {
             return Err(e["error"].as_str().unwrap_or("link failed").to_owned());
         }
-        for (c, id) in channels.iter_mut().zip(&self.ids) {
-            let Some(r) = report
-                .results
-                .iter()
-                .find(|r| r["id"].as_u64() == Some(*id))
-            else {
+        for (n, (c, id)) in channels.iter_mut().zip(&self.ids).enumerate() {
+            let Some(r) = report.results.iter().find(|r| r["id"] == *id) else {
                 c.missed("no reply");
                 continue;
             };
+            let wck = match &self.rows {
+                Rows::Wck => true,
+                Rows::Whj => false,
+                Rows::Robot(wck) => wck.get(n).copied().unwrap_or(false),
+            };
             match r["kind"].as_str() {
-                Some(_) if !self.whj => c.missed("no reply"),
+                // wCK replies carry no checksum or ID: a failed read is a missing reply.
+                Some(_) if wck => c.missed("no reply"),
                 Some("no-device") => c.missed("timeout"),
                 Some(_) => c.missed("bad reply"),
-                None if self.whj => {
-                    c.position = r["position_deg"].as_f64();
-                    c.speed = r["speed_rpm"].as_f64();
-                    c.effort = r["current_ma"].as_f64();
-                    c.enabled = r["enabled"].as_bool();
-                    r["error"]
-                        .as_str()
-                        .unwrap_or_default()
-                        .clone_into(&mut c.error);
-                    c.got();
-                }
                 None => {
                     c.position = r["position_deg"].as_f64();
-                    c.speed = r["speed_deg_s"].as_f64();
-                    c.effort = r["load"].as_f64();
-                    c.error = "ok".into();
+                    c.speed = match self.rows {
+                        Rows::Whj => r["speed_rpm"].as_f64(),
+                        _ => r["speed_deg_s"].as_f64(),
+                    };
+                    c.effort = r["current_ma"].as_f64().or_else(|| r["load"].as_f64());
+                    c.enabled = r["enabled"].as_bool();
+                    r["error"].as_str().unwrap_or("ok").clone_into(&mut c.error);
                     c.got();
                 }
             }
@@ -606,15 +610,6 @@ impl Drop for Stream {
         if let Some(station) = self.station.take().and_then(|s| Arc::try_unwrap(s).ok()) {
             station.leave();
         }
-    }
-}
-
-/// What a channel shows for a device that did not answer this sample.
-fn missing_text(f: &robobus::ops::Failure) -> &'static str {
-    if f.kind == robobus::ErrorKind::NoDevice {
-        "timeout"
-    } else {
-        "bad reply"
     }
 }
 
@@ -638,26 +633,6 @@ fn sample_sim(arm: &robobus::demo::SimArm, channels: &mut [Channel]) {
                 c.got();
             }
             None => c.missed("no reply"),
-        }
-    }
-}
-
-fn sample_robot(sampler: &mut RobotSampler, now: f64, channels: &mut [Channel]) {
-    let wck: Vec<bool> = sampler.joints().iter().map(|j| j.wck).collect();
-    for ((c, r), wck) in channels.iter_mut().zip(sampler.sample(now)).zip(wck) {
-        match (r.value(), r.failure()) {
-            (Some(st), _) => {
-                c.position = Some(st.position_deg);
-                c.speed = st.speed_deg_s;
-                #[allow(clippy::cast_precision_loss)] // mA fit easily
-                let effort = st.current_ma.map(|m| m as f64);
-                c.effort = effort.or_else(|| st.load.map(f64::from));
-                c.enabled = st.enabled;
-                c.error.clone_from(&st.error);
-                c.got();
-            }
-            (None, Some(f)) if !wck => c.missed(missing_text(f)),
-            _ => c.missed("no reply"),
         }
     }
 }
@@ -701,10 +676,6 @@ fn take_sample(
         Source::Sim(arm) => {
             d.t = start.elapsed().as_secs_f64();
             sample_sim(arm, &mut d.channels);
-        }
-        Source::Robot(sampler) => {
-            d.t = start.elapsed().as_secs_f64();
-            sample_robot(sampler, d.t, &mut d.channels);
         }
     }
     Ok(true)
@@ -826,7 +797,8 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
             joints: id_list(&ids),
             broadcast: args.broadcast,
         });
-        let src = Stream::new(station, request, args.rate_hz, ids)?;
+        let rows = ids.iter().map(|&i| serde_json::json!(i)).collect();
+        let src = Stream::new(station, request, args.rate_hz, rows, Rows::Whj)?;
         return watch(&mut Source::Stream(src), d, args, out);
     }
     if let Some(port) = &args.port {
@@ -856,7 +828,8 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
             bus: None,
             ids: id_list(&ids),
         });
-        let src = Stream::new(station, request, args.rate_hz, ids)?;
+        let rows = ids.iter().map(|&i| serde_json::json!(i)).collect();
+        let src = Stream::new(station, request, args.rate_hz, rows, Rows::Wck)?;
         return watch(&mut Source::Stream(src), d, args, out);
     }
     Err(usage(
@@ -872,32 +845,36 @@ struct Output {
     json: bool,
 }
 
-/// The WHJ client settings of the monitor: a short connect timeout, so a silent joint
-/// does not hold up the start (it shows as `timeout`).
+/// The monitor's WHJ connect timeout: short, so a silent joint does not hold up the start
+/// (it shows as `timeout`).
+const WHJ_CONNECT_TIMEOUT: Duration = Duration::from_millis(300);
+
+/// The WHJ client settings of the monitor (see [`WHJ_CONNECT_TIMEOUT`]).
 fn whj_config() -> JointBusConfig {
     JointBusConfig {
-        connect_timeout: Duration::from_millis(300),
+        connect_timeout: WHJ_CONNECT_TIMEOUT,
         ..JointBusConfig::default()
     }
 }
 
-/// A robot-file error as the CLI reports it: a port or interface that cannot be opened is
-/// a missing device (exit code 3), anything else is bad input (2).
-fn robot_error(path: &std::path::Path, e: RobotError) -> anyhow::Error {
-    match e {
-        RobotError::OpenWck { .. } | RobotError::OpenWhj { .. } => {
-            anyhow::Error::new(crate::exit::Timeout(format!("{}: {e}", path.display())))
-        }
-        e => usage(format!("--robot {}: {e}", path.display())),
-    }
-}
-
-/// `monitor --robot FILE`: every joint of the file, read through the file's buses.
+/// `monitor --robot FILE`: every joint of the file, read through the file's buses: one
+/// subscriber of the `robot.sample` stream on a station opened from the file.
 fn run_robot(path: &std::path::Path, args: &Args, out: Output) -> anyhow::Result<()> {
-    let config = RobotConfig::from_toml_file(path).map_err(|e| robot_error(path, e))?;
-    let sampler = RobotSampler::open(&config, whj_config(), args.reply_margin)
-        .map_err(|e| robot_error(path, e))?;
-    let joints = sampler.joints();
+    let station = Station::open(&StationConfig {
+        robot: Some(path.to_path_buf()),
+        wck_reply_margin: args.reply_margin,
+        whj_connect_timeout: Some(WHJ_CONNECT_TIMEOUT),
+        ..StationConfig::default()
+    })?;
+    let config = station
+        .robot()
+        .context("the station opened from the robot file has no robot")?;
+    let joints = monitored_joints(config);
+    let buses: Vec<String> = config
+        .buses
+        .iter()
+        .map(|(name, bus)| bus_description(name, bus))
+        .collect();
     let effort_name = match (joints.iter().any(|j| !j.wck), joints.iter().any(|j| j.wck)) {
         (true, true) => "mA / load",
         (false, true) => "load",
@@ -908,7 +885,7 @@ fn run_robot(path: &std::path::Path, args: &Args, out: Output) -> anyhow::Result
             "{}: {} joints ({})",
             path.display(),
             joints.len(),
-            sampler.buses().join("; ")
+            buses.join("; ")
         ),
         "deg/s",
         effort_name,
@@ -921,7 +898,11 @@ fn run_robot(path: &std::path::Path, args: &Args, out: Output) -> anyhow::Result
         named_joints: true,
         ..d
     };
-    watch(&mut Source::Robot(sampler), d, args, out)
+    let ids = joints.iter().map(|j| serde_json::json!(j.name)).collect();
+    let rows = Rows::Robot(joints.iter().map(|j| j.wck).collect());
+    let request = Request::RobotSample(catalogue::robot::Sample {});
+    let src = Stream::new(station, request, args.rate_hz, ids, rows)?;
+    watch(&mut Source::Stream(src), d, args, out)
 }
 
 fn dashboard(

@@ -118,6 +118,7 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
             wck_baud: Some(args.wck_baud),
             whj_buses: args.whj_bus.clone(),
             robot: args.robot.clone(),
+            ..StationConfig::default()
         })?
     };
     let stop = crate::interrupt::stop_token();

@@ -397,3 +397,144 @@ fn a_stopped_scan_keeps_what_it_found_and_says_how_far_it_got() {
     let r = run(&s, r#"{"op": "whj.scan", "joints": "1-5"}"#).unwrap();
     assert_eq!((r.results.len(), r.failed), (2, None));
 }
+
+fn row<'a>(report: &'a catalogue::Report, id: &str) -> &'a serde_json::Value {
+    report
+        .results
+        .iter()
+        .find(|r| r["id"] == id)
+        .unwrap_or_else(|| panic!("no row {id}: {:?}", report.results))
+}
+
+#[test]
+fn robot_sample_reads_the_robot_files_joints_by_name_in_joint_units() {
+    let s = Station::simulated().unwrap();
+    assert_eq!(s.robot().unwrap().joints.len(), 16 + 7);
+    run(&s, r#"{"op": "wck.move", "id": 3, "position": 200}"#).unwrap();
+    for json in [
+        r#"{"op": "whj.enable", "joints": "2"}"#,
+        r#"{"op": "whj.mode", "joints": "2", "mode": "position"}"#,
+        r#"{"op": "whj.move", "joint": 2, "degrees": 12, "max_speed": 60}"#,
+    ] {
+        assert_eq!(run(&s, json).unwrap().failed, None, "{json}");
+    }
+    // The servo turns on the simulator's clock, which runs with the bus: read until it is there.
+    let mut status = run(&s, r#"{"op": "wck.status", "ids": "3"}"#).unwrap();
+    for _ in 0..5000 {
+        if status.results[0]["position"] == 200 {
+            break;
+        }
+        status = run(&s, r#"{"op": "wck.status", "ids": "3"}"#).unwrap();
+    }
+    assert_eq!(status.results[0]["position"], 200, "{:?}", status.results);
+    let whj = run(&s, r#"{"op": "whj.status", "joints": "2"}"#).unwrap();
+    let r = run(&s, r#"{"op": "robot.sample"}"#).unwrap();
+    assert_eq!((r.op.as_str(), r.bus.as_str()), ("robot.sample", "robot"));
+    assert_eq!(r.failed, None, "{:?}", r.results);
+    let names: Vec<&str> = r
+        .results
+        .iter()
+        .map(|r| r["id"].as_str().unwrap())
+        .collect();
+    assert_eq!(names[..3], ["s0", "s1", "s2"]);
+    assert_eq!(names[16..], ["j1", "j2", "j3", "j4", "j5", "j6", "j7"]);
+    // wCK: the joint angle is the servo's angle from its centre step (127), 0 there.
+    let centre_deg = 127.0 * 269.0 / 255.0;
+    let s3 = row(&r, "s3");
+    let want = status.results[0]["degrees"].as_f64().unwrap() - centre_deg;
+    assert!(
+        (s3["position_deg"].as_f64().unwrap() - want).abs() < 0.01,
+        "{s3} vs {want}"
+    );
+    assert!(s3["position_deg"].as_f64().unwrap() > 70.0, "{s3}");
+    assert!(s3["load"].is_u64(), "{s3}");
+    assert!(
+        s3["current_ma"].is_null() && s3["enabled"].is_null(),
+        "{s3}"
+    );
+    assert_eq!(row(&r, "s0")["position_deg"].as_f64(), Some(0.0));
+    // WHJ: the joint's own angle (offset 0, direction 1), its enable state and current.
+    let j2 = row(&r, "j2");
+    let at = whj.results[0]["position_deg"].as_f64().unwrap();
+    assert!(
+        (j2["position_deg"].as_f64().unwrap() - at).abs() < 0.05,
+        "{j2} vs {at}"
+    );
+    assert!((at - 12.0).abs() < 0.1, "{at}");
+    assert_eq!(j2["enabled"], true);
+    assert!(j2["current_ma"].is_number() && j2["load"].is_null(), "{j2}");
+    // Its plan says what it reads without a station: notes, no frames.
+    let plan = catalogue::plan(&parse(r#"{"op": "robot.sample"}"#)).unwrap();
+    assert!(plan.steps.is_empty() && plan.to_text().starts_with("# reads every joint"));
+    s.leave();
+}
+
+#[test]
+fn robot_sample_marks_a_silent_joint_and_needs_a_robot_file() {
+    let (mut s, w, j) = station();
+    // Without a robot file: bad input, and nothing sent.
+    let before = sent(&w, &j);
+    let e = run(&s, r#"{"op": "robot.sample"}"#).unwrap_err();
+    assert_eq!(e.kind(), ErrorKind::BadInput, "{e}");
+    assert!(e.to_string().contains("no robot file"), "{e}");
+    assert_eq!(sent(&w, &j), before);
+    // A file whose bus the station does not have is refused when it is given.
+    let file = |bus: &str| {
+        format!(
+            "[buses.{bus}]\nkind = \"wck-external\"\n[buses.arm-whj]\nkind = \"whj-external\"\n\
+             [[joints]]\nname = \"hip\"\nbus = \"{bus}\"\nid = 1\nlimits = [-1.0, 1.0]\n\
+             max_velocity = 1.0\nmax_acceleration = 1.0\n\
+             [[joints]]\nname = \"gone\"\nbus = \"{bus}\"\nid = 9\nlimits = [-1.0, 1.0]\n\
+             max_velocity = 1.0\nmax_acceleration = 1.0\n\
+             [[joints]]\nname = \"wrist\"\nbus = \"arm-whj\"\nid = 2\nlimits = [-1.0, 1.0]\n\
+             max_velocity = 1.0\nmax_acceleration = 1.0\n\
+             [[joints]]\nname = \"lost\"\nbus = \"arm-whj\"\nid = 7\nlimits = [-1.0, 1.0]\n\
+             max_velocity = 1.0\nmax_acceleration = 1.0\n"
+        )
+    };
+    let config = |bus: &str| robobus::RobotConfig::from_toml_str(&file(bus)).unwrap();
+    let e = s.set_robot(config("legs")).unwrap_err();
+    assert_eq!(e.kind(), ErrorKind::BadInput, "{e}");
+    assert!(e.to_string().contains("legs"), "{e}");
+    s.set_robot(config("arm-wck")).unwrap();
+    // Servo 9 and joint 7 are not there: their rows are failures, never values.
+    for _ in 0..2 {
+        let r = run(&s, r#"{"op": "robot.sample"}"#).unwrap();
+        assert_eq!(r.failed.as_deref(), Some("no-device"), "{:?}", r.results);
+        for silent in ["gone", "lost"] {
+            let row = row(&r, silent);
+            assert_eq!(row["kind"], "no-device", "{row}");
+            assert!(row.get("position_deg").is_none(), "{row}");
+        }
+        assert!(row(&r, "hip")["position_deg"].is_number());
+        assert!(row(&r, "wrist")["position_deg"].is_number());
+    }
+}
+
+#[test]
+fn robot_sample_streams_with_each_wck_joints_speed_from_its_previous_reading() {
+    use robobus::catalogue::telemetry::Telemetry;
+    let s = std::sync::Arc::new(Station::simulated().unwrap());
+    let t = Telemetry::paused(&s, parse(r#"{"op": "robot.sample"}"#), 20.0, Some(3)).unwrap();
+    let sub = t.subscribe(8).unwrap();
+    t.join();
+    let rows: Vec<_> = sub
+        .map(|d| d.sample.report.clone().expect("a report"))
+        .collect();
+    assert_eq!(rows.len(), 3);
+    assert!(row(&rows[0], "s5")["speed_deg_s"].is_null());
+    for r in &rows[1..] {
+        assert_eq!(row(r, "s5")["speed_deg_s"].as_f64(), Some(0.0), "{r:?}");
+        assert_eq!(r.results.len(), 23);
+    }
+    // A station without a robot file cannot stream it.
+    let (plain, _w, _j) = station();
+    let e = Telemetry::start(
+        &std::sync::Arc::new(plain),
+        parse(r#"{"op": "robot.sample"}"#),
+        10.0,
+        Some(1),
+    )
+    .unwrap_err();
+    assert_eq!(e.kind(), ErrorKind::BadInput, "{e}");
+}

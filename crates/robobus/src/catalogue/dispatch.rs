@@ -35,6 +35,7 @@ pub fn validate(request: &Request) -> Result<(), OpError> {
     match request.family() {
         Family::Wck => wck::prepare(request, BaudRate::B115200).map(drop),
         Family::Whj => whj::prepare(request, false).map(drop),
+        Family::Robot => Ok(()),
     }
 }
 
@@ -52,6 +53,7 @@ pub fn confirmation(request: &Request) -> Result<Option<String>, OpError> {
             let p = whj::prepare(request, false)?;
             (p.confirm != ConfirmClass::None && !p.confirmed).then_some(p.confirm_text)
         }
+        Family::Robot => None,
     })
 }
 
@@ -77,6 +79,7 @@ pub fn plan_at(request: &Request, baud: BaudRate) -> Result<Plan, OpError> {
             plan.confirm_text = (p.confirm != ConfirmClass::None).then(|| p.confirm_text.clone());
             plan
         }
+        Family::Robot => Plan::notes_only(&op, Family::Robot, vec![ROBOT_SAMPLE_NOTE.into()]),
     })
 }
 
@@ -161,7 +164,25 @@ pub fn run_with(
             let port = station.whj(request.bus())?;
             run_whj(&port, &op, &p, control)
         }
+        Family::Robot => robot_report(station, &op),
     }
+}
+
+/// What a `robot.sample` reads (its frames depend on the station's robot file).
+const ROBOT_SAMPLE_NOTE: &str = "reads every joint of the station's robot file, read-only: a \
+     status read per wCK servo (FF <0xA0|ID> 00 <checksum>), a status query (0x600+ID) and a \
+     speed register read per WHJ joint; a real run first connects each WHJ joint once";
+
+/// `robot.sample` on the station's robot file: one row per joint, by name.
+fn robot_report(station: &Station, op: &str) -> Result<Report, OpError> {
+    let results = station.sample_robot().ok_or_else(|| {
+        OpError::invalid(
+            "robot",
+            "(none)",
+            "the station has no robot file (open it with --robot FILE.toml)",
+        )
+    })??;
+    Ok(device_report(op, "robot", &results))
 }
 
 /// A row: `id` first, then the value's fields.

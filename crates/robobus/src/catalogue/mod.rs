@@ -43,7 +43,7 @@
 //! | `wck.set-baud` | `id`, `rate` bit/s | verified at the new rate | EEPROM |
 //! | `wck.program.upload` | `id`, `program` (text form) | read-back | EEPROM |
 //! | `wck.program.download` | `id` | the program | - |
-//! | `wck.program.check` | `id`, `program` | summary: instructions, upload packet (nothing sent) | - |
+//! | `wck.program.check` | `program`, `id`=0 | summary: instructions, upload packet (nothing sent) | - |
 //! | `wck.teach` | `ids` 0..N-1, `rate_hz` (0.1..=200), `duration` s (0.1..=3600), `torque`, `on_stop` | summary: poses | - |
 //! | `wck.play` | `motion` (keyframe text), `rate_hz`=50, `on_stop` | summary: play report | - |
 //! | `wck.sample` | `ids` | `position_deg`, `speed_deg_s`, `load` | - |
@@ -65,6 +65,7 @@
 //! | `whj.wave` | `joint`, `shape`, `mode`, `amplitude`, `frequency` Hz=0.5, `offset`, `duration` s=4, `rate_hz`=200, `broadcast`, `model`, `on_stop` | last feedback; summary: wave statistics | - |
 //! | `whj.release-iap` | `joints` | identity (connect / IAP release) | - |
 //! | `whj.sample` | `joints`, `broadcast` | position, speed, current, enabled, error | - |
+//! | `robot.sample` | - | per joint of the station's robot file, by name: `position_deg`, `speed_deg_s`, `current_ma`, `load`, `enabled`, `error` | - |
 //!
 //! # Report
 //!
@@ -80,6 +81,7 @@ pub mod args;
 pub mod bounds;
 mod dispatch;
 pub mod plan;
+pub mod robot;
 pub mod station;
 pub mod telemetry;
 pub mod wck;
@@ -177,6 +179,8 @@ pub enum Request {
     WhjReleaseIap(whj::ReleaseIap),
     #[serde(rename = "whj.sample")]
     WhjSample(whj::Sample),
+    #[serde(rename = "robot.sample")]
+    RobotSample(robot::Sample),
 }
 
 macro_rules! each_variant {
@@ -220,6 +224,8 @@ macro_rules! each_variant {
             Request::WhjWave($r) => $e,
             Request::WhjReleaseIap($r) => $e,
             Request::WhjSample($r) => $e,
+            // A robot request acts on the station's robot file, not on one bus.
+            Request::RobotSample(_) => None,
         }
     };
 }
@@ -255,6 +261,7 @@ impl Request {
             | Self::WckTeach(_)
             | Self::WckPlay(_)
             | Self::WckSample(_) => Family::Wck,
+            Self::RobotSample(_) => Family::Robot,
             _ => Family::Whj,
         }
     }

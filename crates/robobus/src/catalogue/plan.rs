@@ -35,6 +35,8 @@ pub enum Family {
     Wck,
     /// WHJ joints on CAN FD.
     Whj,
+    /// A robot file's joints, on the buses of both families it names.
+    Robot,
 }
 
 /// The plan of a request.
@@ -174,6 +176,25 @@ impl Plan {
         }
         p.text = text;
         p
+    }
+
+    /// A plan of notes only: what a request sends depends on the station (a robot file's
+    /// buses and joints), so a plan without one can say what it reads, not the frames.
+    pub(crate) fn notes_only(op: &str, family: Family, notes: Vec<String>) -> Self {
+        let mut text = String::new();
+        for n in &notes {
+            let _ = writeln!(text, "# {n}");
+        }
+        Self {
+            op: op.to_owned(),
+            family,
+            notes,
+            steps: Vec::new(),
+            confirm: super::bounds::ConfirmClass::None,
+            confirm_text: None,
+            truncated: false,
+            text,
+        }
     }
 
     /// The text form `--dry-run` prints: `# note` lines, then one line per step (wCK: a

@@ -9,15 +9,17 @@
 
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::Duration;
 
 use robobus_wck::{BaudRate, TorqueLevel};
 use robobus_whj::JointId;
 
 use crate::ops::capture::{Overwrite, capture_byte_link, capture_frame_link};
+use crate::ops::monitor::{RobotJointSample, RobotSampler};
 use crate::ops::safe::{WckServos, WhjJoints};
 use crate::ops::whj::ServoLoop;
-use crate::ops::{OpError, SafeState};
-use crate::robot::DynByteLink;
+use crate::ops::{DeviceResult, OpError, SafeState};
+use crate::robot::{DynByteLink, RobotConfig};
 use crate::wck::WckBus;
 use crate::whj::{JointBus, JointBusConfig};
 
@@ -135,8 +137,14 @@ pub struct StationConfig {
     pub wck_baud: Option<BaudRate>,
     /// WHJ bus addresses (`udp`, `udp:GROUP:PORT`, `can0`).
     pub whj_buses: Vec<String>,
-    /// A robot file whose buses are opened too (named as in the file).
+    /// A robot file whose buses are opened too (named as in the file); `robot.sample`
+    /// reads its joints.
     pub robot: Option<PathBuf>,
+    /// Extra time to wait for each wCK reply beyond its wire time (the CLI's
+    /// `--reply-margin`; `None`: the port's default).
+    pub wck_reply_margin: Option<Duration>,
+    /// How long a WHJ joint is given to answer its connect (`None`: the client's default).
+    pub whj_connect_timeout: Option<Duration>,
 }
 
 /// The open buses (see the [module docs](self)).
@@ -146,6 +154,11 @@ pub struct Station {
     whj: Vec<WhjPort>,
     /// What keeps in-process simulators alive.
     keep: Vec<Box<dyn std::fmt::Debug + Send + Sync>>,
+    /// The robot file whose joints `robot.sample` reads, if the station has one.
+    robot: Option<Arc<RobotConfig>>,
+    /// Its sampler, made at the first `robot.sample` (that connects the WHJ joints once),
+    /// with the time it was made (for the wCK speeds between two readings).
+    robot_sampler: Mutex<Option<(std::time::Instant, RobotSampler)>>,
     closed: bool,
 }
 
@@ -155,40 +168,128 @@ impl Station {
         Self::default()
     }
 
-    /// Opens every bus of `config`; the first that cannot be opened fails the whole.
+    /// Opens every bus of `config`; the first that cannot be opened fails the whole (a
+    /// port or interface that is not there: [`ErrorKind::NoDevice`](crate::ErrorKind);
+    /// a robot file that does not read or check: bad input naming it).
     pub fn open(config: &StationConfig) -> Result<Self, OpError> {
         let mut s = Self::new();
         let baud = config.wck_baud.unwrap_or(BaudRate::B115200);
+        let margin = |mut bus: WckBus<DynByteLink>| {
+            if let Some(m) = config.wck_reply_margin {
+                bus.config_mut().margin = m;
+            }
+            bus
+        };
+        let whj = JointBusConfig {
+            connect_timeout: config
+                .whj_connect_timeout
+                .unwrap_or(JointBusConfig::default().connect_timeout),
+            ..JointBusConfig::default()
+        };
         for port in &config.wck_ports {
-            s.add_wck(port.clone(), open_wck(port, baud)?);
+            s.add_wck(port.clone(), margin(open_wck(port, baud)?));
         }
         for addr in &config.whj_buses {
-            s.add_whj(addr.clone(), open_whj(addr, None)?);
+            s.add_whj(addr.clone(), open_whj_with(addr, None, whj)?);
         }
         if let Some(path) = &config.robot {
-            let text = crate::ops::read_bounded(path, 1 << 20)?;
-            let robot = crate::RobotConfig::from_toml_str(&text)
-                .map_err(|e| OpError::invalid("--robot", path.display(), e.to_string()))?;
+            let refuse = |e: &dyn std::fmt::Display| {
+                OpError::invalid("--robot", path.display(), e.to_string())
+            };
+            let text = crate::ops::read_bounded(path, 1 << 20)?; // RobotConfig::MAX_FILE_BYTES
+            let robot = RobotConfig::from_toml_str(&text).map_err(|e| refuse(&e))?;
+            let absent = |e: crate::RobotError| match e {
+                crate::RobotError::OpenWck { .. } | crate::RobotError::OpenWhj { .. } => {
+                    OpError::NoDevice(format!("{}: {e}", path.display()))
+                }
+                e => refuse(&e),
+            };
             for (name, bus) in &robot.buses {
-                let failed = |e: crate::RobotError| OpError::Device(e.to_string());
                 match bus {
                     crate::robot::BusConfig::Wck { .. } => {
-                        s.add_wck(
-                            name.clone(),
-                            crate::robot::open_wck_bus(name, bus).map_err(failed)?,
-                        );
+                        let bus = crate::robot::open_wck_bus(name, bus).map_err(absent)?;
+                        s.add_wck(name.clone(), margin(bus));
                     }
-                    _ => {
-                        s.add_whj(
-                            name.clone(),
-                            crate::robot::open_whj_bus(name, bus, JointBusConfig::default())
-                                .map_err(failed)?,
-                        );
+                    crate::robot::BusConfig::WhjUdp { .. }
+                    | crate::robot::BusConfig::WhjCan { .. } => {
+                        let bus = crate::robot::open_whj_bus(name, bus, whj).map_err(absent)?;
+                        s.add_whj(name.clone(), bus);
+                    }
+                    crate::robot::BusConfig::WckExternal { .. }
+                    | crate::robot::BusConfig::WhjExternal { .. } => {
+                        return Err(refuse(&format!(
+                            "bus {name}: kind \"{}\" is a bus a program supplies; a station \
+                             opens kind wck, whj-udp or whj-can itself",
+                            bus.kind()
+                        )));
                     }
                 }
             }
+            s.set_robot(robot).map_err(|e| refuse(&e))?;
         }
         Ok(s)
+    }
+
+    /// Gives the station a robot file: `robot.sample` then reads its joints through the
+    /// station's buses of the file's names (an `wck-external` / `whj-external` bus is
+    /// one added with that name). Every bus of the file must be open here already, in
+    /// its family.
+    pub fn set_robot(&mut self, config: RobotConfig) -> Result<(), OpError> {
+        for (name, bus) in &config.buses {
+            let open = if bus.is_wck() {
+                self.wck(Some(name)).is_ok()
+            } else {
+                self.whj(Some(name)).is_ok()
+            };
+            if !open {
+                return Err(OpError::invalid(
+                    "bus",
+                    name,
+                    format!(
+                        "the robot file's bus is not open in the station as a {} bus",
+                        if bus.is_wck() { "wCK" } else { "WHJ" }
+                    ),
+                ));
+            }
+        }
+        self.robot = Some(Arc::new(config));
+        *self
+            .robot_sampler
+            .get_mut()
+            .unwrap_or_else(std::sync::PoisonError::into_inner) = None;
+        Ok(())
+    }
+
+    /// The robot file of the station, if it has one.
+    pub fn robot(&self) -> Option<&RobotConfig> {
+        self.robot.as_deref()
+    }
+
+    /// One reading of every joint of the station's robot file, in the file's order, as
+    /// joint angles (see [`RobotSampler`]); `None` without a robot file. The first call
+    /// connects the WHJ joints (a silent one costs one connect timeout, once).
+    pub(crate) fn sample_robot(
+        &self,
+    ) -> Option<Result<Vec<DeviceResult<String, RobotJointSample>>, OpError>> {
+        let config = self.robot.as_deref()?;
+        let mut slot = self
+            .robot_sampler
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        if slot.is_none() {
+            let sampler = RobotSampler::on_ports(
+                config,
+                |n| self.wck(Some(n)).ok(),
+                |n| self.whj(Some(n)).ok(),
+            )
+            .map_err(|e| OpError::invalid("robot", "bus", e.to_string()));
+            match sampler {
+                Ok(sampler) => *slot = Some((std::time::Instant::now(), sampler)),
+                Err(e) => return Some(Err(e)),
+            }
+        }
+        let (since, sampler) = slot.as_mut()?;
+        Some(Ok(sampler.sample(since.elapsed().as_secs_f64())))
     }
 
     /// The built-in simulated robot of `robobus demo`, in-process on the simulators'
@@ -221,6 +322,9 @@ impl Station {
         );
         s.keep.push(Box::new(Mutex::new(wck_sim)));
         s.keep.push(Box::new(Mutex::new(whj_sim)));
+        let robot = RobotConfig::from_toml_str(&simulated_robot())
+            .map_err(|e| OpError::Device(format!("the built-in robot file: {e}")))?;
+        s.set_robot(robot)?;
         Ok(s)
     }
 
@@ -321,6 +425,30 @@ impl Drop for Station {
             tracing::warn!("station close: {f}");
         }
     }
+}
+
+/// The robot file of [`Station::simulated`]: the humanoid's servos `s0`..`s15` on
+/// `sim-wck` (centre 127, joint angle 0 there) and the arm's joints `j1`..`j7` on `sim-whj`.
+#[cfg(feature = "sim")]
+fn simulated_robot() -> String {
+    use std::fmt::Write as _;
+    let mut t = String::from(
+        "[buses.sim-wck]\nkind = \"wck-external\"\n\n[buses.sim-whj]\nkind = \"whj-external\"\n",
+    );
+    let joint = |t: &mut String, name: String, bus: &str, id: u8| {
+        let _ = write!(
+            t,
+            "\n[[joints]]\nname = \"{name}\"\nbus = \"{bus}\"\nid = {id}\nlimits = [-2.0, 2.0]\n\
+             max_velocity = 2.0\nmax_acceleration = 20.0\n"
+        );
+    };
+    for id in 0..crate::demo::SERVOS {
+        joint(&mut t, format!("s{id}"), "sim-wck", id);
+    }
+    for id in 1..=crate::demo::JOINTS {
+        joint(&mut t, format!("j{id}"), "sim-whj", id);
+    }
+    t
 }
 
 fn pick<T: Clone>(

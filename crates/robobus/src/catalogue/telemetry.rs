@@ -1,5 +1,6 @@
 //! The telemetry stream: one sampler per bus that runs a reading request (`wck.sample`,
-//! `wck.status`, `whj.sample` with or without `broadcast`, `whj.status`) on a [`Station`]
+//! `wck.status`, `whj.sample` with or without `broadcast`, `whj.status`, or `robot.sample`:
+//! a robot file's joints in joint units across its buses) on a [`Station`]
 //! at a chosen rate and hands every sample to any number of subscribers.
 //!
 //! Each subscriber has its own bounded queue. A subscriber that does not keep up loses
@@ -229,7 +230,7 @@ pub struct Telemetry {
 impl Telemetry {
     /// Starts sampling `request` on `station` at `rate_hz` ([`RATE_HZ`]), `limit` samples at
     /// most (`None`: until stopped). Only reading requests are streamed (`wck.sample`,
-    /// `wck.status`, `whj.sample`, `whj.status`); anything else, a rate out of range or a
+    /// `wck.status`, `whj.sample`, `whj.status`, `robot.sample`); anything else, a rate out of range or a
     /// request that does not validate is refused before the first read.
     pub fn start(
         station: &Arc<Station>,
@@ -256,12 +257,13 @@ impl Telemetry {
                 | Request::WckStatus(_)
                 | Request::WhjSample(_)
                 | Request::WhjStatus(_)
+                | Request::RobotSample(_)
         ) {
             return Err(OpError::invalid(
                 "request",
                 request.op(),
                 "a telemetry stream takes a reading request only (wck.sample, wck.status, \
-                 whj.sample, whj.status)",
+                 whj.sample, whj.status, robot.sample)",
             ));
         }
         if !(rate_hz.is_finite() && RATE_HZ.contains(&rate_hz)) {
@@ -280,6 +282,15 @@ impl Telemetry {
         match request.family() {
             super::Family::Wck => drop(station.wck(request.bus())?),
             super::Family::Whj => drop(station.whj(request.bus())?),
+            super::Family::Robot => {
+                if station.robot().is_none() {
+                    return Err(OpError::invalid(
+                        "robot",
+                        "(none)",
+                        "the station has no robot file (open it with --robot FILE.toml)",
+                    ));
+                }
+            }
         }
         let hub = Arc::new(Hub::default());
         let stop = StopToken::new();

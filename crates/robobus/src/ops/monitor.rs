@@ -22,7 +22,8 @@ use serde::Serialize;
 
 use super::{DeviceResult, ErrorKind, Failure, Outcome};
 use crate::actuator::{JointMap, WckScale};
-use crate::robot::{BusConfig, DynByteLink, RobotConfig, RobotError};
+use crate::catalogue::{WckPort, WhjPort};
+use crate::robot::{BusConfig, RobotConfig, RobotError};
 use crate::wck::{WckBus, WckConfig};
 use crate::whj::{JointBus, JointBusConfig};
 
@@ -128,13 +129,13 @@ pub struct MonitoredJoint {
 #[derive(Debug)]
 enum RobotBus {
     Wck {
-        bus: WckBus<DynByteLink>,
+        port: WckPort,
         /// The joints' indices in the file.
         joints: Vec<usize>,
         sampler: WckSampler,
     },
     Whj {
-        bus: JointBus,
+        port: WhjPort,
         joints: Vec<(usize, JointId, JointMap)>,
     },
 }
@@ -162,44 +163,21 @@ impl RobotSampler {
         whj: JointBusConfig,
         wck_margin: Option<Duration>,
     ) -> Result<Self, RobotError> {
-        let mut buses = Vec::new();
-        let mut descriptions = Vec::new();
+        let mut wck_ports = Vec::new();
+        let mut whj_ports = Vec::new();
         for (name, bus) in &config.buses {
-            let on_bus = || {
-                config
-                    .joints
-                    .iter()
-                    .enumerate()
-                    .filter(move |(_, j)| &j.bus == name)
-            };
             match bus {
-                BusConfig::Wck { port, baud, .. } => {
+                BusConfig::Wck { .. } => {
                     let open = crate::robot::open_wck_bus(name, bus)?;
                     let wck = WckConfig {
                         margin: wck_margin.unwrap_or(open.config().margin),
                         ..*open.config()
                     };
-                    let servos: Vec<(usize, ServoId, WckScale)> = on_bus()
-                        .filter_map(|(i, j)| Some((i, ServoId::new(j.id).ok()?, j.wck_scale())))
-                        .collect();
-                    descriptions.push(format!("{name}: wCK {port} at {baud} bit/s"));
-                    buses.push(RobotBus::Wck {
-                        bus: open.with_config(wck),
-                        joints: servos.iter().map(|s| s.0).collect(),
-                        sampler: WckSampler::with_scales(servos.iter().map(|s| (s.1, Some(s.2)))),
-                    });
+                    wck_ports.push(WckPort::new(name.clone(), open.with_config(wck)));
                 }
                 BusConfig::WhjUdp { .. } | BusConfig::WhjCan { .. } => {
                     let jb = crate::robot::open_whj_bus(name, bus, whj)?;
-                    let joints: Vec<(usize, JointId, JointMap)> = on_bus()
-                        .filter_map(|(i, j)| Some((i, JointId::new(j.id).ok()?, j.map())))
-                        .collect();
-                    connect_joints(&jb, joints.iter().map(|j| j.1));
-                    descriptions.push(match bus {
-                        BusConfig::WhjCan { iface, .. } => format!("{name}: WHJ {iface}"),
-                        _ => format!("{name}: WHJ UDP"),
-                    });
-                    buses.push(RobotBus::Whj { bus: jb, joints });
+                    whj_ports.push(WhjPort::new(name.clone(), jb));
                 }
                 BusConfig::WckExternal { .. } | BusConfig::WhjExternal { .. } => {
                     return Err(RobotError::Invalid {
@@ -213,17 +191,66 @@ impl RobotSampler {
                 }
             }
         }
-        let joints = config
-            .joints
-            .iter()
-            .map(|j| MonitoredJoint {
-                name: j.name.clone(),
-                wck: config.buses.get(&j.bus).is_some_and(BusConfig::is_wck),
-            })
-            .collect();
+        Self::on_ports(
+            config,
+            |n| wck_ports.iter().find(|p| p.name() == n).cloned(),
+            |n| whj_ports.iter().find(|p| p.name() == n).cloned(),
+        )
+    }
+
+    /// Samples the joints of `config` through buses opened already (a station's ports),
+    /// found by the file's bus names; the WHJ joints are released and identified once
+    /// here (one that stays silent shows in its samples).
+    ///
+    /// # Errors
+    ///
+    /// [`RobotError::Invalid`] (field `bus`) for a bus of the file that `wck` / `whj` do
+    /// not supply.
+    pub fn on_ports(
+        config: &RobotConfig,
+        wck: impl Fn(&str) -> Option<WckPort>,
+        whj: impl Fn(&str) -> Option<WhjPort>,
+    ) -> Result<Self, RobotError> {
+        let mut buses = Vec::new();
+        let mut descriptions = Vec::new();
+        for (name, bus) in &config.buses {
+            let on_bus = || {
+                config
+                    .joints
+                    .iter()
+                    .enumerate()
+                    .filter(move |(_, j)| &j.bus == name)
+            };
+            let missing = || RobotError::Invalid {
+                item: format!("bus {name}"),
+                field: "bus",
+                value: format!("\"{name}\""),
+                expected: "a bus that is open (none of that name and family is)".into(),
+            };
+            if bus.is_wck() {
+                let port = wck(name).ok_or_else(missing)?;
+                let servos: Vec<(usize, ServoId, WckScale)> = on_bus()
+                    .filter_map(|(i, j)| Some((i, ServoId::new(j.id).ok()?, j.wck_scale())))
+                    .collect();
+                descriptions.push(bus_description(name, bus));
+                buses.push(RobotBus::Wck {
+                    port,
+                    joints: servos.iter().map(|s| s.0).collect(),
+                    sampler: WckSampler::with_scales(servos.iter().map(|s| (s.1, Some(s.2)))),
+                });
+            } else {
+                let port = whj(name).ok_or_else(missing)?;
+                let joints: Vec<(usize, JointId, JointMap)> = on_bus()
+                    .filter_map(|(i, j)| Some((i, JointId::new(j.id).ok()?, j.map())))
+                    .collect();
+                connect_joints(port.bus(), joints.iter().map(|j| j.1));
+                descriptions.push(bus_description(name, bus));
+                buses.push(RobotBus::Whj { port, joints });
+            }
+        }
         Ok(Self {
             buses,
-            joints,
+            joints: monitored_joints(config),
             descriptions,
         })
     }
@@ -245,11 +272,12 @@ impl RobotSampler {
         for bus in &mut self.buses {
             match bus {
                 RobotBus::Wck {
-                    bus,
+                    port,
                     joints,
                     sampler,
                 } => {
-                    for (&i, r) in joints.iter().zip(sampler.sample(bus, t_s)) {
+                    let results = sampler.sample(&mut port.lock(), t_s);
+                    for (&i, r) in joints.iter().zip(results) {
                         out[i] = Some(r.outcome.map(|s| RobotJointSample {
                             position_deg: s.position_deg,
                             speed_deg_s: s.speed_deg_s,
@@ -260,9 +288,10 @@ impl RobotSampler {
                         }));
                     }
                 }
-                RobotBus::Whj { bus, joints } => {
+                RobotBus::Whj { port, joints } => {
                     let ids: Vec<JointId> = joints.iter().map(|j| j.1).collect();
-                    for (&(i, _, map), r) in joints.iter().zip(super::whj::sample(bus, &ids)) {
+                    let results = super::whj::sample(port.bus(), &ids);
+                    for (&(i, _, map), r) in joints.iter().zip(results) {
                         out[i] = Some(r.outcome.map(|s| RobotJointSample {
                             position_deg: map.to_joint(s.position_deg.to_radians()).to_degrees(),
                             speed_deg_s: s.speed_rpm.map(|r| map.speed_to_joint(r * DEG_S_PER_RPM)),
@@ -288,6 +317,30 @@ impl RobotSampler {
                 }),
             })
             .collect()
+    }
+}
+
+/// The joints of a robot file as the monitor shows them, in the file's order.
+pub fn monitored_joints(config: &RobotConfig) -> Vec<MonitoredJoint> {
+    config
+        .joints
+        .iter()
+        .map(|j| MonitoredJoint {
+            name: j.name.clone(),
+            wck: config.buses.get(&j.bus).is_some_and(BusConfig::is_wck),
+        })
+        .collect()
+}
+
+/// One line for a robot file's bus: `legs: wCK /dev/ttyUSB0 at 115200 bit/s`,
+/// `arm: WHJ can0`, `arm: WHJ UDP`, `sim: wCK (supplied by the program)`.
+pub fn bus_description(name: &str, bus: &BusConfig) -> String {
+    match bus {
+        BusConfig::Wck { port, baud, .. } => format!("{name}: wCK {port} at {baud} bit/s"),
+        BusConfig::WhjCan { iface, .. } => format!("{name}: WHJ {iface}"),
+        BusConfig::WhjUdp { .. } => format!("{name}: WHJ UDP"),
+        BusConfig::WckExternal { .. } => format!("{name}: wCK (supplied by the program)"),
+        BusConfig::WhjExternal { .. } => format!("{name}: WHJ (supplied by the program)"),
     }
 }
 
