@@ -125,6 +125,11 @@ fn requests_out_of_range_are_refused_with_the_range_and_nothing_is_sent() {
             r#"{"op": "wck.move", "id": 31, "position": 10, "torque": 0}"#,
             "30",
         ),
+        // Past a byte: still the servo's own range, with the value given.
+        (
+            r#"{"op": "wck.move", "id": 3, "position": 300}"#,
+            "position 300 is out of range 0..=254",
+        ),
     ] {
         let r = parse(json);
         let e = catalogue::plan(&r).unwrap_err();

@@ -110,6 +110,14 @@ pub(crate) fn byte<T, E: std::fmt::Display>(
     v: u32,
     new: impl Fn(u8) -> Result<T, E>,
 ) -> Result<T, OpError> {
-    let b = u8::try_from(v).map_err(|_| OpError::invalid(option, v, "out of range 0..=255"))?;
+    let Ok(b) = u8::try_from(v) else {
+        // Past a byte: the type's own range if it is narrower (its message, for the
+        // largest byte, names the range; the value in it is replaced by the one given).
+        let reason = match new(u8::MAX) {
+            Err(e) => e.to_string().replace("255", &v.to_string()),
+            Ok(_) => "out of range 0..=255".into(),
+        };
+        return Err(OpError::invalid(option, v, reason));
+    };
     new(b).map_err(|e| OpError::invalid(option, v, e.to_string()))
 }
