@@ -1,0 +1,329 @@
+"""robobus: drive RoboBuilder wCK servos and RealMan WHJ joints, or their simulators.
+
+Every operation is a request of the library's catalogue: a dict in its JSON form
+(``{"op": "whj.move", "joint": 1, "degrees": 30}``), planned and run by the library, with
+the host safety limits and the confirmation rule decided there, as for the command line.
+
+>>> import robobus
+>>> with robobus.Station.simulated() as station:
+...     report = station.wck.status("0-2")
+...     [row["position"] for row in report["results"]]
+[127, 127, 127]
+
+- :class:`Station` holds the open buses: ``Station.simulated()`` (the built-in simulated
+  robot: 16 wCK servos, 7 WHJ joints, in-process), ``Station.open(...)`` from the command
+  line's address strings, :func:`open_wck` / :func:`open_whj` for one bus.
+- ``station.run(request)`` returns the request's report as a dict equal to what
+  ``robobus run`` prints; ``station.wck.<op>(...)``, ``station.whj.<op>(...)`` and
+  ``station.robot.sample()`` are the same requests with the command line's argument names
+  as keyword arguments (the required ones may be given in order).
+- ``station.telemetry(request, rate_hz)`` streams a reading request; iterate it.
+- Errors are :mod:`robobus.errors` classes, one per error kind, also deriving from the
+  matching builtin (``ValueError``, ``TimeoutError``, ``OSError``, ...).
+- Calls release the GIL while they wait on a device; Ctrl-C during a call brings its
+  devices to their safe state and raises ``KeyboardInterrupt``.
+"""
+
+from __future__ import annotations
+
+import json
+import keyword
+from typing import Any, Iterator, Sequence
+
+from . import errors
+from ._robobus import NativeStation, NativeTelemetry, schema as _schema, version as _version
+from .errors import (
+    BadInputError,
+    DeviceError,
+    LinkError,
+    NoDeviceError,
+    NotAvailableError,
+    RefusedError,
+    RobobusError,
+    StoppedError,
+    check,
+)
+
+__version__: str = _version()
+
+__all__ = [
+    "BadInputError",
+    "DeviceError",
+    "LinkError",
+    "NoDeviceError",
+    "NotAvailableError",
+    "RefusedError",
+    "RobobusError",
+    "Station",
+    "StoppedError",
+    "Telemetry",
+    "check",
+    "errors",
+    "open_wck",
+    "open_whj",
+    "operations",
+    "plan",
+    "schema",
+]
+
+
+def schema(of: str = "request") -> dict[str, Any]:
+    """The JSON Schema of a ``"request"``, a ``"report"`` or a ``"plan"``."""
+    return json.loads(_schema(of))
+
+
+def _operations() -> dict[str, tuple[list[str], list[str]]]:
+    """Every operation: its arguments (the schema's order) and its required ones (in the
+    order the command line takes them)."""
+    out: dict[str, tuple[list[str], list[str]]] = {}
+    for variant in schema("request")["oneOf"]:
+        props = variant["properties"]
+        op = props["op"]["const"]
+        fields = [f for f in props if f != "op"]
+        required = [f for f in variant.get("required", []) if f != "op"]
+        out[op] = (fields, required)
+    return out
+
+
+_OPS = _operations()
+
+
+def operations() -> list[str]:
+    """The names of every operation (``"wck.scan"``, ``"whj.move"``, ...)."""
+    return sorted(_OPS)
+
+
+def method_name(op: str) -> str:
+    """The Python name of an operation within its family: ``wck.sync-move`` is
+    ``station.wck.sync_move``, ``wck.program.upload`` ``station.wck.program_upload``."""
+    return op.split(".", 1)[1].replace(".", "_").replace("-", "_")
+
+
+def request(op: str, *args: Any, **kwargs: Any) -> dict[str, Any]:
+    """The request dict of ``op`` with the required arguments given in order and the rest
+    by name (``None`` values are left out, as an omitted option)."""
+    if op not in _OPS:
+        raise BadInputError(f"op {op!r}: unknown operation; nothing was sent", "bad-input")
+    _fields, required = _OPS[op]
+    if len(args) > len(required):
+        raise BadInputError(
+            f"{op}: takes {len(required)} argument(s) in order ({', '.join(required)}), "
+            f"{len(args)} given; nothing was sent",
+            "bad-input",
+        )
+    req: dict[str, Any] = {"op": op}
+    for name, value in zip(required, args):
+        if name in kwargs:
+            raise BadInputError(f"{op}: {name} given twice; nothing was sent", "bad-input")
+        req[name] = _plain(value)
+    for name, value in kwargs.items():
+        # `from` is a Python keyword: it is given as `from_`.
+        if name.endswith("_") and keyword.iskeyword(name[:-1]):
+            name = name[:-1]
+        if value is not None:
+            req[name] = _plain(value)
+    return req
+
+
+def _plain(value: Any) -> Any:
+    """numpy scalars and arrays, tuples and ranges as plain JSON values."""
+    if hasattr(value, "tolist") and callable(value.tolist):
+        return value.tolist()
+    if isinstance(value, (tuple, range)):
+        return [_plain(v) for v in value]
+    return value
+
+
+def plan(request_: dict[str, Any] | str) -> dict[str, Any]:
+    """The plan of a request: the exact packets / frames it sends (``steps``, ``text``: what
+    ``--dry-run`` prints), its notes and what it needs confirmed. Opens nothing."""
+    return NativeStation.plan(request_)
+
+
+class _Family:
+    """The operations of one family as methods: ``station.wck.status("0-2")``."""
+
+    def __init__(self, station: "Station", family: str):
+        self._station = station
+        self._family = family
+        self._ops = {method_name(op): op for op in _OPS if op.startswith(family + ".")}
+
+    def __getattr__(self, name: str) -> Any:
+        op = self._ops.get(name)
+        if op is None:
+            raise AttributeError(
+                f"robobus has no operation {self._family}.{name} "
+                f"(there are: {', '.join(sorted(self._ops))})"
+            )
+        station = self._station
+
+        def call(*args: Any, check: bool = False, **kwargs: Any) -> dict[str, Any]:
+            return station.run(request(op, *args, **kwargs), check=check)
+
+        call.__name__ = name
+        call.__qualname__ = f"{self._family}.{name}"
+        fields, required = _OPS[op]
+        call.__doc__ = (
+            f"The request {op!r}: arguments {', '.join(required) or '-'} in order, "
+            f"any of {', '.join(fields)} by name; returns its report. "
+            "check=True raises the worst device failure."
+        )
+        return call
+
+    def __dir__(self) -> list[str]:
+        return sorted(self._ops)
+
+
+class Station:
+    """The open buses of a session, with every operation of the catalogue.
+
+    Use it as a context manager, or call :meth:`close` (idempotent): every device is then
+    brought to its safe state and the ports are released at once, so they can be opened
+    again right away.
+    """
+
+    def __init__(self, native: NativeStation):
+        self._native = native
+        self.wck = _Family(self, "wck")
+        self.whj = _Family(self, "whj")
+        self.robot = _Family(self, "robot")
+
+    @classmethod
+    def simulated(cls) -> "Station":
+        """The built-in simulated robot, in-process: 16 wCK servos (IDs 0..=15) on the
+        bus ``sim-wck``, 7 WHJ30 joints (IDs 1..=7) on ``sim-whj``, and a robot file
+        naming them ``s0``..``s15`` and ``j1``..``j7``. No pty, no network."""
+        return cls(NativeStation.simulated())
+
+    @classmethod
+    def open(
+        cls,
+        wck_ports: Sequence[str] = (),
+        whj_buses: Sequence[str] = (),
+        robot: str | None = None,
+        *,
+        wck_baud: int = 115200,
+        reply_margin_ms: float | None = None,
+    ) -> "Station":
+        """Opens wCK serial ports (at ``wck_baud``), WHJ buses (``udp``,
+        ``udp:GROUP:PORT``, a SocketCAN interface) and a robot file's buses, from the
+        same strings as the command line's ``--wck-port``, ``--whj-bus`` and ``--robot``.
+        Requests name a bus under ``bus`` when the station has several of a family."""
+        if isinstance(wck_ports, str):
+            wck_ports = [wck_ports]
+        if isinstance(whj_buses, str):
+            whj_buses = [whj_buses]
+        native = NativeStation.open(
+            list(wck_ports), list(whj_buses), robot, wck_baud, reply_margin_ms
+        )
+        return cls(native)
+
+    def run(self, request_: dict[str, Any] | str, *, check: bool = False) -> dict[str, Any]:
+        """Runs one request and returns its report (``op``, ``bus``, ``results``: one row
+        per device keyed ``id``, ``summary``, ``failed`` / ``error`` when a device failed).
+        With ``check=True`` a failed device raises its kind's error, the report attached."""
+        report: dict[str, Any] = self._native.run(request_)
+        return errors.check(report) if check else report
+
+    def run_many(self, requests: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+        """Runs requests in order, every one checked before any is sent; stops at the
+        first that fails as a whole."""
+        for r in requests:
+            NativeStation.validate(r)
+        return [self.run(r) for r in requests]
+
+    @property
+    def buses(self) -> tuple[list[str], list[str]]:
+        """The names of the wCK ports and of the WHJ buses."""
+        return self._native.names()
+
+    @property
+    def closed(self) -> bool:
+        """Whether it is closed."""
+        return self._native.closed
+
+    def telemetry(
+        self,
+        request_: dict[str, Any] | str,
+        rate_hz: float,
+        *,
+        limit: int | None = None,
+        queue: int = 256,
+    ) -> "Telemetry":
+        """Samples a reading request (``wck.sample``, ``wck.status``, ``whj.sample``,
+        ``whj.status``, ``robot.sample``) at ``rate_hz`` on its own thread; iterate the
+        stream for each sample (``seq``, ``unix_ms``, ``age_ms``, ``late``, ``lost``,
+        ``report``). A subscriber that falls ``queue`` samples behind loses its oldest."""
+        return Telemetry(self._native.telemetry(request_, rate_hz, limit, queue))
+
+    def close(self) -> list[str]:
+        """Brings every device to its safe state (wCK: the bus-wide break; WHJ: every
+        connected joint disabled) and releases the ports. Returns the failures, one
+        message per device. A second call does nothing."""
+        return self._native.close()
+
+    def leave(self) -> None:
+        """Releases the ports leaving every device as the last request left it (a joint
+        enabled stays enabled)."""
+        self._native.leave()
+
+    def __enter__(self) -> "Station":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        if self.closed:
+            return "<robobus.Station closed>"
+        wck, whj = self.buses
+        return f"<robobus.Station wck={wck} whj={whj}>"
+
+
+class Telemetry:
+    """A telemetry stream: an iterator of samples (dicts), until it is stopped or its
+    ``limit`` is reached. Use it as a context manager, or call :meth:`stop`."""
+
+    def __init__(self, native: NativeTelemetry):
+        self._native = native
+
+    def __iter__(self) -> Iterator[dict[str, Any]]:
+        return self
+
+    def __next__(self) -> dict[str, Any]:
+        sample = self._native.next(None)
+        if sample is None:
+            raise StopIteration
+        return sample
+
+    def next(self, timeout: float | None = None) -> dict[str, Any] | None:
+        """The next sample, waiting at most ``timeout`` seconds (:class:`NoDeviceError`
+        after it); ``None`` once the stream has ended."""
+        return self._native.next(timeout)
+
+    @property
+    def lost(self) -> int:
+        """Samples this subscriber lost so far (its queue was full)."""
+        return self._native.lost
+
+    def stop(self) -> dict[str, int] | None:
+        """Stops the stream: what it did (``samples``, ``late``, ``failed``); ``None`` if
+        it was stopped before."""
+        return self._native.stop()
+
+    def __enter__(self) -> "Telemetry":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+
+def open_wck(port: str, baud: int = 115200, *, reply_margin_ms: float | None = None) -> Station:
+    """A station of one wCK serial port (``/dev/ttyUSB0``, or the path ``robobus sim wck``
+    prints), at ``baud``."""
+    return Station.open([port], wck_baud=baud, reply_margin_ms=reply_margin_ms)
+
+
+def open_whj(bus: str) -> Station:
+    """A station of one WHJ bus: ``udp``, ``udp:GROUP:PORT`` or a SocketCAN interface."""
+    return Station.open(whj_buses=[bus])
