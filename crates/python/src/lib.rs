@@ -11,6 +11,7 @@
 //!   handler is installed here.
 //! - Errors are raised as `robobus.errors` classes chosen by the error kind, with the
 //!   library's message.
+//! - The library's log events go to Python's `logging` (pyo3-log).
 
 // OpError carries the client errors by value, as the library returns them.
 #![allow(clippy::result_large_err)]
@@ -96,6 +97,36 @@ fn request(py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<Request> {
             None,
         )
     })
+}
+
+/// A job the main thread hands to its worker.
+type Job = Box<dyn FnOnce() + Send>;
+
+/// The main thread's worker: one long-lived thread that runs its requests while the main
+/// thread waits and watches for signals (a thread per request would cost its start-up on
+/// every call).
+static WORKER: OnceLock<Mutex<mpsc::Sender<Job>>> = OnceLock::new();
+
+fn main_worker(job: Job) -> PyResult<()> {
+    let worker = WORKER.get_or_init(|| {
+        let (tx, rx) = mpsc::channel::<Job>();
+        let spawned = std::thread::Builder::new()
+            .name("robobus-main-worker".into())
+            .spawn(move || {
+                for job in rx {
+                    job();
+                }
+            });
+        if let Err(e) = spawned {
+            tracing::error!("starting the robobus worker thread: {e}");
+        }
+        Mutex::new(tx)
+    });
+    worker
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+        .send(job)
+        .map_err(|_| PyRuntimeError::new_err("the robobus worker thread is not running"))
 }
 
 /// Waits for `rx` with the GIL released; on the main thread in slices, checking Python's
@@ -228,19 +259,12 @@ impl NativeStation {
         let stop = StopToken::new();
         let outcome = if on_main_thread() {
             let (tx, rx) = mpsc::channel();
-            let worker = {
-                let (station, stop) = (Arc::clone(&station), stop.clone());
-                std::thread::Builder::new()
-                    .name("robobus-request".into())
-                    .spawn(move || {
-                        let r = catalogue::run(&station, &req, &mut Control::new(&stop));
-                        let _ = tx.send(r);
-                    })
-                    .map_err(|e| PyRuntimeError::new_err(format!("starting a worker: {e}")))?
-            };
-            let got = wait_for(py, rx, &stop);
-            let _ = py.detach(|| worker.join());
-            got?
+            let job_stop = stop.clone();
+            main_worker(Box::new(move || {
+                let r = catalogue::run(&station, &req, &mut Control::new(&job_stop));
+                let _ = tx.send(r);
+            }))?;
+            wait_for(py, rx, &stop)?
         } else {
             // Python delivers signals to the main thread only: run here, GIL released.
             py.detach(|| catalogue::run(&station, &req, &mut Control::new(&stop)))
@@ -440,6 +464,12 @@ fn version() -> &'static str {
 #[pymodule]
 fn _robobus(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let _ = MAIN.set(std::thread::current().id());
+    // The library's log events go to Python's `logging` (a second import keeps the first).
+    let _ = pyo3_log::try_init();
+    tracing::debug!(
+        version = env!("CARGO_PKG_VERSION"),
+        "robobus native module loaded"
+    );
     m.add_class::<NativeStation>()?;
     m.add_class::<NativeTelemetry>()?;
     m.add_function(wrap_pyfunction!(schema, m)?)?;

@@ -387,3 +387,14 @@ def test_the_readmes_python_example_runs() -> None:
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
     assert "'id': 's0'" in r.stdout, r.stdout
+
+
+def test_the_librarys_log_events_go_to_pythons_logging() -> None:
+    code = (
+        "import logging\n"
+        "logging.basicConfig(level=logging.DEBUG, format='%(name)s %(levelname)s %(message)s')\n"
+        "import robobus\n"
+    )
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    assert "_robobus DEBUG robobus native module loaded" in r.stderr, r.stderr
