@@ -2,7 +2,8 @@
 report `robobus run` gives for the same request, errors come as their kind's class, a
 station closes and its port reopens at once, Ctrl-C stops a long call with its device in
 the safe state, threads run side by side with the GIL released, telemetry iterates, and
-the type stubs are what the schema says and type-check the examples.
+the type stubs are what the schema says and type-check the examples, and a WHJ bus over UDP
+works inside a private network namespace.
 
 The command-line binary is `$ROBOBUS_BIN`, else the workspace's target/debug/robobus
 (`cargo build -p robobus-cli`).
@@ -398,3 +399,73 @@ def test_the_librarys_log_events_go_to_pythons_logging() -> None:
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert r.returncode == 0, r.stderr
     assert "_robobus DEBUG robobus native module loaded" in r.stderr, r.stderr
+
+
+INSIDE_NETNS = "ROBOBUS_PY_IN_NETNS"
+
+
+def test_a_whj_bus_over_udp_in_a_private_network_namespace() -> None:
+    """`robobus sim whj` on the UDP multicast bus and this package as its client, both
+    inside `unshare -n` (loopback up, a multicast route on it): no datagram can leave."""
+    script = (
+        "set -eu\n"
+        "ip link set lo up\n"
+        "ip route add 224.0.0.0/4 dev lo\n"
+        f'cd "{pathlib.Path(__file__).parent}"\n'
+        f'exec "{sys.executable}" -c "import test_station; test_station.udp_body()"\n'
+    )
+    r = subprocess.run(
+        ["timeout", "120", "unshare", "-n", "bash", "-c", script],
+        capture_output=True,
+        text=True,
+        env={**os.environ, INSIDE_NETNS: "1"},
+    )
+    assert r.returncode == 0 and "udp body passed" in r.stdout, r.stdout + r.stderr
+
+
+def udp_body() -> None:
+    """The body of the test above, run by it inside the namespace."""
+    assert os.environ.get(INSIDE_NETNS) == "1"
+    bus = "udp:239.74.163.31:43141"
+    sim = subprocess.Popen(
+        [BIN, "sim", "whj", "--joints", "1-3", "--bus", bus, "--current-noise-ma", "0"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert sim.stderr is not None
+        deadline = time.monotonic() + 20
+        seen = ""
+        while "serving" not in seen:
+            assert time.monotonic() < deadline, seen
+            line = sim.stderr.readline()
+            assert line, seen
+            seen += line
+        with robobus.open_whj(bus) as station:
+            assert station.buses == ([], [bus])
+            mine = station.whj.status("1-3", check=True)
+            # The command line on the same bus reports the same (joints at rest).
+            r = cli(
+                "run",
+                "--json",
+                "--whj-bus",
+                bus,
+                "-",
+                stdin=json.dumps({"op": "whj.status", "joints": "1,3"}),
+            )
+            assert r.returncode == 0, r.stderr
+            theirs = json.loads(r.stdout)
+            assert theirs["results"] == [mine["results"][0], mine["results"][2]]
+            station.whj.enable("2", check=True)
+            station.whj.mode("2", "position", check=True)
+            moved = station.whj.move(2, 5.0, max_speed=60, check=True)
+            assert abs(moved["results"][0]["position_deg"] - 5.0) < 0.1, moved
+        # Closing brought every joint it connected to its safe state: disabled.
+        with robobus.open_whj(bus) as again:
+            rows = again.whj.status("1-3", check=True)["results"]
+            assert [row["enabled"] for row in rows] == [False, False, False], rows
+        print("udp body passed")
+    finally:
+        sim.send_signal(signal.SIGINT)
+        sim.wait(timeout=20)

@@ -56,7 +56,9 @@ __all__ = [
     "RobobusError",
     "Station",
     "StoppedError",
+    "JointBus",
     "Telemetry",
+    "WckBus",
     "check",
     "errors",
     "open_wck",
@@ -318,12 +320,31 @@ class Telemetry:
         self.stop()
 
 
-def open_wck(port: str, baud: int = 115200, *, reply_margin_ms: float | None = None) -> Station:
-    """A station of one wCK serial port (``/dev/ttyUSB0``, or the path ``robobus sim wck``
-    prints), at ``baud``."""
-    return Station.open([port], wck_baud=baud, reply_margin_ms=reply_margin_ms)
+class WckBus(Station):
+    """A station of one wCK serial port: ``WckBus.open("/dev/ttyUSB0", baud=115200)``."""
+
+    @classmethod
+    def open(  # type: ignore[override]
+        cls, port: str, baud: int = 115200, *, reply_margin_ms: float | None = None
+    ) -> "WckBus":
+        """Opens the port (``/dev/ttyUSB0``, or the path ``robobus sim wck`` prints)."""
+        return cls(NativeStation.open([port], [], None, baud, reply_margin_ms))
 
 
-def open_whj(bus: str) -> Station:
-    """A station of one WHJ bus: ``udp``, ``udp:GROUP:PORT`` or a SocketCAN interface."""
-    return Station.open(whj_buses=[bus])
+class JointBus(Station):
+    """A station of one WHJ bus: ``JointBus.open("can0")``."""
+
+    @classmethod
+    def open(cls, bus: str) -> "JointBus":  # type: ignore[override]
+        """Opens ``udp``, ``udp:GROUP:PORT`` or a SocketCAN interface."""
+        return cls(NativeStation.open([], [bus], None, 115200, None))
+
+
+def open_wck(port: str, baud: int = 115200, *, reply_margin_ms: float | None = None) -> WckBus:
+    """:meth:`WckBus.open`."""
+    return WckBus.open(port, baud, reply_margin_ms=reply_margin_ms)
+
+
+def open_whj(bus: str) -> JointBus:
+    """:meth:`JointBus.open`."""
+    return JointBus.open(bus)
