@@ -342,6 +342,48 @@ impl NativeStation {
             .is_none()
     }
 
+    /// Starts a checked cyclic loop of `mode` targets (`position` deg, `speed` RPM,
+    /// `current` mA) for `joints` on the WHJ bus `bus` at `rate_hz`.
+    #[pyo3(signature = (joints, mode, rate_hz, bus))]
+    fn cyclic(
+        &self,
+        py: Python<'_>,
+        joints: Vec<u8>,
+        mode: &str,
+        rate_hz: f64,
+        bus: Option<String>,
+    ) -> PyResult<NativeCyclic> {
+        use robobus::ops::whj::ServoLoop;
+        let servo = match mode {
+            "position" => ServoLoop::Position,
+            "speed" => ServoLoop::Speed,
+            "current" => ServoLoop::Current,
+            other => {
+                return Err(raise(
+                    py,
+                    ErrorKind::BadInput,
+                    &format!("mode {other:?}: unknown (allowed: position, speed, current)"),
+                    None,
+                ));
+            }
+        };
+        let station = self.get(py)?;
+        let l = py
+            .detach(|| {
+                catalogue::cyclic::CyclicLoop::start(
+                    &station,
+                    bus.as_deref(),
+                    &joints,
+                    servo,
+                    rate_hz,
+                )
+            })
+            .map_err(|e| op_error(py, &e))?;
+        Ok(NativeCyclic {
+            inner: std::sync::RwLock::new(l),
+        })
+    }
+
     /// Starts a telemetry stream of a reading request at `rate_hz`.
     #[pyo3(signature = (request_obj, rate_hz, limit, queue))]
     fn telemetry(
@@ -362,6 +404,131 @@ impl NativeStation {
             stream: Mutex::new(Some(t)),
             sub,
         })
+    }
+}
+
+/// A checked cyclic loop on one of the station's WHJ buses (the hot path: targets in and
+/// feedback out without a request per cycle).
+#[pyclass(module = "robobus._robobus", name = "NativeCyclic", frozen)]
+#[derive(Debug)]
+struct NativeCyclic {
+    /// Read-locked by every call but `stop`, so a thread setting targets never waits for
+    /// one waiting for a cycle.
+    inner: std::sync::RwLock<catalogue::cyclic::CyclicLoop>,
+}
+
+impl NativeCyclic {
+    fn lock(&self) -> std::sync::RwLockReadGuard<'_, catalogue::cyclic::CyclicLoop> {
+        self.inner
+            .read()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+}
+
+/// A cycle as flat columns (what the Python side turns into arrays): `NaN` / `False`
+/// where a joint's feedback did not arrive.
+fn columns(c: &catalogue::cyclic::CycleSample) -> serde_json::Value {
+    let f = |get: &dyn Fn(&catalogue::cyclic::JointFeedback) -> serde_json::Value| {
+        c.feedback
+            .iter()
+            .map(|x| x.as_ref().map_or(serde_json::Value::Null, get))
+            .collect::<Vec<_>>()
+    };
+    serde_json::json!({
+        "cycle": c.cycle,
+        "missed": c.missed,
+        "round_trip_us": c.round_trip_us,
+        "commanded": c.commanded,
+        "valid": c.feedback.iter().map(Option::is_some).collect::<Vec<_>>(),
+        "position_deg": f(&|x| serde_json::json!(x.position_deg)),
+        "speed_rpm": f(&|x| serde_json::json!(x.speed_rpm)),
+        "current_ma": f(&|x| serde_json::json!(x.current_ma)),
+        "enabled": f(&|x| serde_json::json!(x.enabled)),
+        "error": f(&|x| serde_json::json!(x.error)),
+    })
+}
+
+#[pymethods]
+#[allow(clippy::needless_pass_by_value)] // pyo3 signatures
+impl NativeCyclic {
+    /// The joints, in target and feedback order.
+    #[getter]
+    fn joints(&self) -> Vec<u8> {
+        self.lock().joints()
+    }
+
+    /// Each joint's allowed targets `(low, high)` in the loop's unit.
+    #[getter]
+    fn limits(&self) -> Vec<(f64, f64)> {
+        self.lock().limits().to_vec()
+    }
+
+    /// Sets the targets (one float per joint, the loop's unit), checked first.
+    fn set(&self, py: Python<'_>, targets: Vec<f64>) -> PyResult<()> {
+        self.lock().set(&targets).map_err(|e| op_error(py, &e))
+    }
+
+    /// The next cycle as columns, waiting at most `timeout` s; `None` on timeout or once
+    /// stopped. Ctrl-C interrupts the wait (the loop goes on until stopped).
+    fn next(&self, py: Python<'_>, timeout: f64) -> PyResult<Option<Py<PyAny>>> {
+        let total = if timeout.is_finite() && timeout >= 0.0 {
+            Duration::from_secs_f64(timeout.min(1e6))
+        } else {
+            return Err(raise(
+                py,
+                ErrorKind::BadInput,
+                &format!("timeout {timeout}: not a finite number of seconds >= 0"),
+                None,
+            ));
+        };
+        let start = std::time::Instant::now();
+        loop {
+            let left = total.saturating_sub(start.elapsed());
+            let slice = left.min(SIGNAL_SLICE);
+            let got = py.detach(|| self.lock().next(slice));
+            if let Some(c) = got {
+                return to_py(py, &columns(&c)).map(Some);
+            }
+            if start.elapsed() >= total {
+                return Ok(None);
+            }
+            py.check_signals()?;
+        }
+    }
+
+    /// The most recent cycle as columns, if one has finished.
+    fn latest(&self, py: Python<'_>) -> PyResult<Option<Py<PyAny>>> {
+        match self.lock().latest() {
+            Some(c) => to_py(py, &columns(&c)).map(Some),
+            None => Ok(None),
+        }
+    }
+
+    /// Drops the queued cycles.
+    fn clear(&self) {
+        self.lock().clear();
+    }
+
+    /// What the loop did so far (`None` once stopped).
+    fn summary(&self, py: Python<'_>) -> PyResult<Option<Py<PyAny>>> {
+        match self.lock().summary() {
+            Some(s) => to_py(py, &s).map(Some),
+            None => Ok(None),
+        }
+    }
+
+    /// Stops the loop: what it did; `None` if it was stopped before.
+    fn stop(&self, py: Python<'_>) -> PyResult<Option<Py<PyAny>>> {
+        let done = py.detach(|| {
+            self.inner
+                .write()
+                .unwrap_or_else(std::sync::PoisonError::into_inner)
+                .stop()
+        });
+        match done {
+            Some(s) => to_py(py, &s).map(Some),
+            None => Ok(None),
+        }
     }
 }
 
@@ -472,6 +639,7 @@ fn _robobus(m: &Bound<'_, PyModule>) -> PyResult<()> {
     );
     m.add_class::<NativeStation>()?;
     m.add_class::<NativeTelemetry>()?;
+    m.add_class::<NativeCyclic>()?;
     m.add_function(wrap_pyfunction!(schema, m)?)?;
     m.add_function(wrap_pyfunction!(version, m)?)?;
     Ok(())

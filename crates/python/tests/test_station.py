@@ -469,3 +469,52 @@ def udp_body() -> None:
     finally:
         sim.send_signal(signal.SIGINT)
         sim.wait(timeout=20)
+
+
+def test_a_cyclic_loop_takes_arrays_and_gives_arrays() -> None:
+    np = pytest.importorskip("numpy")
+    with robobus.Station.simulated() as station:
+        station.whj.mode("1", "speed", check=True)
+        with pytest.raises(robobus.RefusedError, match="position mode"):
+            station.cyclic([1, 2])
+        station.whj.enable("1-3", check=True)
+        station.whj.mode("1-3", "position", check=True)
+        with station.cyclic(np.array([1, 2, 3]), rate_hz=500) as loop:
+            assert loop.joints == [1, 2, 3]
+            assert loop.limits.shape == (3, 2) and loop.limits.dtype == np.float64
+            # A strided view of ints is a target array like any other.
+            loop.set(np.arange(-6, 6, 2)[::2])  # -6, -2, 2
+            cycle = None
+            for cycle in loop:
+                if np.allclose(cycle.commanded, [-6, -2, 2], atol=1e-3) and np.allclose(
+                    cycle.position_deg, [-6, -2, 2], atol=0.01
+                ):
+                    break
+                assert cycle.cycle < 5000
+            assert cycle is not None
+            assert cycle.position_deg.dtype == np.float64 and cycle.valid.dtype == bool
+            assert cycle.valid.all() and cycle.enabled.all() and not cycle.missed
+            # Out of range: refused with the joint named, the targets unchanged.
+            high = loop.limits[1, 1]
+            with pytest.raises(ValueError, match="target of joint J2"):
+                loop.set([0.0, high + 1, 0.0])
+            with pytest.raises(ValueError, match="one per joint"):
+                loop.set([0.0])
+            loop.clear()
+            after = loop.next(1.0)
+            assert after is not None and np.allclose(after.commanded, [-6, -2, 2], atol=1e-3)
+            summary = loop.summary()
+            assert summary is not None and summary["missing_replies"] == 0
+        assert loop.stop() is None
+        with pytest.raises(robobus.RefusedError, match="stopped"):
+            loop.set([0, 0, 0])
+
+
+def test_reports_become_arrays_with_nan_for_a_silent_device() -> None:
+    np = pytest.importorskip("numpy")
+    with robobus.Station.simulated() as station:
+        a = robobus.arrays(station.wck.status("0,1,20"))
+    assert a["id"].tolist() == [0, 1, 20]
+    assert a["position"].dtype == np.float64
+    assert a["position"][:2].tolist() == [127.0, 127.0] and np.isnan(a["position"][2])
+    assert set(a) == {"id", "position", "degrees", "load"}

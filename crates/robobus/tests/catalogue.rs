@@ -543,3 +543,72 @@ fn robot_sample_streams_with_each_wck_joints_speed_from_its_previous_reading() {
     .unwrap_err();
     assert_eq!(e.kind(), ErrorKind::BadInput, "{e}");
 }
+
+#[test]
+fn a_cyclic_loop_checks_its_joints_and_every_target_before_the_loop_sends_it() {
+    use robobus::catalogue::cyclic::CyclicLoop;
+    use robobus::ops::whj::ServoLoop;
+    use std::time::Duration;
+    let s = Station::simulated().unwrap();
+    // Not enabled in position mode: refused, no loop.
+    run(&s, r#"{"op": "whj.disable", "joints": "1-2"}"#).unwrap();
+    let e = CyclicLoop::start(&s, None, &[1, 2], ServoLoop::Position, 200.0).unwrap_err();
+    assert_eq!(e.kind(), ErrorKind::Refused, "{e}");
+    for bad in [
+        CyclicLoop::start(&s, None, &[1], ServoLoop::Position, 5000.0),
+        CyclicLoop::start(&s, None, &[0], ServoLoop::Position, 200.0),
+        CyclicLoop::start(&s, None, &[], ServoLoop::Position, 200.0),
+    ] {
+        assert_eq!(bad.unwrap_err().kind(), ErrorKind::BadInput);
+    }
+    for json in [
+        r#"{"op": "whj.enable", "joints": "1-2"}"#,
+        r#"{"op": "whj.mode", "joints": "1-2", "mode": "position"}"#,
+    ] {
+        assert_eq!(run(&s, json).unwrap().failed, None, "{json}");
+    }
+    let mut l = CyclicLoop::start(&s, None, &[1, 2], ServoLoop::Position, 200.0).unwrap();
+    assert_eq!(l.joints(), [1, 2]);
+    l.set(&[10.0, -5.0]).unwrap();
+    let mut last = None;
+    for _ in 0..2000 {
+        let c = l.next(Duration::from_secs(1)).expect("a cycle");
+        let at: Vec<f64> = c
+            .feedback
+            .iter()
+            .map(|f| f.as_ref().unwrap().position_deg)
+            .collect();
+        let sent = (c.commanded[0] - 10.0).abs() < 1e-3 && (c.commanded[1] + 5.0).abs() < 1e-3;
+        if sent && (at[0] - 10.0).abs() < 0.01 && (at[1] + 5.0).abs() < 0.01 {
+            last = Some(c);
+            break;
+        }
+    }
+    let last = last.expect("the joints reached their targets");
+    assert!(
+        last.feedback.iter().all(|f| f.as_ref().unwrap().enabled),
+        "{last:?}"
+    );
+    // Out of the joint's limits, not finite, or the wrong count: refused, targets kept.
+    let (lo, hi) = l.limits()[0];
+    for targets in [vec![hi + 1.0, 0.0], vec![f64::NAN, 0.0], vec![1.0]] {
+        let e = l.set(&targets).unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::BadInput, "{e}");
+    }
+    let e = l.set(&[lo - 1.0, 0.0]).unwrap_err().to_string();
+    assert!(
+        e.contains("target of joint J1") && e.contains("no target was changed"),
+        "{e}"
+    );
+    l.clear();
+    let c = l.next(Duration::from_secs(1)).unwrap();
+    assert!((c.commanded[0] - 10.0).abs() < 1e-3, "{c:?}");
+    let summary = l.stop().unwrap();
+    assert!(
+        summary.cycles > 0 && summary.missing_replies == 0,
+        "{summary:?}"
+    );
+    assert!(l.stop().is_none());
+    assert_eq!(l.set(&[0.0, 0.0]).unwrap_err().kind(), ErrorKind::Refused);
+    s.leave();
+}

@@ -31,7 +31,16 @@ import keyword
 from typing import Any, Iterator, Sequence
 
 from . import errors
-from ._robobus import NativeStation, NativeTelemetry, schema as _schema, version as _version
+import numpy as np
+import numpy.typing as npt
+
+from ._robobus import (
+    NativeCyclic,
+    NativeStation,
+    NativeTelemetry,
+    schema as _schema,
+    version as _version,
+)
 from .errors import (
     BadInputError,
     DeviceError,
@@ -56,8 +65,11 @@ __all__ = [
     "RobobusError",
     "Station",
     "StoppedError",
+    "Cycle",
+    "Cyclic",
     "JointBus",
     "Telemetry",
+    "arrays",
     "WckBus",
     "check",
     "errors",
@@ -258,6 +270,22 @@ class Station:
         ``report``). A subscriber that falls ``queue`` samples behind loses its oldest."""
         return Telemetry(self._native.telemetry(request_, rate_hz, limit, queue))
 
+    def cyclic(
+        self,
+        joints: Sequence[int] | npt.ArrayLike,
+        mode: str = "position",
+        *,
+        rate_hz: float = 200.0,
+        bus: str | None = None,
+    ) -> "Cyclic":
+        """Starts a cyclic servo loop on a WHJ bus: ``mode`` targets (``"position"``
+        degrees, ``"speed"`` RPM, ``"current"`` mA) for ``joints`` at ``rate_hz``. Each
+        joint must be enabled in that work mode; every target is checked against its
+        limits before the loop sends it. Position targets move along a speed- and
+        acceleration-limited profile. Stop it with :meth:`Cyclic.stop` (or a ``with``)."""
+        ids = [int(j) for j in np.asarray(joints).ravel()]
+        return Cyclic(self._native.cyclic(ids, mode, rate_hz, bus))
+
     def close(self) -> list[str]:
         """Brings every device to its safe state (wCK: the bus-wide break; WHJ: every
         connected joint disabled) and releases the ports. Returns the failures, one
@@ -280,6 +308,134 @@ class Station:
             return "<robobus.Station closed>"
         wck, whj = self.buses
         return f"<robobus.Station wck={wck} whj={whj}>"
+
+
+class Cycle:
+    """One cycle of a :class:`Cyclic` loop, as arrays in joint order: ``position_deg``,
+    ``speed_rpm``, ``current_ma`` (``NaN`` where a joint's feedback did not arrive),
+    ``enabled`` and ``valid`` (booleans), ``commanded`` (what was sent, the loop's unit),
+    and ``cycle``, ``missed``, ``round_trip_us``, ``error`` (per joint, ``None`` when
+    missing)."""
+
+    __slots__ = (
+        "commanded",
+        "current_ma",
+        "cycle",
+        "enabled",
+        "error",
+        "missed",
+        "position_deg",
+        "round_trip_us",
+        "speed_rpm",
+        "valid",
+    )
+
+    def __init__(self, c: dict[str, Any]):
+        nan = float("nan")
+        self.cycle: int = c["cycle"]
+        self.missed: bool = c["missed"]
+        self.round_trip_us: float | None = c["round_trip_us"]
+        self.commanded = np.asarray(c["commanded"], dtype=np.float64)
+        self.valid = np.asarray(c["valid"], dtype=bool)
+        self.position_deg = np.asarray(
+            [nan if v is None else v for v in c["position_deg"]], dtype=np.float64
+        )
+        self.speed_rpm = np.asarray([nan if v is None else v for v in c["speed_rpm"]], dtype=np.float64)
+        self.current_ma = np.asarray(
+            [nan if v is None else v for v in c["current_ma"]], dtype=np.float64
+        )
+        self.enabled = np.asarray([bool(v) for v in c["enabled"]], dtype=bool)
+        self.error: list[str | None] = c["error"]
+
+    def __repr__(self) -> str:
+        return (
+            f"<robobus.Cycle {self.cycle}{' missed' if self.missed else ''} "
+            f"position_deg={self.position_deg.tolist()}>"
+        )
+
+
+class Cyclic:
+    """A running cyclic loop (see :meth:`Station.cyclic`): :meth:`set` the targets (an
+    array, one per joint), read each cycle with :meth:`next` or by iterating."""
+
+    def __init__(self, native: NativeCyclic):
+        self._native = native
+
+    @property
+    def joints(self) -> list[int]:
+        """The joints, in target and feedback order."""
+        return list(self._native.joints)
+
+    @property
+    def limits(self) -> npt.NDArray[np.float64]:
+        """Each joint's allowed targets: an ``(n, 2)`` array of ``low, high``."""
+        return np.asarray(self._native.limits, dtype=np.float64).reshape(-1, 2)
+
+    def set(self, targets: npt.ArrayLike) -> None:
+        """Sets the targets (one per joint, any array-like of numbers); each is checked
+        against its joint's limits first, and on a refusal none is changed."""
+        self._native.set(np.asarray(targets, dtype=np.float64).ravel().tolist())
+
+    def next(self, timeout: float = 1.0) -> Cycle | None:
+        """The next cycle (oldest first), waiting at most ``timeout`` s; ``None`` on
+        timeout or once stopped."""
+        c = self._native.next(timeout)
+        return None if c is None else Cycle(c)
+
+    def latest(self) -> Cycle | None:
+        """The most recent cycle, if one has finished."""
+        c = self._native.latest()
+        return None if c is None else Cycle(c)
+
+    def clear(self) -> None:
+        """Drops the queued cycles (before waiting for a fresh one)."""
+        self._native.clear()
+
+    def summary(self) -> dict[str, Any] | None:
+        """What the loop did so far: cycles, misses, missing replies, round trips."""
+        return self._native.summary()
+
+    def stop(self) -> dict[str, Any] | None:
+        """Stops the loop: what it did; ``None`` if it was stopped before."""
+        return self._native.stop()
+
+    def __iter__(self) -> Iterator[Cycle]:
+        while True:
+            c = self.next(1.0)
+            if c is None:
+                return
+            yield c
+
+    def __enter__(self) -> "Cyclic":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+
+def arrays(report: dict[str, Any], *fields: str) -> dict[str, npt.NDArray[Any]]:
+    """A report's rows as arrays, one per field (and ``id``): numbers as ``float64`` with
+    ``NaN`` where a device failed (its row has no value), booleans as ``bool``. Without
+    ``fields``, every numeric field of the rows."""
+    rows = report["results"]
+    if not fields:
+        seen: dict[str, None] = {}
+        for r in rows:
+            for k, v in r.items():
+                if k != "id" and isinstance(v, (int, float)):
+                    seen[k] = None
+        fields = tuple(seen)
+    out: dict[str, npt.NDArray[Any]] = {"id": np.asarray([r["id"] for r in rows])}
+    for f in fields:
+        values = [r.get(f) for r in rows]
+        if all(isinstance(v, bool) for v in values):
+            out[f] = np.asarray(values, dtype=bool)
+        else:
+            out[f] = np.asarray(
+                [float("nan") if v is None or isinstance(v, str) else v for v in values],
+                dtype=np.float64,
+            )
+    return out
 
 
 class Telemetry:

@@ -79,6 +79,7 @@
 
 pub mod args;
 pub mod bounds;
+pub mod cyclic;
 mod dispatch;
 pub mod plan;
 pub mod robot;

@@ -82,7 +82,7 @@ pub struct WhjPort(Arc<WhjInner>);
 #[derive(Debug)]
 struct WhjInner {
     name: String,
-    bus: JointBus,
+    bus: Arc<JointBus>,
     /// Joints a sample has tried to connect (by ID), answered or not.
     tried: Mutex<[bool; 31]>,
 }
@@ -92,7 +92,7 @@ impl WhjPort {
     pub fn new(name: impl Into<String>, bus: JointBus) -> Self {
         Self(Arc::new(WhjInner {
             name: name.into(),
-            bus,
+            bus: Arc::new(bus),
             tried: Mutex::new([false; 31]),
         }))
     }
@@ -125,6 +125,12 @@ impl WhjPort {
     /// The bus.
     pub fn bus(&self) -> &JointBus {
         &self.0.bus
+    }
+
+    /// The bus as a shared handle (what a loop that outlives a borrow keeps:
+    /// [`JointBus::cyclic_owned`]).
+    pub fn shared_bus(&self) -> Arc<JointBus> {
+        Arc::clone(&self.0.bus)
     }
 }
 
