@@ -182,6 +182,8 @@ class _Family:
             f"any of {', '.join(fields)} by name; returns its report. "
             "check=True raises the worst device failure."
         )
+        # Kept on the instance: the next lookup finds it without coming here.
+        setattr(self, name, call)
         return call
 
     def __dir__(self) -> list[str]:

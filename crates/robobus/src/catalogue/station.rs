@@ -210,26 +210,14 @@ impl Station {
                 }
                 e => refuse(&e),
             };
-            for (name, bus) in &robot.buses {
-                match bus {
-                    crate::robot::BusConfig::Wck { .. } => {
-                        let bus = crate::robot::open_wck_bus(name, bus).map_err(absent)?;
-                        s.add_wck(name.clone(), margin(bus));
-                    }
-                    crate::robot::BusConfig::WhjUdp { .. }
-                    | crate::robot::BusConfig::WhjCan { .. } => {
-                        let bus = crate::robot::open_whj_bus(name, bus, whj).map_err(absent)?;
-                        s.add_whj(name.clone(), bus);
-                    }
-                    crate::robot::BusConfig::WckExternal { .. }
-                    | crate::robot::BusConfig::WhjExternal { .. } => {
-                        return Err(refuse(&format!(
-                            "bus {name}: kind \"{}\" is a bus a program supplies; a station \
-                             opens kind wck, whj-udp or whj-can itself",
-                            bus.kind()
-                        )));
-                    }
-                }
+            let (wck, whj) =
+                crate::ops::monitor::open_robot_ports(&robot, whj, config.wck_reply_margin)
+                    .map_err(absent)?;
+            for p in wck {
+                s.add_wck_port(p);
+            }
+            for p in whj {
+                s.whj.push(p);
             }
             s.set_robot(robot).map_err(|e| refuse(&e))?;
         }

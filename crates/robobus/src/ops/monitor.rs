@@ -163,34 +163,7 @@ impl RobotSampler {
         whj: JointBusConfig,
         wck_margin: Option<Duration>,
     ) -> Result<Self, RobotError> {
-        let mut wck_ports = Vec::new();
-        let mut whj_ports = Vec::new();
-        for (name, bus) in &config.buses {
-            match bus {
-                BusConfig::Wck { .. } => {
-                    let open = crate::robot::open_wck_bus(name, bus)?;
-                    let wck = WckConfig {
-                        margin: wck_margin.unwrap_or(open.config().margin),
-                        ..*open.config()
-                    };
-                    wck_ports.push(WckPort::new(name.clone(), open.with_config(wck)));
-                }
-                BusConfig::WhjUdp { .. } | BusConfig::WhjCan { .. } => {
-                    let jb = crate::robot::open_whj_bus(name, bus, whj)?;
-                    whj_ports.push(WhjPort::new(name.clone(), jb));
-                }
-                BusConfig::WckExternal { .. } | BusConfig::WhjExternal { .. } => {
-                    return Err(RobotError::Invalid {
-                        item: format!("bus {name}"),
-                        field: "kind",
-                        value: format!("\"{}\"", bus.kind()),
-                        expected: "a bus the monitor opens itself (kind wck, whj-udp or \
-                                   whj-can); an external bus is one a program supplies"
-                            .into(),
-                    });
-                }
-            }
-        }
+        let (wck_ports, whj_ports) = open_robot_ports(config, whj, wck_margin)?;
         Self::on_ports(
             config,
             |n| wck_ports.iter().find(|p| p.name() == n).cloned(),
@@ -318,6 +291,45 @@ impl RobotSampler {
             })
             .collect()
     }
+}
+
+/// Opens every bus of a robot file for reading, as station ports named as in the file
+/// (wCK with `wck_margin` if given, WHJ with `whj`); a bus a program supplies
+/// (`wck-external`, `whj-external`) is refused ([`RobotError::Invalid`], field `kind`).
+pub fn open_robot_ports(
+    config: &RobotConfig,
+    whj: JointBusConfig,
+    wck_margin: Option<Duration>,
+) -> Result<(Vec<WckPort>, Vec<WhjPort>), RobotError> {
+    let mut wck_ports = Vec::new();
+    let mut whj_ports = Vec::new();
+    for (name, bus) in &config.buses {
+        match bus {
+            BusConfig::Wck { .. } => {
+                let open = crate::robot::open_wck_bus(name, bus)?;
+                let wck = WckConfig {
+                    margin: wck_margin.unwrap_or(open.config().margin),
+                    ..*open.config()
+                };
+                wck_ports.push(WckPort::new(name.clone(), open.with_config(wck)));
+            }
+            BusConfig::WhjUdp { .. } | BusConfig::WhjCan { .. } => {
+                let jb = crate::robot::open_whj_bus(name, bus, whj)?;
+                whj_ports.push(WhjPort::new(name.clone(), jb));
+            }
+            BusConfig::WckExternal { .. } | BusConfig::WhjExternal { .. } => {
+                return Err(RobotError::Invalid {
+                    item: format!("bus {name}"),
+                    field: "kind",
+                    value: format!("\"{}\"", bus.kind()),
+                    expected: "a bus opened from the file (kind wck, whj-udp or whj-can); an \
+                               external bus is one a program supplies"
+                        .into(),
+                });
+            }
+        }
+    }
+    Ok((wck_ports, whj_ports))
 }
 
 /// The joints of a robot file as the monitor shows them, in the file's order.
