@@ -710,16 +710,20 @@ fn arm_run(
 }
 
 /// Simulated WHJ30 joints served on a thread of their own over an in-process CAN FD bus.
+///
+/// Dropping it stops the simulator (what it served is then lost: [`ArmServer::stop`]
+/// returns it).
 #[derive(Debug)]
-struct ArmServer {
+pub(crate) struct ArmServer {
     stop: Arc<AtomicBool>,
-    thread:
+    thread: Option<
         std::thread::JoinHandle<Result<robobus_sim::whj::ServeStats, robobus_link::FrameLinkError>>,
+    >,
 }
 
 impl ArmServer {
     /// Joints `ids` (simulation seed `seed`), and a client bus to them.
-    fn start(ids: Vec<u8>, seed: u64) -> Result<(Self, JointBus), OpError> {
+    pub(crate) fn start(ids: Vec<u8>, seed: u64) -> Result<(Self, JointBus), OpError> {
         use robobus_sim::whj::{WhjBus, WhjModel};
 
         let wire = MemoryBus::new();
@@ -733,18 +737,32 @@ impl ArmServer {
                 robobus_sim::whj::serve(&mut sim, &mut sim_end, &flag)
             })
             .map_err(|e| internal("starting the simulated WHJ arm", e))?;
-        let server = Self { stop, thread };
+        let server = Self {
+            stop,
+            thread: Some(thread),
+        };
         let bus = JointBus::open_with(wire.endpoint(), JointBusConfig::simulated())?;
         Ok((server, bus))
     }
 
     /// Stops serving; what the simulator served.
-    fn stop(self) -> Result<robobus_sim::whj::ServeStats, OpError> {
+    fn stop(mut self) -> Result<robobus_sim::whj::ServeStats, OpError> {
         self.stop.store(true, Ordering::Relaxed);
         self.thread
+            .take()
+            .ok_or_else(|| internal("the WHJ arm's thread", "already stopped"))?
             .join()
             .map_err(|_| internal("the WHJ arm's thread", "panicked"))?
             .map_err(|e| internal("the WHJ arm", e))
+    }
+}
+
+impl Drop for ArmServer {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
     }
 }
 

@@ -23,7 +23,7 @@ use super::bounds;
 use super::station::Station;
 use crate::ops::OpError;
 use crate::ops::whj::{ServoLoop, require_ready};
-use crate::whj::{CycleReport, CyclicConfig, CyclicStats, OwnedCyclic, Protocol, ServoMode};
+use crate::whj::{CycleReport, CyclicConfig, CyclicStats, Joint, OwnedCyclic, Protocol, ServoMode};
 
 /// One joint's feedback in a cycle.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -108,6 +108,72 @@ pub struct CyclicLoop {
     scales: Vec<CurrentScale>,
 }
 
+/// What `j` accepts as a `servo` target, in that loop's unit (its position limits within
+/// the host's bound, its model's peak output speed, its current limit), and its current
+/// scale.
+pub(crate) fn allowed(
+    j: &Joint<'_>,
+    servo: ServoLoop,
+) -> Result<((f64, f64), CurrentScale), OpError> {
+    let identity = j.identity()?;
+    let range = match servo {
+        ServoLoop::Position => {
+            let (min, max) = j.position_limits()?;
+            (
+                min.degrees().max(-bounds::MAX_DEG),
+                max.degrees().min(bounds::MAX_DEG),
+            )
+        }
+        ServoLoop::Speed => {
+            let peak = identity
+                .model
+                .peak_output_speed_rpm()
+                .unwrap_or(bounds::MAX_RPM)
+                .min(bounds::MAX_RPM);
+            (-peak, peak)
+        }
+        ServoLoop::Current => {
+            let limit = j
+                .read_register("LIT_MAX_CURRENT")?
+                .value
+                .filter(|v| *v > 0.0)
+                .unwrap_or(bounds::MAX_MA)
+                .min(bounds::MAX_MA);
+            (-limit, limit)
+        }
+    };
+    Ok((range, identity.model.current_scale()))
+}
+
+/// Checks `targets` (one per joint of `joints`, in `servo`'s unit) against each joint's
+/// `limits`: the first one out of range is refused, naming the joint, the value and the
+/// range.
+pub(crate) fn check_targets(
+    servo: ServoLoop,
+    joints: &[JointId],
+    limits: &[(f64, f64)],
+    targets: &[f64],
+) -> Result<(), OpError> {
+    if targets.len() != joints.len() {
+        return Err(OpError::invalid(
+            "targets",
+            format!("{} value(s)", targets.len()),
+            format!("one per joint: {} joint(s)", joints.len()),
+        ));
+    }
+    let u = unit(servo);
+    for ((&t, &(lo, hi)), id) in targets.iter().zip(limits).zip(joints) {
+        if !(t.is_finite() && (lo..=hi).contains(&t)) {
+            return Err(OpError::invalid(
+                format!("target of joint {id}"),
+                format!("{t} {u}"),
+                format!("out of range (allowed: {lo}..={hi} {u}); no target was changed"),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// The loop's unit, for messages.
 const fn unit(servo: ServoLoop) -> &'static str {
     match servo {
@@ -145,34 +211,9 @@ impl CyclicLoop {
         for &id in &ids {
             let j = port.bus().joint(id)?;
             require_ready(&j, servo, "a cyclic loop")?;
-            let identity = j.identity()?;
-            scales.push(identity.model.current_scale());
-            limits.push(match servo {
-                ServoLoop::Position => {
-                    let (min, max) = j.position_limits()?;
-                    (
-                        min.degrees().max(-bounds::MAX_DEG),
-                        max.degrees().min(bounds::MAX_DEG),
-                    )
-                }
-                ServoLoop::Speed => {
-                    let peak = identity
-                        .model
-                        .peak_output_speed_rpm()
-                        .unwrap_or(bounds::MAX_RPM)
-                        .min(bounds::MAX_RPM);
-                    (-peak, peak)
-                }
-                ServoLoop::Current => {
-                    let limit = j
-                        .read_register("LIT_MAX_CURRENT")?
-                        .value
-                        .filter(|v| *v > 0.0)
-                        .unwrap_or(bounds::MAX_MA)
-                        .min(bounds::MAX_MA);
-                    (-limit, limit)
-                }
-            });
+            let (range, scale) = allowed(&j, servo)?;
+            limits.push(range);
+            scales.push(scale);
         }
         let config = CyclicConfig {
             joints: ids.clone(),
@@ -214,23 +255,7 @@ impl CyclicLoop {
     /// Sets the targets, one per joint in the loop's unit; each is checked against the
     /// joint's limits first, and on a refusal none is changed.
     pub fn set(&self, targets: &[f64]) -> Result<(), OpError> {
-        if targets.len() != self.joints.len() {
-            return Err(OpError::invalid(
-                "targets",
-                format!("{} value(s)", targets.len()),
-                format!("one per joint: {} joint(s)", self.joints.len()),
-            ));
-        }
-        let u = unit(self.servo);
-        for ((&t, &(lo, hi)), id) in targets.iter().zip(&self.limits).zip(&self.joints) {
-            if !(t.is_finite() && (lo..=hi).contains(&t)) {
-                return Err(OpError::invalid(
-                    format!("target of joint {id}"),
-                    format!("{t} {u}"),
-                    format!("out of range (allowed: {lo}..={hi} {u}); no target was changed"),
-                ));
-            }
-        }
+        check_targets(self.servo, &self.joints, &self.limits, targets)?;
         let bad =
             |e: robobus_whj::units::UnitRangeError| OpError::invalid("targets", "", e.to_string());
         let c = self.cyclic()?;

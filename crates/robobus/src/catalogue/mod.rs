@@ -81,6 +81,7 @@ pub mod args;
 pub mod bounds;
 pub mod cyclic;
 mod dispatch;
+pub mod handles;
 pub mod plan;
 pub mod robot;
 pub mod station;

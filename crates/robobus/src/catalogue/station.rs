@@ -424,7 +424,7 @@ impl Drop for Station {
 /// The robot file of [`Station::simulated`]: the humanoid's servos `s0`..`s15` on
 /// `sim-wck` (centre 127, joint angle 0 there) and the arm's joints `j1`..`j7` on `sim-whj`.
 #[cfg(feature = "sim")]
-fn simulated_robot() -> String {
+pub(crate) fn simulated_robot() -> String {
     use std::fmt::Write as _;
     let mut t = String::from(
         "[buses.sim-wck]\nkind = \"wck-external\"\n\n[buses.sim-whj]\nkind = \"whj-external\"\n",

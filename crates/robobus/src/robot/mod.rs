@@ -61,6 +61,8 @@
 
 mod config;
 mod safety;
+#[cfg(feature = "sim")]
+mod simulated;
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -644,6 +646,7 @@ impl RobotBuilder {
             shared,
             watchdog: Some(watchdog),
             names,
+            keep: Vec::new(),
         })
     }
 }
@@ -814,6 +817,9 @@ pub struct Robot {
     shared: Arc<Shared>,
     watchdog: Option<JoinHandle<()>>,
     names: Vec<String>,
+    /// What the robot's buses need alive (the in-process simulators of
+    /// [`Robot::simulated`]), dropped after the robot's own safe stop.
+    keep: Vec<Box<dyn std::fmt::Debug + Send + Sync>>,
 }
 
 impl Robot {

@@ -663,7 +663,7 @@ impl<'a> Joint<'a> {
         }
     }
 
-    fn recent_position(&self) -> Result<Position, WhjError> {
+    pub(crate) fn recent_position(&self) -> Result<Position, WhjError> {
         let t = *self.bus.telemetry().joint(self.id);
         if let (Some(p), Some(at)) = (t.position, t.updated)
             && self.bus.now().saturating_duration_since(at) < Duration::from_millis(100)

@@ -1,0 +1,390 @@
+//! Handles for the hot paths of a front end that drives devices call by call (a Python
+//! control loop, a teleoperation bridge): a group of wCK servos and a group of WHJ joints
+//! on one of a station's buses, each call a few transactions with no request to parse or
+//! plan, and the same checks as the catalogue's operations. The checked cyclic loop is
+//! [`CyclicLoop`](super::cyclic::CyclicLoop); a robot in SI units is
+//! [`Robot`](crate::robot::Robot).
+//!
+//! - Every value is checked before anything is sent: one out of range refuses the whole
+//!   call, naming the device, the value and the range, and nothing reaches any device.
+//! - Every reading is fresh: a device that does not answer is a failed result for that
+//!   call, never the values of an earlier one, and the call carries on past it.
+//! - A call holds its bus for its whole length: it is never interleaved with another
+//!   request's transactions.
+
+use std::sync::Mutex;
+
+use robobus_wck::{Position, ServoId, TorqueLevel};
+use robobus_whj::units::{Current, CurrentScale, Position as WhjPosition, TargetSpeed};
+use robobus_whj::{JointId, Request};
+use serde::Serialize;
+
+use super::cyclic::{JointFeedback, allowed, check_targets};
+use super::station::{Station, WckPort, WhjPort};
+use crate::ops::whj::{JointSample, ServoLoop, require_ready};
+use crate::ops::{DeviceResult, Failure, OpError};
+use crate::whj::WhjError;
+
+/// One wCK servo's reading.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct WckReading {
+    /// Position, 0..=254 steps.
+    pub position: u8,
+    /// The same position in degrees (1.055° per step, 0..=268°).
+    pub position_deg: f64,
+    /// Load, 0..=254 (no unit; `None` where the reply has none: a passive command).
+    pub load: Option<u8>,
+}
+
+impl WckReading {
+    fn of(position: Position, load: Option<u8>) -> Self {
+        Self {
+            position: position.get(),
+            position_deg: position.degrees(),
+            load,
+        }
+    }
+}
+
+/// Servo IDs from raw numbers: at least one, each 0..=30, none twice.
+fn servo_ids(ids: &[u8]) -> Result<Vec<ServoId>, OpError> {
+    if ids.is_empty() {
+        return Err(OpError::invalid("ids", "[]", "no servos given"));
+    }
+    let mut out: Vec<ServoId> = Vec::with_capacity(ids.len());
+    for &raw in ids {
+        let id = ServoId::new(raw)
+            .map_err(|e| OpError::invalid("ids", raw, format!("{e} (allowed: 0..=30)")))?;
+        if out.contains(&id) {
+            return Err(OpError::invalid("ids", raw, "given twice"));
+        }
+        out.push(id);
+    }
+    Ok(out)
+}
+
+/// wCK servos on one of a station's ports (clones share the port).
+#[derive(Debug, Clone)]
+pub struct WckServos {
+    port: WckPort,
+    ids: Vec<ServoId>,
+}
+
+impl WckServos {
+    /// Servos `ids` on the station's wCK port `bus` (`None`: its only one). Nothing is
+    /// sent.
+    pub fn new(station: &Station, bus: Option<&str>, ids: &[u8]) -> Result<Self, OpError> {
+        let ids = servo_ids(ids)?;
+        Ok(Self {
+            port: station.wck(bus)?,
+            ids,
+        })
+    }
+
+    /// The servos, in the order of every call's values and results.
+    pub fn ids(&self) -> Vec<u8> {
+        self.ids.iter().map(|id| id.get()).collect()
+    }
+
+    /// The port's name.
+    pub fn bus(&self) -> &str {
+        self.port.name()
+    }
+
+    /// Reads each servo's position and load.
+    pub fn status(&self) -> Vec<DeviceResult<u8, WckReading>> {
+        let mut bus = self.port.lock();
+        self.ids
+            .iter()
+            .map(|&id| match bus.servo(id).status() {
+                Ok(st) => {
+                    DeviceResult::ok(id.get(), WckReading::of(st.position, Some(st.load.get())))
+                }
+                Err(e) => DeviceResult::failed(id.get(), Failure::from(&OpError::from(e))),
+            })
+            .collect()
+    }
+
+    /// Checks one position per servo (whole steps 0..=254) and the torque level (0..=4).
+    fn targets(
+        &self,
+        positions: &[f64],
+        torque: u8,
+    ) -> Result<(Vec<Position>, TorqueLevel), OpError> {
+        if positions.len() != self.ids.len() {
+            return Err(OpError::invalid(
+                "positions",
+                format!("{} value(s)", positions.len()),
+                format!("one per servo: {} servo(s)", self.ids.len()),
+            ));
+        }
+        let torque = TorqueLevel::new(torque)
+            .map_err(|e| OpError::invalid("torque", torque, format!("{e} (allowed: 0..=4)")))?;
+        let ps = positions
+            .iter()
+            .zip(&self.ids)
+            .map(|(&p, id)| {
+                let whole = p.is_finite() && p.fract() == 0.0 && (0.0..=254.0).contains(&p);
+                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // checked
+                let step = whole.then_some(p as u8).and_then(|s| Position::new(s).ok());
+                step.ok_or_else(|| {
+                    OpError::invalid(
+                        format!("position of servo {id}"),
+                        p,
+                        "allowed: whole steps 0..=254",
+                    )
+                })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok((ps, torque))
+    }
+
+    /// Moves each servo to its position (steps, one per servo) at `torque` (0 strongest
+    /// ..= 4 weakest), one position command each; every value is checked before the first
+    /// is sent. Each result is the servo's reply to its command.
+    pub fn move_to(
+        &self,
+        positions: &[f64],
+        torque: u8,
+    ) -> Result<Vec<DeviceResult<u8, WckReading>>, OpError> {
+        let (ps, torque) = self.targets(positions, torque)?;
+        let mut bus = self.port.lock();
+        Ok(self
+            .ids
+            .iter()
+            .zip(ps)
+            .map(|(&id, p)| match bus.servo(id).move_to(torque, p) {
+                Ok(st) => {
+                    DeviceResult::ok(id.get(), WckReading::of(st.position, Some(st.load.get())))
+                }
+                Err(e) => DeviceResult::failed(id.get(), Failure::from(&OpError::from(e))),
+            })
+            .collect())
+    }
+
+    /// Moves every servo at once with one synchronized position packet (no replies). The
+    /// packet addresses servos 0..N-1 in order, so the group must be exactly those.
+    pub fn sync_move(&self, positions: &[f64], torque: u8) -> Result<(), OpError> {
+        let in_order = self
+            .ids
+            .iter()
+            .enumerate()
+            .all(|(i, id)| usize::from(id.get()) == i);
+        if !in_order {
+            return Err(OpError::Refused(format!(
+                "a synchronized move addresses servos 0..N-1 in order, and this group is {:?}: \
+                 make the group of servos 0..={}; nothing was sent",
+                self.ids(),
+                self.ids.len() - 1
+            )));
+        }
+        let (ps, torque) = self.targets(positions, torque)?;
+        self.port.lock().sync_move(torque, &ps)?;
+        Ok(())
+    }
+
+    /// Makes each servo passive (no torque: it can be moved by hand); each result is its
+    /// position.
+    pub fn passive(&self) -> Vec<DeviceResult<u8, WckReading>> {
+        let mut bus = self.port.lock();
+        self.ids
+            .iter()
+            .map(|&id| match bus.servo(id).passive() {
+                Ok(p) => DeviceResult::ok(id.get(), WckReading::of(p, None)),
+                Err(e) => DeviceResult::failed(id.get(), Failure::from(&OpError::from(e))),
+            })
+            .collect()
+    }
+}
+
+/// What a joint accepts, read once when the group is made.
+#[derive(Debug, Clone, Copy)]
+struct Allowed {
+    position_deg: (f64, f64),
+    speed_rpm: (f64, f64),
+    current_ma: (f64, f64),
+    scale: CurrentScale,
+}
+
+/// WHJ joints on one of a station's buses: fresh status, and one servo frame per joint
+/// per command, each target checked against the host bounds and the joint's own limits.
+#[derive(Debug)]
+pub struct WhjJoints {
+    port: WhjPort,
+    ids: Vec<JointId>,
+    allowed: Vec<Allowed>,
+    /// The work mode every joint was last found enabled in (checked before the first
+    /// command of a mode, and again after a feedback shows a joint disabled).
+    ready: Mutex<Option<ServoLoop>>,
+}
+
+impl WhjJoints {
+    /// Joints `ids` on the station's WHJ bus `bus` (`None`: its only one): connects each
+    /// (the identity handshake) and reads what it accepts (its position limits, its
+    /// model's peak speed, its current limit). A joint that does not answer fails the
+    /// whole call, naming it.
+    pub fn new(station: &Station, bus: Option<&str>, ids: &[u8]) -> Result<Self, OpError> {
+        if ids.is_empty() {
+            return Err(OpError::invalid("joints", "[]", "no joints given"));
+        }
+        let mut joints: Vec<JointId> = Vec::with_capacity(ids.len());
+        for &raw in ids {
+            let id = JointId::new(raw)
+                .map_err(|e| OpError::invalid("joints", raw, format!("{e} (allowed: 1..=30)")))?;
+            if joints.contains(&id) {
+                return Err(OpError::invalid("joints", raw, "given twice"));
+            }
+            joints.push(id);
+        }
+        let port = station.whj(bus)?;
+        let mut out = Vec::with_capacity(joints.len());
+        for &id in &joints {
+            let j = port.bus().joint(id)?;
+            let (position_deg, scale) = allowed(&j, ServoLoop::Position)?;
+            let (speed_rpm, _) = allowed(&j, ServoLoop::Speed)?;
+            let (current_ma, _) = allowed(&j, ServoLoop::Current)?;
+            out.push(Allowed {
+                position_deg,
+                speed_rpm,
+                current_ma,
+                scale,
+            });
+        }
+        Ok(Self {
+            port,
+            ids: joints,
+            allowed: out,
+            ready: Mutex::new(None),
+        })
+    }
+
+    /// The joints, in the order of every call's values and results.
+    pub fn ids(&self) -> Vec<u8> {
+        self.ids.iter().map(|id| id.get()).collect()
+    }
+
+    /// The bus's name.
+    pub fn bus(&self) -> &str {
+        self.port.name()
+    }
+
+    /// What each joint accepts as a `servo` target, `(low, high)` in that mode's unit
+    /// (degrees, RPM, mA).
+    pub fn limits(&self, servo: ServoLoop) -> Vec<(f64, f64)> {
+        self.allowed
+            .iter()
+            .map(|a| match servo {
+                ServoLoop::Position => a.position_deg,
+                ServoLoop::Speed => a.speed_rpm,
+                ServoLoop::Current => a.current_ma,
+            })
+            .collect()
+    }
+
+    /// Reads each joint: a status query and a speed read (position, speed, current,
+    /// enabled, error bits).
+    pub fn status(&self) -> Vec<DeviceResult<u8, JointSample>> {
+        crate::ops::whj::sample(self.port.bus(), &self.ids)
+    }
+
+    fn lock_ready(&self) -> std::sync::MutexGuard<'_, Option<ServoLoop>> {
+        self.ready
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
+    /// Sends one `servo` frame per joint (targets in that mode's unit: degrees, RPM, mA,
+    /// one per joint) and returns each joint's feedback (for position: where it was when
+    /// the frame arrived). Refused, with nothing sent, when a target is outside its
+    /// joint's limits, when a position target is further than the bus's step limit from
+    /// the joint's measured position (use `whj.move` for large moves), when a joint is
+    /// not enabled in that mode, or while a cyclic loop runs on the bus.
+    pub fn command(
+        &self,
+        servo: ServoLoop,
+        targets: &[f64],
+    ) -> Result<Vec<DeviceResult<u8, JointFeedback>>, OpError> {
+        check_targets(servo, &self.ids, &self.limits(servo), targets)?;
+        let bus = self.port.bus();
+        if bus.cyclic_running() {
+            return Err(OpError::Refused(format!(
+                "a cyclic loop is running on bus {}: stop it before sending servo frames; \
+                 nothing was sent",
+                self.bus()
+            )));
+        }
+        let mut ready = self.lock_ready();
+        if *ready != Some(servo) {
+            *ready = None;
+            for &id in &self.ids {
+                require_ready(&bus.joint_unchecked(id), servo, "a servo command")?;
+            }
+            *ready = Some(servo);
+        }
+        let bad =
+            |e: robobus_whj::units::UnitRangeError| OpError::invalid("targets", "", e.to_string());
+        // Every frame is made (and every value converted) before the first is sent.
+        let mut frames = Vec::with_capacity(self.ids.len());
+        for ((&joint, &t), a) in self.ids.iter().zip(targets).zip(&self.allowed) {
+            frames.push(match servo {
+                ServoLoop::Position => Request::PositionServo {
+                    joint,
+                    target: WhjPosition::from_degrees(t).map_err(bad)?,
+                },
+                ServoLoop::Speed => Request::SpeedServo {
+                    joint,
+                    target: TargetSpeed::from_rpm(t).map_err(bad)?,
+                },
+                ServoLoop::Current => Request::CurrentServo {
+                    joint,
+                    target: Current::from_milliamps(t, a.scale).map_err(bad)?,
+                },
+            });
+        }
+        if servo == ServoLoop::Position {
+            let limit = bus.config().step_limit_deg;
+            for (&id, &t) in self.ids.iter().zip(targets) {
+                let actual = bus.joint_unchecked(id).recent_position()?.degrees();
+                if (t - actual).abs() > limit {
+                    return Err(OpError::Whj(WhjError::StepTooLarge {
+                        joint: id,
+                        from_deg: actual,
+                        to_deg: t,
+                        limit_deg: limit,
+                    }));
+                }
+            }
+        }
+        let mut out = Vec::with_capacity(self.ids.len());
+        for ((&id, frame), a) in self.ids.iter().zip(frames).zip(&self.allowed) {
+            let sent = bus.joint_unchecked(id).servo_request(frame);
+            out.push(match sent {
+                Ok(f) => {
+                    if !f.is_enabled() {
+                        *ready = None;
+                    }
+                    DeviceResult::ok(
+                        id.get(),
+                        JointFeedback {
+                            position_deg: f.position.degrees(),
+                            speed_rpm: f.speed.rpm(),
+                            current_ma: f.current.milliamps(a.scale),
+                            enabled: f.is_enabled(),
+                            error: f.error.to_string(),
+                        },
+                    )
+                }
+                Err(e) => DeviceResult::failed(id.get(), Failure::from(&OpError::from(e))),
+            });
+        }
+        drop(ready);
+        Ok(out)
+    }
+}
+
+/// The handles are `Send + Sync`: a front end may keep them on any thread.
+const _: () = {
+    const fn send_sync<T: Send + Sync>() {}
+    send_sync::<WckServos>();
+    send_sync::<WhjJoints>();
+};
