@@ -42,6 +42,16 @@ from .errors import RefusedError as RefusedError
 from .errors import RobobusError as RobobusError
 from .errors import StoppedError as StoppedError
 from .errors import check as check
+from .handles import JointReadings as JointReadings
+from .handles import Readings as Readings
+from .handles import Robot as Robot
+from .handles import RobotCommand as RobotCommand
+from .handles import RobotState as RobotState
+from .handles import WckReadings as WckReadings
+from .handles import WckServo as WckServo
+from .handles import WckServos as WckServos
+from .handles import WhjJoint as WhjJoint
+from .handles import WhjJoints as WhjJoints
 
 __version__: str
 
@@ -132,6 +142,10 @@ class Station:
         rate_hz: float = ...,
         bus: str | None = ...,
     ) -> Cyclic: ...
+    def wck_servos(self, ids: Sequence[int] | npt.ArrayLike, *, bus: str | None = ...) -> WckServos: ...
+    def wck_servo(self, id: int, *, bus: str | None = ...) -> WckServo: ...
+    def whj_joints(self, ids: Sequence[int] | npt.ArrayLike, *, bus: str | None = ...) -> WhjJoints: ...
+    def whj_joint(self, id: int, *, bus: str | None = ...) -> WhjJoint: ...
     def close(self) -> list[str]: ...
     def leave(self) -> None: ...
     def __enter__(self) -> Station: ...

@@ -28,6 +28,8 @@ use robobus::catalogue::telemetry::RecvError;
 use robobus::catalogue::{self, Request, StationConfig};
 use robobus::ops::{Control, OpError, StopToken};
 
+mod handles;
+
 /// How often a wait on the main thread looks at Python's signals.
 const SIGNAL_SLICE: Duration = Duration::from_millis(10);
 
@@ -353,20 +355,7 @@ impl NativeStation {
         rate_hz: f64,
         bus: Option<String>,
     ) -> PyResult<NativeCyclic> {
-        use robobus::ops::whj::ServoLoop;
-        let servo = match mode {
-            "position" => ServoLoop::Position,
-            "speed" => ServoLoop::Speed,
-            "current" => ServoLoop::Current,
-            other => {
-                return Err(raise(
-                    py,
-                    ErrorKind::BadInput,
-                    &format!("mode {other:?}: unknown (allowed: position, speed, current)"),
-                    None,
-                ));
-            }
-        };
+        let servo = handles::servo_loop(py, mode)?;
         let station = self.get(py)?;
         let l = py
             .detach(|| {
@@ -382,6 +371,34 @@ impl NativeStation {
         Ok(NativeCyclic {
             inner: std::sync::RwLock::new(l),
         })
+    }
+
+    /// wCK servos `ids` on the port `bus` (`None`: the only one); nothing is sent.
+    #[pyo3(signature = (ids, bus))]
+    fn wck_servos(
+        &self,
+        py: Python<'_>,
+        ids: Vec<u8>,
+        bus: Option<String>,
+    ) -> PyResult<handles::NativeWckServos> {
+        let station = self.get(py)?;
+        catalogue::handles::WckServos::new(&station, bus.as_deref(), &ids)
+            .map(|inner| handles::NativeWckServos { inner })
+            .map_err(|e| op_error(py, &e))
+    }
+
+    /// WHJ joints `ids` on the bus `bus` (`None`: the only one), each connected.
+    #[pyo3(signature = (ids, bus))]
+    fn whj_joints(
+        &self,
+        py: Python<'_>,
+        ids: Vec<u8>,
+        bus: Option<String>,
+    ) -> PyResult<handles::NativeWhjJoints> {
+        let station = self.get(py)?;
+        py.detach(|| catalogue::handles::WhjJoints::new(&station, bus.as_deref(), &ids))
+            .map(|inner| handles::NativeWhjJoints { inner })
+            .map_err(|e| op_error(py, &e))
     }
 
     /// Starts a telemetry stream of a reading request at `rate_hz`.
@@ -640,6 +657,9 @@ fn _robobus(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<NativeStation>()?;
     m.add_class::<NativeTelemetry>()?;
     m.add_class::<NativeCyclic>()?;
+    m.add_class::<handles::NativeWckServos>()?;
+    m.add_class::<handles::NativeWhjJoints>()?;
+    m.add_class::<handles::NativeRobot>()?;
     m.add_function(wrap_pyfunction!(schema, m)?)?;
     m.add_function(wrap_pyfunction!(version, m)?)?;
     Ok(())

@@ -41,6 +41,19 @@ from ._robobus import (
     schema as _schema,
     version as _version,
 )
+from .handles import (
+    JointReadings,
+    Readings,
+    Robot,
+    RobotCommand,
+    RobotState,
+    WckReadings,
+    WckServo,
+    WckServos,
+    WhjJoint,
+    WhjJoints,
+    _ids,
+)
 from .errors import (
     BadInputError,
     DeviceError,
@@ -63,8 +76,18 @@ __all__ = [
     "NotAvailableError",
     "RefusedError",
     "RobobusError",
+    "JointReadings",
+    "Readings",
+    "Robot",
+    "RobotCommand",
+    "RobotState",
     "Station",
     "StoppedError",
+    "WckReadings",
+    "WckServo",
+    "WckServos",
+    "WhjJoint",
+    "WhjJoints",
     "Cycle",
     "Cyclic",
     "JointBus",
@@ -287,6 +310,26 @@ class Station:
         acceleration-limited profile. Stop it with :meth:`Cyclic.stop` (or a ``with``)."""
         ids = [int(j) for j in np.asarray(joints).ravel()]
         return Cyclic(self._native.cyclic(ids, mode, rate_hz, bus))
+
+    def wck_servos(self, ids: Sequence[int] | npt.ArrayLike, *, bus: str | None = None) -> WckServos:
+        """A handle on wCK servos ``ids`` of the port ``bus`` (needed when the station has
+        several): status, moves and passive with arrays in and out, no request per call.
+        Nothing is sent until it is used."""
+        return WckServos(self._native.wck_servos(_ids(ids, "ids"), bus))
+
+    def wck_servo(self, id: int, *, bus: str | None = None) -> WckServo:
+        """A handle on one wCK servo (see :meth:`wck_servos`)."""
+        return WckServo(self._native.wck_servos(_ids([id], "id"), bus))
+
+    def whj_joints(self, ids: Sequence[int] | npt.ArrayLike, *, bus: str | None = None) -> WhjJoints:
+        """A handle on WHJ joints ``ids`` of the bus ``bus``: status and servo frames with
+        arrays in and out, no request per call. Each joint is connected now (a silent one
+        raises :class:`NoDeviceError`)."""
+        return WhjJoints(self._native.whj_joints(_ids(ids, "ids"), bus))
+
+    def whj_joint(self, id: int, *, bus: str | None = None) -> WhjJoint:
+        """A handle on one WHJ joint (see :meth:`whj_joints`)."""
+        return WhjJoint(self._native.whj_joints(_ids([id], "id"), bus))
 
     def close(self) -> list[str]:
         """Brings every device to its safe state (wCK: the bus-wide break; WHJ: every

@@ -423,11 +423,15 @@ impl Drop for Station {
 
 /// The robot file of [`Station::simulated`]: the humanoid's servos `s0`..`s15` on
 /// `sim-wck` (centre 127, joint angle 0 there) and the arm's joints `j1`..`j7` on `sim-whj`.
+/// Its watchdog allows 0.5 s between commands (the default is 0.1 s): a cycle of
+/// [`Robot::simulated`](crate::robot::Robot::simulated) reads 16 servos at 115200 bit/s
+/// (about 45 ms), and the simulators share the caller's processor.
 #[cfg(feature = "sim")]
 pub(crate) fn simulated_robot() -> String {
     use std::fmt::Write as _;
     let mut t = String::from(
-        "[buses.sim-wck]\nkind = \"wck-external\"\n\n[buses.sim-whj]\nkind = \"whj-external\"\n",
+        "watchdog_timeout = 0.5\n\n[buses.sim-wck]\nkind = \"wck-external\"\n\n\
+         [buses.sim-whj]\nkind = \"whj-external\"\n",
     );
     let joint = |t: &mut String, name: String, bus: &str, id: u8| {
         let _ = write!(

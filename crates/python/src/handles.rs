@@ -1,0 +1,411 @@
+//! The hot-path handles: groups of wCK servos and WHJ joints on a station's bus
+//! (`robobus::catalogue::handles`) and a robot in SI units (`robobus::robot::Robot`).
+//! Results come back as flat columns (lists of floats with `NaN` where a device gave no
+//! value, a `valid` mask, per-device error messages and kinds), which the Python side turns
+//! into numpy arrays; no JSON on the way.
+
+use std::sync::Mutex;
+
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use robobus::ErrorKind;
+use robobus::catalogue::cyclic::JointFeedback;
+use robobus::catalogue::handles::{WckReading, WckServos, WhjJoints};
+use robobus::ops::DeviceResult;
+use robobus::ops::whj::{JointSample, ServoLoop};
+use robobus::robot::Robot;
+
+use crate::{op_error, raise};
+
+/// The per-device columns every group result has: `id`, `valid`, `error`, `kind`.
+fn base<'py, T>(py: Python<'py>, rows: &[DeviceResult<u8, T>]) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item(
+        "id",
+        rows.iter().map(|r| u32::from(r.id)).collect::<Vec<_>>(),
+    )?;
+    d.set_item(
+        "valid",
+        rows.iter().map(|r| r.value().is_some()).collect::<Vec<_>>(),
+    )?;
+    d.set_item(
+        "error",
+        rows.iter()
+            .map(|r| r.failure().map(|f| f.error.clone()))
+            .collect::<Vec<_>>(),
+    )?;
+    d.set_item(
+        "kind",
+        rows.iter()
+            .map(|r| r.failure().map(|f| f.kind.name()))
+            .collect::<Vec<_>>(),
+    )?;
+    Ok(d)
+}
+
+/// A float column: `f` of each value, `NaN` where the device gave none.
+fn column<T>(rows: &[DeviceResult<u8, T>], f: impl Fn(&T) -> Option<f64>) -> Vec<f64> {
+    rows.iter()
+        .map(|r| r.value().and_then(&f).unwrap_or(f64::NAN))
+        .collect()
+}
+
+fn wck_columns(py: Python<'_>, rows: &[DeviceResult<u8, WckReading>]) -> PyResult<Py<PyAny>> {
+    let d = base(py, rows)?;
+    d.set_item("position", column(rows, |v| Some(f64::from(v.position))))?;
+    d.set_item("position_deg", column(rows, |v| Some(v.position_deg)))?;
+    d.set_item("load", column(rows, |v| v.load.map(f64::from)))?;
+    Ok(d.into_any().unbind())
+}
+
+#[allow(clippy::cast_precision_loss)] // currents far below 2^52 mA
+fn whj_status_columns(
+    py: Python<'_>,
+    rows: &[DeviceResult<u8, JointSample>],
+) -> PyResult<Py<PyAny>> {
+    let d = base(py, rows)?;
+    d.set_item("position_deg", column(rows, |v| Some(v.position_deg)))?;
+    d.set_item("speed_rpm", column(rows, |v| v.speed_rpm))?;
+    d.set_item(
+        "current_ma",
+        column(rows, |v| v.current_ma.map(|c| c as f64)),
+    )?;
+    d.set_item(
+        "enabled",
+        rows.iter()
+            .map(|r| r.value().is_some_and(|v| v.enabled))
+            .collect::<Vec<_>>(),
+    )?;
+    d.set_item(
+        "errors",
+        rows.iter()
+            .map(|r| r.value().map(|v| v.error.clone()))
+            .collect::<Vec<_>>(),
+    )?;
+    Ok(d.into_any().unbind())
+}
+
+#[allow(clippy::cast_precision_loss)] // currents far below 2^52 mA
+fn whj_feedback_columns(
+    py: Python<'_>,
+    rows: &[DeviceResult<u8, JointFeedback>],
+) -> PyResult<Py<PyAny>> {
+    let d = base(py, rows)?;
+    d.set_item("position_deg", column(rows, |v| Some(v.position_deg)))?;
+    d.set_item("speed_rpm", column(rows, |v| Some(v.speed_rpm)))?;
+    d.set_item("current_ma", column(rows, |v| Some(v.current_ma as f64)))?;
+    d.set_item(
+        "enabled",
+        rows.iter()
+            .map(|r| r.value().is_some_and(|v| v.enabled))
+            .collect::<Vec<_>>(),
+    )?;
+    d.set_item(
+        "errors",
+        rows.iter()
+            .map(|r| r.value().map(|v| v.error.clone()))
+            .collect::<Vec<_>>(),
+    )?;
+    Ok(d.into_any().unbind())
+}
+
+pub(crate) fn servo_loop(py: Python<'_>, mode: &str) -> PyResult<ServoLoop> {
+    match mode {
+        "position" => Ok(ServoLoop::Position),
+        "speed" => Ok(ServoLoop::Speed),
+        "current" => Ok(ServoLoop::Current),
+        other => Err(raise(
+            py,
+            ErrorKind::BadInput,
+            &format!("mode {other:?}: unknown (allowed: position, speed, current)"),
+            None,
+        )),
+    }
+}
+
+/// wCK servos on one of a station's ports.
+#[pyclass(module = "robobus._robobus", name = "NativeWckServos", frozen)]
+#[derive(Debug)]
+pub(crate) struct NativeWckServos {
+    pub(crate) inner: WckServos,
+}
+
+#[pymethods]
+#[allow(clippy::needless_pass_by_value)] // pyo3 signatures
+impl NativeWckServos {
+    /// The servos, in the order of every call's values and results.
+    #[getter]
+    fn ids(&self) -> Vec<u8> {
+        self.inner.ids()
+    }
+
+    /// The port's name.
+    #[getter]
+    fn bus(&self) -> String {
+        self.inner.bus().to_owned()
+    }
+
+    /// Each servo's position and load, as columns.
+    fn status(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        let rows = py.detach(|| self.inner.status());
+        wck_columns(py, &rows)
+    }
+
+    /// Moves each servo (one position command each), every value checked first.
+    fn move_to(&self, py: Python<'_>, positions: Vec<f64>, torque: u8) -> PyResult<Py<PyAny>> {
+        let rows = py
+            .detach(|| self.inner.move_to(&positions, torque))
+            .map_err(|e| op_error(py, &e))?;
+        wck_columns(py, &rows)
+    }
+
+    /// One synchronized position packet for servos 0..N-1.
+    fn sync_move(&self, py: Python<'_>, positions: Vec<f64>, torque: u8) -> PyResult<()> {
+        py.detach(|| self.inner.sync_move(&positions, torque))
+            .map_err(|e| op_error(py, &e))
+    }
+
+    /// Makes each servo passive; each one's position, as columns.
+    fn passive(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        let rows = py.detach(|| self.inner.passive());
+        wck_columns(py, &rows)
+    }
+}
+
+/// WHJ joints on one of a station's buses.
+#[pyclass(module = "robobus._robobus", name = "NativeWhjJoints", frozen)]
+#[derive(Debug)]
+pub(crate) struct NativeWhjJoints {
+    pub(crate) inner: WhjJoints,
+}
+
+#[pymethods]
+#[allow(clippy::needless_pass_by_value)] // pyo3 signatures
+impl NativeWhjJoints {
+    /// The joints, in the order of every call's values and results.
+    #[getter]
+    fn ids(&self) -> Vec<u8> {
+        self.inner.ids()
+    }
+
+    /// The bus's name.
+    #[getter]
+    fn bus(&self) -> String {
+        self.inner.bus().to_owned()
+    }
+
+    /// What each joint accepts as a `mode` target, `(low, high)` in its unit.
+    fn limits(&self, py: Python<'_>, mode: &str) -> PyResult<Vec<(f64, f64)>> {
+        Ok(self.inner.limits(servo_loop(py, mode)?))
+    }
+
+    /// Each joint's status, as columns.
+    fn status(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        let rows = py.detach(|| self.inner.status());
+        whj_status_columns(py, &rows)
+    }
+
+    /// One `mode` servo frame per joint; each joint's feedback, as columns.
+    fn command(&self, py: Python<'_>, mode: &str, targets: Vec<f64>) -> PyResult<Py<PyAny>> {
+        let servo = servo_loop(py, mode)?;
+        let rows = py
+            .detach(|| self.inner.command(servo, &targets))
+            .map_err(|e| op_error(py, &e))?;
+        whj_feedback_columns(py, &rows)
+    }
+}
+
+/// A robot: its joints by name in SI units, behind its soft limits, speed limits and
+/// watchdog.
+#[pyclass(module = "robobus._robobus", name = "NativeRobot", frozen)]
+#[derive(Debug)]
+pub(crate) struct NativeRobot {
+    robot: Mutex<Option<Robot>>,
+    names: Vec<String>,
+}
+
+impl NativeRobot {
+    fn wrap(robot: Robot) -> Self {
+        Self {
+            names: robot.joint_names().to_vec(),
+            robot: Mutex::new(Some(robot)),
+        }
+    }
+
+    fn with<R>(&self, py: Python<'_>, f: impl FnOnce(&mut Robot) -> R + Send) -> PyResult<R>
+    where
+        R: Send,
+    {
+        py.detach(|| {
+            let mut guard = self
+                .robot
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
+            guard.as_mut().map(f)
+        })
+        .ok_or_else(|| {
+            raise(
+                py,
+                ErrorKind::BadInput,
+                "the robot is closed; open a new one",
+                None,
+            )
+        })
+    }
+}
+
+fn robot_error(py: Python<'_>, e: &robobus::robot::RobotError) -> PyErr {
+    raise(py, e.kind(), &e.to_string(), None)
+}
+
+fn stop_report(py: Python<'_>, r: &robobus::robot::SafeStopReport) -> PyResult<Py<PyAny>> {
+    let d = PyDict::new(py);
+    d.set_item("cause", r.cause.to_string())?;
+    d.set_item("applied_in_ms", r.applied_in.as_secs_f64() * 1e3)?;
+    d.set_item("errors", r.errors.clone())?;
+    Ok(d.into_any().unbind())
+}
+
+#[pymethods]
+#[allow(clippy::needless_pass_by_value)] // pyo3 signatures
+impl NativeRobot {
+    /// Opens the robot of a robot file (every bus it names).
+    #[staticmethod]
+    fn open(py: Python<'_>, path: std::path::PathBuf) -> PyResult<Self> {
+        py.detach(|| Robot::from_toml_file(&path))
+            .map(Self::wrap)
+            .map_err(|e| robot_error(py, &e))
+    }
+
+    /// The built-in simulated robot, in-process.
+    #[staticmethod]
+    fn simulated(py: Python<'_>) -> PyResult<Self> {
+        py.detach(Robot::simulated)
+            .map(Self::wrap)
+            .map_err(|e| robot_error(py, &e))
+    }
+
+    /// The joint names, in the order of every array.
+    #[getter]
+    fn joint_names(&self) -> Vec<String> {
+        self.names.clone()
+    }
+
+    /// Each joint's soft limits: `(min rad, max rad, max rad/s, max rad/s²)`.
+    fn limits(&self, py: Python<'_>) -> PyResult<Vec<(f64, f64, f64, f64)>> {
+        self.with(py, |r| {
+            r.limits()
+                .iter()
+                .map(|l| {
+                    (
+                        l.min_rad,
+                        l.max_rad,
+                        l.max_velocity_rad_s,
+                        l.max_acceleration_rad_s2,
+                    )
+                })
+                .collect()
+        })
+    }
+
+    /// The watchdog timeout, seconds.
+    fn watchdog_timeout(&self, py: Python<'_>) -> PyResult<f64> {
+        self.with(py, |r| r.watchdog_timeout().as_secs_f64())
+    }
+
+    /// Reads every joint: columns `position_rad`, `velocity_rad_s`, `current_a` (`NaN`
+    /// where the device reports no such value).
+    fn read(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        let states = self
+            .with(py, Robot::read)?
+            .map_err(|e| robot_error(py, &e))?;
+        let d = PyDict::new(py);
+        d.set_item(
+            "position_rad",
+            states.iter().map(|s| s.position_rad).collect::<Vec<_>>(),
+        )?;
+        d.set_item(
+            "velocity_rad_s",
+            states
+                .iter()
+                .map(|s| s.velocity_rad_s.unwrap_or(f64::NAN))
+                .collect::<Vec<_>>(),
+        )?;
+        d.set_item(
+            "current_a",
+            states
+                .iter()
+                .map(|s| s.current_a.unwrap_or(f64::NAN))
+                .collect::<Vec<_>>(),
+        )?;
+        Ok(d.into_any().unbind())
+    }
+
+    /// Sends one cycle of targets (rad, joint order): `sent_rad` and the `limited`
+    /// targets (`joint`, `kind`, `requested_rad`, `limited_rad`).
+    fn command(&self, py: Python<'_>, targets: Vec<f64>) -> PyResult<Py<PyAny>> {
+        let report = self
+            .with(py, |r| r.command(&targets))?
+            .map_err(|e| robot_error(py, &e))?;
+        let d = PyDict::new(py);
+        d.set_item("sent_rad", report.sent_rad)?;
+        let limited = pyo3::types::PyList::empty(py);
+        for l in &report.limited {
+            let e = PyDict::new(py);
+            e.set_item("joint", &l.joint)?;
+            e.set_item(
+                "kind",
+                match l.kind {
+                    robobus::robot::LimitKind::Position => "position",
+                    robobus::robot::LimitKind::Motion => "motion",
+                    robobus::robot::LimitKind::Step => "step",
+                },
+            )?;
+            e.set_item("requested_rad", l.requested_rad)?;
+            e.set_item("limited_rad", l.limited_rad)?;
+            limited.append(e)?;
+        }
+        d.set_item("limited", limited)?;
+        Ok(d.into_any().unbind())
+    }
+
+    /// Puts every bus in its safe state now (once); what it did.
+    fn safe_stop(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        let r = self.with(py, |r| r.safe_stop())?;
+        stop_report(py, &r)
+    }
+
+    /// The safe stop the robot is in, if any.
+    fn safe_stop_report(&self, py: Python<'_>) -> PyResult<Option<Py<PyAny>>> {
+        match self.with(py, |r| r.safe_stop_report())? {
+            Some(r) => stop_report(py, &r).map(Some),
+            None => Ok(None),
+        }
+    }
+
+    /// Leaves the safe state (WHJ joints re-enabled in position mode).
+    fn resume(&self, py: Python<'_>) -> PyResult<()> {
+        self.with(py, Robot::resume)?
+            .map_err(|e| robot_error(py, &e))
+    }
+
+    /// Closes the robot: every bus to its safe state, the ports released. A second call
+    /// does nothing.
+    fn close(&self, py: Python<'_>) {
+        let taken = self
+            .robot
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .take();
+        py.detach(|| drop(taken));
+    }
+
+    /// Whether `close` was called.
+    #[getter]
+    fn closed(&self) -> bool {
+        self.robot
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .is_none()
+    }
+}
