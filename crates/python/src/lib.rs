@@ -639,6 +639,42 @@ fn schema(py: Python<'_>, of: &str) -> PyResult<String> {
     Ok(v.to_string())
 }
 
+/// Device facts a front end converts with: the wCK baud rates, the wCK position range and
+/// degrees per step, the WHJ position and speed units.
+#[pyfunction]
+fn facts(py: Python<'_>) -> PyResult<Py<PyAny>> {
+    let d = pyo3::types::PyDict::new(py);
+    d.set_item(
+        "wck_bauds",
+        robobus_wck::BaudRate::ALL
+            .iter()
+            .map(|b| b.bits_per_second())
+            .collect::<Vec<_>>(),
+    )?;
+    d.set_item(
+        "wck_default_baud",
+        robobus_wck::BaudRate::DEFAULT.bits_per_second(),
+    )?;
+    d.set_item("wck_position_max", robobus_wck::Position::MAX.get())?;
+    d.set_item(
+        "wck_degrees_per_step",
+        robobus_wck::Position::DEGREES_PER_STEP,
+    )?;
+    d.set_item(
+        "whj_degrees_per_count",
+        robobus_whj::units::Position(1).degrees(),
+    )?;
+    d.set_item(
+        "whj_rpm_per_speed_count",
+        robobus_whj::units::ActualSpeed(1).rpm(),
+    )?;
+    d.set_item(
+        "whj_rpm_per_target_count",
+        robobus_whj::units::TargetSpeed(1).rpm(),
+    )?;
+    Ok(d.into_any().unbind())
+}
+
 /// The library's version.
 #[pyfunction]
 fn version() -> &'static str {
@@ -662,5 +698,6 @@ fn _robobus(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<handles::NativeRobot>()?;
     m.add_function(wrap_pyfunction!(schema, m)?)?;
     m.add_function(wrap_pyfunction!(version, m)?)?;
+    m.add_function(wrap_pyfunction!(facts, m)?)?;
     Ok(())
 }

@@ -373,6 +373,16 @@ def test_the_stubs_are_the_schemas_and_type_check_the_examples(tmp_path: pathlib
     )
     assert mypy.returncode == 1 and "whj" not in mypy.stderr, mypy.stdout
     assert 'incompatible type "str"; expected "int"' in mypy.stdout, mypy.stdout
+    # The package's own Python modules type-check against the native module's stub.
+    src = PKG / "python" / "robobus"
+    mypy = subprocess.run(
+        [sys.executable, "-m", "mypy", "--strict", "--cache-dir", str(tmp_path / "cache2")]
+        + [str(src / m) for m in ("handles.py", "lerobot.py", "errors.py")],
+        capture_output=True,
+        text=True,
+        cwd=src.parent,
+    )
+    assert mypy.returncode == 0, mypy.stdout + mypy.stderr
 
 
 def test_the_examples_run_on_the_simulators() -> None:
