@@ -394,10 +394,16 @@ def test_the_examples_run_on_the_simulators() -> None:
 
 def test_the_readmes_python_example_runs() -> None:
     text = (ROOT / "README.md").read_text()
-    code = text.split("```python\n", 1)[1].split("```", 1)[0]
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
-    assert r.returncode == 0, r.stderr
-    assert "'id': 's0'" in r.stdout, r.stdout
+    blocks = [b.split("```", 1)[0] for b in text.split("```python\n")[1:]]
+    assert len(blocks) == 3
+    outputs = []
+    for code in blocks:
+        r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+        assert r.returncode == 0, code + r.stderr
+        outputs.append(r.stdout)
+    assert "'id': 's0'" in outputs[0], outputs[0]
+    assert outputs[1].startswith("[127. 127. 127. 127.]"), outputs[1]
+    assert "'wrist': " in outputs[2] and "'shoulder': " in outputs[2], outputs[2]
 
 
 def test_the_librarys_log_events_go_to_pythons_logging() -> None:
