@@ -5,6 +5,7 @@
 //! robobus-bench serve-whj --joints N --delay-us D [--fast-wire]
 //! robobus-bench poll-wck --servos N --baud B --secs S [--turnaround]
 //! robobus-bench telemetry --secs S
+//! robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire]
 //! ```
 //!
 //! `telemetry` runs the telemetry fan-out cases alone and prints their section of the
@@ -21,7 +22,7 @@ use robobus_bench::{Options, report, run, wck, whj};
 fn usage() -> ExitCode {
     let _ = writeln!(
         std::io::stderr(),
-        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround]\n       robobus-bench telemetry --secs S"
+        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround]\n       robobus-bench telemetry --secs S\n       robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire]"
     );
     ExitCode::from(2)
 }
@@ -109,6 +110,61 @@ fn poll_wck(args: &[String]) -> ExitCode {
     }
 }
 
+/// `servo-whj`: the free-running servo cycle alone, ours over python-can's UDP multicast
+/// bus against a simulator process (run it inside a network namespace with a multicast
+/// route on loopback).
+fn servo_whj(args: &[String]) -> ExitCode {
+    let mut spec = whj::ChainSpec {
+        joints: 1,
+        delay: whj::DEFAULT_DELAY,
+        fast_wire: false,
+    };
+    let mut secs = 3.0;
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--joints" => match it.next().and_then(|v| v.parse().ok()) {
+                Some(n) if (1..=30).contains(&n) => spec.joints = n,
+                _ => return usage(),
+            },
+            "--delay-us" => match it.next().and_then(|v| v.parse::<u64>().ok()) {
+                Some(us) if us <= 100_000 => spec.delay = Duration::from_micros(us),
+                _ => return usage(),
+            },
+            "--secs" => match it.next().and_then(|v| v.parse::<f64>().ok()) {
+                Some(s) if (0.01..=600.0).contains(&s) => secs = s,
+                _ => return usage(),
+            },
+            "--fast-wire" => spec.fast_wire = true,
+            _ => return usage(),
+        }
+    }
+    let exe = match std::env::current_exe() {
+        Ok(e) => e,
+        Err(e) => {
+            let _ = writeln!(std::io::stderr(), "servo-whj: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    match whj::udp_compare(&exe, spec, Duration::from_secs_f64(secs), None) {
+        Ok(r) => {
+            let _ = writeln!(
+                std::io::stdout(),
+                "servo-whj {} joint(s) UDP: {:.0} Hz, {} errors, client CPU {:.1} µs/cycle",
+                spec.joints,
+                r.rate_hz(),
+                r.errors,
+                r.cpu_per_cycle_us()
+            );
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            let _ = writeln!(std::io::stderr(), "servo-whj: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
 fn telemetry(args: &[String]) -> ExitCode {
     let secs = match args {
         [] => 3.0,
@@ -138,6 +194,9 @@ fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     if args.first().map(String::as_str) == Some("serve-whj") {
         return serve_whj(args.get(1..).unwrap_or_default());
+    }
+    if args.first().map(String::as_str) == Some("servo-whj") {
+        return servo_whj(args.get(1..).unwrap_or_default());
     }
     if args.first().map(String::as_str) == Some("telemetry") {
         return telemetry(args.get(1..).unwrap_or_default());

@@ -1,15 +1,26 @@
-"""Benchmark: a loop of wCK status reads through the Python bindings, against the same loop
-in Rust (`robobus-bench poll-wck --turnaround`: the client library on a simulated servo with
-the manual's turnaround, as `robobus sim wck` has it) and against the pyserial peer of the
-benchmarks (`scripts/bench/wck_poll_peer.py`, which waits for nothing but the two reply
-bytes), each on a simulated servo behind a pty at 115200 bit/s on the wall clock. Prints
-rates, CPU per transaction and the ratios, one run each.
+"""Benchmark: loops of status reads and servo cycles through the Python bindings, against
+the same loops in Rust and against the pure-Python peers of the benchmarks, in rate and in
+CPU per transaction, one run each:
+
+- wCK status reads on a simulated servo behind a pty at 115200 bit/s (`robobus sim wck`,
+  the manual's turnaround): the bindings through a request (`station.run`) and through a
+  servo handle (`station.wck_servo(0).status()`), on the main thread and on another; the
+  Rust loop (`robobus-bench poll-wck --turnaround`); the pyserial peer
+  (`scripts/bench/wck_poll_peer.py`, which waits for nothing but the two reply bytes).
+- WHJ position servo cycles (one frame, its 16-byte feedback) with one joint on
+  python-can's UDP multicast bus, against a simulator process with no processing delay
+  (`robobus-bench serve-whj --delay-us 0`), inside a private network namespace: the
+  bindings through a joint handle (`station.whj_joint(1).command_position(...)`), the Rust
+  loop (`robobus-bench servo-whj`, `Joint::command_position`) and the python-can peer
+  (`scripts/bench/whj_servo_peer.py`).
 
     target/pybind/bin/python crates/python/bench/status_loop.py [--seconds 3]
 
-Needs the package installed (scripts/py/test-bindings does it), the release robobus and
-robobus-bench binaries (cargo build --release -p robobus-cli -p robobus-bench) and the
-pyserial venv of the benchmarks (scripts/py/ensure-pyserial).
+Needs the package installed (scripts/py/test-bindings does it, with the dev profile; for
+figures a user sees, install it with the release profile), the release robobus and
+robobus-bench binaries (cargo build --release -p robobus-cli -p robobus-bench), the
+Python peers' venv (scripts/py/ensure-pyserial) and `unshare -n` (root or user
+namespaces) for the WHJ part.
 """
 
 from __future__ import annotations
@@ -20,6 +31,7 @@ import pathlib
 import re
 import signal
 import subprocess
+import sys
 import threading
 import time
 
@@ -69,6 +81,75 @@ def bindings(port: str, seconds: float, on_main: bool) -> dict[str, float]:
     return out
 
 
+def handle(port: str, seconds: float) -> dict[str, float]:
+    with robobus.open_wck(port) as station:
+        servo = station.wck_servo(0)
+        servo.status()
+        n = 0
+        cpu0, t0 = time.process_time(), time.perf_counter()
+        end = t0 + seconds
+        while time.perf_counter() < end:
+            servo.status()
+            n += 1
+        return {
+            "rate": n / (time.perf_counter() - t0),
+            "cpu_us": (time.process_time() - cpu0) / n * 1e6,
+        }
+
+
+def peers_python() -> str:
+    return subprocess.run(
+        [str(ROOT / "scripts" / "py" / "ensure-pyserial")], capture_output=True, text=True, check=True
+    ).stdout.strip()
+
+
+def whj(seconds: float) -> dict[str, dict[str, float]]:
+    """The WHJ part; runs inside the private network namespace."""
+    bench = str(RELEASE / "robobus-bench")
+    r = subprocess.run(
+        [bench, "servo-whj", "--joints", "1", "--delay-us", "0", "--secs", str(seconds)],
+        capture_output=True, text=True, check=True,
+    )
+    m = re.search(r"([\d.]+) Hz, \d+ errors, client CPU ([\d.]+) µs/cycle", r.stdout)
+    assert m is not None, r.stdout + r.stderr
+    out = {"Rust (robobus-bench servo-whj)": {"rate": float(m.group(1)), "cpu_us": float(m.group(2))}}
+    sim = subprocess.Popen(
+        [bench, "serve-whj", "--joints", "1", "--delay-us", "0"],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+    )
+    try:
+        assert sim.stdout is not None and sim.stdout.readline().strip() == "READY"
+        with robobus.open_whj("udp") as station:
+            station.whj.mode("1", "position", check=True)
+            station.whj.enable("1", check=True)
+            joint = station.whj_joint(1)
+            here = joint.status()["position_deg"]
+            joint.command_position(here)
+            n = 0
+            cpu0, t0 = time.process_time(), time.perf_counter()
+            end = t0 + seconds
+            while time.perf_counter() < end:
+                joint.command_position(here)
+                n += 1
+            out["bindings (joint handle)"] = {
+                "rate": n / (time.perf_counter() - t0),
+                "cpu_us": (time.process_time() - cpu0) / n * 1e6,
+            }
+            station.whj.disable("1", check=True)
+        peer = subprocess.run(
+            [peers_python(), str(ROOT / "scripts" / "bench" / "whj_servo_peer.py"),
+             "--joints", "1", "--seconds", str(seconds)],
+            capture_output=True, text=True, check=True,
+        )
+        d = json.loads(peer.stdout)
+        out["python-can peer"] = {"rate": d["cycles"] / d["elapsed"], "cpu_us": d["cpu"] / d["cycles"] * 1e6}
+    finally:
+        assert sim.stdin is not None
+        sim.stdin.close()
+        sim.wait(timeout=20)
+    return out
+
+
 def rust(seconds: float) -> dict[str, float]:
     r = subprocess.run(
         [str(RELEASE / "robobus-bench"), "poll-wck", "--servos", "1", "--baud", "115200",
@@ -82,11 +163,8 @@ def rust(seconds: float) -> dict[str, float]:
 
 
 def pyserial(port: str, seconds: float) -> dict[str, float]:
-    py = subprocess.run(
-        [str(ROOT / "scripts" / "py" / "ensure-pyserial")], capture_output=True, text=True, check=True
-    ).stdout.strip()
     r = subprocess.run(
-        [py, str(ROOT / "scripts" / "bench" / "wck_poll_peer.py"), "--port", port,
+        [peers_python(), str(ROOT / "scripts" / "bench" / "wck_poll_peer.py"), "--port", port,
          "--servos", "1", "--seconds", str(seconds)],
         capture_output=True, text=True, check=True,
     )
@@ -94,30 +172,51 @@ def pyserial(port: str, seconds: float) -> dict[str, float]:
     return {"rate": d["cycles"] / d["elapsed"], "cpu_us": d["cpu"] / d["cycles"] * 1e6}
 
 
+def table(title: str, results: dict[str, dict[str, float]], base: str, peer: str) -> None:
+    print(f"\n{title}\n")
+    print(f"| loop | per second | CPU µs each | rate / Rust | rate / {peer.split()[0]} | CPU / {peer.split()[0]} |")
+    print("|---|---|---|---|---|---|")
+    for name, r in results.items():
+        print(
+            f"| {name} | {r['rate']:.0f} | {r['cpu_us']:.0f} | "
+            f"{r['rate'] / results[base]['rate']:.2f} | {r['rate'] / results[peer]['rate']:.2f} | "
+            f"{r['cpu_us'] / results[peer]['cpu_us']:.2f} |"
+        )
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--seconds", type=float, default=3.0)
+    ap.add_argument("--whj-only", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.whj_only:
+        print(json.dumps(whj(args.seconds)))
+        return
     sim, port = sim_port()
     try:
         results = {
-            "bindings (main thread)": bindings(port, args.seconds, True),
-            "bindings (other thread)": bindings(port, args.seconds, False),
+            "bindings, request (main thread)": bindings(port, args.seconds, True),
+            "bindings, request (other thread)": bindings(port, args.seconds, False),
+            "bindings, servo handle": handle(port, args.seconds),
             "pyserial peer": pyserial(port, args.seconds),
         }
     finally:
         sim.send_signal(signal.SIGINT)
         sim.wait(timeout=20)
     results["Rust (robobus-bench poll-wck)"] = rust(args.seconds)
-    base = results["Rust (robobus-bench poll-wck)"]
-    peer = results["pyserial peer"]
-    print("| loop | status reads/s | CPU µs/read | rate / Rust | rate / pyserial |")
-    print("|---|---|---|---|---|")
-    for name, r in results.items():
-        print(
-            f"| {name} | {r['rate']:.0f} | {r['cpu_us']:.0f} | "
-            f"{r['rate'] / base['rate']:.2f} | {r['rate'] / peer['rate']:.2f} |"
-        )
+    table("wCK status reads, 1 servo, pty, 115200 bit/s", results, "Rust (robobus-bench poll-wck)", "pyserial peer")
+    inner = subprocess.run(
+        ["unshare", "-n", "sh", "-c",
+         'ip link set lo up && ip route add 224.0.0.0/4 dev lo && exec "$@"', "netns",
+         sys.executable, __file__, "--whj-only", "--seconds", str(args.seconds)],
+        capture_output=True, text=True,
+    )
+    if inner.returncode != 0:
+        print(f"\nWHJ part skipped: {inner.stderr.strip()[-300:]}")
+        return
+    whj_results = json.loads(inner.stdout.strip().splitlines()[-1])
+    table("WHJ position servo cycles, 1 joint, UDP multicast, 1 / 5 Mbit/s wire", whj_results,
+          "Rust (robobus-bench servo-whj)", "python-can peer")
 
 
 if __name__ == "__main__":
