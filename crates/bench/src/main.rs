@@ -27,7 +27,8 @@ fn usage() -> ExitCode {
     ExitCode::from(2)
 }
 
-fn serve_whj(args: &[String]) -> ExitCode {
+/// `--joints N --delay-us D [--fast-wire]` and, where `secs` is given, `--secs S`.
+fn chain_args(args: &[String], mut secs: Option<&mut f64>) -> Option<whj::ChainSpec> {
     let mut spec = whj::ChainSpec {
         joints: 1,
         delay: whj::DEFAULT_DELAY,
@@ -38,16 +39,27 @@ fn serve_whj(args: &[String]) -> ExitCode {
         match a.as_str() {
             "--joints" => match it.next().and_then(|v| v.parse().ok()) {
                 Some(n) if (1..=30).contains(&n) => spec.joints = n,
-                _ => return usage(),
+                _ => return None,
             },
-            "--delay-us" => match it.next().and_then(|v| v.parse().ok()) {
-                Some(us) => spec.delay = Duration::from_micros(us),
-                None => return usage(),
+            "--delay-us" => match it.next().and_then(|v| v.parse::<u64>().ok()) {
+                Some(us) if us <= 100_000 => spec.delay = Duration::from_micros(us),
+                _ => return None,
+            },
+            "--secs" if secs.is_some() => match it.next().and_then(|v| v.parse::<f64>().ok()) {
+                Some(v) if (0.01..=600.0).contains(&v) => **secs.as_mut()? = v,
+                _ => return None,
             },
             "--fast-wire" => spec.fast_wire = true,
-            _ => return usage(),
+            _ => return None,
         }
     }
+    Some(spec)
+}
+
+fn serve_whj(args: &[String]) -> ExitCode {
+    let Some(spec) = chain_args(args, None) else {
+        return usage();
+    };
     match whj::serve_whj_process(spec) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
@@ -114,31 +126,10 @@ fn poll_wck(args: &[String]) -> ExitCode {
 /// bus against a simulator process (run it inside a network namespace with a multicast
 /// route on loopback).
 fn servo_whj(args: &[String]) -> ExitCode {
-    let mut spec = whj::ChainSpec {
-        joints: 1,
-        delay: whj::DEFAULT_DELAY,
-        fast_wire: false,
-    };
     let mut secs = 3.0;
-    let mut it = args.iter();
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "--joints" => match it.next().and_then(|v| v.parse().ok()) {
-                Some(n) if (1..=30).contains(&n) => spec.joints = n,
-                _ => return usage(),
-            },
-            "--delay-us" => match it.next().and_then(|v| v.parse::<u64>().ok()) {
-                Some(us) if us <= 100_000 => spec.delay = Duration::from_micros(us),
-                _ => return usage(),
-            },
-            "--secs" => match it.next().and_then(|v| v.parse::<f64>().ok()) {
-                Some(s) if (0.01..=600.0).contains(&s) => secs = s,
-                _ => return usage(),
-            },
-            "--fast-wire" => spec.fast_wire = true,
-            _ => return usage(),
-        }
-    }
+    let Some(spec) = chain_args(args, Some(&mut secs)) else {
+        return usage();
+    };
     let exe = match std::env::current_exe() {
         Ok(e) => e,
         Err(e) => {

@@ -58,52 +58,73 @@ fn wck_columns(py: Python<'_>, rows: &[DeviceResult<u8, WckReading>]) -> PyResul
     Ok(d.into_any().unbind())
 }
 
-#[allow(clippy::cast_precision_loss)] // currents far below 2^52 mA
-fn whj_status_columns(
-    py: Python<'_>,
-    rows: &[DeviceResult<u8, JointSample>],
-) -> PyResult<Py<PyAny>> {
-    let d = base(py, rows)?;
-    d.set_item("position_deg", column(rows, |v| Some(v.position_deg)))?;
-    d.set_item("speed_rpm", column(rows, |v| v.speed_rpm))?;
-    d.set_item(
-        "current_ma",
-        column(rows, |v| v.current_ma.map(|c| c as f64)),
-    )?;
-    d.set_item(
-        "enabled",
-        rows.iter()
-            .map(|r| r.value().is_some_and(|v| v.enabled))
-            .collect::<Vec<_>>(),
-    )?;
-    d.set_item(
-        "errors",
-        rows.iter()
-            .map(|r| r.value().map(|v| v.error.clone()))
-            .collect::<Vec<_>>(),
-    )?;
-    Ok(d.into_any().unbind())
+/// A WHJ joint's values, as a status sample or a servo frame's feedback has them.
+trait JointValues {
+    fn position_deg(&self) -> f64;
+    fn speed_rpm(&self) -> Option<f64>;
+    fn current_ma(&self) -> Option<i64>;
+    fn enabled(&self) -> bool;
+    fn error(&self) -> &str;
+}
+
+impl JointValues for JointSample {
+    fn position_deg(&self) -> f64 {
+        self.position_deg
+    }
+    fn speed_rpm(&self) -> Option<f64> {
+        self.speed_rpm
+    }
+    fn current_ma(&self) -> Option<i64> {
+        self.current_ma
+    }
+    fn enabled(&self) -> bool {
+        self.enabled
+    }
+    fn error(&self) -> &str {
+        &self.error
+    }
+}
+
+impl JointValues for JointFeedback {
+    fn position_deg(&self) -> f64 {
+        self.position_deg
+    }
+    fn speed_rpm(&self) -> Option<f64> {
+        Some(self.speed_rpm)
+    }
+    fn current_ma(&self) -> Option<i64> {
+        Some(self.current_ma)
+    }
+    fn enabled(&self) -> bool {
+        self.enabled
+    }
+    fn error(&self) -> &str {
+        &self.error
+    }
 }
 
 #[allow(clippy::cast_precision_loss)] // currents far below 2^52 mA
-fn whj_feedback_columns(
+fn whj_columns<T: JointValues>(
     py: Python<'_>,
-    rows: &[DeviceResult<u8, JointFeedback>],
+    rows: &[DeviceResult<u8, T>],
 ) -> PyResult<Py<PyAny>> {
     let d = base(py, rows)?;
-    d.set_item("position_deg", column(rows, |v| Some(v.position_deg)))?;
-    d.set_item("speed_rpm", column(rows, |v| Some(v.speed_rpm)))?;
-    d.set_item("current_ma", column(rows, |v| Some(v.current_ma as f64)))?;
+    d.set_item("position_deg", column(rows, |v| Some(v.position_deg())))?;
+    d.set_item("speed_rpm", column(rows, JointValues::speed_rpm))?;
+    d.set_item(
+        "current_ma",
+        column(rows, |v| v.current_ma().map(|c| c as f64)),
+    )?;
     d.set_item(
         "enabled",
         rows.iter()
-            .map(|r| r.value().is_some_and(|v| v.enabled))
+            .map(|r| r.value().is_some_and(JointValues::enabled))
             .collect::<Vec<_>>(),
     )?;
     d.set_item(
         "errors",
         rows.iter()
-            .map(|r| r.value().map(|v| v.error.clone()))
+            .map(|r| r.value().map(|v| v.error().to_owned()))
             .collect::<Vec<_>>(),
     )?;
     Ok(d.into_any().unbind())
@@ -147,7 +168,9 @@ impl NativeWckServos {
 
     /// Each servo's position and load, as columns.
     fn status(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
-        let rows = py.detach(|| self.inner.status());
+        let rows = py
+            .detach(|| self.inner.status())
+            .map_err(|e| op_error(py, &e))?;
         wck_columns(py, &rows)
     }
 
@@ -167,7 +190,9 @@ impl NativeWckServos {
 
     /// Makes each servo passive; each one's position, as columns.
     fn passive(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
-        let rows = py.detach(|| self.inner.passive());
+        let rows = py
+            .detach(|| self.inner.passive())
+            .map_err(|e| op_error(py, &e))?;
         wck_columns(py, &rows)
     }
 }
@@ -201,8 +226,10 @@ impl NativeWhjJoints {
 
     /// Each joint's status, as columns.
     fn status(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
-        let rows = py.detach(|| self.inner.status());
-        whj_status_columns(py, &rows)
+        let rows = py
+            .detach(|| self.inner.status())
+            .map_err(|e| op_error(py, &e))?;
+        whj_columns(py, &rows)
     }
 
     /// One `mode` servo frame per joint; each joint's feedback, as columns.
@@ -211,7 +238,7 @@ impl NativeWhjJoints {
         let rows = py
             .detach(|| self.inner.command(servo, &targets))
             .map_err(|e| op_error(py, &e))?;
-        whj_feedback_columns(py, &rows)
+        whj_columns(py, &rows)
     }
 }
 

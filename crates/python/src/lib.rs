@@ -264,6 +264,9 @@ impl NativeStation {
             let job_stop = stop.clone();
             main_worker(Box::new(move || {
                 let r = catalogue::run(&station, &req, &mut Control::new(&job_stop));
+                // Let go of the station before the caller hears of the report, so that a
+                // `close()` right after it finds the station unshared and closes it.
+                drop(station);
                 let _ = tx.send(r);
             }))?;
             wait_for(py, rx, &stop)?

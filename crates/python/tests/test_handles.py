@@ -6,6 +6,10 @@ and commands in radians behind its limits and watchdog, and closes into its safe
 
 from __future__ import annotations
 
+import os
+import pathlib
+import signal
+import subprocess
 import time
 from typing import Iterator
 
@@ -13,6 +17,9 @@ import numpy as np
 import pytest
 
 import robobus
+
+ROOT = pathlib.Path(__file__).resolve().parents[3]
+BIN = os.environ.get("ROBOBUS_BIN", str(ROOT / "target" / "debug" / "robobus"))
 
 
 @pytest.fixture
@@ -162,7 +169,9 @@ def test_the_robot_in_si_units() -> None:
         targets[-1] = 5.0
         sent = robot.command(targets)
         assert {x["joint"] for x in sent.limited} == {"j7"}
-        assert [x["kind"] for x in sent.limited] == ["position", "motion"]
+        kinds = [x["kind"] for x in sent.limited]
+        # The step limit acts too when the wall clock let the joint fall behind.
+        assert kinds[:2] == ["position", "motion"] and set(kinds[2:]) <= {"step"}, kinds
         assert sent.limited[0]["limited_rad"] == 2.0
         assert abs(sent.sent_rad[-1]) < 0.1, "the set-point follows within the speed limit"
         with pytest.raises(robobus.BadInputError, match="22"):
@@ -181,3 +190,22 @@ def test_the_robot_in_si_units() -> None:
     robot.close()
     with pytest.raises(robobus.BadInputError, match="closed"):
         robot.read()
+
+
+def test_a_handle_does_not_keep_the_port_open_after_close() -> None:
+    sim = subprocess.Popen([BIN, "sim", "wck", "--servos", "0"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert sim.stdout is not None
+        port = sim.stdout.readline().strip()
+        station = robobus.open_wck(port)
+        servo = station.wck_servo(0)
+        assert servo.status()["position"] == 127.0
+        station.close()
+        with pytest.raises(robobus.RefusedError, match="is closed"):
+            servo.status()
+        # The port is free at once, although the handle still exists.
+        with robobus.open_wck(port) as again:
+            assert again.wck_servo(0).status()["position"] == 127.0
+    finally:
+        sim.send_signal(signal.SIGINT)
+        sim.wait(timeout=20)

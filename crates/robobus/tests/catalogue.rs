@@ -10,15 +10,13 @@
     clippy::many_single_char_names
 )]
 
+mod station_support;
+
 use robobus::catalogue::bounds::ConfirmClass;
 use robobus::catalogue::{self, ErrorKind, Request, Station, WckPort, WhjPort};
 use robobus::ops::Control;
-use robobus::wck::WckBus;
 use robobus::whj::{JointBus, JointBusConfig};
-use robobus_link::ByteLink as _;
-use robobus_sim::wck::{Bus, BusConfig, Model, SimLink};
 use robobus_sim::whj::{WhjBus, WhjModel, WhjSimLink};
-use robobus_wck::BaudRate;
 
 /// The station and the handles are shared by a server's threads.
 const _: () = {
@@ -32,23 +30,7 @@ const _: () = {
 /// 3 wCK servos (0..=2) and 2 WHJ joints (1, 2) on the virtual clocks, and the handles
 /// that keep the simulators.
 fn station() -> (Station, WckPort, WhjPort) {
-    let (mut link, sim) =
-        SimLink::virtual_clock(Bus::with_servos(BusConfig::default(), Model::W1108, 0..3));
-    let now = link.now();
-    link.sleep_until(now + std::time::Duration::from_millis(100));
-    let wck = WckBus::new(
-        Box::new(link) as robobus::robot::DynByteLink,
-        BaudRate::B115200,
-    )
-    .unwrap();
-    let (whj_link, whj_sim) = WhjSimLink::new(WhjBus::chain(1..=2, WhjModel::Whj30, 11));
-    let whj = JointBus::open_with(whj_link, JointBusConfig::default()).unwrap();
-    let mut s = Station::new();
-    let w = s.add_wck("arm-wck", wck);
-    let j = s.add_whj("arm-whj", whj);
-    s.keep(Box::new(std::sync::Mutex::new(sim)));
-    s.keep(Box::new(std::sync::Mutex::new(whj_sim)));
-    (s, w, j)
+    station_support::station("arm-wck", "arm-whj")
 }
 
 fn parse(json: &str) -> Request {

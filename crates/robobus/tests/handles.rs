@@ -4,37 +4,17 @@
 
 #![allow(clippy::unwrap_used, clippy::panic, clippy::result_large_err)]
 
+mod station_support;
+
 use robobus::catalogue::handles::{WckServos, WhjJoints};
 use robobus::catalogue::{self, ErrorKind, Request, Station, WckPort, WhjPort};
 use robobus::ops::Control;
 use robobus::ops::whj::ServoLoop;
 use robobus::robot::Robot;
-use robobus::wck::WckBus;
-use robobus::whj::{JointBus, JointBusConfig};
-use robobus_link::ByteLink as _;
-use robobus_sim::wck::{Bus, BusConfig, Model, SimLink};
-use robobus_sim::whj::{WhjBus, WhjModel, WhjSimLink};
-use robobus_wck::BaudRate;
 
-/// wCK servos 0..=2, WHJ joints 1 and 2.
+/// wCK servos 0..=2 on `legs`, WHJ joints 1 and 2 on `arm`.
 fn station() -> (Station, WckPort, WhjPort) {
-    let (mut link, sim) =
-        SimLink::virtual_clock(Bus::with_servos(BusConfig::default(), Model::W1108, 0..3));
-    let now = link.now();
-    link.sleep_until(now + std::time::Duration::from_millis(100));
-    let wck = WckBus::new(
-        Box::new(link) as robobus::robot::DynByteLink,
-        BaudRate::B115200,
-    )
-    .unwrap();
-    let (whj_link, whj_sim) = WhjSimLink::new(WhjBus::chain(1..=2, WhjModel::Whj30, 11));
-    let whj = JointBus::open_with(whj_link, JointBusConfig::default()).unwrap();
-    let mut s = Station::new();
-    let w = s.add_wck("legs", wck);
-    let j = s.add_whj("arm", whj);
-    s.keep(Box::new(std::sync::Mutex::new(sim)));
-    s.keep(Box::new(std::sync::Mutex::new(whj_sim)));
-    (s, w, j)
+    station_support::station("legs", "arm")
 }
 
 fn run(s: &Station, json: &str) {
@@ -60,7 +40,7 @@ fn wck_servos_read_each_servo_and_fail_a_silent_one_alone() {
     let servos = WckServos::new(&s, None, &[0, 5, 2]).unwrap();
     assert_eq!(servos.ids(), [0, 5, 2]);
     assert_eq!(servos.bus(), "legs");
-    let got = servos.status();
+    let got = servos.status().unwrap();
     assert_eq!(
         json(&got[0]),
         r#"{"id":0,"position":127,"position_deg":133.97254901960784,"load":0}"#
@@ -100,7 +80,7 @@ fn wck_moves_check_every_value_before_the_first_packet() {
         before.0 + 4,
         "one packet for the whole group"
     );
-    let passive = servos.passive();
+    let passive = servos.passive().unwrap();
     assert!(
         passive.iter().all(|r| json(r).contains("\"load\":null")),
         "{passive:?}"
@@ -138,14 +118,14 @@ fn whj_joints_command_only_what_each_joint_accepts() {
     assert_eq!(joints.ids(), [2, 1]);
     let limits = joints.limits(ServoLoop::Speed);
     assert_eq!(limits, [(-37.5, 37.5), (-37.5, 37.5)]);
-    let status = joints.status();
+    let status = joints.status().unwrap();
     assert_eq!(status.len(), 2);
     assert!(
         json(&status[0]).starts_with(r#"{"id":2,"position_deg":"#),
         "{status:?}"
     );
     run(&s, r#"{"op": "whj.disable", "joints": "1-2"}"#);
-    assert!(json(&joints.status()[0]).contains(r#""enabled":false"#));
+    assert!(json(&joints.status().unwrap()[0]).contains(r#""enabled":false"#));
 
     // Not enabled: refused before any servo frame.
     let e = joints
@@ -159,6 +139,7 @@ fn whj_joints_command_only_what_each_joint_accepts() {
     run(&s, r#"{"op": "whj.enable", "joints": "1-2"}"#);
     let here: Vec<f64> = joints
         .status()
+        .unwrap()
         .iter()
         .map(|r| {
             serde_json::to_value(r).unwrap()["position_deg"]
@@ -242,4 +223,21 @@ fn the_simulated_robot_reads_and_commands_in_si_units() {
     let stop = robot.safe_stop();
     assert!(stop.errors.is_empty(), "{stop:?}");
     assert!(robot.command(&targets).is_err());
+}
+
+#[test]
+fn a_handle_does_not_keep_its_bus_open() {
+    let (s, w, j) = station();
+    let servos = WckServos::new(&s, None, &[0]).unwrap();
+    let joints = WhjJoints::new(&s, None, &[1]).unwrap();
+    assert!(servos.status().is_ok());
+    // The test's own strong handles go; closing the station then closes both buses.
+    drop((w, j));
+    assert!(s.close().is_empty());
+    let e = servos.status().unwrap_err();
+    assert_eq!(e.kind(), ErrorKind::Refused);
+    assert!(e.to_string().starts_with("bus legs is closed"), "{e}");
+    let e = joints.command(ServoLoop::Position, &[0.0]).unwrap_err();
+    assert!(e.to_string().starts_with("bus arm is closed"), "{e}");
+    assert_eq!(joints.status().unwrap_err().kind(), ErrorKind::Refused);
 }

@@ -137,22 +137,31 @@ class JointReadings(Readings):
         )
 
 
-class WckServos:
-    """wCK servos on one port of a station (``station.wck_servos([0, 1, 2])``): arrays in
-    and out, in the order of :attr:`ids`."""
+class _Group:
+    """What both families' groups have: the devices and the bus."""
 
-    def __init__(self, native: NativeWckServos):
-        self._native = native
+    _native: NativeWckServos | NativeWhjJoints
 
     @property
     def ids(self) -> list[int]:
-        """The servos."""
+        """The devices, in the order of every call's values and results."""
         return list(self._native.ids)
 
     @property
     def bus(self) -> str:
-        """The port's name."""
+        """The bus's name."""
         return self._native.bus
+
+    def __repr__(self) -> str:
+        return f"<robobus.{type(self).__name__} {self.ids} on {self.bus}>"
+
+
+class WckServos(_Group):
+    """wCK servos on one port of a station (``station.wck_servos([0, 1, 2])``): arrays in
+    and out, in the order of :attr:`ids`."""
+
+    def __init__(self, native: NativeWckServos):
+        self._native: NativeWckServos = native
 
     def status(self) -> WckReadings:
         """Reads each servo's position and load."""
@@ -173,9 +182,6 @@ class WckServos:
         """Makes each servo passive (no torque; it can be moved by hand); each reading is
         its position."""
         return WckReadings(self._native.passive())
-
-    def __repr__(self) -> str:
-        return f"<robobus.WckServos {self.ids} on {self.bus}>"
 
 
 class WckServo:
@@ -217,22 +223,12 @@ class WckServo:
 _MODES = ("position", "speed", "current")
 
 
-class WhjJoints:
+class WhjJoints(_Group):
     """WHJ joints on one bus of a station (``station.whj_joints([1, 2])``), each connected
     when the group is made: arrays in and out, in the order of :attr:`ids`."""
 
     def __init__(self, native: NativeWhjJoints):
-        self._native = native
-
-    @property
-    def ids(self) -> list[int]:
-        """The joints."""
-        return list(self._native.ids)
-
-    @property
-    def bus(self) -> str:
-        """The bus's name."""
-        return self._native.bus
+        self._native: NativeWhjJoints = native
 
     def limits(self, mode: str = "position") -> npt.NDArray[np.float64]:
         """What each joint accepts as a ``mode`` target: an ``(n, 2)`` array of ``low,
@@ -263,9 +259,6 @@ class WhjJoints:
     def command_current(self, milliamps: npt.ArrayLike) -> JointReadings:
         """:meth:`command` in current mode (mA)."""
         return self.command("current", milliamps)
-
-    def __repr__(self) -> str:
-        return f"<robobus.WhjJoints {self.ids} on {self.bus}>"
 
 
 class WhjJoint:

@@ -11,6 +11,8 @@
 //!   call, never the values of an earlier one, and the call carries on past it.
 //! - A call holds its bus for its whole length: it is never interleaved with another
 //!   request's transactions.
+//! - A handle does not keep its bus open: once the station is closed, every call fails
+//!   (`Refused`, naming the bus) and the port is free for another program at once.
 
 use std::sync::Mutex;
 
@@ -20,7 +22,7 @@ use robobus_whj::{JointId, Request};
 use serde::Serialize;
 
 use super::cyclic::{JointFeedback, allowed, check_targets};
-use super::station::{Station, WckPort, WhjPort};
+use super::station::{Station, WckPort, WeakWckPort, WeakWhjPort, WhjPort};
 use crate::ops::whj::{JointSample, ServoLoop, require_ready};
 use crate::ops::{DeviceResult, Failure, OpError};
 use crate::whj::WhjError;
@@ -66,8 +68,16 @@ fn servo_ids(ids: &[u8]) -> Result<Vec<ServoId>, OpError> {
 /// wCK servos on one of a station's ports (clones share the port).
 #[derive(Debug, Clone)]
 pub struct WckServos {
-    port: WckPort,
+    port: WeakWckPort,
+    name: String,
     ids: Vec<ServoId>,
+}
+
+/// The refusal of a call on a bus whose station was closed.
+fn closed(bus: &str) -> OpError {
+    OpError::Refused(format!(
+        "bus {bus} is closed (its station was closed); open it again; nothing was sent"
+    ))
 }
 
 impl WckServos {
@@ -75,8 +85,10 @@ impl WckServos {
     /// sent.
     pub fn new(station: &Station, bus: Option<&str>, ids: &[u8]) -> Result<Self, OpError> {
         let ids = servo_ids(ids)?;
+        let port = station.wck(bus)?;
         Ok(Self {
-            port: station.wck(bus)?,
+            port: port.downgrade(),
+            name: port.name().to_owned(),
             ids,
         })
     }
@@ -88,13 +100,19 @@ impl WckServos {
 
     /// The port's name.
     pub fn bus(&self) -> &str {
-        self.port.name()
+        &self.name
+    }
+
+    fn port(&self) -> Result<WckPort, OpError> {
+        self.port.upgrade().ok_or_else(|| closed(&self.name))
     }
 
     /// Reads each servo's position and load.
-    pub fn status(&self) -> Vec<DeviceResult<u8, WckReading>> {
-        let mut bus = self.port.lock();
-        self.ids
+    pub fn status(&self) -> Result<Vec<DeviceResult<u8, WckReading>>, OpError> {
+        let port = self.port()?;
+        let mut bus = port.lock();
+        Ok(self
+            .ids
             .iter()
             .map(|&id| match bus.servo(id).status() {
                 Ok(st) => {
@@ -102,7 +120,7 @@ impl WckServos {
                 }
                 Err(e) => DeviceResult::failed(id.get(), Failure::from(&OpError::from(e))),
             })
-            .collect()
+            .collect())
     }
 
     /// Checks one position per servo (whole steps 0..=254) and the torque level (0..=4).
@@ -148,7 +166,8 @@ impl WckServos {
         torque: u8,
     ) -> Result<Vec<DeviceResult<u8, WckReading>>, OpError> {
         let (ps, torque) = self.targets(positions, torque)?;
-        let mut bus = self.port.lock();
+        let port = self.port()?;
+        let mut bus = port.lock();
         Ok(self
             .ids
             .iter()
@@ -179,21 +198,23 @@ impl WckServos {
             )));
         }
         let (ps, torque) = self.targets(positions, torque)?;
-        self.port.lock().sync_move(torque, &ps)?;
+        self.port()?.lock().sync_move(torque, &ps)?;
         Ok(())
     }
 
     /// Makes each servo passive (no torque: it can be moved by hand); each result is its
     /// position.
-    pub fn passive(&self) -> Vec<DeviceResult<u8, WckReading>> {
-        let mut bus = self.port.lock();
-        self.ids
+    pub fn passive(&self) -> Result<Vec<DeviceResult<u8, WckReading>>, OpError> {
+        let port = self.port()?;
+        let mut bus = port.lock();
+        Ok(self
+            .ids
             .iter()
             .map(|&id| match bus.servo(id).passive() {
                 Ok(p) => DeviceResult::ok(id.get(), WckReading::of(p, None)),
                 Err(e) => DeviceResult::failed(id.get(), Failure::from(&OpError::from(e))),
             })
-            .collect()
+            .collect())
     }
 }
 
@@ -210,7 +231,8 @@ struct Allowed {
 /// per command, each target checked against the host bounds and the joint's own limits.
 #[derive(Debug)]
 pub struct WhjJoints {
-    port: WhjPort,
+    port: WeakWhjPort,
+    name: String,
     ids: Vec<JointId>,
     allowed: Vec<Allowed>,
     /// The work mode every joint was last found enabled in (checked before the first
@@ -251,7 +273,8 @@ impl WhjJoints {
             });
         }
         Ok(Self {
-            port,
+            port: port.downgrade(),
+            name: port.name().to_owned(),
             ids: joints,
             allowed: out,
             ready: Mutex::new(None),
@@ -265,7 +288,11 @@ impl WhjJoints {
 
     /// The bus's name.
     pub fn bus(&self) -> &str {
-        self.port.name()
+        &self.name
+    }
+
+    fn port(&self) -> Result<WhjPort, OpError> {
+        self.port.upgrade().ok_or_else(|| closed(&self.name))
     }
 
     /// What each joint accepts as a `servo` target, `(low, high)` in that mode's unit
@@ -283,8 +310,8 @@ impl WhjJoints {
 
     /// Reads each joint: a status query and a speed read (position, speed, current,
     /// enabled, error bits).
-    pub fn status(&self) -> Vec<DeviceResult<u8, JointSample>> {
-        crate::ops::whj::sample(self.port.bus(), &self.ids)
+    pub fn status(&self) -> Result<Vec<DeviceResult<u8, JointSample>>, OpError> {
+        Ok(crate::ops::whj::sample(self.port()?.bus(), &self.ids))
     }
 
     fn lock_ready(&self) -> std::sync::MutexGuard<'_, Option<ServoLoop>> {
@@ -305,7 +332,8 @@ impl WhjJoints {
         targets: &[f64],
     ) -> Result<Vec<DeviceResult<u8, JointFeedback>>, OpError> {
         check_targets(servo, &self.ids, &self.limits(servo), targets)?;
-        let bus = self.port.bus();
+        let port = self.port()?;
+        let bus = port.bus();
         if bus.cyclic_running() {
             return Err(OpError::Refused(format!(
                 "a cyclic loop is running on bus {}: stop it before sending servo frames; \

@@ -97,7 +97,7 @@ pub use dispatch::{
     GONE_AFTER, Interaction, NoInteraction, confirmation, plan, plan_at, run, run_with, validate,
 };
 pub use plan::{Family, Plan, PlanStep};
-pub use station::{Station, StationConfig, WckPort, WhjPort};
+pub use station::{Station, StationConfig, WckPort, WeakWckPort, WeakWhjPort, WhjPort};
 pub use telemetry::{Delivery, Sample, Subscriber, Telemetry};
 
 /// One request: an operation and its arguments (see the [module docs](self)).

@@ -73,6 +73,23 @@ impl WckPort {
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner)
     }
+
+    /// A reference that does not keep the port open: once its station and every strong
+    /// handle are gone, [`WeakWckPort::upgrade`] gives `None` (the port is closed).
+    pub fn downgrade(&self) -> WeakWckPort {
+        WeakWckPort(Arc::downgrade(&self.0))
+    }
+}
+
+/// A [`WckPort`] that does not keep the port open (see [`WckPort::downgrade`]).
+#[derive(Debug, Clone)]
+pub struct WeakWckPort(std::sync::Weak<WckInner>);
+
+impl WeakWckPort {
+    /// The port, if it is still open.
+    pub fn upgrade(&self) -> Option<WckPort> {
+        self.0.upgrade().map(WckPort)
+    }
 }
 
 /// A WHJ bus of a station (clones share the bus).
@@ -131,6 +148,22 @@ impl WhjPort {
     /// [`JointBus::cyclic_owned`]).
     pub fn shared_bus(&self) -> Arc<JointBus> {
         Arc::clone(&self.0.bus)
+    }
+
+    /// A reference that does not keep the bus open (see [`WckPort::downgrade`]).
+    pub fn downgrade(&self) -> WeakWhjPort {
+        WeakWhjPort(Arc::downgrade(&self.0))
+    }
+}
+
+/// A [`WhjPort`] that does not keep the bus open (see [`WhjPort::downgrade`]).
+#[derive(Debug, Clone)]
+pub struct WeakWhjPort(std::sync::Weak<WhjInner>);
+
+impl WeakWhjPort {
+    /// The bus, if it is still open.
+    pub fn upgrade(&self) -> Option<WhjPort> {
+        self.0.upgrade().map(WhjPort)
     }
 }
 
