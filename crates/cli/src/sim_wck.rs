@@ -355,6 +355,11 @@ pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
         args.capture.as_deref(),
     )
     .context("starting the simulator thread")?;
+    // Before the path appears: a client (or a test) may signal us as soon as it sees it.
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = Arc::clone(&stop);
+    ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
+        .context("installing the SIGINT/SIGTERM handler")?;
     // The servos listen now: only now does the stable path appear.
     let symlink = match &args.link {
         Some(link) => Some(PtySymlink::create(link, &slave_path).map_err(|e| match e {
@@ -366,11 +371,6 @@ pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
     let shown = symlink
         .as_ref()
         .map_or_else(|| slave_path.clone(), |l| l.path().to_path_buf());
-
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = Arc::clone(&stop);
-    ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
-        .context("installing the SIGINT/SIGTERM handler")?;
 
     let mut out = std::io::stdout().lock();
     writeln!(out, "{}", shown.display())?;
