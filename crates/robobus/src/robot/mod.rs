@@ -818,7 +818,9 @@ pub struct Robot {
     watchdog: Option<JoinHandle<()>>,
     names: Vec<String>,
     /// What the robot's buses need alive (the in-process simulators of
-    /// [`Robot::simulated`]), dropped after the robot's own safe stop.
+    /// [`Robot::simulated`]), dropped after the robot's own safe stop. Only held: without
+    /// the `sim` feature nothing is put here.
+    #[cfg_attr(not(feature = "sim"), allow(dead_code))]
     keep: Vec<Box<dyn std::fmt::Debug + Send + Sync>>,
 }
 
