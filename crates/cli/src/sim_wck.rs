@@ -8,7 +8,6 @@
 use std::io::Write as _;
 use std::os::fd::AsFd as _;
 use std::path::PathBuf;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
@@ -356,10 +355,9 @@ pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
     )
     .context("starting the simulator thread")?;
     // Before the path appears: a client (or a test) may signal us as soon as it sees it.
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = Arc::clone(&stop);
-    ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
-        .context("installing the SIGINT/SIGTERM handler")?;
+    // The command's one Ctrl-C / SIGTERM handler (`interrupt`), installed now.
+    let token = crate::interrupt::stop_token();
+    let stop = token.flag();
     // The servos listen now: only now does the stable path appear.
     let symlink = match &args.link {
         Some(link) => Some(PtySymlink::create(link, &slave_path).map_err(|e| match e {
@@ -385,7 +383,7 @@ pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
         slave_path.display(),
     );
 
-    serve_until_stopped(&endpoint, &mut schedule, opened_at, &stop);
+    serve_until_stopped(&endpoint, &mut schedule, opened_at, stop);
     // The serving thread may be inside an injected delay (--delay-ms up to 10 s): Ctrl-C
     // is answered within STOP_WAIT all the same; the process then ends without it.
     let (tx, rx) = std::sync::mpsc::channel();

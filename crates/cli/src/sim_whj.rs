@@ -5,8 +5,6 @@
 //! the loopback interface; `--bus udp:GROUP:PORT` picks another group; any other value is
 //! a `SocketCAN` interface (`vcan0`, `can0`; Linux only).
 
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use anyhow::Context;
@@ -209,10 +207,9 @@ pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
         link = Box::new(capture_frame_link(link, path, iface, Overwrite::No)?);
     }
 
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = Arc::clone(&stop);
-    ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
-        .context("installing the Ctrl-C / SIGTERM handler")?;
+    // The command's one Ctrl-C / SIGTERM handler (`interrupt`), installed now.
+    let token = crate::interrupt::stop_token();
+    let stop = token.flag();
 
     let ids: Vec<String> = args.joints.0.iter().map(u8::to_string).collect();
     let announce = || {
@@ -227,7 +224,7 @@ pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
     let stats = serve_with(
         &mut bus,
         &mut *link,
-        &stop,
+        stop,
         FaultSchedule::new(device),
         announce,
     )

@@ -144,7 +144,12 @@ fn main() -> Result<(), Box<dyn Error>> {
         let (robot, sims) = simulated(&config)?;
         (robot, Some(sims))
     };
-    robot.install_ctrlc_handler()?;
+    // The program's one Ctrl-C / SIGTERM handler puts the robot in its safe state; the
+    // next command then fails and the loop ends.
+    let stop = robot.stop_handle();
+    ctrlc::set_handler(move || {
+        stop.interrupt();
+    })?;
 
     let names = robot.joint_names().to_vec();
     let period = Duration::from_secs_f64(1.0 / RATE_HZ);

@@ -156,7 +156,7 @@ impl RobotError {
             Self::OpenWhj { .. } => ErrorKind::NoDevice,
             Self::Actuator(e) => e.kind(),
             Self::SafeStopped { .. } => ErrorKind::Refused,
-            Self::Ctrlc(_) | Self::Watchdog(_) => ErrorKind::NotAvailable,
+            Self::Watchdog(_) => ErrorKind::NotAvailable,
         }
     }
 }

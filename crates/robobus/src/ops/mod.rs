@@ -88,6 +88,12 @@ impl StopToken {
         self.0.store(false, Ordering::SeqCst);
     }
 
+    /// The flag itself, for a loop that takes a plain `AtomicBool` (a simulator's
+    /// serving loop).
+    pub fn flag(&self) -> &AtomicBool {
+        &self.0
+    }
+
     /// Sleeps until `deadline` or until the token is set, whichever comes first; returns
     /// `false` when it was stopped. Wakes at least every 5 ms to look at the flag.
     pub fn sleep_until(&self, deadline: Instant) -> bool {

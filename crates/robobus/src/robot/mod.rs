@@ -10,8 +10,9 @@
 //!   ([`RateLimiter`]); what a limit changed is reported ([`LimitEvent`]).
 //! - A watchdog thread puts every bus in its [`SafeState`] if [`Robot::command`] is not
 //!   called for `watchdog_timeout` (armed by the first command). The same safe stop
-//!   runs on drop, on [`Robot::safe_stop`], from a [`StopHandle`] and, once
-//!   [`Robot::install_ctrlc_handler`] is called, on Ctrl-C. After a safe stop
+//!   runs on drop, on [`Robot::safe_stop`], and from a [`StopHandle`] (a program's own
+//!   Ctrl-C handler calls [`StopHandle::interrupt`]; the library installs none). After a
+//!   safe stop
 //!   commands are refused ([`RobotError::SafeStopped`]) until [`Robot::resume`].
 //!
 //! Buses of kind `wck`, `whj-udp` and `whj-can` are opened from the file; kinds
@@ -190,9 +191,6 @@ pub enum RobotError {
         /// Why it stopped.
         cause: StopCause,
     },
-    /// The Ctrl-C handler cannot be installed (for example one is already installed).
-    #[error("cannot install the Ctrl-C handler: {0}")]
-    Ctrlc(String),
     /// The watchdog thread cannot be started.
     #[error("cannot start the watchdog thread: {0}")]
     Watchdog(String),
@@ -206,7 +204,7 @@ pub enum StopCause {
         /// Time since the last command when the watchdog fired.
         since_command: Duration,
     },
-    /// Ctrl-C (SIGINT / SIGTERM) after [`Robot::install_ctrlc_handler`].
+    /// An interrupt (a program's Ctrl-C / SIGTERM handler: [`StopHandle::interrupt`]).
     Interrupt,
     /// [`Robot::safe_stop`] or [`StopHandle::safe_stop`].
     Requested,
@@ -999,17 +997,6 @@ impl Robot {
         }
     }
 
-    /// Installs a Ctrl-C (SIGINT, SIGTERM) handler that safe-stops this robot; the
-    /// program keeps running and its next [`command`](Self::command) fails with
-    /// [`RobotError::SafeStopped`]. One handler per process.
-    pub fn install_ctrlc_handler(&self) -> Result<(), RobotError> {
-        let handle = self.stop_handle();
-        ctrlc::set_handler(move || {
-            handle.stop(StopCause::Interrupt);
-        })
-        .map_err(|e| RobotError::Ctrlc(e.to_string()))
-    }
-
     /// The WHJ bus `name` (for diagnostics: telemetry, register reads). Commands sent
     /// through it bypass the robot's limits.
     pub fn whj_bus(&self, name: &str) -> Option<Arc<JointBus>> {
@@ -1189,6 +1176,13 @@ impl StopHandle {
     /// or `None` if the robot no longer exists.
     pub fn safe_stop(&self) -> Option<SafeStopReport> {
         self.stop(StopCause::Requested)
+    }
+
+    /// Puts the robot in its safe state for an interrupt ([`StopCause::Interrupt`]): what
+    /// a program's Ctrl-C / SIGTERM handler calls. The program keeps running, and the
+    /// robot's next [`command`](Robot::command) fails with [`RobotError::SafeStopped`].
+    pub fn interrupt(&self) -> Option<SafeStopReport> {
+        self.stop(StopCause::Interrupt)
     }
 
     fn stop(&self, cause: StopCause) -> Option<SafeStopReport> {
