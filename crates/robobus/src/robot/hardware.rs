@@ -1,0 +1,385 @@
+//! A robot's hardware behind its lock: the buses, each joint's device and limits, the
+//! watchdog's shared state, and reading and sending in joint units.
+
+use super::{
+    ActuatorError, ActuatorState, Arc, AtomicBool, CurrentScale, Duration, DynByteLink, Instant,
+    Joint, JointBus, JointId, JointLimits, JointMap, Mutex, MutexGuard, Ordering, PoisonError,
+    Position, RateLimiter, RobotError, SafeDevice, SafeState, SafeStopReport, ServoId, ServoLoop,
+    StopCause, TorqueLevel, WckBus, WckScale, WckServos, WhjError, WhjJoints, WorkMode,
+    rpm_to_rad_s, whj_position, whj_to_rad,
+};
+
+// ----- internals -----------------------------------------------------------------------
+
+pub(super) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+#[derive(Debug)]
+pub(super) struct WckSlot {
+    pub(super) name: String,
+    pub(super) bus: WckBus<DynByteLink>,
+    pub(super) torque: TorqueLevel,
+    pub(super) safe: SafeState,
+}
+
+#[derive(Debug)]
+pub(super) struct WhjSlot {
+    pub(super) name: String,
+    pub(super) bus: Arc<JointBus>,
+    pub(super) safe: SafeState,
+}
+
+#[derive(Debug, Clone, Copy)]
+pub(super) enum Device {
+    Wck {
+        bus: usize,
+        id: ServoId,
+        scale: WckScale,
+    },
+    Whj {
+        bus: usize,
+        id: JointId,
+        map: JointMap,
+        current: CurrentScale,
+    },
+}
+
+#[derive(Debug)]
+pub(super) struct JointSlot {
+    pub(super) name: String,
+    pub(super) device: Device,
+    pub(super) limits: JointLimits,
+    pub(super) limiter: RateLimiter,
+}
+
+#[derive(Debug)]
+pub(super) struct Hardware {
+    pub(super) wck: Vec<WckSlot>,
+    pub(super) whj: Vec<WhjSlot>,
+    pub(super) joints: Vec<JointSlot>,
+    /// When the previous command cycle ran (or the robot opened / resumed).
+    pub(super) last_cycle: Instant,
+}
+
+#[derive(Debug)]
+pub(super) struct Shared {
+    pub(super) hw: Mutex<Hardware>,
+    /// The last successful command; `None` until the first (watchdog disarmed).
+    pub(super) last_command: Mutex<Option<Instant>>,
+    pub(super) stopped: Mutex<Option<SafeStopReport>>,
+    pub(super) quit: AtomicBool,
+    pub(super) timeout: Duration,
+}
+
+impl Shared {
+    /// Puts every bus in its safe state (once; a second call returns the first report).
+    pub(super) fn safe_stop(&self, cause: StopCause) -> SafeStopReport {
+        let started = Instant::now();
+        let mut hw = lock(&self.hw);
+        let mut stopped = lock(&self.stopped);
+        if let Some(report) = stopped.as_ref() {
+            return report.clone();
+        }
+        let errors = hw.apply_safe_states();
+        let report = SafeStopReport {
+            cause,
+            started,
+            applied_in: started.elapsed(),
+            errors,
+        };
+        if !report.errors.is_empty() {
+            tracing::warn!(errors = ?report.errors, "safe stop incomplete");
+        }
+        *stopped = Some(report.clone());
+        *lock(&self.last_command) = None;
+        report
+    }
+
+    pub(super) fn watchdog(&self) {
+        let poll = (self.timeout / 10).clamp(Duration::from_micros(500), Duration::from_millis(5));
+        while !self.quit.load(Ordering::Acquire) {
+            std::thread::sleep(poll);
+            let last = *lock(&self.last_command);
+            if let Some(last) = last {
+                let since = last.elapsed();
+                if since > self.timeout && lock(&self.stopped).is_none() {
+                    tracing::warn!(?since, "watchdog: control loop stalled, safe stop");
+                    self.safe_stop(StopCause::Watchdog {
+                        since_command: since,
+                    });
+                }
+            }
+        }
+    }
+}
+
+impl Hardware {
+    /// Every bus to its safe state through [`SafeState::apply`] (the operations' safe stop
+    /// too); the failures, each naming its joint (or the bus, for the wCK break).
+    pub(super) fn apply_safe_states(&mut self) -> Vec<String> {
+        let mut errors = Vec::new();
+        let name_of = |joints: &[JointSlot], device: SafeDevice| -> Option<String> {
+            joints
+                .iter()
+                .find(|j| match (j.device, device) {
+                    (Device::Wck { id, .. }, SafeDevice::Servo(s)) => id.get() == s,
+                    (Device::Whj { id, .. }, SafeDevice::Joint(s)) => id.get() == s,
+                    _ => false,
+                })
+                .map(|j| j.name.clone())
+        };
+        for (b, slot) in self.wck.iter_mut().enumerate() {
+            let ids: Vec<ServoId> = self
+                .joints
+                .iter()
+                .filter_map(|j| match j.device {
+                    Device::Wck { bus, id, .. } if bus == b => Some(id),
+                    _ => None,
+                })
+                .collect();
+            let failed = slot.safe.apply(&mut WckServos {
+                bus: &mut slot.bus,
+                ids: &ids,
+                torque: slot.torque,
+            });
+            for f in failed {
+                let name =
+                    name_of(&self.joints, f.device).unwrap_or_else(|| format!("bus {}", slot.name));
+                errors.push(format!("{name}: {}: {}", slot.safe.keyword(), f.error));
+            }
+        }
+        for (b, slot) in self.whj.iter().enumerate() {
+            let handles: Vec<Joint<'_>> = self
+                .joints
+                .iter()
+                .filter_map(|j| match j.device {
+                    Device::Whj { bus, id, .. } if bus == b => Some(slot.bus.joint_unchecked(id)),
+                    _ => None,
+                })
+                .collect();
+            let failed = slot.safe.apply(&mut WhjJoints {
+                joints: &handles,
+                servo: ServoLoop::Position,
+            });
+            for f in failed {
+                let name =
+                    name_of(&self.joints, f.device).unwrap_or_else(|| format!("bus {}", slot.name));
+                errors.push(format!("{name}: {}: {}", slot.safe.keyword(), f.error));
+            }
+        }
+        errors
+    }
+
+    pub(super) fn read_joint(&mut self, index: usize) -> Result<ActuatorState, ActuatorError> {
+        let Some(joint) = self.joints.get(index) else {
+            return Err(ActuatorError::NotFinite {
+                joint: format!("#{index}"),
+                value: f64::NAN,
+            });
+        };
+        let name = &joint.name;
+        match joint.device {
+            Device::Wck { bus, id, scale } => {
+                let slot = &mut self.wck[bus];
+                let status = slot
+                    .bus
+                    .servo(id)
+                    .status()
+                    .map_err(|source| ActuatorError::Wck {
+                        joint: name.clone(),
+                        source: Box::new(source),
+                    })?;
+                Ok(ActuatorState {
+                    position_rad: scale.to_rad(status.position),
+                    velocity_rad_s: None,
+                    current_a: None,
+                })
+            }
+            Device::Whj {
+                bus,
+                id,
+                map,
+                current,
+            } => {
+                let handle = self.whj[bus].bus.joint_unchecked(id);
+                let whj = |source| ActuatorError::Whj {
+                    joint: name.clone(),
+                    source: Box::new(source),
+                };
+                let status = handle.status().map_err(whj)?;
+                let speed = handle.speed().map_err(whj)?;
+                Ok(ActuatorState {
+                    position_rad: whj_to_rad(map, status.position),
+                    velocity_rad_s: Some(map.speed_to_joint(rpm_to_rad_s(speed.rpm()))),
+                    current_a: status.current.map(|c| c.milliamps(current) as f64 / 1000.0),
+                })
+            }
+        }
+    }
+
+    /// Prepares every WHJ joint for position commands (mode, enable).
+    pub(super) fn enable_whj(&self) -> Result<(), ActuatorError> {
+        for joint in &self.joints {
+            if let Device::Whj { bus, id, .. } = joint.device {
+                let handle = self.whj[bus].bus.joint_unchecked(id);
+                let prepare = || -> Result<(), WhjError> {
+                    if !handle.is_enabled()? {
+                        handle.set_mode(WorkMode::Position)?;
+                        handle.enable()?;
+                    }
+                    Ok(())
+                };
+                prepare().map_err(|source| ActuatorError::Whj {
+                    joint: joint.name.clone(),
+                    source: Box::new(source),
+                })?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Restarts every joint's rate limiter at its measured angle.
+    pub(super) fn reset_limiters(&mut self) -> Result<(), ActuatorError> {
+        for i in 0..self.joints.len() {
+            let state = self.read_joint(i)?;
+            if let Some(joint) = self.joints.get_mut(i) {
+                joint.limiter = RateLimiter::new(state.position_rad);
+            }
+        }
+        self.last_cycle = Instant::now();
+        Ok(())
+    }
+}
+
+impl Hardware {
+    /// For each WHJ joint, the set-points it accepts now (joint frame, rad): within 80 %
+    /// of the bus's step limit of its measured angle (telemetry under 100 ms old, else a
+    /// status query); `None` for wCK joints.
+    pub(super) fn step_reach(&self) -> Result<Vec<Option<(f64, f64)>>, RobotError> {
+        let telemetry: Vec<_> = self.whj.iter().map(|s| s.bus.telemetry()).collect();
+        let mut reach = Vec::with_capacity(self.joints.len());
+        for joint in &self.joints {
+            let Device::Whj { bus, id, map, .. } = joint.device else {
+                reach.push(None);
+                continue;
+            };
+            let (Some(slot), Some(t)) = (self.whj.get(bus), telemetry.get(bus)) else {
+                reach.push(None);
+                continue;
+            };
+            let t = t.joint(id);
+            let actual = match (t.position, t.updated) {
+                (Some(p), Some(at))
+                    if slot.bus.now().saturating_duration_since(at)
+                        < Duration::from_millis(100) =>
+                {
+                    p
+                }
+                _ => {
+                    let status = slot.bus.joint_unchecked(id).status().map_err(|source| {
+                        ActuatorError::Whj {
+                            joint: joint.name.clone(),
+                            source: Box::new(source),
+                        }
+                    })?;
+                    status.position
+                }
+            };
+            let at = whj_to_rad(map, actual);
+            let step = 0.8 * slot.bus.config().step_limit_deg.to_radians();
+            reach.push(Some((at - step, at + step)));
+        }
+        Ok(reach)
+    }
+
+    /// Sends `setpoints` (rad, joint order); returns what was sent at device resolution.
+    pub(super) fn send(&mut self, setpoints: &[f64]) -> Result<Vec<f64>, RobotError> {
+        let mut sent = vec![0.0; setpoints.len()];
+        // wCK: per bus, one synchronized move if its IDs are exactly 0..n.
+        for (b, slot) in self.wck.iter_mut().enumerate() {
+            let mut members: Vec<(usize, ServoId, Position)> = Vec::new();
+            for (i, joint) in self.joints.iter().enumerate() {
+                if let Device::Wck { bus, id, scale } = joint.device
+                    && bus == b
+                {
+                    let rad = setpoints.get(i).copied().unwrap_or(0.0);
+                    let position = quantize_within(scale, rad, &joint.limits)
+                        .ok_or_else(|| scale.range_error(&joint.name, rad))?;
+                    if let Some(s) = sent.get_mut(i) {
+                        *s = scale.to_rad(position);
+                    }
+                    members.push((i, id, position));
+                }
+            }
+            members.sort_by_key(|m| m.1.get());
+            let contiguous = members
+                .iter()
+                .enumerate()
+                .all(|(k, m)| usize::from(m.1.get()) == k);
+            if contiguous && !members.is_empty() {
+                let positions: Vec<Position> = members.iter().map(|m| m.2).collect();
+                slot.bus
+                    .sync_move(slot.torque, &positions)
+                    .map_err(|source| ActuatorError::Wck {
+                        joint: format!("bus {} (synchronized move)", slot.name),
+                        source: Box::new(source),
+                    })?;
+            } else {
+                for &(i, id, position) in &members {
+                    slot.bus
+                        .servo(id)
+                        .move_to(slot.torque, position)
+                        .map_err(|source| ActuatorError::Wck {
+                            joint: self.joints[i].name.clone(),
+                            source: Box::new(source),
+                        })?;
+                }
+            }
+        }
+        // WHJ: one position servo frame per joint.
+        for (i, joint) in self.joints.iter().enumerate() {
+            if let Device::Whj { bus, id, map, .. } = joint.device {
+                let rad = setpoints.get(i).copied().unwrap_or(0.0);
+                let position = whj_position(&joint.name, map, rad)?;
+                self.whj[bus]
+                    .bus
+                    .joint_unchecked(id)
+                    .command_position(position)
+                    .map_err(|source| ActuatorError::Whj {
+                        joint: joint.name.clone(),
+                        source: Box::new(source),
+                    })?;
+                if let Some(s) = sent.get_mut(i) {
+                    *s = whj_to_rad(map, position);
+                }
+            }
+        }
+        Ok(sent)
+    }
+}
+
+/// The wCK step nearest `rad` that lies within the soft limits (the nearest step may be
+/// just past a limit; then the neighbour inside is taken).
+pub(super) fn quantize_within(scale: WckScale, rad: f64, limits: &JointLimits) -> Option<Position> {
+    let nearest = scale.to_position(rad)?;
+    let inside = |p: Position| {
+        let r = scale.to_rad(p);
+        r >= limits.min_rad - 1e-12 && r <= limits.max_rad + 1e-12
+    };
+    if inside(nearest) {
+        return Some(nearest);
+    }
+    let raw = nearest.get();
+    [raw.checked_sub(1), raw.checked_add(1)]
+        .into_iter()
+        .flatten()
+        .filter_map(|r| Position::new(r).ok())
+        .filter(|&p| inside(p))
+        .min_by(|&a, &b| {
+            (scale.to_rad(a) - rad)
+                .abs()
+                .total_cmp(&(scale.to_rad(b) - rad).abs())
+        })
+        .or(Some(nearest))
+}
