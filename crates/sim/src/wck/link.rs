@@ -136,7 +136,8 @@ impl Shared {
     }
 }
 
-/// A client's end of a simulated bus, in the same process (see the [module](self) notes).
+/// A client's end of a simulated bus, in the same process (see the notes at the top of
+/// `wck/link.rs`).
 ///
 /// ```
 /// use core::time::Duration;
