@@ -18,6 +18,10 @@ the host safety limits and the confirmation rule decided there, as for the comma
   ``station.robot.sample()`` are the same requests with the command line's argument names
   as keyword arguments (the required ones may be given in order).
 - ``station.telemetry(request, rate_hz)`` streams a reading request; iterate it.
+- Hot paths take and give numpy arrays: ``station.wck_servos(ids)`` /
+  ``station.whj_joints(ids)`` (and one device: ``wck_servo``, ``whj_joint``),
+  ``station.cyclic(joints)``, and :class:`Robot` (a robot file's joints in radians).
+- :mod:`robobus.lerobot` is a LeRobot motors bus over the same handles.
 - Errors are :mod:`robobus.errors` classes, one per error kind, also deriving from the
   matching builtin (``ValueError``, ``TimeoutError``, ``OSError``, ...).
 - Calls release the GIL while they wait on a device; Ctrl-C during a call brings its
