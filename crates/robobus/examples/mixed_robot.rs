@@ -15,8 +15,6 @@
 use std::error::Error;
 use std::f64::consts::TAU;
 use std::fmt::Write as _;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use robobus::robot::{BusConfig, Robot, RobotConfig, RobotError};
@@ -24,7 +22,7 @@ use robobus::wck::WckBus;
 use robobus::whj::JointBus;
 use robobus_link::{MemoryBus, PtyOptions, PtyPair};
 use robobus_sim::wck::{Bus, BusConfig as WckSimConfig, Endpoint, Model};
-use robobus_sim::whj::{WhjBus, WhjModel};
+use robobus_sim::whj::{Served, WhjBus, WhjModel};
 use robobus_wck::BaudRate;
 
 /// Control cycles per second.
@@ -32,20 +30,10 @@ const RATE_HZ: f64 = 50.0;
 /// How long the motion runs.
 const RUN: Duration = Duration::from_secs(4);
 
-/// The simulators behind the buses of the robot file.
+/// The simulators behind the buses of the robot file (each stops when dropped).
 struct Simulators {
     wck: Vec<Endpoint>,
-    whj_stop: Arc<AtomicBool>,
-    whj_threads: Vec<std::thread::JoinHandle<()>>,
-}
-
-impl Drop for Simulators {
-    fn drop(&mut self) {
-        self.whj_stop.store(true, Ordering::Relaxed);
-        for t in self.whj_threads.drain(..) {
-            let _ = t.join();
-        }
-    }
+    whj: Vec<Served>,
 }
 
 /// Opens the robot with every bus replaced by a simulator holding the file's IDs.
@@ -60,8 +48,7 @@ fn simulated(config: &RobotConfig) -> Result<(Robot, Simulators), Box<dyn Error>
     };
     let mut sims = Simulators {
         wck: Vec::new(),
-        whj_stop: Arc::new(AtomicBool::new(false)),
-        whj_threads: Vec::new(),
+        whj: Vec::new(),
     };
     let mut builder = Robot::builder(config.clone());
     let mut woke = false;
@@ -80,12 +67,8 @@ fn simulated(config: &RobotConfig) -> Result<(Robot, Simulators), Box<dyn Error>
             woke = true;
         } else {
             let wire = MemoryBus::new();
-            let mut end = wire.endpoint();
-            let stop = Arc::clone(&sims.whj_stop);
-            let mut sim = WhjBus::chain(ids.clone(), WhjModel::Whj30, 7);
-            sims.whj_threads.push(std::thread::spawn(move || {
-                let _ = robobus_sim::whj::serve(&mut sim, &mut end, &stop);
-            }));
+            let sim = WhjBus::chain(ids.clone(), WhjModel::Whj30, 7);
+            sims.whj.push(Served::spawn(name, sim, wire.endpoint())?);
             println!("bus {name}: simulated WHJ joints {ids:?} on the in-process CAN FD bus");
             builder = builder.whj_bus(name.clone(), JointBus::open(wire.endpoint())?);
         }

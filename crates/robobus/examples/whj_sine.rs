@@ -15,13 +15,11 @@
 
 use std::error::Error;
 use std::f64::consts::TAU;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use robobus::whj::{CyclicConfig, CyclicStats, JointBus, MotionLimits, Protocol};
 use robobus_link::MemoryBus;
-use robobus_sim::whj::{WhjBus, WhjModel};
+use robobus_sim::whj::{Served, WhjBus, WhjModel};
 use robobus_whj::units::Position;
 use robobus_whj::{JointId, WorkMode};
 
@@ -47,13 +45,11 @@ fn main() -> Result<(), Box<dyn Error>> {
 
     // The simulator: seven WHJ30 joints (IDs 1..=7) served on the wall clock.
     let wire = MemoryBus::new();
-    let mut sim_end = wire.endpoint();
-    let stop = Arc::new(AtomicBool::new(false));
-    let sim_stop = Arc::clone(&stop);
-    let sim = std::thread::spawn(move || {
-        let mut sim = WhjBus::chain(1..=7, WhjModel::Whj30, 1);
-        robobus_sim::whj::serve(&mut sim, &mut sim_end, &sim_stop)
-    });
+    let sim = Served::spawn(
+        "sim-whj",
+        WhjBus::chain(1..=7, WhjModel::Whj30, 1),
+        wire.endpoint(),
+    )?;
 
     let bus = JointBus::open(wire.endpoint())?;
     let joints: Vec<JointId> = (1..=7).map(JointId::new).collect::<Result<_, _>>()?;
@@ -120,8 +116,7 @@ fn main() -> Result<(), Box<dyn Error>> {
         bus.joint_unchecked(id).disable()?;
     }
     drop(bus);
-    stop.store(true, Ordering::Relaxed);
-    let served = sim.join().map_err(|_| "simulator thread panicked")??;
+    let (_, served) = sim.stop()?;
     println!(
         "  simulator: {} frames in, {} out, worst reply lateness {:?}",
         served.received, served.sent, served.max_lateness

@@ -28,7 +28,6 @@
 
 use std::f64::consts::TAU;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use robobus_link::{ByteLink, MemoryBus};
@@ -709,60 +708,33 @@ fn arm_run(
     })
 }
 
-/// Simulated WHJ30 joints served on a thread of their own over an in-process CAN FD bus.
-///
-/// Dropping it stops the simulator (what it served is then lost: [`ArmServer::stop`]
-/// returns it).
+/// Simulated WHJ30 joints served on a thread of their own over an in-process CAN FD bus
+/// (stopped when dropped).
 #[derive(Debug)]
-pub(crate) struct ArmServer {
-    stop: Arc<AtomicBool>,
-    thread: Option<
-        std::thread::JoinHandle<Result<robobus_sim::whj::ServeStats, robobus_link::FrameLinkError>>,
-    >,
-}
+pub(crate) struct ArmServer(robobus_sim::whj::Served);
 
 impl ArmServer {
     /// Joints `ids` (simulation seed `seed`), and a client bus to them.
     pub(crate) fn start(ids: Vec<u8>, seed: u64) -> Result<(Self, JointBus), OpError> {
-        use robobus_sim::whj::{WhjBus, WhjModel};
+        use robobus_sim::whj::{Served, WhjBus, WhjModel};
 
         let wire = MemoryBus::new();
-        let mut sim_end = wire.endpoint();
-        let stop = Arc::new(AtomicBool::new(false));
-        let flag = Arc::clone(&stop);
-        let thread = std::thread::Builder::new()
-            .name("sim-whj-arm".into())
-            .spawn(move || {
-                let mut sim = WhjBus::chain(ids, WhjModel::Whj30, seed);
-                robobus_sim::whj::serve(&mut sim, &mut sim_end, &flag)
-            })
-            .map_err(|e| internal("starting the simulated WHJ arm", e))?;
-        let server = Self {
-            stop,
-            thread: Some(thread),
-        };
+        let served = Served::spawn(
+            "sim-whj-arm",
+            WhjBus::chain(ids, WhjModel::Whj30, seed),
+            wire.endpoint(),
+        )
+        .map_err(|e| internal("starting the simulated WHJ arm", e))?;
         let bus = JointBus::open_with(wire.endpoint(), JointBusConfig::simulated())?;
-        Ok((server, bus))
+        Ok((Self(served), bus))
     }
 
     /// Stops serving; what the simulator served.
-    fn stop(mut self) -> Result<robobus_sim::whj::ServeStats, OpError> {
-        self.stop.store(true, Ordering::Relaxed);
-        self.thread
-            .take()
-            .ok_or_else(|| internal("the WHJ arm's thread", "already stopped"))?
-            .join()
-            .map_err(|_| internal("the WHJ arm's thread", "panicked"))?
+    fn stop(self) -> Result<robobus_sim::whj::ServeStats, OpError> {
+        self.0
+            .stop()
+            .map(|(_, stats)| stats)
             .map_err(|e| internal("the WHJ arm", e))
-    }
-}
-
-impl Drop for ArmServer {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
     }
 }
 

@@ -328,16 +328,13 @@ mod tests {
 
     /// Runs `f` on a client bus to simulated joints `configs`, served on a thread.
     fn with_whj_bus<R>(configs: Vec<JointConfig>, f: impl FnOnce(&JointBus) -> R) -> R {
-        use std::sync::Arc;
-        use std::sync::atomic::{AtomicBool, Ordering};
         let wire = robobus_link::MemoryBus::new();
-        let mut sim = WhjBus::with_configs(configs, 11);
-        let stop = Arc::new(AtomicBool::new(false));
-        let flag = Arc::clone(&stop);
-        let mut sim_link = wire.endpoint();
-        let server = std::thread::spawn(move || {
-            robobus_sim::whj::serve(&mut sim, &mut sim_link, &flag).unwrap();
-        });
+        let server = robobus_sim::whj::Served::spawn(
+            "sim-whj",
+            WhjBus::with_configs(configs, 11),
+            wire.endpoint(),
+        )
+        .unwrap();
         // A silent joint gives up after 0.5 s.
         let config = robobus::whj::JointBusConfig {
             connect_timeout: Duration::from_millis(500),
@@ -346,8 +343,7 @@ mod tests {
         let bus = JointBus::open_with(wire.endpoint(), config).unwrap();
         let out = f(&bus);
         drop(bus);
-        stop.store(true, Ordering::Relaxed);
-        server.join().unwrap();
+        server.stop().unwrap();
         out
     }
 

@@ -3,51 +3,26 @@
 
 #![allow(dead_code, unreachable_pub, clippy::unwrap_used, clippy::panic)]
 
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::thread::JoinHandle;
-
 use core::time::Duration;
 
 use robobus::whj::JointBusConfig;
 use robobus_link::{FrameLink, MemoryBus, MemoryBusEndpoint};
-use robobus_sim::whj::{JointConfig, ServeStats, WhjBus, WhjModel, WhjSimHandle, WhjSimLink};
+use robobus_sim::whj::{
+    JointConfig, ServeStats, Served, WhjBus, WhjModel, WhjSimHandle, WhjSimLink,
+};
 
-/// A simulated WHJ bus served on its own thread.
-pub struct Sim {
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<(WhjBus, ServeStats)>>,
-}
+/// A simulated WHJ bus served on its own thread (the simulator crate's `Served`).
+pub struct Sim(Served);
 
 impl Sim {
     /// Serve `bus` on `link` (wall clock) until stopped.
-    pub fn serve<L: FrameLink + Send + 'static>(mut bus: WhjBus, mut link: L) -> Self {
-        let stop = Arc::new(AtomicBool::new(false));
-        let flag = Arc::clone(&stop);
-        let thread = std::thread::spawn(move || {
-            let stats = robobus_sim::whj::serve(&mut bus, &mut link, &flag).unwrap();
-            (bus, stats)
-        });
-        Self {
-            stop,
-            thread: Some(thread),
-        }
+    pub fn serve<L: FrameLink + Send + 'static>(bus: WhjBus, link: L) -> Self {
+        Self(Served::spawn("sim-whj", bus, link).unwrap())
     }
 
     /// Stops serving ("unplugs" every joint) and returns the simulated bus.
-    pub fn stop(mut self) -> (WhjBus, ServeStats) {
-        self.halt().unwrap()
-    }
-
-    fn halt(&mut self) -> Option<(WhjBus, ServeStats)> {
-        self.stop.store(true, Ordering::Relaxed);
-        self.thread.take().map(|t| t.join().unwrap())
-    }
-}
-
-impl Drop for Sim {
-    fn drop(&mut self) {
-        let _ = self.halt();
+    pub fn stop(self) -> (WhjBus, ServeStats) {
+        self.0.stop().unwrap()
     }
 }
 

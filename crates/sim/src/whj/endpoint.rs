@@ -7,7 +7,9 @@
 //! sent on the link as soon as the wall clock passes the instant its last bit would
 //! leave the wire. One thread owns the bus; [`serve`] returns when `stop` is set.
 
+use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use robobus_link::{FrameLink, FrameLinkError};
@@ -30,6 +32,63 @@ pub struct ServeStats {
     pub max_lateness: Duration,
     /// Bus errors reported by the link (bus-off, error passive) that were skipped.
     pub bus_errors: u64,
+}
+
+/// A simulated bus served by [`serve`] on a thread of its own, until [`Served::stop`] (or
+/// drop): what a test, an example or an in-process demo starts instead of hand-rolling
+/// the thread and its stop flag.
+#[derive(Debug)]
+pub struct Served {
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<Result<(WhjBus, ServeStats), FrameLinkError>>>,
+}
+
+impl Served {
+    /// Serves `bus` on `link` on a new thread named `name`.
+    ///
+    /// Errors: the thread cannot be started.
+    pub fn spawn<L: FrameLink + Send + 'static>(
+        name: &str,
+        mut bus: WhjBus,
+        mut link: L,
+    ) -> std::io::Result<Self> {
+        let stop = Arc::new(AtomicBool::new(false));
+        let flag = Arc::clone(&stop);
+        let thread = std::thread::Builder::new()
+            .name(name.to_owned())
+            .spawn(move || serve(&mut bus, &mut link, &flag).map(|stats| (bus, stats)))?;
+        Ok(Self {
+            stop,
+            thread: Some(thread),
+        })
+    }
+
+    /// Stops serving and returns the bus (the joints as the clients left them) and what
+    /// was served.
+    ///
+    /// Errors: the link failed while serving; a panic of the serving thread is resumed.
+    pub fn stop(mut self) -> Result<(WhjBus, ServeStats), FrameLinkError> {
+        self.halt()
+            .unwrap_or_else(|| unreachable!("a Served is stopped once"))
+    }
+
+    fn halt(&mut self) -> Option<Result<(WhjBus, ServeStats), FrameLinkError>> {
+        self.stop.store(true, Ordering::Relaxed);
+        let thread = self.thread.take()?;
+        Some(match thread.join() {
+            Ok(r) => r,
+            Err(panic) => std::panic::resume_unwind(panic),
+        })
+    }
+}
+
+impl Drop for Served {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
 }
 
 /// Serve `bus` on `link` until `stop` is set. The bus's time 0 is the call's start.
