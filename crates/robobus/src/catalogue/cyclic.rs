@@ -195,16 +195,7 @@ impl CyclicLoop {
         rate_hz: f64,
     ) -> Result<Self, OpError> {
         let rate_hz = bounds::FRAME_RATE_HZ.check("rate_hz", rate_hz)?;
-        if joints.is_empty() {
-            return Err(OpError::invalid("joints", "[]", "no joints given"));
-        }
-        let ids = joints
-            .iter()
-            .map(|&raw| {
-                JointId::new(raw)
-                    .map_err(|e| OpError::invalid("joints", raw, format!("{e} (allowed: 1..=30)")))
-            })
-            .collect::<Result<Vec<_>, _>>()?;
+        let ids = crate::ops::distinct_ids::<JointId>("joints", "joints", joints)?;
         let port = station.whj(bus)?;
         let mut limits = Vec::with_capacity(ids.len());
         let mut scales = Vec::with_capacity(ids.len());

@@ -23,6 +23,7 @@ use serde::Serialize;
 
 use super::cyclic::{JointFeedback, allowed, check_targets};
 use super::station::{Station, WckPort, WeakWckPort, WeakWhjPort, WhjPort};
+use crate::ops::distinct_ids;
 use crate::ops::whj::{JointSample, ServoLoop, require_ready};
 use crate::ops::{DeviceResult, Failure, OpError};
 use crate::whj::WhjError;
@@ -48,23 +49,6 @@ impl WckReading {
     }
 }
 
-/// Servo IDs from raw numbers: at least one, each 0..=30, none twice.
-fn servo_ids(ids: &[u8]) -> Result<Vec<ServoId>, OpError> {
-    if ids.is_empty() {
-        return Err(OpError::invalid("ids", "[]", "no servos given"));
-    }
-    let mut out: Vec<ServoId> = Vec::with_capacity(ids.len());
-    for &raw in ids {
-        let id = ServoId::new(raw)
-            .map_err(|e| OpError::invalid("ids", raw, format!("{e} (allowed: 0..=30)")))?;
-        if out.contains(&id) {
-            return Err(OpError::invalid("ids", raw, "given twice"));
-        }
-        out.push(id);
-    }
-    Ok(out)
-}
-
 /// wCK servos on one of a station's ports (clones share the port).
 #[derive(Debug, Clone)]
 pub struct WckServos {
@@ -84,7 +68,7 @@ impl WckServos {
     /// Servos `ids` on the station's wCK port `bus` (`None`: its only one). Nothing is
     /// sent.
     pub fn new(station: &Station, bus: Option<&str>, ids: &[u8]) -> Result<Self, OpError> {
-        let ids = servo_ids(ids)?;
+        let ids = distinct_ids::<ServoId>("ids", "servos", ids)?;
         let port = station.wck(bus)?;
         Ok(Self {
             port: port.downgrade(),
@@ -246,18 +230,7 @@ impl WhjJoints {
     /// model's peak speed, its current limit). A joint that does not answer fails the
     /// whole call, naming it.
     pub fn new(station: &Station, bus: Option<&str>, ids: &[u8]) -> Result<Self, OpError> {
-        if ids.is_empty() {
-            return Err(OpError::invalid("joints", "[]", "no joints given"));
-        }
-        let mut joints: Vec<JointId> = Vec::with_capacity(ids.len());
-        for &raw in ids {
-            let id = JointId::new(raw)
-                .map_err(|e| OpError::invalid("joints", raw, format!("{e} (allowed: 1..=30)")))?;
-            if joints.contains(&id) {
-                return Err(OpError::invalid("joints", raw, "given twice"));
-            }
-            joints.push(id);
-        }
+        let joints = distinct_ids::<JointId>("joints", "joints", ids)?;
         let port = station.whj(bus)?;
         let mut out = Vec::with_capacity(joints.len());
         for &id in &joints {

@@ -95,6 +95,41 @@ impl<T: ListId> IdList<T> {
     }
 }
 
+/// IDs given as numbers (a front end's list, in its order): at least one, each in the
+/// type's range, none twice; `option` and `plural` name them in the refusal
+/// (`ids 31: servo ID 31 is out of range (allowed: 0..=30)`).
+#[allow(clippy::result_large_err)] // OpError, as every operation returns
+pub fn distinct_ids<T: ListId>(
+    option: &str,
+    plural: &str,
+    raw: &[u8],
+) -> Result<Vec<T>, super::OpError> {
+    use super::OpError;
+    if raw.is_empty() {
+        return Err(OpError::invalid(option, "[]", format!("no {plural} given")));
+    }
+    let mut out: Vec<T> = Vec::with_capacity(raw.len());
+    for &r in raw {
+        let id = T::from_raw(u32::from(r)).ok_or_else(|| {
+            OpError::invalid(
+                option,
+                r,
+                format!(
+                    "{} {r} is out of range (allowed: {}..={})",
+                    T::WHAT,
+                    T::MIN,
+                    T::MAX
+                ),
+            )
+        })?;
+        if out.contains(&id) {
+            return Err(OpError::invalid(option, r, "given twice"));
+        }
+        out.push(id);
+    }
+    Ok(out)
+}
+
 /// Longest ID list text accepted (a list of every ID fits many times over).
 const MAX_SPEC_LEN: usize = 1024;
 

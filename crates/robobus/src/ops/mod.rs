@@ -58,7 +58,7 @@ pub use crate::error::ErrorKind;
 pub use crate::robot::SafeState;
 use crate::wck::WckError;
 use crate::whj::WhjError;
-pub use ids::{IdList, ListId};
+pub use ids::{IdList, ListId, distinct_ids};
 
 /// A flag a caller sets to stop a running operation; clones share the flag.
 ///
