@@ -63,10 +63,9 @@ def incompatible(ours: Any, recorded: list[list[Any]]) -> str | None:
             i += 1
         elif p.kind not in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD):
             return f"parameter {name!r} cannot be given by name"
+        # (A default where LeRobot has none only accepts more calls.)
         if len(entry) > 2 and p.default != entry[2]:
             return f"parameter {name!r} defaults to {p.default!r}, not {entry[2]!r}"
-        if len(entry) == 2 and p.default is not p.empty:
-            pass  # a default where LeRobot has none only accepts more calls
     recorded_names = {e[0] for e in recorded}
     for p in params:
         if p.name not in recorded_names and p.default is p.empty and p.kind not in (

@@ -48,7 +48,7 @@ def _floats(values: npt.ArrayLike, what: str) -> list[float]:
     a = np.asarray(values)
     if not np.issubdtype(a.dtype, np.number):
         raise _bad_input(f"{what}: {values!r} is not an array of numbers; nothing was sent")
-    return [float(v) for v in a.astype(np.float64).ravel()]
+    return a.astype(np.float64).ravel().tolist()
 
 
 def _bad_input(message: str) -> RobobusError:

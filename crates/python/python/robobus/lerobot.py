@@ -345,7 +345,7 @@ class RobobusMotorsBus:
             if family == WCK:
                 group = self._wck(ids)
                 now = self._retry(group.status, num_retry, "read Present_Position")
-                self._retry(lambda: group.move(now.position, self._torque), num_retry, "enable torque").check()
+                self._retry(lambda: group.move(now.position, self._torque), num_retry, "enable torque")
             else:
                 self._retry(
                     lambda: self._station_().whj.enable(ids, bus=self._whj(ids).bus, check=True),
@@ -358,7 +358,7 @@ class RobobusMotorsBus:
         names = self._names(motors)
         for family, ids in self._by_family(names).items():
             if family == WCK:
-                self._retry(lambda: self._wck(ids).passive(), num_retry, "disable torque").check()
+                self._retry(lambda: self._wck(ids).passive(), num_retry, "disable torque")
             else:
                 self._retry(
                     lambda: self._station_().whj.disable(ids, bus=self._whj(ids).bus, check=True),
