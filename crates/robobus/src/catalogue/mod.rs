@@ -81,7 +81,12 @@ pub mod args;
 pub mod bounds;
 pub mod cyclic;
 mod dispatch;
+pub mod effect;
+pub mod guard;
 pub mod handles;
+pub mod jog;
+#[cfg(feature = "sim")]
+pub mod live;
 pub mod plan;
 pub mod robot;
 pub mod station;
@@ -96,6 +101,7 @@ pub use crate::error::ErrorKind;
 pub use dispatch::{
     GONE_AFTER, Interaction, NoInteraction, confirmation, plan, plan_at, run, run_with, validate,
 };
+pub use effect::{Effect, Moved};
 pub use plan::{Family, Plan, PlanStep};
 pub use station::{Station, StationConfig, WckPort, WeakWckPort, WeakWhjPort, WhjPort};
 pub use telemetry::{Delivery, Sample, Subscriber, Telemetry};
@@ -374,4 +380,26 @@ pub fn report_schema() -> serde_json::Value {
 /// The JSON Schema of [`Plan`].
 pub fn plan_schema() -> serde_json::Value {
     serde_json::to_value(schemars::schema_for!(Plan)).unwrap_or_default()
+}
+
+/// The host [`bounds`] table as JSON, by name.
+pub fn bounds_json() -> serde_json::Value {
+    serde_json::to_value(
+        bounds::BOUNDS
+            .iter()
+            .map(|(k, b)| (k.to_string(), b))
+            .collect::<std::collections::BTreeMap<_, _>>(),
+    )
+    .unwrap_or_default()
+}
+
+/// Every schema in one object: `request`, `report`, `plan` and `bounds` (what
+/// `robobus schema` prints and a web studio serves).
+pub fn schemas() -> serde_json::Value {
+    serde_json::json!({
+        "request": request_schema(),
+        "report": report_schema(),
+        "plan": plan_schema(),
+        "bounds": bounds_json(),
+    })
 }

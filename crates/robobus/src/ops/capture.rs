@@ -26,11 +26,61 @@ pub enum Overwrite {
     Yes,
 }
 
-/// The file a capture writes into: line-buffered (each line is flushed when complete).
-pub type CaptureFile = LineWriter<File>;
+/// The file a capture writes into: line-buffered (each line is flushed when complete),
+/// and bounded when a limit is given.
+pub type CaptureFile = LineWriter<BoundedFile>;
+
+/// A file that takes at most a number of bytes: the line that would pass the limit is
+/// replaced by a comment saying the capture stopped there, and everything after it is
+/// dropped (the link it records goes on working).
+#[derive(Debug)]
+pub struct BoundedFile {
+    file: File,
+    left: u64,
+    full: bool,
+}
+
+impl BoundedFile {
+    /// `file`, taking at most `limit` bytes.
+    pub const fn new(file: File, limit: u64) -> Self {
+        Self {
+            file,
+            left: limit,
+            full: false,
+        }
+    }
+
+    /// Whether the limit was reached.
+    pub const fn is_full(&self) -> bool {
+        self.full
+    }
+}
+
+impl std::io::Write for BoundedFile {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        if self.full {
+            return Ok(buf.len());
+        }
+        if buf.len() as u64 > self.left {
+            self.full = true;
+            let note = b"# capture stopped here: the file reached its size limit\n";
+            if note.len() as u64 <= self.left {
+                self.file.write_all(note)?;
+            }
+            return Ok(buf.len());
+        }
+        let n = self.file.write(buf)?;
+        self.left -= n as u64;
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.file.flush()
+    }
+}
 
 #[allow(clippy::result_large_err)] // OpError, as every operation returns
-fn create(path: &Path, overwrite: Overwrite) -> Result<CaptureFile, OpError> {
+fn create_limited(path: &Path, overwrite: Overwrite, limit: u64) -> Result<CaptureFile, OpError> {
     let mut options = OpenOptions::new();
     options.write(true);
     match overwrite {
@@ -56,7 +106,7 @@ fn create(path: &Path, overwrite: Overwrite) -> Result<CaptureFile, OpError> {
             kind,
         }
     })?;
-    Ok(LineWriter::new(file))
+    Ok(LineWriter::new(BoundedFile::new(file, limit)))
 }
 
 /// Wraps a byte link (wCK) so every write and read is logged to `path` as a hex log; the
@@ -89,7 +139,29 @@ fn capture_with_comment<L: ByteLink>(
     overwrite: Overwrite,
     comment: &str,
 ) -> Result<CaptureByteLink<L, CaptureFile>, OpError> {
-    let mut out = create(path, overwrite)?;
+    capture_limited(link, path, overwrite, comment, u64::MAX)
+}
+
+/// [`capture_byte_link`] into a file of at most `limit` bytes (see [`BoundedFile`]).
+#[allow(clippy::result_large_err)] // OpError, as every operation returns
+pub fn capture_byte_link_limited<L: ByteLink>(
+    link: L,
+    path: &Path,
+    overwrite: Overwrite,
+    limit: u64,
+) -> Result<CaptureByteLink<L, CaptureFile>, OpError> {
+    capture_limited(link, path, overwrite, HOST_SIDE_COMMENT, limit)
+}
+
+#[allow(clippy::result_large_err)] // OpError, as every operation returns
+fn capture_limited<L: ByteLink>(
+    link: L,
+    path: &Path,
+    overwrite: Overwrite,
+    comment: &str,
+    limit: u64,
+) -> Result<CaptureByteLink<L, CaptureFile>, OpError> {
+    let mut out = create_limited(path, overwrite, limit)?;
     writeln!(out, "{comment}").map_err(|e| OpError::File {
         path: path.to_path_buf(),
         reason: format!("cannot write the capture file: {e}"),
@@ -108,6 +180,18 @@ pub fn capture_frame_link<L: FrameLink>(
     iface: &str,
     overwrite: Overwrite,
 ) -> Result<CaptureFrameLink<L, CaptureFile>, OpError> {
+    capture_frame_link_limited(link, path, iface, overwrite, u64::MAX)
+}
+
+/// [`capture_frame_link`] into a file of at most `limit` bytes (see [`BoundedFile`]).
+#[allow(clippy::result_large_err)] // OpError, as every operation returns
+pub fn capture_frame_link_limited<L: FrameLink>(
+    link: L,
+    path: &Path,
+    iface: &str,
+    overwrite: Overwrite,
+    limit: u64,
+) -> Result<CaptureFrameLink<L, CaptureFile>, OpError> {
     if iface.is_empty() || iface.chars().any(|c| c.is_whitespace() || c.is_control()) {
         return Err(OpError::invalid(
             "interface name",
@@ -115,5 +199,9 @@ pub fn capture_frame_link<L: FrameLink>(
             "one word without spaces (`can0`, `vcan0`)",
         ));
     }
-    Ok(CaptureFrameLink::new(link, create(path, overwrite)?, iface))
+    Ok(CaptureFrameLink::new(
+        link,
+        create_limited(path, overwrite, limit)?,
+        iface,
+    ))
 }

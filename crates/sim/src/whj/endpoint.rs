@@ -63,6 +63,37 @@ impl Served {
         })
     }
 
+    /// [`Served::spawn`] with `observe` called with the bus as it is served (see
+    /// [`serve_observed`]).
+    ///
+    /// Errors: the thread cannot be started.
+    pub fn spawn_observed<L: FrameLink + Send + 'static>(
+        name: &str,
+        mut bus: WhjBus,
+        mut link: L,
+        observe: impl FnMut(&WhjBus) + Send + 'static,
+    ) -> std::io::Result<Self> {
+        let stop = Arc::new(AtomicBool::new(false));
+        let flag = Arc::clone(&stop);
+        let thread = std::thread::Builder::new()
+            .name(name.to_owned())
+            .spawn(move || {
+                serve_observed(
+                    &mut bus,
+                    &mut link,
+                    &flag,
+                    FaultSchedule::default(),
+                    || {},
+                    observe,
+                )
+                .map(|stats| (bus, stats))
+            })?;
+        Ok(Self {
+            stop,
+            thread: Some(thread),
+        })
+    }
+
     /// Stops serving and returns the bus (the joints as the clients left them) and what
     /// was served.
     ///
@@ -110,8 +141,22 @@ pub fn serve_with<L: FrameLink + ?Sized>(
     bus: &mut WhjBus,
     link: &mut L,
     stop: &AtomicBool,
+    faults: FaultSchedule,
+    on_serving: impl FnOnce(),
+) -> Result<ServeStats, FrameLinkError> {
+    serve_observed(bus, link, stop, faults, on_serving, |_| {})
+}
+
+/// [`serve_with`] with `observe` called with the bus after every frame received and every
+/// wake-up (at least every few milliseconds): how a front end shows the simulated joints'
+/// own state (not read over the bus) while they are served.
+pub fn serve_observed<L: FrameLink + ?Sized>(
+    bus: &mut WhjBus,
+    link: &mut L,
+    stop: &AtomicBool,
     mut faults: FaultSchedule,
     on_serving: impl FnOnce(),
+    mut observe: impl FnMut(&WhjBus),
 ) -> Result<ServeStats, FrameLinkError> {
     let origin = Instant::now()
         .checked_sub(bus.now())
@@ -163,6 +208,7 @@ pub fn serve_with<L: FrameLink + ?Sized>(
             }
             Err(e) => return Err(e),
         }
+        observe(bus);
     }
     Ok(stats)
 }

@@ -1,0 +1,275 @@
+//! Jogging: one bounded step of one device toward a target, what a slider or a held
+//! button of a front end sends again and again.
+//!
+//! Every jog reads where the device is now and commands at most one jog step from there
+//! ([`WHJ_JOG_STEP_DEG`], [`WCK_JOG_STEP`]), never past the device's limits (a WHJ joint's
+//! own position limits, the host bounds) nor the soft limits of the station's robot file
+//! for that device. A WHJ joint must be enabled in position mode; the frame goes through
+//! the [`WhjJoints`] handle, so its step-limit and readiness checks apply as well.
+
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex, PoisonError};
+
+use robobus_wck::{Position, ServoId};
+use robobus_whj::JointId;
+use serde::{Deserialize, Serialize};
+
+use super::Family;
+use super::handles::{WckServos, WhjJoints};
+use super::station::Station;
+use crate::ops::whj::ServoLoop;
+use crate::ops::{Failure, OpError};
+
+/// The largest step of one WHJ jog, degrees.
+pub const WHJ_JOG_STEP_DEG: f64 = 2.0;
+/// The largest step of one wCK jog, position steps (about 8.4°).
+pub const WCK_JOG_STEP: u8 = 8;
+/// The torque level of a wCK jog's move (2: medium).
+pub const WCK_JOG_TORQUE: u8 = 2;
+
+/// One jog: a device and the target it is stepped toward.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct JogRequest {
+    /// `wck` or `whj`.
+    pub family: Family,
+    /// The station's bus (`None`: its only one of the family).
+    #[serde(default)]
+    pub bus: Option<String>,
+    /// Servo or joint ID.
+    pub device: u8,
+    /// Where to go: wCK position steps (0..=254), WHJ degrees.
+    pub target: f64,
+}
+
+/// What one jog sent.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Jogged {
+    /// The family.
+    pub family: Family,
+    /// The bus it ran on.
+    pub bus: String,
+    /// The device.
+    pub device: u8,
+    /// The target asked for.
+    pub target: f64,
+    /// Where the device was before the step (wCK steps, WHJ degrees).
+    pub from: f64,
+    /// The position commanded.
+    pub sent: f64,
+    /// Whether a jog step or a limit cut the step short of the target.
+    pub limited: bool,
+    /// The device's answer to the command (WHJ: servo feedback; wCK: the move's reply).
+    pub feedback: serde_json::Value,
+}
+
+/// A jogged wCK servo's handle and its limits (steps).
+type WckJog = (WckServos, (f64, f64));
+
+/// Jogs devices of a station; keeps each device's handle and limits after the first jog.
+#[derive(Debug, Default)]
+pub struct Jogger {
+    whj: Mutex<HashMap<(String, u8), Arc<WhjJoints>>>,
+    wck: Mutex<HashMap<(String, u8), Arc<WckJog>>>,
+}
+
+impl Jogger {
+    /// A jogger with no handle yet.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// One jog step of `req`'s device toward its target (see the [module docs](self)).
+    /// A target that is not a finite number is refused, and nothing is sent.
+    pub fn jog(&self, station: &Station, req: &JogRequest) -> Result<Jogged, OpError> {
+        if !req.target.is_finite() {
+            return Err(OpError::invalid(
+                "target",
+                req.target,
+                "a finite number (wCK: steps 0..=254, WHJ: degrees)",
+            ));
+        }
+        match req.family {
+            Family::Whj => self.jog_whj(station, req),
+            Family::Wck => self.jog_wck(station, req),
+            Family::Robot => Err(OpError::invalid(
+                "family",
+                "robot",
+                "a jog moves one device: wck or whj",
+            )),
+        }
+    }
+
+    fn jog_whj(&self, station: &Station, req: &JogRequest) -> Result<Jogged, OpError> {
+        let id = JointId::new(req.device).map_err(|e| {
+            OpError::invalid("device", req.device, format!("{e} (allowed: 1..=30)"))
+        })?;
+        let port = station.whj(req.bus.as_deref())?;
+        let key = (port.name().to_owned(), req.device);
+        let handle = {
+            let mut map = self.whj.lock().unwrap_or_else(PoisonError::into_inner);
+            if let Some(h) = map.get(&key) {
+                Arc::clone(h)
+            } else {
+                let h = Arc::new(WhjJoints::new(station, Some(port.name()), &[req.device])?);
+                map.insert(key, Arc::clone(&h));
+                h
+            }
+        };
+        let (mut lo, mut hi) = handle.limits(ServoLoop::Position)[0];
+        if let Some((a, b)) = soft_limits(station, Family::Whj, port.name(), req.device) {
+            lo = lo.max(a);
+            hi = hi.min(b);
+        }
+        let from = port.bus().joint_unchecked(id).recent_position()?.degrees();
+        let (sent, limited) = step(from, req.target, (lo, hi), WHJ_JOG_STEP_DEG);
+        let mut out = handle.command(ServoLoop::Position, &[sent])?;
+        let feedback = one_result(out.pop())?;
+        Ok(Jogged {
+            family: Family::Whj,
+            bus: port.name().to_owned(),
+            device: req.device,
+            target: req.target,
+            from,
+            sent,
+            limited,
+            feedback,
+        })
+    }
+
+    fn jog_wck(&self, station: &Station, req: &JogRequest) -> Result<Jogged, OpError> {
+        let id = ServoId::new(req.device).map_err(|e| {
+            OpError::invalid("device", req.device, format!("{e} (allowed: 0..=30)"))
+        })?;
+        let port = station.wck(req.bus.as_deref())?;
+        let key = (port.name().to_owned(), req.device);
+        let entry = {
+            let mut map = self.wck.lock().unwrap_or_else(PoisonError::into_inner);
+            if let Some(e) = map.get(&key) {
+                Arc::clone(e)
+            } else {
+                let servos = WckServos::new(station, Some(port.name()), &[req.device])?;
+                let (lower, upper) = {
+                    let mut bus = port.lock();
+                    let b = bus.servo(id).boundaries()?;
+                    (f64::from(b.lower().get()), f64::from(b.upper().get()))
+                };
+                let (mut lo, mut hi) = (lower, upper);
+                if let Some((a, b)) = soft_limits(station, Family::Wck, port.name(), req.device) {
+                    lo = lo.max(a);
+                    hi = hi.min(b);
+                }
+                let e = Arc::new((servos, (lo, hi)));
+                map.insert(key, Arc::clone(&e));
+                e
+            }
+        };
+        let (servos, limits) = &*entry;
+        let from = f64::from(one_reading(servos.status()?)?.position);
+        let (sent, limited) = step(from, req.target.round(), *limits, f64::from(WCK_JOG_STEP));
+        let sent = sent.round();
+        let out = servos.move_to(&[sent], WCK_JOG_TORQUE)?;
+        let feedback = one_result(out.into_iter().next())?;
+        Ok(Jogged {
+            family: Family::Wck,
+            bus: port.name().to_owned(),
+            device: req.device,
+            target: req.target,
+            from,
+            sent,
+            limited,
+            feedback,
+        })
+    }
+}
+
+/// The next commanded position: `target` within `limits`, at most `max_step` from `from`;
+/// and whether that cut it short.
+fn step(from: f64, target: f64, (lo, hi): (f64, f64), max_step: f64) -> (f64, bool) {
+    let want = target.clamp(lo.min(hi), hi.max(lo));
+    let next = from + (want - from).clamp(-max_step, max_step);
+    // A device outside its limits is only ever stepped back toward them.
+    let next = if from < lo {
+        next.max(from)
+    } else if from > hi {
+        next.min(from)
+    } else {
+        next.clamp(lo, hi)
+    };
+    (next, (next - target).abs() > 1e-9)
+}
+
+/// The soft limits of the station's robot file for this device, in the device's units
+/// (WHJ degrees, wCK steps), if the file names it.
+fn soft_limits(station: &Station, family: Family, bus: &str, id: u8) -> Option<(f64, f64)> {
+    let robot = station.robot()?;
+    let joint = robot.joints.iter().find(|j| j.bus == bus && j.id == id)?;
+    let [a, b] = joint.limits;
+    let (a, b) = match family {
+        Family::Whj => {
+            let map = joint.map();
+            (map.to_device(a).to_degrees(), map.to_device(b).to_degrees())
+        }
+        Family::Wck => {
+            let scale = joint.wck_scale();
+            let steps = |rad: f64| {
+                scale.to_position(rad).map_or_else(
+                    || if rad < 0.0 { 0.0 } else { 254.0 },
+                    |p: Position| f64::from(p.get()),
+                )
+            };
+            (steps(a), steps(b))
+        }
+        Family::Robot => return None,
+    };
+    Some((a.min(b), a.max(b)))
+}
+
+fn one_result<T: Serialize>(
+    r: Option<crate::ops::DeviceResult<u8, T>>,
+) -> Result<serde_json::Value, OpError> {
+    let r = r.ok_or_else(|| OpError::Device("no result for the jogged device".into()))?;
+    match r.outcome {
+        crate::ops::Outcome::Ok(v) => Ok(serde_json::to_value(v).unwrap_or_default()),
+        crate::ops::Outcome::Failed(f) => Err(failure(&f)),
+    }
+}
+
+fn one_reading(
+    mut r: Vec<crate::ops::DeviceResult<u8, super::handles::WckReading>>,
+) -> Result<super::handles::WckReading, OpError> {
+    let r = r
+        .pop()
+        .ok_or_else(|| OpError::Device("no result for the jogged servo".into()))?;
+    match r.outcome {
+        crate::ops::Outcome::Ok(v) => Ok(v),
+        crate::ops::Outcome::Failed(f) => Err(failure(&f)),
+    }
+}
+
+/// The error of the one device a jog addressed.
+fn failure(f: &Failure) -> OpError {
+    use crate::ErrorKind as K;
+    let m = f.error.clone();
+    match f.kind {
+        K::NoDevice => OpError::NoDevice(m),
+        K::Refused | K::BadInput => OpError::Refused(m),
+        K::Interrupted => OpError::Interrupted { detail: Some(m) },
+        K::NotAvailable => OpError::NotAvailable(m),
+        K::Device | K::Link => OpError::Device(m),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_step_is_bounded_by_the_jog_step_and_the_limits() {
+        assert_eq!(step(0.0, 10.0, (-90.0, 90.0), 2.0), (2.0, true));
+        assert_eq!(step(0.0, -1.5, (-90.0, 90.0), 2.0), (-1.5, false));
+        assert_eq!(step(89.0, 120.0, (-90.0, 90.0), 2.0), (90.0, true));
+        // Outside the limits: only back toward them, never further out.
+        assert_eq!(step(95.0, 120.0, (-90.0, 90.0), 2.0), (95.0, true));
+        assert_eq!(step(95.0, 0.0, (-90.0, 90.0), 2.0), (93.0, true));
+    }
+}
