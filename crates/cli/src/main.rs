@@ -43,6 +43,7 @@ mod report;
 mod run;
 mod sim_wck;
 mod sim_whj;
+mod studio;
 mod wck;
 mod whj;
 
@@ -153,6 +154,14 @@ enum Command {
     Run(run::Args),
     /// Print the JSON Schema of requests, reports, plans, or the host bounds table.
     Schema(run::SchemaArgs),
+    /// Serve the web studio: scan, jog, tune, plot, waveforms, programs and poses in a
+    /// browser.
+    ///
+    /// Without --wck-port, --whj-bus and --robot it serves the built-in simulated robot.
+    /// The first line printed is `studio: http://127.0.0.1:PORT/`. It listens on
+    /// 127.0.0.1 only unless --listen (with --token-file) says otherwise; motion needs the
+    /// page's Arm and its heartbeat (docs/studio.md).
+    Studio(studio::Args),
 }
 
 #[derive(Debug, Subcommand)]
@@ -256,6 +265,7 @@ fn main() -> ExitCode {
         Command::Sim(SimCommand::Whj(args)) => sim_whj::run(&args, g.dry_run),
         Command::Run(args) => run::run(g, &args),
         Command::Schema(args) => run::schema(&args),
+        Command::Studio(args) => studio::run(g, &args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

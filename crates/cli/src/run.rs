@@ -172,26 +172,12 @@ fn first(v: Value) -> Value {
 
 /// Runs `robobus schema`.
 pub(crate) fn schema(args: &SchemaArgs) -> anyhow::Result<()> {
-    let bounds = || {
-        serde_json::to_value(
-            catalogue::bounds::BOUNDS
-                .iter()
-                .map(|(k, b)| (k.to_string(), b))
-                .collect::<std::collections::BTreeMap<_, _>>(),
-        )
-        .unwrap_or_default()
-    };
     let v = match args.which {
         Some(Which::Request) => catalogue::request_schema(),
         Some(Which::Report) => catalogue::report_schema(),
         Some(Which::Plan) => catalogue::plan_schema(),
-        Some(Which::Bounds) => bounds(),
-        None => serde_json::json!({
-            "request": catalogue::request_schema(),
-            "report": catalogue::report_schema(),
-            "plan": catalogue::plan_schema(),
-            "bounds": bounds(),
-        }),
+        Some(Which::Bounds) => catalogue::bounds_json(),
+        None => catalogue::schemas(),
     };
     output::print_json(&v)
 }

@@ -1,0 +1,128 @@
+//! `robobus studio`: the web studio (crate `robobus-studio`) on a station of the given
+//! buses, or on the built-in simulated robot; prints `studio: http://ADDR/` first and
+//! serves until Ctrl-C.
+
+use std::net::{IpAddr, Ipv4Addr, SocketAddr};
+use std::path::PathBuf;
+
+use anyhow::Context as _;
+use robobus::catalogue::guard::GuardConfig;
+use robobus::catalogue::{Station, StationConfig};
+use robobus::ops::{OpError, read_bounded};
+use robobus_studio::{Studio, StudioConfig};
+use robobus_wck::BaudRate;
+
+use crate::Global;
+
+/// Options of `robobus studio`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct Args {
+    /// The port on 127.0.0.1 (0: any free port; the first line printed names it).
+    #[arg(long, default_value_t = 7480)]
+    port: u16,
+    /// Listen on another address (`0.0.0.0:8080`); needs --token-file.
+    #[arg(long, value_name = "ADDR")]
+    listen: Option<SocketAddr>,
+    /// A file holding the token every request must carry (needed with --listen).
+    #[arg(long, value_name = "FILE")]
+    token_file: Option<PathBuf>,
+    /// Serve monitoring only: nothing that changes a device is served.
+    #[arg(long)]
+    read_only: bool,
+    /// A wCK serial port to open (repeatable).
+    #[arg(long, value_name = "PATH")]
+    wck_port: Vec<String>,
+    /// The baud rate of the wCK ports.
+    #[arg(long, default_value = "115200", value_parser = crate::wck::parse_baud)]
+    wck_baud: BaudRate,
+    /// A WHJ bus to open: udp, udp:GROUP:PORT or a SocketCAN interface (repeatable).
+    #[arg(long, value_name = "BUS")]
+    whj_bus: Vec<String>,
+    /// A robot file whose buses are opened too (its joints by name).
+    #[arg(long, value_name = "FILE")]
+    robot: Option<PathBuf>,
+    /// Heartbeat timeout of an armed page, ms (50..=1000): past it, the devices it moved
+    /// are brought to their safe state.
+    #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u64).range(50..=1000))]
+    heartbeat_timeout_ms: u64,
+}
+
+/// The largest token file read.
+const TOKEN_LIMIT: u64 = 4096;
+
+fn token(args: &Args) -> anyhow::Result<Option<String>> {
+    let Some(path) = &args.token_file else {
+        return Ok(None);
+    };
+    let text = read_bounded(path, TOKEN_LIMIT)?;
+    let t = text.trim();
+    if t.len() < 16 || t.chars().any(char::is_whitespace) {
+        return Err(OpError::invalid(
+            "--token-file",
+            path.display(),
+            "the token must be one word of at least 16 characters",
+        )
+        .into());
+    }
+    Ok(Some(t.to_owned()))
+}
+
+/// Runs `robobus studio`.
+pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
+    let listen = args
+        .listen
+        .unwrap_or(SocketAddr::new(IpAddr::V4(Ipv4Addr::LOCALHOST), args.port));
+    let token = token(args)?;
+    if g.dry_run {
+        return crate::output::print(&format!(
+            "studio: would serve http://{listen}/ ({}), opening nothing\n",
+            if args.wck_port.is_empty() && args.whj_bus.is_empty() && args.robot.is_none() {
+                "the built-in simulated robot"
+            } else {
+                "the given buses"
+            }
+        ));
+    }
+    let capture_dir = std::env::temp_dir().join(format!("robobus-studio-{}", std::process::id()));
+    std::fs::create_dir_all(&capture_dir)
+        .with_context(|| format!("creating {}", capture_dir.display()))?;
+    let (station, sim, captures) =
+        if args.wck_port.is_empty() && args.whj_bus.is_empty() && args.robot.is_none() {
+            let (station, sim) = Station::simulated_live(Some(&capture_dir))?;
+            let captures = sim.captures().to_vec();
+            (station, Some(sim), captures)
+        } else {
+            let station = Station::open(&StationConfig {
+                wck_ports: args.wck_port.clone(),
+                wck_baud: Some(args.wck_baud),
+                whj_buses: args.whj_bus.clone(),
+                robot: args.robot.clone(),
+                ..StationConfig::default()
+            })?;
+            (station, None, Vec::new())
+        };
+    let studio = Studio::bind(
+        station,
+        sim,
+        StudioConfig {
+            listen,
+            token,
+            read_only: args.read_only,
+            guard: GuardConfig {
+                heartbeat_timeout: std::time::Duration::from_millis(args.heartbeat_timeout_ms),
+                ..GuardConfig::default()
+            },
+            captures,
+        },
+    )
+    .map_err(|e| match e.kind() {
+        robobus::ErrorKind::BadInput => crate::exit::usage(e.to_string()),
+        _ => anyhow::Error::new(e),
+    })?;
+    crate::output::print(&format!("studio: http://{}/\n", studio.addr()))?;
+    let stop = crate::interrupt::stop_token();
+    let served = studio.serve(&stop);
+    let _ = std::fs::remove_dir_all(&capture_dir);
+    served?;
+    Ok(())
+}

@@ -1,0 +1,219 @@
+//! The HTTP side: the page's files and the API (`/api/info`, `/api/schema`, `/api/run`,
+//! `/api/plan`, `/api/capture`, `/api/sim`), each request checked by the gate first.
+
+use std::sync::Arc;
+
+use axum::Router;
+use axum::body::Bytes;
+use axum::extract::{DefaultBodyLimit, Path, State};
+use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post};
+use robobus::catalogue::{self, Request};
+use robobus::ops::{OpError, StopToken};
+
+use crate::{ApiError, App, HEARTBEAT_MS, MAX_BODY, assets};
+
+/// The session header of a page's requests.
+pub(crate) const SESSION_HEADER: &str = "x-robobus-session";
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        (self.status, axum::Json(self.body())).into_response()
+    }
+}
+
+impl From<OpError> for ApiError {
+    fn from(e: OpError) -> Self {
+        Self::of(&e)
+    }
+}
+
+type ApiResult = Result<Response, ApiError>;
+
+pub(crate) fn router(app: Arc<App>) -> Router {
+    Router::new()
+        .route("/api/info", get(info))
+        .route("/api/schema", get(schema))
+        .route("/api/run", post(run))
+        .route("/api/plan", post(plan))
+        .route("/api/capture", get(captures))
+        .route("/api/capture/{bus}", get(capture))
+        .route("/api/sim", get(sim))
+        .route("/api/ws", get(crate::ws::upgrade))
+        .route("/", get(index))
+        .route("/static/{*path}", get(file))
+        .route("/favicon.ico", get(|| async { StatusCode::NO_CONTENT }))
+        .fallback(|| async {
+            ApiError {
+                status: StatusCode::NOT_FOUND,
+                kind: "not-found",
+                message: "no such page or API path (see /api/info)".into(),
+            }
+        })
+        .layer(DefaultBodyLimit::max(MAX_BODY))
+        .with_state(app)
+}
+
+fn json(v: &impl serde::Serialize) -> Response {
+    axum::Json(v).into_response()
+}
+
+async fn info(State(app): State<Arc<App>>, headers: HeaderMap) -> ApiResult {
+    app.gate.check(&headers, false, true, None)?;
+    let (wck, whj) = app.station.names();
+    let robot = app.station.robot().map(|r| {
+        r.joints
+            .iter()
+            .map(|j| {
+                let family = r
+                    .buses
+                    .get(&j.bus)
+                    .map_or("whj", |b| if b.is_wck() { "wck" } else { "whj" });
+                serde_json::json!({"name": j.name, "bus": j.bus, "family": family, "id": j.id})
+            })
+            .collect::<Vec<_>>()
+    });
+    Ok(json(&serde_json::json!({
+        "version": env!("CARGO_PKG_VERSION"),
+        "read_only": app.config.read_only,
+        "simulated": app.sim.is_some(),
+        "wck": wck.iter().map(|n| serde_json::json!({"name": n})).collect::<Vec<_>>(),
+        "whj": whj.iter().map(|n| serde_json::json!({"name": n})).collect::<Vec<_>>(),
+        "robot": robot,
+        "heartbeat_ms": HEARTBEAT_MS,
+        "heartbeat_timeout_ms": app.guard.config().heartbeat_timeout.as_millis(),
+        "capture": !app.config.captures.is_empty(),
+        "eeprom_writes_per_minute": crate::EEPROM_WRITES_PER_MINUTE,
+    })))
+}
+
+async fn schema(State(app): State<Arc<App>>, headers: HeaderMap) -> ApiResult {
+    app.gate.check(&headers, false, true, None)?;
+    Ok(json(&catalogue::schemas()))
+}
+
+/// One request from a body: bad JSON or an unknown operation or field is bad input.
+pub(crate) fn parse(body: &[u8]) -> Result<Request, OpError> {
+    let text = std::str::from_utf8(body)
+        .map_err(|e| OpError::invalid("request", "body", format!("not UTF-8: {e}")))?;
+    serde_json::from_str(text).map_err(|e| {
+        OpError::invalid(
+            "request",
+            "JSON",
+            format!("{e} (one request object; see GET /api/schema)"),
+        )
+    })
+}
+
+fn session(headers: &HeaderMap) -> Option<u64> {
+    headers
+        .get(SESSION_HEADER)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.parse().ok())
+}
+
+async fn run(State(app): State<Arc<App>>, headers: HeaderMap, body: Bytes) -> ApiResult {
+    app.gate.check(&headers, true, true, None)?;
+    let request = parse(&body)?;
+    app.admit(session(&headers), &request)?;
+    let report = app.run(request, StopToken::new(), None, None).await?;
+    Ok(json(&report))
+}
+
+async fn plan(State(app): State<Arc<App>>, headers: HeaderMap, body: Bytes) -> ApiResult {
+    app.gate.check(&headers, true, true, None)?;
+    let request = parse(&body)?;
+    let plan = catalogue::plan(&request)?;
+    let confirm = catalogue::confirmation(&request)?;
+    Ok(json(&serde_json::json!({
+        "text": plan.to_text(),
+        "plan": plan,
+        "confirm": confirm,
+        "effect": request.effect().name(),
+    })))
+}
+
+async fn captures(State(app): State<Arc<App>>, headers: HeaderMap) -> ApiResult {
+    app.gate.check(&headers, false, true, None)?;
+    let list: Vec<_> = app
+        .config
+        .captures
+        .iter()
+        .map(|(bus, path)| {
+            let bytes = std::fs::metadata(path).map_or(0, |m| m.len());
+            let format = if app.station.wck(Some(bus)).is_ok() {
+                "hex"
+            } else {
+                "candump"
+            };
+            serde_json::json!({"bus": bus, "format": format, "bytes": bytes})
+        })
+        .collect();
+    Ok(json(&list))
+}
+
+async fn capture(
+    State(app): State<Arc<App>>,
+    headers: HeaderMap,
+    Path(bus): Path<String>,
+) -> ApiResult {
+    app.gate.check(&headers, false, true, None)?;
+    let Some((_, path)) = app.config.captures.iter().find(|(b, _)| *b == bus) else {
+        return Err(OpError::invalid(
+            "bus",
+            crate::cut(&bus),
+            format!(
+                "no capture of that bus (captured: {})",
+                app.config
+                    .captures
+                    .iter()
+                    .map(|(b, _)| b.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        )
+        .into());
+    };
+    let data = tokio::fs::read(path)
+        .await
+        .map_err(|e| OpError::Device(format!("reading the capture {}: {e}", path.display())))?;
+    let mut r = data.into_response();
+    let h = r.headers_mut();
+    h.insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static("text/plain; charset=utf-8"),
+    );
+    if let Ok(v) = HeaderValue::from_str(&format!("attachment; filename=\"{bus}.log\"")) {
+        h.insert(header::CONTENT_DISPOSITION, v);
+    }
+    Ok(r)
+}
+
+async fn sim(State(app): State<Arc<App>>, headers: HeaderMap) -> ApiResult {
+    app.gate.check(&headers, false, true, None)?;
+    match &app.sim {
+        Some(sim) => Ok(json(&sim.snapshot())),
+        None => Err(ApiError {
+            status: StatusCode::NOT_FOUND,
+            kind: "not-available",
+            message: "this studio drives hardware: the simulators' own state exists only on \
+                      the built-in simulated robot"
+                .into(),
+        }),
+    }
+}
+
+async fn index(State(app): State<Arc<App>>, headers: HeaderMap) -> ApiResult {
+    app.gate.check(&headers, false, false, None)?;
+    assets::serve("index.html")
+}
+
+async fn file(
+    State(app): State<Arc<App>>,
+    headers: HeaderMap,
+    Path(path): Path<String>,
+) -> ApiResult {
+    app.gate.check(&headers, false, false, None)?;
+    assets::serve(&format!("static/{path}"))
+}

@@ -1,0 +1,372 @@
+//! `robobus studio`: a local web studio on the request catalogue.
+//!
+//! A web server (axum, one current-thread runtime) that serves a page embedded in the
+//! binary and an HTTP API that is the catalogue itself: `POST /api/run` takes one
+//! [`Request`] and answers its [`Report`](robobus::catalogue::Report), `POST /api/plan`
+//! its dry run, `GET /api/schema` the JSON Schemas, and one WebSocket (`/api/ws`) carries
+//! telemetry, the progress of long operations, jogs and the operator's heartbeat. The
+//! server translates and nothing else: every operation, check, jog step and safe stop is
+//! the library's ([`robobus::catalogue`], [`Guard`], [`Jogger`]).
+//!
+//! Safety (the user guide, `docs/studio.md`, says it for users): loopback by default, a
+//! token for any other address, `Host` checked on every request and `Origin` on every
+//! state-changing one and the WebSocket, no CORS headers, one controlling page, motion
+//! only while armed with a heartbeat, a safe stop when it is lost, EEPROM / flash writes
+//! rate-limited, and `--read-only`.
+
+// The library's `OpError` is passed through as it is, as every front end does.
+#![allow(clippy::result_large_err)]
+
+mod assets;
+mod http;
+mod security;
+mod ws;
+
+use std::collections::VecDeque;
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::{Duration, Instant};
+
+use axum::http::StatusCode;
+use robobus::ErrorKind;
+use robobus::catalogue::guard::{Guard, GuardConfig, SafeEvent};
+use robobus::catalogue::jog::Jogger;
+use robobus::catalogue::live::LiveSimulator;
+use robobus::catalogue::{Request, Station};
+use robobus::ops::{OpError, StopToken};
+
+/// EEPROM, flash and ID writes allowed per minute.
+pub const EEPROM_WRITES_PER_MINUTE: usize = 10;
+/// How often an armed page sends its heartbeat, ms.
+pub const HEARTBEAT_MS: u64 = 100;
+/// The largest request body, bytes (a motion program or a keyframe file fits easily).
+pub const MAX_BODY: usize = 4 << 20;
+
+/// How a studio is served.
+#[derive(Debug, Clone)]
+pub struct StudioConfig {
+    /// Where to listen (`127.0.0.1:PORT` unless the user asks otherwise).
+    pub listen: SocketAddr,
+    /// The token every API request must carry (required off loopback).
+    pub token: Option<String>,
+    /// Serve reads only.
+    pub read_only: bool,
+    /// The operator guard's heartbeat timeout and safe state.
+    pub guard: GuardConfig,
+    /// Each bus's capture file (bus name, path), served by `GET /api/capture`.
+    pub captures: Vec<(String, PathBuf)>,
+}
+
+/// What can go wrong before a studio serves.
+#[derive(Debug, thiserror::Error)]
+pub enum StudioError {
+    /// A non-loopback address without a token.
+    #[error(
+        "--listen {0}: an address other than loopback needs a token (--token-file FILE): \
+         anyone who can reach it could move the robot"
+    )]
+    NeedsToken(SocketAddr),
+    /// The address cannot be bound.
+    #[error("--listen {addr}: cannot listen there: {source}")]
+    Bind {
+        /// The address.
+        addr: SocketAddr,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The runtime or the guard's thread could not start.
+    #[error("cannot start the studio: {0}")]
+    Start(std::io::Error),
+}
+
+impl StudioError {
+    /// Its kind.
+    pub const fn kind(&self) -> ErrorKind {
+        match self {
+            Self::NeedsToken(_) => ErrorKind::BadInput,
+            Self::Bind { .. } | Self::Start(_) => ErrorKind::NotAvailable,
+        }
+    }
+}
+
+/// An error answered to a client: its status, kind and message.
+#[derive(Debug)]
+pub(crate) struct ApiError {
+    pub(crate) status: StatusCode,
+    pub(crate) kind: &'static str,
+    pub(crate) message: String,
+}
+
+impl ApiError {
+    /// The one mapping of an error kind to an HTTP status.
+    pub(crate) fn of(e: &OpError) -> Self {
+        let kind = e.kind();
+        let status = match kind {
+            ErrorKind::BadInput => StatusCode::BAD_REQUEST,
+            ErrorKind::Refused => StatusCode::CONFLICT,
+            ErrorKind::NoDevice => StatusCode::GATEWAY_TIMEOUT,
+            ErrorKind::Interrupted => {
+                StatusCode::from_u16(499).unwrap_or(StatusCode::SERVICE_UNAVAILABLE)
+            }
+            ErrorKind::NotAvailable => StatusCode::NOT_IMPLEMENTED,
+            // Device and link failures, and a kind added later until it has its own.
+            _ => StatusCode::BAD_GATEWAY,
+        };
+        Self {
+            status,
+            kind: kind.name(),
+            message: e.to_string(),
+        }
+    }
+
+    pub(crate) fn forbidden(message: String) -> Self {
+        Self {
+            status: StatusCode::FORBIDDEN,
+            kind: "forbidden",
+            message,
+        }
+    }
+
+    pub(crate) fn unauthorized(message: &str) -> Self {
+        Self {
+            status: StatusCode::UNAUTHORIZED,
+            kind: "unauthorized",
+            message: message.to_owned(),
+        }
+    }
+
+    pub(crate) fn body(&self) -> serde_json::Value {
+        serde_json::json!({"kind": self.kind, "message": self.message})
+    }
+}
+
+/// A value cut to 64 characters for a message.
+pub(crate) fn cut(s: &str) -> String {
+    if s.chars().count() > 64 {
+        format!("{}...", s.chars().take(64).collect::<String>())
+    } else {
+        s.to_owned()
+    }
+}
+
+/// What every page's connection hears of.
+#[derive(Debug, Clone)]
+pub(crate) enum Event {
+    /// Control or arming changed: each page sends its own view.
+    Control,
+    /// A JSON message for every page (`safe`, `target`).
+    Message(Arc<String>),
+    /// The studio is stopping: every page's connection closes.
+    Shutdown,
+}
+
+/// The server's state.
+pub(crate) struct App {
+    pub(crate) station: Arc<Station>,
+    pub(crate) sim: Option<LiveSimulator>,
+    pub(crate) guard: Guard,
+    pub(crate) jogger: Jogger,
+    pub(crate) config: StudioConfig,
+    pub(crate) gate: security::Gate,
+    pub(crate) events: tokio::sync::broadcast::Sender<Event>,
+    sessions: AtomicU64,
+    eeprom: Mutex<VecDeque<Instant>>,
+}
+
+impl App {
+    pub(crate) fn new_session(&self) -> u64 {
+        self.sessions.fetch_add(1, Ordering::Relaxed) + 1
+    }
+
+    /// Whether `session` may run `request` now: read-only, the guard, the EEPROM rate.
+    pub(crate) fn admit(&self, session: Option<u64>, request: &Request) -> Result<(), OpError> {
+        if self.config.read_only && request.effect() != robobus::catalogue::Effect::Read {
+            return Err(OpError::Refused(format!(
+                "{}: this studio is read-only (started with --read-only); nothing was sent",
+                request.op()
+            )));
+        }
+        self.guard.admit(session, request)?;
+        let plan = robobus::catalogue::plan(request)?;
+        if plan.confirm != robobus::catalogue::bounds::ConfirmClass::None {
+            let mut writes = self.eeprom.lock().unwrap_or_else(PoisonError::into_inner);
+            let now = Instant::now();
+            while writes
+                .front()
+                .is_some_and(|t| now.duration_since(*t) > Duration::from_secs(60))
+            {
+                writes.pop_front();
+            }
+            if writes.len() >= EEPROM_WRITES_PER_MINUTE {
+                return Err(OpError::Refused(format!(
+                    "{}: at most {EEPROM_WRITES_PER_MINUTE} EEPROM / flash / ID writes a \
+                     minute (they wear the device's memory); try again in a minute; nothing \
+                     was sent",
+                    request.op()
+                )));
+            }
+            writes.push_back(now);
+        }
+        Ok(())
+    }
+
+    /// Runs an admitted request on a blocking thread, stopped by `token` or the guard.
+    pub(crate) async fn run(
+        self: &Arc<Self>,
+        request: Request,
+        token: StopToken,
+        progress: Option<tokio::sync::mpsc::Sender<String>>,
+        id: Option<u64>,
+    ) -> Result<robobus::catalogue::Report, OpError> {
+        let app = Arc::clone(self);
+        let target = target_of(&request);
+        let report = tokio::task::spawn_blocking(move || {
+            let _ticket = app.guard.running(&token);
+            let mut on_progress = |p: &robobus::ops::Progress| {
+                if let Some(tx) = &progress {
+                    let msg = serde_json::json!({
+                        "type": "progress", "id": id, "stage": p.stage, "done": p.done,
+                        "total": p.total, "note": p.note,
+                    });
+                    let _ = tx.try_send(msg.to_string());
+                }
+            };
+            let mut control = robobus::ops::Control::new(&token).with_progress(&mut on_progress);
+            robobus::catalogue::run(&app.station, &request, &mut control)
+        })
+        .await
+        .map_err(|e| OpError::Device(format!("the operation's thread failed: {e}")))?;
+        if let (Ok(_), Some(t)) = (&report, target) {
+            self.announce(&t);
+        }
+        report
+    }
+
+    /// Tells every page about a commanded target.
+    pub(crate) fn announce(&self, target: &serde_json::Value) {
+        let _ = self
+            .events
+            .send(Event::Message(Arc::new(target.to_string())));
+    }
+}
+
+/// The target a motion request commands, as a `target` message (for every page's plots).
+fn target_of(request: &Request) -> Option<serde_json::Value> {
+    let (family, bus, device, value) = match request {
+        Request::WhjMove(r) => ("whj", r.bus.clone(), r.joint, r.degrees),
+        Request::WckMove(r) => ("wck", r.bus.clone(), r.id, f64::from(r.position)),
+        _ => return None,
+    };
+    Some(serde_json::json!({
+        "type": "target", "family": family, "bus": bus, "device": device, "value": value,
+        "unix_ms": unix_ms(),
+    }))
+}
+
+pub(crate) fn unix_ms() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64() * 1e3)
+}
+
+/// A studio bound to its address, ready to serve.
+pub struct Studio {
+    app: Arc<App>,
+    listener: std::net::TcpListener,
+    addr: SocketAddr,
+}
+
+impl std::fmt::Debug for Studio {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Studio")
+            .field("addr", &self.addr)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Studio {
+    /// Binds `config.listen` for `station` (`sim`: the built-in simulators, for
+    /// `GET /api/sim`). Refuses a non-loopback address without a token.
+    pub fn bind(
+        station: Station,
+        sim: Option<LiveSimulator>,
+        config: StudioConfig,
+    ) -> Result<Self, StudioError> {
+        if !config.listen.ip().is_loopback() && config.token.is_none() {
+            return Err(StudioError::NeedsToken(config.listen));
+        }
+        let listener =
+            std::net::TcpListener::bind(config.listen).map_err(|source| StudioError::Bind {
+                addr: config.listen,
+                source,
+            })?;
+        let addr = listener.local_addr().map_err(StudioError::Start)?;
+        let (events, _) = tokio::sync::broadcast::channel(256);
+        let station = Arc::new(station);
+        let notify = events.clone();
+        let guard = Guard::new(Arc::clone(&station), config.guard, move |e: &SafeEvent| {
+            let mut v = serde_json::to_value(e).unwrap_or_default();
+            if let Some(o) = v.as_object_mut() {
+                o.insert("type".into(), "safe".into());
+            }
+            let _ = notify.send(Event::Message(Arc::new(v.to_string())));
+            let _ = notify.send(Event::Control);
+        })
+        .map_err(StudioError::Start)?;
+        let gate = security::Gate::new(addr, config.token.clone());
+        Ok(Self {
+            app: Arc::new(App {
+                station,
+                sim,
+                guard,
+                jogger: Jogger::new(),
+                config,
+                gate,
+                events,
+                sessions: AtomicU64::new(0),
+                eeprom: Mutex::new(VecDeque::new()),
+            }),
+            listener,
+            addr,
+        })
+    }
+
+    /// The address it listens on (the port `--port 0` picked).
+    pub fn addr(&self) -> SocketAddr {
+        self.addr
+    }
+
+    /// Serves until `stop` is set; then every moved device is brought to its safe state
+    /// (the guard's drop) and the station is closed.
+    pub fn serve(self, stop: &StopToken) -> Result<(), StudioError> {
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .map_err(StudioError::Start)?;
+        self.listener
+            .set_nonblocking(true)
+            .map_err(StudioError::Start)?;
+        let router = http::router(Arc::clone(&self.app));
+        let stop = stop.clone();
+        let events = self.app.events.clone();
+        rt.block_on(async move {
+            let listener =
+                tokio::net::TcpListener::from_std(self.listener).map_err(StudioError::Start)?;
+            let shutdown = async move {
+                while !stop.is_stopped() {
+                    tokio::time::sleep(Duration::from_millis(50)).await;
+                }
+                let _ = events.send(Event::Shutdown);
+            };
+            axum::serve(listener, router)
+                .with_graceful_shutdown(shutdown)
+                .await
+                .map_err(StudioError::Start)
+        })?;
+        // Connections still open (a page's WebSocket) end with the runtime.
+        drop(rt);
+        Ok(())
+    }
+}

@@ -1,0 +1,423 @@
+//! The WebSocket `/api/ws`: control, arming and the heartbeat (the library's [`Guard`]),
+//! telemetry streams decimated to the page's frame rate, long runs with their progress,
+//! and jogs. One JSON object per message (`docs/studio.md` lists them).
+//!
+//! [`Guard`]: robobus::catalogue::guard::Guard
+
+use std::collections::HashMap;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
+use axum::extract::{Query, State};
+use axum::http::HeaderMap;
+use axum::response::Response;
+use robobus::catalogue::jog::JogRequest;
+use robobus::catalogue::telemetry::{RecvError, Telemetry};
+use robobus::catalogue::{Family, Request};
+use robobus::ops::{OpError, StopToken};
+use serde::Deserialize;
+use serde_json::{Value, json};
+use tokio::sync::mpsc;
+
+use crate::{ApiError, App, Event};
+
+/// The most streams one page may hold.
+const MAX_STREAMS: usize = 8;
+/// The longest text message taken, bytes.
+const MAX_MESSAGE: usize = 4 << 20;
+/// Messages queued for a page before the oldest telemetry waits.
+const OUT_QUEUE: usize = 1024;
+
+/// A message from the page.
+#[derive(Debug, Deserialize)]
+#[serde(tag = "type", rename_all = "kebab-case", deny_unknown_fields)]
+enum FromPage {
+    TakeControl,
+    ReleaseControl,
+    Arm,
+    Disarm,
+    Heartbeat,
+    Subscribe {
+        stream: String,
+        request: Value,
+        rate_hz: f64,
+        #[serde(default)]
+        fps: Option<f64>,
+    },
+    Unsubscribe {
+        stream: String,
+    },
+    Run {
+        id: u64,
+        request: Value,
+    },
+    Stop {
+        id: u64,
+    },
+    Jog {
+        #[serde(default)]
+        id: Option<u64>,
+        family: Family,
+        #[serde(default)]
+        bus: Option<String>,
+        device: u8,
+        target: f64,
+    },
+}
+
+pub(crate) async fn upgrade(
+    State(app): State<Arc<App>>,
+    headers: HeaderMap,
+    Query(query): Query<HashMap<String, String>>,
+    ws: WebSocketUpgrade,
+) -> Result<Response, ApiError> {
+    app.gate
+        .check(&headers, true, true, query.get("token").map(String::as_str))?;
+    Ok(ws
+        .max_message_size(MAX_MESSAGE)
+        .on_upgrade(move |socket| session(app, socket)))
+}
+
+/// One telemetry stream of a page: its sampler and the thread that forwards it.
+struct Stream {
+    stop: Arc<AtomicBool>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Drop for Stream {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            // The forwarder wakes at least every frame period.
+            let _ = t.join();
+        }
+    }
+}
+
+fn error_msg(id: Option<u64>, e: &OpError) -> String {
+    let a = ApiError::of(e);
+    json!({"type": "error", "id": id, "kind": a.kind, "message": a.message}).to_string()
+}
+
+async fn session(app: Arc<App>, mut socket: WebSocket) {
+    let me = app.new_session();
+    let (tx, mut rx) = mpsc::channel::<String>(OUT_QUEUE);
+    let mut events = app.events.subscribe();
+    let mut streams: HashMap<String, Stream> = HashMap::new();
+    let runs: Arc<std::sync::Mutex<HashMap<u64, StopToken>>> = Arc::default();
+    let hello = json!({
+        "type": "hello", "session": me.to_string(), "read_only": app.config.read_only,
+        "simulated": app.sim.is_some(),
+    });
+    if socket
+        .send(Message::Text(hello.to_string().into()))
+        .await
+        .is_err()
+    {
+        return;
+    }
+    let _ = tx.try_send(control_msg(&app, me));
+    loop {
+        tokio::select! {
+            incoming = socket.recv() => {
+                let Some(Ok(msg)) = incoming else { break };
+                let text = match msg {
+                    Message::Text(t) => t.to_string(),
+                    Message::Close(_) => break,
+                    _ => continue,
+                };
+                handle(&app, me, &text, &tx, &mut streams, &runs);
+            }
+            out = rx.recv() => {
+                let Some(out) = out else { break };
+                if socket.send(Message::Text(out.into())).await.is_err() {
+                    break;
+                }
+            }
+            ev = events.recv() => {
+                match ev {
+                    Ok(Event::Control) => {
+                        let _ = tx.try_send(control_msg(&app, me));
+                    }
+                    Ok(Event::Message(m)) => {
+                        let _ = tx.try_send(m.to_string());
+                    }
+                    Ok(Event::Shutdown) | Err(tokio::sync::broadcast::error::RecvError::Closed) => break,
+                    Err(tokio::sync::broadcast::error::RecvError::Lagged(_)) => {}
+                }
+            }
+        }
+    }
+    // The page is gone: its runs stop, its streams end, and if it controlled, the guard
+    // brings what it moved to the safe state.
+    for t in runs
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+        .values()
+    {
+        t.stop();
+    }
+    let was_controller = app.guard.view(me).controller;
+    app.guard.release_control(me);
+    if was_controller {
+        let _ = app.events.send(Event::Control);
+    }
+    tokio::task::spawn_blocking(move || drop(streams));
+}
+
+fn control_msg(app: &App, me: u64) -> String {
+    let v = app.guard.view(me);
+    json!({
+        "type": "control", "controller": v.controller, "armed": v.armed,
+        "held_by_other": v.held_by_other,
+    })
+    .to_string()
+}
+
+fn handle(
+    app: &Arc<App>,
+    me: u64,
+    text: &str,
+    tx: &mpsc::Sender<String>,
+    streams: &mut HashMap<String, Stream>,
+    runs: &Arc<std::sync::Mutex<HashMap<u64, StopToken>>>,
+) {
+    let msg: FromPage = match serde_json::from_str(text) {
+        Ok(m) => m,
+        Err(e) => {
+            let e = OpError::invalid("message", "JSON", format!("{e} (see docs/studio.md)"));
+            let _ = tx.try_send(error_msg(None, &e));
+            return;
+        }
+    };
+    let changed = |r: Result<(), OpError>| match r {
+        Ok(()) => {
+            let _ = app.events.send(Event::Control);
+        }
+        Err(e) => {
+            let _ = tx.try_send(error_msg(None, &e));
+        }
+    };
+    match msg {
+        FromPage::TakeControl => {
+            app.guard.take_control(me);
+            changed(Ok(()));
+        }
+        FromPage::ReleaseControl => {
+            app.guard.release_control(me);
+            changed(Ok(()));
+        }
+        FromPage::Arm => {
+            let r = if app.config.read_only {
+                Err(OpError::Refused(
+                    "this studio is read-only (started with --read-only): nothing moves".into(),
+                ))
+            } else {
+                app.guard.arm(me)
+            };
+            changed(r);
+        }
+        FromPage::Disarm => changed(app.guard.disarm(me)),
+        FromPage::Heartbeat => app.guard.heartbeat(me),
+        FromPage::Subscribe {
+            stream,
+            request,
+            rate_hz,
+            fps,
+        } => {
+            if streams.len() >= MAX_STREAMS && !streams.contains_key(&stream) {
+                let e = OpError::invalid(
+                    "stream",
+                    crate::cut(&stream),
+                    format!("at most {MAX_STREAMS} streams per page: unsubscribe one first"),
+                );
+                let _ = tx.try_send(error_msg(None, &e));
+                return;
+            }
+            streams.remove(&stream);
+            match subscribe(app, &stream, request, rate_hz, fps, tx.clone()) {
+                Ok(s) => {
+                    streams.insert(stream, s);
+                }
+                Err(e) => {
+                    let _ = tx.try_send(error_msg(None, &e));
+                }
+            }
+        }
+        FromPage::Unsubscribe { stream } => {
+            if let Some(s) = streams.remove(&stream) {
+                tokio::task::spawn_blocking(move || drop(s));
+            }
+        }
+        FromPage::Run { id, request } => run(app, me, id, request, tx.clone(), runs),
+        FromPage::Stop { id } => {
+            if let Some(t) = runs
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner)
+                .get(&id)
+            {
+                t.stop();
+            }
+        }
+        FromPage::Jog {
+            id,
+            family,
+            bus,
+            device,
+            target,
+        } => jog(
+            app,
+            me,
+            id,
+            JogRequest {
+                family,
+                bus,
+                device,
+                target,
+            },
+            tx.clone(),
+        ),
+    }
+}
+
+fn run(
+    app: &Arc<App>,
+    me: u64,
+    id: u64,
+    request: Value,
+    tx: mpsc::Sender<String>,
+    runs: &Arc<std::sync::Mutex<HashMap<u64, StopToken>>>,
+) {
+    let request: Request = match serde_json::from_value(request) {
+        Ok(r) => r,
+        Err(e) => {
+            let e = OpError::invalid("request", "JSON", e.to_string());
+            let _ = tx.try_send(error_msg(Some(id), &e));
+            return;
+        }
+    };
+    if let Err(e) = app.admit(Some(me), &request) {
+        let _ = tx.try_send(error_msg(Some(id), &e));
+        return;
+    }
+    let token = StopToken::new();
+    runs.lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+        .insert(id, token.clone());
+    let app = Arc::clone(app);
+    let runs = Arc::clone(runs);
+    tokio::spawn(async move {
+        let out = match app.run(request, token, Some(tx.clone()), Some(id)).await {
+            Ok(report) => json!({"type": "report", "id": id, "report": report}).to_string(),
+            Err(e) => error_msg(Some(id), &e),
+        };
+        runs.lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .remove(&id);
+        let _ = tx.send(out).await;
+    });
+}
+
+fn jog(app: &Arc<App>, me: u64, id: Option<u64>, req: JogRequest, tx: mpsc::Sender<String>) {
+    if app.config.read_only {
+        let e = OpError::Refused("this studio is read-only: nothing moves".into());
+        let _ = tx.try_send(error_msg(id, &e));
+        return;
+    }
+    if let Err(e) = app
+        .guard
+        .admit_jog(Some(me), req.family, req.bus.as_deref(), req.device)
+    {
+        let _ = tx.try_send(error_msg(id, &e));
+        return;
+    }
+    let app = Arc::clone(app);
+    tokio::spawn(async move {
+        let worker = Arc::clone(&app);
+        let done =
+            tokio::task::spawn_blocking(move || worker.jogger.jog(&worker.station, &req)).await;
+        let out = match done {
+            Ok(Ok(j)) => {
+                app.announce(&json!({
+                    "type": "target", "family": j.family, "bus": j.bus, "device": j.device,
+                    "value": j.sent, "unix_ms": crate::unix_ms(),
+                }));
+                let mut v = serde_json::to_value(&j).unwrap_or_default();
+                if let Some(o) = v.as_object_mut() {
+                    o.insert("type".into(), "jogged".into());
+                    o.insert("id".into(), json!(id));
+                }
+                v.to_string()
+            }
+            Ok(Err(e)) => error_msg(id, &e),
+            Err(e) => error_msg(
+                id,
+                &OpError::Device(format!("the jog's thread failed: {e}")),
+            ),
+        };
+        let _ = tx.send(out).await;
+    });
+}
+
+/// Starts a telemetry stream and its forwarder: the latest sample at most `fps` times a
+/// second, with how many were skipped since the previous one.
+fn subscribe(
+    app: &Arc<App>,
+    name: &str,
+    request: Value,
+    rate_hz: f64,
+    fps: Option<f64>,
+    tx: mpsc::Sender<String>,
+) -> Result<Stream, OpError> {
+    let request: Request = serde_json::from_value(request)
+        .map_err(|e| OpError::invalid("request", "JSON", e.to_string()))?;
+    let fps = fps.unwrap_or(30.0);
+    if !(1.0..=120.0).contains(&fps) {
+        return Err(OpError::invalid("fps", fps, "allowed: 1..=120"));
+    }
+    let telemetry = Telemetry::start(&app.station, request, rate_hz, None)?;
+    let sub = telemetry.subscribe(64)?;
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = Arc::clone(&stop);
+    let name = name.to_owned();
+    let frame = Duration::from_secs_f64(1.0 / fps);
+    let thread = std::thread::Builder::new()
+        .name("studio-stream".into())
+        .spawn(move || {
+            let _telemetry = telemetry;
+            let mut next = Instant::now();
+            let mut latest = None;
+            let mut skipped = 0u64;
+            while !flag.load(Ordering::Relaxed) {
+                let wait = next.saturating_duration_since(Instant::now());
+                match sub.recv_timeout(wait.max(Duration::from_millis(1))) {
+                    Ok(d) => {
+                        skipped += d.lost + u64::from(latest.is_some());
+                        latest = Some(d.sample);
+                    }
+                    Err(RecvError::Ended) => break,
+                    Err(RecvError::Timeout) => {}
+                }
+                if Instant::now() >= next {
+                    next = Instant::now() + frame;
+                    if let Some(s) = latest.take() {
+                        let msg = json!({
+                            "type": "telemetry", "stream": name, "sample": &*s,
+                            "skipped": skipped,
+                        });
+                        skipped = 0;
+                        if tx.blocking_send(msg.to_string()).is_err() {
+                            break;
+                        }
+                    }
+                }
+            }
+        })
+        .map_err(|e| OpError::Device(format!("starting a telemetry stream: {e}")))?;
+    Ok(Stream {
+        stop,
+        thread: Some(thread),
+    })
+}
