@@ -1,0 +1,398 @@
+//! `robobus studio` as a process: its HTTP API against `robobus run`, who it refuses
+//! (Host, Origin, token, non-loopback without a token), and the dead man's switch on the
+//! simulators' own state (`GET /api/sim`). The page itself is tested in Chromium
+//! (`scripts/studio/test-browser`).
+
+use std::io::{BufRead as _, BufReader, Read as _, Write as _};
+use std::net::TcpStream;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use serde_json::{Value, json};
+
+struct Studio {
+    child: Child,
+    addr: String,
+}
+
+impl Drop for Studio {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn start(args: &[&str]) -> Studio {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .arg("studio")
+        .args(["--port", "0"])
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let addr = line
+        .trim()
+        .strip_prefix("studio: http://")
+        .and_then(|s| s.strip_suffix('/'))
+        .unwrap_or_else(|| panic!("first line: {line:?}"))
+        .to_owned();
+    Studio { child, addr }
+}
+
+/// One HTTP/1.1 exchange: (status, body).
+fn http(
+    addr: &str,
+    method: &str,
+    path: &str,
+    headers: &[(&str, &str)],
+    body: &str,
+) -> (u16, String) {
+    let mut s = TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+    let has_host = headers.iter().any(|(k, _)| k.eq_ignore_ascii_case("host"));
+    let mut req = format!("{method} {path} HTTP/1.1\r\nConnection: close\r\n");
+    if !has_host {
+        req.push_str(&format!("Host: {addr}\r\n"));
+    }
+    for (k, v) in headers {
+        req.push_str(&format!("{k}: {v}\r\n"));
+    }
+    req.push_str(&format!("Content-Length: {}\r\n\r\n{body}", body.len()));
+    s.write_all(req.as_bytes()).unwrap();
+    let mut out = String::new();
+    s.read_to_string(&mut out).unwrap();
+    let status = out[9..12].parse().unwrap();
+    let body = out.split_once("\r\n\r\n").map(|x| x.1).unwrap_or("");
+    // Bodies come chunked or whole; the JSON is the part between the first '{'/'[' and
+    // the last '}'/']'.
+    let start = body.find(['{', '[']).unwrap_or(0);
+    let end = body.rfind(['}', ']']).map_or(body.len(), |e| e + 1);
+    (status, body[start..end.max(start)].to_owned())
+}
+
+fn robobus_run(request: &Value) -> Value {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .args(["run", "-"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(request.to_string().as_bytes())
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+#[test]
+fn api_run_answers_what_robobus_run_prints() {
+    let s = start(&[]);
+    assert!(
+        s.addr.starts_with("127.0.0.1:"),
+        "loopback by default: {}",
+        s.addr
+    );
+    for request in [
+        json!({"op": "wck.status", "ids": "0-2"}),
+        json!({"op": "whj.status", "joints": "1-3"}),
+        json!({"op": "wck.get", "param": "gains", "id": 4}),
+        json!({"op": "whj.read", "joints": "2", "register": "SYS_ID"}),
+        json!({"op": "wck.program.check", "program": "move 100 torque 1\ndelay 150ms\n"}),
+    ] {
+        let (status, body) = http(&s.addr, "POST", "/api/run", &[], &request.to_string());
+        assert_eq!(status, 200, "{request}: {body}");
+        let report: Value = serde_json::from_str(&body).unwrap();
+        assert_eq!(report, robobus_run(&request), "{request}");
+    }
+    // A silent device: the same report, with its failure (200: the request ran).
+    let request = json!({"op": "wck.status", "ids": "0,20"});
+    let (status, body) = http(&s.addr, "POST", "/api/run", &[], &request.to_string());
+    assert_eq!(status, 200);
+    let report: Value = serde_json::from_str(&body).unwrap();
+    assert_eq!(report["failed"], "no-device");
+    assert_eq!(report["results"][1]["id"], 20);
+    // Errors as {kind, message} with the kind's status, nothing sent.
+    let (status, body) = http(
+        &s.addr,
+        "POST",
+        "/api/run",
+        &[],
+        r#"{"op":"wck.move","id":3,"position":300}"#,
+    );
+    assert_eq!(status, 400, "{body}");
+    let e: Value = serde_json::from_str(&body).unwrap();
+    assert_eq!(e["kind"], "bad-input");
+    assert!(e["message"].as_str().unwrap().contains("300"), "{body}");
+    let (status, body) = http(&s.addr, "POST", "/api/run", &[], r#"{"op":"nope"}"#);
+    assert_eq!(
+        (
+            status,
+            serde_json::from_str::<Value>(&body).unwrap()["kind"].clone()
+        ),
+        (400, json!("bad-input"))
+    );
+    // Motion without an armed session is refused, and the servo did not move.
+    let before: Value = serde_json::from_str(&http(&s.addr, "GET", "/api/sim", &[], "").1).unwrap();
+    let (status, body) = http(
+        &s.addr,
+        "POST",
+        "/api/run",
+        &[],
+        r#"{"op":"wck.move","id":3,"position":60}"#,
+    );
+    assert_eq!(status, 409, "{body}");
+    let after: Value = serde_json::from_str(&http(&s.addr, "GET", "/api/sim", &[], "").1).unwrap();
+    assert_eq!(before["wck"][3]["mode"], after["wck"][3]["mode"]);
+    assert_eq!(after["wck"][3]["position"], 127);
+    // A dry run: the plan, the same text as the CLI's --dry-run, and what it needs.
+    let (status, body) = http(
+        &s.addr,
+        "POST",
+        "/api/plan",
+        &[],
+        r#"{"op":"wck.set-id","id":3,"new_id":5}"#,
+    );
+    assert_eq!(status, 200);
+    let plan: Value = serde_json::from_str(&body).unwrap();
+    assert_eq!(plan["effect"], "configure");
+    assert!(plan["confirm"].is_string(), "{body}");
+    assert!(plan["text"].as_str().unwrap().contains("FF"), "{body}");
+    // The schemas are `robobus schema`'s.
+    let (status, body) = http(&s.addr, "GET", "/api/schema", &[], "");
+    assert_eq!(status, 200);
+    let schema: Value = serde_json::from_str(&body).unwrap();
+    let cli = Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .arg("schema")
+        .output()
+        .unwrap();
+    assert_eq!(
+        schema,
+        serde_json::from_slice::<Value>(&cli.stdout).unwrap()
+    );
+    // The session's traffic, as a capture `robobus replay` reads.
+    let (status, body) = http(&s.addr, "GET", "/api/capture/sim-wck", &[], "");
+    assert_eq!(status, 200);
+    let _ = body;
+}
+
+#[test]
+fn foreign_host_origin_and_missing_token_are_refused() {
+    let s = start(&[]);
+    let (status, _) = http(
+        &s.addr,
+        "GET",
+        "/api/info",
+        &[("Host", "rebound.example:80")],
+        "",
+    );
+    assert_eq!(status, 403);
+    let (status, _) = http(&s.addr, "GET", "/", &[("Host", "rebound.example:80")], "");
+    assert_eq!(status, 403);
+    let foreign = [("Origin", "http://evil.example")];
+    let (status, body) = http(
+        &s.addr,
+        "POST",
+        "/api/run",
+        &foreign,
+        r#"{"op":"wck.status","ids":"0"}"#,
+    );
+    assert_eq!(status, 403, "{body}");
+    let own = format!("http://{}", s.addr);
+    let (status, _) = http(
+        &s.addr,
+        "POST",
+        "/api/run",
+        &[("Origin", &own)],
+        r#"{"op":"wck.status","ids":"0"}"#,
+    );
+    assert_eq!(status, 200);
+    // The WebSocket upgrade checks Origin too.
+    let ws = |origin: &str| {
+        let mut req = tungstenite::client::IntoClientRequest::into_client_request(format!(
+            "ws://{}/api/ws",
+            s.addr
+        ))
+        .unwrap();
+        req.headers_mut().insert("Origin", origin.parse().unwrap());
+        let stream = TcpStream::connect(&s.addr).unwrap();
+        tungstenite::client(req, stream)
+            .map(|_| ())
+            .map_err(|e| match e {
+                tungstenite::handshake::HandshakeError::Failure(tungstenite::Error::Http(r)) => {
+                    r.status().as_u16()
+                }
+                other => panic!("{other}"),
+            })
+    };
+    assert_eq!(ws("http://evil.example"), Err(403));
+    assert_eq!(ws(&own), Ok(()));
+    // No CORS headers, ever.
+    let mut stream = TcpStream::connect(&s.addr).unwrap();
+    write!(stream, "GET /api/info HTTP/1.1\r\nHost: {}\r\nOrigin: http://evil.example\r\nConnection: close\r\n\r\n", s.addr).unwrap();
+    let mut raw = String::new();
+    stream.read_to_string(&mut raw).unwrap();
+    assert!(!raw.to_lowercase().contains("access-control-"), "{raw}");
+    drop(s);
+
+    // A token: every API request carries it.
+    let dir = tempfile::tempdir().unwrap();
+    let token_file = dir.path().join("token");
+    std::fs::write(&token_file, "0123456789abcdef-token\n").unwrap();
+    let s = start(&["--token-file", token_file.to_str().unwrap()]);
+    assert_eq!(http(&s.addr, "GET", "/api/info", &[], "").0, 401);
+    let bearer = [("Authorization", "Bearer 0123456789abcdef-token")];
+    assert_eq!(http(&s.addr, "GET", "/api/info", &bearer, "").0, 200);
+    let wrong = [("Authorization", "Bearer 0123456789abcdef-tokem")];
+    assert_eq!(http(&s.addr, "GET", "/api/info", &wrong, "").0, 401);
+    drop(s);
+
+    // Beyond loopback only with a token: refused before anything is opened.
+    let out = Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .args(["studio", "--listen", "0.0.0.0:0"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("0.0.0.0:0") && err.contains("--token-file"),
+        "{err}"
+    );
+}
+
+fn send(ws: &mut tungstenite::WebSocket<TcpStream>, v: &Value) {
+    ws.send(tungstenite::Message::Text(v.to_string().into()))
+        .unwrap();
+}
+
+/// Reads messages until one of `type` (with `id`, if given) arrives.
+fn wait_for(ws: &mut tungstenite::WebSocket<TcpStream>, kind: &str, id: Option<u64>) -> Value {
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while Instant::now() < deadline {
+        let m = ws.read().unwrap();
+        let tungstenite::Message::Text(t) = m else {
+            continue;
+        };
+        let v: Value = serde_json::from_str(&t).unwrap();
+        if v["type"] == "error" && id.is_some() && v["id"] == json!(id) {
+            panic!("{v}");
+        }
+        if v["type"] == kind && (id.is_none() || v["id"] == json!(id)) {
+            return v;
+        }
+    }
+    panic!("no {kind} message");
+}
+
+#[test]
+fn a_lost_heartbeat_brings_the_moved_joint_to_its_safe_state() {
+    let s = start(&[]);
+    let (mut ws, _) = tungstenite::client(
+        format!("ws://{}/api/ws", s.addr),
+        TcpStream::connect(&s.addr).unwrap(),
+    )
+    .unwrap();
+    let hello = wait_for(&mut ws, "hello", None);
+    assert_eq!(hello["simulated"], true);
+    send(&mut ws, &json!({"type": "take-control"}));
+    // Not armed: a jog is refused and nothing moves.
+    send(
+        &mut ws,
+        &json!({"type": "jog", "id": 1, "family": "whj", "device": 1, "target": 5}),
+    );
+    let refused = loop {
+        let v: Value = match ws.read().unwrap() {
+            tungstenite::Message::Text(t) => serde_json::from_str(&t).unwrap(),
+            _ => continue,
+        };
+        if v["type"] == "error" && v["id"] == 1 {
+            break v;
+        }
+    };
+    assert_eq!(refused["kind"], "refused");
+    send(&mut ws, &json!({"type": "arm"}));
+    let run = |ws: &mut tungstenite::WebSocket<TcpStream>, id: u64, request: Value| {
+        send(ws, &json!({"type": "run", "id": id, "request": request}));
+        send(ws, &json!({"type": "heartbeat"}));
+        wait_for(ws, "report", Some(id))
+    };
+    run(&mut ws, 2, json!({"op": "whj.disable", "joints": "1"}));
+    run(
+        &mut ws,
+        3,
+        json!({"op": "whj.mode", "joints": "1", "mode": "speed"}),
+    );
+    run(&mut ws, 4, json!({"op": "whj.enable", "joints": "1"}));
+    // A long speed target, then the page stops beating (its tab froze).
+    send(
+        &mut ws,
+        &json!({"type": "run", "id": 5, "request": {"op": "whj.speed", "joint": 1, "rpm": 3, "duration": 20}}),
+    );
+    let sim = |s: &Studio| -> Value {
+        serde_json::from_str(&http(&s.addr, "GET", "/api/sim", &[], "").1).unwrap()
+    };
+    let mut last_beat = Instant::now();
+    let beat_until = Instant::now() + Duration::from_secs(10);
+    loop {
+        send(&mut ws, &json!({"type": "heartbeat"}));
+        last_beat = Instant::now();
+        let j = &sim(&s)["whj"][0];
+        if j["target_speed_rpm"].as_f64().unwrap() > 2.9 {
+            break;
+        }
+        assert!(
+            Instant::now() < beat_until,
+            "the speed target never reached the joint: {j}"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    // No more heartbeats: within 300 ms of the first missed one (due 100 ms after the
+    // last), the simulated joint holds: its speed target is 0.
+    let safe = loop {
+        let j = sim(&s)["whj"][0].clone();
+        if j["target_speed_rpm"].as_f64().unwrap() == 0.0 {
+            break last_beat.elapsed();
+        }
+        assert!(
+            last_beat.elapsed() < Duration::from_secs(3),
+            "never held: {j}"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    assert!(
+        safe <= Duration::from_millis(400),
+        "safe {safe:?} after the last heartbeat"
+    );
+    let event = wait_for(&mut ws, "safe", None);
+    assert_eq!(event["reason"], "heartbeat lost");
+    assert_eq!(
+        event["devices"],
+        json!([{"family": "whj", "bus": "sim-whj", "id": 1}])
+    );
+    assert_eq!(event["stopped_runs"], 1);
+    // The stopped run ends interrupted, and the page is disarmed.
+    let ended = loop {
+        let v: Value = match ws.read().unwrap() {
+            tungstenite::Message::Text(t) => serde_json::from_str(&t).unwrap(),
+            _ => continue,
+        };
+        if v["id"] == 5 && (v["type"] == "error" || v["type"] == "report") {
+            break v;
+        }
+    };
+    assert_eq!(ended["kind"], "interrupted", "{ended}");
+    send(
+        &mut ws,
+        &json!({"type": "jog", "id": 6, "family": "whj", "device": 1, "target": 5}),
+    );
+    let v = wait_for(&mut ws, "error", None);
+    assert_eq!(v["id"], 6);
+    assert_eq!(v["kind"], "refused");
+}
