@@ -24,8 +24,8 @@ pub(crate) struct Args {
     /// How long the WHJ arm follows its sine trajectory, seconds (0.5..=60).
     #[arg(long, default_value_t = 4.0, value_parser = parse_seconds)]
     seconds: f64,
-    /// Also plot the run (wCK servo angles and WHJ joint angles over time) to this file;
-    /// the format follows the extension: .png or .svg.
+    /// Also plot the run (wCK servo angles and WHJ joint angles over time, a panel each,
+    /// their targets dashed) to this file; the format follows the extension: .png or .svg.
     #[arg(long, value_name = "FILE")]
     plot: Option<PathBuf>,
 }
@@ -150,7 +150,8 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     }
 }
 
-/// The trace as a recording for the plot.
+/// The trace as a recording for the plot: the traced angles and their targets
+/// (`wck0_deg` and `wck0_target_deg`, ...), which the plot pairs.
 fn recording(trace: &Trace) -> Recording {
     let (time, signals) = trace.rows();
     Recording {

@@ -81,10 +81,35 @@ fn demo_json_summary_reports_the_whole_robot_tracking_well() {
     assert!(num(&whj["round_trip_us"]["p50"]) > 0.0, "{whj}");
 
     assert_eq!(doc["errors"].as_array().unwrap().len(), 0, "{doc}");
+    // The plot: a panel per family, each with its signals and their (dashed) targets.
     let svg = std::fs::read_to_string(&plot).unwrap();
-    assert!(
-        svg.contains("<svg") && svg.contains("whj1_deg"),
-        "plot lacks the joints"
+    assert!(svg.starts_with("<svg"), "not an SVG");
+    let labels: Vec<&str> = svg
+        .split("</text>")
+        .filter_map(|t| t.rsplit_once('>').map(|(_, label)| label.trim()))
+        .filter(|l| !l.is_empty() && l.parse::<f64>().is_err())
+        .collect();
+    assert_eq!(
+        labels,
+        [
+            "wCK servo angle (deg)",
+            "wck0_deg",
+            "wck2_deg",
+            "wck4_deg",
+            "wck6_deg",
+            "target",
+            "WHJ joint angle (deg)",
+            "whj1_deg",
+            "whj2_deg",
+            "whj3_deg",
+            "whj4_deg",
+            "whj5_deg",
+            "whj6_deg",
+            "whj7_deg",
+            "target",
+            "time (s)",
+            "robobus demo: simulated robot",
+        ]
     );
 }
 

@@ -43,7 +43,11 @@ fn plots_png_and_svg() {
         args.extend_from_slice(extra);
         let r = robobus(&args);
         assert_eq!(r.code, Some(0), "{r:#?}");
-        assert!(r.stdout.contains("100 rows, 3 signals"), "{}", r.stdout);
+        assert!(
+            r.stdout.contains("100 rows, 3 signals in 2 panels"),
+            "{}",
+            r.stdout
+        );
     }
     // PNG: signature, IHDR with the requested size, and more than a blank canvas.
     let bytes = std::fs::read(&png).unwrap();
@@ -62,7 +66,15 @@ fn plots_png_and_svg() {
     assert!(text.starts_with("<svg"), "{}", &text[..80]);
     assert!(text.contains(r#"width="1200" height="600""#));
     assert!(text.trim_end().ends_with("</svg>"));
-    for name in ["j1_deg", "j2_deg", "j1_mA", "t_s", "rec.csv"] {
+    for name in [
+        "j1_deg",
+        "j2_deg",
+        "j1_mA",
+        "rec.csv",
+        "time (s)",
+        "WHJ joint angle (deg)",
+        "WHJ joint current (mA)",
+    ] {
         assert!(text.contains(name), "SVG lacks {name}");
     }
     // j1_mA has a gap, so it is drawn in two pieces: 2 + 1 + 1 polylines for data.
@@ -132,6 +144,126 @@ fn bad_csv_names_the_line() {
         "{}",
         r.stderr
     );
+}
+
+/// A recording of both families with targets: a wCK servo's angle and its target, a WHJ
+/// joint's angle and its target (named the other way round), and the joint's current.
+fn two_family_csv() -> String {
+    let mut s = String::from("t_s,wck0_deg,wck0_target_deg,whj1_deg,whj1_deg_target,whj1_mA\n");
+    for i in 0..200 {
+        let t = f64::from(i) * 0.01;
+        let step = if t < 0.5 { 0.0 } else { 60.0 };
+        let sine = 20.0 * (t * 3.0).sin();
+        writeln!(
+            s,
+            "{t:.3},{:.2},{step:.1},{:.3},{sine:.3},{:.1}",
+            step * (1.0 - (-(t - 0.5).max(0.0) * 8.0).exp()),
+            20.0 * (t * 3.0 - 0.1).sin(),
+            800.0 * (t * 3.0).cos()
+        )
+        .unwrap();
+    }
+    s
+}
+
+#[test]
+fn one_panel_per_family_and_unit_with_targets_dashed() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("two.csv");
+    std::fs::write(&csv, two_family_csv()).unwrap();
+    let expected: serde_json::Value = serde_json::json!([
+        {"title": "wCK servo angle (deg)", "series": [
+            {"signal": "wck0_deg", "target": "wck0_target_deg"}]},
+        {"title": "WHJ joint angle (deg)", "series": [
+            {"signal": "whj1_deg", "target": "whj1_deg_target"}]},
+        {"title": "WHJ joint current (mA)", "series": [
+            {"signal": "whj1_mA", "target": null}]},
+    ]);
+    for ext in ["png", "svg"] {
+        let out = dir.path().join(format!("two.{ext}"));
+        let r = robobus(&[
+            "--json",
+            "plot",
+            csv.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert_eq!(r.code, Some(0), "{r:#?}");
+        let doc: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
+        assert_eq!(doc["panels"], expected, "{doc:#}");
+        assert_eq!(doc["x_title"], "time (s)");
+        assert_eq!(doc["rows"], 200);
+        assert_eq!(doc["signals"].as_array().unwrap().len(), 5);
+    }
+    // PNG: three panels make it 840 pixels high (240 each and 120), 1200 wide.
+    let bytes = std::fs::read(dir.path().join("two.png")).unwrap();
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+    let w = u32::from_be_bytes(bytes[16..20].try_into().unwrap());
+    let h = u32::from_be_bytes(bytes[20..24].try_into().unwrap());
+    assert_eq!((w, h), (1200, 840));
+    // SVG: the axis titles, one legend entry per signal and one for the dashed targets
+    // in each panel with targets; a target is drawn in its signal's colour (the first
+    // of the palette, #1F77B4, in every panel): one polyline for the signal, one or more
+    // per dash of the target, one for its legend sample.
+    let text = std::fs::read_to_string(dir.path().join("two.svg")).unwrap();
+    assert!(text.contains(r#"width="1200" height="840""#));
+    let labels: Vec<&str> = text
+        .split("</text>")
+        .filter_map(|t| t.rsplit_once('>').map(|(_, label)| label.trim()))
+        .filter(|l| !l.is_empty() && l.parse::<f64>().is_err())
+        .collect();
+    assert_eq!(
+        labels,
+        [
+            "wCK servo angle (deg)",
+            "wck0_deg",
+            "target",
+            "WHJ joint angle (deg)",
+            "whj1_deg",
+            "target",
+            "WHJ joint current (mA)",
+            "whj1_mA",
+            "time (s)",
+            "two.csv",
+        ]
+    );
+    let blue = text.matches(r##"stroke="#1F77B4""##).count();
+    assert!(blue > 3 * 2 + 10, "{blue} blue lines: targets not dashed?");
+}
+
+#[test]
+fn selected_signals_bring_their_targets() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("two.csv");
+    std::fs::write(&csv, two_family_csv()).unwrap();
+    let out = dir.path().join("one.svg");
+    let r = robobus(&[
+        "--json",
+        "plot",
+        csv.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--signals",
+        "whj1_deg,wck0_target_deg",
+    ]);
+    assert_eq!(r.code, Some(0), "{r:#?}");
+    let doc: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
+    assert_eq!(
+        doc["signals"],
+        serde_json::json!(["wck0_target_deg", "whj1_deg", "whj1_deg_target"])
+    );
+    // A target without its signal is a line of its own, in its signal's panel.
+    assert_eq!(
+        doc["panels"],
+        serde_json::json!([
+            {"title": "wCK servo angle (deg)", "series": [
+                {"signal": "wck0_target_deg", "target": null}]},
+            {"title": "WHJ joint angle (deg)", "series": [
+                {"signal": "whj1_deg", "target": "whj1_deg_target"}]},
+        ])
+    );
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(text.contains(r#"width="1200" height="600""#));
 }
 
 /// Runs `robobus ARGS`, killing it (and failing) if it is not done within 30 s: a plot

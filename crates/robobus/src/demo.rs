@@ -75,6 +75,9 @@ const KEYFRAMES: [(&str, [u8; SERVOS as usize]); 3] = [
 
 /// The plotted wCK servos (the ones the keyframes move most).
 const WCK_PLOTTED: [u8; 4] = [0, 2, 4, 6];
+/// Signals in the trace: the plotted wCK servos and the WHJ joints (each also traced as
+/// its target, `TRACED` columns further on).
+const TRACED: usize = WCK_PLOTTED.len() + JOINTS as usize;
 
 /// What the demo does.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -254,7 +257,8 @@ pub struct WhjReport {
 }
 
 /// Positions over time: (seconds since the start, signal, degrees). Signals are the
-/// plotted wCK servos, then the WHJ joints ([`Trace::names`]).
+/// plotted wCK servos, then the WHJ joints, then the targets of both in the same order
+/// (the keyframe positions sent, the set-points the loop sent) ([`Trace::names`]).
 #[derive(Debug, Clone, Default)]
 pub struct Trace(pub Vec<(f64, usize, f64)>);
 
@@ -263,19 +267,25 @@ impl Trace {
         self.0.push((t, col, v));
     }
 
-    /// The signal names: `wck0_deg`, ..., `whj1_deg`, ...
+    /// The signal names: `wck0_deg`, ..., `whj1_deg`, ..., then the targets:
+    /// `wck0_target_deg`, ..., `whj1_target_deg`, ...
     pub fn names() -> Vec<String> {
         let mut names: Vec<String> = WCK_PLOTTED
             .iter()
             .map(|id| format!("wck{id}_deg"))
             .collect();
         names.extend((1..=JOINTS).map(|j| format!("whj{j}_deg")));
+        let targets: Vec<String> = names
+            .iter()
+            .map(|n| n.replace("_deg", "_target_deg"))
+            .collect();
+        names.extend(targets);
         names
     }
 
     /// One row per distinct time: the time and one value per signal (`None`: not sampled).
     pub fn rows(&self) -> (Vec<f64>, Vec<Vec<Option<f64>>>) {
-        let columns = WCK_PLOTTED.len() + usize::from(JOINTS);
+        let columns = 2 * TRACED;
         let mut time = Vec::new();
         let mut signals: Vec<Vec<Option<f64>>> = vec![Vec::new(); columns];
         for &(t, col, v) in &self.0 {
@@ -480,6 +490,11 @@ fn humanoid_run<L: ByteLink>(
                 worst = worst.max(at.abs_diff(target));
                 if let Some(col) = WCK_PLOTTED.iter().position(|&p| p == raw) {
                     trace.push(t, col, (f64::from(at) - 127.0) * WCK_DEG_PER_STEP);
+                    trace.push(
+                        t,
+                        TRACED + col,
+                        (f64::from(target) - 127.0) * WCK_DEG_PER_STEP,
+                    );
                 }
             }
             if worst <= 1 {
@@ -647,6 +662,13 @@ fn arm_run(
                 if let Some(fb) = fb {
                     trace.push(now, WCK_PLOTTED.len() + i, fb.position.degrees());
                 }
+            }
+            for (i, cmd) in report.commanded.iter().enumerate() {
+                trace.push(
+                    now,
+                    TRACED + WCK_PLOTTED.len() + i,
+                    Position(*cmd).degrees(),
+                );
             }
         }
         previous = Some(report.commanded.clone());
