@@ -86,20 +86,33 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     let capture_dir = std::env::temp_dir().join(format!("robobus-studio-{}", std::process::id()));
     std::fs::create_dir_all(&capture_dir)
         .with_context(|| format!("creating {}", capture_dir.display()))?;
-    let (station, sim, captures) =
+    // The session's traffic is captured there (served by the page's Capture panel) and
+    // removed when the studio stops, whatever way it stops.
+    let served = serve_in(args, listen, token, &capture_dir);
+    let _ = std::fs::remove_dir_all(&capture_dir);
+    served
+}
+
+fn serve_in(
+    args: &Args,
+    listen: SocketAddr,
+    token: Option<String>,
+    capture_dir: &std::path::Path,
+) -> anyhow::Result<()> {
+    let (station, sim) =
         if args.wck_port.is_empty() && args.whj_bus.is_empty() && args.robot.is_none() {
-            let (station, sim) = Station::simulated_live(Some(&capture_dir))?;
-            let captures = sim.captures().to_vec();
-            (station, Some(sim), captures)
+            let (station, sim) = Station::simulated_live(Some(capture_dir))?;
+            (station, Some(sim))
         } else {
             let station = Station::open(&StationConfig {
                 wck_ports: args.wck_port.clone(),
                 wck_baud: Some(args.wck_baud),
                 whj_buses: args.whj_bus.clone(),
                 robot: args.robot.clone(),
+                capture_dir: Some(capture_dir.to_path_buf()),
                 ..StationConfig::default()
             })?;
-            (station, None, Vec::new())
+            (station, None)
         };
     let studio = Studio::bind(
         station,
@@ -112,7 +125,6 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
                 heartbeat_timeout: std::time::Duration::from_millis(args.heartbeat_timeout_ms),
                 ..GuardConfig::default()
             },
-            captures,
         },
     )
     .map_err(|e| match e.kind() {
@@ -121,8 +133,6 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     })?;
     crate::output::print(&format!("studio: http://{}/\n", studio.addr()))?;
     let stop = crate::interrupt::stop_token();
-    let served = studio.serve(&stop);
-    let _ = std::fs::remove_dir_all(&capture_dir);
-    served?;
+    studio.serve(&stop)?;
     Ok(())
 }

@@ -3,6 +3,9 @@
 //! simulators' own state (`GET /api/sim`). The page itself is tested in Chromium
 //! (`scripts/studio/test-browser`).
 
+#![allow(clippy::unwrap_used, clippy::panic)] // test helpers: a failed unwrap is a failed test
+
+use std::fmt::Write as _;
 use std::io::{BufRead as _, BufReader, Read as _, Write as _};
 use std::net::TcpStream;
 use std::process::{Child, Command, Stdio};
@@ -57,17 +60,17 @@ fn http(
     let has_host = headers.iter().any(|(k, _)| k.eq_ignore_ascii_case("host"));
     let mut req = format!("{method} {path} HTTP/1.1\r\nConnection: close\r\n");
     if !has_host {
-        req.push_str(&format!("Host: {addr}\r\n"));
+        let _ = write!(req, "Host: {addr}\r\n");
     }
     for (k, v) in headers {
-        req.push_str(&format!("{k}: {v}\r\n"));
+        let _ = write!(req, "{k}: {v}\r\n");
     }
-    req.push_str(&format!("Content-Length: {}\r\n\r\n{body}", body.len()));
+    let _ = write!(req, "Content-Length: {}\r\n\r\n{body}", body.len());
     s.write_all(req.as_bytes()).unwrap();
     let mut out = String::new();
     s.read_to_string(&mut out).unwrap();
     let status = out[9..12].parse().unwrap();
-    let body = out.split_once("\r\n\r\n").map(|x| x.1).unwrap_or("");
+    let body = out.split_once("\r\n\r\n").map_or("", |x| x.1);
     // Bodies come chunked or whole; the JSON is the part between the first '{'/'[' and
     // the last '}'/']'.
     let start = body.find(['{', '[']).unwrap_or(0);
@@ -178,9 +181,29 @@ fn api_run_answers_what_robobus_run_prints() {
         serde_json::from_slice::<Value>(&cli.stdout).unwrap()
     );
     // The session's traffic, as a capture `robobus replay` reads.
-    let (status, body) = http(&s.addr, "GET", "/api/capture/sim-wck", &[], "");
-    assert_eq!(status, 200);
-    let _ = body;
+    let dir = tempfile::tempdir().unwrap();
+    for bus in ["sim-wck", "sim-whj"] {
+        let (status, body) = http(&s.addr, "GET", &format!("/api/capture/{bus}"), &[], "");
+        assert_eq!(status, 200);
+        let file = dir.path().join(format!("{bus}.log"));
+        std::fs::write(&file, &body).unwrap();
+        let replay = Command::new(env!("CARGO_BIN_EXE_robobus"))
+            .args(["replay", "--json"])
+            .arg(&file)
+            .output()
+            .unwrap();
+        assert!(replay.status.success(), "{bus}: {replay:?}");
+        let decoded: Value = serde_json::from_slice(&replay.stdout).unwrap();
+        assert_eq!(decoded["summary"]["malformed"], 0, "{bus}: {decoded}");
+        // The requests above are in it: servo 2's status read, joint 2's SYS_ID read.
+        let text = decoded["entries"].to_string();
+        let wanted = if bus == "sim-wck" {
+            "status read servo 2"
+        } else {
+            "SYS_ID"
+        };
+        assert!(text.contains(wanted), "{bus}: {wanted} not in {text}");
+    }
 }
 
 #[test]
@@ -281,9 +304,10 @@ fn wait_for(ws: &mut tungstenite::WebSocket<TcpStream>, kind: &str, id: Option<u
             continue;
         };
         let v: Value = serde_json::from_str(&t).unwrap();
-        if v["type"] == "error" && id.is_some() && v["id"] == json!(id) {
-            panic!("{v}");
-        }
+        assert!(
+            !(v["type"] == "error" && id.is_some() && v["id"] == json!(id)),
+            "{v}"
+        );
         if v["type"] == kind && (id.is_none() || v["id"] == json!(id)) {
             return v;
         }
@@ -338,7 +362,7 @@ fn a_lost_heartbeat_brings_the_moved_joint_to_its_safe_state() {
     let sim = |s: &Studio| -> Value {
         serde_json::from_str(&http(&s.addr, "GET", "/api/sim", &[], "").1).unwrap()
     };
-    let mut last_beat = Instant::now();
+    let mut last_beat;
     let beat_until = Instant::now() + Duration::from_secs(10);
     loop {
         send(&mut ws, &json!({"type": "heartbeat"}));

@@ -83,7 +83,7 @@ async fn info(State(app): State<Arc<App>>, headers: HeaderMap) -> ApiResult {
         "robot": robot,
         "heartbeat_ms": HEARTBEAT_MS,
         "heartbeat_timeout_ms": app.guard.config().heartbeat_timeout.as_millis(),
-        "capture": !app.config.captures.is_empty(),
+        "capture": !app.station.captures().is_empty(),
         "eeprom_writes_per_minute": crate::EEPROM_WRITES_PER_MINUTE,
     })))
 }
@@ -137,8 +137,8 @@ async fn plan(State(app): State<Arc<App>>, headers: HeaderMap, body: Bytes) -> A
 async fn captures(State(app): State<Arc<App>>, headers: HeaderMap) -> ApiResult {
     app.gate.check(&headers, false, true, None)?;
     let list: Vec<_> = app
-        .config
-        .captures
+        .station
+        .captures()
         .iter()
         .map(|(bus, path)| {
             let bytes = std::fs::metadata(path).map_or(0, |m| m.len());
@@ -159,14 +159,14 @@ async fn capture(
     Path(bus): Path<String>,
 ) -> ApiResult {
     app.gate.check(&headers, false, true, None)?;
-    let Some((_, path)) = app.config.captures.iter().find(|(b, _)| *b == bus) else {
+    let Some((_, path)) = app.station.captures().iter().find(|(b, _)| *b == bus) else {
         return Err(OpError::invalid(
             "bus",
             crate::cut(&bus),
             format!(
                 "no capture of that bus (captured: {})",
-                app.config
-                    .captures
+                app.station
+                    .captures()
                     .iter()
                     .map(|(b, _)| b.as_str())
                     .collect::<Vec<_>>()

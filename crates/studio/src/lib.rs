@@ -24,7 +24,6 @@ mod ws;
 
 use std::collections::VecDeque;
 use std::net::SocketAddr;
-use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
@@ -55,8 +54,6 @@ pub struct StudioConfig {
     pub read_only: bool,
     /// The operator guard's heartbeat timeout and safe state.
     pub guard: GuardConfig,
-    /// Each bus's capture file (bus name, path), served by `GET /api/capture`.
-    pub captures: Vec<(String, PathBuf)>,
 }
 
 /// What can go wrong before a studio serves.
@@ -220,9 +217,12 @@ impl App {
         progress: Option<tokio::sync::mpsc::Sender<String>>,
         id: Option<u64>,
     ) -> Result<robobus::catalogue::Report, OpError> {
+        // Every page's plots show the target from the moment the move starts.
+        if let Some(t) = target_of(&self.station, &request) {
+            self.announce(&t);
+        }
         let app = Arc::clone(self);
-        let target = target_of(&request);
-        let report = tokio::task::spawn_blocking(move || {
+        tokio::task::spawn_blocking(move || {
             let _ticket = app.guard.running(&token);
             let mut on_progress = |p: &robobus::ops::Progress| {
                 if let Some(tx) = &progress {
@@ -237,11 +237,7 @@ impl App {
             robobus::catalogue::run(&app.station, &request, &mut control)
         })
         .await
-        .map_err(|e| OpError::Device(format!("the operation's thread failed: {e}")))?;
-        if let (Ok(_), Some(t)) = (&report, target) {
-            self.announce(&t);
-        }
-        report
+        .map_err(|e| OpError::Device(format!("the operation's thread failed: {e}")))?
     }
 
     /// Tells every page about a commanded target.
@@ -252,11 +248,23 @@ impl App {
     }
 }
 
-/// The target a motion request commands, as a `target` message (for every page's plots).
-fn target_of(request: &Request) -> Option<serde_json::Value> {
+/// The position target a move commands, as a `target` message on its resolved bus (for
+/// every page's plots). Jogs send theirs as they go; waves, plays and speed or current
+/// targets have none of a single value.
+fn target_of(station: &Station, request: &Request) -> Option<serde_json::Value> {
     let (family, bus, device, value) = match request {
-        Request::WhjMove(r) => ("whj", r.bus.clone(), r.joint, r.degrees),
-        Request::WckMove(r) => ("wck", r.bus.clone(), r.id, f64::from(r.position)),
+        Request::WhjMove(r) => (
+            "whj",
+            station.whj(r.bus.as_deref()).ok()?.name().to_owned(),
+            r.joint,
+            r.degrees,
+        ),
+        Request::WckMove(r) => (
+            "wck",
+            station.wck(r.bus.as_deref()).ok()?.name().to_owned(),
+            r.id,
+            f64::from(r.position),
+        ),
         _ => return None,
     };
     Some(serde_json::json!({
@@ -360,6 +368,11 @@ impl Studio {
                 }
                 let _ = events.send(Event::Shutdown);
             };
+            // Telemetry is many small messages to a page that only reads: without
+            // TCP_NODELAY each would wait for the previous one's delayed ACK (up to 40 ms).
+            let listener = axum::serve::ListenerExt::tap_io(listener, |tcp| {
+                let _ = tcp.set_nodelay(true);
+            });
             axum::serve(listener, router)
                 .with_graceful_shutdown(shutdown)
                 .await

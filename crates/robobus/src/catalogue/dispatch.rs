@@ -389,6 +389,13 @@ fn registers_report(op: &str) -> Report {
     let rows = REGISTERS
         .iter()
         .map(|r| {
+            let safety = robobus_whj::registers::safety_class(r.addr);
+            let note = match safety {
+                robobus_whj::registers::SafetyClass::Plain => None,
+                robobus_whj::registers::SafetyClass::Confirm(t)
+                | robobus_whj::registers::SafetyClass::Motion(t)
+                | robobus_whj::registers::SafetyClass::Never(t) => Some(t),
+            };
             json!({
                 "id": r.addr.get(),
                 "name": r.name,
@@ -397,6 +404,8 @@ fn registers_report(op: &str) -> Report {
                 "range": r.range.map(|(a, b)| [a, b]),
                 "writable": r.access.is_writable(),
                 "meaning": r.meaning,
+                "safety": safety.keyword(),
+                "safety_note": note,
             })
         })
         .collect();

@@ -22,7 +22,8 @@ pub enum Effect {
     /// modes, saves, making it passive or disabling it).
     Configure,
     /// Moves or energises a device (moves, waves, speed and current targets, enabling a
-    /// drive, playing or teaching a motion).
+    /// drive, playing or teaching a motion, uploading a wCK motion program, which the
+    /// servo starts running at once).
     Motion,
 }
 
@@ -61,6 +62,8 @@ impl Request {
             | Self::WckWheel(_)
             | Self::WckPlay(_)
             | Self::WckTeach(_)
+            // An uploaded program starts at once: the servo runs it by itself.
+            | Self::WckProgramUpload(_)
             | Self::WhjEnable(_)
             | Self::WhjMove(_)
             | Self::WhjSpeed(_)
@@ -71,7 +74,6 @@ impl Request {
             | Self::WckSet(_)
             | Self::WckSetId(_)
             | Self::WckSetBaud(_)
-            | Self::WckProgramUpload(_)
             | Self::WhjDisable(_)
             | Self::WhjMode(_)
             | Self::WhjZero(_)
@@ -119,6 +121,7 @@ impl Request {
             Self::WckMove(r) => wck(one(r.id)),
             Self::WckMove10(r) => wck(one(r.id)),
             Self::WckWheel(r) => wck(one(r.id)),
+            Self::WckProgramUpload(r) => wck(one(r.id)),
             Self::WckSyncMove(r) => wck(count(r.positions.len())),
             Self::WckTeach(r) => wck(ids::<ServoId>(&r.ids, "ids")?),
             Self::WckPlay(_) => {

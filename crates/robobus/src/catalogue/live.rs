@@ -4,7 +4,7 @@
 //! captured, and a [`LiveSimulator`] that shows the simulators' own state (read from the
 //! models, not over the bus: what a test checks a front end against).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::{Arc, Mutex, PoisonError};
 
 use robobus_sim::wck::{Bus, BusConfig, Model, SimHandle, SimLink};
@@ -12,7 +12,7 @@ use robobus_sim::whj::{JointState, Served, WhjBus, WhjModel};
 use robobus_wck::BaudRate;
 use serde::Serialize;
 
-use super::station::Station;
+use super::station::{CAPTURE_LIMIT, Station, capture_path};
 use crate::demo::{JOINTS, SERVOS};
 use crate::ops::OpError;
 use crate::ops::capture::{Overwrite, capture_byte_link_limited, capture_frame_link_limited};
@@ -20,10 +20,6 @@ use crate::robot::DynByteLink;
 use crate::robot::RobotConfig;
 use crate::wck::WckBus;
 use crate::whj::{JointBus, JointBusConfig};
-
-/// The largest capture file of one bus, bytes (64 MiB): a long session stops capturing
-/// there, saying so in the file.
-pub const CAPTURE_LIMIT: u64 = 64 << 20;
 
 /// One simulated wCK servo as its model is now.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -76,13 +72,11 @@ pub struct SimSnapshot {
     pub whj: Vec<SimJointView>,
 }
 
-/// The simulators behind [`Station::simulated_live`]: their own state, and where each
-/// bus's capture goes.
+/// The simulators behind [`Station::simulated_live`]: their own state.
 #[derive(Debug, Clone)]
 pub struct LiveSimulator {
     wck: SimHandle,
     whj: Arc<Mutex<Vec<JointState>>>,
-    captures: Vec<(String, PathBuf)>,
 }
 
 impl LiveSimulator {
@@ -125,11 +119,6 @@ impl LiveSimulator {
             .collect();
         SimSnapshot { wck, whj }
     }
-
-    /// Each bus's capture file (bus name, path), if the station captures.
-    pub fn captures(&self) -> &[(String, PathBuf)] {
-        &self.captures
-    }
 }
 
 impl Station {
@@ -137,7 +126,7 @@ impl Station {
     /// `sim-wck` (servos 0..=15, W1108, 115200 bit/s) and `sim-whj` (joints 1..=7,
     /// WHJ30), the robot file of [`Station::simulated`]. With `capture_dir`, each bus's
     /// traffic is written there as `sim-wck.log` (hex log) and `sim-whj.log` (candump
-    /// log), each at most [`CAPTURE_LIMIT`] bytes.
+    /// log), each at most [`CAPTURE_LIMIT`] bytes ([`Station::captures`]).
     pub fn simulated_live(capture_dir: Option<&Path>) -> Result<(Self, LiveSimulator), OpError> {
         let (link, wck_sim) = SimLink::new(Bus::with_servos(
             BusConfig::default(),
@@ -153,7 +142,7 @@ impl Station {
         let wck_link: DynByteLink = match capture_dir {
             None => Box::new(link),
             Some(dir) => {
-                let path = dir.join("sim-wck.log");
+                let path = capture_path(dir, "sim-wck");
                 let l = capture_byte_link_limited(link, &path, Overwrite::Yes, CAPTURE_LIMIT)?;
                 captures.push(("sim-wck".to_owned(), path));
                 Box::new(l)
@@ -169,7 +158,11 @@ impl Station {
             WhjBus::chain(1..=JOINTS, WhjModel::Whj30, 11),
             wire.endpoint(),
             move |bus| {
-                let now: Vec<JointState> = bus.joints().iter().map(robobus_sim::whj::SimJoint::state).collect();
+                let now: Vec<JointState> = bus
+                    .joints()
+                    .iter()
+                    .map(robobus_sim::whj::SimJoint::state)
+                    .collect();
                 *publish.lock().unwrap_or_else(PoisonError::into_inner) = now;
             },
         )
@@ -178,7 +171,7 @@ impl Station {
         let whj = match capture_dir {
             None => JointBus::open_with(wire.endpoint(), config)?,
             Some(dir) => {
-                let path = dir.join("sim-whj.log");
+                let path = capture_path(dir, "sim-whj");
                 let l = capture_frame_link_limited(
                     wire.endpoint(),
                     &path,
@@ -194,6 +187,9 @@ impl Station {
         s.add_wck("sim-wck", wck);
         s.add_whj("sim-whj", whj);
         s.keep(Box::new(Mutex::new(served)));
+        for (name, path) in captures {
+            s.add_capture(name, path);
+        }
         let robot = RobotConfig::from_toml_str(&super::station::simulated_robot())
             .map_err(|e| OpError::Device(format!("the built-in robot file: {e}")))?;
         s.set_robot(robot)?;
@@ -202,7 +198,6 @@ impl Station {
             LiveSimulator {
                 wck: wck_sim,
                 whj: states,
-                captures,
             },
         ))
     }

@@ -14,7 +14,7 @@ use std::time::Duration;
 use robobus_wck::{BaudRate, TorqueLevel};
 use robobus_whj::JointId;
 
-use crate::ops::capture::{Overwrite, capture_byte_link, capture_frame_link};
+use crate::ops::capture::{Overwrite, capture_byte_link_limited, capture_frame_link_limited};
 use crate::ops::monitor::{RobotJointSample, RobotSampler};
 use crate::ops::safe::{WckServos, WhjJoints};
 use crate::ops::whj::ServoLoop;
@@ -184,6 +184,30 @@ pub struct StationConfig {
     pub wck_reply_margin: Option<Duration>,
     /// How long a WHJ joint is given to answer its connect (`None`: the client's default).
     pub whj_connect_timeout: Option<Duration>,
+    /// A folder where each `wck_ports` / `whj_buses` bus's traffic is captured (a hex log
+    /// or a candump log named after the bus, at most [`CAPTURE_LIMIT`] bytes each; the
+    /// robot file's buses are not captured): [`Station::captures`] lists them.
+    pub capture_dir: Option<PathBuf>,
+}
+
+/// The largest capture file of one bus a station writes, bytes (64 MiB): a long session
+/// stops capturing there, saying so in the file.
+pub const CAPTURE_LIMIT: u64 = 64 << 20;
+
+/// The capture file of bus `name` in `dir` (the name with anything but letters, digits,
+/// `-` and `_` as `_`, then `.log`).
+pub fn capture_path(dir: &Path, name: &str) -> PathBuf {
+    let clean: String = name
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    dir.join(format!("{}.log", clean.trim_start_matches('_')))
 }
 
 /// The open buses (see the [module docs](self)).
@@ -195,6 +219,8 @@ pub struct Station {
     keep: Vec<Box<dyn std::fmt::Debug + Send + Sync>>,
     /// The robot file whose joints `robot.sample` reads, if the station has one.
     robot: Option<Arc<RobotConfig>>,
+    /// Each captured bus's file (bus name, path).
+    captures: Vec<(String, PathBuf)>,
     /// Its sampler, made at the first `robot.sample` (that connects the WHJ joints once),
     /// with the time it was made (for the wCK speeds between two readings).
     robot_sampler: Mutex<Option<(std::time::Instant, RobotSampler)>>,
@@ -225,11 +251,24 @@ impl Station {
                 .unwrap_or(JointBusConfig::default().connect_timeout),
             ..JointBusConfig::default()
         };
+        let dir = config.capture_dir.as_deref();
         for port in &config.wck_ports {
-            s.add_wck(port.clone(), margin(open_wck(port, baud)?));
+            let capture = dir.map(|d| capture_path(d, port));
+            let bus = open_wck_limited(port, baud, capture.as_deref())?;
+            if let Some(path) = capture {
+                s.captures.push((port.clone(), path));
+            }
+            s.add_wck(port.clone(), margin(bus));
         }
         for addr in &config.whj_buses {
-            s.add_whj(addr.clone(), open_whj_with(addr, None, whj)?);
+            let capture = dir.map(|d| capture_path(d, addr));
+            s.add_whj(
+                addr.clone(),
+                open_whj_limited(addr, capture.as_deref(), whj)?,
+            );
+            if let Some(path) = capture {
+                s.captures.push((addr.clone(), path));
+            }
         }
         if let Some(path) = &config.robot {
             let refuse = |e: &dyn std::fmt::Display| {
@@ -285,6 +324,16 @@ impl Station {
             .get_mut()
             .unwrap_or_else(std::sync::PoisonError::into_inner) = None;
         Ok(())
+    }
+
+    /// Each captured bus's capture file (bus name, path).
+    pub fn captures(&self) -> &[(String, PathBuf)] {
+        &self.captures
+    }
+
+    /// Records that bus `name`'s traffic is captured into `path`.
+    pub fn add_capture(&mut self, name: impl Into<String>, path: PathBuf) {
+        self.captures.push((name.into(), path));
     }
 
     /// The robot file of the station, if it has one.
@@ -542,14 +591,36 @@ pub fn open_whj_with(
     capture: Option<&Path>,
     config: JointBusConfig,
 ) -> Result<JointBus, OpError> {
+    open_whj_capture(addr, capture.map(|p| (p, Overwrite::No, u64::MAX)), config)
+}
+
+/// A station's WHJ bus: a capture replaces an older file and stops at [`CAPTURE_LIMIT`].
+fn open_whj_limited(
+    addr: &str,
+    capture: Option<&Path>,
+    config: JointBusConfig,
+) -> Result<JointBus, OpError> {
+    open_whj_capture(
+        addr,
+        capture.map(|p| (p, Overwrite::Yes, CAPTURE_LIMIT)),
+        config,
+    )
+}
+
+fn open_whj_capture(
+    addr: &str,
+    capture: Option<(&Path, Overwrite, u64)>,
+    config: JointBusConfig,
+) -> Result<JointBus, OpError> {
     let spec: robobus_link::FrameLinkSpec = addr
         .parse()
         .map_err(|e| OpError::invalid("bus", addr, format!("{e}")))?;
     let link = spec.open()?;
     match capture {
         None => Ok(JointBus::open_with(link, config)?),
-        Some(path) => {
-            let link = capture_frame_link(link, path, spec.candump_iface(), Overwrite::No)?;
+        Some((path, overwrite, limit)) => {
+            let link =
+                capture_frame_link_limited(link, path, spec.candump_iface(), overwrite, limit)?;
             Ok(JointBus::open_with(link, config)?)
         }
     }
@@ -563,13 +634,46 @@ pub fn open_wck_port(
     baud: BaudRate,
     capture: Option<&Path>,
 ) -> Result<WckBus<DynByteLink>, OpError> {
+    open_wck_capture(port, baud, capture.map(|p| (p, Overwrite::No, u64::MAX)))
+}
+
+/// A station's wCK port: a capture replaces an older file and stops at [`CAPTURE_LIMIT`].
+fn open_wck_limited(
+    port: &str,
+    baud: BaudRate,
+    capture: Option<&Path>,
+) -> Result<WckBus<DynByteLink>, OpError> {
+    open_wck_capture(
+        port,
+        baud,
+        capture.map(|p| (p, Overwrite::Yes, CAPTURE_LIMIT)),
+    )
+}
+
+#[cfg(unix)]
+fn open_wck_capture(
+    port: &str,
+    baud: BaudRate,
+    capture: Option<(&Path, Overwrite, u64)>,
+) -> Result<WckBus<DynByteLink>, OpError> {
     let bus = WckBus::open(port, baud)?;
     match capture {
         None => bus.try_map_link(|l| Ok::<_, OpError>(Box::new(l) as DynByteLink)),
-        Some(path) => bus.try_map_link(|l| {
-            capture_byte_link(l, path, Overwrite::No).map(|l| Box::new(l) as DynByteLink)
+        Some((path, overwrite, limit)) => bus.try_map_link(|l| {
+            capture_byte_link_limited(l, path, overwrite, limit).map(|l| Box::new(l) as DynByteLink)
         }),
     }
+}
+
+#[cfg(not(unix))]
+fn open_wck_capture(
+    port: &str,
+    _baud: BaudRate,
+    _capture: Option<(&Path, Overwrite, u64)>,
+) -> Result<WckBus<DynByteLink>, OpError> {
+    Err(OpError::NotAvailable(format!(
+        "{port}: serial ports need a Unix host"
+    )))
 }
 
 /// Not on this host: serial ports need a Unix host.
@@ -582,8 +686,4 @@ pub fn open_wck_port(
     Err(OpError::NotAvailable(format!(
         "{port}: serial ports need a Unix host"
     )))
-}
-
-fn open_wck(port: &str, baud: BaudRate) -> Result<WckBus<DynByteLink>, OpError> {
-    open_wck_port(port, baud, None)
 }
