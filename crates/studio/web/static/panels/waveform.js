@@ -1,0 +1,210 @@
+// Waveform: a sine or square test signal on one WHJ joint (`whj.wave`), with its progress,
+// a Stop button and the tracking statistics of the report's summary (the figures
+// `robobus whj wave` prints below its table).
+
+import { field, devicePicker } from '../ui.js';
+
+/** A small element builder: h('button', {onclick}, 'Text'); attributes as attributes. */
+function h(tag, attrs = {}, ...children) {
+  const el = document.createElement(tag);
+  for (const [k, v] of Object.entries(attrs)) {
+    if (v == null || v === false) continue;
+    if (k.startsWith('on')) el.addEventListener(k.slice(2), v);
+    else if (k === 'class') el.className = v;
+    else el.setAttribute(k, v === true ? '' : String(v));
+  }
+  el.append(...children.flat().filter((c) => c != null));
+  return el;
+}
+
+const UNITS = { position: 'deg', speed: 'RPM', current: 'mA' };
+
+// The summary's fields in the CLI's order, what they mean, and their unit (`unit`: the
+// loop's unit, which the report names).
+const STATS = [
+  ['cycles', 'Frames sent', ''],
+  ['complete', 'Frames answered', ''],
+  ['missing_replies', 'Missing replies', ''],
+  ['missing_at_end', 'Missing in a row at the end', ''],
+  ['deadline_misses', 'Deadline misses (> 1 period late)', ''],
+  ['overruns', 'Overruns (exchange > 1 period)', ''],
+  ['clamped', 'Set-points the step limiter changed', ''],
+  ['tracking_rms', 'Tracking error, RMS', 'unit'],
+  ['tracking_max', 'Tracking error, max', 'unit'],
+  ['round_trip_p50_us', 'Round trip, median', 'µs'],
+  ['round_trip_p99_us', 'Round trip, 99th percentile', 'µs'],
+  ['round_trip_max_us', 'Round trip, max', 'µs'],
+  ['stale', 'Last frame unanswered', ''],
+];
+
+function show(v) {
+  if (v == null) return '–';
+  if (typeof v === 'boolean') return v ? 'yes' : 'no';
+  if (typeof v === 'number' && !Number.isInteger(v)) return v.toPrecision(4);
+  return String(v);
+}
+
+export default {
+  id: 'waveform',
+  title: 'Waveform',
+  mount(element, studio) {
+    const picker = devicePicker(studio, { families: ['whj'], label: 'Joint' });
+    const num = (value, attrs = {}) =>
+      h('input', { type: 'number', value, step: 'any', required: true, class: 'num', ...attrs });
+    const shape = h('select', {}, h('option', { value: 'sine' }, 'sine'), h('option', { value: 'square' }, 'square'));
+    const mode = h('select', {}, Object.keys(UNITS).map((m) => h('option', { value: m }, m)));
+    const amplitude = num(10, { min: 0 });
+    const offset = num(0);
+    const frequency = num(0.5, { min: 0.01, max: 20 });
+    const duration = num(4, { min: 0.01, max: 600 });
+    const rate = num(200, { min: 1, max: 1000, step: 1 });
+    const onStop = h('select', {}, h('option', { value: 'hold' }, 'hold'), h('option', { value: 'disable' }, 'disable'));
+    const prepare = h('input', { type: 'checkbox', id: 'wave-prepare', checked: true });
+
+    const start = h('button', { type: 'submit' }, 'Start wave');
+    const stop = h('button', { type: 'button', class: 'danger', disabled: true, onclick: () => running?.stop() }, 'Stop wave');
+    const dry = h('button', { type: 'button', class: 'secondary', 'aria-label': 'Show dry run of the wave', onclick: () => form.reportValidity() && studio.preview(request()) }, 'Show dry run');
+    const gate = h('p', { class: 'hint', role: 'note' });
+    const progress = h('progress', { 'aria-label': 'Wave progress', max: 1, value: 0 });
+    const progressText = h('span', { class: 'progress-text' });
+    const status = h('p', { role: 'status', 'aria-live': 'polite', class: 'summary' });
+    const results = h('div', { class: 'wave-results' });
+
+    const unitField = (label, input, unit) => {
+      const f = field(`${label} (${unit})`, input);
+      f.dataset.label = label;
+      return f;
+    };
+    const amplitudeField = unitField('Amplitude', amplitude, 'deg');
+    const offsetField = unitField('Offset', offset, 'deg');
+
+    const form = h('form', { 'aria-label': 'Wave signal', novalidate: false },
+      h('div', { class: 'row' }, picker.element, field('Shape', shape), field('Mode', mode)),
+      h('div', { class: 'row' }, amplitudeField, offsetField,
+        unitField('Frequency', frequency, 'Hz'), unitField('Duration', duration, 's'),
+        unitField('Rate', rate, 'frames/s'), field('On stop', onStop)),
+      h('div', { class: 'row' }, h('span', { class: 'check' }, prepare,
+        h('label', { for: 'wave-prepare' }, 'Enable the joint and set its mode first'))),
+      h('div', { class: 'row' }, start, stop, dry),
+      gate);
+
+    element.append(
+      h('h2', {}, 'Waveform'),
+      h('p', { class: 'lead' }, 'A sine or square test signal on one WHJ joint, sent as servo frames at a fixed rate ',
+        '(', h('code', {}, 'robobus whj wave'), '). The offset is the bias the signal swings around; ',
+        'the tracking error compares each reply with the value requested one frame before.'),
+      h('div', { class: 'columns' },
+        h('section', { class: 'card', 'aria-labelledby': 'wave-signal' }, h('h3', { id: 'wave-signal' }, 'Signal'), form),
+        h('section', { class: 'card', 'aria-labelledby': 'wave-result' }, h('h3', { id: 'wave-result' }, 'Run'),
+          h('div', { class: 'progress' }, progress, progressText), status, results)));
+
+    let running = null;
+
+    mode.addEventListener('change', () => {
+      for (const f of [amplitudeField, offsetField]) {
+        f.querySelector('label').textContent = `${f.dataset.label} (${UNITS[mode.value]})`;
+      }
+    });
+
+    function request() {
+      const d = picker.get();
+      const r = {
+        op: 'whj.wave',
+        joint: d?.id ?? 1,
+        shape: shape.value,
+        mode: mode.value,
+        amplitude: Number(amplitude.value),
+        frequency: Number(frequency.value),
+        offset: Number(offset.value),
+        duration: Number(duration.value),
+        rate_hz: Number(rate.value),
+        on_stop: onStop.value,
+      };
+      if (d?.bus && studio.buses('whj').length > 1) r.bus = d.bus;
+      return r;
+    }
+
+    function update() {
+      const s = studio.state ?? {};
+      const ok = s.armed && s.controller && !s.readOnly;
+      start.disabled = !ok || running != null;
+      gate.textContent = s.readOnly ? 'Read-only studio: waves are not served.'
+        : ok ? '' : 'Take control and arm to run a wave.';
+    }
+    studio.on('control', update);
+    studio.on('state', update);
+    update();
+
+    // The joint must be enabled and in the wave's loop: the CLI asks for `robobus whj mode`
+    // and `whj enable` first; here the checkbox does both when needed.
+    async function prepareJoint(r) {
+      const sel = { joints: String(r.joint), ...(r.bus ? { bus: r.bus } : {}) };
+      const st = await studio.run({ op: 'whj.status', ...sel });
+      const row = st.results?.[0] ?? {};
+      if (row.kind) throw Object.assign(new Error(row.error), { kind: row.kind });
+      if (row.mode !== r.mode) await studio.run({ op: 'whj.mode', ...sel, mode: r.mode });
+      if (!row.enabled) await studio.run({ op: 'whj.enable', ...sel });
+    }
+
+    function showStats(report) {
+      const s = report.summary ?? {};
+      const unit = s.unit ?? UNITS[mode.value];
+      const last = report.results?.[0];
+      const table = h('table', { class: 'stats' },
+        h('caption', {}, `Tracking statistics, joint ${last?.id ?? ''}`),
+        h('thead', {}, h('tr', {}, h('th', { scope: 'col' }, 'Statistic'), h('th', { scope: 'col' }, 'Value'),
+          h('th', { scope: 'col' }, 'Unit'), h('th', { scope: 'col' }, 'Field'))),
+        h('tbody', {}, STATS.filter(([k]) => k in s).map(([k, label, u]) =>
+          h('tr', { 'data-field': k },
+            h('th', { scope: 'row' }, label),
+            h('td', { class: 'num' }, show(s[k])),
+            h('td', {}, u === 'unit' ? unit : u),
+            h('td', { class: 'hint' }, h('code', {}, k))))));
+      const fb = last && !last.kind
+        ? h('p', { class: 'hint' }, `Last feedback: ${show(last.position_deg)} deg, ${show(last.speed_rpm)} RPM, `,
+          `${show(last.current_ma)} mA, ${last.enabled ? 'enabled' : 'disabled'}, error: ${last.error}.`)
+        : null;
+      results.replaceChildren(table, fb);
+    }
+
+    function say(text, kind = '') {
+      status.textContent = text;
+      status.className = `summary ${kind}`;
+    }
+
+    form.addEventListener('submit', async (ev) => {
+      ev.preventDefault();
+      if (!form.reportValidity()) return;
+      const r = request();
+      results.replaceChildren();
+      progress.max = 1;
+      progress.value = 0;
+      progressText.textContent = '';
+      say('Starting…');
+      stop.disabled = false;
+      running = { stop() {} };
+      update();
+      try {
+        if (prepare.checked) await prepareJoint(r);
+        running = studio.runLong(r, (p) => {
+          if (p.total) progress.max = p.total;
+          progress.value = p.done ?? 0;
+          progressText.textContent = `${p.stage ?? ''} ${p.done ?? 0}${p.total ? ` / ${p.total}` : ''}${p.note ? ` · ${p.note}` : ''}`;
+        });
+        say(`Wave running on joint ${r.joint}…`);
+        const report = await running.promise;
+        progress.value = progress.max;
+        if (report.failed) say(`Wave ended with a failure (${report.failed}): ${report.error ?? ''}`, 'fail');
+        else say(`Wave done: ${report.summary?.cycles ?? 0} frames.`, 'ok');
+        showStats(report);
+      } catch (e) {
+        if (e?.kind === 'interrupted') say(`Stopped: the joint was brought to its safe state (${r.on_stop}).`, 'fail');
+        else say(`Wave failed${e?.kind ? ` (${e.kind})` : ''}: ${e?.message ?? e}`, 'fail');
+      } finally {
+        running = null;
+        stop.disabled = true;
+        update();
+      }
+    });
+  },
+};
