@@ -33,6 +33,7 @@ pub mod peers;
 pub mod report;
 pub mod simspeed;
 pub mod stats;
+pub mod studio;
 pub mod svg;
 pub mod telemetry;
 pub mod wck;
@@ -175,6 +176,8 @@ pub struct Results {
     pub sims: Vec<simspeed::SimSpeed>,
     /// The telemetry stream with one subscriber and with eight (one never reading).
     pub telemetry: Vec<telemetry::FanOut>,
+    /// The web studio: telemetry to its pages and jog latency.
+    pub studio: Option<studio::StudioResult>,
     /// Benchmarks that failed or were skipped, and why.
     pub notes: Vec<String>,
     /// How many benchmarks failed.
@@ -327,6 +330,14 @@ pub fn run(opts: &Options, mut log: impl FnMut(&str)) -> Results {
                 Err(e) => fail(&mut r, &mut log, &what, &e),
             }
         }
+    }
+
+    let what = "studio: telemetry fan-out and jog latency";
+    log(what);
+    let pages: &[usize] = if smoke { &[1] } else { &[1, 4] };
+    match studio::run(pages, secs(5.0, 0.5)) {
+        Ok(s) => r.studio = Some(s),
+        Err(e) => fail(&mut r, &mut log, what, &e),
     }
 
     log("simulator speed");

@@ -5,11 +5,13 @@
 //! robobus-bench serve-whj --joints N --delay-us D [--fast-wire]
 //! robobus-bench poll-wck --servos N --baud B --secs S [--turnaround]
 //! robobus-bench telemetry --secs S
+//! robobus-bench studio --secs S
 //! robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire]
 //! ```
 //!
 //! `telemetry` runs the telemetry fan-out cases alone and prints their section of the
-//! report. `poll-wck` runs the wCK polling case alone, once, and prints its rate as a share of the
+//! report; `studio` runs the web studio case alone (1 and 4 pages, then the jog) and
+//! prints its section. `poll-wck` runs the wCK polling case alone, once, and prints its rate as a share of the
 //! wire (for a quick look, or under `strace`).
 
 use std::io::Write as _;
@@ -22,7 +24,7 @@ use robobus_bench::{Options, report, run, wck, whj};
 fn usage() -> ExitCode {
     let _ = writeln!(
         std::io::stderr(),
-        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround]\n       robobus-bench telemetry --secs S\n       robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire]"
+        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround]\n       robobus-bench telemetry --secs S\n       robobus-bench studio --secs S\n       robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire]"
     );
     ExitCode::from(2)
 }
@@ -181,6 +183,36 @@ fn telemetry(args: &[String]) -> ExitCode {
     ExitCode::SUCCESS
 }
 
+fn studio(args: &[String]) -> ExitCode {
+    let secs = match args {
+        [] => 5.0,
+        [flag, v] if flag == "--secs" => match v.parse::<f64>() {
+            Ok(s) if (0.01..=600.0).contains(&s) => s,
+            _ => return usage(),
+        },
+        _ => return usage(),
+    };
+    let mut machine = robobus_bench::Machine::probe();
+    match robobus_bench::studio::run(&[1, 4], Duration::from_secs_f64(secs)) {
+        Ok(s) => {
+            machine.load_after = std::fs::read_to_string("/proc/loadavg")
+                .map(|l| l.trim().to_owned())
+                .unwrap_or_default();
+            let r = robobus_bench::Results {
+                studio: Some(s),
+                machine,
+                ..robobus_bench::Results::default()
+            };
+            let _ = write!(std::io::stdout(), "{}", report::studio_markdown(&r));
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            let _ = writeln!(std::io::stderr(), "studio: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     if args.first().map(String::as_str) == Some("serve-whj") {
@@ -191,6 +223,9 @@ fn main() -> ExitCode {
     }
     if args.first().map(String::as_str) == Some("telemetry") {
         return telemetry(args.get(1..).unwrap_or_default());
+    }
+    if args.first().map(String::as_str) == Some("studio") {
+        return studio(args.get(1..).unwrap_or_default());
     }
     if args.first().map(String::as_str) == Some("poll-wck") {
         return poll_wck(args.get(1..).unwrap_or_default());

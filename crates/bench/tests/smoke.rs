@@ -55,6 +55,7 @@ fn smoke_run_writes_the_report_with_every_section() {
         "## WHJ fixed rate",
         "## Peers",
         "## Telemetry",
+        "## Studio",
         "## Simulator",
     ] {
         assert!(report.contains(section), "no {section:?} in:\n{report}");
