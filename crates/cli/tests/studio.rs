@@ -3,7 +3,7 @@
 //! simulators' own state (`GET /api/sim`). The page itself is tested in Chromium
 //! (`scripts/studio/test-browser`).
 
-#![allow(clippy::unwrap_used, clippy::panic)] // test helpers: a failed unwrap is a failed test
+#![allow(clippy::unwrap_used, clippy::panic, clippy::result_large_err)] // test helpers: a failed unwrap is a failed test
 
 use std::fmt::Write as _;
 use std::io::{BufRead as _, BufReader, Read as _, Write as _};
@@ -257,6 +257,30 @@ fn foreign_host_origin_and_missing_token_are_refused() {
     };
     assert_eq!(ws("http://evil.example"), Err(403));
     assert_eq!(ws(&own), Ok(()));
+    // At most 32 pages at once: the 33rd is refused until one closes.
+    let open_page = || {
+        tungstenite::client(
+            format!("ws://{}/api/ws", s.addr),
+            TcpStream::connect(&s.addr).unwrap(),
+        )
+    };
+    let mut pages: Vec<_> = (0..32).map(|_| open_page().unwrap().0).collect();
+    match open_page() {
+        Err(tungstenite::handshake::HandshakeError::Failure(tungstenite::Error::Http(r))) => {
+            assert_eq!(r.status().as_u16(), 503);
+        }
+        other => panic!("a 33rd page: {:?}", other.map(|_| ())),
+    }
+    pages.pop().unwrap().close(None).unwrap();
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while open_page().is_err() {
+        assert!(
+            Instant::now() < deadline,
+            "the closed page's place never came back"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    drop(pages);
     // No CORS headers, ever.
     let mut stream = TcpStream::connect(&s.addr).unwrap();
     write!(stream, "GET /api/info HTTP/1.1\r\nHost: {}\r\nOrigin: http://evil.example\r\nConnection: close\r\n\r\n", s.addr).unwrap();

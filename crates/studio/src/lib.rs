@@ -169,6 +169,8 @@ pub(crate) struct App {
     pub(crate) gate: security::Gate,
     pub(crate) events: tokio::sync::broadcast::Sender<Event>,
     sessions: AtomicU64,
+    /// Pages connected now (at most `ws::MAX_PAGES`).
+    pages: std::sync::atomic::AtomicUsize,
     eeprom: Mutex<VecDeque<Instant>>,
 }
 
@@ -334,6 +336,7 @@ impl Studio {
                 gate,
                 events,
                 sessions: AtomicU64::new(0),
+                pages: std::sync::atomic::AtomicUsize::new(0),
                 eeprom: Mutex::new(VecDeque::new()),
             }),
             listener,

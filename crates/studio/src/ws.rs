@@ -29,6 +29,10 @@ const MAX_STREAMS: usize = 8;
 const MAX_MESSAGE: usize = 4 << 20;
 /// Messages queued for a page before the oldest telemetry waits.
 const OUT_QUEUE: usize = 1024;
+/// The most pages connected at once.
+pub(crate) const MAX_PAGES: usize = 32;
+/// The most runs one page may have going at once.
+const MAX_RUNS: usize = 16;
 
 /// A message from the page.
 #[derive(Debug, Deserialize)]
@@ -75,9 +79,45 @@ pub(crate) async fn upgrade(
 ) -> Result<Response, ApiError> {
     app.gate
         .check(&headers, true, true, query.get("token").map(String::as_str))?;
+    // Each page costs threads (its streams, its runs): their number is bounded.
+    let Some(page) = PageSlot::take(&app) else {
+        return Err(ApiError {
+            status: axum::http::StatusCode::SERVICE_UNAVAILABLE,
+            kind: "refused",
+            message: format!("{MAX_PAGES} pages are connected already: close one first"),
+        });
+    };
     Ok(ws
         .max_message_size(MAX_MESSAGE)
-        .on_upgrade(move |socket| session(app, socket)))
+        .on_upgrade(move |socket| session(app, socket, page)))
+}
+
+/// A connected page's place among the [`MAX_PAGES`]; given back when dropped.
+struct PageSlot(Arc<App>);
+
+impl PageSlot {
+    fn take(app: &Arc<App>) -> Option<Self> {
+        app.pages
+            .fetch_update(Ordering::AcqRel, Ordering::Acquire, |n| {
+                (n < MAX_PAGES).then_some(n + 1)
+            })
+            .ok()
+            .map(|_| Self(Arc::clone(app)))
+    }
+}
+
+impl Drop for PageSlot {
+    fn drop(&mut self) {
+        self.0.pages.fetch_sub(1, Ordering::AcqRel);
+    }
+}
+
+/// What one page has going: its runs' stop tokens, and whether a jog is in flight (a page
+/// has at most one: jogs that come faster are refused, never queued).
+#[derive(Default)]
+struct Going {
+    runs: std::sync::Mutex<HashMap<u64, StopToken>>,
+    jogging: AtomicBool,
 }
 
 /// One telemetry stream of a page: its sampler and the thread that forwards it.
@@ -101,12 +141,12 @@ fn error_msg(id: Option<u64>, e: &OpError) -> String {
     json!({"type": "error", "id": id, "kind": a.kind, "message": a.message}).to_string()
 }
 
-async fn session(app: Arc<App>, mut socket: WebSocket) {
+async fn session(app: Arc<App>, mut socket: WebSocket, _page: PageSlot) {
     let me = app.new_session();
     let (tx, mut rx) = mpsc::channel::<String>(OUT_QUEUE);
     let mut events = app.events.subscribe();
     let mut streams: HashMap<String, Stream> = HashMap::new();
-    let runs: Arc<std::sync::Mutex<HashMap<u64, StopToken>>> = Arc::default();
+    let going: Arc<Going> = Arc::default();
     let hello = json!({
         "type": "hello", "session": me.to_string(), "read_only": app.config.read_only,
         "simulated": app.sim.is_some(),
@@ -128,7 +168,7 @@ async fn session(app: Arc<App>, mut socket: WebSocket) {
                     Message::Close(_) => break,
                     _ => continue,
                 };
-                handle(&app, me, &text, &tx, &mut streams, &runs);
+                handle(&app, me, &text, &tx, &mut streams, &going);
             }
             out = rx.recv() => {
                 let Some(out) = out else { break };
@@ -152,7 +192,8 @@ async fn session(app: Arc<App>, mut socket: WebSocket) {
     }
     // The page is gone: its runs stop, its streams end, and if it controlled, the guard
     // brings what it moved to the safe state.
-    for t in runs
+    for t in going
+        .runs
         .lock()
         .unwrap_or_else(std::sync::PoisonError::into_inner)
         .values()
@@ -182,7 +223,7 @@ fn handle(
     text: &str,
     tx: &mpsc::Sender<String>,
     streams: &mut HashMap<String, Stream>,
-    runs: &Arc<std::sync::Mutex<HashMap<u64, StopToken>>>,
+    going: &Arc<Going>,
 ) {
     let msg: FromPage = match serde_json::from_str(text) {
         Ok(m) => m,
@@ -251,9 +292,10 @@ fn handle(
                 tokio::task::spawn_blocking(move || drop(s));
             }
         }
-        FromPage::Run { id, request } => run(app, me, id, request, tx.clone(), runs),
+        FromPage::Run { id, request } => run(app, me, id, request, tx.clone(), going),
         FromPage::Stop { id } => {
-            if let Some(t) = runs
+            if let Some(t) = going
+                .runs
                 .lock()
                 .unwrap_or_else(std::sync::PoisonError::into_inner)
                 .get(&id)
@@ -278,6 +320,7 @@ fn handle(
                 target,
             },
             tx.clone(),
+            going,
         ),
     }
 }
@@ -288,7 +331,7 @@ fn run(
     id: u64,
     request: Value,
     tx: mpsc::Sender<String>,
-    runs: &Arc<std::sync::Mutex<HashMap<u64, StopToken>>>,
+    going: &Arc<Going>,
 ) {
     let request: Request = match serde_json::from_value(request) {
         Ok(r) => r,
@@ -303,24 +346,45 @@ fn run(
         return;
     }
     let token = StopToken::new();
-    runs.lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner)
-        .insert(id, token.clone());
+    {
+        let mut runs = going
+            .runs
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        if runs.len() >= MAX_RUNS || runs.contains_key(&id) {
+            let e = OpError::Refused(format!(
+                "run {id}: at most {MAX_RUNS} runs at once per page, each with its own id; \
+                 nothing was sent"
+            ));
+            let _ = tx.try_send(error_msg(Some(id), &e));
+            return;
+        }
+        runs.insert(id, token.clone());
+    }
     let app = Arc::clone(app);
-    let runs = Arc::clone(runs);
+    let going = Arc::clone(going);
     tokio::spawn(async move {
         let out = match app.run(request, token, Some(tx.clone()), Some(id)).await {
             Ok(report) => json!({"type": "report", "id": id, "report": report}).to_string(),
             Err(e) => error_msg(Some(id), &e),
         };
-        runs.lock()
+        going
+            .runs
+            .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner)
             .remove(&id);
         let _ = tx.send(out).await;
     });
 }
 
-fn jog(app: &Arc<App>, me: u64, id: Option<u64>, req: JogRequest, tx: mpsc::Sender<String>) {
+fn jog(
+    app: &Arc<App>,
+    me: u64,
+    id: Option<u64>,
+    req: JogRequest,
+    tx: mpsc::Sender<String>,
+    going: &Arc<Going>,
+) {
     if app.config.read_only {
         let e = OpError::Refused("this studio is read-only: nothing moves".into());
         let _ = tx.try_send(error_msg(id, &e));
@@ -333,7 +397,17 @@ fn jog(app: &Arc<App>, me: u64, id: Option<u64>, req: JogRequest, tx: mpsc::Send
         let _ = tx.try_send(error_msg(id, &e));
         return;
     }
+    if going.jogging.swap(true, Ordering::AcqRel) {
+        let e = OpError::Refused(
+            "a jog of this page is still being sent: this one was dropped (send the next \
+             when its `jogged` arrives); nothing was sent"
+                .into(),
+        );
+        let _ = tx.try_send(error_msg(id, &e));
+        return;
+    }
     let app = Arc::clone(app);
+    let going = Arc::clone(going);
     tokio::spawn(async move {
         let worker = Arc::clone(&app);
         let done =
@@ -357,6 +431,7 @@ fn jog(app: &Arc<App>, me: u64, id: Option<u64>, req: JogRequest, tx: mpsc::Send
                 &OpError::Device(format!("the jog's thread failed: {e}")),
             ),
         };
+        going.jogging.store(false, Ordering::Release);
         let _ = tx.send(out).await;
     });
 }
