@@ -461,18 +461,27 @@ fn trip(
             }),
             Family::Whj => inner.station.whj(Some(&bus)).map(|port| {
                 let bus = port.bus();
+                // Connected (the identity handshake) if nothing has yet: a joint that
+                // does not answer it is a failure of its own, the others are held.
+                let mut unreachable = Vec::new();
                 let joints: Vec<_> = ids
                     .iter()
                     .filter_map(|&i| JointId::new(i).ok())
-                    .map(|id| bus.joint_unchecked(id))
+                    .filter_map(|id| {
+                        bus.joint(id)
+                            .map_err(|e| unreachable.push(format!("joint {id}: {e}")))
+                            .ok()
+                    })
                     .collect();
-                apply(
+                let mut failed = apply(
                     state,
                     &mut safe::WhjJoints {
                         joints: &joints,
                         servo,
                     },
-                )
+                );
+                failed.extend(unreachable);
+                failed
             }),
             Family::Robot => Ok(Vec::new()),
         };

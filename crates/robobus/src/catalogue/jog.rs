@@ -104,24 +104,16 @@ impl Jogger {
             OpError::invalid("device", req.device, format!("{e} (allowed: 1..=30)"))
         })?;
         let port = station.whj(req.bus.as_deref())?;
-        let key = (port.name().to_owned(), req.device);
-        let handle = {
-            let mut map = self.whj.lock().unwrap_or_else(PoisonError::into_inner);
-            if let Some(h) = map.get(&key) {
-                Arc::clone(h)
-            } else {
-                let h = Arc::new(WhjJoints::new(station, Some(port.name()), &[req.device])?);
-                map.insert(key, Arc::clone(&h));
-                h
-            }
-        };
-        let (mut lo, mut hi) = handle.limits(ServoLoop::Position)[0];
-        if let Some((a, b)) = soft_limits(station, Family::Whj, port.name(), req.device) {
-            lo = lo.max(a);
-            hi = hi.min(b);
-        }
+        let handle = cached(&self.whj, port.name(), req.device, || {
+            WhjJoints::new(station, Some(port.name()), &[req.device])
+        })?;
+        let limits = within_soft_limits(
+            station,
+            (Family::Whj, port.name(), req.device),
+            handle.limits(ServoLoop::Position)[0],
+        );
         let from = port.bus().joint_unchecked(id).recent_position()?.degrees();
-        let (sent, limited) = step(from, req.target, (lo, hi), WHJ_JOG_STEP_DEG);
+        let (sent, limited) = step(from, req.target, limits, WHJ_JOG_STEP_DEG);
         let mut out = handle.command(ServoLoop::Position, &[sent])?;
         let feedback = one_result(out.pop())?;
         Ok(Jogged {
@@ -141,28 +133,14 @@ impl Jogger {
             OpError::invalid("device", req.device, format!("{e} (allowed: 0..=30)"))
         })?;
         let port = station.wck(req.bus.as_deref())?;
-        let key = (port.name().to_owned(), req.device);
-        let entry = {
-            let mut map = self.wck.lock().unwrap_or_else(PoisonError::into_inner);
-            if let Some(e) = map.get(&key) {
-                Arc::clone(e)
-            } else {
-                let servos = WckServos::new(station, Some(port.name()), &[req.device])?;
-                let (lower, upper) = {
-                    let mut bus = port.lock();
-                    let b = bus.servo(id).boundaries()?;
-                    (f64::from(b.lower().get()), f64::from(b.upper().get()))
-                };
-                let (mut lo, mut hi) = (lower, upper);
-                if let Some((a, b)) = soft_limits(station, Family::Wck, port.name(), req.device) {
-                    lo = lo.max(a);
-                    hi = hi.min(b);
-                }
-                let e = Arc::new((servos, (lo, hi)));
-                map.insert(key, Arc::clone(&e));
-                e
-            }
-        };
+        let entry = cached(&self.wck, port.name(), req.device, || {
+            let servos = WckServos::new(station, Some(port.name()), &[req.device])?;
+            let b = port.lock().servo(id).boundaries()?;
+            let bounds = (f64::from(b.lower().get()), f64::from(b.upper().get()));
+            let limits =
+                within_soft_limits(station, (Family::Wck, port.name(), req.device), bounds);
+            Ok((servos, limits))
+        })?;
         let (servos, limits) = &*entry;
         let from = f64::from(one_reading(servos.status()?)?.position);
         let (sent, limited) = step(from, req.target.round(), *limits, f64::from(WCK_JOG_STEP));
@@ -179,6 +157,35 @@ impl Jogger {
             limited,
             feedback,
         })
+    }
+}
+
+/// The handle of `(bus, device)` in `map`, made by `make` the first time.
+fn cached<T>(
+    map: &Mutex<HashMap<(String, u8), Arc<T>>>,
+    bus: &str,
+    device: u8,
+    make: impl FnOnce() -> Result<T, OpError>,
+) -> Result<Arc<T>, OpError> {
+    let mut map = map.lock().unwrap_or_else(PoisonError::into_inner);
+    let key = (bus.to_owned(), device);
+    if let Some(h) = map.get(&key) {
+        return Ok(Arc::clone(h));
+    }
+    let h = Arc::new(make()?);
+    map.insert(key, Arc::clone(&h));
+    Ok(h)
+}
+
+/// `(lo, hi)` narrowed to the robot file's soft limits of the device, if it names it.
+fn within_soft_limits(
+    station: &Station,
+    (family, bus, id): (Family, &str, u8),
+    (lo, hi): (f64, f64),
+) -> (f64, f64) {
+    match soft_limits(station, family, bus, id) {
+        Some((a, b)) => (lo.max(a), hi.min(b)),
+        None => (lo, hi),
     }
 }
 

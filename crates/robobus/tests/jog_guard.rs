@@ -1,0 +1,153 @@
+//! A front end's safety pieces on the built-in simulated robot (virtual clocks): jogs take
+//! one bounded step within the limits, and the guard admits by controller, arming and
+//! effect, and brings what was moved to a hold when disarmed.
+
+#![allow(clippy::unwrap_used, clippy::panic, clippy::result_large_err)]
+
+use std::sync::Arc;
+use std::sync::mpsc;
+use std::time::Duration;
+
+use robobus::catalogue::guard::{Guard, GuardConfig, GuardedDevice};
+use robobus::catalogue::jog::{JogRequest, Jogger, WCK_JOG_STEP, WHJ_JOG_STEP_DEG};
+use robobus::catalogue::{ErrorKind, Family, Request, Station};
+
+fn jog(family: Family, device: u8, target: f64) -> JogRequest {
+    JogRequest {
+        family,
+        bus: None,
+        device,
+        target,
+    }
+}
+
+#[test]
+fn a_jog_is_one_step_toward_the_target_within_the_soft_limits() {
+    let station = Station::simulated().unwrap();
+    let jogger = Jogger::new();
+    // WHJ joint 1 (enabled in position mode at 0°): one jog step toward 10°.
+    let j = jogger.jog(&station, &jog(Family::Whj, 1, 10.0)).unwrap();
+    assert_eq!(
+        (j.bus.as_str(), j.from, j.sent, j.limited),
+        ("sim-whj", 0.0, WHJ_JOG_STEP_DEG, true)
+    );
+    // A near target is reached in one step, not passed.
+    let j = jogger.jog(&station, &jog(Family::Whj, 2, -1.5)).unwrap();
+    assert_eq!((j.sent, j.limited), (-1.5, false));
+    // The built-in robot file limits every joint to ±2 rad: a jog toward 500° stops at
+    // 114.59°, reached step by step.
+    let mut last = 0.0;
+    for _ in 0..80 {
+        let j = jogger.jog(&station, &jog(Family::Whj, 3, 500.0)).unwrap();
+        assert!(j.sent - j.from <= WHJ_JOG_STEP_DEG + 1e-9, "{j:?}");
+        last = j.sent;
+        station_sleep(&station, Duration::from_millis(300));
+    }
+    assert!((last - 2f64.to_degrees()).abs() < 1e-6, "stopped at {last}");
+
+    // wCK servo 0 at step 127: one jog step (8) toward 200.
+    let j = jogger.jog(&station, &jog(Family::Wck, 0, 200.0)).unwrap();
+    assert_eq!((j.from, j.sent), (127.0, 127.0 + f64::from(WCK_JOG_STEP)));
+    // Refusals name the value; nothing is sent.
+    let e = jogger
+        .jog(&station, &jog(Family::Whj, 1, f64::NAN))
+        .unwrap_err();
+    assert_eq!(e.kind(), ErrorKind::BadInput);
+    let e = jogger
+        .jog(&station, &jog(Family::Wck, 40, 100.0))
+        .unwrap_err();
+    assert_eq!(e.kind(), ErrorKind::BadInput);
+    assert!(e.to_string().contains("40"), "{e}");
+}
+
+/// Lets the simulated joints move: a status read of each WHJ joint waits on the bus's
+/// virtual clock.
+fn station_sleep(station: &Station, d: Duration) {
+    let port = station.whj(None).unwrap();
+    let bus = port.bus();
+    let until = bus.now() + d;
+    bus.sleep_until(until);
+}
+
+fn req(json: &str) -> Request {
+    serde_json::from_str(json).unwrap()
+}
+
+#[test]
+fn the_guard_admits_by_controller_arming_and_effect_and_holds_what_moved() {
+    let station = Arc::new(Station::simulated().unwrap());
+    let (tx, rx) = mpsc::channel();
+    let guard = Guard::new(Arc::clone(&station), GuardConfig::default(), move |e| {
+        tx.send(e.clone()).unwrap();
+    })
+    .unwrap();
+    let (me, other) = (1, 2);
+    let read = req(r#"{"op":"whj.status","joints":"1"}"#);
+    let configure = req(r#"{"op":"whj.mode","joints":"1","mode":"position"}"#);
+    let motion = req(r#"{"op":"whj.move","joint":1,"degrees":5}"#);
+    // Nobody controls: reads and settings from anyone, motion from nobody.
+    guard.admit(None, &read).unwrap();
+    guard.admit(None, &configure).unwrap();
+    assert_eq!(
+        guard.admit(None, &motion).unwrap_err().kind(),
+        ErrorKind::Refused
+    );
+    // One controller; the other session watches.
+    assert!(guard.take_control(me).controller);
+    let view = guard.take_control(other);
+    assert!(!view.controller && view.held_by_other);
+    guard.admit(Some(other), &read).unwrap();
+    assert_eq!(
+        guard.admit(Some(other), &configure).unwrap_err().kind(),
+        ErrorKind::Refused
+    );
+    assert_eq!(
+        guard.admit(None, &configure).unwrap_err().kind(),
+        ErrorKind::Refused
+    );
+    guard.admit(Some(me), &configure).unwrap();
+    // Motion needs arming, by the controller only.
+    assert_eq!(
+        guard.admit(Some(me), &motion).unwrap_err().kind(),
+        ErrorKind::Refused
+    );
+    assert_eq!(guard.arm(other).unwrap_err().kind(), ErrorKind::Refused);
+    guard.arm(me).unwrap();
+    assert!(guard.view(me).armed);
+    guard.admit(Some(me), &motion).unwrap();
+    assert_eq!(
+        guard.admit(Some(other), &motion).unwrap_err().kind(),
+        ErrorKind::Refused
+    );
+    guard.admit_jog(Some(me), Family::Wck, None, 3).unwrap();
+    // Disarming brings the moved devices to a hold, reported once.
+    guard.disarm(me).unwrap();
+    let event = rx.recv_timeout(Duration::from_secs(10)).unwrap();
+    assert_eq!(event.reason, "disarmed");
+    assert_eq!(event.state, "hold");
+    assert_eq!(
+        event.devices,
+        [
+            GuardedDevice {
+                family: Family::Wck,
+                bus: "sim-wck".into(),
+                id: 3
+            },
+            GuardedDevice {
+                family: Family::Whj,
+                bus: "sim-whj".into(),
+                id: 1
+            },
+        ]
+    );
+    assert!(event.failures.is_empty(), "{:?}", event.failures);
+    assert!(!guard.view(me).armed);
+    assert_eq!(
+        guard.admit(Some(me), &motion).unwrap_err().kind(),
+        ErrorKind::Refused
+    );
+    // Releasing control with nothing moved since reports nothing.
+    guard.release_control(me);
+    assert!(rx.recv_timeout(Duration::from_millis(200)).is_err());
+    assert!(guard.take_control(other).controller);
+}
