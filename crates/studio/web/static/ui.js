@@ -216,3 +216,34 @@ export function rowText(row, skip = ["id"]) {
 }
 
 export { describeError };
+
+/** An element from a tag, attributes (`class`, `onclick`, ARIA and others) and children:
+ * the compact form the Waveform, Program, Poses, Preview and Capture panels use. */
+export function h(tag, attrs = {}, ...children) {
+  const e = document.createElement(tag);
+  for (const [k, v] of Object.entries(attrs)) {
+    if (v == null || v === false) continue;
+    if (k.startsWith("on")) e.addEventListener(k.slice(2), v);
+    else if (k === "class") e.className = v;
+    else e.setAttribute(k, v === true ? "" : String(v));
+  }
+  e.append(...children.flat().filter((c) => c != null));
+  return e;
+}
+
+/** Loads a panel's own stylesheet (panels/NAME.css) once. */
+export function panelStyles(name) {
+  const href = new URL(`./panels/${name}.css`, import.meta.url).pathname;
+  if (!document.querySelector(`link[href="${href}"]`)) {
+    const link = document.createElement("link");
+    link.rel = "stylesheet";
+    link.href = href;
+    document.head.append(link);
+  }
+}
+
+/** `line:column: message` inside a library error (`program 2:6: position 300 …`). */
+export function errorPosition(message) {
+  const m = /(\d+):(\d+):\s*([\s\S]*)$/.exec(message ?? "");
+  return m ? { line: Number(m[1]), column: Number(m[2]), message: m[3] } : null;
+}

@@ -1,17 +1,7 @@
 // Capture: the session's traffic per bus (GET /api/capture), each downloadable as the file
 // `robobus replay FILE` decodes (GET /api/capture/{bus}).
 
-function h(tag, attrs = {}, ...children) {
-  const el = document.createElement(tag);
-  for (const [k, v] of Object.entries(attrs)) {
-    if (v == null || v === false) continue;
-    if (k.startsWith('on')) el.addEventListener(k.slice(2), v);
-    else if (k === 'class') el.className = v;
-    else el.setAttribute(k, v === true ? '' : String(v));
-  }
-  el.append(...children.flat().filter((c) => c != null));
-  return el;
-}
+import { h } from '../ui.js';
 
 function size(bytes) {
   if (bytes < 1024) return `${bytes} B`;

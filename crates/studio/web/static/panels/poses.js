@@ -10,19 +10,7 @@
 // so "Save file" writes what `robobus wck teach` writes and `robobus wck play` plays,
 // and "Load file" reads such a file (validated by the library's parser on the server).
 
-import { field } from '../ui.js';
-
-function h(tag, attrs = {}, ...children) {
-  const el = document.createElement(tag);
-  for (const [k, v] of Object.entries(attrs)) {
-    if (v == null || v === false) continue;
-    if (k.startsWith('on')) el.addEventListener(k.slice(2), v);
-    else if (k === 'class') el.className = v;
-    else el.setAttribute(k, v === true ? '' : String(v));
-  }
-  el.append(...children.flat().filter((c) => c != null));
-  return el;
-}
+import { field, h, panelStyles, errorPosition } from '../ui.js';
 
 const MAX_MS = 600000;
 
@@ -67,27 +55,11 @@ export function parseScene(text) {
   return { torque, rows };
 }
 
-function errorPosition(message) {
-  const m = /(\d+):(\d+):\s*([\s\S]*)$/.exec(message ?? '');
-  return m ? { line: Number(m[1]), column: Number(m[2]), message: m[3] } : null;
-}
-
-/** Loads this panel's stylesheet (panels/NAME.css) once. */
-function styles(name) {
-  const href = new URL(`./${name}.css`, import.meta.url).pathname;
-  if (!document.querySelector(`link[href="${href}"]`)) {
-    const link = document.createElement('link');
-    link.rel = 'stylesheet';
-    link.href = href;
-    document.head.append(link);
-  }
-}
-
 export default {
   id: 'poses',
   title: 'Poses',
   mount(element, studio) {
-    styles('poses');
+    panelStyles('poses');
     const wckBuses = studio.buses?.('wck') ?? [];
     const known = (studio.ids?.('wck') ?? []).filter((d) => d.bus === wckBuses[0]).map((d) => d.id);
     const defaultIds = known.length && known.every((v, i) => v === i) ? `0-${known.length - 1}` : '0-15';

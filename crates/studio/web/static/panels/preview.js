@@ -2,17 +2,7 @@
 // what it needs confirmed, its effect) and, on demand, the run itself. Other panels open
 // it with a request filled in (`studio.preview(request)`).
 
-function h(tag, attrs = {}, ...children) {
-  const el = document.createElement(tag);
-  for (const [k, v] of Object.entries(attrs)) {
-    if (v == null || v === false) continue;
-    if (k.startsWith('on')) el.addEventListener(k.slice(2), v);
-    else if (k === 'class') el.className = v;
-    else el.setAttribute(k, v === true ? '' : String(v));
-  }
-  el.append(...children.flat().filter((c) => c != null));
-  return el;
-}
+import { h, panelStyles } from '../ui.js';
 
 // Requests that report progress while they run (their report comes at the end).
 const LONG = new Set(['whj.wave', 'whj.move', 'whj.speed', 'whj.current', 'wck.play', 'wck.teach',
@@ -59,22 +49,11 @@ function viablePrefix(text) {
   return lo;
 }
 
-/** Loads this panel's stylesheet (panels/NAME.css) once. */
-function styles(name) {
-  const href = new URL(`./${name}.css`, import.meta.url).pathname;
-  if (!document.querySelector(`link[href="${href}"]`)) {
-    const link = document.createElement('link');
-    link.rel = 'stylesheet';
-    link.href = href;
-    document.head.append(link);
-  }
-}
-
 export default {
   id: 'preview',
   title: 'Preview',
   mount(element, studio) {
-    styles('preview');
+    panelStyles('preview');
     const editor = h('textarea', { id: 'preview-request', rows: 8, class: 'request-json', spellcheck: 'false',
       autocomplete: 'off' });
     editor.value = JSON.stringify({ op: 'wck.status', ids: '0-2' }, null, 2);

@@ -8,19 +8,7 @@
 // compares counts. There is no "run" command either: a servo runs its stored program by
 // itself while it holds one (an upload restarts it), so the panel has no Run button.
 
-import { devicePicker } from '../ui.js';
-
-function h(tag, attrs = {}, ...children) {
-  const el = document.createElement(tag);
-  for (const [k, v] of Object.entries(attrs)) {
-    if (v == null || v === false) continue;
-    if (k.startsWith('on')) el.addEventListener(k.slice(2), v);
-    else if (k === 'class') el.className = v;
-    else el.setAttribute(k, v === true ? '' : String(v));
-  }
-  el.append(...children.flat().filter((c) => c != null));
-  return el;
-}
+import { devicePicker, h, panelStyles, errorPosition } from '../ui.js';
 
 const EXAMPLE = `# swing between two positions, three times
 move 82 torque 0
@@ -42,12 +30,6 @@ const FORMAT = `One instruction a line, at most 8; # starts a comment:
   repeat <1..254> | repeat forever
   end`;
 
-/** `line:column: message` inside a library error (`program 2:6: position 300 …`). */
-export function errorPosition(message) {
-  const m = /(\d+):(\d+):\s*([\s\S]*)$/.exec(message ?? '');
-  return m ? { line: Number(m[1]), column: Number(m[2]), message: m[3] } : null;
-}
-
 /** Selects the token at `line`:`column` (1-based, columns in characters) of a textarea. */
 export function moveCaret(textarea, line, column) {
   const lines = textarea.value.split('\n');
@@ -65,22 +47,11 @@ export function moveCaret(textarea, line, column) {
   textarea.scrollTop = Math.max(0, (line - 3) * lh);
 }
 
-/** Loads this panel's stylesheet (panels/NAME.css) once. */
-function styles(name) {
-  const href = new URL(`./${name}.css`, import.meta.url).pathname;
-  if (!document.querySelector(`link[href="${href}"]`)) {
-    const link = document.createElement('link');
-    link.rel = 'stylesheet';
-    link.href = href;
-    document.head.append(link);
-  }
-}
-
 export default {
   id: 'program',
   title: 'Program',
   mount(element, studio) {
-    styles('program');
+    panelStyles('program');
     const picker = devicePicker(studio, { families: ['wck'], label: 'Servo' });
     const editor = h('textarea', { id: 'program-editor', name: 'program', rows: 9, spellcheck: 'false',
       autocomplete: 'off', class: 'program-code', 'aria-describedby': 'program-format' });

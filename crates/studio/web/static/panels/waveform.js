@@ -2,20 +2,9 @@
 // a Stop button and the tracking statistics of the report's summary (the figures
 // `robobus whj wave` prints below its table).
 
-import { field, devicePicker } from '../ui.js';
+import { field, devicePicker, h } from '../ui.js';
 
 /** A small element builder: h('button', {onclick}, 'Text'); attributes as attributes. */
-function h(tag, attrs = {}, ...children) {
-  const el = document.createElement(tag);
-  for (const [k, v] of Object.entries(attrs)) {
-    if (v == null || v === false) continue;
-    if (k.startsWith('on')) el.addEventListener(k.slice(2), v);
-    else if (k === 'class') el.className = v;
-    else el.setAttribute(k, v === true ? '' : String(v));
-  }
-  el.append(...children.flat().filter((c) => c != null));
-  return el;
-}
 
 const UNITS = { position: 'deg', speed: 'RPM', current: 'mA' };
 
