@@ -342,11 +342,12 @@ fn wait_for(ws: &mut tungstenite::WebSocket<TcpStream>, kind: &str, id: Option<u
 #[test]
 fn a_lost_heartbeat_brings_the_moved_joint_to_its_safe_state() {
     let s = start(&[]);
-    let (mut ws, _) = tungstenite::client(
-        format!("ws://{}/api/ws", s.addr),
-        TcpStream::connect(&s.addr).unwrap(),
-    )
-    .unwrap();
+    let stream = TcpStream::connect(&s.addr).unwrap();
+    // A message that never comes fails the test instead of hanging it.
+    stream
+        .set_read_timeout(Some(Duration::from_secs(20)))
+        .unwrap();
+    let (mut ws, _) = tungstenite::client(format!("ws://{}/api/ws", s.addr), stream).unwrap();
     let hello = wait_for(&mut ws, "hello", None);
     assert_eq!(hello["simulated"], true);
     send(&mut ws, &json!({"type": "take-control"}));
@@ -414,11 +415,25 @@ fn a_lost_heartbeat_brings_the_moved_joint_to_its_safe_state() {
         );
         std::thread::sleep(Duration::from_millis(5));
     };
+    eprintln!("held {safe:?} after the last heartbeat");
     assert!(
         safe <= Duration::from_millis(400),
         "safe {safe:?} after the last heartbeat"
     );
-    let event = wait_for(&mut ws, "safe", None);
+    // The guard's report and the stopped run's end come in either order.
+    let (mut event, mut ended) = (None, None);
+    while event.is_none() || ended.is_none() {
+        let v: Value = match ws.read().unwrap() {
+            tungstenite::Message::Text(t) => serde_json::from_str(&t).unwrap(),
+            _ => continue,
+        };
+        if v["type"] == "safe" {
+            event = Some(v);
+        } else if v["id"] == 5 && (v["type"] == "error" || v["type"] == "report") {
+            ended = Some(v);
+        }
+    }
+    let (event, ended) = (event.unwrap(), ended.unwrap());
     assert_eq!(event["reason"], "heartbeat lost");
     assert_eq!(
         event["devices"],
@@ -426,15 +441,6 @@ fn a_lost_heartbeat_brings_the_moved_joint_to_its_safe_state() {
     );
     assert_eq!(event["stopped_runs"], 1);
     // The stopped run ends interrupted, and the page is disarmed.
-    let ended = loop {
-        let v: Value = match ws.read().unwrap() {
-            tungstenite::Message::Text(t) => serde_json::from_str(&t).unwrap(),
-            _ => continue,
-        };
-        if v["id"] == 5 && (v["type"] == "error" || v["type"] == "report") {
-            break v;
-        }
-    };
     assert_eq!(ended["kind"], "interrupted", "{ended}");
     send(
         &mut ws,
