@@ -339,6 +339,23 @@ fn wait_for(ws: &mut tungstenite::WebSocket<TcpStream>, kind: &str, id: Option<u
     panic!("no {kind} message");
 }
 
+/// The guard's `safe` report and the end of run `id`, which come in either order.
+fn safe_and_end(ws: &mut tungstenite::WebSocket<TcpStream>, id: u64) -> (Value, Value) {
+    let (mut event, mut ended) = (None, None);
+    while event.is_none() || ended.is_none() {
+        let v: Value = match ws.read().unwrap() {
+            tungstenite::Message::Text(t) => serde_json::from_str(&t).unwrap(),
+            _ => continue,
+        };
+        if v["type"] == "safe" {
+            event = Some(v);
+        } else if v["id"] == id && (v["type"] == "error" || v["type"] == "report") {
+            ended = Some(v);
+        }
+    }
+    (event.unwrap(), ended.unwrap())
+}
+
 #[test]
 fn a_lost_heartbeat_brings_the_moved_joint_to_its_safe_state() {
     let s = start(&[]);
@@ -420,20 +437,7 @@ fn a_lost_heartbeat_brings_the_moved_joint_to_its_safe_state() {
         safe <= Duration::from_millis(400),
         "safe {safe:?} after the last heartbeat"
     );
-    // The guard's report and the stopped run's end come in either order.
-    let (mut event, mut ended) = (None, None);
-    while event.is_none() || ended.is_none() {
-        let v: Value = match ws.read().unwrap() {
-            tungstenite::Message::Text(t) => serde_json::from_str(&t).unwrap(),
-            _ => continue,
-        };
-        if v["type"] == "safe" {
-            event = Some(v);
-        } else if v["id"] == 5 && (v["type"] == "error" || v["type"] == "report") {
-            ended = Some(v);
-        }
-    }
-    let (event, ended) = (event.unwrap(), ended.unwrap());
+    let (event, ended) = safe_and_end(&mut ws, 5);
     assert_eq!(event["reason"], "heartbeat lost");
     assert_eq!(
         event["devices"],

@@ -192,16 +192,14 @@ fn within_soft_limits(
 /// The next commanded position: `target` within `limits`, at most `max_step` from `from`;
 /// and whether that cut it short.
 fn step(from: f64, target: f64, (lo, hi): (f64, f64), max_step: f64) -> (f64, bool) {
-    let want = target.clamp(lo.min(hi), hi.max(lo));
+    let (lo, hi) = (lo.min(hi), hi.max(lo));
+    // A device outside its limits is only ever stepped back toward them: a target further
+    // out leaves it where it is.
+    if (from > hi && target >= from) || (from < lo && target <= from) {
+        return (from, true);
+    }
+    let want = target.clamp(lo, hi);
     let next = from + (want - from).clamp(-max_step, max_step);
-    // A device outside its limits is only ever stepped back toward them.
-    let next = if from < lo {
-        next.max(from)
-    } else if from > hi {
-        next.min(from)
-    } else {
-        next.clamp(lo, hi)
-    };
     (next, (next - target).abs() > 1e-9)
 }
 
