@@ -181,8 +181,12 @@ mod tests {
                 let x = l.step(target, dt, v, a);
                 let speed = (x - prev_x) / dt;
                 prop_assert!(speed.abs() <= v * (1.0 + 1e-9), "speed {speed} > {v}");
+                // A relative 1e-4 of slack: over tens of thousands of steps the set-point
+                // carries the rounding of |x|·ε per step, which the braking curve takes up
+                // at the landing (seen: 9.4e-6 of dv after 22,404 steps of 0.5 ms to
+                // -247.9°; proptest-regressions/motion.txt keeps the case).
                 prop_assert!(
-                    (speed - prev_v).abs() <= a * dt * (1.0 + 1e-6) + 1e-9,
+                    (speed - prev_v).abs() <= a * dt * (1.0 + 1e-4) + 1e-9,
                     "speed change {} > {}", (speed - prev_v).abs(), a * dt
                 );
                 prop_assert!((target - x) * (target - start) >= 0.0, "passed the target at {x}");
@@ -191,7 +195,7 @@ mod tests {
                 prop_assert!(n <= bound, "not there after {n} steps (bound {bound})");
             }
             // The landing's speed can brake to rest within one step.
-            prop_assert!(prev_v.abs() <= a * dt * (1.0 + 1e-6) + 1e-9);
+            prop_assert!(prev_v.abs() <= a * dt * (1.0 + 1e-4) + 1e-9);
         }
 
         /// Any stream of targets: never faster than the speed limit, never past the target
