@@ -193,11 +193,9 @@ fn within_soft_limits(
 /// and whether that cut it short.
 fn step(from: f64, target: f64, (lo, hi): (f64, f64), max_step: f64) -> (f64, bool) {
     let (lo, hi) = (lo.min(hi), hi.max(lo));
-    // A device outside its limits is only ever stepped back toward them: a target further
-    // out leaves it where it is.
-    if (from > hi && target >= from) || (from < lo && target <= from) {
-        return (from, true);
-    }
+    // The step heads for the target clamped into the limits: a device outside them (moved
+    // by hand, or overshooting a limit by a count) is brought back toward them whatever
+    // the target, and nothing outside them is ever commanded beyond where it already is.
     let want = target.clamp(lo, hi);
     let next = from + (want - from).clamp(-max_step, max_step);
     (next, (next - target).abs() > 1e-9)
@@ -273,8 +271,9 @@ mod tests {
         assert_eq!(step(0.0, 10.0, (-90.0, 90.0), 2.0), (2.0, true));
         assert_eq!(step(0.0, -1.5, (-90.0, 90.0), 2.0), (-1.5, false));
         assert_eq!(step(89.0, 120.0, (-90.0, 90.0), 2.0), (90.0, true));
-        // Outside the limits: only back toward them, never further out.
-        assert_eq!(step(95.0, 120.0, (-90.0, 90.0), 2.0), (95.0, true));
+        // Outside the limits: back toward them, whatever the target, a step at a time.
+        assert_eq!(step(95.0, 120.0, (-90.0, 90.0), 2.0), (93.0, true));
         assert_eq!(step(95.0, 0.0, (-90.0, 90.0), 2.0), (93.0, true));
+        assert_eq!(step(90.001, 120.0, (-90.0, 90.0), 2.0), (90.0, true));
     }
 }
