@@ -30,6 +30,14 @@ pub(crate) struct Args {
     /// The request file: one JSON request (`{"op": "wck.status", "ids": "0-2"}`) or an
     /// array of them; `-` reads standard input.
     file: PathBuf,
+    #[command(flatten)]
+    station: StationArgs,
+}
+
+/// The buses a front end on the catalogue opens (`run`, `studio`): with none of them, the
+/// built-in simulated robot.
+#[derive(Debug, clap::Args)]
+pub(crate) struct StationArgs {
     /// A wCK serial port to open (repeatable; requests name it under `bus`).
     #[arg(long, value_name = "PATH")]
     wck_port: Vec<String>,
@@ -42,6 +50,24 @@ pub(crate) struct Args {
     /// A robot file whose buses are opened too (named as in the file).
     #[arg(long, value_name = "FILE")]
     robot: Option<PathBuf>,
+}
+
+impl StationArgs {
+    /// No bus named: the built-in simulated robot.
+    pub(crate) fn simulated(&self) -> bool {
+        self.wck_port.is_empty() && self.whj_bus.is_empty() && self.robot.is_none()
+    }
+
+    /// The station's configuration.
+    pub(crate) fn config(&self) -> StationConfig {
+        StationConfig {
+            wck_ports: self.wck_port.clone(),
+            wck_baud: Some(self.wck_baud),
+            whj_buses: self.whj_bus.clone(),
+            robot: self.robot.clone(),
+            ..StationConfig::default()
+        }
+    }
 }
 
 /// Which schema `robobus schema` prints.
@@ -110,16 +136,10 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     for (n, r) in requests.iter().enumerate() {
         catalogue::validate(r).map_err(|e| numbered(n, e))?;
     }
-    let station = if args.wck_port.is_empty() && args.whj_bus.is_empty() && args.robot.is_none() {
+    let station = if args.station.simulated() {
         Station::simulated()?
     } else {
-        Station::open(&StationConfig {
-            wck_ports: args.wck_port.clone(),
-            wck_baud: Some(args.wck_baud),
-            whj_buses: args.whj_bus.clone(),
-            robot: args.robot.clone(),
-            ..StationConfig::default()
-        })?
+        Station::open(&args.station.config())?
     };
     let stop = crate::interrupt::stop_token();
     let mut reports = Vec::new();

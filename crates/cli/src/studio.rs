@@ -10,7 +10,6 @@ use robobus::catalogue::guard::GuardConfig;
 use robobus::catalogue::{Station, StationConfig};
 use robobus::ops::{OpError, read_bounded};
 use robobus_studio::{Studio, StudioConfig};
-use robobus_wck::BaudRate;
 
 use crate::Global;
 
@@ -20,27 +19,19 @@ pub(crate) struct Args {
     /// The port on 127.0.0.1 (0: any free port; the first line printed names it).
     #[arg(long, default_value_t = 7480)]
     port: u16,
-    /// Listen on another address (`0.0.0.0:8080`); needs --token-file.
+    /// Listen on another address (`0.0.0.0:8080`); any address but loopback needs
+    /// --token-file.
     #[arg(long, value_name = "ADDR")]
     listen: Option<SocketAddr>,
-    /// A file holding the token every request must carry (needed with --listen).
+    /// A file holding the token every request must carry (one word of 16 characters or
+    /// more; needed off loopback).
     #[arg(long, value_name = "FILE")]
     token_file: Option<PathBuf>,
     /// Serve monitoring only: nothing that changes a device is served.
     #[arg(long)]
     read_only: bool,
-    /// A wCK serial port to open (repeatable).
-    #[arg(long, value_name = "PATH")]
-    wck_port: Vec<String>,
-    /// The baud rate of the wCK ports.
-    #[arg(long, default_value = "115200", value_parser = crate::wck::parse_baud)]
-    wck_baud: BaudRate,
-    /// A WHJ bus to open: udp, udp:GROUP:PORT or a SocketCAN interface (repeatable).
-    #[arg(long, value_name = "BUS")]
-    whj_bus: Vec<String>,
-    /// A robot file whose buses are opened too (its joints by name).
-    #[arg(long, value_name = "FILE")]
-    robot: Option<PathBuf>,
+    #[command(flatten)]
+    station: crate::run::StationArgs,
     /// Heartbeat timeout of an armed page, ms (50..=1000): past it, the devices it moved
     /// are brought to their safe state.
     #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u64).range(50..=1000))]
@@ -76,7 +67,7 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     if g.dry_run {
         return crate::output::print(&format!(
             "studio: would serve http://{listen}/ ({}), opening nothing\n",
-            if args.wck_port.is_empty() && args.whj_bus.is_empty() && args.robot.is_none() {
+            if args.station.simulated() {
                 "the built-in simulated robot"
             } else {
                 "the given buses"
@@ -99,21 +90,16 @@ fn serve_in(
     token: Option<String>,
     capture_dir: &std::path::Path,
 ) -> anyhow::Result<()> {
-    let (station, sim) =
-        if args.wck_port.is_empty() && args.whj_bus.is_empty() && args.robot.is_none() {
-            let (station, sim) = Station::simulated_live(Some(capture_dir))?;
-            (station, Some(sim))
-        } else {
-            let station = Station::open(&StationConfig {
-                wck_ports: args.wck_port.clone(),
-                wck_baud: Some(args.wck_baud),
-                whj_buses: args.whj_bus.clone(),
-                robot: args.robot.clone(),
-                capture_dir: Some(capture_dir.to_path_buf()),
-                ..StationConfig::default()
-            })?;
-            (station, None)
-        };
+    let (station, sim) = if args.station.simulated() {
+        let (station, sim) = Station::simulated_live(Some(capture_dir))?;
+        (station, Some(sim))
+    } else {
+        let station = Station::open(&StationConfig {
+            capture_dir: Some(capture_dir.to_path_buf()),
+            ..args.station.config()
+        })?;
+        (station, None)
+    };
     let studio = Studio::bind(
         station,
         sim,
