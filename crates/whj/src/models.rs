@@ -52,6 +52,25 @@ impl ProductFacts {
         !feature.gate().model_gated || self.model_features.contains(&feature)
     }
 
+    /// The torque constant at the output, N·m per A of motor current, as the rated torque
+    /// over the rated current: an estimate (the rated current is a supply-side value), the
+    /// one the simulator uses.
+    pub fn torque_constant_nm_per_a(&self) -> f64 {
+        self.rated_torque_nm / self.rated_current_a
+    }
+
+    /// The output torque constant of a joint that identified as `model` with
+    /// `reduction_ratio` (see [`Self::torque_constant_nm_per_a`]); `None` when no product
+    /// matches or the products that match differ.
+    pub fn torque_constant_of(model: Model, reduction_ratio: u16) -> Option<f64> {
+        let mut k = PRODUCTS
+            .iter()
+            .filter(|p| p.model == model && p.reduction_ratio == reduction_ratio)
+            .map(Self::torque_constant_nm_per_a);
+        let first = k.next()?;
+        k.all(|x| (x - first).abs() < 1e-9).then_some(first)
+    }
+
     /// The product with this name, ignoring ASCII case and an optional `WHJ` prefix
     /// (`"whj30"`, `"30"`, `"WHJ10N"`); `"whj10"` is the braked WHJ10.
     pub fn by_name(name: &str) -> Option<&'static Self> {

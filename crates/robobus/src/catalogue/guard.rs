@@ -31,6 +31,9 @@ use crate::ops::safe::{self, SafeDevices};
 use crate::ops::whj::ServoLoop;
 use crate::ops::{OpError, SafeState, StopToken};
 
+/// The reason of a safe stop the guard made because the heartbeat stopped (it disarms).
+pub const HEARTBEAT_LOST: &str = "heartbeat lost";
+
 /// How a guard behaves.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct GuardConfig {
@@ -97,8 +100,9 @@ struct State {
     moved: BTreeMap<GuardedDevice, ServoLoop>,
     runs: HashMap<u64, StopToken>,
     next_run: u64,
-    /// A trip asked for by a caller (`disarm`, `release`), with its time.
-    pending: Option<(String, Instant)>,
+    /// A trip asked for by a caller (`disarm`, `release`, `hold`), with its time and
+    /// whether it disarms.
+    pending: Option<(String, Instant, bool)>,
     closing: bool,
 }
 
@@ -212,7 +216,7 @@ impl Guard {
         if s.controller == Some(session) {
             s.controller = None;
             if s.armed || !s.moved.is_empty() {
-                s.pending = Some(("control released".into(), Instant::now()));
+                s.pending = Some(("control released".into(), Instant::now(), true));
                 self.inner.wake.notify_all();
             }
         }
@@ -238,9 +242,30 @@ impl Guard {
             return Err(not_controller());
         }
         s.armed = false;
-        s.pending = Some(("disarmed".into(), Instant::now()));
+        s.pending = Some(("disarmed".into(), Instant::now(), true));
         self.inner.wake.notify_all();
         Ok(())
+    }
+
+    /// Brings the devices moved since arming to the safe state now, with `reason`, and
+    /// stops the running operations, but stays armed: what a command stream that went
+    /// quiet asks for (the next command may move again). `since` is when the cause
+    /// happened (for [`SafeEvent::took_ms`]). Nothing happens when nothing was moved.
+    pub fn hold(&self, session: u64, reason: &str, since: Instant) -> Result<(), OpError> {
+        let mut s = self.inner.lock();
+        if s.controller != Some(session) {
+            return Err(not_controller());
+        }
+        if !s.moved.is_empty() || !s.runs.is_empty() {
+            s.pending = Some((reason.to_owned(), since, false));
+            self.inner.wake.notify_all();
+        }
+        Ok(())
+    }
+
+    /// Whether any device was moved since arming (or since the last safe stop).
+    pub fn has_moved(&self) -> bool {
+        !self.inner.lock().moved.is_empty()
     }
 
     /// The armed controller's heartbeat.
@@ -336,7 +361,7 @@ impl Drop for Guard {
             let mut s = self.inner.lock();
             s.closing = true;
             if s.armed || !s.moved.is_empty() {
-                s.pending = Some(("studio closing".into(), Instant::now()));
+                s.pending = Some(("closing".into(), Instant::now(), true));
             }
         }
         self.inner.wake.notify_all();
@@ -387,12 +412,14 @@ fn watch(inner: &Inner) {
         } else if lost {
             // The cause is the heartbeat that did not come.
             let due = s.last_beat.map_or(now, |t| t + timeout);
-            Some(("heartbeat lost".to_owned(), due))
+            Some((HEARTBEAT_LOST.to_owned(), due, true))
         } else {
             None
         };
-        if let Some((reason, since)) = cause {
-            s.armed = false;
+        if let Some((reason, since, disarm)) = cause {
+            if disarm {
+                s.armed = false;
+            }
             let tokens: Vec<StopToken> = s.runs.values().cloned().collect();
             let moved = std::mem::take(&mut s.moved);
             drop(s);

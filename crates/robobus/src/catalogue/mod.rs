@@ -82,6 +82,7 @@ pub mod bounds;
 pub mod cyclic;
 mod dispatch;
 pub mod effect;
+pub mod follow;
 pub mod guard;
 pub mod handles;
 pub mod jog;
@@ -294,6 +295,18 @@ impl Request {
     /// The bus it names, if any.
     pub fn bus(&self) -> Option<&str> {
         each_variant!(self, r => r.bus.as_deref())
+    }
+
+    /// Parses one request from JSON text. Bad JSON, an unknown operation or an unknown
+    /// field is [`ErrorKind::BadInput`].
+    pub fn parse(text: &str) -> Result<Self, crate::ops::OpError> {
+        serde_json::from_str(text).map_err(|e| {
+            crate::ops::OpError::invalid(
+                "request",
+                "JSON",
+                format!("{e} (one request object, as `robobus schema` describes)"),
+            )
+        })
     }
 
     /// Parses one request, or a JSON array of them, from JSON text. Unknown operations and

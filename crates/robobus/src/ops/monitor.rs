@@ -109,6 +109,10 @@ pub struct RobotJointSample {
     pub speed_deg_s: Option<f64>,
     /// Current, mA (WHJ; `None` for wCK and in the 12-byte status layout).
     pub current_ma: Option<i64>,
+    /// Joint torque, N·m, estimated from the current and the identified model's rated
+    /// torque over rated current, in the joint's direction (WHJ; `None` for wCK, without
+    /// a current or an identified model).
+    pub effort_nm: Option<f64>,
     /// Load, 0..=255 (wCK; `None` for WHJ).
     pub load: Option<u8>,
     /// Drive enabled (WHJ; `None` for wCK).
@@ -255,6 +259,7 @@ impl RobotSampler {
                             position_deg: s.position_deg,
                             speed_deg_s: s.speed_deg_s,
                             current_ma: None,
+                            effort_nm: None,
                             load: Some(s.load),
                             enabled: None,
                             error: "ok".into(),
@@ -264,11 +269,21 @@ impl RobotSampler {
                 RobotBus::Whj { port, joints } => {
                     let ids: Vec<JointId> = joints.iter().map(|j| j.1).collect();
                     let results = super::whj::sample(port.bus(), &ids);
-                    for (&(i, _, map), r) in joints.iter().zip(results) {
+                    for (&(i, id, map), r) in joints.iter().zip(results) {
+                        let kt = port.bus().cached_identity(id).and_then(|d| {
+                            robobus_whj::models::ProductFacts::torque_constant_of(
+                                d.model,
+                                d.reduction_ratio,
+                            )
+                        });
                         out[i] = Some(r.outcome.map(|s| RobotJointSample {
                             position_deg: map.to_joint(s.position_deg.to_radians()).to_degrees(),
                             speed_deg_s: s.speed_rpm.map(|r| map.speed_to_joint(r * DEG_S_PER_RPM)),
                             current_ma: s.current_ma,
+                            effort_nm: s.current_ma.zip(kt).map(|(ma, k)| {
+                                let nm = ma as f64 / 1e3 * k;
+                                if map.reversed { -nm } else { nm }
+                            }),
                             load: None,
                             enabled: Some(s.enabled),
                             error: s.error,

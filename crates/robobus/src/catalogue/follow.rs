@@ -1,0 +1,206 @@
+//! Following a robot's joint targets: what a position command stream sends again and
+//! again (a ROS 2 forward position controller through the Zenoh bridge, a teleoperation
+//! master).
+//!
+//! A command is one target per joint of the station's robot file, in the file's order, in
+//! joint radians. [`Follower::plan`] checks the whole command before anything is sent:
+//! the count, that every target is a finite number, that it lies within the joint's soft
+//! limits (the file's `limits`) and, for a wCK joint, within the servo's 0..=254 steps. A
+//! command that fails any check is refused whole: never half applied. [`Follower::apply`]
+//! then steps every joint toward its target with the [`Jogger`]: at most one jog step
+//! from where the device is now ([`WHJ_JOG_STEP_DEG`](super::jog::WHJ_JOG_STEP_DEG),
+//! [`WCK_JOG_STEP`](super::jog::WCK_JOG_STEP)), within the device's own limits, through
+//! the handles' step-limit and readiness checks. Each joint has its own result: a silent
+//! device is its failure and the others still move.
+//!
+//! Admission (who may move, armed or not) is the caller's: a remote front end asks its
+//! [`Guard`](super::guard::Guard) first (`admit_jog` for each of [`Follower::joints`]).
+
+use serde::Serialize;
+
+use super::Family;
+use super::jog::{JogRequest, Jogged, Jogger};
+use super::station::Station;
+use crate::actuator::{JointMap, WckScale};
+use crate::ops::{DeviceResult, Failure, OpError};
+
+/// A joint of the robot file as the follower commands it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FollowedJoint {
+    /// Its name in the file.
+    pub name: String,
+    /// `wck` or `whj`.
+    pub family: Family,
+    /// The station's bus (the file's bus name).
+    pub bus: String,
+    /// Servo or joint ID.
+    pub id: u8,
+    /// Soft limits `[min, max]`, rad.
+    pub limits_rad: [f64; 2],
+    #[serde(skip)]
+    units: Units,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Units {
+    Whj(JointMap),
+    Wck(WckScale),
+}
+
+/// Follows joint targets on a station with a robot file (see the [module docs](self)).
+#[derive(Debug)]
+pub struct Follower {
+    joints: Vec<FollowedJoint>,
+    jogger: Jogger,
+}
+
+impl Follower {
+    /// A follower of the station's robot file.
+    ///
+    /// Errors: [`OpError::BadInput`]-kind when the station has no robot file.
+    pub fn new(station: &Station) -> Result<Self, OpError> {
+        let robot = station.robot().ok_or_else(|| {
+            OpError::invalid(
+                "robot",
+                "none",
+                "following joint targets needs a robot file (--robot FILE) that names the joints",
+            )
+        })?;
+        let joints = robot
+            .joints
+            .iter()
+            .map(|j| {
+                let wck = robot
+                    .buses
+                    .get(&j.bus)
+                    .is_some_and(crate::robot::BusConfig::is_wck);
+                FollowedJoint {
+                    name: j.name.clone(),
+                    family: if wck { Family::Wck } else { Family::Whj },
+                    bus: j.bus.clone(),
+                    id: j.id,
+                    limits_rad: [j.limits[0].min(j.limits[1]), j.limits[0].max(j.limits[1])],
+                    units: if wck {
+                        Units::Wck(j.wck_scale())
+                    } else {
+                        Units::Whj(j.map())
+                    },
+                }
+            })
+            .collect();
+        Ok(Self {
+            joints,
+            jogger: Jogger::new(),
+        })
+    }
+
+    /// The joints, in the order of a command.
+    pub fn joints(&self) -> &[FollowedJoint] {
+        &self.joints
+    }
+
+    /// Checks a whole command (joint radians, in the file's order) and turns it into one
+    /// jog per joint in device units (WHJ degrees, wCK steps). Refused whole, nothing
+    /// sent: a count other than the joints', a target that is not finite or lies outside
+    /// the joint's soft limits or the servo's range.
+    pub fn plan(&self, targets_rad: &[f64]) -> Result<Vec<JogRequest>, OpError> {
+        if targets_rad.len() != self.joints.len() {
+            return Err(OpError::invalid(
+                "targets",
+                format!("{} values", targets_rad.len()),
+                format!(
+                    "one target per joint of the robot file: {} values, in the order {}",
+                    self.joints.len(),
+                    self.joints
+                        .iter()
+                        .map(|j| j.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            ));
+        }
+        self.joints
+            .iter()
+            .zip(targets_rad)
+            .map(|(j, &rad)| {
+                let [lo, hi] = j.limits_rad;
+                if !(rad.is_finite() && (lo..=hi).contains(&rad)) {
+                    return Err(OpError::invalid(
+                        &j.name,
+                        format!("{rad} rad"),
+                        format!("a number within the joint's soft limits {lo}..={hi} rad"),
+                    ));
+                }
+                let target = match j.units {
+                    Units::Whj(map) => map.to_device(rad).to_degrees(),
+                    Units::Wck(scale) => f64::from(
+                        scale
+                            .to_position(rad)
+                            .ok_or_else(|| {
+                                OpError::invalid(
+                                    &j.name,
+                                    format!("{rad} rad"),
+                                    "an angle the servo reaches (position steps 0..=254)",
+                                )
+                            })?
+                            .get(),
+                    ),
+                };
+                Ok(JogRequest {
+                    family: j.family,
+                    bus: Some(j.bus.clone()),
+                    device: j.id,
+                    target,
+                })
+            })
+            .collect()
+    }
+
+    /// Steps every joint of a planned command toward its target, one result per joint
+    /// (named as in the file), in the file's order.
+    pub fn apply(
+        &self,
+        station: &Station,
+        plan: &[JogRequest],
+    ) -> Vec<DeviceResult<String, Jogged>> {
+        self.joints
+            .iter()
+            .zip(plan)
+            .map(|(j, jog)| match self.jogger.jog(station, jog) {
+                Ok(done) => DeviceResult::ok(j.name.clone(), done),
+                Err(e) => DeviceResult::failed(j.name.clone(), Failure::from(&e)),
+            })
+            .collect()
+    }
+}
+
+#[cfg(all(test, feature = "sim"))]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_command_is_checked_whole_before_anything_is_sent() {
+        let station = Station::simulated().unwrap();
+        let f = Follower::new(&station).unwrap();
+        let n = f.joints().len();
+        assert_eq!(n, 23);
+        assert_eq!(
+            f.plan(&vec![0.0; n - 1]).unwrap_err().kind(),
+            crate::ErrorKind::BadInput
+        );
+        let mut t = vec![0.0; n];
+        t[3] = f64::NAN;
+        assert!(
+            f.plan(&t)
+                .unwrap_err()
+                .to_string()
+                .contains(&f.joints()[3].name)
+        );
+        t[3] = f.joints()[3].limits_rad[1] + 0.01;
+        assert!(f.plan(&t).unwrap_err().to_string().contains("soft limits"));
+        t[3] = 0.0;
+        let plan = f.plan(&t).unwrap();
+        assert_eq!(plan.len(), n);
+    }
+}
