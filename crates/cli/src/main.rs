@@ -30,6 +30,7 @@ use std::process::ExitCode;
 
 use clap::{CommandFactory as _, FromArgMatches as _, Parser, Subcommand};
 
+mod bridge;
 mod demo;
 mod doctor;
 mod exit;
@@ -162,6 +163,15 @@ enum Command {
     /// 127.0.0.1 only unless --listen (with --token-file) says otherwise; motion needs the
     /// page's Arm and its heartbeat (docs/studio.md).
     Studio(studio::Args),
+    /// Put the robot on Zenoh, in the message types ROS 2 reads: joint states and
+    /// commands in CDR, the request catalogue as a queryable, health and liveliness.
+    ///
+    /// Without --wck-port, --whj-bus and --robot it serves the built-in simulated robot.
+    /// The first line printed starts `bridge: `. It listens on tcp/127.0.0.1:7447 only,
+    /// with scouting off, unless --listen / --connect say otherwise; commands move
+    /// nothing until armed, and a command stream quiet for --command-timeout holds the
+    /// joints (docs/bridge.md).
+    Bridge(bridge::Args),
 }
 
 #[derive(Debug, Subcommand)]
@@ -266,6 +276,7 @@ fn main() -> ExitCode {
         Command::Run(args) => run::run(g, &args),
         Command::Schema(args) => run::schema(&args),
         Command::Studio(args) => studio::run(g, &args),
+        Command::Bridge(args) => bridge::run(g, &args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

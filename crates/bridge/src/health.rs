@@ -1,0 +1,265 @@
+//! The bridge's outputs on a clock: joint states from the telemetry stream, and its
+//! health about once a second.
+
+use std::sync::PoisonError;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Duration;
+
+use robobus::catalogue::guard::SafeEvent;
+use robobus::catalogue::telemetry::RecvError;
+use robobus::catalogue::{Sample, Telemetry};
+use serde::Serialize;
+use zenoh::Wait as _;
+
+use crate::Shared;
+use crate::cdr::{JointState, Time};
+
+/// How often the health is published.
+const HEALTH_PERIOD: Duration = Duration::from_secs(1);
+
+/// One bus of the robot file: its joints, and how many answered their last reading.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct BusHealth {
+    /// The bus.
+    pub name: String,
+    /// Its joints in the robot file.
+    pub joints: usize,
+    /// Of them, those whose last reading answered.
+    pub answering: usize,
+}
+
+/// Joint state publishing.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct StatesHealth {
+    /// Messages published.
+    pub published: u64,
+    /// Joints left out of a message (their reading failed), summed over messages.
+    pub joints_left_out: u64,
+    /// Samples whose read failed as a whole (nothing published for them).
+    pub failed_samples: u64,
+    /// Samples the publisher did not keep up with (dropped oldest first).
+    pub lost_samples: u64,
+}
+
+/// Command following.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct CommandsHealth {
+    /// Commands received.
+    pub received: u64,
+    /// Commands applied (every joint stepped or failed on its own).
+    pub applied: u64,
+    /// Commands replaced by a newer one before they were taken.
+    pub superseded: u64,
+    /// Joints that failed in an applied command, summed.
+    pub joint_failures: u64,
+    /// Times the stream went quiet and its joints were held.
+    pub holds: u64,
+}
+
+/// Refused commands, by reason.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct Refusals {
+    /// Not CDR of a `Float64MultiArray`.
+    pub malformed: u64,
+    /// Wrong count, not finite, outside a soft limit (or no robot file).
+    pub out_of_range: u64,
+    /// The bridge was not armed.
+    pub not_armed: u64,
+    /// The newest refusal's message.
+    pub last: Option<String>,
+}
+
+/// What `NS/robobus/health` publishes.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Health {
+    /// Seconds since the bridge started.
+    pub uptime_s: f64,
+    /// Commands and motion requests may move.
+    pub armed: bool,
+    /// A command stream is being followed.
+    pub streaming: bool,
+    /// The joint state rate, Hz.
+    pub rate_hz: f64,
+    /// The command timeout, ms.
+    pub command_timeout_ms: u64,
+    /// The robot file's buses.
+    pub buses: Vec<BusHealth>,
+    /// Joint states.
+    pub states: StatesHealth,
+    /// Commands.
+    pub commands: CommandsHealth,
+    /// Refused commands.
+    pub refused: Refusals,
+    /// Safe stops so far (command timeouts, disarming, a stalled bridge).
+    pub safe_stops: u64,
+    /// The newest safe stop.
+    pub last_safe_stop: Option<SafeEvent>,
+    /// Queries answered or waiting.
+    pub queries: u64,
+    /// Queries refused because the bridge was busy.
+    pub queries_busy: u64,
+}
+
+fn get(c: &AtomicU64) -> u64 {
+    c.load(Ordering::Relaxed)
+}
+
+/// The health now.
+pub(crate) fn of(s: &Shared) -> Health {
+    let c = &s.counters;
+    let ok = s
+        .joint_ok
+        .lock()
+        .unwrap_or_else(PoisonError::into_inner)
+        .clone();
+    let mut buses: Vec<BusHealth> = Vec::new();
+    if let Some(f) = &s.follower {
+        for (j, ok) in f.joints().iter().zip(&ok) {
+            let i = buses
+                .iter()
+                .position(|b| b.name == j.bus)
+                .unwrap_or_else(|| {
+                    buses.push(BusHealth {
+                        name: j.bus.clone(),
+                        joints: 0,
+                        answering: 0,
+                    });
+                    buses.len() - 1
+                });
+            buses[i].joints += 1;
+            buses[i].answering += usize::from(*ok == Some(true));
+        }
+    }
+    Health {
+        uptime_s: s.started.elapsed().as_secs_f64(),
+        armed: s.armed(),
+        streaming: s.status.streaming.load(Ordering::SeqCst),
+        rate_hz: s.config.rate_hz,
+        command_timeout_ms: u64::try_from(s.config.command_timeout.as_millis()).unwrap_or(0),
+        buses,
+        states: StatesHealth {
+            published: get(&c.states_published),
+            joints_left_out: get(&c.joints_left_out),
+            failed_samples: get(&c.samples_failed),
+            lost_samples: get(&c.samples_lost),
+        },
+        commands: CommandsHealth {
+            received: get(&c.commands_received),
+            applied: get(&c.commands_applied),
+            superseded: get(&c.commands_superseded),
+            joint_failures: get(&c.joint_failures),
+            holds: get(&c.holds),
+        },
+        refused: Refusals {
+            malformed: get(&c.refused_malformed),
+            out_of_range: get(&c.refused_out_of_range),
+            not_armed: get(&c.refused_not_armed),
+            last: s
+                .last_refusal
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .clone(),
+        },
+        safe_stops: get(&s.status.safe_stops),
+        last_safe_stop: s
+            .status
+            .last_safe
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone(),
+        queries: get(&c.queries),
+        queries_busy: get(&c.queries_refused),
+    }
+}
+
+/// Publishes the health about once a second until the bridge stops.
+pub(crate) fn publish_health(s: &Shared, publisher: &zenoh::pubsub::Publisher<'static>) {
+    let mut next = std::time::Instant::now();
+    while !s.stop.is_stopped() {
+        if std::time::Instant::now() >= next {
+            let body = serde_json::to_string(&of(s)).unwrap_or_default();
+            if let Err(e) = publisher.put(body).wait() {
+                tracing::warn!("health: {e}");
+            }
+            next += HEALTH_PERIOD;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// The joint state message of one sample: every joint whose reading answered, in the
+/// robot file's order; `None` when none did (a read that failed as a whole). Marks each
+/// joint answering or not.
+fn joint_state(s: &Shared, sample: &Sample) -> Option<JointState> {
+    let c = &s.counters;
+    let mut ok = s.joint_ok.lock().unwrap_or_else(PoisonError::into_inner);
+    let Some(report) = &sample.report else {
+        c.samples_failed.fetch_add(1, Ordering::Relaxed);
+        ok.iter_mut().for_each(|o| *o = Some(false));
+        return None;
+    };
+    let mut msg = JointState {
+        stamp: Time::from_unix_ms(sample.unix_ms),
+        ..JointState::default()
+    };
+    for (i, row) in report.results.iter().enumerate() {
+        let position = row.get("position_deg").and_then(serde_json::Value::as_f64);
+        let name = row.get("id").and_then(serde_json::Value::as_str);
+        if let Some(o) = ok.get_mut(i) {
+            *o = Some(position.is_some());
+        }
+        let (Some(name), Some(deg)) = (name, position) else {
+            c.joints_left_out.fetch_add(1, Ordering::Relaxed);
+            continue;
+        };
+        msg.name.push(name.to_owned());
+        msg.position.push(deg.to_radians());
+        // Unknown (a wCK servo's first reading): NaN, as JointState marks a value it
+        // does not have.
+        msg.velocity.push(
+            row.get("speed_deg_s")
+                .and_then(serde_json::Value::as_f64)
+                .map_or(f64::NAN, f64::to_radians),
+        );
+        msg.effort.push(
+            row.get("effort_nm")
+                .and_then(serde_json::Value::as_f64)
+                .unwrap_or(f64::NAN),
+        );
+    }
+    (!msg.name.is_empty()).then_some(msg)
+}
+
+/// Publishes every sample of `telemetry` as a joint state until the bridge stops.
+pub(crate) fn publish_states(
+    s: &Shared,
+    telemetry: Telemetry,
+    publisher: &zenoh::pubsub::Publisher<'static>,
+) {
+    let sub = match telemetry.subscribe(8) {
+        Ok(sub) => sub,
+        Err(e) => {
+            tracing::error!("joint states: {e}");
+            return;
+        }
+    };
+    telemetry.resume();
+    while !s.stop.is_stopped() {
+        match sub.recv_timeout(Duration::from_millis(50)) {
+            Ok(d) => {
+                s.counters.samples_lost.fetch_add(d.lost, Ordering::Relaxed);
+                if let Some(msg) = joint_state(s, &d.sample) {
+                    match publisher.put(msg.encode()).wait() {
+                        Ok(()) => {
+                            s.counters.states_published.fetch_add(1, Ordering::Relaxed);
+                        }
+                        Err(e) => tracing::warn!("joint states: {e}"),
+                    }
+                }
+            }
+            Err(RecvError::Timeout) => {}
+            Err(RecvError::Ended) => break,
+        }
+    }
+    let _ = telemetry.stop();
+}

@@ -1,0 +1,796 @@
+//! `robobus bridge`: a station's robot on Zenoh, in the message types ROS 2 reads.
+//!
+//! Keys, under an optional namespace `NS` (see [`Keys`]):
+//!
+//! - `NS/joint_states`: `sensor_msgs/msg/JointState` in CDR ([`cdr`]), every joint of the
+//!   station's robot file that answered this sample, at the configured rate; a joint whose
+//!   reading failed is left out of that message, never repeated from an older one.
+//! - `NS/joint_commands`: `std_msgs/msg/Float64MultiArray` in CDR, one target per joint
+//!   in the file's order, in radians (the forward position controller of `ros2_controllers`).
+//!   Each command is checked whole ([`Follower::plan`]) and stepped toward
+//!   ([`Follower::apply`]); a malformed, out-of-range or unarmed one is refused and
+//!   counted.
+//! - `NS/robobus/run`: a queryable: a catalogue request in JSON in, its report out.
+//! - `NS/robobus/plan`: a queryable: a request's dry run.
+//! - `NS/robobus/arm`: a queryable: `true` / `false` (or `{"armed": B}`) arms or disarms,
+//!   an empty query reads the state.
+//! - `NS/robobus/health`: JSON about once a second (arming, safe stops, refusals, the
+//!   telemetry's counts, each bus's answering devices), and the liveliness token
+//!   `NS/robobus/bridge` while the bridge runs.
+//! - `NS/robobus/sim`: a queryable, only on the built-in simulated robot: the simulators'
+//!   own state (the truth tests check motion against).
+//!
+//! Safety: nothing moves until the bridge is armed; motion requests and commands go
+//! through the station's [`Guard`]; a command stream that goes quiet for the command
+//! timeout brings the joints it moved to the safe state ([`Guard::hold`]); disarming, a
+//! stalled bridge and the bridge's end do too. The bridge holds no state another bridge
+//! needs: many run side by side, one per robot or bus, on one Zenoh router.
+
+// The library's `OpError` is passed through as it is, as every front end does.
+#![allow(clippy::result_large_err)]
+
+pub mod cdr;
+mod health;
+mod zconfig;
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Condvar, Mutex, PoisonError};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use robobus::ErrorKind;
+use robobus::catalogue::follow::Follower;
+use robobus::catalogue::guard::{Guard, GuardConfig, SafeEvent};
+use robobus::catalogue::live::LiveSimulator;
+use robobus::catalogue::{Request, Station, Telemetry};
+use robobus::ops::{OpError, SafeState, StopToken};
+use zenoh::Wait as _;
+use zenoh::bytes::Encoding;
+use zenoh::query::Query;
+
+pub use health::Health;
+pub use zconfig::{DEFAULT_LISTEN, namespace_prefix};
+
+/// The guard session the bridge controls the station with.
+const SESSION: u64 = 1;
+/// The largest command or request payload, bytes.
+pub const MAX_REQUEST: usize = 4 << 20;
+/// Queries waiting for a worker at most; more are answered "busy".
+const QUERY_QUEUE: usize = 16;
+/// How long the guard waits for the bridge's own heartbeat (its command thread's loop)
+/// before it brings moved devices to the safe state and disarms: a stalled bridge.
+const STALL_TIMEOUT: Duration = Duration::from_secs(2);
+/// The reason of the safe stop a quiet command stream causes.
+pub const HOLD_REASON: &str = "command timeout";
+/// Command timeouts accepted.
+pub const COMMAND_TIMEOUT_MS: std::ops::RangeInclusive<u64> = 20..=5000;
+
+/// How a bridge runs.
+#[derive(Debug, Clone)]
+pub struct BridgeConfig {
+    /// The key prefix (`bot1`, `site/arm`), without leading or trailing `/`; `None`: none.
+    pub namespace: Option<String>,
+    /// Joint state rate, Hz.
+    pub rate_hz: f64,
+    /// Endpoints to listen on (default [`DEFAULT_LISTEN`]); empty: listen on none.
+    pub listen: Vec<String>,
+    /// Endpoints to connect to (a router).
+    pub connect: Vec<String>,
+    /// A Zenoh configuration file (TLS, access control, credentials); the endpoints
+    /// and scouting above are set on top of it.
+    pub zenoh_config: Option<PathBuf>,
+    /// Armed from the start.
+    pub armed: bool,
+    /// A command stream quiet for this long holds its joints.
+    pub command_timeout: Duration,
+    /// The state devices are brought to.
+    pub safe_state: SafeState,
+}
+
+impl Default for BridgeConfig {
+    fn default() -> Self {
+        Self {
+            namespace: None,
+            rate_hz: 50.0,
+            listen: vec![DEFAULT_LISTEN.to_owned()],
+            connect: Vec::new(),
+            zenoh_config: None,
+            armed: false,
+            command_timeout: Duration::from_millis(200),
+            safe_state: SafeState::Hold,
+        }
+    }
+}
+
+/// What can go wrong before a bridge runs.
+#[derive(Debug, thiserror::Error)]
+pub enum BridgeError {
+    /// A bad option.
+    #[error(transparent)]
+    Op(#[from] OpError),
+    /// Zenoh refused the configuration or could not open a session.
+    #[error("zenoh: {0}")]
+    Zenoh(String),
+    /// A thread could not start.
+    #[error("cannot start the bridge: {0}")]
+    Start(#[from] std::io::Error),
+}
+
+impl BridgeError {
+    /// Its kind.
+    pub fn kind(&self) -> ErrorKind {
+        match self {
+            Self::Op(e) => e.kind(),
+            Self::Zenoh(_) | Self::Start(_) => ErrorKind::NotAvailable,
+        }
+    }
+}
+
+fn zerr(e: impl std::fmt::Display) -> BridgeError {
+    BridgeError::Zenoh(e.to_string())
+}
+
+/// The bridge's keys under its namespace.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Keys {
+    /// `NS/joint_states`.
+    pub joint_states: String,
+    /// `NS/joint_commands`.
+    pub joint_commands: String,
+    /// `NS/robobus/run`.
+    pub run: String,
+    /// `NS/robobus/plan`.
+    pub plan: String,
+    /// `NS/robobus/arm`.
+    pub arm: String,
+    /// `NS/robobus/health`.
+    pub health: String,
+    /// `NS/robobus/bridge` (liveliness).
+    pub alive: String,
+    /// `NS/robobus/sim`.
+    pub sim: String,
+}
+
+impl Keys {
+    /// The keys under `namespace` (checked by [`namespace_prefix`]).
+    pub fn new(namespace: Option<&str>) -> Result<Self, OpError> {
+        let p = namespace_prefix(namespace)?;
+        let k = |s: &str| format!("{p}{s}");
+        Ok(Self {
+            joint_states: k("joint_states"),
+            joint_commands: k("joint_commands"),
+            run: k("robobus/run"),
+            plan: k("robobus/plan"),
+            arm: k("robobus/arm"),
+            health: k("robobus/health"),
+            alive: k("robobus/bridge"),
+            sim: k("robobus/sim"),
+        })
+    }
+}
+
+/// Counters of the bridge, shown in its health.
+#[derive(Debug, Default)]
+pub(crate) struct Counters {
+    pub(crate) states_published: AtomicU64,
+    pub(crate) joints_left_out: AtomicU64,
+    pub(crate) samples_failed: AtomicU64,
+    pub(crate) samples_lost: AtomicU64,
+    pub(crate) commands_received: AtomicU64,
+    pub(crate) commands_applied: AtomicU64,
+    pub(crate) commands_superseded: AtomicU64,
+    pub(crate) refused_malformed: AtomicU64,
+    pub(crate) refused_out_of_range: AtomicU64,
+    pub(crate) refused_not_armed: AtomicU64,
+    pub(crate) joint_failures: AtomicU64,
+    pub(crate) holds: AtomicU64,
+    pub(crate) queries: AtomicU64,
+    pub(crate) queries_refused: AtomicU64,
+}
+
+fn bump(c: &AtomicU64) {
+    c.fetch_add(1, Ordering::Relaxed);
+}
+
+/// The newest command payload, waiting for the command thread.
+#[derive(Debug, Default)]
+struct Mailbox {
+    slot: Mutex<Option<(Vec<u8>, Instant)>>,
+    ready: Condvar,
+}
+
+/// The arming and safe-stop state, shared with the guard's report callback.
+#[derive(Debug, Default)]
+pub(crate) struct Status {
+    /// The operator's intent: commands and motion requests may move.
+    pub(crate) armed: AtomicBool,
+    /// A command stream is being followed (a command within the timeout).
+    pub(crate) streaming: AtomicBool,
+    pub(crate) last_safe: Mutex<Option<SafeEvent>>,
+    pub(crate) safe_stops: AtomicU64,
+}
+
+/// What every thread of a bridge shares.
+pub(crate) struct Shared {
+    pub(crate) station: Arc<Station>,
+    pub(crate) sim: Option<LiveSimulator>,
+    pub(crate) guard: Guard,
+    pub(crate) follower: Option<Follower>,
+    pub(crate) config: BridgeConfig,
+    pub(crate) keys: Keys,
+    pub(crate) status: Arc<Status>,
+    pub(crate) counters: Counters,
+    pub(crate) last_refusal: Mutex<Option<String>>,
+    /// Each joint's last reading: answered or not (in the file's order).
+    pub(crate) joint_ok: Mutex<Vec<Option<bool>>>,
+    mailbox: Mailbox,
+    stop: StopToken,
+    pub(crate) started: Instant,
+}
+
+impl std::fmt::Debug for Shared {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Shared")
+            .field("keys", &self.keys)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Shared {
+    fn refuse(&self, counter: &AtomicU64, why: String) {
+        bump(counter);
+        tracing::debug!("command refused: {why}");
+        *self
+            .last_refusal
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner) = Some(why);
+    }
+
+    /// Arms or disarms (the operator's intent and the guard).
+    pub(crate) fn set_armed(&self, armed: bool) -> Result<(), OpError> {
+        if armed {
+            self.guard.arm(SESSION)?;
+        } else if self.status.armed.load(Ordering::SeqCst) || self.guard.has_moved() {
+            self.guard.disarm(SESSION)?;
+        }
+        self.status.armed.store(armed, Ordering::SeqCst);
+        self.status.streaming.store(false, Ordering::SeqCst);
+        Ok(())
+    }
+
+    pub(crate) fn armed(&self) -> bool {
+        self.status.armed.load(Ordering::SeqCst)
+    }
+}
+
+/// A running bridge (see the [crate docs](crate)); [`Bridge::run`] serves until stopped.
+pub struct Bridge {
+    shared: Arc<Shared>,
+    session: zenoh::Session,
+    threads: Vec<JoinHandle<()>>,
+    declared: Vec<Box<dyn std::any::Any + Send>>,
+}
+
+impl std::fmt::Debug for Bridge {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Bridge")
+            .field("keys", &self.shared.keys)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Bridge {
+    /// Opens a Zenoh session for `station` and declares every key (see the
+    /// [crate docs](crate)); `sim`: the built-in simulators, for `NS/robobus/sim`.
+    pub fn start(
+        station: Station,
+        sim: Option<LiveSimulator>,
+        config: BridgeConfig,
+    ) -> Result<Self, BridgeError> {
+        let keys = Keys::new(config.namespace.as_deref())?;
+        if !robobus::catalogue::telemetry::RATE_HZ.contains(&config.rate_hz) {
+            return Err(OpError::invalid(
+                "--rate",
+                config.rate_hz,
+                format!(
+                    "{}..={} Hz",
+                    robobus::catalogue::telemetry::RATE_HZ.start(),
+                    robobus::catalogue::telemetry::RATE_HZ.end()
+                ),
+            )
+            .into());
+        }
+        let timeout_ms = config.command_timeout.as_millis();
+        if !COMMAND_TIMEOUT_MS.contains(&u64::try_from(timeout_ms).unwrap_or(u64::MAX)) {
+            return Err(OpError::invalid(
+                "--command-timeout",
+                format!("{timeout_ms} ms"),
+                format!(
+                    "{}..={} ms",
+                    COMMAND_TIMEOUT_MS.start(),
+                    COMMAND_TIMEOUT_MS.end()
+                ),
+            )
+            .into());
+        }
+        let zconf = zconfig::build(&config)?;
+        let station = Arc::new(station);
+        let follower = Follower::new(&station).ok();
+        let joints = follower.as_ref().map_or(0, |f| f.joints().len());
+        let status = Arc::new(Status::default());
+        let report = Arc::clone(&status);
+        let guard = Guard::new(
+            Arc::clone(&station),
+            GuardConfig {
+                heartbeat_timeout: STALL_TIMEOUT,
+                safe_state: config.safe_state,
+            },
+            move |e: &SafeEvent| {
+                tracing::info!(
+                    "safe stop ({}): {} devices {} in {:.1} ms",
+                    e.reason,
+                    e.devices.len(),
+                    e.state,
+                    e.took_ms
+                );
+                bump(&report.safe_stops);
+                // The guard disarmed itself: the bridge stalled (a disarm asked for is
+                // already recorded, and a re-arm may have followed it).
+                if e.reason == robobus::catalogue::guard::HEARTBEAT_LOST {
+                    report.armed.store(false, Ordering::SeqCst);
+                }
+                report.streaming.store(false, Ordering::SeqCst);
+                *report
+                    .last_safe
+                    .lock()
+                    .unwrap_or_else(PoisonError::into_inner) = Some(e.clone());
+            },
+        )?;
+        let shared = Arc::new(Shared {
+            station,
+            sim,
+            guard,
+            follower,
+            config,
+            keys,
+            status,
+            counters: Counters::default(),
+            last_refusal: Mutex::new(None),
+            joint_ok: Mutex::new(vec![None; joints]),
+            mailbox: Mailbox::default(),
+            stop: StopToken::new(),
+            started: Instant::now(),
+        });
+        Self::declare(shared, zconf)
+    }
+
+    fn declare(shared: Arc<Shared>, zconf: zenoh::Config) -> Result<Self, BridgeError> {
+        shared.guard.take_control(SESSION);
+        if shared.config.armed {
+            shared.set_armed(true)?;
+        }
+        let session = zenoh::open(zconf).wait().map_err(zerr)?;
+        let keys = shared.keys.clone();
+        let mut declared: Vec<Box<dyn std::any::Any + Send>> = Vec::new();
+        let mut threads = Vec::new();
+
+        // Commands: the newest one waits for the command thread; an older one not yet
+        // taken is superseded (counted), as a position stream means.
+        let s = Arc::clone(&shared);
+        let sub = session
+            .declare_subscriber(keys.joint_commands.clone())
+            .callback(move |sample| {
+                bump(&s.counters.commands_received);
+                let payload = sample.payload();
+                if payload.len() > MAX_REQUEST {
+                    s.refuse(
+                        &s.counters.refused_malformed,
+                        format!(
+                            "a command of {} bytes: more than the {MAX_REQUEST} read",
+                            payload.len()
+                        ),
+                    );
+                    return;
+                }
+                let bytes = payload.to_bytes().into_owned();
+                let mut slot = s
+                    .mailbox
+                    .slot
+                    .lock()
+                    .unwrap_or_else(PoisonError::into_inner);
+                if slot.replace((bytes, Instant::now())).is_some() {
+                    bump(&s.counters.commands_superseded);
+                }
+                drop(slot);
+                s.mailbox.ready.notify_one();
+            })
+            .wait()
+            .map_err(zerr)?;
+        declared.push(Box::new(sub));
+        let s = Arc::clone(&shared);
+        threads.push(spawn("robobus-commands", move || commands(&s))?);
+
+        threads.extend(declare_queries(&shared, &session, &mut declared)?);
+
+        // Joint states.
+        if shared.follower.is_some() {
+            let publisher = session
+                .declare_publisher(keys.joint_states.clone())
+                .encoding(Encoding::APPLICATION_CDR)
+                .wait()
+                .map_err(zerr)?;
+            let telemetry = Telemetry::paused(
+                &shared.station,
+                Request::RobotSample(robobus::catalogue::robot::Sample {}),
+                shared.config.rate_hz,
+                None,
+            )?;
+            let s = Arc::clone(&shared);
+            threads.push(spawn("robobus-states", move || {
+                health::publish_states(&s, telemetry, &publisher);
+            })?);
+        }
+
+        // Health and liveliness.
+        let publisher = session
+            .declare_publisher(keys.health.clone())
+            .encoding(Encoding::APPLICATION_JSON)
+            .wait()
+            .map_err(zerr)?;
+        let s = Arc::clone(&shared);
+        threads.push(spawn("robobus-health", move || {
+            health::publish_health(&s, &publisher);
+        })?);
+        let token = session
+            .liveliness()
+            .declare_token(keys.alive.clone())
+            .wait()
+            .map_err(zerr)?;
+        declared.push(Box::new(token));
+        Ok(Self {
+            shared,
+            session,
+            threads,
+            declared,
+        })
+    }
+
+    /// The keys it serves.
+    pub fn keys(&self) -> &Keys {
+        &self.shared.keys
+    }
+
+    /// The joints of a command, in order (empty without a robot file).
+    pub fn joint_names(&self) -> Vec<String> {
+        self.shared
+            .follower
+            .as_ref()
+            .map(|f| f.joints().iter().map(|j| j.name.clone()).collect())
+            .unwrap_or_default()
+    }
+
+    /// Its Zenoh ID.
+    pub fn zid(&self) -> String {
+        self.session.zid().to_string()
+    }
+
+    /// The health now (what `NS/robobus/health` publishes).
+    pub fn health(&self) -> Health {
+        health::of(&self.shared)
+    }
+
+    /// Serves until `stop` is set; then stops its threads, brings every device it moved
+    /// to the safe state, withdraws its keys and closes the session and the station.
+    pub fn run(mut self, stop: &StopToken) -> Result<(), BridgeError> {
+        while !stop.is_stopped() && !self.shared.stop.is_stopped() {
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        self.shutdown()
+    }
+
+    fn shutdown(&mut self) -> Result<(), BridgeError> {
+        self.shared.stop.stop();
+        self.shared.mailbox.ready.notify_all();
+        // The declarations first: no callback runs after this.
+        self.declared.clear();
+        for t in self.threads.drain(..) {
+            let _ = t.join();
+        }
+        let closed = self.session.close().wait().map_err(zerr);
+        // Every device moved is brought to the safe state before the station closes.
+        let _ = self.shared.set_armed(false);
+        closed
+    }
+}
+
+impl Drop for Bridge {
+    fn drop(&mut self) {
+        if !self.shared.stop.is_stopped() {
+            let _ = self.shutdown();
+        }
+    }
+}
+
+/// The queryables: a bounded queue and two workers (a long operation does not stall the
+/// others; more than the queue holds is answered busy). Their threads.
+fn declare_queries(
+    shared: &Arc<Shared>,
+    session: &zenoh::Session,
+    declared: &mut Vec<Box<dyn std::any::Any + Send>>,
+) -> Result<Vec<JoinHandle<()>>, BridgeError> {
+    let keys = &shared.keys;
+    let mut threads = Vec::new();
+    let (tx, rx) = std::sync::mpsc::sync_channel::<(QueryKind, Query)>(QUERY_QUEUE);
+    let rx = Arc::new(Mutex::new(rx));
+    for (key, kind) in [
+        (&keys.run, QueryKind::Run),
+        (&keys.plan, QueryKind::Plan),
+        (&keys.arm, QueryKind::Arm),
+    ]
+    .into_iter()
+    .chain(shared.sim.is_some().then_some((&keys.sim, QueryKind::Sim)))
+    {
+        let tx = tx.clone();
+        let s = Arc::clone(shared);
+        let q = session
+            .declare_queryable(key.clone())
+            .callback(move |query| {
+                bump(&s.counters.queries);
+                if let Err(std::sync::mpsc::TrySendError::Full((_, query))) =
+                    tx.try_send((kind, query))
+                {
+                    bump(&s.counters.queries_refused);
+                    reply_error(
+                        &query,
+                        "refused",
+                        &format!(
+                            "the bridge is busy: {QUERY_QUEUE} queries are waiting; \
+                             nothing was run"
+                        ),
+                    );
+                }
+            })
+            .wait()
+            .map_err(zerr)?;
+        declared.push(Box::new(q));
+    }
+    drop(tx);
+    for n in 0..2 {
+        let s = Arc::clone(shared);
+        let rx = Arc::clone(&rx);
+        threads.push(spawn(&format!("robobus-query-{n}"), move || {
+            loop {
+                let next = rx.lock().unwrap_or_else(PoisonError::into_inner).recv();
+                let Ok((kind, query)) = next else { return };
+                answer(&s, kind, &query);
+            }
+        })?);
+    }
+
+    Ok(threads)
+}
+
+fn spawn(name: &str, f: impl FnOnce() + Send + 'static) -> std::io::Result<JoinHandle<()>> {
+    std::thread::Builder::new().name(name.to_owned()).spawn(f)
+}
+
+/// The command thread: follows the newest command, keeps the guard's heartbeat, and
+/// holds the joints when the stream goes quiet.
+fn commands(s: &Shared) {
+    let timeout = s.config.command_timeout;
+    let tick = (timeout / 4).clamp(Duration::from_millis(5), Duration::from_millis(50));
+    let mut last: Option<Instant> = None;
+    while !s.stop.is_stopped() {
+        let next = {
+            let slot = s
+                .mailbox
+                .slot
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner);
+            let (mut slot, _) = s
+                .mailbox
+                .ready
+                .wait_timeout_while(slot, tick, |m| m.is_none() && !s.stop.is_stopped())
+                .unwrap_or_else(PoisonError::into_inner);
+            slot.take()
+        };
+        if s.armed() {
+            s.guard.heartbeat(SESSION);
+        }
+        if let Some((payload, at)) = next
+            && follow(s, &payload)
+        {
+            last = Some(at);
+            s.status.streaming.store(true, Ordering::SeqCst);
+        }
+        if let Some(t) = last
+            && t.elapsed() > timeout
+            && s.status.streaming.swap(false, Ordering::SeqCst)
+        {
+            bump(&s.counters.holds);
+            let _ = s.guard.hold(SESSION, HOLD_REASON, t + timeout);
+            last = None;
+        }
+    }
+}
+
+/// One command: decoded, checked whole, admitted, applied. Whether it was applied.
+fn follow(s: &Shared, payload: &[u8]) -> bool {
+    let c = &s.counters;
+    let msg = match cdr::Float64MultiArray::decode(payload) {
+        Ok(m) => m,
+        Err(e) => {
+            s.refuse(&c.refused_malformed, format!("joint_commands: {e}"));
+            return false;
+        }
+    };
+    let Some(follower) = &s.follower else {
+        s.refuse(
+            &c.refused_out_of_range,
+            "joint_commands: the station has no robot file".into(),
+        );
+        return false;
+    };
+    if !s.armed() {
+        s.refuse(
+            &c.refused_not_armed,
+            "joint_commands: not armed (start with --armed or arm on robobus/arm); nothing \
+             was sent"
+                .into(),
+        );
+        return false;
+    }
+    let plan = match follower.plan(&msg.data) {
+        Ok(p) => p,
+        Err(e) => {
+            s.refuse(&c.refused_out_of_range, format!("joint_commands: {e}"));
+            return false;
+        }
+    };
+    for j in follower.joints() {
+        if let Err(e) = s
+            .guard
+            .admit_jog(Some(SESSION), j.family, Some(&j.bus), j.id)
+        {
+            s.refuse(&c.refused_not_armed, format!("joint_commands: {e}"));
+            return false;
+        }
+    }
+    let results = follower.apply(&s.station, &plan);
+    let failed: Vec<String> = results
+        .iter()
+        .filter_map(|r| match &r.outcome {
+            robobus::ops::Outcome::Failed(f) => Some(format!("{}: {}", r.id, f.error)),
+            robobus::ops::Outcome::Ok(_) => None,
+        })
+        .collect();
+    c.joint_failures
+        .fetch_add(failed.len() as u64, Ordering::Relaxed);
+    if let Some(first) = failed.first() {
+        tracing::debug!("command: {} joints failed, first {first}", failed.len());
+    }
+    bump(&c.commands_applied);
+    true
+}
+
+#[derive(Debug, Clone, Copy)]
+enum QueryKind {
+    Run,
+    Plan,
+    Arm,
+    Sim,
+}
+
+fn reply_json(query: &Query, value: &serde_json::Value) {
+    let _ = query
+        .reply(query.key_expr().clone(), value.to_string())
+        .encoding(Encoding::APPLICATION_JSON)
+        .wait();
+}
+
+fn reply_error(query: &Query, kind: &str, message: &str) {
+    let body = serde_json::json!({"kind": kind, "message": message});
+    let _ = query
+        .reply_err(body.to_string())
+        .encoding(Encoding::APPLICATION_JSON)
+        .wait();
+}
+
+fn reply_op_error(query: &Query, e: &OpError) {
+    reply_error(query, e.kind().name(), &e.to_string());
+}
+
+/// The query's payload as text, bounded.
+fn query_text(query: &Query) -> Result<String, OpError> {
+    let Some(p) = query.payload() else {
+        return Ok(String::new());
+    };
+    if p.len() > MAX_REQUEST {
+        return Err(OpError::invalid(
+            "payload",
+            format!("{} bytes", p.len()),
+            format!("at most {MAX_REQUEST} bytes"),
+        ));
+    }
+    p.try_to_string()
+        .map(std::borrow::Cow::into_owned)
+        .map_err(|e| OpError::invalid("payload", "bytes", format!("UTF-8 JSON text ({e})")))
+}
+
+fn answer(s: &Shared, kind: QueryKind, query: &Query) {
+    let text = match query_text(query) {
+        Ok(t) => t,
+        Err(e) => return reply_op_error(query, &e),
+    };
+    let result = match kind {
+        QueryKind::Run => run_request(s, &text),
+        QueryKind::Plan => Request::parse(&text)
+            .and_then(|r| robobus::catalogue::plan(&r))
+            .map(|p| serde_json::to_value(p).unwrap_or_default()),
+        QueryKind::Arm => arm(s, &text),
+        QueryKind::Sim => Ok(s
+            .sim
+            .as_ref()
+            .map(|sim| serde_json::to_value(sim.snapshot()).unwrap_or_default())
+            .unwrap_or_default()),
+    };
+    match result {
+        Ok(v) => reply_json(query, &v),
+        Err(e) => reply_op_error(query, &e),
+    }
+}
+
+fn run_request(s: &Shared, text: &str) -> Result<serde_json::Value, OpError> {
+    let request = Request::parse(text)?;
+    if request.effect() == robobus::catalogue::Effect::Motion && !s.armed() {
+        return Err(OpError::Refused(format!(
+            "{}: motion needs the bridge armed (--armed, or arm on {}); nothing was sent",
+            request.op(),
+            s.keys.arm
+        )));
+    }
+    s.guard.admit(Some(SESSION), &request)?;
+    let token = StopToken::new();
+    let _ticket = s.guard.running(&token);
+    let mut control = robobus::ops::Control::new(&token);
+    let report = robobus::catalogue::run(&s.station, &request, &mut control)?;
+    Ok(serde_json::to_value(report).unwrap_or_default())
+}
+
+fn arm(s: &Shared, text: &str) -> Result<serde_json::Value, OpError> {
+    let t = text.trim();
+    let want = match t {
+        "" => None,
+        "true" => Some(true),
+        "false" => Some(false),
+        _ => Some(
+            serde_json::from_str::<serde_json::Value>(t)
+                .ok()
+                .and_then(|v| v.get("armed").and_then(serde_json::Value::as_bool))
+                .ok_or_else(|| {
+                    OpError::invalid(
+                        "arm",
+                        cut(t),
+                        "true, false, {\"armed\": true|false}, or nothing to read the state",
+                    )
+                })?,
+        ),
+    };
+    if let Some(a) = want {
+        s.set_armed(a)?;
+    }
+    Ok(serde_json::json!({
+        "armed": s.armed(),
+        "joints": s.follower.as_ref().map(Follower::joints),
+    }))
+}
+
+/// A value cut to 64 characters for a message.
+fn cut(s: &str) -> String {
+    if s.chars().count() > 64 {
+        format!("{}...", s.chars().take(64).collect::<String>())
+    } else {
+        s.to_owned()
+    }
+}

@@ -1,0 +1,168 @@
+//! `robobus bridge`: the station's robot on Zenoh (crate `robobus-bridge`), on the given
+//! buses or the built-in simulated robot; prints `bridge: ...` first and serves until
+//! Ctrl-C.
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use robobus::catalogue::{Station, StationConfig};
+use robobus_bridge::{Bridge, BridgeConfig, DEFAULT_LISTEN, Keys};
+
+use crate::Global;
+
+/// Options of `robobus bridge`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct Args {
+    /// The key prefix of every key (`bot1`, `site/arm`; a ROS 2 namespace `/bot1` works
+    /// as is). Default: none.
+    #[arg(long, value_name = "NS")]
+    namespace: Option<String>,
+    /// Joint states per second on `NS/joint_states` (0.1..=1000).
+    #[arg(long, default_value_t = 50.0, value_name = "HZ")]
+    rate: f64,
+    /// A Zenoh endpoint to listen on (repeatable). Default: tcp/127.0.0.1:7447 only.
+    #[arg(long, value_name = "ENDPOINT", conflicts_with = "no_listen")]
+    listen: Vec<String>,
+    /// Listen on no endpoint (a bridge that only connects to a router).
+    #[arg(long)]
+    no_listen: bool,
+    /// A Zenoh endpoint to connect to, such as a router's tcp/10.0.0.1:7447 (repeatable).
+    #[arg(long, value_name = "ENDPOINT")]
+    connect: Vec<String>,
+    /// A Zenoh configuration file (JSON5) for TLS, access control or credentials; the
+    /// endpoints above and scouting off are set on top of it.
+    #[arg(long, value_name = "FILE")]
+    zenoh_config: Option<PathBuf>,
+    /// Armed from the start: joint commands and motion requests move the robot.
+    #[arg(long)]
+    armed: bool,
+    /// A command stream quiet for this long holds the joints it moved, ms (20..=5000).
+    #[arg(long, default_value_t = 200, value_name = "MS",
+          value_parser = clap::value_parser!(u64).range(20..=5000))]
+    command_timeout: u64,
+    #[command(flatten)]
+    station: crate::run::StationArgs,
+}
+
+impl Args {
+    fn config(&self) -> BridgeConfig {
+        BridgeConfig {
+            namespace: self.namespace.clone(),
+            rate_hz: self.rate,
+            listen: if self.no_listen {
+                Vec::new()
+            } else if self.listen.is_empty() {
+                vec![DEFAULT_LISTEN.to_owned()]
+            } else {
+                self.listen.clone()
+            },
+            connect: self.connect.clone(),
+            zenoh_config: self.zenoh_config.clone(),
+            armed: self.armed,
+            command_timeout: Duration::from_millis(self.command_timeout),
+            ..BridgeConfig::default()
+        }
+    }
+}
+
+/// The keys, one per line, for the first lines printed.
+fn describe(keys: &Keys, config: &BridgeConfig, joints: &[String], sim: bool) -> String {
+    let listen = if config.listen.is_empty() {
+        "no endpoint".to_owned()
+    } else {
+        config.listen.join(", ")
+    };
+    let mut t = format!(
+        "listening on {listen}{}; {}; {} joints{}; {}\n",
+        if config.connect.is_empty() {
+            String::new()
+        } else {
+            format!(", connecting to {}", config.connect.join(", "))
+        },
+        if sim {
+            "the built-in simulated robot"
+        } else {
+            "the given buses"
+        },
+        joints.len(),
+        if joints.is_empty() {
+            String::new()
+        } else {
+            format!(" ({})", joints.join(" "))
+        },
+        if config.armed { "ARMED" } else { "not armed" },
+    );
+    let rows = [
+        (
+            &keys.joint_states,
+            format!("sensor_msgs/msg/JointState, {} Hz", config.rate_hz),
+        ),
+        (
+            &keys.joint_commands,
+            "std_msgs/msg/Float64MultiArray, rad".to_owned(),
+        ),
+        (
+            &keys.run,
+            "queryable: a catalogue request in JSON, its report".to_owned(),
+        ),
+        (&keys.plan, "queryable: a request's dry run".to_owned()),
+        (&keys.arm, "queryable: true / false / nothing".to_owned()),
+        (&keys.health, "JSON, every second".to_owned()),
+        (&keys.alive, "liveliness token".to_owned()),
+    ];
+    for (k, what) in rows {
+        let _ = writeln!(t, "  {k:<28} {what}");
+    }
+    if sim {
+        let _ = writeln!(t, "  {:<28} queryable: the simulators' state", keys.sim);
+    }
+    t
+}
+
+/// Runs `robobus bridge`.
+pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
+    let config = args.config();
+    let sim = args.station.simulated();
+    if g.dry_run {
+        // Checked as the real run checks them; nothing is opened.
+        let keys = Keys::new(config.namespace.as_deref())
+            .map_err(|e| crate::exit::usage(e.to_string()))?;
+        let joints = if sim {
+            Station::simulated()
+                .ok()
+                .and_then(|s| robobus::catalogue::follow::Follower::new(&s).ok())
+                .map(|f| f.joints().iter().map(|j| j.name.clone()).collect())
+                .unwrap_or_default()
+        } else {
+            Vec::new()
+        };
+        return crate::output::print(&format!(
+            "bridge: would serve, opening no socket: {}",
+            describe(&keys, &config, &joints, sim)
+        ));
+    }
+    let (station, live) = if sim {
+        let (station, live) = Station::simulated_live(None)?;
+        (station, Some(live))
+    } else {
+        (
+            Station::open(&StationConfig {
+                ..args.station.config()
+            })?,
+            None,
+        )
+    };
+    let bridge = Bridge::start(station, live, config.clone()).map_err(|e| match e.kind() {
+        robobus::ErrorKind::BadInput => crate::exit::usage(e.to_string()),
+        _ => anyhow::Error::new(e),
+    })?;
+    crate::output::print(&format!(
+        "bridge: zenoh {} {}",
+        bridge.zid(),
+        describe(bridge.keys(), &config, &bridge.joint_names(), sim)
+    ))?;
+    let stop = crate::interrupt::stop_token();
+    bridge.run(&stop)?;
+    Ok(())
+}
