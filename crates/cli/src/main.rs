@@ -196,7 +196,13 @@ fn init_logging(verbose: u8) {
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default)),
+                // Zenoh warns at every start of a peer with gossip off, which is the
+                // bridge's safe default (docs/bridge.md): not a problem to report.
+                .unwrap_or_else(|_| {
+                    tracing_subscriber::EnvFilter::new(format!(
+                        "{default},zenoh::net::routing::hat::peer=error"
+                    ))
+                }),
         )
         .with_writer(std::io::stderr)
         .with_ansi(colour)

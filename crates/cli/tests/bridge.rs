@@ -1,0 +1,123 @@
+//! `robobus bridge` as a process: its dry run (the keys, no socket), bad options (exit 2,
+//! nothing opened), and a start and a clean stop. Its peers (Python Zenoh, two network
+//! namespaces, ROS 2) are tested by `scripts/bridge/test-peers`.
+
+#![allow(clippy::unwrap_used, clippy::panic)] // test helpers: a failed unwrap is a failed test
+
+use std::io::{BufRead as _, BufReader};
+use std::process::{Command, Stdio};
+
+fn robobus(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn a_dry_run_prints_the_keys_and_opens_no_socket() {
+    // The port is taken: a real run could not listen there; the dry run never tries.
+    let taken = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let endpoint = format!("tcp/{}", taken.local_addr().unwrap());
+    let out = robobus(&[
+        "--dry-run",
+        "bridge",
+        "--namespace",
+        "/site/arm1",
+        "--listen",
+        &endpoint,
+        "--rate",
+        "100",
+    ]);
+    assert!(out.status.success(), "{out:?}");
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        text.starts_with(&format!(
+            "bridge: would serve, opening no socket: listening on {endpoint}; the built-in \
+             simulated robot; 23 joints (s0 s1"
+        )),
+        "{text}"
+    );
+    let rows: Vec<Vec<&str>> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split_whitespace().collect())
+        .collect();
+    let keys: Vec<&str> = rows.iter().map(|r| r[0]).collect();
+    assert_eq!(
+        keys,
+        [
+            "site/arm1/joint_states",
+            "site/arm1/joint_commands",
+            "site/arm1/robobus/run",
+            "site/arm1/robobus/plan",
+            "site/arm1/robobus/arm",
+            "site/arm1/robobus/health",
+            "site/arm1/robobus/bridge",
+            "site/arm1/robobus/sim",
+        ]
+    );
+    assert_eq!(rows[0][1..], ["sensor_msgs/msg/JointState,", "100", "Hz"]);
+    assert_eq!(rows[1][1..], ["std_msgs/msg/Float64MultiArray,", "rad"]);
+    let real = robobus(&["bridge", "--listen", &endpoint]);
+    assert_eq!(real.status.code(), Some(1), "{real:?}");
+    assert!(String::from_utf8_lossy(&real.stderr).contains("Address already in use"));
+    drop(taken);
+}
+
+#[test]
+fn bad_options_exit_2_naming_the_option_and_open_nothing() {
+    for (args, option) in [
+        (&["bridge", "--namespace", "a/*"][..], "--namespace"),
+        (&["bridge", "--rate", "5000"][..], "--rate"),
+        (&["bridge", "--connect", "127.0.0.1:7447"][..], "--connect"),
+        (
+            &["bridge", "--command-timeout", "5"][..],
+            "--command-timeout",
+        ),
+        (
+            &["bridge", "--zenoh-config", "/nonexistent/z.json5"][..],
+            "--zenoh-config",
+        ),
+        (
+            &["--dry-run", "bridge", "--namespace", "x y"][..],
+            "--namespace",
+        ),
+    ] {
+        let out = robobus(args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(option), "{args:?}: {err}");
+    }
+}
+
+#[test]
+fn it_starts_serves_and_stops_cleanly_on_ctrl_c() {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .args(["bridge", "--listen", "tcp/127.0.0.1:0", "--namespace", "t"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    assert!(line.starts_with("bridge: zenoh "), "{line}");
+    assert!(
+        line.contains("23 joints") && line.contains("not armed"),
+        "{line}"
+    );
+    nix_kill(child.id());
+    let status = child.wait().unwrap();
+    // A server stopped by its operator ends normally (as `robobus studio` does).
+    assert_eq!(status.code(), Some(0), "{status:?}");
+}
+
+fn nix_kill(pid: u32) {
+    let status = Command::new("kill")
+        .args(["-INT", &pid.to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+}
