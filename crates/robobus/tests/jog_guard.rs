@@ -151,3 +151,79 @@ fn the_guard_admits_by_controller_arming_and_effect_and_holds_what_moved() {
     assert!(rx.recv_timeout(Duration::from_millis(200)).is_err());
     assert!(guard.take_control(other).controller);
 }
+
+#[test]
+fn a_hold_brings_the_moved_devices_to_the_safe_state_and_stays_armed() {
+    let station = Arc::new(Station::simulated().unwrap());
+    let (tx, rx) = mpsc::channel();
+    let guard = Guard::new(
+        Arc::clone(&station),
+        GuardConfig {
+            heartbeat_timeout: Duration::from_secs(60),
+            ..GuardConfig::default()
+        },
+        move |e| tx.send(e.clone()).unwrap(),
+    )
+    .unwrap();
+    let me = 1;
+    guard.take_control(me);
+    // Nothing moved: a hold has nothing to do and reports nothing.
+    guard.arm(me).unwrap();
+    let at = std::time::Instant::now();
+    guard.hold(me, "command timeout", at).unwrap();
+    assert!(rx.recv_timeout(Duration::from_millis(200)).is_err());
+    assert!(!guard.has_moved());
+    // Another session cannot ask for one.
+    assert_eq!(
+        guard.hold(2, "x", at).unwrap_err().kind(),
+        ErrorKind::Refused
+    );
+    guard
+        .admit_jog(Some(me), Family::Whj, Some("sim-whj"), 2)
+        .unwrap();
+    assert!(guard.has_moved());
+    guard.hold(me, "command timeout", at).unwrap();
+    let event = rx.recv_timeout(Duration::from_secs(10)).unwrap();
+    assert_eq!(
+        (event.reason.as_str(), event.state.as_str()),
+        ("command timeout", "hold")
+    );
+    assert_eq!(event.devices.len(), 1);
+    assert!(event.failures.is_empty(), "{:?}", event.failures);
+    // Still armed: the next command may move again; what was held is forgotten.
+    assert!(guard.view(me).armed && !guard.has_moved());
+    guard
+        .admit_jog(Some(me), Family::Whj, Some("sim-whj"), 2)
+        .unwrap();
+}
+
+#[test]
+fn a_follower_steps_every_joint_and_refuses_a_bad_command_whole() {
+    use robobus::catalogue::follow::Follower;
+    let station = Station::simulated().unwrap();
+    let f = Follower::new(&station).unwrap();
+    let names: Vec<&str> = f.joints().iter().map(|j| j.name.as_str()).collect();
+    assert_eq!(names.len(), 23);
+    assert_eq!((names[0], names[16], names[22]), ("s0", "j1", "j7"));
+    // j1 toward 0.5 rad (28.6°): one 2° step; s0 toward 0.1 rad (5.7°, 5 steps): reached.
+    let mut t = vec![0.0; 23];
+    t[16] = 0.5;
+    t[0] = 0.1;
+    let done = f.apply(&station, &f.plan(&t).unwrap());
+    assert_eq!(done.len(), 23);
+    let ok = |i: usize| match &done[i].outcome {
+        robobus::ops::Outcome::Ok(j) => j.clone(),
+        robobus::ops::Outcome::Failed(e) => panic!("{}: {e:?}", done[i].id),
+    };
+    assert_eq!((ok(16).sent, ok(16).limited), (WHJ_JOG_STEP_DEG, true));
+    assert_eq!(
+        (ok(0).from, ok(0).sent, ok(0).limited),
+        (127.0, 132.0, false)
+    );
+    // One joint out of its soft limits: the whole command is refused, nothing is sent.
+    let mut bad = t.clone();
+    bad[22] = 2.5;
+    let e = f.plan(&bad).unwrap_err();
+    assert_eq!(e.kind(), ErrorKind::BadInput);
+    assert!(e.to_string().contains("j7"), "{e}");
+}
