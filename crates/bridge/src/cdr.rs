@@ -220,38 +220,30 @@ impl<'a> Reader<'a> {
         Ok(bytes)
     }
 
-    fn u32(&mut self, field: &'static str) -> Result<u32, CdrError> {
-        let b: [u8; 4] = self
-            .take(4, 4, field)?
+    /// `N` bytes aligned to `N`, little endian first (reversed when the payload is big
+    /// endian), for `from_le_bytes`.
+    fn fixed<const N: usize>(&mut self, field: &'static str) -> Result<[u8; N], CdrError> {
+        let len = self.buf.len();
+        let mut b: [u8; N] = self
+            .take(N, N, field)?
             .try_into()
-            .map_err(|_| CdrError::Truncated {
-                field,
-                len: self.buf.len(),
-            })?;
-        Ok(if self.little {
-            u32::from_le_bytes(b)
-        } else {
-            u32::from_be_bytes(b)
-        })
+            .map_err(|_| CdrError::Truncated { field, len })?;
+        if !self.little {
+            b.reverse();
+        }
+        Ok(b)
+    }
+
+    fn u32(&mut self, field: &'static str) -> Result<u32, CdrError> {
+        self.fixed(field).map(u32::from_le_bytes)
     }
 
     fn i32(&mut self, field: &'static str) -> Result<i32, CdrError> {
-        Ok(i32::from_ne_bytes(self.u32(field)?.to_ne_bytes()))
+        self.fixed(field).map(i32::from_le_bytes)
     }
 
     fn f64(&mut self, field: &'static str) -> Result<f64, CdrError> {
-        let b: [u8; 8] = self
-            .take(8, 8, field)?
-            .try_into()
-            .map_err(|_| CdrError::Truncated {
-                field,
-                len: self.buf.len(),
-            })?;
-        Ok(if self.little {
-            f64::from_le_bytes(b)
-        } else {
-            f64::from_be_bytes(b)
-        })
+        self.fixed(field).map(f64::from_le_bytes)
     }
 
     /// A count of elements of at least `min_bytes` each, checked against `max` and

@@ -771,7 +771,7 @@ fn arm(s: &Shared, text: &str) -> Result<serde_json::Value, OpError> {
                 .ok_or_else(|| {
                     OpError::invalid(
                         "arm",
-                        cut(t),
+                        robobus::ops::cut(t),
                         "true, false, {\"armed\": true|false}, or nothing to read the state",
                     )
                 })?,
@@ -784,13 +784,4 @@ fn arm(s: &Shared, text: &str) -> Result<serde_json::Value, OpError> {
         "armed": s.armed(),
         "joints": s.follower.as_ref().map(Follower::joints),
     }))
-}
-
-/// A value cut to 64 characters for a message.
-fn cut(s: &str) -> String {
-    if s.chars().count() > 64 {
-        format!("{}...", s.chars().take(64).collect::<String>())
-    } else {
-        s.to_owned()
-    }
 }

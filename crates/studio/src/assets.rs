@@ -28,7 +28,7 @@ pub(crate) fn serve(path: &str) -> Result<Response, ApiError> {
         return Err(ApiError {
             status: StatusCode::NOT_FOUND,
             kind: "not-found",
-            message: format!("no file {}", crate::cut(path)),
+            message: format!("no file {}", robobus::ops::cut(path)),
         });
     };
     let mut r = file.data.into_owned().into_response();

@@ -162,7 +162,7 @@ async fn capture(
     let Some((_, path)) = app.station.captures().iter().find(|(b, _)| *b == bus) else {
         return Err(OpError::invalid(
             "bus",
-            crate::cut(&bus),
+            robobus::ops::cut(&bus),
             format!(
                 "no capture of that bus (captured: {})",
                 app.station

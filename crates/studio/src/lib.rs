@@ -139,15 +139,6 @@ impl ApiError {
     }
 }
 
-/// A value cut to 64 characters for a message.
-pub(crate) fn cut(s: &str) -> String {
-    if s.chars().count() > 64 {
-        format!("{}...", s.chars().take(64).collect::<String>())
-    } else {
-        s.to_owned()
-    }
-}
-
 /// What every page's connection hears of.
 #[derive(Debug, Clone)]
 pub(crate) enum Event {

@@ -57,7 +57,7 @@ impl Gate {
             return Err(ApiError::forbidden(format!(
                 "Host {:?} is not this studio's address (allowed: {}): refused against DNS \
                  rebinding",
-                crate::cut(host),
+                robobus::ops::cut(host),
                 self.hosts.join(", ")
             )));
         }
@@ -67,7 +67,7 @@ impl Gate {
                 return Err(ApiError::forbidden(format!(
                     "Origin {:?} is not this studio's page (allowed: http://{}): requests \
                      from other sites are refused",
-                    crate::cut(origin),
+                    robobus::ops::cut(origin),
                     self.hosts.join(", http://")
                 )));
             }

@@ -271,7 +271,7 @@ fn handle(
             if streams.len() >= MAX_STREAMS && !streams.contains_key(&stream) {
                 let e = OpError::invalid(
                     "stream",
-                    crate::cut(&stream),
+                    robobus::ops::cut(&stream),
                     format!("at most {MAX_STREAMS} streams per page: unsubscribe one first"),
                 );
                 let _ = tx.try_send(error_msg(None, &e));

@@ -601,3 +601,13 @@ mod tests {
         assert!(token.sleep_until(Instant::now()));
     }
 }
+
+/// A value shown in a message, cut to 64 characters (a user's or a peer's input may be of
+/// any length; a message stays readable).
+pub fn cut(s: &str) -> String {
+    if s.chars().count() > 64 {
+        format!("{}...", s.chars().take(64).collect::<String>())
+    } else {
+        s.to_owned()
+    }
+}
