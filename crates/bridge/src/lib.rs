@@ -560,10 +560,18 @@ fn declare_queries(
         let s = Arc::clone(shared);
         let rx = Arc::clone(&rx);
         threads.push(spawn(&format!("robobus-query-{n}"), move || {
-            loop {
-                let next = rx.lock().unwrap_or_else(PoisonError::into_inner).recv();
-                let Ok((kind, query)) = next else { return };
-                answer(&s, kind, &query);
+            // Until the bridge stops, whether or not Zenoh has dropped the callbacks
+            // that hold the queue's senders by then.
+            while !s.stop.is_stopped() {
+                let next = rx
+                    .lock()
+                    .unwrap_or_else(PoisonError::into_inner)
+                    .recv_timeout(Duration::from_millis(50));
+                match next {
+                    Ok((kind, query)) => answer(&s, kind, &query),
+                    Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
+                    Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => return,
+                }
             }
         })?);
     }
