@@ -26,6 +26,7 @@
 //! assert_eq!((s.p50, s.max), (20.0, 40.0));
 //! ```
 
+pub mod bridge;
 pub mod codec;
 pub mod cpu;
 pub mod observe;
@@ -178,6 +179,8 @@ pub struct Results {
     pub telemetry: Vec<telemetry::FanOut>,
     /// The web studio: telemetry to its pages and jog latency.
     pub studio: Option<studio::StudioResult>,
+    /// Zenoh bridges into one router: joint state latency, loss, rate and CPU.
+    pub bridge: Option<bridge::BridgeResult>,
     /// Benchmarks that failed or were skipped, and why.
     pub notes: Vec<String>,
     /// How many benchmarks failed.
@@ -338,6 +341,23 @@ pub fn run(opts: &Options, mut log: impl FnMut(&str)) -> Results {
     match studio::run(pages, secs(5.0, 0.5)) {
         Ok(s) => r.studio = Some(s),
         Err(e) => fail(&mut r, &mut log, what, &e),
+    }
+
+    let spec = if smoke {
+        bridge::Spec::smoke()
+    } else {
+        bridge::Spec::full()
+    };
+    let what = format!(
+        "bridge: {} bridges of {} joints at {} Hz into one Zenoh router",
+        spec.bridges,
+        bridge::JOINTS,
+        spec.rate_hz
+    );
+    log(&what);
+    match bridge::run(spec) {
+        Ok(b) => r.bridge = Some(b),
+        Err(e) => fail(&mut r, &mut log, &what, &e),
     }
 
     log("simulator speed");

@@ -6,12 +6,15 @@
 //! robobus-bench poll-wck --servos N --baud B --secs S [--turnaround]
 //! robobus-bench telemetry --secs S
 //! robobus-bench studio --secs S
+//! robobus-bench bridge [--bridges N] [--rate HZ] [--secs S] [--smoke]
 //! robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire]
 //! ```
 //!
 //! `telemetry` runs the telemetry fan-out cases alone and prints their section of the
 //! report; `studio` runs the web studio case alone (1 and 4 pages, then the jog) and
-//! prints its section. `poll-wck` runs the wCK polling case alone, once, and prints its rate as a share of the
+//! prints its section; `bridge` runs the Zenoh bridge case alone (N bridges of 7 joints
+//! into one router: latency, loss, rate, CPU per joint) and prints its section.
+//! `poll-wck` runs the wCK polling case alone, once, and prints its rate as a share of the
 //! wire (for a quick look, or under `strace`).
 
 use std::io::Write as _;
@@ -24,7 +27,7 @@ use robobus_bench::{Options, report, run, wck, whj};
 fn usage() -> ExitCode {
     let _ = writeln!(
         std::io::stderr(),
-        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround]\n       robobus-bench telemetry --secs S\n       robobus-bench studio --secs S\n       robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire]"
+        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround]\n       robobus-bench telemetry --secs S\n       robobus-bench studio --secs S\n       robobus-bench bridge [--bridges N] [--rate HZ] [--secs S] [--smoke]\n       robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire]"
     );
     ExitCode::from(2)
 }
@@ -213,6 +216,76 @@ fn studio(args: &[String]) -> ExitCode {
     }
 }
 
+/// `bridge`: N bridges into one Zenoh router (the full run's defaults, or smoke mode's
+/// with `--smoke`; the other options override either).
+fn bridge(args: &[String]) -> ExitCode {
+    let mut spec = if args.iter().any(|a| a == "--smoke") {
+        robobus_bench::bridge::Spec::smoke()
+    } else {
+        robobus_bench::bridge::Spec::full()
+    };
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--smoke" => {}
+            "--bridges" => match it.next().and_then(|v| v.parse().ok()) {
+                Some(n) if robobus_bench::bridge::BRIDGES.contains(&n) => spec.bridges = n,
+                _ => return usage(),
+            },
+            "--rate" => match it.next().and_then(|v| v.parse::<f64>().ok()) {
+                Some(hz) if robobus::catalogue::telemetry::RATE_HZ.contains(&hz) => {
+                    spec.rate_hz = hz;
+                }
+                _ => return usage(),
+            },
+            "--secs" => match it.next().and_then(|v| v.parse::<f64>().ok()) {
+                Some(s) if (0.1..=600.0).contains(&s) => spec.secs = Duration::from_secs_f64(s),
+                _ => return usage(),
+            },
+            _ => return usage(),
+        }
+    }
+    let mut machine = robobus_bench::Machine::probe();
+    match robobus_bench::bridge::run(spec) {
+        Ok(b) => {
+            machine.load_after = std::fs::read_to_string("/proc/loadavg")
+                .map(|l| l.trim().to_owned())
+                .unwrap_or_default();
+            let m = &machine;
+            let _ = writeln!(
+                std::io::stdout(),
+                "{}Machine: {} logical CPUs, {}, Linux {}; load average before: {}; after: {}.",
+                robobus_bench::bridge::markdown(Some(&b), m),
+                m.cpus,
+                m.model,
+                m.kernel,
+                m.load_before,
+                m.load_after
+            );
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            let _ = writeln!(std::io::stderr(), "bridge: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Writes the bridge section into the suite's report, before its simulator section
+/// (the report itself is `report::write`'s).
+fn add_bridge_section(
+    path: &std::path::Path,
+    results: &robobus_bench::Results,
+) -> std::io::Result<()> {
+    let md = std::fs::read_to_string(path)?;
+    let section = robobus_bench::bridge::markdown(results.bridge.as_ref(), &results.machine);
+    let md = match md.find("## Simulator\n") {
+        Some(at) => format!("{}{section}{}", &md[..at], &md[at..]),
+        None => format!("{md}\n{section}"),
+    };
+    std::fs::write(path, md)
+}
+
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     if args.first().map(String::as_str) == Some("serve-whj") {
@@ -226,6 +299,9 @@ fn main() -> ExitCode {
     }
     if args.first().map(String::as_str) == Some("studio") {
         return studio(args.get(1..).unwrap_or_default());
+    }
+    if args.first().map(String::as_str) == Some("bridge") {
+        return bridge(args.get(1..).unwrap_or_default());
     }
     if args.first().map(String::as_str) == Some("poll-wck") {
         return poll_wck(args.get(1..).unwrap_or_default());
@@ -263,6 +339,10 @@ fn main() -> ExitCode {
     });
     match report::write(&results, &opts.out) {
         Ok(path) => {
+            if let Err(e) = add_bridge_section(&path, &results) {
+                let _ = writeln!(std::io::stderr(), "bench: {}: {e}", path.display());
+                return ExitCode::FAILURE;
+            }
             let _ = writeln!(std::io::stdout(), "{}", path.display());
         }
         Err(e) => {
