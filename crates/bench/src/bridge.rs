@@ -2,17 +2,15 @@
 //! own station of [`JOINTS`] simulated WHJ30 joints on the wall clock (the in-process
 //! memory bus, 1 / 5 Mbit/s wire, 20 µs processing delay, as `Station::simulated_live`
 //! builds its WHJ arm) under its own namespace (`bot0`, `bot1`, ...), publishing
-//! `NS/joint_states` at the asked rate, listening on nothing and connected to one router
-//! (a Zenoh session in router mode on a free `tcp/127.0.0.1` port, scouting off); one
-//! subscriber on `*/joint_states`, a Zenoh session in **client** mode connected to the
-//! router.
+//! `NS/joint_states` at the asked rate, a Zenoh **client** (`--mode client`) of one
+//! router (a Zenoh session in router mode on a free `tcp/127.0.0.1` port, scouting off);
+//! one subscriber on `*/joint_states`, also a client of the router: the topology the
+//! bridge's guide gives for a site's router.
 //!
-//! The subscriber is a client because a peer cannot work there: in Zenoh 1.10 a router
-//! puts the peers connected to it in one region that it takes for a full mesh, and does
-//! not forward between them; the bridges (peers, listening on nothing, gossip off) cannot
-//! be reached directly, so a peer-mode subscriber connected to the same router receives
-//! nothing (tried: not one sample in 2 s, on `**` either). The router does forward from
-//! its peers to its clients.
+//! Clients, because in Zenoh 1.10 a router puts the peers connected to it in one region
+//! that it takes for a full mesh and does not forward between them: with gossip off, a
+//! peer-mode subscriber connected to the router receives nothing from peer-mode bridges
+//! that listen on nothing (tried: not one sample in 2 s, on `**` either).
 //!
 //! - **Latency**: the subscriber's wall clock when the message reached its callback − the
 //!   message's `header.stamp` (the wall-clock instant the bus read of that sample
@@ -48,7 +46,7 @@ use robobus::catalogue::Station;
 use robobus::ops::StopToken;
 use robobus::whj::{JointBus, JointBusConfig};
 use robobus_bridge::cdr::JointState;
-use robobus_bridge::{Bridge, BridgeConfig};
+use robobus_bridge::{Bridge, BridgeConfig, ZenohMode};
 use robobus_link::{FrameLink, FrameLinkError, IdFilter, MemoryBus, Received as LinkReceived};
 use robobus_sim::whj::{Served, WhjBus, WhjModel};
 use robobus_whj::CanFrame;
@@ -590,6 +588,7 @@ impl Rig {
                     rate_hz: spec.rate_hz,
                     listen: vec![],
                     connect: vec![rig.router_ep.clone()],
+                    mode: ZenohMode::Client,
                     ..BridgeConfig::default()
                 },
             )
@@ -804,11 +803,9 @@ pub fn markdown(r: Option<&BridgeResult>, machine: &Machine) -> String {
         "{} `robobus-bridge`s in one process, each on its own station of {JOINTS} simulated \
          WHJ30 joints (in-process memory bus, 1 / 5 Mbit/s wire, 20 µs processing delay, \
          wall clock) under the namespaces `bot0`..`bot{}`, asked for joint states at \
-         {asked:.0} Hz, listening on nothing and connected to one Zenoh router (a session \
-         in router mode on `{}`, scouting off) in the same process; one subscriber on \
-         `*/joint_states`, a Zenoh session in client mode connected to the router, decodes \
-         every message (a client: the router does not forward between the peers connected \
-         to it, and a peer-mode subscriber received nothing from the bridges). \
+         {asked:.0} Hz, each a Zenoh client of one router (a session in router mode on \
+         `{}`, scouting off) in the same process; one subscriber on `*/joint_states`, also \
+         a client of the router, decodes every message. \
          Window {:.1} s, after every bridge delivered and a {:.1} s warm-up. Everything \
          shares the machine's cores.\n",
         r.bots.len(),

@@ -66,6 +66,30 @@ pub const HOLD_REASON: &str = "command timeout";
 /// Command timeouts accepted.
 pub const COMMAND_TIMEOUT_MS: std::ops::RangeInclusive<u64> = 20..=5000;
 
+/// How a bridge joins Zenoh.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ZenohMode {
+    /// A peer: listens for others and may connect to a router or other peers. Two peers
+    /// talk directly; behind a router without gossip, a peer reaches only the router's
+    /// clients, so a site's router wants its bridges and consumers as clients.
+    #[default]
+    Peer,
+    /// A client of the routers it connects to (`--connect` required, no `--listen`):
+    /// everything goes through a router, which forwards between all its clients.
+    Client,
+}
+
+impl ZenohMode {
+    /// The name Zenoh's configuration uses.
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Peer => "peer",
+            Self::Client => "client",
+        }
+    }
+}
+
 /// How a bridge runs.
 #[derive(Debug, Clone)]
 pub struct BridgeConfig {
@@ -77,6 +101,8 @@ pub struct BridgeConfig {
     pub listen: Vec<String>,
     /// Endpoints to connect to (a router).
     pub connect: Vec<String>,
+    /// How the bridge joins Zenoh: a peer (default) or a client of a router.
+    pub mode: ZenohMode,
     /// A Zenoh configuration file (TLS, access control, credentials); the endpoints
     /// and scouting above are set on top of it.
     pub zenoh_config: Option<PathBuf>,
@@ -95,11 +121,51 @@ impl Default for BridgeConfig {
             rate_hz: 50.0,
             listen: vec![DEFAULT_LISTEN.to_owned()],
             connect: Vec::new(),
+            mode: ZenohMode::Peer,
             zenoh_config: None,
             armed: false,
             command_timeout: Duration::from_millis(200),
             safe_state: SafeState::Hold,
         }
+    }
+}
+
+impl BridgeConfig {
+    /// Checks every option as [`Bridge::start`] does, opening nothing (a dry run): the
+    /// keys it would declare, or the first bad option.
+    pub fn check(&self) -> Result<Keys, BridgeError> {
+        self.prepare().map(|(keys, _)| keys)
+    }
+
+    fn prepare(&self) -> Result<(Keys, zenoh::Config), BridgeError> {
+        let keys = Keys::new(self.namespace.as_deref())?;
+        if !robobus::catalogue::telemetry::RATE_HZ.contains(&self.rate_hz) {
+            return Err(OpError::invalid(
+                "--rate",
+                self.rate_hz,
+                format!(
+                    "{}..={} Hz",
+                    robobus::catalogue::telemetry::RATE_HZ.start(),
+                    robobus::catalogue::telemetry::RATE_HZ.end()
+                ),
+            )
+            .into());
+        }
+        let timeout_ms = self.command_timeout.as_millis();
+        if !COMMAND_TIMEOUT_MS.contains(&u64::try_from(timeout_ms).unwrap_or(u64::MAX)) {
+            return Err(OpError::invalid(
+                "--command-timeout",
+                format!("{timeout_ms} ms"),
+                format!(
+                    "{}..={} ms",
+                    COMMAND_TIMEOUT_MS.start(),
+                    COMMAND_TIMEOUT_MS.end()
+                ),
+            )
+            .into());
+        }
+        let zconf = zconfig::build(self)?;
+        Ok((keys, zconf))
     }
 }
 
@@ -288,33 +354,7 @@ impl Bridge {
         sim: Option<LiveSimulator>,
         config: BridgeConfig,
     ) -> Result<Self, BridgeError> {
-        let keys = Keys::new(config.namespace.as_deref())?;
-        if !robobus::catalogue::telemetry::RATE_HZ.contains(&config.rate_hz) {
-            return Err(OpError::invalid(
-                "--rate",
-                config.rate_hz,
-                format!(
-                    "{}..={} Hz",
-                    robobus::catalogue::telemetry::RATE_HZ.start(),
-                    robobus::catalogue::telemetry::RATE_HZ.end()
-                ),
-            )
-            .into());
-        }
-        let timeout_ms = config.command_timeout.as_millis();
-        if !COMMAND_TIMEOUT_MS.contains(&u64::try_from(timeout_ms).unwrap_or(u64::MAX)) {
-            return Err(OpError::invalid(
-                "--command-timeout",
-                format!("{timeout_ms} ms"),
-                format!(
-                    "{}..={} ms",
-                    COMMAND_TIMEOUT_MS.start(),
-                    COMMAND_TIMEOUT_MS.end()
-                ),
-            )
-            .into());
-        }
-        let zconf = zconfig::build(&config)?;
+        let (keys, zconf) = config.prepare()?;
         let station = Arc::new(station);
         let follower = Follower::new(&station).ok();
         let joints = follower.as_ref().map_or(0, |f| f.joints().len());

@@ -2,7 +2,7 @@
 
 use robobus::ops::OpError;
 
-use crate::{BridgeConfig, BridgeError, zerr};
+use crate::{BridgeConfig, BridgeError, ZenohMode, zerr};
 
 /// Where a bridge listens unless told otherwise: loopback only.
 pub const DEFAULT_LISTEN: &str = "tcp/127.0.0.1:7447";
@@ -72,7 +72,7 @@ fn endpoints(option: &str, list: &[String]) -> Result<String, OpError> {
 }
 
 /// The Zenoh configuration of a bridge: the file's if one is given (TLS, access
-/// control, credentials), then peer mode, exactly the listen and connect endpoints
+/// control, credentials), then the mode (peer or client), exactly the listen and connect endpoints
 /// asked for, and multicast and gossip scouting off (peers meet through the endpoints).
 pub(crate) fn build(config: &BridgeConfig) -> Result<zenoh::Config, BridgeError> {
     let mut z = match &config.zenoh_config {
@@ -87,8 +87,26 @@ pub(crate) fn build(config: &BridgeConfig) -> Result<zenoh::Config, BridgeError>
     };
     let listen = endpoints("--listen", &config.listen)?;
     let connect = endpoints("--connect", &config.connect)?;
+    if config.mode == ZenohMode::Client {
+        if config.connect.is_empty() {
+            return Err(OpError::invalid(
+                "--connect",
+                "no endpoint",
+                "at least one router to connect to in client mode (--mode client)",
+            )
+            .into());
+        }
+        if let Some(first) = config.listen.first() {
+            return Err(OpError::invalid(
+                "--listen",
+                first,
+                "no endpoint in client mode (--mode client): a client only connects",
+            )
+            .into());
+        }
+    }
     for (key, value) in [
-        ("mode", "\"peer\"".to_owned()),
+        ("mode", format!("\"{}\"", config.mode.name())),
         ("listen/endpoints", listen),
         ("connect/endpoints", connect),
         ("scouting/multicast/enabled", "false".to_owned()),
@@ -130,6 +148,30 @@ mod tests {
         assert_eq!(z.get_json("scouting/multicast/enabled").unwrap(), "false");
         assert_eq!(z.get_json("scouting/gossip/enabled").unwrap(), "false");
         assert_eq!(z.get_json("mode").unwrap(), r#""peer""#);
+    }
+
+    #[test]
+    fn a_client_connects_and_listens_on_nothing() {
+        let client = |listen: Vec<String>, connect: Vec<String>| {
+            build(&BridgeConfig {
+                mode: ZenohMode::Client,
+                listen,
+                connect,
+                ..BridgeConfig::default()
+            })
+        };
+        let z = client(vec![], vec!["tcp/10.0.0.1:7447".into()]).unwrap();
+        assert_eq!(z.get_json("mode").unwrap(), r#""client""#);
+        assert_eq!(z.get_json("listen/endpoints").unwrap(), "[]");
+        let e = client(vec![], vec![]).unwrap_err();
+        assert!(e.to_string().contains("--connect"), "{e}");
+        assert_eq!(e.kind(), robobus::ErrorKind::BadInput);
+        let e = client(
+            vec![DEFAULT_LISTEN.to_owned()],
+            vec!["tcp/10.0.0.1:7447".into()],
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("--listen"), "{e}");
     }
 
     #[test]

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use robobus::catalogue::{Station, StationConfig};
-use robobus_bridge::{Bridge, BridgeConfig, DEFAULT_LISTEN, Keys};
+use robobus_bridge::{Bridge, BridgeConfig, DEFAULT_LISTEN, Keys, ZenohMode};
 
 use crate::Global;
 
@@ -21,7 +21,12 @@ pub(crate) struct Args {
     /// Joint states per second on `NS/joint_states` (0.1..=1000).
     #[arg(long, default_value_t = 50.0, value_name = "HZ")]
     rate: f64,
-    /// A Zenoh endpoint to listen on (repeatable). Default: tcp/127.0.0.1:7447 only.
+    /// How the bridge joins Zenoh: `peer`, or `client` of the routers given with
+    /// --connect (behind a site's router, bridges and consumers are clients).
+    #[arg(long, value_enum, default_value_t = Mode::Peer)]
+    mode: Mode,
+    /// A Zenoh endpoint to listen on (repeatable). Default: tcp/127.0.0.1:7447 only in
+    /// peer mode, none in client mode.
     #[arg(long, value_name = "ENDPOINT", conflicts_with = "no_listen")]
     listen: Vec<String>,
     /// Listen on no endpoint (a bridge that only connects to a router).
@@ -45,12 +50,23 @@ pub(crate) struct Args {
     station: crate::run::StationArgs,
 }
 
+/// `--mode`.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+enum Mode {
+    Peer,
+    Client,
+}
+
 impl Args {
     fn config(&self) -> BridgeConfig {
+        let mode = match self.mode {
+            Mode::Peer => ZenohMode::Peer,
+            Mode::Client => ZenohMode::Client,
+        };
         BridgeConfig {
             namespace: self.namespace.clone(),
             rate_hz: self.rate,
-            listen: if self.no_listen {
+            listen: if self.no_listen || (mode == ZenohMode::Client && self.listen.is_empty()) {
                 Vec::new()
             } else if self.listen.is_empty() {
                 vec![DEFAULT_LISTEN.to_owned()]
@@ -58,6 +74,7 @@ impl Args {
                 self.listen.clone()
             },
             connect: self.connect.clone(),
+            mode,
             zenoh_config: self.zenoh_config.clone(),
             armed: self.armed,
             command_timeout: Duration::from_millis(self.command_timeout),
@@ -68,18 +85,25 @@ impl Args {
 
 /// The keys, one per line, for the first lines printed.
 fn describe(keys: &Keys, config: &BridgeConfig, joints: &[String], sim: bool) -> String {
-    let listen = if config.listen.is_empty() {
-        "no endpoint".to_owned()
+    let endpoints = if config.mode == ZenohMode::Client {
+        format!("a client of {}", config.connect.join(", "))
     } else {
-        config.listen.join(", ")
+        format!(
+            "listening on {}{}",
+            if config.listen.is_empty() {
+                "no endpoint".to_owned()
+            } else {
+                config.listen.join(", ")
+            },
+            if config.connect.is_empty() {
+                String::new()
+            } else {
+                format!(", connecting to {}", config.connect.join(", "))
+            }
+        )
     };
     let mut t = format!(
-        "listening on {listen}{}; {}; {} joints{}; {}\n",
-        if config.connect.is_empty() {
-            String::new()
-        } else {
-            format!(", connecting to {}", config.connect.join(", "))
-        },
+        "{endpoints}; {}; {} joints{}; {}\n",
         if sim {
             "the built-in simulated robot"
         } else {
@@ -126,8 +150,10 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     let sim = args.station.simulated();
     if g.dry_run {
         // Checked as the real run checks them; nothing is opened.
-        let keys = Keys::new(config.namespace.as_deref())
-            .map_err(|e| crate::exit::usage(e.to_string()))?;
+        let keys = config.check().map_err(|e| match e.kind() {
+            robobus::ErrorKind::BadInput => crate::exit::usage(e.to_string()),
+            _ => anyhow::Error::new(e),
+        })?;
         let joints = if sim {
             Station::simulated()
                 .ok()

@@ -66,6 +66,29 @@ fn a_dry_run_prints_the_keys_and_opens_no_socket() {
 }
 
 #[test]
+fn a_client_dry_run_names_its_routers() {
+    let out = robobus(&[
+        "--dry-run",
+        "bridge",
+        "--mode",
+        "client",
+        "--connect",
+        "tcp/10.0.0.1:7447",
+        "--connect",
+        "tcp/10.0.0.2:7447",
+    ]);
+    assert!(out.status.success(), "{out:?}");
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        text.starts_with(
+            "bridge: would serve, opening no socket: a client of tcp/10.0.0.1:7447, \
+             tcp/10.0.0.2:7447; the built-in simulated robot; 23 joints"
+        ),
+        "{text}"
+    );
+}
+
+#[test]
 fn bad_options_exit_2_naming_the_option_and_open_nothing() {
     for (args, option) in [
         (&["bridge", "--namespace", "a/*"][..], "--namespace"),
@@ -83,6 +106,28 @@ fn bad_options_exit_2_naming_the_option_and_open_nothing() {
             &["--dry-run", "bridge", "--namespace", "x y"][..],
             "--namespace",
         ),
+        (&["bridge", "--mode", "client"][..], "--connect"),
+        (
+            &["--dry-run", "bridge", "--mode", "client"][..],
+            "--connect",
+        ),
+        (
+            &[
+                "bridge",
+                "--mode",
+                "client",
+                "--connect",
+                "tcp/127.0.0.1:9",
+                "--listen",
+                "tcp/127.0.0.1:0",
+            ][..],
+            "--listen",
+        ),
+        (
+            &["--dry-run", "bridge", "--connect", "10.0.0.1:7447"][..],
+            "--connect",
+        ),
+        (&["bridge", "--mode", "router"][..], "--mode"),
     ] {
         let out = robobus(args);
         let err = String::from_utf8_lossy(&out.stderr);
