@@ -29,7 +29,7 @@ pub(crate) struct Args {
     /// peer mode, none in client mode.
     #[arg(long, value_name = "ENDPOINT", conflicts_with = "no_listen")]
     listen: Vec<String>,
-    /// Listen on no endpoint (a bridge that only connects to a router).
+    /// Listen on no endpoint (a peer that only connects; a client never listens).
     #[arg(long)]
     no_listen: bool,
     /// A Zenoh endpoint to connect to, such as a router's tcp/10.0.0.1:7447 (repeatable).

@@ -73,6 +73,7 @@ fn help_texts_match_their_snapshots() {
         &["completions"],
         &["man"],
         &["sim"],
+        &["bridge"],
     ];
     for group in groups {
         let mut args = group.to_vec();
