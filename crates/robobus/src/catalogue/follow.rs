@@ -57,7 +57,7 @@ pub struct Follower {
 impl Follower {
     /// A follower of the station's robot file.
     ///
-    /// Errors: [`OpError::BadInput`]-kind when the station has no robot file.
+    /// Errors: an [`OpError`] of kind [`ErrorKind::BadInput`](crate::ErrorKind::BadInput) when the station has no robot file.
     pub fn new(station: &Station) -> Result<Self, OpError> {
         let robot = station.robot().ok_or_else(|| {
             OpError::invalid(
