@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use robobus::whj::{CyclicConfig, Feedback, JointBus, JointBusConfig, Protocol};
 use robobus_link::{FrameLink, FrameLinkError, MemoryBus, UdpBus, UdpBusConfig};
-use robobus_sim::whj::{JointConfig, ServeStats, WhjBus, WhjModel, serve};
+use robobus_sim::whj::{JointConfig, ServeStats, Served, WhjBus, WhjModel, serve};
 use robobus_whj::broadcast::{BroadcastFeedback, BroadcastPosition, ReplyMask};
 use robobus_whj::reply::ServoFeedback;
 use robobus_whj::timing::{BitRates, frame_duration};
@@ -584,22 +584,17 @@ impl Drop for ChildSim {
 /// `serve-whj`: serves `spec` on python-can's default UDP multicast group and port until
 /// stdin closes; prints `READY` once it listens.
 pub fn serve_whj_process(spec: ChainSpec) -> Result<(), BenchError> {
-    let mut link =
-        UdpBus::open(&UdpBusConfig::default()).map_err(|e| BenchError::new("UDP bus", e))?;
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = Arc::clone(&stop);
-    std::thread::spawn(move || {
-        let mut sink = String::new();
-        while std::io::stdin().read_line(&mut sink).is_ok_and(|n| n > 0) {
-            sink.clear();
-        }
-        flag.store(true, Ordering::Relaxed);
-    });
-    let mut bus = spec.build();
+    let link = UdpBus::open(&UdpBusConfig::default()).map_err(|e| BenchError::new("UDP bus", e))?;
+    let served = Served::spawn("bench-serve-whj", spec.build(), link)
+        .map_err(|e| BenchError::new("starting the simulator", e))?;
     let mut out = std::io::stdout();
     let _ = writeln!(out, "READY");
     let _ = out.flush();
-    serve(&mut bus, &mut link, &stop).map_err(|e| BenchError::new("serving", e))?;
+    let mut sink = String::new();
+    while std::io::stdin().read_line(&mut sink).is_ok_and(|n| n > 0) {
+        sink.clear();
+    }
+    served.stop().map_err(|e| BenchError::new("serving", e))?;
     Ok(())
 }
 

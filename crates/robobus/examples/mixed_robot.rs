@@ -20,7 +20,6 @@ use std::time::{Duration, Instant};
 use robobus::robot::{BusConfig, Robot, RobotConfig, RobotError};
 use robobus::wck::WckBus;
 use robobus::whj::JointBus;
-use robobus_link::{MemoryBus, PtyOptions, PtyPair};
 use robobus_sim::wck::{Bus, BusConfig as WckSimConfig, Endpoint, Model};
 use robobus_sim::whj::{Served, WhjBus, WhjModel};
 use robobus_wck::BaudRate;
@@ -55,20 +54,19 @@ fn simulated(config: &RobotConfig) -> Result<(Robot, Simulators), Box<dyn Error>
     for (name, bus) in &config.buses {
         let ids = ids_on(name);
         if bus.is_wck() {
-            let pty = PtyPair::open(&PtyOptions::default())?;
             let sim = Bus::with_servos(WckSimConfig::default(), Model::W1108, ids.clone());
-            sims.wck
-                .push(Endpoint::spawn(sim, pty.master, pty.slave_path.clone())?);
+            let (sim, link) = robobus_sim::wck::spawn(sim)?;
             println!(
                 "bus {name}: simulated wCK servos {ids:?} on {}",
-                pty.slave_path.display()
+                sim.path().display()
             );
-            builder = builder.wck_bus(name.clone(), WckBus::new(pty.slave, BaudRate::B115200)?);
+            sims.wck.push(sim);
+            builder = builder.wck_bus(name.clone(), WckBus::new(link, BaudRate::B115200)?);
             woke = true;
         } else {
-            let wire = MemoryBus::new();
-            let sim = WhjBus::chain(ids.clone(), WhjModel::Whj30, 7);
-            sims.whj.push(Served::spawn(name, sim, wire.endpoint())?);
+            let (sim, wire) =
+                robobus_sim::whj::spawn(WhjBus::chain(ids.clone(), WhjModel::Whj30, 7))?;
+            sims.whj.push(sim);
             println!("bus {name}: simulated WHJ joints {ids:?} on the in-process CAN FD bus");
             builder = builder.whj_bus(name.clone(), JointBus::open(wire.endpoint())?);
         }

@@ -97,16 +97,17 @@ fn run<L: ByteLink>(bus: &mut WckBus<L>) -> Result<(), Box<dyn Error>> {
 
 #[cfg(target_os = "linux")]
 fn simulated() -> Result<(), Box<dyn Error>> {
-    use robobus_link::{PtyOptions, PtyPair};
-    use robobus_sim::wck::{Bus, BusConfig, Endpoint, Model};
+    use robobus_sim::wck::{Bus, BusConfig, Model, spawn};
 
-    let pty = PtyPair::open(&PtyOptions::default())?;
-    let bus = Bus::with_servos(BusConfig::default(), Model::W1108, 0..SERVOS);
-    let sim = Endpoint::spawn(bus, pty.master, pty.slave_path.clone())?;
+    let (sim, link) = spawn(Bus::with_servos(
+        BusConfig::default(),
+        Model::W1108,
+        0..SERVOS,
+    ))?;
     println!("simulated wCK bus on {}", sim.path().display());
     std::thread::sleep(robobus_wck::timing::POWER_UP_DEAF + Duration::from_millis(5));
-    let mut bus = WckBus::new(pty.slave, BaudRate::B115200)?
-        .with_device_name(sim.path().display().to_string());
+    let mut bus =
+        WckBus::new(link, BaudRate::B115200)?.with_device_name(sim.path().display().to_string());
     run(&mut bus)?;
     let served = sim.stop()?;
     println!(

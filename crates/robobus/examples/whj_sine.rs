@@ -18,8 +18,7 @@ use std::f64::consts::TAU;
 use std::time::Duration;
 
 use robobus::whj::{CyclicConfig, CyclicStats, JointBus, MotionLimits, Protocol};
-use robobus_link::MemoryBus;
-use robobus_sim::whj::{Served, WhjBus, WhjModel};
+use robobus_sim::whj::{WhjBus, WhjModel, spawn};
 use robobus_whj::units::Position;
 use robobus_whj::{JointId, WorkMode};
 
@@ -44,12 +43,7 @@ fn main() -> Result<(), Box<dyn Error>> {
     }
 
     // The simulator: seven WHJ30 joints (IDs 1..=7) served on the wall clock.
-    let wire = MemoryBus::new();
-    let sim = Served::spawn(
-        "sim-whj",
-        WhjBus::chain(1..=7, WhjModel::Whj30, 1),
-        wire.endpoint(),
-    )?;
+    let (sim, wire) = spawn(WhjBus::chain(1..=7, WhjModel::Whj30, 1))?;
 
     let bus = JointBus::open(wire.endpoint())?;
     let joints: Vec<JointId> = (1..=7).map(JointId::new).collect::<Result<_, _>>()?;

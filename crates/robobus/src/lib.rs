@@ -41,21 +41,14 @@
 //! A smooth WHJ move from plain Rust, with its plan, a stop token and progress:
 //!
 //! ```
-//! use std::sync::{Arc, atomic::{AtomicBool, Ordering}};
 //! use robobus::ops::{Control, Progress, SafeState, StopToken};
 //! use robobus::ops::whj::{self as ops, MoveArgs};
 //! use robobus::whj::{JointBus, JointBusConfig};
+//! use robobus_sim::whj::{WhjBus, WhjModel};
 //! use robobus_whj::{JointId, WorkMode};
 //!
 //! // A simulated joint on an in-memory CAN FD bus (a SocketCAN link is the same call).
-//! let wire = robobus_link::MemoryBus::new();
-//! let mut sim_end = wire.endpoint();
-//! let halt = Arc::new(AtomicBool::new(false));
-//! let sim_halt = Arc::clone(&halt);
-//! let sim = std::thread::spawn(move || {
-//!     let mut sim = robobus_sim::whj::WhjBus::chain(1..=1, robobus_sim::whj::WhjModel::Whj30, 7);
-//!     robobus_sim::whj::serve(&mut sim, &mut sim_end, &sim_halt)
-//! });
+//! let (sim, wire) = robobus_sim::whj::spawn(WhjBus::chain(1..=1, WhjModel::Whj30, 7))?;
 //! let bus = JointBus::open_with(wire.endpoint(), JointBusConfig::simulated())?;
 //! let joint = bus.joint(JointId::new(1)?)?;
 //! joint.set_mode(WorkMode::Position)?;
@@ -85,8 +78,7 @@
 //!
 //! drop(joint);
 //! drop(bus);
-//! halt.store(true, Ordering::Relaxed);
-//! sim.join().unwrap()?;
+//! sim.stop()?;
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 

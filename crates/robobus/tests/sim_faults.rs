@@ -15,16 +15,13 @@
 mod wck_support;
 mod whj_common;
 
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::thread::JoinHandle;
 use std::time::Duration;
 
 use robobus::wck::{WckBus, WckConfig};
 use robobus::whj::{JointBus, JointBusConfig};
-use robobus_link::{FaultConfig, FaultyByteLink, FaultyFrameLink, FrameLink, MemoryBus};
+use robobus_link::{FaultConfig, FaultyByteLink, FaultyFrameLink, MemoryBus};
 use robobus_sim::faults::{DeviceFault, DeviceFaultKind, FaultSchedule};
-use robobus_sim::whj::{WhjBus, serve_with};
+use robobus_sim::whj::Served;
 use robobus_wck::{BaudRate, ServoId};
 use robobus_whj::JointId;
 
@@ -140,44 +137,6 @@ fn wck_device_faults_on_schedule_as_the_client_sees_them() {
     assert!(bus.servo(s1).status().unwrap_err().is_timeout());
 }
 
-/// The WHJ simulator served on a memory bus with a fault schedule.
-struct WhjSim {
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<()>>,
-}
-
-impl WhjSim {
-    fn serve(
-        mut bus: WhjBus,
-        mut link: impl FrameLink + Send + 'static,
-        faults: FaultSchedule,
-    ) -> Self {
-        let stop = Arc::new(AtomicBool::new(false));
-        let flag = Arc::clone(&stop);
-        let (ready_tx, ready_rx) = std::sync::mpsc::channel();
-        let thread = std::thread::spawn(move || {
-            serve_with(&mut bus, &mut link, &flag, faults, move || {
-                let _ = ready_tx.send(());
-            })
-            .unwrap();
-        });
-        ready_rx.recv().unwrap();
-        Self {
-            stop,
-            thread: Some(thread),
-        }
-    }
-}
-
-impl Drop for WhjSim {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
-    }
-}
-
 fn j(n: u8) -> JointId {
     JointId::new(n).unwrap()
 }
@@ -185,11 +144,13 @@ fn j(n: u8) -> JointId {
 /// 200 status queries of joint 1 through a faulty client link, no retries.
 fn whj_outcomes(seed: u64) -> Vec<String> {
     let wire = MemoryBus::new();
-    let _sim = WhjSim::serve(
+    let _sim = Served::spawn_with(
+        "sim-whj",
         whj_common::chain(1),
         wire.endpoint(),
         FaultSchedule::default(),
-    );
+    )
+    .unwrap();
     let config = JointBusConfig {
         retries: 0,
         ..whj_common::config()
@@ -245,7 +206,8 @@ fn whj_device_faults_on_schedule_as_the_client_sees_them() {
     ]);
     let wire = MemoryBus::new();
     let t0 = std::time::Instant::now();
-    let _sim = WhjSim::serve(whj_common::chain(3), wire.endpoint(), faults);
+    let _sim =
+        Served::spawn_with("sim-whj", whj_common::chain(3), wire.endpoint(), faults).unwrap();
     let config = JointBusConfig {
         retries: 0,
         ..whj_common::config()

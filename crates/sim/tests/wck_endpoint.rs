@@ -5,7 +5,7 @@
 use std::time::{Duration, Instant};
 
 use robobus_link::{ByteLink, LinkError, PtyOptions, PtyPair};
-use robobus_sim::wck::{Bus, BusConfig, Endpoint, Model};
+use robobus_sim::wck::{Bus, BusConfig, Endpoint, Model, spawn};
 
 fn transact(client: &mut impl ByteLink, packet: &[u8], wait: Duration) -> (Vec<u8>, Duration) {
     client.discard_input().unwrap();
@@ -93,11 +93,9 @@ fn endpoint_serves_paced_replies_follows_the_client_baud_and_takes_commands() {
 
 #[test]
 fn a_status_read_wakes_the_serving_thread_for_the_command_and_each_reply_byte_only() {
-    let pair = PtyPair::open(&PtyOptions::default()).unwrap();
     let mut bus = Bus::with_servos(BusConfig::default(), Model::W1108, [0]);
     bus.advance(Duration::from_millis(70));
-    let endpoint = Endpoint::spawn(bus, pair.master, pair.slave_path.clone()).unwrap();
-    let mut client = pair.slave;
+    let (endpoint, mut client) = spawn(bus).unwrap();
     let reads = 200u64;
     let t0 = Instant::now();
     for _ in 0..reads {

@@ -9,16 +9,14 @@
 use std::os::fd::AsFd as _;
 use std::time::{Duration, Instant};
 
-use robobus_link::{ByteLink, LinkError, PtyOptions, PtyPair};
-use robobus_sim::wck::{Bus, BusConfig, Endpoint, Model};
+use robobus_link::{ByteLink, LinkError};
+use robobus_sim::wck::{Bus, BusConfig, Model, spawn};
 
 #[test]
 fn a_4mb_flood_blocks_the_writer_and_a_command_after_it_is_answered() {
-    let pair = PtyPair::open(&PtyOptions::default()).unwrap();
     let mut bus = Bus::with_servos(BusConfig::default(), Model::W1108, [0]);
     bus.advance(Duration::from_millis(70)); // past the deafness after power-up
-    let endpoint = Endpoint::spawn(bus, pair.master, pair.slave_path.clone()).unwrap();
-    let mut client = pair.slave;
+    let (endpoint, mut client) = spawn(bus).unwrap();
     client.set_write_timeout(Duration::from_millis(500));
 
     // Zero bytes: no command header, so the servo ignores all of them.

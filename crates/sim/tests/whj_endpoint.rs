@@ -5,26 +5,16 @@
 
 mod whj_common;
 
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::thread;
 use std::time::{Duration, Instant};
 
-use robobus_link::{FrameLink, MemoryBus};
-use robobus_sim::whj::{WhjBus, WhjModel, serve};
+use robobus_link::FrameLink;
+use robobus_sim::whj::{WhjBus, WhjModel, spawn};
 use whj_common::{frame, pos_cmd};
 
 #[test]
 fn serve_answers_on_the_wall_clock_and_stops() {
-    let link = MemoryBus::new();
-    let mut host = link.endpoint();
-    let mut sim_end = link.endpoint();
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = Arc::clone(&stop);
-    let server = thread::spawn(move || {
-        let mut bus = WhjBus::chain(1..=7, WhjModel::Whj60, 1);
-        serve(&mut bus, &mut sim_end, &flag).unwrap()
-    });
+    let (server, wire) = spawn(WhjBus::chain(1..=7, WhjModel::Whj60, 1)).unwrap();
+    let mut host = wire.endpoint();
 
     let mut ask = |f, want: u32| {
         let t0 = Instant::now();
@@ -45,7 +35,6 @@ fn serve_answers_on_the_wall_clock_and_stops() {
     let none = host.recv(Instant::now() + Duration::from_millis(50));
     assert!(none.unwrap_err().is_timeout());
 
-    stop.store(true, Ordering::Relaxed);
-    let stats = server.join().unwrap();
+    let (_, stats) = server.stop().unwrap();
     assert_eq!((stats.received, stats.sent), (3, 2));
 }

@@ -7,7 +7,7 @@
 use core::time::Duration;
 
 use robobus::wck::{WckBus, WckConfig};
-use robobus_link::{PtyLink, PtyOptions, PtyPair};
+use robobus_link::PtyLink;
 use robobus_sim::wck::{Bus, BusConfig, Eeprom, Endpoint, Model, SimHandle, SimLink};
 use robobus_wck::{BaudRate, ExtServoId, ServoId};
 
@@ -164,16 +164,13 @@ pub fn pty_config() -> WckConfig {
 /// Serves modules with `ids` (factory defaults) on a fresh pty and waits until they are
 /// awake (in simulated time: the serving thread may start late on a busy machine).
 pub fn serve_pty(ids: &[u8]) -> PtySim {
-    let pair = PtyPair::open(&PtyOptions::default()).unwrap();
-    let path = pair.slave_path.clone();
-    let bus = bus_with_ids(ids, BaudRate::B115200);
-    let endpoint = Endpoint::spawn(bus, pair.master, path).unwrap();
+    let (endpoint, slave) = robobus_sim::wck::spawn(bus_with_ids(ids, BaudRate::B115200)).unwrap();
     while endpoint.with_bus(|b| b.now()).unwrap() < AWAKE {
         std::thread::sleep(Duration::from_millis(5));
     }
     PtySim {
         endpoint,
-        slave: Some(pair.slave),
+        slave: Some(slave),
     }
 }
 

@@ -6,7 +6,7 @@
 use core::time::Duration;
 
 use robobus::whj::JointBusConfig;
-use robobus_link::{FrameLink, MemoryBus, MemoryBusEndpoint};
+use robobus_link::{FrameLink, MemoryBusEndpoint};
 use robobus_sim::whj::{
     JointConfig, ServeStats, Served, WhjBus, WhjModel, WhjSimHandle, WhjSimLink,
 };
@@ -29,9 +29,8 @@ impl Sim {
 /// An in-memory CAN FD bus with the simulator on one endpoint; returns the client's
 /// endpoint.
 pub fn memory(bus: WhjBus) -> (Sim, MemoryBusEndpoint) {
-    let wire = MemoryBus::new();
-    let sim = Sim::serve(bus, wire.endpoint());
-    (sim, wire.endpoint())
+    let (served, wire) = robobus_sim::whj::spawn(bus).unwrap();
+    (Sim(served), wire.endpoint())
 }
 
 /// `n` WHJ30 joints with IDs 1..=n (waiting for the IAP release, as shipped).

@@ -25,7 +25,7 @@ use std::thread::JoinHandle;
 use std::time::Instant;
 
 use robobus_link::pty::termios_speed;
-use robobus_link::{ByteLink, LinkError, PtyLink};
+use robobus_link::{ByteLink, LinkError, PtyLink, PtyOptions, PtyPair};
 
 use super::bus::Bus;
 
@@ -159,6 +159,20 @@ impl Drop for Endpoint {
     fn drop(&mut self) {
         let _ = self.stop_thread();
     }
+}
+
+/// Serves `bus` behind a new pty (default options: no symlink) on a thread of its own:
+/// the shortest way to a simulated wCK bus in a test or an example. Returns the endpoint
+/// (its [`Endpoint::path`] is the slave device) and the pty's slave side, the client's
+/// link (`WckBus::new(link, baud)`). Simulation time continues from the bus's current
+/// time: the modules are deaf for the first 65 ms after power-up.
+///
+/// Errors: the pty cannot be opened or the thread cannot be started.
+pub fn spawn(bus: Bus) -> Result<(Endpoint, PtyLink), LinkError> {
+    let pair = PtyPair::open(&PtyOptions::default())?;
+    let endpoint = Endpoint::spawn(bus, pair.master, pair.slave_path)
+        .map_err(|e| LinkError::io("starting the wCK endpoint", e))?;
+    Ok((endpoint, pair.slave))
 }
 
 /// CPU time of the calling thread.

@@ -16,7 +16,8 @@
 //! * [`VirtualHost`]: a host on the virtual clock for deterministic tests.
 //! * [`SimLink`]: the bus as an in-process byte link on the wall clock, whose replies do
 //!   not depend on thread scheduling (for client tests on a loaded machine).
-//! * [`endpoint`] (Linux): the bus behind a pseudo-terminal on the wall clock.
+//! * [`endpoint`] (Linux): the bus behind a pseudo-terminal on the wall clock ([`spawn`]
+//!   opens the pty and serves it).
 //!
 //! # Where the manual is silent
 //!
@@ -79,7 +80,7 @@ mod uart;
 pub use bus::{Bus, BusConfig, BusStats, Faults};
 pub use clock::VirtualHost;
 #[cfg(target_os = "linux")]
-pub use endpoint::{Endpoint, EndpointError, EndpointStats};
+pub use endpoint::{Endpoint, EndpointError, EndpointStats, spawn};
 pub use link::{SimHandle, SimLink};
 pub use mechanics::{Drive, Mechanics};
 pub use model::{Model, UnknownModel};

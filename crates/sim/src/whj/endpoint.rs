@@ -12,7 +12,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use robobus_link::{FrameLink, FrameLinkError};
+use robobus_link::{FrameLink, FrameLinkError, MemoryBus};
 
 use super::bus::WhjBus;
 use crate::faults::FaultSchedule;
@@ -52,15 +52,32 @@ impl Served {
         mut bus: WhjBus,
         mut link: L,
     ) -> std::io::Result<Self> {
-        let stop = Arc::new(AtomicBool::new(false));
-        let flag = Arc::clone(&stop);
-        let thread = std::thread::Builder::new()
-            .name(name.to_owned())
-            .spawn(move || serve(&mut bus, &mut link, &flag).map(|stats| (bus, stats)))?;
-        Ok(Self {
-            stop,
-            thread: Some(thread),
+        Self::start(name, move |stop| {
+            serve(&mut bus, &mut link, stop).map(|stats| (bus, stats))
         })
+    }
+
+    /// [`Served::spawn`] with device faults applied at their simulation times (see
+    /// [`serve_with`]); returns once the loop serves, so the faults' times and a client's
+    /// first frame count from the same start.
+    ///
+    /// Errors: the thread cannot be started.
+    pub fn spawn_with<L: FrameLink + Send + 'static>(
+        name: &str,
+        mut bus: WhjBus,
+        mut link: L,
+        faults: FaultSchedule,
+    ) -> std::io::Result<Self> {
+        let (ready, serving) = std::sync::mpsc::channel();
+        let served = Self::start(name, move |stop| {
+            serve_with(&mut bus, &mut link, stop, faults, move || {
+                let _ = ready.send(());
+            })
+            .map(|stats| (bus, stats))
+        })?;
+        // An error before the loop serves ends the thread: `stop` reports it.
+        let _ = serving.recv();
+        Ok(served)
     }
 
     /// [`Served::spawn`] with `observe` called with the bus as it is served (see
@@ -73,21 +90,31 @@ impl Served {
         mut link: L,
         observe: impl FnMut(&WhjBus) + Send + 'static,
     ) -> std::io::Result<Self> {
+        Self::start(name, move |stop| {
+            serve_observed(
+                &mut bus,
+                &mut link,
+                stop,
+                FaultSchedule::default(),
+                || {},
+                observe,
+            )
+            .map(|stats| (bus, stats))
+        })
+    }
+
+    /// Runs `serving` with the stop flag on a new thread named `name`.
+    fn start(
+        name: &str,
+        serving: impl FnOnce(&AtomicBool) -> Result<(WhjBus, ServeStats), FrameLinkError>
+        + Send
+        + 'static,
+    ) -> std::io::Result<Self> {
         let stop = Arc::new(AtomicBool::new(false));
         let flag = Arc::clone(&stop);
         let thread = std::thread::Builder::new()
             .name(name.to_owned())
-            .spawn(move || {
-                serve_observed(
-                    &mut bus,
-                    &mut link,
-                    &flag,
-                    FaultSchedule::default(),
-                    || {},
-                    observe,
-                )
-                .map(|stats| (bus, stats))
-            })?;
+            .spawn(move || serving(&flag))?;
         Ok(Self {
             stop,
             thread: Some(thread),
@@ -120,6 +147,17 @@ impl Drop for Served {
             let _ = t.join();
         }
     }
+}
+
+/// Serves `bus` on a new in-memory CAN FD bus, on a thread of its own (a [`Served`] named
+/// `robobus-sim-whj`): the shortest way to a simulated WHJ bus in a test, an example or a
+/// demo. Open clients on the returned bus's endpoints (`JointBus::open(wire.endpoint())`).
+///
+/// Errors: the thread cannot be started.
+pub fn spawn(bus: WhjBus) -> std::io::Result<(Served, MemoryBus)> {
+    let wire = MemoryBus::new();
+    let served = Served::spawn("robobus-sim-whj", bus, wire.endpoint())?;
+    Ok((served, wire))
 }
 
 /// Serve `bus` on `link` until `stop` is set. The bus's time 0 is the call's start.

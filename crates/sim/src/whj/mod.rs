@@ -8,7 +8,7 @@
 //!   delays; virtual clock in tests, wall clock behind an endpoint.
 //! - [`WhjSimLink`]: the bus as an in-process frame link on a virtual clock (no thread).
 //! - [`serve`]: the same bus on a real frame link (python-can UDP bus, `SocketCAN`) on the
-//!   wall clock.
+//!   wall clock; [`Served`] runs it on a thread of its own, [`spawn`] on an in-memory bus.
 //! - Options for every rule the vendor documents disagree on: [`JointConfig`]; defaults
 //!   follow the "Sim default" column of §10 of the WHJ joint protocol reference.
 //!
@@ -51,7 +51,7 @@ pub use config::{
     BootConfig, BroadcastReadReply, JointConfig, Load, SpeedLimitUnit, StepConfig, WatchdogConfig,
 };
 pub use end_board::SimEndBoard;
-pub use endpoint::{ServeStats, Served, serve, serve_observed, serve_with};
+pub use endpoint::{ServeStats, Served, serve, serve_observed, serve_with, spawn};
 pub use joint::{JointState, Phase, Reply, Sample, SimJoint};
 pub use link::{WhjSimHandle, WhjSimLink};
 pub use model::{ModelParams, UnknownModel, WhjModel};
