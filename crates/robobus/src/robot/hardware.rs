@@ -1,5 +1,6 @@
 //! A robot's hardware behind its lock: the buses, each joint's device and limits, the
-//! watchdog's shared state, and reading and sending in joint units.
+//! robot's clock (its buses' clocks), the watchdog's shared state, and reading and
+//! sending in joint units.
 
 use super::{
     ActuatorError, ActuatorState, Arc, AtomicBool, CurrentScale, Duration, DynByteLink, Instant,
@@ -21,6 +22,8 @@ pub(super) struct WckSlot {
     pub(super) bus: WckBus<DynByteLink>,
     pub(super) torque: TorqueLevel,
     pub(super) safe: SafeState,
+    /// The bus clock's instant at the robot's time zero.
+    pub(super) origin: Instant,
 }
 
 #[derive(Debug)]
@@ -28,6 +31,8 @@ pub(super) struct WhjSlot {
     pub(super) name: String,
     pub(super) bus: Arc<JointBus>,
     pub(super) safe: SafeState,
+    /// The bus clock's instant at the robot's time zero.
+    pub(super) origin: Instant,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -58,14 +63,74 @@ pub(super) struct Hardware {
     pub(super) wck: Vec<WckSlot>,
     pub(super) whj: Vec<WhjSlot>,
     pub(super) joints: Vec<JointSlot>,
-    /// When the previous command cycle ran (or the robot opened / resumed).
+    /// When the previous command cycle ran (or the robot opened / resumed), robot clock.
     pub(super) last_cycle: Instant,
+    /// The robot clock's time zero: the `origin` of its first bus (wCK buses first).
+    pub(super) origin: Instant,
+}
+
+// ----- the robot's clock ---------------------------------------------------------------
+
+impl Hardware {
+    /// Whether any bus runs on the wall clock (time passes by itself; the watchdog needs a
+    /// thread), or the robot has no bus.
+    pub(super) fn wall_time(&self) -> bool {
+        (self.wck.is_empty() && self.whj.is_empty())
+            || self.wck.iter().any(|s| !s.bus.link().virtual_time())
+            || self.whj.iter().any(|s| !s.bus.virtual_time())
+    }
+
+    /// The robot's clock now: its buses' clock. On the wall clock that is the wall clock
+    /// (read from the first bus); a bus on a virtual clock (a simulator's) moves only when
+    /// it is driven, each on its own, so the robot keeps them together: its time is the
+    /// furthest any bus has gone since the robot's zero, and every virtual bus behind it is
+    /// brought up to it first.
+    pub(super) fn now(&mut self) -> Instant {
+        if self.wall_time() {
+            return self.wck.first().map_or_else(
+                || self.whj.first().map_or_else(Instant::now, |s| s.bus.now()),
+                |s| s.bus.now(),
+            );
+        }
+        let elapsed = self
+            .wck
+            .iter()
+            .map(|s| s.bus.now().saturating_duration_since(s.origin))
+            .chain(
+                self.whj
+                    .iter()
+                    .map(|s| s.bus.now().saturating_duration_since(s.origin)),
+            )
+            .max()
+            .unwrap_or_default();
+        self.advance_to(self.origin + elapsed);
+        self.origin + elapsed
+    }
+
+    /// Brings every bus on a virtual clock to `at` (robot clock); a bus already there, or
+    /// on the wall clock, is left alone.
+    pub(super) fn advance_to(&mut self, at: Instant) {
+        let since_zero = at.saturating_duration_since(self.origin);
+        for s in &mut self.wck {
+            let there = s.origin + since_zero;
+            if s.bus.link().virtual_time() && s.bus.now() < there {
+                s.bus.sleep_until(there);
+            }
+        }
+        for s in &self.whj {
+            let there = s.origin + since_zero;
+            if s.bus.virtual_time() && s.bus.now() < there {
+                s.bus.sleep_until(there);
+            }
+        }
+    }
 }
 
 #[derive(Debug)]
 pub(super) struct Shared {
     pub(super) hw: Mutex<Hardware>,
-    /// The last successful command; `None` until the first (watchdog disarmed).
+    /// The last successful command (robot clock); `None` until the first (watchdog
+    /// disarmed).
     pub(super) last_command: Mutex<Option<Instant>>,
     pub(super) stopped: Mutex<Option<SafeStopReport>>,
     pub(super) quit: AtomicBool,
@@ -75,17 +140,22 @@ pub(super) struct Shared {
 impl Shared {
     /// Puts every bus in its safe state (once; a second call returns the first report).
     pub(super) fn safe_stop(&self, cause: StopCause) -> SafeStopReport {
-        let started = Instant::now();
         let mut hw = lock(&self.hw);
+        self.safe_stop_locked(&mut hw, cause)
+    }
+
+    /// [`safe_stop`](Self::safe_stop) with the hardware already locked.
+    fn safe_stop_locked(&self, hw: &mut Hardware, cause: StopCause) -> SafeStopReport {
         let mut stopped = lock(&self.stopped);
         if let Some(report) = stopped.as_ref() {
             return report.clone();
         }
+        let started = hw.now();
         let errors = hw.apply_safe_states();
         let report = SafeStopReport {
             cause,
             started,
-            applied_in: started.elapsed(),
+            applied_in: hw.now().saturating_duration_since(started),
             errors,
         };
         if !report.errors.is_empty() {
@@ -96,20 +166,50 @@ impl Shared {
         report
     }
 
+    /// The robot clock now, with the watchdog served: when it is armed and the last
+    /// command is a timeout or more ago, the safe stop ([`StopCause::Watchdog`]) runs
+    /// first. Every call into the robot comes through here, and so does the watchdog
+    /// thread of a robot on the wall clock.
+    pub(super) fn tick(&self, hw: &mut Hardware) -> Instant {
+        let now = hw.now();
+        let last = *lock(&self.last_command);
+        if let Some(last) = last {
+            let since = now.saturating_duration_since(last);
+            if since >= self.timeout && lock(&self.stopped).is_none() {
+                tracing::warn!(?since, "watchdog: control loop stalled, safe stop");
+                self.safe_stop_locked(
+                    hw,
+                    StopCause::Watchdog {
+                        since_command: since,
+                    },
+                );
+                return hw.now();
+            }
+        }
+        now
+    }
+
+    /// When the watchdog fires unless a command comes first (robot clock); `None` while
+    /// it is disarmed.
+    pub(super) fn watchdog_due(&self) -> Option<Instant> {
+        lock(&self.last_command).map(|last| last + self.timeout)
+    }
+
+    /// The watchdog thread of a robot on the wall clock: every few milliseconds, unless a
+    /// call into the robot holds it (and serves the watchdog itself), a [`tick`](Self::tick).
     pub(super) fn watchdog(&self) {
         let poll = (self.timeout / 10).clamp(Duration::from_micros(500), Duration::from_millis(5));
         while !self.quit.load(Ordering::Acquire) {
             std::thread::sleep(poll);
-            let last = *lock(&self.last_command);
-            if let Some(last) = last {
-                let since = last.elapsed();
-                if since > self.timeout && lock(&self.stopped).is_none() {
-                    tracing::warn!(?since, "watchdog: control loop stalled, safe stop");
-                    self.safe_stop(StopCause::Watchdog {
-                        since_command: since,
-                    });
-                }
+            if lock(&self.last_command).is_none() {
+                continue;
             }
+            let mut hw = match self.hw.try_lock() {
+                Ok(hw) => hw,
+                Err(std::sync::TryLockError::Poisoned(p)) => p.into_inner(),
+                Err(std::sync::TryLockError::WouldBlock) => continue,
+            };
+            self.tick(&mut hw);
         }
     }
 }
@@ -247,7 +347,7 @@ impl Hardware {
                 joint.limiter = RateLimiter::new(state.position_rad);
             }
         }
-        self.last_cycle = Instant::now();
+        self.last_cycle = self.now();
         Ok(())
     }
 }
