@@ -21,6 +21,9 @@ use robobus_wck::{Position, TorqueLevel};
 use robobus_whj::WorkMode;
 use robobus_whj::units::{CurrentScale, Position as WhjPosition};
 
+use crate::ops::SafeState;
+use crate::ops::safe::{SafeFailure, WckServos, WhjJoints};
+use crate::ops::whj::ServoLoop;
 use crate::wck::{Servo, WckError};
 use crate::whj::{Joint, WhjError};
 
@@ -158,6 +161,33 @@ pub enum ActuatorError {
         #[source]
         source: Box<WhjError>,
     },
+    /// The joint could not be brought to a safe state ([`Actuator::apply_safe`]).
+    #[error("{joint}: safe state {}: {source}", .state.keyword())]
+    Safe {
+        /// The joint.
+        joint: String,
+        /// The state.
+        state: SafeState,
+        /// What failed (names the device and the error).
+        #[source]
+        source: Box<SafeFailure>,
+    },
+}
+
+/// The one result of [`SafeState::apply`] on a single joint: its first failure.
+fn safe_result(
+    joint: &str,
+    state: SafeState,
+    failed: Vec<SafeFailure>,
+) -> Result<(), ActuatorError> {
+    match failed.into_iter().next() {
+        None => Ok(()),
+        Some(f) => Err(ActuatorError::Safe {
+            joint: joint.to_owned(),
+            state,
+            source: Box::new(f),
+        }),
+    }
 }
 
 /// A joint in SI units, whichever family drives it.
@@ -175,11 +205,21 @@ pub trait Actuator {
     /// The joint's soft limits.
     fn limits(&self) -> JointLimits;
 
-    /// Safe state "relax": torque off (wCK passive, WHJ drive disabled).
-    fn relax(&mut self) -> Result<(), ActuatorError>;
+    /// Brings the joint to `state` through [`SafeState::apply`], the one safe stop of
+    /// the operations, the robot and the front ends (what each state means per family is
+    /// in [`ops::safe`](crate::ops::safe); a wCK break is the bus-wide break).
+    fn apply_safe(&mut self, state: SafeState) -> Result<(), ActuatorError>;
 
-    /// Safe state "hold": stay where the joint is now, under power.
-    fn hold(&mut self) -> Result<(), ActuatorError>;
+    /// Safe state "relax": torque off (wCK passive, WHJ drive disabled):
+    /// [`SafeState::Passive`].
+    fn relax(&mut self) -> Result<(), ActuatorError> {
+        self.apply_safe(SafeState::Passive)
+    }
+
+    /// Safe state "hold": stay where the joint is now, under power: [`SafeState::Hold`].
+    fn hold(&mut self) -> Result<(), ActuatorError> {
+        self.apply_safe(SafeState::Hold)
+    }
 }
 
 // ----- wCK -----------------------------------------------------------------------------
@@ -302,16 +342,14 @@ impl<L: ByteLink> Actuator for WckActuator<'_, L> {
         self.limits
     }
 
-    fn relax(&mut self) -> Result<(), ActuatorError> {
-        self.servo.passive().map(|_| ()).map_err(|e| self.wck(e))
-    }
-
-    fn hold(&mut self) -> Result<(), ActuatorError> {
-        let now = self.servo.status().map_err(|e| self.wck(e))?;
-        self.servo
-            .move_to(self.torque, now.position)
-            .map(|_| ())
-            .map_err(|e| self.wck(e))
+    fn apply_safe(&mut self, state: SafeState) -> Result<(), ActuatorError> {
+        let ids = [self.servo.id()];
+        let failed = state.apply(&mut WckServos {
+            bus: self.servo.bus(),
+            ids: &ids,
+            torque: self.torque,
+        });
+        safe_result(&self.name, state, failed)
     }
 }
 
@@ -422,16 +460,12 @@ impl Actuator for WhjActuator<'_> {
         self.limits
     }
 
-    fn relax(&mut self) -> Result<(), ActuatorError> {
-        self.joint.disable().map_err(|e| self.whj(e))
-    }
-
-    fn hold(&mut self) -> Result<(), ActuatorError> {
-        let now = self.joint.status().map_err(|e| self.whj(e))?;
-        self.joint
-            .command_position(now.position)
-            .map(|_| ())
-            .map_err(|e| self.whj(e))
+    fn apply_safe(&mut self, state: SafeState) -> Result<(), ActuatorError> {
+        let failed = state.apply(&mut WhjJoints {
+            joints: core::slice::from_ref(&self.joint),
+            servo: ServoLoop::Position,
+        });
+        safe_result(&self.name, state, failed)
     }
 }
 

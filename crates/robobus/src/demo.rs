@@ -37,7 +37,9 @@ use robobus_whj::units::Position;
 use robobus_whj::{JointId, Reply, Request, WorkMode};
 use serde::Serialize;
 
-use crate::ops::{Control, OpError, Progress};
+use crate::ops::safe::WhjJoints;
+use crate::ops::whj::ServoLoop;
+use crate::ops::{Control, OpError, Progress, SafeState};
 use crate::wck::{ScanOptions, WckBus};
 use crate::whj::{CyclicConfig, CyclicStats, JointBus, JointBusConfig, MotionLimits, Percentiles};
 
@@ -532,11 +534,10 @@ fn arm(
     let (arm_server, bus) = ArmServer::start((1..=JOINTS).collect(), 7)?;
     let result = arm_run(&bus, control, seconds, wall, trace);
     // Safe state whatever happened: every joint disabled.
-    for id in 1..=JOINTS {
-        if let Ok(j) = JointId::new(id) {
-            let _ = bus.joint_unchecked(j).disable();
-        }
-    }
+    let ids: Vec<JointId> = (1..=JOINTS)
+        .filter_map(|id| JointId::new(id).ok())
+        .collect();
+    disable_all(&bus, &ids);
     drop(bus);
     let served = arm_server.stop()?;
     let mut report = result?;
@@ -730,6 +731,18 @@ fn arm_run(
     })
 }
 
+/// Every joint of `ids` to [`SafeState::Disable`] through [`SafeState::apply`] (the one
+/// safe stop), whatever happened before; a failure is logged.
+fn disable_all(bus: &JointBus, ids: &[JointId]) {
+    let joints: Vec<_> = ids.iter().map(|&id| bus.joint_unchecked(id)).collect();
+    for f in SafeState::Disable.apply(&mut WhjJoints {
+        joints: &joints,
+        servo: ServoLoop::Position,
+    }) {
+        tracing::warn!(failure = %f, "simulated arm: safe state");
+    }
+}
+
 /// Simulated WHJ30 joints served on a thread of their own over an in-process CAN FD bus
 /// (stopped when dropped).
 #[derive(Debug)]
@@ -830,9 +843,7 @@ impl Drop for SimArm {
         if let Some(cyc) = self.cyc.take() {
             let _ = cyc.stop();
         }
-        for &id in &self.ids {
-            let _ = self.bus.joint_unchecked(id).disable();
-        }
+        disable_all(&self.bus, &self.ids);
         if let Some(server) = self.server.take() {
             let _ = server.stop();
         }

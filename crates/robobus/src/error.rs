@@ -138,6 +138,7 @@ impl ActuatorError {
             Self::NotFinite { .. } | Self::OutOfDeviceRange { .. } => ErrorKind::BadInput,
             Self::Wck { source, .. } => source.kind(),
             Self::Whj { source, .. } => source.kind(),
+            Self::Safe { source, .. } => source.error.kind(),
         }
     }
 }
