@@ -152,6 +152,7 @@ impl RobotError {
             | Self::Io { .. }
             | Self::MissingBus { .. }
             | Self::WrongBus { .. }
+            | Self::NoSuchJoint { .. }
             | Self::TargetCount { .. } => ErrorKind::BadInput,
             Self::OpenWck { source, .. } => source.kind(),
             Self::OpenWhj { .. } => ErrorKind::NoDevice,

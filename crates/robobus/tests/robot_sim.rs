@@ -483,6 +483,26 @@ fn bad_targets_are_refused_before_anything_is_sent() {
 }
 
 #[test]
+fn a_joint_is_read_by_its_index_and_an_index_past_the_joints_is_an_error() {
+    let joints = joint("hip", "legs", 0, [-1.0, 1.0], 2.0, 20.0)
+        + &joint("shoulder", "arm", 1, [-1.0, 1.0], 2.0, 20.0);
+    let mut rig = rig(config(5.0, "passive", "hold", &joints), &[0], 1);
+    let all = rig.robot.read().unwrap();
+    assert_eq!(rig.robot.read_joint(0).unwrap(), all[0]);
+    assert!(rig.robot.read_joint(1).unwrap().velocity_rad_s.is_some());
+    let err = rig.robot.read_joint(2).unwrap_err();
+    assert!(
+        matches!(err, RobotError::NoSuchJoint { index: 2, .. }),
+        "{err:?}"
+    );
+    assert_eq!(err.kind(), robobus::ErrorKind::BadInput);
+    assert_eq!(
+        err.to_string(),
+        "no joint #2: the robot's joints are hip, shoulder (#0 on)"
+    );
+}
+
+#[test]
 fn a_supplied_bus_must_match_the_file() {
     let joints = joint("hip", "legs", 0, [-1.0, 1.0], 2.0, 20.0);
     let mut wck = wck_support::serve_ids(&[0]);

@@ -3,9 +3,12 @@
 //!
 //! - [`RobotConfig`]: the file (buses, joints with ID, offset, direction, soft limits,
 //!   speed and acceleration limits, the watchdog timeout and each bus's safe state).
-//! - [`Robot::read`] reads every joint; [`Robot::command`] sends every target in one
-//!   call per cycle (wCK: one synchronized move per bus when the bus's IDs are
-//!   `0..n`, else one move per servo; WHJ: one position servo frame per joint).
+//! - Each joint is an [`Actuator`](crate::actuator::Actuator) (a wCK servo or a WHJ
+//!   joint in SI units): [`Robot::read`] reads every joint through it ([`Robot::read_joint`]
+//!   one, an index past the joints being [`RobotError::NoSuchJoint`]); [`Robot::command`]
+//!   sends every target in one call per cycle (wCK: one synchronized move per bus when the
+//!   bus's IDs are `0..n`, at the steps the servos' actuators would send, else each
+//!   servo's actuator; WHJ: each joint's actuator, one position servo frame).
 //! - Every target is clamped to the soft limits, then speed- and acceleration-limited
 //!   ([`RateLimiter`]); what a limit changed is reported ([`LimitEvent`]).
 //! - The robot runs on its buses' clock ([`Robot::now`], [`Robot::sleep_until`]): the
@@ -85,7 +88,6 @@ use std::time::{Duration, Instant};
 use robobus_link::ByteLink;
 use robobus_wck::{BaudRate, Position, ServoId, TorqueLevel};
 use robobus_whj::JointId;
-use robobus_whj::WorkMode;
 use robobus_whj::units::CurrentScale;
 
 pub use builder::{RobotBuilder, open_wck_bus, open_whj_bus};
@@ -93,14 +95,11 @@ pub use config::{BusConfig, JointConfig, RobotConfig, SafeState};
 use hardware::{Device, Hardware, JointSlot, Shared, WckSlot, WhjSlot, lock};
 pub use safety::{LimitEvent, LimitKind, RateLimiter};
 
-use crate::actuator::{
-    ActuatorError, ActuatorState, JointLimits, JointMap, WckScale, rpm_to_rad_s, whj_position,
-    whj_to_rad,
-};
+use crate::actuator::{ActuatorError, ActuatorState, JointLimits, JointMap, WckScale, whj_to_rad};
 use crate::ops::safe::{SafeDevice, WckServos, WhjJoints};
 use crate::ops::whj::ServoLoop;
 use crate::wck::{WckBus, WckError};
-use crate::whj::{Joint, JointBus, JointBusConfig, WhjError};
+use crate::whj::{Joint, JointBus, JointBusConfig};
 
 /// A byte link a [`Robot`] can hold: any [`ByteLink`] that is `Send` and `Debug`.
 pub trait RobotByteLink: ByteLink + Send + fmt::Debug {}
@@ -182,6 +181,14 @@ pub enum RobotError {
         supplied: &'static str,
         /// What the file says.
         found: String,
+    },
+    /// A joint index past the robot's joints.
+    #[error("no joint #{index}: the robot's joints are {names} (#0 on)")]
+    NoSuchJoint {
+        /// The index asked for.
+        index: usize,
+        /// The joints, in order.
+        names: String,
     },
     /// `command` got a different number of targets than there are joints.
     #[error("{got} targets given for {expected} joints ({names}); nothing sent")]
@@ -334,10 +341,21 @@ impl Robot {
         let mut hw = lock(&self.shared.hw);
         self.shared.tick(&mut hw);
         let states = (0..hw.joints.len())
-            .map(|i| hw.read_joint(i).map_err(RobotError::from))
+            .map(|i| Ok(hw.actuator(i)?.state()?))
             .collect();
         self.shared.tick(&mut hw);
         states
+    }
+
+    /// Reads joint `index` (the order of [`joint_names`](Self::joint_names); see
+    /// [`read`](Self::read)). An index past the last joint is
+    /// [`RobotError::NoSuchJoint`].
+    pub fn read_joint(&mut self, index: usize) -> Result<ActuatorState, RobotError> {
+        let mut hw = lock(&self.shared.hw);
+        self.shared.tick(&mut hw);
+        let state = hw.actuator(index).and_then(|mut a| Ok(a.state()?));
+        self.shared.tick(&mut hw);
+        state
     }
 
     /// Sends one cycle of targets (rad, joint order) and feeds the watchdog.
