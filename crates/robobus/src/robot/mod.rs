@@ -18,8 +18,10 @@
 //! - A watchdog puts every bus in its [`SafeState`] (through [`SafeState::apply`], the
 //!   operations' one safe stop) once [`Robot::command`] has not been called for
 //!   `watchdog_timeout` (armed by the first command): on the wall clock a thread watches,
-//!   on a virtual clock every call into the robot does (and [`Robot::sleep_until`] stops
-//!   at its deadline), so it fires at the exact instant. The same safe stop
+//!   on a virtual clock (where time passes only while the program waits) the calls that
+//!   read or wait on the clock do ([`Robot::now`], [`Robot::sleep_until`], [`Robot::read`],
+//!   [`Robot::command`]), and [`Robot::sleep_until`] stops at the watchdog's deadline, so
+//!   it fires at the exact instant. The same safe stop
 //!   runs on drop, on [`Robot::safe_stop`], and from a [`StopHandle`] (a program's own
 //!   Ctrl-C handler calls [`StopHandle::interrupt`]; the library installs none). After a
 //!   safe stop
@@ -470,6 +472,10 @@ impl Robot {
                 .unwrap_or(deadline)
                 .max(now);
             hw.advance_to(until);
+            if hw.now() <= now {
+                // No bus could run (a closed bus's clock stands still): nothing to wait for.
+                return;
+            }
         }
     }
 
