@@ -186,14 +186,15 @@ fn summary_text(r: &DemoReport, plot: Option<&PathBuf>) -> String {
             Some(ms) => {
                 let _ = writeln!(
                     s,
-                    "  pose    {:<8} all {SERVOS} servos within 1 step (1.06 deg) after {ms:>4.0} ms",
+                    "  pose    {:<8} played {ms:>4.0} ms (transition and hold): all {SERVOS} \
+                     servos within 1 step (1.06 deg)",
                     p.name
                 );
             }
             None => {
                 let _ = writeln!(
                     s,
-                    "  pose    {:<8} still {} steps off after 1.2 s",
+                    "  pose    {:<8} still {} steps off at the end of its play",
                     p.name, p.worst_error_steps
                 );
             }

@@ -164,6 +164,13 @@ pub trait ByteLink {
     fn sleep_until(&mut self, deadline: Instant) {
         std::thread::sleep(deadline.saturating_duration_since(Instant::now()));
     }
+
+    /// Whether the link's clock is virtual: it moves only while the link is driven
+    /// (read, sleep), so nothing may wait on the wall clock for it. `false` except on a
+    /// simulated bus on virtual time (as [`FrameLink::virtual_time`](crate::FrameLink::virtual_time)).
+    fn virtual_time(&self) -> bool {
+        false
+    }
 }
 
 impl<T: ByteLink + ?Sized> ByteLink for &mut T {
@@ -191,6 +198,9 @@ impl<T: ByteLink + ?Sized> ByteLink for &mut T {
     fn sleep_until(&mut self, deadline: Instant) {
         (**self).sleep_until(deadline);
     }
+    fn virtual_time(&self) -> bool {
+        (**self).virtual_time()
+    }
 }
 
 impl<T: ByteLink + ?Sized> ByteLink for Box<T> {
@@ -217,5 +227,8 @@ impl<T: ByteLink + ?Sized> ByteLink for Box<T> {
     }
     fn sleep_until(&mut self, deadline: Instant) {
         (**self).sleep_until(deadline);
+    }
+    fn virtual_time(&self) -> bool {
+        (**self).virtual_time()
     }
 }

@@ -544,6 +544,10 @@ impl<L: ByteLink, W: Write> ByteLink for CaptureByteLink<L, W> {
     fn sleep_until(&mut self, deadline: Instant) {
         self.inner.sleep_until(deadline);
     }
+
+    fn virtual_time(&self) -> bool {
+        self.inner.virtual_time()
+    }
 }
 
 /// A byte link that plays the `<` (read) records of a hex log back as incoming bytes

@@ -336,6 +336,10 @@ impl<L: ByteLink> ByteLink for FaultyByteLink<L> {
     fn sleep_until(&mut self, deadline: Instant) {
         self.inner.sleep_until(deadline);
     }
+
+    fn virtual_time(&self) -> bool {
+        self.inner.virtual_time()
+    }
 }
 
 impl<L: ByteLink> FaultyByteLink<L> {

@@ -15,7 +15,7 @@
 use std::error::Error;
 use std::f64::consts::TAU;
 use std::fmt::Write as _;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use robobus::robot::{BusConfig, Robot, RobotConfig, RobotError};
 use robobus::wck::WckBus;
@@ -133,13 +133,15 @@ fn main() -> Result<(), Box<dyn Error>> {
     })?;
 
     let names = robot.joint_names().to_vec();
+    // Paced on the robot's clock (its buses' clock: the wall clock here, a simulator's
+    // virtual clock in a test).
     let period = Duration::from_secs_f64(1.0 / RATE_HZ);
-    let start = Instant::now();
+    let start = robot.now();
     let mut next = start;
     let mut clamps = 0usize;
     let mut cycle = 0u64;
-    while start.elapsed() < RUN {
-        let t = start.elapsed().as_secs_f64();
+    while robot.now() - start < RUN {
+        let t = (robot.now() - start).as_secs_f64();
         let report = match robot.command(&targets(&robot, t)) {
             Ok(r) => r,
             Err(RobotError::SafeStopped { cause }) => {
@@ -169,15 +171,12 @@ fn main() -> Result<(), Box<dyn Error>> {
         }
         cycle += 1;
         next += period;
-        std::thread::sleep(next.saturating_duration_since(Instant::now()));
+        robot.sleep_until(next);
     }
     println!("{cycle} cycles, {clamps} targets limited (soft limits or speed)");
 
     // Stall on purpose: the watchdog puts the robot in its safe state.
-    let stalled = Instant::now();
-    while !robot.is_stopped() && stalled.elapsed() < Duration::from_secs(1) {
-        std::thread::sleep(Duration::from_millis(1));
-    }
+    robot.sleep(robot.watchdog_timeout() * 2);
     if let Some(report) = robot.safe_stop_report() {
         println!(
             "{} after the last command; safe states applied in {:.1} ms{}",

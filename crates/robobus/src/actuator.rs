@@ -4,7 +4,9 @@
 //! wCK servo ([`WckActuator`], 8-bit positions of 269°/255 ≈ 1.055° a step) or a WHJ
 //! joint ([`WhjActuator`], positions in 0.0001° counts, currents in mA). A [`JointMap`]
 //! turns device angles into joint angles (zero offset and direction), and [`JointLimits`]
-//! are the host-side soft limits every command is clamped to.
+//! are the host-side soft limits every command is clamped to. A
+//! [`Robot`](crate::robot::Robot) reads and commands each of its joints through this view;
+//! the safe states go through [`SafeState::apply`] ([`Actuator::apply_safe`]).
 //!
 //! ```
 //! use robobus::actuator::{Actuator, ActuatorError};
@@ -21,6 +23,9 @@ use robobus_wck::{Position, TorqueLevel};
 use robobus_whj::WorkMode;
 use robobus_whj::units::{CurrentScale, Position as WhjPosition};
 
+use crate::ops::SafeState;
+use crate::ops::safe::{SafeFailure, WckServos, WhjJoints};
+use crate::ops::whj::ServoLoop;
 use crate::wck::{Servo, WckError};
 use crate::whj::{Joint, WhjError};
 
@@ -158,6 +163,33 @@ pub enum ActuatorError {
         #[source]
         source: Box<WhjError>,
     },
+    /// The joint could not be brought to a safe state ([`Actuator::apply_safe`]).
+    #[error("{joint}: safe state {}: {source}", .state.keyword())]
+    Safe {
+        /// The joint.
+        joint: String,
+        /// The state.
+        state: SafeState,
+        /// What failed (names the device and the error).
+        #[source]
+        source: Box<SafeFailure>,
+    },
+}
+
+/// The one result of [`SafeState::apply`] on a single joint: its first failure.
+fn safe_result(
+    joint: &str,
+    state: SafeState,
+    failed: Vec<SafeFailure>,
+) -> Result<(), ActuatorError> {
+    match failed.into_iter().next() {
+        None => Ok(()),
+        Some(f) => Err(ActuatorError::Safe {
+            joint: joint.to_owned(),
+            state,
+            source: Box::new(f),
+        }),
+    }
 }
 
 /// A joint in SI units, whichever family drives it.
@@ -168,6 +200,12 @@ pub trait Actuator {
     /// Reads the joint: angle (rad), speed (rad/s) and current (A) where known.
     fn state(&mut self) -> Result<ActuatorState, ActuatorError>;
 
+    /// Reads the joint's angle alone, rad (what [`state`](Self::state) reads, with no
+    /// more exchanges than the angle needs).
+    fn position(&mut self) -> Result<f64, ActuatorError> {
+        self.state().map(|s| s.position_rad)
+    }
+
     /// Commands the joint to `rad` (clamped to the soft [`limits`](Self::limits); a
     /// non-finite target is refused and nothing is sent).
     fn command_position(&mut self, rad: f64) -> Result<Commanded, ActuatorError>;
@@ -175,11 +213,21 @@ pub trait Actuator {
     /// The joint's soft limits.
     fn limits(&self) -> JointLimits;
 
-    /// Safe state "relax": torque off (wCK passive, WHJ drive disabled).
-    fn relax(&mut self) -> Result<(), ActuatorError>;
+    /// Brings the joint to `state` through [`SafeState::apply`], the one safe stop of
+    /// the operations, the robot and the front ends (what each state means per family is
+    /// in [`ops::safe`](crate::ops::safe); a wCK break is the bus-wide break).
+    fn apply_safe(&mut self, state: SafeState) -> Result<(), ActuatorError>;
 
-    /// Safe state "hold": stay where the joint is now, under power.
-    fn hold(&mut self) -> Result<(), ActuatorError>;
+    /// Safe state "relax": torque off (wCK passive, WHJ drive disabled):
+    /// [`SafeState::Passive`].
+    fn relax(&mut self) -> Result<(), ActuatorError> {
+        self.apply_safe(SafeState::Passive)
+    }
+
+    /// Safe state "hold": stay where the joint is now, under power: [`SafeState::Hold`].
+    fn hold(&mut self) -> Result<(), ActuatorError> {
+        self.apply_safe(SafeState::Hold)
+    }
 }
 
 // ----- wCK -----------------------------------------------------------------------------
@@ -213,6 +261,31 @@ impl WckScale {
         Position::new(steps as u8).ok()
     }
 
+    /// The step for joint angle `rad` within `limits`: the nearest step, or where that
+    /// lies just past a limit, its neighbour inside (`None` outside 0..=254).
+    pub fn position_within(self, rad: f64, limits: &JointLimits) -> Option<Position> {
+        let nearest = self.to_position(rad)?;
+        let inside = |p: Position| {
+            let r = self.to_rad(p);
+            r >= limits.min_rad - 1e-12 && r <= limits.max_rad + 1e-12
+        };
+        if inside(nearest) {
+            return Some(nearest);
+        }
+        let raw = nearest.get();
+        [raw.checked_sub(1), raw.checked_add(1)]
+            .into_iter()
+            .flatten()
+            .filter_map(|r| Position::new(r).ok())
+            .filter(|&p| inside(p))
+            .min_by(|&a, &b| {
+                (self.to_rad(a) - rad)
+                    .abs()
+                    .total_cmp(&(self.to_rad(b) - rad).abs())
+            })
+            .or(Some(nearest))
+    }
+
     /// The device-range error for joint angle `rad`.
     pub(crate) fn range_error(self, joint: &str, rad: f64) -> ActuatorError {
         ActuatorError::OutOfDeviceRange {
@@ -227,7 +300,8 @@ impl WckScale {
 }
 
 /// A wCK servo as an [`Actuator`]: 8-bit positions (269°/255 a step, zero at
-/// [`WckScale::centre`]), moved with a position move at a fixed torque level.
+/// [`WckScale::centre`]), moved with a position move at a fixed torque level to the step
+/// nearest the target within the soft limits ([`WckScale::position_within`]).
 #[derive(Debug)]
 pub struct WckActuator<'a, L> {
     name: String,
@@ -287,7 +361,7 @@ impl<L: ByteLink> Actuator for WckActuator<'_, L> {
         let (target, clamped) = self.limits.clamp(rad);
         let position = self
             .scale
-            .to_position(target)
+            .position_within(target, &self.limits)
             .ok_or_else(|| self.scale.range_error(&self.name, target))?;
         self.servo
             .move_to(self.torque, position)
@@ -302,16 +376,14 @@ impl<L: ByteLink> Actuator for WckActuator<'_, L> {
         self.limits
     }
 
-    fn relax(&mut self) -> Result<(), ActuatorError> {
-        self.servo.passive().map(|_| ()).map_err(|e| self.wck(e))
-    }
-
-    fn hold(&mut self) -> Result<(), ActuatorError> {
-        let now = self.servo.status().map_err(|e| self.wck(e))?;
-        self.servo
-            .move_to(self.torque, now.position)
-            .map(|_| ())
-            .map_err(|e| self.wck(e))
+    fn apply_safe(&mut self, state: SafeState) -> Result<(), ActuatorError> {
+        let ids = [self.servo.id()];
+        let failed = state.apply(&mut WckServos {
+            bus: self.servo.bus(),
+            ids: &ids,
+            torque: self.torque,
+        });
+        safe_result(&self.name, state, failed)
     }
 }
 
@@ -366,13 +438,38 @@ impl<'a> WhjActuator<'a> {
             joint: name.clone(),
             source: Box::new(source),
         })?;
-        Ok(Self {
-            name,
+        Ok(Self::prepared(name, joint, map, limits, scale))
+    }
+
+    /// Wraps `joint` as it is, sending nothing: for a joint already identified (its
+    /// current `scale` known) and prepared, as a [`Robot`](crate::robot::Robot)'s are.
+    pub fn prepared(
+        name: impl Into<String>,
+        joint: Joint<'a>,
+        map: JointMap,
+        limits: JointLimits,
+        scale: CurrentScale,
+    ) -> Self {
+        Self {
+            name: name.into(),
             joint,
             map,
             limits,
             scale,
-        })
+        }
+    }
+
+    /// Makes sure the drive is on for position commands: a joint whose drive is off is
+    /// switched to position mode and enabled (one that is on is left as it is).
+    pub fn ensure_enabled(&self) -> Result<(), ActuatorError> {
+        let prepare = || -> Result<(), WhjError> {
+            if !self.joint.is_enabled()? {
+                self.joint.set_mode(WorkMode::Position)?;
+                self.joint.enable()?;
+            }
+            Ok(())
+        };
+        prepare().map_err(|e| self.whj(e))
     }
 
     fn whj(&self, source: WhjError) -> ActuatorError {
@@ -386,6 +483,11 @@ impl<'a> WhjActuator<'a> {
 impl Actuator for WhjActuator<'_> {
     fn name(&self) -> &str {
         &self.name
+    }
+
+    fn position(&mut self) -> Result<f64, ActuatorError> {
+        let status = self.joint.status().map_err(|e| self.whj(e))?;
+        Ok(whj_to_rad(self.map, status.position))
     }
 
     fn state(&mut self) -> Result<ActuatorState, ActuatorError> {
@@ -422,16 +524,12 @@ impl Actuator for WhjActuator<'_> {
         self.limits
     }
 
-    fn relax(&mut self) -> Result<(), ActuatorError> {
-        self.joint.disable().map_err(|e| self.whj(e))
-    }
-
-    fn hold(&mut self) -> Result<(), ActuatorError> {
-        let now = self.joint.status().map_err(|e| self.whj(e))?;
-        self.joint
-            .command_position(now.position)
-            .map(|_| ())
-            .map_err(|e| self.whj(e))
+    fn apply_safe(&mut self, state: SafeState) -> Result<(), ActuatorError> {
+        let failed = state.apply(&mut WhjJoints {
+            joints: core::slice::from_ref(&self.joint),
+            servo: ServoLoop::Position,
+        });
+        safe_result(&self.name, state, failed)
     }
 }
 

@@ -1,19 +1,25 @@
-//! The built-in simulated robot (feature `sim`): a wCK humanoid and a WHJ arm, simulated in
-//! this process and driven through the client library, as a first session with real
-//! hardware would drive them.
+//! The built-in simulated robot (feature `sim`) driven through the library as a program
+//! drives real hardware: its station and its operations.
 //!
-//! - a wCK humanoid: 16 simulated wCK-1108 servos (IDs 0..=15) on a 115200 bit/s bus,
-//!   reached through an in-process [`SimLink`](robobus_sim::wck::SimLink) (its replies do not
-//!   depend on how loaded the machine is);
-//! - a 7-joint WHJ30 arm (IDs 1..=7) on an in-process CAN FD bus, served on its own thread.
+//! - the station: [`Station::simulated`], the built-in robot (a wCK humanoid of 16
+//!   simulated wCK-1108 servos, IDs 0..=15, on the 115200 bit/s bus `sim-wck`, and a WHJ
+//!   arm of 7 WHJ30 joints, IDs 1..=7, on the CAN FD bus `sim-whj`), in-process on the
+//!   simulators' virtual clocks: the run takes the simulated time it reports, in as little
+//!   wall time as the processor allows, and is the same on any machine;
+//! - the wCK humanoid: [`ops::wck::scan`] finds the servos; the three keyframes are a
+//!   keyframe [`Motion`] played with [`ops::wck::play`] pose by pose (an interpolated
+//!   transition, then a hold), each pose checked with one status read of every servo
+//!   through the station's [`WckServos`] handle;
+//! - the WHJ arm: [`ops::whj::info`] connects and identifies each joint,
+//!   [`ops::whj::set_mode`] / [`ops::whj::enable`] prepare them, and the station's checked
+//!   cyclic loop ([`CyclicLoop`]) streams a 500 Hz sine, its tracking measured with
+//!   [`Tracking`] (what a wave reports);
+//! - the end: the station is closed into its safe state ([`SafeState::apply`]: the wCK
+//!   break, every WHJ joint disabled), also when the run is stopped or fails.
 //!
-//! [`run`] scans the wCK bus, plays three keyframes as synchronized moves while polling
-//! every servo, connects the WHJ joints (IAP release, identify), enables them in position
-//! mode and streams a 500 Hz sine trajectory through the cyclic loop. Its [`DemoReport`]
-//! says what moved, how well it tracked and the bus figures (cycles, deadline misses,
-//! latency percentiles, wire utilisation against the limit the protocol timing models
-//! give); it serializes to the document `robobus demo --json` prints. Every joint is
-//! disabled at the end, also when the run is stopped or fails.
+//! Its [`DemoReport`] says what moved, how well it tracked and the bus figures (cycles,
+//! deadline misses, latency percentiles, wire utilisation against the limit the protocol
+//! timing models give); it serializes to the document `robobus demo --json` prints.
 //!
 //! ```no_run
 //! use robobus::demo::{DemoConfig, run};
@@ -30,15 +36,22 @@ use std::f64::consts::TAU;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use robobus_link::{ByteLink, MemoryBus};
-use robobus_wck::{BaudRate, Position as WckPosition, ServoId, TorqueLevel};
+use robobus_link::MemoryBus;
+use robobus_wck::{BaudRate, Command, Position as WckPosition, ServoId, TorqueLevel};
 use robobus_whj::timing::{BitRates, frame_duration};
 use robobus_whj::units::Position;
 use robobus_whj::{JointId, Reply, Request, WorkMode};
 use serde::Serialize;
 
-use crate::ops::{Control, OpError, Progress};
-use crate::wck::{ScanOptions, WckBus};
+use crate::actuator::{WCK_DEFAULT_CENTRE, WCK_DEGREES_PER_STEP};
+use crate::catalogue::Station;
+use crate::catalogue::cyclic::CyclicLoop;
+use crate::catalogue::handles::WckServos;
+use crate::catalogue::station::WckPort;
+use crate::ops::safe::WhjJoints;
+use crate::ops::wck::{Frame, Motion, Pose, ScanArgs};
+use crate::ops::whj::{ServoLoop, Tracking};
+use crate::ops::{self, Control, DeviceResult, OpError, Progress, SafeState};
 use crate::whj::{CyclicConfig, CyclicStats, JointBus, JointBusConfig, MotionLimits, Percentiles};
 
 /// wCK servos of the humanoid (IDs 0..SERVOS).
@@ -51,8 +64,16 @@ pub const PERIOD: Duration = Duration::from_millis(2);
 pub const AMPLITUDE_DEG: f64 = 20.0;
 /// Sine frequency of the arm trajectory, Hz.
 pub const FREQUENCY_HZ: f64 = 0.5;
-/// Degrees per wCK position step.
-const WCK_DEG_PER_STEP: f64 = 1.055;
+/// The station's wCK bus.
+const WCK_BUS: &str = "sim-wck";
+/// The station's WHJ bus.
+const WHJ_BUS: &str = "sim-whj";
+/// The keyframes' move rate, Hz.
+const KEYFRAME_RATE_HZ: f64 = 50.0;
+/// A keyframe's transition from the pose before, ms.
+const TRANSITION_MS: u32 = 600;
+/// How long each keyframe is held, ms.
+const HOLD_MS: u32 = 400;
 /// The shortest and longest sine run, seconds.
 pub const SECONDS_RANGE: core::ops::RangeInclusive<f64> = 0.5..=60.0;
 
@@ -109,7 +130,8 @@ pub struct DemoReport {
 pub struct PoseReport {
     /// The keyframe's name.
     pub name: &'static str,
-    /// When every servo stood within one step of it, ms after the move (`None`: not within 1.2 s).
+    /// How long the pose was played (its transition and hold), ms, when every servo then
+    /// stood within one step of it (`None`: one did not).
     pub settled_ms: Option<f64>,
     /// The largest distance from the target at the end, steps.
     pub worst_error_steps: u8,
@@ -128,7 +150,7 @@ pub struct WckReport {
     pub scan_ms: f64,
     /// The keyframes.
     pub poses: Vec<PoseReport>,
-    /// Status reads while the poses settled.
+    /// Status reads while the poses played (the play's watch reads and each pose's check).
     pub status_polls: u64,
     /// Transactions (attempts) of the client.
     pub transactions: u64,
@@ -256,9 +278,11 @@ pub struct WhjReport {
     pub cycle_wire: Duration,
 }
 
-/// Positions over time: (seconds since the start, signal, degrees). Signals are the
-/// plotted wCK servos, then the WHJ joints, then the targets of both in the same order
-/// (the keyframe positions sent, the set-points the loop sent) ([`Trace::names`]).
+/// Positions over time: (seconds of simulated time since the start, signal, degrees).
+/// Signals are the plotted wCK servos (where the scan and each pose's check found them),
+/// then the WHJ joints (every tenth cycle's feedback), then the targets of both in the
+/// same order (every move the keyframes' play sent, the set-points the loop sent)
+/// ([`Trace::names`]).
 #[derive(Debug, Clone, Default)]
 pub struct Trace(pub Vec<(f64, usize, f64)>);
 
@@ -321,9 +345,21 @@ fn check_stop(control: &Control<'_>) -> Result<(), OpError> {
     }
 }
 
-/// Runs the demo: the wCK humanoid, then the WHJ arm. Progress stages: `"wCK scan"`
-/// (IDs probed of 31), `"keyframes"` (of 3), `"WHJ connect"` (of 7), `"500 Hz sine"`
-/// (cycles); a progress without a total is a note on what happens next.
+/// The values of a multi-device operation, or its first failure.
+fn every<T>(what: &str, results: Vec<DeviceResult<u8, T>>) -> Result<Vec<T>, OpError> {
+    results
+        .into_iter()
+        .map(|r| match r.outcome {
+            ops::Outcome::Ok(v) => Ok(v),
+            ops::Outcome::Failed(f) => Err(OpError::Device(format!("{what}: {}", f.error))),
+        })
+        .collect()
+}
+
+/// Runs the demo on the built-in robot's station: the wCK humanoid, then the WHJ arm (see
+/// the [module docs](self)). Progress stages: the scan's (IDs probed of 31), a
+/// `"keyframes"` note per pose and the play's (ms of the pose), `"WHJ connect"` (of 7),
+/// `"500 Hz sine"` (cycles); a progress without a total is a note on what happens next.
 pub fn run(config: &DemoConfig, control: &mut Control<'_>) -> Result<DemoReport, OpError> {
     if !(config.seconds.is_finite() && SECONDS_RANGE.contains(&config.seconds)) {
         return Err(OpError::invalid(
@@ -333,9 +369,19 @@ pub fn run(config: &DemoConfig, control: &mut Control<'_>) -> Result<DemoReport,
         ));
     }
     let wall = Instant::now();
+    let (station, wck_sim, whj_sim) = Station::simulated_with_handles()?;
     let mut trace = Trace::default();
-    let wck = humanoid(control, wall, &mut trace)?;
-    let whj = arm(control, config.seconds, wall, &mut trace)?;
+    let (mut wck, wck_s) = humanoid(&station, control, &mut trace)?;
+    let served = wck_sim.with_bus(|b| b.stats());
+    wck.bytes_out = served.host_bytes;
+    wck.bytes_in = served.received_bytes;
+    let bytes = usize::try_from(served.host_bytes + served.received_bytes).unwrap_or(usize::MAX);
+    let wire = robobus_wck::timing::wire_time(bytes, BaudRate::B115200);
+    wck.wire_utilisation = wire.as_secs_f64() / wck_s.max(1e-9);
+    let mut whj = arm(&station, control, config.seconds, wck_s, &mut trace)?;
+    let served = whj_sim.with_bus(|b| b.stats());
+    whj.simulator_frames_in = served.host_frames;
+    whj.simulator_frames_out = served.joint_frames;
     let mut errors = Vec::new();
     for p in &wck.poses {
         if p.settled_ms.is_none() {
@@ -350,6 +396,12 @@ pub fn run(config: &DemoConfig, control: &mut Control<'_>) -> Result<DemoReport,
             errors.push(format!("WHJ joint {} error {}", t.joint, t.error));
         }
     }
+    errors.extend(
+        station
+            .close()
+            .into_iter()
+            .map(|e| format!("safe state: {e}")),
+    );
     Ok(DemoReport {
         wall_s: wall.elapsed().as_secs_f64(),
         wck,
@@ -364,107 +416,119 @@ fn note(control: &mut Control<'_>, stage: &'static str, text: String) {
     control.report(&Progress::new(stage, 0, None).with_note(text));
 }
 
-fn humanoid(
-    control: &mut Control<'_>,
-    wall: Instant,
-    trace: &mut Trace,
-) -> Result<WckReport, OpError> {
-    use robobus_sim::wck::{Bus, BusConfig, Model, SimLink};
-
-    let (link, sim) = SimLink::new(Bus::with_servos(
-        BusConfig::default(),
-        Model::W1108,
-        0..SERVOS,
-    ));
-    // The modules are deaf for 65 ms after power-up.
-    std::thread::sleep(
-        (robobus_wck::timing::POWER_UP_DEAF + Duration::from_millis(5)).saturating_sub(sim.now()),
-    );
-    let mut bus =
-        WckBus::new(link, BaudRate::B115200)?.with_device_name("simulated humanoid (in-process)");
-    let started = Instant::now();
-    let result = humanoid_run(&mut bus, control, wall, trace);
-    let served = sim.with_bus(|b| b.stats());
-    let (found, scan, poses, polls) = result?;
-    let stats = bus.stats();
-    let elapsed = started.elapsed();
-    let bytes = usize::try_from(served.host_bytes + served.received_bytes).unwrap_or(usize::MAX);
-    let wire = robobus_wck::timing::wire_time(bytes, BaudRate::B115200);
-    Ok(WckReport {
-        servos_found: found.len(),
-        ids: found,
-        baud: 115_200,
-        scan_ms: scan.as_secs_f64() * 1e3,
-        poses,
-        status_polls: polls,
-        transactions: stats.attempts,
-        retries: stats.retries,
-        timeouts: stats.timeouts,
-        bad_replies: stats.bad_replies,
-        bytes_out: served.host_bytes,
-        bytes_in: served.received_bytes,
-        wire_utilisation: wire.as_secs_f64() / elapsed.as_secs_f64().max(1e-9),
-        status_poll_limit_hz: robobus_wck::timing::polling_rate_hz(
-            usize::from(SERVOS),
-            BaudRate::B115200,
-        ),
-    })
+/// The degrees of wCK step `p` from the centre.
+fn wck_deg(p: u8) -> f64 {
+    (f64::from(p) - f64::from(WCK_DEFAULT_CENTRE)) * WCK_DEGREES_PER_STEP
 }
 
-type HumanoidRun = (Vec<u8>, Duration, Vec<PoseReport>, u64);
-
-fn servo(raw: u8) -> Result<ServoId, OpError> {
-    ServoId::new(raw).map_err(|e| internal("servo ID", e))
-}
-
-fn humanoid_run<L: ByteLink>(
-    bus: &mut WckBus<L>,
-    control: &mut Control<'_>,
-    wall: Instant,
-    trace: &mut Trace,
-) -> Result<HumanoidRun, OpError> {
-    let options = ScanOptions {
-        check_duplicates: false,
-        probes: 3,
-        ..ScanOptions::at(BaudRate::B115200)
-    };
-    let t0 = Instant::now();
-    let report = bus.scan(&options, |p| {
-        control.report(
-            &Progress::new("wCK scan", p.done as u64, Some(31))
-                .with_note(format!("{} found", p.found)),
-        );
-    })?;
-    let scan = t0.elapsed();
-    let mut found: Vec<u8> = report.found.iter().map(|f| f.id.get()).collect();
-    // A second look at any missing ID (with the client's retries), as a user rescans: on
-    // a busy machine a module's answer can miss the scan's short deadline.
-    for raw in 0..SERVOS {
-        if !found.contains(&raw) && bus.servo(servo(raw)?).status().is_ok() {
-            found.push(raw);
-        }
+/// Keyframe `to` as a motion: from the pose before (`None` for the first: sent at once),
+/// a [`TRANSITION_MS`] transition, then a [`HOLD_MS`] hold, ended by the pose once more (a
+/// motion ends with its last move: a trailing hold would not be waited for).
+fn keyframe(from: Option<&[WckPosition]>, to: &[WckPosition]) -> Motion {
+    let mut frames: Vec<Frame> = from
+        .map(|p| {
+            Frame::Pose(Pose {
+                ms: 0,
+                positions: p.to_vec(),
+            })
+        })
+        .into_iter()
+        .collect();
+    frames.push(Frame::Pose(Pose {
+        ms: TRANSITION_MS,
+        positions: to.to_vec(),
+    }));
+    frames.push(Frame::Hold(HOLD_MS));
+    frames.push(Frame::Pose(Pose {
+        ms: 0,
+        positions: to.to_vec(),
+    }));
+    Motion {
+        torque: TorqueLevel::MIN,
+        frames,
     }
-    found.sort_unstable();
+}
+
+/// The humanoid's part, and how long it took in simulated time (s). The report's byte
+/// counts and wire utilisation are the caller's (the simulator's counters).
+fn humanoid(
+    station: &Station,
+    control: &mut Control<'_>,
+    trace: &mut Trace,
+) -> Result<(WckReport, f64), OpError> {
+    let port = station.wck(Some(WCK_BUS))?;
+    let start = port.lock().now();
+    let since = |port: &WckPort| port.lock().now().saturating_duration_since(start);
+    let args = ScanArgs {
+        ids: (0..=30).filter_map(|raw| ServoId::new(raw).ok()).collect(),
+        bauds: vec![BaudRate::B115200],
+        probes: 3,
+    };
+    let scan = ops::wck::scan(&mut port.lock(), &args, control)?;
+    let scan_time = since(&port);
+    let found: Vec<u8> = scan.found.iter().map(|f| f.id).collect();
     note(
         control,
         "wCK scan",
         format!(
             "wCK scan found {} servos in {:.0} ms",
             found.len(),
-            scan.as_secs_f64() * 1e3
+            scan_time.as_secs_f64() * 1e3
         ),
     );
-    if found.len() != usize::from(SERVOS) {
+    if found != (0..SERVOS).collect::<Vec<_>>() {
         return Err(OpError::Device(format!(
             "the wCK scan found {} servos ({found:?}); the simulated humanoid has {SERVOS}",
             found.len()
         )));
     }
+    for f in &scan.found {
+        if let Some(col) = WCK_PLOTTED.iter().position(|&p| p == f.id) {
+            trace.push(scan_time.as_secs_f64(), col, wck_deg(f.position));
+        }
+    }
     check_stop(control)?;
 
-    let torque = TorqueLevel::new(0).map_err(|e| internal("torque", e))?;
+    let servos = WckServos::new(station, Some(WCK_BUS), &found)?;
+    let (poses, polls) = keyframes(&port, &servos, start, control, trace)?;
+    let stats = port.lock().stats();
+    Ok((
+        WckReport {
+            servos_found: found.len(),
+            ids: found,
+            baud: 115_200,
+            scan_ms: scan_time.as_secs_f64() * 1e3,
+            poses,
+            status_polls: polls,
+            transactions: stats.attempts,
+            retries: stats.retries,
+            timeouts: stats.timeouts,
+            bad_replies: stats.bad_replies,
+            bytes_out: 0,
+            bytes_in: 0,
+            wire_utilisation: 0.0,
+            status_poll_limit_hz: robobus_wck::timing::polling_rate_hz(
+                usize::from(SERVOS),
+                BaudRate::B115200,
+            ),
+        },
+        since(&port).as_secs_f64(),
+    ))
+}
+
+/// Plays the keyframes pose by pose on `port` (see the [module docs](self)), checking each
+/// with a status read of every servo of `servos`; the poses and the status reads made.
+fn keyframes(
+    port: &WckPort,
+    servos: &WckServos,
+    start: Instant,
+    control: &mut Control<'_>,
+    trace: &mut Trace,
+) -> Result<(Vec<PoseReport>, u64), OpError> {
+    let since = || port.lock().now().saturating_duration_since(start);
     let mut poses = Vec::new();
     let mut polls = 0u64;
+    let mut previous: Option<Vec<WckPosition>> = None;
     for (done, (name, pose)) in KEYFRAMES.into_iter().enumerate() {
         control.report(
             &Progress::new("keyframes", done as u64, Some(KEYFRAMES.len() as u64))
@@ -475,46 +539,54 @@ fn humanoid_run<L: ByteLink>(
             .map(|&p| WckPosition::new(p))
             .collect::<Result<Vec<_>, _>>()
             .map_err(|e| internal("keyframe", e))?;
-        bus.sync_move(torque, &positions)?;
-        let start = Instant::now();
-        let mut settled = None;
-        let mut worst = u8::MAX;
-        // Poll every servo until all stand within one step, for at most 1.2 s.
-        while start.elapsed() < Duration::from_millis(1200) {
-            check_stop(control)?;
-            worst = 0;
-            let t = wall.elapsed().as_secs_f64();
-            for (raw, target) in (0..SERVOS).zip(pose) {
-                let at = bus.servo(servo(raw)?).status()?.position.get();
-                polls += 1;
-                worst = worst.max(at.abs_diff(target));
-                if let Some(col) = WCK_PLOTTED.iter().position(|&p| p == raw) {
-                    trace.push(t, col, (f64::from(at) - 127.0) * WCK_DEG_PER_STEP);
-                    trace.push(
-                        t,
-                        TRACED + col,
-                        (f64::from(target) - 127.0) * WCK_DEG_PER_STEP,
-                    );
+        let motion = keyframe(previous.as_deref(), &positions);
+        // The moves the play sends, for the plot (they are its plan).
+        let t0 = since().as_secs_f64();
+        for step in motion.moves(KEYFRAME_RATE_HZ) {
+            if let (Some(at_ms), Command::SyncMove(m)) = (step.at_ms, &step.command) {
+                #[allow(clippy::cast_precision_loss)] // at most minutes
+                let t = t0 + at_ms as f64 / 1e3;
+                for (col, &id) in WCK_PLOTTED.iter().enumerate() {
+                    if let Some(p) = m.positions().get(usize::from(id)) {
+                        trace.push(t, TRACED + col, wck_deg(p.get()));
+                    }
                 }
             }
-            if worst <= 1 {
-                settled = Some(start.elapsed());
-                break;
-            }
-            std::thread::sleep(Duration::from_millis(10));
         }
+        let played = ops::wck::play(
+            &mut port.lock(),
+            &motion,
+            KEYFRAME_RATE_HZ,
+            SafeState::Hold,
+            control,
+        )?;
+        polls += played.watch_reads;
+        // Where every servo stands now.
+        let readings = every("wCK status", servos.status()?)?;
+        polls += readings.len() as u64;
+        let t = since().as_secs_f64();
+        let mut worst = 0u8;
+        for (raw, (reading, target)) in servos.ids().into_iter().zip(readings.iter().zip(pose)) {
+            worst = worst.max(reading.position.abs_diff(target));
+            if let Some(col) = WCK_PLOTTED.iter().position(|&p| p == raw) {
+                trace.push(t, col, wck_deg(reading.position));
+            }
+        }
+        #[allow(clippy::cast_precision_loss)] // at most minutes
         poses.push(PoseReport {
             name,
-            settled_ms: settled.map(|d| d.as_secs_f64() * 1e3),
+            settled_ms: (worst <= 1).then_some(played.duration_ms as f64),
             worst_error_steps: worst,
         });
+        previous = Some(positions);
+        check_stop(control)?;
     }
     control.report(&Progress::new(
         "keyframes",
         KEYFRAMES.len() as u64,
         Some(KEYFRAMES.len() as u64),
     ));
-    Ok((found, scan, poses, polls))
+    Ok((poses, polls))
 }
 
 fn sine_target(i: usize, t: f64) -> f64 {
@@ -523,42 +595,23 @@ fn sine_target(i: usize, t: f64) -> f64 {
     AMPLITUDE_DEG * (TAU * FREQUENCY_HZ * t + phase).sin() - AMPLITUDE_DEG * phase.sin()
 }
 
-fn arm(
-    control: &mut Control<'_>,
-    seconds: f64,
-    wall: Instant,
-    trace: &mut Trace,
-) -> Result<WhjReport, OpError> {
-    let (arm_server, bus) = ArmServer::start((1..=JOINTS).collect(), 7)?;
-    let result = arm_run(&bus, control, seconds, wall, trace);
-    // Safe state whatever happened: every joint disabled.
-    for id in 1..=JOINTS {
-        if let Ok(j) = JointId::new(id) {
-            let _ = bus.joint_unchecked(j).disable();
-        }
-    }
-    drop(bus);
-    let served = arm_server.stop()?;
-    let mut report = result?;
-    report.simulator_frames_in = served.received;
-    report.simulator_frames_out = served.sent;
-    Ok(report)
-}
-
+/// The arm's part; its trace starts at `offset_s` (after the humanoid's). The simulator's
+/// frame counts are the caller's.
 #[allow(clippy::too_many_lines)] // one sequence: connect, loop, figures
-fn arm_run(
-    bus: &JointBus,
+fn arm(
+    station: &Station,
     control: &mut Control<'_>,
     seconds: f64,
-    wall: Instant,
+    offset_s: f64,
     trace: &mut Trace,
 ) -> Result<WhjReport, OpError> {
+    let port = station.whj(Some(WHJ_BUS))?;
+    let bus = port.bus();
     let ids: Vec<JointId> = (1..=JOINTS)
         .map(JointId::new)
         .collect::<Result<_, _>>()
         .map_err(|e| internal("joint ID", e))?;
     let mut identities = Vec::new();
-    let mut cycle_wire = Duration::ZERO;
     for (done, &id) in ids.iter().enumerate() {
         control.report(&Progress::new(
             "WHJ connect",
@@ -566,13 +619,24 @@ fn arm_run(
             Some(u64::from(JOINTS)),
         ));
         check_stop(control)?;
-        let joint = bus.joint(id)?;
-        let identity = joint.identity()?;
-        joint.disable()?;
-        joint.set_mode(WorkMode::Position)?;
-        joint.enable()?;
-        // One servo frame at the present position: its request and feedback frames are
-        // what the loop sends each cycle, so their wire time is the cycle's cost.
+        let info = ops::whj::info(bus, id)?;
+        identities.push(JointIdentity {
+            id: id.get(),
+            model: info.identity.model.to_owned(),
+            firmware: info.identity.firmware,
+        });
+    }
+    every("WHJ disable", ops::whj::enable(bus, &ids, false))?;
+    every(
+        "WHJ mode",
+        ops::whj::set_mode(bus, &ids, WorkMode::Position),
+    )?;
+    every("WHJ enable", ops::whj::enable(bus, &ids, true))?;
+    // One servo frame at each joint's present position: its request and feedback frames
+    // are what the loop sends each cycle, so their wire time is the cycle's cost.
+    let mut cycle_wire = Duration::ZERO;
+    for &id in &ids {
+        let joint = bus.joint_unchecked(id);
         let here = joint.status()?.position;
         let request = Request::PositionServo {
             joint: id,
@@ -585,11 +649,6 @@ fn arm_run(
         };
         cycle_wire += frame_duration(&request.to_frame(), BitRates::WHJ)
             + frame_duration(&reply.to_frame(), BitRates::WHJ);
-        identities.push(JointIdentity {
-            id: id.get(),
-            model: identity.model.name().to_owned(),
-            firmware: identity.firmware.to_string(),
-        });
     }
     note(
         control,
@@ -597,18 +656,19 @@ fn arm_run(
         format!("WHJ: {JOINTS} joints connected, position mode, enabled"),
     );
 
-    let cyc = bus.cyclic(CyclicConfig {
-        smooth: Some(MotionLimits {
+    let raw: Vec<u8> = ids.iter().map(|id| id.get()).collect();
+    let mut cyc = CyclicLoop::start_with(
+        station,
+        Some(WHJ_BUS),
+        &raw,
+        ServoLoop::Position,
+        1.0 / PERIOD.as_secs_f64(),
+        MotionLimits {
             max_speed_deg_s: 120.0,
             max_accel_deg_s2: 800.0,
             ..MotionLimits::default()
-        }),
-        ..CyclicConfig::position(ids.clone(), PERIOD)
-    })?;
-    let first = cyc
-        .next_report(Duration::from_secs(1))
-        .ok_or_else(|| OpError::Device("the cyclic loop produced no cycle within 1 s".into()))?;
-    let start = first.scheduled;
+        },
+    )?;
     #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // <= 60 * 500
     let total = (seconds / PERIOD.as_secs_f64()).round() as u64;
     note(
@@ -616,94 +676,80 @@ fn arm_run(
         "500 Hz sine",
         format!("WHJ: {seconds} s sine trajectory at 500 Hz"),
     );
-    let mut err_sq = vec![0.0f64; ids.len()];
-    let mut max_err = vec![0.0f64; ids.len()];
-    let mut compared = vec![0u64; ids.len()];
-    let mut previous: Option<Vec<i32>> = None;
-    let mut interrupted = false;
+    let mut tracking = vec![Tracking::default(); ids.len()];
+    let mut previous: Option<Vec<f64>> = None;
     loop {
-        if control.stopped() {
-            interrupted = true;
-            break;
-        }
-        let Some(report) = cyc.next_report(Duration::from_millis(100)) else {
-            continue;
-        };
-        let t = report.scheduled.duration_since(start).as_secs_f64();
+        check_stop(control)?;
+        let sample = cyc.next(Duration::from_millis(100)).ok_or_else(|| {
+            OpError::Device("the cyclic loop produced no cycle within 100 ms".into())
+        })?;
+        #[allow(clippy::cast_precision_loss)] // cycles far below 2^52
+        let t = sample.cycle as f64 * PERIOD.as_secs_f64();
         if t > seconds {
             break;
         }
-        if report.cycle % 50 == 0 {
+        if sample.cycle % 50 == 0 {
             control.report(&Progress::new(
                 "500 Hz sine",
-                report.cycle.min(total),
+                sample.cycle.min(total),
                 Some(total),
             ));
         }
         // Feedback is the position when this cycle's command arrived: compare it with
         // the set-point sent the cycle before.
         if let Some(prev) = &previous {
-            for (i, (fb, cmd)) in report.feedback.iter().zip(prev).enumerate() {
+            for ((fb, want), tr) in sample.feedback.iter().zip(prev).zip(&mut tracking) {
                 if let Some(fb) = fb {
-                    let e = (fb.position.degrees() - Position(*cmd).degrees()).abs();
-                    if let (Some(sq), Some(mx), Some(n)) =
-                        (err_sq.get_mut(i), max_err.get_mut(i), compared.get_mut(i))
-                    {
-                        *sq += e * e;
-                        *mx = mx.max(e);
-                        *n += 1;
-                    }
+                    tr.add(fb.position_deg, *want);
                 }
             }
         }
-        if report.cycle % 10 == 0 {
-            let now = wall.elapsed().as_secs_f64();
-            for (i, fb) in report.feedback.iter().enumerate() {
+        if sample.cycle % 10 == 0 {
+            let at = offset_s + t;
+            for (i, fb) in sample.feedback.iter().enumerate() {
                 if let Some(fb) = fb {
-                    trace.push(now, WCK_PLOTTED.len() + i, fb.position.degrees());
+                    trace.push(at, WCK_PLOTTED.len() + i, fb.position_deg);
                 }
             }
-            for (i, cmd) in report.commanded.iter().enumerate() {
-                trace.push(
-                    now,
-                    TRACED + WCK_PLOTTED.len() + i,
-                    Position(*cmd).degrees(),
-                );
+            for (i, cmd) in sample.commanded.iter().enumerate() {
+                trace.push(at, TRACED + WCK_PLOTTED.len() + i, *cmd);
             }
         }
-        previous = Some(report.commanded.clone());
-        let targets = (0..ids.len())
-            .map(|i| Position::from_degrees(sine_target(i, t)))
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(|e| internal("sine target", e))?;
-        cyc.set_positions(&targets)?;
+        previous = Some(sample.commanded);
+        let targets: Vec<f64> = (0..ids.len()).map(|i| sine_target(i, t)).collect();
+        cyc.set(&targets)?;
     }
-    let stats = cyc.stop();
-    if interrupted {
-        return Err(OpError::Interrupted {
-            detail: Some("every simulated joint was disabled".into()),
-        });
-    }
-    let mut tracking = Vec::new();
-    for (i, &id) in ids.iter().enumerate() {
-        let n = compared.get(i).copied().unwrap_or(0);
-        #[allow(clippy::cast_precision_loss)]
-        let rms = (err_sq.get(i).copied().unwrap_or(0.0) / n.max(1) as f64).sqrt();
+    let stats = cyc
+        .finish()
+        .ok_or_else(|| OpError::Device("the cyclic loop had stopped".into()))?;
+    let mut joints = Vec::new();
+    for (&id, t) in ids.iter().zip(&tracking) {
         let code = bus.joint_unchecked(id).error_code()?;
-        tracking.push(JointTracking {
+        joints.push(JointTracking {
             joint: id.get(),
-            rms_deg: rms,
-            max_deg: max_err.get(i).copied().unwrap_or(0.0),
-            samples: n,
+            rms_deg: t.rms().unwrap_or(0.0),
+            max_deg: t.max().unwrap_or(0.0),
+            samples: t.samples(),
             error: code.to_string(),
             error_free: code.is_empty(),
         });
     }
+    Ok(whj_report(identities, seconds, joints, stats, cycle_wire))
+}
+
+/// The arm's report from what it did.
+fn whj_report(
+    identities: Vec<JointIdentity>,
+    seconds: f64,
+    tracking: Vec<JointTracking>,
+    stats: CyclicStats,
+    cycle_wire: Duration,
+) -> WhjReport {
     let (rms, max) = tracking.iter().fold((0.0f64, 0.0f64), |(r, m), t| {
         (r.max(t.rms_deg), m.max(t.max_deg))
     });
     let period = PERIOD.as_secs_f64();
-    Ok(WhjReport {
+    WhjReport {
         joints: identities.len(),
         identities,
         seconds,
@@ -727,7 +773,19 @@ fn arm_run(
         simulator_frames_out: 0,
         stats,
         cycle_wire,
-    })
+    }
+}
+
+/// Every joint of `ids` to [`SafeState::Disable`] through [`SafeState::apply`] (the one
+/// safe stop), whatever happened before; a failure is logged.
+fn disable_all(bus: &JointBus, ids: &[JointId]) {
+    let joints: Vec<_> = ids.iter().map(|&id| bus.joint_unchecked(id)).collect();
+    for f in SafeState::Disable.apply(&mut WhjJoints {
+        joints: &joints,
+        servo: ServoLoop::Position,
+    }) {
+        tracing::warn!(failure = %f, "simulated arm: safe state");
+    }
 }
 
 /// Simulated WHJ30 joints served on a thread of their own over an in-process CAN FD bus
@@ -830,9 +888,7 @@ impl Drop for SimArm {
         if let Some(cyc) = self.cyc.take() {
             let _ = cyc.stop();
         }
-        for &id in &self.ids {
-            let _ = self.bus.joint_unchecked(id).disable();
-        }
+        disable_all(&self.bus, &self.ids);
         if let Some(server) = self.server.take() {
             let _ = server.stop();
         }

@@ -138,6 +138,7 @@ impl ActuatorError {
             Self::NotFinite { .. } | Self::OutOfDeviceRange { .. } => ErrorKind::BadInput,
             Self::Wck { source, .. } => source.kind(),
             Self::Whj { source, .. } => source.kind(),
+            Self::Safe { source, .. } => source.error.kind(),
         }
     }
 }
@@ -151,6 +152,7 @@ impl RobotError {
             | Self::Io { .. }
             | Self::MissingBus { .. }
             | Self::WrongBus { .. }
+            | Self::NoSuchJoint { .. }
             | Self::TargetCount { .. } => ErrorKind::BadInput,
             Self::OpenWck { source, .. } => source.kind(),
             Self::OpenWhj { .. } => ErrorKind::NoDevice,

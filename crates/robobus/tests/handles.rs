@@ -10,7 +10,7 @@ use robobus::catalogue::handles::{WckServos, WhjJoints};
 use robobus::catalogue::{self, ErrorKind, Request, Station, WckPort, WhjPort};
 use robobus::ops::Control;
 use robobus::ops::whj::ServoLoop;
-use robobus::robot::Robot;
+use robobus::robot::{Robot, StopCause};
 
 /// wCK servos 0..=2 on `legs`, WHJ joints 1 and 2 on `arm`.
 fn station() -> (Station, WckPort, WhjPort) {
@@ -223,6 +223,31 @@ fn the_simulated_robot_reads_and_commands_in_si_units() {
     let stop = robot.safe_stop();
     assert!(stop.errors.is_empty(), "{stop:?}");
     assert!(robot.command(&targets).is_err());
+}
+
+#[test]
+fn on_the_wall_clock_a_thread_watches_the_simulated_robot() {
+    let mut robot = Robot::simulated().unwrap();
+    let here: Vec<f64> = robot
+        .read()
+        .unwrap()
+        .iter()
+        .map(|s| s.position_rad)
+        .collect();
+    robot.command(&here).unwrap();
+    let commanded = robot.now();
+    // Nothing calls into the robot meanwhile: only its watchdog thread can stop it.
+    std::thread::sleep(robot.watchdog_timeout() * 3);
+    let report = robot.safe_stop_report().unwrap();
+    let StopCause::Watchdog { since_command } = report.cause else {
+        panic!("{report:?}");
+    };
+    assert!(since_command >= robot.watchdog_timeout(), "{report:?}");
+    assert!(
+        report.started >= commanded + robot.watchdog_timeout(),
+        "{report:?}"
+    );
+    assert!(report.errors.is_empty(), "{report:?}");
 }
 
 #[test]

@@ -1,6 +1,9 @@
-//! `Robot` and the `Actuator` view against the simulators: the wCK simulator behind a
-//! pty, the WHJ simulator on the in-process CAN FD bus (the code paths a real UART and a
-//! real CAN link use).
+//! `Robot` and the `Actuator` view against the simulators on their virtual clocks: the
+//! wCK simulator as an in-process byte link, the WHJ simulator as an in-process CAN FD
+//! link (the client code paths a real UART and a real CAN link use). The robot takes
+//! every instant from its buses, so time moves only when a test waits through the robot
+//! ([`Robot::sleep`]): the runs take no wall time and are the same on any machine, and
+//! the watchdog's instants are exact.
 
 #![allow(clippy::unwrap_used, clippy::panic, clippy::float_cmp)]
 
@@ -15,21 +18,11 @@ use robobus::actuator::{
 };
 use robobus::robot::{LimitKind, Robot, RobotConfig, RobotError, StopCause};
 use robobus::wck::WckBus;
-use robobus::whj::JointBus;
 use robobus_sim::wck::Mode;
 use robobus_sim::wck::SimLink;
+use robobus_sim::whj::WhjSimHandle;
 use robobus_wck::{ServoId, TorqueLevel};
 use robobus_whj::JointId;
-
-/// Each test runs real-time loops against simulators on the wall clock: one at a time, so
-/// that they do not starve each other on a small machine.
-static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
-
-fn serial() -> std::sync::MutexGuard<'static, ()> {
-    SERIAL
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner)
-}
 
 /// A robot file with a wCK bus `legs` and a WHJ bus `arm` supplied by the test.
 fn config(watchdog_s: f64, wck_safe: &str, whj_safe: &str, joints: &str) -> RobotConfig {
@@ -59,19 +52,17 @@ struct Rig {
     // Fields drop in order: the robot first (its safe stop still reaches the simulators).
     robot: Robot,
     wck: wck_support::Sim,
-    _whj: whj_common::Sim,
+    _whj: WhjSimHandle,
 }
 
-/// wCK servos `wck_ids` on `legs`, WHJ joints 1..=`whj_n` on `arm`.
+/// wCK servos `wck_ids` on `legs`, WHJ joints 1..=`whj_n` on `arm`, each simulator on
+/// its virtual clock.
 fn rig(config: RobotConfig, wck_ids: &[u8], whj_n: u8) -> Rig {
-    let mut wck = wck_support::serve_ids_wall(wck_ids);
-    let (whj, link) = whj_common::memory(whj_common::chain(whj_n));
+    let mut wck = wck_support::serve_ids(wck_ids);
+    let (arm, whj) = whj_common::virtual_bus(whj_common::chain(whj_n));
     let robot = Robot::builder(config)
         .wck_bus("legs", wck.bus())
-        .whj_bus(
-            "arm",
-            JointBus::open_with(link, whj_common::config()).unwrap(),
-        )
+        .whj_bus("arm", arm)
         .open()
         .unwrap();
     Rig {
@@ -85,17 +76,18 @@ fn wck_mode(sim: &wck_support::Sim, id: u8) -> Mode {
     sim.with_bus(move |b| b.servo(b.slot_of(id).unwrap()).unwrap().mode())
 }
 
-/// Waits (up to 1 s) until servo `id` is in `mode` (a synchronized move has no reply,
-/// so the client returns before the module acts).
-fn await_mode(sim: &wck_support::Sim, id: u8, mode: Mode) {
-    let t = Instant::now();
+/// Waits (up to 1 s, in steps of 1 ms) until servo `id` is in `mode` (a synchronized
+/// move has no reply, so the client returns before the module acts); how long it took.
+fn await_mode(robot: &Robot, sim: &wck_support::Sim, id: u8, mode: Mode) -> Duration {
+    let t = robot.now();
     while wck_mode(sim, id) != mode {
         assert!(
-            t.elapsed() < Duration::from_secs(1),
+            robot.now() - t < Duration::from_secs(1),
             "servo {id} never {mode:?}"
         );
-        std::thread::sleep(Duration::from_millis(1));
+        robot.sleep(Duration::from_millis(1));
     }
+    robot.now() - t
 }
 
 fn wck_step(sim: &wck_support::Sim, id: u8) -> u8 {
@@ -104,7 +96,7 @@ fn wck_step(sim: &wck_support::Sim, id: u8) -> u8 {
 
 /// Commands `targets` every 10 ms until every joint is within `tol` rad or `limit` passes.
 fn drive(robot: &mut Robot, targets: &[f64], tol: f64, limit: Duration) -> Vec<ActuatorState> {
-    let start = Instant::now();
+    let start = robot.now();
     let goals: Vec<f64> = robot
         .limits()
         .iter()
@@ -122,16 +114,15 @@ fn drive(robot: &mut Robot, targets: &[f64], tol: f64, limit: Duration) -> Vec<A
             return states;
         }
         assert!(
-            start.elapsed() < limit,
+            robot.now() - start < limit,
             "not at {targets:?} after {limit:?}: {states:?}"
         );
-        std::thread::sleep(Duration::from_millis(10));
+        robot.sleep(Duration::from_millis(10));
     }
 }
 
 #[test]
 fn a_mixed_robot_moves_a_wck_servo_and_a_whj_joint_with_the_same_code() {
-    let _serial = serial();
     let joints = joint("hip", "legs", 0, [-1.0, 1.0], 2.0, 20.0)
         + &joint("shoulder", "arm", 1, [-1.0, 1.0], 2.0, 20.0);
     let mut rig = rig(config(0.5, "passive", "hold", &joints), &[0], 1);
@@ -161,7 +152,6 @@ fn a_mixed_robot_moves_a_wck_servo_and_a_whj_joint_with_the_same_code() {
 
 #[test]
 fn targets_beyond_the_soft_limits_are_clamped_and_reported() {
-    let _serial = serial();
     // Servo 2 alone on its bus: not IDs 0..n, so one move per servo instead of a
     // synchronized move.
     let joints = joint("hip", "legs", 2, [-0.3, 0.25], 5.0, 100.0)
@@ -187,7 +177,7 @@ fn targets_beyond_the_soft_limits_are_clamped_and_reported() {
         if !report.limited.iter().any(|e| e.kind == LimitKind::Motion) {
             break;
         }
-        std::thread::sleep(Duration::from_millis(10));
+        rig.robot.sleep(Duration::from_millis(10));
         report = rig.robot.command(&[4.0, -3.0]).unwrap();
     }
     let step = (269.0_f64 / 255.0).to_radians();
@@ -205,23 +195,20 @@ fn targets_beyond_the_soft_limits_are_clamped_and_reported() {
 
 #[test]
 fn speed_and_acceleration_limits_spread_a_large_step() {
-    let _serial = serial();
     // 0.4 rad (22.9°) at once would trip the WHJ joint's 10° step protection; limited
     // to 0.5 rad/s it takes at least 0.8 s.
     let (vmax, amax) = (0.5, 5.0);
     let joints = joint("shoulder", "arm", 1, [-1.0, 1.0], vmax, amax);
     let mut rig = rig(config(0.5, "passive", "hold", &joints), &[0], 1);
 
-    let start = Instant::now();
+    let start = rig.robot.now();
     let mut last: Option<(Instant, f64)> = None;
     let mut motion_reports = 0;
     let mut first = true;
     loop {
-        let before = Instant::now();
+        // The robot takes its time stamp as the call begins, on its clock: exactly this.
+        let now = rig.robot.now();
         let report = rig.robot.command(&[0.4]).unwrap();
-        // The robot takes its time stamp somewhere inside the call: the time between two
-        // of its stamps is at most from before the previous call to after this one.
-        let after = Instant::now();
         let sent = report.sent_rad[0];
         motion_reports += report
             .limited
@@ -229,7 +216,7 @@ fn speed_and_acceleration_limits_spread_a_large_step() {
             .filter(|e| e.kind == LimitKind::Motion && e.requested_rad == 0.4)
             .count();
         if let Some((t, prev)) = last {
-            let dt = after.duration_since(t).as_secs_f64();
+            let dt = now.duration_since(t).as_secs_f64();
             assert!(
                 (sent - prev).abs() <= vmax * dt + 1e-5,
                 "step {} rad in {dt} s",
@@ -241,31 +228,31 @@ fn speed_and_acceleration_limits_spread_a_large_step() {
             assert!(sent.abs() < 0.01, "first set-point {sent}");
             first = false;
         }
-        last = Some((before, sent));
+        last = Some((now, sent));
         if (sent - 0.4).abs() < 1e-6 {
             break;
         }
-        assert!(start.elapsed() < Duration::from_secs(8), "never reached");
-        std::thread::sleep(Duration::from_millis(10));
+        assert!(
+            rig.robot.now() - start < Duration::from_secs(8),
+            "never reached"
+        );
+        rig.robot.sleep(Duration::from_millis(10));
     }
-    assert!(
-        start.elapsed() >= Duration::from_millis(790),
-        "{:?}",
-        start.elapsed()
-    );
+    // 0.4 rad at 0.5 rad/s at most.
+    let took = rig.robot.now() - start;
+    assert!(took >= Duration::from_millis(800), "{took:?}");
     assert!(motion_reports > 10);
     drive(&mut rig.robot, &[0.4], 0.02, Duration::from_secs(2));
 }
 
 #[test]
 fn a_late_cycle_never_jumps_past_the_whj_step_limit() {
-    let _serial = serial();
     // 300 ms between two commands at 2 rad/s would allow 0.6 rad (34°) at once; the
     // joint refuses more than 5° a command, so the set-point waits for it instead.
     let joints = joint("shoulder", "arm", 1, [-1.0, 1.0], 2.0, 100.0);
     let mut rig = rig(config(0.5, "passive", "hold", &joints), &[0], 1);
     rig.robot.command(&[0.0]).unwrap();
-    std::thread::sleep(Duration::from_millis(300));
+    rig.robot.sleep(Duration::from_millis(300));
     let report = rig.robot.command(&[0.8]).unwrap();
     let step = report
         .limited
@@ -287,7 +274,6 @@ fn a_late_cycle_never_jumps_past_the_whj_step_limit() {
 
 #[test]
 fn the_watchdog_puts_wck_servos_passive_within_its_timeout() {
-    let _serial = serial();
     let timeout = Duration::from_millis(100);
     let joints = joint("hip", "legs", 0, [-1.0, 1.0], 2.0, 20.0)
         + &joint("knee", "legs", 1, [-1.0, 1.0], 2.0, 20.0);
@@ -295,40 +281,49 @@ fn the_watchdog_puts_wck_servos_passive_within_its_timeout() {
     assert_eq!(rig.robot.watchdog_timeout(), timeout);
 
     // Not armed before the first command.
-    std::thread::sleep(timeout * 2);
+    rig.robot.sleep(timeout * 2);
     assert!(!rig.robot.is_stopped());
 
     rig.robot.command(&[0.1, 0.1]).unwrap();
-    let stalled = Instant::now();
-    await_mode(&rig.wck, 0, Mode::Position);
+    let stalled = rig.robot.now();
+    await_mode(&rig.robot, &rig.wck, 0, Mode::Position);
     let passive = loop {
         if wck_mode(&rig.wck, 0) == Mode::Passive && wck_mode(&rig.wck, 1) == Mode::Passive {
-            break stalled.elapsed();
+            break rig.robot.now() - stalled;
         }
         assert!(
-            stalled.elapsed() < Duration::from_secs(2),
+            rig.robot.now() - stalled < Duration::from_secs(2),
             "never went passive"
         );
-        std::thread::sleep(Duration::from_millis(1));
+        rig.robot.sleep(Duration::from_millis(1));
     };
     let report = rig.robot.safe_stop_report().unwrap();
     let StopCause::Watchdog { since_command } = report.cause else {
         panic!("{report:?}");
     };
     assert!(report.errors.is_empty(), "{report:?}");
-    // Fired after the timeout, and promptly: at most one poll (5 ms) late plus
-    // scheduling; the passive commands take a few ms on the 115200 bit/s wire. The upper
-    // bounds allow for the stalls of a shared virtual machine (threads held up to about
-    // 200 ms, see `wck_support::PTY_MARGIN`); the benchmark reports the typical delay.
-    assert!(since_command > timeout, "{since_command:?}");
-    assert!(
-        since_command < timeout + Duration::from_millis(400),
-        "{since_command:?}"
+    // Fired at the timeout exactly (the virtual clock stops there); the two passive
+    // commands with their replies take their wire time on the 115200 bit/s bus.
+    assert_eq!(since_command, timeout);
+    assert_eq!(report.started, stalled + timeout);
+    let passive_command = robobus_wck::timing::transaction_time(
+        &robobus_wck::Command::Passive {
+            id: ServoId::new(0).unwrap(),
+        },
+        robobus_wck::BaudRate::B115200,
     );
-    assert!(report.applied_in < Duration::from_millis(400), "{report:?}");
-    assert!(passive >= Duration::from_millis(99), "{passive:?}");
+    // Each is its transaction, then the line stays quiet for the guard time; the bit-level
+    // simulator's reply ends a few µs after the timing model's.
+    let each = passive_command + robobus::wck::DEFAULT_GUARD;
     assert!(
-        passive < timeout + Duration::from_millis(800),
+        report.applied_in >= 2 * passive_command
+            && report.applied_in < 2 * each + Duration::from_micros(20),
+        "{report:?}, a passive command takes {passive_command:?}"
+    );
+    // Seen in the next 1 ms step after the stop.
+    assert!(passive > timeout, "{passive:?}");
+    assert!(
+        passive <= timeout + report.applied_in + Duration::from_millis(1),
         "{passive:?}"
     );
 
@@ -338,49 +333,45 @@ fn the_watchdog_puts_wck_servos_passive_within_its_timeout() {
     assert!(err.to_string().contains("watchdog"), "{err}");
     rig.robot.resume().unwrap();
     rig.robot.command(&[0.1, 0.1]).unwrap();
-    await_mode(&rig.wck, 0, Mode::Position);
+    await_mode(&rig.robot, &rig.wck, 0, Mode::Position);
 }
 
 #[test]
 fn the_watchdog_can_break_the_wck_bus() {
-    let _serial = serial();
     let joints = joint("hip", "legs", 0, [-1.0, 1.0], 2.0, 20.0);
     let mut rig = rig(config(0.05, "break", "hold", &joints), &[0], 1);
     rig.robot.command(&[0.05]).unwrap();
-    let t = Instant::now();
-    while wck_mode(&rig.wck, 0) != Mode::Break {
-        assert!(t.elapsed() < Duration::from_secs(2), "never in break mode");
-        std::thread::sleep(Duration::from_millis(1));
-    }
-    // 50 ms timeout, plus the stalls of a shared virtual machine.
+    let took = await_mode(&rig.robot, &rig.wck, 0, Mode::Break);
+    // 50 ms timeout, and the break on the wire.
     assert!(
-        t.elapsed() < Duration::from_millis(600),
-        "{:?}",
-        t.elapsed()
+        took > Duration::from_millis(50) && took < Duration::from_millis(60),
+        "{took:?}"
     );
-    assert!(matches!(
+    assert_eq!(
         rig.robot.safe_stop_report().unwrap().cause,
-        StopCause::Watchdog { .. }
-    ));
+        StopCause::Watchdog {
+            since_command: Duration::from_millis(50)
+        }
+    );
 }
 
-/// Waits for a watchdog stop and returns the time from the last command to the report.
+/// Waits (in steps of 1 ms) for a watchdog stop and returns the time from the last
+/// command to the end of the safe stop.
 fn await_stop(robot: &Robot, since: Instant) -> Duration {
     loop {
         if let Some(r) = robot.safe_stop_report() {
             return r.started.duration_since(since) + r.applied_in;
         }
         assert!(
-            since.elapsed() < Duration::from_secs(2),
+            robot.now() - since < Duration::from_secs(2),
             "watchdog never fired"
         );
-        std::thread::sleep(Duration::from_millis(1));
+        robot.sleep(Duration::from_millis(1));
     }
 }
 
 #[test]
 fn the_watchdog_disables_whj_joints_within_its_timeout() {
-    let _serial = serial();
     let timeout = Duration::from_millis(100);
     let joints = joint("shoulder", "arm", 1, [-1.0, 1.0], 2.0, 20.0)
         + &joint("elbow", "arm", 2, [-1.0, 1.0], 2.0, 20.0);
@@ -391,13 +382,15 @@ fn the_watchdog_disables_whj_joints_within_its_timeout() {
     assert!(arm.joint_unchecked(j1).is_enabled().unwrap());
 
     rig.robot.command(&[0.05, -0.05]).unwrap();
-    let stalled = Instant::now();
+    let stalled = rig.robot.now();
     let safe = await_stop(&rig.robot, stalled);
     assert!(!arm.joint_unchecked(j1).is_enabled().unwrap());
     assert!(!arm.joint_unchecked(j2).is_enabled().unwrap());
-    assert!(safe >= timeout, "{safe:?}");
-    // Promptly, allowing for the stalls of a shared virtual machine.
-    assert!(safe < timeout + Duration::from_millis(500), "{safe:?}");
+    // At the timeout exactly, and two disables (a request and its reply each) later.
+    let report = rig.robot.safe_stop_report().unwrap();
+    assert_eq!(report.started, stalled + timeout, "{report:?}");
+    assert!(safe > timeout, "{safe:?}");
+    assert!(safe < timeout + Duration::from_millis(2), "{safe:?}");
 
     // Resume re-enables them in position mode, and commands flow again.
     rig.robot.resume().unwrap();
@@ -407,7 +400,6 @@ fn the_watchdog_disables_whj_joints_within_its_timeout() {
 
 #[test]
 fn the_watchdog_hold_keeps_whj_joints_powered_where_they_are() {
-    let _serial = serial();
     let joints = joint("shoulder", "arm", 1, [-1.0, 1.0], 0.5, 5.0);
     let mut rig = rig(config(0.1, "passive", "hold", &joints), &[0], 1);
     let arm = rig.robot.whj_bus("arm").unwrap();
@@ -416,10 +408,11 @@ fn the_watchdog_hold_keeps_whj_joints_powered_where_they_are() {
     // Stall in the middle of a move towards 0.8 rad.
     for _ in 0..40 {
         rig.robot.command(&[0.8]).unwrap();
-        std::thread::sleep(Duration::from_millis(10));
+        rig.robot.sleep(Duration::from_millis(10));
     }
-    await_stop(&rig.robot, Instant::now());
-    std::thread::sleep(Duration::from_millis(300));
+    let stalled = rig.robot.now();
+    await_stop(&rig.robot, stalled);
+    rig.robot.sleep(Duration::from_millis(300));
     assert!(j1.is_enabled().unwrap());
     let target = f64::from(j1.read_register("TAG_POSITION").unwrap().raw) / 1e4;
     let actual = j1.position().unwrap().degrees();
@@ -435,7 +428,6 @@ fn the_watchdog_hold_keeps_whj_joints_powered_where_they_are() {
 
 #[test]
 fn dropping_the_robot_puts_every_bus_in_its_safe_state() {
-    let _serial = serial();
     let joints = joint("hip", "legs", 0, [-1.0, 1.0], 2.0, 20.0)
         + &joint("shoulder", "arm", 1, [-1.0, 1.0], 2.0, 20.0);
     let rig = rig(config(5.0, "passive", "disable", &joints), &[0], 1);
@@ -445,7 +437,7 @@ fn dropping_the_robot_puts_every_bus_in_its_safe_state() {
         _whj,
     } = rig;
     robot.command(&[0.1, 0.05]).unwrap();
-    await_mode(&wck, 0, Mode::Position);
+    await_mode(&robot, &wck, 0, Mode::Position);
     let arm = robot.whj_bus("arm").unwrap();
     let j1 = JointId::new(1).unwrap();
     assert!(arm.joint_unchecked(j1).is_enabled().unwrap());
@@ -457,7 +449,6 @@ fn dropping_the_robot_puts_every_bus_in_its_safe_state() {
 
 #[test]
 fn a_stop_handle_stops_the_robot_from_another_thread() {
-    let _serial = serial();
     let joints = joint("hip", "legs", 0, [-1.0, 1.0], 2.0, 20.0);
     let mut rig = rig(config(5.0, "passive", "hold", &joints), &[0], 1);
     rig.robot.command(&[0.1]).unwrap();
@@ -476,7 +467,6 @@ fn a_stop_handle_stops_the_robot_from_another_thread() {
 
 #[test]
 fn bad_targets_are_refused_before_anything_is_sent() {
-    let _serial = serial();
     let joints = joint("hip", "legs", 0, [-1.0, 1.0], 2.0, 20.0)
         + &joint("shoulder", "arm", 1, [-1.0, 1.0], 2.0, 20.0);
     let mut rig = rig(config(5.0, "passive", "hold", &joints), &[0], 1);
@@ -493,10 +483,29 @@ fn bad_targets_are_refused_before_anything_is_sent() {
 }
 
 #[test]
+fn a_joint_is_read_by_its_index_and_an_index_past_the_joints_is_an_error() {
+    let joints = joint("hip", "legs", 0, [-1.0, 1.0], 2.0, 20.0)
+        + &joint("shoulder", "arm", 1, [-1.0, 1.0], 2.0, 20.0);
+    let mut rig = rig(config(5.0, "passive", "hold", &joints), &[0], 1);
+    let all = rig.robot.read().unwrap();
+    assert_eq!(rig.robot.read_joint(0).unwrap(), all[0]);
+    assert!(rig.robot.read_joint(1).unwrap().velocity_rad_s.is_some());
+    let err = rig.robot.read_joint(2).unwrap_err();
+    assert!(
+        matches!(err, RobotError::NoSuchJoint { index: 2, .. }),
+        "{err:?}"
+    );
+    assert_eq!(err.kind(), robobus::ErrorKind::BadInput);
+    assert_eq!(
+        err.to_string(),
+        "no joint #2: the robot's joints are hip, shoulder (#0 on)"
+    );
+}
+
+#[test]
 fn a_supplied_bus_must_match_the_file() {
-    let _serial = serial();
     let joints = joint("hip", "legs", 0, [-1.0, 1.0], 2.0, 20.0);
-    let mut wck = wck_support::serve_ids_wall(&[0]);
+    let mut wck = wck_support::serve_ids(&[0]);
     let err = Robot::builder(config(1.0, "passive", "hold", &joints))
         .wck_bus("arm", wck.bus())
         .open()
@@ -507,24 +516,27 @@ fn a_supplied_bus_must_match_the_file() {
 
 // ----- the Actuator view ---------------------------------------------------------------
 
-/// The same code for both families: step towards `target` until there.
-fn settle(joint: &mut dyn Actuator, target: f64, tol: f64) -> Result<ActuatorState, ActuatorError> {
-    let start = Instant::now();
-    loop {
+/// The same code for both families: step towards `target` every 10 ms (`pause` lets
+/// 10 ms pass on the joint's clock) until there, for at most 3 s.
+fn settle(
+    joint: &mut dyn Actuator,
+    target: f64,
+    tol: f64,
+    pause: &dyn Fn(),
+) -> Result<ActuatorState, ActuatorError> {
+    for _ in 0..300 {
         let sent = joint.command_position(target)?;
         assert!(!sent.clamped);
         let state = joint.state()?;
         if (state.position_rad - target).abs() <= tol {
             return Ok(state);
         }
-        assert!(
-            start.elapsed() < Duration::from_secs(3),
-            "{}: {state:?}",
-            joint.name()
-        );
-        std::thread::sleep(Duration::from_millis(10));
+        pause();
     }
+    panic!("{}: not at {target} rad after 3 s", joint.name());
 }
+
+const PAUSE: Duration = Duration::from_millis(10);
 
 const LIMITS: JointLimits = JointLimits {
     min_rad: -0.5,
@@ -535,8 +547,7 @@ const LIMITS: JointLimits = JointLimits {
 
 #[test]
 fn actuators_of_both_families_move_with_the_same_code() {
-    let _serial = serial();
-    let mut wck_sim = wck_support::serve_ids_wall(&[3]);
+    let mut wck_sim = wck_support::serve_ids(&[3]);
     let mut wck: WckBus<SimLink> = wck_sim.bus();
     let scale = WckScale {
         centre: 100,
@@ -555,7 +566,7 @@ fn actuators_of_both_families_move_with_the_same_code() {
     // Step 127 with centre 100, reversed: -27 steps.
     let start = servo.state().unwrap();
     assert!((start.position_rad + 27.0 * (269.0_f64 / 255.0).to_radians()).abs() < 1e-9);
-    settle(&mut servo, 0.1, 0.02).unwrap();
+    settle(&mut servo, 0.1, 0.02, &|| wck_sim.sleep(PAUSE)).unwrap();
     assert_eq!(wck_step(&wck_sim, 3), 100 - 5);
     let err = servo
         .command_position(f64::INFINITY)
@@ -569,8 +580,7 @@ fn actuators_of_both_families_move_with_the_same_code() {
     servo.hold().unwrap();
     assert_eq!(wck_mode(&wck_sim, 3), Mode::Position);
 
-    let (_whj_sim, link) = whj_common::memory(whj_common::chain(1));
-    let bus = JointBus::open_with(link, whj_common::config()).unwrap();
+    let (bus, _whj_sim) = whj_common::virtual_bus(whj_common::chain(1));
     let mut joint = WhjActuator::new(
         "elbow",
         bus.joint(JointId::new(1).unwrap()).unwrap(),
@@ -584,7 +594,10 @@ fn actuators_of_both_families_move_with_the_same_code() {
     // Device at 0 rad, offset 0.05 rad: the joint reads -0.05 rad.
     assert!((joint.state().unwrap().position_rad + 0.05).abs() < 0.005);
     // (One frame per command: keep within the joint's 5° step limit.)
-    let state = settle(&mut joint, 0.03, 0.005).unwrap();
+    let state = settle(&mut joint, 0.03, 0.005, &|| {
+        bus.sleep_until(bus.now() + PAUSE);
+    })
+    .unwrap();
     assert!(state.current_a.is_some());
     // 0.08 rad on the device, in 0.0001° counts.
     let raw = bus

@@ -23,7 +23,9 @@ use super::bounds;
 use super::station::Station;
 use crate::ops::OpError;
 use crate::ops::whj::{ServoLoop, require_ready};
-use crate::whj::{CycleReport, CyclicConfig, CyclicStats, Joint, OwnedCyclic, Protocol, ServoMode};
+use crate::whj::{
+    CycleReport, CyclicConfig, CyclicStats, Joint, MotionLimits, OwnedCyclic, Protocol, ServoMode,
+};
 
 /// One joint's feedback in a cycle.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -186,13 +188,34 @@ const fn unit(servo: ServoLoop) -> &'static str {
 impl CyclicLoop {
     /// Starts a loop of `servo` targets for `joints` on the station's WHJ bus `bus` at
     /// `rate_hz` (the host's frame-rate bound). Position targets start at each joint's
-    /// present position, speed and current targets at 0.
+    /// present position, speed and current targets at 0; position targets are followed
+    /// with the default [`MotionLimits`].
     pub fn start(
         station: &Station,
         bus: Option<&str>,
         joints: &[u8],
         servo: ServoLoop,
         rate_hz: f64,
+    ) -> Result<Self, OpError> {
+        Self::start_with(
+            station,
+            bus,
+            joints,
+            servo,
+            rate_hz,
+            MotionLimits::default(),
+        )
+    }
+
+    /// [`start`](Self::start), position targets followed within `smooth` (its speed and
+    /// acceleration limits; the loop's period is `rate_hz`'s).
+    pub fn start_with(
+        station: &Station,
+        bus: Option<&str>,
+        joints: &[u8],
+        servo: ServoLoop,
+        rate_hz: f64,
+        smooth: MotionLimits,
     ) -> Result<Self, OpError> {
         let rate_hz = bounds::FRAME_RATE_HZ.check("rate_hz", rate_hz)?;
         let ids = crate::ops::distinct_ids::<JointId>("joints", "joints", joints)?;
@@ -215,7 +238,7 @@ impl CyclicLoop {
                 ServoLoop::Current => ServoMode::Current,
             },
             protocol: Protocol::PointToPoint,
-            smooth: (servo == ServoLoop::Position).then(crate::whj::MotionLimits::default),
+            smooth: (servo == ServoLoop::Position).then_some(smooth),
         };
         let cyclic = port.shared_bus().cyclic_owned(config)?;
         Ok(Self {
@@ -335,7 +358,13 @@ impl CyclicLoop {
 
     /// Stops the loop; what it did (`None` if it was stopped before).
     pub fn stop(&mut self) -> Option<CyclicSummary> {
-        self.cyclic.take().map(|c| c.stop().into())
+        self.finish().map(Into::into)
+    }
+
+    /// Stops the loop; the bus's own statistics of it (every latency percentile), `None`
+    /// if it was stopped before.
+    pub fn finish(&mut self) -> Option<CyclicStats> {
+        self.cyclic.take().map(OwnedCyclic::stop)
     }
 }
 

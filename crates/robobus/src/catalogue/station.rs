@@ -373,6 +373,19 @@ impl Station {
     /// WHJ30 joints (IDs 1..=7) as `sim-whj`. No hardware, no wall-clock waits.
     #[cfg(feature = "sim")]
     pub fn simulated() -> Result<Self, OpError> {
+        Self::simulated_with_handles().map(|(s, _, _)| s)
+    }
+
+    /// [`Station::simulated`], and handles on its two simulators (their own counters).
+    #[cfg(feature = "sim")]
+    pub(crate) fn simulated_with_handles() -> Result<
+        (
+            Self,
+            robobus_sim::wck::SimHandle,
+            robobus_sim::whj::WhjSimHandle,
+        ),
+        OpError,
+    > {
         use robobus_link::ByteLink as _;
         use robobus_sim::wck::{Bus, BusConfig, Model, SimLink};
         use robobus_sim::whj::{WhjBus, WhjModel, WhjSimLink};
@@ -396,12 +409,12 @@ impl Station {
             "sim-whj",
             JointBus::open_with(whj_link, JointBusConfig::default())?,
         );
-        s.keep.push(Box::new(Mutex::new(wck_sim)));
-        s.keep.push(Box::new(Mutex::new(whj_sim)));
+        s.keep.push(Box::new(Mutex::new(wck_sim.clone())));
+        s.keep.push(Box::new(Mutex::new(whj_sim.clone())));
         let robot = RobotConfig::from_toml_str(&simulated_robot())
             .map_err(|e| OpError::Device(format!("the built-in robot file: {e}")))?;
         s.set_robot(robot)?;
-        Ok(s)
+        Ok((s, wck_sim, whj_sim))
     }
 
     /// Adds a wCK bus named `name`.

@@ -1,8 +1,10 @@
 //! The one safe stop of both families: [`SafeState::apply`].
 //!
 //! The operations call it when their stop token is set or a device stops answering, the
-//! robot watchdog calls it when the control loop stalls (and on Ctrl-C and drop), and the
-//! CLI reaches it through the operations (its `--on-stop` option is the [`SafeState`]).
+//! robot watchdog calls it when the control loop stalls (and on Ctrl-C and drop), an
+//! [`Actuator`](crate::actuator::Actuator)'s `relax` / `hold` / `apply_safe` call it on
+//! their one joint, the demo on its arm, and the CLI reaches it through the operations
+//! (its `--on-stop` option is the [`SafeState`]).
 //!
 //! What each state means per family:
 //!

@@ -2,10 +2,10 @@
 //! resolved and connected.
 
 use super::{
-    ActuatorError, Arc, AtomicBool, BTreeMap, BaudRate, BusConfig, Device, DynByteLink, Hardware,
-    Instant, JointBus, JointBusConfig, JointConfig, JointId, JointLimits, JointSlot, Mutex,
-    RateLimiter, Robot, RobotByteLink, RobotConfig, RobotError, ServoId, Shared, TorqueLevel,
-    WckBus, WckSlot, WhjSlot,
+    ActuatorError, Arc, AtomicBool, BTreeMap, BaudRate, BusConfig, Device, Duration, DynByteLink,
+    Hardware, Instant, JointBus, JointBusConfig, JointConfig, JointId, JointLimits, JointSlot,
+    Mutex, RateLimiter, Robot, RobotByteLink, RobotConfig, RobotError, ServoId, Shared,
+    TorqueLevel, WckBus, WckSlot, WhjSlot,
 };
 
 // ----- builder -------------------------------------------------------------------------
@@ -60,7 +60,7 @@ impl RobotBuilder {
 
     /// Opens the remaining buses, connects every joint (WHJ: IAP release, identify,
     /// position mode, enable; wCK: a status read), reads every angle and starts the
-    /// watchdog.
+    /// watchdog (a thread when a bus runs on the wall clock).
     pub fn open(mut self) -> Result<Robot, RobotError> {
         if let Some(e) = self.error.take() {
             return Err(e);
@@ -101,6 +101,7 @@ impl RobotBuilder {
                     Some(b) => b,
                     None => open_wck_bus(name, bus)?,
                 };
+                let origin = wck.now();
                 let torque = TorqueLevel::new(bus.torque().unwrap_or(2)).map_err(|_| {
                     RobotError::Invalid {
                         item: format!("bus {name}"),
@@ -115,6 +116,7 @@ impl RobotBuilder {
                     bus: wck,
                     torque,
                     safe,
+                    origin,
                 });
             } else {
                 let whj = match self.whj.remove(name) {
@@ -124,12 +126,19 @@ impl RobotBuilder {
                 index.insert(name, whj_slots.len());
                 whj_slots.push(WhjSlot {
                     name: name.clone(),
+                    origin: whj.now(),
                     bus: Arc::new(whj),
                     safe,
                 });
             }
         }
 
+        // The robot's time zero: the first bus's clock now (each bus's own instant of it
+        // is its `origin`, taken before any bus was driven).
+        let origin = wck_slots.first().map_or_else(
+            || whj_slots.first().map_or_else(Instant::now, |s| s.origin),
+            |s| s.origin,
+        );
         let mut joints = Vec::new();
         for j in &config.joints {
             joints.push(build_joint(j, &config, &index, &whj_slots)?);
@@ -139,30 +148,45 @@ impl RobotBuilder {
             wck: wck_slots,
             whj: whj_slots,
             joints,
-            last_cycle: Instant::now(),
+            last_cycle: origin,
+            origin,
         };
         hw.enable_whj()?;
         hw.reset_limiters()?;
-        let names = hw.joints.iter().map(|j| j.name.clone()).collect();
-        let shared = Arc::new(Shared {
-            hw: Mutex::new(hw),
-            last_command: Mutex::new(None),
-            stopped: Mutex::new(None),
-            quit: AtomicBool::new(false),
-            timeout: config.watchdog(),
-        });
-        let dog = Arc::clone(&shared);
-        let watchdog = std::thread::Builder::new()
-            .name("robot-watchdog".into())
-            .spawn(move || dog.watchdog())
-            .map_err(|e| RobotError::Watchdog(e.to_string()))?;
-        Ok(Robot {
-            shared,
-            watchdog: Some(watchdog),
-            names,
-            keep: Vec::new(),
-        })
+        start(hw, config.watchdog())
     }
+}
+
+/// The robot on its connected hardware, with its watchdog: a thread when a bus runs on
+/// the wall clock; on a virtual clock time moves only inside calls into the robot, which
+/// serve the watchdog themselves.
+fn start(hw: Hardware, timeout: Duration) -> Result<Robot, RobotError> {
+    let names = hw.joints.iter().map(|j| j.name.clone()).collect();
+    let wall_time = hw.wall_time();
+    let shared = Arc::new(Shared {
+        hw: Mutex::new(hw),
+        last_command: Mutex::new(None),
+        stopped: Mutex::new(None),
+        quit: AtomicBool::new(false),
+        timeout,
+    });
+    let watchdog = if wall_time {
+        let dog = Arc::clone(&shared);
+        Some(
+            std::thread::Builder::new()
+                .name("robot-watchdog".into())
+                .spawn(move || dog.watchdog())
+                .map_err(|e| RobotError::Watchdog(e.to_string()))?,
+        )
+    } else {
+        None
+    };
+    Ok(Robot {
+        shared,
+        watchdog,
+        names,
+        keep: Vec::new(),
+    })
 }
 
 /// Resolves one joint of the file: its device, map and limits (WHJ: connects it).

@@ -1,13 +1,14 @@
 //! A robot's hardware behind its lock: the buses, each joint's device and limits, the
-//! watchdog's shared state, and reading and sending in joint units.
+//! robot's clock (its buses' clocks), the watchdog's shared state, and reading and
+//! sending in joint units.
 
 use super::{
-    ActuatorError, ActuatorState, Arc, AtomicBool, CurrentScale, Duration, DynByteLink, Instant,
-    Joint, JointBus, JointId, JointLimits, JointMap, Mutex, MutexGuard, Ordering, PoisonError,
-    Position, RateLimiter, RobotError, SafeDevice, SafeState, SafeStopReport, ServoId, ServoLoop,
-    StopCause, TorqueLevel, WckBus, WckScale, WckServos, WhjError, WhjJoints, WorkMode,
-    rpm_to_rad_s, whj_position, whj_to_rad,
+    ActuatorError, Arc, AtomicBool, CurrentScale, Duration, DynByteLink, Instant, Joint, JointBus,
+    JointId, JointLimits, JointMap, Mutex, MutexGuard, Ordering, PoisonError, Position,
+    RateLimiter, RobotError, SafeDevice, SafeState, SafeStopReport, ServoId, ServoLoop, StopCause,
+    TorqueLevel, WckBus, WckScale, WckServos, WhjJoints, whj_to_rad,
 };
+use crate::actuator::{Actuator, WckActuator, WhjActuator};
 
 // ----- internals -----------------------------------------------------------------------
 
@@ -21,6 +22,8 @@ pub(super) struct WckSlot {
     pub(super) bus: WckBus<DynByteLink>,
     pub(super) torque: TorqueLevel,
     pub(super) safe: SafeState,
+    /// The bus clock's instant at the robot's time zero.
+    pub(super) origin: Instant,
 }
 
 #[derive(Debug)]
@@ -28,6 +31,8 @@ pub(super) struct WhjSlot {
     pub(super) name: String,
     pub(super) bus: Arc<JointBus>,
     pub(super) safe: SafeState,
+    /// The bus clock's instant at the robot's time zero.
+    pub(super) origin: Instant,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -58,14 +63,74 @@ pub(super) struct Hardware {
     pub(super) wck: Vec<WckSlot>,
     pub(super) whj: Vec<WhjSlot>,
     pub(super) joints: Vec<JointSlot>,
-    /// When the previous command cycle ran (or the robot opened / resumed).
+    /// When the previous command cycle ran (or the robot opened / resumed), robot clock.
     pub(super) last_cycle: Instant,
+    /// The robot clock's time zero: the `origin` of its first bus (wCK buses first).
+    pub(super) origin: Instant,
+}
+
+// ----- the robot's clock ---------------------------------------------------------------
+
+impl Hardware {
+    /// Whether any bus runs on the wall clock (time passes by itself; the watchdog needs a
+    /// thread), or the robot has no bus.
+    pub(super) fn wall_time(&self) -> bool {
+        (self.wck.is_empty() && self.whj.is_empty())
+            || self.wck.iter().any(|s| !s.bus.link().virtual_time())
+            || self.whj.iter().any(|s| !s.bus.virtual_time())
+    }
+
+    /// The robot's clock now: its buses' clock. On the wall clock that is the wall clock
+    /// (read from the first bus); a bus on a virtual clock (a simulator's) moves only when
+    /// it is driven, each on its own, so the robot keeps them together: its time is the
+    /// furthest any bus has gone since the robot's zero, and every virtual bus behind it is
+    /// brought up to it first.
+    pub(super) fn now(&mut self) -> Instant {
+        if self.wall_time() {
+            return self.wck.first().map_or_else(
+                || self.whj.first().map_or_else(Instant::now, |s| s.bus.now()),
+                |s| s.bus.now(),
+            );
+        }
+        let elapsed = self
+            .wck
+            .iter()
+            .map(|s| s.bus.now().saturating_duration_since(s.origin))
+            .chain(
+                self.whj
+                    .iter()
+                    .map(|s| s.bus.now().saturating_duration_since(s.origin)),
+            )
+            .max()
+            .unwrap_or_default();
+        self.advance_to(self.origin + elapsed);
+        self.origin + elapsed
+    }
+
+    /// Brings every bus on a virtual clock to `at` (robot clock); a bus already there, or
+    /// on the wall clock, is left alone.
+    pub(super) fn advance_to(&mut self, at: Instant) {
+        let since_zero = at.saturating_duration_since(self.origin);
+        for s in &mut self.wck {
+            let there = s.origin + since_zero;
+            if s.bus.link().virtual_time() && s.bus.now() < there {
+                s.bus.sleep_until(there);
+            }
+        }
+        for s in &self.whj {
+            let there = s.origin + since_zero;
+            if s.bus.virtual_time() && s.bus.now() < there {
+                s.bus.sleep_until(there);
+            }
+        }
+    }
 }
 
 #[derive(Debug)]
 pub(super) struct Shared {
     pub(super) hw: Mutex<Hardware>,
-    /// The last successful command; `None` until the first (watchdog disarmed).
+    /// The last successful command (robot clock); `None` until the first (watchdog
+    /// disarmed).
     pub(super) last_command: Mutex<Option<Instant>>,
     pub(super) stopped: Mutex<Option<SafeStopReport>>,
     pub(super) quit: AtomicBool,
@@ -75,17 +140,22 @@ pub(super) struct Shared {
 impl Shared {
     /// Puts every bus in its safe state (once; a second call returns the first report).
     pub(super) fn safe_stop(&self, cause: StopCause) -> SafeStopReport {
-        let started = Instant::now();
         let mut hw = lock(&self.hw);
+        self.safe_stop_locked(&mut hw, cause)
+    }
+
+    /// [`safe_stop`](Self::safe_stop) with the hardware already locked.
+    fn safe_stop_locked(&self, hw: &mut Hardware, cause: StopCause) -> SafeStopReport {
         let mut stopped = lock(&self.stopped);
         if let Some(report) = stopped.as_ref() {
             return report.clone();
         }
+        let started = hw.now();
         let errors = hw.apply_safe_states();
         let report = SafeStopReport {
             cause,
             started,
-            applied_in: started.elapsed(),
+            applied_in: hw.now().saturating_duration_since(started),
             errors,
         };
         if !report.errors.is_empty() {
@@ -96,20 +166,50 @@ impl Shared {
         report
     }
 
+    /// The robot clock now, with the watchdog served: when it is armed and the last
+    /// command is a timeout or more ago, the safe stop ([`StopCause::Watchdog`]) runs
+    /// first. Every call into the robot comes through here, and so does the watchdog
+    /// thread of a robot on the wall clock.
+    pub(super) fn tick(&self, hw: &mut Hardware) -> Instant {
+        let now = hw.now();
+        let last = *lock(&self.last_command);
+        if let Some(last) = last {
+            let since = now.saturating_duration_since(last);
+            if since >= self.timeout && lock(&self.stopped).is_none() {
+                tracing::warn!(?since, "watchdog: control loop stalled, safe stop");
+                self.safe_stop_locked(
+                    hw,
+                    StopCause::Watchdog {
+                        since_command: since,
+                    },
+                );
+                return hw.now();
+            }
+        }
+        now
+    }
+
+    /// When the watchdog fires unless a command comes first (robot clock); `None` while
+    /// it is disarmed.
+    pub(super) fn watchdog_due(&self) -> Option<Instant> {
+        lock(&self.last_command).map(|last| last + self.timeout)
+    }
+
+    /// The watchdog thread of a robot on the wall clock: every few milliseconds, unless a
+    /// call into the robot holds it (and serves the watchdog itself), a [`tick`](Self::tick).
     pub(super) fn watchdog(&self) {
         let poll = (self.timeout / 10).clamp(Duration::from_micros(500), Duration::from_millis(5));
         while !self.quit.load(Ordering::Acquire) {
             std::thread::sleep(poll);
-            let last = *lock(&self.last_command);
-            if let Some(last) = last {
-                let since = last.elapsed();
-                if since > self.timeout && lock(&self.stopped).is_none() {
-                    tracing::warn!(?since, "watchdog: control loop stalled, safe stop");
-                    self.safe_stop(StopCause::Watchdog {
-                        since_command: since,
-                    });
-                }
+            if lock(&self.last_command).is_none() {
+                continue;
             }
+            let mut hw = match self.hw.try_lock() {
+                Ok(hw) => hw,
+                Err(std::sync::TryLockError::Poisoned(p)) => p.into_inner(),
+                Err(std::sync::TryLockError::WouldBlock) => continue,
+            };
+            self.tick(&mut hw);
         }
     }
 }
@@ -171,96 +271,101 @@ impl Hardware {
         errors
     }
 
-    pub(super) fn read_joint(&mut self, index: usize) -> Result<ActuatorState, ActuatorError> {
+    /// Joint `index` as an [`Actuator`]: the one way the robot reads and commands a joint
+    /// (a wCK servo at its bus's torque, a WHJ joint as connected).
+    pub(super) fn actuator(&mut self, index: usize) -> Result<Box<dyn Actuator + '_>, RobotError> {
         let Some(joint) = self.joints.get(index) else {
-            return Err(ActuatorError::NotFinite {
-                joint: format!("#{index}"),
-                value: f64::NAN,
+            return Err(RobotError::NoSuchJoint {
+                index,
+                names: self
+                    .joints
+                    .iter()
+                    .map(|j| j.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", "),
             });
         };
-        let name = &joint.name;
-        match joint.device {
+        let name = joint.name.clone();
+        Ok(match joint.device {
             Device::Wck { bus, id, scale } => {
                 let slot = &mut self.wck[bus];
-                let status = slot
-                    .bus
-                    .servo(id)
-                    .status()
-                    .map_err(|source| ActuatorError::Wck {
-                        joint: name.clone(),
-                        source: Box::new(source),
-                    })?;
-                Ok(ActuatorState {
-                    position_rad: scale.to_rad(status.position),
-                    velocity_rad_s: None,
-                    current_a: None,
-                })
+                Box::new(WckActuator::new(
+                    name,
+                    slot.bus.servo(id),
+                    scale,
+                    joint.limits,
+                    slot.torque,
+                ))
             }
             Device::Whj {
                 bus,
                 id,
                 map,
                 current,
-            } => {
-                let handle = self.whj[bus].bus.joint_unchecked(id);
-                let whj = |source| ActuatorError::Whj {
-                    joint: name.clone(),
-                    source: Box::new(source),
-                };
-                let status = handle.status().map_err(whj)?;
-                let speed = handle.speed().map_err(whj)?;
-                Ok(ActuatorState {
-                    position_rad: whj_to_rad(map, status.position),
-                    velocity_rad_s: Some(map.speed_to_joint(rpm_to_rad_s(speed.rpm()))),
-                    current_a: status.current.map(|c| c.milliamps(current) as f64 / 1000.0),
-                })
-            }
-        }
+            } => Box::new(self.whj_actuator(name, bus, id, map, joint.limits, current)),
+        })
     }
 
-    /// Prepares every WHJ joint for position commands (mode, enable).
+    fn whj_actuator(
+        &self,
+        name: String,
+        bus: usize,
+        id: JointId,
+        map: JointMap,
+        limits: JointLimits,
+        current: CurrentScale,
+    ) -> WhjActuator<'_> {
+        WhjActuator::prepared(
+            name,
+            self.whj[bus].bus.joint_unchecked(id),
+            map,
+            limits,
+            current,
+        )
+    }
+
+    /// Prepares every WHJ joint for position commands (a drive that is off: position
+    /// mode, enable).
     pub(super) fn enable_whj(&self) -> Result<(), ActuatorError> {
         for joint in &self.joints {
-            if let Device::Whj { bus, id, .. } = joint.device {
-                let handle = self.whj[bus].bus.joint_unchecked(id);
-                let prepare = || -> Result<(), WhjError> {
-                    if !handle.is_enabled()? {
-                        handle.set_mode(WorkMode::Position)?;
-                        handle.enable()?;
-                    }
-                    Ok(())
-                };
-                prepare().map_err(|source| ActuatorError::Whj {
-                    joint: joint.name.clone(),
-                    source: Box::new(source),
-                })?;
+            if let Device::Whj {
+                bus,
+                id,
+                map,
+                current,
+            } = joint.device
+            {
+                self.whj_actuator(joint.name.clone(), bus, id, map, joint.limits, current)
+                    .ensure_enabled()?;
             }
         }
         Ok(())
     }
 
     /// Restarts every joint's rate limiter at its measured angle.
-    pub(super) fn reset_limiters(&mut self) -> Result<(), ActuatorError> {
+    pub(super) fn reset_limiters(&mut self) -> Result<(), RobotError> {
         for i in 0..self.joints.len() {
-            let state = self.read_joint(i)?;
+            let at = self.actuator(i)?.position()?;
             if let Some(joint) = self.joints.get_mut(i) {
-                joint.limiter = RateLimiter::new(state.position_rad);
+                joint.limiter = RateLimiter::new(at);
             }
         }
-        self.last_cycle = Instant::now();
+        self.last_cycle = self.now();
         Ok(())
     }
-}
 
-impl Hardware {
     /// For each WHJ joint, the set-points it accepts now (joint frame, rad): within 80 %
     /// of the bus's step limit of its measured angle (telemetry under 100 ms old, else a
-    /// status query); `None` for wCK joints.
-    pub(super) fn step_reach(&self) -> Result<Vec<Option<(f64, f64)>>, RobotError> {
+    /// read); `None` for wCK joints.
+    pub(super) fn step_reach(&mut self) -> Result<Vec<Option<(f64, f64)>>, RobotError> {
         let telemetry: Vec<_> = self.whj.iter().map(|s| s.bus.telemetry()).collect();
         let mut reach = Vec::with_capacity(self.joints.len());
-        for joint in &self.joints {
-            let Device::Whj { bus, id, map, .. } = joint.device else {
+        for i in 0..self.joints.len() {
+            let Some(&JointSlot {
+                device: Device::Whj { bus, id, map, .. },
+                ..
+            }) = self.joints.get(i)
+            else {
                 reach.push(None);
                 continue;
             };
@@ -269,34 +374,32 @@ impl Hardware {
                 continue;
             };
             let t = t.joint(id);
-            let actual = match (t.position, t.updated) {
+            let fresh = match (t.position, t.updated) {
                 (Some(p), Some(at))
                     if slot.bus.now().saturating_duration_since(at)
                         < Duration::from_millis(100) =>
                 {
-                    p
+                    Some(whj_to_rad(map, p))
                 }
-                _ => {
-                    let status = slot.bus.joint_unchecked(id).status().map_err(|source| {
-                        ActuatorError::Whj {
-                            joint: joint.name.clone(),
-                            source: Box::new(source),
-                        }
-                    })?;
-                    status.position
-                }
+                _ => None,
             };
-            let at = whj_to_rad(map, actual);
             let step = 0.8 * slot.bus.config().step_limit_deg.to_radians();
+            let at = match fresh {
+                Some(at) => at,
+                None => self.actuator(i)?.position()?,
+            };
             reach.push(Some((at - step, at + step)));
         }
         Ok(reach)
     }
 
-    /// Sends `setpoints` (rad, joint order); returns what was sent at device resolution.
+    /// Sends `setpoints` (rad, joint order, within the soft limits); returns what was
+    /// sent at device resolution. wCK: per bus one synchronized move when its IDs are
+    /// exactly `0..n` (at the steps its servos' [`Actuator`]s would send), else each
+    /// servo's own move; WHJ: each joint's position command.
     pub(super) fn send(&mut self, setpoints: &[f64]) -> Result<Vec<f64>, RobotError> {
         let mut sent = vec![0.0; setpoints.len()];
-        // wCK: per bus, one synchronized move if its IDs are exactly 0..n.
+        let mut singles = Vec::new();
         for (b, slot) in self.wck.iter_mut().enumerate() {
             let mut members: Vec<(usize, ServoId, Position)> = Vec::new();
             for (i, joint) in self.joints.iter().enumerate() {
@@ -304,11 +407,9 @@ impl Hardware {
                     && bus == b
                 {
                     let rad = setpoints.get(i).copied().unwrap_or(0.0);
-                    let position = quantize_within(scale, rad, &joint.limits)
+                    let position = scale
+                        .position_within(rad, &joint.limits)
                         .ok_or_else(|| scale.range_error(&joint.name, rad))?;
-                    if let Some(s) = sent.get_mut(i) {
-                        *s = scale.to_rad(position);
-                    }
                     members.push((i, id, position));
                 }
             }
@@ -317,69 +418,44 @@ impl Hardware {
                 .iter()
                 .enumerate()
                 .all(|(k, m)| usize::from(m.1.get()) == k);
-            if contiguous && !members.is_empty() {
-                let positions: Vec<Position> = members.iter().map(|m| m.2).collect();
-                slot.bus
-                    .sync_move(slot.torque, &positions)
-                    .map_err(|source| ActuatorError::Wck {
-                        joint: format!("bus {} (synchronized move)", slot.name),
-                        source: Box::new(source),
-                    })?;
-            } else {
-                for &(i, id, position) in &members {
-                    slot.bus
-                        .servo(id)
-                        .move_to(slot.torque, position)
-                        .map_err(|source| ActuatorError::Wck {
-                            joint: self.joints[i].name.clone(),
-                            source: Box::new(source),
-                        })?;
+            if !contiguous || members.is_empty() {
+                singles.extend(members.iter().map(|m| m.0));
+                continue;
+            }
+            let positions: Vec<Position> = members.iter().map(|m| m.2).collect();
+            slot.bus
+                .sync_move(slot.torque, &positions)
+                .map_err(|source| ActuatorError::Wck {
+                    joint: format!("bus {} (synchronized move)", slot.name),
+                    source: Box::new(source),
+                })?;
+            for &(i, _, position) in &members {
+                if let (
+                    Some(s),
+                    Some(JointSlot {
+                        device: Device::Wck { scale, .. },
+                        ..
+                    }),
+                ) = (sent.get_mut(i), self.joints.get(i))
+                {
+                    *s = scale.to_rad(position);
                 }
             }
         }
-        // WHJ: one position servo frame per joint.
-        for (i, joint) in self.joints.iter().enumerate() {
-            if let Device::Whj { bus, id, map, .. } = joint.device {
-                let rad = setpoints.get(i).copied().unwrap_or(0.0);
-                let position = whj_position(&joint.name, map, rad)?;
-                self.whj[bus]
-                    .bus
-                    .joint_unchecked(id)
-                    .command_position(position)
-                    .map_err(|source| ActuatorError::Whj {
-                        joint: joint.name.clone(),
-                        source: Box::new(source),
-                    })?;
-                if let Some(s) = sent.get_mut(i) {
-                    *s = whj_to_rad(map, position);
-                }
+        singles.extend(
+            self.joints
+                .iter()
+                .enumerate()
+                .filter(|(_, j)| matches!(j.device, Device::Whj { .. }))
+                .map(|(i, _)| i),
+        );
+        for i in singles {
+            let rad = setpoints.get(i).copied().unwrap_or(0.0);
+            let done = self.actuator(i)?.command_position(rad)?;
+            if let Some(s) = sent.get_mut(i) {
+                *s = done.sent_rad;
             }
         }
         Ok(sent)
     }
-}
-
-/// The wCK step nearest `rad` that lies within the soft limits (the nearest step may be
-/// just past a limit; then the neighbour inside is taken).
-pub(super) fn quantize_within(scale: WckScale, rad: f64, limits: &JointLimits) -> Option<Position> {
-    let nearest = scale.to_position(rad)?;
-    let inside = |p: Position| {
-        let r = scale.to_rad(p);
-        r >= limits.min_rad - 1e-12 && r <= limits.max_rad + 1e-12
-    };
-    if inside(nearest) {
-        return Some(nearest);
-    }
-    let raw = nearest.get();
-    [raw.checked_sub(1), raw.checked_add(1)]
-        .into_iter()
-        .flatten()
-        .filter_map(|r| Position::new(r).ok())
-        .filter(|&p| inside(p))
-        .min_by(|&a, &b| {
-            (scale.to_rad(a) - rad)
-                .abs()
-                .total_cmp(&(scale.to_rad(b) - rad).abs())
-        })
-        .or(Some(nearest))
 }

@@ -3,13 +3,25 @@
 //!
 //! - [`RobotConfig`]: the file (buses, joints with ID, offset, direction, soft limits,
 //!   speed and acceleration limits, the watchdog timeout and each bus's safe state).
-//! - [`Robot::read`] reads every joint; [`Robot::command`] sends every target in one
-//!   call per cycle (wCK: one synchronized move per bus when the bus's IDs are
-//!   `0..n`, else one move per servo; WHJ: one position servo frame per joint).
+//! - Each joint is an [`Actuator`](crate::actuator::Actuator) (a wCK servo or a WHJ
+//!   joint in SI units): [`Robot::read`] reads every joint through it ([`Robot::read_joint`]
+//!   one, an index past the joints being [`RobotError::NoSuchJoint`]); [`Robot::command`]
+//!   sends every target in one call per cycle (wCK: one synchronized move per bus when the
+//!   bus's IDs are `0..n`, at the steps the servos' actuators would send, else each
+//!   servo's actuator; WHJ: each joint's actuator, one position servo frame).
 //! - Every target is clamped to the soft limits, then speed- and acceleration-limited
 //!   ([`RateLimiter`]); what a limit changed is reported ([`LimitEvent`]).
-//! - A watchdog thread puts every bus in its [`SafeState`] if [`Robot::command`] is not
-//!   called for `watchdog_timeout` (armed by the first command). The same safe stop
+//! - The robot runs on its buses' clock ([`Robot::now`], [`Robot::sleep_until`]): the
+//!   wall clock on hardware, a simulator's virtual clock in tests (time moves only when
+//!   the program waits; the robot keeps the virtual clocks of its buses together), so the
+//!   same program runs on both and, on the virtual clock, exactly the same every time.
+//! - A watchdog puts every bus in its [`SafeState`] (through [`SafeState::apply`], the
+//!   operations' one safe stop) once [`Robot::command`] has not been called for
+//!   `watchdog_timeout` (armed by the first command): on the wall clock a thread watches,
+//!   on a virtual clock (where time passes only while the program waits) the calls that
+//!   read or wait on the clock do ([`Robot::now`], [`Robot::sleep_until`], [`Robot::read`],
+//!   [`Robot::command`]), and [`Robot::sleep_until`] stops at the watchdog's deadline, so
+//!   it fires at the exact instant. The same safe stop
 //!   runs on drop, on [`Robot::safe_stop`], and from a [`StopHandle`] (a program's own
 //!   Ctrl-C handler calls [`StopHandle::interrupt`]; the library installs none). After a
 //!   safe stop
@@ -78,7 +90,6 @@ use std::time::{Duration, Instant};
 use robobus_link::ByteLink;
 use robobus_wck::{BaudRate, Position, ServoId, TorqueLevel};
 use robobus_whj::JointId;
-use robobus_whj::WorkMode;
 use robobus_whj::units::CurrentScale;
 
 pub use builder::{RobotBuilder, open_wck_bus, open_whj_bus};
@@ -86,14 +97,11 @@ pub use config::{BusConfig, JointConfig, RobotConfig, SafeState};
 use hardware::{Device, Hardware, JointSlot, Shared, WckSlot, WhjSlot, lock};
 pub use safety::{LimitEvent, LimitKind, RateLimiter};
 
-use crate::actuator::{
-    ActuatorError, ActuatorState, JointLimits, JointMap, WckScale, rpm_to_rad_s, whj_position,
-    whj_to_rad,
-};
+use crate::actuator::{ActuatorError, ActuatorState, JointLimits, JointMap, WckScale, whj_to_rad};
 use crate::ops::safe::{SafeDevice, WckServos, WhjJoints};
 use crate::ops::whj::ServoLoop;
 use crate::wck::{WckBus, WckError};
-use crate::whj::{Joint, JointBus, JointBusConfig, WhjError};
+use crate::whj::{Joint, JointBus, JointBusConfig};
 
 /// A byte link a [`Robot`] can hold: any [`ByteLink`] that is `Send` and `Debug`.
 pub trait RobotByteLink: ByteLink + Send + fmt::Debug {}
@@ -176,6 +184,14 @@ pub enum RobotError {
         /// What the file says.
         found: String,
     },
+    /// A joint index past the robot's joints.
+    #[error("no joint #{index}: the robot's joints are {names} (#0 on)")]
+    NoSuchJoint {
+        /// The index asked for.
+        index: usize,
+        /// The joints, in order.
+        names: String,
+    },
     /// `command` got a different number of targets than there are joints.
     #[error("{got} targets given for {expected} joints ({names}); nothing sent")]
     TargetCount {
@@ -236,7 +252,7 @@ impl fmt::Display for StopCause {
 pub struct SafeStopReport {
     /// Why.
     pub cause: StopCause,
-    /// When the stop began.
+    /// When the stop began ([`Robot::now`]'s clock).
     pub started: Instant,
     /// How long applying the safe states took (all buses).
     pub applied_in: Duration,
@@ -325,18 +341,33 @@ impl Robot {
     /// WHJ). Works in the safe state too; does not feed the watchdog.
     pub fn read(&mut self) -> Result<Vec<ActuatorState>, RobotError> {
         let mut hw = lock(&self.shared.hw);
-        (0..hw.joints.len())
-            .map(|i| hw.read_joint(i).map_err(RobotError::from))
-            .collect()
+        self.shared.tick(&mut hw);
+        let states = (0..hw.joints.len())
+            .map(|i| Ok(hw.actuator(i)?.state()?))
+            .collect();
+        self.shared.tick(&mut hw);
+        states
+    }
+
+    /// Reads joint `index` (the order of [`joint_names`](Self::joint_names); see
+    /// [`read`](Self::read)). An index past the last joint is
+    /// [`RobotError::NoSuchJoint`].
+    pub fn read_joint(&mut self, index: usize) -> Result<ActuatorState, RobotError> {
+        let mut hw = lock(&self.shared.hw);
+        self.shared.tick(&mut hw);
+        let state = hw.actuator(index).and_then(|mut a| Ok(a.state()?));
+        self.shared.tick(&mut hw);
+        state
     }
 
     /// Sends one cycle of targets (rad, joint order) and feeds the watchdog.
     ///
     /// Each target is clamped to the joint's soft limits, then followed at no more than
     /// its `max_velocity` / `max_acceleration` over the time since the previous call
-    /// (at most the watchdog timeout); changed targets are reported in
-    /// [`CommandReport::limited`]. A non-finite target or a wrong count is refused
-    /// before anything is sent.
+    /// (at most the watchdog timeout, on the robot's clock); changed targets are reported
+    /// in [`CommandReport::limited`]. A non-finite target or a wrong count is refused
+    /// before anything is sent; a command that comes a watchdog timeout or more after the
+    /// previous one finds the robot safe-stopped ([`RobotError::SafeStopped`]).
     pub fn command(&mut self, targets: &[f64]) -> Result<CommandReport, RobotError> {
         if targets.len() != self.names.len() {
             return Err(RobotError::TargetCount {
@@ -353,12 +384,12 @@ impl Robot {
             .into());
         }
         let mut hw = lock(&self.shared.hw);
+        let now = self.shared.tick(&mut hw);
         if let Some(report) = lock(&self.shared.stopped).as_ref() {
             return Err(RobotError::SafeStopped {
                 cause: report.cause,
             });
         }
-        let now = Instant::now();
         let dt = now
             .duration_since(hw.last_cycle)
             .min(self.shared.timeout)
@@ -406,8 +437,51 @@ impl Robot {
         }
         let sent_rad = hw.send(&setpoints)?;
         hw.last_cycle = now;
-        *lock(&self.shared.last_command) = Some(Instant::now());
+        *lock(&self.shared.last_command) = Some(hw.now());
         Ok(CommandReport { sent_rad, limited })
+    }
+
+    /// The robot's clock: the clock of its buses (see the [module](self)). Every instant
+    /// the robot reports ([`SafeStopReport::started`]) and every time it measures (the
+    /// watchdog, the speed limits) is on it.
+    pub fn now(&self) -> Instant {
+        self.shared.tick(&mut lock(&self.shared.hw))
+    }
+
+    /// Waits until `deadline` on the robot's clock: on the wall clock it sleeps (the
+    /// watchdog thread watches meanwhile); on a virtual clock every bus's simulation runs
+    /// to `deadline` at once, stopping at the watchdog's deadline on the way if it falls
+    /// before (the safe stop then happens at that exact instant). Sends nothing and does
+    /// not feed the watchdog.
+    pub fn sleep_until(&self, deadline: Instant) {
+        loop {
+            let mut hw = lock(&self.shared.hw);
+            let now = self.shared.tick(&mut hw);
+            if now >= deadline {
+                return;
+            }
+            if hw.wall_time() {
+                drop(hw);
+                std::thread::sleep(deadline.saturating_duration_since(now));
+                continue;
+            }
+            let until = self
+                .shared
+                .watchdog_due()
+                .filter(|due| *due < deadline)
+                .unwrap_or(deadline)
+                .max(now);
+            hw.advance_to(until);
+            if hw.now() <= now {
+                // No bus could run (a closed bus's clock stands still): nothing to wait for.
+                return;
+            }
+        }
+    }
+
+    /// Waits `duration` on the robot's clock ([`sleep_until`](Self::sleep_until)).
+    pub fn sleep(&self, duration: Duration) {
+        self.sleep_until(self.now() + duration);
     }
 
     /// Puts every bus in its safe state now (once; later calls return the first
@@ -463,10 +537,13 @@ impl Robot {
         f: impl FnOnce(&mut WckBus<DynByteLink>) -> R,
     ) -> Option<R> {
         let mut hw = lock(&self.shared.hw);
-        hw.wck
+        let result = hw
+            .wck
             .iter_mut()
             .find(|s| s.name == name)
-            .map(|s| f(&mut s.bus))
+            .map(|s| f(&mut s.bus));
+        self.shared.tick(&mut hw);
+        result
     }
 }
 

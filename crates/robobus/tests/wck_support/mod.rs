@@ -75,17 +75,6 @@ pub fn serve(bus: Bus) -> Sim {
     }
 }
 
-/// Like [`serve_ids`], on the wall clock ([`SimLink::new`]): for a client that mixes
-/// the wCK bus with wall-clock parts (a robot's watchdog, a WHJ bus).
-pub fn serve_ids_wall(ids: &[u8]) -> Sim {
-    let (link, handle) = SimLink::new(bus_with_ids(ids, BaudRate::B115200));
-    std::thread::sleep(AWAKE.saturating_sub(handle.now()));
-    Sim {
-        handle,
-        link: Some(link),
-    }
-}
-
 /// Like [`serve_at`] (the virtual clock runs long transaction loops as fast as the
 /// processor allows).
 pub fn serve_fast(ids: &[u8], baud: BaudRate) -> Sim {

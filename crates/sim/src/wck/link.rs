@@ -186,7 +186,8 @@ impl SimLink {
     /// byte, or the deadline). [`ByteLink::now`] is a fixed instant (taken when the link
     /// was made) plus the simulated time since; deadlines and [`ByteLink::sleep_until`]
     /// are measured on that clock, so a client that takes its time only from the link runs
-    /// the same way on any machine, however loaded, and in no wall time.
+    /// the same way on any machine, however loaded, and in no wall time. The link's
+    /// [`ByteLink::virtual_time`] says so.
     pub fn virtual_clock(bus: Bus) -> (Self, SimHandle) {
         Self::with_clock(bus, Clock::Virtual)
     }
@@ -344,5 +345,9 @@ impl ByteLink for SimLink {
         if !wait.is_zero() {
             self.shared.wait(now, wait);
         }
+    }
+
+    fn virtual_time(&self) -> bool {
+        self.shared.clock == Clock::Virtual
     }
 }

@@ -515,6 +515,42 @@ impl FeedbackReport {
     }
 }
 
+/// How closely a joint followed what it was asked for: the RMS and the largest of
+/// |measured − wanted| over the samples compared (a wave's [`WaveReport::tracking_rms`] and
+/// [`WaveReport::tracking_max`]; the demo's arm, per joint).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Tracking {
+    sum_sq: f64,
+    max: f64,
+    samples: u64,
+}
+
+impl Tracking {
+    /// Compares one measurement with what was wanted.
+    pub fn add(&mut self, measured: f64, wanted: f64) {
+        let e = (measured - wanted).abs();
+        self.sum_sq += e * e;
+        self.max = self.max.max(e);
+        self.samples += 1;
+    }
+
+    /// Samples compared.
+    pub const fn samples(&self) -> u64 {
+        self.samples
+    }
+
+    /// The RMS error (`None` before the first sample).
+    pub fn rms(&self) -> Option<f64> {
+        #[allow(clippy::cast_precision_loss)] // counts far below 2^52
+        (self.samples > 0).then(|| (self.sum_sq / self.samples as f64).sqrt())
+    }
+
+    /// The largest error (`None` before the first sample).
+    pub fn max(&self) -> Option<f64> {
+        (self.samples > 0).then_some(self.max)
+    }
+}
+
 /// What a wave did.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct WaveReport {
@@ -628,7 +664,7 @@ pub fn execute_wave(
             r.clamped += 1;
         }
     }
-    let (mut sq, mut max, mut n) = (0.0f64, 0.0f64, 0u64);
+    let mut tracking = Tracking::default();
     let bus = j.bus();
     let mut last_sent = bus.now();
     let mut round_trips = Vec::with_capacity(plan.frames.len());
@@ -669,22 +705,15 @@ pub fn execute_wave(
                 #[allow(clippy::cast_precision_loss)] // |mA| < 2^53
                 ServoLoop::Current => fb.current.milliamps(scale) as f64,
             };
-            let e = (got - want).abs();
-            sq += e * e;
-            max = max.max(e);
-            n += 1;
+            tracking.add(got, *want);
         }
         r.last = Some(FeedbackReport::of(fb, scale));
     })?;
     if outcome.is_err() {
         return Err(interrupted(j, on_stop, args.servo));
     }
-    if n > 0 {
-        #[allow(clippy::cast_precision_loss)]
-        let rms = (sq / n as f64).sqrt();
-        r.tracking_rms = Some(rms);
-        r.tracking_max = Some(max);
-    }
+    r.tracking_rms = tracking.rms();
+    r.tracking_max = tracking.max();
     if !round_trips.is_empty() {
         let p = Percentiles::of(&round_trips);
         let us = |d: Duration| u64::try_from(d.as_micros()).unwrap_or(u64::MAX);
