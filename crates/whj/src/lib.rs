@@ -64,6 +64,7 @@
 #![allow(clippy::doc_markdown)]
 
 pub mod broadcast;
+pub mod describe;
 pub mod error_code;
 pub mod frame;
 pub mod id;
@@ -79,6 +80,7 @@ pub use broadcast::{
     EndBoardOp, EndBoardReply, FeedForward, FeedForwardBits, FeedForwardLayout, PositionSlot,
     RegisterOp, RegisterSlot, ReplyMask,
 };
+pub use describe::{Described, Field, FieldName, Fields};
 pub use error_code::{ErrorBitInfo, ErrorCode};
 pub use frame::{CanFrame, FrameError};
 pub use id::{Address, BroadcastFunction, Function, JointId, JointIdError};

@@ -113,25 +113,10 @@ pub fn parse_candump_line(line: &str) -> Result<CandumpRecord, CandumpErrorKind>
 
 /// Formats one candump log line (no newline).
 pub fn format_candump_line(rec: &CandumpRecord) -> String {
-    let f = &rec.frame;
-    let mut s = String::with_capacity(64 + 2 * f.len());
+    let mut s = String::with_capacity(64 + 2 * rec.frame.len());
     s.push('(');
     write_time(&mut s, rec.timestamp);
-    let _ = write!(s, ") {} ", rec.iface);
-    if f.is_extended() {
-        let _ = write!(s, "{:08X}", f.raw_id());
-    } else {
-        let _ = write!(s, "{:03X}", f.raw_id());
-    }
-    if f.is_fd() {
-        let flags = 4 | u8::from(f.brs()) | (u8::from(f.esi()) << 1);
-        let _ = write!(s, "##{flags:X}");
-    } else {
-        s.push('#');
-    }
-    for b in f.data() {
-        let _ = write!(s, "{b:02X}");
-    }
+    let _ = write!(s, ") {} {:#}", rec.iface, rec.frame);
     s
 }
 

@@ -120,27 +120,31 @@ pub struct Field {
     decimals: usize,
 }
 
-impl Field {
-    fn new(
-        name: impl Into<String>,
-        raw: i64,
-        value: f64,
-        unit: &'static str,
-        decimals: usize,
-    ) -> Self {
+impl From<&robobus_whj::Field> for Field {
+    /// A WHJ value, named after the joint of its broadcast slot (`J3 position`).
+    fn from(f: &robobus_whj::Field) -> Self {
         Self {
-            name: name.into(),
-            raw,
-            value,
-            unit,
-            decimals,
+            name: match f.slot {
+                Some(joint) => format!("{joint} {}", f.name),
+                None => f.name.to_string(),
+            },
+            raw: f.raw,
+            value: f.value,
+            unit: f.unit,
+            decimals: f.decimals,
         }
     }
+}
 
-    fn raw(name: impl Into<String>, raw: impl Into<i64>) -> Self {
-        let raw = raw.into();
-        #[allow(clippy::cast_precision_loss)] // raw values are at most 32 bits
-        Self::new(name, raw, raw as f64, "", 0)
+impl From<robobus_wck::Field> for Field {
+    fn from(f: robobus_wck::Field) -> Self {
+        Self {
+            name: f.name.into(),
+            raw: i64::from(f.value),
+            value: f64::from(f.value),
+            unit: "",
+            decimals: 0,
+        }
     }
 }
 
@@ -217,6 +221,21 @@ impl Entry {
 
     fn with_bytes(mut self, bytes: &[u8]) -> Self {
         self.bytes = hex(bytes);
+        self
+    }
+
+    /// A WHJ request or reply as the protocol core describes it: what it is, its values
+    /// and error bits, its text.
+    fn described(
+        mut self,
+        command: &str,
+        fields: &robobus_whj::Fields,
+        text: impl std::fmt::Display,
+    ) -> Self {
+        self.command = Some(command.into());
+        self.fields = fields.iter().map(Field::from).collect();
+        self.errors = fields.errors().collect();
+        self.text = text.to_string();
         self
     }
 }
