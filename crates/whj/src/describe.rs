@@ -118,18 +118,22 @@ pub struct Field {
 impl Field {
     const EMPTY: Self = Self::raw("", 0);
 
-    /// A value in `unit`, converted with the joint's current scale ([`Unit::per_count`]).
-    fn of(name: &'static str, unit: Unit, raw: i32, scale: CurrentScale) -> Self {
-        let per_count = unit.per_count(scale);
+    /// A value in `unit`, converted with the joint's current scale ([`Unit::per_count`]);
+    /// a current in counts where the scale is not known.
+    fn of(name: &'static str, unit: Unit, raw: i32, scale: Option<CurrentScale>) -> Self {
+        let per_count = match (unit, scale) {
+            (Unit::Current, None) => None,
+            (_, scale) => unit.per_count(scale.unwrap_or_default()),
+        };
         Self {
             slot: None,
             name: FieldName::Named(name),
             raw: i64::from(raw),
             value: f64::from(raw) * per_count.unwrap_or(1.0),
-            unit: if per_count.is_some() {
-                unit.symbol()
-            } else {
-                ""
+            unit: match (per_count, unit) {
+                (Some(_), _) => unit.symbol(),
+                (None, Unit::Current) => "counts",
+                (None, _) => "",
             },
             decimals: unit.decimals(),
         }
@@ -242,7 +246,7 @@ impl Fields {
         slot: Option<JointId>,
         start: u8,
         words: &[u16],
-        scale: CurrentScale,
+        scale: Option<CurrentScale>,
     ) {
         let mut i = 0;
         while let Some(&word) = words.get(i) {
@@ -379,12 +383,14 @@ impl fmt::Display for WriteStatus {
     }
 }
 
-/// A request or reply shown with a joint's current scale ([`Request::display`],
-/// [`Reply::display`]).
+/// A request or reply in words ([`Request::display`], [`Reply::display`]): currents in mA
+/// with a joint's current scale, in counts without one (the plain [`fmt::Display`] form).
+/// The alternate form (`{:#}`) leaves out the joint a point-to-point frame is for or from
+/// (for a message that names it already).
 #[derive(Debug, Clone, Copy)]
 pub struct Described<'a, T> {
     frame: &'a T,
-    scale: CurrentScale,
+    scale: Option<CurrentScale>,
 }
 
 impl Request {
@@ -410,6 +416,10 @@ impl Request {
     /// write sets, a servo target, a broadcast frame's targets and register writes slot
     /// by slot (feed-forward values only where not 0).
     pub fn fields(&self, scale: CurrentScale) -> Fields {
+        self.fields_with(Some(scale))
+    }
+
+    fn fields_with(&self, scale: Option<CurrentScale>) -> Fields {
         let mut out = Fields::EMPTY;
         match self {
             Self::Read { .. } | Self::StatusQuery { .. } | Self::BroadcastStatus(_) => {}
@@ -480,17 +490,20 @@ impl Request {
     }
 
     /// The request in words with currents converted with `scale` (its [`fmt::Display`]
-    /// form converts with [`CurrentScale::default`], 1 mA per count).
+    /// form shows currents in counts).
     pub const fn display(&self, scale: CurrentScale) -> Described<'_, Self> {
-        Described { frame: self, scale }
+        Described {
+            frame: self,
+            scale: Some(scale),
+        }
     }
 }
 
 impl fmt::Display for Described<'_, Request> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let request = self.frame;
-        let fields = request.fields(self.scale);
-        if let Some(joint) = request.joint() {
+        let fields = request.fields_with(self.scale);
+        if let (Some(joint), false) = (request.joint(), f.alternate()) {
             write!(f, "{joint} ")?;
         }
         match request {
@@ -575,11 +588,16 @@ fn write_slot(f: &mut fmt::Formatter<'_>, i: usize, data: bool, fields: &Fields)
 }
 
 impl fmt::Display for Request {
-    /// The request in words, currents at 1 mA per count (see [`Request::display`]):
+    /// The request in words, currents in counts (in mA with [`Request::display`]; the
+    /// alternate form leaves out the joint, see [`Described`]):
     /// `J1 write SYS_ENABLE_DRIVER 1`, `J1 read 2 registers from 0x14 CUR_POSITION_L`,
     /// `broadcast position: J1 position 12.5000 °, J2 no data, ...; replies from J1`.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        self.display(CurrentScale::default()).fmt(f)
+        Described {
+            frame: self,
+            scale: None,
+        }
+        .fmt(f)
     }
 }
 
@@ -612,6 +630,10 @@ impl Reply {
     /// `CMD_ERR`, feedback and status quantities with the enable, brake, state and counter
     /// bytes raw.
     pub fn fields(&self, scale: CurrentScale) -> Fields {
+        self.fields_with(Some(scale))
+    }
+
+    fn fields_with(&self, scale: Option<CurrentScale>) -> Fields {
         let mut out = Fields::EMPTY;
         match self {
             Self::Read { addr, words, .. }
@@ -672,9 +694,12 @@ impl Reply {
     }
 
     /// The reply in words with currents converted with `scale` (its [`fmt::Display`] form
-    /// converts with [`CurrentScale::default`], 1 mA per count).
+    /// shows currents in counts).
     pub const fn display(&self, scale: CurrentScale) -> Described<'_, Self> {
-        Described { frame: self, scale }
+        Described {
+            frame: self,
+            scale: Some(scale),
+        }
     }
 }
 
@@ -691,8 +716,11 @@ const fn brake(locked: bool) -> &'static str {
 impl fmt::Display for Described<'_, Reply> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let reply = self.frame;
-        let fields = reply.fields(self.scale);
-        write!(f, "{} {}", reply.joint(), reply.name())?;
+        let fields = reply.fields_with(self.scale);
+        if !f.alternate() {
+            write!(f, "{} ", reply.joint())?;
+        }
+        f.write_str(reply.name())?;
         // The quantities shown before the state bytes (raw, after them in the fields).
         let quantities = fields.len().saturating_sub(2);
         match reply {
@@ -735,11 +763,16 @@ impl fmt::Display for Described<'_, Reply> {
 }
 
 impl fmt::Display for Reply {
-    /// The reply in words, currents at 1 mA per count (see [`Reply::display`]):
+    /// The reply in words, currents in counts (in mA with [`Reply::display`]; the
+    /// alternate form leaves out the joint, see [`Described`]):
     /// `J1 write ack SYS_ENABLE_DRIVER: ok`, `J1 servo feedback: position 10.0000 °, speed
-    /// 20.00 RPM, current 500 mA, enabled, errors: over-voltage`.
+    /// 20.00 RPM, current 500 counts, enabled, errors: over-voltage`.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        self.display(CurrentScale::default()).fmt(f)
+        Described {
+            frame: self,
+            scale: None,
+        }
+        .fmt(f)
     }
 }
 
@@ -802,7 +835,11 @@ mod tests {
         };
         assert_eq!(
             current.to_string(),
-            "J2 current servo target current 250 mA"
+            "J2 current servo target current 250 counts"
+        );
+        assert_eq!(
+            std::format!("{current:#}"),
+            "current servo target current 250 counts"
         );
         assert_eq!(
             current.display(CurrentScale::TwoMilliamps).to_string(),
