@@ -35,7 +35,9 @@ use crate::broadcast::{
 use crate::registers::{self, Half, MAX_READ_COUNT, RegisterInfo, Unit, join_i32};
 use crate::reply::{BroadcastRegisterReply, Reply, WriteStatus};
 use crate::request::{ReadRange, Request};
-use crate::units::{CURRENT_FF_MA_PER_COUNT, CurrentScale};
+use crate::units::{
+    ActualSpeed, CURRENT_FF_MA_PER_COUNT, Current, CurrentScale, Position, Temperature, Voltage,
+};
 use crate::{ErrorCode, JointId, RegisterAddr};
 
 impl Unit {
@@ -237,6 +239,26 @@ impl Fields {
             *slot = code;
             self.error_count += 1;
         }
+    }
+
+    /// Position, speed and current of a feedback frame.
+    fn push_motion(
+        &mut self,
+        position: Position,
+        speed: ActualSpeed,
+        current: Current,
+        scale: Option<CurrentScale>,
+    ) {
+        self.push(Field::of("position", Unit::Position, position.0, scale));
+        self.push(Field::of("speed", Unit::ActualSpeed, speed.0, scale));
+        self.push(Field::of("current", Unit::Current, current.0, scale));
+    }
+
+    /// Voltage and temperature of a status or feedback frame.
+    fn push_supply(&mut self, voltage: Voltage, temperature: Temperature) {
+        let (v, t) = (i32::from(voltage.0), i32::from(temperature.0));
+        self.push(Field::of("voltage", Unit::Voltage, v, None));
+        self.push(Field::of("temperature", Unit::Temperature, t, None));
     }
 
     /// The registers from `start` holding `words`: a pair joined into one value, each by
@@ -648,9 +670,7 @@ impl Reply {
             } => {}
             Self::CmdErr { code, .. } => out.push(Field::raw("code", i64::from(*code))),
             Self::ServoFeedback { feedback: fb, .. } => {
-                out.push(Field::of("position", Unit::Position, fb.position.0, scale));
-                out.push(Field::of("speed", Unit::ActualSpeed, fb.speed.0, scale));
-                out.push(Field::of("current", Unit::Current, fb.current.0, scale));
+                out.push_motion(fb.position, fb.speed, fb.current, scale);
                 out.push(Field::raw("enabled", i64::from(fb.enable)));
                 out.push_error(fb.error);
             }
@@ -659,32 +679,14 @@ impl Reply {
                 if let Some(c) = s.current {
                     out.push(Field::of("current", Unit::Current, c.0, scale));
                 }
-                let voltage = i32::from(s.voltage.0);
-                out.push(Field::of("voltage", Unit::Voltage, voltage, scale));
-                let temperature = i32::from(s.temperature.0);
-                out.push(Field::of(
-                    "temperature",
-                    Unit::Temperature,
-                    temperature,
-                    scale,
-                ));
+                out.push_supply(s.voltage, s.temperature);
                 out.push(Field::raw("enabled", i64::from(s.enable)));
                 out.push(Field::raw("brake", i64::from(s.brake)));
                 out.push_error(s.error);
             }
             Self::BroadcastFeedback { feedback: fb, .. } => {
-                out.push(Field::of("position", Unit::Position, fb.position.0, scale));
-                out.push(Field::of("speed", Unit::ActualSpeed, fb.speed.0, scale));
-                out.push(Field::of("current", Unit::Current, fb.current.0, scale));
-                let voltage = i32::from(fb.voltage.0);
-                out.push(Field::of("voltage", Unit::Voltage, voltage, scale));
-                let temperature = i32::from(fb.temperature.0);
-                out.push(Field::of(
-                    "temperature",
-                    Unit::Temperature,
-                    temperature,
-                    scale,
-                ));
+                out.push_motion(fb.position, fb.speed, fb.current, scale);
+                out.push_supply(fb.voltage, fb.temperature);
                 out.push(Field::raw("state", i64::from(fb.state)));
                 out.push(Field::raw("counter", i64::from(fb.counter)));
                 out.push_error(fb.error);
@@ -812,7 +814,6 @@ mod tests {
     use super::*;
     use crate::broadcast::{BroadcastPosition, BroadcastRegister, BroadcastStatus};
     use crate::request::WriteData;
-    use crate::units::Position;
 
     fn j(n: u8) -> JointId {
         JointId::new(n).unwrap()

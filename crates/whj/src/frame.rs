@@ -256,24 +256,28 @@ impl CanFrame {
     }
 }
 
-impl fmt::Debug for CanFrame {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        // candump-like: 201##1 40420F00
+impl CanFrame {
+    /// `ID##<flags><sep><data>` (FD, with FDF = 4 in the flags if `fdf`) or `ID#<sep><data>`.
+    fn write_line(&self, f: &mut fmt::Formatter<'_>, fdf: bool, sep: &str) -> fmt::Result {
         if self.is_extended() {
             write!(f, "{:08X}", self.raw_id())?;
         } else {
             write!(f, "{:03X}", self.raw_id())?;
         }
         if self.fd {
-            let flags = u8::from(self.brs) | (u8::from(self.esi) << 1);
-            write!(f, "##{flags:X} ")?;
+            let flags = (u8::from(fdf) << 2) | u8::from(self.brs) | (u8::from(self.esi) << 1);
+            write!(f, "##{flags:X}{sep}")?;
         } else {
-            f.write_str("# ")?;
+            write!(f, "#{sep}")?;
         }
-        for b in self.data() {
-            write!(f, "{b:02X}")?;
-        }
-        Ok(())
+        self.data().iter().try_for_each(|b| write!(f, "{b:02X}"))
+    }
+}
+
+impl fmt::Debug for CanFrame {
+    /// candump-like, the data set apart: `201##1 40420F00`.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        self.write_line(f, false, " ")
     }
 }
 
@@ -283,22 +287,7 @@ impl fmt::Display for CanFrame {
     /// form (`{:#}`) also sets FDF = 4 in the flags of an FD frame, as `candump -l` writes
     /// it (`001##5020A01`).
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        if self.is_extended() {
-            write!(f, "{:08X}", self.raw_id())?;
-        } else {
-            write!(f, "{:03X}", self.raw_id())?;
-        }
-        if self.fd {
-            let fdf = if f.alternate() { 4 } else { 0 };
-            let flags = fdf | u8::from(self.brs) | (u8::from(self.esi) << 1);
-            write!(f, "##{flags:X}")?;
-        } else {
-            f.write_str("#")?;
-        }
-        for b in self.data() {
-            write!(f, "{b:02X}")?;
-        }
-        Ok(())
+        self.write_line(f, f.alternate(), "")
     }
 }
 

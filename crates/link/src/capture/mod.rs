@@ -313,21 +313,7 @@ impl<L: ByteLink, W: Write> ByteLink for CaptureByteLink<L, W> {
         self.inner.discard_input()
     }
 
-    fn set_baud(&mut self, baud: u32) -> Result<(), LinkError> {
-        self.inner.set_baud(baud)
-    }
-
-    fn baud(&self) -> Option<u32> {
-        self.inner.baud()
-    }
-
-    fn now(&self) -> Instant {
-        self.inner.now()
-    }
-
-    fn sleep_until(&mut self, deadline: Instant) {
-        self.inner.sleep_until(deadline);
-    }
+    crate::forward_byte_link_rate_and_clock!(inner);
 }
 
 /// A byte link that plays the `<` (read) records of a hex log back as incoming bytes
