@@ -539,18 +539,12 @@ impl fmt::Display for Described<'_, Request> {
                 fields.write_all(f, None)
             }
             Request::BroadcastPosition(b) => {
-                write!(f, "{}: ", request.name())?;
-                for (i, slot) in b.slots.iter().enumerate() {
-                    write_slot(f, i, slot.is_some(), &fields)?;
-                }
-                write!(f, "; {}", MaskText(b.mask))
+                let data = b.slots.map(|slot| slot.is_some());
+                write_targets(f, request.name(), data, b.mask, &fields)
             }
             Request::BroadcastCurrent(b) => {
-                write!(f, "{}: ", request.name())?;
-                for (i, slot) in b.slots.iter().enumerate() {
-                    write_slot(f, i, slot.is_some(), &fields)?;
-                }
-                write!(f, "; {}", MaskText(b.mask))
+                let data = b.slots.map(|slot| slot.is_some());
+                write_targets(f, request.name(), data, b.mask, &fields)
             }
             Request::BroadcastRegister(b) => {
                 write!(f, "{}: ", request.name())?;
@@ -587,26 +581,34 @@ impl fmt::Display for Described<'_, Request> {
     }
 }
 
-/// Slot `i` of a broadcast position or current frame: its values, or `no data`.
-fn write_slot(f: &mut fmt::Formatter<'_>, i: usize, data: bool, fields: &Fields) -> fmt::Result {
-    let joint = slot_joint(i);
-    if i > 0 {
-        f.write_str(", ")?;
-    }
-    if let (true, Some(joint)) = (data, joint) {
-        for (k, field) in fields.iter().filter(|x| x.slot == Some(joint)).enumerate() {
-            if k > 0 {
-                f.write_str(", ")?;
-            }
-            write!(f, "{field}")?;
+/// A broadcast position or current frame: its values slot by slot (`no data` in a slot
+/// without), then who is asked to reply.
+fn write_targets(
+    f: &mut fmt::Formatter<'_>,
+    name: &str,
+    data: [bool; SLOTS],
+    mask: ReplyMask,
+    fields: &Fields,
+) -> fmt::Result {
+    write!(f, "{name}: ")?;
+    for (i, data) in data.into_iter().enumerate() {
+        if i > 0 {
+            f.write_str(", ")?;
         }
-        Ok(())
-    } else {
-        match joint {
-            Some(joint) => write!(f, "{joint} no data"),
-            None => f.write_str("no data"),
+        match slot_joint(i) {
+            Some(joint) if data => fields
+                .iter()
+                .filter(|x| x.slot == Some(joint))
+                .enumerate()
+                .try_for_each(|(k, field)| {
+                    let sep = if k > 0 { ", " } else { "" };
+                    write!(f, "{sep}{field}")
+                })?,
+            Some(joint) => write!(f, "{joint} no data")?,
+            None => f.write_str("no data")?,
         }
     }
+    write!(f, "; {}", MaskText(mask))
 }
 
 impl fmt::Display for Request {
