@@ -173,6 +173,35 @@ pub trait ByteLink {
     }
 }
 
+/// The rate and clock methods of a [`ByteLink`] that wraps another, forwarded to the
+/// wrapped link (the field named): `set_baud`, `baud`, `now`, `sleep_until`,
+/// `virtual_time`. For use
+/// inside an `impl ByteLink for Wrapper` block.
+#[macro_export]
+macro_rules! forward_byte_link_rate_and_clock {
+    ($field:tt) => {
+        fn set_baud(&mut self, baud: u32) -> ::core::result::Result<(), $crate::LinkError> {
+            $crate::ByteLink::set_baud(&mut self.$field, baud)
+        }
+
+        fn baud(&self) -> ::core::option::Option<u32> {
+            $crate::ByteLink::baud(&self.$field)
+        }
+
+        fn now(&self) -> ::std::time::Instant {
+            $crate::ByteLink::now(&self.$field)
+        }
+
+        fn sleep_until(&mut self, deadline: ::std::time::Instant) {
+            $crate::ByteLink::sleep_until(&mut self.$field, deadline);
+        }
+
+        fn virtual_time(&self) -> bool {
+            $crate::ByteLink::virtual_time(&self.$field)
+        }
+    };
+}
+
 impl<T: ByteLink + ?Sized> ByteLink for &mut T {
     fn write_all(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
         (**self).write_all(bytes)

@@ -321,25 +321,7 @@ impl<L: ByteLink> ByteLink for FaultyByteLink<L> {
         self.inner.discard_input()
     }
 
-    fn set_baud(&mut self, baud: u32) -> Result<(), LinkError> {
-        self.inner.set_baud(baud)
-    }
-
-    fn baud(&self) -> Option<u32> {
-        self.inner.baud()
-    }
-
-    fn now(&self) -> Instant {
-        self.inner.now()
-    }
-
-    fn sleep_until(&mut self, deadline: Instant) {
-        self.inner.sleep_until(deadline);
-    }
-
-    fn virtual_time(&self) -> bool {
-        self.inner.virtual_time()
-    }
+    crate::forward_byte_link_rate_and_clock!(inner);
 }
 
 impl<L: ByteLink> FaultyByteLink<L> {

@@ -9,7 +9,8 @@
 //!   (python-can's `udp_multicast` virtual bus), [`MemoryBus`] (deterministic tests).
 //! - Wrappers implementing the same traits: [`FaultyByteLink`] / [`FaultyFrameLink`]
 //!   (seeded fault injection), [`CaptureByteLink`] / [`CaptureFrameLink`] (hex log /
-//!   candump log capture), [`ReplayByteLink`] / [`ReplayFrameLink`] (play a capture back).
+//!   candump log capture), [`ReplayByteLink`] / [`ReplayFrameLink`] (play a capture back);
+//!   [`CaptureReader`] reads a capture file of either format back, line by line.
 //!
 //! ```
 //! use std::time::{Duration, Instant};
@@ -88,8 +89,8 @@ pub mod udp;
 
 pub use byte::{ByteLink, LinkError};
 pub use capture::{
-    CandumpError, CandumpRecord, CandumpWriter, CaptureByteLink, CaptureFrameLink, HexRecord,
-    ReplayByteLink, ReplayFrameLink, read_candump, read_hex_log,
+    CandumpError, CandumpRecord, CandumpWriter, CaptureByteLink, CaptureFrameLink, CaptureReader,
+    HexRecord, ReplayByteLink, ReplayFrameLink, read_candump, read_hex_log,
 };
 pub use fault::{FaultConfig, FaultStats, FaultyByteLink, FaultyFrameLink};
 pub use frame_link::{BusErrorKind, FrameLink, FrameLinkError, IdFilter, Received};

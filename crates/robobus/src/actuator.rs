@@ -401,8 +401,8 @@ pub fn whj_position(joint: &str, map: JointMap, rad: f64) -> Result<WhjPosition,
         joint: joint.to_owned(),
         value_rad: rad,
         device_deg,
-        min_deg: f64::from(i32::MIN) / 10_000.0,
-        max_deg: f64::from(i32::MAX) / 10_000.0,
+        min_deg: WhjPosition(i32::MIN).degrees(),
+        max_deg: WhjPosition(i32::MAX).degrees(),
     })
 }
 

@@ -15,6 +15,8 @@
 //!   gives the bytes a module answers with.
 //! - **Values**: every ranged quantity is a newtype whose constructor refuses out-of-range
 //!   input with a [`RangeError`] naming the quantity, the value and the range.
+//! - **In words**: a command's or reply's [`Display`](core::fmt::Display) form, and its
+//!   values by name ([`Command::fields`], [`Reply::fields`]).
 //! - **Motion programs**: [`program`] (instructions, programs, a text form).
 //! - **Timing**: [`timing`] (wire time, turnaround, polling rates).
 //!
@@ -55,6 +57,7 @@
 
 mod command;
 mod decoder;
+mod describe;
 pub mod program;
 mod reply;
 pub mod timing;
@@ -65,6 +68,7 @@ pub use command::{
     xor7,
 };
 pub use decoder::{DecodeError, DecoderStats, Feed, StreamDecoder, decode_packet};
+pub use describe::Field;
 pub use program::{Instruction, Program};
 pub use reply::{Reply, ReplyError};
 pub use values::{

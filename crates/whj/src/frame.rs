@@ -256,30 +256,55 @@ impl CanFrame {
     }
 }
 
-impl fmt::Debug for CanFrame {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        // candump-like: 201##1 40420F00
+impl CanFrame {
+    /// `ID##<flags><sep><data>` (FD, with FDF = 4 in the flags if `fdf`) or `ID#<sep><data>`.
+    fn write_line(&self, f: &mut fmt::Formatter<'_>, fdf: bool, sep: &str) -> fmt::Result {
         if self.is_extended() {
             write!(f, "{:08X}", self.raw_id())?;
         } else {
             write!(f, "{:03X}", self.raw_id())?;
         }
         if self.fd {
-            let flags = u8::from(self.brs) | (u8::from(self.esi) << 1);
-            write!(f, "##{flags:X} ")?;
+            let flags = (u8::from(fdf) << 2) | u8::from(self.brs) | (u8::from(self.esi) << 1);
+            write!(f, "##{flags:X}{sep}")?;
         } else {
-            f.write_str("# ")?;
+            write!(f, "#{sep}")?;
         }
-        for b in self.data() {
-            write!(f, "{b:02X}")?;
-        }
-        Ok(())
+        self.data().iter().try_for_each(|b| write!(f, "{b:02X}"))
+    }
+}
+
+impl fmt::Debug for CanFrame {
+    /// candump-like, the data set apart: `201##1 40420F00`.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        self.write_line(f, false, " ")
+    }
+}
+
+impl fmt::Display for CanFrame {
+    /// The frame in `cansend` syntax: `001##1020A01` (CAN FD: `##`, then the flags nibble
+    /// BRS = 1, ESI = 2), `001#0102` (classic), a 29-bit ID as 8 hex digits. The alternate
+    /// form (`{:#}`) also sets FDF = 4 in the flags of an FD frame, as `candump -l` writes
+    /// it (`001##5020A01`).
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        self.write_line(f, f.alternate(), "")
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn frames_print_in_cansend_syntax_and_as_candump_writes_them() {
+        let f = CanFrame::new_fd(CanFrame::standard_id(0x001).unwrap(), &[0x02, 0x0A, 0x01])
+            .unwrap()
+            .with_brs(true);
+        assert_eq!(std::format!("{f}"), "001##1020A01");
+        assert_eq!(std::format!("{f:#}"), "001##5020A01");
+        let c = CanFrame::new_classic(CanFrame::extended_id(0x1F).unwrap(), &[1, 2]).unwrap();
+        assert_eq!(std::format!("{c:#}"), "0000001F#0102");
+    }
 
     #[test]
     #[allow(clippy::cast_possible_truncation)]

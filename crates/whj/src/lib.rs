@@ -5,8 +5,9 @@
 //! frame is [`Malformed`] and which `CMD_ERR` to answer) and encodes its [`Reply`]. The
 //! register table is data ([`REGISTERS`], with the firmware gates [`FIRMWARE_GATES`]), the
 //! products are data ([`PRODUCTS`]: code, ratio, peak speed, current scale, features), units are named conversions ([`units`]),
-//! errors are a named bit set ([`ErrorCode`]), and [`timing`] gives each frame's exact
-//! duration on the wire. Sources: the vendor's CAN FD usage demo and the WHJ joint protocol reference
+//! errors are a named bit set ([`ErrorCode`]), [`describe`] puts requests and replies in
+//! words (their `Display`, their values by name in their units), and [`timing`] gives each
+//! frame's exact duration on the wire. Sources: the vendor's CAN FD usage demo and the WHJ joint protocol reference
 //! (section numbers in the docs refer to the latter).
 //!
 //! # Conventions where the documents disagree (§10)
@@ -64,6 +65,7 @@
 #![allow(clippy::doc_markdown)]
 
 pub mod broadcast;
+pub mod describe;
 pub mod error_code;
 pub mod frame;
 pub mod id;
@@ -79,6 +81,7 @@ pub use broadcast::{
     EndBoardOp, EndBoardReply, FeedForward, FeedForwardBits, FeedForwardLayout, PositionSlot,
     RegisterOp, RegisterSlot, ReplyMask,
 };
+pub use describe::{Described, Field, FieldName, Fields};
 pub use error_code::{ErrorBitInfo, ErrorCode};
 pub use frame::{CanFrame, FrameError};
 pub use id::{Address, BroadcastFunction, Function, JointId, JointIdError};

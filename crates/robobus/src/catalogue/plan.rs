@@ -106,22 +106,7 @@ pub fn connect_note(joints: &[robobus_whj::JointId]) -> Option<String> {
 
 /// A frame in `cansend` syntax: `001##1020A01` (FD) or `001#0102` (classic).
 pub fn frame_line(f: &CanFrame) -> String {
-    let mut s = String::with_capacity(8 + 2 * f.len());
-    if f.is_extended() {
-        let _ = write!(s, "{:08X}", f.raw_id());
-    } else {
-        let _ = write!(s, "{:03X}", f.raw_id());
-    }
-    if f.is_fd() {
-        let flags = u8::from(f.brs()) | (u8::from(f.esi()) << 1);
-        let _ = write!(s, "##{flags:X}");
-    } else {
-        s.push('#');
-    }
-    for b in f.data() {
-        let _ = write!(s, "{b:02X}");
-    }
-    s
+    f.to_string()
 }
 
 impl Plan {

@@ -5,15 +5,16 @@
 //! before handing it to the client. The file is created new (an existing file is refused
 //! unless [`Overwrite::Yes`] is given) and written through a line buffer, so every line
 //! reaches the file when it is complete: a Ctrl-C or a crash loses at most the line being
-//! written. [`super::replay`] reads both formats back.
+//! written. [`super::replay`] reads both formats back (through the link's
+//! [`CaptureReader`](robobus_link::CaptureReader), beside the writers).
 
 use std::fs::{File, OpenOptions};
-use std::io::{LineWriter, Write as _};
+use std::io::LineWriter;
 use std::path::Path;
 
+use robobus_link::capture::Side;
 use robobus_link::{ByteLink, CaptureByteLink, CaptureFrameLink, FrameLink};
 
-use super::replay::{DEVICE_SIDE_COMMENT, HOST_SIDE_COMMENT};
 use super::{ErrorKind, OpError};
 
 /// Whether an existing capture file may be replaced.
@@ -118,7 +119,7 @@ pub fn capture_byte_link<L: ByteLink>(
     path: &Path,
     overwrite: Overwrite,
 ) -> Result<CaptureByteLink<L, CaptureFile>, OpError> {
-    capture_with_comment(link, path, overwrite, HOST_SIDE_COMMENT)
+    capture_with_side(link, path, overwrite, Side::Host)
 }
 
 /// Like [`capture_byte_link`], for the device's end of the line (a simulator): the first
@@ -129,17 +130,17 @@ pub fn capture_device_byte_link<L: ByteLink>(
     path: &Path,
     overwrite: Overwrite,
 ) -> Result<CaptureByteLink<L, CaptureFile>, OpError> {
-    capture_with_comment(link, path, overwrite, DEVICE_SIDE_COMMENT)
+    capture_with_side(link, path, overwrite, Side::Device)
 }
 
 #[allow(clippy::result_large_err)] // OpError, as every operation returns
-fn capture_with_comment<L: ByteLink>(
+fn capture_with_side<L: ByteLink>(
     link: L,
     path: &Path,
     overwrite: Overwrite,
-    comment: &str,
+    side: Side,
 ) -> Result<CaptureByteLink<L, CaptureFile>, OpError> {
-    capture_limited(link, path, overwrite, comment, u64::MAX)
+    capture_limited(link, path, overwrite, side, u64::MAX)
 }
 
 /// [`capture_byte_link`] into a file of at most `limit` bytes (see [`BoundedFile`]).
@@ -150,7 +151,7 @@ pub fn capture_byte_link_limited<L: ByteLink>(
     overwrite: Overwrite,
     limit: u64,
 ) -> Result<CaptureByteLink<L, CaptureFile>, OpError> {
-    capture_limited(link, path, overwrite, HOST_SIDE_COMMENT, limit)
+    capture_limited(link, path, overwrite, Side::Host, limit)
 }
 
 #[allow(clippy::result_large_err)] // OpError, as every operation returns
@@ -158,16 +159,15 @@ fn capture_limited<L: ByteLink>(
     link: L,
     path: &Path,
     overwrite: Overwrite,
-    comment: &str,
+    side: Side,
     limit: u64,
 ) -> Result<CaptureByteLink<L, CaptureFile>, OpError> {
-    let mut out = create_limited(path, overwrite, limit)?;
-    writeln!(out, "{comment}").map_err(|e| OpError::File {
+    let out = create_limited(path, overwrite, limit)?;
+    CaptureByteLink::with_side(link, out, side).map_err(|e| OpError::File {
         path: path.to_path_buf(),
         reason: format!("cannot write the capture file: {e}"),
         kind: ErrorKind::Link,
-    })?;
-    Ok(CaptureByteLink::new(link, out))
+    })
 }
 
 /// Wraps a frame link (WHJ) so every frame sent and received is logged to `path` as a

@@ -9,7 +9,7 @@ use robobus_whj::units::{
 };
 use robobus_whj::{
     CmdError, ErrorCode, JointId, JointStatus, RegisterAddr, Reply, Request, ServoFeedback,
-    WorkMode, WriteData,
+    WorkMode,
 };
 
 use super::bus::JointBus;
@@ -60,11 +60,9 @@ impl RegisterValue {
     /// missing words count as 0), converted with the joint's current scale.
     pub fn of(info: &'static RegisterInfo, words: &[u16], scale: CurrentScale) -> Self {
         let at = |i: usize| words.get(i).copied().unwrap_or(0);
-        let raw = match (info.half, info.unit) {
-            (Half::Low, _) => registers::join_i32(at(0), at(1)),
-            (_, Unit::Raw | Unit::Enum | Unit::Flag) => i32::from(at(0)),
-            #[allow(clippy::cast_possible_wrap)] // registers are signed 16-bit words
-            _ => i32::from(at(0) as i16),
+        let raw = match info.half {
+            Half::Low => registers::join_i32(at(0), at(1)),
+            _ => info.word_value(at(0)),
         };
         let (value, unit) = unit_scale(info, scale);
         Self {
@@ -76,13 +74,10 @@ impl RegisterValue {
     }
 }
 
-/// The scale (per count) and unit symbol of a register's value.
+/// The scale (per count, [`Unit::per_count`]) and unit symbol of a register's value.
 fn unit_scale(info: &RegisterInfo, scale: CurrentScale) -> (Option<f64>, &'static str) {
-    match info.unit {
-        Unit::Current => (Some(f64::from(scale.ma_per_count())), info.unit.symbol()),
-        Unit::SpeedLimit => (None, ""),
-        u => (u.scale(), u.symbol()),
-    }
+    let per_count = info.unit.per_count(scale);
+    (per_count, per_count.map_or("", |_| info.unit.symbol()))
 }
 
 impl core::fmt::Display for RegisterValue {
@@ -852,7 +847,10 @@ fn register_name(addr: RegisterAddr) -> &'static str {
     RegisterInfo::by_addr(addr).map_or("reserved", |i| i.name)
 }
 
-/// A short description of a request for error messages.
+/// A short description of a request for error messages, which name the joint already:
+/// the protocol core's text without the joint (`{:#}`: `write SYS_ENABLE_DRIVER 1`,
+/// `position servo target position 12.5000 °`, currents in counts), except a read, which
+/// names its register as `CUR_POSITION_L (0x14)`.
 pub(crate) fn describe(request: &Request) -> String {
     match request {
         Request::Read { range, .. } => format!(
@@ -861,29 +859,7 @@ pub(crate) fn describe(request: &Request) -> String {
             range.start().get(),
             range.count()
         ),
-        Request::Write { addr, data, .. } => {
-            let value = match data {
-                WriteData::Byte(b) => i64::from(*b),
-                WriteData::Word(w) => i64::from(*w),
-                WriteData::Pair(v) => i64::from(*v),
-            };
-            format!(
-                "write of {value} to {} ({:#04x})",
-                register_name(*addr),
-                addr.get()
-            )
-        }
-        Request::PositionServo { target, .. } => {
-            format!("position servo command {:.4}°", target.degrees())
-        }
-        Request::SpeedServo { target, .. } => {
-            format!("speed servo command {:.3} RPM", target.rpm())
-        }
-        Request::CurrentServo { target, .. } => {
-            format!("current servo command {} counts", target.raw())
-        }
-        Request::StatusQuery { .. } => "status query".into(),
-        other => format!("broadcast frame {:#05x}", other.can_id()),
+        other => format!("{other:#}"),
     }
 }
 

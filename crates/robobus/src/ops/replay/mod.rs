@@ -39,52 +39,16 @@ use std::collections::VecDeque;
 use std::fmt::Write as _;
 use std::fs::File;
 use std::io::{BufRead, BufReader};
-use std::path::Path;
-use std::time::Duration;
+use std::path::{Path, PathBuf};
 
-use robobus_link::capture::{Dir, HexRecord, parse_candump_line, parse_hex_line};
+use robobus_link::capture::{CaptureError, CaptureReader, Record, format_time};
+/// The capture formats, sides, comments and line limit (the reader's, in
+/// [`robobus_link::capture`]).
+pub use robobus_link::capture::{DEVICE_SIDE_COMMENT, Format, HOST_SIDE_COMMENT, MAX_LINE, Side};
 use robobus_whj::units::CurrentScale;
 use serde::Serialize;
 
-use super::{ErrorKind, OpError, human_bytes};
-
-/// The longest line a capture may have: 64 KiB (a candump CAN FD line is under 200
-/// bytes; a hex log line holds what one read or write call moved).
-pub const MAX_LINE: usize = 64 << 10;
-
-/// How many hex log records are looked at to detect the side before giving up and
-/// taking the host side.
-const SIDE_LOOKAHEAD: usize = 256;
-
-/// The comment [`super::capture::capture_byte_link`] writes first, naming the side.
-pub const HOST_SIDE_COMMENT: &str = "# robobus hex capture: host side (> host wrote, < host read)";
-
-/// The comment a simulator's capture writes first ([`super::capture::capture_device_byte_link`]).
-pub const DEVICE_SIDE_COMMENT: &str =
-    "# robobus hex capture: device side (< device read, > device wrote)";
-
-/// The capture format.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Format {
-    /// candump `-L` log of CAN FD frames (WHJ).
-    Candump,
-    /// Timestamped hex log of a byte link (wCK).
-    Hex,
-}
-
-/// Which side wrote a hex log.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Side {
-    /// Detect it (the default).
-    #[default]
-    Auto,
-    /// The host's log: `>` commands the host wrote, `<` replies it read.
-    Host,
-    /// A simulator's (device's) log: `<` commands it read, `>` replies it wrote.
-    Device,
-}
+use super::{ErrorKind, OpError};
 
 /// How to read a capture.
 #[derive(Debug, Clone, Copy, Default)]
@@ -156,27 +120,31 @@ pub struct Field {
     decimals: usize,
 }
 
-impl Field {
-    fn new(
-        name: impl Into<String>,
-        raw: i64,
-        value: f64,
-        unit: &'static str,
-        decimals: usize,
-    ) -> Self {
+impl From<&robobus_whj::Field> for Field {
+    /// A WHJ value, named after the joint of its broadcast slot (`J3 position`).
+    fn from(f: &robobus_whj::Field) -> Self {
         Self {
-            name: name.into(),
-            raw,
-            value,
-            unit,
-            decimals,
+            name: match f.slot {
+                Some(joint) => format!("{joint} {}", f.name),
+                None => f.name.to_string(),
+            },
+            raw: f.raw,
+            value: f.value,
+            unit: f.unit,
+            decimals: f.decimals,
         }
     }
+}
 
-    fn raw(name: impl Into<String>, raw: impl Into<i64>) -> Self {
-        let raw = raw.into();
-        #[allow(clippy::cast_precision_loss)] // raw values are at most 32 bits
-        Self::new(name, raw, raw as f64, "", 0)
+impl From<robobus_wck::Field> for Field {
+    fn from(f: robobus_wck::Field) -> Self {
+        Self {
+            name: f.name.into(),
+            raw: i64::from(f.value),
+            value: f64::from(f.value),
+            unit: "",
+            decimals: 0,
+        }
     }
 }
 
@@ -255,6 +223,21 @@ impl Entry {
         self.bytes = hex(bytes);
         self
     }
+
+    /// A WHJ request or reply as the protocol core describes it: what it is, its values
+    /// and error bits, its text.
+    fn described(
+        mut self,
+        command: &str,
+        fields: &robobus_whj::Fields,
+        text: impl std::fmt::Display,
+    ) -> Self {
+        self.command = Some(command.into());
+        self.fields = fields.iter().map(Field::from).collect();
+        self.errors = fields.errors().collect();
+        self.text = text.to_string();
+        self
+    }
 }
 
 /// Counts over a whole replay.
@@ -300,25 +283,16 @@ fn hex(bytes: &[u8]) -> String {
     s
 }
 
-fn fmt_time(t: Duration) -> String {
-    format!("{}.{:06}", t.as_secs(), t.subsec_micros())
-}
-
 /// A capture being replayed: an iterator of its entries, in the order of the capture.
 ///
 /// An item is an error only when the file itself cannot be read on (an I/O error, a line
 /// longer than [`MAX_LINE`], text that is not UTF-8); the error names the file and the
 /// line, and the iteration ends.
 pub struct Replay<R> {
-    lines: Lines<R>,
-    format: Format,
-    side: Side,
+    reader: CaptureReader<R>,
+    path: PathBuf,
     options: ReplayOptions,
     out: VecDeque<Entry>,
-    /// The first meaningful line, read to detect the format.
-    first: Option<(u64, String)>,
-    /// Hex records read ahead while the side is unknown.
-    ahead: VecDeque<(u64, Result<HexRecord, String>)>,
     done: bool,
     failed: bool,
     whj: WhjState,
@@ -329,10 +303,10 @@ pub struct Replay<R> {
 impl<R> std::fmt::Debug for Replay<R> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Replay")
-            .field("path", &self.lines.path)
-            .field("format", &self.format)
-            .field("side", &self.side)
-            .field("line", &self.lines.line)
+            .field("path", &self.path)
+            .field("format", &self.reader.format())
+            .field("side", &self.reader.side())
+            .field("line", &self.reader.line())
             .finish_non_exhaustive()
     }
 }
@@ -355,6 +329,19 @@ pub fn open(path: &Path, options: &ReplayOptions) -> Result<Replay<BufReader<Fil
     Replay::from_reader(BufReader::new(file), path, options)
 }
 
+/// A capture that cannot be read on, as the error of the file at `path`.
+fn file_error(path: &Path, e: &CaptureError) -> OpError {
+    OpError::File {
+        path: path.to_path_buf(),
+        reason: e.to_string(),
+        kind: if e.is_io() {
+            ErrorKind::Link
+        } else {
+            ErrorKind::BadInput
+        },
+    }
+}
+
 impl<R: BufRead> Replay<R> {
     /// Replays a capture from `reader`; `path` names it in errors. Reads up to the first
     /// line that is not blank or a comment to detect the format (unless given).
@@ -364,51 +351,14 @@ impl<R: BufRead> Replay<R> {
         path: impl AsRef<Path>,
         options: &ReplayOptions,
     ) -> Result<Self, OpError> {
-        let mut lines = Lines {
-            reader,
-            path: path.as_ref().to_path_buf(),
-            line: 0,
-            buf: Vec::new(),
-        };
-        let mut side = options.side;
-        let mut first = None;
-        while let Some((n, text)) = lines.next_line()? {
-            let t = text.trim();
-            if t.is_empty() {
-                continue;
-            }
-            if t.starts_with('#') {
-                side = side_comment(t, side);
-                continue;
-            }
-            first = Some((n, text));
-            break;
-        }
-        let format = match (options.format, &first) {
-            (Some(f), _) => f,
-            (None, None) => {
-                return Err(OpError::File {
-                    path: lines.path,
-                    reason: "empty capture: no frame or packet in it".into(),
-                    kind: ErrorKind::BadInput,
-                });
-            }
-            (None, Some((n, text))) => detect(text).ok_or_else(|| OpError::File {
-                path: lines.path.clone(),
-                reason: format!(
-                    "line {n}: neither a candump log line (`(seconds) iface ID##data`) nor a hex log line (`seconds > FF 03 7F 7C`)"
-                ),
-                kind: ErrorKind::BadInput,
-            })?,
-        };
+        let path = path.as_ref().to_path_buf();
+        let reader = CaptureReader::new(reader, options.format, options.side)
+            .map_err(|e| file_error(&path, &e))?;
         Ok(Self {
-            lines,
-            format,
-            side,
+            reader,
+            path,
             options: *options,
             out: VecDeque::new(),
-            first,
-            ahead: VecDeque::new(),
             done: false,
             failed: false,
             whj: WhjState::default(),
@@ -419,12 +369,12 @@ impl<R: BufRead> Replay<R> {
 
     /// The capture's format.
     pub const fn format(&self) -> Format {
-        self.format
+        self.reader.format()
     }
 
     /// The side of a hex log (detected once the first header was seen; `Auto` before).
     pub const fn side(&self) -> Side {
-        self.side
+        self.reader.side()
     }
 
     /// The counts of the entries returned so far.
@@ -432,123 +382,45 @@ impl<R: BufRead> Replay<R> {
         self.summary
     }
 
-    #[allow(clippy::result_large_err)]
-    fn next_line(&mut self) -> Result<Option<(u64, String)>, OpError> {
-        if let Some(l) = self.first.take() {
-            return Ok(Some(l));
-        }
-        self.lines.next_line()
-    }
-
     /// Reads on until at least one entry is queued or the capture ends.
     #[allow(clippy::result_large_err)]
     fn fill(&mut self) -> Result<(), OpError> {
         while self.out.is_empty() && !self.done {
-            match self.format {
-                Format::Candump => {
-                    if let Some((n, text)) = self.next_line()? {
-                        self.candump_line(n, &text);
+            match self.reader.next() {
+                None => {
+                    match self.reader.format() {
+                        Format::Candump => self.out.extend(self.whj.finish()),
+                        Format::Hex => self.wck.finish(&mut self.out),
+                    }
+                    self.done = true;
+                }
+                Some(Err(e)) => return Err(file_error(&self.path, &e)),
+                Some(Ok(Record::Frame { line, record })) => {
+                    let mut e = self.whj.decode(&record.frame, self.options.current_scale);
+                    e.line = line;
+                    e.time = Some(format_time(record.timestamp));
+                    e.iface = Some(record.iface);
+                    if let Some(missing) = self.whj.pair(&record.frame, &mut e) {
+                        self.out.push_back(missing);
+                    }
+                    self.out.push_back(e);
+                }
+                Some(Ok(Record::Bytes {
+                    line,
+                    record,
+                    to_device,
+                })) => {
+                    let time = format_time(record.at);
+                    if to_device {
+                        self.wck.written(line, &time, &record.bytes, &mut self.out);
                     } else {
-                        self.out.extend(self.whj.finish());
-                        self.done = true;
+                        self.wck.read(line, &time, &record.bytes, &mut self.out);
                     }
                 }
-                Format::Hex => self.hex_step()?,
-            }
-        }
-        Ok(())
-    }
-
-    fn candump_line(&mut self, n: u64, text: &str) {
-        if text.trim().is_empty() {
-            return;
-        }
-        let entry = match parse_candump_line(text) {
-            Ok(rec) => {
-                let mut e = self.whj.decode(&rec.frame, self.options.current_scale);
-                e.line = n;
-                e.time = Some(fmt_time(rec.timestamp));
-                e.iface = Some(rec.iface);
-                if let Some(missing) = self.whj.pair(&rec.frame, &mut e) {
-                    self.out.push_back(missing);
-                }
-                e
-            }
-            Err(kind) => Entry::new(n, None, Direction::Unknown, EntryKind::Malformed)
-                .malformed(format!("{kind}: {:?}", clip(text))),
-        };
-        self.out.push_back(entry);
-    }
-
-    #[allow(clippy::result_large_err)]
-    fn hex_step(&mut self) -> Result<(), OpError> {
-        if self.side == Side::Auto {
-            // Read ahead until a header shows which side writes the commands.
-            while self.side == Side::Auto {
-                let Some((n, text)) = self.next_line()? else {
-                    self.side = Side::Host;
-                    break;
-                };
-                let t = text.trim();
-                if t.starts_with('#') {
-                    self.side = side_comment(t, Side::Auto);
-                    continue;
-                }
-                match parse_hex_line(&text) {
-                    Ok(None) => {}
-                    Ok(Some(rec)) => {
-                        if rec.bytes.contains(&0xFF) {
-                            self.side = match rec.dir {
-                                Dir::Written => Side::Host,
-                                Dir::Read => Side::Device,
-                            };
-                        }
-                        self.ahead.push_back((n, Ok(rec)));
-                    }
-                    Err(e) => self
-                        .ahead
-                        .push_back((n, Err(format!("{e}: {:?}", clip(&text))))),
-                }
-                if self.ahead.len() >= SIDE_LOOKAHEAD && self.side == Side::Auto {
-                    self.side = Side::Host;
-                }
-            }
-        }
-        let item = if let Some(item) = self.ahead.pop_front() {
-            Some(item)
-        } else {
-            loop {
-                match self.next_line()? {
-                    None => break None,
-                    Some((n, text)) => match parse_hex_line(&text) {
-                        Ok(None) => {}
-                        Ok(Some(rec)) => break Some((n, Ok(rec))),
-                        Err(e) => break Some((n, Err(format!("{e}: {:?}", clip(&text))))),
-                    },
-                }
-            }
-        };
-        match item {
-            None => {
-                self.wck.finish(&mut self.out);
-                self.done = true;
-            }
-            Some((n, Ok(rec))) => {
-                let to_device = matches!(
-                    (self.side, rec.dir),
-                    (Side::Host | Side::Auto, Dir::Written) | (Side::Device, Dir::Read)
-                );
-                let time = fmt_time(rec.at);
-                if to_device {
-                    self.wck.written(n, &time, &rec.bytes, &mut self.out);
-                } else {
-                    self.wck.read(n, &time, &rec.bytes, &mut self.out);
-                }
-            }
-            Some((n, Err(reason))) => {
-                self.out.push_back(
-                    Entry::new(n, None, Direction::Unknown, EntryKind::Malformed).malformed(reason),
-                );
+                Some(Ok(Record::Malformed { line, reason })) => self.out.push_back(
+                    Entry::new(line, None, Direction::Unknown, EntryKind::Malformed)
+                        .malformed(reason),
+                ),
             }
         }
         Ok(())
@@ -572,23 +444,9 @@ impl<R: BufRead> Iterator for Replay<R> {
     }
 }
 
-fn clip(text: &str) -> String {
-    const MAX: usize = 120;
-    if text.len() <= MAX {
-        return text.to_owned();
-    }
-    let mut end = MAX;
-    while !text.is_char_boundary(end) {
-        end -= 1;
-    }
-    format!("{}...", text.get(..end).unwrap_or_default())
-}
-
-mod lines;
 mod wck;
 mod whj;
 
-use lines::{Lines, detect, side_comment};
 use wck::WckState;
 use whj::WhjState;
 

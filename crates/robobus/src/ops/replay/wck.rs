@@ -2,13 +2,9 @@
 
 use std::collections::VecDeque;
 
-use robobus_wck::{Command, DecodeError, Reply as WckReply, StreamDecoder, Target};
+use robobus_wck::{Command, DecodeError, StreamDecoder, Target};
 
 use super::{Direction, Entry, EntryKind, Field};
-
-// ---------------------------------------------------------------------------------------
-// wCK packets
-// ---------------------------------------------------------------------------------------
 
 /// Bytes kept at most in one noise or unexpected entry before it is emitted.
 const MAX_RUN: usize = 256;
@@ -61,29 +57,6 @@ fn servo_of(command: &Command) -> Option<u8> {
         Target::Servo(id) => Some(id.get()),
         Target::Extended(id) => Some(id.get()),
         Target::Broadcast => None,
-    }
-}
-
-fn wck_reply_fields(reply: WckReply, fields: &mut Vec<Field>) {
-    match reply {
-        WckReply::Status { load, position } => {
-            fields.push(Field::raw("load", load.get()));
-            fields.push(Field::raw("position", position.get()));
-        }
-        WckReply::Passive { position } => fields.push(Field::raw("position", position.get())),
-        WckReply::Wheel {
-            rotations,
-            position,
-        } => {
-            fields.push(Field::raw("rotations", rotations));
-            fields.push(Field::raw("position", position.get()));
-        }
-        WckReply::Break { id, position } => {
-            fields.push(Field::raw("id", id.get()));
-            fields.push(Field::raw("position", position.get()));
-        }
-        WckReply::Position10(p) => fields.push(Field::raw("position", p.get())),
-        _ => {}
     }
 }
 
@@ -210,13 +183,7 @@ impl WckState {
                     let mut e = e;
                     e.device = servo_of(&command);
                     e.command = Some(command.name().into());
-                    if let Command::Move {
-                        torque, position, ..
-                    } = command
-                    {
-                        e.fields.push(Field::raw("position", position.get()));
-                        e.fields.push(Field::raw("torque", torque.get()));
-                    }
+                    e.fields = command.fields().map(Field::from).collect();
                     e.text = command.to_string();
                     out.push_back(e);
                     if command.reply_len() > 0 {
@@ -267,7 +234,7 @@ impl WckState {
             e.command = Some(w.command.name().into());
             match w.command.decode_reply(&w.bytes) {
                 Ok(reply) => {
-                    wck_reply_fields(reply, &mut e.fields);
+                    e.fields = reply.fields().map(Field::from).collect();
                     e.text = reply.to_string();
                     out.push_back(e);
                 }

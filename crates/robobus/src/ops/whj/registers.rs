@@ -383,7 +383,6 @@ pub fn write_request(
         1.0
     } else {
         match unit {
-            Unit::Current => f64::from(scale.ma_per_count()),
             Unit::SpeedLimit => {
                 return Err(OpError::invalid(
                     format!("write {name}"),
@@ -392,7 +391,7 @@ pub fn write_request(
                      give the value in counts with --raw",
                 ));
             }
-            other => other.scale().unwrap_or(1.0),
+            other => other.per_count(scale).unwrap_or(1.0),
         }
     };
     let counts = (value / per_count).round();

@@ -1,4 +1,5 @@
-//! Capture and replay: candump log files for frame links, a hex log for byte links.
+//! Capture and replay: candump log files for frame links, a hex log for byte links; the
+//! writer and the reader of each format side by side.
 //!
 //! # candump log format
 //!
@@ -17,72 +18,43 @@
 //! capture (6 decimals); `>` marks bytes this side wrote, `<` bytes it read; bytes are two
 //! hex digits separated by single spaces. Lines starting with `#` and blank lines are
 //! comments.
+//!
+//! A host's capture starts with the comment [`HOST_SIDE_COMMENT`], a simulator's with
+//! [`DEVICE_SIDE_COMMENT`] ([`CaptureByteLink::with_side`]), so a reader knows whether `>`
+//! marks commands or replies.
+//!
+//! # Reading
+//!
+//! [`parse_candump_line`] / [`parse_hex_line`] read one line, [`read_candump`] /
+//! [`read_hex_log`] a whole log of a known format. [`CaptureReader`] reads a capture file
+//! of either format as a front end gets it: lines of at most [`MAX_LINE`] bytes (bounded
+//! memory for any size), a leading UTF-8 byte-order mark skipped, the format detected from
+//! the first line, the side of a hex log from its comment or its first header, and every
+//! line that does not parse a [`Record::Malformed`] naming its line.
 
 use std::collections::VecDeque;
 use std::fmt::Write as _;
-use std::io::{self, BufRead, Write};
+use std::io::{self, Write};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-use robobus_whj::frame::{CanFrame, FrameError};
+use robobus_whj::frame::CanFrame;
 
 use crate::byte::{ByteLink, LinkError};
 use crate::frame_link::{FrameLink, FrameLinkError, IdFilter, Received, passes};
 
-/// One line of a candump log.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct CandumpRecord {
-    /// Time since the Unix epoch (candump's clock).
-    pub timestamp: Duration,
-    /// Interface name (`vcan0`, `can1`, ...).
-    pub iface: String,
-    /// The frame.
-    pub frame: CanFrame,
-}
+mod candump;
+mod hex;
+mod reader;
 
-/// What is wrong with a candump line.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-pub enum CandumpErrorKind {
-    /// Not `(timestamp) iface frame`.
-    #[error("expected `(seconds.micros) iface ID#data`")]
-    Layout,
-    /// The timestamp is not `(seconds.fraction)`.
-    #[error("bad timestamp {0:?}")]
-    Timestamp(String),
-    /// The identifier is not 3 or 8 hex digits.
-    #[error("bad identifier {0:?} (3 hex digits for 11-bit, 8 for 29-bit)")]
-    Id(String),
-    /// The data is not pairs of hex digits.
-    #[error("bad data {0:?} (pairs of hex digits)")]
-    Data(String),
-    /// A remote or error frame (not a data frame).
-    #[error("{0} not supported (only data frames)")]
-    Unsupported(&'static str),
-    /// Illegal length or identifier for the frame kind.
-    #[error(transparent)]
-    Frame(#[from] FrameError),
-}
-
-/// A candump line that could not be read, with its 1-based line number.
-#[derive(Debug, thiserror::Error)]
-pub enum CandumpError {
-    /// The line is malformed.
-    #[error("candump log line {line}: {kind}")]
-    Parse {
-        /// 1-based line number.
-        line: usize,
-        /// What is wrong.
-        kind: CandumpErrorKind,
-    },
-    /// Reading failed.
-    #[error("reading candump log at line {line}: {source}")]
-    Io {
-        /// 1-based line number.
-        line: usize,
-        /// The I/O error.
-        #[source]
-        source: io::Error,
-    },
-}
+pub use candump::{
+    CandumpError, CandumpErrorKind, CandumpRecord, CandumpWriter, format_candump_line,
+    parse_candump_line, read_candump,
+};
+pub use hex::{Dir, HexLogError, HexRecord, format_hex_line, parse_hex_line, read_hex_log};
+pub use reader::{
+    CaptureError, CaptureReader, DEVICE_SIDE_COMMENT, Format, HOST_SIDE_COMMENT, MAX_LINE, Record,
+    Side,
+};
 
 fn hex_nibble(c: u8) -> Option<u8> {
     match c {
@@ -131,123 +103,12 @@ fn write_time(s: &mut String, t: Duration) {
     let _ = write!(s, "{}.{:06}", t.as_secs(), t.subsec_micros());
 }
 
-/// Parses one candump log line (without line-number context).
-pub fn parse_candump_line(line: &str) -> Result<CandumpRecord, CandumpErrorKind> {
-    let mut parts = line.split_whitespace();
-    let (Some(ts), Some(iface), Some(frame)) = (parts.next(), parts.next(), parts.next()) else {
-        return Err(CandumpErrorKind::Layout);
-    };
-    match (parts.next(), parts.next()) {
-        (None | Some("R" | "T" | "r" | "t"), None) => {}
-        _ => return Err(CandumpErrorKind::Layout),
-    }
-    let timestamp = parse_timestamp(ts).ok_or_else(|| CandumpErrorKind::Timestamp(ts.into()))?;
-    let (id_str, rest) = frame.split_once('#').ok_or(CandumpErrorKind::Layout)?;
-    let raw = u32::from_str_radix(id_str, 16)
-        .ok()
-        .filter(|_| id_str.bytes().all(|c| c.is_ascii_hexdigit()))
-        .ok_or_else(|| CandumpErrorKind::Id(id_str.into()))?;
-    let id = match id_str.len() {
-        3 => CanFrame::standard_id(u16::try_from(raw).unwrap_or(u16::MAX))?,
-        8 if raw & 0x2000_0000 != 0 => return Err(CandumpErrorKind::Unsupported("an error frame")),
-        8 => CanFrame::extended_id(raw & !0x8000_0000)?,
-        _ => return Err(CandumpErrorKind::Id(id_str.into())),
-    };
-    let frame = if let Some(fd) = rest.strip_prefix('#') {
-        let mut chars = fd.chars();
-        let flags = chars
-            .next()
-            .and_then(|c| c.to_digit(16))
-            .ok_or_else(|| CandumpErrorKind::Data(fd.into()))?;
-        let data = chars.as_str();
-        let bytes = parse_hex_bytes(data).ok_or_else(|| CandumpErrorKind::Data(data.into()))?;
-        CanFrame::new_fd(id, &bytes)?
-            .with_brs(flags & 1 != 0)
-            .with_esi(flags & 2 != 0)
-    } else {
-        if rest.starts_with(['R', 'r']) {
-            return Err(CandumpErrorKind::Unsupported("a remote frame"));
-        }
-        let bytes = parse_hex_bytes(rest).ok_or_else(|| CandumpErrorKind::Data(rest.into()))?;
-        CanFrame::new_classic(id, &bytes)?
-    };
-    Ok(CandumpRecord {
-        timestamp,
-        iface: iface.to_owned(),
-        frame,
-    })
-}
-
-/// Formats one candump log line (no newline).
-pub fn format_candump_line(rec: &CandumpRecord) -> String {
-    let f = &rec.frame;
-    let mut s = String::with_capacity(64 + 2 * f.len());
-    s.push('(');
-    write_time(&mut s, rec.timestamp);
-    let _ = write!(s, ") {} ", rec.iface);
-    if f.is_extended() {
-        let _ = write!(s, "{:08X}", f.raw_id());
-    } else {
-        let _ = write!(s, "{:03X}", f.raw_id());
-    }
-    if f.is_fd() {
-        let flags = 4 | u8::from(f.brs()) | (u8::from(f.esi()) << 1);
-        let _ = write!(s, "##{flags:X}");
-    } else {
-        s.push('#');
-    }
-    for b in f.data() {
-        let _ = write!(s, "{b:02X}");
-    }
+/// A capture time as the capture files write it: seconds with six decimals
+/// (`1795360410.847412`, `0.001234`).
+pub fn format_time(t: Duration) -> String {
+    let mut s = String::with_capacity(20);
+    write_time(&mut s, t);
     s
-}
-
-/// Reads every record of a candump log; blank lines are skipped.
-pub fn read_candump(
-    reader: impl BufRead,
-) -> impl Iterator<Item = Result<CandumpRecord, CandumpError>> {
-    reader.lines().enumerate().filter_map(|(i, line)| {
-        let line_no = i + 1;
-        match line {
-            Err(source) => Some(Err(CandumpError::Io {
-                line: line_no,
-                source,
-            })),
-            Ok(l) if l.trim().is_empty() => None,
-            Ok(l) => Some(parse_candump_line(&l).map_err(|kind| CandumpError::Parse {
-                line: line_no,
-                kind,
-            })),
-        }
-    })
-}
-
-/// Writes candump log lines.
-#[derive(Debug)]
-pub struct CandumpWriter<W> {
-    out: W,
-}
-
-impl<W: Write> CandumpWriter<W> {
-    /// A writer into `out`.
-    pub const fn new(out: W) -> Self {
-        Self { out }
-    }
-
-    /// Writes one record as a line.
-    pub fn write(&mut self, rec: &CandumpRecord) -> io::Result<()> {
-        writeln!(self.out, "{}", format_candump_line(rec))
-    }
-
-    /// Flushes the output.
-    pub fn flush(&mut self) -> io::Result<()> {
-        self.out.flush()
-    }
-
-    /// The output.
-    pub fn into_inner(self) -> W {
-        self.out
-    }
 }
 
 fn since_epoch(t: SystemTime) -> Duration {
@@ -390,93 +251,6 @@ impl FrameLink for ReplayFrameLink {
     }
 }
 
-/// Direction of a hex log record.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Dir {
-    /// Bytes this side wrote (`>`).
-    Written,
-    /// Bytes this side read (`<`).
-    Read,
-}
-
-/// One line of a hex log.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct HexRecord {
-    /// Time since the start of the capture.
-    pub at: Duration,
-    /// Direction.
-    pub dir: Dir,
-    /// The bytes.
-    pub bytes: Vec<u8>,
-}
-
-/// A hex log line that could not be read.
-#[derive(Debug, thiserror::Error)]
-#[error("hex log line {line}: {what}")]
-pub struct HexLogError {
-    /// 1-based line number.
-    pub line: usize,
-    /// What is wrong.
-    pub what: String,
-}
-
-/// Formats one hex log line (no newline).
-pub fn format_hex_line(rec: &HexRecord) -> String {
-    let mut s = String::with_capacity(20 + 3 * rec.bytes.len());
-    write_time(&mut s, rec.at);
-    s.push(' ');
-    s.push(match rec.dir {
-        Dir::Written => '>',
-        Dir::Read => '<',
-    });
-    for b in &rec.bytes {
-        let _ = write!(s, " {b:02X}");
-    }
-    s
-}
-
-/// Parses one hex log line (`Ok(None)` for comments and blank lines).
-pub fn parse_hex_line(line: &str) -> Result<Option<HexRecord>, String> {
-    let t = line.trim();
-    if t.is_empty() || t.starts_with('#') {
-        return Ok(None);
-    }
-    let mut parts = t.split_whitespace();
-    let ts = parts.next().unwrap_or_default();
-    let at = parse_timestamp(&format!("({ts})")).ok_or_else(|| format!("bad time {ts:?}"))?;
-    let dir = match parts.next() {
-        Some(">") => Dir::Written,
-        Some("<") => Dir::Read,
-        other => return Err(format!("bad direction {other:?} (expected > or <)")),
-    };
-    let bytes = parts
-        .map(|p| {
-            if p.len() == 2 {
-                parse_hex_bytes(p).and_then(|v| v.first().copied())
-            } else {
-                None
-            }
-            .ok_or_else(|| format!("bad byte {p:?} (two hex digits)"))
-        })
-        .collect::<Result<Vec<u8>, String>>()?;
-    Ok(Some(HexRecord { at, dir, bytes }))
-}
-
-/// Reads every record of a hex log.
-pub fn read_hex_log(reader: impl BufRead) -> Result<Vec<HexRecord>, HexLogError> {
-    let mut out = Vec::new();
-    for (i, line) in reader.lines().enumerate() {
-        let line = line.map_err(|e| HexLogError {
-            line: i + 1,
-            what: e.to_string(),
-        })?;
-        if let Some(r) = parse_hex_line(&line).map_err(|what| HexLogError { line: i + 1, what })? {
-            out.push(r);
-        }
-    }
-    Ok(out)
-}
-
 /// A byte link that records every write and read to a hex log.
 #[derive(Debug)]
 pub struct CaptureByteLink<L, W> {
@@ -493,6 +267,16 @@ impl<L: ByteLink, W: Write> CaptureByteLink<L, W> {
             inner,
             out,
         }
+    }
+
+    /// Wraps `inner` as [`CaptureByteLink::new`] does, after writing the comment that names
+    /// the side the log is written on ([`Side::comment`]; nothing for [`Side::Auto`]), so
+    /// that a reader knows whether `>` marks commands or replies.
+    pub fn with_side(inner: L, mut out: W, side: Side) -> io::Result<Self> {
+        if let Some(comment) = side.comment() {
+            writeln!(out, "{comment}")?;
+        }
+        Ok(Self::new(inner, out))
     }
 
     /// Flushes the log and returns the link and the log output.
@@ -529,25 +313,7 @@ impl<L: ByteLink, W: Write> ByteLink for CaptureByteLink<L, W> {
         self.inner.discard_input()
     }
 
-    fn set_baud(&mut self, baud: u32) -> Result<(), LinkError> {
-        self.inner.set_baud(baud)
-    }
-
-    fn baud(&self) -> Option<u32> {
-        self.inner.baud()
-    }
-
-    fn now(&self) -> Instant {
-        self.inner.now()
-    }
-
-    fn sleep_until(&mut self, deadline: Instant) {
-        self.inner.sleep_until(deadline);
-    }
-
-    fn virtual_time(&self) -> bool {
-        self.inner.virtual_time()
-    }
+    crate::forward_byte_link_rate_and_clock!(inner);
 }
 
 /// A byte link that plays the `<` (read) records of a hex log back as incoming bytes
@@ -639,6 +405,7 @@ impl ByteLink for ReplayByteLink {
 #[cfg(test)]
 mod tests {
     use proptest::prelude::*;
+    use robobus_whj::frame::FrameError;
 
     use super::*;
 
