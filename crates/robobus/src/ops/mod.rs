@@ -532,6 +532,16 @@ pub fn human_bytes(n: u64) -> String {
     }
 }
 
+/// A value shown in a message, cut to 64 characters (a user's or a peer's input may be of
+/// any length; a message stays readable).
+pub fn cut(s: &str) -> String {
+    if s.chars().count() > 64 {
+        format!("{}...", s.chars().take(64).collect::<String>())
+    } else {
+        s.to_owned()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -599,15 +609,5 @@ mod tests {
         assert!(!h.join().unwrap());
         token.reset();
         assert!(token.sleep_until(Instant::now()));
-    }
-}
-
-/// A value shown in a message, cut to 64 characters (a user's or a peer's input may be of
-/// any length; a message stays readable).
-pub fn cut(s: &str) -> String {
-    if s.chars().count() > 64 {
-        format!("{}...", s.chars().take(64).collect::<String>())
-    } else {
-        s.to_owned()
     }
 }
