@@ -192,6 +192,7 @@ pub(crate) struct Session {
 }
 
 impl Session {
+    /// A session with nothing queued, the bus active and no loop.
     pub(crate) fn new(config: JointBusConfig) -> Self {
         Self {
             config,
@@ -291,10 +292,12 @@ impl Session {
             }
             return;
         };
+        if self.in_flight.get(&key).is_none_or(|f| f.pending.id != id) {
+            return;
+        }
         let Some(f) = self.in_flight.remove(&key) else {
             return;
         };
-        debug_assert_eq!(f.pending.id, id);
         let outcome = match e {
             FrameLinkError::BusOff { .. } | FrameLinkError::ErrorPassive { .. } => {
                 self.link_error_state(e, now);
