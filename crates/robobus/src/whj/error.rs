@@ -2,10 +2,11 @@
 
 use core::time::Duration;
 
-use robobus_whj::units::UnitRangeError;
-use robobus_whj::{CmdError, ErrorCode, JointId, RequestError};
+use robobus_whj::registers::RegisterInfo;
+use robobus_whj::units::{Position, UnitRangeError};
+use robobus_whj::{CmdError, ErrorCode, JointId, Reply, Request, RequestError};
 
-use super::bus::BusState;
+use super::session::{Attempt, BusState, Expect, describe};
 
 /// Why a WHJ operation failed.
 ///
@@ -244,5 +245,93 @@ impl WhjError {
     /// Whether the error is a [`WhjError::Timeout`] or [`WhjError::Silent`].
     pub const fn is_timeout(&self) -> bool {
         matches!(self, Self::Timeout { .. } | Self::Silent { .. })
+    }
+}
+
+/// The error for a transaction's last attempt (`attempts` made in all).
+pub(crate) fn attempt_error(
+    joint: JointId,
+    request: &Request,
+    attempt: Attempt,
+    attempts: u32,
+) -> WhjError {
+    let description = describe(request);
+    match attempt {
+        Attempt::Timeout { waited, state } => WhjError::Timeout {
+            joint,
+            request: description,
+            expected: Expect::of(request).map_or("reply", Expect::name),
+            reply_id: request.reply_id().unwrap_or(0),
+            waited,
+            attempts,
+            bus_state: state,
+        },
+        Attempt::Mismatch(reason) => WhjError::BadReply {
+            joint,
+            request: description,
+            reason,
+            attempts,
+        },
+        Attempt::Bus {
+            state,
+            detail,
+            waited,
+        } => WhjError::Bus {
+            joint,
+            request: description,
+            bus_state: state,
+            detail,
+            waited,
+        },
+        Attempt::Link(detail) => WhjError::Link { detail },
+        Attempt::Busy => WhjError::Busy {
+            joint,
+            what: "single servo command refused",
+        },
+        Attempt::Duplicate { first, second } => WhjError::DuplicateReply {
+            joint,
+            request: description,
+            first: summarize(&first),
+            second: summarize(&second),
+        },
+        Attempt::Reply {
+            reply: Reply::CmdErr { error, code, .. },
+            ..
+        } => WhjError::CmdErr {
+            joint,
+            request: description,
+            kind: error,
+            code,
+        },
+        Attempt::Reply { reply, .. } => WhjError::BadReply {
+            joint,
+            request: description,
+            reason: format!("unexpected reply {reply:?}"),
+            attempts,
+        },
+    }
+}
+
+/// A reply in a few words for error messages: its position and error bits where it has
+/// them, its register words otherwise.
+pub(crate) fn summarize(reply: &Reply) -> String {
+    match reply {
+        Reply::Read { addr, .. } if reply.actual_position().is_some() => format!(
+            "{} ({:#04x}): position {:.4}°",
+            RegisterInfo::by_addr(*addr).map_or("reserved", |i| i.name),
+            addr.get(),
+            reply.actual_position().map_or(0.0, Position::degrees)
+        ),
+        Reply::Read { addr, words, .. } => format!(
+            "{} ({:#04x}) = {:?}",
+            RegisterInfo::by_addr(*addr).map_or("reserved", |i| i.name),
+            addr.get(),
+            words.as_slice()
+        ),
+        other => match (other.actual_position(), other.error_code()) {
+            (Some(p), Some(e)) => format!("position {:.4}° (error {e:?})", p.degrees()),
+            (Some(p), None) => format!("position {:.4}°", p.degrees()),
+            _ => format!("{other:?}"),
+        },
     }
 }

@@ -8,38 +8,17 @@ use robobus_whj::units::{
     ActualSpeed, CurrentScale, FirmwareVersion, Model, Position, TargetSpeed,
 };
 use robobus_whj::{
-    CmdError, ErrorCode, JointId, JointStatus, RegisterAddr, Reply, Request, ServoFeedback,
-    WorkMode,
+    ErrorCode, JointId, JointStatus, RegisterAddr, Reply, Request, ServoFeedback, WorkMode,
 };
 
 use super::bus::JointBus;
-use super::error::WhjError;
-use super::session::{Attempt, Expect};
+use super::error::{WhjError, attempt_error};
+use super::identity::Identity;
+use super::session::{Attempt, describe};
 use super::trajectory::{MotionLimits, Profile};
 
-/// What a joint says about itself (registers 0x00..=0x07 and 0x2A..=0x2F).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Identity {
-    /// Product (0x02).
-    pub model: Model,
-    /// Firmware version (0x03), shown as four hex digits (C28).
-    pub firmware: FirmwareVersion,
-    /// 96-bit unique ID (0x2A..=0x2F).
-    pub unique_id: UniqueId,
-    /// Node ID register (0x01); differs from the bus ID after an unsaved ID change.
-    pub node_id: u16,
-    /// Gear reduction ratio (0x07).
-    pub reduction_ratio: u16,
-    /// Signature register (0x00; 0x1314 on every documented joint).
-    pub signature: u16,
-}
-
-impl Identity {
-    /// The current LSB of this model (1 or 2 mA, C2).
-    pub const fn current_scale(&self) -> CurrentScale {
-        self.model.current_scale()
-    }
-}
+mod owned;
+pub use owned::OwnedJoint;
 
 /// A register value read by name, with its unit.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -710,10 +689,11 @@ impl<'a> Joint<'a> {
         }
     }
 
-    /// One request with the retry policy: `retry` for reads and idempotent operations.
-    /// `CMD_ERR` replies become [`WhjError::CmdErr`] (a format error is retried, since a
-    /// corrupted request causes one, and so is an error code the protocol does not define,
-    /// which only a corrupted reply carries).
+    /// One request with the retry policy: `retry` for reads and idempotent operations
+    /// (the session sends it again, [`JointBusConfig::retries`](super::JointBusConfig::retries)
+    /// times at most, after a timeout, a malformed reply, a bus error, or a `CMD_ERR`
+    /// format error or undefined error code). `CMD_ERR` replies become
+    /// [`WhjError::CmdErr`].
     fn transact(
         &self,
         request: Request,
@@ -721,40 +701,18 @@ impl<'a> Joint<'a> {
         quiet_after: Duration,
     ) -> Result<Reply, WhjError> {
         let cfg = self.bus.config();
-        let max = if retry { 1 + cfg.retries } else { 1 };
-        let mut last = None;
-        for n in 1..=max {
-            let attempt = self.bus.attempt(request, cfg.reply_timeout, quiet_after)?;
-            match attempt {
-                Attempt::Reply {
-                    reply: Reply::CmdErr { error, .. },
-                    ..
-                } if matches!(error, CmdError::Format | CmdError::Unknown(_)) && n < max => {
-                    last = Some(attempt);
-                }
-                Attempt::Reply { reply, .. } if !matches!(reply, Reply::CmdErr { .. }) => {
-                    return Ok(reply);
-                }
-                a @ (Attempt::Reply { .. }
-                | Attempt::Link(_)
-                | Attempt::Busy
-                | Attempt::Duplicate { .. }) => {
-                    return Err(attempt_error(self.id, &describe(&request), &request, a, n));
-                }
-                other => {
-                    tracing::debug!(joint = %self.id, attempt = n, outcome = ?other, "WHJ request attempt failed");
-                    last = Some(other);
-                }
-            }
+        let attempts = if retry {
+            cfg.retries.saturating_add(1)
+        } else {
+            1
+        };
+        let outcome = self
+            .bus
+            .transact(request, cfg.reply_timeout, quiet_after, attempts)?;
+        match outcome.attempt {
+            Attempt::Reply { reply } if !matches!(reply, Reply::CmdErr { .. }) => Ok(reply),
+            last => Err(attempt_error(self.id, &request, last, outcome.attempts)),
         }
-        let last = last.unwrap_or(Attempt::Link("no attempt made".into()));
-        Err(attempt_error(
-            self.id,
-            &describe(&request),
-            &request,
-            last,
-            max,
-        ))
     }
 }
 
@@ -801,7 +759,7 @@ fn release_iap_many(
                     results[i] = Some(Ok(()));
                 }
                 Ok(a @ (Attempt::Link(_) | Attempt::Busy | Attempt::Duplicate { .. })) => {
-                    results[i] = Some(Err(attempt_error(id, &describe(req), req, a, attempts[i])));
+                    results[i] = Some(Err(attempt_error(id, req, a, attempts[i])));
                 }
                 Ok(Attempt::Mismatch(_) | Attempt::Timeout { .. } | Attempt::Bus { .. }) => {
                     again.push(i);
@@ -841,112 +799,4 @@ fn retry_write(addr: RegisterAddr) -> bool {
 
 fn lookup(name: &str) -> Result<&'static RegisterInfo, WhjError> {
     RegisterInfo::by_name(name).ok_or_else(|| WhjError::UnknownRegister { name: name.into() })
-}
-
-fn register_name(addr: RegisterAddr) -> &'static str {
-    RegisterInfo::by_addr(addr).map_or("reserved", |i| i.name)
-}
-
-/// A short description of a request for error messages, which name the joint already:
-/// the protocol core's text without the joint (`{:#}`: `write SYS_ENABLE_DRIVER 1`,
-/// `position servo target position 12.5000 °`, currents in counts), except a read, which
-/// names its register as `CUR_POSITION_L (0x14)`.
-pub(crate) fn describe(request: &Request) -> String {
-    match request {
-        Request::Read { range, .. } => format!(
-            "read of {} ({:#04x}), {} register(s)",
-            register_name(range.start()),
-            range.start().get(),
-            range.count()
-        ),
-        other => format!("{other:#}"),
-    }
-}
-
-/// The error for a failed attempt.
-pub(crate) fn attempt_error(
-    joint: JointId,
-    description: &str,
-    request: &Request,
-    attempt: Attempt,
-    attempts: u32,
-) -> WhjError {
-    match attempt {
-        Attempt::Timeout { waited, state } => WhjError::Timeout {
-            joint,
-            request: description.into(),
-            expected: Expect::of(request).map_or("reply", Expect::name),
-            reply_id: request.reply_id().unwrap_or(0),
-            waited,
-            attempts,
-            bus_state: state,
-        },
-        Attempt::Mismatch(reason) => WhjError::BadReply {
-            joint,
-            request: description.into(),
-            reason,
-            attempts,
-        },
-        Attempt::Bus {
-            state,
-            detail,
-            waited,
-        } => WhjError::Bus {
-            joint,
-            request: description.into(),
-            bus_state: state,
-            detail,
-            waited,
-        },
-        Attempt::Link(detail) => WhjError::Link { detail },
-        Attempt::Busy => WhjError::Busy {
-            joint,
-            what: "single servo command refused",
-        },
-        Attempt::Duplicate { first, second } => WhjError::DuplicateReply {
-            joint,
-            request: description.into(),
-            first: summarize(&first),
-            second: summarize(&second),
-        },
-        Attempt::Reply {
-            reply: Reply::CmdErr { error, code, .. },
-            ..
-        } => WhjError::CmdErr {
-            joint,
-            request: description.into(),
-            kind: error,
-            code,
-        },
-        Attempt::Reply { reply, .. } => WhjError::BadReply {
-            joint,
-            request: description.into(),
-            reason: format!("unexpected reply {reply:?}"),
-            attempts,
-        },
-    }
-}
-
-/// A reply in a few words for error messages: its position and error bits where it has
-/// them, its register words otherwise.
-pub(crate) fn summarize(reply: &Reply) -> String {
-    match reply {
-        Reply::Read { addr, .. } if reply.actual_position().is_some() => format!(
-            "{} ({:#04x}): position {:.4}°",
-            RegisterInfo::by_addr(*addr).map_or("reserved", |i| i.name),
-            addr.get(),
-            reply.actual_position().map_or(0.0, Position::degrees)
-        ),
-        Reply::Read { addr, words, .. } => format!(
-            "{} ({:#04x}) = {:?}",
-            RegisterInfo::by_addr(*addr).map_or("reserved", |i| i.name),
-            addr.get(),
-            words.as_slice()
-        ),
-        other => match (other.actual_position(), other.error_code()) {
-            (Some(p), Some(e)) => format!("position {:.4}° (error {e:?})", p.degrees()),
-            (Some(p), None) => format!("position {:.4}°", p.degrees()),
-            _ => format!("{other:?}"),
-        },
-    }
 }

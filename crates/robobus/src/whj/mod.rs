@@ -61,18 +61,18 @@
 mod bus;
 mod cyclic;
 mod error;
+mod identity;
 pub(crate) mod joint;
 pub(crate) mod session;
 mod trajectory;
 
-pub use bus::{
-    BusHealth, BusState, JointBus, JointBusConfig, JointTelemetry, MAX_PIPELINED, OwnedJoint,
-    Telemetry,
-};
-pub use cyclic::{
-    CycleReport, Cyclic, CyclicConfig, CyclicStats, Feedback, OwnedCyclic, Percentiles, Protocol,
-    ServoMode,
-};
+pub use bus::{JointBus, MAX_PIPELINED};
+pub use cyclic::{Cyclic, OwnedCyclic};
 pub use error::WhjError;
-pub use joint::{Identity, Joint, RegisterValue};
+pub use identity::Identity;
+pub use joint::{Joint, OwnedJoint, RegisterValue};
+pub use session::cyclic::{
+    CycleReport, CyclicConfig, CyclicStats, Feedback, Percentiles, Protocol, ServoMode,
+};
+pub use session::{BusHealth, BusState, JointBusConfig, JointTelemetry, Telemetry};
 pub use trajectory::{MotionLimits, Profile};

@@ -49,7 +49,7 @@ impl WhjState {
                 let req = Request::decode(frame).ok()?;
                 let joint = req.joint()?;
                 let expect = crate::whj::session::Expect::of(&req)?;
-                self.wait(joint, e, expect, crate::whj::joint::describe(&req))
+                self.wait(joint, e, expect, crate::whj::session::describe(&req))
             }
             EntryKind::Reply => {
                 let Ok(reply) = WhjReply::from_frame(frame) else {

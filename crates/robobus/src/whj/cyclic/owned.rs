@@ -41,7 +41,7 @@ impl JointBus {
         borrowed.stopped = true;
         Ok(Cyclic {
             bus: BusRef::Owned(Arc::clone(self)),
-            shared: Arc::clone(&borrowed.shared),
+            mailbox: Arc::clone(&borrowed.mailbox),
             config: borrowed.config.clone(),
             stopped: false,
         })

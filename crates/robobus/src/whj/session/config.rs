@@ -1,0 +1,116 @@
+//! The session's settings ([`JointBusConfig`]) and the controller state it tracks
+//! ([`BusState`]): plain values that the session, its driver and the errors share.
+
+use core::fmt;
+use core::time::Duration;
+
+/// Settings of a [`JointBus`]. `JointBusConfig::default()` follows the protocol reference.
+///
+/// [`JointBus`]: crate::whj::JointBus
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct JointBusConfig {
+    /// How long one attempt waits for its reply (default 20 ms; a reply normally takes
+    /// about 0.2 ms on a real 1 / 5 Mbit/s bus).
+    pub reply_timeout: Duration,
+    /// Extra attempts for reads and idempotent operations (default 2). Operations that
+    /// are not idempotent (set zero, save to flash) are never resent.
+    pub retries: u32,
+    /// How long [`JointBus::joint`] keeps sending the IAP release before it calls a joint
+    /// silent (default 5 s: joints with a staggered power-up stay silent for a while, C33).
+    ///
+    /// [`JointBus::joint`]: crate::whj::JointBus::joint
+    pub connect_timeout: Duration,
+    /// Confirm every register read by a second, identical read (status queries and servo
+    /// feedback are not confirmed: they change from frame to frame). For links that can
+    /// deliver a corrupted payload (fault injection, a gateway without a checksum): a CAN
+    /// controller drops corrupted frames itself (CRC), so this is off by default. Without
+    /// it, replies are still matched by register, count and length, so a corrupted
+    /// request or header is caught; only a flipped data bit is not.
+    pub verify_reads: bool,
+    /// Largest position step, degrees, that a single position command may make from the
+    /// actual position (default 5°, half the joint's 10° protection, C10). Larger moves go
+    /// through [`Joint::move_to`] or the cyclic loop's trajectory.
+    ///
+    /// [`Joint::move_to`]: crate::whj::Joint::move_to
+    pub step_limit_deg: f64,
+    /// Quiet time after a disable during which nothing is sent to that joint (5 ms, §6.3).
+    pub disable_settle: Duration,
+    /// Quiet time after a save to flash (50 ms, §6.4).
+    pub save_settle: Duration,
+    /// How long a request waits for a bus-off controller to recover before it fails
+    /// (default 1 s).
+    pub bus_recovery_timeout: Duration,
+    /// After an error-passive or error-warning report, how long without a new report
+    /// before the bus counts as recovered (default 1 s).
+    pub error_passive_hold: Duration,
+    /// How long a received reply is held before it is credited (default 0.5 ms): a
+    /// second, different reply to the same request within it (two nodes at one ID; the
+    /// one that lost arbitration follows the winner within one frame, about 0.15 ms at
+    /// 1 / 5 Mbit/s) fails the request with [`WhjError::DuplicateReply`] instead of
+    /// crediting either. The next request on that reply ID waits for the window too.
+    /// Zero credits the first reply at once (no duplicate detection).
+    ///
+    /// [`WhjError::DuplicateReply`]: crate::whj::WhjError::DuplicateReply
+    pub collision_window: Duration,
+    /// The longest one receive or sleep of the driving thread lasts before it looks at
+    /// the session again and lets other threads in (default 0.5 ms).
+    pub poll_interval: Duration,
+}
+
+impl Default for JointBusConfig {
+    fn default() -> Self {
+        Self {
+            reply_timeout: Duration::from_millis(20),
+            retries: 2,
+            connect_timeout: Duration::from_secs(5),
+            verify_reads: false,
+            step_limit_deg: 5.0,
+            disable_settle: Duration::from_millis(5),
+            save_settle: Duration::from_millis(50),
+            bus_recovery_timeout: Duration::from_secs(1),
+            error_passive_hold: Duration::from_secs(1),
+            collision_window: Duration::from_micros(500),
+            poll_interval: Duration::from_micros(500),
+        }
+    }
+}
+
+impl JointBusConfig {
+    /// Settings for simulated joints on the same machine (`robobus sim whj`, an in-process
+    /// `robobus_sim::whj` bus): a 250 ms reply timeout and 5 retries instead of 20 ms and
+    /// 2. The simulator is a thread or process that a loaded (or shared, virtual) machine
+    /// can hold for hundreds of milliseconds; a real joint answers in about 0.2 ms.
+    #[must_use]
+    pub fn simulated() -> Self {
+        Self {
+            reply_timeout: Duration::from_millis(250),
+            retries: 5,
+            ..Self::default()
+        }
+    }
+}
+
+/// The CAN controller state as the client last saw it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum BusState {
+    /// Error active: working normally.
+    #[default]
+    Active,
+    /// Error warning (error counter ≥ 96): still working.
+    ErrorWarning,
+    /// Error passive (error counter ≥ 128): still working, many frames fail.
+    ErrorPassive,
+    /// Bus-off: the controller sends and receives nothing until it restarts.
+    BusOff,
+}
+
+impl fmt::Display for BusState {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Self::Active => "active",
+            Self::ErrorWarning => "error warning",
+            Self::ErrorPassive => "error passive",
+            Self::BusOff => "bus-off",
+        })
+    }
+}
