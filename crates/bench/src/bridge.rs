@@ -429,55 +429,6 @@ impl Inbox {
 // CPU time per thread
 // ---------------------------------------------------------------------------------------
 
-/// Clock ticks a second of `/proc` times (`USER_HZ`, 100 on Linux).
-const TICKS_PER_SEC: u64 = 100;
-
-/// Each thread of this process: (name, CPU time), by thread ID.
-fn tasks() -> HashMap<u64, (String, Duration)> {
-    let mut out = HashMap::new();
-    let Ok(dir) = std::fs::read_dir("/proc/self/task") else {
-        return out;
-    };
-    for e in dir.flatten() {
-        let Some(tid) = e.file_name().to_str().and_then(|s| s.parse::<u64>().ok()) else {
-            continue;
-        };
-        let Ok(stat) = std::fs::read_to_string(e.path().join("stat")) else {
-            continue;
-        };
-        // "TID (COMM) STATE ... UTIME(14) STIME(15) ..."; COMM may hold spaces.
-        let (Some(open), Some(close)) = (stat.find('('), stat.rfind(')')) else {
-            continue;
-        };
-        let name = stat.get(open + 1..close).unwrap_or_default().to_owned();
-        let rest: Vec<&str> = stat
-            .get(close + 1..)
-            .unwrap_or_default()
-            .split_whitespace()
-            .collect();
-        let field = |i: usize| rest.get(i).and_then(|v| v.parse::<u64>().ok()).unwrap_or(0);
-        let ticks = field(11) + field(12);
-        out.insert(
-            tid,
-            (name, Duration::from_millis(ticks * 1000 / TICKS_PER_SEC)),
-        );
-    }
-    out
-}
-
-/// CPU time the threads whose name `pick` accepts used between two [`tasks`] snapshots.
-fn cpu_of(
-    before: &HashMap<u64, (String, Duration)>,
-    after: &HashMap<u64, (String, Duration)>,
-    pick: impl Fn(&str) -> bool,
-) -> Duration {
-    after
-        .iter()
-        .filter(|(_, (n, _))| pick(n))
-        .map(|(tid, (_, t))| t.saturating_sub(before.get(tid).map_or(Duration::ZERO, |b| b.1)))
-        .sum()
-}
-
 fn is_sim(name: &str) -> bool {
     name.starts_with("bench-sim-")
 }
@@ -502,12 +453,12 @@ struct Cut {
     counts: Vec<Counts>,
     process: Duration,
     main: Duration,
-    tasks: HashMap<u64, (String, Duration)>,
+    tasks: cpu::Tasks,
 }
 
 impl Cut {
     fn now(bridges: &[Bridge]) -> Self {
-        let (process, main, tasks) = (cpu::process(), cpu::thread(), tasks());
+        let (process, main, tasks) = (cpu::process(), cpu::thread(), cpu::tasks());
         let unix_ms = unix_ms();
         let at = Instant::now();
         let counts = bridges
@@ -764,8 +715,8 @@ pub fn run(spec: Spec) -> Result<BridgeResult, BenchError> {
         undecodable: undecodable.undecodable.load(Ordering::Relaxed),
         settled,
         process_cpu: c1.process.saturating_sub(c0.process),
-        sims_cpu: cpu_of(&c0.tasks, &c1.tasks, is_sim),
-        bridge_threads_cpu: cpu_of(&c0.tasks, &c1.tasks, is_bridge_thread),
+        sims_cpu: cpu::tasks_cpu(&c0.tasks, &c1.tasks, is_sim),
+        bridge_threads_cpu: cpu::tasks_cpu(&c0.tasks, &c1.tasks, is_bridge_thread),
         main_cpu: c1.main.saturating_sub(c0.main),
     })
 }

@@ -335,55 +335,6 @@ pub fn wire_model() -> Result<WireModel, BenchError> {
 // CPU time per thread
 // ---------------------------------------------------------------------------------------
 
-/// Clock ticks a second of `/proc` times (`USER_HZ`, 100 on Linux).
-const TICKS_PER_SEC: u64 = 100;
-
-/// Each thread of this process: (name, CPU time), by thread ID.
-fn tasks() -> HashMap<u64, (String, Duration)> {
-    let mut out = HashMap::new();
-    let Ok(dir) = std::fs::read_dir("/proc/self/task") else {
-        return out;
-    };
-    for e in dir.flatten() {
-        let Some(tid) = e.file_name().to_str().and_then(|s| s.parse::<u64>().ok()) else {
-            continue;
-        };
-        let Ok(stat) = std::fs::read_to_string(e.path().join("stat")) else {
-            continue;
-        };
-        // "TID (COMM) STATE ... UTIME(14) STIME(15) ..."; COMM may hold spaces.
-        let (Some(open), Some(close)) = (stat.find('('), stat.rfind(')')) else {
-            continue;
-        };
-        let name = stat.get(open + 1..close).unwrap_or_default().to_owned();
-        let rest: Vec<&str> = stat
-            .get(close + 1..)
-            .unwrap_or_default()
-            .split_whitespace()
-            .collect();
-        let field = |i: usize| rest.get(i).and_then(|v| v.parse::<u64>().ok()).unwrap_or(0);
-        let ticks = field(11) + field(12);
-        out.insert(
-            tid,
-            (name, Duration::from_millis(ticks * 1000 / TICKS_PER_SEC)),
-        );
-    }
-    out
-}
-
-/// CPU time the threads named `names` used between two [`tasks`] snapshots.
-fn named_cpu(
-    before: &HashMap<u64, (String, Duration)>,
-    after: &HashMap<u64, (String, Duration)>,
-    names: &[&str],
-) -> Duration {
-    after
-        .iter()
-        .filter(|(_, (n, _))| names.contains(&n.as_str()))
-        .map(|(tid, (_, t))| t.saturating_sub(before.get(tid).map_or(Duration::ZERO, |b| b.1)))
-        .sum()
-}
-
 // ---------------------------------------------------------------------------------------
 // A page
 // ---------------------------------------------------------------------------------------
@@ -635,9 +586,9 @@ fn fan_out(addr: SocketAddr, n: usize, secs: Duration) -> Result<FanOut, BenchEr
     }
     ready.wait();
     let t0 = Instant::now();
-    let (process0, main0, tasks0) = (cpu::process(), cpu::thread(), tasks());
+    let (process0, main0, tasks0) = (cpu::process(), cpu::thread(), cpu::tasks());
     done.wait();
-    let (process1, main1, tasks1) = (cpu::process(), cpu::thread(), tasks());
+    let (process1, main1, tasks1) = (cpu::process(), cpu::thread(), cpu::tasks());
     let wall = t0.elapsed();
     release.wait();
     let mut pages = Vec::new();
@@ -654,7 +605,9 @@ fn fan_out(addr: SocketAddr, n: usize, secs: Duration) -> Result<FanOut, BenchEr
         pages,
         process_cpu: process1.saturating_sub(process0),
         main_cpu: main1.saturating_sub(main0),
-        sims_cpu: named_cpu(&tasks0, &tasks1, &["sim-whj", "robobus-sim-wck"]),
+        sims_cpu: cpu::tasks_cpu(&tasks0, &tasks1, |n| {
+            ["sim-whj", "robobus-sim-wck"].contains(&n)
+        }),
     })
 }
 
@@ -864,18 +817,5 @@ mod tests {
         assert!(m.windowed_hz() < m.wire_hz());
         assert!(m.jog > Duration::from_micros(50) && m.jog < Duration::from_micros(300));
         assert!(m.servo_cycle.abs_diff(m.jog * u32::from(JOINTS)) < Duration::from_nanos(7));
-    }
-
-    #[test]
-    fn this_thread_is_among_the_tasks() {
-        let me: u64 = std::fs::read_link("/proc/thread-self")
-            .unwrap()
-            .file_name()
-            .and_then(|n| n.to_str())
-            .unwrap()
-            .parse()
-            .unwrap();
-        let all = tasks();
-        assert!(all.contains_key(&me), "{me} not in {all:?}");
     }
 }
