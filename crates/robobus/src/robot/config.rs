@@ -205,7 +205,8 @@ fn exact_pair<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 2], D::Error> {
 
 /// The largest WHJ device angle, rad: the position registers hold ±2^31 counts of
 /// 0.0001° (±214 748°).
-const WHJ_MAX_DEVICE_RAD: f64 = (i32::MAX as f64) * 0.0001 * (std::f64::consts::PI / 180.0);
+const WHJ_MAX_DEVICE_RAD: f64 =
+    (i32::MAX as f64) * robobus_whj::units::POSITION_DEG_PER_COUNT * (std::f64::consts::PI / 180.0);
 
 /// Where a value error is, for its line and column.
 #[derive(Debug, Clone)]
