@@ -139,23 +139,9 @@ const IN_NETNS_ENV: &str = "ROBOBUS_CLI_IN_NETNS";
 
 #[test]
 fn sim_whj_device_faults_from_the_command_line() {
-    let exe = std::env::current_exe().unwrap();
-    let script = format!(
-        "set -e; ip link set lo up; ip route add 224.0.0.0/4 dev lo; \
-         {IN_NETNS_ENV}=1 exec '{}' --exact inner_sim_whj_faults --ignored --nocapture",
-        exe.display()
-    );
-    let out = Command::new("timeout")
-        .args(["120", "unshare", "-n", "bash", "-c", &script])
-        .output()
-        .expect("running unshare -n (needs root or user namespaces)");
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success() && stdout.contains("SIM WHJ FAULTS OK"),
-        "inner test failed ({}):\n{stdout}\n{}",
-        out.status,
-        String::from_utf8_lossy(&out.stderr)
-    );
+    robobus_testkit::Inner::exact("inner_sim_whj_faults", IN_NETNS_ENV)
+        .in_private_netns()
+        .expect_marker("SIM WHJ FAULTS OK");
 }
 
 #[test]

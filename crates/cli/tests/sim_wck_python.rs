@@ -9,12 +9,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-fn workspace() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .canonicalize()
-        .unwrap()
-}
+use robobus_testkit::workspace_root as workspace;
 
 fn python() -> PathBuf {
     let out = Command::new(workspace().join("scripts/py/ensure-pyserial"))

@@ -22,12 +22,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn workspace() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .canonicalize()
-        .expect("workspace root")
-}
+use robobus_testkit::workspace_root as workspace;
 
 fn python() -> PathBuf {
     let script = workspace().join("scripts/py/ensure-venv");

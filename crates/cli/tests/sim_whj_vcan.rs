@@ -20,17 +20,12 @@
 
 use std::fmt::Write as _;
 use std::io::BufReader;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 use robobus_link::read_candump;
 
-fn workspace() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .canonicalize()
-        .expect("workspace root")
-}
+use robobus_testkit::workspace_root as workspace;
 
 const N: usize = 2000;
 const AMPLITUDE: f64 = 100_000.0; // 10° in 0.0001°

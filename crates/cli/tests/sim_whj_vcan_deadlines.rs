@@ -37,12 +37,7 @@ const IN_UML_ENV: &str = "ROBOBUS_CLI_IN_UML";
 const QUERIES: usize = 500;
 const TIMEOUT: Duration = Duration::from_millis(5);
 
-fn workspace() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .canonicalize()
-        .unwrap()
-}
+use robobus_testkit::workspace_root as workspace;
 
 /// Runs this test binary's ignored test `inner` inside User-Mode Linux.
 fn run_inner_in_uml(inner: &str) -> String {

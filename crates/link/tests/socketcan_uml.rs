@@ -25,27 +25,10 @@ const IN_UML_ENV: &str = "ROBOBUS_LINK_IN_UML";
 #[test]
 fn socketcan_fd_on_vcan0_inside_user_mode_linux() {
     let uml = common::provision("uml/ensure-uml");
-    let exe = std::env::current_exe().unwrap();
-    let script = common::workspace_root().join("scripts/uml/run-in-uml");
-    let out = Command::new(&script)
-        .args(["--env", &format!("{IN_UML_ENV}={uml}"), "--"])
-        .arg(&exe)
-        .args([
-            "--exact",
-            "inner_socketcan_in_uml",
-            "--ignored",
-            "--nocapture",
-        ])
-        .args(["--test-threads", "1"])
-        .output()
-        .unwrap_or_else(|e| panic!("cannot run {}: {e}", script.display()));
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        out.status.success() && stdout.contains("UML SOCKETCAN OK"),
-        "SocketCAN test inside UML failed ({}):\nstdout:\n{stdout}\nstderr:\n{stderr}",
-        out.status
-    );
+    robobus_testkit::Inner::exact("inner_socketcan_in_uml", IN_UML_ENV)
+        .env(IN_UML_ENV, uml)
+        .in_uml()
+        .expect_marker("UML SOCKETCAN OK");
 }
 
 fn fd(id: u16, data: &[u8]) -> CanFrame {

@@ -11,7 +11,6 @@
 
 use std::io::Write;
 use std::net::{SocketAddrV4, UdpSocket};
-use std::process::Command;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -22,23 +21,9 @@ const FLOOD: u64 = 10_000;
 
 #[test]
 fn a_flood_of_malformed_datagrams_is_counted_and_logged_a_few_times() {
-    let exe = std::env::current_exe().unwrap();
-    let script = format!(
-        "set -e; ip link set lo up; ip route add 224.0.0.0/4 dev lo; \
-         {IN_NETNS_ENV}=1 exec '{}' --exact inner_malformed_flood --ignored --nocapture",
-        exe.display()
-    );
-    let out = Command::new("timeout")
-        .args(["120", "unshare", "-n", "bash", "-c", &script])
-        .output()
-        .expect("running unshare -n (needs root or user namespaces)");
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        out.status.success() && stdout.contains("MALFORMED FLOOD OK"),
-        "inner test failed ({}):\n{stdout}\n{stderr}",
-        out.status
-    );
+    robobus_testkit::Inner::exact("inner_malformed_flood", IN_NETNS_ENV)
+        .in_private_netns()
+        .expect_marker("MALFORMED FLOOD OK");
 }
 
 /// Log lines written by the subscriber.

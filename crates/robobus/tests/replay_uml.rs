@@ -11,7 +11,7 @@
 mod whj_common;
 
 use std::io::{BufRead, BufReader};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -25,45 +25,11 @@ use robobus_whj::{CanFrame, JointId, ReplyMask, Request};
 
 const IN_UML_ENV: &str = "ROBOBUS_REPLAY_IN_UML";
 
-fn workspace_root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .canonicalize()
-        .unwrap()
-}
-
 #[test]
 fn can_utils_play_our_capture_inside_user_mode_linux() {
-    let ensure = workspace_root().join("scripts/uml/ensure-uml");
-    let out = Command::new(&ensure).output().unwrap();
-    assert!(
-        out.status.success(),
-        "{} failed:\n{}{}",
-        ensure.display(),
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let exe = std::env::current_exe().unwrap();
-    let script = workspace_root().join("scripts/uml/run-in-uml");
-    let out = Command::new(&script)
-        .args(["--env", &format!("{IN_UML_ENV}=1"), "--"])
-        .arg(&exe)
-        .args([
-            "--exact",
-            "inner_can_utils_play_our_capture",
-            "--ignored",
-            "--nocapture",
-        ])
-        .args(["--test-threads", "1"])
-        .output()
-        .unwrap_or_else(|e| panic!("cannot run {}: {e}", script.display()));
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        out.status.success() && stdout.contains("UML REPLAY OK"),
-        "replay test inside UML failed ({}):\nstdout:\n{stdout}\nstderr:\n{stderr}",
-        out.status
-    );
+    robobus_testkit::Inner::exact("inner_can_utils_play_our_capture", IN_UML_ENV)
+        .in_uml()
+        .expect_marker("UML REPLAY OK");
 }
 
 /// Raw-socket receivers registered on vcan0.

@@ -9,8 +9,6 @@
 
 mod whj_common;
 
-use std::path::PathBuf;
-use std::process::Command;
 use std::time::Duration;
 
 use robobus::whj::{CyclicConfig, JointBus, MotionLimits, Protocol, WhjError};
@@ -31,28 +29,10 @@ fn deg(d: f64) -> Position {
 
 #[test]
 fn whj_client_on_socketcan_vcan0_inside_user_mode_linux() {
-    let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../scripts/uml/run-in-uml");
-    let exe = std::env::current_exe().unwrap();
-    let out = Command::new(&script)
-        .args(["--env", &format!("{IN_UML_ENV}=1"), "--"])
-        .arg(&exe)
-        .args([
-            "--exact",
-            "inner_socketcan_in_uml",
-            "--ignored",
-            "--nocapture",
-        ])
-        .args(["--test-threads", "1"])
-        .output()
-        .unwrap_or_else(|e| panic!("cannot run {}: {e}", script.display()));
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    eprintln!("{stdout}\n{stderr}");
-    assert!(
-        out.status.success() && stdout.contains("WHJ SOCKETCAN OK"),
-        "WHJ client test inside UML failed ({}):\nstdout:\n{stdout}\nstderr:\n{stderr}",
-        out.status
-    );
+    let out = robobus_testkit::Inner::exact("inner_socketcan_in_uml", IN_UML_ENV)
+        .in_uml()
+        .expect_marker("WHJ SOCKETCAN OK");
+    eprintln!("{out}");
 }
 
 #[test]

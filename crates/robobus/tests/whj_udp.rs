@@ -10,7 +10,6 @@
 mod whj_common;
 
 use std::net::Ipv4Addr;
-use std::process::Command;
 use std::time::Duration;
 
 use robobus::whj::{CyclicConfig, JointBus, JointBusConfig, MotionLimits, Protocol, WhjError};
@@ -52,24 +51,11 @@ fn in_namespace() {
 
 #[test]
 fn whj_client_over_udp_in_a_private_network_namespace() {
-    let exe = std::env::current_exe().unwrap();
-    let script = format!(
-        "ip link set lo up && ip route add 224.0.0.0/4 dev lo && exec '{}' --ignored --test-threads 1 --nocapture inner_",
-        exe.display()
-    );
-    let out = Command::new("timeout")
-        .args(["300", "unshare", "-n", "sh", "-c", &script])
-        .env(NETNS_ENV, "1")
-        .output()
-        .expect("cannot run `unshare -n` (util-linux; needs root or user namespaces)");
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    eprintln!("{stdout}\n{stderr}");
-    assert!(
-        out.status.success() && stdout.contains("test result: ok. 3 passed"),
-        "inner tests failed inside `unshare -n` ({}):\nstdout:\n{stdout}\nstderr:\n{stderr}",
-        out.status
-    );
+    let out = robobus_testkit::Inner::matching("inner_", NETNS_ENV)
+        .timeout_s(300)
+        .in_private_netns()
+        .expect_marker("test result: ok. 3 passed");
+    eprintln!("{out}");
 }
 
 #[test]

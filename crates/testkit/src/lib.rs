@@ -1,0 +1,235 @@
+//! The robobus workspace's test harness (dev-only, never published).
+//!
+//! Several integration tests need what a plain `cargo test` process does not have: a
+//! private network namespace (UDP multicast must never reach the machine's own network),
+//! or a kernel with SocketCAN (User-Mode Linux, provisioned under `target/uml`). They all
+//! work the same way: an outer `#[test]` re-runs its own test binary's `#[ignore]`d inner
+//! test inside the namespace or the UML guest, with an environment variable that tells
+//! the inner test where it runs, and checks the exit status and a marker line the inner
+//! test prints when it got to its end. [`Inner`] is that re-run.
+//!
+//! ```no_run
+//! use robobus_testkit::Inner;
+//!
+//! #[test]
+//! fn over_udp_in_a_private_network_namespace() {
+//!     Inner::exact("inner_over_udp", "ROBOBUS_IN_NETNS")
+//!         .in_private_netns()
+//!         .expect_marker("UDP OK");
+//! }
+//!
+//! #[test]
+//! #[ignore = "run by over_udp_in_a_private_network_namespace inside unshare -n"]
+//! fn inner_over_udp() {
+//!     assert!(std::env::var_os("ROBOBUS_IN_NETNS").is_some());
+//!     // ... the test ...
+//!     println!("UDP OK");
+//! }
+//! ```
+
+#![allow(clippy::panic)] // a harness that cannot run its test fails that test, loudly
+
+use std::ffi::OsString;
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+/// The workspace root.
+///
+/// # Panics
+/// If the workspace is not where this crate was built from.
+#[must_use]
+pub fn workspace_root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .canonicalize()
+        .unwrap_or_else(|e| panic!("the workspace root: {e}"))
+}
+
+/// Runs a provisioning script from `scripts/` (such as `uml/ensure-uml` or
+/// `py/ensure-venv`) and returns the last line of its standard output (the path it
+/// provisioned).
+///
+/// # Panics
+/// With the script's output, if it fails or cannot start.
+#[must_use]
+pub fn provision(script: &str) -> String {
+    let path = workspace_root().join("scripts").join(script);
+    let out = Command::new(&path)
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run {}: {e}", path.display()));
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "{} failed ({}):\nstdout:\n{stdout}\nstderr:\n{}",
+        path.display(),
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    stdout.lines().last().unwrap_or_default().trim().to_owned()
+}
+
+/// The inner tests of the running test binary, to re-run somewhere else.
+#[derive(Debug, Clone)]
+pub struct Inner {
+    filter: String,
+    exact: bool,
+    env: Vec<(String, OsString)>,
+    timeout_s: Option<u32>,
+}
+
+impl Inner {
+    /// The one inner test named `test`, told where it runs by the environment variable
+    /// `env` (set to `1`; [`Inner::env`] sets others).
+    #[must_use]
+    pub fn exact(test: &str, env: &str) -> Self {
+        Self {
+            filter: test.to_owned(),
+            exact: true,
+            env: vec![(env.to_owned(), "1".into())],
+            timeout_s: None,
+        }
+    }
+
+    /// Every inner test whose name contains `filter`.
+    #[must_use]
+    pub fn matching(filter: &str, env: &str) -> Self {
+        Self {
+            exact: false,
+            ..Self::exact(filter, env)
+        }
+    }
+
+    /// Sets (or replaces) the environment variable `key` for the inner tests.
+    #[must_use]
+    pub fn env(mut self, key: &str, value: impl Into<OsString>) -> Self {
+        self.env.retain(|(k, _)| k != key);
+        self.env.push((key.to_owned(), value.into()));
+        self
+    }
+
+    /// The longest the re-run may take, seconds (default 120 in a namespace, 300 in
+    /// User-Mode Linux, which boots a kernel first); then it is killed and fails.
+    #[must_use]
+    pub const fn timeout_s(mut self, seconds: u32) -> Self {
+        self.timeout_s = Some(seconds);
+        self
+    }
+
+    /// The test binary's arguments that run the inner tests, one at a time.
+    fn test_args(&self) -> Vec<String> {
+        let mut args = Vec::new();
+        if self.exact {
+            args.push("--exact".to_owned());
+        }
+        args.extend(
+            [
+                self.filter.as_str(),
+                "--ignored",
+                "--nocapture",
+                "--test-threads",
+                "1",
+            ]
+            .map(str::to_owned),
+        );
+        args
+    }
+
+    /// Re-runs the inner tests inside a private network namespace (`unshare -n`) with
+    /// loopback up and `224.0.0.0/4` routed to it, so UDP multicast stays in it.
+    ///
+    /// # Panics
+    /// If `timeout` or `unshare` cannot start.
+    #[must_use]
+    pub fn in_private_netns(&self) -> Ran {
+        let exe = current_exe();
+        let script =
+            "set -e; ip link set lo up; ip route add 224.0.0.0/4 dev lo; exec \"$0\" \"$@\"";
+        let mut cmd = Command::new("timeout");
+        cmd.arg(self.timeout_s.unwrap_or(120).to_string())
+            .args(["unshare", "-n", "sh", "-c", script])
+            .arg(&exe)
+            .args(self.test_args());
+        for (k, v) in &self.env {
+            cmd.env(k, v);
+        }
+        Ran::of(
+            "inside a private network namespace (unshare -n)",
+            &cmd.output().unwrap_or_else(|e| {
+                panic!("cannot run `unshare -n` (util-linux; needs root or user namespaces): {e}")
+            }),
+        )
+    }
+
+    /// Re-runs the inner tests inside User-Mode Linux (`scripts/uml/run-in-uml`, after
+    /// `scripts/uml/ensure-uml` provisioned the kernel): a kernel with SocketCAN and
+    /// `vcan0` (CAN FD MTU). The environment variables go to the guest.
+    ///
+    /// # Panics
+    /// If the kernel cannot be provisioned or the script cannot start.
+    #[must_use]
+    pub fn in_uml(&self) -> Ran {
+        let _ = provision("uml/ensure-uml");
+        let script = workspace_root().join("scripts/uml/run-in-uml");
+        let mut cmd = Command::new("timeout");
+        cmd.arg(self.timeout_s.unwrap_or(300).to_string())
+            .arg(&script);
+        for (k, v) in &self.env {
+            let mut kv = OsString::from(k);
+            kv.push("=");
+            kv.push(v);
+            cmd.arg("--env").arg(kv);
+        }
+        cmd.arg("--").arg(current_exe()).args(self.test_args());
+        Ran::of(
+            "inside User-Mode Linux",
+            &cmd.output()
+                .unwrap_or_else(|e| panic!("cannot run {}: {e}", script.display())),
+        )
+    }
+}
+
+fn current_exe() -> PathBuf {
+    std::env::current_exe().unwrap_or_else(|e| panic!("the test binary: {e}"))
+}
+
+/// What a re-run printed, and how it ended.
+#[derive(Debug)]
+pub struct Ran {
+    /// Where it ran, for messages.
+    pub place: &'static str,
+    /// Whether it exited 0.
+    pub success: bool,
+    /// Its standard output.
+    pub stdout: String,
+    /// Its standard error.
+    pub stderr: String,
+}
+
+impl Ran {
+    fn of(place: &'static str, out: &Output) -> Self {
+        Self {
+            place,
+            success: out.status.success(),
+            stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
+            stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+        }
+    }
+
+    /// Requires that it exited 0 and printed `marker` (the line an inner test prints
+    /// when it got to its end, or `test result: ok. N passed` for several); returns its
+    /// standard output.
+    ///
+    /// # Panics
+    /// With everything it printed, if not.
+    #[track_caller]
+    pub fn expect_marker(self, marker: &str) -> String {
+        assert!(
+            self.success && self.stdout.contains(marker),
+            "the inner test failed {} (no \"{marker}\"):\nstdout:\n{}\nstderr:\n{}",
+            self.place,
+            self.stdout,
+            self.stderr
+        );
+        self.stdout
+    }
+}
