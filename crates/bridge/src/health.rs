@@ -50,6 +50,9 @@ pub struct CommandsHealth {
     pub applied: u64,
     /// Commands replaced by a newer one before they were taken.
     pub superseded: u64,
+    /// Commands that waited longer than the command timeout before they could be taken
+    /// (the buses were slower than the stream): dropped, nothing moved.
+    pub stale: u64,
     /// Joints that failed in an applied command, summed.
     pub joint_failures: u64,
     /// Times the stream went quiet and its joints were held.
@@ -147,6 +150,7 @@ pub(crate) fn of(s: &Shared) -> Health {
             received: get(&c.commands_received),
             applied: get(&c.commands_applied),
             superseded: get(&c.commands_superseded),
+            stale: get(&c.commands_stale),
             joint_failures: get(&c.joint_failures),
             holds: get(&c.holds),
         },

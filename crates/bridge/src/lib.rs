@@ -246,6 +246,7 @@ pub(crate) struct Counters {
     pub(crate) commands_received: AtomicU64,
     pub(crate) commands_applied: AtomicU64,
     pub(crate) commands_superseded: AtomicU64,
+    pub(crate) commands_stale: AtomicU64,
     pub(crate) refused_malformed: AtomicU64,
     pub(crate) refused_out_of_range: AtomicU64,
     pub(crate) refused_not_armed: AtomicU64,
@@ -646,6 +647,15 @@ fn commands(s: &Shared) {
         if s.armed() {
             s.guard.heartbeat(SESSION);
         }
+        // A command that waited longer than the timeout (the buses were slower than the
+        // stream) is stale: the stream may have ended since, so it moves nothing.
+        let next = next.filter(|(_, at)| {
+            let fresh = at.elapsed() <= timeout;
+            if !fresh {
+                bump(&s.counters.commands_stale);
+            }
+            fresh
+        });
         if let Some((payload, at)) = next
             && follow(s, &payload)
         {
