@@ -272,6 +272,72 @@ fn telemetry_eight_subscribers_one_never_reading_the_others_lose_nothing() {
     assert_eq!(idle.try_recv().unwrap_err(), RecvError::Ended);
 }
 
+/// Every sample of `request` on `s` (`n` of them) taken into `table`.
+fn fill(
+    s: &std::sync::Arc<Station>,
+    request: &str,
+    n: u64,
+    table: &mut robobus::catalogue::record::SampleTable,
+) {
+    use robobus::catalogue::telemetry::Telemetry;
+    let t = Telemetry::paused(s, parse(request), 50.0, Some(n)).unwrap();
+    let sub = t.subscribe(16).unwrap();
+    assert_eq!(t.join().samples, n);
+    for (k, d) in sub.enumerate() {
+        #[allow(clippy::cast_precision_loss)] // a few samples
+        table.take(&d, k as f64 * 0.02).unwrap();
+    }
+}
+
+#[test]
+fn every_stream_fills_one_sample_table_and_a_silent_device_is_stale() {
+    use robobus::catalogue::record::{Effort, SampleTable, SpeedUnit};
+    let (s, _w, _j) = station();
+    let s = std::sync::Arc::new(s);
+    // wCK servos by ID: servo 3 does not exist, servo 2 answers every sample.
+    let mut wck = SampleTable::wck(&[2, 3]);
+    fill(&s, r#"{"op": "wck.sample", "ids": "2-3"}"#, 2, &mut wck);
+    assert_eq!((wck.samples, wck.t_s), (2, 0.02));
+    let (s2, s3) = (&wck.rows[0], &wck.rows[1]);
+    assert!(s2.fresh && s2.answered == 2 && s2.failures == 0, "{s2:?}");
+    assert_eq!(s2.speed, Some(0.0), "two readings of a servo at rest");
+    assert!(s2.position_deg.is_some() && s2.effort.is_some());
+    assert!(!s3.fresh && s3.answered == 0 && s3.failures == 2, "{s3:?}");
+    assert_eq!(s3.error, "no reply");
+    assert_eq!(wck.silent(), ["S3 (2 of 2 samples missing)"]);
+    let line: serde_json::Value = serde_json::from_str(&wck.json_line()).unwrap();
+    assert!(line["channels"][1]["position_deg"].is_null());
+    assert_eq!(line["channels"][1]["stale"], true);
+    // WHJ joints by ID: joint 3 is not on the bus (a timeout), in RPM and mA.
+    let mut whj = SampleTable::whj(&[1, 3]);
+    assert_eq!(whj.speed_unit, SpeedUnit::Rpm);
+    fill(&s, r#"{"op": "whj.sample", "joints": "1,3"}"#, 1, &mut whj);
+    let (j1, j3) = (&whj.rows[0], &whj.rows[1]);
+    assert!(
+        j1.fresh && j1.speed.is_some() && j1.enabled.is_some(),
+        "{j1:?}"
+    );
+    assert_eq!(j1.effort_kind, Effort::Milliamps);
+    assert_eq!(j1.error, "no error");
+    assert_eq!((j3.fresh, j3.error.as_str()), (false, "timeout"));
+    // A robot file's joints by name, across both families.
+    let sim = std::sync::Arc::new(Station::simulated().unwrap());
+    let config = sim.robot().unwrap();
+    let joints = robobus::ops::monitor::monitored_joints(config);
+    let mut robot = SampleTable::robot(joints.iter().map(|j| (j.name.as_str(), j.wck)));
+    fill(&sim, r#"{"op": "robot.sample"}"#, 1, &mut robot);
+    assert_eq!(robot.rows.len(), joints.len());
+    assert!(robot.rows.iter().all(|r| r.fresh), "{robot:?}");
+    assert!(robot.silent().is_empty());
+    assert!(robot.rows.iter().any(|r| r.effort_kind == Effort::Load));
+    assert!(
+        robot
+            .rows
+            .iter()
+            .any(|r| r.effort_kind == Effort::Milliamps && r.enabled.is_some())
+    );
+}
+
 #[test]
 fn telemetry_marks_a_silent_device_and_refuses_what_it_cannot_stream() {
     use robobus::catalogue::telemetry::Telemetry;

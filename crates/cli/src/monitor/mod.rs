@@ -27,19 +27,21 @@
 //! is restored. Without a terminal it prints one line per second instead; with `--json`,
 //! one JSON object per sample (JSON lines, never the dashboard). `--record FILE.csv`
 //! writes every sample in the format `robobus plot` reads; `--duration` ends the run by
-//! itself.
+//! itself. The rows, their staleness and both formats are the library's
+//! [`robobus::catalogue::record`]; this module only waits, draws and prints.
 
 use robobus::catalogue::telemetry::RecvError;
 use robobus::catalogue::{
     self, Delivery, Request, Station, StationConfig, Subscriber, Telemetry, station,
 };
 use robobus::ops::{IdList, ListId};
-use std::io::{IsTerminal as _, Write as _};
+use std::io::IsTerminal as _;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
+use robobus::catalogue::record::{Recorder, SampleTable};
 use robobus::ops::monitor::{bus_description, monitored_joints};
 use robobus::whj::JointBusConfig;
 use robobus_wck::{BaudRate, ServoId};
@@ -149,24 +151,13 @@ enum Source {
     Sim(robobus::demo::SimArm),
 }
 
-/// What a stream's rows are.
-enum Rows {
-    Wck,
-    Whj,
-    /// A robot file's joints: whether each channel is a wCK servo.
-    Robot(Vec<bool>),
-}
-
 /// The monitor as one subscriber of a telemetry stream ([`Telemetry`]) on a station that
-/// holds only the watched buses: each delivery's report rows fill the channels by device
-/// ID (a robot file's joints: by name).
+/// holds only the watched buses: each delivery fills the library's sample table
+/// ([`SampleTable::take`]).
 struct Stream {
     telemetry: Option<Telemetry>,
     sub: Subscriber,
     station: Option<Arc<Station>>,
-    /// The row `id` of each channel, in channel order.
-    ids: Vec<serde_json::Value>,
-    rows: Rows,
 }
 
 /// Samples a subscriber may fall behind by before it loses the oldest (the dashboard
@@ -175,13 +166,7 @@ const QUEUE: usize = 256;
 
 impl Stream {
     /// A paused stream of `request` on `station` (sampling starts with [`Source::begin`]).
-    fn new(
-        station: Station,
-        request: Request,
-        rate_hz: f64,
-        ids: Vec<serde_json::Value>,
-        rows: Rows,
-    ) -> anyhow::Result<Self> {
+    fn new(station: Station, request: Request, rate_hz: f64) -> anyhow::Result<Self> {
         let station = Arc::new(station);
         let telemetry = Telemetry::paused(&station, request, rate_hz, None)?;
         let sub = telemetry.subscribe(QUEUE)?;
@@ -189,58 +174,7 @@ impl Stream {
             telemetry: Some(telemetry),
             sub,
             station: Some(station),
-            ids,
-            rows,
         })
-    }
-
-    /// Fills the channels from one delivery; the link's error if the bus itself failed
-    /// (a capture file that cannot be written, a bus that went away).
-    fn apply(&self, delivery: &Delivery, channels: &mut [Channel]) -> Result<(), String> {
-        let sample = &delivery.sample;
-        let Some(report) = &sample.report else {
-            let why = sample.error.clone().unwrap_or_default();
-            if sample.failed.as_deref() == Some("link") {
-                return Err(why);
-            }
-            // A read that could not be sent: a missed sample of every device.
-            for c in channels.iter_mut() {
-                c.missed("not sent");
-            }
-            return Ok(());
-        };
-        if let Some(e) = report.results.iter().find(|r| r["kind"] == "link") {
-            return Err(e["error"].as_str().unwrap_or("link failed").to_owned());
-        }
-        for (n, (c, id)) in channels.iter_mut().zip(&self.ids).enumerate() {
-            let Some(r) = report.results.iter().find(|r| r["id"] == *id) else {
-                c.missed("no reply");
-                continue;
-            };
-            let wck = match &self.rows {
-                Rows::Wck => true,
-                Rows::Whj => false,
-                Rows::Robot(wck) => wck.get(n).copied().unwrap_or(false),
-            };
-            match r["kind"].as_str() {
-                // wCK replies carry no checksum or ID: a failed read is a missing reply.
-                Some(_) if wck => c.missed("no reply"),
-                Some("no-device") => c.missed("timeout"),
-                Some(_) => c.missed("bad reply"),
-                None => {
-                    c.position = r["position_deg"].as_f64();
-                    c.speed = match self.rows {
-                        Rows::Whj => r["speed_rpm"].as_f64(),
-                        _ => r["speed_deg_s"].as_f64(),
-                    };
-                    c.effort = r["current_ma"].as_f64().or_else(|| r["load"].as_f64());
-                    c.enabled = r["enabled"].as_bool();
-                    r["error"].as_str().unwrap_or("ok").clone_into(&mut c.error);
-                    c.got();
-                }
-            }
-        }
-        Ok(())
     }
 }
 
@@ -251,30 +185,6 @@ impl Drop for Stream {
         drop(self.telemetry.take());
         if let Some(station) = self.station.take().and_then(|s| Arc::try_unwrap(s).ok()) {
             station.leave();
-        }
-    }
-}
-
-fn sample_sim(arm: &robobus::demo::SimArm, channels: &mut [Channel]) {
-    let Some(r) = arm.sample() else {
-        return;
-    };
-    for (c, fb) in channels.iter_mut().zip(&r.feedback) {
-        match fb {
-            Some(fb) => {
-                c.position = Some(fb.position.degrees());
-                c.speed = Some(fb.speed.rpm());
-                #[allow(clippy::cast_precision_loss)]
-                let ma = fb
-                    .current
-                    .milliamps(robobus_whj::units::CurrentScale::OneMilliamp)
-                    as f64;
-                c.effort = Some(ma);
-                c.enabled = Some(fb.enabled);
-                c.error = fb.error.to_string();
-                c.got();
-            }
-            None => c.missed("no reply"),
         }
     }
 }
@@ -307,17 +217,12 @@ fn take_sample(
                 return Ok(false);
             };
             // The time its read completed, not the time it is shown.
-            d.t = start
-                .elapsed()
-                .saturating_sub(delivery.sample.age())
-                .as_secs_f64();
-            d.lost += delivery.lost;
-            d.late = delivery.sample.late;
-            s.apply(&delivery, &mut d.channels)?;
+            let t = start.elapsed().saturating_sub(delivery.sample.age());
+            d.table.take(&delivery, t.as_secs_f64())?;
         }
         Source::Sim(arm) => {
-            d.t = start.elapsed().as_secs_f64();
-            sample_sim(arm, &mut d.channels);
+            let t = start.elapsed().as_secs_f64();
+            d.table.take_cycle(arm.sample().as_ref(), t);
         }
     }
     Ok(true)
@@ -424,23 +329,21 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
                 .map_err(|e| usage(format!("--broadcast --joints: {e}")))?;
         }
         let jb = station::open_whj_with(bus, args.capture.as_deref(), whj_config())?;
+        let ids: Vec<u8> = joints.iter().map(|j| j.get()).collect();
         let d = dashboard(
             format!("WHJ bus {bus}"),
-            "RPM",
             "current mA",
-            joints.iter().map(|j| (format!("J{}", j.get()), "mA")),
+            SampleTable::whj(&ids),
             args,
         );
         let mut station = Station::new();
         station.add_whj(bus.as_str(), jb);
-        let ids: Vec<u64> = joints.iter().map(|j| u64::from(j.get())).collect();
         let request = Request::WhjSample(catalogue::whj::Sample {
             bus: None,
             joints: id_list(&ids),
             broadcast: args.broadcast,
         });
-        let rows = ids.iter().map(|&i| serde_json::json!(i)).collect();
-        let src = Stream::new(station, request, args.rate_hz, rows, Rows::Whj)?;
+        let src = Stream::new(station, request, args.rate_hz)?;
         return watch(&mut Source::Stream(src), d, args, out);
     }
     if let Some(port) = &args.port {
@@ -456,22 +359,20 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
             .iter()
             .filter_map(|&s| ServoId::new(s).ok())
             .collect();
+        let ids: Vec<u8> = ids.iter().map(|s| s.get()).collect();
         let d = dashboard(
             format!("wCK port {name} at {} bit/s", args.baud),
-            "deg/s",
             "load",
-            ids.iter().map(|s| (format!("S{}", s.get()), "load")),
+            SampleTable::wck(&ids),
             args,
         );
         let mut station = Station::new();
         station.add_wck(name, bus);
-        let ids: Vec<u64> = ids.iter().map(|s| u64::from(s.get())).collect();
         let request = Request::WckSample(catalogue::wck::Sample {
             bus: None,
             ids: id_list(&ids),
         });
-        let rows = ids.iter().map(|&i| serde_json::json!(i)).collect();
-        let src = Stream::new(station, request, args.rate_hz, rows, Rows::Wck)?;
+        let src = Stream::new(station, request, args.rate_hz)?;
         return watch(&mut Source::Stream(src), d, args, out);
     }
     Err(usage(
@@ -529,45 +430,28 @@ fn run_robot(path: &std::path::Path, args: &Args, out: Output) -> anyhow::Result
             joints.len(),
             buses.join("; ")
         ),
-        "deg/s",
         effort_name,
-        joints
-            .iter()
-            .map(|j| (j.name.clone(), if j.wck { "load" } else { "mA" })),
+        SampleTable::robot(joints.iter().map(|j| (j.name.as_str(), j.wck))),
         args,
     );
     let d = Dashboard {
         named_joints: true,
         ..d
     };
-    let ids = joints.iter().map(|j| serde_json::json!(j.name)).collect();
-    let rows = Rows::Robot(joints.iter().map(|j| j.wck).collect());
     let request = Request::RobotSample(catalogue::robot::Sample {});
-    let src = Stream::new(station, request, args.rate_hz, ids, rows)?;
+    let src = Stream::new(station, request, args.rate_hz)?;
     watch(&mut Source::Stream(src), d, args, out)
 }
 
 fn dashboard(
     title: String,
-    speed_unit: &'static str,
     effort_name: &'static str,
-    names: impl Iterator<Item = (String, &'static str)>,
+    table: SampleTable,
     args: &Args,
 ) -> Dashboard {
     Dashboard {
-        title,
-        speed_unit,
-        effort_name,
-        channels: names
-            .map(|(name, effort_unit)| Channel {
-                name,
-                effort_unit,
-                error: "-".into(),
-                ..Channel::default()
-            })
-            .collect(),
         recording: args.record.as_ref().map(|p| p.display().to_string()),
-        ..Dashboard::default()
+        ..Dashboard::new(title, effort_name, table)
     }
 }
 
@@ -580,9 +464,8 @@ fn run_sim(args: &Args, out: Output) -> anyhow::Result<()> {
     let arm = robobus::demo::SimArm::start(&ids)?;
     let d = dashboard(
         format!("simulated WHJ30 arm, joints {}", ids_text(&joints)),
-        "RPM",
         "current mA",
-        ids.iter().map(|j| (format!("J{}", j.get()), "mA")),
+        SampleTable::whj(&joints),
         args,
     );
     // Dropping the arm disables its joints and stops the simulator.
@@ -599,8 +482,8 @@ fn ids_text(ids: &[u8]) -> String {
 }
 
 /// Device IDs as a request's ID list.
-fn id_list(ids: &[u64]) -> catalogue::args::Ids {
-    catalogue::args::Ids::List(ids.iter().filter_map(|&i| u32::try_from(i).ok()).collect())
+fn id_list(ids: &[u8]) -> catalogue::args::Ids {
+    catalogue::args::Ids::List(ids.iter().map(|&i| u32::from(i)).collect())
 }
 
 /// Whether the terminal on stdin has hung up (reads would only return end of file).
@@ -658,16 +541,8 @@ fn quit_key(
 }
 
 fn watch(src: &mut Source, mut d: Dashboard, args: &Args, out: Output) -> anyhow::Result<()> {
-    let mut csv = match &args.record {
-        Some(p) => {
-            let mut f = std::io::BufWriter::new(
-                std::fs::File::create(p)
-                    .with_context(|| format!("cannot create {}", p.display()))?,
-            );
-            writeln!(f, "# robobus monitor: {}", d.title)?;
-            writeln!(f, "{}", d.csv_header())?;
-            Some(f)
-        }
+    let mut recorder = match &args.record {
+        Some(p) => Some(Recorder::create(p, &d.title, &d.table)?),
         None => None,
     };
     let stop = crate::interrupt::stop_token();
@@ -699,24 +574,20 @@ fn watch(src: &mut Source, mut d: Dashboard, args: &Args, out: Output) -> anyhow
             Err(e) => {
                 return Err(anyhow::anyhow!(
                     "monitor stopped after {} sample(s): {e}",
-                    d.samples
+                    d.table.samples.saturating_sub(1)
                 ));
             }
         }
-        d.samples += 1;
         d.push_history();
-        if let Some(f) = &mut csv {
-            writeln!(f, "{}", d.csv_row())?;
-            if d.samples.is_multiple_of(16) {
-                f.flush()?;
-            }
+        if let Some(r) = &mut recorder {
+            r.record(&d.table)?;
         }
         if let Some(term) = &mut terminal {
             term.draw(|f| render(f, &d))?;
         } else if out.json {
-            crate::output::print(&format!("{}\n", d.json_line()))?;
-        } else if d.t - last_line >= 1.0 {
-            last_line = d.t;
+            crate::output::print(&format!("{}\n", d.table.json_line()))?;
+        } else if d.table.t_s - last_line >= 1.0 {
+            last_line = d.table.t_s;
             crate::output::print(&format!("{}\n", d.plain_line()))?;
         }
         if matches!(src, Source::Stream(_)) {
@@ -733,13 +604,13 @@ fn watch(src: &mut Source, mut d: Dashboard, args: &Args, out: Output) -> anyhow
     }
     drop(terminal);
     drop(guard);
-    if let Some(mut f) = csv {
-        f.flush()?;
+    if let Some(r) = recorder {
+        r.finish()?;
     }
     if let Some(p) = &args.record {
         eprintln!(
             "robobus monitor: {} samples recorded to {}",
-            d.samples,
+            d.table.samples,
             p.display()
         );
     }
@@ -752,17 +623,7 @@ fn watch(src: &mut Source, mut d: Dashboard, args: &Args, out: Output) -> anyhow
 /// Exit code 3 when a device stayed silent: it never answered, or its last sample was
 /// missing (its values shown last were stale).
 fn silent(d: &Dashboard) -> anyhow::Result<()> {
-    let gone: Vec<String> = d
-        .channels
-        .iter()
-        .filter(|c| d.samples > 0 && (!c.fresh || c.answered == 0))
-        .map(|c| {
-            format!(
-                "{} ({} of {} samples missing)",
-                c.name, c.failures, d.samples
-            )
-        })
-        .collect();
+    let gone = d.table.silent();
     if gone.is_empty() {
         return Ok(());
     }
@@ -774,7 +635,7 @@ fn silent(d: &Dashboard) -> anyhow::Result<()> {
 
 mod dashboard;
 
-pub(crate) use dashboard::{Channel, Dashboard, render};
+pub(crate) use dashboard::{Dashboard, render};
 
 #[cfg(test)]
 mod tests;

@@ -89,6 +89,7 @@ pub mod jog;
 #[cfg(feature = "sim")]
 pub mod live;
 pub mod plan;
+pub mod record;
 pub mod robot;
 pub mod station;
 pub mod telemetry;

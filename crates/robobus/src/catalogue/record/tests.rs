@@ -1,0 +1,180 @@
+#![allow(clippy::unwrap_used, clippy::float_cmp)] // tests
+
+use super::*;
+
+fn row(name: &str, effort: Effort) -> SampleRow {
+    SampleRow::new(name, name.into(), effort)
+}
+
+#[test]
+fn csv_rows_match_the_header_and_gaps_stay_empty() {
+    let mut t = SampleTable::wck(&[0, 1]);
+    t.rows[0].position_deg = Some(1.0);
+    t.rows[0].speed = Some(2.0);
+    t.rows[0].effort = Some(3.0);
+    t.rows[0].got();
+    t.t_s = 0.5;
+    assert_eq!(
+        t.csv_header(),
+        "t_s,s0_deg,s0_deg_per_s,s0_load,s1_deg,s1_deg_per_s,s1_load"
+    );
+    assert_eq!(t.csv_row(), "0.5000,1.0000,2.0000,3.0000,,,");
+}
+
+#[test]
+fn robot_joint_names_become_csv_columns_and_json_keys_carry_units() {
+    let mut t = SampleTable::robot([("Left Knee", true), ("shoulder-1", false)]);
+    let knee = &mut t.rows[0];
+    knee.position_deg = Some(-12.5);
+    knee.effort = Some(40.0);
+    "ok".clone_into(&mut knee.error);
+    knee.got();
+    let sh = &mut t.rows[1];
+    sh.position_deg = Some(3.25);
+    sh.speed = Some(-6.0);
+    sh.effort = Some(812.0);
+    sh.enabled = Some(true);
+    "no error".clone_into(&mut sh.error);
+    sh.failures = 2;
+    sh.got();
+    t.t_s = 1.23456;
+    t.samples = 7;
+    assert_eq!(
+        t.csv_header(),
+        "t_s,left_knee_deg,left_knee_deg_per_s,left_knee_load,\
+         shoulder_1_deg,shoulder_1_deg_per_s,shoulder_1_mA"
+    );
+    let v: serde_json::Value = serde_json::from_str(&t.json_line()).unwrap();
+    assert_eq!(v["t_s"], 1.2346);
+    assert_eq!(v["sample"], 7);
+    let knee = &v["channels"][0];
+    assert_eq!(knee["name"], "Left Knee");
+    assert_eq!(knee["position_deg"], -12.5);
+    assert!(knee["speed_deg_per_s"].is_null());
+    assert_eq!(knee["load"], 40.0);
+    assert!(knee.get("current_ma").is_none());
+    let sh = &v["channels"][1];
+    assert_eq!(sh["current_ma"], 812.0);
+    assert_eq!(sh["speed_deg_per_s"], -6.0);
+    assert_eq!(sh["enabled"], true);
+    assert_eq!(sh["failures"], 2);
+}
+
+#[test]
+fn a_silent_device_is_stale_in_every_output_and_named_by_silent() {
+    let mut t = SampleTable::whj(&[2]);
+    assert_eq!(t.speed_unit.as_str(), "RPM");
+    // One good sample, then the joint goes away.
+    let j = &mut t.rows[0];
+    j.position_deg = Some(12.0);
+    j.speed = Some(1.0);
+    j.effort = Some(300.0);
+    j.enabled = Some(true);
+    j.got();
+    t.take_cycle(None, 1.0);
+    t.rows[0].missed("timeout");
+    t.t_s = 2.0;
+    t.samples = 2;
+    // CSV: empty cells, never the last good value.
+    assert_eq!(t.csv_row(), "2.0000,,,");
+    // JSON: null values, marked stale, the error kept.
+    let v: serde_json::Value = serde_json::from_str(&t.json_line()).unwrap();
+    let j = &v["channels"][0];
+    assert!(
+        j["position_deg"].is_null()
+            && j["speed_rpm"].is_null()
+            && j["current_ma"].is_null()
+            && j["enabled"].is_null(),
+        "{j}"
+    );
+    assert_eq!(j["stale"], true);
+    assert_eq!(j["error"], "timeout");
+    // The row keeps its values for a front end that shows them dimmed.
+    assert_eq!(t.rows[0].position_deg, Some(12.0));
+    assert_eq!(t.silent(), ["J2 (1 of 2 samples missing)"]);
+    // A device that answered every sample is not silent; before any sample nobody is.
+    t.rows[0].got();
+    assert!(t.silent().is_empty());
+    assert!(SampleTable::whj(&[1]).silent().is_empty());
+}
+
+#[test]
+fn a_device_that_never_answered_is_silent() {
+    let mut t = SampleTable::wck(&[3]);
+    t.take_cycle(None, 0.1);
+    assert_eq!(t.samples, 1);
+    assert_eq!(t.silent(), ["S3 (0 of 1 samples missing)"]);
+}
+
+#[test]
+fn recordings_write_the_head_then_a_line_per_sample_in_either_format() {
+    let mut t = SampleTable::wck(&[0]);
+    t.rows[0].position_deg = Some(10.0);
+    t.rows[0].got();
+    t.t_s = 0.25;
+    t.samples = 1;
+    let mut csv = Recorder::new(Vec::new(), RecordFormat::Csv, "wCK port sim", &t).unwrap();
+    csv.record(&t).unwrap();
+    assert_eq!(csv.written(), 1);
+    let text = String::from_utf8(csv.finish().unwrap()).unwrap();
+    assert_eq!(
+        text,
+        "# robobus monitor: wCK port sim\nt_s,s0_deg,s0_deg_per_s,s0_load\n0.2500,10.0000,,\n"
+    );
+    let mut jl = Recorder::new(Vec::new(), RecordFormat::JsonLines, "x", &t).unwrap();
+    jl.record(&t).unwrap();
+    t.rows[0].missed("no reply");
+    t.samples = 2;
+    jl.record(&t).unwrap();
+    let text = String::from_utf8(jl.finish().unwrap()).unwrap();
+    let lines: Vec<serde_json::Value> = text
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 2);
+    assert_eq!(lines[0]["channels"][0]["position_deg"], 10.0);
+    assert!(lines[1]["channels"][0]["position_deg"].is_null());
+    assert_eq!(lines[1]["channels"][0]["stale"], true);
+}
+
+#[test]
+fn a_recordings_format_comes_from_its_name() {
+    assert_eq!(
+        RecordFormat::of_path(Path::new("a/run.csv")),
+        Some(RecordFormat::Csv)
+    );
+    assert_eq!(
+        RecordFormat::of_path(Path::new("run.jsonl")),
+        Some(RecordFormat::JsonLines)
+    );
+    assert_eq!(
+        RecordFormat::of_path(Path::new("run.ndjson")),
+        Some(RecordFormat::JsonLines)
+    );
+    assert_eq!(RecordFormat::of_path(Path::new("run.txt")), None);
+    let dir = std::env::temp_dir().join(format!("robobus-record-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let t = SampleTable::whj(&[1]);
+    let e = Recorder::create(&dir.join("run.txt"), "x", &t).unwrap_err();
+    assert_eq!(e.kind(), ErrorKind::BadInput);
+    assert!(e.to_string().contains("run.txt") && e.to_string().contains(".jsonl"));
+    assert!(!dir.join("run.txt").exists(), "nothing created");
+    let e = Recorder::create(&dir.join("no/such/run.csv"), "x", &t).unwrap_err();
+    assert_eq!(e.kind(), ErrorKind::Link);
+    let path = dir.join("run.csv");
+    let r = Recorder::create(&path, "WHJ bus udp", &t).unwrap();
+    r.finish().unwrap();
+    assert_eq!(
+        std::fs::read_to_string(&path).unwrap(),
+        "# robobus monitor: WHJ bus udp\nt_s,j1_deg,j1_rpm,j1_mA\n"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn rows_start_empty_and_stale() {
+    let r = row("J1", Effort::Milliamps);
+    assert!(!r.fresh && r.answered == 0 && r.failures == 0);
+    assert_eq!(r.now(Some(1.0)), None);
+    assert_eq!(r.error, "-");
+}
