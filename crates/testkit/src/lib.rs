@@ -26,8 +26,14 @@
 //!     println!("UDP OK");
 //! }
 //! ```
+//!
+//! A client suite runs against the simulators, or against real devices that environment
+//! variables name ([`devices`]: a wCK port and its servos, a WHJ bus and its joints, and
+//! whether the suite may move them).
 
 #![allow(clippy::panic)] // a harness that cannot run its test fails that test, loudly
+
+pub mod devices;
 
 use std::ffi::OsString;
 use std::path::PathBuf;
@@ -75,6 +81,7 @@ pub struct Inner {
     exact: bool,
     env: Vec<(String, OsString)>,
     timeout_s: Option<u32>,
+    ignored: bool,
 }
 
 impl Inner {
@@ -87,6 +94,7 @@ impl Inner {
             exact: true,
             env: vec![(env.to_owned(), "1".into())],
             timeout_s: None,
+            ignored: true,
         }
     }
 
@@ -115,23 +123,48 @@ impl Inner {
         self
     }
 
+    /// Runs the tests the filter names that are *not* `#[ignore]`d (by default only the
+    /// ignored inner tests run): a suite re-run with other environment variables.
+    #[must_use]
+    pub const fn not_ignored(mut self) -> Self {
+        self.ignored = false;
+        self
+    }
+
     /// The test binary's arguments that run the inner tests, one at a time.
     fn test_args(&self) -> Vec<String> {
         let mut args = Vec::new();
         if self.exact {
             args.push("--exact".to_owned());
         }
-        args.extend(
-            [
-                self.filter.as_str(),
-                "--ignored",
-                "--nocapture",
-                "--test-threads",
-                "1",
-            ]
-            .map(str::to_owned),
-        );
+        args.push(self.filter.clone());
+        if self.ignored {
+            args.push("--ignored".to_owned());
+        }
+        args.extend(["--nocapture", "--test-threads", "1"].map(str::to_owned));
         args
+    }
+
+    /// Re-runs the inner tests here, in a child process with their environment
+    /// variables (for example a client suite pointed at simulators that the calling test
+    /// serves as if they were hardware).
+    ///
+    /// # Panics
+    /// If `timeout` cannot start.
+    #[must_use]
+    pub fn here(&self) -> Ran {
+        let mut cmd = Command::new("timeout");
+        cmd.arg(self.timeout_s.unwrap_or(120).to_string())
+            .arg(current_exe())
+            .args(self.test_args());
+        for (k, v) in &self.env {
+            cmd.env(k, v);
+        }
+        Ran::of(
+            "in a child process",
+            &cmd.output()
+                .unwrap_or_else(|e| panic!("cannot run the test binary: {e}")),
+        )
     }
 
     /// Re-runs the inner tests inside a private network namespace (`unshare -n`) with
