@@ -5,43 +5,26 @@
 
 #![allow(clippy::unwrap_used, clippy::panic)]
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::path::PathBuf;
+
+use robobus_testkit::Guest;
 
 fn python() -> PathBuf {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let out = Command::new(root.join("scripts/py/ensure-pyserial"))
-        .output()
-        .expect("running scripts/py/ensure-pyserial");
-    assert!(
-        out.status.success(),
-        "ensure-pyserial failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    PathBuf::from(String::from_utf8(out.stdout).unwrap().trim())
+    PathBuf::from(robobus_testkit::provision("py/ensure-pyserial"))
 }
 
 #[test]
 fn smoke_run_writes_the_report_with_every_section() {
     let py = python();
     let dir = tempfile::tempdir().unwrap();
-    let out = Command::new("unshare")
-        .args(["-n", "bash", "-c"])
-        .arg(r#"ip link set lo up && ip route add 224.0.0.0/4 dev lo && exec "$@""#)
-        .arg("bench")
-        .arg(env!("CARGO_BIN_EXE_robobus-bench"))
+    Guest::new(env!("CARGO_BIN_EXE_robobus-bench"))
         .args(["--smoke", "--udp", "--python"])
         .arg(&py)
         .arg("--out")
         .arg(dir.path())
-        .output()
-        .expect("running the benchmarks inside `unshare -n` (root or user namespaces)");
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        out.status.success(),
-        "smoke run failed ({}):\n{stderr}",
-        out.status
-    );
+        .timeout_s(600)
+        .in_private_netns()
+        .expect_success();
     let report = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
     for section in [
         "# robobus benchmark report",

@@ -20,22 +20,12 @@
 )] // Test code: a failed unwrap is a failed test; exact float equality is asserted on purpose.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
+use robobus_testkit::Guest;
 use robobus_testkit::workspace_root as workspace;
 
 fn python() -> PathBuf {
-    let script = workspace().join("scripts/py/ensure-venv");
-    let out = Command::new(&script)
-        .output()
-        .unwrap_or_else(|e| panic!("running {}: {e}", script.display()));
-    assert!(
-        out.status.success(),
-        "{} failed (python-can is needed for this test):\n{}",
-        script.display(),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    PathBuf::from(String::from_utf8_lossy(&out.stdout).trim())
+    PathBuf::from(robobus_testkit::provision("py/ensure-venv"))
 }
 
 fn field(json: &str, key: &str) -> f64 {
@@ -65,7 +55,6 @@ fn python_can_client_streams_position_at_1khz_over_udp() {
         &script,
         format!(
             r#"set -u
-ip link set lo up && ip route add 224.0.0.0/4 dev lo || {{ echo "network namespace setup failed" >&2; exit 90; }}
 '{sim}' sim whj --joints 1-7 --model whj30 --bus udp --seed 3 2>{log} &
 sim=$!
 for i in $(seq 200); do grep -q serving {log} && break; kill -0 $sim 2>/dev/null || break; sleep 0.05; done
@@ -85,18 +74,12 @@ exit $rc
         ),
     )
     .unwrap();
-    let out = Command::new("timeout")
-        .args(["120", "unshare", "-n", "bash"])
+    let ran = Guest::new("bash")
         .arg(&script)
-        .output()
-        .expect("running unshare -n (needs root or user namespaces)");
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        out.status.success(),
-        "client or simulator failed ({:?}):\nstdout: {stdout}\nstderr: {stderr}",
-        out.status
-    );
+        .timeout_s(120)
+        .in_private_netns()
+        .expect_success();
+    let (stdout, stderr) = (ran.stdout, ran.stderr);
     let json = stdout
         .lines()
         .rev()

@@ -21,11 +21,10 @@
 use std::fmt::Write as _;
 use std::io::BufReader;
 use std::path::Path;
-use std::process::Command;
 
 use robobus_link::read_candump;
 
-use robobus_testkit::workspace_root as workspace;
+use robobus_testkit::Guest;
 
 const N: usize = 2000;
 const AMPLITUDE: f64 = 100_000.0; // 10° in 0.0001°
@@ -95,20 +94,11 @@ cat sim.log
         ),
     )
     .unwrap();
-    let run = workspace().join("scripts/uml/run-in-uml");
-    let out = Command::new(&run)
-        .arg("--")
-        .arg("bash")
+    let stdout = Guest::new("bash")
         .arg(d.join("guest.sh"))
-        .output()
-        .unwrap_or_else(|e| panic!("running {}: {e}", run.display()));
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        out.status.success(),
-        "guest run failed ({:?}):\n{stdout}\n{stderr}",
-        out.status
-    );
+        .in_uml()
+        .expect_success()
+        .stdout;
     eprintln!("{stdout}");
 
     let file = std::fs::File::open(d.join("dump.log")).expect("candump capture");

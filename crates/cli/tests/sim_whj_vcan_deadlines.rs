@@ -37,32 +37,20 @@ const IN_UML_ENV: &str = "ROBOBUS_CLI_IN_UML";
 const QUERIES: usize = 500;
 const TIMEOUT: Duration = Duration::from_millis(5);
 
+use robobus_testkit::Inner;
 use robobus_testkit::workspace_root as workspace;
 
 /// Runs this test binary's ignored test `inner` inside User-Mode Linux.
 fn run_inner_in_uml(inner: &str) -> String {
     let uml = workspace().join("target/uml");
-    let script = workspace().join("scripts/uml/run-in-uml");
     // The guest is one host process whose virtual CPU runs the simulator and the client:
     // a higher host priority (root only; ignored otherwise) keeps the shared build machine's
     // other jobs from stalling it for whole milliseconds.
-    let out = Command::new("nice")
-        .args(["-n", "-10"])
-        .arg(&script)
-        .args(["--env", &format!("{IN_UML_ENV}={}", uml.display()), "--"])
-        .arg(std::env::current_exe().unwrap())
-        .args(["--exact", inner, "--ignored", "--nocapture"])
-        .args(["--test-threads", "1"])
-        .output()
-        .unwrap_or_else(|e| panic!("cannot run {}: {e}", script.display()));
-    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        out.status.success() && stdout.contains(&format!("{inner} OK")),
-        "{inner} inside UML failed ({}):\nstdout:\n{stdout}\nstderr:\n{stderr}",
-        out.status
-    );
-    stdout
+    Inner::exact(inner, IN_UML_ENV)
+        .env(IN_UML_ENV, uml.as_os_str())
+        .nice(-10)
+        .in_uml()
+        .expect_marker(&format!("{inner} OK"))
 }
 
 fn in_guest() {

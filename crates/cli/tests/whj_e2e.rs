@@ -1,9 +1,9 @@
 //! End-to-end: the built `robobus whj ...` commands against `robobus sim whj` in another
 //! process, on the python-can UDP multicast bus, inside a private network namespace.
 //!
-//! Each test re-executes itself under `unshare -n` (with `ROBOBUS_IN_NETNS` set), brings
-//! up loopback with a multicast route there, starts the simulator on its own group and
-//! port, and runs the commands, checking their effects through other commands (enable →
+//! Each test re-executes itself inside a private network namespace (`unshare -n`, with
+//! `ROBOBUS_IN_NETNS` set, loopback up and a multicast route there), starts the simulator
+//! on its own group and port, and runs the commands, checking their effects through other commands (enable →
 //! status shows enabled, move → position reached, write → read back, ...). No datagram
 //! can leave the namespace.
 
@@ -27,36 +27,18 @@ use serde_json::Value;
 
 const INSIDE: &str = "ROBOBUS_IN_NETNS";
 
-/// Runs the test `name` again inside a fresh network namespace; returns `true` when the
-/// caller is already inside (and should run the test body).
+/// Runs the test `name` again inside a private network namespace (loopback up, multicast
+/// routed to it); returns `true` when the caller is already inside (and should run the
+/// test body).
 fn in_netns(name: &str) -> bool {
     if std::env::var_os(INSIDE).is_some() {
-        let ok = Command::new("ip")
-            .args(["link", "set", "lo", "up"])
-            .status()
-            .is_ok_and(|s| s.success())
-            && Command::new("ip")
-                .args(["route", "add", "224.0.0.0/4", "dev", "lo"])
-                .status()
-                .is_ok_and(|s| s.success());
-        assert!(ok, "network namespace setup (ip link / ip route) failed");
         return true;
     }
-    let exe = std::env::current_exe().unwrap();
-    let out = Command::new("timeout")
-        .args(["300", "unshare", "-n"])
-        .arg(exe)
-        .args([name, "--exact", "--nocapture", "--test-threads=1"])
-        .env(INSIDE, "1")
-        .output()
-        .expect("running unshare -n (needs root or user namespaces)");
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        out.status.success() && stdout.contains("1 passed"),
-        "{name} inside the namespace failed ({:?}):\nstdout: {stdout}\nstderr: {stderr}",
-        out.status
-    );
+    robobus_testkit::Inner::exact(name, INSIDE)
+        .not_ignored()
+        .timeout_s(300)
+        .in_private_netns()
+        .expect_marker("1 passed");
     false
 }
 

@@ -20,6 +20,7 @@ use std::time::{Duration, Instant};
 
 use robobus_link::capture::CandumpWriter;
 use robobus_link::{CandumpRecord, FrameLink, UdpBus, UdpBusConfig, pycan, read_candump};
+use robobus_testkit::Inner;
 use robobus_whj::CanFrame;
 
 fn fd(id: u16, data: &[u8]) -> CanFrame {
@@ -134,37 +135,14 @@ const NETNS_ENV: &str = "ROBOBUS_LINK_IN_NETNS";
 #[test]
 fn python_can_and_robobus_exchange_brs_frames_in_a_private_network_namespace() {
     let py = common::python();
-    let exe = std::env::current_exe().unwrap();
-    let out = Command::new("unshare")
-        .arg("-n")
-        .arg(&exe)
-        .args(["--exact", "inner_exchange_with_python_can", "--ignored", "--nocapture"])
-        .args(["--test-threads", "1"])
+    Inner::exact("inner_exchange_with_python_can", NETNS_ENV)
         .env(NETNS_ENV, &py)
-        .output()
-        .expect("cannot run `unshare` (util-linux); the test needs `unshare -n` (root or user namespaces)");
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        out.status.success() && stdout.contains("INTEROP OK"),
-        "exchange inside `unshare -n` failed ({}):\nstdout:\n{stdout}\nstderr:\n{stderr}",
-        out.status
-    );
+        .in_private_netns()
+        .expect_marker("INTEROP OK");
 }
 
-fn sh(cmd: &str, args: &[&str]) {
-    let out = Command::new(cmd)
-        .args(args)
-        .output()
-        .unwrap_or_else(|e| panic!("{cmd}: {e}"));
-    assert!(
-        out.status.success(),
-        "{cmd} {args:?} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
-
-/// Runs inside `unshare -n` (started by the test above); fails when run any other way.
+/// Runs inside the private namespace (started by the test above, loopback up and
+/// multicast routed to it); fails when run any other way.
 #[test]
 #[ignore = "run by python_can_and_robobus_exchange_brs_frames_in_a_private_network_namespace inside unshare -n"]
 // One namespace runs the whole scenario, step by step.
@@ -172,8 +150,6 @@ fn sh(cmd: &str, args: &[&str]) {
 fn inner_exchange_with_python_can() {
     let py = std::env::var(NETNS_ENV)
         .expect("this test only runs inside the private namespace its outer test creates");
-    sh("ip", &["link", "set", "lo", "up"]);
-    sh("ip", &["route", "add", "224.0.0.0/4", "dev", "lo"]);
 
     // python-can's defaults: group 239.74.163.2, port 43113 (private namespace: nobody else).
     let mut bus = UdpBus::open(&UdpBusConfig::default()).unwrap();

@@ -74,14 +74,159 @@ pub fn provision(script: &str) -> String {
     stdout.lines().last().unwrap_or_default().trim().to_owned()
 }
 
+/// A program to run somewhere a plain test process is not: inside a private network
+/// namespace, inside User-Mode Linux, or as a child with its own environment. [`Inner`]
+/// is the common case of a test binary's own inner tests.
+#[derive(Debug, Clone)]
+pub struct Guest {
+    program: OsString,
+    args: Vec<OsString>,
+    env: Vec<(String, OsString)>,
+    timeout_s: Option<u32>,
+    nice: Option<i8>,
+}
+
+impl Guest {
+    /// Runs `program` (a path, or a name on `PATH`).
+    #[must_use]
+    pub fn new(program: impl Into<OsString>) -> Self {
+        Self {
+            program: program.into(),
+            args: Vec::new(),
+            env: Vec::new(),
+            timeout_s: None,
+            nice: None,
+        }
+    }
+
+    /// A shell script run by `bash -c`, with `args` as `$1`, `$2`, ...
+    #[must_use]
+    pub fn bash(script: &str) -> Self {
+        Self::new("bash").args(["-c", script, "bash"])
+    }
+
+    /// Adds an argument.
+    #[must_use]
+    pub fn arg(mut self, arg: impl Into<OsString>) -> Self {
+        self.args.push(arg.into());
+        self
+    }
+
+    /// Adds arguments.
+    #[must_use]
+    pub fn args<I: IntoIterator<Item = A>, A: Into<OsString>>(mut self, args: I) -> Self {
+        self.args.extend(args.into_iter().map(Into::into));
+        self
+    }
+
+    /// Sets (or replaces) an environment variable of the program.
+    #[must_use]
+    pub fn env(mut self, key: &str, value: impl Into<OsString>) -> Self {
+        self.env.retain(|(k, _)| k != key);
+        self.env.push((key.to_owned(), value.into()));
+        self
+    }
+
+    /// The longest the run may take, seconds (default 120 in a namespace or a child,
+    /// 300 in User-Mode Linux, which boots a kernel first); then it is killed and fails.
+    #[must_use]
+    pub const fn timeout_s(mut self, seconds: u32) -> Self {
+        self.timeout_s = Some(seconds);
+        self
+    }
+
+    /// Runs it at this `nice` level (a negative one needs root and is dropped without:
+    /// a guest whose one host process runs a simulator and a client keeps its timing on
+    /// a busy machine).
+    #[must_use]
+    pub const fn nice(mut self, level: i8) -> Self {
+        self.nice = Some(level);
+        self
+    }
+
+    /// `timeout SECONDS [nice -n LEVEL]` in front of the rest of a command.
+    fn launcher(&self, default_timeout_s: u32) -> Command {
+        let mut cmd = Command::new("timeout");
+        cmd.arg(self.timeout_s.unwrap_or(default_timeout_s).to_string());
+        if let Some(level) = self.nice {
+            cmd.args(["nice", "-n", &level.to_string()]);
+        }
+        cmd
+    }
+
+    /// Runs it here, in a child process with its environment variables.
+    ///
+    /// # Panics
+    /// If `timeout` cannot start.
+    #[must_use]
+    pub fn here(&self) -> Ran {
+        let mut cmd = self.launcher(120);
+        cmd.arg(&self.program).args(&self.args);
+        cmd.envs(self.env.iter().map(|(k, v)| (k, v)));
+        Ran::of(
+            "in a child process",
+            &cmd.output()
+                .unwrap_or_else(|e| panic!("cannot run {}: {e}", self.program.display())),
+        )
+    }
+
+    /// Runs it inside a private network namespace (`unshare -n`) with loopback up and
+    /// `224.0.0.0/4` routed to it, so UDP multicast stays in it.
+    ///
+    /// # Panics
+    /// If `timeout` or `unshare` cannot start.
+    #[must_use]
+    pub fn in_private_netns(&self) -> Ran {
+        let script =
+            "set -e; ip link set lo up; ip route add 224.0.0.0/4 dev lo; exec \"$0\" \"$@\"";
+        let mut cmd = self.launcher(120);
+        cmd.args(["unshare", "-n", "sh", "-c", script])
+            .arg(&self.program)
+            .args(&self.args);
+        cmd.envs(self.env.iter().map(|(k, v)| (k, v)));
+        Ran::of(
+            "inside a private network namespace (unshare -n)",
+            &cmd.output().unwrap_or_else(|e| {
+                panic!("cannot run `unshare -n` (util-linux; needs root or user namespaces): {e}")
+            }),
+        )
+    }
+
+    /// Runs it inside User-Mode Linux (`scripts/uml/run-in-uml`, after
+    /// `scripts/uml/ensure-uml` provisioned the kernel): a kernel with SocketCAN and
+    /// `vcan0` (CAN FD MTU), can-utils on `PATH`. The environment variables go to the
+    /// guest.
+    ///
+    /// # Panics
+    /// If the kernel cannot be provisioned or the script cannot start.
+    #[must_use]
+    pub fn in_uml(&self) -> Ran {
+        let _ = provision("uml/ensure-uml");
+        let script = workspace_root().join("scripts/uml/run-in-uml");
+        let mut cmd = self.launcher(300);
+        cmd.arg(&script);
+        for (k, v) in &self.env {
+            let mut kv = OsString::from(k);
+            kv.push("=");
+            kv.push(v);
+            cmd.arg("--env").arg(kv);
+        }
+        cmd.arg("--").arg(&self.program).args(&self.args);
+        Ran::of(
+            "inside User-Mode Linux",
+            &cmd.output()
+                .unwrap_or_else(|e| panic!("cannot run {}: {e}", script.display())),
+        )
+    }
+}
+
 /// The inner tests of the running test binary, to re-run somewhere else.
 #[derive(Debug, Clone)]
 pub struct Inner {
     filter: String,
     exact: bool,
-    env: Vec<(String, OsString)>,
-    timeout_s: Option<u32>,
     ignored: bool,
+    guest: Guest,
 }
 
 impl Inner {
@@ -92,9 +237,8 @@ impl Inner {
         Self {
             filter: test.to_owned(),
             exact: true,
-            env: vec![(env.to_owned(), "1".into())],
-            timeout_s: None,
             ignored: true,
+            guest: Guest::new(current_exe()).env(env, "1"),
         }
     }
 
@@ -110,29 +254,35 @@ impl Inner {
     /// Sets (or replaces) the environment variable `key` for the inner tests.
     #[must_use]
     pub fn env(mut self, key: &str, value: impl Into<OsString>) -> Self {
-        self.env.retain(|(k, _)| k != key);
-        self.env.push((key.to_owned(), value.into()));
+        self.guest = self.guest.env(key, value);
         self
     }
 
-    /// The longest the re-run may take, seconds (default 120 in a namespace, 300 in
-    /// User-Mode Linux, which boots a kernel first); then it is killed and fails.
+    /// The longest the re-run may take, seconds (see [`Guest::timeout_s`]).
     #[must_use]
-    pub const fn timeout_s(mut self, seconds: u32) -> Self {
-        self.timeout_s = Some(seconds);
+    pub fn timeout_s(mut self, seconds: u32) -> Self {
+        self.guest = self.guest.timeout_s(seconds);
+        self
+    }
+
+    /// Runs the re-run at this `nice` level (see [`Guest::nice`]).
+    #[must_use]
+    pub fn nice(mut self, level: i8) -> Self {
+        self.guest = self.guest.nice(level);
         self
     }
 
     /// Runs the tests the filter names that are *not* `#[ignore]`d (by default only the
-    /// ignored inner tests run): a suite re-run with other environment variables.
+    /// ignored inner tests run): a suite re-run with other environment variables, or a
+    /// test that checks where it runs itself.
     #[must_use]
     pub const fn not_ignored(mut self) -> Self {
         self.ignored = false;
         self
     }
 
-    /// The test binary's arguments that run the inner tests, one at a time.
-    fn test_args(&self) -> Vec<String> {
+    /// The test binary with the arguments that run the inner tests, one at a time.
+    fn guest(&self) -> Guest {
         let mut args = Vec::new();
         if self.exact {
             args.push("--exact".to_owned());
@@ -142,82 +292,28 @@ impl Inner {
             args.push("--ignored".to_owned());
         }
         args.extend(["--nocapture", "--test-threads", "1"].map(str::to_owned));
-        args
+        self.guest.clone().args(args)
     }
 
     /// Re-runs the inner tests here, in a child process with their environment
     /// variables (for example a client suite pointed at simulators that the calling test
     /// serves as if they were hardware).
-    ///
-    /// # Panics
-    /// If `timeout` cannot start.
     #[must_use]
     pub fn here(&self) -> Ran {
-        let mut cmd = Command::new("timeout");
-        cmd.arg(self.timeout_s.unwrap_or(120).to_string())
-            .arg(current_exe())
-            .args(self.test_args());
-        for (k, v) in &self.env {
-            cmd.env(k, v);
-        }
-        Ran::of(
-            "in a child process",
-            &cmd.output()
-                .unwrap_or_else(|e| panic!("cannot run the test binary: {e}")),
-        )
+        self.guest().here()
     }
 
-    /// Re-runs the inner tests inside a private network namespace (`unshare -n`) with
-    /// loopback up and `224.0.0.0/4` routed to it, so UDP multicast stays in it.
-    ///
-    /// # Panics
-    /// If `timeout` or `unshare` cannot start.
+    /// Re-runs the inner tests inside a private network namespace
+    /// ([`Guest::in_private_netns`]).
     #[must_use]
     pub fn in_private_netns(&self) -> Ran {
-        let exe = current_exe();
-        let script =
-            "set -e; ip link set lo up; ip route add 224.0.0.0/4 dev lo; exec \"$0\" \"$@\"";
-        let mut cmd = Command::new("timeout");
-        cmd.arg(self.timeout_s.unwrap_or(120).to_string())
-            .args(["unshare", "-n", "sh", "-c", script])
-            .arg(&exe)
-            .args(self.test_args());
-        for (k, v) in &self.env {
-            cmd.env(k, v);
-        }
-        Ran::of(
-            "inside a private network namespace (unshare -n)",
-            &cmd.output().unwrap_or_else(|e| {
-                panic!("cannot run `unshare -n` (util-linux; needs root or user namespaces): {e}")
-            }),
-        )
+        self.guest().in_private_netns()
     }
 
-    /// Re-runs the inner tests inside User-Mode Linux (`scripts/uml/run-in-uml`, after
-    /// `scripts/uml/ensure-uml` provisioned the kernel): a kernel with SocketCAN and
-    /// `vcan0` (CAN FD MTU). The environment variables go to the guest.
-    ///
-    /// # Panics
-    /// If the kernel cannot be provisioned or the script cannot start.
+    /// Re-runs the inner tests inside User-Mode Linux ([`Guest::in_uml`]).
     #[must_use]
     pub fn in_uml(&self) -> Ran {
-        let _ = provision("uml/ensure-uml");
-        let script = workspace_root().join("scripts/uml/run-in-uml");
-        let mut cmd = Command::new("timeout");
-        cmd.arg(self.timeout_s.unwrap_or(300).to_string())
-            .arg(&script);
-        for (k, v) in &self.env {
-            let mut kv = OsString::from(k);
-            kv.push("=");
-            kv.push(v);
-            cmd.arg("--env").arg(kv);
-        }
-        cmd.arg("--").arg(current_exe()).args(self.test_args());
-        Ran::of(
-            "inside User-Mode Linux",
-            &cmd.output()
-                .unwrap_or_else(|e| panic!("cannot run {}: {e}", script.display())),
-        )
+        self.guest().in_uml()
     }
 }
 
@@ -246,6 +342,21 @@ impl Ran {
             stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
             stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
         }
+    }
+
+    /// Requires that it exited 0; returns it (its output, to look at further).
+    ///
+    /// # Panics
+    /// With everything it printed, if not.
+    #[track_caller]
+    #[allow(clippy::return_self_not_must_use)] // the check is the point; the output is a bonus
+    pub fn expect_success(self) -> Self {
+        assert!(
+            self.success,
+            "the run failed {}:\nstdout:\n{}\nstderr:\n{}",
+            self.place, self.stdout, self.stderr
+        );
+        self
     }
 
     /// Requires that it exited 0 and printed `marker` (the line an inner test prints
