@@ -178,8 +178,9 @@ impl Unit {
             Self::Position => Some(crate::units::POSITION_DEG_PER_COUNT),
             Self::TargetSpeed => Some(crate::units::TARGET_SPEED_RPM_PER_COUNT),
             Self::ActualSpeed => Some(crate::units::ACTUAL_SPEED_RPM_PER_COUNT),
-            Self::Voltage => Some(0.01),
-            Self::Temperature | Self::Acceleration => Some(0.1),
+            Self::Voltage => Some(crate::units::VOLTAGE_V_PER_COUNT),
+            Self::Temperature => Some(crate::units::TEMPERATURE_C_PER_COUNT),
+            Self::Acceleration => Some(crate::units::ACCELERATION_RPM_S_PER_COUNT),
             Self::Percent => Some(1.0),
             Self::Raw | Self::Flag | Self::Enum | Self::Current | Self::SpeedLimit => None,
         }

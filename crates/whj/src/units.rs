@@ -21,9 +21,11 @@ pub const ACTUAL_SPEED_RPM_PER_COUNT: f64 = 0.02;
 /// The alternative (EN-MCT) reading of the actual-speed LSB, conflict C1.
 pub const ALT_ACTUAL_SPEED_RPM_PER_COUNT: f64 = 0.002;
 /// Voltage LSB: 0.01 V.
-pub const VOLTAGE_V_PER_COUNT: f32 = 0.01;
+pub const VOLTAGE_V_PER_COUNT: f64 = 0.01;
 /// Temperature LSB: 0.1 °C.
-pub const TEMPERATURE_C_PER_COUNT: f32 = 0.1;
+pub const TEMPERATURE_C_PER_COUNT: f64 = 0.1;
+/// Acceleration LSB of the acceleration registers: 0.1 rpm/s.
+pub const ACCELERATION_RPM_S_PER_COUNT: f64 = 0.1;
 /// Current feed-forward LSB in the 0x2F broadcast frame: 2 mA for every model.
 pub const CURRENT_FF_MA_PER_COUNT: i32 = 2;
 
@@ -176,8 +178,9 @@ impl Voltage {
         self.0
     }
     /// Voltage in volts.
+    #[allow(clippy::cast_possible_truncation)] // |volts| < 328: exact to f32's precision
     pub fn volts(self) -> f32 {
-        f32::from(self.0) * VOLTAGE_V_PER_COUNT
+        (f64::from(self.0) * VOLTAGE_V_PER_COUNT) as f32
     }
     /// Voltage in millivolts (exact).
     pub const fn millivolts(self) -> i32 {
@@ -195,8 +198,9 @@ impl Temperature {
         self.0
     }
     /// Temperature in °C.
+    #[allow(clippy::cast_possible_truncation)] // |°C| < 3,277: exact to f32's precision
     pub fn celsius(self) -> f32 {
-        f32::from(self.0) * TEMPERATURE_C_PER_COUNT
+        (f64::from(self.0) * TEMPERATURE_C_PER_COUNT) as f32
     }
 }
 
