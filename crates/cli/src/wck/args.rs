@@ -1,0 +1,528 @@
+//! The arguments of `robobus wck`: its subcommands and options, and the value parsers that
+//! turn text into the protocol crate's range-checked newtypes (an out-of-range value is
+//! refused with exit code 2, naming the value, the range and the argument).
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use clap::{Subcommand, ValueEnum};
+use robobus::ops::IdList;
+use robobus::ops::wck::FORMAT_HELP;
+use robobus_wck::{
+    Accel, BaudRate, DGain, DataByte, ExtServoId, IGain, IoBits, Overload, PGain, Position,
+    Position10, RangeError, ServoId, Speed, TorqueLevel, WheelSpeed,
+};
+
+/// The safe state of a loop that ends early (play, teach, timed wheel) or, for teach and
+/// wheel, when it ends at all.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum OnStop {
+    /// Release the torque (the servos turn freely).
+    Passive,
+    /// Dynamic brake on every servo of the bus (A-1 (6) break mode).
+    Break,
+    /// Keep the current position, with torque (a position move to where each servo is).
+    Hold,
+}
+
+pub(super) const AFTER_HELP: &str = "\
+IDs: 4- and 6-byte commands address servos 0..=30 (31 is the broadcast ID used by
+sync-move and brake); move10 / read10 address 0..=253. Positions are 0..=254
+(1 step = 269/255 degrees ~ 1.055 deg), 10-bit positions 0..=1023 (333/1023 deg).
+Torque levels are 0 (maximum) ..= 4 (minimum).
+
+Without --dry-run the command runs on the bus at --port: each reply is printed as a table
+(--json: one JSON object; fields carry their units: position, degrees, load, milliamps).
+Settings stored in EEPROM are verified by reading them back, set-id / set-baud by talking
+to the servo at its new ID / rate. A servo that does not answer gives exit code 3 (the
+message names the port and the servo). move / move10 reply the status before the move
+(load_before, position_before). Ctrl-C during play, teach or a timed wheel run
+first brings the servos to the --on-stop state, then exits with 130.
+
+With --dry-run every subcommand prints the packets it would send, one per line in hex
+(`FF 03 7F 7C`), lines starting with `#` are comments; --json prints them as JSON.
+Commands marked (EEPROM) rewrite the servo's non-volatile memory.";
+
+/// Options of `robobus wck`.
+#[derive(Debug, clap::Args)]
+#[command(after_help = AFTER_HELP)]
+pub(crate) struct Args {
+    /// Serial port of the wCK bus, e.g. /dev/ttyUSB0 or the path `robobus sim wck` printed.
+    /// Required unless --dry-run is given or the subcommand needs no device.
+    #[arg(long, value_name = "PATH", global = true)]
+    pub(super) port: Option<String>,
+    /// Baud rate the servos are set to: 4800, 9600, 38400, 57600, 115200, 230400, 460800 or
+    /// 921600.
+    #[arg(long, default_value = "115200", value_parser = parse_baud, global = true)]
+    pub(super) baud: BaudRate,
+    /// Extra time to wait for each reply beyond its modelled wire time and turnaround, in
+    /// ms (default 10, plus a USB adapter's latency timer when it can be read). Raise it
+    /// for a simulator on a heavily loaded machine.
+    #[arg(long, value_name = "MS", value_parser = parse_margin, global = true)]
+    pub(super) reply_margin: Option<core::time::Duration>,
+    /// Accept a read only when two replies in a row agree (wCK replies carry no checksum,
+    /// so line noise can look like a value). On by default for `get` (gains, speed,
+    /// over-load, bounds, I/O); this turns it on for every read (status, scan excepted).
+    /// Costs one more exchange per read (about 1.5 ms at 115200 bit/s).
+    #[arg(long, global = true, conflicts_with = "no_verify_reads")]
+    pub(super) verify_reads: bool,
+    /// Accept a `get` read from a single reply (faster, but noise may pass as a value).
+    #[arg(long, global = true)]
+    pub(super) no_verify_reads: bool,
+    /// Record every byte written to and read from the port to FILE, a timestamped hex log
+    /// (`<seconds> > FF 03 7F 7C`, `<` for bytes read); `robobus replay FILE` decodes it.
+    /// An existing FILE is not overwritten.
+    #[arg(long, value_name = "FILE", global = true)]
+    pub(super) capture: Option<PathBuf>,
+    /// What to do.
+    #[command(subcommand)]
+    pub(super) command: WckCommand,
+}
+
+#[derive(Debug, Subcommand)]
+pub(super) enum WckCommand {
+    /// Find servos: read the status of every ID (0..=30 unless --ids is given).
+    ///
+    /// Prints the servos found (ID, baud rate, load, position); IDs answered by more than
+    /// one module are flagged as duplicates. On a terminal a progress bar shows on stderr.
+    /// Exit code 3 if no servo answers.
+    Scan {
+        /// Try every baud rate the wCK supports, not just --baud.
+        #[arg(long)]
+        all_bauds: bool,
+        /// IDs to try: a list of IDs and ranges, e.g. `0-5,7`.
+        #[arg(long, default_value = "0-30", value_parser = parse_servo_ids)]
+        ids: ServoIds,
+    },
+    /// Read load and position of servos (A-1 (3) status read).
+    Status {
+        /// Servo IDs: a list of IDs and ranges, e.g. `3` or `0-5,7`.
+        #[arg(value_parser = parse_servo_ids)]
+        ids: ServoIds,
+    },
+    /// Move one servo to a position (A-1 (1) position move); replies load and position
+    Move {
+        /// Servo ID, 0..=30.
+        #[arg(value_parser = parse_servo_id)]
+        id: ServoId,
+        /// Target position, 0..=254.
+        #[arg(value_parser = parse_position)]
+        position: Position,
+        /// Torque level, 0 (maximum) ..= 4 (minimum).
+        #[arg(long, default_value = "0", value_parser = parse_torque)]
+        torque: TorqueLevel,
+    },
+    /// Move one servo to a 10-bit position (A-1 (26)).
+    Move10 {
+        /// Servo ID, 0..=253.
+        #[arg(value_parser = parse_ext_id)]
+        id: ExtServoId,
+        /// Target position, 0..=1023.
+        #[arg(value_parser = parse_position10)]
+        position: Position10,
+        /// Torque, 0..=254 (a full data byte, as the manual gives it).
+        #[arg(long, default_value = "0", value_parser = parse_data_byte)]
+        torque: DataByte,
+    },
+    /// Read the 10-bit position of a servo (A-1 (27)).
+    Read10 {
+        /// Servo ID, 0..=253.
+        #[arg(value_parser = parse_ext_id)]
+        id: ExtServoId,
+    },
+    /// Move servos 0..N-1 at once (A-1 (2) synchronized move, no reply).
+    SyncMove {
+        /// Target positions of servos 0, 1, 2, ... (1..=31 values, each 0..=254).
+        #[arg(required = true, num_args = 1..=31, value_parser = parse_position)]
+        positions: Vec<Position>,
+        /// Torque level, 0 (maximum) ..= 4 (minimum).
+        #[arg(long, default_value = "0", value_parser = parse_torque)]
+        torque: TorqueLevel,
+    },
+    /// Release the torque of servos (A-1 (4) passive); replies the position.
+    Passive {
+        /// Servo IDs, e.g. `3` or `0-5`.
+        #[arg(value_parser = parse_servo_ids)]
+        ids: ServoIds,
+    },
+    /// Turn a servo continuously (A-1 (5) wheel mode).
+    Wheel {
+        /// Servo ID, 0..=30.
+        #[arg(value_parser = parse_servo_id)]
+        id: ServoId,
+        /// Direction.
+        direction: Direction,
+        /// Speed 0 (stop), 1 (minimum) ..= 15 (maximum).
+        #[arg(value_parser = parse_wheel_speed)]
+        speed: WheelSpeed,
+        /// Turn for this many seconds (0.1..=3600), then stop per --on-stop. Without it the
+        /// servo keeps turning after the command returns.
+        #[arg(long, value_name = "SECS", value_parser = parse_seconds)]
+        duration: Option<Duration>,
+        /// How the servo stops after --duration or on Ctrl-C: hold (position move to where
+        /// it is), passive or break.
+        #[arg(long, value_enum, default_value = "hold", hide_possible_values = true)]
+        on_stop: OnStop,
+    },
+    /// Put every servo on the bus into break mode (A-1 (6)).
+    Brake,
+    /// Read a parameter of a servo.
+    #[command(subcommand)]
+    Get(GetParam),
+    /// Write a parameter of a servo.
+    #[command(subcommand)]
+    Set(SetParam),
+    /// Give a servo a new ID (A-1 (14), EEPROM). IDs above 30 are reachable only with
+    /// move10 / read10.
+    SetId {
+        /// Current ID, 0..=30.
+        #[arg(value_parser = parse_servo_id)]
+        id: ServoId,
+        /// New ID, 0..=253.
+        #[arg(value_parser = parse_ext_id)]
+        new_id: ExtServoId,
+    },
+    /// Set a servo's baud rate (A-1 (7), EEPROM); reach it afterwards with --baud RATE.
+    SetBaud {
+        /// Servo ID, 0..=30.
+        #[arg(value_parser = parse_servo_id)]
+        id: ServoId,
+        /// New baud rate: 4800, 9600, 38400, 57600, 115200, 230400, 460800 or 921600.
+        #[arg(value_parser = parse_baud)]
+        rate: BaudRate,
+    },
+    /// Self-running motion programs (manual section 3-11).
+    #[command(subcommand)]
+    Program(ProgramCommand),
+    /// Record poses by hand: servos go passive, their positions are recorded as poses.
+    ///
+    /// Move the servos by hand; each Enter records a pose (q + Enter or Ctrl-D finishes).
+    /// With --rate-hz / --duration poses are recorded at a rate instead (for --duration,
+    /// or until Enter). Writes a keyframe motion file that `play` plays.
+    Teach {
+        /// Servo IDs to record: 0..N-1 (e.g. `0-15`), since a pose lists servos 0, 1, ...
+        #[arg(value_parser = parse_servo_ids)]
+        ids: ServoIds,
+        /// Record at this many poses per second (0.1..=200) instead of per keypress.
+        #[arg(long, value_parser = parse_rate)]
+        rate_hz: Option<f64>,
+        /// Record for this many seconds (0.1..=3600), at --rate-hz (default 10).
+        #[arg(long, value_name = "SECS", value_parser = parse_seconds)]
+        duration: Option<Duration>,
+        /// Transition time written for each pose recorded by keypress, ms (0..=600000).
+        #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u32).range(0..=600_000))]
+        pose_ms: u32,
+        /// Torque level written into the file, 0 (maximum) ..= 4 (minimum).
+        #[arg(long, default_value = "0", value_parser = parse_torque)]
+        torque: TorqueLevel,
+        /// Write the poses as a keyframe motion file (see `robobus wck play --help`);
+        /// without it the file is printed on stdout.
+        #[arg(short, long, value_name = "FILE")]
+        output: Option<PathBuf>,
+        /// What the servos do when recording ends: passive (stay limp), hold (keep the last
+        /// pose with torque) or break.
+        #[arg(
+            long,
+            value_enum,
+            default_value = "passive",
+            hide_possible_values = true
+        )]
+        on_stop: OnStop,
+    },
+    /// Play a keyframe motion file: poses with transition times, interpolated and sent as
+    /// synchronized moves.
+    #[command(after_help = FORMAT_HELP)]
+    Play {
+        /// The keyframe motion file.
+        file: PathBuf,
+        /// Synchronized moves per second while interpolating (1..=200).
+        #[arg(long, default_value_t = 50.0, value_parser = parse_rate)]
+        rate_hz: f64,
+        /// What the servos do on Ctrl-C: hold (keep the current position), passive or
+        /// break.
+        #[arg(long, value_enum, default_value = "hold", hide_possible_values = true)]
+        on_stop: OnStop,
+    },
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub(super) enum Direction {
+    /// Counter-clockwise.
+    Ccw,
+    /// Clockwise.
+    Cw,
+}
+
+#[derive(Debug, Subcommand)]
+pub(super) enum GetParam {
+    /// P and D gains (A-1 (9)).
+    Gains(IdArg),
+    /// I gain (A-1 (11)).
+    IGain(IdArg),
+    /// Speed level and acceleration range (A-1 (16)).
+    Speed(IdArg),
+    /// Over-load (over-current) threshold, shown in mA (A-1 (19)).
+    Overload(IdArg),
+    /// Movement boundaries (A-1 (21)).
+    Bounds(IdArg),
+    /// Digital outputs and the A/D input (A-1 (23)).
+    Io(IdArg),
+}
+
+#[derive(Debug, clap::Args)]
+pub(super) struct IdArg {
+    /// Servo ID, 0..=30.
+    #[arg(value_parser = parse_servo_id)]
+    pub(super) id: ServoId,
+}
+
+#[derive(Debug, Subcommand)]
+pub(super) enum SetParam {
+    /// P and D gains (A-1 (8), EEPROM; --runtime: A-1 (12), lost at power-off).
+    Gains {
+        /// Servo ID, 0..=30.
+        #[arg(value_parser = parse_servo_id)]
+        id: ServoId,
+        /// P gain, 1..=254 (the manual recommends up to 120, and P = 1.5 x D).
+        #[arg(value_parser = parse_p_gain)]
+        p: PGain,
+        /// D gain, 0..=254.
+        #[arg(value_parser = parse_d_gain)]
+        d: DGain,
+        /// Only until power-off (runtime gains), not in EEPROM.
+        #[arg(long)]
+        runtime: bool,
+    },
+    /// I gain (A-1 (10), EEPROM; --runtime: A-1 (13)).
+    IGain {
+        /// Servo ID, 0..=30.
+        #[arg(value_parser = parse_servo_id)]
+        id: ServoId,
+        /// I gain, 0..=254 (the manual recommends 0..=10).
+        #[arg(value_parser = parse_i_gain)]
+        i: IGain,
+        /// Only until power-off, not in EEPROM.
+        #[arg(long)]
+        runtime: bool,
+    },
+    /// Speed level and acceleration range (A-1 (15), EEPROM; --runtime: A-1 (17)).
+    Speed {
+        /// Servo ID, 0..=30.
+        #[arg(value_parser = parse_servo_id)]
+        id: ServoId,
+        /// Speed level, 0..=30 (0 = no limit).
+        #[arg(value_parser = parse_speed)]
+        speed: Speed,
+        /// Acceleration range, 20..=100.
+        #[arg(value_parser = parse_accel)]
+        accel: Accel,
+        /// Only until power-off, not in EEPROM (the servo does not reply).
+        #[arg(long)]
+        runtime: bool,
+    },
+    /// Over-load (over-current) threshold in mA, 400..=1800 (A-1 (18), EEPROM).
+    Overload {
+        /// Servo ID, 0..=30.
+        #[arg(value_parser = parse_servo_id)]
+        id: ServoId,
+        /// Threshold in mA, 400..=1800 (rounded to the nearest code).
+        #[arg(value_parser = parse_overload_ma)]
+        milliamps: Overload,
+    },
+    /// Movement boundaries (A-1 (20), EEPROM).
+    Bounds {
+        /// Servo ID, 0..=30.
+        #[arg(value_parser = parse_servo_id)]
+        id: ServoId,
+        /// Lower boundary, 0..=254.
+        #[arg(value_parser = parse_position)]
+        lower: Position,
+        /// Upper boundary, 0..=254, not below the lower one.
+        #[arg(value_parser = parse_position)]
+        upper: Position,
+    },
+    /// Digital outputs (A-1 (22)): 0..=3, bit 0 = D/O 1, bit 1 = D/O 2.
+    Io {
+        /// Servo ID, 0..=30.
+        #[arg(value_parser = parse_servo_id)]
+        id: ServoId,
+        /// Output bits, 0..=3.
+        #[arg(value_parser = parse_io_bits)]
+        outputs: IoBits,
+    },
+}
+
+#[derive(Debug, Subcommand)]
+pub(super) enum ProgramCommand {
+    /// Store a motion program (text form) in a servo (A-1 (24), EEPROM).
+    #[command(after_help = PROGRAM_HELP)]
+    Upload {
+        /// Servo ID, 0..=30.
+        #[arg(value_parser = parse_servo_id)]
+        id: ServoId,
+        /// The program, in the text form (see `robobus wck program check --help`).
+        file: PathBuf,
+    },
+    /// Read how many instructions a servo's program has (A-1 (25)).
+    Download {
+        /// Servo ID, 0..=30.
+        #[arg(value_parser = parse_servo_id)]
+        id: ServoId,
+    },
+    /// Check a program file without a device: report errors with line:column, print the
+    /// encoded bytes.
+    #[command(after_help = PROGRAM_HELP)]
+    Check {
+        /// The program, in the text form.
+        file: PathBuf,
+        /// Servo ID for the printed upload packet, 0..=30.
+        #[arg(long, default_value = "0", value_parser = parse_servo_id)]
+        id: ServoId,
+    },
+}
+
+pub(super) const PROGRAM_HELP: &str = "\
+Program text form (manual section 3-11): one instruction per line, at most 8; `#` starts a
+comment.
+  none                      no operation
+  move <0..=254> torque <0..=4>
+  motion passive | motion break
+  wheel ccw|cw <0..=15>
+  delay <0..=4095>ms        (delays whose low byte is 0xFF, e.g. 255, cannot be sent)
+  output <0..=3>
+  if pos <op> <0..=254>     <op>: == > < >= <=; a false condition skips the next line
+  if adc <op> <0..=254>
+  repeat <1..=254> | repeat forever
+  end";
+
+/// A parsed list of servo IDs (`0-5,7`), in the order given, without repeats.
+pub(super) type ServoIds = IdList<ServoId>;
+
+/// Parses a number: decimal or `0x` hex.
+pub(crate) fn parse_u32(s: &str) -> Result<u32, String> {
+    let t = s.trim();
+    let parsed = match t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
+        Some(hex) => u32::from_str_radix(hex, 16),
+        None => t.parse(),
+    };
+    parsed.map_err(|_| format!("`{s}` is not a whole number"))
+}
+
+/// Parses a byte-sized value with a protocol constructor; values above 255 get the same
+/// message as the constructor's own range error.
+fn ranged<T>(s: &str, new: impl Fn(u8) -> Result<T, RangeError>) -> Result<T, String> {
+    // A negative number is out of range, not "not a number": name the range.
+    if let Some(magnitude) = s.trim().strip_prefix('-')
+        && parse_u32(magnitude).is_ok()
+    {
+        let (what, min, max) = (0..=u8::MAX)
+            .find_map(|b| new(b).err())
+            .or_else(|| new(u8::MAX).err())
+            .map_or(("value", 0, 255), |e| (e.what, e.min, e.max));
+        return Err(format!("{what} {} is out of range {min}..={max}", s.trim()));
+    }
+    let v = parse_u32(s)?;
+    match u8::try_from(v) {
+        Ok(b) => new(b).map_err(|e| e.to_string()),
+        Err(_) => match new(u8::MAX) {
+            Err(e) => Err(RangeError { value: v, ..e }.to_string()),
+            Ok(_) => Err(format!("{v} is out of range 0..=255")),
+        },
+    }
+}
+
+pub(crate) fn parse_servo_id(s: &str) -> Result<ServoId, String> {
+    ranged(s, ServoId::new)
+}
+fn parse_ext_id(s: &str) -> Result<ExtServoId, String> {
+    ranged(s, ExtServoId::new)
+}
+pub(crate) fn parse_position(s: &str) -> Result<Position, String> {
+    ranged(s, Position::new)
+}
+pub(crate) fn parse_torque(s: &str) -> Result<TorqueLevel, String> {
+    ranged(s, TorqueLevel::new)
+}
+fn parse_data_byte(s: &str) -> Result<DataByte, String> {
+    ranged(s, DataByte::new)
+}
+fn parse_wheel_speed(s: &str) -> Result<WheelSpeed, String> {
+    ranged(s, WheelSpeed::new)
+}
+fn parse_p_gain(s: &str) -> Result<PGain, String> {
+    ranged(s, PGain::new)
+}
+fn parse_d_gain(s: &str) -> Result<DGain, String> {
+    ranged(s, DGain::new)
+}
+fn parse_i_gain(s: &str) -> Result<IGain, String> {
+    ranged(s, IGain::new)
+}
+fn parse_speed(s: &str) -> Result<Speed, String> {
+    ranged(s, Speed::new)
+}
+fn parse_accel(s: &str) -> Result<Accel, String> {
+    ranged(s, Accel::new)
+}
+fn parse_io_bits(s: &str) -> Result<IoBits, String> {
+    ranged(s, IoBits::new)
+}
+
+fn parse_position10(s: &str) -> Result<Position10, String> {
+    let v = parse_u32(s)?;
+    let raw = u16::try_from(v).unwrap_or(u16::MAX);
+    Position10::new(raw).map_err(|e| RangeError { value: v, ..e }.to_string())
+}
+
+fn parse_overload_ma(s: &str) -> Result<Overload, String> {
+    let v = parse_u32(s.trim().trim_end_matches("mA").trim_end_matches("ma"))?;
+    let raw = u16::try_from(v).unwrap_or(u16::MAX);
+    Overload::from_milliamps(raw).map_err(|e| RangeError { value: v, ..e }.to_string())
+}
+
+/// Parses `--reply-margin`: whole milliseconds, 0..=10000.
+pub(crate) fn parse_margin(s: &str) -> Result<core::time::Duration, String> {
+    match s.parse::<u64>() {
+        Ok(ms) if ms <= 10_000 => Ok(core::time::Duration::from_millis(ms)),
+        _ => Err(format!(
+            "{s:?} is not a reply margin: whole milliseconds, 0..=10000"
+        )),
+    }
+}
+
+/// Parses a baud rate in bit/s.
+pub(crate) fn parse_baud(s: &str) -> Result<BaudRate, String> {
+    let v = parse_u32(s)?;
+    BaudRate::from_bits_per_second(v).map_err(|e| e.to_string())
+}
+
+/// A rate in Hz, 0.1..=200.
+fn parse_rate(s: &str) -> Result<f64, String> {
+    let v: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{s}` is not a number"))?;
+    if (0.1..=200.0).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("rate {v} Hz is out of range 0.1..=200"))
+    }
+}
+
+/// A duration in seconds, 0.1..=3600.
+fn parse_seconds(s: &str) -> Result<Duration, String> {
+    let v: f64 = s
+        .trim()
+        .trim_end_matches('s')
+        .parse()
+        .map_err(|_| format!("`{s}` is not a number of seconds"))?;
+    if (0.1..=3600.0).contains(&v) {
+        Ok(Duration::from_secs_f64(v))
+    } else {
+        Err(format!("{v} s is out of range 0.1..=3600"))
+    }
+}
+
+fn parse_servo_ids(spec: &str) -> Result<ServoIds, String> {
+    spec.parse()
+}
