@@ -29,7 +29,7 @@
 // The library's `OpError` is passed through as it is, as every front end does.
 #![allow(clippy::result_large_err)]
 
-pub mod cdr;
+pub use robobus::cdr;
 mod health;
 mod zconfig;
 

@@ -88,6 +88,7 @@
 
 pub mod actuator;
 pub mod catalogue;
+pub mod cdr;
 #[cfg(feature = "sim")]
 pub mod demo;
 pub mod error;

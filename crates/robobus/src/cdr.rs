@@ -1,5 +1,6 @@
-//! CDR, as ROS 2 puts its messages on the wire, for the few messages the bridge speaks:
-//! `sensor_msgs/msg/JointState` and `std_msgs/msg/Float64MultiArray`.
+//! CDR, as ROS 2 puts its messages on the wire, for the few messages robobus speaks (the
+//! Zenoh bridge, MCAP recordings): `sensor_msgs/msg/JointState` and
+//! `std_msgs/msg/Float64MultiArray`.
 //!
 //! A payload is the 4-byte encapsulation header (`00 01 00 00`: CDR, little endian; `00 00
 //! 00 00`: big endian), then the body. Every primitive is aligned to its own size, counted
