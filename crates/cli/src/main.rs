@@ -129,7 +129,7 @@ enum Command {
     /// moved or released. With --json (or without a terminal) it prints samples instead:
     /// one JSON object per sample, or one text line per second.
     Monitor(monitor::Args),
-    /// Plot a recording (CSV) to a PNG or SVG file.
+    /// Plot a recording (CSV, or MCAP from `monitor --record`) to a PNG or SVG file.
     Plot(plot::Args),
     /// Print what every frame or packet of a capture file means (candump or hex log).
     ///

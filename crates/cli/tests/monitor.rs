@@ -1,5 +1,6 @@
 //! `robobus monitor` without a terminal: plain lines, a CSV recording `robobus plot`
-//! reads, `--duration`, and bad options. (The ratatui screen itself is tested with
+//! reads, an MCAP recording that `robobus plot` and Python's `mcap` reader read back,
+//! `--duration`, and bad options. (The ratatui screen itself is tested with
 //! ratatui's `TestBackend` in the module's unit tests.)
 
 #![allow(clippy::unwrap_used, clippy::panic)] // Test code.
@@ -59,6 +60,106 @@ fn monitor_records_the_simulated_arm_to_csv_and_stops_by_itself() {
 }
 
 #[test]
+fn monitor_records_mcap_that_plot_and_pythons_mcap_reader_read_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let mcap = dir.path().join("arm.mcap");
+    let r = common::robobus(&[
+        "--json",
+        "monitor",
+        "--sim",
+        "--joints",
+        "1-2",
+        "--rate-hz",
+        "40",
+        "--duration",
+        "1.5",
+        "--record",
+        mcap.to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, Some(0), "{}", r.stderr);
+    // What --json printed is what the samples channel holds, sample for sample.
+    let printed: Vec<serde_json::Value> = r
+        .stdout
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert!(printed.len() >= 20, "{} samples", printed.len());
+
+    // `robobus plot` reads it as the CSV form's columns.
+    let svg = dir.path().join("arm.svg");
+    let p = common::robobus(&["plot", mcap.to_str().unwrap(), "-o", svg.to_str().unwrap()]);
+    assert_eq!(p.code, Some(0), "{}", p.stderr);
+    assert!(
+        p.stdout
+            .contains(&format!("{} rows, 6 signals", printed.len())),
+        "{}",
+        p.stdout
+    );
+
+    // Python's mcap reader, with the ROS 2 decoder for the joint states.
+    let py = robobus_testkit::provision("py/ensure-venv");
+    let script = robobus_testkit::workspace_root().join("scripts/py/read_mcap.py");
+    let out = std::process::Command::new(&py)
+        .arg(&script)
+        .arg(&mcap)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let samples = &v["channels"]["/robobus/samples"];
+    assert_eq!(samples["message_encoding"], "json");
+    assert_eq!(samples["schema_encoding"], "jsonschema");
+    assert_eq!(samples["count"], printed.len());
+    let states = &v["channels"]["/joint_states"];
+    assert_eq!(states["message_encoding"], "cdr");
+    assert_eq!(states["schema"], "sensor_msgs/msg/JointState");
+    assert_eq!(states["schema_encoding"], "ros2msg");
+    let read: Vec<&serde_json::Value> = v["samples"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| &s["sample"])
+        .collect();
+    assert_eq!(read, printed.iter().collect::<Vec<_>>());
+    // Each joint state: the answering joints of one sample, at that sample's time, in
+    // radians.
+    let joint_states = v["states"].as_array().unwrap();
+    assert!(joint_states.len() + 2 >= printed.len(), "{v}");
+    let times: Vec<u64> = v["samples"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["log_time"].as_u64().unwrap())
+        .collect();
+    for js in joint_states {
+        let at = js["log_time"].as_u64().unwrap();
+        assert_eq!(js["stamp_ns"].as_u64(), Some(at));
+        let k = times.iter().position(|&t| t == at).unwrap();
+        let sample = &printed[k];
+        let fresh: Vec<&serde_json::Value> = sample["channels"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|c| c["stale"] == false)
+            .collect();
+        assert_eq!(js["name"].as_array().unwrap().len(), fresh.len());
+        for (i, c) in fresh.iter().enumerate() {
+            assert_eq!(js["name"][i], c["name"]);
+            let radians = js["position"][i].as_f64().unwrap();
+            let deg = c["position_deg"].as_f64().unwrap();
+            assert!(
+                (radians - deg.to_radians()).abs() < 1e-9,
+                "{radians} vs {deg}"
+            );
+        }
+    }
+}
+
+#[test]
 fn monitor_refuses_bad_options() {
     let r = common::robobus(&["monitor", "--duration", "1"]);
     assert_eq!(r.code, Some(2));
@@ -69,7 +170,11 @@ fn monitor_refuses_bad_options() {
     );
     let r = common::robobus(&["monitor", "--sim", "--record", "out.txt"]);
     assert_eq!(r.code, Some(2));
-    assert!(r.stderr.contains(".csv"), "{}", r.stderr);
+    assert!(
+        r.stderr.contains(".csv") && r.stderr.contains(".mcap"),
+        "{}",
+        r.stderr
+    );
     let r = common::robobus(&["monitor", "--sim", "--joints", "0-3"]);
     assert_eq!(r.code, Some(2));
     assert!(r.stderr.contains("1..=30"), "{}", r.stderr);

@@ -25,9 +25,9 @@
 //! On a terminal it draws a table (position, speed, current / load, enable, errors) and a
 //! scrolling plot of the positions with ratatui; `q`, `Esc` or Ctrl-C quit and the terminal
 //! is restored. Without a terminal it prints one line per second instead; with `--json`,
-//! one JSON object per sample (JSON lines, never the dashboard). `--record FILE.csv`
-//! writes every sample in the format `robobus plot` reads; `--duration` ends the run by
-//! itself. The rows, their staleness and both formats are the library's
+//! one JSON object per sample (JSON lines, never the dashboard). `--record FILE` writes
+//! every sample as CSV (the format `robobus plot` reads), JSON lines or MCAP (with
+//! `sensor_msgs/msg/JointState`); `--duration` ends the run by itself. The rows, their staleness and both formats are the library's
 //! [`robobus::catalogue::record`]; this module only waits, draws and prints.
 
 use robobus::catalogue::telemetry::RecvError;
@@ -41,7 +41,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
-use robobus::catalogue::record::{Recorder, SampleTable};
+use robobus::catalogue::record::{RecordFormat, Recorder, SampleTable};
 use robobus::ops::monitor::{bus_description, monitored_joints};
 use robobus::whj::JointBusConfig;
 use robobus_wck::{BaudRate, ServoId};
@@ -94,8 +94,11 @@ pub(crate) struct Args {
     /// Stop after this many seconds (default: until q / Ctrl-C).
     #[arg(long, value_parser = parse_duration)]
     duration: Option<f64>,
-    /// Write every sample to this CSV file (the format `robobus plot` reads).
-    #[arg(long, value_name = "FILE.csv")]
+    /// Write every sample to FILE, in the format its name ends with: .csv (the format
+    /// `robobus plot` reads), .jsonl (one JSON object per sample, as --json prints) or
+    /// .mcap (the samples and `sensor_msgs/msg/JointState` on one time base, for Foxglove
+    /// and the ROS 2 tools; `robobus plot` reads it too).
+    #[arg(long, value_name = "FILE")]
     record: Option<PathBuf>,
     /// With --bus or --port: record every frame / byte on the bus to FILE (a candump log
     /// for WHJ, a timestamped hex log for wCK); `robobus replay FILE` decodes it. An
@@ -301,10 +304,10 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
         ));
     }
     if let Some(r) = &args.record
-        && r.extension().and_then(|e| e.to_str()) != Some("csv")
+        && RecordFormat::of_path(r).is_none()
     {
         return Err(usage(format!(
-            "--record {}: the file name must end in .csv",
+            "--record {}: the file name must end in .csv, .jsonl, .ndjson or .mcap",
             r.display()
         )));
     }

@@ -3,6 +3,8 @@ use ratatui::backend::TestBackend;
 
 use robobus::catalogue::record::{RecordFormat, Recorder, SampleTable};
 
+use std::io::Cursor;
+
 use super::*;
 
 fn screen(dash: &Dashboard, width: u16, height: u16) -> String {
@@ -68,9 +70,15 @@ fn a_recording_reads_back_as_robobus_plot_reads_it() {
     t.rows[0].effort = Some(3.0);
     t.rows[0].got();
     t.t_s = 0.5;
-    let mut r = Recorder::new(Vec::new(), RecordFormat::Csv, "wCK port sim", &t).unwrap();
+    let mut r = Recorder::new(
+        Cursor::new(Vec::new()),
+        RecordFormat::Csv,
+        "wCK port sim",
+        &t,
+    )
+    .unwrap();
     r.record(&t).unwrap();
-    let text = String::from_utf8(r.finish().unwrap()).unwrap();
+    let text = String::from_utf8(r.finish().unwrap().into_inner()).unwrap();
     let rec = crate::plot::Recording::parse(&text).unwrap();
     assert_eq!(rec.signals.len(), 6);
     assert_eq!(rec.signals[0].1, vec![Some(1.0)]);

@@ -1,4 +1,5 @@
-//! `robobus plot`: plot a recording (CSV) to a PNG or SVG file.
+//! `robobus plot`: plot a recording (CSV, or the samples of an MCAP recording) to a PNG
+//! or SVG file.
 //!
 //! # Recording format
 //!
@@ -36,7 +37,7 @@
 //!
 //! # Modules
 //!
-//! - [`recording`]: the CSV recording and reading it, bounded.
+//! - [`recording`]: the CSV recording, an MCAP recording's samples, and reading either, bounded.
 //! - [`panels`](mod@panels): the grouping of signals into panels, and the axis titles.
 //! - [`text`]: text laid out from the embedded font's metrics.
 //! - [`draw`]: the figure, drawn to PNG or SVG.
@@ -60,7 +61,7 @@ pub(crate) use recording::Recording;
 
 use draw::{format_of, write};
 use panels::{panels, target_of};
-use recording::read_bounded;
+use recording::{read_bounded, read_bytes_bounded};
 
 /// `--help` text describing the CSV format.
 pub(crate) const FORMAT_HELP: &str = "\
@@ -72,6 +73,8 @@ Recording format (CSV, what `robobus monitor` writes):
   * every further line: a time and one number per signal; an empty cell is a missing
     sample; times must not decrease
   * limits: numbers within ±1e12, lines up to 64 KiB, files up to 64 MiB
+A file ending in .mcap is read as `robobus monitor --record FILE.mcap` writes it: the
+samples on /robobus/samples, as the columns the CSV would have.
 The plot has one panel per family and unit, sharing the time axis:
   * unit: the name's suffix: _deg, _rad, _deg_s or _deg_per_s, _rad_s, _rpm, _mA, _load
     (a name without one is a \"value\")
@@ -87,7 +90,8 @@ Example:
 #[derive(Debug, clap::Args)]
 #[command(after_help = FORMAT_HELP)]
 pub(crate) struct Args {
-    /// The recording (CSV, see below).
+    /// The recording: CSV (see below), or MCAP from `robobus monitor --record FILE.mcap`
+    /// (its samples, as the same columns).
     file: PathBuf,
     /// Output file; the format follows the extension: .png or .svg.
     #[arg(short, long, value_name = "FILE")]
@@ -110,9 +114,14 @@ pub(crate) struct Args {
 pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     format_of(&args.output)?;
     crate::output::check_output_path(&args.output, "--output")?;
-    let text = read_bounded(&args.file)?;
-    let mut rec = Recording::parse(&text)
-        .map_err(|e| usage(format!("{}:{}: {}", args.file.display(), e.line, e.message)))?;
+    let mut rec = if args.file.extension().is_some_and(|e| e == "mcap") {
+        let bytes = read_bytes_bounded(&args.file)?;
+        Recording::from_mcap(&bytes).map_err(|e| usage(format!("{}: {e}", args.file.display())))?
+    } else {
+        let text = read_bounded(&args.file)?;
+        Recording::parse(&text)
+            .map_err(|e| usage(format!("{}:{}: {}", args.file.display(), e.line, e.message)))?
+    };
     if !args.signals.is_empty() {
         for want in &args.signals {
             if !rec.signals.iter().any(|(n, _)| n == want) {

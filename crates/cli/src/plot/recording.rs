@@ -1,5 +1,6 @@
-//! The recording: the CSV format's parser ([`Recording::parse`]) and reading a file of
-//! it, bounded in size ([`read_bounded`]).
+//! The recording: the CSV format's parser ([`Recording::parse`]), an MCAP recording's
+//! samples as the same columns ([`Recording::from_mcap`]), and reading a file of either,
+//! bounded in size ([`read_bytes_bounded`]).
 
 use std::path::Path;
 
@@ -159,13 +160,64 @@ fn cell(line: usize, i: usize, name: &str, c: &str) -> Result<Option<f64>, CsvEr
     Ok(Some(v))
 }
 
-/// Reads the recording, refusing files over [`MAX_CSV_BYTES`] without reading further.
+impl Recording {
+    /// The samples of an MCAP recording (`robobus monitor --record FILE.mcap`) as the
+    /// CSV form's columns, held to the same limits as a CSV cell.
+    pub(crate) fn from_mcap(bytes: &[u8]) -> Result<Self, String> {
+        let cols = robobus::catalogue::record::read_columns(bytes)?;
+        let check = |what: &str, k: usize, v: f64| {
+            if v.is_finite() && v.abs() <= MAX_ABS_VALUE {
+                Ok(v)
+            } else {
+                Err(format!(
+                    "sample {}: {what} {v} is out of the plottable range -1e12..=1e12",
+                    k + 1
+                ))
+            }
+        };
+        for (k, pair) in cols.time.windows(2).enumerate() {
+            if pair[1] < pair[0] {
+                return Err(format!("sample {}: the time goes back", k + 2));
+            }
+        }
+        for (k, &t) in cols.time.iter().enumerate() {
+            check("t_s", k, t)?;
+        }
+        for (name, values) in &cols.signals {
+            for (k, v) in values.iter().enumerate() {
+                if let Some(v) = v {
+                    check(name, k, *v)?;
+                }
+            }
+        }
+        Ok(Self {
+            time_name: "t_s".into(),
+            time: cols.time,
+            signals: cols.signals,
+        })
+    }
+}
+
+/// Reads the recording's text (see [`read_bytes_bounded`]), refusing what is not UTF-8.
 pub(super) fn read_bounded(path: &Path) -> anyhow::Result<String> {
+    let bytes = read_bytes_bounded(path)?;
+    String::from_utf8(bytes).map_err(|e| {
+        usage(format!(
+            "{}: not UTF-8 text (byte {} is invalid)",
+            path.display(),
+            e.utf8_error().valid_up_to()
+        ))
+    })
+}
+
+/// Reads the recording, refusing files over [`MAX_CSV_BYTES`] without reading further.
+pub(super) fn read_bytes_bounded(path: &Path) -> anyhow::Result<Vec<u8>> {
     use std::io::Read as _;
     // A file that is not there is bad input: exit 2, nothing drawn.
     if !path.exists() {
         return Err(usage(format!(
-            "{}: no such file (give a CSV recording, e.g. from `robobus monitor --record`)",
+            "{}: no such file (give a CSV or MCAP recording, e.g. from `robobus monitor \
+             --record`)",
             path.display()
         )));
     }
@@ -181,11 +233,5 @@ pub(super) fn read_bounded(path: &Path) -> anyhow::Result<String> {
             path.display()
         )));
     }
-    String::from_utf8(bytes).map_err(|e| {
-        usage(format!(
-            "{}: not UTF-8 text (byte {} is invalid)",
-            path.display(),
-            e.utf8_error().valid_up_to()
-        ))
-    })
+    Ok(bytes)
 }

@@ -13,11 +13,12 @@
 //!
 //! [`Recorder`] writes a table's samples to a file in a [`RecordFormat`]: CSV (a comment
 //! line naming the source, a header of `t_s` and three columns per device with their
-//! units, then a row per sample) or JSON lines (one [`SampleTable::json_line`] object per
-//! sample).
+//! units, then a row per sample), JSON lines (one [`SampleTable::json_line`] object per
+//! sample) or MCAP (those objects and `sensor_msgs/msg/JointState` on one time base; see
+//! [`SAMPLES_TOPIC`] and [`JOINT_STATES_TOPIC`]).
 
 use std::fmt::Write as _;
-use std::io::Write;
+use std::io::{Seek, Write};
 use std::path::Path;
 
 use robobus_whj::units::CurrentScale;
@@ -413,27 +414,38 @@ pub enum RecordFormat {
     Csv,
     /// JSON lines: one [`SampleTable::json_line`] object per line.
     JsonLines,
+    /// MCAP: the samples (JSON) and the joint states (CDR) on two channels (see the
+    /// [module docs](self)).
+    Mcap,
 }
 
 impl RecordFormat {
-    /// The format a file name asks for: `.csv`, or `.jsonl` / `.ndjson`; `None` for any
-    /// other name.
+    /// The format a file name asks for: `.csv`, `.jsonl` / `.ndjson` or `.mcap`; `None`
+    /// for any other name.
     #[must_use]
     pub fn of_path(path: &Path) -> Option<Self> {
         match path.extension().and_then(|e| e.to_str()) {
             Some("csv") => Some(Self::Csv),
             Some("jsonl" | "ndjson") => Some(Self::JsonLines),
+            Some("mcap") => Some(Self::Mcap),
             _ => None,
         }
     }
 }
 
-/// Samples written to a file as they are taken (flushed every 16 samples and at the
-/// end).
+/// Where a [`Recorder`] writes.
 #[derive(Debug)]
-pub struct Recorder<W: Write> {
-    out: W,
-    format: RecordFormat,
+enum Sink<W: Write + Seek> {
+    /// CSV or JSON lines.
+    Text(W, RecordFormat),
+    Mcap(Box<McapSink<W>>),
+}
+
+/// Samples written to a file as they are taken (flushed every 16 samples and at the
+/// end; an MCAP file is complete, with its summary, only after [`Recorder::finish`]).
+#[derive(Debug)]
+pub struct Recorder<W: Write + Seek> {
+    sink: Sink<W>,
     written: u64,
 }
 
@@ -458,7 +470,7 @@ impl Recorder<std::io::BufWriter<std::fs::File>> {
         let format = RecordFormat::of_path(path).ok_or_else(|| {
             fail(
                 ErrorKind::BadInput,
-                "a recording's name ends in .csv, .jsonl or .ndjson".into(),
+                "a recording's name ends in .csv, .jsonl, .ndjson or .mcap".into(),
             )
         })?;
         let file = std::fs::File::create(path)
@@ -468,9 +480,10 @@ impl Recorder<std::io::BufWriter<std::fs::File>> {
     }
 }
 
-impl<W: Write> Recorder<W> {
+impl<W: Write + Seek> Recorder<W> {
     /// Writes the format's head for `table` (CSV: the `# robobus monitor: HEADING`
-    /// comment and the header; JSON lines: nothing) to `out`.
+    /// comment and the header; JSON lines: nothing; MCAP: the header, the schemas, the
+    /// channels and a metadata record) to `out`.
     ///
     /// # Errors
     ///
@@ -481,15 +494,16 @@ impl<W: Write> Recorder<W> {
         heading: &str,
         table: &SampleTable,
     ) -> std::io::Result<Self> {
-        if format == RecordFormat::Csv {
-            writeln!(out, "# robobus monitor: {heading}")?;
-            writeln!(out, "{}", table.csv_header())?;
-        }
-        Ok(Self {
-            out,
-            format,
-            written: 0,
-        })
+        let sink = match format {
+            RecordFormat::Csv => {
+                writeln!(out, "# robobus monitor: {heading}")?;
+                writeln!(out, "{}", table.csv_header())?;
+                Sink::Text(out, format)
+            }
+            RecordFormat::JsonLines => Sink::Text(out, format),
+            RecordFormat::Mcap => Sink::Mcap(Box::new(McapSink::new(out, heading, table)?)),
+        };
+        Ok(Self { sink, written: 0 })
     }
 
     /// Writes `table`'s latest sample.
@@ -498,13 +512,17 @@ impl<W: Write> Recorder<W> {
     ///
     /// The writer's error.
     pub fn record(&mut self, table: &SampleTable) -> std::io::Result<()> {
-        match self.format {
-            RecordFormat::Csv => writeln!(self.out, "{}", table.csv_row())?,
-            RecordFormat::JsonLines => writeln!(self.out, "{}", table.json_line())?,
+        match &mut self.sink {
+            Sink::Text(out, RecordFormat::Csv) => writeln!(out, "{}", table.csv_row())?,
+            Sink::Text(out, _) => writeln!(out, "{}", table.json_line())?,
+            Sink::Mcap(m) => m.record(table)?,
         }
         self.written += 1;
         if self.written.is_multiple_of(FLUSH_EVERY) {
-            self.out.flush()?;
+            match &mut self.sink {
+                Sink::Text(out, _) => out.flush()?,
+                Sink::Mcap(m) => m.flush()?,
+            }
         }
         Ok(())
     }
@@ -520,11 +538,25 @@ impl<W: Write> Recorder<W> {
     /// # Errors
     ///
     /// The writer's error.
-    pub fn finish(mut self) -> std::io::Result<W> {
-        self.out.flush()?;
-        Ok(self.out)
+    pub fn finish(self) -> std::io::Result<W> {
+        match self.sink {
+            Sink::Text(mut out, _) => {
+                out.flush()?;
+                Ok(out)
+            }
+            Sink::Mcap(m) => {
+                let mut out = m.finish()?;
+                out.flush()?;
+                Ok(out)
+            }
+        }
     }
 }
+
+mod mcap_file;
+
+use mcap_file::McapSink;
+pub use mcap_file::{Columns, JOINT_STATES_TOPIC, MAX_SAMPLES, SAMPLES_TOPIC, read_columns};
 
 #[cfg(test)]
 mod tests;

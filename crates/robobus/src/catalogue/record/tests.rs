@@ -1,5 +1,7 @@
 #![allow(clippy::unwrap_used, clippy::float_cmp)] // tests
 
+use std::io::Cursor;
+
 use super::*;
 
 fn row(name: &str, effort: Effort) -> SampleRow {
@@ -113,20 +115,26 @@ fn recordings_write_the_head_then_a_line_per_sample_in_either_format() {
     t.rows[0].got();
     t.t_s = 0.25;
     t.samples = 1;
-    let mut csv = Recorder::new(Vec::new(), RecordFormat::Csv, "wCK port sim", &t).unwrap();
+    let mut csv = Recorder::new(
+        Cursor::new(Vec::new()),
+        RecordFormat::Csv,
+        "wCK port sim",
+        &t,
+    )
+    .unwrap();
     csv.record(&t).unwrap();
     assert_eq!(csv.written(), 1);
-    let text = String::from_utf8(csv.finish().unwrap()).unwrap();
+    let text = String::from_utf8(csv.finish().unwrap().into_inner()).unwrap();
     assert_eq!(
         text,
         "# robobus monitor: wCK port sim\nt_s,s0_deg,s0_deg_per_s,s0_load\n0.2500,10.0000,,\n"
     );
-    let mut jl = Recorder::new(Vec::new(), RecordFormat::JsonLines, "x", &t).unwrap();
+    let mut jl = Recorder::new(Cursor::new(Vec::new()), RecordFormat::JsonLines, "x", &t).unwrap();
     jl.record(&t).unwrap();
     t.rows[0].missed("no reply");
     t.samples = 2;
     jl.record(&t).unwrap();
-    let text = String::from_utf8(jl.finish().unwrap()).unwrap();
+    let text = String::from_utf8(jl.finish().unwrap().into_inner()).unwrap();
     let lines: Vec<serde_json::Value> = text
         .lines()
         .map(|l| serde_json::from_str(l).unwrap())
@@ -177,4 +185,108 @@ fn rows_start_empty_and_stale() {
     assert!(!r.fresh && r.answered == 0 && r.failures == 0);
     assert_eq!(r.now(Some(1.0)), None);
     assert_eq!(r.error, "-");
+}
+
+#[test]
+fn an_mcap_recording_holds_every_sample_and_the_joint_states_of_those_that_answered() {
+    let mut t = SampleTable::whj(&[1, 2]);
+    let mut rec = Recorder::new(
+        Cursor::new(Vec::new()),
+        RecordFormat::Mcap,
+        "WHJ bus udp",
+        &t,
+    )
+    .unwrap();
+    // Sample 1: both answer; sample 2: J2 is silent; sample 3: neither answers.
+    for (k, answered) in [[true, true], [true, false], [false, false]]
+        .iter()
+        .enumerate()
+    {
+        for (row, &ok) in t.rows.iter_mut().zip(answered) {
+            if ok {
+                row.position_deg = Some(90.0);
+                row.speed = Some(60.0);
+                row.effort = Some(120.0);
+                row.got();
+            } else {
+                row.missed("timeout");
+            }
+        }
+        t.t_s = 0.5 * f64::from(u8::try_from(k).unwrap());
+        t.samples += 1;
+        rec.record(&t).unwrap();
+    }
+    let bytes = rec.finish().unwrap().into_inner();
+    let mut samples = Vec::new();
+    let mut states = Vec::new();
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        let schema = m.channel.schema.as_ref().unwrap();
+        match m.channel.topic.as_str() {
+            SAMPLES_TOPIC => {
+                assert_eq!(
+                    (
+                        m.channel.message_encoding.as_str(),
+                        schema.encoding.as_str()
+                    ),
+                    ("json", "jsonschema")
+                );
+                let v: serde_json::Value = serde_json::from_slice(&m.data).unwrap();
+                samples.push((m.log_time, v));
+            }
+            JOINT_STATES_TOPIC => {
+                assert_eq!(m.channel.message_encoding, "cdr");
+                assert_eq!(
+                    (schema.name.as_str(), schema.encoding.as_str()),
+                    ("sensor_msgs/msg/JointState", "ros2msg")
+                );
+                let s = crate::cdr::JointState::decode(&m.data).unwrap();
+                states.push((m.log_time, s));
+            }
+            other => panic!("unexpected topic {other}"),
+        }
+    }
+    // Every sample; a joint state only for the samples a device answered.
+    assert_eq!(samples.len(), 3);
+    assert_eq!(states.len(), 2);
+    // One time base: the sample's time on both channels, 0.5 s apart.
+    assert_eq!(states[0].0, samples[0].0);
+    assert_eq!(states[1].0, samples[1].0);
+    assert_eq!(samples[1].0 - samples[0].0, 500_000_000);
+    let stamp = &states[1].1.stamp;
+    assert_eq!(
+        u64::try_from(stamp.sec).unwrap() * 1_000_000_000 + u64::from(stamp.nanosec),
+        states[1].0
+    );
+    let (first, second) = (&states[0].1, &states[1].1);
+    assert_eq!(first.name, ["J1", "J2"]);
+    assert!((first.position[0] - core::f64::consts::FRAC_PI_2).abs() < 1e-12);
+    // 60 RPM is 2π rad/s; the effort (a current, not a torque) is unknown.
+    assert!((first.velocity[0] - core::f64::consts::TAU).abs() < 1e-12);
+    assert!(first.effort.iter().all(|e| e.is_nan()));
+    // The silent joint is left out, never given its last value.
+    assert_eq!(second.name, ["J1"]);
+    assert_eq!(samples[1].1["channels"][1]["stale"], true);
+    assert!(samples[1].1["channels"][1]["position_deg"].is_null());
+    assert_eq!(samples[2].1["sample"], 3);
+    // The summary counts them, and the metadata names the source.
+    let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
+    assert_eq!(summary.stats.as_ref().unwrap().message_count, 5);
+    let meta = mcap::read::metadata(&bytes, &summary.metadata_indexes[0]).unwrap();
+    assert_eq!(meta.name, "robobus");
+    assert_eq!(meta.metadata["source"], "WHJ bus udp");
+    assert_eq!(meta.metadata["speed_unit"], "RPM");
+    // Read back as the CSV form's columns, stale values missing.
+    let cols = read_columns(&bytes).unwrap();
+    assert_eq!(cols.time, [0.0, 0.5, 1.0]);
+    let names: Vec<&str> = cols.signals.iter().map(|(n, _)| n.as_str()).collect();
+    let header = t.csv_header();
+    assert_eq!(names, header.split(',').skip(1).collect::<Vec<_>>());
+    assert_eq!(cols.signals[0].1, [Some(90.0), Some(90.0), None]);
+    assert_eq!(cols.signals[3].1, [Some(90.0), None, None]);
+    assert!(
+        read_columns(b"not an mcap file")
+            .unwrap_err()
+            .contains("not MCAP")
+    );
 }
