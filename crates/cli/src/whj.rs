@@ -7,6 +7,9 @@
 //! `cansend` lines, a real run goes through [`crate::report`].
 
 use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context as _;
 
 use clap::{Subcommand, ValueEnum};
 use robobus::catalogue::args::{Ids, WhjOnStop};
@@ -293,6 +296,40 @@ enum WhjCommand {
     },
     /// List the register table: address, name, unit, range, access, meaning.
     Registers,
+    /// Back up every setting of a joint (the registers it keeps in flash: limits, gains,
+    /// modes at power-up, ID and bit rates) to a JSON settings file, with its model and
+    /// firmware.
+    Backup {
+        /// Joint ID, 1..=30.
+        #[arg(value_parser = parse_joint)]
+        joint: JointId,
+        /// The settings file to write (an existing one is replaced).
+        #[arg(short, long, value_name = "FILE.json")]
+        output: PathBuf,
+    },
+    /// List the settings on which a joint differs from a settings file, or from another
+    /// joint (--with).
+    Diff {
+        /// Joint ID, 1..=30.
+        #[arg(value_parser = parse_joint)]
+        joint: JointId,
+        /// A settings file (from `whj backup`).
+        #[arg(required_unless_present = "with")]
+        file: Option<PathBuf>,
+        /// Compare with this joint instead of a file.
+        #[arg(long, value_name = "JOINT", value_parser = parse_joint, conflicts_with = "file")]
+        with: Option<JointId>,
+    },
+    /// Restore a settings file onto a joint: only the settings that differ are written,
+    /// then saved to flash and read back. The joint must be disabled and be the file's
+    /// model and firmware; its ID and bit rates are never written. Needs --yes.
+    Restore {
+        /// Joint ID, 1..=30.
+        #[arg(value_parser = parse_joint)]
+        joint: JointId,
+        /// The settings file (from `whj backup`).
+        file: PathBuf,
+    },
     /// Give a joint a new ID (register 0x01, then save to flash; power-cycle afterwards).
     SetId {
         /// Current joint ID, 1..=30.
@@ -474,6 +511,9 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
         return list_registers(g);
     }
     let request = request(args)?;
+    if let WhjCommand::Backup { output, .. } = &args.command {
+        output::check_output_path(output, "--output")?;
+    }
     if g.dry_run {
         let plan = catalogue::plan(&request)?;
         return if g.json {
@@ -494,6 +534,16 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     let result = report::run(&station, &request);
     station.leave();
     let report = result?;
+    if let (WhjCommand::Backup { output, joint }, Some(doc)) = (&args.command, &report.summary) {
+        let text = serde_json::to_string_pretty(doc)? + "\n";
+        std::fs::write(output, text)
+            .with_context(|| format!("cannot write {}", output.display()))?;
+        eprintln!(
+            "robobus: the settings of joint {} written to {}",
+            joint.get(),
+            output.display()
+        );
+    }
     if let Some(note) = report
         .results
         .first()
@@ -535,6 +585,14 @@ const fn on_stop(o: OnStop) -> WhjOnStop {
         OnStop::Hold => WhjOnStop::Hold,
         OnStop::Disable => WhjOnStop::Disable,
     }
+}
+
+/// A settings file's text, read bounded.
+fn settings_file(path: &Path) -> anyhow::Result<String> {
+    Ok(robobus::ops::read_bounded(
+        path,
+        ops::settings::SETTINGS_FILE_LIMIT,
+    )?)
 }
 
 /// The catalogue request of a subcommand: its arguments under the request's names.
@@ -672,6 +730,26 @@ fn request(args: &Args) -> anyhow::Result<catalogue::Request> {
             })
         }
         WhjCommand::Registers => Q::WhjRegisters(cw::Registers { bus: None }),
+        WhjCommand::Backup { joint: j, .. } => Q::WhjBackup(cw::Backup {
+            bus: None,
+            joint: joint(*j),
+        }),
+        WhjCommand::Diff {
+            joint: j,
+            file,
+            with,
+        } => Q::WhjDiff(cw::Diff {
+            bus: None,
+            joint: joint(*j),
+            settings: file.as_deref().map(settings_file).transpose()?,
+            other: with.map(joint),
+        }),
+        WhjCommand::Restore { joint: j, file } => Q::WhjRestore(cw::Restore {
+            bus: None,
+            joint: joint(*j),
+            settings: settings_file(file)?,
+            confirm: false,
+        }),
         WhjCommand::SetId { joint: j, new_id } => Q::WhjSetId(cw::SetId {
             bus: None,
             joint: joint(*j),

@@ -893,3 +893,74 @@ fn whj_e2e_run_reports_what_the_subcommands_report() {
         assert_eq!(report["results"].as_array().unwrap(), &want, "{request}");
     }
 }
+
+#[test]
+fn whj_e2e_backup_diff_and_restore_settings() {
+    if !in_netns("whj_e2e_backup_diff_and_restore_settings") {
+        return;
+    }
+    let sim = Sim::start("udp:239.74.163.19:43129", &[]);
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("j1.json");
+    let file_s = file.to_str().unwrap();
+    for j in ["1", "2"] {
+        sim.json(&["disable", j]);
+    }
+    sim.json(&["write", "1", "SEV_POSITION_P", "4321", "--raw"]);
+    // The backup file: the documented format, joint 1's values.
+    let r = sim.whj(&["backup", "1", "-o", file_s]);
+    assert_eq!(r.code, Some(0), "{}", r.stderr);
+    let doc: Value = serde_json::from_str(&std::fs::read_to_string(&file).unwrap()).unwrap();
+    assert_eq!(doc["format"], "robobus-whj-settings");
+    assert_eq!(
+        (doc["joint"].as_u64(), doc["model"].as_str()),
+        (Some(1), Some("WHJ30"))
+    );
+    let p = doc["settings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|s| s["register"] == "SEV_POSITION_P")
+        .unwrap();
+    assert_eq!(p["raw"], 4321);
+    // Joint 2 differs in its ID and the gain, from the file and from joint 1.
+    for args in [
+        &["diff", "2", file_s][..],
+        &["diff", "2", "--with", "1"][..],
+    ] {
+        let rows = sim.json(args);
+        let regs: Vec<&str> = rows
+            .iter()
+            .map(|r| r["register"].as_str().unwrap())
+            .collect();
+        assert_eq!(regs, ["SYS_ID", "SEV_POSITION_P"], "{args:?}");
+    }
+    // The dry run opens nothing and says what the run does.
+    let r = sim.whj(&["--dry-run", "restore", "2", file_s]);
+    assert_eq!(r.code, Some(0), "{}", r.stderr);
+    assert!(r.stdout.contains("never SYS_ID"), "{}", r.stdout);
+    // Without --yes (no terminal to ask): refused, nothing written.
+    let r = sim.whj(&["restore", "2", file_s]);
+    assert_eq!(r.code, Some(2), "{}", r.stderr);
+    assert_eq!(sim.json(&["diff", "2", file_s]).len(), 2);
+    // With --yes: the gain is written and saved; the ID stays.
+    let rows = sim.json(&["--yes", "restore", "2", file_s]);
+    let gain = rows
+        .iter()
+        .find(|r| r["register"] == "SEV_POSITION_P")
+        .unwrap();
+    assert_eq!(gain["action"], "written", "{rows:?}");
+    let id = rows.iter().find(|r| r["register"] == "SYS_ID").unwrap();
+    assert!(
+        id["action"].as_str().unwrap().starts_with("skipped"),
+        "{rows:?}"
+    );
+    let left = sim.json(&["diff", "2", file_s]);
+    assert_eq!(left.len(), 1);
+    assert_eq!(left[0]["register"], "SYS_ID");
+    // An enabled joint is refused.
+    sim.json(&["enable", "2"]);
+    let r = sim.whj(&["--yes", "restore", "2", file_s]);
+    assert_ne!(r.code, Some(0));
+    assert!(r.stderr.contains("disable it"), "{}", r.stderr);
+}

@@ -534,3 +534,21 @@ def test_reports_become_arrays_with_nan_for_a_silent_device() -> None:
     assert a["position"].dtype == np.float64
     assert a["position"][:2].tolist() == [127.0, 127.0] and np.isnan(a["position"][2])
     assert set(a) == {"id", "position", "degrees", "load"}
+
+
+def test_settings_backup_diff_and_restore_from_python() -> None:
+    with robobus.Station.simulated() as station:
+        station.whj.disable([1, 2])
+        station.whj.write([1], "SEV_SPEED_P", 555, raw=True)
+        doc = station.whj.backup(1)["summary"]
+        assert doc["format"] == "robobus-whj-settings" and doc["model"] == "WHJ30"
+        text = json.dumps(doc)
+        differ = [r["register"] for r in station.whj.diff(2, settings=text)["results"]]
+        assert differ == ["SYS_ID", "SEV_SPEED_P"]
+        # A flash write: refused unless confirmed, and nothing is written then.
+        with pytest.raises(robobus.RefusedError):
+            station.whj.restore(2, text)
+        assert len(station.whj.diff(2, other=1)["results"]) == 2
+        report = station.whj.restore(2, text, confirm=True)
+        assert report["summary"]["written"] == 1
+        assert [r["register"] for r in station.whj.diff(2, other=1)["results"]] == ["SYS_ID"]

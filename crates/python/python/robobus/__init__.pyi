@@ -328,6 +328,14 @@ class WckOps:
         """The request ``wck.wheel``."""
 
 class WhjOps:
+    def backup(
+        self,
+        joint: int,
+        *,
+        bus: str | None = ...,
+        check: bool = ...,
+    ) -> Report:
+        """The request ``whj.backup``."""
     def clear(
         self,
         joints: str | Sequence[int],
@@ -348,6 +356,16 @@ class WhjOps:
         check: bool = ...,
     ) -> Report:
         """The request ``whj.current``."""
+    def diff(
+        self,
+        joint: int,
+        *,
+        bus: str | None = ...,
+        other: int | None = ...,
+        settings: str | None = ...,
+        check: bool = ...,
+    ) -> Report:
+        """The request ``whj.diff``."""
     def disable(
         self,
         joints: str | Sequence[int],
@@ -421,6 +439,16 @@ class WhjOps:
         check: bool = ...,
     ) -> Report:
         """The request ``whj.release-iap``."""
+    def restore(
+        self,
+        joint: int,
+        settings: str,
+        *,
+        bus: str | None = ...,
+        confirm: bool | None = ...,
+        check: bool = ...,
+    ) -> Report:
+        """The request ``whj.restore``."""
     def sample(
         self,
         joints: str | Sequence[int],

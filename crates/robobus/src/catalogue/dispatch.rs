@@ -552,6 +552,43 @@ fn run_whj(
             }
         }
         J::Registers => registers_report(op),
+        J::Backup(id) => {
+            let s = hops::settings::backup(bus, *id)?;
+            let mut out = one(
+                id.get(),
+                &json!({
+                    "model": s.model,
+                    "firmware": s.firmware,
+                    "settings": s.settings.len(),
+                }),
+            );
+            out.summary = summary(&s);
+            out
+        }
+        J::Diff(id, with) => {
+            let a = hops::settings::backup(bus, *id)?;
+            let (b, of) = match with {
+                whj::DiffWith::File(s) => ((**s).clone(), format!("the file (joint {})", s.joint)),
+                whj::DiffWith::Joint(o) => (
+                    hops::settings::backup(bus, *o)?,
+                    format!("joint {}", o.get()),
+                ),
+            };
+            let d = hops::settings::diff(&a, &b);
+            let mut out = report(op, name, d.iter().map(|x| row(id.get(), x)).collect());
+            out.summary = Some(json!({ "differ": d.len(), "with": of }));
+            out
+        }
+        J::Restore(id, s) => {
+            let r = hops::settings::restore(bus, *id, s, p.confirmed)?;
+            let mut out = report(op, name, r.steps.iter().map(|x| row(id.get(), x)).collect());
+            out.summary = Some(json!({
+                "written": r.written,
+                "saved": r.saved,
+                "differ_after": r.differ_after,
+            }));
+            out
+        }
         J::SetId(id, new_id) => one(id.get(), &hops::set_id(bus, *id, *new_id)?),
         J::Wave(args, broadcast) => {
             let j = bus.joint(args.joint)?;

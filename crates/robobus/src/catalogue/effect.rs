@@ -80,7 +80,8 @@ impl Request {
             | Self::WhjClear(_)
             | Self::WhjSave(_)
             | Self::WhjWrite(_)
-            | Self::WhjSetId(_) => Effect::Configure,
+            | Self::WhjSetId(_)
+            | Self::WhjRestore(_) => Effect::Configure,
             Self::WckScan(_)
             | Self::WckStatus(_)
             | Self::WckRead10(_)
@@ -95,6 +96,8 @@ impl Request {
             | Self::WhjReleaseIap(_)
             | Self::WhjRead(_)
             | Self::WhjSample(_)
+            | Self::WhjBackup(_)
+            | Self::WhjDiff(_)
             | Self::RobotSample(_) => Effect::Read,
         }
     }

@@ -65,6 +65,9 @@
 //! | `whj.wave` | `joint`, `shape`, `mode`, `amplitude`, `frequency` Hz=0.5, `offset`, `duration` s=4, `rate_hz`=200, `broadcast`, `model`, `on_stop` | last feedback; summary: wave statistics | - |
 //! | `whj.release-iap` | `joints` | identity (connect / IAP release) | - |
 //! | `whj.sample` | `joints`, `broadcast` | position, speed, current, enabled, error | - |
+//! | `whj.backup` | `joint` | model, firmware, settings count; `summary` is the settings file (every register the joint keeps in flash, raw and in its unit) | - |
+//! | `whj.diff` | `joint`, `settings` (a settings file's text) or `other` (a joint) | one row per setting that differs (`a`, `b`, values and unit) | - |
+//! | `whj.restore` | `joint`, `settings` | one row per differing setting: written or skipped (the bus identity is never written); `summary`: `written`, `saved`, `differ_after` | flash (and the `confirm` registers the file sets) |
 //! | `robot.sample` | - | per joint of the station's robot file, by name: `position_deg`, `speed_deg_s`, `current_ma`, `load`, `enabled`, `error` | - |
 //!
 //! # Report
@@ -189,6 +192,12 @@ pub enum Request {
     WhjReleaseIap(whj::ReleaseIap),
     #[serde(rename = "whj.sample")]
     WhjSample(whj::Sample),
+    #[serde(rename = "whj.backup")]
+    WhjBackup(whj::Backup),
+    #[serde(rename = "whj.diff")]
+    WhjDiff(whj::Diff),
+    #[serde(rename = "whj.restore")]
+    WhjRestore(whj::Restore),
     #[serde(rename = "robot.sample")]
     RobotSample(robot::Sample),
 }
@@ -234,6 +243,9 @@ macro_rules! each_variant {
             Request::WhjWave($r) => $e,
             Request::WhjReleaseIap($r) => $e,
             Request::WhjSample($r) => $e,
+            Request::WhjBackup($r) => $e,
+            Request::WhjDiff($r) => $e,
+            Request::WhjRestore($r) => $e,
             // A robot request acts on the station's robot file, not on one bus.
             Request::RobotSample(_) => None,
         }
@@ -288,6 +300,7 @@ impl Request {
             Self::WhjSave(r) => r.confirm = true,
             Self::WhjWrite(r) => r.confirm = true,
             Self::WhjSetId(r) => r.confirm = true,
+            Self::WhjRestore(r) => r.confirm = true,
             _ => {}
         }
         self

@@ -162,6 +162,7 @@ mod checks;
 mod joints;
 mod motion;
 mod registers;
+pub mod settings;
 mod stream;
 
 pub use checks::*;
