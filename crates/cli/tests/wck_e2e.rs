@@ -1075,3 +1075,64 @@ fn teach_reading_keys_from_an_endless_input_ends_it_without_growing() {
     assert!(err.contains("more than 1024 bytes"), "{err}");
     assert!(start.elapsed() < Duration::from_secs(10));
 }
+
+#[test]
+fn settings_back_up_diff_and_restore_between_servos_and_to_the_factory() {
+    let sim = Sim::start("0-1", &[]);
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("s1.json");
+    let file_s = file.to_str().unwrap();
+    sim.ok(&["--yes", "set", "gains", "1", "30", "20"]);
+    sim.ok(&["--yes", "set", "speed", "1", "12", "40"]);
+    sim.ok(&["backup", "1", "-o", file_s]);
+    let doc: Value = serde_json::from_str(&std::fs::read_to_string(&file).unwrap()).unwrap();
+    assert_eq!(doc["format"], "robobus-wck-settings");
+    assert_eq!(
+        (doc["servo"].as_u64(), doc["p_gain"].as_u64()),
+        (Some(1), Some(30))
+    );
+    // Servo 0 differs in the gains and the speed, from the file and from servo 1.
+    for args in [
+        &["diff", "0", file_s][..],
+        &["diff", "0", "--with", "1"][..],
+    ] {
+        let rows = sim.json(args)["results"].clone();
+        let groups: Vec<&str> = rows
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|r| r["setting"].as_str().unwrap())
+            .collect();
+        assert_eq!(groups, ["gains", "speed"], "{args:?}");
+    }
+    // Without --yes nothing is written; with it, only what differs.
+    let r = sim.wck(&["restore", "0", file_s]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    assert_eq!(
+        sim.json(&["diff", "0", file_s])["results"]
+            .as_array()
+            .unwrap()
+            .len(),
+        2
+    );
+    let restored = sim.json(&["--yes", "restore", "0", file_s]);
+    assert_eq!(restored["summary"]["written"], 2, "{restored}");
+    assert!(
+        sim.json(&["diff", "0", "--with", "1"])["results"]
+            .as_array()
+            .unwrap()
+            .is_empty()
+    );
+    // The factory settings.
+    sim.ok(&["--yes", "restore", "1", "--factory"]);
+    assert!(
+        sim.json(&["diff", "1", "--factory"])["results"]
+            .as_array()
+            .unwrap()
+            .is_empty()
+    );
+    assert_eq!(sim.result(&["get", "gains", "1"])["p_gain"], 20);
+    // Bad input is refused before the port is opened.
+    let r = common::robobus(&["wck", "--port", "/nonexistent", "diff", "0"]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+}

@@ -552,3 +552,16 @@ def test_settings_backup_diff_and_restore_from_python() -> None:
         report = station.whj.restore(2, text, confirm=True)
         assert report["summary"]["written"] == 1
         assert [r["register"] for r in station.whj.diff(2, other=1)["results"]] == ["SYS_ID"]
+
+
+def test_wck_settings_back_up_and_restore_to_the_factory_from_python() -> None:
+    with robobus.Station.simulated() as station:
+        station.wck.set("gains", 3, p=44, d=11, confirm=True)
+        doc = station.wck.backup(3)["summary"]
+        assert doc["format"] == "robobus-wck-settings" and doc["p_gain"] == 44
+        assert [r["setting"] for r in station.wck.diff(3, factory=True)["results"]] == ["gains"]
+        assert [r["setting"] for r in station.wck.diff(4, settings=json.dumps(doc))["results"]] == ["gains"]
+        with pytest.raises(robobus.RefusedError):
+            station.wck.restore(3, factory=True)
+        assert station.wck.restore(3, factory=True, confirm=True)["summary"]["written"] == 1
+        assert station.wck.diff(3, factory=True)["results"] == []

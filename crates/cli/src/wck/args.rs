@@ -172,6 +172,46 @@ pub(super) enum WckCommand {
     /// Write a parameter of a servo.
     #[command(subcommand)]
     Set(SetParam),
+    /// Back up a servo's settings (gains, I gain, speed, over-load, boundaries) to a
+    /// JSON settings file.
+    Backup {
+        /// Servo ID, 0..=30.
+        #[arg(value_parser = parse_servo_id)]
+        id: ServoId,
+        /// The settings file to write (an existing one is replaced).
+        #[arg(short, long, value_name = "FILE.json")]
+        output: PathBuf,
+    },
+    /// List the settings on which a servo differs from a settings file, the factory
+    /// settings (--factory) or another servo (--with).
+    Diff {
+        /// Servo ID, 0..=30.
+        #[arg(value_parser = parse_servo_id)]
+        id: ServoId,
+        /// A settings file (from `wck backup`).
+        #[arg(required_unless_present_any = ["factory", "with"], conflicts_with_all = ["factory", "with"])]
+        file: Option<PathBuf>,
+        /// Compare with the manual's factory settings.
+        #[arg(long, conflicts_with = "with")]
+        factory: bool,
+        /// Compare with this servo.
+        #[arg(long, value_name = "ID", value_parser = parse_servo_id)]
+        with: Option<ServoId>,
+    },
+    /// Restore a settings file (or, with --factory, the manual's factory settings, A-5)
+    /// into a servo's EEPROM: only the groups that differ are written, each verified.
+    /// Needs --yes.
+    Restore {
+        /// Servo ID, 0..=30.
+        #[arg(value_parser = parse_servo_id)]
+        id: ServoId,
+        /// A settings file (from `wck backup`).
+        #[arg(required_unless_present = "factory", conflicts_with = "factory")]
+        file: Option<PathBuf>,
+        /// Restore the factory settings.
+        #[arg(long)]
+        factory: bool,
+    },
     /// Give a servo a new ID (A-1 (14), EEPROM). IDs above 30 are reachable only with
     /// move10 / read10.
     SetId {

@@ -29,6 +29,14 @@ mod teach;
 pub(crate) use args::{Args, OnStop, parse_baud, parse_margin, parse_u32};
 use args::{Direction, GetParam, ProgramCommand, ServoIds, SetParam, WckCommand};
 
+/// A settings file's text, read bounded.
+fn settings_file(path: &Path) -> anyhow::Result<String> {
+    Ok(read_bounded(
+        path,
+        robobus::ops::wck::settings::WCK_SETTINGS_FILE_LIMIT,
+    )?)
+}
+
 /// The largest motion program file read (a program has at most 8 instructions).
 const PROGRAM_FILE_LIMIT: u64 = 64 << 10;
 
@@ -68,6 +76,9 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     let request = request(args)?;
     if let WckCommand::Program(ProgramCommand::Check { file, .. }) = &args.command {
         return check_program(g, file, &request);
+    }
+    if let WckCommand::Backup { output, .. } = &args.command {
+        output::check_output_path(output, "--output")?;
     }
     if g.dry_run {
         let plan = catalogue::plan_at(&request, args.baud).map_err(|e| in_file(e, file))?;
@@ -110,6 +121,16 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     };
     station.leave();
     let report = report?;
+    if let (WckCommand::Backup { output, id }, Some(doc)) = (&args.command, &report.summary) {
+        let text = serde_json::to_string_pretty(doc)? + "\n";
+        std::fs::write(output, text)
+            .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", output.display()))?;
+        eprintln!(
+            "robobus: the settings of servo {} written to {}",
+            id.get(),
+            output.display()
+        );
+    }
     if g.json {
         return report::print(&report, true, &WCK_TABLE);
     }
@@ -279,6 +300,33 @@ fn request(args: &Args) -> anyhow::Result<Request> {
             })
         }
         WckCommand::Set(p) => Q::WckSet(set_request(p)),
+        WckCommand::Backup { id: i, .. } => Q::WckBackup(cw::Backup {
+            bus: None,
+            id: id(*i),
+        }),
+        WckCommand::Diff {
+            id: i,
+            file,
+            factory,
+            with,
+        } => Q::WckDiff(cw::Diff {
+            bus: None,
+            id: id(*i),
+            settings: file.as_deref().map(settings_file).transpose()?,
+            factory: *factory,
+            other: with.map(id),
+        }),
+        WckCommand::Restore {
+            id: i,
+            file,
+            factory,
+        } => Q::WckRestore(cw::Restore {
+            bus: None,
+            id: id(*i),
+            settings: file.as_deref().map(settings_file).transpose()?,
+            factory: *factory,
+            confirm: false,
+        }),
         WckCommand::SetId { id: i, new_id } => Q::WckSetId(cw::SetId {
             bus: None,
             id: id(*i),

@@ -138,6 +138,14 @@ class JointBus(Station):
     def open(cls, bus: str) -> JointBus: ...  # type: ignore[override]
 
 class WckOps:
+    def backup(
+        self,
+        id: int,
+        *,
+        bus: str | None = ...,
+        check: bool = ...,
+    ) -> Report:
+        """The request ``wck.backup``."""
     def brake(
         self,
         *,
@@ -145,6 +153,17 @@ class WckOps:
         check: bool = ...,
     ) -> Report:
         """The request ``wck.brake``."""
+    def diff(
+        self,
+        id: int,
+        *,
+        bus: str | None = ...,
+        factory: bool | None = ...,
+        other: int | None = ...,
+        settings: str | None = ...,
+        check: bool = ...,
+    ) -> Report:
+        """The request ``wck.diff``."""
     def get(
         self,
         param: Literal["gains", "i-gain", "speed", "overload", "bounds", "io"],
@@ -227,6 +246,17 @@ class WckOps:
         check: bool = ...,
     ) -> Report:
         """The request ``wck.read10``."""
+    def restore(
+        self,
+        id: int,
+        *,
+        bus: str | None = ...,
+        confirm: bool | None = ...,
+        factory: bool | None = ...,
+        settings: str | None = ...,
+        check: bool = ...,
+    ) -> Report:
+        """The request ``wck.restore``."""
     def sample(
         self,
         ids: str | Sequence[int],

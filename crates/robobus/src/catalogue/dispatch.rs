@@ -246,6 +246,7 @@ fn summary(value: &impl Serialize) -> Option<Value> {
 
 // ----- wCK -----
 
+#[allow(clippy::too_many_lines)] // one arm per job
 fn run_wck(
     port: &WckPort,
     op: &str,
@@ -350,10 +351,67 @@ fn run_wck(
             out
         }
         wck::Job::Check(program, id) => check_report(op, &name, program, id),
+        job @ (wck::Job::Backup(_) | wck::Job::Diff(..) | wck::Job::Restore(..)) => {
+            wck_settings(bus, op, &name, job)?
+        }
         wck::Job::Sample(ids) => {
             let mut sampler = crate::ops::monitor::WckSampler::new(&ids);
             let results = sampler.sample(bus, 0.0);
             device_report(op, &name, &results)
+        }
+    })
+}
+
+/// `wck.backup`, `wck.diff` and `wck.restore` on a locked bus.
+fn wck_settings<L: robobus_link::ByteLink>(
+    bus: &mut crate::wck::WckBus<L>,
+    op: &str,
+    name: &str,
+    job: wck::Job,
+) -> Result<Report, OpError> {
+    let name = name.to_owned();
+    Ok(match job {
+        wck::Job::Backup(id) => {
+            let s = wops::settings::backup(bus, id)?;
+            let mut out = report(op, &name, vec![row(id.get(), &s)]);
+            out.summary = summary(&s);
+            out
+        }
+        wck::Job::Diff(id, with) => {
+            let a = wops::settings::backup(bus, id)?;
+            let (b, of) = match with {
+                wck::WckDiffWith::File(s) => (
+                    s,
+                    s.servo.map_or_else(
+                        || "the factory settings".into(),
+                        |n| format!("the file (servo {n})"),
+                    ),
+                ),
+                wck::WckDiffWith::Servo(o) => (
+                    wops::settings::backup(bus, o)?,
+                    format!("servo {}", o.get()),
+                ),
+            };
+            let d = wops::settings::diff(&a, &b);
+            let mut out = report(op, &name, d.iter().map(|x| row(id.get(), x)).collect());
+            out.summary = Some(json!({ "differ": d.len(), "with": of }));
+            out
+        }
+        wck::Job::Restore(id, s) => {
+            let r = wops::settings::restore(bus, id, &s)?;
+            let mut out = report(
+                op,
+                &name,
+                r.steps.iter().map(|x| row(id.get(), x)).collect(),
+            );
+            out.summary = Some(json!({ "written": r.written }));
+            out
+        }
+        // Only the three settings jobs come here (see the caller).
+        _ => {
+            return Err(OpError::NotAvailable(format!(
+                "{op}: not a settings operation"
+            )));
         }
     })
 }

@@ -81,7 +81,8 @@ impl Request {
             | Self::WhjSave(_)
             | Self::WhjWrite(_)
             | Self::WhjSetId(_)
-            | Self::WhjRestore(_) => Effect::Configure,
+            | Self::WhjRestore(_)
+            | Self::WckRestore(_) => Effect::Configure,
             Self::WckScan(_)
             | Self::WckStatus(_)
             | Self::WckRead10(_)
@@ -98,6 +99,8 @@ impl Request {
             | Self::WhjSample(_)
             | Self::WhjBackup(_)
             | Self::WhjDiff(_)
+            | Self::WckBackup(_)
+            | Self::WckDiff(_)
             | Self::RobotSample(_) => Effect::Read,
         }
     }

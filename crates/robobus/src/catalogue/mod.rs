@@ -47,6 +47,9 @@
 //! | `wck.teach` | `ids` 0..N-1, `rate_hz` (0.1..=200), `duration` s (0.1..=3600), `torque`, `on_stop` | summary: poses | - |
 //! | `wck.play` | `motion` (keyframe text), `rate_hz`=50, `on_stop` | summary: play report | - |
 //! | `wck.sample` | `ids` | `position_deg`, `speed_deg_s`, `load` | - |
+//! | `wck.backup` | `id` | the settings (`p_gain`, `d_gain`, `i_gain`, `speed`, `accel`, `overload`, `lower`, `upper`); `summary` is the settings file | - |
+//! | `wck.diff` | `id`, `settings` (a settings file's text), `factory` or `other` (a servo) | one row per group that differs (`setting`, `a`, `b`) | - |
+//! | `wck.restore` | `id`, `settings` or `factory` | one row per group written (only those that differ, each verified); `summary`: `written` | EEPROM |
 //! | `whj.scan` | `joints`="1-30" | identity per joint; summary: duplicates | - |
 //! | `whj.info` | `joint` | identity, unique ID, limits, status | - |
 //! | `whj.status` | `joints`, `broadcast`, `end_board` | status per joint (and `end-board`) | - |
@@ -154,6 +157,12 @@ pub enum Request {
     WckPlay(wck::Play),
     #[serde(rename = "wck.sample")]
     WckSample(wck::Sample),
+    #[serde(rename = "wck.backup")]
+    WckBackup(wck::Backup),
+    #[serde(rename = "wck.diff")]
+    WckDiff(wck::Diff),
+    #[serde(rename = "wck.restore")]
+    WckRestore(wck::Restore),
     #[serde(rename = "whj.scan")]
     WhjScan(whj::Scan),
     #[serde(rename = "whj.info")]
@@ -224,6 +233,9 @@ macro_rules! each_variant {
             Request::WckTeach($r) => $e,
             Request::WckPlay($r) => $e,
             Request::WckSample($r) => $e,
+            Request::WckBackup($r) => $e,
+            Request::WckDiff($r) => $e,
+            Request::WckRestore($r) => $e,
             Request::WhjScan($r) => $e,
             Request::WhjInfo($r) => $e,
             Request::WhjStatus($r) => $e,
@@ -280,6 +292,9 @@ impl Request {
             | Self::WckProgramUpload(_)
             | Self::WckProgramDownload(_)
             | Self::WckProgramCheck(_)
+            | Self::WckBackup(_)
+            | Self::WckDiff(_)
+            | Self::WckRestore(_)
             | Self::WckTeach(_)
             | Self::WckPlay(_)
             | Self::WckSample(_) => Family::Wck,
@@ -301,6 +316,7 @@ impl Request {
             Self::WhjWrite(r) => r.confirm = true,
             Self::WhjSetId(r) => r.confirm = true,
             Self::WhjRestore(r) => r.confirm = true,
+            Self::WckRestore(r) => r.confirm = true,
             _ => {}
         }
         self

@@ -2,6 +2,7 @@
 //! under the CLI's names (`-` written `_`), and how each is planned and run through
 //! [`crate::ops::wck`].
 
+use crate::ops::wck::settings::WckSettings;
 use std::time::Duration;
 
 use robobus_wck::program::Program;
@@ -138,6 +139,46 @@ request!(
         param: Param,
         /// Servo ID, 0..=30.
         id: u32,
+    }
+);
+request!(
+    /// `wck.backup`: a servo's settings (gains, I gain, speed, over-load, boundaries) as
+    /// the settings file (the report's `summary`).
+    Backup { /// Servo ID, 0..=30.
+        id: u32 }
+);
+request!(
+    /// `wck.diff`: the settings on which a servo differs from a settings file, the
+    /// factory settings, or another servo.
+    Diff {
+        /// Servo ID, 0..=30.
+        id: u32,
+        /// A settings file's text (what `wck.backup` gives).
+        #[serde(default)]
+        settings: Option<String>,
+        /// Compare with the factory settings (the manual's A-5).
+        #[serde(default)]
+        factory: bool,
+        /// Another servo to compare with.
+        #[serde(default)]
+        other: Option<u32>,
+    }
+);
+request!(
+    /// `wck.restore`: writes a settings file (or the factory settings) into a servo's
+    /// EEPROM where it differs, each write verified; needs `confirm`.
+    Restore {
+        /// Servo ID, 0..=30.
+        id: u32,
+        /// A settings file's text.
+        #[serde(default)]
+        settings: Option<String>,
+        /// Restore the factory settings (the manual's A-5) instead of a file.
+        #[serde(default)]
+        factory: bool,
+        /// Confirms the EEPROM writes.
+        #[serde(default)]
+        confirm: bool,
     }
 );
 request!(
@@ -319,6 +360,45 @@ pub(crate) enum Job {
     /// `program check`: nothing to send.
     Check(Program, ServoId),
     Sample(Vec<ServoId>),
+    Backup(ServoId),
+    Diff(ServoId, WckDiffWith),
+    Restore(ServoId, WckSettings),
+}
+
+/// What `wck.diff` compares a servo with.
+#[derive(Debug)]
+pub(crate) enum WckDiffWith {
+    /// A settings file, or the factory settings.
+    File(WckSettings),
+    /// Another servo.
+    Servo(ServoId),
+}
+
+/// The settings a request names: its file's, or the factory ones with `factory`.
+fn settings_of(text: Option<&String>, factory: bool) -> R<Option<WckSettings>> {
+    match (text, factory) {
+        (Some(_), true) => Err(OpError::invalid(
+            "settings / factory",
+            "both",
+            "give one: a settings file or the factory settings",
+        )),
+        (Some(t), false) => WckSettings::parse(t).map(Some),
+        (None, true) => Ok(Some(WckSettings::factory())),
+        (None, false) => Ok(None),
+    }
+}
+
+/// The plan of reading a servo's settings.
+fn settings_reads(plan: &mut WckPlan, id: ServoId) {
+    for c in [
+        Command::GainRead { id },
+        Command::IGainRead { id },
+        Command::SpeedRead { id },
+        Command::OverloadRead { id },
+        Command::BoundaryRead { id },
+    ] {
+        plan.push(c);
+    }
 }
 
 /// A validated wCK request: its plan, how it runs, what it needs confirmed.
@@ -389,6 +469,70 @@ pub(crate) fn prepare(req: &super::Request, baud: BaudRate) -> R<Prepared> {
                 job: Job::Scan(scan),
                 confirm: ConfirmClass::None,
                 confirmed: false,
+            })
+        }
+        Q::WckBackup(r) => {
+            let id = sid(r.id)?;
+            let mut plan = WckPlan::default();
+            settings_reads(&mut plan, id);
+            Ok(Prepared {
+                plan,
+                job: Job::Backup(id),
+                confirm: ConfirmClass::None,
+                confirmed: false,
+            })
+        }
+        Q::WckDiff(r) => {
+            let id = sid(r.id)?;
+            let mut plan = WckPlan::default();
+            settings_reads(&mut plan, id);
+            let with = match (settings_of(r.settings.as_ref(), r.factory)?, r.other) {
+                (Some(s), None) => WckDiffWith::File(s),
+                (None, Some(o)) => {
+                    let o = byte("--with", o, ServoId::new)?;
+                    if o == id {
+                        return Err(OpError::invalid("--with", o.get(), "the servo itself"));
+                    }
+                    settings_reads(&mut plan, o);
+                    WckDiffWith::Servo(o)
+                }
+                _ => {
+                    return Err(OpError::invalid(
+                        "settings / factory / other",
+                        "none or several",
+                        "give one: a settings file, the factory settings or another servo",
+                    ));
+                }
+            };
+            Ok(Prepared {
+                plan,
+                job: Job::Diff(id, with),
+                confirm: ConfirmClass::None,
+                confirmed: false,
+            })
+        }
+        Q::WckRestore(r) => {
+            let id = sid(r.id)?;
+            let s = settings_of(r.settings.as_ref(), r.factory)?.ok_or_else(|| {
+                OpError::invalid(
+                    "settings / factory",
+                    "neither",
+                    "give a settings file or the factory settings",
+                )
+            })?;
+            let mut plan = WckPlan::default();
+            settings_reads(&mut plan, id);
+            plan.notes.push(
+                "then one EEPROM write (about 121 ms, verified by the servo's read-back) per \
+                 group that differs: gains, I gain, speed, over-load, boundaries; then the \
+                 settings are read again"
+                    .into(),
+            );
+            Ok(Prepared {
+                plan,
+                job: Job::Restore(id, s),
+                confirm: ConfirmClass::NonVolatile,
+                confirmed: r.confirm,
             })
         }
         Q::WckStatus(r) => Ok(simple(

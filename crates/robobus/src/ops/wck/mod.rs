@@ -85,6 +85,7 @@ mod motion;
 mod plan;
 mod report;
 mod run;
+pub mod settings;
 mod shared;
 
 pub use motion::{
