@@ -1136,3 +1136,44 @@ fn settings_back_up_diff_and_restore_between_servos_and_to_the_factory() {
     let r = common::robobus(&["wck", "--port", "/nonexistent", "diff", "0"]);
     assert_eq!(r.code, Some(2), "{r:#?}");
 }
+
+#[test]
+fn tune_measures_each_gain_set_and_names_the_best() {
+    let sim = Sim::start("0-1", &[]);
+    let r = sim.json(&[
+        "tune",
+        "1",
+        "--gains",
+        "2,0",
+        "--gains",
+        "20,30",
+        "--hold-ms",
+        "600",
+    ]);
+    let rows = r["results"].as_array().unwrap();
+    assert_eq!(rows.len(), 2);
+    assert_eq!(r["summary"]["best"], 1, "{r}");
+    // The default gains settle sooner than P 2 on the simulated mechanics.
+    assert!(
+        rows[1]["settling_ms"].as_f64().unwrap() < rows[0]["settling_ms"].as_f64().unwrap(),
+        "{r}"
+    );
+    // Back where it was.
+    let start = r["summary"]["start"].as_u64().unwrap();
+    let mut at = 0;
+    for _ in 0..50 {
+        at = sim.position(1);
+        if at == start {
+            break;
+        }
+    }
+    assert_eq!(at, start);
+    // The text names the best set; keeping it in EEPROM needs --yes.
+    let text = sim.ok(&["tune", "1", "--gains", "20,30", "--hold-ms", "200"]);
+    assert!(text.contains("best: P 20 D 30"), "{text}");
+    let r = sim.wck(&["tune", "1", "--gains", "20,30", "--keep", "eeprom"]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    let r = sim.wck(&["tune", "1", "--gains", "20,30", "--amplitude", "80"]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    assert!(r.stderr.contains("--amplitude"), "{}", r.stderr);
+}

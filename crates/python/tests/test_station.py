@@ -565,3 +565,10 @@ def test_wck_settings_back_up_and_restore_to_the_factory_from_python() -> None:
             station.wck.restore(3, factory=True)
         assert station.wck.restore(3, factory=True, confirm=True)["summary"]["written"] == 1
         assert station.wck.diff(3, factory=True)["results"] == []
+
+
+def test_wck_tune_from_python() -> None:
+    with robobus.Station.simulated() as station:
+        r = station.wck.tune(3, [[2, 0], [20, 30]], hold_ms=500)
+        assert r["summary"]["best"] == 1
+        assert [(x["p"], x["d"]) for x in r["results"]] == [(2, 0), (20, 30)]

@@ -172,6 +172,30 @@ pub(super) enum WckCommand {
     /// Write a parameter of a servo.
     #[command(subcommand)]
     Set(SetParam),
+    /// Tune the P and D gains: the same position step with each gain set (as runtime
+    /// gains), its rise time, overshoot, settling time and steady-state error measured,
+    /// the best one named; the servo returns to where it was. --keep keeps the best set.
+    Tune {
+        /// Servo ID, 0..=30.
+        #[arg(value_parser = parse_servo_id)]
+        id: ServoId,
+        /// A gain set `P,D` (repeat for each, 1..=8), e.g. --gains 20,30 --gains 40,20.
+        #[arg(long, required = true, value_name = "P,D", value_parser = robobus::ops::wck::tune::parse_gains)]
+        gains: Vec<robobus::wck::Gains>,
+        /// The step, position steps (2..=60), away from the nearer boundary.
+        #[arg(long, default_value_t = 20)]
+        amplitude: u8,
+        /// How long each step is recorded, ms (100..=5000).
+        #[arg(long, default_value_t = 1000)]
+        hold_ms: u32,
+        /// Torque level of the moves, 0 (strongest)..=4.
+        #[arg(long, default_value = "0", value_parser = parse_torque)]
+        torque: TorqueLevel,
+        /// Keep the best set: none (the runtime gains go back to the EEPROM's), runtime
+        /// (until power-off) or eeprom (needs --yes).
+        #[arg(long, value_enum, default_value = "none")]
+        keep: KeepArg,
+    },
     /// Back up a servo's settings (gains, I gain, speed, over-load, boundaries) to a
     /// JSON settings file.
     Backup {
@@ -565,4 +589,15 @@ fn parse_seconds(s: &str) -> Result<Duration, String> {
 
 fn parse_servo_ids(spec: &str) -> Result<ServoIds, String> {
     spec.parse()
+}
+
+/// What `wck tune` keeps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub(super) enum KeepArg {
+    /// Nothing.
+    None,
+    /// The runtime gains.
+    Runtime,
+    /// The EEPROM gains.
+    Eeprom,
 }

@@ -27,7 +27,24 @@ mod args;
 mod teach;
 
 pub(crate) use args::{Args, OnStop, parse_baud, parse_margin, parse_u32};
-use args::{Direction, GetParam, ProgramCommand, ServoIds, SetParam, WckCommand};
+use args::{Direction, GetParam, KeepArg, ProgramCommand, ServoIds, SetParam, WckCommand};
+
+/// `wck tune` as text: the table of responses and the best set; the traces are in
+/// `--json`.
+fn print_tune(mut report: Report) -> anyhow::Result<()> {
+    if let Some(Value::Object(s)) = &mut report.summary {
+        let best = s.get("best").and_then(Value::as_u64).unwrap_or(0);
+        if let Some(r) = s
+            .get("responses")
+            .and_then(|r| r.get(usize::try_from(best).unwrap_or(0)))
+        {
+            let text = format!("P {} D {} (row {})", r["p"], r["d"], best + 1);
+            s.insert("best".into(), Value::String(text));
+        }
+        s.remove("responses");
+    }
+    report::print(&report, false, &WCK_TABLE)
+}
 
 /// A settings file's text, read bounded.
 fn settings_file(path: &Path) -> anyhow::Result<String> {
@@ -137,6 +154,7 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     match &args.command {
         WckCommand::Scan { .. } => print_scan(&report),
         WckCommand::Play { .. } => print_play(&report),
+        WckCommand::Tune { .. } => print_tune(report),
         WckCommand::Teach { output, .. } => {
             teacher.map_or(Ok(()), |t| t.finish(&report, output.as_deref()))?;
             report::outcome(&report)
@@ -300,6 +318,30 @@ fn request(args: &Args) -> anyhow::Result<Request> {
             })
         }
         WckCommand::Set(p) => Q::WckSet(set_request(p)),
+        WckCommand::Tune {
+            id: i,
+            gains,
+            amplitude,
+            hold_ms,
+            torque,
+            keep,
+        } => Q::WckTune(cw::Tune {
+            bus: None,
+            id: id(*i),
+            gains: gains
+                .iter()
+                .map(|g| [u32::from(g.p.get()), u32::from(g.d.get())])
+                .collect(),
+            amplitude: u32::from(*amplitude),
+            hold_ms: *hold_ms,
+            torque: u32::from(torque.get()),
+            keep: match keep {
+                KeepArg::None => cw::KeepArg::None,
+                KeepArg::Runtime => cw::KeepArg::Runtime,
+                KeepArg::Eeprom => cw::KeepArg::Eeprom,
+            },
+            confirm: false,
+        }),
         WckCommand::Backup { id: i, .. } => Q::WckBackup(cw::Backup {
             bus: None,
             id: id(*i),

@@ -344,6 +344,20 @@ class WckOps:
         check: bool = ...,
     ) -> Report:
         """The request ``wck.teach``."""
+    def tune(
+        self,
+        id: int,
+        gains: Sequence[Sequence[int]],
+        *,
+        amplitude: int | None = ...,
+        bus: str | None = ...,
+        confirm: bool | None = ...,
+        hold_ms: int | None = ...,
+        keep: Literal["none", "runtime", "eeprom"] | None = ...,
+        torque: int | None = ...,
+        check: bool = ...,
+    ) -> Report:
+        """The request ``wck.tune``."""
     def wheel(
         self,
         id: int,

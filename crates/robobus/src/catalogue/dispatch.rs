@@ -307,6 +307,27 @@ fn run_wck(
             }
             out
         }
+        wck::Job::Tune(args) => {
+            let r = wops::tune::tune(bus, &args, p.confirmed, control)?;
+            let rows = r
+                .responses
+                .iter()
+                .map(|x| {
+                    json!({
+                        "id": args.id.get(),
+                        "p": x.p,
+                        "d": x.d,
+                        "rise_ms": x.rise_ms,
+                        "overshoot_pct": x.overshoot_pct,
+                        "settling_ms": x.settling_ms,
+                        "steady_state_error": x.steady_state_error,
+                    })
+                })
+                .collect();
+            let mut out = report(op, &name, rows);
+            out.summary = summary(&r);
+            out
+        }
         wck::Job::Wheel(args) => {
             let r = wops::wheel(bus, &args, control)?;
             device_report(op, &name, std::slice::from_ref(&r))

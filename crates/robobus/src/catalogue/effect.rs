@@ -62,6 +62,7 @@ impl Request {
             | Self::WckWheel(_)
             | Self::WckPlay(_)
             | Self::WckTeach(_)
+            | Self::WckTune(_)
             // An uploaded program starts at once: the servo runs it by itself.
             | Self::WckProgramUpload(_)
             | Self::WhjEnable(_)
@@ -127,6 +128,7 @@ impl Request {
             Self::WckMove(r) => wck(one(r.id)),
             Self::WckMove10(r) => wck(one(r.id)),
             Self::WckWheel(r) => wck(one(r.id)),
+            Self::WckTune(r) => wck(one(r.id)),
             Self::WckProgramUpload(r) => wck(one(r.id)),
             Self::WckSyncMove(r) => wck(count(r.positions.len())),
             Self::WckTeach(r) => wck(ids::<ServoId>(&r.ids, "ids")?),

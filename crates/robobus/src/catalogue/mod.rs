@@ -47,6 +47,7 @@
 //! | `wck.teach` | `ids` 0..N-1, `rate_hz` (0.1..=200), `duration` s (0.1..=3600), `torque`, `on_stop` | summary: poses | - |
 //! | `wck.play` | `motion` (keyframe text), `rate_hz`=50, `on_stop` | summary: play report | - |
 //! | `wck.sample` | `ids` | `position_deg`, `speed_deg_s`, `load` | - |
+//! | `wck.tune` | `id`, `gains` (`[[P, D], ...]`), `amplitude`=20, `hold_ms`=1000, `torque`, `keep` (`none`, `runtime`, `eeprom`) | one row per gain set: `rise_ms`, `overshoot_pct`, `settling_ms`, `steady_state_error`; `summary`: `start`, `target`, `best`, `kept` and each set's trace | EEPROM with `keep: eeprom` |
 //! | `wck.backup` | `id` | the settings (`p_gain`, `d_gain`, `i_gain`, `speed`, `accel`, `overload`, `lower`, `upper`); `summary` is the settings file | - |
 //! | `wck.diff` | `id`, `settings` (a settings file's text), `factory` or `other` (a servo) | one row per group that differs (`setting`, `a`, `b`) | - |
 //! | `wck.restore` | `id`, `settings` or `factory` | one row per group written (only those that differ, each verified); `summary`: `written` | EEPROM |
@@ -157,6 +158,8 @@ pub enum Request {
     WckPlay(wck::Play),
     #[serde(rename = "wck.sample")]
     WckSample(wck::Sample),
+    #[serde(rename = "wck.tune")]
+    WckTune(wck::Tune),
     #[serde(rename = "wck.backup")]
     WckBackup(wck::Backup),
     #[serde(rename = "wck.diff")]
@@ -233,6 +236,7 @@ macro_rules! each_variant {
             Request::WckTeach($r) => $e,
             Request::WckPlay($r) => $e,
             Request::WckSample($r) => $e,
+            Request::WckTune($r) => $e,
             Request::WckBackup($r) => $e,
             Request::WckDiff($r) => $e,
             Request::WckRestore($r) => $e,
@@ -292,6 +296,7 @@ impl Request {
             | Self::WckProgramUpload(_)
             | Self::WckProgramDownload(_)
             | Self::WckProgramCheck(_)
+            | Self::WckTune(_)
             | Self::WckBackup(_)
             | Self::WckDiff(_)
             | Self::WckRestore(_)
@@ -317,6 +322,7 @@ impl Request {
             Self::WhjSetId(r) => r.confirm = true,
             Self::WhjRestore(r) => r.confirm = true,
             Self::WckRestore(r) => r.confirm = true,
+            Self::WckTune(r) => r.confirm = true,
             _ => {}
         }
         self

@@ -3,6 +3,7 @@
 //! [`crate::ops::wck`].
 
 use crate::ops::wck::settings::WckSettings;
+use crate::ops::wck::tune::{Keep, TuneArgs};
 use std::time::Duration;
 
 use robobus_wck::program::Program;
@@ -141,6 +142,50 @@ request!(
         id: u32,
     }
 );
+const fn d20() -> u32 {
+    20
+}
+const fn d1000() -> u32 {
+    1000
+}
+request!(
+    /// `wck.tune`: the same position step with each gain set (runtime gains), the
+    /// responses measured (rise, overshoot, settling, steady-state error) and the best
+    /// one found; kept in runtime or EEPROM (`confirm`) on request.
+    Tune {
+        /// Servo ID, 0..=30.
+        id: u32,
+        /// The gain sets, `[[P, D], ...]` (1..=8).
+        gains: Vec<[u32; 2]>,
+        /// The step, position steps (2..=60).
+        #[serde(default = "d20")]
+        amplitude: u32,
+        /// How long each step is recorded, ms (100..=5000).
+        #[serde(default = "d1000")]
+        hold_ms: u32,
+        /// Torque level of the moves, 0..=4.
+        #[serde(default)]
+        torque: u32,
+        /// Keep the best set: `none` (default), `runtime` or `eeprom`.
+        #[serde(default)]
+        keep: KeepArg,
+        /// Confirms an EEPROM keep.
+        #[serde(default)]
+        confirm: bool,
+    }
+);
+/// What `wck.tune` keeps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum KeepArg {
+    /// Nothing.
+    #[default]
+    None,
+    /// The runtime gains.
+    Runtime,
+    /// The EEPROM gains.
+    Eeprom,
+}
 request!(
     /// `wck.backup`: a servo's settings (gains, I gain, speed, over-load, boundaries) as
     /// the settings file (the report's `summary`).
@@ -361,6 +406,7 @@ pub(crate) enum Job {
     Check(Program, ServoId),
     Sample(Vec<ServoId>),
     Backup(ServoId),
+    Tune(TuneArgs),
     Diff(ServoId, WckDiffWith),
     Restore(ServoId, WckSettings),
 }
@@ -469,6 +515,58 @@ pub(crate) fn prepare(req: &super::Request, baud: BaudRate) -> R<Prepared> {
                 job: Job::Scan(scan),
                 confirm: ConfirmClass::None,
                 confirmed: false,
+            })
+        }
+        Q::WckTune(r) => {
+            let id = sid(r.id)?;
+            let mut gains = Vec::new();
+            for &[p, d] in &r.gains {
+                gains.push(crate::wck::Gains {
+                    p: byte("--gains P", p, robobus_wck::PGain::new)?,
+                    d: byte("--gains D", d, robobus_wck::DGain::new)?,
+                });
+            }
+            let args = TuneArgs {
+                id,
+                amplitude: u8::try_from(r.amplitude).unwrap_or(u8::MAX),
+                gains,
+                hold_ms: r.hold_ms,
+                torque: torque(r.torque)?,
+                keep: match r.keep {
+                    KeepArg::None => Keep::None,
+                    KeepArg::Runtime => Keep::Runtime,
+                    KeepArg::Eeprom => Keep::Eeprom,
+                },
+            };
+            args.validate()?;
+            let mut plan = WckPlan::default();
+            plan.push(Command::GainRead { id });
+            plan.push(Command::BoundaryRead { id });
+            plan.push(Command::StatusRead { id });
+            plan.notes.push(format!(
+                "then for each of the {} gain sets: runtime gains (A-1 (12)), a move to the \
+                 present position and 0.5 s of status reads to settle, a step of {} \
+                 positions away from the nearer boundary and {} ms of status reads; then \
+                 back to the start, runtime gains {}",
+                args.gains.len(),
+                args.amplitude,
+                args.hold_ms,
+                match args.keep {
+                    Keep::None => "as in EEPROM",
+                    Keep::Runtime => "the best set's",
+                    Keep::Eeprom => "and EEPROM gains the best set's",
+                }
+            ));
+            let confirm = if args.keep == Keep::Eeprom {
+                ConfirmClass::NonVolatile
+            } else {
+                ConfirmClass::None
+            };
+            Ok(Prepared {
+                plan,
+                job: Job::Tune(args),
+                confirm,
+                confirmed: r.confirm,
             })
         }
         Q::WckBackup(r) => {

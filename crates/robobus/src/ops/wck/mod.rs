@@ -87,6 +87,7 @@ mod report;
 mod run;
 pub mod settings;
 mod shared;
+pub mod tune;
 
 pub use motion::{
     FORMAT_HELP, Frame, MOTION_FILE_LIMIT, Motion, MotionWriter, Moves, PLAY_WATCH_MS, ParseError,
