@@ -150,11 +150,19 @@ pub fn figures(trace: &[(f64, u8)], start: u8, target: u8, p: u8, d: u8) -> Step
     let sign = step.signum();
     let amp = step.abs();
     let rel = |pos: u8| (f64::from(pos) - f64::from(start)) * sign;
-    let first_at = |level: f64| trace.iter().find(|(_, pos)| rel(*pos) >= level).map(|p| p.0);
+    let first_at = |level: f64| {
+        trace
+            .iter()
+            .find(|(_, pos)| rel(*pos) >= level)
+            .map(|p| p.0)
+    };
     let rise_ms = first_at(0.1 * amp)
         .zip(first_at(0.9 * amp))
         .map(|(t10, t90)| t90 - t10);
-    let peak = trace.iter().map(|(_, pos)| rel(*pos)).fold(0.0f64, f64::max);
+    let peak = trace
+        .iter()
+        .map(|(_, pos)| rel(*pos))
+        .fold(0.0f64, f64::max);
     let overshoot_pct = ((peak - amp) / amp * 100.0).max(0.0);
     let band = (0.02 * amp).max(1.0);
     let last_out = trace
