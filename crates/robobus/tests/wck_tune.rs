@@ -217,3 +217,33 @@ fn the_catalogue_runs_a_tune_and_its_dry_run_is_the_plan() {
     let e = catalogue::run(&s, &req, &mut Control::none()).unwrap_err();
     assert_eq!(e.kind(), ErrorKind::Refused, "{e}");
 }
+
+#[test]
+fn a_stop_ends_the_tune_holding_where_it_is() {
+    use robobus::ops::{Progress, StopToken};
+    let (_s, w, _j) = station_support::station("wck", "whj");
+    let mut bus = w.lock();
+    let stop = StopToken::new();
+    let token = stop.clone();
+    // Stopped while the first set settles at the start (the check inside the reading
+    // loops, not only between sets).
+    let mut at_first = |p: &Progress| {
+        if p.done == 0 {
+            token.stop();
+        }
+    };
+    let mut control = Control::new(&stop).with_progress(&mut at_first);
+    let e = tune::tune(
+        &mut bus,
+        &args(vec![gains(20, 30), gains(2, 0), gains(30, 20)]),
+        false,
+        &mut control,
+    )
+    .unwrap_err();
+    assert_eq!(e.kind(), ErrorKind::Interrupted, "{e}");
+    assert_eq!(
+        bus.servo(ServoId::new(1).unwrap()).gains().unwrap(),
+        gains(20, 30),
+        "EEPROM untouched"
+    );
+}

@@ -290,13 +290,16 @@ fn run_steps<L: ByteLink>(
     let id = args.id;
     let total = u64::try_from(args.gains.len()).unwrap_or(u64::MAX);
     let mut responses = Vec::new();
+    let stop = |bus: &mut WckBus<L>| {
+        SafeState::Hold.interrupted(&mut WckServos {
+            bus,
+            ids: &[id],
+            torque: args.torque,
+        })
+    };
     for (k, &g) in args.gains.iter().enumerate() {
         if control.stopped() {
-            return Err(SafeState::Hold.interrupted(&mut WckServos {
-                bus,
-                ids: &[id],
-                torque: args.torque,
-            }));
+            return Err(stop(bus));
         }
         control.report(&Progress {
             stage: "tune",
@@ -308,6 +311,9 @@ fn run_steps<L: ByteLink>(
         bus.servo(id).move_to(args.torque, pos(start))?;
         let settle = bus.now() + SETTLE_BEFORE;
         while bus.now() < settle {
+            if control.stopped() {
+                return Err(stop(bus));
+            }
             bus.servo(id).status()?;
         }
         let t0: Instant = bus.now();
@@ -315,6 +321,9 @@ fn run_steps<L: ByteLink>(
         let end = t0 + Duration::from_millis(u64::from(args.hold_ms));
         let mut trace = Vec::new();
         while bus.now() < end {
+            if control.stopped() {
+                return Err(stop(bus));
+            }
             let p = bus.servo(id).status()?.position.get();
             trace.push((
                 bus.now().saturating_duration_since(t0).as_secs_f64() * 1e3,
