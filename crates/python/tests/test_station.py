@@ -32,6 +32,15 @@ BIN = os.environ.get("ROBOBUS_BIN", str(ROOT / "target" / "debug" / "robobus"))
 PROGRAM = "move 82 torque 0\ndelay 266ms\nmove 172 torque 0\ndelay 266ms\n"
 MOTION = "torque 1\npose 100 100 140\nhold 40\npose 100 127 127\n"
 
+
+def _whj_settings() -> str:
+    """Joint 1's settings file on the simulated robot (for `whj.restore`)."""
+    with robobus.Station.simulated() as station:
+        return json.dumps(station.whj.backup(1)["summary"])
+
+
+WHJ_SETTINGS = _whj_settings()
+
 # Every operation once: (method, positional args, keyword args, the request it stands for).
 CALLS: list[tuple[str, tuple[Any, ...], dict[str, Any], dict[str, Any]]] = [
     ("wck.scan", (), {"ids": "0-3"}, {"op": "wck.scan", "ids": "0-3"}),
@@ -83,6 +92,20 @@ CALLS: list[tuple[str, tuple[Any, ...], dict[str, Any], dict[str, Any]]] = [
     ),
     ("wck.play", (MOTION,), {}, {"op": "wck.play", "motion": MOTION}),
     ("wck.sample", ("0-2",), {}, {"op": "wck.sample", "ids": "0-2"}),
+    (
+        "wck.tune",
+        (3, [[20, 30], [2, 0]]),
+        {"hold_ms": 200},
+        {"op": "wck.tune", "id": 3, "gains": [[20, 30], [2, 0]], "hold_ms": 200},
+    ),
+    ("wck.backup", (3,), {}, {"op": "wck.backup", "id": 3}),
+    ("wck.diff", (3,), {"factory": True}, {"op": "wck.diff", "id": 3, "factory": True}),
+    (
+        "wck.restore",
+        (3,),
+        {"factory": True, "confirm": True},
+        {"op": "wck.restore", "id": 3, "factory": True, "confirm": True},
+    ),
     ("whj.scan", (), {"joints": "1-3"}, {"op": "whj.scan", "joints": "1-3"}),
     ("whj.info", (2,), {}, {"op": "whj.info", "joint": 2}),
     ("whj.status", ("1-3",), {}, {"op": "whj.status", "joints": "1-3"}),
@@ -132,6 +155,14 @@ CALLS: list[tuple[str, tuple[Any, ...], dict[str, Any], dict[str, Any]]] = [
     ),
     ("whj.release_iap", ("1",), {}, {"op": "whj.release-iap", "joints": "1"}),
     ("whj.sample", ("1-2",), {}, {"op": "whj.sample", "joints": "1-2"}),
+    ("whj.backup", (2,), {}, {"op": "whj.backup", "joint": 2}),
+    ("whj.diff", (2,), {"other": 1}, {"op": "whj.diff", "joint": 2, "other": 1}),
+    (
+        "whj.restore",
+        (2, WHJ_SETTINGS),
+        {"confirm": True},
+        {"op": "whj.restore", "joint": 2, "settings": WHJ_SETTINGS, "confirm": True},
+    ),
     ("robot.sample", (), {}, {"op": "robot.sample"}),
 ]
 
@@ -140,6 +171,7 @@ SETUP: dict[str, list[dict[str, Any]]] = {
     "whj.speed": [{"op": "whj.mode", "joints": "1", "mode": "speed"}],
     "whj.current": [{"op": "whj.mode", "joints": "1", "mode": "current"}],
     "whj.save": [{"op": "whj.disable", "joints": "4"}],
+    "whj.restore": [{"op": "whj.disable", "joints": "2"}],
 }
 
 # Fields measured on the wall clock (round trips, run times): the same request gives other
