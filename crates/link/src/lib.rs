@@ -86,6 +86,7 @@ pub mod socketcan;
 pub mod spec;
 #[cfg(unix)]
 pub mod udp;
+pub mod wait;
 
 pub use byte::{ByteLink, LinkError};
 pub use capture::{
@@ -104,3 +105,4 @@ pub use socketcan::SocketCanLink;
 pub use spec::{FrameLinkSpec, OpenError, SpecError};
 #[cfg(unix)]
 pub use udp::{UdpBus, UdpBusConfig, UdpBusStats};
+pub use wait::{WaitMode, WaitModeError};

@@ -100,4 +100,5 @@ pub mod whj;
 
 pub use actuator::{Actuator, ActuatorError, ActuatorState, JointLimits};
 pub use error::ErrorKind;
+pub use robobus_link::wait::WaitMode;
 pub use robot::{Robot, RobotConfig, RobotError};

@@ -7,6 +7,7 @@ mod wck_support;
 
 use std::time::Duration;
 
+use robobus::WaitMode;
 use robobus::wck::Gains;
 use robobus::wck::{WckBus, WckConfig, WckError};
 use robobus_link::{FaultConfig, FaultyByteLink};
@@ -105,6 +106,7 @@ struct Through {
 fn reads_through_duplicated_doubled_and_shifted_bytes(
     confirm_reads: u8,
     guard: Duration,
+    wait: WaitMode,
 ) -> Through {
     use robobus_sim::wck::{Bus, BusConfig, Faults, Model};
     let config = BusConfig {
@@ -131,6 +133,7 @@ fn reads_through_duplicated_doubled_and_shifted_bytes(
         retries: 10,
         margin: Duration::from_millis(5),
         guard,
+        wait,
         ..WckConfig::default()
     };
     let mut bus = WckBus::new(FaultyByteLink::new(sim.link(), faults), BaudRate::B921600)
@@ -173,31 +176,50 @@ fn reads_through_duplicated_doubled_and_shifted_bytes(
 /// and the line stayed quiet for a turnaround after it.
 #[test]
 fn duplicated_doubled_and_shifted_bytes_give_no_wrong_value() {
-    let r = reads_through_duplicated_doubled_and_shifted_bytes(0, robobus::wck::DEFAULT_GUARD);
-    assert!(r.wrong.is_empty(), "wrong values at cycles {:?}", r.wrong);
-    // Seeded faults on the virtual clock: the same run every time, and every read came
-    // through its retries.
-    assert_eq!(
-        (r.duplicated, r.doubled, r.shifted, r.errors),
-        (233, 113, 113, 0),
-        "{:?}",
-        r.stats
-    );
-    assert_eq!((r.stats.unattributable, r.stats.timeouts), (339, 113));
+    // Whether the client sleeps or spins for its replies, the same bytes are credited.
+    for wait in [WaitMode::Sleep, WaitMode::SPIN] {
+        let r = reads_through_duplicated_doubled_and_shifted_bytes(
+            0,
+            robobus::wck::DEFAULT_GUARD,
+            wait,
+        );
+        assert!(
+            r.wrong.is_empty(),
+            "{wait}: wrong values at cycles {:?}",
+            r.wrong
+        );
+        // Seeded faults on the virtual clock: the same run every time, and every read came
+        // through its retries.
+        assert_eq!(
+            (r.duplicated, r.doubled, r.shifted, r.errors),
+            (233, 113, 113, 0),
+            "{wait}: {:?}",
+            r.stats
+        );
+        assert_eq!(
+            (r.stats.unattributable, r.stats.timeouts),
+            (339, 113),
+            "{wait}"
+        );
+    }
 }
 
 /// Without the quiet time after a reply, the first two bytes of a doubled or duplicated
 /// answer would be credited: the guard is what keeps the values right.
 #[test]
 fn without_the_guard_after_a_reply_doubled_bytes_give_wrong_values() {
-    let r = reads_through_duplicated_doubled_and_shifted_bytes(0, Duration::ZERO);
+    let r = reads_through_duplicated_doubled_and_shifted_bytes(0, Duration::ZERO, WaitMode::Sleep);
     assert_eq!(r.wrong.len(), 71, "{:?}", r.stats);
 }
 
 /// The same with three equal replies required for every read.
 #[test]
 fn duplicated_doubled_and_shifted_bytes_give_no_wrong_value_with_confirmed_reads() {
-    let r = reads_through_duplicated_doubled_and_shifted_bytes(3, robobus::wck::DEFAULT_GUARD);
+    let r = reads_through_duplicated_doubled_and_shifted_bytes(
+        3,
+        robobus::wck::DEFAULT_GUARD,
+        WaitMode::Sleep,
+    );
     assert!(r.wrong.is_empty(), "wrong values at cycles {:?}", r.wrong);
     assert_eq!(
         (r.duplicated, r.doubled, r.shifted, r.errors),

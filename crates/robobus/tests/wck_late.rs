@@ -6,6 +6,7 @@
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
+use robobus::WaitMode;
 use robobus::ops::Control;
 use robobus::ops::wck::{WckPlan, run_steps};
 use robobus::wck::{ScanOptions, WckBus, WckConfig};
@@ -101,7 +102,14 @@ impl ByteLink for LateBus {
     fn sleep_until(&mut self, deadline: Instant) {
         self.now = self.now.max(deadline);
     }
+
+    fn virtual_time(&self) -> bool {
+        true
+    }
 }
+
+/// Both ways of waiting for a reply: every test here must come out the same in each.
+const MODES: [WaitMode; 2] = [WaitMode::Sleep, WaitMode::SPIN];
 
 fn status_of(ids: std::ops::RangeInclusive<u8>) -> WckPlan {
     let mut plan = WckPlan::default();
@@ -115,14 +123,34 @@ fn status_of(ids: std::ops::RangeInclusive<u8>) -> WckPlan {
 
 /// Each servo's reported position is its own (or it failed); never another's. Returns
 /// the servos that answered.
-fn assert_no_reply_credited_elsewhere(link: LateBus, ids: std::ops::RangeInclusive<u8>) -> Vec<u8> {
-    let mut bus = WckBus::new(link, BaudRate::B115200)
-        .unwrap()
-        .with_config(WckConfig {
-            margin: Duration::from_millis(10),
-            ..WckConfig::default()
-        });
-    let report = run_steps(&mut bus, "status", &status_of(ids), &mut Control::none()).unwrap();
+fn assert_no_reply_credited_elsewhere(
+    link: &LateBus,
+    ids: std::ops::RangeInclusive<u8>,
+) -> Vec<u8> {
+    let mut answered = MODES.map(|wait| {
+        let fresh = LateBus::new(link.delay);
+        let start = fresh.now;
+        let mut bus = WckBus::new(fresh, BaudRate::B115200)
+            .unwrap()
+            .with_config(WckConfig {
+                margin: Duration::from_millis(10),
+                wait,
+                ..WckConfig::default()
+            });
+        let ok = credited(&mut bus, ids.clone());
+        (ok, bus.now().saturating_duration_since(start))
+    });
+    let [(sleep, took_sleep), (spin, took_spin)] = &mut answered;
+    assert_eq!(
+        sleep, spin,
+        "the servos that answered, sleeping and spinning"
+    );
+    assert_eq!(took_sleep, took_spin, "time taken on the link's clock");
+    std::mem::take(sleep)
+}
+
+fn credited(bus: &mut WckBus<LateBus>, ids: std::ops::RangeInclusive<u8>) -> Vec<u8> {
+    let report = run_steps(bus, "status", &status_of(ids), &mut Control::none()).unwrap();
     let mut ok = Vec::new();
     for r in &report.results {
         let id = r.id.cell().parse::<u8>().unwrap();
@@ -149,7 +177,7 @@ fn a_reply_15_to_45_ms_late_is_never_credited_to_the_next_servo() {
         0..=5 => Some(Duration::from_micros(1500)),
         _ => None,
     });
-    let ok = assert_no_reply_credited_elsewhere(link, 0..=5);
+    let ok = assert_no_reply_credited_elsewhere(&link, 0..=5);
     // Servos 1, 2 and 4 answer every attempt after its deadline: each reply lands in the
     // late window and is dropped, so they fail; the punctual ones answer.
     assert_eq!(ok, [0, 3, 5]);
@@ -168,13 +196,32 @@ fn a_servo_18_ms_late_every_time_fails_and_none_of_its_replies_reaches_the_next(
     });
     // On this clock every attempt's reply lands in the late window of the attempt before
     // and is dropped, so servo 0 fails; servos 1 and 2 get their own replies.
-    assert_eq!(assert_no_reply_credited_elsewhere(link, 0..=2), [1, 2]);
+    assert_eq!(assert_no_reply_credited_elsewhere(&link, 0..=2), [1, 2]);
 }
 
 /// Scans `ids` (status reads only) and returns the IDs found, with the time it took on
 /// the link's clock.
-fn scan_late(link: LateBus, ids: std::ops::RangeInclusive<u8>) -> (Vec<u8>, Duration) {
-    let mut bus = WckBus::new(link, BaudRate::B115200).unwrap();
+/// Both wait modes must find the same IDs in the same time.
+fn scan_late(link: &LateBus, ids: std::ops::RangeInclusive<u8>) -> (Vec<u8>, Duration) {
+    let [sleep, spin] = MODES.map(|wait| scan_late_in(LateBus::new(link.delay), ids.clone(), wait));
+    assert_eq!(
+        sleep, spin,
+        "IDs found and time taken, sleeping and spinning"
+    );
+    sleep
+}
+
+fn scan_late_in(
+    link: LateBus,
+    ids: std::ops::RangeInclusive<u8>,
+    wait: WaitMode,
+) -> (Vec<u8>, Duration) {
+    let mut bus = WckBus::new(link, BaudRate::B115200)
+        .unwrap()
+        .with_config(WckConfig {
+            wait,
+            ..WckConfig::default()
+        });
     let start = bus.now();
     let options = ScanOptions {
         check_duplicates: false,
@@ -195,7 +242,7 @@ fn a_scan_never_takes_a_late_reply_for_the_next_id() {
         3 => Some(Duration::from_micros(1500)),
         _ => None,
     });
-    let (found, _) = scan_late(link, 0..=4);
+    let (found, _) = scan_late(&link, 0..=4);
     assert_eq!(found, [3]);
     // Every probe of servo 1's is answered 30 ms late: the second probe of ID 1 and both of
     // ID 2 come within its replies' late windows.
@@ -203,14 +250,14 @@ fn a_scan_never_takes_a_late_reply_for_the_next_id() {
         1 => Some(Duration::from_millis(30)),
         _ => None,
     });
-    assert_eq!(scan_late(link, 0..=4).0, Vec::<u8>::new());
+    assert_eq!(scan_late(&link, 0..=4).0, Vec::<u8>::new());
 }
 
 #[test]
 fn a_scan_of_silent_ids_costs_only_their_reply_waits() {
     // 31 IDs, 2 probes each, each waiting 11.53 ms (1.53 ms modelled + 10 ms margin): no
     // late window between them.
-    let (found, took) = scan_late(LateBus::new(|_| None), 0..=30);
+    let (found, took) = scan_late(&LateBus::new(|_| None), 0..=30);
     assert!(found.is_empty());
     assert_eq!(took, 62 * Duration::from_nanos(11_527_433));
     // Two servos: each found after silent IDs waits out one late window (50 ms) and is
@@ -220,7 +267,7 @@ fn a_scan_of_silent_ids_costs_only_their_reply_waits() {
         5 | 20 => Some(Duration::from_micros(1500)),
         _ => None,
     });
-    let (found, took) = scan_late(link, 0..=30);
+    let (found, took) = scan_late(&link, 0..=30);
     assert_eq!(found, [5, 20]);
     let wait = Duration::from_nanos(11_527_433);
     let reply = Duration::from_micros(1500);

@@ -11,6 +11,7 @@ use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use robobus::WaitMode;
 use robobus::whj::{BusState, JointBus, JointBusConfig, WhjError};
 use robobus_link::{
     BusErrorKind, FaultConfig, FaultyFrameLink, FrameLink, FrameLinkError, IdFilter, Received,
@@ -125,8 +126,18 @@ fn without_verification_corruption_is_still_never_a_mismatched_reply() {
 
 #[test]
 fn an_unplugged_joint_gives_a_timeout_naming_it() {
+    // A silent joint costs its timeouts, whether the driver sleeps or spins.
+    for wait in [WaitMode::Sleep, WaitMode::SPIN] {
+        unplugged_joint(JointBusConfig {
+            wait,
+            ..virtual_config()
+        });
+    }
+}
+
+fn unplugged_joint(config: JointBusConfig) {
     let (link, sim) = sim_link(chain(2));
-    let bus = JointBus::open_with(link, virtual_config()).unwrap();
+    let bus = JointBus::open_with(link, config).unwrap();
     let joint = bus.joint(j(2)).unwrap();
     for _ in 0..100 {
         joint.position().unwrap();

@@ -5,7 +5,7 @@ use core::time::Duration;
 use std::path::Path;
 use std::time::Instant;
 
-use robobus_link::ByteLink;
+use robobus_link::{ByteLink, WaitMode};
 use robobus_wck::{
     BaudRate, Command, DataByte, ExtServoId, Position, Position10, Reply, ServoId, SyncMove,
     TorqueLevel, timing,
@@ -89,6 +89,11 @@ pub struct WckConfig {
     /// for EEPROM writes). Set it lower only for modules that answer faster, such as a
     /// simulator without processing time.
     pub min_turnaround: Option<Duration>,
+    /// How replies are waited for: in the kernel ([`WaitMode::Sleep`], the default), or
+    /// polling from shortly before the earliest instant a reply can arrive until it comes
+    /// or its deadline passes ([`WaitMode::Spin`]: no thread wake-up on the reply's path,
+    /// one core busy while a reply is due). Replies are credited the same way in both.
+    pub wait: WaitMode,
 }
 
 impl Default for WckConfig {
@@ -101,6 +106,7 @@ impl Default for WckConfig {
             late_window: DEFAULT_LATE_WINDOW,
             guard: DEFAULT_GUARD,
             min_turnaround: None,
+            wait: WaitMode::Sleep,
         }
     }
 }

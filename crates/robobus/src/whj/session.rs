@@ -59,7 +59,8 @@ use core::time::Duration;
 use std::collections::{HashMap, VecDeque};
 use std::time::Instant;
 
-use robobus_link::{BusErrorKind, FrameLinkError};
+use robobus_link::{BusErrorKind, FrameLinkError, WaitMode};
+use robobus_whj::timing::{self, BitRates};
 use robobus_whj::{CanFrame, JointId, Reply, Request};
 
 mod config;
@@ -136,6 +137,9 @@ struct InFlight {
     pending: Pending,
     sent: Instant,
     deadline: Instant,
+    /// The earliest its reply can arrive: the request's own wire time at the fastest
+    /// WHJ rates after it went out.
+    earliest: Instant,
 }
 
 /// A request whose reply arrived, held for the collision window: a second, different
@@ -562,16 +566,18 @@ impl Session {
                 continue;
             }
             self.queued.remove(i);
+            let frame = p.txn.request.to_frame();
             self.in_flight.insert(
                 key,
                 InFlight {
                     pending: p,
                     sent: now,
                     deadline: now + p.txn.timeout,
+                    earliest: now + timing::frame_duration(&frame, BitRates::WHJ),
                 },
             );
             return Some(Transmit {
-                frame: p.txn.request.to_frame(),
+                frame,
                 txn: Some((p.id, key)),
             });
         }
@@ -616,6 +622,25 @@ impl Session {
     /// Whether a frame is expected: a reply in flight or held, feedback of the running
     /// cycle, or a bus-off recovery that queued requests wait for. Only then does the
     /// driver block in the link's receive; otherwise it sleeps.
+    /// How the driver waits (from the settings).
+    pub(crate) const fn wait_mode(&self) -> WaitMode {
+        self.config.wait
+    }
+
+    /// The earliest instant a frame the session awaits can arrive, from `now` on: a
+    /// request's reply not before the request has crossed the wire; anything else (a
+    /// cyclic loop's feedback, a held reply's rival) at any time.
+    pub(crate) fn earliest_reply(&self, now: Instant) -> Instant {
+        if !self.credited.is_empty() || self.cyclic.as_ref().is_some_and(CyclicRun::awaiting) {
+            return now;
+        }
+        self.in_flight
+            .values()
+            .map(|f| f.earliest)
+            .min()
+            .map_or(now, |t| t.max(now))
+    }
+
     pub(crate) fn awaiting(&self) -> bool {
         !self.in_flight.is_empty()
             || !self.credited.is_empty()

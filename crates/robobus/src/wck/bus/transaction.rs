@@ -3,7 +3,7 @@
 
 use core::time::Duration;
 
-use robobus_link::{ByteLink, LinkError};
+use robobus_link::{ByteLink, LinkError, wait};
 use robobus_wck::{Command, Reply, ReplyError, timing};
 
 use super::WckBus;
@@ -113,8 +113,16 @@ impl<L: ByteLink> WckBus<L> {
         let (mut total, mut early) = (0usize, 0usize);
         let mut until = deadline;
         let mut buf = [0u8; KEEP_BYTES];
+        let mode = self.config.wait;
         loop {
-            match self.link.read_some(&mut buf, until) {
+            // The reply's first byte is due at `earliest`, each next one at once; after a
+            // whole reply, nothing is (the guard time must pass quietly).
+            let expected = if total - early >= reply_len {
+                until
+            } else {
+                earliest.max(self.link.now())
+            };
+            match wait::read_some(&mut self.link, &mut buf, until, expected, mode) {
                 Ok(n) => {
                     // Received by now: a byte read before the earliest reply instant
                     // arrived before any module can have started answering.

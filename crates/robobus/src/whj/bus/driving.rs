@@ -11,7 +11,7 @@ use std::sync::mpsc::{Receiver, RecvTimeoutError, TryRecvError};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Instant;
 
-use robobus_link::{FrameLink, FrameLinkError};
+use robobus_link::{FrameLink, FrameLinkError, wait};
 
 use super::mailbox::CyclicMailbox;
 use super::{Shared, lock};
@@ -118,7 +118,8 @@ impl Core {
         let wake = self.session.next_deadline(now).min(until).max(now);
         if listen || self.session.awaiting() || self.session.broadcast_pending(now) {
             self.last_drain = now;
-            match self.link.recv(wake) {
+            let expected = self.session.earliest_reply(now);
+            match wait::recv(&mut *self.link, wake, expected, self.session.wait_mode()) {
                 Ok(rx) => {
                     let at = self.link.now();
                     self.session.handle_frame(&rx.frame, at);
@@ -127,7 +128,7 @@ impl Core {
                 Err(e) => self.link_error(&e),
             }
         } else if wake > now {
-            self.link.sleep_until(wake);
+            wait::sleep_until(&mut *self.link, wake, self.session.wait_mode());
         }
         // Whatever became due meanwhile (a tick, the next queued request) goes out now.
         if !self.closed {

@@ -4,6 +4,8 @@
 use core::fmt;
 use core::time::Duration;
 
+use robobus_link::WaitMode;
+
 /// Settings of a [`JointBus`]. `JointBusConfig::default()` follows the protocol reference.
 ///
 /// [`JointBus`]: crate::whj::JointBus
@@ -55,6 +57,12 @@ pub struct JointBusConfig {
     /// The longest one receive or sleep of the driving thread lasts before it looks at
     /// the session again and lets other threads in (default 0.5 ms).
     pub poll_interval: Duration,
+    /// How the driving thread waits for replies and timed instants: in the kernel
+    /// ([`WaitMode::Sleep`], the default), or polling from shortly before a reply can
+    /// arrive (a request's wire time after it went out) or a timed instant (the cyclic
+    /// loop's tick) until it comes ([`WaitMode::Spin`]: no thread wake-up on the reply's
+    /// path, one core busy meanwhile). Replies are credited the same way in both.
+    pub wait: WaitMode,
 }
 
 impl Default for JointBusConfig {
@@ -71,6 +79,7 @@ impl Default for JointBusConfig {
             error_passive_hold: Duration::from_secs(1),
             collision_window: Duration::from_micros(500),
             poll_interval: Duration::from_micros(500),
+            wait: WaitMode::Sleep,
         }
     }
 }
