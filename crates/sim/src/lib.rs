@@ -6,5 +6,9 @@
 //! behind an endpoint they follow the wall clock.
 
 pub mod faults;
+pub mod lateness;
 pub mod wck;
 pub mod whj;
+
+pub use lateness::{Lateness, LatenessSummary};
+pub use robobus_link::WaitMode;

@@ -5,7 +5,8 @@
 use std::time::{Duration, Instant};
 
 use robobus_link::{ByteLink, LinkError, PtyOptions, PtyPair};
-use robobus_sim::wck::{Bus, BusConfig, Endpoint, Model, spawn};
+use robobus_sim::WaitMode;
+use robobus_sim::wck::{Bus, BusConfig, Endpoint, Model, spawn, spawn_waiting};
 
 fn transact(client: &mut impl ByteLink, packet: &[u8], wait: Duration) -> (Vec<u8>, Duration) {
     client.discard_input().unwrap();
@@ -116,4 +117,34 @@ fn a_status_read_wakes_the_serving_thread_for_the_command_and_each_reply_byte_on
         "{} wake-ups for {reads} reads in {wall:?}",
         stats.wakeups
     );
+}
+
+#[test]
+fn the_precise_endpoint_answers_the_same_and_reports_each_reply_bytes_lateness() {
+    for wait in [WaitMode::Sleep, WaitMode::SPIN] {
+        let mut bus = Bus::with_servos(BusConfig::default(), Model::W1108, [0]);
+        bus.advance(Duration::from_millis(70));
+        let (endpoint, mut client) = spawn_waiting(bus, wait).unwrap();
+        let reads = 50u64;
+        for _ in 0..reads {
+            let (reply, took) = transact(
+                &mut client,
+                &[0xFF, 0xA0, 0x00, 0x20],
+                Duration::from_secs(1),
+            );
+            assert_eq!(reply, [0x00, 0x7F], "{wait}");
+            // Never before the wire and the module's turnaround allow (6 bytes at 115200
+            // bit/s and 1006.6 µs).
+            assert!(took >= Duration::from_micros(1527), "{wait}: {took:?}");
+        }
+        let stats = endpoint.stop().unwrap();
+        assert_eq!(stats.wait, wait);
+        // Every reply byte's release is in the record (wall-clock values, not checked).
+        let l = stats.lateness;
+        assert_eq!(l.releases, 2 * reads, "{wait}: {stats:?}");
+        assert!(
+            l.p50 <= l.p99 && l.p99.is_some_and(|p| p <= l.max),
+            "{wait}: {l:?}"
+        );
+    }
 }

@@ -7,13 +7,33 @@ mod whj_common;
 
 use std::time::{Duration, Instant};
 
-use robobus_link::FrameLink;
-use robobus_sim::whj::{WhjBus, WhjModel, spawn};
+use robobus_link::{FrameLink, MemoryBus};
+use robobus_sim::WaitMode;
+use robobus_sim::whj::{ServeStats, Served, WhjBus, WhjModel, spawn};
 use whj_common::{frame, pos_cmd};
 
 #[test]
 fn serve_answers_on_the_wall_clock_and_stops() {
     let (server, wire) = spawn(WhjBus::chain(1..=7, WhjModel::Whj60, 1)).unwrap();
+    let stats = answers(server, &wire);
+    assert_eq!(stats.wait, WaitMode::Sleep);
+}
+
+#[test]
+fn the_precise_mode_answers_the_same_and_reports_each_frames_lateness() {
+    let wire = MemoryBus::new();
+    let server = Served::spawn_precise(
+        "precise",
+        WhjBus::chain(1..=7, WhjModel::Whj60, 1),
+        wire.endpoint(),
+    )
+    .unwrap();
+    let stats = answers(server, &wire);
+    assert_eq!(stats.wait, WaitMode::SPIN);
+}
+
+/// Three requests and a silent joint; returns what the server did.
+fn answers(server: Served, wire: &MemoryBus) -> ServeStats {
     let mut host = wire.endpoint();
 
     let mut ask = |f, want: u32| {
@@ -37,4 +57,9 @@ fn serve_answers_on_the_wall_clock_and_stops() {
 
     let (_, stats) = server.stop().unwrap();
     assert_eq!((stats.received, stats.sent), (3, 2));
+    // Both frames' releases are in the record (wall-clock values, not checked).
+    let l = stats.lateness;
+    assert_eq!(l.releases, 2, "{stats:?}");
+    assert!(l.p50 <= l.p99 && l.p99.is_some_and(|p| p <= l.max), "{l:?}");
+    stats
 }

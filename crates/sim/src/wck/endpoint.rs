@@ -25,9 +25,10 @@ use std::thread::JoinHandle;
 use std::time::Instant;
 
 use robobus_link::pty::termios_speed;
-use robobus_link::{ByteLink, LinkError, PtyLink, PtyOptions, PtyPair};
+use robobus_link::{ByteLink, LinkError, PtyLink, PtyOptions, PtyPair, WaitMode, wait};
 
 use super::bus::Bus;
+use crate::lateness::{Lateness, LatenessSummary};
 
 /// How long the serving thread sleeps at most when nothing is due (it then checks for
 /// stop requests, queued commands and the client's baud rate).
@@ -56,8 +57,12 @@ pub struct EndpointStats {
     /// Sum of the lateness of every written byte (divide by `bytes_out` for the mean).
     pub late_total: Duration,
     /// Times the serving thread woke up (client input, a reply byte due, a queued
-    /// command, or the idle tick).
+    /// command, or the idle tick); in [`WaitMode::Spin`], loop passes.
     pub wakeups: u64,
+    /// How late the reply bytes were written after their release instants (p50, p99).
+    pub lateness: LatenessSummary,
+    /// How the serving thread waited.
+    pub wait: WaitMode,
 }
 
 /// Why serving stopped with an error.
@@ -101,12 +106,27 @@ impl Endpoint {
         termios: Option<OwnedFd>,
         path: PathBuf,
     ) -> std::io::Result<Self> {
+        Self::spawn_waiting(bus, link, termios, path, WaitMode::Sleep)
+    }
+
+    /// [`Endpoint::spawn_link`], waiting in `wait`: [`WaitMode::Spin`] is the precise
+    /// mode, for benchmarks that measure a client against a device that keeps its timing.
+    /// The serving thread then polls the pty for requests instead of sleeping, and spins to
+    /// each reply byte's release instant instead of waking up for it: one core stays busy
+    /// while it serves.
+    pub fn spawn_waiting<L: ByteLink + Send + 'static>(
+        bus: Bus,
+        link: L,
+        termios: Option<OwnedFd>,
+        path: PathBuf,
+        wait: WaitMode,
+    ) -> std::io::Result<Self> {
         let stop = Arc::new(AtomicBool::new(false));
         let (jobs, rx) = mpsc::channel::<Job>();
         let flag = Arc::clone(&stop);
         let thread = std::thread::Builder::new()
             .name("robobus-sim-wck".into())
-            .spawn(move || serve(bus, link, termios.as_ref(), &flag, &rx))?;
+            .spawn(move || serve(bus, link, termios.as_ref(), &flag, &rx, wait))?;
         Ok(Self {
             stop,
             jobs,
@@ -169,8 +189,20 @@ impl Drop for Endpoint {
 ///
 /// Errors: the pty cannot be opened or the thread cannot be started.
 pub fn spawn(bus: Bus) -> Result<(Endpoint, PtyLink), LinkError> {
+    spawn_waiting(bus, WaitMode::Sleep)
+}
+
+/// [`spawn`], the serving thread waiting in `wait` (see [`Endpoint::spawn_waiting`]).
+///
+/// Errors: the pty cannot be opened or the thread cannot be started.
+pub fn spawn_waiting(bus: Bus, wait: WaitMode) -> Result<(Endpoint, PtyLink), LinkError> {
     let pair = PtyPair::open(&PtyOptions::default())?;
-    let endpoint = Endpoint::spawn(bus, pair.master, pair.slave_path)
+    let termios = pair
+        .master
+        .as_fd()
+        .try_clone_to_owned()
+        .map_err(|e| LinkError::io("starting the wCK endpoint", e))?;
+    let endpoint = Endpoint::spawn_waiting(bus, pair.master, Some(termios), pair.slave_path, wait)
         .map_err(|e| LinkError::io("starting the wCK endpoint", e))?;
     Ok((endpoint, pair.slave))
 }
@@ -225,6 +257,7 @@ fn serve<L: ByteLink>(
     termios: Option<&OwnedFd>,
     stop: &AtomicBool,
     jobs: &mpsc::Receiver<Job>,
+    wait: WaitMode,
 ) -> Result<EndpointStats, EndpointError> {
     // Wake-ups as close to the requested instant as the kernel allows.
     let _ = nix::sys::prctl::set_timerslack(1);
@@ -232,7 +265,11 @@ fn serve<L: ByteLink>(
     let t0 = Instant::now();
     let offset = bus.now();
     let sim_now = || offset + t0.elapsed();
-    let mut stats = EndpointStats::default();
+    let mut stats = EndpointStats {
+        wait,
+        ..EndpointStats::default()
+    };
+    let mut lateness = Lateness::new();
     let mut buf = [0u8; 512];
     let mut out: Vec<u8> = Vec::with_capacity(64);
     let mut next_baud_check = Duration::ZERO;
@@ -255,6 +292,7 @@ fn serve<L: ByteLink>(
             let late = now.saturating_sub(due);
             stats.late_max = stats.late_max.max(late);
             stats.late_total += late;
+            lateness.record(late);
             out.push(byte);
         }
         if !out.is_empty() {
@@ -273,14 +311,22 @@ fn serve<L: ByteLink>(
         let ahead = wire_free.saturating_sub(now);
         if ahead >= INPUT_AHEAD {
             let until = wake.min(wire_free.saturating_sub(INPUT_AHEAD) + BYTE_SLACK);
-            std::thread::sleep(
-                (t0 + until.saturating_sub(offset)).saturating_duration_since(Instant::now()),
-            );
+            let until = t0 + until.saturating_sub(offset);
+            if wait.spins() {
+                while Instant::now() < until {
+                    core::hint::spin_loop();
+                }
+            } else {
+                std::thread::sleep(until.saturating_duration_since(Instant::now()));
+            }
             continue;
         }
         let room = bytes_in(INPUT_AHEAD.saturating_sub(ahead), bus.host_bps()).clamp(1, buf.len());
         let deadline = t0 + wake.saturating_sub(offset);
-        match master.read_some(buf.get_mut(..room).unwrap_or_default(), deadline) {
+        // A request may come at any time: in the precise mode the pty is polled from now
+        // on, and the wait for the next release ends on time.
+        let input = buf.get_mut(..room).unwrap_or_default();
+        match wait::read_some(&mut master, input, deadline, Instant::now(), wait) {
             Ok(n) => {
                 let at = sim_now();
                 bus.advance(at);
@@ -293,6 +339,7 @@ fn serve<L: ByteLink>(
         }
     }
     stats.wall = t0.elapsed();
+    stats.lateness = lateness.summary();
     stats.cpu = thread_cpu().saturating_sub(cpu0);
     Ok(stats)
 }

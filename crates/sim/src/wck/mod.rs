@@ -80,7 +80,7 @@ mod uart;
 pub use bus::{Bus, BusConfig, BusStats, Faults};
 pub use clock::VirtualHost;
 #[cfg(target_os = "linux")]
-pub use endpoint::{Endpoint, EndpointError, EndpointStats, spawn};
+pub use endpoint::{Endpoint, EndpointError, EndpointStats, spawn, spawn_waiting};
 pub use link::{SimHandle, SimLink};
 pub use mechanics::{Drive, Mechanics};
 pub use model::{Model, UnknownModel};

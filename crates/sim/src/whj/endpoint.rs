@@ -12,10 +12,11 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use robobus_link::{FrameLink, FrameLinkError, MemoryBus};
+use robobus_link::{FrameLink, FrameLinkError, MemoryBus, WaitMode, wait};
 
 use super::bus::WhjBus;
 use crate::faults::FaultSchedule;
+use crate::lateness::{Lateness, LatenessSummary};
 
 /// How long [`serve`] waits at most between two looks at `stop` (and at the joints'
 /// timers).
@@ -32,6 +33,10 @@ pub struct ServeStats {
     pub max_lateness: Duration,
     /// Bus errors reported by the link (bus-off, error passive) that were skipped.
     pub bus_errors: u64,
+    /// How late the frames were sent after their release instants (p50, p99).
+    pub lateness: LatenessSummary,
+    /// How the serving thread waited.
+    pub wait: WaitMode,
 }
 
 /// A simulated bus served by [`serve`] on a thread of its own, until [`Served::stop`] (or
@@ -54,6 +59,20 @@ impl Served {
     ) -> std::io::Result<Self> {
         Self::start(name, move |stop| {
             serve(&mut bus, &mut link, stop).map(|stats| (bus, stats))
+        })
+    }
+
+    /// [`Served::spawn`] in the precise mode ([`serve_precise`]): the thread polls for
+    /// frames and spins to each release instant, one core busy while it serves.
+    ///
+    /// Errors: the thread cannot be started.
+    pub fn spawn_precise<L: FrameLink + Send + 'static>(
+        name: &str,
+        mut bus: WhjBus,
+        mut link: L,
+    ) -> std::io::Result<Self> {
+        Self::start(name, move |stop| {
+            serve_precise(&mut bus, &mut link, stop).map(|stats| (bus, stats))
         })
     }
 
@@ -172,6 +191,29 @@ pub fn serve<L: FrameLink + ?Sized>(
     serve_with(bus, link, stop, FaultSchedule::default(), || {})
 }
 
+/// [`serve`] in the precise mode: instead of sleeping until the next frame is due or a
+/// frame arrives, the loop polls the link without blocking and sends each frame when the
+/// wall clock reaches its release instant, so the replies keep their modelled timing
+/// however slowly the machine wakes threads. One core stays busy while it serves; for
+/// benchmarks that measure a client against a device that keeps its timing.
+///
+/// Errors: as [`serve`].
+pub fn serve_precise<L: FrameLink + ?Sized>(
+    bus: &mut WhjBus,
+    link: &mut L,
+    stop: &AtomicBool,
+) -> Result<ServeStats, FrameLinkError> {
+    serve_loop(
+        bus,
+        link,
+        stop,
+        FaultSchedule::default(),
+        || {},
+        |_| {},
+        WaitMode::SPIN,
+    )
+}
+
 /// [`serve`] with device faults applied at their simulation times, and `on_serving`
 /// called once the loop is about to take its first frame (announce readiness there:
 /// nothing a client sends is missed from then on).
@@ -192,14 +234,38 @@ pub fn serve_observed<L: FrameLink + ?Sized>(
     bus: &mut WhjBus,
     link: &mut L,
     stop: &AtomicBool,
+    faults: FaultSchedule,
+    on_serving: impl FnOnce(),
+    observe: impl FnMut(&WhjBus),
+) -> Result<ServeStats, FrameLinkError> {
+    serve_loop(
+        bus,
+        link,
+        stop,
+        faults,
+        on_serving,
+        observe,
+        WaitMode::Sleep,
+    )
+}
+
+fn serve_loop<L: FrameLink + ?Sized>(
+    bus: &mut WhjBus,
+    link: &mut L,
+    stop: &AtomicBool,
     mut faults: FaultSchedule,
     on_serving: impl FnOnce(),
     mut observe: impl FnMut(&WhjBus),
+    wait: WaitMode,
 ) -> Result<ServeStats, FrameLinkError> {
     let origin = Instant::now()
         .checked_sub(bus.now())
         .unwrap_or_else(Instant::now);
-    let mut stats = ServeStats::default();
+    let mut stats = ServeStats {
+        wait,
+        ..ServeStats::default()
+    };
+    let mut lateness = Lateness::new();
     let mut on_serving = Some(on_serving);
     while !stop.load(Ordering::Relaxed) {
         let now = origin.elapsed();
@@ -218,9 +284,9 @@ pub fn serve_observed<L: FrameLink + ?Sized>(
             tracing::trace!(frame = ?d.frame, due = ?d.at, "tx");
             link.send(&d.frame)?;
             stats.sent += 1;
-            stats.max_lateness = stats
-                .max_lateness
-                .max(origin.elapsed().saturating_sub(d.at));
+            let late = origin.elapsed().saturating_sub(d.at);
+            stats.max_lateness = stats.max_lateness.max(late);
+            lateness.record(late);
         }
         let wake = bus
             .next_event()
@@ -230,7 +296,8 @@ pub fn serve_observed<L: FrameLink + ?Sized>(
         if let Some(ready) = on_serving.take() {
             ready();
         }
-        match link.recv(origin + wake) {
+        // A host frame may come at any time: the precise mode polls from now on.
+        match wait::recv(link, origin + wake, Instant::now(), wait) {
             Ok(rx) => {
                 tracing::trace!(frame = ?rx.frame, "rx");
                 stats.received += 1;
@@ -248,5 +315,6 @@ pub fn serve_observed<L: FrameLink + ?Sized>(
         }
         observe(bus);
     }
+    stats.lateness = lateness.summary();
     Ok(stats)
 }

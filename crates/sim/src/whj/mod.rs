@@ -51,7 +51,7 @@ pub use config::{
     BootConfig, BroadcastReadReply, JointConfig, Load, SpeedLimitUnit, StepConfig, WatchdogConfig,
 };
 pub use end_board::SimEndBoard;
-pub use endpoint::{ServeStats, Served, serve, serve_observed, serve_with, spawn};
+pub use endpoint::{ServeStats, Served, serve, serve_observed, serve_precise, serve_with, spawn};
 pub use joint::{JointState, Phase, Reply, Sample, SimJoint};
 pub use link::{WhjSimHandle, WhjSimLink};
 pub use model::{ModelParams, UnknownModel, WhjModel};
