@@ -18,7 +18,13 @@
 //! use robobus_wck::BaudRate;
 //!
 //! // 31 servos at 115200 bit/s with the manual's turnaround: 31 × 1527.4 µs per cycle.
-//! let spec = PollSpec { servos: 31, baud: BaudRate::B115200, manual_turnaround: true };
+//! let spec = PollSpec {
+//!     servos: 31,
+//!     baud: BaudRate::B115200,
+//!     manual_turnaround: true,
+//!     wait: robobus_link::WaitMode::Sleep,
+//!     memory: false,
+//! };
 //! let cycle = spec.modelled_cycle().as_secs_f64();
 //! assert!((1.0 / cycle - 21.1).abs() < 0.1);
 //!
@@ -37,6 +43,7 @@ pub mod stats;
 pub mod studio;
 pub mod svg;
 pub mod telemetry;
+pub mod transport;
 pub mod wck;
 pub mod whj;
 
@@ -45,6 +52,7 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use robobus::whj::Protocol;
+use robobus_link::WaitMode;
 use robobus_wck::BaudRate;
 
 /// A benchmark that could not run, with what it was doing.
@@ -378,6 +386,8 @@ fn spec(servos: u8, baud: BaudRate, manual_turnaround: bool) -> wck::PollSpec {
         servos,
         baud,
         manual_turnaround,
+        wait: WaitMode::Sleep,
+        memory: false,
     }
 }
 
@@ -386,5 +396,7 @@ fn chain(joints: u8, delay: Duration, fast_wire: bool) -> whj::ChainSpec {
         joints,
         delay,
         fast_wire,
+        wait: WaitMode::Sleep,
+        collision_window: true,
     }
 }

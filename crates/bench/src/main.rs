@@ -2,12 +2,12 @@
 //!
 //! ```text
 //! robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]
-//! robobus-bench serve-whj --joints N --delay-us D [--fast-wire]
-//! robobus-bench poll-wck --servos N --baud B --secs S [--turnaround]
+//! robobus-bench serve-whj --joints N --delay-us D [--fast-wire] [--wait sleep|spin]
+//! robobus-bench poll-wck --servos N --baud B --secs S [--turnaround] [--wait sleep|spin] [--memory]
 //! robobus-bench telemetry --secs S
 //! robobus-bench studio --secs S
 //! robobus-bench bridge [--bridges N] [--rate HZ] [--secs S] [--smoke]
-//! robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire]
+//! robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window]
 //! ```
 //!
 //! `telemetry` runs the telemetry fan-out cases alone and prints their section of the
@@ -27,7 +27,7 @@ use robobus_bench::{Options, report, run, wck, whj};
 fn usage() -> ExitCode {
     let _ = writeln!(
         std::io::stderr(),
-        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround]\n       robobus-bench telemetry --secs S\n       robobus-bench studio --secs S\n       robobus-bench bridge [--bridges N] [--rate HZ] [--secs S] [--smoke]\n       robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire]"
+        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire] [--wait sleep|spin]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround] [--wait sleep|spin] [--memory]\n       robobus-bench telemetry --secs S\n       robobus-bench studio --secs S\n       robobus-bench bridge [--bridges N] [--rate HZ] [--secs S] [--smoke]\n       robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window]\n       robobus-bench free-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window]"
     );
     ExitCode::from(2)
 }
@@ -38,6 +38,8 @@ fn chain_args(args: &[String], mut secs: Option<&mut f64>) -> Option<whj::ChainS
         joints: 1,
         delay: whj::DEFAULT_DELAY,
         fast_wire: false,
+        wait: robobus_link::WaitMode::Sleep,
+        collision_window: true,
     };
     let mut it = args.iter();
     while let Some(a) = it.next() {
@@ -55,6 +57,8 @@ fn chain_args(args: &[String], mut secs: Option<&mut f64>) -> Option<whj::ChainS
                 _ => return None,
             },
             "--fast-wire" => spec.fast_wire = true,
+            "--no-window" => spec.collision_window = false,
+            "--wait" => spec.wait = it.next()?.parse().ok()?,
             _ => return None,
         }
     }
@@ -79,6 +83,8 @@ fn poll_wck(args: &[String]) -> ExitCode {
         servos: 1,
         baud: robobus_wck::BaudRate::B115200,
         manual_turnaround: false,
+        wait: robobus_link::WaitMode::Sleep,
+        memory: false,
     };
     let mut secs = 1.0_f64;
     let mut it = args.iter();
@@ -101,6 +107,15 @@ fn poll_wck(args: &[String]) -> ExitCode {
                 _ => return usage(),
             },
             "--turnaround" => spec.manual_turnaround = true,
+            "--memory" => spec.memory = true,
+            "--wait" => match it.next().map(|v| v.parse()) {
+                Some(Ok(w)) => spec.wait = w,
+                Some(Err(e)) => {
+                    let _ = writeln!(std::io::stderr(), "poll-wck: --wait: {e}");
+                    return ExitCode::from(2);
+                }
+                None => return usage(),
+            },
             _ => return usage(),
         }
     }
@@ -108,15 +123,18 @@ fn poll_wck(args: &[String]) -> ExitCode {
         Ok(r) => {
             let _ = writeln!(
                 std::io::stdout(),
-                "{} servo(s) at {}: {} cycles, {} errors, {:.1} Hz, {:.1} % of the wire, \
-                 client CPU {:.1} µs/cycle",
+                "{} servo(s) at {}, wait {}: {} cycles, {} errors, {:.1} Hz, {:.1} % of the \
+                 wire, client CPU {:.1} µs/cycle; simulator late p50 {} p99 {}",
                 spec.servos,
                 spec.baud,
+                spec.wait,
                 r.cycles,
                 r.errors,
                 r.rate_hz(),
                 r.efficiency() * 100.0,
-                r.cpu_per_cycle_us()
+                r.cpu_per_cycle_us(),
+                report::opt_us(r.endpoint.lateness.p50),
+                report::opt_us(r.endpoint.lateness.p99),
             );
             ExitCode::SUCCESS
         }
@@ -156,6 +174,39 @@ fn servo_whj(args: &[String]) -> ExitCode {
         }
         Err(e) => {
             let _ = writeln!(std::io::stderr(), "servo-whj: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// `free-whj`: the free-running servo cycle alone over the in-process memory bus.
+fn free_whj(args: &[String]) -> ExitCode {
+    let mut secs = 1.5;
+    let Some(spec) = chain_args(args, Some(&mut secs)) else {
+        return usage();
+    };
+    match whj::free_running_memory(spec, Duration::from_secs_f64(secs)) {
+        Ok(r) => {
+            let late = r.sim_lateness.unwrap_or_default();
+            let _ = writeln!(
+                std::io::stdout(),
+                "free-whj {} joint(s) memory, wait {}, collision window {}: {:.0} cycles/s, \
+                 {:.1} % of the wire, {} errors, client CPU {:.1} µs/cycle; simulator late \
+                 p50 {} p99 {}",
+                spec.joints,
+                spec.wait,
+                if spec.collision_window { "on" } else { "off" },
+                r.rate_hz(),
+                r.efficiency() * 100.0,
+                r.errors,
+                r.cpu_per_cycle_us(),
+                report::opt_us(late.p50),
+                report::opt_us(late.p99),
+            );
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            let _ = writeln!(std::io::stderr(), "free-whj: {e}");
             ExitCode::FAILURE
         }
     }
@@ -293,6 +344,31 @@ fn main() -> ExitCode {
     }
     if args.first().map(String::as_str) == Some("servo-whj") {
         return servo_whj(args.get(1..).unwrap_or_default());
+    }
+    if args.first().map(String::as_str) == Some("echo") {
+        for (what, r) in [
+            ("pty", robobus_bench::transport::pty_echo(5000)),
+            ("memory bus", robobus_bench::transport::memory_echo(5000)),
+        ] {
+            match r {
+                Ok(s) => {
+                    let _ = writeln!(
+                        std::io::stdout(),
+                        "{what} echo, both sides spinning: p50 {:.1} µs, p99 {:.1} µs",
+                        s.p50,
+                        s.p99
+                    );
+                }
+                Err(e) => {
+                    let _ = writeln!(std::io::stderr(), "echo: {e}");
+                    return ExitCode::FAILURE;
+                }
+            }
+        }
+        return ExitCode::SUCCESS;
+    }
+    if args.first().map(String::as_str) == Some("free-whj") {
+        return free_whj(args.get(1..).unwrap_or_default());
     }
     if args.first().map(String::as_str) == Some("telemetry") {
         return telemetry(args.get(1..).unwrap_or_default());

@@ -2,6 +2,7 @@
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+use std::time::Duration;
 
 use robobus::whj::Protocol;
 
@@ -882,4 +883,12 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
          + device time / measured cycle time."
     );
     o
+}
+
+/// A lateness quantile in µs, or "beyond 20 ms" / "–" (nothing released).
+pub fn opt_us(d: Option<Duration>) -> String {
+    d.map_or_else(
+        || "–".to_owned(),
+        |d| format!("{:.0} µs", d.as_secs_f64() * 1e6),
+    )
 }

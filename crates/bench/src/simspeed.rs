@@ -55,6 +55,8 @@ pub fn whj(simulated: Duration) -> SimSpeed {
         joints: 7,
         delay: DEFAULT_DELAY,
         fast_wire: false,
+        wait: robobus_link::WaitMode::Sleep,
+        collision_window: true,
     };
     let mut bus = spec.build();
     let ms = u64::try_from(simulated.as_millis()).unwrap_or(u64::MAX);

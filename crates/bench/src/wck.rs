@@ -2,11 +2,12 @@
 //! status polling and paced synchronized-move streaming, and the pyserial peer on the same
 //! endpoint.
 
+use std::os::fd::AsFd as _;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use robobus::wck::{WckBus, WckConfig};
-use robobus_link::{PtyLink, PtyOptions, PtyPair};
+use robobus_link::{ByteLink, MemoryByteLink, PtyOptions, PtyPair, WaitMode};
 use robobus_sim::wck::{Bus, BusConfig, Endpoint, EndpointStats, Model, Timing};
 use robobus_wck::timing;
 use robobus_wck::{BaudRate, Command, Position, ServoId, TorqueLevel};
@@ -16,42 +17,99 @@ use crate::{BenchError, cpu};
 
 /// The simulator's pty endpoint with `servos` modules (IDs `0..servos`) and the client's
 /// side of the pty.
-#[derive(Debug)]
 pub struct Rig {
     /// The endpoint (one thread, wall clock).
     pub endpoint: Endpoint,
-    /// The client side of the pty, as a link.
-    pub slave: PtyLink,
+    /// The client side of the pty (or of the memory byte link), as a link.
+    pub slave: Box<dyn ByteLink + Send>,
     /// The slave device path (what an outside program opens).
     pub path: PathBuf,
+}
+
+impl std::fmt::Debug for Rig {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Rig")
+            .field("endpoint", &self.endpoint)
+            .field("path", &self.path)
+            .finish_non_exhaustive()
+    }
 }
 
 impl Rig {
     /// Opens a pty and serves `servos` W1108 modules at `baud` with `timing` behind it (no
     /// turnaround spread between modules).
-    pub fn open(servos: u8, baud: BaudRate, timing: Timing) -> Result<Self, BenchError> {
+    /// In [`WaitMode::Spin`] the endpoint serves in its precise mode (it polls for
+    /// requests and spins to each reply byte's release instant).
+    pub fn open(
+        servos: u8,
+        baud: BaudRate,
+        timing: Timing,
+        wait: WaitMode,
+    ) -> Result<Self, BenchError> {
+        let bus = modules(servos, baud, timing);
         let pair = PtyPair::open(&PtyOptions {
             baud: baud.bits_per_second(),
             symlink: None,
         })
         .map_err(|e| BenchError::new("opening a pty", e))?;
-        let config = BusConfig {
-            host_baud: baud,
-            timing,
-            max_skew: Duration::ZERO,
-            ..BusConfig::default()
-        };
-        let mut bus = Bus::with_servos(config, Model::W1108, 0..servos);
-        // Past the modules' deaf time after power-up.
-        bus.advance(Duration::from_millis(70));
-        let endpoint = Endpoint::spawn(bus, pair.master, pair.slave_path.clone())
+        let termios = pair
+            .master
+            .as_fd()
+            .try_clone_to_owned()
             .map_err(|e| BenchError::new("starting the wCK endpoint", e))?;
+        let endpoint = Endpoint::spawn_waiting(
+            bus,
+            pair.master,
+            Some(termios),
+            pair.slave_path.clone(),
+            wait,
+        )
+        .map_err(|e| BenchError::new("starting the wCK endpoint", e))?;
         Ok(Self {
             endpoint,
-            slave: pair.slave,
+            slave: Box::new(pair.slave),
             path: pair.slave_path,
         })
     }
+
+    /// The same modules served over an in-process memory byte link instead of a pty:
+    /// no kernel between client and simulator (no path for an outside program).
+    pub fn open_memory(
+        servos: u8,
+        baud: BaudRate,
+        timing: Timing,
+        wait: WaitMode,
+    ) -> Result<Self, BenchError> {
+        let (client, device) = MemoryByteLink::pair();
+        let path = PathBuf::from("(memory)");
+        let endpoint = Endpoint::spawn_waiting(
+            modules(servos, baud, timing),
+            device,
+            None,
+            path.clone(),
+            wait,
+        )
+        .map_err(|e| BenchError::new("starting the wCK endpoint", e))?;
+        Ok(Self {
+            endpoint,
+            slave: Box::new(client),
+            path,
+        })
+    }
+}
+
+/// `servos` W1108 modules at `baud` with `timing` (no turnaround spread between them),
+/// past their deaf time after power-up.
+fn modules(servos: u8, baud: BaudRate, timing: Timing) -> Bus {
+    let config = BusConfig {
+        host_baud: baud,
+        timing,
+        max_skew: Duration::ZERO,
+        ..BusConfig::default()
+    };
+    let mut bus = Bus::with_servos(config, Model::W1108, 0..servos);
+    bus.advance(Duration::from_millis(70));
+    bus
 }
 
 /// One polling configuration.
@@ -63,6 +121,12 @@ pub struct PollSpec {
     pub baud: BaudRate,
     /// The manual's 1006.6 µs module turnaround (`true`) or none.
     pub manual_turnaround: bool,
+    /// How the client waits for replies; in [`WaitMode::Spin`] the endpoint serves in its
+    /// precise mode too.
+    pub wait: WaitMode,
+    /// Over an in-process memory byte link instead of the pty (takes the kernel's pty
+    /// transfer out of the measurement).
+    pub memory: bool,
 }
 
 impl PollSpec {
@@ -77,6 +141,20 @@ impl PollSpec {
                 Duration::ZERO
             };
         per * u32::from(self.servos)
+    }
+
+    /// The client's settings: the simulated modules answer as soon as the command ends
+    /// (zero turnaround) or after exactly the manual's turnaround, and each alone, so no
+    /// guard time after a reply (a second module answering the same command, which the
+    /// guard catches, cannot happen on this bus; with it each transaction would carry one
+    /// module turnaround more than the wire model).
+    pub fn client_config(self) -> WckConfig {
+        WckConfig {
+            min_turnaround: (!self.manual_turnaround).then_some(Duration::ZERO),
+            guard: Duration::ZERO,
+            wait: self.wait,
+            ..WckConfig::default()
+        }
     }
 
     fn timing(self) -> Timing {
@@ -140,14 +218,14 @@ pub fn poll(
     duration: Duration,
     python: Option<&std::path::Path>,
 ) -> Result<PollResult, BenchError> {
-    let rig = Rig::open(spec.servos, spec.baud, spec.timing())?;
+    let rig = if spec.memory {
+        Rig::open_memory(spec.servos, spec.baud, spec.timing(), spec.wait)?
+    } else {
+        Rig::open(spec.servos, spec.baud, spec.timing(), spec.wait)?
+    };
     let mut bus = WckBus::new(rig.slave, spec.baud)
         .map_err(|e| BenchError::new("opening WckBus", e))?
-        .with_config(WckConfig {
-            // The simulated modules answer as soon as the command ends.
-            min_turnaround: (!spec.manual_turnaround).then_some(Duration::ZERO),
-            ..WckConfig::default()
-        });
+        .with_config(spec.client_config());
     let ids: Vec<ServoId> = (0..spec.servos)
         .map(|i| ServoId::new(i).unwrap_or(ServoId::MAX))
         .collect();
@@ -175,14 +253,15 @@ pub fn poll(
     let elapsed = t0.elapsed();
     let cpu = cpu::thread().saturating_sub(cpu0);
     let peer = match python {
-        Some(py) => Some(peers::wck_poll(py, &rig.path, spec, duration)?),
-        None => None,
+        Some(py) if !spec.memory => Some(peers::wck_poll(py, &rig.path, spec, duration)?),
+        _ => None,
     };
-    drop(bus);
+    // The endpoint first: a memory link's endpoint would see its client gone.
     let endpoint = rig
         .endpoint
         .stop()
         .map_err(|e| BenchError::new("stopping the wCK endpoint", e))?;
+    drop(bus);
     Ok(PollResult {
         spec,
         cycles,
@@ -232,7 +311,7 @@ impl StreamResult {
 /// comes after everything queued before it (minus its own modelled transaction time).
 pub fn sync_stream(baud: BaudRate, duration: Duration) -> Result<StreamResult, BenchError> {
     const SERVOS: u8 = 31;
-    let rig = Rig::open(SERVOS, baud, Timing::MANUAL)?;
+    let rig = Rig::open(SERVOS, baud, Timing::MANUAL, WaitMode::Sleep)?;
     // Paced at exactly the wire rate, any hold-up on the way (scheduling of this thread
     // or of the endpoint) leaves packets queued for good: the final status read may wait
     // behind them for a while.
@@ -306,6 +385,8 @@ mod tests {
             servos,
             baud,
             manual_turnaround,
+            wait: WaitMode::Sleep,
+            memory: false,
         }
         .modelled_cycle()
         .as_secs_f64()

@@ -11,8 +11,9 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use robobus::whj::{CyclicConfig, Feedback, JointBus, JointBusConfig, Protocol};
-use robobus_link::{FrameLink, FrameLinkError, MemoryBus, UdpBus, UdpBusConfig};
-use robobus_sim::whj::{JointConfig, ServeStats, Served, WhjBus, WhjModel, serve};
+use robobus_link::{FrameLink, FrameLinkError, MemoryBus, UdpBus, UdpBusConfig, WaitMode};
+use robobus_sim::LatenessSummary;
+use robobus_sim::whj::{JointConfig, ServeStats, Served, WhjBus, WhjModel, serve, serve_precise};
 use robobus_whj::broadcast::{BroadcastFeedback, BroadcastPosition, ReplyMask};
 use robobus_whj::reply::ServoFeedback;
 use robobus_whj::timing::{BitRates, frame_duration};
@@ -36,6 +37,12 @@ pub struct ChainSpec {
     pub delay: Duration,
     /// Wire at 1 Gbit/s instead of 1 / 5 Mbit/s (takes the wire out of the measurement).
     pub fast_wire: bool,
+    /// How the client waits; in [`WaitMode::Spin`] the simulator serves in its precise
+    /// mode too.
+    pub wait: WaitMode,
+    /// Whether the client holds each reply for its collision window before crediting it
+    /// (`JointBusConfig::collision_window`, 0.5 ms: duplicate detection), as by default.
+    pub collision_window: bool,
 }
 
 impl ChainSpec {
@@ -45,6 +52,21 @@ impl ChainSpec {
             BitRates::new(1_000_000_000, 1_000_000_000).unwrap_or(BitRates::WHJ)
         } else {
             BitRates::WHJ
+        }
+    }
+
+    /// The client's settings: [`JointBusConfig::simulated`] waiting in [`ChainSpec::wait`],
+    /// without the collision window if so asked.
+    pub fn client_config(&self) -> JointBusConfig {
+        let base = JointBusConfig::simulated();
+        JointBusConfig {
+            wait: self.wait,
+            collision_window: if self.collision_window {
+                base.collision_window
+            } else {
+                Duration::ZERO
+            },
+            ..base
         }
     }
 
@@ -89,14 +111,22 @@ pub struct SimReport {
 }
 
 impl SimThread {
-    /// Serves `bus` on `link` until stopped.
-    pub fn spawn<L: FrameLink + Send + 'static>(mut bus: WhjBus, mut link: L) -> Self {
+    /// Serves `bus` on `link` until stopped; in the precise mode if `wait` spins.
+    pub fn spawn<L: FrameLink + Send + 'static>(
+        mut bus: WhjBus,
+        mut link: L,
+        wait: WaitMode,
+    ) -> Self {
         let stop = Arc::new(AtomicBool::new(false));
         let flag = Arc::clone(&stop);
         let handle = std::thread::spawn(move || {
             let cpu0 = cpu::thread();
             let t0 = Instant::now();
-            let stats = serve(&mut bus, &mut link, &flag)?;
+            let stats = if wait.spins() {
+                serve_precise(&mut bus, &mut link, &flag)?
+            } else {
+                serve(&mut bus, &mut link, &flag)?
+            };
             Ok(SimReport {
                 stats,
                 cpu: cpu::thread().saturating_sub(cpu0),
@@ -158,6 +188,9 @@ pub struct FreeResult {
     pub cpu: Duration,
     /// CPU of an in-process simulator thread over the run (subtract from `cpu`).
     pub sim_cpu: Duration,
+    /// How late the simulator released its frames (p50 / p99), where it ran in this
+    /// process.
+    pub sim_lateness: Option<LatenessSummary>,
     /// Modelled cycle: Σ (command frame + processing delay + feedback frame − the one
     /// intermission the delay hides).
     pub modelled_cycle: Duration,
@@ -243,6 +276,7 @@ pub fn free_running_on(
         elapsed: t0.elapsed(),
         cpu: cpu::process().saturating_sub(cpu0),
         sim_cpu: Duration::ZERO,
+        sim_lateness: None,
         modelled_cycle: modelled,
         cycle_us,
         peer: None,
@@ -252,13 +286,14 @@ pub fn free_running_on(
 /// Free-running cycle over the in-process memory bus.
 pub fn free_running_memory(spec: ChainSpec, duration: Duration) -> Result<FreeResult, BenchError> {
     let wire = MemoryBus::new();
-    let sim = SimThread::spawn(spec.build(), wire.endpoint());
-    let bus = JointBus::open_with(wire.endpoint(), JointBusConfig::simulated())
+    let sim = SimThread::spawn(spec.build(), wire.endpoint(), spec.wait);
+    let bus = JointBus::open_with(wire.endpoint(), spec.client_config())
         .map_err(|e| BenchError::new("JointBus", e))?;
     let joints = prepare(&bus, spec.joints)?;
     let mut r = free_running_on(&bus, &joints, spec, "memory", duration)?;
     drop(bus);
     let report = sim.stop()?;
+    r.sim_lateness = Some(report.stats.lateness);
     // The simulator's share of the process CPU over the run, pro rata.
     r.sim_cpu = Duration::from_secs_f64(
         report.cpu.as_secs_f64() * (r.elapsed.as_secs_f64() / report.wall.as_secs_f64().max(1e-9)),
@@ -355,9 +390,9 @@ pub fn fixed_rate(
     duration: Duration,
 ) -> Result<FixedResult, BenchError> {
     let wire = MemoryBus::new();
-    let sim = SimThread::spawn(spec.build(), wire.endpoint());
+    let sim = SimThread::spawn(spec.build(), wire.endpoint(), spec.wait);
     let (link, observed) = ObservedLink::new(wire.endpoint());
-    let bus = JointBus::open_with(link, JointBusConfig::simulated())
+    let bus = JointBus::open_with(link, spec.client_config())
         .map_err(|e| BenchError::new("JointBus", e))?;
     let joints = prepare(&bus, spec.joints)?;
     let period = Duration::from_secs(1) / hz.max(1);
@@ -532,6 +567,7 @@ impl ChildSim {
         if spec.fast_wire {
             cmd.arg("--fast-wire");
         }
+        cmd.args(["--wait", &spec.wait.to_string()]);
         let mut child = cmd
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
@@ -585,8 +621,12 @@ impl Drop for ChildSim {
 /// stdin closes; prints `READY` once it listens.
 pub fn serve_whj_process(spec: ChainSpec) -> Result<(), BenchError> {
     let link = UdpBus::open(&UdpBusConfig::default()).map_err(|e| BenchError::new("UDP bus", e))?;
-    let served = Served::spawn("bench-serve-whj", spec.build(), link)
-        .map_err(|e| BenchError::new("starting the simulator", e))?;
+    let served = if spec.wait.spins() {
+        Served::spawn_precise("bench-serve-whj", spec.build(), link)
+    } else {
+        Served::spawn("bench-serve-whj", spec.build(), link)
+    }
+    .map_err(|e| BenchError::new("starting the simulator", e))?;
     let mut out = std::io::stdout();
     let _ = writeln!(out, "READY");
     let _ = out.flush();
@@ -609,7 +649,7 @@ pub fn udp_compare(
 ) -> Result<FreeResult, BenchError> {
     let sim = ChildSim::start(exe, spec)?;
     let link = UdpBus::open(&UdpBusConfig::default()).map_err(|e| BenchError::new("UDP bus", e))?;
-    let bus = JointBus::open_with(link, JointBusConfig::simulated())
+    let bus = JointBus::open_with(link, spec.client_config())
         .map_err(|e| BenchError::new("JointBus", e))?;
     let joints = prepare(&bus, spec.joints)?;
     let mut r = free_running_on(&bus, &joints, spec, "UDP", duration)?;
@@ -635,6 +675,8 @@ mod tests {
                 joints: 1,
                 delay,
                 fast_wire: false,
+                wait: WaitMode::Sleep,
+                collision_window: true,
             };
             let rates = spec.rates();
             let ifs = intermission(rates);
@@ -685,6 +727,8 @@ mod tests {
                 joints: n,
                 delay: DEFAULT_DELAY,
                 fast_wire: false,
+                wait: WaitMode::Sleep,
+                collision_window: true,
             };
             let mut bus = spec.build();
             let _ = bus.advance(Duration::from_millis(500));
