@@ -41,6 +41,7 @@ pub mod report;
 pub mod simspeed;
 pub mod stats;
 pub mod studio;
+pub mod syscalls;
 pub mod svg;
 pub mod telemetry;
 pub mod transport;
@@ -189,6 +190,10 @@ pub struct Results {
     pub studio: Option<studio::StudioResult>,
     /// Zenoh bridges into one router: joint state latency, loss, rate and CPU.
     pub bridge: Option<bridge::BridgeResult>,
+    /// System calls per transaction (full runs with `strace`).
+    pub syscalls: Vec<syscalls::SyscallCase>,
+    /// The transports' own round trip, both sides spinning: the pty, the memory bus.
+    pub echo: Option<(stats::Summary, stats::Summary)>,
     /// Benchmarks that failed or were skipped, and why.
     pub notes: Vec<String>,
     /// How many benchmarks failed.
@@ -215,9 +220,18 @@ pub fn run(opts: &Options, mut log: impl FnMut(&str)) -> Results {
     // wCK polling.
     let bauds = [BaudRate::B115200, BaudRate::B921600];
     let mut polls: Vec<(wck::PollSpec, bool)> = Vec::new();
+    // The low-latency mode: the client spins for its replies, the endpoint serves in its
+    // precise mode; over the pty and over the in-process memory byte link (no kernel).
+    let spin = |servos, baud, memory| wck::PollSpec {
+        wait: WaitMode::SPIN,
+        memory,
+        ..spec(servos, baud, false)
+    };
     if smoke {
         polls.push((spec(1, BaudRate::B921600, false), true));
         polls.push((spec(31, BaudRate::B115200, true), false));
+        polls.push((spin(1, BaudRate::B921600, false), false));
+        polls.push((spin(1, BaudRate::B921600, true), false));
     } else {
         for baud in bauds {
             for manual in [true, false] {
@@ -225,19 +239,15 @@ pub fn run(opts: &Options, mut log: impl FnMut(&str)) -> Results {
                     polls.push((spec(n, baud, manual), !manual && (n == 1 || n == 31)));
                 }
             }
+            for memory in [false, true] {
+                for n in [1u8, 8, 31] {
+                    polls.push((spin(n, baud, memory), !memory && n == 1));
+                }
+            }
         }
     }
     for (s, with_peer) in polls {
-        let what = format!(
-            "wCK polling {} servos at {} bit/s, {} turnaround",
-            s.servos,
-            s.baud.bits_per_second(),
-            if s.manual_turnaround {
-                "manual"
-            } else {
-                "zero"
-            }
-        );
+        let what = format!("wCK polling {}", s.label());
         log(&what);
         let py = if with_peer {
             opts.python.as_deref()
@@ -262,32 +272,58 @@ pub fn run(opts: &Options, mut log: impl FnMut(&str)) -> Results {
         }
     }
 
-    // WHJ on the memory bus.
+    // WHJ on the memory bus: the present rows (sleep, collision window on), then both
+    // wait modes without the collision window and the spin mode with it.
+    let mut free: Vec<whj::ChainSpec> = Vec::new();
     let sizes: &[u8] = if smoke { &[1] } else { &[1, 7, 14] };
     for &n in sizes {
-        let what = format!("WHJ free-running, {n} joints, memory bus");
+        free.push(chain(n, whj::DEFAULT_DELAY, false));
+    }
+    let variant = |n, wait, collision_window| whj::ChainSpec {
+        wait,
+        collision_window,
+        ..chain(n, whj::DEFAULT_DELAY, false)
+    };
+    let sizes: &[u8] = if smoke { &[1] } else { &[1, 7] };
+    for &n in sizes {
+        free.push(variant(n, WaitMode::Sleep, false));
+        free.push(variant(n, WaitMode::SPIN, false));
+        if !smoke {
+            free.push(variant(n, WaitMode::SPIN, true));
+        }
+    }
+    for spec in free {
+        let what = format!("WHJ free-running, {}, memory bus", spec.label());
         log(&what);
-        match whj::free_running_memory(chain(n, whj::DEFAULT_DELAY, false), secs(3.0, 0.1)) {
+        match whj::free_running_memory(spec, secs(3.0, 0.1)) {
             Ok(f) => r.free.push(f),
             Err(e) => fail(&mut r, &mut log, &what, &e),
         }
     }
-    let mut fixed: Vec<(u8, u32, Protocol)> = Vec::new();
+    let mut fixed: Vec<(u8, u32, Protocol, WaitMode)> = Vec::new();
     if smoke {
-        fixed.push((7, 1000, Protocol::PointToPoint));
-        fixed.push((7, 500, Protocol::Broadcast));
+        fixed.push((7, 1000, Protocol::PointToPoint, WaitMode::Sleep));
+        fixed.push((7, 500, Protocol::Broadcast, WaitMode::Sleep));
+        fixed.push((1, 1000, Protocol::PointToPoint, WaitMode::SPIN));
     } else {
         for hz in [500, 1000] {
             for n in [1u8, 7, 14] {
-                fixed.push((n, hz, Protocol::PointToPoint));
+                fixed.push((n, hz, Protocol::PointToPoint, WaitMode::Sleep));
             }
-            fixed.push((7, hz, Protocol::Broadcast));
+            fixed.push((7, hz, Protocol::Broadcast, WaitMode::Sleep));
+            for n in [1u8, 7] {
+                fixed.push((n, hz, Protocol::PointToPoint, WaitMode::SPIN));
+            }
         }
     }
-    for (n, hz, p) in fixed {
-        let what = format!("WHJ fixed {hz} Hz, {n} joints, {p:?}, memory bus");
+    for (n, hz, p, wait) in fixed {
+        let what = format!("WHJ fixed {hz} Hz, {n} joints, {p:?}, wait {wait}, memory bus");
         log(&what);
-        match whj::fixed_rate(chain(n, whj::DEFAULT_DELAY, false), hz, p, secs(5.0, 0.3)) {
+        let spec = whj::ChainSpec {
+            wait,
+            ..chain(n, whj::DEFAULT_DELAY, false)
+        };
+        match whj::fixed_rate(spec, hz, p, secs(5.0, 0.3)) {
             Ok(f) => r.fixed.push(f),
             Err(e) => fail(&mut r, &mut log, &what, &e),
         }
@@ -322,6 +358,23 @@ pub fn run(opts: &Options, mut log: impl FnMut(&str)) -> Results {
     } else {
         r.notes
             .push("UDP runs skipped (no network namespace with a multicast route)".into());
+    }
+    log("transports: pty and memory bus echo");
+    let echoes = if smoke { 200 } else { 5000 };
+    match transport::pty_echo(echoes).and_then(|p| Ok((p, transport::memory_echo(echoes)?))) {
+        Ok(e) => r.echo = Some(e),
+        Err(e) => fail(&mut r, &mut log, "transport echo", &e),
+    }
+    if !smoke {
+        if syscalls::strace_available() {
+            log("system calls per transaction (strace)");
+            let (cases, notes) = syscalls::measure(&opts.exe, opts.udp);
+            r.syscalls = cases;
+            r.notes.extend(notes);
+        } else {
+            r.notes
+                .push("system calls not counted (strace not installed)".into());
+        }
     }
     if opts.python.is_none() {
         r.notes

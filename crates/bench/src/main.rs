@@ -27,7 +27,7 @@ use robobus_bench::{Options, report, run, wck, whj};
 fn usage() -> ExitCode {
     let _ = writeln!(
         std::io::stderr(),
-        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire] [--wait sleep|spin]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround] [--wait sleep|spin] [--memory]\n       robobus-bench telemetry --secs S\n       robobus-bench studio --secs S\n       robobus-bench bridge [--bridges N] [--rate HZ] [--secs S] [--smoke]\n       robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window]\n       robobus-bench free-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window]"
+        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire] [--wait sleep|spin]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround] [--wait sleep|spin] [--memory]\n       robobus-bench telemetry --secs S\n       robobus-bench studio --secs S\n       robobus-bench bridge [--bridges N] [--rate HZ] [--secs S] [--smoke]\n       robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window] [--external-sim]\n       robobus-bench free-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window]"
     );
     ExitCode::from(2)
 }
@@ -150,9 +150,34 @@ fn poll_wck(args: &[String]) -> ExitCode {
 /// route on loopback).
 fn servo_whj(args: &[String]) -> ExitCode {
     let mut secs = 3.0;
-    let Some(spec) = chain_args(args, Some(&mut secs)) else {
+    // With `--external-sim`, a simulator process serves already (counting system calls).
+    let external = args.iter().any(|a| a == "--external-sim");
+    let args: Vec<String> = args
+        .iter()
+        .filter(|a| *a != "--external-sim")
+        .cloned()
+        .collect();
+    let Some(spec) = chain_args(&args, Some(&mut secs)) else {
         return usage();
     };
+    if external {
+        return match whj::udp_client(spec, Duration::from_secs_f64(secs), None) {
+            Ok(r) => {
+                let _ = writeln!(
+                    std::io::stdout(),
+                    "servo-whj {} joint(s) UDP: {} cycles, {} errors",
+                    spec.joints,
+                    r.cycles,
+                    r.errors
+                );
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                let _ = writeln!(std::io::stderr(), "servo-whj: {e}");
+                ExitCode::FAILURE
+            }
+        };
+    }
     let exe = match std::env::current_exe() {
         Ok(e) => e,
         Err(e) => {
@@ -344,6 +369,22 @@ fn main() -> ExitCode {
     }
     if args.first().map(String::as_str) == Some("servo-whj") {
         return servo_whj(args.get(1..).unwrap_or_default());
+    }
+    if args.first().map(String::as_str) == Some("syscalls") {
+        let exe = std::env::current_exe().unwrap_or_else(|_| PathBuf::from("robobus-bench"));
+        let udp = args.iter().any(|a| a == "--udp");
+        if !robobus_bench::syscalls::strace_available() {
+            let _ = writeln!(std::io::stderr(), "syscalls: strace is not installed");
+            return ExitCode::FAILURE;
+        }
+        let (cases, notes) = robobus_bench::syscalls::measure(&exe, udp);
+        let r = robobus_bench::Results {
+            syscalls: cases,
+            notes,
+            ..robobus_bench::Results::default()
+        };
+        let _ = write!(std::io::stdout(), "{}", report::syscalls_markdown(&r));
+        return ExitCode::SUCCESS;
     }
     if args.first().map(String::as_str) == Some("echo") {
         for (what, r) in [

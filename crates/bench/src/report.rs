@@ -53,19 +53,7 @@ pub fn write(results: &Results, dir: &Path) -> Result<PathBuf, BenchError> {
 pub fn loop_efficiencies(r: &Results) -> Vec<(String, f64)> {
     let mut v = Vec::new();
     for p in &r.polls {
-        v.push((
-            format!(
-                "wCK polling {} servos, {} bit/s, {} turnaround",
-                p.spec.servos,
-                p.spec.baud.bits_per_second(),
-                if p.spec.manual_turnaround {
-                    "manual"
-                } else {
-                    "zero"
-                }
-            ),
-            p.efficiency(),
-        ));
+        v.push((format!("wCK polling {}", p.spec.label()), p.efficiency()));
     }
     for s in &r.streams {
         v.push((
@@ -78,17 +66,18 @@ pub fn loop_efficiencies(r: &Results) -> Vec<(String, f64)> {
     }
     for f in &r.free {
         v.push((
-            format!("WHJ free-running, {} joints ({})", f.spec.joints, f.link),
+            format!("WHJ free-running, {} ({})", f.spec.label(), f.link),
             f.efficiency(),
         ));
     }
     for f in r.fixed.iter().filter(|f| f.feasible()) {
         v.push((
             format!(
-                "WHJ {} Hz {} joints {} (median round trip)",
+                "WHJ {} Hz {} joints {}, wait {} (median round trip)",
                 f.hz,
                 f.spec.joints,
-                proto(f.protocol)
+                proto(f.protocol),
+                f.spec.wait
             ),
             f.efficiency(),
         ));
@@ -110,9 +99,10 @@ pub fn peer_ratios(r: &Results) -> Vec<(String, f64, f64)> {
         if let Some(peer) = &p.peer {
             v.push((
                 format!(
-                    "wCK polling {} servos, {} bit/s, zero turnaround (pyserial)",
+                    "wCK polling {} servos, {} bit/s, zero turnaround, wait {} (pyserial)",
                     p.spec.servos,
-                    p.spec.baud.bits_per_second()
+                    p.spec.baud.bits_per_second(),
+                    p.spec.wait
                 ),
                 p.rate_hz() / peer.rate_hz().max(1e-9),
                 peer.cpu_per_cycle_us() / p.cpu_per_cycle_us().max(1e-9),
@@ -500,17 +490,24 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
          wire). Modelled cycle: N × (60 / baud + turnaround). Efficiency uses the mean cycle \
          (the cycle rate); \"at median cycle\" uses the median, which a few preempted cycles \
          on a busy machine do not move. Overhead = (measured mean − modelled) per \
-         transaction.\n"
+         transaction. Wait: how the client waits for each reply (`WckConfig::wait`: sleep \
+         in the kernel, or spin from 100 µs before the reply is due); in the spin rows the \
+         endpoint serves in its precise mode (it polls for requests and spins to each \
+         release instant). Link: the pty, or an in-process memory byte link to the same \
+         endpoint (no kernel between client and simulator). Simulator late: how late the \
+         endpoint released the reply bytes against their modelled instants (p50 / p99). \
+         The client's guard time after a reply is off (`guard: 0`): the simulated modules \
+         answer alone.\n"
     );
     let _ = writeln!(
         o,
-        "| servos | baud | turnaround | modelled cycle µs | measured mean µs | p99 µs | cycles/s | efficiency | at median cycle | overhead µs/transaction | errors | client CPU µs/cycle | endpoint CPU % |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+        "| servos | baud | turnaround | wait | link | modelled cycle µs | measured mean µs | p99 µs | cycles/s | efficiency | at median cycle | overhead µs/transaction | errors | client CPU µs/cycle | endpoint CPU % | simulator late p50 / p99 |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
     );
     for p in &r.polls {
         let s = Summary::of_us(&p.cycle_us);
         let _ = writeln!(
             o,
-            "| {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} | {:.1} | {} | {:.1} | {:.1} |",
+            "| {} | {} | {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} | {:.1} | {} | {:.1} | {:.1} | {} / {} |",
             p.spec.servos,
             baud_name(p.spec.baud.bits_per_second()),
             if p.spec.manual_turnaround {
@@ -518,6 +515,8 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
             } else {
                 "zero"
             },
+            p.spec.wait,
+            if p.spec.memory { "memory" } else { "pty" },
             us(p.spec.modelled_cycle()),
             1e6 / p.rate_hz().max(1e-9),
             s.p99,
@@ -528,32 +527,27 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
                 / f64::from(p.spec.servos.max(1)),
             p.errors,
             p.cpu_per_cycle_us(),
-            100.0 * p.endpoint.cpu.as_secs_f64() / p.endpoint.wall.as_secs_f64().max(1e-9)
+            100.0 * p.endpoint.cpu.as_secs_f64() / p.endpoint.wall.as_secs_f64().max(1e-9),
+            opt_us(p.endpoint.lateness.p50),
+            opt_us(p.endpoint.lateness.p99)
         );
         if p.spec.servos == 31 || r.smoke {
             let name = format!(
-                "wck_poll_{}_{}_{}.svg",
+                "wck_poll_{}_{}_{}_{}_{}.svg",
                 p.spec.servos,
                 p.spec.baud.bits_per_second(),
                 if p.spec.manual_turnaround {
                     "manual"
                 } else {
                     "zero"
-                }
+                },
+                if p.spec.wait.spins() { "spin" } else { "sleep" },
+                if p.spec.memory { "memory" } else { "pty" }
             );
             plots.push((
                 name,
                 svg::histogram(
-                    &format!(
-                        "wCK polling cycle, {} servos, {} bit/s, {} turnaround",
-                        p.spec.servos,
-                        p.spec.baud.bits_per_second(),
-                        if p.spec.manual_turnaround {
-                            "manual"
-                        } else {
-                            "zero"
-                        }
-                    ),
+                    &format!("wCK polling cycle, {}", p.spec.label()),
                     &p.cycle_us,
                     &[("model", us(p.spec.modelled_cycle()))],
                 ),
@@ -603,19 +597,27 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
          (each position servo frame answered by its feedback before the next is sent), as \
          fast as it goes, over the in-process memory bus to the simulator thread (wall clock, \
          1 / 5 Mbit/s wire, 20 µs processing delay). Modelled cycle: Σ (command frame + \
-         processing delay + feedback frame − one intermission), exact bit-stuffed frame times.\n"
+         processing delay + feedback frame − one intermission), exact bit-stuffed frame times. \
+         Wait: how the client waits (`JointBusConfig::wait`); in the spin rows the simulator \
+         serves in its precise mode. Window: whether the client holds each reply for its \
+         0.5 ms collision window before crediting it (duplicate detection, on by default); \
+         with it a request/reply loop cannot beat one window per transaction, whatever \
+         the wire. Simulator late: frames released after their modelled instants (p50 / \
+         p99).\n"
     );
     let _ = writeln!(
         o,
-        "| joints | link | modelled cycle µs | measured mean µs | p99 µs | cycles/s | efficiency | at median cycle | overhead µs/transaction | errors | client CPU µs/cycle |\n|---|---|---|---|---|---|---|---|---|---|---|"
+        "| joints | link | wait | window | modelled cycle µs | measured mean µs | p99 µs | cycles/s | efficiency | at median cycle | overhead µs/transaction | errors | client CPU µs/cycle | simulator late p50 / p99 |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
     );
     for f in &r.free {
         let s = Summary::of_us(&f.cycle_us);
         let _ = writeln!(
             o,
-            "| {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} | {:.1} | {} | {:.1} |",
+            "| {} | {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} | {:.1} | {} | {:.1} | {} / {} |",
             f.spec.joints,
             f.link,
+            f.spec.wait,
+            if f.spec.collision_window { "on" } else { "off" },
             us(f.modelled_cycle),
             1e6 / f.rate_hz().max(1e-9),
             s.p99,
@@ -624,16 +626,15 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
             pct(us(f.modelled_cycle) / s.p50.max(1e-9)),
             (1e6 / f.rate_hz().max(1e-9) - us(f.modelled_cycle)) / f64::from(f.spec.joints.max(1)),
             f.errors,
-            f.cpu_per_cycle_us()
+            f.cpu_per_cycle_us(),
+            opt_us(f.sim_lateness.and_then(|l| l.p50)),
+            opt_us(f.sim_lateness.and_then(|l| l.p99))
         );
-        let name = format!("whj_free_{}j.svg", f.spec.joints);
+        let name = free_plot(f);
         plots.push((
             name.clone(),
             svg::histogram(
-                &format!(
-                    "WHJ free-running cycle, {} joints, memory bus",
-                    f.spec.joints
-                ),
+                &format!("WHJ free-running cycle, {}, memory bus", f.spec.label()),
                 &f.cycle_us,
                 &[("model", us(f.modelled_cycle))],
             ),
@@ -641,7 +642,7 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
     }
     let _ = writeln!(o);
     for f in &r.free {
-        let name = format!("whj_free_{}j.svg", f.spec.joints);
+        let name = free_plot(f);
         let _ = writeln!(o, "![{name}]({name})");
     }
     let _ = writeln!(o);
@@ -671,16 +672,17 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
     );
     let _ = writeln!(
         o,
-        "| joints | protocol | rate Hz | cycles | link misses | client misses | client overruns | client impossible RT | modelled RT µs | p50 µs | p99 µs | p99.9 µs | max µs | efficiency | start lateness p99 µs |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+        "| joints | protocol | wait | rate Hz | cycles | link misses | client misses | client overruns | client impossible RT | modelled RT µs | p50 µs | p99 µs | p99.9 µs | max µs | efficiency | start lateness p99 µs | simulator late p50 / p99 |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
     );
     for f in &r.fixed {
         let s = Summary::of_us(&f.link_round_trip_us);
         let l = Summary::of_us(&f.lateness_us);
         let _ = writeln!(
             o,
-            "| {} | {} | {}{} | {} | {} | {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {:.1} |",
+            "| {} | {} | {} | {}{} | {} | {} | {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {:.1} | {} / {} |",
             f.spec.joints,
             proto(f.protocol),
+            f.spec.wait,
             f.hz,
             if f.feasible() {
                 ""
@@ -698,25 +700,29 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
             s.p999,
             s.max,
             pct(f.efficiency()),
-            l.p99
+            l.p99,
+            opt_us(f.sim.stats.lateness.p50),
+            opt_us(f.sim.stats.lateness.p99)
         );
         let name = format!(
-            "whj_fixed_{}j_{}hz_{}.svg",
+            "whj_fixed_{}j_{}hz_{}_{}.svg",
             f.spec.joints,
             f.hz,
             match f.protocol {
                 Protocol::PointToPoint => "p2p",
                 Protocol::Broadcast => "broadcast",
-            }
+            },
+            if f.spec.wait.spins() { "spin" } else { "sleep" }
         );
         plots.push((
             name,
             svg::histogram(
                 &format!(
-                    "WHJ round trip, {} joints, {} Hz, {}",
+                    "WHJ round trip, {} joints, {} Hz, {}, wait {}",
                     f.spec.joints,
                     f.hz,
-                    proto(f.protocol)
+                    proto(f.protocol),
+                    f.spec.wait
                 ),
                 &f.link_round_trip_us,
                 &[
@@ -753,9 +759,10 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
         if let Some(peer) = &p.peer {
             let _ = writeln!(
                 o,
-                "| wCK polling {} servos, {} bit/s | {:.1} | {:.1} | {:.2}× | {:.1} | {:.1} | {:.1}× | {} | {} / {} |",
+                "| wCK polling {} servos, {} bit/s, wait {} | {:.1} | {:.1} | {:.2}× | {:.1} | {:.1} | {:.1}× | {} | {} / {} |",
                 p.spec.servos,
                 p.spec.baud.bits_per_second(),
+                p.spec.wait,
                 p.rate_hz(),
                 peer.rate_hz(),
                 p.rate_hz() / peer.rate_hz().max(1e-9),
@@ -811,6 +818,8 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
     }
     let _ = writeln!(o);
 
+    transport_section(&mut o, r);
+    o.push_str(&syscalls_markdown(r));
     telemetry_section(&mut o, r);
     studio_section(&mut o, r);
 
@@ -891,4 +900,84 @@ pub fn opt_us(d: Option<Duration>) -> String {
         || "–".to_owned(),
         |d| format!("{:.0} µs", d.as_secs_f64() * 1e6),
     )
+}
+
+/// The system-call section: per transaction, the calling thread and the others.
+pub fn syscalls_markdown(r: &Results) -> String {
+    let mut o = String::new();
+    let _ = writeln!(o, "## System calls per transaction
+");
+    if r.syscalls.is_empty() {
+        let _ = writeln!(
+            o,
+            "Not counted in this run ({}). `robobus-bench syscalls [--udp]` counts them \
+             with `strace`.\n",
+            if r.smoke {
+                "smoke mode"
+            } else {
+                "`strace` not found"
+            }
+        );
+        return o;
+    }
+    let _ = writeln!(
+        o,
+        "Counted with `strace -ff -ttt` on the one-case runners in the sleep mode, between \
+         two markers the measured loop leaves in the trace; every thread of the client's \
+         process (in the wCK case the simulator's endpoint thread is one of them).\n"
+    );
+    let _ = writeln!(
+        o,
+        "| case | transactions | caller per transaction | calls | other threads per transaction | calls |\n|---|---|---|---|---|---|"
+    );
+    for c in &r.syscalls {
+        let t = c.transactions.max(1) as f64;
+        let _ = writeln!(
+            o,
+            "| {} | {} | {:.1} | {} | {:.1} | {} |",
+            c.what,
+            c.transactions,
+            c.caller.total as f64 / t,
+            c.caller.per(c.transactions),
+            c.others.total as f64 / t,
+            c.others.per(c.transactions)
+        );
+    }
+    let _ = writeln!(o);
+    o
+}
+
+fn free_plot(f: &crate::whj::FreeResult) -> String {
+    format!(
+        "whj_free_{}j_{}_{}.svg",
+        f.spec.joints,
+        if f.spec.wait.spins() { "spin" } else { "sleep" },
+        if f.spec.collision_window {
+            "window"
+        } else {
+            "nowindow"
+        }
+    )
+}
+
+/// The transports' own round trip, both sides spinning.
+fn transport_section(o: &mut String, r: &Results) {
+    let _ = writeln!(o, "## Transports\n");
+    let Some((pty, memory)) = &r.echo else {
+        let _ = writeln!(o, "Not measured.\n");
+        return;
+    };
+    let _ = writeln!(
+        o,
+        "One byte through the pty and straight back, and one frame through the in-process \
+         memory bus and straight back, both sides spinning (`robobus-bench echo`): what \
+         each request/reply transaction over that transport costs at the least, whatever \
+         the client and the simulator do. A pty hands every write to a kernel worker thread \
+         before the other side can read it.\n"
+    );
+    let _ = writeln!(
+        o,
+        "| transport | round trips | p50 µs | p99 µs |\n|---|---|---|---|\n| pty | {} | {:.1} | {:.1} |\n| memory bus | {} | {:.1} | {:.1} |\n",
+        pty.n, pty.p50, pty.p99, memory.n, memory.p50, memory.p99
+    );
 }

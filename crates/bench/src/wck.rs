@@ -157,6 +157,22 @@ impl PollSpec {
         }
     }
 
+    /// `8 servos, 921600 bit/s, zero turnaround, wait spin, pty`.
+    pub fn label(&self) -> String {
+        format!(
+            "{} servos, {} bit/s, {} turnaround, wait {}, {}",
+            self.servos,
+            self.baud.bits_per_second(),
+            if self.manual_turnaround {
+                "manual"
+            } else {
+                "zero"
+            },
+            self.wait,
+            if self.memory { "memory link" } else { "pty" }
+        )
+    }
+
     fn timing(self) -> Timing {
         if self.manual_turnaround {
             Timing::MANUAL
@@ -239,6 +255,7 @@ pub fn poll(
     let mut cycles = 0u64;
     let mut cycle_us = Vec::with_capacity(1 << 16);
     let cpu0 = cpu::thread();
+    crate::syscalls::mark("start");
     let t0 = Instant::now();
     while t0.elapsed() < duration {
         let c0 = Instant::now();
@@ -250,6 +267,7 @@ pub fn poll(
         cycle_us.push(c0.elapsed().as_secs_f64() * 1e6);
         cycles += 1;
     }
+    crate::syscalls::mark("end");
     let elapsed = t0.elapsed();
     let cpu = cpu::thread().saturating_sub(cpu0);
     let peer = match python {

@@ -70,6 +70,16 @@ impl ChainSpec {
         }
     }
 
+    /// `7 joints, wait spin, collision window off`.
+    pub fn label(&self) -> String {
+        format!(
+            "{} joints, wait {}, collision window {}",
+            self.joints,
+            self.wait,
+            if self.collision_window { "on" } else { "off" }
+        )
+    }
+
     /// The simulated bus.
     pub fn build(&self) -> WhjBus {
         let delay = self.delay;
@@ -257,6 +267,7 @@ pub fn free_running_on(
     let mut cycles = 0u64;
     let mut cycle_us = Vec::with_capacity(1 << 16);
     let cpu0 = cpu::process();
+    crate::syscalls::mark("start");
     let t0 = Instant::now();
     while t0.elapsed() < duration {
         let c0 = Instant::now();
@@ -268,6 +279,7 @@ pub fn free_running_on(
         cycle_us.push(c0.elapsed().as_secs_f64() * 1e6);
         cycles += 1;
     }
+    crate::syscalls::mark("end");
     Ok(FreeResult {
         spec,
         link,
@@ -648,6 +660,18 @@ pub fn udp_compare(
     python: Option<&Path>,
 ) -> Result<FreeResult, BenchError> {
     let sim = ChildSim::start(exe, spec)?;
+    let r = udp_client(spec, duration, python)?;
+    sim.stop()?;
+    Ok(r)
+}
+
+/// The client side of [`udp_compare`], against a simulator process that already serves
+/// `spec` on the UDP multicast bus.
+pub fn udp_client(
+    spec: ChainSpec,
+    duration: Duration,
+    python: Option<&Path>,
+) -> Result<FreeResult, BenchError> {
     let link = UdpBus::open(&UdpBusConfig::default()).map_err(|e| BenchError::new("UDP bus", e))?;
     let bus = JointBus::open_with(link, spec.client_config())
         .map_err(|e| BenchError::new("JointBus", e))?;
@@ -657,7 +681,6 @@ pub fn udp_compare(
     if let Some(py) = python {
         r.peer = Some(peers::whj_servo(py, spec.joints, duration)?);
     }
-    sim.stop()?;
     Ok(r)
 }
 

@@ -37,6 +37,8 @@ fn smoke_run_writes_the_report_with_every_section() {
         "## WHJ free-running",
         "## WHJ fixed rate",
         "## Peers",
+        "## Transports",
+        "## System calls per transaction",
         "## Telemetry",
         "## Studio",
         "## Simulator",
@@ -45,7 +47,7 @@ fn smoke_run_writes_the_report_with_every_section() {
     }
     // Both peers ran against the simulators and answered.
     assert!(
-        report.contains("| wCK polling 1 servos, 921600 bit/s |"),
+        report.contains("| wCK polling 1 servos, 921600 bit/s, wait sleep |"),
         "{report}"
     );
     assert!(
@@ -53,6 +55,17 @@ fn smoke_run_writes_the_report_with_every_section() {
         "{report}"
     );
     assert!(!report.contains("FAILED"), "{report}");
+    // Both wait modes ran, the spin mode over the pty and over the memory link, and the
+    // simulators reported their release lateness in each row.
+    for row in [
+        "| 1 | 921600 | zero | sleep | pty |",
+        "| 1 | 921600 | zero | spin | pty |",
+        "| 1 | 921600 | zero | spin | memory |",
+        "| 1 | memory | spin | off |",
+        "| 1 | point-to-point | spin | 1000 |",
+    ] {
+        assert!(report.contains(row), "no row {row:?} in:\n{report}");
+    }
     // Every plot the report links exists and is an SVG.
     let links: Vec<&str> = report
         .lines()
