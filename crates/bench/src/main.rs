@@ -15,7 +15,11 @@
 //! prints its section; `bridge` runs the Zenoh bridge case alone (N bridges of 7 joints
 //! into one router: latency, loss, rate, CPU per joint) and prints its section.
 //! `poll-wck` runs the wCK polling case alone, once, and prints its rate as a share of the
-//! wire (for a quick look, or under `strace`).
+//! wire (for a quick look, or under `strace`); `free-whj` the WHJ free-running case over
+//! the memory bus. Both take `--wait sleep|spin` (spin: the client spins for its replies
+//! and the simulator serves in its precise mode). `syscalls` counts system calls per
+//! transaction with `strace`; `echo` measures the pty's and the memory bus's own round
+//! trip.
 
 use std::io::Write as _;
 use std::path::PathBuf;
@@ -27,7 +31,7 @@ use robobus_bench::{Options, report, run, wck, whj};
 fn usage() -> ExitCode {
     let _ = writeln!(
         std::io::stderr(),
-        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire] [--wait sleep|spin]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround] [--wait sleep|spin] [--memory]\n       robobus-bench telemetry --secs S\n       robobus-bench studio --secs S\n       robobus-bench bridge [--bridges N] [--rate HZ] [--secs S] [--smoke]\n       robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window] [--external-sim]\n       robobus-bench free-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window]"
+        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire] [--wait sleep|spin]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround] [--wait sleep|spin] [--memory]\n       robobus-bench telemetry --secs S\n       robobus-bench studio --secs S\n       robobus-bench bridge [--bridges N] [--rate HZ] [--secs S] [--smoke]\n       robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window] [--external-sim]\n       robobus-bench free-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window]\n       robobus-bench syscalls [--udp]\n       robobus-bench echo"
     );
     ExitCode::from(2)
 }
@@ -362,66 +366,62 @@ fn add_bridge_section(
     std::fs::write(path, md)
 }
 
-fn main() -> ExitCode {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    if args.first().map(String::as_str) == Some("serve-whj") {
-        return serve_whj(args.get(1..).unwrap_or_default());
+/// `syscalls [--udp]`: system calls per transaction, counted with `strace`.
+fn syscalls(args: &[String]) -> ExitCode {
+    let exe = std::env::current_exe().unwrap_or_else(|_| PathBuf::from("robobus-bench"));
+    let udp = args.iter().any(|a| a == "--udp");
+    if !robobus_bench::syscalls::strace_available() {
+        let _ = writeln!(std::io::stderr(), "syscalls: strace is not installed");
+        return ExitCode::FAILURE;
     }
-    if args.first().map(String::as_str) == Some("servo-whj") {
-        return servo_whj(args.get(1..).unwrap_or_default());
-    }
-    if args.first().map(String::as_str) == Some("syscalls") {
-        let exe = std::env::current_exe().unwrap_or_else(|_| PathBuf::from("robobus-bench"));
-        let udp = args.iter().any(|a| a == "--udp");
-        if !robobus_bench::syscalls::strace_available() {
-            let _ = writeln!(std::io::stderr(), "syscalls: strace is not installed");
-            return ExitCode::FAILURE;
-        }
-        let (cases, notes) = robobus_bench::syscalls::measure(&exe, udp);
-        let r = robobus_bench::Results {
-            syscalls: cases,
-            notes,
-            ..robobus_bench::Results::default()
-        };
-        let _ = write!(std::io::stdout(), "{}", report::syscalls_markdown(&r));
-        return ExitCode::SUCCESS;
-    }
-    if args.first().map(String::as_str) == Some("echo") {
-        for (what, r) in [
-            ("pty", robobus_bench::transport::pty_echo(5000)),
-            ("memory bus", robobus_bench::transport::memory_echo(5000)),
-        ] {
-            match r {
-                Ok(s) => {
-                    let _ = writeln!(
-                        std::io::stdout(),
-                        "{what} echo, both sides spinning: p50 {:.1} µs, p99 {:.1} µs",
-                        s.p50,
-                        s.p99
-                    );
-                }
-                Err(e) => {
-                    let _ = writeln!(std::io::stderr(), "echo: {e}");
-                    return ExitCode::FAILURE;
-                }
+    let (cases, notes) = robobus_bench::syscalls::measure(&exe, udp);
+    let r = robobus_bench::Results {
+        syscalls: cases,
+        notes,
+        ..robobus_bench::Results::default()
+    };
+    let _ = write!(std::io::stdout(), "{}", report::syscalls_markdown(&r));
+    ExitCode::SUCCESS
+}
+
+/// `echo`: the pty's and the memory bus's own round trip, both sides spinning.
+fn echo() -> ExitCode {
+    for (what, r) in [
+        ("pty", robobus_bench::transport::pty_echo(5000)),
+        ("memory bus", robobus_bench::transport::memory_echo(5000)),
+    ] {
+        match r {
+            Ok(s) => {
+                let _ = writeln!(
+                    std::io::stdout(),
+                    "{what} echo, both sides spinning: p50 {:.1} µs, p99 {:.1} µs",
+                    s.p50,
+                    s.p99
+                );
+            }
+            Err(e) => {
+                let _ = writeln!(std::io::stderr(), "echo: {e}");
+                return ExitCode::FAILURE;
             }
         }
-        return ExitCode::SUCCESS;
     }
-    if args.first().map(String::as_str) == Some("free-whj") {
-        return free_whj(args.get(1..).unwrap_or_default());
-    }
-    if args.first().map(String::as_str) == Some("telemetry") {
-        return telemetry(args.get(1..).unwrap_or_default());
-    }
-    if args.first().map(String::as_str) == Some("studio") {
-        return studio(args.get(1..).unwrap_or_default());
-    }
-    if args.first().map(String::as_str) == Some("bridge") {
-        return bridge(args.get(1..).unwrap_or_default());
-    }
-    if args.first().map(String::as_str) == Some("poll-wck") {
-        return poll_wck(args.get(1..).unwrap_or_default());
+    ExitCode::SUCCESS
+}
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let rest = args.get(1..).unwrap_or_default();
+    match args.first().map(String::as_str) {
+        Some("serve-whj") => return serve_whj(rest),
+        Some("servo-whj") => return servo_whj(rest),
+        Some("free-whj") => return free_whj(rest),
+        Some("telemetry") => return telemetry(rest),
+        Some("studio") => return studio(rest),
+        Some("bridge") => return bridge(rest),
+        Some("poll-wck") => return poll_wck(rest),
+        Some("syscalls") => return syscalls(rest),
+        Some("echo") => return echo(),
+        _ => {}
     }
     let mut opts = Options {
         smoke: false,

@@ -905,8 +905,11 @@ pub fn opt_us(d: Option<Duration>) -> String {
 /// The system-call section: per transaction, the calling thread and the others.
 pub fn syscalls_markdown(r: &Results) -> String {
     let mut o = String::new();
-    let _ = writeln!(o, "## System calls per transaction
-");
+    let _ = writeln!(
+        o,
+        "## System calls per transaction
+"
+    );
     if r.syscalls.is_empty() {
         let _ = writeln!(
             o,

@@ -119,7 +119,9 @@ fn count_in(
         .ok_or_else(|| BenchError::msg(format!("{what}: no transaction count in {stdout:?}")))?;
     let mut traces = Vec::new();
     for entry in std::fs::read_dir(dir).map_err(|e| BenchError::new("reading traces", e))? {
-        let path = entry.map_err(|e| BenchError::new("reading traces", e))?.path();
+        let path = entry
+            .map_err(|e| BenchError::new("reading traces", e))?
+            .path();
         let text =
             std::fs::read_to_string(&path).map_err(|e| BenchError::new("reading a trace", e))?;
         traces.push(text);
@@ -182,43 +184,12 @@ pub fn cycles_times(stdout: &str, per_cycle: u64) -> Option<u64> {
     let words: Vec<&str> = stdout.split_whitespace().collect();
     words
         .windows(2)
-        .find(|w| w.get(1).is_some_and(|x| x.trim_end_matches(',') == "cycles"))
+        .find(|w| {
+            w.get(1)
+                .is_some_and(|x| x.trim_end_matches(',') == "cycles")
+        })
         .and_then(|w| w.first()?.parse::<u64>().ok())
         .map(|c| c * per_cycle)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn calls_between_the_markers_are_counted_per_thread() {
-        let caller = "1.0 execve(\"x\") = 0\n\
-                      2.0 newfstatat(AT_FDCWD, \"/robobus-bench-mark-start\", 0x1, 0) = -1 ENOENT\n\
-                      2.1 write(4, \"\\377\", 4) = 4\n\
-                      2.2 ppoll([{fd=4}], 1, NULL, NULL, 8) = 1\n\
-                      2.3 read(4, \"\\0\", 16) = 1\n\
-                      3.0 newfstatat(AT_FDCWD, \"/robobus-bench-mark-end\", 0x1, 0) = -1 ENOENT\n\
-                      3.1 write(1, \"done\", 4) = 4\n\
-                      3.2 +++ exited with 0 +++\n";
-        let other = "1.5 read(5, \"\", 1) = 0\n2.5 write(5, \"\\0\", 1) = 1\n4.0 exit(0) = ?\n";
-        let w = window_of(caller).unwrap();
-        assert_eq!(w, (2.0, 3.0));
-        assert!(window_of(other).is_none());
-        let names: Vec<_> = calls(caller).filter(|(t, _)| *t > w.0 && *t < w.1).collect();
-        assert_eq!(names, [(2.1, "write"), (2.2, "ppoll"), (2.3, "read")]);
-        let inside: Vec<_> = calls(other).filter(|(t, _)| *t > w.0 && *t < w.1).collect();
-        assert_eq!(inside, [(2.5, "write")]);
-        assert_eq!(
-            cycles_times("1 servo(s) at 115200: 1091 cycles, 0 errors", 2),
-            Some(2182)
-        );
-        let mut c = Counts::default();
-        for n in ["write", "read", "read", "ppoll", "ppoll", "ppoll"] {
-            c.add(n);
-        }
-        assert_eq!(c.per(2), "ppoll 1.5, read 1.0, write 0.5");
-    }
 }
 
 /// The counted cases: wCK polling of one servo at 115200 and 921600 bit/s on the pty, and
@@ -269,4 +240,40 @@ pub fn measure(exe: &Path, udp: bool) -> (Vec<SyscallCase>, Vec<String>) {
         notes.push("WHJ system calls not counted (no network namespace for UDP)".into());
     }
     (cases, notes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn calls_between_the_markers_are_counted_per_thread() {
+        let caller = "1.0 execve(\"x\") = 0\n\
+                      2.0 newfstatat(AT_FDCWD, \"/robobus-bench-mark-start\", 0x1, 0) = -1 ENOENT\n\
+                      2.1 write(4, \"\\377\", 4) = 4\n\
+                      2.2 ppoll([{fd=4}], 1, NULL, NULL, 8) = 1\n\
+                      2.3 read(4, \"\\0\", 16) = 1\n\
+                      3.0 newfstatat(AT_FDCWD, \"/robobus-bench-mark-end\", 0x1, 0) = -1 ENOENT\n\
+                      3.1 write(1, \"done\", 4) = 4\n\
+                      3.2 +++ exited with 0 +++\n";
+        let other = "1.5 read(5, \"\", 1) = 0\n2.5 write(5, \"\\0\", 1) = 1\n4.0 exit(0) = ?\n";
+        let w = window_of(caller).unwrap();
+        assert_eq!(w, (2.0, 3.0));
+        assert!(window_of(other).is_none());
+        let names: Vec<_> = calls(caller)
+            .filter(|(t, _)| *t > w.0 && *t < w.1)
+            .collect();
+        assert_eq!(names, [(2.1, "write"), (2.2, "ppoll"), (2.3, "read")]);
+        let inside: Vec<_> = calls(other).filter(|(t, _)| *t > w.0 && *t < w.1).collect();
+        assert_eq!(inside, [(2.5, "write")]);
+        assert_eq!(
+            cycles_times("1 servo(s) at 115200: 1091 cycles, 0 errors", 2),
+            Some(2182)
+        );
+        let mut c = Counts::default();
+        for n in ["write", "read", "read", "ppoll", "ppoll", "ppoll"] {
+            c.add(n);
+        }
+        assert_eq!(c.per(2), "ppoll 1.5, read 1.0, write 0.5");
+    }
 }

@@ -174,6 +174,7 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     } else {
         (
             Station::open(&StationConfig {
+                wait: g.wait,
                 ..args.station.config()
             })?,
             None,

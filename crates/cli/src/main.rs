@@ -108,6 +108,16 @@ pub(crate) struct Global {
     /// first on a terminal, and without a terminal need --yes.
     #[arg(short = 'y', long, global = true)]
     pub(crate) yes: bool,
+    /// How the client waits for replies on the buses it opens: sleep (in the kernel, the
+    /// default), or spin (poll from shortly before each reply is due: lower latency, one
+    /// core busy while a reply is awaited; spin:US starts US µs before).
+    #[arg(long, global = true, value_name = "MODE", default_value = "sleep", value_parser = parse_wait)]
+    pub(crate) wait: robobus::WaitMode,
+}
+
+/// `--wait`: sleep, spin or spin:US.
+fn parse_wait(s: &str) -> Result<robobus::WaitMode, String> {
+    s.parse().map_err(|e: robobus::WaitModeError| e.to_string())
 }
 
 #[derive(Debug, Subcommand)]

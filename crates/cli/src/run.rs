@@ -139,7 +139,10 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     let station = if args.station.simulated() {
         Station::simulated()?
     } else {
-        Station::open(&args.station.config())?
+        Station::open(&StationConfig {
+            wait: g.wait,
+            ..args.station.config()
+        })?
     };
     let stop = crate::interrupt::stop_token();
     let mut reports = Vec::new();

@@ -79,13 +79,14 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
         .with_context(|| format!("creating {}", capture_dir.display()))?;
     // The session's traffic is captured there (served by the page's Capture panel) and
     // removed when the studio stops, whatever way it stops.
-    let served = serve_in(args, listen, token, &capture_dir);
+    let served = serve_in(args, g.wait, listen, token, &capture_dir);
     let _ = std::fs::remove_dir_all(&capture_dir);
     served
 }
 
 fn serve_in(
     args: &Args,
+    wait: robobus::WaitMode,
     listen: SocketAddr,
     token: Option<String>,
     capture_dir: &std::path::Path,
@@ -96,6 +97,7 @@ fn serve_in(
     } else {
         let station = Station::open(&StationConfig {
             capture_dir: Some(capture_dir.to_path_buf()),
+            wait,
             ..args.station.config()
         })?;
         (station, None)

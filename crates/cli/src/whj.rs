@@ -530,7 +530,14 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     };
     let request = report::confirm(request, g.yes)?;
     let mut station = Station::new();
-    station.add_whj(bus, station::open_whj(bus, args.capture.as_deref())?);
+    let config = robobus::whj::JointBusConfig {
+        wait: g.wait,
+        ..robobus::whj::JointBusConfig::default()
+    };
+    station.add_whj(
+        bus,
+        station::open_whj_with(bus, args.capture.as_deref(), config)?,
+    );
     let result = report::run(&station, &request);
     station.leave();
     let report = result?;

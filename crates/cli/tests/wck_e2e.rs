@@ -227,6 +227,19 @@ fn a_servo_that_does_not_answer_is_exit_3_naming_the_port_and_the_servo() {
     let v: Value = serde_json::from_str(&sim.wck(&["--json", "status", "2,0,1"]).stdout).unwrap();
     assert_eq!(v["results"][0]["kind"], "no-device", "{v}");
     assert_eq!(v["results"][1]["position"], 127, "{v}");
+    // Spinning for the replies: the same rows, the same silent servo, the same exit code.
+    let r = sim.wck(&["--wait", "spin", "--json", "status", "2,0,1"]);
+    assert_eq!(r.code, Some(3), "{r:#?}");
+    let spun: Value = serde_json::from_str(&r.stdout).unwrap();
+    assert_eq!(spun["results"], v["results"]);
+    // A wait mode that is none: exit 2, naming the value and the choices.
+    let r = sim.wck(&["--wait", "busy", "status", "0"]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    assert!(
+        r.stderr.contains("busy") && r.stderr.contains("sleep, spin or spin:"),
+        "{}",
+        r.stderr
+    );
     // Confirmed reads: on request for any read, never both ways at once.
     assert_eq!(
         sim.result(&["--verify-reads", "status", "0"])["position"],

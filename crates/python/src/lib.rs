@@ -207,7 +207,7 @@ impl NativeStation {
 
     /// Opens wCK ports, WHJ buses and a robot file from the CLI's address strings.
     #[staticmethod]
-    #[pyo3(signature = (wck_ports, whj_buses, robot, wck_baud, reply_margin_ms))]
+    #[pyo3(signature = (wck_ports, whj_buses, robot, wck_baud, reply_margin_ms, wait = "sleep"))]
     fn open(
         py: Python<'_>,
         wck_ports: Vec<String>,
@@ -215,7 +215,11 @@ impl NativeStation {
         robot: Option<std::path::PathBuf>,
         wck_baud: u32,
         reply_margin_ms: Option<f64>,
+        wait: &str,
     ) -> PyResult<Self> {
+        let wait: robobus::WaitMode = wait.parse().map_err(|e: robobus::WaitModeError| {
+            raise(py, ErrorKind::BadInput, &format!("wait: {e}"), None)
+        })?;
         let baud = robobus_wck::BaudRate::from_bits_per_second(wck_baud).map_err(|e| {
             raise(
                 py,
@@ -244,6 +248,7 @@ impl NativeStation {
             whj_buses,
             robot,
             wck_reply_margin: margin,
+            wait,
             ..StationConfig::default()
         };
         let s = py

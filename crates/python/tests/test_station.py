@@ -284,6 +284,15 @@ def test_close_is_idempotent_and_a_port_reopens_at_once() -> None:
             assert station.close() == []
             assert station.close() == []
             assert station.closed
+        # Spinning for the replies: the same values; a wait mode that is none is bad input.
+        with robobus.Station.open([port], reply_margin_ms=50, wait="spin") as station:
+            assert [r["position"] for r in station.wck.status("0-2", check=True)["results"]] == [
+                127,
+                127,
+                127,
+            ]
+        with pytest.raises(robobus.BadInputError, match="busy"):
+            robobus.Station.open([port], wait="busy")
     finally:
         sim.send_signal(signal.SIGINT)
         sim.wait(timeout=20)

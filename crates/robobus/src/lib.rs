@@ -100,5 +100,5 @@ pub mod whj;
 
 pub use actuator::{Actuator, ActuatorError, ActuatorState, JointLimits};
 pub use error::ErrorKind;
-pub use robobus_link::wait::WaitMode;
+pub use robobus_link::wait::{WaitMode, WaitModeError};
 pub use robot::{Robot, RobotConfig, RobotError};

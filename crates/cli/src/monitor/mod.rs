@@ -318,7 +318,7 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
         return run_sim(args, out);
     }
     if let Some(path) = &args.robot {
-        return run_robot(path, args, out);
+        return run_robot(path, args, g.wait, out);
     }
     if let Some(bus) = &args.bus {
         let joints: Vec<JointId> = args
@@ -331,7 +331,7 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
             robobus::ops::whj::reply_mask(&joints)
                 .map_err(|e| usage(format!("--broadcast --joints: {e}")))?;
         }
-        let jb = station::open_whj_with(bus, args.capture.as_deref(), whj_config())?;
+        let jb = station::open_whj_with(bus, args.capture.as_deref(), whj_config(g.wait))?;
         let ids: Vec<u8> = joints.iter().map(|j| j.get()).collect();
         let d = dashboard(
             format!("WHJ bus {bus}"),
@@ -356,6 +356,7 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
         if let Some(margin) = args.reply_margin {
             bus.config_mut().margin = margin;
         }
+        bus.config_mut().wait = g.wait;
         let ids: Vec<ServoId> = args
             .servos
             .0
@@ -396,8 +397,9 @@ struct Output {
 const WHJ_CONNECT_TIMEOUT: Duration = Duration::from_millis(300);
 
 /// The WHJ client settings of the monitor (see [`WHJ_CONNECT_TIMEOUT`]).
-fn whj_config() -> JointBusConfig {
+fn whj_config(wait: robobus::WaitMode) -> JointBusConfig {
     JointBusConfig {
+        wait,
         connect_timeout: WHJ_CONNECT_TIMEOUT,
         ..JointBusConfig::default()
     }
@@ -405,11 +407,17 @@ fn whj_config() -> JointBusConfig {
 
 /// `monitor --robot FILE`: every joint of the file, read through the file's buses: one
 /// subscriber of the `robot.sample` stream on a station opened from the file.
-fn run_robot(path: &std::path::Path, args: &Args, out: Output) -> anyhow::Result<()> {
+fn run_robot(
+    path: &std::path::Path,
+    args: &Args,
+    wait: robobus::WaitMode,
+    out: Output,
+) -> anyhow::Result<()> {
     let station = Station::open(&StationConfig {
         robot: Some(path.to_path_buf()),
         wck_reply_margin: args.reply_margin,
         whj_connect_timeout: Some(WHJ_CONNECT_TIMEOUT),
+        wait,
         ..StationConfig::default()
     })?;
     let config = station

@@ -125,6 +125,7 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     if let Some(margin) = args.reply_margin {
         bus.config_mut().margin = margin;
     }
+    bus.config_mut().wait = g.wait;
     let verify = match (args.verify_reads, args.no_verify_reads) {
         (true, _) => Some(true),
         (_, true) => Some(false),

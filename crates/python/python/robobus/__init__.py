@@ -247,17 +247,21 @@ class Station:
         *,
         wck_baud: int = 115200,
         reply_margin_ms: float | None = None,
+        wait: str = "sleep",
     ) -> "Station":
         """Opens wCK serial ports (at ``wck_baud``), WHJ buses (``udp``,
         ``udp:GROUP:PORT``, a SocketCAN interface) and a robot file's buses, from the
         same strings as the command line's ``--wck-port``, ``--whj-bus`` and ``--robot``.
-        Requests name a bus under ``bus`` when the station has several of a family."""
+        Requests name a bus under ``bus`` when the station has several of a family.
+        ``wait`` is the command line's ``--wait``: ``"sleep"`` (in the kernel), or
+        ``"spin"`` / ``"spin:US"`` (poll from shortly before each reply is due: lower
+        latency, a core busy while a reply is awaited)."""
         if isinstance(wck_ports, str):
             wck_ports = [wck_ports]
         if isinstance(whj_buses, str):
             whj_buses = [whj_buses]
         native = NativeStation.open(
-            list(wck_ports), list(whj_buses), robot, wck_baud, reply_margin_ms
+            list(wck_ports), list(whj_buses), robot, wck_baud, reply_margin_ms, wait
         )
         return cls(native)
 

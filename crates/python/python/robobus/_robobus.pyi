@@ -14,6 +14,7 @@ class NativeStation:
         robot: str | None,
         wck_baud: int,
         reply_margin_ms: float | None,
+        wait: str = ...,
     ) -> NativeStation: ...
     def run(self, request_obj: Any) -> dict[str, Any]: ...
     @staticmethod

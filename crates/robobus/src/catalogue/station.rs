@@ -188,6 +188,8 @@ pub struct StationConfig {
     /// or a candump log named after the bus, at most [`CAPTURE_LIMIT`] bytes each; the
     /// robot file's buses are not captured): [`Station::captures`] lists them.
     pub capture_dir: Option<PathBuf>,
+    /// How the buses it opens wait for replies (the CLI's `--wait`).
+    pub wait: crate::WaitMode,
 }
 
 /// The largest capture file of one bus a station writes, bytes (64 MiB): a long session
@@ -243,12 +245,14 @@ impl Station {
             if let Some(m) = config.wck_reply_margin {
                 bus.config_mut().margin = m;
             }
+            bus.config_mut().wait = config.wait;
             bus
         };
         let whj = JointBusConfig {
             connect_timeout: config
                 .whj_connect_timeout
                 .unwrap_or(JointBusConfig::default().connect_timeout),
+            wait: config.wait,
             ..JointBusConfig::default()
         };
         let dir = config.capture_dir.as_deref();

@@ -309,7 +309,7 @@ impl RobotSampler {
 }
 
 /// Opens every bus of a robot file for reading, as station ports named as in the file
-/// (wCK with `wck_margin` if given, WHJ with `whj`); a bus a program supplies
+/// (wCK with `wck_margin` if given and `whj`'s wait mode, WHJ with `whj`); a bus a program supplies
 /// (`wck-external`, `whj-external`) is refused ([`RobotError::Invalid`], field `kind`).
 pub fn open_robot_ports(
     config: &RobotConfig,
@@ -324,6 +324,7 @@ pub fn open_robot_ports(
                 let open = crate::robot::open_wck_bus(name, bus)?;
                 let wck = WckConfig {
                     margin: wck_margin.unwrap_or(open.config().margin),
+                    wait: whj.wait,
                     ..*open.config()
                 };
                 wck_ports.push(WckPort::new(name.clone(), open.with_config(wck)));
