@@ -11,9 +11,19 @@ Tuned fairly: packets are prebuilt, each reply is read with one exact-length rea
 
 import argparse
 import json
+import os
 import time
 
 import serial
+
+
+def mark(name: str) -> None:
+    """Leaves a marker in a system-call trace (robobus-bench syscalls): a stat of a path
+    that does not exist."""
+    try:
+        os.stat("/robobus-bench-mark-" + name)
+    except OSError:
+        pass
 
 
 def status_read(servo_id):
@@ -44,6 +54,7 @@ def main():
     cycles = 0
     write = port.write
     read = port.read
+    mark("start")
     cpu0 = time.process_time()
     t0 = time.perf_counter()
     end = t0 + args.seconds
@@ -55,6 +66,7 @@ def main():
                 port.reset_input_buffer()
         cycles += 1
     elapsed = time.perf_counter() - t0
+    mark("end")
     cpu = time.process_time() - cpu0
     port.close()
     print(json.dumps({"cycles": cycles, "elapsed": elapsed, "cpu": cpu, "errors": errors}))

@@ -12,10 +12,20 @@ network namespace with `ip route add 224.0.0.0/4 dev lo`). Prints one JSON line:
 
 import argparse
 import json
+import os
 import struct
 import time
 
 import can
+
+
+def mark(name: str) -> None:
+    """Leaves a marker in a system-call trace (robobus-bench syscalls): a stat of a path
+    that does not exist."""
+    try:
+        os.stat("/robobus-bench-mark-" + name)
+    except OSError:
+        pass
 
 
 def frame(arbitration_id, data):
@@ -82,6 +92,7 @@ def main():
         timeout = args.timeout
         errors = 0
         cycles = 0
+        mark("start")
         cpu0 = time.process_time()
         t0 = time.perf_counter()
         end = t0 + args.seconds
@@ -97,6 +108,7 @@ def main():
                         break
             cycles += 1
         elapsed = time.perf_counter() - t0
+        mark("end")
         cpu = time.process_time() - cpu0
     finally:
         bus.shutdown()

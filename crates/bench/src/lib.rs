@@ -331,26 +331,35 @@ pub fn run(opts: &Options, mut log: impl FnMut(&str)) -> Results {
 
     // WHJ over UDP with the python-can peer (zero processing delay).
     if opts.udp {
-        let mut runs = vec![(1u8, false)];
+        let plain = |n, fast| chain(n, Duration::ZERO, fast);
+        // Without the collision window (the peer has none), in both wait modes.
+        let bare = |n, wait| whj::ChainSpec {
+            wait,
+            collision_window: false,
+            ..plain(n, false)
+        };
+        let mut runs = vec![plain(1, false)];
         if !smoke {
-            runs.extend([(7, false), (1, true), (7, true)]);
+            runs.extend([
+                plain(7, false),
+                plain(1, true),
+                plain(7, true),
+                bare(1, WaitMode::Sleep),
+                bare(1, WaitMode::SPIN),
+            ]);
         }
-        for (n, fast) in runs {
+        for spec in runs {
             let what = format!(
-                "WHJ free-running over UDP, {n} joints, {}",
-                if fast {
+                "WHJ free-running over UDP, {}, {}",
+                spec.label(),
+                if spec.fast_wire {
                     "wire off"
                 } else {
                     "1 / 5 Mbit/s wire"
                 }
             );
             log(&what);
-            match whj::udp_compare(
-                &opts.exe,
-                chain(n, Duration::ZERO, fast),
-                secs(3.0, 0.3),
-                opts.python.as_deref(),
-            ) {
+            match whj::udp_compare(&opts.exe, spec, secs(3.0, 0.3), opts.python.as_deref()) {
                 Ok(f) => r.udp.push(f),
                 Err(e) => fail(&mut r, &mut log, &what, &e),
             }
@@ -368,7 +377,7 @@ pub fn run(opts: &Options, mut log: impl FnMut(&str)) -> Results {
     if !smoke {
         if syscalls::strace_available() {
             log("system calls per transaction (strace)");
-            let (cases, notes) = syscalls::measure(&opts.exe, opts.udp);
+            let (cases, notes) = syscalls::measure(&opts.exe, opts.udp, opts.python.as_deref());
             r.syscalls = cases;
             r.notes.extend(notes);
         } else {

@@ -31,7 +31,7 @@ use robobus_bench::{Options, report, run, wck, whj};
 fn usage() -> ExitCode {
     let _ = writeln!(
         std::io::stderr(),
-        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire] [--wait sleep|spin]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround] [--wait sleep|spin] [--memory]\n       robobus-bench telemetry --secs S\n       robobus-bench studio --secs S\n       robobus-bench bridge [--bridges N] [--rate HZ] [--secs S] [--smoke]\n       robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window] [--external-sim]\n       robobus-bench free-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window]\n       robobus-bench syscalls [--udp]\n       robobus-bench echo"
+        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire] [--wait sleep|spin]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround] [--wait sleep|spin] [--memory]\n       robobus-bench telemetry --secs S\n       robobus-bench studio --secs S\n       robobus-bench bridge [--bridges N] [--rate HZ] [--secs S] [--smoke]\n       robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window] [--external-sim]\n       robobus-bench free-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window]\n       robobus-bench syscalls [--udp] [--python PATH]\n       robobus-bench echo"
     );
     ExitCode::from(2)
 }
@@ -370,11 +370,16 @@ fn add_bridge_section(
 fn syscalls(args: &[String]) -> ExitCode {
     let exe = std::env::current_exe().unwrap_or_else(|_| PathBuf::from("robobus-bench"));
     let udp = args.iter().any(|a| a == "--udp");
+    let python = args
+        .iter()
+        .position(|a| a == "--python")
+        .and_then(|i| args.get(i + 1))
+        .map(PathBuf::from);
     if !robobus_bench::syscalls::strace_available() {
         let _ = writeln!(std::io::stderr(), "syscalls: strace is not installed");
         return ExitCode::FAILURE;
     }
-    let (cases, notes) = robobus_bench::syscalls::measure(&exe, udp);
+    let (cases, notes) = robobus_bench::syscalls::measure(&exe, udp, python.as_deref());
     let r = robobus_bench::Results {
         syscalls: cases,
         notes,

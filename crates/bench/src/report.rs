@@ -113,8 +113,8 @@ pub fn peer_ratios(r: &Results) -> Vec<(String, f64, f64)> {
         if let Some(peer) = &f.peer {
             v.push((
                 format!(
-                    "WHJ servo cycle {} joints, UDP, {} (python-can)",
-                    f.spec.joints,
+                    "WHJ servo cycle {}, UDP, {} (python-can)",
+                    f.spec.label(),
                     if f.spec.fast_wire {
                         "wire off"
                     } else {
@@ -753,13 +753,13 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
     );
     let _ = writeln!(
         o,
-        "| loop | ours cycles/s | theirs cycles/s | ours / theirs | ours CPU µs/cycle | theirs CPU µs/cycle | theirs / ours CPU | ours efficiency | errors ours / theirs |\n|---|---|---|---|---|---|---|---|---|"
+        "| loop | ours cycles/s | theirs cycles/s | ours / theirs | ours CPU µs/cycle | theirs CPU µs/cycle | theirs / ours CPU | ours efficiency | errors ours / theirs | simulator late p50 / p99 (ours) |\n|---|---|---|---|---|---|---|---|---|---|"
     );
     for p in &r.polls {
         if let Some(peer) = &p.peer {
             let _ = writeln!(
                 o,
-                "| wCK polling {} servos, {} bit/s, wait {} | {:.1} | {:.1} | {:.2}× | {:.1} | {:.1} | {:.1}× | {} | {} / {} |",
+                "| wCK polling {} servos, {} bit/s, wait {} | {:.1} | {:.1} | {:.2}× | {:.1} | {:.1} | {:.1}× | {} | {} / {} | {} / {} |",
                 p.spec.servos,
                 p.spec.baud.bits_per_second(),
                 p.spec.wait,
@@ -771,7 +771,9 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
                 peer.cpu_per_cycle_us() / p.cpu_per_cycle_us().max(1e-9),
                 pct(p.efficiency()),
                 p.errors,
-                peer.errors
+                peer.errors,
+                opt_us(p.endpoint.lateness.p50),
+                opt_us(p.endpoint.lateness.p99)
             );
         }
     }
@@ -785,8 +787,8 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
             Some(peer) => {
                 let _ = writeln!(
                     o,
-                    "| WHJ servo cycle {} joints, UDP, {} | {:.1} | {:.1} | {:.2}× | {:.1} | {:.1} | {:.1}× | {} | {} / {} |",
-                    f.spec.joints,
+                    "| WHJ servo cycle {}, UDP, {} | {:.1} | {:.1} | {:.2}× | {:.1} | {:.1} | {:.1}× | {} | {} / {} | {} / {} |",
+                    f.spec.label(),
                     if f.spec.fast_wire {
                         "wire off"
                     } else {
@@ -800,18 +802,22 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
                     peer.cpu_per_cycle_us() / f.cpu_per_cycle_us().max(1e-9),
                     eff,
                     f.errors,
-                    peer.errors
+                    peer.errors,
+                    opt_us(f.sim_lateness.and_then(|l| l.p50)),
+                    opt_us(f.sim_lateness.and_then(|l| l.p99))
                 );
             }
             None => {
                 let _ = writeln!(
                     o,
-                    "| WHJ servo cycle {} joints, UDP | {:.1} | – | – | {:.1} | – | – | {} | {} / – |",
-                    f.spec.joints,
+                    "| WHJ servo cycle {}, UDP | {:.1} | – | – | {:.1} | – | – | {} | {} / – | {} / {} |",
+                    f.spec.label(),
                     f.rate_hz(),
                     f.cpu_per_cycle_us(),
                     eff,
-                    f.errors
+                    f.errors,
+                    opt_us(f.sim_lateness.and_then(|l| l.p50)),
+                    opt_us(f.sim_lateness.and_then(|l| l.p99))
                 );
             }
         }
@@ -926,8 +932,11 @@ pub fn syscalls_markdown(r: &Results) -> String {
     let _ = writeln!(
         o,
         "Counted with `strace -ff -ttt` on the one-case runners in the sleep mode, between \
-         two markers the measured loop leaves in the trace; every thread of the client's \
-         process (in the wCK case the simulator's endpoint thread is one of them).\n"
+         two markers the measured loop leaves in the trace (the Python peers leave the same \
+         markers); every thread of the traced process. Ours in the wCK case runs the \
+         simulator's endpoint thread in the same process: it is the \"other threads\" column \
+         there; a peer's simulator runs outside the trace, and ours over UDP talks to a \
+         simulator process as the peer does.\n"
     );
     let _ = writeln!(
         o,

@@ -5,11 +5,16 @@
 //! Under `strace` every call is slow, so the loop runs slower than it does untraced;
 //! the counts per transaction are what it does, the rates are not. A spinning wait polls
 //! as often as it can, so its count says how long it spun, not what it needs: only the
-//! sleep mode is counted.
+//! sleep mode is counted. The Python peers are counted the same way (their scripts leave
+//! the same markers), against a simulator this process serves untraced.
 
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::process::{Command, Stdio};
+
+use robobus_link::WaitMode;
+use robobus_sim::wck::Timing;
+use robobus_wck::BaudRate;
 
 use crate::BenchError;
 
@@ -195,21 +200,47 @@ pub fn cycles_times(stdout: &str, per_cycle: u64) -> Option<u64> {
 /// The counted cases: wCK polling of one servo at 115200 and 921600 bit/s on the pty, and
 /// (with `udp`, inside a network namespace with a multicast route) the WHJ servo cycle of
 /// one joint over python-can's UDP bus against a simulator process. All in the sleep mode.
-pub fn measure(exe: &Path, udp: bool) -> (Vec<SyscallCase>, Vec<String>) {
+pub fn measure(exe: &Path, udp: bool, python: Option<&Path>) -> (Vec<SyscallCase>, Vec<String>) {
     let mut cases = Vec::new();
     let mut notes = Vec::new();
-    for baud in ["115200", "921600"] {
-        let what = format!("wCK status read, 1 servo, {baud} bit/s, pty");
+    for baud in [BaudRate::B115200, BaudRate::B921600] {
+        let bps = baud.bits_per_second().to_string();
+        let what = format!("wCK status read, 1 servo, {bps} bit/s, pty: ours");
         let args = [
-            "poll-wck", "--servos", "1", "--baud", baud, "--secs", "1", "--wait", "sleep",
+            "poll-wck", "--servos", "1", "--baud", &bps, "--secs", "1", "--wait", "sleep",
         ];
         match count(&what, exe, &args, |o| cycles_times(o, 1)) {
             Ok(c) => cases.push(c),
             Err(e) => notes.push(format!("FAILED {what}: {e}")),
         }
+        let Some(py) = python else { continue };
+        // The peer against an endpoint of this (untraced) process.
+        let what = format!("wCK status read, 1 servo, {bps} bit/s, pty: pyserial");
+        let counted =
+            crate::wck::Rig::open(1, baud, Timing::ZERO, WaitMode::Sleep).and_then(|rig| {
+                let script = crate::peers::script_dir().join("wck_poll_peer.py");
+                let path = rig.path.display().to_string();
+                let script = script.display().to_string();
+                let args = [
+                    script.as_str(),
+                    "--port",
+                    &path,
+                    "--baud",
+                    &bps,
+                    "--servos",
+                    "1",
+                    "--seconds",
+                    "1",
+                ];
+                count(&what, py, &args, json_cycles)
+            });
+        match counted {
+            Ok(c) => cases.push(c),
+            Err(e) => notes.push(format!("FAILED {what}: {e}")),
+        }
     }
     if udp {
-        let what = "WHJ position servo frame, 1 joint, UDP multicast";
+        let what = "WHJ position servo frame, 1 joint, UDP multicast: ours";
         let spec = crate::whj::ChainSpec {
             joints: 1,
             delay: std::time::Duration::ZERO,
@@ -228,18 +259,39 @@ pub fn measure(exe: &Path, udp: bool) -> (Vec<SyscallCase>, Vec<String>) {
             "1",
         ];
         let counted = crate::whj::ChildSim::start(exe, spec).and_then(|sim| {
-            let c = count(what, exe, &args, |o| cycles_times(o, 1));
+            let mut c = vec![count(what, exe, &args, |o| cycles_times(o, 1))];
+            if let Some(py) = python {
+                let script = crate::peers::script_dir().join("whj_servo_peer.py");
+                let script = script.display().to_string();
+                let args = [script.as_str(), "--joints", "1", "--seconds", "1"];
+                let what = "WHJ position servo frame, 1 joint, UDP multicast: python-can";
+                c.push(count(what, py, &args, json_cycles));
+            }
             sim.stop()?;
-            c
+            Ok(c)
         });
         match counted {
-            Ok(c) => cases.push(c),
+            Ok(c) => {
+                for one in c {
+                    match one {
+                        Ok(c) => cases.push(c),
+                        Err(e) => notes.push(format!("FAILED {e}")),
+                    }
+                }
+            }
             Err(e) => notes.push(format!("FAILED {what}: {e}")),
         }
     } else {
         notes.push("WHJ system calls not counted (no network namespace for UDP)".into());
     }
     (cases, notes)
+}
+
+/// The `cycles` of a Python peer's JSON line.
+pub fn json_cycles(stdout: &str) -> Option<u64> {
+    let line = stdout.lines().rev().find(|l| l.starts_with('{'))?;
+    let v: serde_json::Value = serde_json::from_str(line).ok()?;
+    v.get("cycles")?.as_u64()
 }
 
 #[cfg(test)]
@@ -275,5 +327,9 @@ mod tests {
             c.add(n);
         }
         assert_eq!(c.per(2), "ppoll 1.5, read 1.0, write 0.5");
+        assert_eq!(
+            json_cycles("warming up\n{\"cycles\": 812, \"elapsed\": 1.0}\n"),
+            Some(812)
+        );
     }
 }

@@ -563,6 +563,7 @@ pub fn fixed_rate(
 pub struct ChildSim {
     child: Child,
     stdin: Option<ChildStdin>,
+    stdout: Option<BufReader<std::process::ChildStdout>>,
 }
 
 impl ChildSim {
@@ -587,8 +588,9 @@ impl ChildSim {
             .map_err(|e| BenchError::new(format!("starting {} serve-whj", exe.display()), e))?;
         let stdin = child.stdin.take();
         let mut line = String::new();
-        if let Some(out) = child.stdout.take() {
-            let _ = BufReader::new(out).read_line(&mut line);
+        let mut stdout = child.stdout.take().map(BufReader::new);
+        if let Some(out) = stdout.as_mut() {
+            let _ = out.read_line(&mut line);
         }
         if !line.starts_with("READY") {
             let _ = child.kill();
@@ -597,28 +599,73 @@ impl ChildSim {
                 "the WHJ simulator process did not start: {line:?}"
             )));
         }
-        Ok(Self { child, stdin })
+        Ok(Self {
+            child,
+            stdin,
+            stdout,
+        })
     }
 
-    /// Stops the child (closing its stdin) and waits for it.
-    pub fn stop(mut self) -> Result<(), BenchError> {
+    /// Stops the child (closing its stdin) and waits for it; returns how late it released
+    /// its frames (its last line, `LATENESS releases p50 p99 max` in ns, `-` for none).
+    pub fn stop(mut self) -> Result<Option<LatenessSummary>, BenchError> {
         self.halt()
     }
 
-    fn halt(&mut self) -> Result<(), BenchError> {
+    fn halt(&mut self) -> Result<Option<LatenessSummary>, BenchError> {
         if let Some(mut s) = self.stdin.take() {
             let _ = s.flush();
+        }
+        let mut lateness = None;
+        if let Some(out) = self.stdout.take() {
+            for line in out.lines().map_while(Result::ok).take(16) {
+                if let Some(l) = parse_lateness(&line) {
+                    lateness = Some(l);
+                }
+            }
         }
         let status = self
             .child
             .wait()
             .map_err(|e| BenchError::new("waiting for the simulator process", e))?;
         if status.success() {
-            Ok(())
+            Ok(lateness)
         } else {
             Err(BenchError::msg(format!("simulator process: {status}")))
         }
     }
+}
+
+/// `LATENESS releases p50 p99 max`, nanoseconds (`-`: none), as `serve-whj` prints it.
+fn lateness_line(l: &LatenessSummary) -> String {
+    let ns = |d: Option<Duration>| d.map_or_else(|| "-".to_owned(), |d| d.as_nanos().to_string());
+    format!(
+        "LATENESS {} {} {} {}",
+        l.releases,
+        ns(l.p50),
+        ns(l.p99),
+        l.max.as_nanos()
+    )
+}
+
+fn parse_lateness(line: &str) -> Option<LatenessSummary> {
+    let mut it = line.strip_prefix("LATENESS ")?.split_whitespace();
+    let ns = |w: Option<&str>| -> Option<Option<Duration>> {
+        match w? {
+            "-" => Some(None),
+            n => n.parse().ok().map(|n| Some(Duration::from_nanos(n))),
+        }
+    };
+    let releases = it.next()?.parse().ok()?;
+    let p50 = ns(it.next())?;
+    let p99 = ns(it.next())?;
+    let max = ns(it.next())??;
+    Some(LatenessSummary {
+        releases,
+        p50,
+        p99,
+        max,
+    })
 }
 
 impl Drop for ChildSim {
@@ -646,7 +693,9 @@ pub fn serve_whj_process(spec: ChainSpec) -> Result<(), BenchError> {
     while std::io::stdin().read_line(&mut sink).is_ok_and(|n| n > 0) {
         sink.clear();
     }
-    served.stop().map_err(|e| BenchError::new("serving", e))?;
+    let (_, stats) = served.stop().map_err(|e| BenchError::new("serving", e))?;
+    let _ = writeln!(out, "{}", lateness_line(&stats.lateness));
+    let _ = out.flush();
     Ok(())
 }
 
@@ -660,8 +709,8 @@ pub fn udp_compare(
     python: Option<&Path>,
 ) -> Result<FreeResult, BenchError> {
     let sim = ChildSim::start(exe, spec)?;
-    let r = udp_client(spec, duration, python)?;
-    sim.stop()?;
+    let mut r = udp_client(spec, duration, python)?;
+    r.sim_lateness = sim.stop()?;
     Ok(r)
 }
 
@@ -691,6 +740,20 @@ mod tests {
     /// Back-to-back transactions (each command sent when the previous feedback arrived)
     /// take command + max(delay, intermission) + feedback − intermission each, as the
     /// free-running model says.
+    #[test]
+    fn the_simulator_process_reports_its_lateness_in_one_line() {
+        let l = LatenessSummary {
+            releases: 12,
+            p50: Some(Duration::from_micros(3)),
+            p99: None,
+            max: Duration::from_millis(25),
+        };
+        let line = lateness_line(&l);
+        assert_eq!(line, "LATENESS 12 3000 - 25000000");
+        assert_eq!(parse_lateness(&line), Some(l));
+        assert_eq!(parse_lateness("READY"), None);
+    }
+
     #[test]
     fn free_running_model_matches_the_virtual_wire() {
         for delay in [DEFAULT_DELAY, Duration::ZERO] {

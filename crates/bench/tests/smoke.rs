@@ -51,7 +51,7 @@ fn smoke_run_writes_the_report_with_every_section() {
         "{report}"
     );
     assert!(
-        report.contains("| WHJ servo cycle 1 joints, UDP"),
+        report.contains("| WHJ servo cycle 1 joints, wait sleep, collision window on, UDP"),
         "{report}"
     );
     assert!(!report.contains("FAILED"), "{report}");
