@@ -849,13 +849,18 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
     let _ = writeln!(
         o,
         "Wall clock, real time: the serving thread's CPU share while a client loads it, and \
-         what one core could serve at that load (linear extrapolation).\n"
+         what one core could serve at that load (linear extrapolation); the sleeping mode \
+         only (in the precise mode the serving thread polls: one core, whatever the load).\n"
     );
     let _ = writeln!(
         o,
         "| endpoint | load | serving thread CPU | served in real time per core |\n|---|---|---|---|"
     );
-    for p in r.polls.iter().filter(|p| p.spec.servos == 31) {
+    for p in r
+        .polls
+        .iter()
+        .filter(|p| p.spec.servos == 31 && !p.spec.wait.spins())
+    {
         let share = p.endpoint.cpu.as_secs_f64() / p.endpoint.wall.as_secs_f64().max(1e-9);
         let _ = writeln!(
             o,
@@ -872,11 +877,9 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
             31.0 / share.max(1e-9)
         );
     }
-    for f in r
-        .fixed
-        .iter()
-        .filter(|f| f.hz == 1000 && f.protocol == Protocol::PointToPoint && f.feasible())
-    {
+    for f in r.fixed.iter().filter(|f| {
+        f.hz == 1000 && f.protocol == Protocol::PointToPoint && f.feasible() && !f.spec.wait.spins()
+    }) {
         let share = f.sim.cpu.as_secs_f64() / f.sim.wall.as_secs_f64().max(1e-9);
         let _ = writeln!(
             o,
