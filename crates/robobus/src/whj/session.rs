@@ -627,18 +627,21 @@ impl Session {
         self.config.wait
     }
 
-    /// The earliest instant a frame the session awaits can arrive, from `now` on: a
-    /// request's reply not before the request has crossed the wire; anything else (a
-    /// cyclic loop's feedback, a held reply's rival) at any time.
+    /// The instant from which a spinning driver polls, from `now` on: a request's reply
+    /// cannot come before the request has crossed the wire; a cyclic loop's feedback may
+    /// come at any time; with only held replies left, what ends the wait is the end of
+    /// their collision window (a rival frame that comes sooner still ends it).
     pub(crate) fn earliest_reply(&self, now: Instant) -> Instant {
-        if !self.credited.is_empty() || self.cyclic.as_ref().is_some_and(CyclicRun::awaiting) {
+        if self.cyclic.as_ref().is_some_and(CyclicRun::awaiting) {
             return now;
         }
-        self.in_flight
+        let next = self
+            .in_flight
             .values()
             .map(|f| f.earliest)
             .min()
-            .map_or(now, |t| t.max(now))
+            .or_else(|| self.credited.values().map(|c| c.until).min());
+        next.map_or(now, |t| t.max(now))
     }
 
     pub(crate) fn awaiting(&self) -> bool {
