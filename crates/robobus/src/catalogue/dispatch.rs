@@ -35,7 +35,10 @@ pub fn validate(request: &Request) -> Result<(), OpError> {
     match request.family() {
         Family::Wck => wck::prepare(request, BaudRate::B115200).map(drop),
         Family::Whj => whj::prepare(request, false).map(drop),
-        Family::Robot => Ok(()),
+        Family::Robot => match request {
+            Request::RobotCalibrate(r) => r.readings().map(drop),
+            _ => Ok(()),
+        },
     }
 }
 
@@ -79,7 +82,13 @@ pub fn plan_at(request: &Request, baud: BaudRate) -> Result<Plan, OpError> {
             plan.confirm_text = (p.confirm != ConfirmClass::None).then(|| p.confirm_text.clone());
             plan
         }
-        Family::Robot => Plan::notes_only(&op, Family::Robot, vec![ROBOT_SAMPLE_NOTE.into()]),
+        Family::Robot => {
+            let note = match request {
+                Request::RobotCalibrate(r) => r.note()?,
+                _ => ROBOT_SAMPLE_NOTE.into(),
+            };
+            Plan::notes_only(&op, Family::Robot, vec![note])
+        }
     })
 }
 
@@ -164,7 +173,15 @@ pub fn run_with(
             let port = station.whj(request.bus())?;
             run_whj(&port, &op, &p, control)
         }
-        Family::Robot => robot_report(station, &op),
+        Family::Robot => match request {
+            Request::RobotCalibrate(r) => {
+                let (results, readings) = super::robot::run_calibrate(station, r, control)?;
+                let mut report = device_report(&op, "robot", &results);
+                report.summary = Some(json!({ "readings": readings }));
+                Ok(report)
+            }
+            _ => robot_report(station, &op),
+        },
     }
 }
 

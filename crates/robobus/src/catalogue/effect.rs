@@ -83,7 +83,9 @@ impl Request {
             | Self::WhjWrite(_)
             | Self::WhjSetId(_)
             | Self::WhjRestore(_)
-            | Self::WckRestore(_) => Effect::Configure,
+            | Self::WckRestore(_)
+            // wCK servos made passive while the joints are moved by hand.
+            | Self::RobotCalibrate(_) => Effect::Configure,
             Self::WckScan(_)
             | Self::WckStatus(_)
             | Self::WckRead10(_)

@@ -1,8 +1,15 @@
 //! The robot requests (`robot.*`): a station's robot file read as one robot, its joints by
 //! name in joint units, across every bus the file names.
 
+use std::time::{Duration, Instant};
+
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
+
+use crate::ops::{Control, DeviceResult, ErrorKind, Failure, OpError, Outcome, Progress};
+use crate::robot::calibration::{self, JointCalibration, MAX_MARGIN_DEG, Range};
+
+use super::station::Station;
 
 /// `robot.sample`: one reading of every joint of the station's robot file, in the file's
 /// order: its joint angle (deg, the file's `offset`, `direction` and wCK `centre`
@@ -12,3 +19,313 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Sample {}
+
+/// Which pose becomes the joints' zero in a calibration.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum ZeroPose {
+    /// The pose the joints are in when the reading ends.
+    #[default]
+    End,
+    /// The file's offsets stay; only the limits change.
+    Keep,
+}
+
+/// `robot.calibrate`: calibration by hand. The station's robot file's wCK servos are made
+/// passive (torque off; `passive: false` leaves them as they are) and every joint is read
+/// `seconds × rate_hz` times while the user moves each through its whole range; WHJ
+/// joints are read as they are (a disabled WHJ joint holds its brake: move it in a mode
+/// that lets it turn). Each joint's row has the range it went through and the file's new
+/// `offset` (with `zero: "end"`, the pose at the end becomes the zero) and `limits` (the
+/// recorded range, `margin_deg` inside at each end), in the same joint frame; the file is
+/// not written (`robobus robot calibrate --write` writes it, keeping its comments). A
+/// joint that never answered, or moved through less than twice the margin, is a failed
+/// row. Stops early at the stop token, with what was read so far.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Calibrate {
+    /// How long the joints are read, seconds (0.1..=600).
+    pub seconds: f64,
+    /// Readings a second (1..=100; default 20).
+    #[serde(default = "default_rate")]
+    pub rate_hz: f64,
+    /// `end` (default): the pose at the end becomes each joint's zero; `keep`: the file's
+    /// offsets stay.
+    #[serde(default)]
+    pub zero: ZeroPose,
+    /// How far inside the recorded range the soft limits stay, degrees (0..=30; default 2).
+    #[serde(default = "default_margin")]
+    pub margin_deg: f64,
+    /// Make the wCK servos passive first (default true).
+    #[serde(default = "yes")]
+    pub passive: bool,
+}
+
+const fn default_rate() -> f64 {
+    20.0
+}
+
+const fn default_margin() -> f64 {
+    2.0
+}
+
+const fn yes() -> bool {
+    true
+}
+
+/// Range of `seconds`.
+pub const CALIBRATE_SECONDS: std::ops::RangeInclusive<f64> = 0.1..=600.0;
+/// Range of `rate_hz`.
+pub const CALIBRATE_RATE_HZ: std::ops::RangeInclusive<f64> = 1.0..=100.0;
+
+impl Calibrate {
+    /// Checks the ranges; returns the number of readings.
+    pub fn readings(&self) -> Result<u64, OpError> {
+        let check = |name: &str, v: f64, range: &std::ops::RangeInclusive<f64>| {
+            if v.is_finite() && range.contains(&v) {
+                Ok(())
+            } else {
+                Err(OpError::invalid(
+                    name,
+                    v,
+                    format!("out of range {}..={}", range.start(), range.end()),
+                ))
+            }
+        };
+        check("seconds", self.seconds, &CALIBRATE_SECONDS)?;
+        check("rate_hz", self.rate_hz, &CALIBRATE_RATE_HZ)?;
+        check("margin_deg", self.margin_deg, &(0.0..=MAX_MARGIN_DEG))?;
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // 1..=60000
+        Ok(((self.seconds * self.rate_hz).round() as u64).max(1))
+    }
+
+    /// What a run sends, for the plan.
+    pub fn note(&self) -> Result<String, OpError> {
+        let n = self.readings()?;
+        Ok(format!(
+            "{}reads every joint of the station's robot file {n} times at {} Hz while you move \
+             each through its range by hand (a status read per wCK servo, a status query and a \
+             speed read per WHJ joint); {}; the file is not written",
+            if self.passive {
+                "makes every wCK servo of the robot file passive (FF <0xC0|ID> 00 <checksum>, \
+                 torque off), then "
+            } else {
+                ""
+            },
+            self.rate_hz,
+            match self.zero {
+                ZeroPose::End => "the pose at the end becomes each joint's zero",
+                ZeroPose::Keep => "the offsets stay",
+            }
+        ))
+    }
+}
+
+/// `robot.calibrate` on the station's robot file.
+pub(super) fn run_calibrate(
+    station: &Station,
+    r: &Calibrate,
+    control: &mut Control<'_>,
+) -> Result<(Vec<DeviceResult<String, JointCalibration>>, u64), OpError> {
+    let readings = r.readings()?;
+    let config = station.robot().cloned().ok_or_else(no_robot)?;
+    if r.passive {
+        for j in &config.joints {
+            if config
+                .buses
+                .get(&j.bus)
+                .is_some_and(crate::robot::BusConfig::is_wck)
+            {
+                let port = station.wck(Some(&j.bus))?;
+                let id = robobus_wck::ServoId::new(j.id)
+                    .map_err(|e| OpError::invalid("robot", &j.name, e.to_string()))?;
+                // A servo that does not answer is found silent by the readings.
+                let _ = port.lock().servo(id).passive();
+            }
+        }
+    }
+    let mut ranges: Vec<(String, Range)> = config
+        .joints
+        .iter()
+        .map(|j| (j.name.clone(), Range::default()))
+        .collect();
+    let period = Duration::from_secs_f64(1.0 / r.rate_hz);
+    let start = Instant::now();
+    let mut taken = 0;
+    for k in 0..readings {
+        if k > 0 && !control.sleep_until(start + period * u32::try_from(k).unwrap_or(u32::MAX)) {
+            break;
+        }
+        let rows = station.sample_robot().ok_or_else(no_robot)??;
+        for row in rows {
+            if let Some((_, range)) = ranges.iter_mut().find(|(n, _)| *n == row.id) {
+                match row.outcome {
+                    Outcome::Ok(s) => range.take(s.position_deg),
+                    Outcome::Failed(f) => range.fail(f.error),
+                }
+            }
+        }
+        taken += 1;
+        control.report(&Progress::new("calibrate", taken, Some(readings)));
+    }
+    let results = ranges
+        .iter()
+        .map(|(name, range)| {
+            match calibration::finish(&config, name, range, r.zero == ZeroPose::End, r.margin_deg) {
+                Ok(c) => DeviceResult::ok(name.clone(), c),
+                Err(e) => {
+                    let kind = if range.samples == 0 {
+                        ErrorKind::NoDevice
+                    } else {
+                        ErrorKind::Device
+                    };
+                    DeviceResult::failed(name.clone(), Failure::of(kind, &e))
+                }
+            }
+        })
+        .collect();
+    Ok((results, taken))
+}
+
+fn no_robot() -> OpError {
+    OpError::invalid(
+        "robot",
+        "(none)",
+        "the station has no robot file (open it with --robot FILE.toml)",
+    )
+}
+
+#[cfg(all(test, feature = "sim"))]
+mod tests {
+    // Exact comparisons: the file must carry these very numbers.
+    #![allow(clippy::unwrap_used, clippy::panic, clippy::float_cmp)]
+
+    use std::time::Duration;
+
+    use serde_json::{Value, json};
+
+    use super::super::{Request, Station, run};
+    use crate::ops::Control;
+    use crate::robot::calibration::apply_to_toml;
+
+    /// Servo `id`'s shaft turned by hand to `deg` joint degrees (from step 127) at
+    /// simulated time `at` after now.
+    fn turn(sim: &robobus_sim::wck::SimHandle, at_ms: u64, id: usize, deg: f64) {
+        let at = sim.now() + Duration::from_millis(at_ms);
+        sim.at(at, move |bus| {
+            let step = 269.0 / 255.0;
+            bus.servo_mut(id).unwrap().set_angle(127.0 * step + deg);
+        });
+    }
+
+    fn row<'a>(report: &'a Value, name: &str) -> &'a Value {
+        report["results"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|r| r["id"] == name)
+            .unwrap()
+    }
+
+    #[test]
+    fn the_range_moved_through_by_hand_becomes_the_files_limits_and_the_end_its_zero() {
+        let (station, wck, _) = Station::simulated_with_handles().unwrap();
+        // Servo 0 is turned to -40°, then +50°, and left at +10°; servo 1 to -20°, +30°,
+        // then back to 0. The others stay where they are.
+        for (t, d0, d1) in [(100, -40.0, -20.0), (250, 50.0, 30.0), (400, 10.0, 0.0)] {
+            turn(&wck, t, 0, d0);
+            turn(&wck, t, 1, d1);
+        }
+        let request: Request =
+            serde_json::from_value(json!({"op": "robot.calibrate", "seconds": 0.5})).unwrap();
+        let report = run(&station, &request, &mut Control::none()).unwrap();
+        let v = serde_json::to_value(&report).unwrap();
+        assert_eq!(v["summary"]["readings"], 10, "{v:#}");
+        // Within a step (1.05°) of what the shafts were turned to.
+        let near = |x: &Value, want: f64| (x.as_f64().unwrap() - want).abs() <= 1.06;
+        let s0 = row(&v, "s0");
+        assert!(
+            near(&s0["min_deg"], -40.0) && near(&s0["max_deg"], 50.0),
+            "{s0}"
+        );
+        assert!(near(&s0["zero_deg"], 10.0), "{s0}");
+        // The new zero is the end pose; the limits are the range from it, 2° inside.
+        let zero = s0["zero_deg"].as_f64().unwrap();
+        let lim = |i: usize| s0["limits_rad"][i].as_f64().unwrap().to_degrees();
+        assert!(
+            (lim(0) - (s0["min_deg"].as_f64().unwrap() - zero + 2.0)).abs() < 1e-3,
+            "{s0}"
+        );
+        assert!(
+            (lim(1) - (s0["max_deg"].as_f64().unwrap() - zero - 2.0)).abs() < 1e-3,
+            "{s0}"
+        );
+        assert!((s0["offset_rad"].as_f64().unwrap() - zero.to_radians()).abs() < 1e-6);
+        let s1 = row(&v, "s1");
+        assert!(
+            near(&s1["min_deg"], -20.0) && near(&s1["max_deg"], 30.0),
+            "{s1}"
+        );
+        // A joint left alone cannot be calibrated: its row says so, the report fails.
+        let s5 = row(&v, "s5");
+        assert_eq!(s5["kind"], "device", "{s5}");
+        assert!(
+            s5["error"]
+                .as_str()
+                .unwrap()
+                .contains("s5: moved through 0.0°"),
+            "{s5}"
+        );
+        assert_eq!(v["failed"], "device");
+        // What was calibrated goes into the file, which then reads back.
+        let done: Vec<(String, crate::robot::calibration::JointCalibration)> = ["s0", "s1"]
+            .iter()
+            .map(|n| {
+                let r = row(&v, n);
+                let c = crate::robot::calibration::JointCalibration {
+                    samples: r["samples"].as_u64().unwrap(),
+                    failed: r["failed"].as_u64().unwrap(),
+                    min_deg: r["min_deg"].as_f64().unwrap(),
+                    max_deg: r["max_deg"].as_f64().unwrap(),
+                    zero_deg: r["zero_deg"].as_f64().unwrap(),
+                    offset_before_rad: 0.0,
+                    offset_rad: r["offset_rad"].as_f64().unwrap(),
+                    limits_before_rad: [-2.0, 2.0],
+                    limits_rad: [
+                        r["limits_rad"][0].as_f64().unwrap(),
+                        r["limits_rad"][1].as_f64().unwrap(),
+                    ],
+                };
+                ((*n).to_owned(), c)
+            })
+            .collect();
+        let text = apply_to_toml(&super::super::station::simulated_robot(), &done).unwrap();
+        let back = crate::robot::RobotConfig::from_toml_str(&text).unwrap();
+        assert_eq!(back.joints[0].limits, done[0].1.limits_rad);
+        assert_eq!(back.joints[1].offset, done[1].1.offset_rad);
+    }
+
+    #[test]
+    fn keeping_the_offsets_and_bad_values() {
+        let (station, wck, _) = Station::simulated_with_handles().unwrap();
+        turn(&wck, 50, 3, -30.0);
+        turn(&wck, 200, 3, 30.0);
+        let request: Request = serde_json::from_value(
+            json!({"op": "robot.calibrate", "seconds": 0.3, "zero": "keep", "margin_deg": 5}),
+        )
+        .unwrap();
+        let v =
+            serde_json::to_value(run(&station, &request, &mut Control::none()).unwrap()).unwrap();
+        let s3 = row(&v, "s3");
+        assert_eq!(s3["zero_deg"], 0.0, "{s3}");
+        assert_eq!(s3["offset_rad"], 0.0, "{s3}");
+        // Bad values are refused before anything is sent, naming the field and range.
+        for (field, value) in [("seconds", 0.0), ("rate_hz", 500.0), ("margin_deg", -1.0)] {
+            let mut req = json!({"op": "robot.calibrate", "seconds": 1.0});
+            req[field] = json!(value);
+            let request: Request = serde_json::from_value(req).unwrap();
+            let e = super::super::validate(&request).unwrap_err();
+            assert!(e.to_string().contains(field), "{e}");
+        }
+    }
+}

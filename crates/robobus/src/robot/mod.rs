@@ -73,6 +73,7 @@
 //! ```
 
 mod builder;
+pub mod calibration;
 mod config;
 mod hardware;
 mod safety;
