@@ -41,6 +41,7 @@ mod output;
 mod plot;
 mod replay;
 mod report;
+mod robot;
 mod run;
 mod sim_wck;
 mod sim_whj;
@@ -141,6 +142,8 @@ enum Command {
     Monitor(monitor::Args),
     /// Plot a recording (CSV, or MCAP from `monitor --record`) to a PNG or SVG file.
     Plot(plot::Args),
+    /// A robot file as one robot: calibrate its joints' limits and zero by hand.
+    Robot(robot::Args),
     /// Print what every frame or packet of a capture file means (candump or hex log).
     ///
     /// WHJ frames with joint, command, registers by name in units, error bits by name;
@@ -283,6 +286,7 @@ fn main() -> ExitCode {
         Command::Whj(args) => whj::run(g, &args),
         Command::Monitor(args) => monitor::run(g, &args),
         Command::Plot(args) => plot::run(g, &args),
+        Command::Robot(args) => robot::run(g, &args),
         Command::Replay(args) => replay::run(g, &args),
         Command::Doctor(args) => doctor::run(g, &args),
         Command::Completions(args) => generate::completions(&args),

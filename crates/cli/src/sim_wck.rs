@@ -102,6 +102,12 @@ pub(crate) struct Args {
     flip: f64,
     #[command(flatten)]
     faults: LinkFaultArgs,
+    /// A hand turns servo ID's shaft back and forth between FROM and TO degrees (from the
+    /// centre, step 127) once every PERIOD seconds, as someone calibrating a robot does:
+    /// `ID:FROM:TO:PERIOD`, e.g. `0:-40:50:1`. A servo that holds its position fights it
+    /// (make it passive). Repeatable.
+    #[arg(long, value_name = "ID:FROM:TO:PERIOD", allow_negative_numbers = true)]
+    hand: Vec<String>,
     /// Servo ID stops answering (powered off) SECONDS after the path appears: `ID@SECONDS`,
     /// e.g. `3@2.5`. Repeatable.
     #[arg(long, value_name = "ID@SECONDS")]
@@ -312,6 +318,11 @@ pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
         BaudRate::from_bits_per_second(args.baud).map_err(|e| usage(format!("--baud: {e}")))?;
     let timing = timing_of(args)?;
     let (wire_faults, device) = faults_of(args, &ids)?;
+    let hands = args
+        .hand
+        .iter()
+        .map(|h| Hand::parse(h, &ids))
+        .collect::<anyhow::Result<Vec<_>>>()?;
     if let Some(link) = &args.link {
         check_link_path(link)?;
     }
@@ -383,7 +394,7 @@ pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
         slave_path.display(),
     );
 
-    serve_until_stopped(&endpoint, &mut schedule, opened_at, stop);
+    serve_until_stopped(&endpoint, &mut schedule, &hands, opened_at, stop);
     // The serving thread may be inside an injected delay (--delay-ms up to 10 s): Ctrl-C
     // is answered within STOP_WAIT all the same; the process then ends without it.
     let (tx, rx) = std::sync::mpsc::channel();
@@ -437,16 +448,97 @@ fn faults_of(args: &Args, ids: &[u8]) -> anyhow::Result<(Option<FaultConfig>, Ve
     Ok((wire_faults, device))
 }
 
-/// Applies the device faults at their times until Ctrl-C or the endpoint stops.
+/// `--hand`: a servo's shaft turned back and forth by hand.
+#[derive(Debug, Clone, Copy)]
+struct Hand {
+    id: u8,
+    from: f64,
+    to: f64,
+    period: f64,
+}
+
+impl Hand {
+    /// `ID:FROM:TO:PERIOD`, ID one of the bus's, the angles within ±135°, the period
+    /// 0.05..=600 s.
+    fn parse(text: &str, ids: &[u8]) -> anyhow::Result<Self> {
+        let bad = |why: &str| {
+            usage(format!(
+                "--hand {text}: {why} (ID:FROM:TO:PERIOD, e.g. 0:-40:50:1)"
+            ))
+        };
+        let parts: Vec<&str> = text.split(':').collect();
+        let [id, from, to, period] = parts.as_slice() else {
+            return Err(bad("four fields"));
+        };
+        let id: u8 = id
+            .trim()
+            .parse()
+            .map_err(|_| bad("the ID is not a number"))?;
+        if !ids.contains(&id) {
+            return Err(bad("no servo with this ID on the bus"));
+        }
+        let angle = |a: &str| {
+            a.trim()
+                .parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite() && (-135.0..=135.0).contains(v))
+                .ok_or_else(|| bad("an angle out of range -135..=135°"))
+        };
+        let period = period
+            .trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|p| p.is_finite() && (0.05..=600.0).contains(p))
+            .ok_or_else(|| bad("a period out of range 0.05..=600 s"))?;
+        Ok(Self {
+            id,
+            from: angle(from)?,
+            to: angle(to)?,
+            period,
+        })
+    }
+
+    /// The angle at `t` seconds: from FROM to TO in the first half period, back in the
+    /// second.
+    fn angle(&self, t: f64) -> f64 {
+        let phase = (t / self.period).fract();
+        let x = if phase < 0.5 {
+            phase * 2.0
+        } else {
+            2.0 - phase * 2.0
+        };
+        self.from + (self.to - self.from) * x
+    }
+}
+
+/// The shaft angle (degrees, step 0 = 0°) of a servo at `deg` from the centre.
+fn shaft_angle(deg: f64) -> f64 {
+    127.0 * 269.0 / 255.0 + deg
+}
+
+/// Applies the device faults at their times, and turns the `--hand` servos, until Ctrl-C
+/// or the endpoint stops.
 fn serve_until_stopped(
     endpoint: &Endpoint,
     schedule: &mut FaultSchedule,
+    hands: &[Hand],
     opened_at: Duration,
     stop: &AtomicBool,
 ) {
     let t0 = std::time::Instant::now();
     while !stop.load(Ordering::Relaxed) && endpoint.is_running() {
         let now = opened_at + t0.elapsed();
+        if !hands.is_empty() {
+            let t = t0.elapsed().as_secs_f64();
+            let turns: Vec<(u8, f64)> = hands.iter().map(|h| (h.id, h.angle(t))).collect();
+            endpoint.with_bus(move |bus| {
+                for (id, deg) in turns {
+                    if let Some(s) = bus.slot_of(id).and_then(|i| bus.servo_mut(i)) {
+                        s.set_angle(shaft_angle(deg));
+                    }
+                }
+            });
+        }
         if schedule.next_due().is_some_and(|t| t <= now) {
             let due: Vec<DeviceFault> = schedule.take_due(now).to_vec();
             endpoint.with_bus(move |bus| {
@@ -456,9 +548,14 @@ fn serve_until_stopped(
                 }
             });
         }
-        let nap = schedule.next_due().map_or(Duration::from_millis(50), |t| {
-            t.saturating_sub(now).min(Duration::from_millis(50))
-        });
+        let tick = if hands.is_empty() {
+            Duration::from_millis(50)
+        } else {
+            Duration::from_millis(10)
+        };
+        let nap = schedule
+            .next_due()
+            .map_or(tick, |t| t.saturating_sub(now).min(tick));
         std::thread::sleep(nap);
     }
 }

@@ -595,6 +595,17 @@ class WhjOps:
         """The request ``whj.zero``."""
 
 class RobotOps:
+    def calibrate(
+        self,
+        seconds: float,
+        *,
+        margin_deg: float | None = ...,
+        passive: bool | None = ...,
+        rate_hz: float | None = ...,
+        zero: Literal["end", "keep"] | None = ...,
+        check: bool = ...,
+    ) -> Report:
+        """The request ``robot.calibrate``."""
     def sample(
         self,
         *,

@@ -92,9 +92,10 @@ impl Calibrate {
                 ))
             }
         };
-        check("seconds", self.seconds, &CALIBRATE_SECONDS)?;
-        check("rate_hz", self.rate_hz, &CALIBRATE_RATE_HZ)?;
-        check("margin_deg", self.margin_deg, &(0.0..=MAX_MARGIN_DEG))?;
+        // Named as the command line's options (the request's fields are the same words).
+        check("--seconds", self.seconds, &CALIBRATE_SECONDS)?;
+        check("--rate-hz", self.rate_hz, &CALIBRATE_RATE_HZ)?;
+        check("--margin-deg", self.margin_deg, &(0.0..=MAX_MARGIN_DEG))?;
         #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // 1..=60000
         Ok(((self.seconds * self.rate_hz).round() as u64).max(1))
     }
@@ -320,12 +321,16 @@ mod tests {
         assert_eq!(s3["zero_deg"], 0.0, "{s3}");
         assert_eq!(s3["offset_rad"], 0.0, "{s3}");
         // Bad values are refused before anything is sent, naming the field and range.
-        for (field, value) in [("seconds", 0.0), ("rate_hz", 500.0), ("margin_deg", -1.0)] {
+        for (field, option, value, range) in [
+            ("seconds", "--seconds", 0.0, "0.1..=600"),
+            ("rate_hz", "--rate-hz", 500.0, "1..=100"),
+            ("margin_deg", "--margin-deg", -1.0, "0..=30"),
+        ] {
             let mut req = json!({"op": "robot.calibrate", "seconds": 1.0});
             req[field] = json!(value);
             let request: Request = serde_json::from_value(req).unwrap();
-            let e = super::super::validate(&request).unwrap_err();
-            assert!(e.to_string().contains(field), "{e}");
+            let e = super::super::validate(&request).unwrap_err().to_string();
+            assert!(e.contains(option) && e.contains(range), "{e}");
         }
     }
 }

@@ -8,7 +8,7 @@
 //! readings are joint angles of the file as it is; a zero at joint angle `q0` makes the
 //! new offset `offset + direction × q0`, and each recorded angle `q` becomes `q − q0`.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use toml_edit::{DocumentMut, Item, value};
 
 use super::{RobotConfig, RobotError};
@@ -54,7 +54,7 @@ impl Range {
 }
 
 /// One joint's calibration: what was recorded and what the file gets.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct JointCalibration {
     /// Readings taken.
     pub samples: u64,
