@@ -12,6 +12,10 @@ use serde_json::Value;
 
 /// Each subcommand's arguments and the request with the same arguments.
 const PAIRS: &[(&str, &str)] = &[
+    (
+        "robot calibrate --robot robot.toml --seconds 2 --rate-hz 10 --zero keep",
+        r#"{"op":"robot.calibrate","seconds":2,"rate_hz":10,"zero":"keep"}"#,
+    ),
     ("wck scan", r#"{"op":"wck.scan"}"#),
     ("wck scan --ids 0-3", r#"{"op":"wck.scan","ids":"0-3"}"#),
     ("wck status 0-2", r#"{"op":"wck.status","ids":"0-2"}"#),
