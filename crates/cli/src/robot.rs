@@ -32,7 +32,8 @@ enum RobotCommand {
     /// --seconds while you move them. Each joint's range becomes its `limits` (--margin-deg
     /// inside at each end) and, with --zero end, the pose at the end its zero (`offset`).
     /// WHJ joints are read as they are: a disabled WHJ joint holds its brake. Without
-    /// --write or -o nothing is written.
+    /// --write or -o nothing is written. Ctrl-C ends the reading early: what was read is
+    /// calibrated (and written), and the exit code is 130.
     Calibrate {
         /// The robot file: its buses are opened, its joints read.
         #[arg(long, value_name = "FILE")]
@@ -147,7 +148,16 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
             );
         }
     }
-    report::print(&report, g.json, &TABLE)
+    let printed = report::print(&report, g.json, &TABLE);
+    if report
+        .summary
+        .as_ref()
+        .is_some_and(|s| s["interrupted"] == true)
+    {
+        return Err(anyhow::Error::new(crate::exit::Interrupted)
+            .context("the reading was ended early; what was read is above"));
+    }
+    printed
 }
 
 /// The joints of the report that were calibrated (the failed rows are left out).

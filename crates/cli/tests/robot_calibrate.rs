@@ -144,3 +144,54 @@ fn calibration_by_hand_writes_limits_the_monitor_then_accepts() {
         m.stdout
     );
 }
+
+#[test]
+fn ctrl_c_ends_the_reading_keeps_what_was_read_and_exits_130() {
+    let sim = common::WckSim::start("0-1", &["--hand", "0:-30:30:0.4", "--hand", "1:-10:40:0.4"]);
+    let dir = tempfile::tempdir().unwrap();
+    let robot = dir.path().join("robot.toml");
+    std::fs::write(&robot, FILE.replace("PORT", sim.port())).unwrap();
+    let out = dir.path().join("calibrated.toml");
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .args([
+            "--json",
+            "robot",
+            "calibrate",
+            "--seconds",
+            "60",
+            "--reply-margin",
+            "300",
+        ])
+        .arg("--robot")
+        .arg(&robot)
+        .arg("-o")
+        .arg(&out)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let signalled = std::process::Command::new("kill")
+        .arg("-INT")
+        .arg(child.id().to_string())
+        .status()
+        .unwrap();
+    assert!(signalled.success());
+    let r = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(130), "{stderr}");
+    let v: Value = serde_json::from_slice(&r.stdout).unwrap();
+    assert_eq!(v["summary"]["interrupted"], true, "{v}");
+    let n = v["summary"]["readings"].as_u64().unwrap();
+    assert!((5..1200).contains(&n), "{v}");
+    // What was read went into the output file; the robot file is untouched.
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(
+        text.contains("# left hip") && !text.contains("limits = [-2.0, 2.0]  #"),
+        "{text}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(&robot).unwrap(),
+        FILE.replace("PORT", sim.port())
+    );
+}

@@ -177,7 +177,11 @@ pub fn run_with(
             Request::RobotCalibrate(r) => {
                 let (results, readings) = super::robot::run_calibrate(station, r, control)?;
                 let mut report = device_report(&op, "robot", &results);
-                report.summary = Some(json!({ "readings": readings }));
+                // `interrupted`: the stop token ended the reading before all were taken.
+                report.summary = Some(json!({
+                    "readings": readings,
+                    "interrupted": readings < r.readings()?,
+                }));
                 Ok(report)
             }
             _ => robot_report(station, &op),

@@ -73,7 +73,7 @@
 //! | `whj.diff` | `joint`, `settings` (a settings file's text) or `other` (a joint) | one row per setting that differs (`a`, `b`, values and unit) | - |
 //! | `whj.restore` | `joint`, `settings` | one row per differing setting: written or skipped (the bus identity is never written); `summary`: `written`, `saved`, `differ_after` | flash (and the `confirm` registers the file sets) |
 //! | `robot.sample` | - | per joint of the station's robot file, by name: `position_deg`, `speed_deg_s`, `current_ma`, `load`, `enabled`, `error` | - |
-//! | `robot.calibrate` | `seconds` (0.1..=600), `rate_hz`=20 (1..=100), `zero` (`end` / `keep`), `margin_deg`=2 (0..=30), `passive`=true | per joint by name: `samples`, `min_deg`, `max_deg`, `zero_deg`, `offset_rad` and `limits_rad` for the file (and their values before); `summary`: `readings` | - |
+//! | `robot.calibrate` | `seconds` (0.1..=600), `rate_hz`=20 (1..=100), `zero` (`end` / `keep`), `margin_deg`=2 (0..=30), `passive`=true | per joint by name: `samples`, `min_deg`, `max_deg`, `zero_deg`, `offset_rad` and `limits_rad` for the file (and their values before); `summary`: `readings`, `interrupted` | - |
 //!
 //! # Report
 //!

@@ -242,6 +242,7 @@ mod tests {
         let report = run(&station, &request, &mut Control::none()).unwrap();
         let v = serde_json::to_value(&report).unwrap();
         assert_eq!(v["summary"]["readings"], 10, "{v:#}");
+        assert_eq!(v["summary"]["interrupted"], false, "{v:#}");
         // Within a step (1.05°) of what the shafts were turned to.
         let near = |x: &Value, want: f64| (x.as_f64().unwrap() - want).abs() <= 1.06;
         let s0 = row(&v, "s0");

@@ -81,7 +81,9 @@ pub struct WckConfig {
     /// Default [`DEFAULT_GUARD`] (one module turnaround, 1006.6 µs): whatever answers the
     /// same command answers within a turnaround of the first answer. Bytes that arrive
     /// later still fall before the next command's earliest reply instant and fail that
-    /// attempt instead (see [`WckBus::reply_wait`]).
+    /// attempt instead (see [`WckBus::reply_wait`]). Zero credits a reply as soon as its
+    /// last byte is read (bytes read with it still fail it): for a bus whose modules are
+    /// known to answer alone.
     pub guard: Duration,
     /// The earliest a module begins to answer after a command's last byte; bytes that
     /// come sooner cannot be its reply (see [`robobus_wck::timing::earliest_reply`]).
