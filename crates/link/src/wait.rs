@@ -121,37 +121,96 @@ impl FromStr for WaitMode {
     }
 }
 
-/// One wait on a link, whatever its kind: `attempt(until)` waits for data until `until`
-/// at most (`Ok(Some)`) or times out (`Ok(None)`).
-fn wait_with<T, E>(
+/// A link's receive, as [`wait_with`] drives it.
+trait Poll {
+    type Item;
+    type Error;
+    fn now(&self) -> Instant;
+    fn virtual_time(&self) -> bool;
+    /// Waits for data until `until` at most: `Ok(None)` when none came.
+    fn poll_until(&mut self, until: Instant) -> Result<Option<Self::Item>, Self::Error>;
+}
+
+/// [`ByteLink::read_some`] into `buf`.
+struct Bytes<'a, L: ?Sized> {
+    link: &'a mut L,
+    buf: &'a mut [u8],
+}
+
+impl<L: ByteLink + ?Sized> Poll for Bytes<'_, L> {
+    type Item = usize;
+    type Error = LinkError;
+
+    fn now(&self) -> Instant {
+        self.link.now()
+    }
+
+    fn virtual_time(&self) -> bool {
+        self.link.virtual_time()
+    }
+
+    fn poll_until(&mut self, until: Instant) -> Result<Option<usize>, LinkError> {
+        match self.link.read_some(self.buf, until) {
+            Ok(n) => Ok(Some(n)),
+            Err(LinkError::Timeout { .. }) => Ok(None),
+            Err(e) => Err(e),
+        }
+    }
+}
+
+/// [`FrameLink::recv`].
+struct Frames<'a, L: ?Sized>(&'a mut L);
+
+impl<L: FrameLink + ?Sized> Poll for Frames<'_, L> {
+    type Item = Received;
+    type Error = FrameLinkError;
+
+    fn now(&self) -> Instant {
+        self.0.now()
+    }
+
+    fn virtual_time(&self) -> bool {
+        self.0.virtual_time()
+    }
+
+    fn poll_until(&mut self, until: Instant) -> Result<Option<Received>, FrameLinkError> {
+        match self.0.recv(until) {
+            Ok(rx) => Ok(Some(rx)),
+            Err(FrameLinkError::Timeout) => Ok(None),
+            Err(e) => Err(e),
+        }
+    }
+}
+
+/// One wait on a link, whatever its kind, in `mode`: the data, or `None` at the deadline.
+fn wait_with<P: Poll>(
+    p: &mut P,
     mode: WaitMode,
     deadline: Instant,
     expected: Instant,
-    virtual_time: bool,
-    now: impl Fn() -> Instant,
-    mut attempt: impl FnMut(Instant) -> Result<Option<T>, E>,
-) -> Result<Option<T>, E> {
+) -> Result<Option<P::Item>, P::Error> {
     let Some(spin_from) = mode.spin_from(expected) else {
-        return attempt(deadline);
+        return p.poll_until(deadline);
     };
     // In the kernel until the polled stretch begins (data that comes earlier ends it).
-    if now() < spin_from.min(deadline)
-        && let Some(got) = attempt(spin_from.min(deadline))?
+    if p.now() < spin_from.min(deadline)
+        && let Some(got) = p.poll_until(spin_from.min(deadline))?
     {
         return Ok(Some(got));
     }
+    let virtual_time = p.virtual_time();
     loop {
-        let t = now();
+        let t = p.now();
         let until = if virtual_time {
             (t + VIRTUAL_POLL_STEP).min(deadline)
         } else {
             // A deadline that has passed: only what is there already, without blocking.
             t
         };
-        if let Some(got) = attempt(until)? {
+        if let Some(got) = p.poll_until(until)? {
             return Ok(Some(got));
         }
-        if now() >= deadline {
+        if p.now() >= deadline {
             return Ok(None);
         }
         core::hint::spin_loop();
@@ -171,24 +230,10 @@ pub fn read_some<L: ByteLink + ?Sized>(
     if buf.is_empty() {
         return Ok(0);
     }
-    let virtual_time = link.virtual_time();
-    let len = buf.len();
-    let link = core::cell::RefCell::new(link);
-    wait_with(
-        mode,
-        deadline,
-        expected,
-        virtual_time,
-        || link.borrow().now(),
-        |until| match link.borrow_mut().read_some(buf, until) {
-            Ok(n) => Ok(Some(n)),
-            Err(LinkError::Timeout { .. }) => Ok(None),
-            Err(e) => Err(e),
-        },
-    )?
-    .ok_or(LinkError::Timeout {
+    let expected_len = buf.len();
+    wait_with(&mut Bytes { link, buf }, mode, deadline, expected)?.ok_or(LinkError::Timeout {
         received: 0,
-        expected: len,
+        expected: expected_len,
     })
 }
 
@@ -201,21 +246,7 @@ pub fn recv<L: FrameLink + ?Sized>(
     expected: Instant,
     mode: WaitMode,
 ) -> Result<Received, FrameLinkError> {
-    let virtual_time = link.virtual_time();
-    let link = core::cell::RefCell::new(link);
-    wait_with(
-        mode,
-        deadline,
-        expected,
-        virtual_time,
-        || link.borrow().now(),
-        |until| match link.borrow_mut().recv(until) {
-            Ok(rx) => Ok(Some(rx)),
-            Err(FrameLinkError::Timeout) => Ok(None),
-            Err(e) => Err(e),
-        },
-    )?
-    .ok_or(FrameLinkError::Timeout)
+    wait_with(&mut Frames(link), mode, deadline, expected)?.ok_or(FrameLinkError::Timeout)
 }
 
 /// [`FrameLink::sleep_until`] in `mode`: in [`WaitMode::Spin`] the link sleeps until
