@@ -513,7 +513,7 @@ impl Hand {
 
 /// The shaft angle (degrees, step 0 = 0°) of a servo at `deg` from the centre.
 fn shaft_angle(deg: f64) -> f64 {
-    127.0 * 269.0 / 255.0 + deg
+    127.0 * robobus_sim::wck::mechanics::DEG_PER_STEP8 + deg
 }
 
 /// Applies the device faults at their times, and turns the `--hand` servos, until Ctrl-C

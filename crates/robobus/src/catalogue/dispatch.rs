@@ -175,12 +175,11 @@ pub fn run_with(
         }
         Family::Robot => match request {
             Request::RobotCalibrate(r) => {
-                let (results, readings) = super::robot::run_calibrate(station, r, control)?;
-                let mut report = device_report(&op, "robot", &results);
-                // `interrupted`: the stop token ended the reading before all were taken.
+                let c = super::robot::run_calibrate(station, r, control)?;
+                let mut report = device_report(&op, "robot", &c.joints);
                 report.summary = Some(json!({
-                    "readings": readings,
-                    "interrupted": readings < r.readings()?,
+                    "readings": c.taken,
+                    "interrupted": c.taken < c.asked,
                 }));
                 Ok(report)
             }

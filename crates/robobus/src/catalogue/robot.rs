@@ -122,12 +122,22 @@ impl Calibrate {
     }
 }
 
+/// What a `robot.calibrate` run did.
+pub(super) struct Calibrated {
+    /// Each joint's result, by name.
+    pub(super) joints: Vec<DeviceResult<String, JointCalibration>>,
+    /// Readings taken.
+    pub(super) taken: u64,
+    /// Readings asked for (fewer taken: the stop token ended the reading).
+    pub(super) asked: u64,
+}
+
 /// `robot.calibrate` on the station's robot file.
 pub(super) fn run_calibrate(
     station: &Station,
     r: &Calibrate,
     control: &mut Control<'_>,
-) -> Result<(Vec<DeviceResult<String, JointCalibration>>, u64), OpError> {
+) -> Result<Calibrated, OpError> {
     let readings = r.readings()?;
     let config = station.robot().cloned().ok_or_else(no_robot)?;
     if r.passive {
@@ -185,7 +195,11 @@ pub(super) fn run_calibrate(
             }
         })
         .collect();
-    Ok((results, taken))
+    Ok(Calibrated {
+        joints: results,
+        taken,
+        asked: readings,
+    })
 }
 
 fn no_robot() -> OpError {
@@ -214,8 +228,8 @@ mod tests {
     fn turn(sim: &robobus_sim::wck::SimHandle, at_ms: u64, id: usize, deg: f64) {
         let at = sim.now() + Duration::from_millis(at_ms);
         sim.at(at, move |bus| {
-            let step = 269.0 / 255.0;
-            bus.servo_mut(id).unwrap().set_angle(127.0 * step + deg);
+            let centre = 127.0 * robobus_sim::wck::mechanics::DEG_PER_STEP8;
+            bus.servo_mut(id).unwrap().set_angle(centre + deg);
         });
     }
 
