@@ -1,13 +1,15 @@
 //! `robobus robot ...`: a robot file as one robot. `calibrate` runs the catalogue's
 //! `robot.calibrate` on a station opened from the file, prints each joint's range and new
 //! offset and limits, and with `--write` (or `-o FILE`) writes them into the file, keeping
-//! its comments and order (the old file is kept as `FILE.bak`).
+//! its comments and order (the old file is kept as `FILE.bak`). `teleop` runs
+//! `robot.teleop`: some of the file's joints, moved by hand, drive others.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
 use clap::Subcommand;
 use robobus::catalogue::robot::{Calibrate, ZeroPose};
+use robobus::catalogue::teleop::{Pair, Teleop};
 use robobus::catalogue::{self, Request, Station, StationConfig};
 use robobus::ops::read_bounded;
 use robobus::robot::calibration::{JointCalibration, apply_to_toml};
@@ -63,6 +65,85 @@ enum RobotCommand {
         #[arg(short = 'o', long, value_name = "FILE")]
         output: Option<PathBuf>,
     },
+    /// Leader-follower teleoperation: joints of the robot file moved by hand (the leader)
+    /// drive others (the follower), live.
+    ///
+    /// Every cycle reads each leader joint and steps its follower toward the leader's
+    /// angle × SCALE + OFFSET (in degrees; the joint angles of the file, its offsets and
+    /// directions applied), at most 2° (WHJ) or 8 steps (wCK) a cycle, within the follower's soft
+    /// limits and its --limit. A WHJ follower must be enabled in position mode first. A
+    /// cycle without every leader reading sends nothing: the follower holds. After
+    /// --leader-timeout-ms without one, the run ends (exit 3), the follower holding.
+    /// Without --seconds it runs until Ctrl-C.
+    Teleop {
+        /// The robot file: its buses are opened, its joints named in --map.
+        #[arg(long, value_name = "FILE")]
+        robot: PathBuf,
+        /// A leader joint driving a follower joint (repeat for each follower; a leader
+        /// may drive several). SCALE: -10..=10 (default 1; negative mirrors);
+        /// OFFSET: -360..=360 (default 0).
+        #[arg(long = "map", value_name = "LEADER:FOLLOWER[:SCALE[:OFFSET]]", required = true, value_parser = parse_pair)]
+        map: Vec<Pair>,
+        /// The follower's range in degrees (repeat; the robot file's limits apply too).
+        #[arg(long = "limit", value_name = "FOLLOWER:MIN_DEG:MAX_DEG", value_parser = parse_limit)]
+        limit: Vec<(String, [f64; 2])>,
+        /// Cycles a second (1..=200).
+        #[arg(long, default_value_t = 50.0)]
+        rate_hz: f64,
+        /// How long, seconds (0.1..=86400); without it, until Ctrl-C.
+        #[arg(long)]
+        seconds: Option<f64>,
+        /// End the run when the leader gives no complete reading for this long, ms
+        /// (10..=10000).
+        #[arg(long, value_name = "MS", default_value_t = 500)]
+        leader_timeout_ms: u64,
+        /// Leave the leader's wCK servos' torque as it is (they are made passive, to be
+        /// moved by hand).
+        #[arg(long)]
+        no_passive: bool,
+        /// Extra time to wait for each wCK reply beyond its modelled wire time, in ms.
+        #[arg(long, value_name = "MS", value_parser = crate::wck::parse_margin)]
+        reply_margin: Option<std::time::Duration>,
+    },
+}
+
+/// `LEADER:FOLLOWER[:SCALE[:OFFSET]]`.
+fn parse_pair(s: &str) -> Result<Pair, String> {
+    let parts: Vec<&str> = s.split(':').collect();
+    let number = |i: usize, what: &str, default: f64| -> Result<f64, String> {
+        parts.get(i).map_or(Ok(default), |v| {
+            v.trim().parse::<f64>().map_err(|_| {
+                format!("{what} {v:?} is not a number (LEADER:FOLLOWER[:SCALE[:OFFSET]])")
+            })
+        })
+    };
+    match parts.as_slice() {
+        [leader, follower, ..]
+            if parts.len() <= 4 && !leader.is_empty() && !follower.is_empty() =>
+        {
+            Ok(Pair {
+                leader: (*leader).to_owned(),
+                follower: (*follower).to_owned(),
+                scale: number(2, "SCALE", 1.0)?,
+                offset_deg: number(3, "OFFSET", 0.0)?,
+                limits_deg: None,
+            })
+        }
+        _ => Err(format!("{s:?}: expected LEADER:FOLLOWER[:SCALE[:OFFSET]]")),
+    }
+}
+
+/// `FOLLOWER:MIN_DEG:MAX_DEG`.
+fn parse_limit(s: &str) -> Result<(String, [f64; 2]), String> {
+    let bad = || format!("{s:?}: expected FOLLOWER:MIN_DEG:MAX_DEG");
+    match s.split(':').collect::<Vec<_>>().as_slice() {
+        [name, lo, hi] if !name.is_empty() => {
+            let lo: f64 = lo.trim().parse().map_err(|_| bad())?;
+            let hi: f64 = hi.trim().parse().map_err(|_| bad())?;
+            Ok(((*name).to_owned(), [lo, hi]))
+        }
+        _ => Err(bad()),
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -81,6 +162,86 @@ const TABLE: report::Style = report::Style {
 
 /// Runs `robobus robot`.
 pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
+    match &args.command {
+        RobotCommand::Calibrate { .. } => calibrate(g, &args.command),
+        RobotCommand::Teleop {
+            robot,
+            map,
+            limit,
+            rate_hz,
+            seconds,
+            leader_timeout_ms,
+            no_passive,
+            reply_margin,
+        } => {
+            let mut map = map.clone();
+            for (name, range) in limit {
+                let pair = map
+                    .iter_mut()
+                    .find(|p| p.follower == *name)
+                    .ok_or_else(|| {
+                        crate::exit::usage(format!(
+                            "--limit {name}:{}:{}: no --map has the follower {name}",
+                            range[0], range[1]
+                        ))
+                    })?;
+                pair.limits_deg = Some(*range);
+            }
+            let request = Request::RobotTeleop(Teleop {
+                map,
+                rate_hz: *rate_hz,
+                seconds: *seconds,
+                leader_timeout_ms: *leader_timeout_ms,
+                passive_leader: !no_passive,
+            });
+            catalogue::validate(&request)?;
+            if g.dry_run {
+                return print_plan(g, &request);
+            }
+            let report = run_on(g, robot, *reply_margin, &request)?;
+            print(
+                g,
+                &report,
+                "stopped before --seconds ended; what was done is above",
+            )
+        }
+    }
+}
+
+/// Runs `request` on a station opened from the robot file `robot` (closed after it, its
+/// safe-stop failures printed).
+fn run_on(
+    g: Global,
+    robot: &Path,
+    reply_margin: Option<std::time::Duration>,
+    request: &Request,
+) -> anyhow::Result<robobus::catalogue::Report> {
+    let station = Station::open(&StationConfig {
+        robot: Some(robot.to_path_buf()),
+        wck_reply_margin: reply_margin,
+        wait: g.wait,
+        ..StationConfig::default()
+    })?;
+    let result = report::run(&station, request);
+    let failures = station.close();
+    for f in &failures {
+        eprintln!("robobus: safe stop: {f}");
+    }
+    result
+}
+
+/// Prints the plan of `request` (`--dry-run`): nothing is opened.
+fn print_plan(g: Global, request: &Request) -> anyhow::Result<()> {
+    let plan = catalogue::plan(request)?;
+    if g.json {
+        crate::output::print_json(&serde_json::to_value(&plan)?)
+    } else {
+        crate::output::print(plan.to_text())
+    }
+}
+
+/// `robobus robot calibrate`.
+fn calibrate(g: Global, command: &RobotCommand) -> anyhow::Result<()> {
     let RobotCommand::Calibrate {
         robot,
         seconds,
@@ -91,7 +252,10 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
         reply_margin,
         write,
         output,
-    } = &args.command;
+    } = command
+    else {
+        return Ok(());
+    };
     let request = Request::RobotCalibrate(Calibrate {
         seconds: *seconds,
         rate_hz: *rate_hz,
@@ -104,12 +268,7 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     });
     catalogue::validate(&request)?;
     if g.dry_run {
-        let plan = catalogue::plan(&request)?;
-        return if g.json {
-            crate::output::print_json(&serde_json::to_value(&plan)?)
-        } else {
-            crate::output::print(plan.to_text())
-        };
+        return print_plan(g, &request);
     }
     // The file must read before any servo goes passive.
     let text = read_bounded(robot, 1 << 20)?;
@@ -118,18 +277,7 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
         (false, Some(o)) => Some(o.clone()),
         (false, None) => None,
     };
-    let station = Station::open(&StationConfig {
-        robot: Some(robot.clone()),
-        wck_reply_margin: *reply_margin,
-        wait: g.wait,
-        ..StationConfig::default()
-    })?;
-    let result = report::run(&station, &request);
-    let failures = station.close();
-    for f in &failures {
-        eprintln!("robobus: safe stop: {f}");
-    }
-    let report = result?;
+    let report = run_on(g, robot, *reply_margin, &request)?;
     if let Some(target) = &target {
         let done = calibrated(&report.results);
         if done.is_empty() {
@@ -148,14 +296,23 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
             );
         }
     }
-    let printed = report::print(&report, g.json, &TABLE);
+    print(
+        g,
+        &report,
+        "the reading was ended early; what was read is above",
+    )
+}
+
+/// Prints `report`; a run the stop token ended early (`summary.interrupted`) is exit code
+/// 130 with `why`, otherwise the report's own outcome.
+fn print(g: Global, report: &robobus::catalogue::Report, why: &'static str) -> anyhow::Result<()> {
+    let printed = report::print(report, g.json, &TABLE);
     if report
         .summary
         .as_ref()
         .is_some_and(|s| s["interrupted"] == true)
     {
-        return Err(anyhow::Error::new(crate::exit::Interrupted)
-            .context("the reading was ended early; what was read is above"));
+        return Err(anyhow::Error::new(crate::exit::Interrupted).context(why));
     }
     printed
 }

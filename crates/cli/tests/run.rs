@@ -16,6 +16,10 @@ const PAIRS: &[(&str, &str)] = &[
         "robot calibrate --robot robot.toml --seconds 2 --rate-hz 10 --zero keep",
         r#"{"op":"robot.calibrate","seconds":2,"rate_hz":10,"zero":"keep"}"#,
     ),
+    (
+        "robot teleop --robot robot.toml --map s0:s1 --map s0:s2:-1:10 --limit s2:-20:20 --seconds 2 --rate-hz 10 --no-passive",
+        r#"{"op":"robot.teleop","map":[{"leader":"s0","follower":"s1"},{"leader":"s0","follower":"s2","scale":-1,"offset_deg":10,"limits_deg":[-20,20]}],"seconds":2,"rate_hz":10,"passive_leader":false}"#,
+    ),
     ("wck scan", r#"{"op":"wck.scan"}"#),
     ("wck scan --ids 0-3", r#"{"op":"wck.scan","ids":"0-3"}"#),
     ("wck status 0-2", r#"{"op":"wck.status","ids":"0-2"}"#),

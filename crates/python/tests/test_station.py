@@ -165,6 +165,12 @@ CALLS: list[tuple[str, tuple[Any, ...], dict[str, Any], dict[str, Any]]] = [
     ),
     ("robot.sample", (), {}, {"op": "robot.sample"}),
     ("robot.calibrate", (0.2,), {}, {"op": "robot.calibrate", "seconds": 0.2}),
+    (
+        "robot.teleop",
+        ([{"leader": "s0", "follower": "s1"}],),
+        {"seconds": 0.2},
+        {"op": "robot.teleop", "map": [{"leader": "s0", "follower": "s1"}], "seconds": 0.2},
+    ),
 ]
 
 # Exit codes of `robobus run` other than 0 / 3 that a request gives on the fresh robot:

@@ -227,3 +227,46 @@ fn a_follower_steps_every_joint_and_refuses_a_bad_command_whole() {
     assert_eq!(e.kind(), ErrorKind::BadInput);
     assert!(e.to_string().contains("j7"), "{e}");
 }
+
+#[test]
+fn a_teleoperation_needs_arming_and_its_followers_are_held_on_a_disarm() {
+    let station = Arc::new(Station::simulated().unwrap());
+    let (tx, rx) = mpsc::channel();
+    let guard = Guard::new(Arc::clone(&station), GuardConfig::default(), move |e| {
+        tx.send(e.clone()).unwrap();
+    })
+    .unwrap();
+    let teleop = req(r#"{"op":"robot.teleop","seconds":1,
+            "map":[{"leader":"s0","follower":"s4"},{"leader":"s0","follower":"j2"}]}"#);
+    assert_eq!(
+        guard.admit(None, &teleop).unwrap_err().kind(),
+        ErrorKind::Refused
+    );
+    let me = 1;
+    assert!(guard.take_control(me).controller);
+    assert_eq!(
+        guard.admit(Some(me), &teleop).unwrap_err().kind(),
+        ErrorKind::Refused
+    );
+    guard.arm(me).unwrap();
+    guard.admit(Some(me), &teleop).unwrap();
+    // The followers (not the leader) are what the safe stop holds.
+    guard.disarm(me).unwrap();
+    let event = rx.recv_timeout(Duration::from_secs(10)).unwrap();
+    assert_eq!(event.reason, "disarmed");
+    assert_eq!(
+        event.devices,
+        [
+            GuardedDevice {
+                family: Family::Wck,
+                bus: "sim-wck".into(),
+                id: 4
+            },
+            GuardedDevice {
+                family: Family::Whj,
+                bus: "sim-whj".into(),
+                id: 2
+            },
+        ]
+    );
+}

@@ -612,3 +612,14 @@ class RobotOps:
         check: bool = ...,
     ) -> Report:
         """The request ``robot.sample``."""
+    def teleop(
+        self,
+        map: Sequence[Any],
+        *,
+        leader_timeout_ms: int | None = ...,
+        passive_leader: bool | None = ...,
+        rate_hz: float | None = ...,
+        seconds: float | None = ...,
+        check: bool = ...,
+    ) -> Report:
+        """The request ``robot.teleop``."""

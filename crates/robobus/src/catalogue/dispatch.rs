@@ -37,6 +37,7 @@ pub fn validate(request: &Request) -> Result<(), OpError> {
         Family::Whj => whj::prepare(request, false).map(drop),
         Family::Robot => match request {
             Request::RobotCalibrate(r) => r.readings().map(drop),
+            Request::RobotTeleop(r) => r.check(),
             _ => Ok(()),
         },
     }
@@ -85,6 +86,7 @@ pub fn plan_at(request: &Request, baud: BaudRate) -> Result<Plan, OpError> {
         Family::Robot => {
             let note = match request {
                 Request::RobotCalibrate(r) => r.note()?,
+                Request::RobotTeleop(r) => r.note()?,
                 _ => ROBOT_SAMPLE_NOTE.into(),
             };
             Plan::notes_only(&op, Family::Robot, vec![note])
@@ -181,6 +183,20 @@ pub fn run_with(
                     "readings": c.taken,
                     "interrupted": c.taken < c.asked,
                 }));
+                Ok(report)
+            }
+            Request::RobotTeleop(r) => {
+                let t = super::teleop::run_teleop(station, r, control)?;
+                let mut report = device_report(&op, "robot", &t.joints);
+                report.summary = serde_json::to_value(&t.summary).ok();
+                // The leader's silence fails the run (no-device), whatever the follower did.
+                if let Some(lost) = t.lost {
+                    report.failed = Some(lost.kind.name().to_owned());
+                    report.error = Some(match report.error.take() {
+                        Some(e) => format!("{}; {e}", lost.error),
+                        None => lost.error,
+                    });
+                }
                 Ok(report)
             }
             _ => robot_report(station, &op),

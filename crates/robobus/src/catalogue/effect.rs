@@ -69,7 +69,8 @@ impl Request {
             | Self::WhjMove(_)
             | Self::WhjSpeed(_)
             | Self::WhjCurrent(_)
-            | Self::WhjWave(_) => Effect::Motion,
+            | Self::WhjWave(_)
+            | Self::RobotTeleop(_) => Effect::Motion,
             Self::WckPassive(_)
             | Self::WckBrake(_)
             | Self::WckSet(_)

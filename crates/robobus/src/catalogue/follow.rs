@@ -59,6 +59,19 @@ impl Follower {
     ///
     /// Errors: an [`OpError`] of kind [`ErrorKind::BadInput`](crate::ErrorKind::BadInput) when the station has no robot file.
     pub fn new(station: &Station) -> Result<Self, OpError> {
+        Self::of(station, None)
+    }
+
+    /// A follower of some joints of the station's robot file, by name, in the order of
+    /// `names` (a teleoperation's followers).
+    ///
+    /// Errors: an [`OpError`] of kind [`ErrorKind::BadInput`](crate::ErrorKind::BadInput)
+    /// when the station has no robot file or it has no joint of one of the names.
+    pub fn of_joints(station: &Station, names: &[String]) -> Result<Self, OpError> {
+        Self::of(station, Some(names))
+    }
+
+    fn of(station: &Station, names: Option<&[String]>) -> Result<Self, OpError> {
         let robot = station.robot().ok_or_else(|| {
             OpError::invalid(
                 "robot",
@@ -66,9 +79,31 @@ impl Follower {
                 "following joint targets needs a robot file (--robot FILE) that names the joints",
             )
         })?;
-        let joints = robot
-            .joints
-            .iter()
+        let chosen: Vec<&crate::robot::JointConfig> = match names {
+            None => robot.joints.iter().collect(),
+            Some(names) => names
+                .iter()
+                .map(|n| {
+                    robot.joints.iter().find(|j| j.name == *n).ok_or_else(|| {
+                        OpError::invalid(
+                            "joint",
+                            n,
+                            format!(
+                                "a joint of the robot file: {}",
+                                robot
+                                    .joints
+                                    .iter()
+                                    .map(|j| j.name.as_str())
+                                    .collect::<Vec<_>>()
+                                    .join(", ")
+                            ),
+                        )
+                    })
+                })
+                .collect::<Result<_, _>>()?,
+        };
+        let joints = chosen
+            .into_iter()
             .map(|j| {
                 let wck = robot
                     .buses
@@ -92,6 +127,23 @@ impl Follower {
             joints,
             jogger: Jogger::new(),
         })
+    }
+
+    /// The joint angle (rad) of joint `index` at a device position as a jog reports it
+    /// ([`Jogged::from`], [`Jogged::sent`]: WHJ degrees, wCK steps); `None` for an index
+    /// past the joints or a wCK value outside 0..=254.
+    pub fn joint_rad(&self, index: usize, device: f64) -> Option<f64> {
+        match self.joints.get(index)?.units {
+            Units::Whj(map) => Some(map.to_joint(device.to_radians())),
+            Units::Wck(scale) => {
+                if !(0.0..=254.0).contains(&device) {
+                    return None;
+                }
+                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // 0..=254
+                let p = robobus_wck::Position::new(device.round() as u8).ok()?;
+                Some(scale.to_rad(p))
+            }
+        }
     }
 
     /// The joints, in the order of a command.

@@ -291,8 +291,12 @@ impl Guard {
             }
             Effect::Motion => {
                 let moved = request.moved()?;
+                let followers = self.followers(request);
                 let mut s = self.inner.lock();
                 motion_allowed(&s, session)?;
+                for d in followers {
+                    s.moved.insert(d, ServoLoop::Position);
+                }
                 if let Some(m) = moved {
                     let bus = self.bus_name(m.family, m.bus.as_deref())?;
                     for id in m.ids {
@@ -343,6 +347,34 @@ impl Guard {
             inner: Arc::clone(&self.inner),
             id,
         }
+    }
+
+    /// The devices a `robot.teleop` moves: its followers, found in the station's robot
+    /// file (a name it does not have is refused by the run itself).
+    fn followers(&self, request: &Request) -> Vec<GuardedDevice> {
+        let Request::RobotTeleop(t) = request else {
+            return Vec::new();
+        };
+        let Some(robot) = self.inner.station.robot() else {
+            return Vec::new();
+        };
+        t.map
+            .iter()
+            .filter_map(|p| robot.joints.iter().find(|j| j.name == p.follower))
+            .map(|j| GuardedDevice {
+                family: if robot
+                    .buses
+                    .get(&j.bus)
+                    .is_some_and(crate::robot::BusConfig::is_wck)
+                {
+                    Family::Wck
+                } else {
+                    Family::Whj
+                },
+                bus: j.bus.clone(),
+                id: j.id,
+            })
+            .collect()
     }
 
     fn bus_name(&self, family: Family, bus: Option<&str>) -> Result<String, OpError> {

@@ -74,6 +74,7 @@
 //! | `whj.restore` | `joint`, `settings` | one row per differing setting: written or skipped (the bus identity is never written); `summary`: `written`, `saved`, `differ_after` | flash (and the `confirm` registers the file sets) |
 //! | `robot.sample` | - | per joint of the station's robot file, by name: `position_deg`, `speed_deg_s`, `current_ma`, `load`, `enabled`, `error` | - |
 //! | `robot.calibrate` | `seconds` (0.1..=600), `rate_hz`=20 (1..=100), `zero` (`end` / `keep`), `margin_deg`=2 (0..=30), `passive`=true | per joint by name: `samples`, `min_deg`, `max_deg`, `zero_deg`, `offset_rad` and `limits_rad` for the file (and their values before); `summary`: `readings`, `interrupted` | - |
+//! | `robot.teleop` | `map` (1..=64 of `leader`, `follower`, `scale`=1 (±10), `offset_deg`=0 (±360), `limits_deg`), `rate_hz`=50 (1..=200), `seconds` (0.1..=86400; none: until stopped), `leader_timeout_ms`=500 (10..=10000), `passive_leader`=true | per follower joint by name: `leader`, `commands`, `limited`, `failed`, `target_deg`, `position_deg`, `tracking_max_deg`, `tracking_rms_deg`; `summary`: `cycles`, `commanded`, `held`, `overruns`, `seconds`, `rate_hz`, `latency_ms` (`p50`, `p99`, `max`), `leaders` (readings, failures), `leader_lost`, `interrupted` | - |
 //!
 //! # Report
 //!
@@ -101,6 +102,7 @@ pub mod record;
 pub mod robot;
 pub mod station;
 pub mod telemetry;
+pub mod teleop;
 pub mod wck;
 pub mod whj;
 
@@ -215,6 +217,8 @@ pub enum Request {
     RobotSample(robot::Sample),
     #[serde(rename = "robot.calibrate")]
     RobotCalibrate(robot::Calibrate),
+    #[serde(rename = "robot.teleop")]
+    RobotTeleop(teleop::Teleop),
 }
 
 macro_rules! each_variant {
@@ -266,7 +270,7 @@ macro_rules! each_variant {
             Request::WhjDiff($r) => $e,
             Request::WhjRestore($r) => $e,
             // A robot request acts on the station's robot file, not on one bus.
-            Request::RobotSample(_) | Request::RobotCalibrate(_) => None,
+            Request::RobotSample(_) | Request::RobotCalibrate(_) | Request::RobotTeleop(_) => None,
         }
     };
 }
@@ -306,7 +310,7 @@ impl Request {
             | Self::WckTeach(_)
             | Self::WckPlay(_)
             | Self::WckSample(_) => Family::Wck,
-            Self::RobotSample(_) | Self::RobotCalibrate(_) => Family::Robot,
+            Self::RobotSample(_) | Self::RobotCalibrate(_) | Self::RobotTeleop(_) => Family::Robot,
             _ => Family::Whj,
         }
     }

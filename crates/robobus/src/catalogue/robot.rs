@@ -69,7 +69,7 @@ const fn default_margin() -> f64 {
     2.0
 }
 
-const fn yes() -> bool {
+pub(super) const fn yes() -> bool {
     true
 }
 
@@ -202,7 +202,7 @@ pub(super) fn run_calibrate(
     })
 }
 
-fn no_robot() -> OpError {
+pub(super) fn no_robot() -> OpError {
     OpError::invalid(
         "robot",
         "(none)",

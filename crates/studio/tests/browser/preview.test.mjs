@@ -1,6 +1,7 @@
 // The Preview panel: a request's dry run shows the exact bytes the server plans, its effect
 // and its confirmation class; "Run it" sends it (refused while disarmed for motion, a
-// confirmation dialog for an EEPROM write); bad JSON is pointed at; other panels open it.
+// confirmation dialog for an EEPROM write); a teleoperation runs from it; bad JSON is
+// pointed at; other panels open it.
 
 import { test, before, after } from "node:test";
 import assert from "node:assert/strict";
@@ -81,6 +82,37 @@ test("an EEPROM write shows its confirmation class and asks before it runs", asy
   await until(async () => /^wck\.set ran\.$/.test(await status()), { what: "the write" });
   const after = await runRequest(studio.url, { op: "wck.get", param: "gains", id: 4 });
   assert.equal(after.results[0].p_gain, 33);
+});
+
+test("a teleoperation runs from the preview: the follower goes where the leader is, 20° on", async () => {
+  const request = {
+    op: "robot.teleop",
+    map: [{ leader: "s0", follower: "s6", offset_deg: 20 }],
+    seconds: 1,
+    rate_hz: 20,
+    passive_leader: false,
+  };
+  await panel.getByLabel("Request (JSON)").fill(JSON.stringify(request));
+  await panel.getByRole("button", { name: "Show dry run" }).click();
+  await until(async () => /Dry run of robot\.teleop/.test(await status()), { what: "the dry run" });
+  assert.match(await fact("effect"), /^motion/);
+  assert.match(await panel.getByLabel("Dry run: bytes and frames").textContent(), /s6 ← s0 × 1 \+ 20°/);
+  await panel.getByRole("button", { name: "Run it" }).click();
+  await until(async () => /^robot\.teleop ran\.$/.test(await status()), { timeout: 15000, what: "the run" });
+  const report = JSON.parse(await panel.getByLabel("Report").textContent());
+  const row = report.results[0];
+  assert.equal(row.id, "s6");
+  assert.equal(row.leader, "s0");
+  assert.equal(row.failed, 0);
+  assert.equal(report.summary.leader_lost, false);
+  assert.equal(report.summary.held, 0);
+  assert.ok(row.commands >= 15, JSON.stringify(report));
+  // 20° is 19 steps of 1.055°: the follower is there, within a step.
+  const s0 = (await simServo(studio.url, 0)).position;
+  await until(async () => Math.abs((await simServo(studio.url, 6)).position - (s0 + 19)) <= 1, {
+    timeout: 3000,
+    what: `servo 6 at ${s0 + 19}`,
+  });
 });
 
 test("bad JSON is pointed at and nothing is asked of the server", async () => {

@@ -1,0 +1,911 @@
+//! `robot.teleop`: leader-follower teleoperation. Some joints of the station's robot file
+//! (the leader, moved by hand) are read at a fixed rate and drive others (the follower)
+//! through a joint map: each follower joint goes to its leader joint's angle × `scale` +
+//! `offset_deg`, within the pair's `limits_deg` and the follower's soft limits. Both sides
+//! are in the file's joint frame (its `offset`, `direction` and wCK `centre` applied), so a
+//! leader and a follower calibrated into the same frame mirror each other with the
+//! defaults, across families and buses.
+//!
+//! Each cycle reads every leader joint fresh, then steps every follower joint toward its
+//! target with the [`Follower`]: at most one jog step per cycle (WHJ 2°, wCK 8 steps),
+//! within the device's limits, a WHJ joint only when it is enabled in position mode. A
+//! cycle in which any leader joint did not answer sends nothing: the follower holds where
+//! it is (never moved half way on a partial reading). When no complete reading has come
+//! for `leader_timeout_ms`, the run ends with the leader's failure, the follower holding.
+
+use std::collections::VecDeque;
+use std::ops::RangeInclusive;
+use std::time::{Duration, Instant};
+
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use super::follow::Follower;
+use super::station::Station;
+use crate::ops::monitor::RobotSampler;
+use crate::ops::{Control, DeviceResult, ErrorKind, Failure, OpError, Outcome, Progress};
+use crate::whj::Percentiles;
+
+/// One leader joint driving one follower joint.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Pair {
+    /// The leader joint's name in the robot file.
+    pub leader: String,
+    /// The follower joint's name in the robot file.
+    pub follower: String,
+    /// Follower angle per leader angle (-10..=10; default 1; negative mirrors).
+    #[serde(default = "one")]
+    pub scale: f64,
+    /// Added to the scaled leader angle, degrees (-360..=360; default 0).
+    #[serde(default)]
+    pub offset_deg: f64,
+    /// The follower's range in this map, degrees `[min, max]` (within -360..=360; the
+    /// follower's soft limits always apply too).
+    #[serde(default)]
+    pub limits_deg: Option<[f64; 2]>,
+}
+
+const fn one() -> f64 {
+    1.0
+}
+
+/// `robot.teleop` (see the [module docs](self)).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Teleop {
+    /// The pairs (1..=64): a follower joint appears once, and never as a leader; a
+    /// leader joint may drive several followers.
+    pub map: Vec<Pair>,
+    /// Cycles a second (1..=200; default 50).
+    #[serde(default = "default_rate")]
+    pub rate_hz: f64,
+    /// How long, seconds (0.1..=86400); none: until stopped.
+    #[serde(default)]
+    pub seconds: Option<f64>,
+    /// The run ends when no complete leader reading has come for this long, ms
+    /// (10..=10000; default 500).
+    #[serde(default = "default_timeout")]
+    pub leader_timeout_ms: u64,
+    /// Make the leader's wCK servos passive first, to be moved by hand (default true).
+    #[serde(default = "super::robot::yes")]
+    pub passive_leader: bool,
+}
+
+const fn default_rate() -> f64 {
+    50.0
+}
+
+const fn default_timeout() -> u64 {
+    500
+}
+
+/// Range of `rate_hz`.
+pub const TELEOP_RATE_HZ: RangeInclusive<f64> = 1.0..=200.0;
+/// Range of `seconds`.
+pub const TELEOP_SECONDS: RangeInclusive<f64> = 0.1..=86_400.0;
+/// Range of `leader_timeout_ms`.
+pub const LEADER_TIMEOUT_MS: RangeInclusive<u64> = 10..=10_000;
+/// Range of a pair's `scale`.
+pub const SCALE: RangeInclusive<f64> = -10.0..=10.0;
+/// Range of a pair's `offset_deg` and `limits_deg`.
+pub const ANGLE_DEG: RangeInclusive<f64> = -360.0..=360.0;
+/// The most pairs in a map.
+pub const MAX_PAIRS: usize = 64;
+/// The longest joint name in a pair (the robot file's names are shorter).
+pub const MAX_NAME: usize = 64;
+/// The loop latencies kept for the percentiles: the last this many cycles (the largest is
+/// kept over the whole run).
+pub const LATENCY_WINDOW: usize = 65_536;
+
+fn out_of<T: std::fmt::Display + PartialOrd>(
+    option: &str,
+    v: T,
+    range: &RangeInclusive<T>,
+) -> OpError {
+    OpError::invalid(
+        option,
+        v,
+        format!("out of range {}..={}", range.start(), range.end()),
+    )
+}
+
+fn within(option: &str, v: f64, range: &RangeInclusive<f64>) -> Result<(), OpError> {
+    if v.is_finite() && range.contains(&v) {
+        Ok(())
+    } else {
+        Err(out_of(option, v, range))
+    }
+}
+
+impl Teleop {
+    /// Checks every value against its range and the map's rules (named as the command
+    /// line's options); nothing needs a station.
+    pub fn check(&self) -> Result<(), OpError> {
+        within("--rate-hz", self.rate_hz, &TELEOP_RATE_HZ)?;
+        if let Some(s) = self.seconds {
+            within("--seconds", s, &TELEOP_SECONDS)?;
+        }
+        if !LEADER_TIMEOUT_MS.contains(&self.leader_timeout_ms) {
+            return Err(out_of(
+                "--leader-timeout-ms",
+                self.leader_timeout_ms,
+                &LEADER_TIMEOUT_MS,
+            ));
+        }
+        if self.map.is_empty() || self.map.len() > MAX_PAIRS {
+            return Err(OpError::invalid(
+                "--map",
+                format!("{} pairs", self.map.len()),
+                format!("1..={MAX_PAIRS} pairs LEADER:FOLLOWER"),
+            ));
+        }
+        for p in &self.map {
+            for name in [&p.leader, &p.follower] {
+                if name.is_empty() || name.chars().count() > MAX_NAME {
+                    return Err(OpError::invalid(
+                        "--map",
+                        name,
+                        format!("a joint name of 1..={MAX_NAME} characters"),
+                    ));
+                }
+            }
+            let pair = format!("{}:{}", p.leader, p.follower);
+            if self.map.iter().any(|q| q.leader == p.follower) {
+                return Err(OpError::invalid(
+                    "--map",
+                    &pair,
+                    format!("{} follows, so it cannot also lead", p.follower),
+                ));
+            }
+            if self.map.iter().filter(|q| q.follower == p.follower).count() > 1 {
+                return Err(OpError::invalid(
+                    "--map",
+                    &pair,
+                    format!("{} follows two leaders: one pair per follower", p.follower),
+                ));
+            }
+            within("--map scale", p.scale, &SCALE)?;
+            within("--map offset", p.offset_deg, &ANGLE_DEG)?;
+            if let Some([lo, hi]) = p.limits_deg {
+                within("--limit", lo, &ANGLE_DEG)?;
+                within("--limit", hi, &ANGLE_DEG)?;
+                if lo >= hi {
+                    return Err(OpError::invalid(
+                        "--limit",
+                        format!("{}:{lo}:{hi}", p.follower),
+                        "MIN below MAX",
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// What a run sends, for the plan.
+    pub fn note(&self) -> Result<String, OpError> {
+        self.check()?;
+        let pairs: Vec<String> = self
+            .map
+            .iter()
+            .map(|p| {
+                let limits = p
+                    .limits_deg
+                    .map(|[lo, hi]| format!(", within {lo}..={hi}°"))
+                    .unwrap_or_default();
+                format!(
+                    "{} ← {} × {} + {}°{limits}",
+                    p.follower, p.leader, p.scale, p.offset_deg
+                )
+            })
+            .collect();
+        Ok(format!(
+            "{}every {:.1} ms ({} Hz) reads each leader joint (a status read per wCK servo; a \
+             status query and a speed read per WHJ joint) and steps each follower joint toward \
+             its target, within its soft limits: {}; a follower wCK servo gets a status read \
+             and a move of at most 8 steps, a follower WHJ joint (enabled in position mode) \
+             one position servo frame of at most 2°; a cycle without every leader reading \
+             sends nothing (the follower holds); after {} ms without one the run ends, the \
+             follower holding; {}",
+            if self.passive_leader {
+                "makes the leader's wCK servos passive (FF <0xC0|ID> 00 <checksum>, torque \
+                 off), then "
+            } else {
+                ""
+            },
+            1000.0 / self.rate_hz,
+            self.rate_hz,
+            pairs.join("; "),
+            self.leader_timeout_ms,
+            self.seconds
+                .map_or_else(|| "until stopped".to_owned(), |s| format!("for {s} s"))
+        ))
+    }
+}
+
+/// A follower joint's run (its row of the report, by the follower's name).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Followed {
+    /// The leader joint that drove it.
+    pub leader: String,
+    /// Commands sent.
+    pub commands: u64,
+    /// Commands a jog step or a limit cut short of the leader's target.
+    pub limited: u64,
+    /// Commands that failed (the joint did not answer or refused).
+    pub failed: u64,
+    /// The last target (the leader mapped, within the limits), degrees.
+    pub target_deg: Option<f64>,
+    /// Where the joint was at its last command (read just before it), degrees.
+    pub position_deg: Option<f64>,
+    /// The largest distance from the joint to its target at a command, degrees.
+    pub tracking_max_deg: f64,
+    /// The root mean square of that distance over the commands, degrees.
+    pub tracking_rms_deg: f64,
+    #[serde(skip)]
+    sum_sq: f64,
+    #[serde(skip)]
+    last_error: Option<Failure>,
+}
+
+/// A leader joint's readings.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Led {
+    /// Its name.
+    pub name: String,
+    /// Readings that answered.
+    pub readings: u64,
+    /// Readings that failed.
+    pub failed: u64,
+    /// The last failure, if any.
+    pub error: Option<String>,
+}
+
+/// Loop latency, ms: from the start of a cycle's leader reading to its last follower
+/// command.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct LatencyMs {
+    /// Median (of the last [`LATENCY_WINDOW`] cycles that commanded).
+    pub p50: f64,
+    /// 99th percentile (same cycles).
+    pub p99: f64,
+    /// Largest over the run.
+    pub max: f64,
+}
+
+/// The whole run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TeleopSummary {
+    /// Cycles run.
+    pub cycles: u64,
+    /// Cycles that commanded the follower.
+    pub commanded: u64,
+    /// Cycles without every leader reading: nothing sent, the follower held.
+    pub held: u64,
+    /// Ticks skipped because a cycle took longer than the period.
+    pub overruns: u64,
+    /// How long it ran, s.
+    pub seconds: f64,
+    /// Cycles a second achieved.
+    pub rate_hz: f64,
+    /// The loop latency.
+    pub latency_ms: LatencyMs,
+    /// Each leader joint's readings.
+    pub leaders: Vec<Led>,
+    /// The run ended because the leader went silent.
+    pub leader_lost: bool,
+    /// The stop token ended it before its `seconds`.
+    pub interrupted: bool,
+}
+
+/// What a `robot.teleop` run did.
+pub(super) struct Teleoperated {
+    /// Each follower joint's run, by name.
+    pub(super) joints: Vec<DeviceResult<String, Followed>>,
+    /// The whole run.
+    pub(super) summary: TeleopSummary,
+    /// The leader's failure that ended it.
+    pub(super) lost: Option<Failure>,
+}
+
+/// `robot.teleop` on the station's robot file.
+pub(super) fn run_teleop(
+    station: &Station,
+    r: &Teleop,
+    control: &mut Control<'_>,
+) -> Result<Teleoperated, OpError> {
+    r.check()?;
+    let mut run = Run::open(station, r)?;
+    let period = Duration::from_secs_f64(1.0 / r.rate_hz);
+    let timeout = Duration::from_millis(r.leader_timeout_ms);
+    let end = r.seconds.map(Duration::from_secs_f64);
+    let total = r.seconds.map(|s| {
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // ≤ 17,280,000
+        let n = (s * r.rate_hz).ceil() as u64;
+        n
+    });
+    let start = run.pace.now();
+    let mut last_complete = start;
+    let mut tick = 0u64;
+    let mut interrupted = false;
+    loop {
+        let due = start + period * u32::try_from(tick).unwrap_or(u32::MAX);
+        if end.is_some_and(|e| due.duration_since(start) >= e) {
+            break;
+        }
+        let pace = &run.pace;
+        if !control.sleep_with(due, |until| {
+            if let Some(t) = until {
+                pace.sleep_until(t);
+            }
+            pace.now()
+        }) {
+            interrupted = true;
+            break;
+        }
+        let t0 = run.pace.now();
+        if run.cycle(station, r, t0, t0.duration_since(start).as_secs_f64()) {
+            last_complete = t0;
+        } else if t0.duration_since(last_complete) >= timeout {
+            run.lost = Some(run.silence(t0.duration_since(last_complete)));
+            break;
+        }
+        control.report(&Progress::new("teleop", run.summary.cycles, total));
+        tick = next_tick(
+            run.pace.now() - start,
+            period,
+            tick,
+            &mut run.summary.overruns,
+        );
+    }
+    let elapsed = run.pace.now().saturating_duration_since(start);
+    Ok(run.finish(r, elapsed, interrupted && end.is_some()))
+}
+
+/// The leader joints of `r`'s map, each once, in the map's order; a name the file does
+/// not have is bad input.
+fn leader_names(config: &crate::robot::RobotConfig, r: &Teleop) -> Result<Vec<String>, OpError> {
+    let mut leaders: Vec<String> = Vec::new();
+    for p in &r.map {
+        if !config.joints.iter().any(|j| j.name == p.leader) {
+            return Err(OpError::invalid(
+                "--map",
+                &p.leader,
+                format!(
+                    "a joint of the robot file: {}",
+                    config
+                        .joints
+                        .iter()
+                        .map(|j| j.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            ));
+        }
+        if !leaders.contains(&p.leader) {
+            leaders.push(p.leader.clone());
+        }
+    }
+    Ok(leaders)
+}
+
+impl Followed {
+    fn new(leader: &str) -> Self {
+        Self {
+            leader: leader.to_owned(),
+            commands: 0,
+            limited: 0,
+            failed: 0,
+            target_deg: None,
+            position_deg: None,
+            tracking_max_deg: 0.0,
+            tracking_rms_deg: 0.0,
+            sum_sq: 0.0,
+            last_error: None,
+        }
+    }
+}
+
+impl TeleopSummary {
+    fn new(leaders: impl Iterator<Item = String>) -> Self {
+        Self {
+            cycles: 0,
+            commanded: 0,
+            held: 0,
+            overruns: 0,
+            seconds: 0.0,
+            rate_hz: 0.0,
+            latency_ms: LatencyMs {
+                p50: 0.0,
+                p99: 0.0,
+                max: 0.0,
+            },
+            leaders: leaders
+                .map(|name| Led {
+                    name,
+                    readings: 0,
+                    failed: 0,
+                    error: None,
+                })
+                .collect(),
+            leader_lost: false,
+            interrupted: false,
+        }
+    }
+}
+
+/// A run's state between cycles.
+struct Run {
+    follower: Follower,
+    sampler: RobotSampler,
+    pace: Pace,
+    /// Each pair's leader: its index among the leader joints.
+    pair_leader: Vec<usize>,
+    /// Each pair's range in joint degrees: its own limits within the follower's.
+    ranges: Vec<(f64, f64)>,
+    rows: Vec<Followed>,
+    summary: TeleopSummary,
+    latencies: VecDeque<Duration>,
+    worst: Duration,
+    /// The latest readings of the leader joints (`None`: failed in this cycle).
+    angles: Vec<Option<f64>>,
+    lost: Option<Failure>,
+}
+
+impl Run {
+    /// Resolves the map on the station's robot file, opens the leader's sampler and the
+    /// follower, and makes the leader's wCK servos passive if asked.
+    fn open(station: &Station, r: &Teleop) -> Result<Self, OpError> {
+        let config = station
+            .robot()
+            .cloned()
+            .ok_or_else(super::robot::no_robot)?;
+        let leaders = leader_names(&config, r)?;
+        let followers: Vec<String> = r.map.iter().map(|p| p.follower.clone()).collect();
+        let follower = Follower::of_joints(station, &followers)?;
+        // The leader's own sampler: only its joints and their buses.
+        let mut led = config;
+        led.joints.retain(|j| leaders.contains(&j.name));
+        led.buses
+            .retain(|name, _| led.joints.iter().any(|j| &j.bus == name));
+        let sampler = RobotSampler::on_ports(
+            &led,
+            |n| station.wck(Some(n)).ok(),
+            |n| station.whj(Some(n)).ok(),
+        )
+        .map_err(|e| OpError::invalid("robot", "bus", e.to_string()))?;
+        let mut ranges = Vec::with_capacity(r.map.len());
+        for (p, f) in r.map.iter().zip(follower.joints()) {
+            let [lo, hi] = f.limits_rad.map(f64::to_degrees);
+            let (lo, hi) = match p.limits_deg {
+                Some([a, b]) => (lo.max(a), hi.min(b)),
+                None => (lo, hi),
+            };
+            if lo > hi {
+                return Err(OpError::invalid(
+                    "--limit",
+                    &p.follower,
+                    "a range that overlaps the follower's soft limits (the robot file's limits)",
+                ));
+            }
+            ranges.push((lo, hi));
+        }
+        if r.passive_leader {
+            for j in &led.joints {
+                if led
+                    .buses
+                    .get(&j.bus)
+                    .is_some_and(crate::robot::BusConfig::is_wck)
+                {
+                    let port = station.wck(Some(&j.bus))?;
+                    let id = robobus_wck::ServoId::new(j.id)
+                        .map_err(|e| OpError::invalid("robot", &j.name, e.to_string()))?;
+                    // A servo that does not answer is found silent by the readings.
+                    let _ = port.lock().servo(id).passive();
+                }
+            }
+        }
+        let pair_leader = r
+            .map
+            .iter()
+            .map(|p| {
+                led.joints
+                    .iter()
+                    .position(|j| j.name == p.leader)
+                    .unwrap_or(0)
+            })
+            .collect();
+        let rows = r.map.iter().map(|p| Followed::new(&p.leader)).collect();
+        let summary = TeleopSummary::new(led.joints.iter().map(|j| j.name.clone()));
+        Ok(Self {
+            follower,
+            sampler,
+            pace: Pace::of(station, &led)?,
+            pair_leader,
+            ranges,
+            rows,
+            angles: vec![None; summary.leaders.len()],
+            summary,
+            latencies: VecDeque::new(),
+            worst: Duration::ZERO,
+            lost: None,
+        })
+    }
+
+    /// One cycle started at `t0` (`t_s` seconds into the run): reads the leader and, with every leader joint read,
+    /// commands the follower. Whether the reading was complete.
+    fn cycle(&mut self, station: &Station, r: &Teleop, t0: Instant, t_s: f64) -> bool {
+        self.summary.cycles += 1;
+        let readings = self.sampler.sample(t_s);
+        self.angles.fill(None);
+        for ((row, l), a) in readings
+            .into_iter()
+            .zip(&mut self.summary.leaders)
+            .zip(&mut self.angles)
+        {
+            match row.outcome {
+                Outcome::Ok(s) => {
+                    l.readings += 1;
+                    *a = Some(s.position_deg);
+                }
+                Outcome::Failed(f) => {
+                    l.failed += 1;
+                    l.error = Some(f.error);
+                }
+            }
+        }
+        if self.angles.iter().any(Option::is_none) {
+            self.summary.held += 1;
+            return false;
+        }
+        let mut targets = Vec::with_capacity(r.map.len());
+        let mut clamped = Vec::with_capacity(r.map.len());
+        for ((p, &li), &(lo, hi)) in r.map.iter().zip(&self.pair_leader).zip(&self.ranges) {
+            let want =
+                self.angles.get(li).copied().flatten().unwrap_or(0.0) * p.scale + p.offset_deg;
+            clamped.push(!(lo..=hi).contains(&want));
+            targets.push(want.clamp(lo, hi).to_radians());
+        }
+        // Within the soft limits, a target can still lie past a wCK servo's range (a file
+        // whose limits reach beyond it): every follower row fails this cycle, and nothing
+        // is sent.
+        let plan = match self.follower.plan(&targets) {
+            Ok(plan) => plan,
+            Err(e) => {
+                for row in &mut self.rows {
+                    row.failed += 1;
+                    row.last_error = Some(Failure::from(&e));
+                }
+                self.summary.held += 1;
+                return true;
+            }
+        };
+        let done = self.follower.apply(station, &plan);
+        let took = self.pace.now().saturating_duration_since(t0);
+        self.worst = self.worst.max(took);
+        if self.latencies.len() == LATENCY_WINDOW {
+            self.latencies.pop_front();
+        }
+        self.latencies.push_back(took);
+        self.summary.commanded += 1;
+        for (i, (row, result)) in self.rows.iter_mut().zip(done).enumerate() {
+            let target_deg = targets.get(i).copied().unwrap_or(0.0).to_degrees();
+            row.target_deg = Some(target_deg);
+            match result.outcome {
+                Outcome::Ok(j) => {
+                    row.commands += 1;
+                    if j.limited || clamped.get(i).copied().unwrap_or(false) {
+                        row.limited += 1;
+                    }
+                    if let Some(at) = self.follower.joint_rad(i, j.from) {
+                        let at = at.to_degrees();
+                        let e = (target_deg - at).abs();
+                        row.position_deg = Some(at);
+                        row.tracking_max_deg = row.tracking_max_deg.max(e);
+                        row.sum_sq += e * e;
+                    }
+                }
+                Outcome::Failed(f) => {
+                    row.failed += 1;
+                    row.last_error = Some(f);
+                }
+            }
+        }
+        true
+    }
+
+    /// The failure of a leader silent for `silent`: which joints, and why.
+    fn silence(&self, silent: Duration) -> Failure {
+        let joints: Vec<String> = self
+            .summary
+            .leaders
+            .iter()
+            .zip(&self.angles)
+            .filter(|(_, a)| a.is_none())
+            .map(|(l, _)| match &l.error {
+                Some(e) => format!("{}: {e}", l.name),
+                None => l.name.clone(),
+            })
+            .collect();
+        Failure::of(
+            ErrorKind::NoDevice,
+            &format!(
+                "the leader gave no complete reading for {} ms; the follower holds where it is \
+                 ({})",
+                silent.as_millis(),
+                joints.join("; ")
+            ),
+        )
+    }
+
+    /// The report of the run, `elapsed` long.
+    fn finish(mut self, r: &Teleop, elapsed: Duration, interrupted: bool) -> Teleoperated {
+        let p = Percentiles::of(self.latencies.make_contiguous());
+        let ms = |d: Duration| d.as_secs_f64() * 1e3;
+        let s = &mut self.summary;
+        s.seconds = elapsed.as_secs_f64();
+        #[allow(clippy::cast_precision_loss)] // a count of cycles
+        let cycles = s.cycles as f64;
+        s.rate_hz = if s.seconds > 0.0 {
+            cycles / s.seconds
+        } else {
+            0.0
+        };
+        s.latency_ms = LatencyMs {
+            p50: ms(p.p50),
+            p99: ms(p.p99),
+            max: ms(self.worst),
+        };
+        s.leader_lost = self.lost.is_some();
+        s.interrupted = interrupted;
+        let joints = r
+            .map
+            .iter()
+            .zip(self.rows)
+            .map(|(p, mut row)| {
+                if row.commands > 0 {
+                    #[allow(clippy::cast_precision_loss)] // a count of commands
+                    let n = row.commands as f64;
+                    row.tracking_rms_deg = (row.sum_sq / n).sqrt();
+                }
+                match row.last_error.take() {
+                    Some(f) => DeviceResult::failed(
+                        p.follower.clone(),
+                        Failure {
+                            kind: f.kind,
+                            error: format!(
+                                "{}: {} of {} commands failed; the last: {}",
+                                p.follower,
+                                row.failed,
+                                row.failed + row.commands,
+                                f.error
+                            ),
+                        },
+                    ),
+                    None => DeviceResult::ok(p.follower.clone(), row),
+                }
+            })
+            .collect();
+        Teleoperated {
+            joints,
+            summary: self.summary,
+            lost: self.lost,
+        }
+    }
+}
+
+/// The tick after `tick`; the ticks a slow cycle ran past are skipped (counted in
+/// `overruns`), not caught up.
+fn next_tick(elapsed: Duration, period: Duration, tick: u64, overruns: &mut u64) -> u64 {
+    let behind = u64::try_from(elapsed.as_nanos() / period.as_nanos().max(1)).unwrap_or(u64::MAX);
+    let next = tick + 1;
+    if behind > next {
+        *overruns += behind - next;
+        behind
+    } else {
+        next
+    }
+}
+
+/// The loop's clock: the clock of the leader's first bus (the wall clock on hardware, a
+/// simulator's virtual clock, which then runs to each tick at once).
+enum Pace {
+    Wck(super::station::WckPort),
+    Whj(super::station::WhjPort),
+}
+
+impl Pace {
+    fn of(station: &Station, led: &crate::robot::RobotConfig) -> Result<Self, OpError> {
+        let first = led
+            .joints
+            .first()
+            .ok_or_else(|| OpError::invalid("--map", "(none)", "at least one pair"))?;
+        Ok(
+            if led
+                .buses
+                .get(&first.bus)
+                .is_some_and(crate::robot::BusConfig::is_wck)
+            {
+                Self::Wck(station.wck(Some(&first.bus))?)
+            } else {
+                Self::Whj(station.whj(Some(&first.bus))?)
+            },
+        )
+    }
+
+    fn now(&self) -> Instant {
+        match self {
+            Self::Wck(p) => p.lock().now(),
+            Self::Whj(p) => p.bus().now(),
+        }
+    }
+
+    fn sleep_until(&self, t: Instant) {
+        match self {
+            Self::Wck(p) => p.lock().sleep_until(t),
+            Self::Whj(p) => p.bus().sleep_until(t),
+        }
+    }
+}
+
+#[cfg(all(test, feature = "sim"))]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::panic)]
+
+    use std::time::Duration;
+
+    use serde_json::{Value, json};
+
+    use super::super::{Request, Station, run, validate};
+    use crate::ops::Control;
+
+    const CENTRE: f64 = 127.0 * robobus_sim::wck::mechanics::DEG_PER_STEP8;
+
+    /// Servo `id`'s shaft turned by hand to `deg` joint degrees at simulated `at_ms`.
+    fn turn(sim: &robobus_sim::wck::SimHandle, at_ms: u64, id: usize, deg: f64) {
+        sim.at(Duration::from_millis(at_ms), move |bus| {
+            bus.servo_mut(id).unwrap().set_angle(CENTRE + deg);
+        });
+    }
+
+    /// Servo `id`'s joint angle in the simulation, degrees.
+    fn angle(sim: &robobus_sim::wck::SimHandle, id: usize) -> f64 {
+        let p = sim.with_bus(|b| b.servo(id).unwrap().position());
+        (f64::from(p) - 127.0) * robobus_sim::wck::mechanics::DEG_PER_STEP8
+    }
+
+    fn row<'a>(report: &'a Value, name: &str) -> &'a Value {
+        report["results"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|r| r["id"] == name)
+            .unwrap()
+    }
+
+    #[test]
+    fn the_follower_tracks_the_leader_and_holds_when_it_goes_silent() {
+        let (station, wck, _) = Station::simulated_with_handles().unwrap();
+        let t = wck.now().as_millis();
+        let t = u64::try_from(t).unwrap();
+        // The leader s0 is turned to +30°, then to -15°, then its power goes (at 900 ms).
+        turn(&wck, t + 50, 0, 30.0);
+        turn(&wck, t + 450, 0, -15.0);
+        let kill = Duration::from_millis(t + 900);
+        wck.at(kill, move |bus| bus.servo_mut(0).unwrap().power_off(kill));
+        // s1 mirrors it; s2 is mirrored and shifted, within ±20°.
+        let request: Request = serde_json::from_value(json!({
+            "op": "robot.teleop",
+            "rate_hz": 50,
+            "seconds": 10,
+            "map": [
+                {"leader": "s0", "follower": "s1"},
+                {"leader": "s0", "follower": "s2", "scale": -1, "offset_deg": 10,
+                 "limits_deg": [-20, 20]},
+            ],
+        }))
+        .unwrap();
+        let report = run(&station, &request, &mut Control::none()).unwrap();
+        let v = serde_json::to_value(&report).unwrap();
+        // The leader's silence ends the run and fails it, once no complete reading has
+        // come for 500 ms (each silent reading costs the bus's retries, so it is more).
+        assert_eq!(v["failed"], "no-device", "{v:#}");
+        let e = v["error"].as_str().unwrap();
+        let silent_ms: u64 = e
+            .strip_prefix("the leader gave no complete reading for ")
+            .and_then(|r| r.split(' ').next())
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| panic!("{e}"));
+        assert!((500..1000).contains(&silent_ms), "{e}");
+        assert!(e.contains("s0: sim-wck: servo 0 did not answer"), "{e}");
+        let s = &v["summary"];
+        assert_eq!(s["leader_lost"], true, "{s}");
+        assert_eq!(s["interrupted"], false, "{s}");
+        // 50 Hz on the simulated clock: a command every 20 ms until the kill at 0.9 s,
+        // then cycles that hold (each as long as its silent reading).
+        let commanded = s["commanded"].as_u64().unwrap();
+        assert!((44..=46).contains(&commanded), "{s}");
+        let held = s["held"].as_u64().unwrap();
+        assert!((2..=6).contains(&held), "{s}");
+        assert_eq!(s["cycles"].as_u64().unwrap(), commanded + held, "{s}");
+        assert_eq!(row(&v, "s1")["commands"], commanded, "{v:#}");
+        assert_eq!(s["leaders"][0]["name"], "s0");
+        assert_eq!(s["leaders"][0]["failed"], held, "{s}");
+        // s1 went where the leader went last, and is there.
+        let s1 = row(&v, "s1");
+        assert_eq!(s1["leader"], "s0");
+        let near = |x: f64, want: f64, tol: f64| (x - want).abs() <= tol;
+        let step = robobus_sim::wck::mechanics::DEG_PER_STEP8;
+        assert!(
+            near(s1["target_deg"].as_f64().unwrap(), -15.0, step),
+            "{s1}"
+        );
+        assert!(near(angle(&wck, 1), -15.0, 2.0 * step), "{s1}");
+        assert!(s1["tracking_max_deg"].as_f64().unwrap() > 30.0, "{s1}");
+        assert!(s1["limited"].as_u64().unwrap() > 0, "{s1}");
+        // s2 at its map's limit: -(-15) + 10 = 25 is cut to 20.
+        let s2 = row(&v, "s2");
+        assert!(near(s2["target_deg"].as_f64().unwrap(), 20.0, 1e-9), "{s2}");
+        assert!(near(angle(&wck, 2), 20.0, 2.0 * step), "{s2}");
+        // The follower holds: nothing moves it once the leader is gone.
+        let (a1, a2) = (angle(&wck, 1), angle(&wck, 2));
+        wck.sleep(Duration::from_millis(500));
+        assert_eq!((angle(&wck, 1), angle(&wck, 2)), (a1, a2));
+    }
+
+    #[test]
+    fn a_map_is_checked_before_anything_is_sent() {
+        let bad = |map: Value, option: &str, says: &str| {
+            let request: Request =
+                serde_json::from_value(json!({"op": "robot.teleop", "map": map})).unwrap();
+            let e = validate(&request).unwrap_err().to_string();
+            assert!(e.contains(option) && e.contains(says), "{e}");
+        };
+        bad(json!([]), "--map", "1..=64 pairs");
+        bad(
+            json!([{"leader": "s0", "follower": "s1"}, {"leader": "s1", "follower": "s2"}]),
+            "--map",
+            "s1 follows, so it cannot also lead",
+        );
+        bad(
+            json!([{"leader": "s0", "follower": "s1"}, {"leader": "s3", "follower": "s1"}]),
+            "--map",
+            "one pair per follower",
+        );
+        bad(
+            json!([{"leader": "s0", "follower": "s1", "scale": 11}]),
+            "--map scale",
+            "-10..=10",
+        );
+        bad(
+            json!([{"leader": "s0", "follower": "s1", "limits_deg": [5, -5]}]),
+            "--limit",
+            "MIN below MAX",
+        );
+        for (field, value, option, range) in [
+            ("rate_hz", json!(500), "--rate-hz", "1..=200"),
+            ("seconds", json!(0), "--seconds", "0.1..=86400"),
+            (
+                "leader_timeout_ms",
+                json!(5),
+                "--leader-timeout-ms",
+                "10..=10000",
+            ),
+        ] {
+            let mut r = json!({"op": "robot.teleop", "map": [{"leader": "s0", "follower": "s1"}]});
+            r[field] = value;
+            let request: Request = serde_json::from_value(r).unwrap();
+            let e = validate(&request).unwrap_err().to_string();
+            assert!(e.contains(option) && e.contains(range), "{e}");
+        }
+        // A name the robot file does not have is refused at the run, before anything moves.
+        let station = Station::simulated().unwrap();
+        let request: Request = serde_json::from_value(
+            json!({"op": "robot.teleop", "map": [{"leader": "s0", "follower": "elbow"}]}),
+        )
+        .unwrap();
+        let e = run(&station, &request, &mut Control::none()).unwrap_err();
+        assert_eq!(e.kind(), crate::ErrorKind::BadInput, "{e}");
+        assert!(e.to_string().contains("elbow"), "{e}");
+    }
+}
