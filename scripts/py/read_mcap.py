@@ -1,13 +1,15 @@
 #!/usr/bin/env python3
-"""Reads an MCAP recording of `robobus monitor --record FILE.mcap` with the `mcap` package
-(and `mcap-ros2-support` for the CDR joint states) and prints one JSON summary: the
-channels with their encodings, schemas and message counts from the summary section, the
-samples (JSON) and the decoded joint states, each with its log time in ns.
+"""Reads an MCAP recording of `robobus monitor --record FILE.mcap` (or `robobus robot play
+--record`) with the `mcap` package (and `mcap-ros2-support` for the CDR joint states) and
+prints one JSON summary: the channels with their encodings, schemas and message counts
+from the summary section, the samples (JSON), the decoded joint states and the decoded
+joint commands (a played trajectory's targets), each with its log time in ns.
 
 Usage: read_mcap.py FILE.mcap
 """
 
 import json
+import math
 import sys
 
 from mcap.reader import make_reader
@@ -37,13 +39,29 @@ def main(path: str) -> None:
                 "stamp_ns": decoded.header.stamp.sec * 1_000_000_000 + decoded.header.stamp.nanosec,
                 "name": list(decoded.name),
                 "position": list(decoded.position),
-                "velocity": list(decoded.velocity),
+                # A velocity that was not measured is NaN in the message, null here.
+                "velocity": [None if math.isnan(v) else v for v in decoded.velocity],
             }
             for _schema, _channel, message, decoded in reader.iter_decoded_messages(
                 topics=["/joint_states"]
             )
         ]
-    json.dump({"channels": channels, "samples": samples, "states": states}, sys.stdout)
+        commands = [
+            {
+                "log_time": message.log_time,
+                "stamp_ns": decoded.header.stamp.sec * 1_000_000_000 + decoded.header.stamp.nanosec,
+                "name": list(decoded.name),
+                "position": list(decoded.position),
+            }
+            for _schema, _channel, message, decoded in reader.iter_decoded_messages(
+                topics=["/robobus/joint_commands"]
+            )
+        ]
+    json.dump(
+        {"channels": channels, "samples": samples, "states": states, "commands": commands},
+        sys.stdout,
+        allow_nan=False,
+    )
 
 
 if __name__ == "__main__":

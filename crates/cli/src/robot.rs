@@ -8,11 +8,17 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
 use clap::Subcommand;
+use robobus::catalogue::play::{Play, PlayTick};
+use robobus::catalogue::record::{Recorder, SampleTable};
 use robobus::catalogue::robot::{Calibrate, ZeroPose};
 use robobus::catalogue::teleop::{Pair, Teleop};
 use robobus::catalogue::{self, Request, Station, StationConfig};
+use robobus::catalogue::{Interaction, NoInteraction};
 use robobus::ops::read_bounded;
+use robobus::ops::{ErrorKind, OpError};
+use robobus::robot::RobotConfig;
 use robobus::robot::calibration::{JointCalibration, apply_to_toml};
+use robobus::robot::trajectory::Trajectory;
 use serde_json::Value;
 
 use crate::Global;
@@ -64,6 +70,39 @@ enum RobotCommand {
         /// Write the calibrated robot file here instead.
         #[arg(short = 'o', long, value_name = "FILE")]
         output: Option<PathBuf>,
+    },
+    /// Play a trajectory on the robot file's joints, across its buses and both families.
+    ///
+    /// The trajectory is a CSV file: a header `time_s,JOINT,JOINT,...` (joints named as
+    /// in the robot file), then a row per point: the time in seconds and each joint's
+    /// angle in degrees (the file's joint frame, as `monitor --robot` shows it). It is
+    /// checked whole before anything moves (names, soft limits, maximum speeds); every
+    /// joint is read, and a silent one or one outside its limits refuses the run. The
+    /// joints go from where they are to the first point no faster than their
+    /// maximum speed, then follow the trajectory (linear between points), every bus
+    /// commanded at the same instant each tick. WHJ joints must be enabled in position
+    /// mode first. --record writes targets and positions on one time base (.csv, .jsonl
+    /// or .mcap: ROS 2 joint states of the positions and of the targets). Ctrl-C
+    /// stops it where it is (exit 130).
+    Play {
+        /// The trajectory (CSV; at most 4 MiB).
+        #[arg(value_name = "TRAJECTORY.csv")]
+        trajectory: PathBuf,
+        /// The robot file: its buses are opened, its joints named in the trajectory.
+        #[arg(long, value_name = "FILE")]
+        robot: PathBuf,
+        /// Ticks a second (1..=500).
+        #[arg(long, default_value_t = 50.0)]
+        rate_hz: f64,
+        /// The wCK servos' torque level (0 strongest ..= 4 weakest).
+        #[arg(long, default_value_t = 2)]
+        torque: u8,
+        /// Record every tick's targets and positions (.csv, .jsonl / .ndjson or .mcap).
+        #[arg(long, value_name = "FILE")]
+        record: Option<PathBuf>,
+        /// Extra time to wait for each wCK reply beyond its modelled wire time, in ms.
+        #[arg(long, value_name = "MS", value_parser = crate::wck::parse_margin)]
+        reply_margin: Option<std::time::Duration>,
     },
     /// Leader-follower teleoperation: joints of the robot file moved by hand (the leader)
     /// drive others (the follower), live.
@@ -164,6 +203,58 @@ const TABLE: report::Style = report::Style {
 pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     match &args.command {
         RobotCommand::Calibrate { .. } => calibrate(g, &args.command),
+        RobotCommand::Play {
+            trajectory,
+            robot,
+            rate_hz,
+            torque,
+            record,
+            reply_margin,
+        } => {
+            let request = Request::RobotPlay(Play {
+                trajectory: read_bounded(trajectory, MAX_TRAJECTORY_BYTES)?,
+                rate_hz: *rate_hz,
+                torque: *torque,
+            });
+            let parsed = request_trajectory(&request)?;
+            // The file's joints, limits and speeds are checked before anything opens.
+            let config = RobotConfig::from_toml_str(&read_bounded(robot, 1 << 20)?)
+                .map_err(|e| crate::exit::usage(format!("--robot {}: {e}", robot.display())))?;
+            parsed
+                .check(&config)
+                .map_err(|e| crate::exit::usage(format!("{}: {e}", trajectory.display())))?;
+            if g.dry_run {
+                return print_plan(g, &request);
+            }
+            let mut recording = match record {
+                Some(path) => {
+                    let table = SampleTable::played(&config, parsed.joints());
+                    let heading = format!("{} on {}", trajectory.display(), robot.display());
+                    Some(Recording {
+                        recorder: Recorder::create(path, &heading, &table)?,
+                        table,
+                        path: path.clone(),
+                    })
+                }
+                None => None,
+            };
+            let report = match &mut recording {
+                Some(r) => run_on_with(g, robot, *reply_margin, &request, r)?,
+                None => run_on(g, robot, *reply_margin, &request)?,
+            };
+            if let Some(r) = recording {
+                let n = r.recorder.written();
+                r.recorder
+                    .finish()
+                    .with_context(|| format!("cannot write {}", r.path.display()))?;
+                eprintln!("robobus: {n} ticks recorded to {}", r.path.display());
+            }
+            print(
+                g,
+                &report,
+                "stopped before the trajectory ended; what was done is above",
+            )
+        }
         RobotCommand::Teleop {
             robot,
             map,
@@ -208,6 +299,37 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     }
 }
 
+/// The largest trajectory file read.
+const MAX_TRAJECTORY_BYTES: u64 = 4 << 20;
+
+/// The trajectory of a `robot.play` request, parsed (bad input: exit 2).
+fn request_trajectory(request: &Request) -> anyhow::Result<Trajectory> {
+    match request {
+        Request::RobotPlay(p) => Ok(p.check()?),
+        _ => Err(crate::exit::usage("not a trajectory")),
+    }
+}
+
+/// A played trajectory's recording: each tick into the table, the table into the file.
+struct Recording {
+    table: SampleTable,
+    recorder: Recorder<std::io::BufWriter<std::fs::File>>,
+    path: PathBuf,
+}
+
+impl Interaction for Recording {
+    fn play_tick(&mut self, tick: &PlayTick<'_>) -> Result<(), OpError> {
+        self.table.take_tick(tick);
+        self.recorder
+            .record(&self.table)
+            .map_err(|e| OpError::File {
+                path: self.path.clone(),
+                reason: format!("cannot write: {e}"),
+                kind: ErrorKind::Link,
+            })
+    }
+}
+
 /// Runs `request` on a station opened from the robot file `robot` (closed after it, its
 /// safe-stop failures printed).
 fn run_on(
@@ -216,13 +338,24 @@ fn run_on(
     reply_margin: Option<std::time::Duration>,
     request: &Request,
 ) -> anyhow::Result<robobus::catalogue::Report> {
+    run_on_with(g, robot, reply_margin, request, &mut NoInteraction)
+}
+
+/// [`run_on`] with a front end's side of the run.
+fn run_on_with(
+    g: Global,
+    robot: &Path,
+    reply_margin: Option<std::time::Duration>,
+    request: &Request,
+    interaction: &mut dyn Interaction,
+) -> anyhow::Result<robobus::catalogue::Report> {
     let station = Station::open(&StationConfig {
         robot: Some(robot.to_path_buf()),
         wck_reply_margin: reply_margin,
         wait: g.wait,
         ..StationConfig::default()
     })?;
-    let result = report::run(&station, request);
+    let result = report::run_with(&station, request, interaction);
     let failures = station.close();
     for f in &failures {
         eprintln!("robobus: safe stop: {f}");

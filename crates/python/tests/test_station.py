@@ -166,6 +166,12 @@ CALLS: list[tuple[str, tuple[Any, ...], dict[str, Any], dict[str, Any]]] = [
     ("robot.sample", (), {}, {"op": "robot.sample"}),
     ("robot.calibrate", (0.2,), {}, {"op": "robot.calibrate", "seconds": 0.2}),
     (
+        "robot.play",
+        ("time_s,s0,s1\n0,0,0\n0.2,5,-5\n",),
+        {"rate_hz": 20},
+        {"op": "robot.play", "trajectory": "time_s,s0,s1\n0,0,0\n0.2,5,-5\n", "rate_hz": 20},
+    ),
+    (
         "robot.teleop",
         ([{"leader": "s0", "follower": "s1"}],),
         {"seconds": 0.2},

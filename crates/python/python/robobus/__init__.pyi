@@ -606,6 +606,15 @@ class RobotOps:
         check: bool = ...,
     ) -> Report:
         """The request ``robot.calibrate``."""
+    def play(
+        self,
+        trajectory: str,
+        *,
+        rate_hz: float | None = ...,
+        torque: int | None = ...,
+        check: bool = ...,
+    ) -> Report:
+        """The request ``robot.play``."""
     def sample(
         self,
         *,

@@ -38,6 +38,7 @@ pub fn validate(request: &Request) -> Result<(), OpError> {
         Family::Robot => match request {
             Request::RobotCalibrate(r) => r.readings().map(drop),
             Request::RobotTeleop(r) => r.check(),
+            Request::RobotPlay(r) => r.check().map(drop),
             _ => Ok(()),
         },
     }
@@ -87,6 +88,7 @@ pub fn plan_at(request: &Request, baud: BaudRate) -> Result<Plan, OpError> {
             let note = match request {
                 Request::RobotCalibrate(r) => r.note()?,
                 Request::RobotTeleop(r) => r.note()?,
+                Request::RobotPlay(r) => r.note()?,
                 _ => ROBOT_SAMPLE_NOTE.into(),
             };
             Plan::notes_only(&op, Family::Robot, vec![note])
@@ -110,6 +112,14 @@ pub trait Interaction {
     #[allow(clippy::result_large_err)] // OpError carries the client errors by value
     fn pose(&mut self, pose: &wops::Pose) -> Result<(), OpError> {
         let _ = pose;
+        Ok(())
+    }
+
+    /// `robot.play`: one tick was sent (a front end records it; an error ends the run
+    /// where it is).
+    #[allow(clippy::result_large_err)] // OpError carries the client errors by value
+    fn play_tick(&mut self, tick: &super::play::PlayTick<'_>) -> Result<(), OpError> {
+        let _ = tick;
         Ok(())
     }
 
@@ -183,6 +193,13 @@ pub fn run_with(
                     "readings": c.taken,
                     "interrupted": c.taken < c.asked,
                 }));
+                Ok(report)
+            }
+            Request::RobotPlay(r) => {
+                let p =
+                    super::play::run_play(station, r, control, &mut |t| interaction.play_tick(t))?;
+                let mut report = device_report(&op, "robot", &p.joints);
+                report.summary = serde_json::to_value(&p.summary).ok();
                 Ok(report)
             }
             Request::RobotTeleop(r) => {

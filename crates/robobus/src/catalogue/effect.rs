@@ -70,7 +70,8 @@ impl Request {
             | Self::WhjSpeed(_)
             | Self::WhjCurrent(_)
             | Self::WhjWave(_)
-            | Self::RobotTeleop(_) => Effect::Motion,
+            | Self::RobotTeleop(_)
+            | Self::RobotPlay(_) => Effect::Motion,
             Self::WckPassive(_)
             | Self::WckBrake(_)
             | Self::WckSet(_)

@@ -88,15 +88,7 @@ impl Follower {
                         OpError::invalid(
                             "joint",
                             n,
-                            format!(
-                                "a joint of the robot file: {}",
-                                robot
-                                    .joints
-                                    .iter()
-                                    .map(|j| j.name.as_str())
-                                    .collect::<Vec<_>>()
-                                    .join(", ")
-                            ),
+                            format!("a joint of the robot file: {}", robot.joint_names()),
                         )
                     })
                 })

@@ -74,6 +74,7 @@
 //! | `whj.restore` | `joint`, `settings` | one row per differing setting: written or skipped (the bus identity is never written); `summary`: `written`, `saved`, `differ_after` | flash (and the `confirm` registers the file sets) |
 //! | `robot.sample` | - | per joint of the station's robot file, by name: `position_deg`, `speed_deg_s`, `current_ma`, `load`, `enabled`, `error` | - |
 //! | `robot.calibrate` | `seconds` (0.1..=600), `rate_hz`=20 (1..=100), `zero` (`end` / `keep`), `margin_deg`=2 (0..=30), `passive`=true | per joint by name: `samples`, `min_deg`, `max_deg`, `zero_deg`, `offset_rad` and `limits_rad` for the file (and their values before); `summary`: `readings`, `interrupted` | - |
+//! | `robot.play` | `trajectory` (the CSV text: `time_s`, a column per joint of the robot file, degrees), `rate_hz`=50 (1..=500), `torque`=2 (wCK, 0..=4) | per joint by name: `commands`, `failed`, `start_deg`, `target_deg`, `position_deg`, `tracking_max_deg`, `tracking_rms_deg`; `summary`: `lead_in_s`, `duration_s`, `ticks`, `overruns`, `buses`, `skew_ms` and `late_ms` (`p50`, `p99`, `max`), `interrupted` | - |
 //! | `robot.teleop` | `map` (1..=64 of `leader`, `follower`, `scale`=1 (±10), `offset_deg`=0 (±360), `limits_deg`), `rate_hz`=50 (1..=200), `seconds` (0.1..=86400; none: until stopped), `leader_timeout_ms`=500 (10..=10000), `passive_leader`=true | per follower joint by name: `leader`, `commands`, `limited`, `failed`, `target_deg`, `position_deg`, `tracking_max_deg`, `tracking_rms_deg`; `summary`: `cycles`, `commanded`, `held`, `overruns`, `seconds`, `rate_hz`, `latency_ms` (`p50`, `p99`, `max`), `leaders` (readings, failures), `leader_lost`, `interrupted` | - |
 //!
 //! # Report
@@ -88,6 +89,7 @@
 
 pub mod args;
 pub mod bounds;
+mod clock;
 pub mod cyclic;
 mod dispatch;
 pub mod effect;
@@ -98,6 +100,7 @@ pub mod jog;
 #[cfg(feature = "sim")]
 pub mod live;
 pub mod plan;
+pub mod play;
 pub mod record;
 pub mod robot;
 pub mod station;
@@ -219,6 +222,8 @@ pub enum Request {
     RobotCalibrate(robot::Calibrate),
     #[serde(rename = "robot.teleop")]
     RobotTeleop(teleop::Teleop),
+    #[serde(rename = "robot.play")]
+    RobotPlay(play::Play),
 }
 
 macro_rules! each_variant {
@@ -270,7 +275,10 @@ macro_rules! each_variant {
             Request::WhjDiff($r) => $e,
             Request::WhjRestore($r) => $e,
             // A robot request acts on the station's robot file, not on one bus.
-            Request::RobotSample(_) | Request::RobotCalibrate(_) | Request::RobotTeleop(_) => None,
+            Request::RobotSample(_)
+            | Request::RobotCalibrate(_)
+            | Request::RobotTeleop(_)
+            | Request::RobotPlay(_) => None,
         }
     };
 }
@@ -310,7 +318,10 @@ impl Request {
             | Self::WckTeach(_)
             | Self::WckPlay(_)
             | Self::WckSample(_) => Family::Wck,
-            Self::RobotSample(_) | Self::RobotCalibrate(_) | Self::RobotTeleop(_) => Family::Robot,
+            Self::RobotSample(_)
+            | Self::RobotCalibrate(_)
+            | Self::RobotTeleop(_)
+            | Self::RobotPlay(_) => Family::Robot,
             _ => Family::Whj,
         }
     }

@@ -96,6 +96,9 @@ pub struct SampleRow {
     pub effort_kind: Effort,
     /// Position, degrees.
     pub position_deg: Option<f64>,
+    /// The position commanded in this sample, degrees (a played trajectory's target;
+    /// written only by a table with [`SampleTable::commanded`]).
+    pub target_deg: Option<f64>,
     /// Speed, in the table's [`SpeedUnit`].
     pub speed: Option<f64>,
     /// Current (mA) or load (0..=255), as [`effort_kind`](Self::effort_kind) says.
@@ -121,6 +124,7 @@ impl SampleRow {
             id,
             effort_kind,
             position_deg: None,
+            target_deg: None,
             speed: None,
             effort: None,
             enabled: None,
@@ -168,6 +172,9 @@ pub struct SampleTable {
     pub lost: u64,
     /// The latest sample's read started more than one period after its slot.
     pub late: bool,
+    /// The rows carry what was commanded ([`SampleRow::target_deg`]): the recordings
+    /// have a target column / key / channel beside the positions read.
+    pub commanded: bool,
 }
 
 impl SampleTable {
@@ -181,6 +188,7 @@ impl SampleTable {
             samples: 0,
             lost: 0,
             late: false,
+            commanded: false,
         }
     }
 
@@ -308,6 +316,39 @@ impl SampleTable {
         }
     }
 
+    /// The table of a played trajectory: `joints` of the robot file `config` by name,
+    /// with what was commanded ([`SampleTable::commanded`]).
+    #[must_use]
+    pub fn played(config: &crate::robot::RobotConfig, joints: &[String]) -> Self {
+        let is_wck = |name: &str| {
+            config
+                .joints
+                .iter()
+                .find(|j| j.name == name)
+                .and_then(|j| config.buses.get(&j.bus))
+                .is_some_and(crate::robot::BusConfig::is_wck)
+        };
+        let mut t = Self::robot(joints.iter().map(|n| (n.as_str(), is_wck(n))));
+        t.commanded = true;
+        t
+    }
+
+    /// Fills the rows from one tick of a played trajectory (its joints in the table's
+    /// order): each row's target, and its position where the joint reported one.
+    pub fn take_tick(&mut self, tick: &super::play::PlayTick<'_>) {
+        self.begin(tick.t_s);
+        for ((row, target), at) in self.rows.iter_mut().zip(tick.targets).zip(tick.positions) {
+            row.target_deg = Some(*target);
+            match at {
+                Some(p) => {
+                    row.position_deg = Some(*p);
+                    row.got();
+                }
+                None => row.missed("no reply"),
+            }
+        }
+    }
+
     fn begin(&mut self, t_s: f64) {
         self.t_s = t_s;
         self.samples += 1;
@@ -337,7 +378,11 @@ impl SampleTable {
         let speed = self.speed_unit.key();
         for r in &self.rows {
             let n = column_name(&r.name);
-            let _ = write!(s, ",{n}_deg,{n}_{speed},{n}_{}", r.effort_kind.unit());
+            let _ = write!(s, ",{n}_deg");
+            if self.commanded {
+                let _ = write!(s, ",{n}_target_deg");
+            }
+            let _ = write!(s, ",{n}_{speed},{n}_{}", r.effort_kind.unit());
         }
         s
     }
@@ -348,13 +393,12 @@ impl SampleTable {
         let mut s = format!("{:.4}", self.t_s);
         let cell = |v: Option<f64>| v.map_or_else(String::new, |v| format!("{v:.4}"));
         for r in &self.rows {
-            let _ = write!(
-                s,
-                ",{},{},{}",
-                cell(r.now(r.position_deg)),
-                cell(r.now(r.speed)),
-                cell(r.now(r.effort))
-            );
+            let _ = write!(s, ",{}", cell(r.now(r.position_deg)));
+            if self.commanded {
+                // What was sent is known whether or not the device answered.
+                let _ = write!(s, ",{}", cell(r.target_deg));
+            }
+            let _ = write!(s, ",{},{}", cell(r.now(r.speed)), cell(r.now(r.effort)));
         }
         s
     }
@@ -373,6 +417,9 @@ impl SampleTable {
                 let mut o = serde_json::Map::new();
                 o.insert("name".into(), r.name.clone().into());
                 o.insert("position_deg".into(), r.now(r.position_deg).into());
+                if self.commanded {
+                    o.insert("target_deg".into(), r.target_deg.into());
+                }
                 o.insert(speed_key.clone(), r.now(r.speed).into());
                 o.insert(r.effort_kind.key().into(), r.now(r.effort).into());
                 o.insert("enabled".into(), r.now(r.enabled).into());
@@ -482,8 +529,9 @@ impl Recorder<std::io::BufWriter<std::fs::File>> {
 
 impl<W: Write + Seek> Recorder<W> {
     /// Writes the format's head for `table` (CSV: the `# robobus monitor: HEADING`
-    /// comment and the header; JSON lines: nothing; MCAP: the header, the schemas, the
-    /// channels and a metadata record) to `out`.
+    /// comment, `play` for a table of what was commanded, and the header; JSON lines:
+    /// nothing; MCAP: the header, the schemas, the channels and a metadata record) to
+    /// `out`.
     ///
     /// # Errors
     ///
@@ -496,7 +544,8 @@ impl<W: Write + Seek> Recorder<W> {
     ) -> std::io::Result<Self> {
         let sink = match format {
             RecordFormat::Csv => {
-                writeln!(out, "# robobus monitor: {heading}")?;
+                let what = if table.commanded { "play" } else { "monitor" };
+                writeln!(out, "# robobus {what}: {heading}")?;
                 writeln!(out, "{}", table.csv_header())?;
                 Sink::Text(out, format)
             }
@@ -556,7 +605,9 @@ impl<W: Write + Seek> Recorder<W> {
 mod mcap_file;
 
 use mcap_file::McapSink;
-pub use mcap_file::{Columns, JOINT_STATES_TOPIC, MAX_SAMPLES, SAMPLES_TOPIC, read_columns};
+pub use mcap_file::{
+    Columns, JOINT_COMMANDS_TOPIC, JOINT_STATES_TOPIC, MAX_SAMPLES, SAMPLES_TOPIC, read_columns,
+};
 
 #[cfg(test)]
 mod tests;

@@ -20,6 +20,7 @@ use std::time::{Duration, Instant};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
+use super::clock::{BusClock, ClockBus};
 use super::follow::Follower;
 use super::station::Station;
 use crate::ops::monitor::RobotSampler;
@@ -371,15 +372,7 @@ fn leader_names(config: &crate::robot::RobotConfig, r: &Teleop) -> Result<Vec<St
             return Err(OpError::invalid(
                 "--map",
                 &p.leader,
-                format!(
-                    "a joint of the robot file: {}",
-                    config
-                        .joints
-                        .iter()
-                        .map(|j| j.name.as_str())
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                ),
+                format!("a joint of the robot file: {}", config.joint_names()),
             ));
         }
         if !leaders.contains(&p.leader) {
@@ -438,7 +431,7 @@ impl TeleopSummary {
 struct Run {
     follower: Follower,
     sampler: RobotSampler,
-    pace: Pace,
+    pace: BusClock,
     /// Each pair's leader: its index among the leader joints.
     pair_leader: Vec<usize>,
     /// Each pair's range in joint degrees: its own limits within the follower's.
@@ -464,6 +457,7 @@ impl Run {
         let followers: Vec<String> = r.map.iter().map(|p| p.follower.clone()).collect();
         let follower = Follower::of_joints(station, &followers)?;
         // The leader's own sampler: only its joints and their buses.
+        let clock = clock_of(station, &config, &r.map)?;
         let mut led = config;
         led.joints.retain(|j| leaders.contains(&j.name));
         led.buses
@@ -520,7 +514,7 @@ impl Run {
         Ok(Self {
             follower,
             sampler,
-            pace: Pace::of(station, &led)?,
+            pace: clock,
             pair_leader,
             ranges,
             rows,
@@ -707,45 +701,42 @@ fn next_tick(elapsed: Duration, period: Duration, tick: u64, overruns: &mut u64)
     }
 }
 
-/// The loop's clock: the clock of the leader's first bus (the wall clock on hardware, a
-/// simulator's virtual clock, which then runs to each tick at once).
-enum Pace {
-    Wck(super::station::WckPort),
-    Whj(super::station::WhjPort),
-}
-
-impl Pace {
-    fn of(station: &Station, led: &crate::robot::RobotConfig) -> Result<Self, OpError> {
-        let first = led
-            .joints
-            .first()
-            .ok_or_else(|| OpError::invalid("--map", "(none)", "at least one pair"))?;
-        Ok(
-            if led
-                .buses
-                .get(&first.bus)
-                .is_some_and(crate::robot::BusConfig::is_wck)
-            {
-                Self::Wck(station.wck(Some(&first.bus))?)
-            } else {
-                Self::Whj(station.whj(Some(&first.bus))?)
-            },
-        )
-    }
-
-    fn now(&self) -> Instant {
-        match self {
-            Self::Wck(p) => p.lock().now(),
-            Self::Whj(p) => p.bus().now(),
+/// The loop's clock: the buses of the map's joints, leaders' first (the wall clock on
+/// hardware; on simulators their virtual clocks kept together).
+fn clock_of(
+    station: &Station,
+    config: &crate::robot::RobotConfig,
+    map: &[Pair],
+) -> Result<BusClock, OpError> {
+    let mut names: Vec<&str> = Vec::new();
+    let names_of = map
+        .iter()
+        .map(|p| &p.leader)
+        .chain(map.iter().map(|p| &p.follower));
+    for name in names_of {
+        if let Some(j) = config.joints.iter().find(|j| &j.name == name)
+            && !names.contains(&j.bus.as_str())
+        {
+            names.push(&j.bus);
         }
     }
-
-    fn sleep_until(&self, t: Instant) {
-        match self {
-            Self::Wck(p) => p.lock().sleep_until(t),
-            Self::Whj(p) => p.bus().sleep_until(t),
-        }
-    }
+    let buses = names
+        .into_iter()
+        .map(|n| {
+            Ok(
+                if config
+                    .buses
+                    .get(n)
+                    .is_some_and(crate::robot::BusConfig::is_wck)
+                {
+                    ClockBus::Wck(station.wck(Some(n))?)
+                } else {
+                    ClockBus::Whj(station.whj(Some(n))?)
+                },
+            )
+        })
+        .collect::<Result<Vec<_>, OpError>>()?;
+    Ok(BusClock::new(buses))
 }
 
 #[cfg(all(test, feature = "sim"))]

@@ -322,6 +322,16 @@ const fn default_watchdog() -> f64 {
 }
 
 impl RobotConfig {
+    /// The joints' names, as a list for a message (`hip, knee, ankle`).
+    #[must_use]
+    pub fn joint_names(&self) -> String {
+        self.joints
+            .iter()
+            .map(|j| j.name.as_str())
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+
     /// The largest robot file read (1 MiB): a real robot needs a few kB, and a file
     /// argument such as `/dev/zero` must not grow memory without bound.
     pub const MAX_FILE_BYTES: usize = 1 << 20;

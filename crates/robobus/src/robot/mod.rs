@@ -79,6 +79,7 @@ mod hardware;
 mod safety;
 #[cfg(feature = "sim")]
 mod simulated;
+pub mod trajectory;
 
 use std::collections::BTreeMap;
 use std::fmt;

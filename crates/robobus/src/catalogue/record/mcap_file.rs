@@ -24,6 +24,9 @@ use crate::cdr::{JointState, Time};
 pub const SAMPLES_TOPIC: &str = "/robobus/samples";
 /// The topic of the joint states (CDR).
 pub const JOINT_STATES_TOPIC: &str = "/joint_states";
+/// The topic of what was commanded, as joint states (CDR; only in a recording of a
+/// table with [`SampleTable::commanded`]: every joint's target position each sample).
+pub const JOINT_COMMANDS_TOPIC: &str = "/robobus/joint_commands";
 
 /// The JSON Schema of a samples message.
 const SAMPLE_SCHEMA: &str = r#"{
@@ -41,6 +44,7 @@ const SAMPLE_SCHEMA: &str = r#"{
         "properties": {
           "name": {"type": "string"},
           "position_deg": {"type": ["number", "null"]},
+          "target_deg": {"type": ["number", "null"]},
           "speed_rpm": {"type": ["number", "null"]},
           "speed_deg_per_s": {"type": ["number", "null"]},
           "current_ma": {"type": ["number", "null"]},
@@ -77,6 +81,8 @@ pub(super) struct McapSink<W: Write + Seek> {
     writer: mcap::Writer<W>,
     samples: u16,
     joint_states: u16,
+    /// The commands' channel, in a recording of what was commanded.
+    joint_commands: Option<u16>,
     /// The recording's start, ns since the Unix epoch.
     start_ns: u64,
     sequence: u32,
@@ -123,6 +129,15 @@ impl<W: Write + Seek> McapSink<W> {
         let joint_states = writer
             .add_channel(schema, JOINT_STATES_TOPIC, "cdr", &none)
             .map_err(io)?;
+        let joint_commands = if table.commanded {
+            Some(
+                writer
+                    .add_channel(schema, JOINT_COMMANDS_TOPIC, "cdr", &none)
+                    .map_err(io)?,
+            )
+        } else {
+            None
+        };
         writer
             .write_metadata(&Metadata {
                 name: "robobus".into(),
@@ -139,6 +154,7 @@ impl<W: Write + Seek> McapSink<W> {
             writer,
             samples,
             joint_states,
+            joint_commands,
             start_ns,
             sequence: 0,
         })
@@ -167,6 +183,13 @@ impl<W: Write + Seek> McapSink<W> {
                 .write_to_known_channel(&header(self.joint_states, self.sequence), &state.encode())
                 .map_err(io)?;
         }
+        if let Some(channel) = self.joint_commands
+            && let Some(command) = joint_command(table, at)
+        {
+            self.writer
+                .write_to_known_channel(&header(channel, self.sequence), &command.encode())
+                .map_err(io)?;
+        }
         self.sequence = self.sequence.wrapping_add(1);
         Ok(())
     }
@@ -183,14 +206,9 @@ impl<W: Write + Seek> McapSink<W> {
     }
 }
 
-/// The joint state of the devices that answered `table`'s latest sample, stamped `at_ns`;
-/// `None` when none did.
-fn joint_state(table: &SampleTable, at_ns: u64) -> Option<JointState> {
-    let to_rad_s = |v: f64| match table.speed_unit {
-        SpeedUnit::Rpm => v * core::f64::consts::TAU / 60.0,
-        SpeedUnit::DegPerS => v.to_radians(),
-    };
-    let mut msg = JointState {
+/// An empty joint state stamped `at_ns`.
+fn stamped(at_ns: u64) -> JointState {
+    JointState {
         stamp: Time {
             sec: i32::try_from(at_ns / 1_000_000_000).unwrap_or(0),
             // Below 1e9.
@@ -198,7 +216,31 @@ fn joint_state(table: &SampleTable, at_ns: u64) -> Option<JointState> {
             nanosec: (at_ns % 1_000_000_000) as u32,
         },
         ..JointState::default()
+    }
+}
+
+/// What `table`'s latest sample commanded, as a joint state stamped `at_ns` (positions
+/// only, radians); `None` when nothing was.
+fn joint_command(table: &SampleTable, at_ns: u64) -> Option<JointState> {
+    let mut msg = stamped(at_ns);
+    for row in &table.rows {
+        let Some(deg) = row.target_deg else {
+            continue;
+        };
+        msg.name.push(row.name.clone());
+        msg.position.push(deg.to_radians());
+    }
+    (!msg.name.is_empty()).then_some(msg)
+}
+
+/// The joint state of the devices that answered `table`'s latest sample, stamped `at_ns`;
+/// `None` when none did.
+fn joint_state(table: &SampleTable, at_ns: u64) -> Option<JointState> {
+    let to_rad_s = |v: f64| match table.speed_unit {
+        SpeedUnit::Rpm => v * core::f64::consts::TAU / 60.0,
+        SpeedUnit::DegPerS => v.to_radians(),
     };
+    let mut msg = stamped(at_ns);
     for row in table.rows.iter().filter(|r| r.fresh) {
         let Some(deg) = row.position_deg else {
             continue;
@@ -212,8 +254,9 @@ fn joint_state(table: &SampleTable, at_ns: u64) -> Option<JointState> {
 }
 
 /// The samples of an MCAP recording ([`SAMPLES_TOPIC`]) as the CSV form's columns: the
-/// times (`t_s`) and, per device, `NAME_deg`, `NAME_SPEED` and `NAME_EFFORT` with the
-/// units of the keys (`null` of a stale value: `None`).
+/// times (`t_s`) and, per device, `NAME_deg` (and `NAME_target_deg` in a recording of
+/// what was commanded), `NAME_SPEED` and `NAME_EFFORT` with the units of the keys
+/// (`null` of a stale value: `None`).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Columns {
     /// Seconds since the recording started, one per sample.
@@ -223,8 +266,9 @@ pub struct Columns {
 }
 
 /// The keys of a samples message's device object that are columns, and their suffixes.
-const VALUE_KEYS: [(&str, &str); 5] = [
+const VALUE_KEYS: [(&str, &str); 6] = [
     ("position_deg", "deg"),
+    ("target_deg", "target_deg"),
     ("speed_rpm", "rpm"),
     ("speed_deg_per_s", "deg_per_s"),
     ("current_ma", "mA"),

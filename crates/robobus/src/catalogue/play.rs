@@ -1,0 +1,769 @@
+//! `robot.play`: a trajectory of named joints (the CSV of [`crate::robot::trajectory`])
+//! played on the station's robot file, across its buses and both families.
+//!
+//! The whole trajectory is checked against the file before anything is sent (joint names,
+//! soft limits, `max_velocity`), and every joint it names is read: one that does not
+//! answer, or stands outside its soft limits, refuses the run. The joints then go from
+//! where they are to the first point, each no faster than its `max_velocity` (the lead-in,
+//! as long as the slowest needs), and follow the trajectory, linearly between its points.
+//! Every tick (`rate_hz`) each bus gets its joints' targets at the same instant, each bus
+//! from its own thread: a position command per wCK servo (its reply is the servo's
+//! position), a position servo frame per WHJ joint (its feedback the joint's position; the
+//! joint must be enabled in position mode). The report gives per joint the tracking error
+//! (the distance from where a joint reported itself to the target of the tick before) and
+//! its failures, and for the run the skew between the buses' sends in a tick and how late
+//! the sends were.
+
+use std::time::{Duration, Instant};
+
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use super::clock::{BusClock, ClockBus};
+use super::handles::{WckServos, WhjJoints};
+use super::station::Station;
+use crate::actuator::{JointMap, WckScale};
+use crate::ops::monitor::RobotSampler;
+use crate::ops::whj::ServoLoop;
+use crate::ops::{Control, DeviceResult, Failure, OpError, Outcome, Progress};
+use crate::robot::RobotConfig;
+use crate::robot::trajectory::Trajectory;
+use crate::whj::Percentiles;
+
+/// `robot.play` (see the [module docs](self)).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Play {
+    /// The trajectory file's text: `time_s`, then a column per joint of the robot file
+    /// (degrees in its joint frame); a row per point.
+    pub trajectory: String,
+    /// Ticks a second (1..=500; default 50).
+    #[serde(default = "default_rate")]
+    pub rate_hz: f64,
+    /// The wCK servos' torque level (0 strongest ..= 4 weakest; default 2).
+    #[serde(default = "default_torque")]
+    pub torque: u8,
+}
+
+const fn default_rate() -> f64 {
+    50.0
+}
+
+const fn default_torque() -> u8 {
+    2
+}
+
+/// Range of `rate_hz`.
+pub const PLAY_RATE_HZ: std::ops::RangeInclusive<f64> = 1.0..=500.0;
+
+impl Play {
+    /// Checks the values and parses the trajectory (named as the command line's options).
+    pub fn check(&self) -> Result<Trajectory, OpError> {
+        if !(self.rate_hz.is_finite() && PLAY_RATE_HZ.contains(&self.rate_hz)) {
+            return Err(OpError::invalid(
+                "--rate-hz",
+                self.rate_hz,
+                "out of range 1..=500",
+            ));
+        }
+        if self.torque > 4 {
+            return Err(OpError::invalid(
+                "--torque",
+                self.torque,
+                "out of range 0..=4 (0 strongest)",
+            ));
+        }
+        Trajectory::parse(&self.trajectory)
+            .map_err(|e| OpError::invalid("trajectory", "(file)", e.to_string()))
+    }
+
+    /// What a run sends, for the plan.
+    pub fn note(&self) -> Result<String, OpError> {
+        let t = self.check()?;
+        Ok(format!(
+            "reads {joints} (a status read per wCK servo; a status query and a speed read per \
+             WHJ joint) and refuses if one is silent or outside its soft limits; moves them to \
+             the first point no faster than each one's max_velocity, then plays {n} points over \
+             {d} s, {r} ticks a second: each bus at the same instant, a position command per \
+             wCK servo (torque {torque}) and a position servo frame per WHJ joint (enabled in \
+             position mode)",
+            joints = t.joints().join(", "),
+            n = t.len(),
+            d = t.duration_s(),
+            r = self.rate_hz,
+            torque = self.torque,
+        ))
+    }
+}
+
+/// A joint's run (its row of the report, by name).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Played {
+    /// Commands sent.
+    pub commands: u64,
+    /// Commands that failed (no reply, refused).
+    pub failed: u64,
+    /// Where it was before the run, degrees.
+    pub start_deg: f64,
+    /// The last target, degrees.
+    pub target_deg: f64,
+    /// Where it reported itself at its last command, degrees.
+    pub position_deg: Option<f64>,
+    /// The largest distance from where it reported itself to the target of the tick
+    /// before, degrees.
+    pub tracking_max_deg: f64,
+    /// The root mean square of that distance, degrees.
+    pub tracking_rms_deg: f64,
+    #[serde(skip)]
+    sum_sq: f64,
+    #[serde(skip)]
+    tracked: u64,
+    #[serde(skip)]
+    last_error: Option<Failure>,
+}
+
+/// The run's timing, ms.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Spread {
+    /// Median.
+    pub p50: f64,
+    /// 99th percentile.
+    pub p99: f64,
+    /// Largest.
+    pub max: f64,
+}
+
+impl Spread {
+    fn of(samples: &[Duration]) -> Self {
+        let p = Percentiles::of(samples);
+        let ms = |d: Duration| d.as_secs_f64() * 1e3;
+        Self {
+            p50: ms(p.p50),
+            p99: ms(p.p99),
+            max: ms(p.max),
+        }
+    }
+}
+
+/// The whole run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PlaySummary {
+    /// The lead-in to the first point, s.
+    pub lead_in_s: f64,
+    /// The trajectory's own length, s.
+    pub duration_s: f64,
+    /// Ticks run.
+    pub ticks: u64,
+    /// Ticks skipped because one ran longer than the period.
+    pub overruns: u64,
+    /// The buses, in the order of the sends.
+    pub buses: Vec<String>,
+    /// Per tick, the time between the first and the last bus's first send.
+    pub skew_ms: Spread,
+    /// Per tick, how long after the tick the last bus's first send went.
+    pub late_ms: Spread,
+    /// The stop token ended it early.
+    pub interrupted: bool,
+}
+
+/// What a `robot.play` run did.
+pub(super) struct PlayedRun {
+    pub(super) joints: Vec<DeviceResult<String, Played>>,
+    pub(super) summary: PlaySummary,
+}
+
+/// A joint's outcome in a tick, by its column: the position it reported (joint degrees),
+/// or why not.
+type Outcomes = Vec<(usize, Result<f64, Failure>)>;
+
+/// How a joint's targets and positions turn into its device's units.
+#[derive(Debug, Clone, Copy)]
+enum Units {
+    Wck(WckScale),
+    Whj(JointMap),
+}
+
+/// The joints of one bus and their handle.
+enum Group {
+    Wck(WckServos, Vec<(usize, Units)>),
+    Whj(WhjJoints, Vec<(usize, Units)>),
+}
+
+impl Group {
+    fn columns(&self) -> &[(usize, Units)] {
+        match self {
+            Self::Wck(_, c) | Self::Whj(_, c) => c,
+        }
+    }
+
+    /// Sends `targets` (joint degrees, by column) to the group's devices: each column's
+    /// outcome, the position it reported in joint degrees.
+    fn send(&self, targets: &[f64], torque: u8) -> Outcomes {
+        let device: Vec<f64> = self
+            .columns()
+            .iter()
+            .map(|&(c, u)| {
+                let rad = targets.get(c).copied().unwrap_or(0.0).to_radians();
+                match u {
+                    Units::Wck(s) => s.to_position(rad).map_or(-1.0, |p| f64::from(p.get())),
+                    Units::Whj(m) => m.to_device(rad).to_degrees(),
+                }
+            })
+            .collect();
+        let results: Result<Outcomes, OpError> = match self {
+            Self::Wck(h, cols) => h.move_to(&device, torque).map(|r| {
+                cols.iter()
+                    .zip(r)
+                    .map(|(&(c, u), d)| {
+                        let at = match (d.outcome, u) {
+                            (Outcome::Ok(reading), Units::Wck(s)) => {
+                                robobus_wck::Position::new(reading.position)
+                                    .map(|p| s.to_rad(p).to_degrees())
+                                    .map_err(|e| Failure::of(crate::ErrorKind::Device, &e))
+                            }
+                            (Outcome::Ok(_), Units::Whj(_)) => Ok(f64::NAN),
+                            (Outcome::Failed(f), _) => Err(f),
+                        };
+                        (c, at)
+                    })
+                    .collect()
+            }),
+            Self::Whj(h, cols) => h.command(ServoLoop::Position, &device).map(|r| {
+                cols.iter()
+                    .zip(r)
+                    .map(|(&(c, u), d)| {
+                        let at = match (d.outcome, u) {
+                            (Outcome::Ok(fb), Units::Whj(m)) => {
+                                Ok(m.to_joint(fb.position_deg.to_radians()).to_degrees())
+                            }
+                            (Outcome::Ok(_), Units::Wck(_)) => Ok(f64::NAN),
+                            (Outcome::Failed(f), _) => Err(f),
+                        };
+                        (c, at)
+                    })
+                    .collect()
+            }),
+        };
+        results.unwrap_or_else(|e| {
+            let f = Failure::from(&e);
+            self.columns()
+                .iter()
+                .map(|&(c, _)| (c, Err(f.clone())))
+                .collect()
+        })
+    }
+}
+
+/// The trajectory's joints grouped by bus, in the file's bus order, with the clock of
+/// those buses.
+fn groups(
+    station: &Station,
+    config: &RobotConfig,
+    index: &[usize],
+) -> Result<(Vec<Group>, BusClock), OpError> {
+    let mut groups = Vec::new();
+    let mut clock = Vec::new();
+    for (name, bus) in &config.buses {
+        let cols: Vec<(usize, &crate::robot::JointConfig)> = index
+            .iter()
+            .enumerate()
+            .filter_map(|(c, &i)| config.joints.get(i).map(|j| (c, j)))
+            .filter(|(_, j)| &j.bus == name)
+            .collect();
+        if cols.is_empty() {
+            continue;
+        }
+        let ids: Vec<u8> = cols.iter().map(|(_, j)| j.id).collect();
+        if bus.is_wck() {
+            let units = cols
+                .iter()
+                .map(|(c, j)| (*c, Units::Wck(j.wck_scale())))
+                .collect();
+            groups.push(Group::Wck(
+                WckServos::new(station, Some(name), &ids)?,
+                units,
+            ));
+            clock.push(ClockBus::Wck(station.wck(Some(name))?));
+        } else {
+            let units = cols
+                .iter()
+                .map(|(c, j)| (*c, Units::Whj(j.map())))
+                .collect();
+            groups.push(Group::Whj(
+                WhjJoints::new(station, Some(name), &ids)?,
+                units,
+            ));
+            clock.push(ClockBus::Whj(station.whj(Some(name))?));
+        }
+    }
+    Ok((groups, BusClock::new(clock)))
+}
+
+/// Where each of the trajectory's joints is now (joint degrees, by column); refused when
+/// one does not answer or stands outside its soft limits.
+fn start(
+    station: &Station,
+    config: &RobotConfig,
+    traj: &Trajectory,
+    index: &[usize],
+) -> Result<Vec<f64>, OpError> {
+    let mut sub = config.clone();
+    sub.joints.retain(|j| traj.joints().contains(&j.name));
+    sub.buses
+        .retain(|name, _| sub.joints.iter().any(|j| &j.bus == name));
+    let mut sampler = RobotSampler::on_ports(
+        &sub,
+        |n| station.wck(Some(n)).ok(),
+        |n| station.whj(Some(n)).ok(),
+    )
+    .map_err(|e| OpError::invalid("robot", "bus", e.to_string()))?;
+    let rows = sampler.sample(0.0);
+    traj.joints()
+        .iter()
+        .zip(index)
+        .map(|(name, &i)| {
+            let row = rows.iter().find(|r| &r.id == name);
+            let at = match row.map(|r| &r.outcome) {
+                Some(Outcome::Ok(s)) => s.position_deg,
+                Some(Outcome::Failed(f)) => {
+                    return Err(OpError::Refused(format!(
+                        "{name} did not answer ({}); nothing was moved",
+                        f.error
+                    )));
+                }
+                None => {
+                    return Err(OpError::Refused(format!(
+                        "{name} was not read; nothing was moved"
+                    )));
+                }
+            };
+            let j = &config.joints[i];
+            let [lo, hi] =
+                [j.limits[0].min(j.limits[1]), j.limits[0].max(j.limits[1])].map(f64::to_degrees);
+            if !(lo - 0.5..=hi + 0.5).contains(&at) {
+                return Err(OpError::Refused(format!(
+                    "{name} is at {at:.2}°, outside its soft limits {lo:.2}..={hi:.2}°; bring \
+                     it inside first; nothing was moved"
+                )));
+            }
+            Ok(at)
+        })
+        .collect()
+}
+
+/// `robot.play` on the station's robot file.
+pub(super) fn run_play(
+    station: &Station,
+    r: &Play,
+    control: &mut Control<'_>,
+    on_tick: &mut dyn FnMut(&PlayTick<'_>) -> Result<(), OpError>,
+) -> Result<PlayedRun, OpError> {
+    let traj = r.check()?;
+    let config = station
+        .robot()
+        .cloned()
+        .ok_or_else(super::robot::no_robot)?;
+    let index = traj
+        .check(&config)
+        .map_err(|e| OpError::invalid("trajectory", "(file)", e.to_string()))?;
+    let (groups, clock) = groups(station, &config, &index)?;
+    let from = start(station, &config, &traj, &index)?;
+    // The lead-in: as long as the slowest joint needs at its max_velocity.
+    let lead_in = traj
+        .first()
+        .iter()
+        .zip(&from)
+        .zip(&index)
+        .map(|((a, b), &i)| (a - b).abs() / config.joints[i].max_velocity.to_degrees())
+        .fold(0.0, f64::max);
+    let mut rows: Vec<Played> = from.iter().map(|&s| Played::new(s)).collect();
+    let mut player = Player {
+        traj: &traj,
+        from: &from,
+        lead_in,
+        period: Duration::from_secs_f64(1.0 / r.rate_hz),
+        groups: &groups,
+        clock: &clock,
+        torque: r.torque,
+    };
+    let timing = player.run(&mut rows, control, on_tick)?;
+    let names = traj.joints();
+    Ok(PlayedRun {
+        joints: names
+            .iter()
+            .zip(rows)
+            .map(|(n, row)| row.result(n))
+            .collect(),
+        summary: PlaySummary {
+            lead_in_s: lead_in,
+            duration_s: traj.duration_s(),
+            ticks: timing.ticks,
+            overruns: timing.overruns,
+            buses: clock.buses().map(|b| b.name().to_owned()).collect(),
+            skew_ms: Spread::of(&timing.skew),
+            late_ms: Spread::of(&timing.late),
+            interrupted: timing.interrupted,
+        },
+    })
+}
+
+/// One tick, as a front end records it: the time since the start of the lead-in, and per
+/// joint (by name, in the trajectory's order) its target and the position it reported
+/// (`None`: no reply this tick), degrees.
+#[derive(Debug, Clone, Copy)]
+pub struct PlayTick<'a> {
+    /// Seconds since the run started (the lead-in included).
+    pub t_s: f64,
+    /// The joints' names.
+    pub joints: &'a [String],
+    /// Each joint's target this tick, degrees.
+    pub targets: &'a [f64],
+    /// Each joint's reported position this tick, degrees.
+    pub positions: &'a [Option<f64>],
+}
+
+/// What the tick loop measured.
+#[derive(Debug, Default)]
+struct Timing {
+    ticks: u64,
+    overruns: u64,
+    skew: Vec<Duration>,
+    late: Vec<Duration>,
+    interrupted: bool,
+}
+
+/// The most ticks whose skew and lateness are kept (an hour at 500 Hz would be 1.8 M).
+const MAX_TIMED_TICKS: usize = 100_000;
+
+struct Player<'a> {
+    traj: &'a Trajectory,
+    from: &'a [f64],
+    lead_in: f64,
+    period: Duration,
+    groups: &'a [Group],
+    clock: &'a BusClock,
+    torque: u8,
+}
+
+impl Player<'_> {
+    /// The targets at `t_s` since the start (joint degrees, by column).
+    fn targets(&self, t_s: f64) -> Vec<f64> {
+        if t_s < self.lead_in {
+            let f = t_s / self.lead_in;
+            self.from
+                .iter()
+                .zip(self.traj.first())
+                .map(|(a, b)| a + (b - a) * f)
+                .collect()
+        } else {
+            self.traj.at(t_s - self.lead_in)
+        }
+    }
+
+    fn run(
+        &mut self,
+        rows: &mut [Played],
+        control: &mut Control<'_>,
+        on_tick: &mut dyn FnMut(&PlayTick<'_>) -> Result<(), OpError>,
+    ) -> Result<Timing, OpError> {
+        let total = self.lead_in + self.traj.duration_s();
+        let clock = self.clock;
+        let start = clock.now();
+        let mut timing = Timing::default();
+        let mut before: Option<Vec<f64>> = None;
+        let mut k: u64 = 0;
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // ≤ 3600 s × 500 Hz
+        let last = (total / self.period.as_secs_f64()).ceil() as u64;
+        while k <= last {
+            let due = start + self.period * u32::try_from(k).unwrap_or(u32::MAX);
+            if !control.sleep_with(due, |until| {
+                if let Some(t) = until {
+                    clock.sleep_until(t);
+                }
+                clock.now()
+            }) {
+                timing.interrupted = true;
+                break;
+            }
+            let t_s = (due - start).as_secs_f64().min(total);
+            let targets = self.targets(t_s);
+            let (positions, sends) = self.tick(&targets);
+            if let (Some(first), Some(last)) = (sends.iter().min(), sends.iter().max())
+                && timing.skew.len() < MAX_TIMED_TICKS
+            {
+                timing.skew.push(last.saturating_duration_since(*first));
+                timing.late.push(last.saturating_duration_since(due));
+            }
+            for (c, (row, p)) in rows.iter_mut().zip(&positions).enumerate() {
+                let target = targets.get(c).copied().unwrap_or(f64::NAN);
+                let prior = before.as_ref().and_then(|b| b.get(c).copied());
+                row.take(target, p, prior);
+            }
+            let reported: Vec<Option<f64>> =
+                positions.iter().map(|p| p.as_ref().ok().copied()).collect();
+            on_tick(&PlayTick {
+                t_s,
+                joints: self.traj.joints(),
+                targets: &targets,
+                positions: &reported,
+            })?;
+            before = Some(targets);
+            timing.ticks += 1;
+            control.report(&Progress::new("play", k + 1, Some(last + 1)));
+            // Ticks a slow one ran past are skipped, not caught up.
+            let now = clock.now().saturating_duration_since(start);
+            #[allow(clippy::cast_possible_truncation)] // ticks of at most an hour
+            let behind = (now.as_nanos() / self.period.as_nanos().max(1)) as u64;
+            if behind > k + 1 {
+                timing.overruns += behind - k - 1;
+                k = behind;
+            } else {
+                k += 1;
+            }
+        }
+        Ok(timing)
+    }
+
+    /// Sends one tick's targets, each bus from its own thread; each joint's outcome by
+    /// column and each bus's first send (this clock).
+    fn tick(&self, targets: &[f64]) -> (Vec<Result<f64, Failure>>, Vec<Instant>) {
+        let n = targets.len();
+        let mut positions: Vec<Result<f64, Failure>> = (0..n)
+            .map(|_| {
+                Err(Failure::of(
+                    crate::ErrorKind::Device,
+                    &"not commanded this tick",
+                ))
+            })
+            .collect();
+        let mut sends = Vec::with_capacity(self.groups.len());
+        let clock = self.clock;
+        let torque = self.torque;
+        let results: Vec<(Option<Instant>, Outcomes)> = std::thread::scope(|s| {
+            let handles: Vec<_> = self
+                .groups
+                .iter()
+                .enumerate()
+                .map(|(i, g)| {
+                    s.spawn(move || {
+                        // Every bus is at the tick (the clock slept them there); the
+                        // instant its first send goes, on the clock's time line.
+                        let sent = clock.bus_now(i);
+                        (sent, g.send(targets, torque))
+                    })
+                })
+                .collect();
+            handles
+                .into_iter()
+                .map(|h| h.join().unwrap_or((None, Vec::new())))
+                .collect()
+        });
+        for (sent, outcomes) in results {
+            sends.extend(sent);
+            for (c, o) in outcomes {
+                if let Some(slot) = positions.get_mut(c) {
+                    *slot = o;
+                }
+            }
+        }
+        (positions, sends)
+    }
+}
+
+impl Played {
+    fn new(start_deg: f64) -> Self {
+        Self {
+            commands: 0,
+            failed: 0,
+            start_deg,
+            target_deg: start_deg,
+            position_deg: None,
+            tracking_max_deg: 0.0,
+            tracking_rms_deg: 0.0,
+            sum_sq: 0.0,
+            tracked: 0,
+            last_error: None,
+        }
+    }
+
+    /// One tick's outcome: the target sent, where the joint reported itself, and the
+    /// target of the tick before.
+    fn take(&mut self, target: f64, at: &Result<f64, Failure>, before: Option<f64>) {
+        self.target_deg = target;
+        match at {
+            Ok(p) => {
+                self.commands += 1;
+                if p.is_finite() {
+                    self.position_deg = Some(*p);
+                    if let Some(b) = before {
+                        let e = (p - b).abs();
+                        self.tracking_max_deg = self.tracking_max_deg.max(e);
+                        self.sum_sq += e * e;
+                        self.tracked += 1;
+                    }
+                }
+            }
+            Err(f) => {
+                self.failed += 1;
+                self.last_error = Some(f.clone());
+            }
+        }
+    }
+
+    fn result(mut self, name: &str) -> DeviceResult<String, Played> {
+        if self.tracked > 0 {
+            #[allow(clippy::cast_precision_loss)] // a count of ticks
+            let n = self.tracked as f64;
+            self.tracking_rms_deg = (self.sum_sq / n).sqrt();
+        }
+        match self.last_error.take() {
+            Some(f) => DeviceResult::failed(
+                name.to_owned(),
+                Failure {
+                    kind: f.kind,
+                    error: format!(
+                        "{name}: {} of {} commands failed; the last: {}",
+                        self.failed,
+                        self.failed + self.commands,
+                        f.error
+                    ),
+                },
+            ),
+            None => DeviceResult::ok(name.to_owned(), self),
+        }
+    }
+}
+
+#[cfg(all(test, feature = "sim"))]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::panic)]
+
+    use std::time::Duration;
+
+    use serde_json::{Value, json};
+
+    use super::super::{Interaction, Request, Station, run, run_with};
+    use super::PlayTick;
+    use crate::ops::{Control, ErrorKind, OpError};
+
+    const WAVE: &str = "# two wCK servos and two WHJ joints\n\
+        time_s,s0,s1,j1,j2\n\
+        0,0,0,0,0\n\
+        1,20,-20,10,-10\n\
+        2,0,0,0,0\n";
+
+    /// Every tick kept: its time, targets and positions.
+    #[derive(Default)]
+    struct Ticks(Vec<(f64, Vec<f64>, Vec<Option<f64>>)>);
+
+    impl Interaction for Ticks {
+        fn play_tick(&mut self, t: &PlayTick<'_>) -> Result<(), OpError> {
+            self.0
+                .push((t.t_s, t.targets.to_vec(), t.positions.to_vec()));
+            Ok(())
+        }
+    }
+
+    fn req(v: Value) -> Request {
+        serde_json::from_value(v).unwrap()
+    }
+
+    fn ready_whj(station: &Station) {
+        for r in [
+            json!({"op": "whj.mode", "joints": "1-2", "mode": "position"}),
+            json!({"op": "whj.enable", "joints": "1-2"}),
+        ] {
+            run(station, &req(r), &mut Control::none()).unwrap();
+        }
+    }
+
+    #[test]
+    fn a_trajectory_across_both_buses_is_played_in_step_and_tracked() {
+        let (station, _wck, _whj) = Station::simulated_with_handles().unwrap();
+        ready_whj(&station);
+        let request = req(json!({"op": "robot.play", "trajectory": WAVE, "rate_hz": 50}));
+        let mut ticks = Ticks::default();
+        let report = run_with(&station, &request, &mut Control::none(), &mut ticks).unwrap();
+        let v = serde_json::to_value(&report).unwrap();
+        assert_eq!(v["failed"], Value::Null, "{v:#}");
+        let s = &v["summary"];
+        // The joints start at their zero: no lead-in; 2 s at 50 Hz, both ends included.
+        assert_eq!(s["lead_in_s"], 0.0, "{s}");
+        assert_eq!(s["ticks"], 101, "{s}");
+        assert_eq!(s["overruns"], 0, "{s}");
+        assert_eq!(s["buses"], json!(["sim-wck", "sim-whj"]), "{s}");
+        // Time-aligned: on the simulators' clocks both buses send at each tick's instant.
+        assert_eq!(s["skew_ms"]["max"], 0.0, "{s}");
+        assert_eq!(s["late_ms"]["max"], 0.0, "{s}");
+        for row in v["results"].as_array().unwrap() {
+            assert_eq!(row["commands"], 101, "{row}");
+            assert_eq!(row["failed"], 0, "{row}");
+            // A wCK step is 1.055°; the servos and joints follow within a few degrees.
+            let rms = row["tracking_rms_deg"].as_f64().unwrap();
+            assert!(rms < 2.0, "{row}");
+            assert!(row["position_deg"].as_f64().unwrap().abs() < 2.0, "{row}");
+        }
+        // Mid-way the targets are the second point, and the joints are near it.
+        let (t, targets, positions) = &ticks.0[50];
+        assert!((t - 1.0).abs() < 1e-9, "{t}");
+        assert_eq!(targets, &[20.0, -20.0, 10.0, -10.0]);
+        let (_, _, next) = &ticks.0[51];
+        for ((want, at), name) in targets.iter().zip(next).zip(["s0", "s1", "j1", "j2"]) {
+            let at = at.unwrap();
+            assert!(
+                (want - at).abs() < 2.5,
+                "{name}: {at} for {want}: {positions:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn the_lead_in_goes_from_where_the_joints_are_and_refusals_send_nothing() {
+        let (station, wck, _) = Station::simulated_with_handles().unwrap();
+        ready_whj(&station);
+        // s3 starts at +10° (turned by hand while passive): 10° at 2 rad/s is 87 ms.
+        let centre = 127.0 * robobus_sim::wck::mechanics::DEG_PER_STEP8;
+        wck.with_bus(|b| b.servo_mut(3).unwrap().set_angle(centre + 10.0));
+        let request = req(json!({
+            "op": "robot.play",
+            "trajectory": "time_s,s3\n0,0\n0.5,5\n",
+            "rate_hz": 100,
+        }));
+        let v =
+            serde_json::to_value(run(&station, &request, &mut Control::none()).unwrap()).unwrap();
+        let lead = v["summary"]["lead_in_s"].as_f64().unwrap();
+        let step = robobus_sim::wck::mechanics::DEG_PER_STEP8;
+        let start = v["results"][0]["start_deg"].as_f64().unwrap();
+        assert!((start - 10.0).abs() <= step, "{v:#}");
+        assert!((lead - start / 2f64.to_degrees()).abs() < 1e-9, "{v:#}");
+        assert!((v["results"][0]["target_deg"].as_f64().unwrap() - 5.0).abs() < 1e-9);
+        // Refused before anything is sent: a joint not in the file, outside its limits,
+        // too fast, silent.
+        wck.with_bus(|b| b.servo_mut(6).unwrap().power_off(Duration::ZERO));
+        for (text, kind, says) in [
+            (
+                "time_s,knee\n0,0\n",
+                ErrorKind::BadInput,
+                "joint knee is not in the robot file",
+            ),
+            (
+                "time_s,s4\n0,0\n1,200\n",
+                ErrorKind::BadInput,
+                "outside its soft limits",
+            ),
+            (
+                "time_s,s4\n0,0\n0.1,100\n",
+                ErrorKind::BadInput,
+                "faster than its max_velocity",
+            ),
+            ("time_s,s6\n0,0\n", ErrorKind::Refused, "s6 did not answer"),
+        ] {
+            let request = req(json!({"op": "robot.play", "trajectory": text}));
+            let before = wck.with_bus(|b| b.servo(4).unwrap().position());
+            let e = run(&station, &request, &mut Control::none()).unwrap_err();
+            assert_eq!(e.kind(), kind, "{text:?}: {e}");
+            assert!(e.to_string().contains(says), "{text:?}: {e}");
+            assert_eq!(wck.with_bus(|b| b.servo(4).unwrap().position()), before);
+        }
+    }
+}
