@@ -109,7 +109,7 @@ pub enum FrameLinkError {
     },
     /// The controller reported bus-off. The link stays open; receiving continues.
     #[error(
-        "CAN interface {iface} is bus-off: check wiring, termination and bit rate, then restart it (ip link set {iface} type can restart-ms 100)"
+        "CAN interface {iface} is bus-off: check wiring, termination and bit rate, then restart it (`sudo ip link set {iface} type can restart`, or down and up; `restart-ms 100`, set while it is down, restarts it by itself)"
     )]
     BusOff {
         /// The interface.

@@ -11,6 +11,8 @@
 //! User-Mode Linux: `scripts/uml/ensure-uml` and `scripts/uml/run-in-uml` boot one with a CAN FD
 //! `vcan0`.
 
+pub mod health;
+
 use std::io;
 use std::path::Path;
 use std::time::{Duration, Instant};

@@ -630,7 +630,69 @@ pub(crate) fn check_can(net_dir: &Path, iface: &str) -> Vec<Finding> {
     } else {
         out.push(check_bit_rates(iface, &setup));
     }
+    out.push(check_controller(iface));
     out
+}
+
+/// The controller's state, error counters and restarts, from the kernel's netlink data.
+pub(crate) fn check_controller(iface: &str) -> Finding {
+    match robobus_link::socketcan::health::read(iface) {
+        Ok(h) => controller_finding(&h),
+        Err(e) => finding(
+            iface,
+            "controller",
+            Status::Skip,
+            format!("cannot read its state: {e}"),
+            None,
+        ),
+    }
+}
+
+/// Judges a CAN interface's health: error-active is fine, error-warning and -passive
+/// warn, bus-off and stopped fail; the counters and the state changes so far are shown.
+pub(crate) fn controller_finding(h: &robobus_link::socketcan::health::CanHealth) -> Finding {
+    use robobus_link::socketcan::health::ControllerState as S;
+    let Some(state) = h.state else {
+        return finding(
+            &h.iface,
+            "controller",
+            Status::Skip,
+            format!(
+                "{}: no controller state (a virtual interface has none)",
+                h.kind.as_deref().unwrap_or("no link kind")
+            ),
+            None,
+        );
+    };
+    let mut detail = state.name().to_owned();
+    if let (Some(tx), Some(rx)) = (h.tx_errors, h.rx_errors) {
+        let _ = write!(detail, ", error counters tx {tx} rx {rx}");
+    }
+    if let Some(s) = h.stats {
+        let _ = write!(
+            detail,
+            "; so far {} error-warning, {} error-passive, {} bus-off, {} restarts, {} bus \
+             errors",
+            s.error_warning, s.error_passive, s.bus_off, s.restarts, s.bus_error
+        );
+    }
+    if let Some(ms) = h.restart_ms {
+        let _ = write!(
+            detail,
+            "; {}",
+            if ms == 0 {
+                "no automatic restart".to_owned()
+            } else {
+                format!("restarts {ms} ms after bus-off")
+            }
+        );
+    }
+    let status = match state {
+        S::ErrorActive => Status::Ok,
+        S::ErrorWarning | S::ErrorPassive | S::Sleeping | S::Unknown(_) => Status::Warn,
+        S::BusOff | S::Stopped => Status::Fail,
+    };
+    finding(&h.iface, "controller", status, detail, h.advice())
 }
 
 /// Bit rates and FD mode from `ip -details -json link show IFACE`.
