@@ -307,6 +307,19 @@ enum WhjCommand {
         #[arg(short, long, value_name = "FILE.json")]
         output: PathBuf,
     },
+    /// Write the settings file of the values the vendor documents for a joint's model and
+    /// firmware (modes at power-up, speed and acceleration limits, following error,
+    /// feature switches), to restore with `whj restore`: the joints have no factory reset.
+    /// The loop gains and the current and position limits are tuned per joint at the
+    /// factory and not published: the file leaves them out, and a restore keeps them.
+    Defaults {
+        /// Joint ID, 1..=30.
+        #[arg(value_parser = parse_joint)]
+        joint: JointId,
+        /// The settings file to write (an existing one is replaced).
+        #[arg(short, long, value_name = "FILE.json")]
+        output: PathBuf,
+    },
     /// List the settings on which a joint differs from a settings file, or from another
     /// joint (--with).
     Diff {
@@ -511,7 +524,7 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
         return list_registers(g);
     }
     let request = request(args)?;
-    if let WhjCommand::Backup { output, .. } = &args.command {
+    if let WhjCommand::Backup { output, .. } | WhjCommand::Defaults { output, .. } = &args.command {
         output::check_output_path(output, "--output")?;
     }
     if g.dry_run {
@@ -541,12 +554,21 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     let result = report::run(&station, &request);
     station.leave();
     let report = result?;
-    if let (WhjCommand::Backup { output, joint }, Some(doc)) = (&args.command, &report.summary) {
+    if let (
+        WhjCommand::Backup { output, joint } | WhjCommand::Defaults { output, joint },
+        Some(doc),
+    ) = (&args.command, &report.summary)
+    {
         let text = serde_json::to_string_pretty(doc)? + "\n";
         std::fs::write(output, text)
             .with_context(|| format!("cannot write {}", output.display()))?;
+        let what = if matches!(args.command, WhjCommand::Defaults { .. }) {
+            "the documented defaults for"
+        } else {
+            "the settings of"
+        };
         eprintln!(
-            "robobus: the settings of joint {} written to {}",
+            "robobus: {what} joint {} written to {}",
             joint.get(),
             output.display()
         );
@@ -738,6 +760,10 @@ fn request(args: &Args) -> anyhow::Result<catalogue::Request> {
         }
         WhjCommand::Registers => Q::WhjRegisters(cw::Registers { bus: None }),
         WhjCommand::Backup { joint: j, .. } => Q::WhjBackup(cw::Backup {
+            bus: None,
+            joint: joint(*j),
+        }),
+        WhjCommand::Defaults { joint: j, .. } => Q::WhjDefaults(cw::Defaults {
             bus: None,
             joint: joint(*j),
         }),

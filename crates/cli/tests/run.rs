@@ -67,6 +67,10 @@ const PAIRS: &[(&str, &str)] = &[
         r#"{"op":"whj.scan","joints":"1-3"}"#,
     ),
     ("whj info 1", r#"{"op":"whj.info","joint":1}"#),
+    (
+        "whj defaults 2 -o defaults.json",
+        r#"{"op":"whj.defaults","joint":2}"#,
+    ),
     ("whj status 1-3", r#"{"op":"whj.status","joints":"1-3"}"#),
     (
         "whj status --broadcast 1-3",

@@ -274,3 +274,44 @@ fn the_catalogue_backs_up_diffs_and_restores_with_confirmation() {
         777
     );
 }
+
+#[test]
+fn the_documented_defaults_restore_what_the_vendor_documents_and_keep_the_rest() {
+    let (bus, _sim) = bus();
+    tune(&bus);
+    let defaults = settings::defaults(&bus, id(1)).unwrap();
+    assert_eq!((defaults.joint, defaults.model.as_str()), (1, "WHJ30"));
+    let names: Vec<&str> = defaults
+        .settings
+        .iter()
+        .map(|s| s.register.as_str())
+        .collect();
+    // Documented values only: no ID or bit rates, no factory-tuned gains or limits.
+    assert!(names.contains(&"LIT_MAX_SPEED") && names.contains(&"TAG_WORK_MODE"));
+    for absent in [
+        "SYS_ID",
+        "SYS_BPS_CANFD_DATA",
+        "SEV_POSITION_P",
+        "LIT_MIN_POSITION",
+    ] {
+        assert!(!names.contains(&absent), "{absent} in {names:?}");
+    }
+    assert_eq!(raw(&defaults, "LIT_MAX_SPEED"), 3000);
+    // The file reads back as a settings file, and restores where the joint differs.
+    let text = serde_json::to_string(&defaults).unwrap();
+    let parsed = Settings::parse(&text).unwrap();
+    let report = settings::restore(&bus, id(1), &parsed, true).unwrap();
+    assert!(report.saved, "{report:?}");
+    let after = settings::backup(&bus, id(1)).unwrap();
+    assert!(
+        settings::diff(&after, &defaults)
+            .iter()
+            .all(|d| d.b.is_none()),
+        "{:?}",
+        settings::diff(&after, &defaults)
+    );
+    assert_eq!(raw(&after, "LIT_MAX_SPEED"), 3000);
+    // What the vendor tunes per joint stays as it was.
+    assert_eq!(raw(&after, "SEV_POSITION_P"), 1234);
+    assert_eq!(raw(&after, "LIT_MIN_POSITION"), -900_000);
+}

@@ -401,6 +401,14 @@ class WhjOps:
         check: bool = ...,
     ) -> Report:
         """The request ``whj.current``."""
+    def defaults(
+        self,
+        joint: int,
+        *,
+        bus: str | None = ...,
+        check: bool = ...,
+    ) -> Report:
+        """The request ``whj.defaults``."""
     def diff(
         self,
         joint: int,

@@ -684,8 +684,12 @@ fn run_whj(
             }
         }
         J::Registers => registers_report(op),
-        J::Backup(id) => {
-            let s = hops::settings::backup(bus, *id)?;
+        J::Backup(id) | J::Defaults(id) => {
+            let s = if matches!(p.job, J::Defaults(_)) {
+                hops::settings::defaults(bus, *id)?
+            } else {
+                hops::settings::backup(bus, *id)?
+            };
             let mut out = one(
                 id.get(),
                 &json!({

@@ -103,6 +103,7 @@ impl Request {
             | Self::WhjRead(_)
             | Self::WhjSample(_)
             | Self::WhjBackup(_)
+            | Self::WhjDefaults(_)
             | Self::WhjDiff(_)
             | Self::WckBackup(_)
             | Self::WckDiff(_)

@@ -70,6 +70,7 @@
 //! | `whj.release-iap` | `joints` | identity (connect / IAP release) | - |
 //! | `whj.sample` | `joints`, `broadcast` | position, speed, current, enabled, error | - |
 //! | `whj.backup` | `joint` | model, firmware, settings count; `summary` is the settings file (every register the joint keeps in flash, raw and in its unit) | - |
+//! | `whj.defaults` | `joint` | model, firmware, settings count; `summary` is the settings file of the values the vendor documents for them (for `whj.restore`; not the factory-tuned gains and limits, nor the ID and bit rates) | - |
 //! | `whj.diff` | `joint`, `settings` (a settings file's text) or `other` (a joint) | one row per setting that differs (`a`, `b`, values and unit) | - |
 //! | `whj.restore` | `joint`, `settings` | one row per differing setting: written or skipped (the bus identity is never written); `summary`: `written`, `saved`, `differ_after` | flash (and the `confirm` registers the file sets) |
 //! | `robot.sample` | - | per joint of the station's robot file, by name: `position_deg`, `speed_deg_s`, `current_ma`, `load`, `enabled`, `error` | - |
@@ -212,6 +213,8 @@ pub enum Request {
     WhjSample(whj::Sample),
     #[serde(rename = "whj.backup")]
     WhjBackup(whj::Backup),
+    #[serde(rename = "whj.defaults")]
+    WhjDefaults(whj::Defaults),
     #[serde(rename = "whj.diff")]
     WhjDiff(whj::Diff),
     #[serde(rename = "whj.restore")]
@@ -272,6 +275,7 @@ macro_rules! each_variant {
             Request::WhjReleaseIap($r) => $e,
             Request::WhjSample($r) => $e,
             Request::WhjBackup($r) => $e,
+            Request::WhjDefaults($r) => $e,
             Request::WhjDiff($r) => $e,
             Request::WhjRestore($r) => $e,
             // A robot request acts on the station's robot file, not on one bus.

@@ -21,7 +21,7 @@ use crate::whj::JointBusConfig;
 mod settings;
 
 pub(crate) use settings::DiffWith;
-pub use settings::{Backup, Diff, Restore};
+pub use settings::{Backup, Defaults, Diff, Restore};
 
 fn default_scan_joints() -> Ids {
     Ids::Text("1-30".into())
@@ -361,6 +361,7 @@ pub(crate) enum Job {
     },
     Registers,
     Backup(JointId),
+    Defaults(JointId),
     Diff(JointId, DiffWith),
     Restore(JointId, Box<ops::settings::Settings>),
     SetId(JointId, JointId),
@@ -570,6 +571,7 @@ fn prepare_steps(req: &super::Request, dry_run: bool) -> R<Prepared> {
             prepared(p, Job::Scan(ids))
         }
         Q::WhjBackup(r) => settings::backup(r)?,
+        Q::WhjDefaults(r) => settings::defaults(r)?,
         Q::WhjDiff(r) => settings::diff(r)?,
         Q::WhjRestore(r) => settings::restore(r)?,
         Q::WhjInfo(r) => {

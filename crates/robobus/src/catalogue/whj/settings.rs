@@ -1,4 +1,4 @@
-//! The settings requests of the WHJ catalogue (`whj.backup`, `whj.diff`,
+//! The settings requests of the WHJ catalogue (`whj.backup`, `whj.defaults`, `whj.diff`,
 //! `whj.restore`) and their plans; [`ops::settings`] runs them.
 
 use robobus_whj::{JointId, Request as Wire};
@@ -16,6 +16,13 @@ request!(
     /// `whj.backup`: every setting of a joint (the registers it keeps in flash), as the
     /// settings file (the report's `summary`).
     Backup { /// Joint ID, 1..=30.
+        joint: u32 }
+);
+request!(
+    /// `whj.defaults`: the settings whose factory value the vendor documents, for the
+    /// joint's model and firmware, as a settings file (the report's `summary`) that
+    /// `whj.restore` writes back (the joints have no factory reset of their own).
+    Defaults { /// Joint ID, 1..=30.
         joint: u32 }
 );
 request!(
@@ -80,6 +87,29 @@ pub(super) fn backup(r: &Backup) -> R<Prepared> {
             .into(),
     );
     Ok(prepared(p, Job::Backup(j)))
+}
+
+/// `whj.defaults`: the identity reads (model, firmware); nothing is written.
+pub(super) fn defaults(r: &Defaults) -> R<Prepared> {
+    let j = joint("<JOINT>", r.joint)?;
+    let mut p = WhjSteps::default();
+    for (addr, count) in [
+        (robobus_whj::registers::addr::SYS_MODEL_TYPE, 1),
+        (robobus_whj::registers::addr::SYS_FW_VERSION, 1),
+    ] {
+        if let Ok(req) = Wire::read(j, addr, count) {
+            p.push(req);
+        }
+    }
+    p.notes.push(
+        "reads the joint's model and firmware (as it connects); the report's summary is the \
+         settings file of the values the vendor documents for them (modes at power-up, speed \
+         and acceleration limits, following error, feature switches; not the gains, current \
+         and position limits the vendor tunes per joint, nor the ID and bit rates); \
+         `whj.restore` writes it back"
+            .into(),
+    );
+    Ok(prepared(p, Job::Defaults(j)))
 }
 
 /// `whj.diff`: the reads of the joint's settings (and the other joint's).

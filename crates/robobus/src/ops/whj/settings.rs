@@ -192,6 +192,58 @@ pub fn backup(bus: &JointBus, id: JointId) -> Result<Settings, OpError> {
     })
 }
 
+/// The settings whose factory value the vendor documents, for a joint of `model` with
+/// `firmware` (those its firmware has), as a settings document of joint `joint`: modes at
+/// power-up, the speed and acceleration limits, the following-error limit, the feature
+/// switches. The bus identity is left out (a restore never writes it), and so is what
+/// the vendor tunes per joint and does not publish (the loop gains, the current and
+/// position limits): a restore of this document leaves those as they are.
+#[must_use]
+pub fn documented_defaults(
+    joint: u8,
+    model: robobus_whj::units::Model,
+    firmware: robobus_whj::units::FirmwareVersion,
+) -> Settings {
+    let settings = settings_table()
+        .filter(|i| {
+            i.access == robobus_whj::registers::Access::ReadWrite
+                && !BUS_IDENTITY.contains(&i.name)
+                && robobus_whj::registers::gated_write_allowed(i.addr, model, firmware).is_ok()
+        })
+        .filter_map(|i| {
+            Some(Setting {
+                register: display_name(i).to_owned(),
+                addr: format!("0x{:02X}", i.addr.get()),
+                raw: i64::from(i.init?),
+                value: None,
+                unit: String::new(),
+            })
+        })
+        .collect();
+    Settings {
+        format: SETTINGS_FORMAT.into(),
+        version: SETTINGS_VERSION,
+        joint,
+        model: model.to_string(),
+        firmware: firmware.to_string(),
+        settings,
+    }
+}
+
+/// [`documented_defaults`] for joint `id` as it identifies itself (`whj defaults`).
+///
+/// # Errors
+///
+/// The joint's error when it does not answer its identity reads.
+pub fn defaults(bus: &JointBus, id: JointId) -> Result<Settings, OpError> {
+    let identity = bus.joint(id).and_then(|j| j.identity()).map_err(whj)?;
+    Ok(documented_defaults(
+        id.get(),
+        identity.model,
+        identity.firmware,
+    ))
+}
+
 /// One register on which two documents differ.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SettingDiff {
