@@ -11,6 +11,7 @@ use clap::Subcommand;
 use robobus::catalogue::play::{Play, PlayTick};
 use robobus::catalogue::record::{Recorder, SampleTable};
 use robobus::catalogue::robot::{Calibrate, ZeroPose};
+use robobus::catalogue::teach::Teach;
 use robobus::catalogue::teleop::{Pair, Teleop};
 use robobus::catalogue::{self, Request, Station, StationConfig};
 use robobus::catalogue::{Interaction, NoInteraction};
@@ -100,6 +101,38 @@ enum RobotCommand {
         /// Record every tick's targets and positions (.csv, .jsonl / .ndjson or .mcap).
         #[arg(long, value_name = "FILE")]
         record: Option<PathBuf>,
+        /// Extra time to wait for each wCK reply beyond its modelled wire time, in ms.
+        #[arg(long, value_name = "MS", value_parser = crate::wck::parse_margin)]
+        reply_margin: Option<std::time::Duration>,
+    },
+    /// Record a trajectory by hand: move the robot file's joints while they are read, then
+    /// play it back with `robot play`.
+    ///
+    /// The wCK servos go passive and the WHJ joints into current mode at --hold-ma (0:
+    /// limp): an arm falls unless you hold it, so this asks for confirmation (--yes). Every
+    /// joint is read --rate-hz times a second for --seconds; a reading in which a joint
+    /// did not answer is left out (and counted). At the end every joint holds where it
+    /// is. The trajectory (CSV) goes to -o FILE. Ctrl-C ends the reading early: what was
+    /// read is written, and the exit code is 130.
+    Teach {
+        /// The robot file: its buses are opened, its joints read.
+        #[arg(long, value_name = "FILE")]
+        robot: PathBuf,
+        /// How long the joints are read, seconds (0.1..=3600).
+        #[arg(long, default_value_t = 10.0)]
+        seconds: f64,
+        /// Readings (trajectory points) a second (1..=100).
+        #[arg(long, default_value_t = 20.0)]
+        rate_hz: f64,
+        /// The joints to record, by name (comma-separated; default: every joint).
+        #[arg(long, value_delimiter = ',', value_name = "NAME,...")]
+        joints: Vec<String>,
+        /// The current a WHJ joint is held at while moved by hand, mA (-2000..=2000).
+        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+        hold_ma: f64,
+        /// The trajectory file to write (CSV).
+        #[arg(short = 'o', long, value_name = "FILE.csv")]
+        output: PathBuf,
         /// Extra time to wait for each wCK reply beyond its modelled wire time, in ms.
         #[arg(long, value_name = "MS", value_parser = crate::wck::parse_margin)]
         reply_margin: Option<std::time::Duration>,
@@ -203,100 +236,166 @@ const TABLE: report::Style = report::Style {
 pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     match &args.command {
         RobotCommand::Calibrate { .. } => calibrate(g, &args.command),
-        RobotCommand::Play {
-            trajectory,
-            robot,
-            rate_hz,
-            torque,
-            record,
-            reply_margin,
-        } => {
-            let request = Request::RobotPlay(Play {
-                trajectory: read_bounded(trajectory, MAX_TRAJECTORY_BYTES)?,
-                rate_hz: *rate_hz,
-                torque: *torque,
-            });
-            let parsed = request_trajectory(&request)?;
-            // The file's joints, limits and speeds are checked before anything opens.
-            let config = RobotConfig::from_toml_str(&read_bounded(robot, 1 << 20)?)
-                .map_err(|e| crate::exit::usage(format!("--robot {}: {e}", robot.display())))?;
-            parsed
-                .check(&config)
-                .map_err(|e| crate::exit::usage(format!("{}: {e}", trajectory.display())))?;
-            if g.dry_run {
-                return print_plan(g, &request);
-            }
-            let mut recording = match record {
-                Some(path) => {
-                    let table = SampleTable::played(&config, parsed.joints());
-                    let heading = format!("{} on {}", trajectory.display(), robot.display());
-                    Some(Recording {
-                        recorder: Recorder::create(path, &heading, &table)?,
-                        table,
-                        path: path.clone(),
-                    })
-                }
-                None => None,
-            };
-            let report = match &mut recording {
-                Some(r) => run_on_with(g, robot, *reply_margin, &request, r)?,
-                None => run_on(g, robot, *reply_margin, &request)?,
-            };
-            if let Some(r) = recording {
-                let n = r.recorder.written();
-                r.recorder
-                    .finish()
-                    .with_context(|| format!("cannot write {}", r.path.display()))?;
-                eprintln!("robobus: {n} ticks recorded to {}", r.path.display());
-            }
-            print(
-                g,
-                &report,
-                "stopped before the trajectory ended; what was done is above",
-            )
-        }
-        RobotCommand::Teleop {
-            robot,
-            map,
-            limit,
-            rate_hz,
-            seconds,
-            leader_timeout_ms,
-            no_passive,
-            reply_margin,
-        } => {
-            let mut map = map.clone();
-            for (name, range) in limit {
-                let pair = map
-                    .iter_mut()
-                    .find(|p| p.follower == *name)
-                    .ok_or_else(|| {
-                        crate::exit::usage(format!(
-                            "--limit {name}:{}:{}: no --map has the follower {name}",
-                            range[0], range[1]
-                        ))
-                    })?;
-                pair.limits_deg = Some(*range);
-            }
-            let request = Request::RobotTeleop(Teleop {
-                map,
-                rate_hz: *rate_hz,
-                seconds: *seconds,
-                leader_timeout_ms: *leader_timeout_ms,
-                passive_leader: !no_passive,
-            });
-            catalogue::validate(&request)?;
-            if g.dry_run {
-                return print_plan(g, &request);
-            }
-            let report = run_on(g, robot, *reply_margin, &request)?;
-            print(
-                g,
-                &report,
-                "stopped before --seconds ended; what was done is above",
-            )
-        }
+        RobotCommand::Teach { .. } => teach(g, &args.command),
+        RobotCommand::Play { .. } => play(g, &args.command),
+        RobotCommand::Teleop { .. } => teleop(g, &args.command),
     }
+}
+
+/// `robobus robot teach`.
+fn teach(g: Global, command: &RobotCommand) -> anyhow::Result<()> {
+    let RobotCommand::Teach {
+        robot,
+        seconds,
+        rate_hz,
+        joints,
+        hold_ma,
+        output,
+        reply_margin,
+    } = command
+    else {
+        return Ok(());
+    };
+    let request = Request::RobotTeach(Teach {
+        seconds: *seconds,
+        rate_hz: *rate_hz,
+        joints: (!joints.is_empty()).then(|| joints.clone()),
+        hold_ma: *hold_ma,
+        confirm: false,
+    });
+    catalogue::validate(&request)?;
+    crate::output::check_output_path(output, "--output")?;
+    if g.dry_run {
+        return print_plan(g, &request);
+    }
+    let request = report::confirm(request, g.yes)?;
+    let report = run_on(g, robot, *reply_margin, &request)?;
+    if let Some(text) = report
+        .summary
+        .as_ref()
+        .and_then(|s| s["trajectory"].as_str())
+    {
+        std::fs::write(output, text)
+            .with_context(|| format!("cannot write {}", output.display()))?;
+        eprintln!(
+            "robobus: {} points written to {}",
+            report
+                .summary
+                .as_ref()
+                .map_or(0, |s| s["points"].as_u64().unwrap_or(0)),
+            output.display()
+        );
+    }
+    print(
+        g,
+        &report,
+        "the reading was ended early; what was read is written",
+    )
+}
+
+/// `robobus robot play`.
+fn play(g: Global, command: &RobotCommand) -> anyhow::Result<()> {
+    let RobotCommand::Play {
+        trajectory,
+        robot,
+        rate_hz,
+        torque,
+        record,
+        reply_margin,
+    } = command
+    else {
+        return Ok(());
+    };
+    let request = Request::RobotPlay(Play {
+        trajectory: read_bounded(trajectory, MAX_TRAJECTORY_BYTES)?,
+        rate_hz: *rate_hz,
+        torque: *torque,
+    });
+    let parsed = request_trajectory(&request)?;
+    // The file's joints, limits and speeds are checked before anything opens.
+    let config = RobotConfig::from_toml_str(&read_bounded(robot, 1 << 20)?)
+        .map_err(|e| crate::exit::usage(format!("--robot {}: {e}", robot.display())))?;
+    parsed
+        .check(&config)
+        .map_err(|e| crate::exit::usage(format!("{}: {e}", trajectory.display())))?;
+    if g.dry_run {
+        return print_plan(g, &request);
+    }
+    let mut recording = match record {
+        Some(path) => {
+            let table = SampleTable::played(&config, parsed.joints());
+            let heading = format!("{} on {}", trajectory.display(), robot.display());
+            Some(Recording {
+                recorder: Recorder::create(path, &heading, &table)?,
+                table,
+                path: path.clone(),
+            })
+        }
+        None => None,
+    };
+    let report = match &mut recording {
+        Some(r) => run_on_with(g, robot, *reply_margin, &request, r)?,
+        None => run_on(g, robot, *reply_margin, &request)?,
+    };
+    if let Some(r) = recording {
+        let n = r.recorder.written();
+        r.recorder
+            .finish()
+            .with_context(|| format!("cannot write {}", r.path.display()))?;
+        eprintln!("robobus: {n} ticks recorded to {}", r.path.display());
+    }
+    print(
+        g,
+        &report,
+        "stopped before the trajectory ended; what was done is above",
+    )
+}
+
+/// `robobus robot teleop`.
+fn teleop(g: Global, command: &RobotCommand) -> anyhow::Result<()> {
+    let RobotCommand::Teleop {
+        robot,
+        map,
+        limit,
+        rate_hz,
+        seconds,
+        leader_timeout_ms,
+        no_passive,
+        reply_margin,
+    } = command
+    else {
+        return Ok(());
+    };
+    let mut map = map.clone();
+    for (name, range) in limit {
+        let pair = map
+            .iter_mut()
+            .find(|p| p.follower == *name)
+            .ok_or_else(|| {
+                crate::exit::usage(format!(
+                    "--limit {name}:{}:{}: no --map has the follower {name}",
+                    range[0], range[1]
+                ))
+            })?;
+        pair.limits_deg = Some(*range);
+    }
+    let request = Request::RobotTeleop(Teleop {
+        map,
+        rate_hz: *rate_hz,
+        seconds: *seconds,
+        leader_timeout_ms: *leader_timeout_ms,
+        passive_leader: !no_passive,
+    });
+    catalogue::validate(&request)?;
+    if g.dry_run {
+        return print_plan(g, &request);
+    }
+    let report = run_on(g, robot, *reply_margin, &request)?;
+    print(
+        g,
+        &report,
+        "stopped before --seconds ended; what was done is above",
+    )
 }
 
 /// The largest trajectory file read.

@@ -17,6 +17,10 @@ const PAIRS: &[(&str, &str)] = &[
         r#"{"op":"robot.calibrate","seconds":2,"rate_hz":10,"zero":"keep"}"#,
     ),
     (
+        "robot teach --robot robot.toml --seconds 2 --joints s0,j1 --hold-ma 50 -o taught.csv",
+        r#"{"op":"robot.teach","seconds":2,"joints":["s0","j1"],"hold_ma":50}"#,
+    ),
+    (
         "robot teleop --robot robot.toml --map s0:s1 --map s0:s2:-1:10 --limit s2:-20:20 --seconds 2 --rate-hz 10 --no-passive",
         r#"{"op":"robot.teleop","map":[{"leader":"s0","follower":"s1"},{"leader":"s0","follower":"s2","scale":-1,"offset_deg":10,"limits_deg":[-20,20]}],"seconds":2,"rate_hz":10,"passive_leader":false}"#,
     ),

@@ -173,6 +173,12 @@ CALLS: list[tuple[str, tuple[Any, ...], dict[str, Any], dict[str, Any]]] = [
         {"op": "robot.play", "trajectory": "time_s,s0,s1\n0,0,0\n0.2,5,-5\n", "rate_hz": 20},
     ),
     (
+        "robot.teach",
+        (0.2,),
+        {"joints": ["s0", "j1"], "confirm": True},
+        {"op": "robot.teach", "seconds": 0.2, "joints": ["s0", "j1"], "confirm": True},
+    ),
+    (
         "robot.teleop",
         ([{"leader": "s0", "follower": "s1"}],),
         {"seconds": 0.2},

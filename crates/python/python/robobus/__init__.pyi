@@ -629,6 +629,17 @@ class RobotOps:
         check: bool = ...,
     ) -> Report:
         """The request ``robot.sample``."""
+    def teach(
+        self,
+        seconds: float,
+        *,
+        confirm: bool | None = ...,
+        hold_ma: float | None = ...,
+        joints: Sequence[str] | None = ...,
+        rate_hz: float | None = ...,
+        check: bool = ...,
+    ) -> Report:
+        """The request ``robot.teach``."""
     def teleop(
         self,
         map: Sequence[Any],

@@ -39,6 +39,7 @@ pub fn validate(request: &Request) -> Result<(), OpError> {
             Request::RobotCalibrate(r) => r.readings().map(drop),
             Request::RobotTeleop(r) => r.check(),
             Request::RobotPlay(r) => r.check().map(drop),
+            Request::RobotTeach(r) => r.readings().map(drop),
             _ => Ok(()),
         },
     }
@@ -58,7 +59,13 @@ pub fn confirmation(request: &Request) -> Result<Option<String>, OpError> {
             let p = whj::prepare(request, false)?;
             (p.confirm != ConfirmClass::None && !p.confirmed).then_some(p.confirm_text)
         }
-        Family::Robot => None,
+        Family::Robot => match request {
+            Request::RobotTeach(r) => {
+                r.readings()?;
+                (!r.confirm).then(|| super::teach::TEACH_CONFIRM.to_owned())
+            }
+            _ => None,
+        },
     })
 }
 
@@ -89,9 +96,16 @@ pub fn plan_at(request: &Request, baud: BaudRate) -> Result<Plan, OpError> {
                 Request::RobotCalibrate(r) => r.note()?,
                 Request::RobotTeleop(r) => r.note()?,
                 Request::RobotPlay(r) => r.note()?,
+                Request::RobotTeach(r) => r.note()?,
                 _ => ROBOT_SAMPLE_NOTE.into(),
             };
-            Plan::notes_only(&op, Family::Robot, vec![note])
+            let mut plan = Plan::notes_only(&op, Family::Robot, vec![note]);
+            if let Request::RobotTeach(_) = request {
+                // Limp joints: asked like a register of the `confirm` class.
+                plan.confirm = ConfirmClass::Register;
+                plan.confirm_text = Some(super::teach::TEACH_CONFIRM.to_owned());
+            }
+            plan
         }
     })
 }
@@ -200,6 +214,18 @@ pub fn run_with(
                     super::play::run_play(station, r, control, &mut |t| interaction.play_tick(t))?;
                 let mut report = device_report(&op, "robot", &p.joints);
                 report.summary = serde_json::to_value(&p.summary).ok();
+                Ok(report)
+            }
+            Request::RobotTeach(r) => {
+                let t = super::teach::run_teach(station, r, control)?;
+                let mut report = device_report(&op, "robot", &t.joints);
+                report.summary = Some(json!({
+                    "trajectory": t.trajectory,
+                    "points": t.points,
+                    "dropped": t.dropped,
+                    "readings": t.asked,
+                    "interrupted": t.interrupted,
+                }));
                 Ok(report)
             }
             Request::RobotTeleop(r) => {

@@ -71,7 +71,9 @@ impl Request {
             | Self::WhjCurrent(_)
             | Self::WhjWave(_)
             | Self::RobotTeleop(_)
-            | Self::RobotPlay(_) => Effect::Motion,
+            | Self::RobotPlay(_)
+            // Limp joints: an arm falls unless held.
+            | Self::RobotTeach(_) => Effect::Motion,
             Self::WckPassive(_)
             | Self::WckBrake(_)
             | Self::WckSet(_)

@@ -268,6 +268,12 @@ impl WhjJoints {
         self.port.upgrade().ok_or_else(|| closed(&self.name))
     }
 
+    /// The bus's step limit: how far a position target may be from a joint's measured
+    /// position, degrees.
+    pub fn step_limit_deg(&self) -> Result<f64, OpError> {
+        Ok(self.port()?.bus().config().step_limit_deg)
+    }
+
     /// What each joint accepts as a `servo` target, `(low, high)` in that mode's unit
     /// (degrees, RPM, mA).
     pub fn limits(&self, servo: ServoLoop) -> Vec<(f64, f64)> {

@@ -76,6 +76,7 @@
 //! | `robot.sample` | - | per joint of the station's robot file, by name: `position_deg`, `speed_deg_s`, `current_ma`, `load`, `enabled`, `error` | - |
 //! | `robot.calibrate` | `seconds` (0.1..=600), `rate_hz`=20 (1..=100), `zero` (`end` / `keep`), `margin_deg`=2 (0..=30), `passive`=true | per joint by name: `samples`, `min_deg`, `max_deg`, `zero_deg`, `offset_rad` and `limits_rad` for the file (and their values before); `summary`: `readings`, `interrupted` | - |
 //! | `robot.play` | `trajectory` (the CSV text: `time_s`, a column per joint of the robot file, degrees), `rate_hz`=50 (1..=500), `torque`=2 (wCK, 0..=4) | per joint by name: `commands`, `failed`, `start_deg`, `target_deg`, `position_deg`, `tracking_max_deg`, `tracking_rms_deg`; `summary`: `lead_in_s`, `duration_s`, `ticks`, `overruns`, `buses`, `skew_ms` and `late_ms` (`p50`, `p99`, `max`), `interrupted` | - |
+//! | `robot.teach` | `seconds` (0.1..=3600), `rate_hz`=20 (1..=100), `joints` (names; none: all), `hold_ma`=0 (WHJ current while moved by hand, ±2000), `confirm` | per joint by name: `samples`, `failed`, `min_deg`, `max_deg`, `ended` (`holding`); `summary`: `trajectory` (the CSV `robot.play` plays), `points`, `dropped`, `readings`, `interrupted` | limp joints |
 //! | `robot.teleop` | `map` (1..=64 of `leader`, `follower`, `scale`=1 (±10), `offset_deg`=0 (±360), `limits_deg`), `rate_hz`=50 (1..=200), `seconds` (0.1..=86400; none: until stopped), `leader_timeout_ms`=500 (10..=10000), `passive_leader`=true | per follower joint by name: `leader`, `commands`, `limited`, `failed`, `target_deg`, `position_deg`, `tracking_max_deg`, `tracking_rms_deg`; `summary`: `cycles`, `commanded`, `held`, `overruns`, `seconds`, `rate_hz`, `latency_ms` (`p50`, `p99`, `max`), `leaders` (readings, failures), `leader_lost`, `interrupted` | - |
 //!
 //! # Report
@@ -105,6 +106,7 @@ pub mod play;
 pub mod record;
 pub mod robot;
 pub mod station;
+pub mod teach;
 pub mod telemetry;
 pub mod teleop;
 pub mod wck;
@@ -227,6 +229,8 @@ pub enum Request {
     RobotTeleop(teleop::Teleop),
     #[serde(rename = "robot.play")]
     RobotPlay(play::Play),
+    #[serde(rename = "robot.teach")]
+    RobotTeach(teach::Teach),
 }
 
 macro_rules! each_variant {
@@ -282,7 +286,8 @@ macro_rules! each_variant {
             Request::RobotSample(_)
             | Request::RobotCalibrate(_)
             | Request::RobotTeleop(_)
-            | Request::RobotPlay(_) => None,
+            | Request::RobotPlay(_)
+            | Request::RobotTeach(_) => None,
         }
     };
 }
@@ -325,7 +330,8 @@ impl Request {
             Self::RobotSample(_)
             | Self::RobotCalibrate(_)
             | Self::RobotTeleop(_)
-            | Self::RobotPlay(_) => Family::Robot,
+            | Self::RobotPlay(_)
+            | Self::RobotTeach(_) => Family::Robot,
             _ => Family::Whj,
         }
     }
@@ -345,6 +351,7 @@ impl Request {
             Self::WhjRestore(r) => r.confirm = true,
             Self::WckRestore(r) => r.confirm = true,
             Self::WckTune(r) => r.confirm = true,
+            Self::RobotTeach(r) => r.confirm = true,
             _ => {}
         }
         self

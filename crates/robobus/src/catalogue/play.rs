@@ -103,6 +103,9 @@ pub struct Played {
     pub commands: u64,
     /// Commands that failed (no reply, refused).
     pub failed: u64,
+    /// Commands sent short of the trajectory's target: a WHJ joint that lagged behind by
+    /// more than its step allows got a target within it.
+    pub limited: u64,
     /// Where it was before the run, degrees.
     pub start_deg: f64,
     /// The last target, degrees.
@@ -299,6 +302,61 @@ fn groups(
     Ok((groups, BusClock::new(clock)))
 }
 
+/// Per column, how far a WHJ joint's target may be sent from where it last reported
+/// itself: 0.8 of its bus's step limit (`None` for a wCK servo).
+fn steps_of(groups: &[Group], columns: usize) -> Result<Vec<Option<f64>>, OpError> {
+    let mut steps = vec![None; columns];
+    for g in groups {
+        if let Group::Whj(h, cols) = g {
+            let limit = h.step_limit_deg()?;
+            for &(c, _) in cols {
+                if let Some(s) = steps.get_mut(c) {
+                    *s = Some(0.8 * limit);
+                }
+            }
+        }
+    }
+    Ok(steps)
+}
+
+/// Refuses a trajectory whose WHJ joints would step more than half their bus's step
+/// limit in one tick (a joint lagging by a tick would then be refused its next frame):
+/// the fastest segment, and the lead-in, at `rate_hz`.
+fn check_steps(
+    groups: &[Group],
+    traj: &Trajectory,
+    from: &[f64],
+    lead_in: f64,
+    rate_hz: f64,
+) -> Result<(), OpError> {
+    for g in groups {
+        let Group::Whj(h, cols) = g else { continue };
+        let limit = h.step_limit_deg()?;
+        for &(c, _) in cols {
+            let lead = match (traj.first().get(c), from.get(c)) {
+                (Some(a), Some(b)) if lead_in > 0.0 => (a - b).abs() / lead_in,
+                _ => 0.0,
+            };
+            let speed = traj.max_speed(c).max(lead);
+            let step = speed / rate_hz;
+            if step > limit / 2.0 {
+                let name = traj.joints().get(c).map_or("?", String::as_str);
+                return Err(OpError::invalid(
+                    "--rate-hz",
+                    rate_hz,
+                    format!(
+                        "{name} moves up to {speed:.1}°/s: at {rate_hz} Hz a tick steps \
+                         {step:.2}°, more than half its bus's {limit}° step limit; play at \
+                         --rate-hz {} or more",
+                        (2.0 * speed / limit).ceil()
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Where each of the trajectory's joints is now (joint degrees, by column); refused when
 /// one does not answer or stands outside its soft limits.
 fn start(
@@ -376,6 +434,7 @@ pub(super) fn run_play(
         .zip(&index)
         .map(|((a, b), &i)| (a - b).abs() / config.joints[i].max_velocity.to_degrees())
         .fold(0.0, f64::max);
+    check_steps(&groups, &traj, &from, lead_in, r.rate_hz)?;
     let mut rows: Vec<Played> = from.iter().map(|&s| Played::new(s)).collect();
     let mut player = Player {
         traj: &traj,
@@ -385,6 +444,7 @@ pub(super) fn run_play(
         groups: &groups,
         clock: &clock,
         torque: r.torque,
+        steps: steps_of(&groups, traj.joints().len())?,
     };
     let timing = player.run(&mut rows, control, on_tick)?;
     let names = traj.joints();
@@ -408,8 +468,9 @@ pub(super) fn run_play(
 }
 
 /// One tick, as a front end records it: the time since the start of the lead-in, and per
-/// joint (by name, in the trajectory's order) its target and the position it reported
-/// (`None`: no reply this tick), degrees.
+/// joint (by name, in the trajectory's order) the target sent (the trajectory's, or short
+/// of it for a lagging WHJ joint) and the position it reported (`None`: no reply this
+/// tick), degrees.
 #[derive(Debug, Clone, Copy)]
 pub struct PlayTick<'a> {
     /// Seconds since the run started (the lead-in included).
@@ -443,6 +504,9 @@ struct Player<'a> {
     groups: &'a [Group],
     clock: &'a BusClock,
     torque: u8,
+    /// Per column, how far a WHJ joint's target may be from where it last reported
+    /// itself (`None`: a wCK servo, which takes any target in its range).
+    steps: Vec<Option<f64>>,
 }
 
 impl Player<'_> {
@@ -471,6 +535,7 @@ impl Player<'_> {
         let start = clock.now();
         let mut timing = Timing::default();
         let mut before: Option<Vec<f64>> = None;
+        let mut last_at: Vec<Option<f64>> = self.from.iter().map(|&f| Some(f)).collect();
         let mut k: u64 = 0;
         #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // ≤ 3600 s × 500 Hz
         let last = (total / self.period.as_secs_f64()).ceil() as u64;
@@ -487,7 +552,17 @@ impl Player<'_> {
             }
             let t_s = (due - start).as_secs_f64().min(total);
             let targets = self.targets(t_s);
-            let (positions, sends) = self.tick(&targets);
+            // A WHJ joint lagging behind is sent no further than its step allows.
+            let sent: Vec<f64> = targets
+                .iter()
+                .zip(&self.steps)
+                .zip(&last_at)
+                .map(|((&t, step), at)| match (step, at) {
+                    (Some(s), Some(a)) => t.clamp(a - s, a + s),
+                    _ => t,
+                })
+                .collect();
+            let (positions, sends) = self.tick(&sent);
             if let (Some(first), Some(last)) = (sends.iter().min(), sends.iter().max())
                 && timing.skew.len() < MAX_TIMED_TICKS
             {
@@ -498,13 +573,19 @@ impl Player<'_> {
                 let target = targets.get(c).copied().unwrap_or(f64::NAN);
                 let prior = before.as_ref().and_then(|b| b.get(c).copied());
                 row.take(target, p, prior);
+                if sent.get(c).is_some_and(|&x| (x - target).abs() > 1e-9) {
+                    row.limited += 1;
+                }
+                if let (Ok(at), Some(slot)) = (p, last_at.get_mut(c)) {
+                    *slot = Some(*at);
+                }
             }
             let reported: Vec<Option<f64>> =
                 positions.iter().map(|p| p.as_ref().ok().copied()).collect();
             on_tick(&PlayTick {
                 t_s,
                 joints: self.traj.joints(),
-                targets: &targets,
+                targets: &sent,
                 positions: &reported,
             })?;
             before = Some(targets);
@@ -575,6 +656,7 @@ impl Played {
         Self {
             commands: 0,
             failed: 0,
+            limited: 0,
             start_deg,
             target_deg: start_deg,
             position_deg: None,

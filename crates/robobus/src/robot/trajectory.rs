@@ -220,6 +220,19 @@ impl Trajectory {
         a0.iter().zip(a1).map(|(x, y)| x + (y - x) * f).collect()
     }
 
+    /// The fastest any segment moves column `column`'s joint, degrees per second.
+    #[must_use]
+    pub fn max_speed(&self, column: usize) -> f64 {
+        self.times
+            .windows(2)
+            .zip(self.angles.windows(2))
+            .filter_map(|(t, a)| {
+                let d = (a[1].get(column)? - a[0].get(column)?).abs();
+                Some(d / (t[1].0 - t[0].0))
+            })
+            .fold(0.0, f64::max)
+    }
+
     /// Checks the trajectory against `robot`: each joint is in the file, every angle
     /// within its soft limits, every segment no faster than its `max_velocity`. Returns
     /// each column's index among the file's joints.

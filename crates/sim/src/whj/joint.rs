@@ -193,6 +193,7 @@ impl SimJoint {
             load_inertia: cfg.load.inertia_kgm2,
             gravity_nm: cfg.load.gravity_nm,
             external_nm: cfg.load.constant_nm,
+            hand: None,
         };
         let mech = Mechanics::new(cfg.initial_position_deg.to_radians(), &env);
         let rng = ChaCha8Rng::seed_from_u64(seed ^ (u64::from(cfg.id) << 32));
@@ -279,6 +280,14 @@ impl SimJoint {
     /// Change the constant external torque on the output, N·m (a push, a hard stop).
     pub fn set_external_torque(&mut self, nm: f64) {
         self.env.external_nm = nm;
+    }
+
+    /// A hand holding the output at `degrees` (its output angle; `None`: let go). The hand
+    /// pulls like a firm grip: a limp joint (disabled without a brake, or in current mode
+    /// at a small current) follows it within a few degrees, a braked or position-holding
+    /// one does not.
+    pub fn set_hand(&mut self, degrees: Option<f64>) {
+        self.env.hand = degrees.map(f64::to_radians);
     }
 
     /// Change the gravity torque amplitude on the output, N·m.

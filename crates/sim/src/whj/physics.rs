@@ -75,7 +75,16 @@ pub(crate) struct Environment {
     pub gravity_nm: f64,
     /// Constant external torque, N·m.
     pub external_nm: f64,
+    /// A hand holding the output at this angle, rad (`None`: no hand): it pulls the output
+    /// toward it like a firm grip, [`HAND_STIFFNESS`] and [`HAND_DAMPING`].
+    pub hand: Option<f64>,
 }
+
+/// A hand's grip on the output: torque per radian between the hand and the output,
+/// N·m/rad \[inf\] (a firm grip: 1° apart pulls with about 0.9 N·m).
+pub(crate) const HAND_STIFFNESS: f64 = 50.0;
+/// A hand's damping of the output's speed, N·m·s/rad \[inf\].
+pub(crate) const HAND_DAMPING: f64 = 5.0;
 
 /// Electrical power the electronics draw at standstill, W \[inf\].
 const IDLE_POWER_W: f64 = 1.5;
@@ -268,7 +277,10 @@ impl Mechanics {
         // 3. Torques on the output.
         let omega_start = self.omega;
         let tau_motor = kt * current;
-        let tau_load = -env.gravity_nm * self.theta.cos() + env.external_nm;
+        let tau_hand = env.hand.map_or(0.0, |at| {
+            HAND_STIFFNESS * (at - self.theta) - HAND_DAMPING * self.omega
+        });
+        let tau_load = -env.gravity_nm * self.theta.cos() + env.external_nm + tau_hand;
         let tau_drive = tau_motor + tau_load - p.viscous_friction_nms * self.omega;
         let at_rest = self.omega.abs() < REST_SPEED && tau_drive.abs() <= p.coulomb_friction_nm;
         if locked || at_rest {
@@ -331,6 +343,7 @@ mod tests {
             load_inertia: 0.0,
             gravity_nm: 0.0,
             external_nm: 0.0,
+            hand: None,
         }
     }
 
