@@ -35,6 +35,7 @@ mod demo;
 mod doctor;
 mod exit;
 mod generate;
+mod hand;
 mod interrupt;
 mod monitor;
 mod output;

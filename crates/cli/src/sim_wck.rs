@@ -23,6 +23,7 @@ use robobus_sim::wck::{Bus, BusConfig, Eeprom, Endpoint, Model, Timing};
 use robobus_wck::{BaudRate, ExtServoId};
 
 use crate::exit::usage;
+use crate::hand::Hand;
 
 /// What `robobus sim wck --help` adds after the options.
 const AFTER_LONG_HELP: &str = "\
@@ -321,7 +322,7 @@ pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
     let hands = args
         .hand
         .iter()
-        .map(|h| Hand::parse(h, &ids))
+        .map(|h| Hand::parse(h, &ids, 135.0))
         .collect::<anyhow::Result<Vec<_>>>()?;
     if let Some(link) = &args.link {
         check_link_path(link)?;
@@ -446,69 +447,6 @@ fn faults_of(args: &Args, ids: &[u8]) -> anyhow::Result<(Option<FaultConfig>, Ve
         ids,
     )?;
     Ok((wire_faults, device))
-}
-
-/// `--hand`: a servo's shaft turned back and forth by hand.
-#[derive(Debug, Clone, Copy)]
-struct Hand {
-    id: u8,
-    from: f64,
-    to: f64,
-    period: f64,
-}
-
-impl Hand {
-    /// `ID:FROM:TO:PERIOD`, ID one of the bus's, the angles within ±135°, the period
-    /// 0.05..=600 s.
-    fn parse(text: &str, ids: &[u8]) -> anyhow::Result<Self> {
-        let bad = |why: &str| {
-            usage(format!(
-                "--hand {text}: {why} (ID:FROM:TO:PERIOD, e.g. 0:-40:50:1)"
-            ))
-        };
-        let parts: Vec<&str> = text.split(':').collect();
-        let [id, from, to, period] = parts.as_slice() else {
-            return Err(bad("four fields"));
-        };
-        let id: u8 = id
-            .trim()
-            .parse()
-            .map_err(|_| bad("the ID is not a number"))?;
-        if !ids.contains(&id) {
-            return Err(bad("no servo with this ID on the bus"));
-        }
-        let angle = |a: &str| {
-            a.trim()
-                .parse::<f64>()
-                .ok()
-                .filter(|v| v.is_finite() && (-135.0..=135.0).contains(v))
-                .ok_or_else(|| bad("an angle out of range -135..=135°"))
-        };
-        let period = period
-            .trim()
-            .parse::<f64>()
-            .ok()
-            .filter(|p| p.is_finite() && (0.05..=600.0).contains(p))
-            .ok_or_else(|| bad("a period out of range 0.05..=600 s"))?;
-        Ok(Self {
-            id,
-            from: angle(from)?,
-            to: angle(to)?,
-            period,
-        })
-    }
-
-    /// The angle at `t` seconds: from FROM to TO in the first half period, back in the
-    /// second.
-    fn angle(&self, t: f64) -> f64 {
-        let phase = (t / self.period).fract();
-        let x = if phase < 0.5 {
-            phase * 2.0
-        } else {
-            2.0 - phase * 2.0
-        };
-        self.from + (self.to - self.from) * x
-    }
 }
 
 /// The shaft angle (degrees, step 0 = 0°) of a servo at `deg` from the centre.

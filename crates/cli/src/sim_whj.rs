@@ -12,10 +12,11 @@ use robobus::ops::IdList;
 use robobus::ops::capture::{Overwrite, capture_frame_link};
 use robobus_link::{FaultyFrameLink, FrameLinkSpec};
 use robobus_sim::faults::{DeviceFaultKind, FaultSchedule};
-use robobus_sim::whj::{JointConfig, WhjBus, WhjModel, serve_with};
+use robobus_sim::whj::{JointConfig, WhjBus, WhjModel, serve_observed};
 use robobus_whj::JointId;
 
 use crate::exit::usage;
+use crate::hand::Hand;
 use crate::sim_wck::{LinkFaultArgs, device_faults};
 
 /// What `robobus sim whj --help` adds after the options.
@@ -55,6 +56,13 @@ pub(crate) struct Args {
     /// usage demo shows a few mA at standstill).
     #[arg(long, default_value_t = 5.0)]
     current_noise_ma: f64,
+    /// A hand holds joint ID's output and moves it back and forth between FROM and TO
+    /// degrees once every PERIOD seconds, as someone teaching a robot does:
+    /// `ID:FROM:TO:PERIOD`, e.g. `1:-30:30:4`. Only a limp joint follows it (current
+    /// mode at a small current, as `robobus robot teach` sets); a braked or
+    /// position-holding one does not. Repeatable.
+    #[arg(long, value_name = "ID:FROM:TO:PERIOD", allow_negative_numbers = true)]
+    hand: Vec<String>,
     /// Put an end board on the bus too: it answers the end-board field of broadcast
     /// frames (0xF7 / 0x87) with its own small register map.
     #[arg(long)]
@@ -142,12 +150,9 @@ fn check_ranges(args: &Args) -> anyhow::Result<()> {
 }
 
 /// Serves the simulated bus until interrupted.
-pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
-    check_ranges(args)?;
-    let wire_faults =
-        args.faults
-            .config(args.seed, ("drop", args.drop), ("corrupt", args.corrupt))?;
-    let device = device_faults(
+/// The device faults the options schedule.
+fn faults_of(args: &Args) -> anyhow::Result<Vec<robobus_sim::faults::DeviceFault>> {
+    device_faults(
         &[
             (
                 "--fault-error",
@@ -167,7 +172,20 @@ pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
         ],
         1..=30,
         &args.joints.0,
-    )?;
+    )
+}
+
+pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
+    check_ranges(args)?;
+    let wire_faults =
+        args.faults
+            .config(args.seed, ("drop", args.drop), ("corrupt", args.corrupt))?;
+    let device = faults_of(args)?;
+    let hands = args
+        .hand
+        .iter()
+        .map(|h| Hand::parse(h, &args.joints.0, 360.0))
+        .collect::<anyhow::Result<Vec<_>>>()?;
     let configs = args.joints.0.iter().map(|&id| {
         let mut cfg = JointConfig::new(id, args.model);
         cfg.current_noise_ma = args.current_noise_ma;
@@ -221,12 +239,21 @@ pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
             args.bus.describe()
         );
     };
-    let stats = serve_with(
+    let t0 = std::time::Instant::now();
+    let stats = serve_observed(
         &mut bus,
         &mut *link,
         stop,
         FaultSchedule::new(device),
         announce,
+        |bus| {
+            let t = t0.elapsed().as_secs_f64();
+            for h in &hands {
+                if let Some(j) = bus.joint_mut(h.id) {
+                    j.set_hand(Some(h.angle(t)));
+                }
+            }
+        },
     )
     .context("serving the simulated bus")?;
     eprintln!(

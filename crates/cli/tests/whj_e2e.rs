@@ -964,3 +964,72 @@ fn whj_e2e_backup_diff_and_restore_settings() {
     assert_ne!(r.code, Some(0));
     assert!(r.stderr.contains("disable it"), "{}", r.stderr);
 }
+
+/// `robobus robot teach` on a WHJ joint of the simulator in its own process, moved by the
+/// simulator's `--hand` (it follows only while teach holds it limp in current mode):
+/// the trajectory has the hand's sweep, and the joint is left holding, in position mode.
+#[test]
+fn whj_e2e_teach_by_hand_then_hold() {
+    if !in_netns("whj_e2e_teach_by_hand_then_hold") {
+        return;
+    }
+    let sim = Sim::start("udp:239.74.163.16:43126", &["--hand", "3:-15:15:2"]);
+    let dir = tempfile::tempdir().unwrap();
+    let robot = dir.path().join("robot.toml");
+    std::fs::write(
+        &robot,
+        r#"
+[buses.arm]
+kind = "whj-udp"
+group = "239.74.163.16"
+port = 43126
+
+[[joints]]
+name = "wrist"
+bus = "arm"
+id = 3
+limits = [-1.0, 1.0]
+max_velocity = 1.0
+max_acceleration = 1.0
+"#,
+    )
+    .unwrap();
+    let out = dir.path().join("taught.csv");
+    let r = common::robobus(&[
+        "--json",
+        "--yes",
+        "robot",
+        "teach",
+        "--robot",
+        robot.to_str().unwrap(),
+        "--seconds",
+        "2",
+        "--rate-hz",
+        "20",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, Some(0), "{r:#?}");
+    let v: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
+    let wrist = &v["results"][0];
+    // The hand swept -15..15° over the 2 s; the joint followed within its grip.
+    assert!(
+        f(&wrist["max_deg"]) > 8.0 && f(&wrist["min_deg"]) < -8.0,
+        "{wrist}"
+    );
+    assert_eq!(wrist["ended"], "holding", "{wrist}");
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(text.contains("time_s,wrist\n"), "{text}");
+    // Held: teach left it in position mode, and the command's end disabled it (its
+    // brake locked), as every command leaves a WHJ joint: the hand no longer moves it.
+    let st = sim.json(&["status", "3"]);
+    assert_eq!(
+        (st[0]["mode"].as_str(), st[0]["brake"].as_str()),
+        (Some("position"), Some("locked")),
+        "{st:?}"
+    );
+    let a = f(&sim.json(&["status", "3"])[0]["position_deg"]);
+    std::thread::sleep(Duration::from_millis(500));
+    let b = f(&sim.json(&["status", "3"])[0]["position_deg"]);
+    assert!((a - b).abs() < 1.0, "{a} then {b}");
+}

@@ -107,7 +107,7 @@ impl Served {
         name: &str,
         mut bus: WhjBus,
         mut link: L,
-        observe: impl FnMut(&WhjBus) + Send + 'static,
+        observe: impl FnMut(&mut WhjBus) + Send + 'static,
     ) -> std::io::Result<Self> {
         Self::start(name, move |stop| {
             serve_observed(
@@ -229,14 +229,15 @@ pub fn serve_with<L: FrameLink + ?Sized>(
 
 /// [`serve_with`] with `observe` called with the bus after every frame received and every
 /// wake-up (at least every few milliseconds): how a front end shows the simulated joints'
-/// own state (not read over the bus) while they are served.
+/// own state (not read over the bus) while they are served, or acts on them (a hand that
+/// moves a joint).
 pub fn serve_observed<L: FrameLink + ?Sized>(
     bus: &mut WhjBus,
     link: &mut L,
     stop: &AtomicBool,
     faults: FaultSchedule,
     on_serving: impl FnOnce(),
-    observe: impl FnMut(&WhjBus),
+    observe: impl FnMut(&mut WhjBus),
 ) -> Result<ServeStats, FrameLinkError> {
     serve_loop(
         bus,
@@ -255,7 +256,7 @@ fn serve_loop<L: FrameLink + ?Sized>(
     stop: &AtomicBool,
     mut faults: FaultSchedule,
     on_serving: impl FnOnce(),
-    mut observe: impl FnMut(&WhjBus),
+    mut observe: impl FnMut(&mut WhjBus),
     wait: WaitMode,
 ) -> Result<ServeStats, FrameLinkError> {
     let origin = Instant::now()
