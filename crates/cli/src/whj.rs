@@ -320,6 +320,23 @@ enum WhjCommand {
         #[arg(short, long, value_name = "FILE.json")]
         output: PathBuf,
     },
+    /// The end-effector board: its state, tool power, a digital channel's direction, its
+    /// force sensor. Switching the tool power on or a channel's direction asks for
+    /// confirmation (--yes): it switches what is attached to the tool.
+    EndBoard {
+        /// status | power (with --volts) | io (with --channel and --mode) | force.
+        #[arg(value_enum)]
+        action: EndBoardActionArg,
+        /// The tool power, volts: 0, 12 or 24.
+        #[arg(long)]
+        volts: Option<u8>,
+        /// The digital channel, 1 or 2.
+        #[arg(long)]
+        channel: Option<u8>,
+        /// The channel's direction.
+        #[arg(long, value_enum)]
+        mode: Option<IoModeArg>,
+    },
     /// List the settings on which a joint differs from a settings file, or from another
     /// joint (--with).
     Diff {
@@ -515,6 +532,28 @@ fn parse_duration(s: &str) -> Result<f64, String> {
 
 /// Runs `robobus whj`: the subcommand's request goes to the library's dispatcher
 /// (`--dry-run`: its plan).
+/// `whj end-board`'s actions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum EndBoardActionArg {
+    /// Read its state.
+    Status,
+    /// Switch the tool power (--volts).
+    Power,
+    /// Set a digital channel's direction (--channel, --mode).
+    Io,
+    /// Read the force sensor (raw).
+    Force,
+}
+
+/// A digital channel's direction.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum IoModeArg {
+    /// Input.
+    Input,
+    /// Output.
+    Output,
+}
+
 pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     if let Some(bus) = &args.bus {
         bus.parse::<FrameLinkSpec>()
@@ -766,6 +805,27 @@ fn request(args: &Args) -> anyhow::Result<catalogue::Request> {
         WhjCommand::Defaults { joint: j, .. } => Q::WhjDefaults(cw::Defaults {
             bus: None,
             joint: joint(*j),
+        }),
+        WhjCommand::EndBoard {
+            action,
+            volts,
+            channel,
+            mode,
+        } => Q::WhjEndBoard(cw::EndBoard {
+            bus: None,
+            action: match action {
+                EndBoardActionArg::Status => cw::EndBoardAction::Status,
+                EndBoardActionArg::Power => cw::EndBoardAction::Power,
+                EndBoardActionArg::Io => cw::EndBoardAction::Io,
+                EndBoardActionArg::Force => cw::EndBoardAction::Force,
+            },
+            volts: *volts,
+            channel: *channel,
+            mode: mode.map(|m| match m {
+                IoModeArg::Input => cw::IoMode::Input,
+                IoModeArg::Output => cw::IoMode::Output,
+            }),
+            confirm: false,
         }),
         WhjCommand::Diff {
             joint: j,

@@ -72,6 +72,14 @@ const PAIRS: &[(&str, &str)] = &[
     ),
     ("whj info 1", r#"{"op":"whj.info","joint":1}"#),
     (
+        "whj end-board power --volts 24 --yes",
+        r#"{"op":"whj.end-board","action":"power","volts":24,"confirm":true}"#,
+    ),
+    (
+        "whj end-board io --channel 2 --mode output --yes",
+        r#"{"op":"whj.end-board","action":"io","channel":2,"mode":"output","confirm":true}"#,
+    ),
+    (
         "whj defaults 2 -o defaults.json",
         r#"{"op":"whj.defaults","joint":2}"#,
     ),

@@ -157,6 +157,7 @@ CALLS: list[tuple[str, tuple[Any, ...], dict[str, Any], dict[str, Any]]] = [
     ("whj.sample", ("1-2",), {}, {"op": "whj.sample", "joints": "1-2"}),
     ("whj.backup", (2,), {}, {"op": "whj.backup", "joint": 2}),
     ("whj.defaults", (2,), {}, {"op": "whj.defaults", "joint": 2}),
+    ("whj.end_board", ("status",), {}, {"op": "whj.end-board", "action": "status"}),
     ("whj.diff", (2,), {"other": 1}, {"op": "whj.diff", "joint": 2, "other": 1}),
     (
         "whj.restore",

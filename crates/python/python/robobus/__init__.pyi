@@ -435,6 +435,18 @@ class WhjOps:
         check: bool = ...,
     ) -> Report:
         """The request ``whj.enable``."""
+    def end_board(
+        self,
+        action: Literal["status", "power", "io", "force"],
+        *,
+        bus: str | None = ...,
+        channel: int | None = ...,
+        confirm: bool | None = ...,
+        mode: Literal["input", "output"] | None = ...,
+        volts: int | None = ...,
+        check: bool = ...,
+    ) -> Report:
+        """The request ``whj.end-board``."""
     def info(
         self,
         joint: int,

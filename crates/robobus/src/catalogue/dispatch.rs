@@ -247,6 +247,29 @@ pub fn run_with(
     }
 }
 
+/// `whj.end-board`: one row, `end-board`: what the board answered, or its failure.
+fn end_board_report(
+    bus: &JointBus,
+    op: &str,
+    name: &str,
+    job: super::whj::end_board::EndBoardJob,
+) -> Report {
+    use super::whj::end_board::EndBoardJob as E;
+    use crate::ops::whj::broadcast::end_board as eb;
+    let json = |v: &dyn erased::Ser| serde_json::to_value(erased::Wrap(v)).unwrap_or(Value::Null);
+    let value = match job {
+        E::Status => eb::state(bus).map(|s| json(&s)),
+        E::Power(p) => eb::set_power(bus, p).map(|s| json(&s)),
+        E::Io(c, out) => eb::set_io(bus, c, out).map(|s| json(&s)),
+        E::Force => eb::force(bus).map(|s| json(&s)),
+    };
+    let result = match value {
+        Ok(v) => DeviceResult::ok("end-board", v),
+        Err(e) => DeviceResult::failed("end-board", eb::failure(&e)),
+    };
+    device_report(op, name, &[result])
+}
+
 /// What a `robot.sample` reads (its frames depend on the station's robot file).
 const ROBOT_SAMPLE_NOTE: &str = "reads every joint of the station's robot file, read-only: a \
      status read per wCK servo (FF <0xA0|ID> 00 <checksum>), a status query (0x600+ID) and a \
@@ -710,6 +733,7 @@ fn run_whj(
             }
         }
         J::Registers => registers_report(op),
+        J::EndBoard(job) => end_board_report(bus, op, name, *job),
         J::Backup(id) | J::Defaults(id) => {
             let s = if matches!(p.job, J::Defaults(_)) {
                 hops::settings::defaults(bus, *id)?

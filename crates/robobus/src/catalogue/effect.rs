@@ -110,6 +110,14 @@ impl Request {
             | Self::WckBackup(_)
             | Self::WckDiff(_)
             | Self::RobotSample(_) => Effect::Read,
+            Self::WhjEndBoard(r) => match (r.action, r.volts) {
+                (super::whj::EndBoardAction::Status | super::whj::EndBoardAction::Force, _) => {
+                    Effect::Read
+                }
+                // Power on for a tool can make it move (a gripper).
+                (super::whj::EndBoardAction::Power, Some(v)) if v > 0 => Effect::Motion,
+                _ => Effect::Configure,
+            },
         }
     }
 

@@ -71,6 +71,7 @@
 //! | `whj.sample` | `joints`, `broadcast` | position, speed, current, enabled, error | - |
 //! | `whj.backup` | `joint` | model, firmware, settings count; `summary` is the settings file (every register the joint keeps in flash, raw and in its unit) | - |
 //! | `whj.defaults` | `joint` | model, firmware, settings count; `summary` is the settings file of the values the vendor documents for them (for `whj.restore`; not the factory-tuned gains and limits, nor the ID and bit rates) | - |
+//! | `whj.end-board` | `action` (`status`, `power`, `io`, `force`), `volts` (0 / 12 / 24), `channel` (1 / 2), `mode` (`input` / `output`), `confirm` | one row `end-board`: status (`model`, `version`, `tool_volts`, the channels' direction and level, buttons, gripper / hand in position, `error`), a write's `register`, `read_back`, `meaning`, or the force sensor's raw `fx`..`mz` | register (power on, a channel's direction) |
 //! | `whj.diff` | `joint`, `settings` (a settings file's text) or `other` (a joint) | one row per setting that differs (`a`, `b`, values and unit) | - |
 //! | `whj.restore` | `joint`, `settings` | one row per differing setting: written or skipped (the bus identity is never written); `summary`: `written`, `saved`, `differ_after` | flash (and the `confirm` registers the file sets) |
 //! | `robot.sample` | - | per joint of the station's robot file, by name: `position_deg`, `speed_deg_s`, `current_ma`, `load`, `enabled`, `error` | - |
@@ -217,6 +218,8 @@ pub enum Request {
     WhjBackup(whj::Backup),
     #[serde(rename = "whj.defaults")]
     WhjDefaults(whj::Defaults),
+    #[serde(rename = "whj.end-board")]
+    WhjEndBoard(whj::EndBoard),
     #[serde(rename = "whj.diff")]
     WhjDiff(whj::Diff),
     #[serde(rename = "whj.restore")]
@@ -280,6 +283,7 @@ macro_rules! each_variant {
             Request::WhjSample($r) => $e,
             Request::WhjBackup($r) => $e,
             Request::WhjDefaults($r) => $e,
+            Request::WhjEndBoard($r) => $e,
             Request::WhjDiff($r) => $e,
             Request::WhjRestore($r) => $e,
             // A robot request acts on the station's robot file, not on one bus.
@@ -352,6 +356,7 @@ impl Request {
             Self::WckRestore(r) => r.confirm = true,
             Self::WckTune(r) => r.confirm = true,
             Self::RobotTeach(r) => r.confirm = true,
+            Self::WhjEndBoard(r) => r.confirm = true,
             _ => {}
         }
         self

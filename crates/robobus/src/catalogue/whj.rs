@@ -18,8 +18,10 @@ use crate::ops::OpError;
 use crate::ops::whj::{self as ops, EndBoardArg, MoveArgs, ServoLoop, TargetArgs, WaveArgs};
 use crate::whj::JointBusConfig;
 
+pub(crate) mod end_board;
 mod settings;
 
+pub use end_board::{EndBoard, EndBoardAction, IoMode};
 pub(crate) use settings::DiffWith;
 pub use settings::{Backup, Defaults, Diff, Restore};
 
@@ -362,6 +364,7 @@ pub(crate) enum Job {
     Registers,
     Backup(JointId),
     Defaults(JointId),
+    EndBoard(end_board::EndBoardJob),
     Diff(JointId, DiffWith),
     Restore(JointId, Box<ops::settings::Settings>),
     SetId(JointId, JointId),
@@ -572,6 +575,7 @@ fn prepare_steps(req: &super::Request, dry_run: bool) -> R<Prepared> {
         }
         Q::WhjBackup(r) => settings::backup(r)?,
         Q::WhjDefaults(r) => settings::defaults(r)?,
+        Q::WhjEndBoard(r) => end_board::end_board(r)?,
         Q::WhjDiff(r) => settings::diff(r)?,
         Q::WhjRestore(r) => settings::restore(r)?,
         Q::WhjInfo(r) => {

@@ -157,7 +157,7 @@ fn per_joint<T>(
 // Broadcast frames (0x7F status, 0x0F registers, sampling)
 // ---------------------------------------------------------------------------------------
 
-mod broadcast;
+pub mod broadcast;
 mod checks;
 mod joints;
 mod motion;

@@ -23,6 +23,7 @@ use crate::ops::{ErrorKind, Failure, OpError};
 use crate::whj::{Joint, JointBus, WhjError};
 use robobus_whj::reply::ServoFeedback;
 
+pub mod end_board;
 mod registers;
 mod status;
 mod wave;
