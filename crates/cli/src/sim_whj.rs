@@ -56,6 +56,13 @@ pub(crate) struct Args {
     /// usage demo shows a few mA at standstill).
     #[arg(long, default_value_t = 5.0)]
     current_noise_ma: f64,
+    /// The bus's arbitration bit rate (the adapter's), bit/s: only the joints whose saved
+    /// rates (0x08 / 0x09, taken at power-up) are the bus's hear and answer.
+    #[arg(long, default_value_t = 1_000_000)]
+    bitrate: u32,
+    /// The bus's data bit rate, bit/s.
+    #[arg(long, default_value_t = 5_000_000)]
+    dbitrate: u32,
     /// A hand holds joint ID's output and moves it back and forth between FROM and TO
     /// degrees once every PERIOD seconds, as someone teaching a robot does:
     /// `ID:FROM:TO:PERIOD`, e.g. `1:-30:30:4`. Only a limp joint follows it (current
@@ -194,7 +201,9 @@ pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
         cfg.initial_position_deg = args.initial_deg;
         cfg
     });
-    let mut bus = WhjBus::with_configs(configs, args.seed);
+    let rates = robobus::ops::whj::rates::check_rates(args.bitrate, args.dbitrate)
+        .map_err(|e| usage(e.to_string()))?;
+    let mut bus = WhjBus::with_configs(configs, args.seed).with_rates(rates);
     if args.end_board {
         bus = bus.with_end_board();
     }

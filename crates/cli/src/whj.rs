@@ -369,6 +369,23 @@ enum WhjCommand {
         #[arg(value_parser = parse_joint)]
         new_id: JointId,
     },
+    /// Set joints' CAN FD bit rates (registers 0x08 / 0x09, read back, saved to flash).
+    ///
+    /// The joints must be disabled. They keep talking at the old rates until they are
+    /// power-cycled, and from then on only at the new ones: set the adapter to them (the
+    /// output says how), then `whj scan` finds them. Every joint on a bus must be at the
+    /// bus's rates. Asks for confirmation (--yes).
+    SetRates {
+        /// Joint IDs, e.g. `1-6`.
+        #[arg(value_parser = parse_joints)]
+        joints: Joints,
+        /// Arbitration bit rate, bit/s: 250000, 500000 or 1000000.
+        #[arg(long)]
+        bitrate: u32,
+        /// Data bit rate, bit/s: 250000, 500000, 1000000, 2000000, 4000000 or 5000000.
+        #[arg(long)]
+        dbitrate: u32,
+    },
     /// Send a test signal (sine or square) as servo frames, like the vendor tool.
     Wave {
         /// Joint ID, 1..=30.
@@ -841,6 +858,17 @@ fn request(args: &Args) -> anyhow::Result<catalogue::Request> {
             bus: None,
             joint: joint(*j),
             settings: settings_file(file)?,
+            confirm: false,
+        }),
+        WhjCommand::SetRates {
+            joints,
+            bitrate,
+            dbitrate,
+        } => Q::WhjSetRates(cw::SetRates {
+            bus: None,
+            joints: ids(joints),
+            bitrate: *bitrate,
+            dbitrate: *dbitrate,
             confirm: false,
         }),
         WhjCommand::SetId { joint: j, new_id } => Q::WhjSetId(cw::SetId {

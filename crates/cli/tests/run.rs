@@ -72,6 +72,10 @@ const PAIRS: &[(&str, &str)] = &[
     ),
     ("whj info 1", r#"{"op":"whj.info","joint":1}"#),
     (
+        "whj set-rates 1-2 --bitrate 500000 --dbitrate 2000000 --yes",
+        r#"{"op":"whj.set-rates","joints":"1-2","bitrate":500000,"dbitrate":2000000,"confirm":true}"#,
+    ),
+    (
         "whj end-board power --volts 24 --yes",
         r#"{"op":"whj.end-board","action":"power","volts":24,"confirm":true}"#,
     ),

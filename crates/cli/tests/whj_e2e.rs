@@ -1033,3 +1033,66 @@ max_acceleration = 1.0
     let b = f(&sim.json(&["status", "3"])[0]["position_deg"]);
     assert!((a - b).abs() < 1.0, "{a} then {b}");
 }
+
+/// `robobus whj set-rates` on the simulator in its own process, whose bit rates are real:
+/// after its power cycle (the simulator's `--fault-power-cycle`) joint 1 is at the new
+/// rates and silent on the 1 / 5 Mbit/s bus, while joint 2 still answers.
+#[test]
+fn whj_e2e_set_rates_then_the_joint_is_silent_at_the_old_rates() {
+    if !in_netns("whj_e2e_set_rates_then_the_joint_is_silent_at_the_old_rates") {
+        return;
+    }
+    let sim = Sim::start("udp:239.74.163.17:43127", &["--fault-power-cycle", "1@4"]);
+    let _ = sim.json(&["disable", "1"]);
+    // Without --yes (and no terminal) nothing is written.
+    let r = sim.whj(&[
+        "set-rates",
+        "1",
+        "--bitrate",
+        "500000",
+        "--dbitrate",
+        "2000000",
+    ]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    // A pair a joint cannot be set to is bad input.
+    let r = sim.whj(&[
+        "--yes",
+        "set-rates",
+        "1",
+        "--bitrate",
+        "500000",
+        "--dbitrate",
+        "3000000",
+    ]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    assert!(r.stderr.contains("--dbitrate"), "{}", r.stderr);
+    let r = sim.whj(&[
+        "--json",
+        "--yes",
+        "set-rates",
+        "1",
+        "--bitrate",
+        "500000",
+        "--dbitrate",
+        "2000000",
+    ]);
+    assert_eq!(r.code, Some(0), "{r:#?}");
+    let doc: Value = serde_json::from_str(&r.stdout).unwrap();
+    assert_eq!(
+        doc["results"][0]["after"],
+        serde_json::json!([500_000, 2_000_000])
+    );
+    assert!(
+        doc["summary"]["next"]
+            .as_str()
+            .unwrap()
+            .contains("bitrate 500000 sample-point 0.8 dbitrate 2000000"),
+        "{doc}"
+    );
+    // Still at the old rates until the power cycle (4 s after the simulator started).
+    assert_eq!(sim.json(&["status", "1"])[0]["id"], 1);
+    std::thread::sleep(Duration::from_millis(4500));
+    let r = sim.whj(&["status", "1"]);
+    assert_eq!(r.code, Some(3), "{r:#?}");
+    assert_eq!(sim.json(&["status", "2"])[0]["id"], 2);
+}

@@ -158,6 +158,12 @@ CALLS: list[tuple[str, tuple[Any, ...], dict[str, Any], dict[str, Any]]] = [
     ("whj.backup", (2,), {}, {"op": "whj.backup", "joint": 2}),
     ("whj.defaults", (2,), {}, {"op": "whj.defaults", "joint": 2}),
     ("whj.end_board", ("status",), {}, {"op": "whj.end-board", "action": "status"}),
+    (
+        "whj.set_rates",
+        ("1", 1000000, 5000000),
+        {"confirm": True},
+        {"op": "whj.set-rates", "joints": "1", "bitrate": 1000000, "dbitrate": 5000000, "confirm": True},
+    ),
     ("whj.diff", (2,), {"other": 1}, {"op": "whj.diff", "joint": 2, "other": 1}),
     (
         "whj.restore",
@@ -197,6 +203,7 @@ SETUP: dict[str, list[dict[str, Any]]] = {
     "whj.current": [{"op": "whj.mode", "joints": "1", "mode": "current"}],
     "whj.save": [{"op": "whj.disable", "joints": "4"}],
     "whj.restore": [{"op": "whj.disable", "joints": "2"}],
+    "whj.set-rates": [{"op": "whj.disable", "joints": "1"}],
 }
 
 # Fields measured on the wall clock (round trips, run times): the same request gives other

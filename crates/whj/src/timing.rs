@@ -41,6 +41,32 @@ impl BitRates {
     }
 }
 
+/// The arbitration bit rates a joint can be set to, by their code in register 0x08
+/// (`SYS_BPS_CANFD_BRT`): 0 = 250 kbit/s, 1 = 500 kbit/s, 2 = 1 Mbit/s.
+pub const ARBITRATION_RATES: [u32; 3] = [250_000, 500_000, 1_000_000];
+/// The data bit rates a joint can be set to, by their code in register 0x09
+/// (`SYS_BPS_CANFD_DATA`): 0 = 250k, 1 = 500k, 2 = 1M, 3 = 2M, 4 = 4M, 5 = 5M.
+pub const DATA_RATES: [u32; 6] = [250_000, 500_000, 1_000_000, 2_000_000, 4_000_000, 5_000_000];
+
+impl BitRates {
+    /// The rates of the codes in registers 0x08 / 0x09; `None` for a code no rate has.
+    pub fn of_codes(arbitration: u16, data: u16) -> Option<Self> {
+        let nominal = *ARBITRATION_RATES.get(usize::from(arbitration))?;
+        let data = *DATA_RATES.get(usize::from(data))?;
+        Self::new(nominal, data)
+    }
+
+    /// The codes of these rates in registers 0x08 / 0x09; `None` for rates a joint
+    /// cannot be set to.
+    pub fn codes(self) -> Option<(u16, u16)> {
+        let a = ARBITRATION_RATES
+            .iter()
+            .position(|&r| r == self.nominal.get())?;
+        let d = DATA_RATES.iter().position(|&r| r == self.data.get())?;
+        Some((u16::try_from(a).ok()?, u16::try_from(d).ok()?))
+    }
+}
+
 impl Default for BitRates {
     fn default() -> Self {
         Self::WHJ

@@ -550,6 +550,17 @@ class WhjOps:
         check: bool = ...,
     ) -> Report:
         """The request ``whj.set-id``."""
+    def set_rates(
+        self,
+        joints: str | Sequence[int],
+        bitrate: int,
+        dbitrate: int,
+        *,
+        bus: str | None = ...,
+        confirm: bool | None = ...,
+        check: bool = ...,
+    ) -> Report:
+        """The request ``whj.set-rates``."""
     def speed(
         self,
         joint: int,

@@ -734,6 +734,11 @@ fn run_whj(
         }
         J::Registers => registers_report(op),
         J::EndBoard(job) => end_board_report(bus, op, name, *job),
+        J::SetRates(ids, rates) => {
+            let mut out = device_report(op, name, &hops::rates::set_rates(bus, ids, *rates)?);
+            out.summary = Some(json!({ "next": hops::rates::next_steps(name, *rates) }));
+            out
+        }
         J::Backup(id) | J::Defaults(id) => {
             let s = if matches!(p.job, J::Defaults(_)) {
                 hops::settings::defaults(bus, *id)?

@@ -86,6 +86,7 @@ impl Request {
             | Self::WhjSave(_)
             | Self::WhjWrite(_)
             | Self::WhjSetId(_)
+            | Self::WhjSetRates(_)
             | Self::WhjRestore(_)
             | Self::WckRestore(_)
             // wCK servos made passive while the joints are moved by hand.

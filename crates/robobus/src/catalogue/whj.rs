@@ -19,9 +19,11 @@ use crate::ops::whj::{self as ops, EndBoardArg, MoveArgs, ServoLoop, TargetArgs,
 use crate::whj::JointBusConfig;
 
 pub(crate) mod end_board;
+mod rates;
 mod settings;
 
 pub use end_board::{EndBoard, EndBoardAction, IoMode};
+pub use rates::SetRates;
 pub(crate) use settings::DiffWith;
 pub use settings::{Backup, Defaults, Diff, Restore};
 
@@ -365,6 +367,7 @@ pub(crate) enum Job {
     Backup(JointId),
     Defaults(JointId),
     EndBoard(end_board::EndBoardJob),
+    SetRates(Vec<JointId>, robobus_whj::timing::BitRates),
     Diff(JointId, DiffWith),
     Restore(JointId, Box<ops::settings::Settings>),
     SetId(JointId, JointId),
@@ -576,6 +579,7 @@ fn prepare_steps(req: &super::Request, dry_run: bool) -> R<Prepared> {
         Q::WhjBackup(r) => settings::backup(r)?,
         Q::WhjDefaults(r) => settings::defaults(r)?,
         Q::WhjEndBoard(r) => end_board::end_board(r)?,
+        Q::WhjSetRates(r) => rates::set_rates(r)?,
         Q::WhjDiff(r) => settings::diff(r)?,
         Q::WhjRestore(r) => settings::restore(r)?,
         Q::WhjInfo(r) => {

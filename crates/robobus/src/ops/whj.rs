@@ -161,6 +161,7 @@ pub mod broadcast;
 mod checks;
 mod joints;
 mod motion;
+pub mod rates;
 mod registers;
 pub mod settings;
 mod stream;

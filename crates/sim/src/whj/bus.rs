@@ -149,6 +149,17 @@ impl WhjBus {
         self.end_board.as_mut()
     }
 
+    /// The bus's bit rates (what the host's adapter is set to).
+    pub const fn rates(&self) -> BitRates {
+        self.rates
+    }
+
+    /// Sets the bus to other bit rates, as reconfiguring the host's adapter does: from now
+    /// on only the joints at these rates hear and answer.
+    pub fn set_rates(&mut self, rates: BitRates) {
+        self.rates = rates;
+    }
+
     /// Use other bit rates (default 1 Mbit/s nominal, 5 Mbit/s data).
     #[must_use]
     pub fn with_rates(mut self, rates: BitRates) -> Self {
@@ -305,7 +316,8 @@ impl WhjBus {
             });
         }
         for i in 0..self.joints.len() {
-            if wire.source == Node::Joint(i) {
+            // A joint at other bit rates than the bus's hears only noise.
+            if wire.source == Node::Joint(i) || self.joints[i].rates() != Some(self.rates) {
                 continue;
             }
             if let Some(reply) = self.joints[i].handle(&wire.frame, wire.end) {

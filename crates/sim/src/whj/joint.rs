@@ -161,6 +161,9 @@ pub struct SimJoint {
     ram: [u16; TABLE_LEN],
     phase: Phase,
     bus_id: u8,
+    /// The bit rates it talks at: the flash's 0x08 / 0x09, taken at power-up (`None`: a
+    /// code no rate has, and it hears nothing).
+    rates: Option<robobus_whj::timing::BitRates>,
     enabled: bool,
     errors: u16,
     zero_offset: i64,
@@ -199,6 +202,7 @@ impl SimJoint {
         let rng = ChaCha8Rng::seed_from_u64(seed ^ (u64::from(cfg.id) << 32));
         let mut joint = Self {
             bus_id: cfg.id,
+            rates: Some(robobus_whj::timing::BitRates::WHJ),
             cfg,
             rng,
             ram: flash.words,
@@ -247,6 +251,12 @@ impl SimJoint {
     /// Number of frames the joint has answered.
     pub fn frames_handled(&self) -> u64 {
         self.frames_handled
+    }
+
+    /// The bit rates it talks at (taken from flash at power-up): a bus at other rates is
+    /// noise to it, and it answers nothing there.
+    pub const fn rates(&self) -> Option<robobus_whj::timing::BitRates> {
+        self.rates
     }
 
     /// Switch the supply off and on again at `now`: RAM is lost, flash survives, the joint
@@ -421,6 +431,10 @@ impl SimJoint {
         self.ram = self.flash.words;
         self.zero_offset = self.flash.zero_offset;
         self.bus_id = u8::try_from(self.flash.words[reg::SYS_ID.index()]).unwrap_or(1);
+        self.rates = robobus_whj::timing::BitRates::of_codes(
+            self.flash.words[reg::SYS_BPS_CANFD_BRT.index()],
+            self.flash.words[reg::SYS_BPS_CANFD_DATA.index()],
+        );
         let delayed =
             self.flash.words[reg::ON_DELAY.index()] == 0 && self.has_feature(Feature::PowerUpDelay);
         let delay = if delayed {
