@@ -296,6 +296,10 @@ enum WhjCommand {
     },
     /// List the register table: address, name, unit, range, access, meaning.
     Registers,
+    /// The bus's CAN interface as the kernel reports it: the controller's state
+    /// (error-active / -warning / -passive, bus-off), error counters, state changes and
+    /// restarts, and what to do. Nothing is sent on the bus.
+    CanHealth,
     /// Back up every setting of a joint (the registers it keeps in flash: limits, gains,
     /// modes at power-up, ID and bit rates) to a JSON settings file, with its model and
     /// firmware.
@@ -815,6 +819,7 @@ fn request(args: &Args) -> anyhow::Result<catalogue::Request> {
             })
         }
         WhjCommand::Registers => Q::WhjRegisters(cw::Registers { bus: None }),
+        WhjCommand::CanHealth => Q::WhjCanHealth(cw::CanHealth { bus: None }),
         WhjCommand::Backup { joint: j, .. } => Q::WhjBackup(cw::Backup {
             bus: None,
             joint: joint(*j),

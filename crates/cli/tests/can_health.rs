@@ -177,6 +177,27 @@ fn inner_can_health() {
     until("error-active again", || {
         health::read("can0").unwrap().state == Some(ControllerState::ErrorActive)
     });
+    // The catalogue's whj.can-health on a station's CAN FD bus (vcan0: no controller).
+    let mut station = robobus::catalogue::Station::new();
+    station.add_whj(
+        "vcan0",
+        robobus::catalogue::station::open_whj("vcan0", None).unwrap(),
+    );
+    let request: robobus::catalogue::Request =
+        serde_json::from_value(serde_json::json!({"op": "whj.can-health"})).unwrap();
+    let r =
+        robobus::catalogue::run(&station, &request, &mut robobus::ops::Control::none()).unwrap();
+    let row = serde_json::to_value(&r).unwrap()["results"][0].clone();
+    assert_eq!(
+        (row["id"].as_str(), row["kind"].as_str()),
+        (Some("vcan0"), Some("vcan")),
+        "{row}"
+    );
+    assert_eq!(
+        (row["up"].as_bool(), row["state"].is_null()),
+        (Some(true), true),
+        "{row}"
+    );
     let _ = attach.stdin.take().map(|mut s| s.write_all(b"\n"));
     let _ = attach.kill();
     let _ = attach.wait();

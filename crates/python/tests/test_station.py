@@ -158,6 +158,7 @@ CALLS: list[tuple[str, tuple[Any, ...], dict[str, Any], dict[str, Any]]] = [
     ("whj.backup", (2,), {}, {"op": "whj.backup", "joint": 2}),
     ("whj.defaults", (2,), {}, {"op": "whj.defaults", "joint": 2}),
     ("whj.end_board", ("status",), {}, {"op": "whj.end-board", "action": "status"}),
+    ("whj.can_health", (), {}, {"op": "whj.can-health"}),
     (
         "whj.set_rates",
         ("1", 1000000, 5000000),

@@ -110,3 +110,35 @@ fn new_bit_rates_take_at_power_up_and_the_joints_then_answer_only_there() {
         assert_eq!(raw, [1, 3], "{back:#}");
     }
 }
+
+#[test]
+fn a_bus_without_a_can_controller_has_no_can_health() {
+    let (link, _sim) = sim_link(robobus_sim::whj::WhjBus::chain(
+        1..=1,
+        robobus_sim::whj::WhjModel::Whj30,
+        5,
+    ));
+    let mut station = Station::new();
+    station.add_whj(
+        "sim",
+        robobus::whj::JointBus::open_with(link, virtual_config()).unwrap(),
+    );
+    let r = run(&station, json!({"op": "whj.can-health"})).unwrap();
+    let row = &r["results"][0];
+    assert_eq!(
+        (row["id"].as_str(), row["state"].is_null()),
+        (Some("sim"), true),
+        "{r:#}"
+    );
+    assert!(
+        row["advice"]
+            .as_str()
+            .unwrap()
+            .contains("no CAN controller"),
+        "{r:#}"
+    );
+    assert_eq!(r["failed"], Value::Null, "{r:#}");
+    // A telemetry stream takes it (read-only), as it takes the other readings.
+    let request: Request = serde_json::from_value(json!({"op": "whj.can-health"})).unwrap();
+    assert_eq!(request.effect(), robobus::catalogue::Effect::Read);
+}

@@ -381,6 +381,13 @@ class WhjOps:
         check: bool = ...,
     ) -> Report:
         """The request ``whj.backup``."""
+    def can_health(
+        self,
+        *,
+        bus: str | None = ...,
+        check: bool = ...,
+    ) -> Report:
+        """The request ``whj.can-health``."""
     def clear(
         self,
         joints: str | Sequence[int],

@@ -196,6 +196,9 @@ pub fn run_with(
             if matches!(p.job, whj::Job::Registers) {
                 return Ok(registers_report(&op));
             }
+            if matches!(p.job, whj::Job::CanHealth) {
+                return can_health_report(station, request.bus(), &op);
+            }
             let port = station.whj(request.bus())?;
             run_whj(&port, &op, &p, control)
         }
@@ -245,6 +248,50 @@ pub fn run_with(
             _ => robot_report(station, &op),
         },
     }
+}
+
+/// `whj.can-health` on the station's WHJ bus `bus`: its interface is the bus's address
+/// (`can0`) or, for a robot file's bus, the file's `iface`. A bus without one (UDP, a
+/// simulator) is a row without a controller that says so.
+fn can_health_report(station: &Station, bus: Option<&str>, op: &str) -> Result<Report, OpError> {
+    use robobus_link::socketcan::health::{self, HealthError};
+    let port = station.whj(bus)?;
+    let name = port.name();
+    let from_file = station.robot().and_then(|r| match r.buses.get(name) {
+        Some(crate::robot::BusConfig::WhjCan { iface, .. }) => Some(iface.clone()),
+        _ => None,
+    });
+    let iface = match (name.parse::<robobus_link::FrameLinkSpec>(), from_file) {
+        (_, Some(iface)) | (Ok(robobus_link::FrameLinkSpec::SocketCan(iface)), None) => Some(iface),
+        _ => None,
+    };
+    let none = || {
+        json!({
+            "id": name,
+            "kind": Value::Null,
+            "state": Value::Null,
+            "advice": format!(
+                "{name} is not a CAN interface (a UDP or simulated bus): it has no CAN \
+                 controller"
+            ),
+        })
+    };
+    let row = match iface.as_deref().map(health::read) {
+        None | Some(Err(HealthError::NoSuchInterface(_) | HealthError::BadName(_))) => none(),
+        Some(Err(e)) => {
+            return Err(OpError::Device(format!(
+                "{}: {e}",
+                iface.as_deref().unwrap_or(name)
+            )));
+        }
+        Some(Ok(h)) => {
+            let mut row = serde_json::to_value(&h).unwrap_or(Value::Null);
+            row["advice"] = h.advice().map_or(Value::Null, Value::from);
+            row["id"] = Value::from(h.iface.clone());
+            row
+        }
+    };
+    Ok(report(op, name, vec![row]))
 }
 
 /// `whj.end-board`: one row, `end-board`: what the board answered, or its failure.
@@ -734,6 +781,8 @@ fn run_whj(
         }
         J::Registers => registers_report(op),
         J::EndBoard(job) => end_board_report(bus, op, name, *job),
+        // Run by `can_health_report` before the bus is driven.
+        J::CanHealth => report(op, name, Vec::new()),
         J::SetRates(ids, rates) => {
             let mut out = device_report(op, name, &hops::rates::set_rates(bus, ids, *rates)?);
             out.summary = Some(json!({ "next": hops::rates::next_steps(name, *rates) }));

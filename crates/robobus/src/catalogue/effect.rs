@@ -107,6 +107,7 @@ impl Request {
             | Self::WhjSample(_)
             | Self::WhjBackup(_)
             | Self::WhjDefaults(_)
+            | Self::WhjCanHealth(_)
             | Self::WhjDiff(_)
             | Self::WckBackup(_)
             | Self::WckDiff(_)

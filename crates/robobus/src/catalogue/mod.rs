@@ -73,6 +73,7 @@
 //! | `whj.defaults` | `joint` | model, firmware, settings count; `summary` is the settings file of the values the vendor documents for them (for `whj.restore`; not the factory-tuned gains and limits, nor the ID and bit rates) | - |
 //! | `whj.end-board` | `action` (`status`, `power`, `io`, `force`), `volts` (0 / 12 / 24), `channel` (1 / 2), `mode` (`input` / `output`), `confirm` | one row `end-board`: status (`model`, `version`, `tool_volts`, the channels' direction and level, buttons, gripper / hand in position, `error`), a write's `register`, `read_back`, `meaning`, or the force sensor's raw `fx`..`mz` | register (power on, a channel's direction) |
 //! | `whj.set-rates` | `joints`, `bitrate` (250k / 500k / 1M), `dbitrate` (250k..5M, ≥ bitrate), `confirm` | per joint: `before`, `after` (bit/s, read back), `saved`; `summary.next`: power-cycle, set the adapter, and how to find a lost joint | register |
+//! | `whj.can-health` | - | one row, the interface: `kind`, `up`, `carrier`, `state` (`error-active` ... `bus-off`), `tx_errors`, `rx_errors`, `restart_ms`, `bitrate`, `data_bitrate`, `stats` (state changes, restarts), frame error and drop counts, `advice`; a bus without a CAN controller (UDP, simulated) is a row that says so | - |
 //! | `whj.diff` | `joint`, `settings` (a settings file's text) or `other` (a joint) | one row per setting that differs (`a`, `b`, values and unit) | - |
 //! | `whj.restore` | `joint`, `settings` | one row per differing setting: written or skipped (the bus identity is never written); `summary`: `written`, `saved`, `differ_after` | flash (and the `confirm` registers the file sets) |
 //! | `robot.sample` | - | per joint of the station's robot file, by name: `position_deg`, `speed_deg_s`, `current_ma`, `load`, `enabled`, `error` | - |
@@ -223,6 +224,8 @@ pub enum Request {
     WhjEndBoard(whj::EndBoard),
     #[serde(rename = "whj.set-rates")]
     WhjSetRates(whj::SetRates),
+    #[serde(rename = "whj.can-health")]
+    WhjCanHealth(whj::CanHealth),
     #[serde(rename = "whj.diff")]
     WhjDiff(whj::Diff),
     #[serde(rename = "whj.restore")]
@@ -288,6 +291,7 @@ macro_rules! each_variant {
             Request::WhjDefaults($r) => $e,
             Request::WhjEndBoard($r) => $e,
             Request::WhjSetRates($r) => $e,
+            Request::WhjCanHealth($r) => $e,
             Request::WhjDiff($r) => $e,
             Request::WhjRestore($r) => $e,
             // A robot request acts on the station's robot file, not on one bus.

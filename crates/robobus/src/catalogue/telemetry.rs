@@ -257,13 +257,14 @@ impl Telemetry {
                 | Request::WckStatus(_)
                 | Request::WhjSample(_)
                 | Request::WhjStatus(_)
+                | Request::WhjCanHealth(_)
                 | Request::RobotSample(_)
         ) {
             return Err(OpError::invalid(
                 "request",
                 request.op(),
                 "a telemetry stream takes a reading request only (wck.sample, wck.status, \
-                 whj.sample, whj.status, robot.sample)",
+                 whj.sample, whj.status, whj.can-health, robot.sample)",
             ));
         }
         if !(rate_hz.is_finite() && RATE_HZ.contains(&rate_hz)) {

@@ -23,7 +23,7 @@ mod rates;
 mod settings;
 
 pub use end_board::{EndBoard, EndBoardAction, IoMode};
-pub use rates::SetRates;
+pub use rates::{CanHealth, SetRates};
 pub(crate) use settings::DiffWith;
 pub use settings::{Backup, Defaults, Diff, Restore};
 
@@ -368,6 +368,7 @@ pub(crate) enum Job {
     Defaults(JointId),
     EndBoard(end_board::EndBoardJob),
     SetRates(Vec<JointId>, robobus_whj::timing::BitRates),
+    CanHealth,
     Diff(JointId, DiffWith),
     Restore(JointId, Box<ops::settings::Settings>),
     SetId(JointId, JointId),
@@ -745,6 +746,15 @@ fn prepare_steps(req: &super::Request, dry_run: bool) -> R<Prepared> {
         }
         Q::WhjWrite(r) => return write(r, dry_run),
         Q::WhjRegisters(_) => prepared(WhjSteps::default(), Job::Registers),
+        Q::WhjCanHealth(_) => {
+            let mut p = WhjSteps::default();
+            p.notes.push(
+                "reads the CAN interface's state from the kernel (netlink); nothing is sent on \
+                 the bus"
+                    .into(),
+            );
+            prepared(p, Job::CanHealth)
+        }
         Q::WhjSetId(r) => {
             let (j, new_id) = (joint("<JOINT>", r.joint)?, joint("<NEW_ID>", r.new_id)?);
             let (frames, note) = ops::plan_set_id(j, new_id)?;

@@ -56,3 +56,13 @@ pub(super) fn set_rates(r: &SetRates) -> R<Prepared> {
     pr.confirmed = r.confirm;
     Ok(pr)
 }
+
+request!(
+    /// `whj.can-health`: the bus's CAN interface as the kernel reports it (netlink): the
+    /// controller's state (error-active, error-warning, error-passive, bus-off), its error
+    /// counters, its state changes and restarts, and the advice for bus-off and
+    /// error-passive. Nothing is sent on the bus; a UDP or simulated bus is a row without
+    /// a controller.
+    /// A telemetry stream can take it.
+    CanHealth {}
+);
