@@ -357,6 +357,33 @@ fn check_steps(
     Ok(())
 }
 
+/// Refuses the run, before anything moves, when a WHJ joint of the trajectory is not
+/// enabled in position mode (the wCK servos would otherwise move without it).
+fn ready(
+    station: &Station,
+    config: &RobotConfig,
+    traj: &Trajectory,
+    index: &[usize],
+) -> Result<(), OpError> {
+    for (name, &i) in traj.joints().iter().zip(index) {
+        let j = &config.joints[i];
+        if config
+            .buses
+            .get(&j.bus)
+            .is_some_and(crate::robot::BusConfig::is_wck)
+        {
+            continue;
+        }
+        let port = station.whj(Some(&j.bus))?;
+        let id = robobus_whj::JointId::new(j.id)
+            .map_err(|e| OpError::invalid("robot", name, e.to_string()))?;
+        let joint = port.bus().joint(id)?;
+        crate::ops::whj::require_ready(&joint, ServoLoop::Position, "a trajectory")
+            .map_err(|e| OpError::Refused(format!("{name}: {e}; nothing was moved")))?;
+    }
+    Ok(())
+}
+
 /// Where each of the trajectory's joints is now (joint degrees, by column); refused when
 /// one does not answer or stands outside its soft limits.
 fn start(
@@ -426,6 +453,7 @@ pub(super) fn run_play(
         .map_err(|e| OpError::invalid("trajectory", "(file)", e.to_string()))?;
     let (groups, clock) = groups(station, &config, &index)?;
     let from = start(station, &config, &traj, &index)?;
+    ready(station, &config, &traj, &index)?;
     // The lead-in: as long as the slowest joint needs at its max_velocity.
     let lead_in = traj
         .first()
@@ -822,6 +850,12 @@ mod tests {
         // Refused before anything is sent: a joint not in the file, outside its limits,
         // too fast, silent.
         wck.with_bus(|b| b.servo_mut(6).unwrap().power_off(Duration::ZERO));
+        run(
+            &station,
+            &req(json!({"op": "whj.disable", "joints": "3"})),
+            &mut Control::none(),
+        )
+        .unwrap();
         for (text, kind, says) in [
             (
                 "time_s,knee\n0,0\n",
@@ -839,6 +873,12 @@ mod tests {
                 "faster than its max_velocity",
             ),
             ("time_s,s6\n0,0\n", ErrorKind::Refused, "s6 did not answer"),
+            // The wCK servo would move without the disabled WHJ joint: neither does.
+            (
+                "time_s,s4,j3\n0,10,0\n",
+                ErrorKind::Refused,
+                "j3: joint 3 is disabled",
+            ),
         ] {
             let request = req(json!({"op": "robot.play", "trajectory": text}));
             let before = wck.with_bus(|b| b.servo(4).unwrap().position());
