@@ -325,7 +325,7 @@ pub(super) fn run_teleop(
         let n = (s * r.rate_hz).ceil() as u64;
         n
     });
-    let start = run.pace.now();
+    let start = run.clock.now();
     let mut last_complete = start;
     let mut tick = 0u64;
     let mut interrupted = false;
@@ -334,17 +334,17 @@ pub(super) fn run_teleop(
         if end.is_some_and(|e| due.duration_since(start) >= e) {
             break;
         }
-        let pace = &run.pace;
+        let clock = &run.clock;
         if !control.sleep_with(due, |until| {
             if let Some(t) = until {
-                pace.sleep_until(t);
+                clock.sleep_until(t);
             }
-            pace.now()
+            clock.now()
         }) {
             interrupted = true;
             break;
         }
-        let t0 = run.pace.now();
+        let t0 = run.clock.now();
         if run.cycle(station, r, t0, t0.duration_since(start).as_secs_f64()) {
             last_complete = t0;
         } else if t0.duration_since(last_complete) >= timeout {
@@ -353,13 +353,13 @@ pub(super) fn run_teleop(
         }
         control.report(&Progress::new("teleop", run.summary.cycles, total));
         tick = next_tick(
-            run.pace.now() - start,
+            run.clock.now() - start,
             period,
             tick,
             &mut run.summary.overruns,
         );
     }
-    let elapsed = run.pace.now().saturating_duration_since(start);
+    let elapsed = run.clock.now().saturating_duration_since(start);
     Ok(run.finish(r, elapsed, interrupted && end.is_some()))
 }
 
@@ -431,7 +431,7 @@ impl TeleopSummary {
 struct Run {
     follower: Follower,
     sampler: RobotSampler,
-    pace: BusClock,
+    clock: BusClock,
     /// Each pair's leader: its index among the leader joints.
     pair_leader: Vec<usize>,
     /// Each pair's range in joint degrees: its own limits within the follower's.
@@ -514,7 +514,7 @@ impl Run {
         Ok(Self {
             follower,
             sampler,
-            pace: clock,
+            clock,
             pair_leader,
             ranges,
             rows,
@@ -575,7 +575,7 @@ impl Run {
             }
         };
         let done = self.follower.apply(station, &plan);
-        let took = self.pace.now().saturating_duration_since(t0);
+        let took = self.clock.now().saturating_duration_since(t0);
         self.worst = self.worst.max(took);
         if self.latencies.len() == LATENCY_WINDOW {
             self.latencies.pop_front();
