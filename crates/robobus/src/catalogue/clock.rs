@@ -64,8 +64,13 @@ pub(crate) struct BusClock {
 impl BusClock {
     /// The clock of `buses` (none: the wall clock), starting now.
     pub(crate) fn new(buses: Vec<ClockBus>) -> Self {
+        // One bus on the wall clock (hardware, a live simulator) puts them all on it.
         let wall = buses.is_empty() || buses.iter().any(|b| !b.virtual_time());
-        let origin = buses.first().map_or_else(Instant::now, ClockBus::now);
+        let origin = if wall {
+            Instant::now()
+        } else {
+            buses.first().map_or_else(Instant::now, ClockBus::now)
+        };
         let buses = buses
             .into_iter()
             .map(|b| {
@@ -88,10 +93,7 @@ impl BusClock {
     /// Now: on virtual clocks the furthest any bus has gone, every other brought up to it.
     pub(crate) fn now(&self) -> Instant {
         if self.wall {
-            return self
-                .buses
-                .first()
-                .map_or_else(Instant::now, |(b, _)| b.now());
+            return Instant::now();
         }
         let elapsed = self.elapsed_of_buses();
         for (b, o) in &self.buses {
@@ -112,11 +114,7 @@ impl BusClock {
     pub(crate) fn sleep_until(&self, t: Instant) {
         let since = t.saturating_duration_since(self.origin);
         if self.wall {
-            if let Some((b, o)) = self.buses.first() {
-                b.sleep_until(*o + since);
-            } else {
-                std::thread::sleep(t.saturating_duration_since(Instant::now()));
-            }
+            std::thread::sleep(t.saturating_duration_since(Instant::now()));
             return;
         }
         for (b, o) in &self.buses {
