@@ -1086,7 +1086,7 @@ fn whj_e2e_set_rates_then_the_joint_is_silent_at_the_old_rates() {
         doc["summary"]["next"]
             .as_str()
             .unwrap()
-            .contains("bitrate 500000 sample-point 0.8 dbitrate 2000000"),
+            .contains("robobus sim whj --bitrate 500000 --dbitrate 2000000"),
         "{doc}"
     );
     // Still at the old rates until the power cycle (4 s after the simulator started).

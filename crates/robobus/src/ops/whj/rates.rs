@@ -67,18 +67,28 @@ pub fn plan_set_rates(id: JointId, rates: BitRates) -> Result<Vec<Request>, OpEr
     ])
 }
 
-/// What to do after the change, for `iface` (the adapter) and the new `rates`.
+/// What to do after the change on bus `bus` (a SocketCAN interface's name, or a UDP /
+/// simulated bus's) for the new `rates`.
 #[must_use]
-pub fn next_steps(iface: &str, rates: BitRates) -> String {
+pub fn next_steps(bus: &str, rates: BitRates) -> String {
     let (b, d) = (rates.nominal.get(), rates.data.get());
+    let adapter = match bus.parse::<robobus_link::FrameLinkSpec>() {
+        Ok(robobus_link::FrameLinkSpec::SocketCan(iface)) => format!(
+            "set the adapter to the new rates (`sudo ip link set {iface} down && sudo ip link \
+             set {iface} type can bitrate {b} sample-point 0.8 dbitrate {d} dsample-point 0.75 \
+             fd on && sudo ip link set {iface} up`)"
+        ),
+        _ => format!(
+            "set the bus to the new rates (a simulator: `robobus sim whj --bitrate {b} \
+             --dbitrate {d}`)"
+        ),
+    };
     format!(
         "the joints answer at the old rates until they are power-cycled, and from then on \
-         only at {b} / {d} bit/s: power-cycle them, then set the adapter to the new rates \
-         (`sudo ip link set {iface} down && sudo ip link set {iface} type can bitrate {b} \
-         sample-point 0.8 dbitrate {d} dsample-point 0.75 fd on && sudo ip link set {iface} \
-         up`) and `robobus whj --bus {iface} scan` finds them. Every joint on a bus must be \
-         at the bus's rates. A joint that is lost answers only at the rates it saved: set \
-         the adapter to each pair in turn (arbitration {}; data {}) and scan",
+         only at {b} / {d} bit/s: power-cycle them, then {adapter}, and `robobus whj --bus \
+         {bus} scan` finds them. Every joint on a bus must be at the bus's rates. A joint that \
+         is lost answers only at the rates it saved: set the bus to each pair in turn \
+         (arbitration {}; data {}) and scan",
         join(&ARBITRATION_RATES),
         join(&DATA_RATES)
     )
