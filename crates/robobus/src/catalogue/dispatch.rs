@@ -13,7 +13,7 @@ use super::station::{Station, WckPort, WhjPort};
 use super::{Family, Report, Request, wck, whj};
 use crate::ops::wck as wops;
 use crate::ops::whj as hops;
-use crate::ops::{Control, DeviceResult, ErrorKind, OpError, worst_kind};
+use crate::ops::{Control, DeviceResult, ErrorKind, Failure, OpError, worst_kind};
 use crate::whj::JointBus;
 
 /// Frames without a reply at the end of a wave after which the joint counts as gone (a
@@ -312,7 +312,7 @@ fn end_board_report(
     };
     let result = match value {
         Ok(v) => DeviceResult::ok("end-board", v),
-        Err(e) => DeviceResult::failed("end-board", eb::failure(&e)),
+        Err(e) => DeviceResult::failed("end-board", Failure::from(&e)),
     };
     device_report(op, name, &[result])
 }

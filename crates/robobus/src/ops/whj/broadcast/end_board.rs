@@ -11,8 +11,8 @@ use robobus_whj::{Address, CanFrame, Request};
 use serde::Serialize;
 
 use super::{EndBoardStatus, Slot, collect, silent};
+use crate::ops::OpError;
 use crate::ops::whj::whj;
-use crate::ops::{ErrorKind, Failure, OpError};
 use crate::whj::JointBus;
 
 /// The board's model register.
@@ -114,7 +114,7 @@ fn exchange(bus: &JointBus, op: EndBoardOp, what: &str) -> Result<EndBoardReply,
     match collect(bus, sent, &[Slot::EndBoard], credit).pop() {
         Some(Ok(Some(r))) => Ok(r),
         Some(Err(f)) => Err(OpError::Device(f.error)),
-        _ => Err(OpError::Device(silent(Slot::EndBoard, what, bus).error)),
+        _ => Err(OpError::NoDevice(silent(Slot::EndBoard, what, bus).error)),
     }
 }
 
@@ -259,12 +259,4 @@ pub fn force(bus: &JointBus) -> Result<Force, OpError> {
         my: v(4),
         mz: v(5),
     })
-}
-
-/// The failure of the board as a report row says it (no-device for silence).
-pub fn failure(e: &OpError) -> Failure {
-    match e {
-        OpError::Device(m) if m.contains("no reply") => Failure::of(ErrorKind::NoDevice, m),
-        e => Failure::from(e),
-    }
 }
