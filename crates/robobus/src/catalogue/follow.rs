@@ -97,10 +97,7 @@ impl Follower {
         let joints = chosen
             .into_iter()
             .map(|j| {
-                let wck = robot
-                    .buses
-                    .get(&j.bus)
-                    .is_some_and(crate::robot::BusConfig::is_wck);
+                let wck = robot.is_wck(j);
                 FollowedJoint {
                     name: j.name.clone(),
                     family: if wck { Family::Wck } else { Family::Whj },

@@ -362,11 +362,7 @@ impl Guard {
             .iter()
             .filter_map(|p| robot.joints.iter().find(|j| j.name == p.follower))
             .map(|j| GuardedDevice {
-                family: if robot
-                    .buses
-                    .get(&j.bus)
-                    .is_some_and(crate::robot::BusConfig::is_wck)
-                {
+                family: if robot.is_wck(j) {
                     Family::Wck
                 } else {
                     Family::Whj

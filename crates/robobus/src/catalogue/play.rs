@@ -367,11 +367,7 @@ fn ready(
 ) -> Result<(), OpError> {
     for (name, &i) in traj.joints().iter().zip(index) {
         let j = &config.joints[i];
-        if config
-            .buses
-            .get(&j.bus)
-            .is_some_and(crate::robot::BusConfig::is_wck)
-        {
+        if config.is_wck(j) {
             continue;
         }
         let port = station.whj(Some(&j.bus))?;

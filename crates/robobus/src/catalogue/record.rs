@@ -325,8 +325,7 @@ impl SampleTable {
                 .joints
                 .iter()
                 .find(|j| j.name == name)
-                .and_then(|j| config.buses.get(&j.bus))
-                .is_some_and(crate::robot::BusConfig::is_wck)
+                .is_some_and(|j| config.is_wck(j))
         };
         let mut t = Self::robot(joints.iter().map(|n| (n.as_str(), is_wck(n))));
         t.commanded = true;

@@ -142,11 +142,7 @@ pub(super) fn run_calibrate(
     let config = station.robot().cloned().ok_or_else(no_robot)?;
     if r.passive {
         for j in &config.joints {
-            if config
-                .buses
-                .get(&j.bus)
-                .is_some_and(crate::robot::BusConfig::is_wck)
-            {
+            if config.is_wck(j) {
                 let port = station.wck(Some(&j.bus))?;
                 let id = robobus_wck::ServoId::new(j.id)
                     .map_err(|e| OpError::invalid("robot", &j.name, e.to_string()))?;

@@ -165,10 +165,7 @@ fn joints_of(config: &RobotConfig, r: &Teach) -> Result<Vec<Joint>, OpError> {
             })?;
             Ok(Joint {
                 name: n.clone(),
-                wck: config
-                    .buses
-                    .get(&j.bus)
-                    .is_some_and(crate::robot::BusConfig::is_wck),
+                wck: config.is_wck(j),
                 bus: j.bus.clone(),
                 id: j.id,
             })

@@ -486,11 +486,7 @@ impl Run {
         }
         if r.passive_leader {
             for j in &led.joints {
-                if led
-                    .buses
-                    .get(&j.bus)
-                    .is_some_and(crate::robot::BusConfig::is_wck)
-                {
+                if led.is_wck(j) {
                     let port = station.wck(Some(&j.bus))?;
                     let id = robobus_wck::ServoId::new(j.id)
                         .map_err(|e| OpError::invalid("robot", &j.name, e.to_string()))?;

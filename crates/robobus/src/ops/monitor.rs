@@ -355,7 +355,7 @@ pub fn monitored_joints(config: &RobotConfig) -> Vec<MonitoredJoint> {
         .iter()
         .map(|j| MonitoredJoint {
             name: j.name.clone(),
-            wck: config.buses.get(&j.bus).is_some_and(BusConfig::is_wck),
+            wck: config.is_wck(j),
         })
         .collect()
 }

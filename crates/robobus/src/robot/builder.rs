@@ -210,7 +210,7 @@ fn build_joint(
         value,
         expected,
     };
-    let device = if config.buses.get(&j.bus).is_some_and(BusConfig::is_wck) {
+    let device = if config.is_wck(j) {
         let id = ServoId::new(j.id).map_err(|e| invalid("id", j.id.to_string(), e.to_string()))?;
         Device::Wck {
             bus,

@@ -322,6 +322,12 @@ const fn default_watchdog() -> f64 {
 }
 
 impl RobotConfig {
+    /// Whether `joint` is on a wCK bus of this file (else a WHJ one).
+    #[must_use]
+    pub fn is_wck(&self, joint: &JointConfig) -> bool {
+        self.buses.get(&joint.bus).is_some_and(BusConfig::is_wck)
+    }
+
     /// The joints' names, as a list for a message (`hip, knee, ankle`).
     #[must_use]
     pub fn joint_names(&self) -> String {
