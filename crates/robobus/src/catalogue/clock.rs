@@ -85,6 +85,25 @@ impl BusClock {
         }
     }
 
+    /// The clock of `config`'s buses (each opened on the station under its name).
+    pub(crate) fn of(
+        station: &super::station::Station,
+        config: &crate::robot::RobotConfig,
+    ) -> Result<Self, crate::ops::OpError> {
+        let buses = config
+            .buses
+            .iter()
+            .map(|(n, b)| {
+                Ok(if b.is_wck() {
+                    ClockBus::Wck(station.wck(Some(n))?)
+                } else {
+                    ClockBus::Whj(station.whj(Some(n))?)
+                })
+            })
+            .collect::<Result<Vec<_>, crate::ops::OpError>>()?;
+        Ok(Self::new(buses))
+    }
+
     /// The buses, in the order given.
     pub(crate) fn buses(&self) -> impl Iterator<Item = &ClockBus> {
         self.buses.iter().map(|(b, _)| b)

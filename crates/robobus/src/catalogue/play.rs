@@ -19,11 +19,10 @@ use std::time::{Duration, Instant};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use super::clock::{BusClock, ClockBus};
+use super::clock::BusClock;
 use super::handles::{WckServos, WhjJoints};
 use super::station::Station;
 use crate::actuator::{JointMap, WckScale};
-use crate::ops::monitor::RobotSampler;
 use crate::ops::whj::ServoLoop;
 use crate::ops::{Control, DeviceResult, Failure, OpError, Outcome, Progress};
 use crate::robot::RobotConfig;
@@ -179,79 +178,74 @@ pub(super) struct PlayedRun {
 /// or why not.
 type Outcomes = Vec<(usize, Result<f64, Failure>)>;
 
-/// How a joint's targets and positions turn into its device's units.
-#[derive(Debug, Clone, Copy)]
-enum Units {
-    Wck(WckScale),
-    Whj(JointMap),
-}
-
-/// The joints of one bus and their handle.
+/// The joints of one bus and their handle, each by its column with how its angles turn
+/// into its device's units.
 enum Group {
-    Wck(WckServos, Vec<(usize, Units)>),
-    Whj(WhjJoints, Vec<(usize, Units)>),
+    Wck(WckServos, Vec<(usize, WckScale)>),
+    Whj(WhjJoints, Vec<(usize, JointMap)>),
 }
 
 impl Group {
-    fn columns(&self) -> &[(usize, Units)] {
+    fn columns(&self) -> Vec<usize> {
         match self {
-            Self::Wck(_, c) | Self::Whj(_, c) => c,
+            Self::Wck(_, c) => c.iter().map(|x| x.0).collect(),
+            Self::Whj(_, c) => c.iter().map(|x| x.0).collect(),
         }
     }
 
     /// Sends `targets` (joint degrees, by column) to the group's devices: each column's
     /// outcome, the position it reported in joint degrees.
     fn send(&self, targets: &[f64], torque: u8) -> Outcomes {
-        let device: Vec<f64> = self
-            .columns()
-            .iter()
-            .map(|&(c, u)| {
-                let rad = targets.get(c).copied().unwrap_or(0.0).to_radians();
-                match u {
-                    Units::Wck(s) => s.to_position(rad).map_or(-1.0, |p| f64::from(p.get())),
-                    Units::Whj(m) => m.to_device(rad).to_degrees(),
-                }
-            })
-            .collect();
+        let rad = |c: usize| targets.get(c).copied().unwrap_or(0.0).to_radians();
         let results: Result<Outcomes, OpError> = match self {
-            Self::Wck(h, cols) => h.move_to(&device, torque).map(|r| {
-                cols.iter()
-                    .zip(r)
-                    .map(|(&(c, u), d)| {
-                        let at = match (d.outcome, u) {
-                            (Outcome::Ok(reading), Units::Wck(s)) => {
-                                robobus_wck::Position::new(reading.position)
-                                    .map(|p| s.to_rad(p).to_degrees())
-                                    .map_err(|e| Failure::of(crate::ErrorKind::Device, &e))
-                            }
-                            (Outcome::Ok(_), Units::Whj(_)) => Ok(f64::NAN),
-                            (Outcome::Failed(f), _) => Err(f),
-                        };
-                        (c, at)
-                    })
-                    .collect()
-            }),
-            Self::Whj(h, cols) => h.command(ServoLoop::Position, &device).map(|r| {
-                cols.iter()
-                    .zip(r)
-                    .map(|(&(c, u), d)| {
-                        let at = match (d.outcome, u) {
-                            (Outcome::Ok(fb), Units::Whj(m)) => {
-                                Ok(m.to_joint(fb.position_deg.to_radians()).to_degrees())
-                            }
-                            (Outcome::Ok(_), Units::Wck(_)) => Ok(f64::NAN),
-                            (Outcome::Failed(f), _) => Err(f),
-                        };
-                        (c, at)
-                    })
-                    .collect()
-            }),
+            Self::Wck(h, cols) => {
+                let steps: Vec<f64> = cols
+                    .iter()
+                    .map(|&(c, s)| s.to_position(rad(c)).map_or(-1.0, |p| f64::from(p.get())))
+                    .collect();
+                h.move_to(&steps, torque).map(|r| {
+                    cols.iter()
+                        .zip(r)
+                        .map(|(&(c, s), d)| {
+                            let at = match d.outcome {
+                                Outcome::Ok(reading) => {
+                                    robobus_wck::Position::new(reading.position)
+                                        .map(|p| s.to_rad(p).to_degrees())
+                                        .map_err(|e| Failure::of(crate::ErrorKind::Device, &e))
+                                }
+                                Outcome::Failed(f) => Err(f),
+                            };
+                            (c, at)
+                        })
+                        .collect()
+                })
+            }
+            Self::Whj(h, cols) => {
+                let degrees: Vec<f64> = cols
+                    .iter()
+                    .map(|&(c, m)| m.to_device(rad(c)).to_degrees())
+                    .collect();
+                h.command(ServoLoop::Position, &degrees).map(|r| {
+                    cols.iter()
+                        .zip(r)
+                        .map(|(&(c, m), d)| {
+                            let at = match d.outcome {
+                                Outcome::Ok(fb) => {
+                                    Ok(m.to_joint(fb.position_deg.to_radians()).to_degrees())
+                                }
+                                Outcome::Failed(f) => Err(f),
+                            };
+                            (c, at)
+                        })
+                        .collect()
+                })
+            }
         };
         results.unwrap_or_else(|e| {
             let f = Failure::from(&e);
             self.columns()
-                .iter()
-                .map(|&(c, _)| (c, Err(f.clone())))
+                .into_iter()
+                .map(|c| (c, Err(f.clone())))
                 .collect()
         })
     }
@@ -262,44 +256,35 @@ impl Group {
 fn groups(
     station: &Station,
     config: &RobotConfig,
+    traj: &Trajectory,
     index: &[usize],
 ) -> Result<(Vec<Group>, BusClock), OpError> {
     let mut groups = Vec::new();
-    let mut clock = Vec::new();
-    for (name, bus) in &config.buses {
+    for name in config.buses.keys() {
         let cols: Vec<(usize, &crate::robot::JointConfig)> = index
             .iter()
             .enumerate()
             .filter_map(|(c, &i)| config.joints.get(i).map(|j| (c, j)))
             .filter(|(_, j)| &j.bus == name)
             .collect();
-        if cols.is_empty() {
+        let Some((_, first)) = cols.first() else {
             continue;
-        }
+        };
         let ids: Vec<u8> = cols.iter().map(|(_, j)| j.id).collect();
-        if bus.is_wck() {
-            let units = cols
-                .iter()
-                .map(|(c, j)| (*c, Units::Wck(j.wck_scale())))
-                .collect();
-            groups.push(Group::Wck(
+        groups.push(if config.is_wck(first) {
+            Group::Wck(
                 WckServos::new(station, Some(name), &ids)?,
-                units,
-            ));
-            clock.push(ClockBus::Wck(station.wck(Some(name))?));
+                cols.iter().map(|(c, j)| (*c, j.wck_scale())).collect(),
+            )
         } else {
-            let units = cols
-                .iter()
-                .map(|(c, j)| (*c, Units::Whj(j.map())))
-                .collect();
-            groups.push(Group::Whj(
+            Group::Whj(
                 WhjJoints::new(station, Some(name), &ids)?,
-                units,
-            ));
-            clock.push(ClockBus::Whj(station.whj(Some(name))?));
-        }
+                cols.iter().map(|(c, j)| (*c, j.map())).collect(),
+            )
+        });
     }
-    Ok((groups, BusClock::new(clock)))
+    let clock = BusClock::of(station, &super::robot::only(config, traj.joints()))?;
+    Ok((groups, clock))
 }
 
 /// Per column, how far a WHJ joint's target may be sent from where it last reported
@@ -388,16 +373,7 @@ fn start(
     traj: &Trajectory,
     index: &[usize],
 ) -> Result<Vec<f64>, OpError> {
-    let mut sub = config.clone();
-    sub.joints.retain(|j| traj.joints().contains(&j.name));
-    sub.buses
-        .retain(|name, _| sub.joints.iter().any(|j| &j.bus == name));
-    let mut sampler = RobotSampler::on_ports(
-        &sub,
-        |n| station.wck(Some(n)).ok(),
-        |n| station.whj(Some(n)).ok(),
-    )
-    .map_err(|e| OpError::invalid("robot", "bus", e.to_string()))?;
+    let mut sampler = super::robot::sampler(station, &super::robot::only(config, traj.joints()))?;
     let rows = sampler.sample(0.0);
     traj.joints()
         .iter()
@@ -447,7 +423,7 @@ pub(super) fn run_play(
     let index = traj
         .check(&config)
         .map_err(|e| OpError::invalid("trajectory", "(file)", e.to_string()))?;
-    let (groups, clock) = groups(station, &config, &index)?;
+    let (groups, clock) = groups(station, &config, &traj, &index)?;
     let from = start(station, &config, &traj, &index)?;
     ready(station, &config, &traj, &index)?;
     // The lead-in: as long as the slowest joint needs at its max_velocity.

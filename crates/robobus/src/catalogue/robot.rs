@@ -6,7 +6,9 @@ use std::time::{Duration, Instant};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
+use crate::ops::monitor::RobotSampler;
 use crate::ops::{Control, DeviceResult, ErrorKind, Failure, OpError, Outcome, Progress};
+use crate::robot::RobotConfig;
 use crate::robot::calibration::{self, JointCalibration, MAX_MARGIN_DEG, Range};
 
 use super::station::Station;
@@ -141,15 +143,7 @@ pub(super) fn run_calibrate(
     let readings = r.readings()?;
     let config = station.robot().cloned().ok_or_else(no_robot)?;
     if r.passive {
-        for j in &config.joints {
-            if config.is_wck(j) {
-                let port = station.wck(Some(&j.bus))?;
-                let id = robobus_wck::ServoId::new(j.id)
-                    .map_err(|e| OpError::invalid("robot", &j.name, e.to_string()))?;
-                // A servo that does not answer is found silent by the readings.
-                let _ = port.lock().servo(id).passive();
-            }
-        }
+        make_passive(station, &config)?;
     }
     let mut ranges: Vec<(String, Range)> = config
         .joints
@@ -196,6 +190,41 @@ pub(super) fn run_calibrate(
         taken,
         asked: readings,
     })
+}
+
+/// The robot file `config` cut to the joints `names` (in that order) and the buses they
+/// are on.
+pub(super) fn only(config: &RobotConfig, names: &[String]) -> RobotConfig {
+    let mut sub = config.clone();
+    sub.joints = names
+        .iter()
+        .filter_map(|n| config.joints.iter().find(|j| &j.name == n).cloned())
+        .collect();
+    sub.buses
+        .retain(|name, _| sub.joints.iter().any(|j| &j.bus == name));
+    sub
+}
+
+/// A sampler of `config`'s joints on the station's ports.
+pub(super) fn sampler(station: &Station, config: &RobotConfig) -> Result<RobotSampler, OpError> {
+    RobotSampler::on_ports(
+        config,
+        |n| station.wck(Some(n)).ok(),
+        |n| station.whj(Some(n)).ok(),
+    )
+    .map_err(|e| OpError::invalid("robot", "bus", e.to_string()))
+}
+
+/// Makes `config`'s wCK servos passive (torque off: moved by hand). A servo that does not
+/// answer is found silent by the readings that follow.
+pub(super) fn make_passive(station: &Station, config: &RobotConfig) -> Result<(), OpError> {
+    for j in config.joints.iter().filter(|j| config.is_wck(j)) {
+        let port = station.wck(Some(&j.bus))?;
+        let id = robobus_wck::ServoId::new(j.id)
+            .map_err(|e| OpError::invalid("robot", &j.name, e.to_string()))?;
+        let _ = port.lock().servo(id).passive();
+    }
+    Ok(())
 }
 
 pub(super) fn no_robot() -> OpError {

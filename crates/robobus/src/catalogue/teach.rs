@@ -17,7 +17,7 @@ use std::time::Duration;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use super::clock::{BusClock, ClockBus};
+use super::clock::BusClock;
 use super::station::Station;
 use crate::ops::monitor::RobotSampler;
 use crate::ops::{Control, DeviceResult, ErrorKind, Failure, OpError, Outcome, Progress};
@@ -245,32 +245,12 @@ fn reader(
     config: &RobotConfig,
     joints: &[Joint],
 ) -> Result<(RobotSampler, BusClock), OpError> {
-    let mut sub = config.clone();
-    sub.joints = joints
-        .iter()
-        .filter_map(|j| config.joints.iter().find(|c| c.name == j.name).cloned())
-        .collect();
-    sub.buses
-        .retain(|name, _| sub.joints.iter().any(|j| &j.bus == name));
-    let sampler = RobotSampler::on_ports(
-        &sub,
-        |n| station.wck(Some(n)).ok(),
-        |n| station.whj(Some(n)).ok(),
-    )
-    .map_err(|e| OpError::invalid("robot", "bus", e.to_string()))?;
-    let clock = BusClock::new(
-        sub.buses
-            .iter()
-            .map(|(n, b)| {
-                Ok(if b.is_wck() {
-                    ClockBus::Wck(station.wck(Some(n))?)
-                } else {
-                    ClockBus::Whj(station.whj(Some(n))?)
-                })
-            })
-            .collect::<Result<Vec<_>, OpError>>()?,
-    );
-    Ok((sampler, clock))
+    let names: Vec<String> = joints.iter().map(|j| j.name.clone()).collect();
+    let sub = super::robot::only(config, &names);
+    Ok((
+        super::robot::sampler(station, &sub)?,
+        BusClock::of(station, &sub)?,
+    ))
 }
 
 /// Each joint's row: a joint that missed readings, or does not hold at the end, fails it.

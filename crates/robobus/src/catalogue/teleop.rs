@@ -20,7 +20,7 @@ use std::time::{Duration, Instant};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use super::clock::{BusClock, ClockBus};
+use super::clock::BusClock;
 use super::follow::Follower;
 use super::station::Station;
 use crate::ops::monitor::RobotSampler;
@@ -457,17 +457,11 @@ impl Run {
         let followers: Vec<String> = r.map.iter().map(|p| p.follower.clone()).collect();
         let follower = Follower::of_joints(station, &followers)?;
         // The leader's own sampler: only its joints and their buses.
-        let clock = clock_of(station, &config, &r.map)?;
-        let mut led = config;
-        led.joints.retain(|j| leaders.contains(&j.name));
-        led.buses
-            .retain(|name, _| led.joints.iter().any(|j| &j.bus == name));
-        let sampler = RobotSampler::on_ports(
-            &led,
-            |n| station.wck(Some(n)).ok(),
-            |n| station.whj(Some(n)).ok(),
-        )
-        .map_err(|e| OpError::invalid("robot", "bus", e.to_string()))?;
+        // The loop's clock spans the leader's and the follower's buses.
+        let all: Vec<String> = leaders.iter().chain(&followers).cloned().collect();
+        let clock = BusClock::of(station, &super::robot::only(&config, &all))?;
+        let led = super::robot::only(&config, &leaders);
+        let sampler = super::robot::sampler(station, &led)?;
         let mut ranges = Vec::with_capacity(r.map.len());
         for (p, f) in r.map.iter().zip(follower.joints()) {
             let [lo, hi] = f.limits_rad.map(f64::to_degrees);
@@ -485,15 +479,7 @@ impl Run {
             ranges.push((lo, hi));
         }
         if r.passive_leader {
-            for j in &led.joints {
-                if led.is_wck(j) {
-                    let port = station.wck(Some(&j.bus))?;
-                    let id = robobus_wck::ServoId::new(j.id)
-                        .map_err(|e| OpError::invalid("robot", &j.name, e.to_string()))?;
-                    // A servo that does not answer is found silent by the readings.
-                    let _ = port.lock().servo(id).passive();
-                }
-            }
+            super::robot::make_passive(station, &led)?;
         }
         let pair_leader = r
             .map
@@ -695,44 +681,6 @@ fn next_tick(elapsed: Duration, period: Duration, tick: u64, overruns: &mut u64)
     } else {
         next
     }
-}
-
-/// The loop's clock: the buses of the map's joints, leaders' first (the wall clock on
-/// hardware; on simulators their virtual clocks kept together).
-fn clock_of(
-    station: &Station,
-    config: &crate::robot::RobotConfig,
-    map: &[Pair],
-) -> Result<BusClock, OpError> {
-    let mut names: Vec<&str> = Vec::new();
-    let names_of = map
-        .iter()
-        .map(|p| &p.leader)
-        .chain(map.iter().map(|p| &p.follower));
-    for name in names_of {
-        if let Some(j) = config.joints.iter().find(|j| &j.name == name)
-            && !names.contains(&j.bus.as_str())
-        {
-            names.push(&j.bus);
-        }
-    }
-    let buses = names
-        .into_iter()
-        .map(|n| {
-            Ok(
-                if config
-                    .buses
-                    .get(n)
-                    .is_some_and(crate::robot::BusConfig::is_wck)
-                {
-                    ClockBus::Wck(station.wck(Some(n))?)
-                } else {
-                    ClockBus::Whj(station.whj(Some(n))?)
-                },
-            )
-        })
-        .collect::<Result<Vec<_>, OpError>>()?;
-    Ok(BusClock::new(buses))
 }
 
 #[cfg(all(test, feature = "sim"))]
