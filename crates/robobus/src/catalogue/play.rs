@@ -124,7 +124,7 @@ pub struct Played {
     last_error: Option<Failure>,
 }
 
-/// The run's timing, ms.
+/// How a run's times spread, ms.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Spread {
     /// Median.
@@ -136,7 +136,8 @@ pub struct Spread {
 }
 
 impl Spread {
-    fn of(samples: &[Duration]) -> Self {
+    /// Of `samples` (all zero without any).
+    pub(super) fn of(samples: &[Duration]) -> Self {
         let p = Percentiles::of(samples);
         let ms = |d: Duration| d.as_secs_f64() * 1e3;
         Self {

@@ -1,6 +1,7 @@
 //! The robot requests (`robot.*`): a station's robot file read as one robot, its joints by
 //! name in joint units, across every bus the file names.
 
+use std::ops::RangeInclusive;
 use std::time::{Duration, Instant};
 
 use schemars::JsonSchema;
@@ -83,21 +84,10 @@ pub const CALIBRATE_RATE_HZ: std::ops::RangeInclusive<f64> = 1.0..=100.0;
 impl Calibrate {
     /// Checks the ranges; returns the number of readings.
     pub fn readings(&self) -> Result<u64, OpError> {
-        let check = |name: &str, v: f64, range: &std::ops::RangeInclusive<f64>| {
-            if v.is_finite() && range.contains(&v) {
-                Ok(())
-            } else {
-                Err(OpError::invalid(
-                    name,
-                    v,
-                    format!("out of range {}..={}", range.start(), range.end()),
-                ))
-            }
-        };
         // Named as the command line's options (the request's fields are the same words).
-        check("--seconds", self.seconds, &CALIBRATE_SECONDS)?;
-        check("--rate-hz", self.rate_hz, &CALIBRATE_RATE_HZ)?;
-        check("--margin-deg", self.margin_deg, &(0.0..=MAX_MARGIN_DEG))?;
+        within("--seconds", self.seconds, &CALIBRATE_SECONDS)?;
+        within("--rate-hz", self.rate_hz, &CALIBRATE_RATE_HZ)?;
+        within("--margin-deg", self.margin_deg, &(0.0..=MAX_MARGIN_DEG))?;
         #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // 1..=60000
         Ok(((self.seconds * self.rate_hz).round() as u64).max(1))
     }
@@ -225,6 +215,28 @@ pub(super) fn make_passive(station: &Station, config: &RobotConfig) -> Result<()
         let _ = port.lock().servo(id).passive();
     }
     Ok(())
+}
+
+/// `v` out of `range`, as the option `option` says it.
+pub(super) fn out_of<T: std::fmt::Display + PartialOrd>(
+    option: &str,
+    v: T,
+    range: &RangeInclusive<T>,
+) -> OpError {
+    OpError::invalid(
+        option,
+        v,
+        format!("out of range {}..={}", range.start(), range.end()),
+    )
+}
+
+/// Checks that `v` is a finite number within `range` (the error names `option`).
+pub(super) fn within(option: &str, v: f64, range: &RangeInclusive<f64>) -> Result<(), OpError> {
+    if v.is_finite() && range.contains(&v) {
+        Ok(())
+    } else {
+        Err(out_of(option, v, range))
+    }
 }
 
 pub(super) fn no_robot() -> OpError {

@@ -68,13 +68,7 @@ impl Teach {
             ("--rate-hz", self.rate_hz, TEACH_RATE_HZ),
             ("--hold-ma", self.hold_ma, HOLD_MA),
         ] {
-            if !(v.is_finite() && range.contains(&v)) {
-                return Err(OpError::invalid(
-                    option,
-                    v,
-                    format!("out of range {}..={}", range.start(), range.end()),
-                ));
-            }
+            super::robot::within(option, v, &range)?;
         }
         if let Some(j) = &self.joints
             && (j.is_empty() || j.len() > crate::robot::trajectory::MAX_JOINTS)

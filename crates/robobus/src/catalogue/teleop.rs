@@ -22,10 +22,11 @@ use serde::{Deserialize, Serialize};
 
 use super::clock::BusClock;
 use super::follow::Follower;
+use super::play::Spread;
+use super::robot::{out_of, within};
 use super::station::Station;
 use crate::ops::monitor::RobotSampler;
 use crate::ops::{Control, DeviceResult, ErrorKind, Failure, OpError, Outcome, Progress};
-use crate::whj::Percentiles;
 
 /// One leader joint driving one follower joint.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
@@ -98,26 +99,6 @@ pub const MAX_NAME: usize = 64;
 /// The loop latencies kept for the percentiles: the last this many cycles (the largest is
 /// kept over the whole run).
 pub const LATENCY_WINDOW: usize = 65_536;
-
-fn out_of<T: std::fmt::Display + PartialOrd>(
-    option: &str,
-    v: T,
-    range: &RangeInclusive<T>,
-) -> OpError {
-    OpError::invalid(
-        option,
-        v,
-        format!("out of range {}..={}", range.start(), range.end()),
-    )
-}
-
-fn within(option: &str, v: f64, range: &RangeInclusive<f64>) -> Result<(), OpError> {
-    if v.is_finite() && range.contains(&v) {
-        Ok(())
-    } else {
-        Err(out_of(option, v, range))
-    }
-}
 
 impl Teleop {
     /// Checks every value against its range and the map's rules (named as the command
@@ -262,18 +243,6 @@ pub struct Led {
     pub error: Option<String>,
 }
 
-/// Loop latency, ms: from the start of a cycle's leader reading to its last follower
-/// command.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct LatencyMs {
-    /// Median (of the last [`LATENCY_WINDOW`] cycles that commanded).
-    pub p50: f64,
-    /// 99th percentile (same cycles).
-    pub p99: f64,
-    /// Largest over the run.
-    pub max: f64,
-}
-
 /// The whole run.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct TeleopSummary {
@@ -290,7 +259,10 @@ pub struct TeleopSummary {
     /// Cycles a second achieved.
     pub rate_hz: f64,
     /// The loop latency.
-    pub latency_ms: LatencyMs,
+    /// Loop latency, ms, from the start of a cycle's leader reading to its last follower
+    /// command: median and 99th percentile of the last [`LATENCY_WINDOW`] cycles that
+    /// commanded, the largest over the run.
+    pub latency_ms: Spread,
     /// Each leader joint's readings.
     pub leaders: Vec<Led>,
     /// The run ended because the leader went silent.
@@ -408,11 +380,7 @@ impl TeleopSummary {
             overruns: 0,
             seconds: 0.0,
             rate_hz: 0.0,
-            latency_ms: LatencyMs {
-                p50: 0.0,
-                p99: 0.0,
-                max: 0.0,
-            },
+            latency_ms: Spread::of(&[]),
             leaders: leaders
                 .map(|name| Led {
                     name,
@@ -616,8 +584,6 @@ impl Run {
 
     /// The report of the run, `elapsed` long.
     fn finish(mut self, r: &Teleop, elapsed: Duration, interrupted: bool) -> Teleoperated {
-        let p = Percentiles::of(self.latencies.make_contiguous());
-        let ms = |d: Duration| d.as_secs_f64() * 1e3;
         let s = &mut self.summary;
         s.seconds = elapsed.as_secs_f64();
         #[allow(clippy::cast_precision_loss)] // a count of cycles
@@ -627,11 +593,8 @@ impl Run {
         } else {
             0.0
         };
-        s.latency_ms = LatencyMs {
-            p50: ms(p.p50),
-            p99: ms(p.p99),
-            max: ms(self.worst),
-        };
+        s.latency_ms = Spread::of(self.latencies.make_contiguous());
+        s.latency_ms.max = self.worst.as_secs_f64() * 1e3;
         s.leader_lost = self.lost.is_some();
         s.interrupted = interrupted;
         let joints = r
