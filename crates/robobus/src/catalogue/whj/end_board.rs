@@ -71,8 +71,12 @@ pub(crate) enum EndBoardJob {
 pub(crate) const END_BOARD_CONFIRM: &str = "This switches what is attached to the tool through the \
      end board (its power or a digital channel's direction).";
 
-fn needs(option: &str, what: &str) -> OpError {
-    OpError::invalid(option, "(none)", format!("{what} needs {option}"))
+fn needs(option: &str, what: &str, allowed: &str) -> OpError {
+    OpError::invalid(
+        option,
+        "(none)",
+        format!("{what} needs {option}: {allowed}"),
+    )
 }
 
 /// `whj.end-board`: its frames (a write's read-back included) and the confirmation.
@@ -88,15 +92,22 @@ pub(super) fn end_board(r: &EndBoard) -> R<Prepared> {
             (EndBoardJob::Force, false)
         }
         EndBoardAction::Power => {
-            let power =
-                ops::ToolPower::of_volts(r.volts.ok_or_else(|| needs("--volts", "power"))?)?;
+            let power = ops::ToolPower::of_volts(
+                r.volts
+                    .ok_or_else(|| needs("--volts", "power", "0, 12 or 24"))?,
+            )?;
             p.push(ops::frame(ops::write_op(ops::TOOL_POWER, power.code())?)?);
             p.push(ops::frame(ops::read_op(ops::TOOL_POWER, 1)?)?);
             (EndBoardJob::Power(power), power != ops::ToolPower::Off)
         }
         EndBoardAction::Io => {
-            let channel = r.channel.ok_or_else(|| needs("--channel", "io"))?;
-            let output = r.mode.ok_or_else(|| needs("--mode", "io"))? == IoMode::Output;
+            let channel = r
+                .channel
+                .ok_or_else(|| needs("--channel", "io", "1 or 2"))?;
+            let output = r
+                .mode
+                .ok_or_else(|| needs("--mode", "io", "input or output"))?
+                == IoMode::Output;
             let index = ops::io_register(channel)?;
             p.push(ops::frame(ops::write_op(index, u16::from(output))?)?);
             p.push(ops::frame(ops::read_op(index, 1)?)?);
