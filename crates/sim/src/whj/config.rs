@@ -154,6 +154,11 @@ pub struct JointConfig {
     pub low_power_cap_w: f64,
     /// Load on the output.
     pub load: Load,
+    /// The most current the drive can give, A, whatever the current limit register 0x40
+    /// says (`None`, the default: 0x40 alone limits it) \[inf\]: a weak or hot drive. With
+    /// less current than a motion needs (against a [`Load`], or to accelerate the output)
+    /// the joint falls behind its position set-points, as a real loaded joint does.
+    pub drive_current_limit_a: Option<f64>,
     /// Standard deviation of the measured-current noise, mA (0 = exact; seeded).
     pub current_noise_ma: f64,
     /// Physics integration step.
@@ -221,6 +226,7 @@ impl JointConfig {
             over_current_factor: 1.5,
             low_power_cap_w: 80.0,
             load: Load::default(),
+            drive_current_limit_a: None,
             current_noise_ma: 0.0,
             physics_step: Duration::from_micros(100),
             processing_delay: Duration::from_micros(20),

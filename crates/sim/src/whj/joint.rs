@@ -535,8 +535,13 @@ impl SimJoint {
 
     fn limits(&self) -> DriveLimits {
         let p = &self.cfg.params;
-        let max_current =
+        let register =
             f64::from(self.ram[reg::LIT_MAX_CURRENT.index()]) * self.ma_per_count() / 1000.0;
+        let max_current = self
+            .cfg
+            .drive_current_limit_a
+            .filter(|a| a.is_finite())
+            .map_or(register, |a| register.min(a.abs()));
         let raw_speed = f64::from(self.ram[reg::LIT_MAX_SPEED.index()]);
         let max_speed_rpm = match self.cfg.speed_limit_unit {
             SpeedLimitUnit::PerRatio => raw_speed / f64::from(p.reduction_ratio.max(1)),
