@@ -16,7 +16,8 @@
 //!   an empty query reads the state.
 //! - `NS/robobus/health`: JSON about once a second (arming, safe stops, refusals, the
 //!   telemetry's counts, each bus's answering devices), and the liveliness token
-//!   `NS/robobus/bridge` while the bridge runs.
+//!   `NS/robobus/bridge` while the bridge runs, with its claim `NS/robobus/bridge/C` (`C`:
+//!   its start time and Zenoh ID) next to it.
 //! - `NS/robobus/sim`: a queryable, only on the built-in simulated robot: the simulators'
 //!   own state (the truth tests check motion against).
 //!
@@ -24,12 +25,15 @@
 //! through the station's [`Guard`]; a command stream that goes quiet for the command
 //! timeout brings the joints it moved to the safe state ([`Guard::hold`]); disarming, a
 //! stalled bridge and the bridge's end do too. The bridge holds no state another bridge
-//! needs: many run side by side, one per robot or bus, on one Zenoh router.
+//! needs: many run side by side, one per robot or bus, on one Zenoh router, each on its
+//! own namespace: a bridge refuses a namespace another bridge it reaches serves
+//! ([`BridgeError::InUse`]; of two started at once, the later gives way).
 
 // The library's `OpError` is passed through as it is, as every front end does.
 #![allow(clippy::result_large_err)]
 
 pub use robobus::cdr;
+mod claim;
 mod health;
 mod zconfig;
 
@@ -181,6 +185,27 @@ pub enum BridgeError {
     /// A thread could not start.
     #[error("cannot start the bridge: {0}")]
     Start(#[from] std::io::Error),
+    /// Another bridge serves the namespace (its liveliness token is up): this one did not
+    /// start, or, when both started at once, the later one gave way.
+    #[error(
+        "{namespace} is in use: another bridge{} serves it{}; give this bridge another \
+         --namespace (one per robot, like bot2 or site/arm2), or stop the other one",
+        other.as_ref().map(|z| format!(" (Zenoh ID {z})")).unwrap_or_default(),
+        if *gave_way {
+            ", and started first: this one gave way and stopped, bringing what it moved \
+             to the safe state"
+        } else {
+            ": this one did not start and declared nothing"
+        }
+    )]
+    InUse {
+        /// The namespace as the message names it (`namespace "bot1"`, or the root one).
+        namespace: String,
+        /// The other bridge's Zenoh ID, where its claim names it.
+        other: Option<String>,
+        /// Both started at once and this one, the later, gave way.
+        gave_way: bool,
+    },
 }
 
 impl BridgeError {
@@ -188,7 +213,7 @@ impl BridgeError {
     pub fn kind(&self) -> ErrorKind {
         match self {
             Self::Op(e) => e.kind(),
-            Self::Zenoh(_) | Self::Start(_) => ErrorKind::NotAvailable,
+            Self::Zenoh(_) | Self::Start(_) | Self::InUse { .. } => ErrorKind::NotAvailable,
         }
     }
 }
@@ -293,6 +318,8 @@ pub(crate) struct Shared {
     pub(crate) joint_ok: Mutex<Vec<Option<bool>>>,
     mailbox: Mailbox,
     stop: StopToken,
+    /// Why the bridge gave way to another on its namespace, once it has.
+    displaced: Mutex<Option<BridgeError>>,
     pub(crate) started: Instant,
 }
 
@@ -337,6 +364,8 @@ pub struct Bridge {
     session: zenoh::Session,
     threads: Vec<JoinHandle<()>>,
     declared: Vec<Box<dyn std::any::Any + Send>>,
+    /// Shut down already (by [`Bridge::run`]).
+    done: bool,
 }
 
 impl std::fmt::Debug for Bridge {
@@ -350,6 +379,18 @@ impl std::fmt::Debug for Bridge {
 impl Bridge {
     /// Opens a Zenoh session for `station` and declares every key (see the
     /// [crate docs](crate)); `sim`: the built-in simulators, for `NS/robobus/sim`.
+    ///
+    /// One bridge per namespace: before declaring anything it asks Zenoh for the
+    /// namespace's liveliness tokens, and declares its own claim (`NS/robobus/bridge/C`,
+    /// `C` its start time and Zenoh ID) next to `NS/robobus/bridge`. Of two bridges whose
+    /// sessions reach each other, the later one does not start, or, if both started at
+    /// once, stops as soon as it sees the earlier one's claim ([`Bridge::run`] returns
+    /// the error).
+    ///
+    /// # Errors
+    ///
+    /// [`BridgeError::Op`] for a bad option, [`BridgeError::InUse`] for a namespace
+    /// another bridge serves, [`BridgeError::Zenoh`] when Zenoh cannot open a session.
     pub fn start(
         station: Station,
         sim: Option<LiveSimulator>,
@@ -401,19 +442,31 @@ impl Bridge {
             joint_ok: Mutex::new(vec![None; joints]),
             mailbox: Mailbox::default(),
             stop: StopToken::new(),
+            displaced: Mutex::new(None),
             started: Instant::now(),
         });
         Self::declare(shared, zconf)
     }
 
     fn declare(shared: Arc<Shared>, zconf: zenoh::Config) -> Result<Self, BridgeError> {
+        let session = zenoh::open(zconf).wait().map_err(zerr)?;
+        // The namespace first: on one another bridge serves, nothing is declared and
+        // nothing armed. A bridge that started first turning up later stops this one.
+        let weak = Arc::downgrade(&shared);
+        let claim = claim::claim(&session, &shared.keys, move |e| {
+            if let Some(s) = weak.upgrade() {
+                tracing::error!("{e}");
+                *s.displaced.lock().unwrap_or_else(PoisonError::into_inner) = Some(e);
+                s.stop.stop();
+                s.mailbox.ready.notify_all();
+            }
+        })?;
         shared.guard.take_control(SESSION);
         if shared.config.armed {
             shared.set_armed(true)?;
         }
-        let session = zenoh::open(zconf).wait().map_err(zerr)?;
         let keys = shared.keys.clone();
-        let mut declared: Vec<Box<dyn std::any::Any + Send>> = Vec::new();
+        let mut declared: Vec<Box<dyn std::any::Any + Send>> = vec![Box::new(claim)];
         let mut threads = Vec::new();
 
         // Commands: the newest one waits for the command thread; an older one not yet
@@ -494,6 +547,7 @@ impl Bridge {
             session,
             threads,
             declared,
+            done: false,
         })
     }
 
@@ -523,14 +577,44 @@ impl Bridge {
 
     /// Serves until `stop` is set; then stops its threads, brings every device it moved
     /// to the safe state, withdraws its keys and closes the session and the station.
+    ///
+    /// # Errors
+    ///
+    /// [`BridgeError::InUse`] when it stopped because a bridge that started before it
+    /// serves its namespace too (see [`Bridge::start`]); a Zenoh error closing the session.
     pub fn run(mut self, stop: &StopToken) -> Result<(), BridgeError> {
         while !stop.is_stopped() && !self.shared.stop.is_stopped() {
             std::thread::sleep(Duration::from_millis(20));
         }
-        self.shutdown()
+        let closed = self.shutdown();
+        match self.displaced() {
+            Some(e) => Err(e),
+            None => closed,
+        }
+    }
+
+    /// Why it stopped by itself, if it did: another bridge that started before it serves
+    /// its namespace too (taken: `None` after).
+    fn displaced(&self) -> Option<BridgeError> {
+        self.shared
+            .displaced
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .take()
+    }
+
+    /// Whether it gave way to another bridge on its namespace and stopped serving (the
+    /// error [`Bridge::run`] then returns).
+    pub fn gave_way(&self) -> bool {
+        self.shared
+            .displaced
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .is_some()
     }
 
     fn shutdown(&mut self) -> Result<(), BridgeError> {
+        self.done = true;
         self.shared.stop.stop();
         self.shared.mailbox.ready.notify_all();
         // The declarations first: no callback runs after this.
@@ -547,7 +631,7 @@ impl Bridge {
 
 impl Drop for Bridge {
     fn drop(&mut self) {
-        if !self.shared.stop.is_stopped() {
+        if !self.done {
             let _ = self.shutdown();
         }
     }

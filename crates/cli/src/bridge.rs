@@ -180,16 +180,25 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
             None,
         )
     };
-    let bridge = Bridge::start(station, live, config.clone()).map_err(|e| match e.kind() {
-        robobus::ErrorKind::BadInput => crate::exit::usage(e.to_string()),
-        _ => anyhow::Error::new(e),
-    })?;
+    let bridge = Bridge::start(station, live, config.clone()).map_err(exit_error)?;
     crate::output::print(&format!(
         "bridge: zenoh {} {}",
         bridge.zid(),
         describe(bridge.keys(), &config, &bridge.joint_names(), sim)
     ))?;
     let stop = crate::interrupt::stop_token();
-    bridge.run(&stop)?;
+    bridge.run(&stop).map_err(exit_error)?;
     Ok(())
+}
+
+/// A bridge's error with its exit code: 2 for a bad option, 4 for a namespace another
+/// bridge serves (not available here), else 1.
+fn exit_error(e: robobus_bridge::BridgeError) -> anyhow::Error {
+    if matches!(e, robobus_bridge::BridgeError::InUse { .. }) {
+        return anyhow::Error::new(crate::exit::NotAvailable(e.to_string()));
+    }
+    match e.kind() {
+        robobus::ErrorKind::BadInput => crate::exit::usage(e.to_string()),
+        _ => anyhow::Error::new(e),
+    }
 }

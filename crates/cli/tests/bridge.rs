@@ -1,5 +1,6 @@
 //! `robobus bridge` as a process: its dry run (the keys, no socket), bad options (exit 2,
-//! nothing opened), and a start and a clean stop. Its peers (Python Zenoh, two network
+//! nothing opened), a start and a clean stop, and a second bridge on a namespace in use
+//! (exit 4, the first serving on). Its peers (Python Zenoh, two network
 //! namespaces, ROS 2) are tested by `scripts/bridge/test-peers`.
 
 #![allow(clippy::unwrap_used, clippy::panic)] // test helpers: a failed unwrap is a failed test
@@ -157,6 +158,49 @@ fn it_starts_serves_and_stops_cleanly_on_ctrl_c() {
     let status = child.wait().unwrap();
     // A server stopped by its operator ends normally (as `robobus studio` does).
     assert_eq!(status.code(), Some(0), "{status:?}");
+}
+
+#[test]
+fn a_second_bridge_on_a_namespace_in_use_exits_4_and_the_first_serves_on() {
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let mut first = Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .args(["bridge", "--listen", &endpoint, "--namespace", "bot1"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(first.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    assert!(line.starts_with("bridge: zenoh "), "{line}");
+    let second = robobus(&[
+        "bridge",
+        "--no-listen",
+        "--connect",
+        &endpoint,
+        "--namespace",
+        "/bot1/",
+    ]);
+    let err = String::from_utf8_lossy(&second.stderr);
+    assert_eq!(second.status.code(), Some(4), "{err}");
+    assert!(
+        err.contains("namespace \"bot1\" is in use: another bridge (Zenoh ID ")
+            && err.contains("give this bridge another --namespace"),
+        "{err}"
+    );
+    assert!(second.stdout.is_empty(), "{second:?}");
+    assert!(
+        first.try_wait().unwrap().is_none(),
+        "the first bridge stopped"
+    );
+    nix_kill(first.id());
+    assert_eq!(first.wait().unwrap().code(), Some(0));
 }
 
 fn nix_kill(pid: u32) {
