@@ -315,3 +315,37 @@ fn the_documented_defaults_restore_what_the_vendor_documents_and_keep_the_rest()
     assert_eq!(raw(&after, "SEV_POSITION_P"), 1234);
     assert_eq!(raw(&after, "LIT_MIN_POSITION"), -900_000);
 }
+
+#[test]
+fn a_defaults_file_differs_only_in_the_registers_it_holds() {
+    let (s, _w, j) = station_support::station("wck", "whj");
+    j.bus().joint(id(1)).unwrap().disable().unwrap();
+    tune(j.bus());
+    let defaults = run(&s, r#"{"op": "whj.defaults", "joint": 1}"#).unwrap();
+    let file = defaults.summary.unwrap().to_string();
+    let held = Settings::parse(&file).unwrap().settings.len();
+    let diff = serde_json::json!({"op": "whj.diff", "joint": 1, "settings": file}).to_string();
+    let regs = |r: &robobus::catalogue::Report| -> Vec<String> {
+        r.results
+            .iter()
+            .map(|x| x["register"].as_str().unwrap().to_owned())
+            .collect()
+    };
+    // Tuned: the one documented value changed; the gains, limits and ID the file leaves
+    // out are counted, not listed.
+    let before = run(&s, &diff).unwrap();
+    assert_eq!(regs(&before), ["LIT_MAX_SPEED"]);
+    let summary = before.summary.as_ref().unwrap();
+    assert_eq!(summary["differ"], 1);
+    let all = settings::backup(j.bus(), id(1)).unwrap().settings.len();
+    assert_eq!(summary["left_out"], all - held);
+    assert!(all > held, "{all} {held}");
+    // Restored: no difference at all.
+    let restore =
+        serde_json::json!({"op": "whj.restore", "joint": 1, "settings": file, "confirm": true});
+    run(&s, &restore.to_string()).unwrap();
+    let after = run(&s, &diff).unwrap();
+    assert_eq!(regs(&after), Vec::<String>::new());
+    assert_eq!(after.summary.as_ref().unwrap()["differ"], 0);
+    assert_eq!(after.failed_kind(), None, "{after:?}");
+}

@@ -807,16 +807,23 @@ fn run_whj(
         }
         J::Diff(id, with) => {
             let a = hops::settings::backup(bus, *id)?;
-            let (b, of) = match with {
-                whj::DiffWith::File(s) => ((**s).clone(), format!("the file (joint {})", s.joint)),
-                whj::DiffWith::Joint(o) => (
-                    hops::settings::backup(bus, *o)?,
-                    format!("joint {}", o.get()),
-                ),
+            // Against a file, only the registers it holds: what it leaves out is counted.
+            let (d, summary) = match with {
+                whj::DiffWith::File(s) => {
+                    let (d, left_out) = hops::settings::diff_file(&a, s);
+                    let of = format!("the file (joint {})", s.joint);
+                    let summary = json!({ "differ": d.len(), "with": of, "left_out": left_out });
+                    (d, summary)
+                }
+                whj::DiffWith::Joint(o) => {
+                    let d = hops::settings::diff(&a, &hops::settings::backup(bus, *o)?);
+                    let summary =
+                        json!({ "differ": d.len(), "with": format!("joint {}", o.get()) });
+                    (d, summary)
+                }
             };
-            let d = hops::settings::diff(&a, &b);
             let mut out = report(op, name, d.iter().map(|x| row(id.get(), x)).collect());
-            out.summary = Some(json!({ "differ": d.len(), "with": of }));
+            out.summary = Some(summary);
             out
         }
         J::Restore(id, s) => {

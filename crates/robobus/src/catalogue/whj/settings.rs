@@ -142,8 +142,11 @@ pub(super) fn diff(r: &Diff) -> R<Prepared> {
             p.push(step);
         }
     }
-    p.notes
-        .push("reads the settings and lists those whose raw values differ".into());
+    p.notes.push(
+        "reads the settings and lists those whose raw values differ (against a file, \
+             only the settings it holds; those it leaves out are counted)"
+            .into(),
+    );
     Ok(prepared(p, Job::Diff(j, with)))
 }
 

@@ -21,8 +21,9 @@
 //! - then the RAM table is saved to flash and the settings are read back: a register that
 //!   does not read back as the document says fails the restore, naming it.
 //!
-//! [`diff`] compares two documents (a file and a joint's backup, or two joints'): the
-//! registers whose raw values differ.
+//! [`diff`] compares two documents (two joints' backups): the registers whose raw values
+//! differ; [`diff_file`] compares a joint's backup with a file, where only the registers the
+//! file holds can differ.
 
 use serde::{Deserialize, Serialize};
 
@@ -289,6 +290,25 @@ pub fn diff(a: &Settings, b: &Settings) -> Vec<SettingDiff> {
             })
         })
         .collect()
+}
+
+/// The registers on which a joint's settings (`joint`, its backup) differ from a settings
+/// file (`file`), in address order, and how many of the joint's registers the file leaves
+/// out. A register the file does not hold is no difference: a file may hold only some
+/// registers on purpose (a `whj.defaults` file leaves out the gains, the limits and the
+/// bus identity), and a restore of it leaves them as they are.
+#[must_use]
+pub fn diff_file(joint: &Settings, file: &Settings) -> (Vec<SettingDiff>, usize) {
+    let differ = diff(joint, file)
+        .into_iter()
+        .filter(|d| d.b.is_some())
+        .collect();
+    let left_out = joint
+        .settings
+        .iter()
+        .filter(|s| file.get(&s.register).is_none())
+        .count();
+    (differ, left_out)
 }
 
 /// What a restore did with one register.
