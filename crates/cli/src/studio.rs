@@ -33,8 +33,9 @@ pub(crate) struct Args {
     #[command(flatten)]
     station: crate::run::StationArgs,
     /// Heartbeat timeout of an armed page, ms (50..=1000): past it, the devices it moved
-    /// are brought to their safe state.
-    #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u64).range(50..=1000))]
+    /// are brought to their safe state. The page beats every 100 ms; on a machine with every
+    /// core busy its beats arrive up to about 300 ms apart, hence 500 (docs/studio.md).
+    #[arg(long, default_value_t = 500, value_parser = clap::value_parser!(u64).range(50..=1000))]
     heartbeat_timeout_ms: u64,
 }
 

@@ -358,7 +358,8 @@ fn safe_and_end(ws: &mut tungstenite::WebSocket<TcpStream>, id: u64) -> (Value, 
 
 #[test]
 fn a_lost_heartbeat_brings_the_moved_joint_to_its_safe_state() {
-    let s = start(&[]);
+    // A short allowance, to time the safe stop closely (the default is 500 ms).
+    let s = start(&["--heartbeat-timeout-ms", "200"]);
     let stream = TcpStream::connect(&s.addr).unwrap();
     // A message that never comes fails the test instead of hanging it.
     stream

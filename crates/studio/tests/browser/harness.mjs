@@ -19,8 +19,8 @@ export const SCREENS = process.env.STUDIO_SCREENS ?? path.join(root, "target/stu
 
 /**
  * The heartbeat timeout the tests' studios use unless a test gives its own
- * `--heartbeat-timeout-ms`: the default 200 ms is meant for a person's page on an idle
- * machine, while the tests run a debug build beside Chromium on two busy cores.
+ * `--heartbeat-timeout-ms`: longer than the default 500 ms, since the tests run a debug
+ * build beside Chromium on two busy cores (arming.test.mjs holds the default under load).
  */
 export const HEARTBEAT_TIMEOUT_MS = process.env.STUDIO_HEARTBEAT_TIMEOUT_MS ?? "1000";
 

@@ -53,14 +53,14 @@ test("a lost heartbeat brings the devices to the safe state and the page says wh
   await arm(page);
   // Move a joint so that the safe state has a device to hold.
   await page.evaluate(() => window.studio.jog("whj", "sim-whj", 1, 1));
-  // Stop the heartbeat as a frozen page would.
-  await page.evaluate(() => {
-    clearInterval(window.studio.heartbeat);
-    window.studio.heartbeat = "stopped by the test";
-  });
+  // Stop the link's heartbeat while the page stays alive, as a network that loses it would
+  // (a frozen page: arming.test.mjs).
+  await page.evaluate(() => window.studio.ws.beat(false));
   const banner = page.getByRole("alert").filter({ hasText: "Devices brought to the safe state" });
   await banner.waitFor({ timeout: 3000 });
   assert.match(await banner.textContent(), /heartbeat/);
+  const reason = page.locator("header").getByRole("alert");
+  assert.match(await reason.textContent(), /heartbeat lost\. The heartbeat did not reach the server in time/);
   await until(() => page.evaluate(() => window.studio.state.armed === false), { what: "disarmed" });
   await page.getByText("disarmed", { exact: true }).waitFor();
   await screenshot(page, "shell-safe");
@@ -76,10 +76,12 @@ test("after the WebSocket drops, the page reconnects, takes control again and it
   const panel = await openTab(page, "Device");
   await panel.getByLabel("Device", { exact: true }).selectOption({ label: "Joint 2 · j2" });
   await panel.getByText("live · 20 Hz").waitFor();
-  const before = await page.evaluate(() => window.studio.session);
-  await page.evaluate(() => window.studio.ws.close());
-  await until(() => page.evaluate((old) => window.studio.state.connected && window.studio.session !== old, before), {
-    what: "a new session",
+  await page.evaluate(() => {
+    window.linkBefore = window.studio.ws;
+    window.studio.ws.close();
+  });
+  await until(() => page.evaluate(() => window.studio.state.connected && window.studio.ws !== window.linkBefore), {
+    what: "a new connection",
   });
   await page.getByText("you control the devices").waitFor();
   // Samples flow again on the new connection.

@@ -1,5 +1,5 @@
-// The shell: the header (connection, control, arming), the safe-state banner and the
-// tabs. Each panel is a module ./panels/NAME.js whose default export is
+// The shell: the header (connection, control, arming, why the page was disarmed; it stays
+// at the top of the window), the stop key (Escape), the safe-state banner and the tabs. Each panel is a module ./panels/NAME.js whose default export is
 // {id, title, mount(element, studio)}; it is loaded and mounted the first time its tab shows.
 // A mounted panel's element gets the DOM events `studio:show` and `studio:hide`.
 
@@ -35,6 +35,29 @@ async function main() {
   }
   window.studio = studio; // for the console and the browser tests
   app.replaceChildren(header(studio), safeBanner(studio), tabs(studio));
+  stopKey(studio);
+}
+
+/**
+ * Escape stops everything: every run of this page and the arming (the server brings what
+ * moved to its safe state). It works everywhere, in a field or a dialog too: Escape types
+ * nothing, so it cannot be pressed by accident while typing, and the stop key must always
+ * work. Listened to first (capture), so no panel can swallow it.
+ */
+function stopKey(studio) {
+  addEventListener(
+    "keydown",
+    (e) => {
+      if (e.key !== "Escape" || e.repeat) return;
+      const armed = studio.state.armed;
+      const runs = studio.stopAll();
+      if (armed || runs) {
+        const what = [armed ? "disarmed" : null, runs ? `${runs} run${runs === 1 ? "" : "s"} stopped` : null];
+        studio.toast(`Escape: ${what.filter(Boolean).join(", ")}.`, "ok");
+      }
+    },
+    { capture: true },
+  );
 }
 
 function header(studio) {
@@ -42,13 +65,31 @@ function header(studio) {
   const control = el("span", { className: "pill", id: "control-state" });
   const armed = el("span", { className: "pill", id: "arm-state" });
   const arm = el("button", { type: "button", className: "arm", onclick: () => studio.arm() }, "Arm");
-  const disarm = el("button", { type: "button", className: "danger", onclick: () => studio.disarm() }, "Disarm");
+  const disarm = el(
+    "button",
+    { type: "button", className: "danger", ariaLabel: "Disarm", "aria-keyshortcuts": "Escape", title: "Disarm and stop everything (Escape)", onclick: () => studio.disarm() },
+    ["Disarm ", el("kbd", {}, "Esc")],
+  );
   const take = el("button", { type: "button", className: "secondary", onclick: () => studio.takeControl() }, "Take control");
   const release = el(
     "button",
     { type: "button", className: "secondary", onclick: () => studio.releaseControl() },
     "Release control",
   );
+  const reasonText = el("span", {});
+  const reason = el("div", { className: "disarm-reason", id: "disarm-reason", role: "alert", hidden: true }, [
+    reasonText,
+    el("button", { type: "button", className: "link", ariaLabel: "Dismiss why the page was disarmed", onclick: () => (reason.hidden = true) }, "×"),
+  ]);
+  studio.on("disarmed", (d) => {
+    if (!d) {
+      reason.hidden = true;
+      return;
+    }
+    const at = new Date(d.unixMs).toLocaleTimeString();
+    reasonText.replaceChildren(el("strong", {}, `Disarmed at ${at}: ${d.reason}.`), ` ${capital(d.why)}. Arm again when ready.`);
+    reason.hidden = false;
+  });
   const where = studio.state.simulated ? "simulated robot" : "hardware";
   const buses = [...studio.buses("wck"), ...studio.buses("whj")].join(", ");
 
@@ -84,7 +125,12 @@ function header(studio) {
     el("h1", {}, ["robobus studio", el("small", {}, ` ${where}${buses ? ` · ${buses}` : ""} · v${studio.info.version}`)]),
     el("div", { className: "status", "aria-label": "Studio state" }, [conn, control, armed]),
     el("div", { className: "controls" }, [take, release, arm, disarm]),
+    reason,
   ]);
+}
+
+function capital(text) {
+  return text ? text[0].toUpperCase() + text.slice(1) : "";
 }
 
 function safeBanner(studio) {

@@ -2,7 +2,10 @@
 //
 // It owns the HTTP calls (`run`, `plan`), the WebSocket (`runLong`, `subscribe`, `jog`,
 // control and arming, the heartbeat), the confirmation dialog, the toasts and the list of
-// known devices. The contract it speaks is docs/studio.md.
+// known devices. The contract it speaks is docs/studio.md. The WebSocket and the heartbeat
+// live in a worker (link.js), so that a busy page stays armed.
+
+import { Link } from "./link.js";
 
 /** The HTTP status of each error kind (docs/studio.md), for errors that come over the WebSocket. */
 const KIND_STATUS = {
@@ -83,7 +86,12 @@ export class Studio {
     this.jogs = new Map(); // jog id -> {resolve, reject, timer}
     this.streams = new Map(); // stream -> {request, rateHz, fps, onSample}
     this.handlers = new Map(); // message type -> Set of handlers
-    this.heartbeat = null;
+    this.heartbeat = false; // the link's worker beats (armed)
+    /** Set while the page itself disarms (Disarm, the stop key, closing): any other disarm says why. */
+    this.disarmAsked = false;
+    /** The last `safe` message since arming, and whether the link withheld the beat (this page was silent). */
+    this.lastSafe = null;
+    this.withheldMs = null;
     this.previewHandler = null;
     this.pendingPreview = null;
     this.wantControl = true;
@@ -243,8 +251,11 @@ export class Studio {
 
   #open() {
     return new Promise((resolve, reject) => {
-      const ws = new WebSocket(this.#wsUrl());
+      const ws = new Link(this.#wsUrl());
       this.ws = ws;
+      ws.addEventListener("withheld", (e) => {
+        if (this.ws === ws) this.withheldMs = e.detail.silentMs;
+      });
       let hello = false;
       ws.addEventListener("message", (ev) => {
         let msg;
@@ -280,6 +291,9 @@ export class Studio {
   #lost() {
     this.#stopHeartbeat();
     const wasArmed = this.state.armed;
+    if (wasArmed && !this.closedByPage) {
+      this.#disarmedBy("connection lost", "the connection to the studio server was lost (the server brings the devices to their safe state)");
+    }
     Object.assign(this.state, { connected: false, controller: false, armed: false, heldByOther: false });
     const err = new StudioError("link", "the connection to the studio server was lost", 0);
     for (const p of this.pending.values()) p.reject(err);
@@ -290,7 +304,6 @@ export class Studio {
     }
     this.jogs.clear();
     this.#emit("state", this.state);
-    if (wasArmed && !this.closedByPage) this.toast("Connection lost: disarmed (the server brings the devices to their safe state).", "error");
   }
 
   #reconnect() {
@@ -305,12 +318,13 @@ export class Studio {
   /** Close the WebSocket (the page is going away). */
   close() {
     this.closedByPage = true;
+    this.disarmAsked = true;
     this.#stopHeartbeat();
     this.ws?.close();
   }
 
   #send(msg) {
-    if (!this.ws || this.ws.readyState !== WebSocket.OPEN) return false;
+    if (!this.ws || this.ws.readyState !== Link.OPEN) return false;
     this.ws.send(JSON.stringify(msg));
     return true;
   }
@@ -318,6 +332,7 @@ export class Studio {
   #dispatch(msg) {
     switch (msg.type) {
       case "control": {
+        const wasArmed = this.state.armed;
         Object.assign(this.state, {
           controller: !!msg.controller,
           armed: !!msg.armed,
@@ -325,11 +340,13 @@ export class Studio {
         });
         if (this.state.armed) this.#startHeartbeat();
         else this.#stopHeartbeat();
+        if (wasArmed && !this.state.armed) this.#disarmedUnasked();
         this.#emit("control", msg);
         this.#emit("state", this.state);
         break;
       }
       case "safe":
+        this.lastSafe = msg;
         this.#stopHeartbeat();
         this.#emit("safe", msg);
         break;
@@ -422,24 +439,60 @@ export class Studio {
   }
 
   arm() {
+    this.disarmAsked = false;
+    this.lastSafe = null;
+    this.withheldMs = null;
     if (this.#send({ type: "arm" })) this.#startHeartbeat();
+    this.#emit("disarmed", null);
   }
 
   disarm() {
+    this.disarmAsked = true;
     this.#send({ type: "disarm" });
     this.#stopHeartbeat();
   }
 
+  /**
+   * The stop key: stop every run of this page and disarm (the server stops every motion
+   * and brings what moved to its safe state). Returns how many runs were asked to stop.
+   */
+  stopAll() {
+    for (const id of this.pending.keys()) this.#send({ type: "stop", id });
+    if (this.state.armed || this.heartbeat) this.disarm();
+    return this.pending.size;
+  }
+
+  /** The heartbeat runs in the link's worker: it does not wait for this page's main thread. */
   #startHeartbeat() {
-    if (this.heartbeat) return;
-    this.heartbeat = setInterval(() => {
-      if (!this.#send({ type: "heartbeat" })) this.#stopHeartbeat();
-    }, 100);
+    if (this.heartbeat || !this.ws) return;
+    this.heartbeat = true;
+    this.ws.beat(true);
   }
 
   #stopHeartbeat() {
-    if (this.heartbeat) clearInterval(this.heartbeat);
-    this.heartbeat = null;
+    if (!this.heartbeat) return;
+    this.heartbeat = false;
+    this.ws?.beat(false);
+  }
+
+  /** The page was disarmed without asking: say why (the shell shows it until the next Arm). */
+  #disarmedUnasked() {
+    if (this.disarmAsked) return;
+    const reason = this.lastSafe?.reason ?? "disarmed by the server";
+    let why;
+    if (reason === "heartbeat lost" && this.withheldMs != null) {
+      why = `this page did not respond for over ${(this.withheldMs / 1000).toFixed(1)} s (a frozen or overloaded tab), so its heartbeat stopped`;
+    } else if (reason === "heartbeat lost") {
+      why = "the heartbeat did not reach the server in time (the network or the server was too slow)";
+    } else {
+      why = reason;
+    }
+    this.#disarmedBy(reason, why);
+  }
+
+  #disarmedBy(reason, why) {
+    this.disarmAsked = true; // said once
+    this.#emit("disarmed", { reason, why, unixMs: Date.now() });
   }
 
   // ---- telemetry and jogs ----
