@@ -429,8 +429,9 @@ impl Interaction for Recording {
     }
 }
 
-/// Runs `request` on a station opened from the robot file `robot` (closed after it, its
-/// safe-stop failures printed).
+/// Runs `request` on a station opened from the robot file `robot`. A robot operation ends
+/// with each bus it moved in the file's `safe_state` itself (a refused one moved nothing),
+/// so the station is left as the operation left it: not braked and disabled on top.
 fn run_on(
     g: Global,
     robot: &Path,
@@ -455,10 +456,7 @@ fn run_on_with(
         ..StationConfig::default()
     })?;
     let result = report::run_with(&station, request, interaction);
-    let failures = station.close();
-    for f in &failures {
-        eprintln!("robobus: safe stop: {f}");
-    }
+    station.leave();
     result
 }
 

@@ -167,6 +167,9 @@ pub struct PlaySummary {
     pub late_ms: Spread,
     /// The stop token ended it early.
     pub interrupted: bool,
+    /// How it left each bus: in the robot file's `safe_state` (finished, failed or
+    /// stopped).
+    pub safe_state: Vec<super::robot::BusEnd>,
 }
 
 /// What a `robot.play` run did.
@@ -343,72 +346,6 @@ fn check_steps(
     Ok(())
 }
 
-/// Refuses the run, before anything moves, when a WHJ joint of the trajectory is not
-/// enabled in position mode (the wCK servos would otherwise move without it).
-fn ready(
-    station: &Station,
-    config: &RobotConfig,
-    traj: &Trajectory,
-    index: &[usize],
-) -> Result<(), OpError> {
-    for (name, &i) in traj.joints().iter().zip(index) {
-        let j = &config.joints[i];
-        if config.is_wck(j) {
-            continue;
-        }
-        let port = station.whj(Some(&j.bus))?;
-        let id = robobus_whj::JointId::new(j.id)
-            .map_err(|e| OpError::invalid("robot", name, e.to_string()))?;
-        let joint = port.bus().joint(id)?;
-        crate::ops::whj::require_ready(&joint, ServoLoop::Position, "a trajectory")
-            .map_err(|e| OpError::Refused(format!("{name}: {e}; nothing was moved")))?;
-    }
-    Ok(())
-}
-
-/// Where each of the trajectory's joints is now (joint degrees, by column); refused when
-/// one does not answer or stands outside its soft limits.
-fn start(
-    station: &Station,
-    config: &RobotConfig,
-    traj: &Trajectory,
-    index: &[usize],
-) -> Result<Vec<f64>, OpError> {
-    let mut sampler = super::robot::sampler(station, &super::robot::only(config, traj.joints()))?;
-    let rows = sampler.sample(0.0);
-    traj.joints()
-        .iter()
-        .zip(index)
-        .map(|(name, &i)| {
-            let row = rows.iter().find(|r| &r.id == name);
-            let at = match row.map(|r| &r.outcome) {
-                Some(Outcome::Ok(s)) => s.position_deg,
-                Some(Outcome::Failed(f)) => {
-                    return Err(OpError::Refused(format!(
-                        "{name} did not answer ({}); nothing was moved",
-                        f.error
-                    )));
-                }
-                None => {
-                    return Err(OpError::Refused(format!(
-                        "{name} was not read; nothing was moved"
-                    )));
-                }
-            };
-            let j = &config.joints[i];
-            let [lo, hi] =
-                [j.limits[0].min(j.limits[1]), j.limits[0].max(j.limits[1])].map(f64::to_degrees);
-            if !(lo - 0.5..=hi + 0.5).contains(&at) {
-                return Err(OpError::Refused(format!(
-                    "{name} is at {at:.2}°, outside its soft limits {lo:.2}..={hi:.2}°; bring \
-                     it inside first; nothing was moved"
-                )));
-            }
-            Ok(at)
-        })
-        .collect()
-}
-
 /// `robot.play` on the station's robot file.
 pub(super) fn run_play(
     station: &Station,
@@ -425,8 +362,7 @@ pub(super) fn run_play(
         .check(&config)
         .map_err(|e| OpError::invalid("trajectory", "(file)", e.to_string()))?;
     let (groups, clock) = groups(station, &config, &traj, &index)?;
-    let from = start(station, &config, &traj, &index)?;
-    ready(station, &config, &traj, &index)?;
+    let from = super::robot::ready_at(station, &config, traj.joints(), "a trajectory")?;
     // The lead-in: as long as the slowest joint needs at its max_velocity.
     let lead_in = traj
         .first()
@@ -447,14 +383,19 @@ pub(super) fn run_play(
         torque: r.torque,
         steps: steps_of(&groups, traj.joints().len())?,
     };
-    let timing = player.run(&mut rows, control, on_tick)?;
+    let run = player.run(&mut rows, control, on_tick);
+    // Finished, stopped or failed: each bus as the robot file says.
+    let settled = super::robot::settle(station, &config, traj.joints());
+    let timing = run.inspect_err(|_| settled.log())?;
     let names = traj.joints();
     Ok(PlayedRun {
-        joints: names
-            .iter()
-            .zip(rows)
-            .map(|(n, row)| row.result(n))
-            .collect(),
+        joints: settled.into_rows(
+            names
+                .iter()
+                .zip(rows)
+                .map(|(n, row)| row.result(n))
+                .collect(),
+        ),
         summary: PlaySummary {
             lead_in_s: lead_in,
             duration_s: traj.duration_s(),
@@ -464,6 +405,7 @@ pub(super) fn run_play(
             skew_ms: Spread::of(&timing.skew),
             late_ms: Spread::of(&timing.late),
             interrupted: timing.interrupted,
+            safe_state: settled.buses,
         },
     })
 }

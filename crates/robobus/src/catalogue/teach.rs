@@ -113,8 +113,11 @@ pub struct Taught {
     pub min_deg: Option<f64>,
     /// The largest angle recorded, degrees.
     pub max_deg: Option<f64>,
-    /// Where it was left holding (`holding`), or why it could not be.
+    /// Where it was left, in its bus's safe state (`holding`, `disabled`, `passive`,
+    /// `braked`), or why it could not be.
     pub ended: String,
+    #[serde(skip)]
+    settled: bool,
     #[serde(skip)]
     last_error: Option<Failure>,
 }
@@ -216,21 +219,34 @@ fn release(station: &Station, j: &Joint, hold_ma: f64) -> Result<(), OpError> {
     Ok(())
 }
 
-/// Makes `j` hold where it is (a WHJ joint enabled in position mode holds there).
-fn hold(station: &Station, j: &Joint) -> Result<(), OpError> {
-    match j.device(station)? {
-        Device::Wck(port, id) => {
-            let torque = robobus_wck::TorqueLevel::new(2)
-                .map_err(|e| OpError::invalid("torque", 2, e.to_string()))?;
-            let mut bus = port.lock();
-            let at = bus.servo(id).status()?.position;
-            bus.servo(id).move_to(torque, at)?;
-        }
-        Device::Whj(port, id) => {
-            switch(&port, id, robobus_whj::WorkMode::Position)?;
-        }
+/// Undoes [`release`] on a WHJ joint: back in position mode, enabled (it holds where it
+/// is); a wCK servo stays as it is. The robot file's safe state follows ([`settle`]).
+///
+/// [`settle`]: super::robot::settle
+fn restore(station: &Station, j: &Joint) -> Result<(), OpError> {
+    if let Device::Whj(port, id) = j.device(station)? {
+        switch(&port, id, robobus_whj::WorkMode::Position)?;
     }
     Ok(())
+}
+
+/// Ends a run: each joint back from limp ([`restore`]), then every bus in the robot
+/// file's safe state; each joint's `ended` says where it was left, or why not.
+fn end(station: &Station, config: &RobotConfig, joints: &[Joint], rows: &mut [Taught]) {
+    let restored: Vec<Result<(), OpError>> = joints.iter().map(|j| restore(station, j)).collect();
+    let names: Vec<String> = joints.iter().map(|j| j.name.clone()).collect();
+    let settled = super::robot::settle(station, config, &names);
+    for ((row, j), back) in rows.iter_mut().zip(joints).zip(restored) {
+        let state = config
+            .buses
+            .get(&j.bus)
+            .map(crate::robot::BusConfig::safe_state);
+        (row.ended, row.settled) = match (back, settled.failed.iter().find(|(n, _)| *n == j.name)) {
+            (Err(e), _) => (format!("not back in position mode: {e}"), false),
+            (Ok(()), Some((_, f))) => (f.error.clone(), false),
+            (Ok(()), None) => (state.map_or("", |s| s.outcome(!j.wck)).to_owned(), true),
+        };
+    }
 }
 
 /// A sampler of `joints` and the clock of their buses.
@@ -272,7 +288,7 @@ fn results(joints: &[Joint], rows: Vec<Taught>) -> Vec<DeviceResult<String, Taug
                     ),
                 },
             ),
-            None if row.ended != "holding" => DeviceResult::failed(
+            None if !row.settled => DeviceResult::failed(
                 j.name.clone(),
                 Failure::of(ErrorKind::Device, &format!("{}: {}", j.name, row.ended)),
             ),
@@ -305,15 +321,15 @@ pub(super) fn run_teach(
             min_deg: None,
             max_deg: None,
             ended: String::new(),
+            settled: false,
             last_error: None,
         })
         .collect();
-    // Released one by one; a failure holds those released so far and ends the run.
+    // Released one by one; a failure ends the run as its end does: those released so far
+    // back, every bus in its safe state.
     for (k, j) in joints.iter().enumerate() {
         if let Err(e) = release(station, j, r.hold_ma) {
-            for done in &joints[..k] {
-                let _ = hold(station, done);
-            }
+            end(station, &config, &joints[..=k], &mut rows[..=k]);
             return Err(e);
         }
     }
@@ -370,12 +386,7 @@ pub(super) fn run_teach(
         }
         control.report(&Progress::new("teach", taken, Some(readings)));
     }
-    for (row, j) in rows.iter_mut().zip(&joints) {
-        row.ended = match hold(station, j) {
-            Ok(()) => "holding".into(),
-            Err(e) => format!("not holding: {e}"),
-        };
-    }
+    end(station, &config, &joints, &mut rows);
     let results = results(&joints, rows);
     Ok(TaughtRun {
         joints: results,
@@ -461,10 +472,14 @@ mod tests {
         // The limp joint followed the hand, within its grip's few degrees.
         let max = j1["max_deg"].as_f64().unwrap();
         assert!((12.0..=15.5).contains(&max), "{j1}");
+        // Each as its bus's safe state in the robot file: the wCK servo passive, the WHJ
+        // joint holding (back in position mode, enabled).
         assert_eq!(
             (s0["ended"].as_str(), j1["ended"].as_str()),
-            (Some("holding"), Some("holding"))
+            (Some("passive"), Some("holding"))
         );
+        let j = whj.with_bus(|b| b.joint(1).unwrap().state());
+        assert!(j.enabled && j.mode == 3 && !j.brake_locked, "{j:?}");
         // The trajectory is a file robot.play reads, and plays back.
         let text = s["trajectory"].as_str().unwrap();
         let parsed = crate::robot::trajectory::Trajectory::parse(text).unwrap();

@@ -269,6 +269,9 @@ pub struct TeleopSummary {
     pub leader_lost: bool,
     /// The stop token ended it before its `seconds`.
     pub interrupted: bool,
+    /// How it left each bus of the leader and the follower: in the robot file's
+    /// `safe_state` (finished, the leader lost, or stopped).
+    pub safe_state: Vec<super::robot::BusEnd>,
 }
 
 /// What a `robot.teleop` run did.
@@ -289,6 +292,7 @@ pub(super) fn run_teleop(
 ) -> Result<Teleoperated, OpError> {
     r.check()?;
     let mut run = Run::open(station, r)?;
+    // Nothing below returns early: the run ends through `settle`.
     let period = Duration::from_secs_f64(1.0 / r.rate_hz);
     let timeout = Duration::from_millis(r.leader_timeout_ms);
     let end = r.seconds.map(Duration::from_secs_f64);
@@ -332,7 +336,9 @@ pub(super) fn run_teleop(
         );
     }
     let elapsed = run.clock.now().saturating_duration_since(start);
-    Ok(run.finish(r, elapsed, interrupted && end.is_some()))
+    // Each bus of the leader and the follower as the robot file says.
+    let settled = super::robot::settle(station, &run.config, &run.names);
+    Ok(run.finish(r, elapsed, interrupted && end.is_some(), settled))
 }
 
 /// The leader joints of `r`'s map, each once, in the map's order; a name the file does
@@ -391,6 +397,7 @@ impl TeleopSummary {
                 .collect(),
             leader_lost: false,
             interrupted: false,
+            safe_state: Vec::new(),
         }
     }
 }
@@ -408,6 +415,10 @@ struct Run {
     summary: TeleopSummary,
     latencies: VecDeque<Duration>,
     worst: Duration,
+    /// The robot file, and the leader's and the follower's joints (what the run ends by
+    /// bringing to their safe state).
+    config: crate::robot::RobotConfig,
+    names: Vec<String>,
     /// The latest readings of the leader joints (`None`: failed in this cycle).
     angles: Vec<Option<f64>>,
     lost: Option<Failure>,
@@ -446,6 +457,9 @@ impl Run {
             }
             ranges.push((lo, hi));
         }
+        // Refused before anything is sent: a follower joint that is silent, outside its
+        // soft limits, or a WHJ joint not enabled in position mode (as play refuses).
+        super::robot::ready_at(station, &config, &followers, "teleoperation")?;
         if r.passive_leader {
             super::robot::make_passive(station, &led)?;
         }
@@ -472,6 +486,8 @@ impl Run {
             summary,
             latencies: VecDeque::new(),
             worst: Duration::ZERO,
+            names: all,
+            config,
             lost: None,
         })
     }
@@ -583,7 +599,13 @@ impl Run {
     }
 
     /// The report of the run, `elapsed` long.
-    fn finish(mut self, r: &Teleop, elapsed: Duration, interrupted: bool) -> Teleoperated {
+    fn finish(
+        mut self,
+        r: &Teleop,
+        elapsed: Duration,
+        interrupted: bool,
+        settled: super::robot::Settled,
+    ) -> Teleoperated {
         let s = &mut self.summary;
         s.seconds = elapsed.as_secs_f64();
         #[allow(clippy::cast_precision_loss)] // a count of cycles
@@ -625,10 +647,15 @@ impl Run {
                 }
             })
             .collect();
+        // A leader joint that did not reach its safe state fails the run as its silence
+        // does (it has no row of its own).
+        let leaders: Vec<String> = s.leaders.iter().map(|l| l.name.clone()).collect();
+        let lost = self.lost.or_else(|| settled.first_of(&leaders));
+        s.safe_state.clone_from(&settled.buses);
         Teleoperated {
-            joints,
+            joints: settled.into_rows(joints),
             summary: self.summary,
-            lost: self.lost,
+            lost,
         }
     }
 }
