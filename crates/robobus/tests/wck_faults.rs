@@ -11,8 +11,10 @@ use robobus::WaitMode;
 use robobus::wck::Gains;
 use robobus::wck::{WckBus, WckConfig, WckError};
 use robobus_link::{FaultConfig, FaultyByteLink};
+use robobus_sim::wck::{Bus, BusConfig, Eeprom, Faults, Model};
 use robobus_wck::{
-    BaudRate, Boundaries, DGain, IGain, MotionCount, Overload, PGain, Position, Target,
+    BaudRate, Boundaries, DGain, ExtServoId, IGain, MotionCount, Overload, PGain, Position, Target,
+    TorqueLevel,
 };
 use wck_support::{id, serve_fast, serve_ids};
 
@@ -302,6 +304,43 @@ fn bytes_waiting_before_the_first_command_are_nobodys_reply() {
     let mut bus = sim.bus();
     let status = bus.servo(id(3)).status().unwrap();
     assert_eq!(status.position, Position::new(200).unwrap());
+    assert_eq!(bus.stats().attempts, 1);
+}
+
+/// A late reply to a program that used the port before (the P / D gains it read, 40 and
+/// 90) arrives 5 ms after this program opened the bus, while the module's own replies come
+/// 15 ms late (still within a 30 ms margin): the move's `position_before` is the module's
+/// position, never the stale D gain. Opening the bus waits out a late window, dropping
+/// (and counting) what arrives.
+#[test]
+fn a_late_reply_to_a_previous_program_is_never_a_moves_position_before() {
+    let config = BusConfig {
+        faults: Faults {
+            late_reply: 1.0,
+            late_by: Duration::from_millis(15),
+            ..Faults::default()
+        },
+        ..BusConfig::default()
+    };
+    let mut sim_bus = Bus::new(config);
+    let eeprom = Eeprom {
+        id: ExtServoId::new(3).unwrap(),
+        ..Eeprom::default()
+    };
+    sim_bus.add(Model::W1108, eeprom, 200.0 * 269.0 / 255.0);
+    let mut sim = wck_support::serve(sim_bus);
+    let at = sim.now() + Duration::from_millis(5);
+    sim.with_bus(|b| b.inject_to_host(at, &[40, 90]));
+    let mut bus = sim.bus().with_config(WckConfig {
+        margin: Duration::from_millis(30),
+        ..WckConfig::default()
+    });
+    let before = bus
+        .servo(id(3))
+        .move_to(TorqueLevel::new(2).unwrap(), Position::new(200).unwrap())
+        .unwrap();
+    assert_eq!(before.position, Position::new(200).unwrap());
+    assert_eq!(bus.stats().dropped, 2);
     assert_eq!(bus.stats().attempts, 1);
 }
 

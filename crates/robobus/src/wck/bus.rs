@@ -71,7 +71,9 @@ pub struct WckConfig {
     /// much per silent servo; nothing while every reply is on time. A scan does not wait
     /// before each probe: it sends the next one at once and credits nothing that arrives
     /// while the window is open (it waits the window out and asks that ID again), so an
-    /// empty ID costs only its reply waits (see [`WckBus::scan`]).
+    /// empty ID costs only its reply waits (see [`WckBus::scan`]). Opening a bus waits
+    /// out [`DEFAULT_LATE_WINDOW`] once, for the late replies of a program that used the
+    /// port before (see [`WckBus::new`]).
     pub late_window: Duration,
     /// How long the line must stay quiet after a complete reply before the reply is
     /// credited. A wCK reply carries no ID, so a byte that follows it within this time
@@ -132,6 +134,10 @@ pub struct WckStats {
     /// before any module could have answered, or more bytes than one reply (see
     /// [`WckConfig::guard`]).
     pub unattributable: u64,
+    /// Bytes received outside any reply and dropped: left on the line before a packet was
+    /// sent (a late reply to an earlier request, or to a previous program on the same
+    /// port), or arriving while a late window was waited out or the line settled.
+    pub dropped: u64,
 }
 
 /// A wCK bus: one UART line with up to 31 modules (IDs 0..=30; up to 254 with the
@@ -186,7 +192,11 @@ impl WckBus<robobus_link::SerialLink> {
 impl<L: ByteLink> WckBus<L> {
     /// A bus over any byte link (a pty, a fault-injecting wrapper, an in-memory pair),
     /// switched to `baud`. Input already waiting is drained until the line has been quiet
-    /// for [`WckConfig::settle`] (2 ms; a late reply to a previous process is nobody's). Errors name the device as `wCK bus` until
+    /// for [`WckConfig::settle`] (2 ms), then for a late window ([`DEFAULT_LATE_WINDOW`],
+    /// 50 ms), dropping what arrives: a late reply to a program that used the port before
+    /// is nobody's (a reply that program waited for may arrive up to a late window after
+    /// its last deadline, which was before this bus was made). The bytes dropped are
+    /// counted ([`WckStats::dropped`]). Errors name the device as `wCK bus` until
     /// [`WckBus::with_device_name`] names it.
     pub fn new(mut link: L, baud: BaudRate) -> Result<Self, WckError> {
         let device = String::from("wCK bus");
@@ -206,8 +216,11 @@ impl<L: ByteLink> WckBus<L> {
             quiet_until: None,
         };
         // Input waiting before the first command (a late reply to a previous process,
-        // still trickling in) is nobody's reply.
+        // still trickling in) is nobody's reply; one still on its way may come up to a
+        // late window after that process's last deadline, which was before now.
         bus.settle();
+        bus.quiet_until = Some(bus.link.now() + DEFAULT_LATE_WINDOW);
+        bus.drain_late();
         Ok(bus)
     }
 

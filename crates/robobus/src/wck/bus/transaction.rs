@@ -87,11 +87,27 @@ impl<L: ByteLink> WckBus<L> {
         self.quiet_until.is_some_and(|q| q > self.link.now())
     }
 
+    /// Drops (and counts) the input already waiting before a packet is sent: nothing sent
+    /// before the packet can be its reply.
+    fn drop_waiting(&mut self) -> Result<(), LinkError> {
+        let now = self.link.now();
+        let mut buf = [0u8; 64];
+        // Bounded: a line that never stops sending is flushed after 64 reads.
+        for _ in 0..64 {
+            match self.link.read_some(&mut buf, now) {
+                Ok(n) => self.stats.dropped += n as u64,
+                Err(LinkError::Timeout { .. }) => break,
+                Err(e) => return Err(e),
+            }
+        }
+        self.link.discard_input()
+    }
+
     /// One attempt without waiting out an open late window first: what it receives may
     /// be an earlier attempt's late reply, so the caller must not credit it while
     /// [`WckBus::late_reply_possible`] said so (see the scan).
     pub(crate) fn exchange_now(&mut self, command: &Command) -> Result<[u8; 2], Failure> {
-        self.link.discard_input().map_err(Failure::Link)?;
+        self.drop_waiting().map_err(Failure::Link)?;
         let packet = command.encode();
         let wait = self.reply_wait(command);
         let start = self.link.now();
@@ -186,15 +202,18 @@ impl<L: ByteLink> WckBus<L> {
         }
     }
 
-    /// Drops input until the late window of the last doubtful attempt has passed.
-    fn drain_late(&mut self) {
+    /// Drops (and counts) input until the late window of the last doubtful attempt has
+    /// passed.
+    pub(super) fn drain_late(&mut self) {
         let Some(until) = self.quiet_until.take() else {
             return;
         };
         // Until the link says the deadline has passed (a fast-forwarding simulator says
         // so at once, on its own clock).
         let mut buf = [0u8; 64];
-        while self.link.read_some(&mut buf, until).is_ok() {}
+        while let Ok(n) = self.link.read_some(&mut buf, until) {
+            self.stats.dropped += n as u64;
+        }
     }
 
     /// Bytes that arrive within `window` after a reply (a collision or line noise makes
@@ -232,8 +251,7 @@ impl<L: ByteLink> WckBus<L> {
     /// Sends a command without a reply, once.
     pub(super) fn send(&mut self, command: &Command) -> Result<(), WckError> {
         self.drain_late();
-        self.link
-            .discard_input()
+        self.drop_waiting()
             .and_then(|()| self.link.write_all(&command.encode()))
             .map_err(|source| self.link_error(command.name(), source))?;
         self.stats.attempts += 1;
@@ -353,8 +371,9 @@ impl<L: ByteLink> WckBus<L> {
                 break;
             }
             let deadline = (now + self.config.settle).min(cap);
-            if self.link.read_some(&mut buf, deadline).is_err() {
-                break;
+            match self.link.read_some(&mut buf, deadline) {
+                Ok(n) => self.stats.dropped += n as u64,
+                Err(_) => break,
             }
         }
         let _ = self.link.discard_input();
