@@ -339,6 +339,294 @@ fn wait_for(ws: &mut tungstenite::WebSocket<TcpStream>, kind: &str, id: Option<u
     panic!("no {kind} message");
 }
 
+/// The secret of the first `control` message that says this page controls.
+fn control_secret(ws: &mut tungstenite::WebSocket<TcpStream>) -> String {
+    loop {
+        let v = wait_for(ws, "control", None);
+        if v["controller"] == true {
+            let secret = v["secret"].as_str().unwrap().to_owned();
+            assert_eq!(secret.len(), 64, "{v}");
+            return secret;
+        }
+        assert!(
+            v["secret"].is_null(),
+            "a page without control has no secret: {v}"
+        );
+    }
+}
+
+/// A page's WebSocket (reads time out after 20 s instead of hanging the test).
+fn page(s: &Studio) -> tungstenite::WebSocket<TcpStream> {
+    let stream = TcpStream::connect(&s.addr).unwrap();
+    stream
+        .set_read_timeout(Some(Duration::from_secs(20)))
+        .unwrap();
+    let (mut ws, _) = tungstenite::client(format!("ws://{}/api/ws", s.addr), stream).unwrap();
+    wait_for(&mut ws, "hello", None);
+    ws
+}
+
+/// The simulators' own state of WHJ joint `joint`.
+fn sim_joint(s: &Studio, joint: usize) -> Value {
+    let v: Value = serde_json::from_str(&http(&s.addr, "GET", "/api/sim", &[], "").1).unwrap();
+    v["whj"][joint - 1].clone()
+}
+
+/// The next error message (of run or jog `id`).
+fn error_of(ws: &mut tungstenite::WebSocket<TcpStream>, id: u64) -> Value {
+    loop {
+        let v = wait_for(ws, "error", None);
+        if v["id"] == id {
+            return v;
+        }
+    }
+}
+
+#[test]
+fn only_the_controlling_pages_own_secret_changes_a_device() {
+    // A long heartbeat allowance: the test's HTTP requests come between two beats.
+    let s = start(&["--heartbeat-timeout-ms", "1000"]);
+    let mut a = page(&s);
+    send(&mut a, &json!({"type": "take-control"}));
+    let secret = control_secret(&mut a);
+    // Arming proves control too.
+    send(&mut a, &json!({"type": "arm"}));
+    let e = wait_for(&mut a, "error", None);
+    assert_eq!(e["kind"], "refused", "{e}");
+    assert!(e["message"].as_str().unwrap().contains("control"), "{e}");
+    send(&mut a, &json!({"type": "arm", "control": secret}));
+    loop {
+        if wait_for(&mut a, "control", None)["armed"] == true {
+            break;
+        }
+    }
+    send(&mut a, &json!({"type": "heartbeat"}));
+    let before = sim_joint(&s, 4);
+    let wck_before = |s: &Studio| -> Value {
+        serde_json::from_str::<Value>(&http(&s.addr, "GET", "/api/sim", &[], "").1).unwrap()["wck"]
+            .clone()
+    };
+    let servos = wck_before(&s);
+    let enable = json!({"op": "whj.enable", "joints": "4"}).to_string();
+    let mv = json!({"op": "whj.move", "joint": 4, "degrees": 15}).to_string();
+    let servo = json!({"op": "wck.move", "id": 3, "position": 60}).to_string();
+
+    // Another local process, over HTTP: a session number, a guessed secret, none.
+    let guessed = "0".repeat(64);
+    for (header, value, want) in [
+        ("X-Robobus-Session", "1", 403),
+        ("X-Robobus-Session", "0", 403),
+        ("X-Robobus-Control", guessed.as_str(), 403),
+        ("X-Robobus-Control", "1", 403),
+        ("X-Other", "1", 409),
+    ] {
+        for body in [&enable, &mv, &servo] {
+            let (status, answer) = http(&s.addr, "POST", "/api/run", &[(header, value)], body);
+            assert_eq!(status, want, "{header}: {value} {body}: {answer}");
+            send(&mut a, &json!({"type": "heartbeat"}));
+        }
+    }
+    // Another page, with the controller's secret copied: refused, it is not its own.
+    let mut b = page(&s);
+    for (id, request) in [(1, &enable), (2, &mv)] {
+        let request: Value = serde_json::from_str(request).unwrap();
+        send(
+            &mut b,
+            &json!({"type": "run", "id": id, "request": request, "control": secret}),
+        );
+        let e = error_of(&mut b, id);
+        assert_eq!(e["kind"], "refused", "{e}");
+        assert!(
+            e["message"]
+                .as_str()
+                .unwrap()
+                .contains("another connection"),
+            "{e}"
+        );
+    }
+    send(
+        &mut b,
+        &json!({"type": "jog", "id": 3, "family": "whj", "device": 4, "target": 5, "control": secret}),
+    );
+    assert_eq!(error_of(&mut b, 3)["kind"], "refused");
+    send(&mut a, &json!({"type": "heartbeat"}));
+    // Nothing moved: joint 4 and the wCK servos are as they were.
+    let after = sim_joint(&s, 4);
+    assert_eq!(after["enabled"], before["enabled"], "{before} -> {after}");
+    assert_eq!(
+        after["target_position_deg"], before["target_position_deg"],
+        "{after}"
+    );
+    assert_eq!(wck_before(&s), servos);
+
+    // The page itself, with its secret (as core.js sends it): obeyed.
+    let proof = [("X-Robobus-Control", secret.as_str())];
+    for body in [&enable, &mv] {
+        // The page keeps beating while the request runs (the move waits for the joint).
+        let (addr, secret, body) = (s.addr.clone(), secret.clone(), body.clone());
+        let request = std::thread::spawn(move || {
+            let (status, answer) = http(
+                &addr,
+                "POST",
+                "/api/run",
+                &[("X-Robobus-Control", &secret)],
+                &body,
+            );
+            assert_eq!(status, 200, "{body}: {answer}");
+        });
+        while !request.is_finished() {
+            send(&mut a, &json!({"type": "heartbeat"}));
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        request.join().unwrap();
+    }
+    let moved = sim_joint(&s, 4);
+    assert_eq!(moved["enabled"], true, "{moved}");
+    assert!(
+        (moved["target_position_deg"].as_f64().unwrap() - 15.0).abs() < 0.1,
+        "{moved}"
+    );
+
+    // The page closes: its secret is stale, for HTTP and for any other page.
+    a.close(None).unwrap();
+    while a.read().is_ok() {}
+    drop(a);
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let mut c = page(&s);
+    loop {
+        send(&mut c, &json!({"type": "take-control"}));
+        let v = wait_for(&mut c, "control", None);
+        if v["controller"] == true {
+            assert_ne!(v["secret"].as_str().unwrap(), secret);
+            break;
+        }
+        assert!(Instant::now() < deadline, "control never came free");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let torque = json!({"op": "wck.brake"}).to_string();
+    let (status, answer) = http(&s.addr, "POST", "/api/run", &proof, &torque);
+    assert_eq!(status, 403, "{answer}");
+    send(
+        &mut c,
+        &json!({"type": "run", "id": 1, "request": {"op": "wck.move", "id": 3, "position": 60}, "control": secret}),
+    );
+    assert_eq!(error_of(&mut c, 1)["kind"], "refused");
+    assert_eq!(wck_before(&s), servos);
+}
+
+#[test]
+fn a_watcher_resubscribing_stalls_neither_the_server_nor_the_armed_page() {
+    let s = start(&[]);
+    let mut a = page(&s);
+    send(&mut a, &json!({"type": "take-control"}));
+    let secret = control_secret(&mut a);
+    send(&mut a, &json!({"type": "arm", "control": secret}));
+    send(&mut a, &json!({"type": "heartbeat"}));
+    // The armed page beats every 100 ms on its own thread and notes any safe stop.
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let flag = std::sync::Arc::clone(&stop);
+    let beating = std::thread::spawn(move || {
+        a.get_mut()
+            .set_read_timeout(Some(Duration::from_millis(20)))
+            .unwrap();
+        let mut armed = false;
+        let mut next = Instant::now();
+        let mut safe = Vec::new();
+        while !flag.load(std::sync::atomic::Ordering::Relaxed) {
+            if Instant::now() >= next {
+                send(&mut a, &json!({"type": "heartbeat"}));
+                next += Duration::from_millis(100);
+            }
+            match a.read() {
+                Ok(tungstenite::Message::Text(t)) => {
+                    let v: Value = serde_json::from_str(&t).unwrap();
+                    if v["type"] == "control" {
+                        armed = v["armed"] == true;
+                    } else if v["type"] == "safe" {
+                        safe.push(v);
+                    }
+                }
+                Ok(_) => {}
+                Err(tungstenite::Error::Io(e))
+                    if matches!(
+                        e.kind(),
+                        std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                    ) => {}
+                Err(e) => panic!("{e}"),
+            }
+        }
+        (armed, safe)
+    });
+    // A watcher re-subscribes one stream at 1 frame a second, sampled every 5 s: each
+    // time its previous forwarder is waiting for a sample or a frame.
+    let mut w = page(&s);
+    let mut slowest = Duration::ZERO;
+    for _ in 0..8 {
+        send(
+            &mut w,
+            &json!({"type": "subscribe", "stream": "j", "request": {"op": "whj.status", "joints": "1"}, "rate_hz": 0.2, "fps": 1}),
+        );
+        let asked = Instant::now();
+        assert_eq!(http(&s.addr, "GET", "/api/info", &[], "").0, 200);
+        slowest = slowest.max(asked.elapsed());
+        std::thread::sleep(Duration::from_millis(300));
+    }
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    let (armed, safe) = beating.join().unwrap();
+    assert!(safe.is_empty(), "the armed page was stopped: {safe:?}");
+    assert!(armed, "the armed page is no longer armed");
+    // Answered while the re-subscriptions came, not after a forwarder's frame (1 s).
+    assert!(
+        slowest < Duration::from_millis(500),
+        "/api/info took {slowest:?}"
+    );
+}
+
+#[test]
+fn the_eleventh_eeprom_write_in_a_minute_answers_429_with_retry_after() {
+    let s = start(&[]);
+    let write =
+        json!({"op": "wck.set", "id": 0, "param": "gains", "p": 20, "d": 30, "confirm": true})
+            .to_string();
+    for n in 1..=10 {
+        let (status, body) = http(&s.addr, "POST", "/api/run", &[], &write);
+        assert_eq!(status, 200, "write {n}: {body}");
+    }
+    let mut stream = TcpStream::connect(&s.addr).unwrap();
+    write!(
+        stream,
+        "POST /api/run HTTP/1.1\r\nHost: {}\r\nConnection: close\r\nContent-Length: {}\r\n\r\n{write}",
+        s.addr,
+        write.len()
+    )
+    .unwrap();
+    let mut raw = String::new();
+    stream.read_to_string(&mut raw).unwrap();
+    assert!(raw.starts_with("HTTP/1.1 429 "), "{raw}");
+    let retry: u64 = raw
+        .lines()
+        .find_map(|l| {
+            l.to_lowercase()
+                .strip_prefix("retry-after: ")
+                .map(str::to_owned)
+        })
+        .unwrap_or_else(|| panic!("no Retry-After: {raw}"))
+        .trim()
+        .parse()
+        .unwrap();
+    assert!((1..=60).contains(&retry), "{raw}");
+    assert!(raw.contains(r#""kind":"rate-limited""#), "{raw}");
+    // A read is not counted.
+    let (status, _) = http(
+        &s.addr,
+        "POST",
+        "/api/run",
+        &[],
+        r#"{"op":"wck.status","ids":"0"}"#,
+    );
+    assert_eq!(status, 200);
+}
+
 /// The guard's `safe` report and the end of run `id`, which come in either order.
 fn safe_and_end(ws: &mut tungstenite::WebSocket<TcpStream>, id: u64) -> (Value, Value) {
     let (mut event, mut ended) = (None, None);
@@ -369,10 +657,11 @@ fn a_lost_heartbeat_brings_the_moved_joint_to_its_safe_state() {
     let hello = wait_for(&mut ws, "hello", None);
     assert_eq!(hello["simulated"], true);
     send(&mut ws, &json!({"type": "take-control"}));
+    let secret = control_secret(&mut ws);
     // Not armed: a jog is refused and nothing moves.
     send(
         &mut ws,
-        &json!({"type": "jog", "id": 1, "family": "whj", "device": 1, "target": 5}),
+        &json!({"type": "jog", "id": 1, "family": "whj", "device": 1, "target": 5, "control": secret}),
     );
     let refused = loop {
         let v: Value = match ws.read().unwrap() {
@@ -384,9 +673,12 @@ fn a_lost_heartbeat_brings_the_moved_joint_to_its_safe_state() {
         }
     };
     assert_eq!(refused["kind"], "refused");
-    send(&mut ws, &json!({"type": "arm"}));
+    send(&mut ws, &json!({"type": "arm", "control": secret}));
     let run = |ws: &mut tungstenite::WebSocket<TcpStream>, id: u64, request: Value| {
-        send(ws, &json!({"type": "run", "id": id, "request": request}));
+        send(
+            ws,
+            &json!({"type": "run", "id": id, "request": request, "control": secret}),
+        );
         send(ws, &json!({"type": "heartbeat"}));
         wait_for(ws, "report", Some(id))
     };
@@ -400,7 +692,7 @@ fn a_lost_heartbeat_brings_the_moved_joint_to_its_safe_state() {
     // A long speed target, then the page stops beating (its tab froze).
     send(
         &mut ws,
-        &json!({"type": "run", "id": 5, "request": {"op": "whj.speed", "joint": 1, "rpm": 3, "duration": 20}}),
+        &json!({"type": "run", "id": 5, "request": {"op": "whj.speed", "joint": 1, "rpm": 3, "duration": 20}, "control": secret}),
     );
     let sim = |s: &Studio| -> Value {
         serde_json::from_str(&http(&s.addr, "GET", "/api/sim", &[], "").1).unwrap()
@@ -449,7 +741,7 @@ fn a_lost_heartbeat_brings_the_moved_joint_to_its_safe_state() {
     assert_eq!(ended["kind"], "interrupted", "{ended}");
     send(
         &mut ws,
-        &json!({"type": "jog", "id": 6, "family": "whj", "device": 1, "target": 5}),
+        &json!({"type": "jog", "id": 6, "family": "whj", "device": 1, "target": 5, "control": secret}),
     );
     let v = wait_for(&mut ws, "error", None);
     assert_eq!(v["id"], 6);

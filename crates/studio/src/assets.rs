@@ -29,6 +29,7 @@ pub(crate) fn serve(path: &str) -> Result<Response, ApiError> {
             status: StatusCode::NOT_FOUND,
             kind: "not-found",
             message: format!("no file {}", robobus::ops::cut(path)),
+            retry_after: None,
         });
     };
     let mut r = file.data.into_owned().into_response();

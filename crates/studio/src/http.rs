@@ -14,12 +14,21 @@ use robobus::ops::{OpError, StopToken};
 
 use crate::{ApiError, App, HEARTBEAT_MS, MAX_BODY, assets};
 
-/// The session header of a page's requests.
-pub(crate) const SESSION_HEADER: &str = "x-robobus-session";
+/// The header that proves control: the secret the controlling page received in its
+/// WebSocket's `control` message.
+pub(crate) const CONTROL_HEADER: &str = "x-robobus-control";
+/// The header earlier studios took as proof of control (a session number anyone could
+/// guess): refused on a state-changing request, so that a script using it learns why.
+const OLD_SESSION_HEADER: &str = "x-robobus-session";
 
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
-        (self.status, axum::Json(self.body())).into_response()
+        let mut r = (self.status, axum::Json(self.body())).into_response();
+        if let Some(s) = self.retry_after {
+            r.headers_mut()
+                .insert(header::RETRY_AFTER, HeaderValue::from(s));
+        }
+        r
     }
 }
 
@@ -49,6 +58,7 @@ pub(crate) fn router(app: Arc<App>) -> Router {
                 status: StatusCode::NOT_FOUND,
                 kind: "not-found",
                 message: "no such page or API path (see /api/info)".into(),
+                retry_after: None,
             }
         })
         .layer(DefaultBodyLimit::max(MAX_BODY))
@@ -106,17 +116,35 @@ pub(crate) fn parse(body: &[u8]) -> Result<Request, OpError> {
     })
 }
 
-fn session(headers: &HeaderMap) -> Option<u64> {
-    headers
-        .get(SESSION_HEADER)
-        .and_then(|v| v.to_str().ok())
-        .and_then(|v| v.parse().ok())
+/// The session a state-changing request proves with its control secret: `None` without
+/// one (a script: the guard admits its changes only while no page controls, never
+/// motion); a secret that is not the controlling page's is refused (403).
+fn session(app: &App, headers: &HeaderMap, request: &Request) -> Result<Option<u64>, ApiError> {
+    if request.effect() == catalogue::Effect::Read {
+        return Ok(None);
+    }
+    if let Some(secret) = headers.get(CONTROL_HEADER) {
+        let secret = secret.to_str().unwrap_or("");
+        return app
+            .prove(secret)
+            .map(Some)
+            .map_err(|e| ApiError::forbidden(e.to_string()));
+    }
+    if headers.contains_key(OLD_SESSION_HEADER) {
+        return Err(ApiError::forbidden(format!(
+            "{}: X-Robobus-Session is no proof of control: send X-Robobus-Control with the \
+             secret of the controlling page's `control` message; nothing was sent",
+            request.op()
+        )));
+    }
+    Ok(None)
 }
 
 async fn run(State(app): State<Arc<App>>, headers: HeaderMap, body: Bytes) -> ApiResult {
     app.gate.check(&headers, true, true, None)?;
     let request = parse(&body)?;
-    app.admit(session(&headers), &request)?;
+    let session = session(&app, &headers, &request)?;
+    app.admit(session, &request)?;
     let report = app.run(request, StopToken::new(), None, None).await?;
     Ok(json(&report))
 }
@@ -200,6 +228,7 @@ async fn sim(State(app): State<Arc<App>>, headers: HeaderMap) -> ApiResult {
             message: "this studio drives hardware: the simulators' own state exists only on \
                       the built-in simulated robot"
                 .into(),
+            retry_after: None,
         }),
     }
 }

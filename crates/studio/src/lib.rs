@@ -22,7 +22,7 @@ mod http;
 mod security;
 mod ws;
 
-use std::collections::VecDeque;
+use std::collections::{HashMap, VecDeque};
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
@@ -94,6 +94,8 @@ pub(crate) struct ApiError {
     pub(crate) status: StatusCode,
     pub(crate) kind: &'static str,
     pub(crate) message: String,
+    /// Seconds after which the same request may succeed (`Retry-After`, with 429).
+    pub(crate) retry_after: Option<u64>,
 }
 
 impl ApiError {
@@ -115,6 +117,7 @@ impl ApiError {
             status,
             kind: kind.name(),
             message: e.to_string(),
+            retry_after: None,
         }
     }
 
@@ -123,6 +126,7 @@ impl ApiError {
             status: StatusCode::FORBIDDEN,
             kind: "forbidden",
             message,
+            retry_after: None,
         }
     }
 
@@ -131,6 +135,7 @@ impl ApiError {
             status: StatusCode::UNAUTHORIZED,
             kind: "unauthorized",
             message: message.to_owned(),
+            retry_after: None,
         }
     }
 
@@ -160,6 +165,9 @@ pub(crate) struct App {
     pub(crate) gate: security::Gate,
     pub(crate) events: tokio::sync::broadcast::Sender<Event>,
     sessions: AtomicU64,
+    /// The control secret of each page (session) that holds control: handed to that page
+    /// over its own WebSocket, proof of control on every state-changing request.
+    secrets: Mutex<HashMap<u64, security::Secret>>,
     /// Pages connected now (at most `ws::MAX_PAGES`).
     pages: std::sync::atomic::AtomicUsize,
     eeprom: Mutex<VecDeque<Instant>>,
@@ -170,16 +178,67 @@ impl App {
         self.sessions.fetch_add(1, Ordering::Relaxed) + 1
     }
 
+    /// The control secret of `session` while it holds control (made when it first asks
+    /// after taking control), `None` otherwise (a secret it had is forgotten).
+    pub(crate) fn secret_of(&self, session: u64) -> Option<String> {
+        let mut secrets = self.secrets.lock().unwrap_or_else(PoisonError::into_inner);
+        if !self.guard.view(session).controller {
+            secrets.remove(&session);
+            return None;
+        }
+        if let Some(s) = secrets.get(&session) {
+            return Some(s.to_hex());
+        }
+        let secret = security::Secret::new()?;
+        let hex = secret.to_hex();
+        secrets.insert(session, secret);
+        Some(hex)
+    }
+
+    /// Forgets `session`'s secret (its WebSocket closed).
+    pub(crate) fn forget_secret(&self, session: u64) {
+        self.secrets
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .remove(&session);
+    }
+
+    /// The session a control secret proves: the page whose WebSocket is open and holds
+    /// control now. Anything else (a guess, a secret of a page that closed or released
+    /// control) is refused.
+    pub(crate) fn prove(&self, given: &str) -> Result<u64, OpError> {
+        let secrets = self.secrets.lock().unwrap_or_else(PoisonError::into_inner);
+        // Every entry is compared in full, so the time does not tell which one is near.
+        let found = secrets.iter().fold(None, |found, (session, s)| {
+            if s.matches(given) {
+                Some(*session)
+            } else {
+                found
+            }
+        });
+        match found {
+            Some(session) if self.guard.view(session).controller => Ok(session),
+            _ => Err(OpError::Refused(
+                "this control secret is not the one of a page that controls this studio now \
+                 (it is handed to the controlling page over its own WebSocket, and ends when \
+                 that page closes or releases control); nothing was sent"
+                    .into(),
+            )),
+        }
+    }
+
     /// Whether `session` may run `request` now: read-only, the guard, the EEPROM rate.
-    pub(crate) fn admit(&self, session: Option<u64>, request: &Request) -> Result<(), OpError> {
+    pub(crate) fn admit(&self, session: Option<u64>, request: &Request) -> Result<(), ApiError> {
         if self.config.read_only && request.effect() != robobus::catalogue::Effect::Read {
-            return Err(OpError::Refused(format!(
+            return Err(ApiError::of(&OpError::Refused(format!(
                 "{}: this studio is read-only (started with --read-only); nothing was sent",
                 request.op()
-            )));
+            ))));
         }
-        self.guard.admit(session, request)?;
-        let plan = robobus::catalogue::plan(request)?;
+        self.guard
+            .admit(session, request)
+            .map_err(|e| ApiError::of(&e))?;
+        let plan = robobus::catalogue::plan(request).map_err(|e| ApiError::of(&e))?;
         if plan.confirm != robobus::catalogue::bounds::ConfirmClass::None {
             let mut writes = self.eeprom.lock().unwrap_or_else(PoisonError::into_inner);
             let now = Instant::now();
@@ -190,12 +249,21 @@ impl App {
                 writes.pop_front();
             }
             if writes.len() >= EEPROM_WRITES_PER_MINUTE {
-                return Err(OpError::Refused(format!(
-                    "{}: at most {EEPROM_WRITES_PER_MINUTE} EEPROM / flash / ID writes a \
-                     minute (they wear the device's memory); try again in a minute; nothing \
-                     was sent",
-                    request.op()
-                )));
+                // The oldest write leaves the minute's window first.
+                let wait = writes.front().map_or(60, |t| {
+                    60u64.saturating_sub(now.duration_since(*t).as_secs())
+                });
+                return Err(ApiError {
+                    status: StatusCode::TOO_MANY_REQUESTS,
+                    kind: "rate-limited",
+                    message: format!(
+                        "{}: at most {EEPROM_WRITES_PER_MINUTE} EEPROM / flash / ID writes a \
+                         minute (they wear the device's memory); try again in {wait} s; \
+                         nothing was sent",
+                        request.op()
+                    ),
+                    retry_after: Some(wait.max(1)),
+                });
             }
             writes.push_back(now);
         }
@@ -327,6 +395,7 @@ impl Studio {
                 gate,
                 events,
                 sessions: AtomicU64::new(0),
+                secrets: Mutex::new(HashMap::new()),
                 pages: std::sync::atomic::AtomicUsize::new(0),
                 eeprom: Mutex::new(VecDeque::new()),
             }),

@@ -89,6 +89,32 @@ impl Gate {
     }
 }
 
+/// A page's control secret: 256 bits from the operating system's random source.
+pub(crate) struct Secret([u8; 32]);
+
+impl Secret {
+    /// A fresh secret; `None` if the system's random source fails (no control is given).
+    pub(crate) fn new() -> Option<Self> {
+        let mut bytes = [0u8; 32];
+        getrandom::fill(&mut bytes).ok()?;
+        Some(Self(bytes))
+    }
+
+    /// As the page sends it: 64 lower-case hex digits.
+    pub(crate) fn to_hex(&self) -> String {
+        use std::fmt::Write as _;
+        self.0.iter().fold(String::with_capacity(64), |mut s, b| {
+            let _ = write!(s, "{b:02x}");
+            s
+        })
+    }
+
+    /// Whether `given` is this secret (in constant time for a given length).
+    pub(crate) fn matches(&self, given: &str) -> bool {
+        same(given.as_bytes(), self.to_hex().as_bytes())
+    }
+}
+
 /// Compares in time independent of where the first difference is.
 fn same(a: &[u8], b: &[u8]) -> bool {
     if a.len() != b.len() {

@@ -40,7 +40,10 @@ const MAX_RUNS: usize = 16;
 enum FromPage {
     TakeControl,
     ReleaseControl,
-    Arm,
+    Arm {
+        #[serde(default)]
+        control: Option<String>,
+    },
     Disarm,
     Heartbeat,
     Subscribe {
@@ -56,6 +59,8 @@ enum FromPage {
     Run {
         id: u64,
         request: Value,
+        #[serde(default)]
+        control: Option<String>,
     },
     Stop {
         id: u64,
@@ -68,7 +73,31 @@ enum FromPage {
         bus: Option<String>,
         device: u8,
         target: f64,
+        #[serde(default)]
+        control: Option<String>,
     },
+}
+
+/// Whether a message of this page's (`me`) proves control with `given`: the secret this
+/// studio gave this very WebSocket (a secret of another connection, a stale or a guessed
+/// one is refused, and so is none).
+fn proves(app: &App, me: u64, given: Option<&str>) -> Result<(), OpError> {
+    let Some(given) = given else {
+        return Err(OpError::Refused(
+            "this message changes a device and needs `control`: the secret of this page's \
+             `control` message (take control first); nothing was sent"
+                .into(),
+        ));
+    };
+    match app.prove(given) {
+        Ok(session) if session == me => Ok(()),
+        Ok(_) => Err(OpError::Refused(
+            "this control secret belongs to another connection: a page proves control only \
+             with its own; nothing was sent"
+                .into(),
+        )),
+        Err(e) => Err(e),
+    }
 }
 
 pub(crate) async fn upgrade(
@@ -85,6 +114,7 @@ pub(crate) async fn upgrade(
             status: axum::http::StatusCode::SERVICE_UNAVAILABLE,
             kind: "refused",
             message: format!("{MAX_PAGES} pages are connected already: close one first"),
+            retry_after: None,
         });
     };
     Ok(ws
@@ -120,24 +150,28 @@ struct Going {
     jogging: AtomicBool,
 }
 
-/// One telemetry stream of a page: its sampler and the thread that forwards it.
+/// How often a stream's forwarder looks whether it was stopped, at the latest.
+const STOP_POLL: Duration = Duration::from_millis(50);
+
+/// One telemetry stream of a page: the flag that stops the thread which samples and
+/// forwards it. Dropping it never waits (it runs on the server's one runtime thread):
+/// the thread sees the flag within [`STOP_POLL`] and ends on its own, stopping its
+/// sampler there.
 struct Stream {
     stop: Arc<AtomicBool>,
-    thread: Option<std::thread::JoinHandle<()>>,
 }
 
 impl Drop for Stream {
     fn drop(&mut self) {
         self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            // The forwarder wakes at least every frame period.
-            let _ = t.join();
-        }
     }
 }
 
 fn error_msg(id: Option<u64>, e: &OpError) -> String {
-    let a = ApiError::of(e);
+    api_error_msg(id, &ApiError::of(e))
+}
+
+fn api_error_msg(id: Option<u64>, a: &ApiError) -> String {
     json!({"type": "error", "id": id, "kind": a.kind, "message": a.message}).to_string()
 }
 
@@ -148,7 +182,7 @@ async fn session(app: Arc<App>, mut socket: WebSocket, _page: PageSlot) {
     let mut streams: HashMap<String, Stream> = HashMap::new();
     let going: Arc<Going> = Arc::default();
     let hello = json!({
-        "type": "hello", "session": me.to_string(), "read_only": app.config.read_only,
+        "type": "hello", "read_only": app.config.read_only,
         "simulated": app.sim.is_some(),
     });
     if socket
@@ -200,19 +234,23 @@ async fn session(app: Arc<App>, mut socket: WebSocket, _page: PageSlot) {
     {
         t.stop();
     }
+    app.forget_secret(me);
     let was_controller = app.guard.view(me).controller;
     app.guard.release_control(me);
     if was_controller {
         let _ = app.events.send(Event::Control);
     }
-    tokio::task::spawn_blocking(move || drop(streams));
+    drop(streams);
 }
 
+/// This page's view of control; the controller's carries its control secret (`secret`),
+/// sent only over its own WebSocket.
 fn control_msg(app: &App, me: u64) -> String {
+    let secret = app.secret_of(me);
     let v = app.guard.view(me);
     json!({
         "type": "control", "controller": v.controller, "armed": v.armed,
-        "held_by_other": v.held_by_other,
+        "held_by_other": v.held_by_other, "secret": secret,
     })
     .to_string()
 }
@@ -250,13 +288,13 @@ fn handle(
             app.guard.release_control(me);
             changed(Ok(()));
         }
-        FromPage::Arm => {
+        FromPage::Arm { control } => {
             let r = if app.config.read_only {
                 Err(OpError::Refused(
                     "this studio is read-only (started with --read-only): nothing moves".into(),
                 ))
             } else {
-                app.guard.arm(me)
+                proves(app, me, control.as_deref()).and_then(|()| app.guard.arm(me))
             };
             changed(r);
         }
@@ -288,11 +326,13 @@ fn handle(
             }
         }
         FromPage::Unsubscribe { stream } => {
-            if let Some(s) = streams.remove(&stream) {
-                tokio::task::spawn_blocking(move || drop(s));
-            }
+            streams.remove(&stream);
         }
-        FromPage::Run { id, request } => run(app, me, id, request, tx.clone(), going),
+        FromPage::Run {
+            id,
+            request,
+            control,
+        } => run(app, me, id, request, control.as_deref(), tx.clone(), going),
         FromPage::Stop { id } => {
             if let Some(t) = going
                 .runs
@@ -309,10 +349,12 @@ fn handle(
             bus,
             device,
             target,
+            control,
         } => jog(
             app,
             me,
             id,
+            control.as_deref(),
             JogRequest {
                 family,
                 bus,
@@ -330,6 +372,7 @@ fn run(
     me: u64,
     id: u64,
     request: Value,
+    control: Option<&str>,
     tx: mpsc::Sender<String>,
     going: &Arc<Going>,
 ) {
@@ -341,8 +384,16 @@ fn run(
             return;
         }
     };
-    if let Err(e) = app.admit(Some(me), &request) {
-        let _ = tx.try_send(error_msg(Some(id), &e));
+    let proof = if request.effect() == robobus::catalogue::Effect::Read {
+        Ok(())
+    } else {
+        proves(app, me, control)
+    };
+    if let Err(e) = proof
+        .map_err(|e| ApiError::of(&e))
+        .and_then(|()| app.admit(Some(me), &request))
+    {
+        let _ = tx.try_send(api_error_msg(Some(id), &e));
         return;
     }
     let token = StopToken::new();
@@ -381,6 +432,7 @@ fn jog(
     app: &Arc<App>,
     me: u64,
     id: Option<u64>,
+    control: Option<&str>,
     req: JogRequest,
     tx: mpsc::Sender<String>,
     going: &Arc<Going>,
@@ -390,10 +442,10 @@ fn jog(
         let _ = tx.try_send(error_msg(id, &e));
         return;
     }
-    if let Err(e) = app
-        .guard
-        .admit_jog(Some(me), req.family, req.bus.as_deref(), req.device)
-    {
+    if let Err(e) = proves(app, me, control).and_then(|()| {
+        app.guard
+            .admit_jog(Some(me), req.family, req.bus.as_deref(), req.device)
+    }) {
         let _ = tx.try_send(error_msg(id, &e));
         return;
     }
@@ -458,7 +510,7 @@ fn subscribe(
     let flag = Arc::clone(&stop);
     let name = name.to_owned();
     let frame = Duration::from_secs_f64(1.0 / fps);
-    let thread = std::thread::Builder::new()
+    std::thread::Builder::new()
         .name("studio-stream".into())
         .spawn(move || {
             let _telemetry = telemetry;
@@ -466,7 +518,9 @@ fn subscribe(
             let mut latest = None;
             let mut skipped = 0u64;
             while !flag.load(Ordering::Relaxed) {
-                let wait = next.saturating_duration_since(Instant::now());
+                let wait = next
+                    .saturating_duration_since(Instant::now())
+                    .min(STOP_POLL);
                 match sub.recv_timeout(wait.max(Duration::from_millis(1))) {
                     Ok(d) => {
                         skipped += d.lost + u64::from(latest.is_some());
@@ -491,8 +545,5 @@ fn subscribe(
             }
         })
         .map_err(|e| OpError::Device(format!("starting a telemetry stream: {e}")))?;
-    Ok(Stream {
-        stop,
-        thread: Some(thread),
-    })
+    Ok(Stream { stop })
 }

@@ -44,6 +44,8 @@ export function describeError(err) {
 }
 
 const JOG_TIMEOUT_MS = 2000;
+/** The messages that carry the control secret (the server refuses them without it). */
+const PROVES_CONTROL = new Set(["arm", "run", "jog"]);
 const RECONNECT_MS = [250, 500, 1000, 2000, 4000];
 
 export class Studio {
@@ -67,7 +69,8 @@ export class Studio {
   constructor(token) {
     this.token = token;
     this.info = null;
-    this.session = null;
+    /** The control secret the server gave this page's WebSocket while it controls (its `control` message): proof of control on every state-changing request. */
+    this.secret = null;
     /** What this page may do; `connected` is false while the WebSocket is down. */
     this.state = {
       controller: false,
@@ -106,7 +109,7 @@ export class Studio {
     const h = {};
     if (json) h["Content-Type"] = "application/json";
     if (this.token) h.Authorization = `Bearer ${this.token}`;
-    if (this.session) h["X-Robobus-Session"] = this.session;
+    if (this.secret) h["X-Robobus-Control"] = this.secret;
     return h;
   }
 
@@ -264,9 +267,10 @@ export class Studio {
         } catch {
           return;
         }
+        if (msg.type === "control") this.secret = msg.secret ?? null;
         if (msg.type === "hello") {
           hello = true;
-          this.session = msg.session;
+          this.secret = null;
           this.state.readOnly = !!msg.read_only;
           this.state.simulated = !!msg.simulated;
           this.state.connected = true;
@@ -281,6 +285,7 @@ export class Studio {
       });
       ws.addEventListener("close", () => {
         if (this.ws !== ws) return;
+        this.secret = null;
         this.#lost();
         if (!hello) reject(new StudioError("link", "the studio's WebSocket closed before its hello", 0));
         if (!this.closedByPage) this.#reconnect();
@@ -325,6 +330,8 @@ export class Studio {
 
   #send(msg) {
     if (!this.ws || this.ws.readyState !== Link.OPEN) return false;
+    // What changes a device proves this page's control with its secret.
+    if (this.secret && PROVES_CONTROL.has(msg.type)) msg = { ...msg, control: this.secret };
     this.ws.send(JSON.stringify(msg));
     return true;
   }
