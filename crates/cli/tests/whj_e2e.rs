@@ -1096,3 +1096,47 @@ fn whj_e2e_set_rates_then_the_joint_is_silent_at_the_old_rates() {
     assert_eq!(r.code, Some(3), "{r:#?}");
     assert_eq!(sim.json(&["status", "2"])[0]["id"], 2);
 }
+
+/// A refused `robobus whj set-rates` (an enabled joint) says why and no next steps
+/// (power-cycle, `ip link`, scan), in text and in `--json`: nothing changed; when only some
+/// joints saved the new rates, the next steps name them.
+#[test]
+fn whj_e2e_a_refused_set_rates_prints_no_next_steps() {
+    if !in_netns("whj_e2e_a_refused_set_rates_prints_no_next_steps") {
+        return;
+    }
+    let sim = Sim::start("udp:239.74.163.20:43130", &[]);
+    let _ = sim.json(&["enable", "1"]);
+    let _ = sim.json(&["disable", "2"]);
+    let rates = ["--bitrate", "500000", "--dbitrate", "2000000"];
+    let set = |json: bool, joints: &str| {
+        let mut args = if json { vec!["--json"] } else { vec![] };
+        args.extend(["--yes", "set-rates", joints]);
+        args.extend(rates);
+        sim.whj(&args)
+    };
+    let r = set(false, "1");
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    assert!(r.stderr.contains("joint 1: enabled"), "{}", r.stderr);
+    for said in [&r.stdout, &r.stderr] {
+        for step in ["next", "power-cycle", "ip link", "scan"] {
+            assert!(!said.contains(step), "{step} in {said}");
+        }
+    }
+    let r = set(true, "1");
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    let doc: Value = serde_json::from_str(&r.stdout).unwrap();
+    assert_eq!(doc["results"][0]["kind"], "refused", "{doc}");
+    assert_eq!(doc.get("summary"), None, "{doc}");
+    // Joint 2 (disabled) saves, joint 1 is refused: the steps are for joint 2 only.
+    let r = set(true, "1-2");
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    let doc: Value = serde_json::from_str(&r.stdout).unwrap();
+    assert_eq!(doc["results"][1]["saved"], true, "{doc}");
+    let next = doc["summary"]["next"].as_str().unwrap();
+    assert!(
+        next.starts_with("only joint 2 saved the new rates (the others kept theirs): for it, ")
+            && next.contains("power-cycle"),
+        "{next}"
+    );
+}

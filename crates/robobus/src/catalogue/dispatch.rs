@@ -784,8 +784,11 @@ fn run_whj(
         // Run by `can_health_report` before the bus is driven.
         J::CanHealth => report(op, name, Vec::new()),
         J::SetRates(ids, rates) => {
-            let mut out = device_report(op, name, &hops::rates::set_rates(bus, ids, *rates)?);
-            out.summary = Some(json!({ "next": hops::rates::next_steps(name, *rates) }));
+            let results = hops::rates::set_rates(bus, ids, *rates)?;
+            let mut out = device_report(op, name, &results);
+            // Next steps only for joints that saved new rates: a refused run changed none.
+            out.summary = hops::rates::next_steps_after(name, *rates, &results)
+                .map(|next| json!({ "next": next }));
             out
         }
         J::Backup(id) | J::Defaults(id) => {

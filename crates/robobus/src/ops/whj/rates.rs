@@ -94,6 +94,37 @@ pub fn next_steps(bus: &str, rates: BitRates) -> String {
     )
 }
 
+/// What to do after a run whose per-joint `results` these are: [`next_steps`] when every
+/// joint saved the new rates, naming the joints that did when only some did, and nothing
+/// when none did (a refused or failed run changed no joint: there is nothing to power-cycle
+/// or to set the adapter for).
+#[must_use]
+pub fn next_steps_after(
+    bus: &str,
+    rates: BitRates,
+    results: &[DeviceResult<u8, RatesReport>],
+) -> Option<String> {
+    let saved: Vec<String> = results
+        .iter()
+        .filter(|r| matches!(&r.outcome, crate::ops::Outcome::Ok(x) if x.saved))
+        .map(|r| r.id.to_string())
+        .collect();
+    if saved.is_empty() {
+        return None;
+    }
+    let next = next_steps(bus, rates);
+    Some(if saved.len() == results.len() {
+        next
+    } else {
+        format!(
+            "only joint{} {} saved the new rates (the others kept theirs): for {}, {next}",
+            if saved.len() == 1 { "" } else { "s" },
+            saved.join(", "),
+            if saved.len() == 1 { "it" } else { "them" }
+        )
+    })
+}
+
 fn join(r: &[u32]) -> String {
     r.iter().map(u32::to_string).collect::<Vec<_>>().join(" / ")
 }
