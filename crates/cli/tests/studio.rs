@@ -627,6 +627,61 @@ fn the_eleventh_eeprom_write_in_a_minute_answers_429_with_retry_after() {
     assert_eq!(status, 200);
 }
 
+#[test]
+fn a_token_studio_on_every_address_answers_the_names_clients_use() {
+    let dir = tempfile::tempdir().unwrap();
+    let token_file = dir.path().join("token");
+    std::fs::write(&token_file, "0123456789abcdef-token\n").unwrap();
+    let s = start(&[
+        "--listen",
+        "0.0.0.0:0",
+        "--token-file",
+        token_file.to_str().unwrap(),
+    ]);
+    let port = s.addr.rsplit_once(':').unwrap().1.to_owned();
+    let local = format!("127.0.0.1:{port}");
+    let bearer = ("Authorization", "Bearer 0123456789abcdef-token");
+    for host in [local.clone(), format!("localhost:{port}")] {
+        let (status, body) = http(&local, "GET", "/api/info", &[("Host", &host), bearer], "");
+        assert_eq!(status, 200, "Host {host}: {body}");
+        let origin = format!("http://{host}");
+        let (status, body) = http(
+            &local,
+            "POST",
+            "/api/run",
+            &[("Host", &host), ("Origin", &origin), bearer],
+            r#"{"op":"wck.status","ids":"0"}"#,
+        );
+        assert_eq!(status, 200, "Host {host}: {body}");
+        // The page is served under that name too.
+        assert_eq!(http(&local, "GET", "/", &[("Host", &host)], "").0, 200);
+    }
+    // The token is still the proof: a wrong one or none is 401.
+    let wrong = ("Authorization", "Bearer 0123456789abcdef-tokem");
+    assert_eq!(
+        http(&local, "GET", "/api/info", &[("Host", &local), wrong], "").0,
+        401
+    );
+    assert_eq!(
+        http(&local, "GET", "/api/info", &[("Host", &local)], "").0,
+        401
+    );
+    // Another port's name, or another site's page, is not this studio.
+    let other = format!("localhost:{}", port.parse::<u16>().unwrap() ^ 1);
+    assert_eq!(
+        http(&local, "GET", "/api/info", &[("Host", &other), bearer], "").0,
+        403
+    );
+    let (status, _) = http(
+        &local,
+        "POST",
+        "/api/run",
+        &[("Host", &local), ("Origin", "http://evil.example"), bearer],
+        r#"{"op":"wck.status","ids":"0"}"#,
+    );
+    assert_eq!(status, 403);
+}
+
 /// The guard's `safe` report and the end of run `id`, which come in either order.
 fn safe_and_end(ws: &mut tungstenite::WebSocket<TcpStream>, id: u64) -> (Value, Value) {
     let (mut event, mut ended) = (None, None);

@@ -16,6 +16,8 @@ pub(crate) struct Gate {
     hosts: Vec<String>,
     /// The token every API request carries, if the studio has one.
     token: Option<String>,
+    /// The port it listens on.
+    port: u16,
 }
 
 impl Gate {
@@ -30,14 +32,27 @@ impl Gate {
         }
         hosts.sort();
         hosts.dedup();
-        Self { hosts, token }
+        Self { hosts, token, port }
     }
 
-    /// The addresses a page may be served from (`http://HOST`).
-    fn origin_ok(&self, origin: &str) -> bool {
-        origin
-            .strip_prefix("http://")
-            .is_some_and(|h| self.hosts.iter().any(|a| a.eq_ignore_ascii_case(h)))
+    /// Whether `host` (a `Host` header) names this server. Without a token, only its own
+    /// address (and loopback's names): a page whose DNS name was rebound to this machine is
+    /// refused. With a token, which such a page cannot know, any name at this port: the
+    /// one the client really used to reach a `0.0.0.0` or a named address.
+    fn host_ok(&self, host: &str) -> bool {
+        if self.hosts.iter().any(|a| a.eq_ignore_ascii_case(host)) {
+            return true;
+        }
+        self.token.is_some() && port_of(host) == Some(self.port)
+    }
+
+    /// The addresses a page may be served from (`http://HOST`): this server's names, and
+    /// with a token the very name the request was sent to (the page's own origin).
+    fn origin_ok(&self, origin: &str, host: &str) -> bool {
+        origin.strip_prefix("http://").is_some_and(|h| {
+            self.hosts.iter().any(|a| a.eq_ignore_ascii_case(h))
+                || (self.token.is_some() && h.eq_ignore_ascii_case(host))
+        })
     }
 
     /// Checks `Host` (always), `Origin` (when `changes` or it is present on a WebSocket),
@@ -53,17 +68,21 @@ impl Gate {
             .get(HOST)
             .and_then(|h| h.to_str().ok())
             .unwrap_or("");
-        if !self.hosts.iter().any(|a| a.eq_ignore_ascii_case(host)) {
-            return Err(ApiError::forbidden(format!(
-                "Host {:?} is not this studio's address (allowed: {}): refused against DNS \
-                 rebinding",
-                robobus::ops::cut(host),
+        if !self.host_ok(host) {
+            let allowed = if self.token.is_some() {
+                format!("any name with the port {}", self.port)
+            } else {
                 self.hosts.join(", ")
+            };
+            return Err(ApiError::forbidden(format!(
+                "Host {:?} is not this studio's address (allowed: {allowed}): refused against \
+                 DNS rebinding",
+                robobus::ops::cut(host),
             )));
         }
         if changes && let Some(origin) = headers.get(ORIGIN) {
             let origin = origin.to_str().unwrap_or("");
-            if !self.origin_ok(origin) {
+            if !self.origin_ok(origin, host) {
                 return Err(ApiError::forbidden(format!(
                     "Origin {:?} is not this studio's page (allowed: http://{}): requests \
                      from other sites are refused",
@@ -86,6 +105,16 @@ impl Gate {
             }
         }
         Ok(())
+    }
+}
+
+/// The port a `Host` value names (`name:PORT`, `[v6]:PORT`; none: 80).
+fn port_of(host: &str) -> Option<u16> {
+    let after_v6 = host.rfind(']').map_or(host, |i| &host[i + 1..]);
+    match after_v6.rsplit_once(':') {
+        Some((_, port)) => port.parse().ok(),
+        None if !host.is_empty() => Some(80),
+        None => None,
     }
 }
 
@@ -187,11 +216,29 @@ mod tests {
             g.check(&h, true, true, None).unwrap_err().status.as_u16(),
             401
         );
-        // Loopback names are not accepted for a non-loopback address.
-        let h = headers("localhost:9000", None, Some("Bearer s3cret"));
+        // With a token, the name the client used at this port (the token is the proof):
+        // a studio on 0.0.0.0 reached as localhost, 127.0.0.1 or its host name.
+        for host in ["localhost:9000", "127.0.0.1:9000", "robot-pc.lan:9000"] {
+            let h = headers(host, Some(&format!("http://{host}")), Some("Bearer s3cret"));
+            assert!(g.check(&h, true, true, None).is_ok(), "{host}");
+        }
+        // Not another port, and not another site's page.
+        let h = headers("localhost:9001", None, Some("Bearer s3cret"));
         assert_eq!(
             g.check(&h, true, true, None).unwrap_err().status.as_u16(),
             403
         );
+        let h = headers(
+            "localhost:9000",
+            Some("http://evil.example"),
+            Some("Bearer s3cret"),
+        );
+        assert_eq!(
+            g.check(&h, true, true, None).unwrap_err().status.as_u16(),
+            403
+        );
+        assert_eq!(port_of("[::1]:7480"), Some(7480));
+        assert_eq!(port_of("robot-pc"), Some(80));
+        assert_eq!(port_of(""), None);
     }
 }
