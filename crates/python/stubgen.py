@@ -122,7 +122,7 @@ class Station:
         wait: str = ...,
     ) -> Station: ...
     def run(self, request_: dict[str, Any] | str, *, check: bool = ...) -> Report: ...
-    def run_many(self, requests: Sequence[dict[str, Any]]) -> list[Report]: ...
+    def run_many(self, requests: Sequence[dict[str, Any]], *, check: bool = ...) -> list[Report]: ...
     @property
     def buses(self) -> tuple[list[str], list[str]]: ...
     @property
@@ -211,7 +211,8 @@ def stub(schema: dict[str, Any]) -> str:
         name = robobus.method_name(op)
         families.setdefault(family, []).append(
             f"    def {name}(\n        " + ",\n        ".join(params) + ",\n    ) -> Report:\n"
-            f"        \"\"\"The request ``{op}``.\"\"\"\n"
+            f"        \"\"\"The request ``{op}``; a failed device raises its kind's error "
+            "(``check=False``: the report with its row).\"\"\"\n"
         )
     out = [HEAD]
     for family in ("wck", "whj", "robot"):

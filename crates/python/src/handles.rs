@@ -4,7 +4,7 @@
 //! value, a `valid` mask, per-device error messages and kinds), which the Python side turns
 //! into numpy arrays; no JSON on the way.
 
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -15,6 +15,7 @@ use robobus::ops::DeviceResult;
 use robobus::ops::whj::{JointSample, ServoLoop};
 use robobus::robot::Robot;
 
+use crate::life::{Life, forked_error};
 use crate::{op_error, raise};
 
 /// The per-device columns every group result has: `id`, `valid`, `error`, `kind`.
@@ -149,6 +150,8 @@ pub(crate) fn servo_loop(py: Python<'_>, mode: &str) -> PyResult<ServoLoop> {
 #[derive(Debug)]
 pub(crate) struct NativeWckServos {
     pub(crate) inner: WckServos,
+    /// Its station's.
+    pub(crate) life: Arc<Life>,
 }
 
 #[pymethods]
@@ -168,6 +171,7 @@ impl NativeWckServos {
 
     /// Each servo's position and load, as columns.
     fn status(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        self.life.check(py, "WckServos.status")?;
         let rows = py
             .detach(|| self.inner.status())
             .map_err(|e| op_error(py, &e))?;
@@ -176,6 +180,7 @@ impl NativeWckServos {
 
     /// Moves each servo (one position command each), every value checked first.
     fn move_to(&self, py: Python<'_>, positions: Vec<f64>, torque: u8) -> PyResult<Py<PyAny>> {
+        self.life.check(py, "WckServos.move")?;
         let rows = py
             .detach(|| self.inner.move_to(&positions, torque))
             .map_err(|e| op_error(py, &e))?;
@@ -184,12 +189,14 @@ impl NativeWckServos {
 
     /// One synchronized position packet for servos 0..N-1.
     fn sync_move(&self, py: Python<'_>, positions: Vec<f64>, torque: u8) -> PyResult<()> {
+        self.life.check(py, "WckServos.sync_move")?;
         py.detach(|| self.inner.sync_move(&positions, torque))
             .map_err(|e| op_error(py, &e))
     }
 
     /// Makes each servo passive; each one's position, as columns.
     fn passive(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        self.life.check(py, "WckServos.passive")?;
         let rows = py
             .detach(|| self.inner.passive())
             .map_err(|e| op_error(py, &e))?;
@@ -202,6 +209,8 @@ impl NativeWckServos {
 #[derive(Debug)]
 pub(crate) struct NativeWhjJoints {
     pub(crate) inner: WhjJoints,
+    /// Its station's.
+    pub(crate) life: Arc<Life>,
 }
 
 #[pymethods]
@@ -226,6 +235,7 @@ impl NativeWhjJoints {
 
     /// Each joint's status, as columns.
     fn status(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        self.life.check(py, "WhjJoints.status")?;
         let rows = py
             .detach(|| self.inner.status())
             .map_err(|e| op_error(py, &e))?;
@@ -234,6 +244,7 @@ impl NativeWhjJoints {
 
     /// One `mode` servo frame per joint; each joint's feedback, as columns.
     fn command(&self, py: Python<'_>, mode: &str, targets: Vec<f64>) -> PyResult<Py<PyAny>> {
+        self.life.check(py, "WhjJoints.command")?;
         let servo = servo_loop(py, mode)?;
         let rows = py
             .detach(|| self.inner.command(servo, &targets))
@@ -249,6 +260,24 @@ impl NativeWhjJoints {
 pub(crate) struct NativeRobot {
     robot: Mutex<Option<Robot>>,
     names: Vec<String>,
+    /// The process it was opened in.
+    pid: u32,
+}
+
+impl Drop for NativeRobot {
+    fn drop(&mut self) {
+        let taken = self
+            .robot
+            .get_mut()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .take();
+        if self.forked() {
+            // In a forked child: the parent's buses and threads are left alone.
+            std::mem::forget(taken);
+        } else {
+            crate::without_gil(|| drop(taken));
+        }
+    }
 }
 
 impl NativeRobot {
@@ -256,13 +285,21 @@ impl NativeRobot {
         Self {
             names: robot.joint_names().to_vec(),
             robot: Mutex::new(Some(robot)),
+            pid: std::process::id(),
         }
+    }
+
+    fn forked(&self) -> bool {
+        self.pid != std::process::id()
     }
 
     fn with<R>(&self, py: Python<'_>, f: impl FnOnce(&mut Robot) -> R + Send) -> PyResult<R>
     where
         R: Send,
     {
+        if self.forked() {
+            return Err(forked_error(py, "Robot", "robot", self.pid));
+        }
         py.detach(|| {
             let mut guard = self
                 .robot
@@ -418,13 +455,17 @@ impl NativeRobot {
 
     /// Closes the robot: every bus to its safe state, the ports released. A second call
     /// does nothing.
-    fn close(&self, py: Python<'_>) {
+    fn close(&self, py: Python<'_>) -> PyResult<()> {
+        if self.forked() {
+            return Err(forked_error(py, "Robot.close", "robot", self.pid));
+        }
         let taken = self
             .robot
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner)
             .take();
         py.detach(|| drop(taken));
+        Ok(())
     }
 
     /// Whether `close` was called.

@@ -29,6 +29,9 @@ use robobus::catalogue::{self, Request, StationConfig};
 use robobus::ops::{Control, OpError, StopToken};
 
 mod handles;
+mod life;
+
+use life::{Life, LoopCell, StreamCell, closed_error};
 
 /// How often a wait on the main thread looks at Python's signals.
 const SIGNAL_SLICE: Duration = Duration::from_millis(10);
@@ -106,30 +109,39 @@ type Job = Box<dyn FnOnce() + Send>;
 
 /// The main thread's worker: one long-lived thread that runs its requests while the main
 /// thread waits and watches for signals (a thread per request would cost its start-up on
-/// every call).
-static WORKER: OnceLock<Mutex<mpsc::Sender<Job>>> = OnceLock::new();
+/// every call), with the process it was started in: a forked child has none of its
+/// parent's threads, so it starts its own.
+static WORKER: Mutex<Option<(u32, mpsc::Sender<Job>)>> = Mutex::new(None);
 
 fn main_worker(job: Job) -> PyResult<()> {
-    let worker = WORKER.get_or_init(|| {
-        let (tx, rx) = mpsc::channel::<Job>();
-        let spawned = std::thread::Builder::new()
-            .name("robobus-main-worker".into())
-            .spawn(move || {
-                for job in rx {
-                    job();
-                }
-            });
-        if let Err(e) = spawned {
-            tracing::error!("starting the robobus worker thread: {e}");
-        }
-        Mutex::new(tx)
-    });
-    worker
+    let pid = std::process::id();
+    let mut worker = WORKER
         .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner)
-        .send(job)
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    let tx = match &*worker {
+        Some((p, tx)) if *p == pid => tx,
+        _ => {
+            let (tx, rx) = mpsc::channel::<Job>();
+            std::thread::Builder::new()
+                .name("robobus-main-worker".into())
+                .spawn(move || {
+                    for job in rx {
+                        job();
+                    }
+                })
+                .map_err(|e| {
+                    PyRuntimeError::new_err(format!("starting the robobus worker thread: {e}"))
+                })?;
+            &worker.insert((pid, tx)).1
+        }
+    };
+    tx.send(job)
         .map_err(|_| PyRuntimeError::new_err("the robobus worker thread is not running"))
 }
+
+/// How long `close` waits for a call on another thread to let go of the station once it
+/// was stopped (it brings its devices to its safe state first).
+const CLOSE_WAIT: Duration = Duration::from_secs(10);
 
 /// Waits for `rx` with the GIL released; on the main thread in slices, checking Python's
 /// signals between them: on a signal `stop` is set, the wait goes on until the worker has
@@ -168,28 +180,108 @@ fn wait_for<T: Send>(py: Python<'_>, rx: mpsc::Receiver<T>, stop: &StopToken) ->
 #[derive(Debug)]
 struct NativeStation {
     station: Mutex<Option<Arc<catalogue::Station>>>,
+    /// Its process, whether it is closed, and what runs on it.
+    life: Arc<Life>,
 }
 
 impl NativeStation {
-    fn get(&self, py: Python<'_>) -> PyResult<Arc<catalogue::Station>> {
+    /// The station for `call`: refused when it is closed or this is a forked child.
+    fn get(&self, py: Python<'_>, call: &str) -> PyResult<Arc<catalogue::Station>> {
+        self.life.check(py, call)?;
         self.station
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner)
             .clone()
-            .ok_or_else(|| {
-                raise(
-                    py,
-                    ErrorKind::BadInput,
-                    "the station is closed; open a new one",
-                    None,
-                )
-            })
+            .ok_or_else(|| closed_error(py, call))
     }
 
     fn wrap(station: catalogue::Station) -> Self {
         Self {
             station: Mutex::new(Some(Arc::new(station))),
+            life: Life::new(),
         }
+    }
+
+    /// Closes it: whatever runs on it stopped (streams, loops, requests on other threads),
+    /// then `end` applied to the station once nothing else holds it (its ports released
+    /// with it). The failures, one message per device; nothing the second time.
+    fn release(
+        &self,
+        py: Python<'_>,
+        call: &str,
+        end: impl FnOnce(catalogue::Station) -> Vec<String> + Send,
+    ) -> PyResult<Vec<String>> {
+        if let Some(e) = self.life.fork_error(py, call, "station") {
+            return Err(e);
+        }
+        let taken = self
+            .station
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .take();
+        Ok(py.detach(|| {
+            self.life.close();
+            let Some(mut station) = taken else {
+                return Vec::new();
+            };
+            let deadline = std::time::Instant::now() + CLOSE_WAIT;
+            loop {
+                match Arc::try_unwrap(station) {
+                    Ok(s) => return end(s),
+                    Err(shared) if std::time::Instant::now() >= deadline => {
+                        // The last holder closes it when it lets go (the station's drop).
+                        drop(shared);
+                        return vec![format!(
+                            "a call on another thread still holds the station after {} s; \
+                             its devices go to their safe state when that call ends",
+                            CLOSE_WAIT.as_secs()
+                        )];
+                    }
+                    Err(shared) => {
+                        station = shared;
+                        std::thread::sleep(Duration::from_millis(1));
+                    }
+                }
+            }
+        }))
+    }
+}
+
+impl Drop for NativeStation {
+    /// Dropping the station closes it as `close` does; in a forked child it leaves the
+    /// parent's devices, ports and threads alone.
+    fn drop(&mut self) {
+        let taken = self
+            .station
+            .get_mut()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .take();
+        if self.life.forked() {
+            std::mem::forget(taken);
+            return;
+        }
+        let life = &self.life;
+        without_gil(|| {
+            life.close();
+            drop(taken);
+        });
+    }
+}
+
+/// Runs `f` with the GIL released if this thread holds it: a drop that joins a thread
+/// (whose log events need the GIL) or sends to devices.
+fn without_gil(f: impl FnOnce() + Send) {
+    let mut f = Some(f);
+    let _ = Python::try_attach(|py| {
+        py.detach(|| {
+            if let Some(f) = f.take() {
+                f();
+            }
+        });
+    });
+    // Python is shutting down: here, as it is.
+    if let Some(f) = f.take() {
+        f();
     }
 }
 
@@ -260,10 +352,14 @@ impl NativeStation {
     /// Runs one request (a dict in the catalogue's JSON form) and returns its report.
     fn run(&self, py: Python<'_>, request_obj: &Bound<'_, PyAny>) -> PyResult<Py<PyAny>> {
         let req = request(py, request_obj)?;
+        let call = format!("Station.run({})", req.op());
+        self.life.check(py, &call)?;
         // Checked before anything is opened or sent, as `robobus run` does.
         catalogue::validate(&req).map_err(|e| op_error(py, &e))?;
-        let station = self.get(py)?;
+        let station = self.get(py, &call)?;
         let stop = StopToken::new();
+        // Stopped by a `close` on another thread.
+        let running = self.life.running(py, &call, &stop)?;
         let outcome = if on_main_thread() {
             let (tx, rx) = mpsc::channel();
             let job_stop = stop.clone();
@@ -277,8 +373,13 @@ impl NativeStation {
             wait_for(py, rx, &stop)?
         } else {
             // Python delivers signals to the main thread only: run here, GIL released.
-            py.detach(|| catalogue::run(&station, &req, &mut Control::new(&stop)))
+            py.detach(move || {
+                let r = catalogue::run(&station, &req, &mut Control::new(&stop));
+                drop(station);
+                r
+            })
         };
+        drop(running);
         let report = outcome.map_err(|e| op_error(py, &e))?;
         to_py(py, &report)
     }
@@ -304,52 +405,36 @@ impl NativeStation {
 
     /// The names of the wCK ports and the WHJ buses.
     fn names(&self, py: Python<'_>) -> PyResult<(Vec<String>, Vec<String>)> {
-        Ok(self.get(py)?.names())
+        Ok(self.get(py, "Station.buses")?.names())
     }
 
     /// Whether the station has a robot file (for `robot.sample`).
     fn has_robot(&self, py: Python<'_>) -> PyResult<bool> {
-        Ok(self.get(py)?.robot().is_some())
+        Ok(self.get(py, "Station.has_robot")?.robot().is_some())
     }
 
-    /// Closes the station: every device to its safe state (the wCK bus-wide break, every
-    /// connected WHJ joint disabled), the ports released. The failures, one message per
-    /// device. Closing twice does nothing the second time.
-    fn close(&self, py: Python<'_>) -> Vec<String> {
-        let taken = self
-            .station
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .take();
-        let Some(station) = taken else {
-            return Vec::new();
-        };
-        // A telemetry stream still running holds the station: it closes when that ends.
-        py.detach(|| match Arc::try_unwrap(station) {
-            Ok(s) => s.close(),
-            Err(_) => Vec::new(),
-        })
+    /// Closes the station: its telemetry streams and cyclic loops stopped, a request under
+    /// way on another thread stopped, then every device to its safe state (the wCK
+    /// bus-wide break, every connected WHJ joint disabled) and the ports released. The
+    /// failures, one message per device. Closing twice does nothing the second time.
+    fn close(&self, py: Python<'_>) -> PyResult<Vec<String>> {
+        self.release(py, "Station.close", catalogue::Station::close)
     }
 
-    /// Closes the station leaving every device as the last request left it.
-    fn leave(&self) {
-        let taken = self
-            .station
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .take();
-        if let Some(s) = taken.and_then(|s| Arc::try_unwrap(s).ok()) {
+    /// Closes the station leaving every device as the last request left it (its streams
+    /// and loops are stopped all the same).
+    fn leave(&self, py: Python<'_>) -> PyResult<()> {
+        self.release(py, "Station.leave", |s| {
             s.leave();
-        }
+            Vec::new()
+        })
+        .map(drop)
     }
 
     /// Whether `close` (or `leave`) was called.
     #[getter]
     fn closed(&self) -> bool {
-        self.station
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .is_none()
+        self.life.closed()
     }
 
     /// Starts a checked cyclic loop of `mode` targets (`position` deg, `speed` RPM,
@@ -363,10 +448,11 @@ impl NativeStation {
         rate_hz: f64,
         bus: Option<String>,
     ) -> PyResult<NativeCyclic> {
+        let call = "Station.cyclic";
         let servo = handles::servo_loop(py, mode)?;
-        let station = self.get(py)?;
+        let station = self.get(py, call)?;
         let l = py
-            .detach(|| {
+            .detach(move || {
                 catalogue::cyclic::CyclicLoop::start(
                     &station,
                     bus.as_deref(),
@@ -376,8 +462,11 @@ impl NativeStation {
                 )
             })
             .map_err(|e| op_error(py, &e))?;
+        let inner = Arc::new(std::sync::RwLock::new(l));
+        self.life.adopt_loop(py, call, &inner)?;
         Ok(NativeCyclic {
-            inner: std::sync::RwLock::new(l),
+            inner,
+            life: Arc::clone(&self.life),
         })
     }
 
@@ -389,9 +478,12 @@ impl NativeStation {
         ids: Vec<u8>,
         bus: Option<String>,
     ) -> PyResult<handles::NativeWckServos> {
-        let station = self.get(py)?;
+        let station = self.get(py, "Station.wck_servos")?;
         catalogue::handles::WckServos::new(&station, bus.as_deref(), &ids)
-            .map(|inner| handles::NativeWckServos { inner })
+            .map(|inner| handles::NativeWckServos {
+                inner,
+                life: Arc::clone(&self.life),
+            })
             .map_err(|e| op_error(py, &e))
     }
 
@@ -403,9 +495,12 @@ impl NativeStation {
         ids: Vec<u8>,
         bus: Option<String>,
     ) -> PyResult<handles::NativeWhjJoints> {
-        let station = self.get(py)?;
-        py.detach(|| catalogue::handles::WhjJoints::new(&station, bus.as_deref(), &ids))
-            .map(|inner| handles::NativeWhjJoints { inner })
+        let station = self.get(py, "Station.whj_joints")?;
+        py.detach(move || catalogue::handles::WhjJoints::new(&station, bus.as_deref(), &ids))
+            .map(|inner| handles::NativeWhjJoints {
+                inner,
+                life: Arc::clone(&self.life),
+            })
             .map_err(|e| op_error(py, &e))
     }
 
@@ -419,15 +514,26 @@ impl NativeStation {
         limit: Option<u64>,
         queue: usize,
     ) -> PyResult<NativeTelemetry> {
+        let call = "Station.telemetry";
         let req = request(py, request_obj)?;
-        let station = self.get(py)?;
+        let station = self.get(py, call)?;
         let t = catalogue::Telemetry::paused(&station, req, rate_hz, limit)
             .map_err(|e| op_error(py, &e))?;
+        drop(station);
         let sub = t.subscribe(queue).map_err(|e| op_error(py, &e))?;
-        t.resume();
+        let stream = Arc::new(Mutex::new(Some(t)));
+        // Registered before its first read, so a `close` stops it.
+        self.life.adopt_stream(py, call, &stream)?;
+        if let Some(t) = &*stream
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+        {
+            t.resume();
+        }
         Ok(NativeTelemetry {
-            stream: Mutex::new(Some(t)),
+            stream,
             sub,
+            life: Arc::clone(&self.life),
         })
     }
 }
@@ -438,8 +544,10 @@ impl NativeStation {
 #[derive(Debug)]
 struct NativeCyclic {
     /// Read-locked by every call but `stop`, so a thread setting targets never waits for
-    /// one waiting for a cycle.
-    inner: std::sync::RwLock<catalogue::cyclic::CyclicLoop>,
+    /// one waiting for a cycle. Shared with the station's registry, which stops it when
+    /// the station closes.
+    inner: Arc<LoopCell>,
+    life: Arc<Life>,
 }
 
 impl NativeCyclic {
@@ -447,6 +555,23 @@ impl NativeCyclic {
         self.inner
             .read()
             .unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+}
+
+impl Drop for NativeCyclic {
+    fn drop(&mut self) {
+        if self.life.forked() {
+            // The loop's thread is the parent's: nothing to stop or join here.
+            std::mem::forget(Arc::clone(&self.inner));
+            return;
+        }
+        let inner = &self.inner;
+        without_gil(|| {
+            inner
+                .write()
+                .unwrap_or_else(std::sync::PoisonError::into_inner)
+                .stop();
+        });
     }
 }
 
@@ -490,12 +615,14 @@ impl NativeCyclic {
 
     /// Sets the targets (one float per joint, the loop's unit), checked first.
     fn set(&self, py: Python<'_>, targets: Vec<f64>) -> PyResult<()> {
+        self.life.check(py, "Cyclic.set")?;
         self.lock().set(&targets).map_err(|e| op_error(py, &e))
     }
 
     /// The next cycle as columns, waiting at most `timeout` s; `None` on timeout or once
     /// stopped. Ctrl-C interrupts the wait (the loop goes on until stopped).
     fn next(&self, py: Python<'_>, timeout: f64) -> PyResult<Option<Py<PyAny>>> {
+        self.life.check(py, "Cyclic.next")?;
         let total = if timeout.is_finite() && timeout >= 0.0 {
             Duration::from_secs_f64(timeout.min(1e6))
         } else {
@@ -514,6 +641,9 @@ impl NativeCyclic {
             if let Some(c) = got {
                 return to_py(py, &columns(&c)).map(Some);
             }
+            if self.life.closed() {
+                return Err(closed_error(py, "Cyclic.next"));
+            }
             if start.elapsed() >= total {
                 return Ok(None);
             }
@@ -523,6 +653,7 @@ impl NativeCyclic {
 
     /// The most recent cycle as columns, if one has finished.
     fn latest(&self, py: Python<'_>) -> PyResult<Option<Py<PyAny>>> {
+        self.life.check(py, "Cyclic.latest")?;
         match self.lock().latest() {
             Some(c) => to_py(py, &columns(&c)).map(Some),
             None => Ok(None),
@@ -530,20 +661,27 @@ impl NativeCyclic {
     }
 
     /// Drops the queued cycles.
-    fn clear(&self) {
+    fn clear(&self, py: Python<'_>) -> PyResult<()> {
+        self.life.check(py, "Cyclic.clear")?;
         self.lock().clear();
+        Ok(())
     }
 
     /// What the loop did so far (`None` once stopped).
     fn summary(&self, py: Python<'_>) -> PyResult<Option<Py<PyAny>>> {
+        self.life.check(py, "Cyclic.summary")?;
         match self.lock().summary() {
             Some(s) => to_py(py, &s).map(Some),
             None => Ok(None),
         }
     }
 
-    /// Stops the loop: what it did; `None` if it was stopped before.
+    /// Stops the loop: what it did; `None` if it was stopped before (also by closing its
+    /// station).
     fn stop(&self, py: Python<'_>) -> PyResult<Option<Py<PyAny>>> {
+        if let Some(e) = self.life.fork_error(py, "Cyclic.stop", "station") {
+            return Err(e);
+        }
         let done = py.detach(|| {
             self.inner
                 .write()
@@ -561,8 +699,26 @@ impl NativeCyclic {
 #[pyclass(module = "robobus._robobus", name = "NativeTelemetry", frozen)]
 #[derive(Debug)]
 struct NativeTelemetry {
-    stream: Mutex<Option<catalogue::Telemetry>>,
+    /// Shared with the station's registry, which stops it when the station closes.
+    stream: Arc<StreamCell>,
     sub: catalogue::Subscriber,
+    life: Arc<Life>,
+}
+
+impl Drop for NativeTelemetry {
+    fn drop(&mut self) {
+        if self.life.forked() {
+            // The stream's thread is the parent's: nothing to stop or join here.
+            std::mem::forget(Arc::clone(&self.stream));
+            return;
+        }
+        let taken = self
+            .stream
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .take();
+        without_gil(|| drop(taken));
+    }
 }
 
 #[pymethods]
@@ -571,6 +727,7 @@ impl NativeTelemetry {
     /// comes); `None` once the stream has ended. Ctrl-C interrupts the wait.
     #[pyo3(signature = (timeout=None))]
     fn next(&self, py: Python<'_>, timeout: Option<f64>) -> PyResult<Option<Py<PyAny>>> {
+        self.life.check(py, "Telemetry.next")?;
         let deadline = timeout
             .filter(|t| t.is_finite() && *t >= 0.0)
             .map(|t| std::time::Instant::now() + Duration::from_secs_f64(t.min(1e6)));
@@ -587,6 +744,9 @@ impl NativeTelemetry {
                     v["lost"] = serde_json::json!(d.lost);
                     v["age_ms"] = serde_json::json!(d.sample.age().as_secs_f64() * 1e3);
                     return to_py(py, &v).map(Some);
+                }
+                Err(RecvError::Ended) if self.life.closed() => {
+                    return Err(closed_error(py, "Telemetry.next"));
                 }
                 Err(RecvError::Ended) => return Ok(None),
                 Err(RecvError::Timeout) => {
@@ -611,8 +771,12 @@ impl NativeTelemetry {
     }
 
     /// Stops the stream (the read under way completes); what it did: samples, late ones,
-    /// failed ones. Stopping twice returns `None` the second time.
+    /// failed ones. Stopping twice returns `None` the second time (so does stopping it
+    /// after its station was closed).
     fn stop(&self, py: Python<'_>) -> PyResult<Option<Py<PyAny>>> {
+        if let Some(e) = self.life.fork_error(py, "Telemetry.stop", "station") {
+            return Err(e);
+        }
         let taken = self
             .stream
             .lock()

@@ -201,7 +201,7 @@ def test_a_handle_does_not_keep_the_port_open_after_close() -> None:
         servo = station.wck_servo(0)
         assert servo.status()["position"] == 127.0
         station.close()
-        with pytest.raises(robobus.RefusedError, match="is closed"):
+        with pytest.raises(robobus.BadInputError, match="WckServos.status: the station is closed"):
             servo.status()
         # The port is free at once, although the handle still exists.
         with robobus.open_wck(port) as again:

@@ -23,15 +23,25 @@ the host safety limits and the confirmation rule decided there, as for the comma
   ``station.cyclic(joints)``, and :class:`Robot` (a robot file's joints in radians).
 - :mod:`robobus.lerobot` is a LeRobot motors bus over the same handles.
 - Errors are :mod:`robobus.errors` classes, one per error kind, also deriving from the
-  matching builtin (``ValueError``, ``TimeoutError``, ``OSError``, ...).
+  matching builtin (``ValueError``, ``TimeoutError``, ``OSError``, ...). A device that
+  failed raises its kind's class (a silent one :class:`NoDeviceError`) with the report
+  under ``.report``; ``check=False`` returns the report with a row per device instead.
+- :meth:`Station.close` (or leaving its ``with``, or dropping it) stops whatever runs on
+  the station (telemetry streams, cyclic loops, calls on other threads), brings every
+  device to its safe state and releases the ports; any later call on the station or on
+  what was made from it raises. A station belongs to the process that opened it: in a
+  child made by ``os.fork()`` (``multiprocessing``'s default on Linux) every call on it
+  raises :class:`RefusedError` at once; open a new station in the child.
 - Calls release the GIL while they wait on a device; Ctrl-C during a call brings its
   devices to their safe state and raises ``KeyboardInterrupt``.
 """
 
 from __future__ import annotations
 
+import atexit
 import json
 import keyword
+import weakref
 from typing import Any, Iterator, Sequence
 
 from . import errors
@@ -198,7 +208,7 @@ class _Family:
             )
         station = self._station
 
-        def call(*args: Any, check: bool = False, **kwargs: Any) -> dict[str, Any]:
+        def call(*args: Any, check: bool = True, **kwargs: Any) -> dict[str, Any]:
             return station.run(request(op, *args, **kwargs), check=check)
 
         call.__name__ = name
@@ -207,7 +217,8 @@ class _Family:
         call.__doc__ = (
             f"The request {op!r}: arguments {', '.join(required) or '-'} in order, "
             f"any of {', '.join(fields)} by name; returns its report. "
-            "check=True raises the worst device failure."
+            "A failed device raises its kind's error, the report attached; check=False "
+            "returns the report with its row instead."
         )
         # Kept on the instance: the next lookup finds it without coming here.
         setattr(self, name, call)
@@ -227,6 +238,7 @@ class Station:
 
     def __init__(self, native: NativeStation):
         self._native = native
+        _OPEN.add(self)
         self.wck = _Family(self, "wck")
         self.whj = _Family(self, "whj")
         self.robot = _Family(self, "robot")
@@ -265,19 +277,23 @@ class Station:
         )
         return cls(native)
 
-    def run(self, request_: dict[str, Any] | str, *, check: bool = False) -> dict[str, Any]:
+    def run(self, request_: dict[str, Any] | str, *, check: bool = True) -> dict[str, Any]:
         """Runs one request and returns its report (``op``, ``bus``, ``results``: one row
-        per device keyed ``id``, ``summary``, ``failed`` / ``error`` when a device failed).
-        With ``check=True`` a failed device raises its kind's error, the report attached."""
+        per device keyed ``id``, ``summary``). A failed device raises its kind's error (the
+        worst one's, a silent device :class:`NoDeviceError`), the report under ``.report``.
+        With ``check=False`` the report is returned as it is: ``failed`` / ``error`` name
+        the worst failure and each failed device's row has its ``kind`` and ``error``."""
         report: dict[str, Any] = self._native.run(request_)
         return errors.check(report) if check else report
 
-    def run_many(self, requests: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    def run_many(
+        self, requests: Sequence[dict[str, Any]], *, check: bool = True
+    ) -> list[dict[str, Any]]:
         """Runs requests in order, every one checked before any is sent; stops at the
-        first that fails as a whole."""
+        first that fails as a whole, or (unless ``check=False``) in which a device failed."""
         for r in requests:
             NativeStation.validate(r)
-        return [self.run(r) for r in requests]
+        return [self.run(r, check=check) for r in requests]
 
     @property
     def buses(self) -> tuple[list[str], list[str]]:
@@ -340,14 +356,17 @@ class Station:
         return WhjJoint(self._native.whj_joints(_ids([id], "id"), bus))
 
     def close(self) -> list[str]:
-        """Brings every device to its safe state (wCK: the bus-wide break; WHJ: every
-        connected joint disabled) and releases the ports. Returns the failures, one
-        message per device. A second call does nothing."""
+        """Stops whatever runs on the station (its telemetry streams and cyclic loops,
+        a call under way on another thread), brings every device to its safe state (wCK:
+        the bus-wide break; WHJ: every connected joint disabled) and releases the ports.
+        Returns the failures, one message per device. A second call does nothing; any
+        other later call on the station, its streams, loops or handles raises
+        :class:`BadInputError` naming the call. Dropping the station closes it too."""
         return self._native.close()
 
     def leave(self) -> None:
         """Releases the ports leaving every device as the last request left it (a joint
-        enabled stays enabled)."""
+        enabled stays enabled); its streams and loops are stopped all the same."""
         self._native.leave()
 
     def __enter__(self) -> "Station":
@@ -361,6 +380,21 @@ class Station:
             return "<robobus.Station closed>"
         wck, whj = self.buses
         return f"<robobus.Station wck={wck} whj={whj}>"
+
+
+# The stations not closed yet: closed when the interpreter exits (it need not collect
+# them), so that no device is left moving and no stream's thread outlives Python.
+_OPEN: "weakref.WeakSet[Station]" = weakref.WeakSet()
+
+
+@atexit.register
+def _close_open_stations() -> None:
+    for station in list(_OPEN):
+        try:
+            station.close()
+        except RobobusError:
+            # A forked child's inherited station: the parent's to close.
+            pass
 
 
 class Cycle:
@@ -449,7 +483,8 @@ class Cyclic:
         return self._native.summary()
 
     def stop(self) -> dict[str, Any] | None:
-        """Stops the loop: what it did; ``None`` if it was stopped before."""
+        """Stops the loop: what it did; ``None`` if it was stopped before (or by closing
+        its station)."""
         return self._native.stop()
 
     def __iter__(self) -> Iterator[Cycle]:
@@ -468,8 +503,9 @@ class Cyclic:
 
 def arrays(report: dict[str, Any], *fields: str) -> dict[str, npt.NDArray[Any]]:
     """A report's rows as arrays, one per field (and ``id``): numbers as ``float64`` with
-    ``NaN`` where a device failed (its row has no value), booleans as ``bool``. Without
-    ``fields``, every numeric field of the rows."""
+    ``NaN`` where a device failed (its row has no value: a report asked for with
+    ``check=False``), booleans as ``bool``. Without ``fields``, every numeric field of the
+    rows."""
     rows = report["results"]
     if not fields:
         seen: dict[str, None] = {}
@@ -519,7 +555,7 @@ class Telemetry:
 
     def stop(self) -> dict[str, int] | None:
         """Stops the stream: what it did (``samples``, ``late``, ``failed``); ``None`` if
-        it was stopped before."""
+        it was stopped before (or by closing its station)."""
         return self._native.stop()
 
     def __enter__(self) -> "Telemetry":

@@ -98,7 +98,7 @@ class Station:
         wait: str = ...,
     ) -> Station: ...
     def run(self, request_: dict[str, Any] | str, *, check: bool = ...) -> Report: ...
-    def run_many(self, requests: Sequence[dict[str, Any]]) -> list[Report]: ...
+    def run_many(self, requests: Sequence[dict[str, Any]], *, check: bool = ...) -> list[Report]: ...
     @property
     def buses(self) -> tuple[list[str], list[str]]: ...
     @property
@@ -146,14 +146,14 @@ class WckOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.backup``."""
+        """The request ``wck.backup``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def brake(
         self,
         *,
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.brake``."""
+        """The request ``wck.brake``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def diff(
         self,
         id: int,
@@ -164,7 +164,7 @@ class WckOps:
         settings: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.diff``."""
+        """The request ``wck.diff``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def get(
         self,
         param: Literal["gains", "i-gain", "speed", "overload", "bounds", "io"],
@@ -173,7 +173,7 @@ class WckOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.get``."""
+        """The request ``wck.get``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def move(
         self,
         id: int,
@@ -183,7 +183,7 @@ class WckOps:
         torque: int | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.move``."""
+        """The request ``wck.move``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def move10(
         self,
         id: int,
@@ -193,7 +193,7 @@ class WckOps:
         torque: int | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.move10``."""
+        """The request ``wck.move10``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def passive(
         self,
         ids: str | Sequence[int],
@@ -201,7 +201,7 @@ class WckOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.passive``."""
+        """The request ``wck.passive``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def play(
         self,
         motion: str,
@@ -211,7 +211,7 @@ class WckOps:
         rate_hz: float | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.play``."""
+        """The request ``wck.play``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def program_check(
         self,
         program: str,
@@ -220,7 +220,7 @@ class WckOps:
         id: int | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.program.check``."""
+        """The request ``wck.program.check``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def program_download(
         self,
         id: int,
@@ -228,7 +228,7 @@ class WckOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.program.download``."""
+        """The request ``wck.program.download``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def program_upload(
         self,
         id: int,
@@ -238,7 +238,7 @@ class WckOps:
         confirm: bool | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.program.upload``."""
+        """The request ``wck.program.upload``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def read10(
         self,
         id: int,
@@ -246,7 +246,7 @@ class WckOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.read10``."""
+        """The request ``wck.read10``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def restore(
         self,
         id: int,
@@ -257,7 +257,7 @@ class WckOps:
         settings: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.restore``."""
+        """The request ``wck.restore``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def sample(
         self,
         ids: str | Sequence[int],
@@ -265,7 +265,7 @@ class WckOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.sample``."""
+        """The request ``wck.sample``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def scan(
         self,
         *,
@@ -274,7 +274,7 @@ class WckOps:
         ids: str | Sequence[int] | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.scan``."""
+        """The request ``wck.scan``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def set(
         self,
         param: Literal["gains", "i-gain", "speed", "overload", "bounds", "io"],
@@ -294,7 +294,7 @@ class WckOps:
         upper: int | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.set``."""
+        """The request ``wck.set``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def set_baud(
         self,
         id: int,
@@ -304,7 +304,7 @@ class WckOps:
         confirm: bool | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.set-baud``."""
+        """The request ``wck.set-baud``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def set_id(
         self,
         id: int,
@@ -314,7 +314,7 @@ class WckOps:
         confirm: bool | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.set-id``."""
+        """The request ``wck.set-id``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def status(
         self,
         ids: str | Sequence[int],
@@ -322,7 +322,7 @@ class WckOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.status``."""
+        """The request ``wck.status``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def sync_move(
         self,
         positions: Sequence[int],
@@ -331,7 +331,7 @@ class WckOps:
         torque: int | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.sync-move``."""
+        """The request ``wck.sync-move``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def teach(
         self,
         ids: str | Sequence[int],
@@ -344,7 +344,7 @@ class WckOps:
         torque: int | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.teach``."""
+        """The request ``wck.teach``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def tune(
         self,
         id: int,
@@ -358,7 +358,7 @@ class WckOps:
         torque: int | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.tune``."""
+        """The request ``wck.tune``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def wheel(
         self,
         id: int,
@@ -370,7 +370,7 @@ class WckOps:
         on_stop: Literal["passive", "break", "hold"] | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.wheel``."""
+        """The request ``wck.wheel``; a failed device raises its kind's error (``check=False``: the report with its row)."""
 
 class WhjOps:
     def backup(
@@ -380,14 +380,14 @@ class WhjOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.backup``."""
+        """The request ``whj.backup``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def can_health(
         self,
         *,
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.can-health``."""
+        """The request ``whj.can-health``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def clear(
         self,
         joints: str | Sequence[int],
@@ -395,7 +395,7 @@ class WhjOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.clear``."""
+        """The request ``whj.clear``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def current(
         self,
         joint: int,
@@ -407,7 +407,7 @@ class WhjOps:
         on_stop: Literal["hold", "disable"] | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.current``."""
+        """The request ``whj.current``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def defaults(
         self,
         joint: int,
@@ -415,7 +415,7 @@ class WhjOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.defaults``."""
+        """The request ``whj.defaults``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def diff(
         self,
         joint: int,
@@ -425,7 +425,7 @@ class WhjOps:
         settings: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.diff``."""
+        """The request ``whj.diff``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def disable(
         self,
         joints: str | Sequence[int],
@@ -433,7 +433,7 @@ class WhjOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.disable``."""
+        """The request ``whj.disable``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def enable(
         self,
         joints: str | Sequence[int],
@@ -441,7 +441,7 @@ class WhjOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.enable``."""
+        """The request ``whj.enable``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def end_board(
         self,
         action: Literal["status", "power", "io", "force"],
@@ -453,7 +453,7 @@ class WhjOps:
         volts: int | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.end-board``."""
+        """The request ``whj.end-board``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def info(
         self,
         joint: int,
@@ -461,7 +461,7 @@ class WhjOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.info``."""
+        """The request ``whj.info``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def mode(
         self,
         joints: str | Sequence[int],
@@ -470,7 +470,7 @@ class WhjOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.mode``."""
+        """The request ``whj.mode``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def move(
         self,
         joint: int,
@@ -483,7 +483,7 @@ class WhjOps:
         rate_hz: float | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.move``."""
+        """The request ``whj.move``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def read(
         self,
         joints: str | Sequence[int],
@@ -495,14 +495,14 @@ class WhjOps:
         end_board: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.read``."""
+        """The request ``whj.read``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def registers(
         self,
         *,
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.registers``."""
+        """The request ``whj.registers``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def release_iap(
         self,
         joints: str | Sequence[int],
@@ -510,7 +510,7 @@ class WhjOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.release-iap``."""
+        """The request ``whj.release-iap``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def restore(
         self,
         joint: int,
@@ -520,7 +520,7 @@ class WhjOps:
         confirm: bool | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.restore``."""
+        """The request ``whj.restore``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def sample(
         self,
         joints: str | Sequence[int],
@@ -529,7 +529,7 @@ class WhjOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.sample``."""
+        """The request ``whj.sample``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def save(
         self,
         joints: str | Sequence[int],
@@ -538,7 +538,7 @@ class WhjOps:
         confirm: bool | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.save``."""
+        """The request ``whj.save``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def scan(
         self,
         *,
@@ -546,7 +546,7 @@ class WhjOps:
         joints: str | Sequence[int] | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.scan``."""
+        """The request ``whj.scan``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def set_id(
         self,
         joint: int,
@@ -556,7 +556,7 @@ class WhjOps:
         confirm: bool | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.set-id``."""
+        """The request ``whj.set-id``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def set_rates(
         self,
         joints: str | Sequence[int],
@@ -567,7 +567,7 @@ class WhjOps:
         confirm: bool | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.set-rates``."""
+        """The request ``whj.set-rates``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def speed(
         self,
         joint: int,
@@ -578,7 +578,7 @@ class WhjOps:
         on_stop: Literal["hold", "disable"] | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.speed``."""
+        """The request ``whj.speed``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def status(
         self,
         joints: str | Sequence[int],
@@ -588,7 +588,7 @@ class WhjOps:
         end_board: bool | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.status``."""
+        """The request ``whj.status``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def wave(
         self,
         joint: int,
@@ -607,7 +607,7 @@ class WhjOps:
         shape: Literal["sine", "square"] | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.wave``."""
+        """The request ``whj.wave``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def write(
         self,
         joints: str | Sequence[int],
@@ -622,7 +622,7 @@ class WhjOps:
         raw: bool | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.write``."""
+        """The request ``whj.write``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def zero(
         self,
         joint: int,
@@ -630,7 +630,7 @@ class WhjOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.zero``."""
+        """The request ``whj.zero``; a failed device raises its kind's error (``check=False``: the report with its row)."""
 
 class RobotOps:
     def calibrate(
@@ -643,7 +643,7 @@ class RobotOps:
         zero: Literal["end", "keep"] | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``robot.calibrate``."""
+        """The request ``robot.calibrate``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def play(
         self,
         trajectory: str,
@@ -652,13 +652,13 @@ class RobotOps:
         torque: int | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``robot.play``."""
+        """The request ``robot.play``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def sample(
         self,
         *,
         check: bool = ...,
     ) -> Report:
-        """The request ``robot.sample``."""
+        """The request ``robot.sample``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def teach(
         self,
         seconds: float,
@@ -669,7 +669,7 @@ class RobotOps:
         rate_hz: float | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``robot.teach``."""
+        """The request ``robot.teach``; a failed device raises its kind's error (``check=False``: the report with its row)."""
     def teleop(
         self,
         map: Sequence[Any],
@@ -680,4 +680,4 @@ class RobotOps:
         seconds: float | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``robot.teleop``."""
+        """The request ``robot.teleop``; a failed device raises its kind's error (``check=False``: the report with its row)."""

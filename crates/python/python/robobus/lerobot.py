@@ -285,7 +285,7 @@ class RobobusMotorsBus:
             else WckBus.open(port, int(baudrate or cls.default_baudrate))
         )
         with opened as s:
-            rows = s.wck.scan(all_bauds=baudrate is None)["results"]
+            rows = s.wck.scan(all_bauds=baudrate is None, check=False)["results"]
         found: dict[int, list[int]] = {}
         for r in rows:
             if "error" not in r:
@@ -539,11 +539,11 @@ class RobobusMotorsBus:
         for _ in range(1 + num_retry):
             try:
                 if wck:
-                    for r in s.wck.scan(bus=wck[0])["results"]:
+                    for r in s.wck.scan(bus=wck[0], check=False)["results"]:
                         if "error" not in r:
                             found[int(r["id"])] = self.model_number_table[WCK]
                 if whj:
-                    for r in s.whj.scan(bus=whj[0])["results"]:
+                    for r in s.whj.scan(bus=whj[0], check=False)["results"]:
                         if "error" not in r:
                             found[int(r["id"])] = self.model_number_table[WHJ]
                 return found
