@@ -21,10 +21,10 @@ pose 400 127 127 127 127
 
 def main() -> None:
     with robobus.Station.simulated() as station:
-        played = station.wck.play(MOTION, rate_hz=50, check=True)
+        played = station.wck.play(MOTION, rate_hz=50)
         summary = played.get("summary") or {}
         print(f"played {summary.get('moves', '?')} synchronized moves")
-        status = station.wck.status([0, 1, 2, 3], check=True)
+        status = station.wck.status([0, 1, 2, 3])
         for row in status["results"]:
             print(f"servo {row['id']}: position {row['position']} ({row['degrees']:.1f} deg)")
 

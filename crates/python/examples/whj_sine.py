@@ -12,11 +12,9 @@ import robobus
 
 def main() -> None:
     with robobus.Station.simulated() as station:
-        station.whj.enable("1", check=True)
-        station.whj.mode("1", "position", check=True)
-        wave = station.whj.wave(
-            1, amplitude=10.0, frequency=0.5, duration=2.0, rate_hz=200, check=True
-        )
+        station.whj.enable("1")
+        station.whj.mode("1", "position")
+        wave = station.whj.wave(1, amplitude=10.0, frequency=0.5, duration=2.0, rate_hz=200)
         stats = wave.get("summary") or {}
         print(
             f"wave: {stats['cycles']} cycles, {stats['missing_replies']} missing replies, "
