@@ -1020,12 +1020,17 @@ max_acceleration = 1.0
     assert_eq!(wrist["ended"], "holding", "{wrist}");
     let text = std::fs::read_to_string(&out).unwrap();
     assert!(text.contains("time_s,wrist\n"), "{text}");
-    // Held: teach left it in position mode, and the command's end disabled it (its
-    // brake locked), as every command leaves a WHJ joint: the hand no longer moves it.
+    // Held, as the robot file's `safe_state` (the default, hold) says: enabled in
+    // position mode, its brake released, after the command has ended: the hand no
+    // longer moves it.
     let st = sim.json(&["status", "3"]);
     assert_eq!(
-        (st[0]["mode"].as_str(), st[0]["brake"].as_str()),
-        (Some("position"), Some("locked")),
+        (
+            st[0]["mode"].as_str(),
+            st[0]["brake"].as_str(),
+            st[0]["enabled"].as_bool()
+        ),
+        (Some("position"), Some("released"), Some(true)),
         "{st:?}"
     );
     let a = f(&sim.json(&["status", "3"])[0]["position_deg"]);
