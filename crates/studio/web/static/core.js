@@ -488,7 +488,8 @@ export class Studio {
     const reason = this.lastSafe?.reason ?? "disarmed by the server";
     let why;
     if (reason === "heartbeat lost" && this.withheldMs != null) {
-      why = `this page did not respond for over ${(this.withheldMs / 1000).toFixed(1)} s (a frozen or overloaded tab), so its heartbeat stopped`;
+      const tab = document.hidden ? "a tab in the background the browser paused" : "a frozen or overloaded tab";
+      why = `this page did not respond for over ${(this.withheldMs / 1000).toFixed(1)} s (${tab}), so its heartbeat stopped`;
     } else if (reason === "heartbeat lost") {
       why = "the heartbeat did not reach the server in time (the network or the server was too slow)";
     } else {

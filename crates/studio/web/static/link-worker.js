@@ -3,16 +3,18 @@
 //
 // A worker's timers run whatever the page's main thread is doing (mounting a panel's
 // charts, a long layout on a busy machine), so the heartbeat keeps its 100 ms while the page
-// is busy. It is still a dead man's switch: the page's main thread says it is alive every
-// quarter second, and when it has not for MAIN_ALLOWANCE_MS the worker stops beating, so a
-// page that hangs loses control as one that closes does.
+// is busy. It is still a dead man's switch: while beating, it asks the page's main thread
+// every quarter second whether it is alive (a message the thread answers when it runs its
+// events, whatever its timers' throttling), and when no answer came for MAIN_ALLOWANCE_MS
+// it stops beating, so a page that hangs loses control as one that closes does.
 //
 // From the page: {cmd: "open", url} · {cmd: "send", data} · {cmd: "close"} ·
-// {cmd: "beat", on} · {cmd: "alive"}.
+// {cmd: "beat", on} · {cmd: "alive"} (the answer to a ping).
 // To the page: {ev: "open"} · {ev: "message", data} · {ev: "close", code, reason} ·
-// {ev: "withheld", silentMs} (the beat stopped: the page was silent that long).
+// {ev: "ping"} · {ev: "withheld", silentMs} (the beat stopped: the page was silent that long).
 
 const BEAT_MS = 100;
+const PING_MS = 250;
 const MAIN_ALLOWANCE_MS = 2000;
 const HEARTBEAT = JSON.stringify({ type: "heartbeat" });
 
@@ -21,6 +23,7 @@ let beating = false;
 let lastAlive = performance.now();
 let withheld = false;
 let timer = null;
+let pinger = null;
 
 function beat() {
   if (!beating || !ws || ws.readyState !== WebSocket.OPEN) return;
@@ -40,10 +43,13 @@ function setBeating(on) {
   beating = on;
   if (on && !timer) {
     timer = setInterval(beat, BEAT_MS);
+    pinger = setInterval(() => postMessage({ ev: "ping" }), PING_MS);
     beat();
   } else if (!on && timer) {
     clearInterval(timer);
+    clearInterval(pinger);
     timer = null;
+    pinger = null;
   }
 }
 

@@ -2,10 +2,7 @@
 // worker (link-worker.js) with the heartbeat, so that an armed page keeps beating while its
 // main thread is busy. It behaves as a WebSocket for core.js (`readyState`, `send`, `close`,
 // the events `message` and `close`) and adds `beat(on)`, and the event `withheld` when the
-// worker stopped beating because this page's main thread was silent too long.
-
-/** How often the main thread tells the worker it is alive, ms. */
-const ALIVE_MS = 250;
+// worker stopped beating because this page's main thread did not answer its pings in time.
 
 export class Link extends EventTarget {
   static CONNECTING = 0;
@@ -23,7 +20,6 @@ export class Link extends EventTarget {
       console.warn("the studio's link worker failed", e.message ?? e);
       this.#closed(1006, "the link worker failed");
     });
-    this.alive = setInterval(() => this.worker?.postMessage({ cmd: "alive" }), ALIVE_MS);
     this.worker.postMessage({ cmd: "open", url });
   }
 
@@ -39,6 +35,9 @@ export class Link extends EventTarget {
       case "close":
         this.#closed(m.code, m.reason);
         break;
+      case "ping":
+        this.worker?.postMessage({ cmd: "alive" });
+        break;
       case "withheld":
         this.dispatchEvent(new CustomEvent("withheld", { detail: { silentMs: m.silentMs } }));
         break;
@@ -50,7 +49,6 @@ export class Link extends EventTarget {
   #closed(code, reason) {
     if (this.readyState === Link.CLOSED) return;
     this.readyState = Link.CLOSED;
-    clearInterval(this.alive);
     this.worker?.terminate();
     this.worker = null;
     this.dispatchEvent(new CloseEvent("close", { code: code ?? 1006, reason: reason ?? "" }));
