@@ -3,7 +3,8 @@
 //! this test plays. The adapter's state reports drive the kernel's controller state
 //! (error-active, then error-passive, then bus-off) exactly as a USB adapter's would;
 //! `robobus_link::socketcan::health` and `robobus doctor --can` read each state, its
-//! counts and the advice, and a restart (down and up) brings it back.
+//! counts and the advice, and a restart (down and up) brings it back. slcan is classic
+//! CAN: it is reported as such, with the command that sets CAN FD, and doctor fails it.
 #![cfg(target_os = "linux")]
 #![allow(clippy::unwrap_used, clippy::panic)]
 
@@ -129,16 +130,28 @@ fn inner_can_health() {
         (Some(ControllerState::ErrorActive), true, Some(1_000_000)),
         "{h:?}"
     );
-    assert_eq!(h.advice(), None);
-    // (doctor fails this interface anyway: slcan is classic CAN, MTU 16, not CAN FD.)
-    let (f, code) = doctor();
-    assert_eq!((f["status"].as_str(), code), (Some("ok"), Some(5)), "{f}");
+    // slcan is classic CAN: FD off, MTU 16, no data phase; the advice sets CAN FD.
+    assert_eq!(
+        (h.fd, h.mtu, h.data_bitrate),
+        (Some(false), Some(16), None),
+        "{h:?}"
+    );
+    let advice = h.advice().unwrap();
     assert!(
-        f["detail"].as_str().unwrap().starts_with(
+        advice.starts_with("can0 is classic CAN (CAN FD off, bitrate 1000000, no data phase)")
+            && advice.contains("dbitrate 5000000 dsample-point 0.75 fd on"),
+        "{advice}"
+    );
+    let (f, code) = doctor();
+    assert_eq!((f["status"].as_str(), code), (Some("fail"), Some(5)), "{f}");
+    let detail = f["detail"].as_str().unwrap();
+    assert!(
+        detail.starts_with(
             "error-active; so far 0 error-warning, 0 error-passive, 0 bus-off, 0 restarts"
-        ),
+        ) && detail.ends_with("; classic CAN (CAN FD off)"),
         "{f}"
     );
+    assert!(f["fix"].as_str().unwrap().contains("fd on"), "{f}");
 
     // The adapter reports error-passive: receive errors 130, transmit errors 90.
     adapter.write_all(b"sp130090\r").unwrap();
@@ -148,12 +161,19 @@ fn inner_can_health() {
     let h = health::read("can0").unwrap();
     assert_eq!(h.stats.unwrap().error_passive, 1, "{h:?}");
     let (f, _) = doctor();
-    assert_eq!(f["status"], "warn", "{f}");
+    // Error-passive on a classic controller: it fails (classic CAN) and says both.
+    assert_eq!(f["status"], "fail", "{f}");
     assert!(
         f["detail"].as_str().unwrap().contains("1 error-passive"),
         "{f}"
     );
-    assert!(f["fix"].as_str().unwrap().contains("termination"), "{f}");
+    let fix = f["fix"].as_str().unwrap();
+    assert!(
+        fix.starts_with("can0 is error-passive")
+            && fix.contains("termination")
+            && fix.contains("fd on"),
+        "{fix}"
+    );
 
     // Then bus-off: the controller leaves the bus, and says how to restart it.
     adapter.write_all(b"sb256256\r").unwrap();
@@ -196,6 +216,16 @@ fn inner_can_health() {
     assert_eq!(
         (row["up"].as_bool(), row["state"].is_null()),
         (Some(true), true),
+        "{row}"
+    );
+    // vcan0 carries CAN FD (MTU 72): not classic, nothing to advise.
+    assert_eq!(
+        (
+            row["classic"].as_bool(),
+            row["mtu"].as_u64(),
+            row["advice"].is_null()
+        ),
+        (Some(false), Some(72), true),
         "{row}"
     );
     let _ = attach.stdin.take().map(|mut s| s.write_all(b"\n"));

@@ -649,7 +649,8 @@ pub(crate) fn check_controller(iface: &str) -> Finding {
 }
 
 /// Judges a CAN interface's health: error-active is fine, error-warning and -passive
-/// warn, bus-off and stopped fail; the counters and the state changes so far are shown.
+/// warn, bus-off and stopped fail, and so does a controller running classic CAN (CAN FD
+/// off: WHJ joints cannot hear it); the counters and the state changes so far are shown.
 pub(crate) fn controller_finding(h: &robobus_link::socketcan::health::CanHealth) -> Finding {
     use robobus_link::socketcan::health::ControllerState as S;
     let Some(state) = h.state else {
@@ -688,10 +689,14 @@ pub(crate) fn controller_finding(h: &robobus_link::socketcan::health::CanHealth)
         );
     }
     let status = match state {
+        _ if h.classic() => Status::Fail,
         S::ErrorActive => Status::Ok,
         S::ErrorWarning | S::ErrorPassive | S::Sleeping | S::Unknown(_) => Status::Warn,
         S::BusOff | S::Stopped => Status::Fail,
     };
+    if h.classic() {
+        detail.push_str("; classic CAN (CAN FD off)");
+    }
     finding(&h.iface, "controller", status, detail, h.advice())
 }
 

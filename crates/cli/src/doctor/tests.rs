@@ -104,3 +104,29 @@ fn names_are_bounded() {
         .to_string();
     assert!(e.contains("--port") && e.contains("1..=4095 bytes"), "{e}");
 }
+
+#[test]
+fn a_controller_running_classic_can_fails_with_the_can_fd_command() {
+    use robobus_link::socketcan::health::{CanHealth, ControllerState};
+    let health = |fd| CanHealth {
+        iface: "can0".into(),
+        kind: Some("can".into()),
+        up: true,
+        carrier: true,
+        state: Some(ControllerState::ErrorActive),
+        bitrate: Some(1_000_000),
+        fd: Some(fd),
+        ..CanHealth::default()
+    };
+    let f = controller_finding(&health(false));
+    assert_eq!(f.status, Status::Fail, "{f:?}");
+    assert!(f.detail.ends_with("; classic CAN (CAN FD off)"), "{f:?}");
+    let fix = f.fix.unwrap();
+    assert!(
+        fix.starts_with("can0 is classic CAN (CAN FD off, bitrate 1000000, no data phase)")
+            && fix.contains("type can bitrate 1000000 sample-point 0.8 dbitrate 5000000"),
+        "{fix}"
+    );
+    let f = controller_finding(&health(true));
+    assert_eq!((f.status, f.fix), (Status::Ok, None));
+}

@@ -1,7 +1,9 @@
 //! A CAN interface's health from the kernel's own netlink data (`RTM_GETLINK`): the
 //! controller's state (error-active, error-warning, error-passive, bus-off, stopped), its
 //! error counters, how often it went error-passive or bus-off and was restarted, its
-//! automatic restart delay, its bit rates, and the interface's error and drop counts.
+//! automatic restart delay, its bit rates, whether it runs CAN FD or classic CAN (a
+//! misconfigured adapter: WHJ joints talk CAN FD only), and the interface's error and drop
+//! counts.
 //!
 //! [`read`] asks the kernel over a `NETLINK_ROUTE` socket; [`parse`] reads its answer
 //! (bounded: a malformed or truncated message is an error, never a panic). A virtual
@@ -104,6 +106,11 @@ pub struct CanHealth {
     pub bitrate: Option<u32>,
     /// The data bit rate (CAN FD), bit/s.
     pub data_bitrate: Option<u32>,
+    /// CAN FD on (`Some(false)`: the controller runs classic CAN; `None`: no controller,
+    /// as on vcan, whose MTU tells instead).
+    pub fd: Option<bool>,
+    /// The interface's MTU: 72 carries CAN FD frames, 16 classic ones only.
+    pub mtu: Option<u32>,
     /// State changes and restarts.
     pub stats: Option<CanDeviceStats>,
     /// Frames received with errors (the interface's statistics).
@@ -117,10 +124,54 @@ pub struct CanHealth {
 }
 
 impl CanHealth {
+    /// Whether it carries classic CAN only: a controller with CAN FD off, or an interface
+    /// without a controller whose MTU is classic CAN's (16).
+    #[must_use]
+    pub fn classic(&self) -> bool {
+        match self.fd {
+            Some(fd) => !fd,
+            None => self.mtu == Some(CAN_MTU),
+        }
+    }
+
     /// What is wrong and what to do, if anything: a bus-off controller (restart it), an
-    /// error-passive or -warning one (frames are failing), an interface that is down.
+    /// error-passive or -warning one (frames are failing), an interface that is down, and
+    /// a classic CAN interface (WHJ joints need CAN FD: the command that sets it).
     #[must_use]
     pub fn advice(&self) -> Option<String> {
+        match (self.state_advice(), self.classic_advice()) {
+            (Some(s), Some(c)) => Some(format!("{s}. {c}")),
+            (s, c) => s.or(c),
+        }
+    }
+
+    /// What a classic CAN interface needs for WHJ joints, if it is one.
+    fn classic_advice(&self) -> Option<String> {
+        if !self.classic() {
+            return None;
+        }
+        let i = &self.iface;
+        Some(if self.fd.is_some() {
+            format!(
+                "{i} is classic CAN (CAN FD off, bitrate {}, no data phase): WHJ joints talk \
+                 CAN FD only, at 1000000 / 5000000 bit/s from the factory (or the pair `whj \
+                 set-rates` saved). Set it: `sudo ip link set {i} down && sudo ip link set {i} \
+                 type can bitrate 1000000 sample-point 0.8 dbitrate 5000000 dsample-point \
+                 0.75 fd on && sudo ip link set {i} up` (an adapter that refuses `fd on` is \
+                 not a CAN FD adapter)",
+                self.bitrate
+                    .map_or_else(|| "not set".to_owned(), |b| b.to_string())
+            )
+        } else {
+            format!(
+                "{i} carries classic CAN frames only (MTU 16): WHJ joints talk CAN FD. Set it: \
+                 `sudo ip link set {i} down && sudo ip link set {i} mtu 72 up`"
+            )
+        })
+    }
+
+    /// What is wrong with the controller's state or the interface's, if anything.
+    fn state_advice(&self) -> Option<String> {
         let i = &self.iface;
         let counters = match (self.tx_errors, self.rx_errors) {
             (Some(tx), Some(rx)) => format!(" (transmit errors {tx}, receive errors {rx})"),
@@ -187,7 +238,13 @@ const IFLA_STATS64: u16 = 23;
 const IFLA_INFO_KIND: u16 = 1;
 const IFLA_INFO_DATA: u16 = 2;
 const IFLA_INFO_XSTATS: u16 = 3;
+const IFLA_MTU: u16 = 4;
 const IFLA_CAN_BITTIMING: u16 = 1;
+const IFLA_CAN_CTRLMODE: u16 = 5;
+/// `CAN_CTRLMODE_FD` in `struct can_ctrlmode`'s flags.
+const CAN_CTRLMODE_FD: u32 = 0x20;
+/// A classic CAN interface's MTU (`CAN_MTU`; CAN FD's is 72).
+const CAN_MTU: u32 = 16;
 const IFLA_CAN_STATE: u16 = 4;
 const IFLA_CAN_RESTART_MS: u16 = 6;
 const IFLA_CAN_BERR_COUNTER: u16 = 8;
@@ -342,6 +399,7 @@ fn link(body: &[u8], iface: &str) -> Result<CanHealth, HealthError> {
                 let name = value.split(|&b| b == 0).next().unwrap_or(&[]);
                 h.iface = String::from_utf8_lossy(name).into_owned();
             }
+            IFLA_MTU => h.mtu = u32_at(value, 0),
             IFLA_STATS64 => {
                 h.rx_frame_errors = u64_at(value, 32);
                 h.tx_frame_errors = u64_at(value, 40);
@@ -378,6 +436,10 @@ fn link_info(value: &[u8], h: &mut CanHealth) -> Result<(), HealthError> {
                     match k {
                         IFLA_CAN_STATE => h.state = u32_at(d, 0).map(ControllerState::of),
                         IFLA_CAN_RESTART_MS => h.restart_ms = u32_at(d, 0),
+                        // struct can_ctrlmode { mask, flags }: the flags are what is on.
+                        IFLA_CAN_CTRLMODE => {
+                            h.fd = u32_at(d, 4).map(|f| f & CAN_CTRLMODE_FD != 0);
+                        }
                         IFLA_CAN_BERR_COUNTER => {
                             h.tx_errors = u16_at(d, 0);
                             h.rx_errors = u16_at(d, 2);
@@ -477,6 +539,91 @@ mod tests {
             "{advice}"
         );
         assert_eq!(parse(&bytes, 10, "can0").unwrap(), None);
+    }
+
+    /// An error-active `IFACE` of kind `kind`, up, with MTU `mtu`, its controller's flags
+    /// (`None`: no controller data, as vcan) and bit rates.
+    fn link_of(kind: &[u8], mtu: u32, ctrl_flags: Option<u32>, rates: (u32, u32)) -> Vec<u8> {
+        let mut body = vec![0u8; IFINFO];
+        body[8..12].copy_from_slice(&(IFF_UP | IFF_LOWER_UP).to_ne_bytes());
+        body.extend(attr(IFLA_IFNAME, b"can0\0"));
+        body.extend(attr(IFLA_MTU, &mtu.to_ne_bytes()));
+        let mut info = attr(IFLA_INFO_KIND, kind);
+        if let Some(flags) = ctrl_flags {
+            let mut data = attr(IFLA_CAN_STATE, &0u32.to_ne_bytes());
+            // The mask: what the driver supports (FD among them); the flags: what is on.
+            data.extend(attr(
+                IFLA_CAN_CTRLMODE,
+                &[0x3fu32.to_ne_bytes(), flags.to_ne_bytes()].concat(),
+            ));
+            data.extend(attr(
+                IFLA_CAN_BITTIMING,
+                &[rates.0.to_ne_bytes(); 8].concat(),
+            ));
+            data.extend(attr(
+                IFLA_CAN_DATA_BITTIMING,
+                &[rates.1.to_ne_bytes(); 8].concat(),
+            ));
+            info.extend(attr(IFLA_INFO_DATA | 0x8000, &data));
+        }
+        body.extend(attr(IFLA_LINKINFO | 0x8000, &info));
+        message(RTM_NEWLINK, 9, &body)
+    }
+
+    #[test]
+    fn a_classic_can_interface_is_reported_as_such_with_the_can_fd_command() {
+        // A CAN controller with FD off (a classic adapter, or one set up without `fd on`):
+        // its nominal rate, no data phase.
+        let h = parse(&link_of(b"can\0", 16, Some(0x02), (500_000, 0)), 9, "can0")
+            .unwrap()
+            .unwrap();
+        assert_eq!(
+            (h.state, h.fd, h.mtu, h.bitrate, h.data_bitrate),
+            (
+                Some(ControllerState::ErrorActive),
+                Some(false),
+                Some(16),
+                Some(500_000),
+                None
+            )
+        );
+        assert!(h.classic());
+        assert_eq!(
+            h.advice().unwrap(),
+            "can0 is classic CAN (CAN FD off, bitrate 500000, no data phase): WHJ joints talk \
+             CAN FD only, at 1000000 / 5000000 bit/s from the factory (or the pair `whj \
+             set-rates` saved). Set it: `sudo ip link set can0 down && sudo ip link set can0 \
+             type can bitrate 1000000 sample-point 0.8 dbitrate 5000000 dsample-point 0.75 \
+             fd on && sudo ip link set can0 up` (an adapter that refuses `fd on` is not a CAN \
+             FD adapter)"
+        );
+        // The same controller with FD on: nothing to say.
+        let h = parse(
+            &link_of(b"can\0", 72, Some(0x22), (1_000_000, 5_000_000)),
+            9,
+            "can0",
+        )
+        .unwrap()
+        .unwrap();
+        assert_eq!((h.fd, h.data_bitrate), (Some(true), Some(5_000_000)));
+        assert!(!h.classic());
+        assert_eq!(h.advice(), None);
+        // Without a controller (vcan), the MTU tells.
+        let vcan = |mtu| {
+            parse(&link_of(b"vcan\0", mtu, None, (0, 0)), 9, "can0")
+                .unwrap()
+                .unwrap()
+        };
+        assert!(!vcan(72).classic() && vcan(72).advice().is_none());
+        let classic = vcan(16);
+        assert!(classic.classic() && classic.fd.is_none());
+        assert!(
+            classic
+                .advice()
+                .unwrap()
+                .contains("sudo ip link set can0 down && sudo ip link set can0 mtu 72 up"),
+            "{classic:?}"
+        );
     }
 
     #[test]

@@ -287,6 +287,8 @@ fn can_health_report(station: &Station, bus: Option<&str>, op: &str) -> Result<R
         Some(Ok(h)) => {
             let mut row = serde_json::to_value(&h).unwrap_or(Value::Null);
             row["advice"] = h.advice().map_or(Value::Null, Value::from);
+            // Classic CAN (CAN FD off): WHJ joints cannot hear it; the advice says how.
+            row["classic"] = Value::from(h.classic());
             row["id"] = Value::from(h.iface.clone());
             row
         }
