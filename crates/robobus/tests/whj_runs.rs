@@ -9,6 +9,7 @@ mod whj_common;
 
 use std::time::Duration;
 
+use robobus::catalogue::{self, Station};
 use robobus::ops::whj::{self as ops, MoveArgs, ServoLoop, Shape, TargetArgs, WaveArgs};
 use robobus::ops::{Control, ErrorKind, OpError, Progress, SafeState, StopToken};
 use robobus::whj::{JointBus, JointBusConfig};
@@ -237,31 +238,68 @@ fn a_timed_speed_target_fails_when_its_joint_falls_silent() {
     assert!(e.to_string().contains("fell silent"), "{e}");
 }
 
+/// `whj status --broadcast` of absent joints (round 2 took 5.1 s for four: the connect
+/// timeout before the frame): the joints are released for as many attempts as a request
+/// has (`retries + 1`, each waiting one reply timeout, 5 ms apart: 70 ms by default, for
+/// all absent joints together), then the frame's replies are collected for the broadcast
+/// window (100 ms). The absent joints are no-device rows (exit code 3), the present ones
+/// fresh readings.
 #[test]
-fn joints_for_a_broadcast_connect_together_so_absent_ones_cost_one_timeout() {
-    // Joints 1..=3 on the bus, 4..=7 absent.
-    let (link, _sim) = WhjSimLink::new(chain(3));
-    let bus = JointBus::open_with(link, config()).unwrap();
-    let ids: Vec<JointId> = (1..=7).map(id).collect();
-    let t0 = bus.now();
-    assert_eq!(ops::connect_for_broadcast(&bus, &ids), 3);
-    let took = bus.now() - t0;
-    let timeout = config().connect_timeout;
-    // One connect timeout for all four absent joints (and the last attempt's reply
-    // timeout), not four of them in turn.
-    assert!(
-        took >= timeout && took < timeout + Duration::from_millis(50),
-        "{took:?} for a connect timeout of {timeout:?}"
+fn a_broadcast_status_with_four_joints_absent_costs_one_reply_budget_then_the_window() {
+    let (link, sim) = WhjSimLink::new(chain(3));
+    let mut station = Station::new();
+    let port = station.add_whj("arm", JointBus::open_with(link, config()).unwrap());
+    let bus = port.bus();
+    let status = |joints: &str| {
+        let json = format!(r#"{{"op": "whj.status", "joints": "{joints}", "broadcast": true}}"#);
+        let request = catalogue::Request::parse_many(&json).unwrap().remove(0);
+        let t0 = bus.now();
+        let r = catalogue::run(&station, &request, &mut Control::none()).unwrap();
+        (r, bus.now() - t0)
+    };
+    let (reply_timeout, attempts) = (config().reply_timeout, config().retries + 1);
+    let releases = reply_timeout * attempts + Duration::from_millis(5) * (attempts - 1);
+    let window = ops::broadcast_window(bus);
+    assert_eq!(
+        (releases, window),
+        (Duration::from_millis(70), Duration::from_millis(100))
     );
-    let r = ops::broadcast_status(&bus, &ids).unwrap();
+    // Only absent joints: exactly the releases' attempts, then the window.
+    let (r, took) = status("4-7");
+    assert_eq!(took, releases + window);
+    assert_eq!(r.failed_kind(), Some(ErrorKind::NoDevice), "{r:?}");
     assert!(
-        r[..3].iter().all(robobus::ops::DeviceResult::is_ok),
+        r.results.iter().all(|row| row["kind"] == "no-device"),
         "{r:?}"
     );
-    assert!(
-        r[3..]
-            .iter()
-            .all(|r| r.failure().is_some_and(|f| f.kind == ErrorKind::NoDevice)),
-        "{r:?}"
+    // With joints 1..=3 present: the same, and their own frames (the identity and limits
+    // reads, each well under a millisecond): never a connect timeout.
+    let (r, took) = status("1-7");
+    let extra = took
+        .checked_sub(releases + window)
+        .unwrap_or_else(|| panic!("{took:?}"));
+    assert!(extra < Duration::from_millis(10), "{took:?}");
+    assert_eq!(r.failed_kind(), Some(ErrorKind::NoDevice), "{r:?}");
+    let ids: Vec<_> = r.results.iter().map(|v| v["id"].clone()).collect();
+    assert_eq!(
+        ids,
+        (1..=7).map(|i| serde_json::json!(i)).collect::<Vec<_>>()
     );
+    for (n, row) in r.results.iter().enumerate() {
+        if n < 3 {
+            let joint = u8::try_from(n + 1).unwrap();
+            let real = sim.with_bus(|b| b.joint(joint).unwrap().state().position_deg);
+            let read = row["position_deg"]
+                .as_f64()
+                .unwrap_or_else(|| panic!("{row}"));
+            assert!(
+                (read - real).abs() < 0.01,
+                "joint {joint}: {read} read, {real} real"
+            );
+        } else {
+            assert_eq!(row["kind"], "no-device", "{row}");
+            let error = row["error"].as_str().unwrap();
+            assert!(error.contains("no reply to the broadcast"), "{row}");
+        }
+    }
 }

@@ -692,9 +692,9 @@ fn run_whj(
         J::Info(id) => one(id.get(), &hops::info(bus, *id)?),
         J::Status(ids) => device_report(op, name, &hops::status(bus, ids)),
         J::BroadcastStatus(ids, end_board) => {
-            // Connect each joint first (IAP release, identity for the current scale); a
-            // silent one is named by the broadcast's result.
-            let _ = bus.joints(ids);
+            // Connect each joint first (IAP release, identity for the current scale), for
+            // one request's reply budget; a silent one is named by the broadcast's result.
+            hops::connect_for_broadcast(bus, ids);
             if *end_board {
                 let (joints, board) = hops::broadcast_status_with_end_board(bus, ids)?;
                 let mut out = device_report(op, name, &joints);

@@ -1,6 +1,8 @@
 //! The 0x7F status query: `whj status --broadcast` (with the end board's state) and
 //! `monitor --broadcast`'s sampling, one frame for joints 1..=7.
 
+use core::time::Duration;
+
 use robobus_whj::broadcast::{BroadcastStatus, EndBoardReply};
 use robobus_whj::{Address, BroadcastFeedback, JointId, Reply, Request};
 use serde::Serialize;
@@ -127,11 +129,28 @@ fn status_report(bus: &JointBus, id: JointId, f: &BroadcastFeedback) -> StatusRe
 }
 
 /// Connects joints `ids` before a broadcast (IAP releases pipelined, identities read for
-/// their current scales: [`JointBus::joints`]), so absent joints cost one connect timeout
-/// in all, not one each. A joint that does not connect is named by the broadcast's own
-/// result (as silent); this returns how many connected.
+/// their current scales), waiting for them only as long as one point-to-point request
+/// waits with its retries ([`connect_budget`]), not the connect timeout (5 s, for joints
+/// that power up late): a joint in its bootloader answers the release at once, and a
+/// status query reports what answers now. Absent joints cost that budget once in all,
+/// not once each; they are named by the broadcast's own result (as silent). Returns how
+/// many connected.
 pub fn connect_for_broadcast(bus: &JointBus, ids: &[JointId]) -> usize {
-    bus.joints(ids).iter().filter(|j| j.is_ok()).count()
+    bus.joints_within(ids, connect_budget(bus))
+        .iter()
+        .filter(|j| j.is_ok())
+        .count()
+}
+
+/// How long [`connect_for_broadcast`] waits for joints that do not answer: the reply
+/// timeout times the attempts of a point-to-point request (`reply_timeout × (retries +
+/// 1)`): the IAP release is sent that many times, each waiting one reply timeout (70 ms
+/// by default, with the 5 ms between releases).
+fn connect_budget(bus: &JointBus) -> Duration {
+    let config = bus.config();
+    config
+        .reply_timeout
+        .saturating_mul(config.retries.saturating_add(1))
 }
 
 /// `whj status --broadcast`: one 0x7F frame asks joints `ids` (1..=7) for their status;
