@@ -9,7 +9,7 @@ use anyhow::Context as _;
 use robobus::catalogue::guard::GuardConfig;
 use robobus::catalogue::{Station, StationConfig};
 use robobus::ops::{OpError, read_bounded};
-use robobus_studio::{Studio, StudioConfig};
+use robobus_studio::{CaptureDir, Studio, StudioConfig};
 
 use crate::Global;
 
@@ -75,13 +75,21 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
             }
         ));
     }
-    let capture_dir = std::env::temp_dir().join(format!("robobus-studio-{}", std::process::id()));
-    std::fs::create_dir_all(&capture_dir)
-        .with_context(|| format!("creating {}", capture_dir.display()))?;
-    // The session's traffic is captured there (served by the page's Capture panel) and
-    // removed when the studio stops, whatever way it stops.
-    let served = serve_in(args, g.wait, listen, token, &capture_dir);
-    let _ = std::fs::remove_dir_all(&capture_dir);
+    // The session's traffic is captured in a folder of its own (served by the page's
+    // Capture panel): made fresh with mode 0700 under an unpredictable name, and its
+    // capture files removed when the studio stops, whatever way it stops; anything else
+    // found in it is left, and said.
+    let tmp = std::env::temp_dir();
+    let capture_dir = CaptureDir::create(&tmp)
+        .with_context(|| format!("creating the capture folder in {}", tmp.display()))?;
+    let mut made = Vec::new();
+    let served = serve_in(args, g.wait, listen, token, capture_dir.path(), &mut made);
+    for left in capture_dir.remove(&made) {
+        tracing::warn!(
+            "left in place (not made by this studio): {}",
+            left.display()
+        );
+    }
     served
 }
 
@@ -91,6 +99,7 @@ fn serve_in(
     listen: SocketAddr,
     token: Option<String>,
     capture_dir: &std::path::Path,
+    made: &mut Vec<PathBuf>,
 ) -> anyhow::Result<()> {
     let (station, sim) = if args.station.simulated() {
         let (station, sim) = Station::simulated_live(Some(capture_dir))?;
@@ -103,6 +112,7 @@ fn serve_in(
         })?;
         (station, None)
     };
+    made.extend(station.captures().iter().map(|(_, path)| path.clone()));
     let studio = Studio::bind(
         station,
         sim,

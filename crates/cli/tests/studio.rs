@@ -26,7 +26,13 @@ impl Drop for Studio {
 }
 
 fn start(args: &[&str]) -> Studio {
+    start_in(args, &std::env::temp_dir())
+}
+
+/// A studio whose temporary folder (`TMPDIR`) is `tmp`.
+fn start_in(args: &[&str], tmp: &std::path::Path) -> Studio {
     let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .env("TMPDIR", tmp)
         .arg("studio")
         .args(["--port", "0"])
         .args(args)
@@ -680,6 +686,113 @@ fn a_token_studio_on_every_address_answers_the_names_clients_use() {
         r#"{"op":"wck.status","ids":"0"}"#,
     );
     assert_eq!(status, 403);
+}
+
+/// The folders in `tmp` a studio made (`robobus-studio-*`), but `except`.
+fn studio_dirs(tmp: &std::path::Path, except: &std::path::Path) -> Vec<std::path::PathBuf> {
+    std::fs::read_dir(tmp)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| {
+            p != except
+                && p.file_name()
+                    .unwrap()
+                    .to_string_lossy()
+                    .starts_with("robobus-studio-")
+        })
+        .collect()
+}
+
+/// Stops a studio as Ctrl-C does, and waits for it to end.
+fn interrupt(mut s: Studio) {
+    let pid = s.child.id().to_string();
+    assert!(
+        Command::new("kill")
+            .args(["-INT", &pid])
+            .status()
+            .unwrap()
+            .success()
+    );
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while s.child.try_wait().unwrap().is_none() {
+        assert!(
+            Instant::now() < deadline,
+            "the studio did not stop on SIGINT"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+#[test]
+fn the_capture_folder_is_private_fresh_and_only_its_own_files_are_removed() {
+    use std::os::unix::fs::PermissionsExt as _;
+    let tmp = tempfile::tempdir().unwrap();
+    // A folder someone made in advance with the studio's prefix, open to all, holding
+    // their file: never adopted, never deleted.
+    let planted = tmp.path().join("robobus-studio-planted");
+    std::fs::create_dir(&planted).unwrap();
+    std::fs::set_permissions(&planted, std::fs::Permissions::from_mode(0o777)).unwrap();
+    std::fs::write(planted.join("theirs"), "their file").unwrap();
+    let secret = tmp.path().join("secret");
+    std::fs::write(&secret, "TOP-SECRET").unwrap();
+
+    let s = start_in(&[], tmp.path());
+    let pid = s.child.id().to_string();
+    let dirs = studio_dirs(tmp.path(), &planted);
+    assert_eq!(dirs.len(), 1, "{dirs:?}");
+    let dir = dirs[0].clone();
+    let name = dir.file_name().unwrap().to_string_lossy().into_owned();
+    assert!(!name.contains(&pid), "a predictable name: {name}");
+    let mode = std::fs::symlink_metadata(&dir)
+        .unwrap()
+        .permissions()
+        .mode();
+    assert_eq!(mode & 0o7777, 0o700, "{name}: {mode:o}");
+    assert!(std::fs::read_dir(&planted).unwrap().count() == 1);
+    let (status, body) = http(&s.addr, "GET", "/api/capture/sim-wck", &[], "");
+    assert_eq!(status, 200, "{body}");
+
+    // A symbolic link swapped in for a capture file is not followed.
+    let files: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    assert!(!files.is_empty());
+    for f in &files {
+        std::fs::remove_file(f).unwrap();
+        std::os::unix::fs::symlink(&secret, f).unwrap();
+    }
+    for bus in ["sim-wck", "sim-whj"] {
+        let (status, body) = http(&s.addr, "GET", &format!("/api/capture/{bus}"), &[], "");
+        assert_eq!(status, 409, "{bus}: {body}");
+        assert!(!body.contains("TOP-SECRET"), "{bus}: {body}");
+        assert!(body.contains("not followed"), "{bus}: {body}");
+    }
+    // A file the studio did not make, found in its folder at the end, stays.
+    std::fs::write(dir.join("not-the-studios"), "kept").unwrap();
+    interrupt(s);
+    assert_eq!(
+        std::fs::read_to_string(planted.join("theirs")).unwrap(),
+        "their file"
+    );
+    assert_eq!(std::fs::read_to_string(&secret).unwrap(), "TOP-SECRET");
+    let left: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(
+        left,
+        ["not-the-studios"],
+        "the studio's own files are removed"
+    );
+
+    // Without anything foreign, the folder is gone at the end.
+    let s = start_in(&[], tmp.path());
+    let mut dirs = studio_dirs(tmp.path(), &planted);
+    dirs.retain(|d| *d != dir);
+    assert_eq!(dirs.len(), 1, "{dirs:?}");
+    interrupt(s);
+    assert!(!dirs[0].exists(), "{}", dirs[0].display());
 }
 
 /// The guard's `safe` report and the end of run `id`, which come in either order.

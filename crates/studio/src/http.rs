@@ -169,7 +169,10 @@ async fn captures(State(app): State<Arc<App>>, headers: HeaderMap) -> ApiResult 
         .captures()
         .iter()
         .map(|(bus, path)| {
-            let bytes = std::fs::metadata(path).map_or(0, |m| m.len());
+            let bytes = std::fs::symlink_metadata(path)
+                .ok()
+                .filter(std::fs::Metadata::is_file)
+                .map_or(0, |m| m.len());
             let format = if app.station.wck(Some(bus)).is_ok() {
                 "hex"
             } else {
@@ -203,9 +206,23 @@ async fn capture(
         )
         .into());
     };
-    let data = tokio::fs::read(path)
-        .await
-        .map_err(|e| OpError::Device(format!("reading the capture {}: {e}", path.display())))?;
+    // Read off the runtime, from the file itself: a symbolic link put in its place is
+    // refused, never followed.
+    let path = path.clone();
+    let data = tokio::task::spawn_blocking(move || {
+        let mut file = crate::capture::open_regular(&path)?;
+        let mut data = Vec::new();
+        std::io::Read::read_to_end(&mut file, &mut data).map(|_| data)
+    })
+    .await
+    .map_err(|e| OpError::Device(format!("reading the capture: {e}")))?
+    .map_err(|e| {
+        if e.kind() == std::io::ErrorKind::InvalidData {
+            OpError::Refused(format!("the capture of {bus}: {e}"))
+        } else {
+            OpError::Device(format!("reading the capture of {bus}: {e}"))
+        }
+    })?;
     let mut r = data.into_response();
     let h = r.headers_mut();
     h.insert(

@@ -18,6 +18,7 @@
 #![allow(clippy::result_large_err)]
 
 mod assets;
+mod capture;
 mod http;
 mod security;
 mod ws;
@@ -35,6 +36,8 @@ use robobus::catalogue::jog::Jogger;
 use robobus::catalogue::live::LiveSimulator;
 use robobus::catalogue::{Request, Station};
 use robobus::ops::{OpError, StopToken};
+
+pub use capture::CaptureDir;
 
 /// EEPROM, flash and ID writes allowed per minute.
 pub const EEPROM_WRITES_PER_MINUTE: usize = 10;
