@@ -15,6 +15,7 @@
 //! - In a forked child nothing of the parent's is stopped, closed or joined, not even on
 //!   drop: the objects are leaked there ([`Life::forked`]).
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, RwLock, Weak};
 
 use pyo3::prelude::*;
@@ -43,6 +44,9 @@ struct State {
 #[derive(Debug)]
 pub(crate) struct Life {
     pid: u32,
+    /// `state.closed`, read without the lock: a forked child may have inherited the lock
+    /// held by one of the parent's threads.
+    closed: AtomicBool,
     state: Mutex<State>,
 }
 
@@ -63,6 +67,7 @@ impl Life {
     pub(crate) fn new() -> Arc<Self> {
         Arc::new(Self {
             pid: std::process::id(),
+            closed: AtomicBool::new(false),
             state: Mutex::new(State::default()),
         })
     }
@@ -80,7 +85,7 @@ impl Life {
 
     /// Whether the station was closed.
     pub(crate) fn closed(&self) -> bool {
-        self.lock().closed
+        self.closed.load(Ordering::SeqCst)
     }
 
     /// The refusal of `call` in a forked child, if this is one.
@@ -164,6 +169,7 @@ impl Life {
                 return false;
             }
             s.closed = true;
+            self.closed.store(true, Ordering::SeqCst);
             (
                 std::mem::take(&mut s.runs),
                 std::mem::take(&mut s.streams),

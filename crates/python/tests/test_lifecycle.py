@@ -199,6 +199,7 @@ def inherited(out):
         except robobus.RefusedError as e:
             out[name] = str(e)
     out["seconds"] = time.monotonic() - t
+    out["repr"] = repr(station)
     # A station of its own works in the child.
     with robobus.Station.simulated() as mine:
         out["fresh"] = mine.wck.status("0")["results"][0]["position"]
@@ -253,6 +254,7 @@ def test_a_forked_child_refuses_the_inherited_station_at_once_and_the_parent_kee
             msg = child[name]
             assert msg.startswith(call.replace("\\", "") + ": this station was opened in process"), child
             assert "a fork of it" in msg and "open a new station in this one" in msg, child
+        assert child["repr"] == "<robobus.Station of another process>", child
         assert child["fresh"] == 127, child
     assert json.loads(lines["parent"]) == {"enabled": True, "sample": True}
 

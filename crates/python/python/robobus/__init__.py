@@ -378,7 +378,10 @@ class Station:
     def __repr__(self) -> str:
         if self.closed:
             return "<robobus.Station closed>"
-        wck, whj = self.buses
+        try:
+            wck, whj = self.buses
+        except RefusedError:
+            return "<robobus.Station of another process>"
         return f"<robobus.Station wck={wck} whj={whj}>"
 
 
