@@ -12,10 +12,10 @@
 //! - Errors are raised as `robobus.errors` classes chosen by the error kind, with the
 //!   library's message.
 //! - The library's log events go to Python's `logging` (pyo3-log).
-//! - A station and everything made from it share its [`life::Life`]: closing (or dropping)
+//! - A station and everything made from it share its `Life` (`life.rs`): closing (or dropping)
 //!   it stops its streams, loops and requests under way before its devices go to their
 //!   safe state and its ports are released; every later call raises naming the call, and a
-//!   forked child is refused at once (see [`life`]).
+//!   forked child is refused at once.
 
 // OpError carries the client errors by value, as the library returns them.
 #![allow(clippy::result_large_err)]
