@@ -141,6 +141,31 @@ test("a dropped connection while armed says so in the header", async () => {
   await context.close();
 });
 
+test("a link worker that dies while armed is a lost connection: the page says so and reconnects, disarmed", async () => {
+  const s = await studio();
+  const { page, errors, context } = await openPage(browser, s.url);
+  await arm(page);
+  await page.evaluate(() => {
+    window.linkBefore = window.studio.ws;
+    window.studio.ws.worker.terminate();
+  });
+  const reason = page.locator("header").getByRole("alert");
+  await reason.waitFor({ timeout: 8000 });
+  assert.match(await reason.textContent(), /connection lost/);
+  await until(() => page.evaluate(() => window.studio.state.connected && window.studio.ws !== window.linkBefore), {
+    what: "a new connection",
+    timeout: 8000,
+  });
+  await page.getByText("you control the devices").waitFor();
+  assert.equal(await page.evaluate(() => window.studio.state.armed), false);
+  // The dead worker's WebSocket closed: the server's only controller is this page's new one.
+  const other = await openPage(browser, s.url);
+  await other.page.getByText("another page controls: watching").waitFor();
+  await other.context.close();
+  assert.deepEqual(errors, []);
+  await context.close();
+});
+
 test("Disarm stays on screen when the page is scrolled to its end", async () => {
   const s = await studio();
   const { page, errors, context } = await openPage(browser, s.url, { viewport: { width: 1000, height: 480 } });
