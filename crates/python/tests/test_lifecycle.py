@@ -1,4 +1,5 @@
-"""A station's life in Python: `close()` (and leaving its `with`, and dropping it) closes
+"""A station's life in Python: `close()` (and leaving its `with`, dropping it, and leaving
+Python with it still held) closes
 whatever runs on it (telemetry streams, cyclic loops, calls on other threads) with every
 device in its safe state and the ports released, and every later call raises naming the
 call; a forked child refuses the inherited station at once instead of hanging, and can open
@@ -275,3 +276,53 @@ def test_a_silent_device_raises_no_device_error_unless_the_rows_are_asked_for() 
         report = station.run({"op": "whj.status", "joints": "9"}, check=False)
         assert report["failed"] == "no-device" and report["results"][0]["id"] == 9, report
         assert len(station.run_many([{"op": "wck.status", "ids": "20"}], check=False)) == 1
+
+
+
+EXIT_SCRIPT = r"""
+import sys, threading, time
+import robobus
+
+station = robobus.open_whj(sys.argv[1])
+station.whj.mode("1", "position")
+station.whj.enable("1")
+stream = station.telemetry({"op": "whj.status", "joints": "1"}, 100.0)
+loop = station.cyclic([1], rate_hz=100)
+loop.set([30.0])
+assert stream.next(timeout=5) is not None and loop.next(2.0) is not None
+# A daemon thread still holds the station: the interpreter never frees it.
+threading.Thread(target=lambda held=(station, stream, loop): time.sleep(1000), daemon=True).start()
+print("leaving", flush=True)
+"""
+
+
+def test_leaving_python_with_a_station_still_held_closes_it() -> None:
+    in_private_netns("exit_body")
+
+
+def exit_body() -> None:
+    """The body of the test above, inside the namespace: a script leaves Python with a
+    station open, a stream and a loop running and the joint enabled; the joint is then
+    disabled (the station was closed at exit) and Python left without a panic."""
+    assert os.environ.get(INSIDE_NETNS) == "1"
+    bus = "udp:239.74.163.42:43152"
+    whj = subprocess.Popen(
+        [BIN, "sim", "whj", "--joints", "1", "--bus", bus, "--current-noise-ma", "0"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        serving(whj)
+        r = subprocess.run(
+            [sys.executable, "-c", EXIT_SCRIPT, bus], capture_output=True, text=True, timeout=60
+        )
+        assert r.returncode == 0 and r.stdout == "leaving\n", r.stdout + r.stderr
+        assert "panicked" not in r.stderr, r.stderr
+        with robobus.open_whj(bus) as fresh:
+            row = fresh.whj.status("1")["results"][0]
+        assert row["enabled"] is False, row
+        print("exit_body passed")
+    finally:
+        whj.terminate()
+        whj.wait(timeout=20)
