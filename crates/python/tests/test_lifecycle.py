@@ -1,9 +1,9 @@
 """A station's life in Python: `close()` (and leaving its `with`, dropping it, and leaving
-Python with it still held) closes
-whatever runs on it (telemetry streams, cyclic loops, calls on other threads) with every
-device in its safe state and the ports released, and every later call raises naming the
-call; a forked child refuses the inherited station at once instead of hanging, and can open
-its own; a device that failed raises its kind's error unless the rows are asked for.
+Python with it still held) closes whatever runs on it (telemetry streams, cyclic loops,
+calls on other threads) with every device in its safe state and the ports released, and
+every later call raises naming the call; a forked child refuses the inherited station at
+once instead of hanging, and can open its own; a device that failed raises its kind's error
+unless the rows are asked for.
 
 The command-line binary is `$ROBOBUS_BIN`, else the workspace's target/debug/robobus.
 """
