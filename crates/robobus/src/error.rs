@@ -117,6 +117,7 @@ impl WhjError {
             | Self::EnableRefused { .. }
             | Self::BadReply { .. }
             | Self::DuplicateReply { .. }
+            | Self::LateReply { .. }
             | Self::Unverified { .. }
             | Self::MoveIncomplete { .. } => ErrorKind::Device,
             Self::SaveWhileEnabled { .. } | Self::StepTooLarge { .. } | Self::Busy { .. } => {

@@ -302,10 +302,10 @@ fn ten_thousand_status_reads_through_doubled_late_and_implausible_replies_give_n
     assert_eq!(
         counts,
         [
-            (9824, Some(176), injected(163, 46, 193, 133)),
-            (9827, Some(173), injected(268, 56, 306, 117)),
-            (9824, Some(176), injected(163, 46, 193, 133)),
-            (9827, Some(173), injected(268, 56, 306, 117)),
+            (9835, Some(165), injected(170, 67, 197, 99)),
+            (9821, Some(179), injected(269, 54, 302, 126)),
+            (9835, Some(165), injected(170, 67, 197, 99)),
+            (9821, Some(179), injected(269, 54, 302, 126)),
         ]
     );
 }
@@ -358,5 +358,5 @@ fn without_the_collision_window_the_first_of_two_answers_would_be_taken() {
         },
     );
     // Seeded, on the virtual clock: the count is exact (0 with the window, above).
-    assert_eq!(o.wrong, 43, "{:?}", o.injected);
+    assert_eq!(o.wrong, 59, "{:?}", o.injected);
 }

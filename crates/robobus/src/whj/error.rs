@@ -117,6 +117,25 @@ pub enum WhjError {
         /// The second, different reply, summarised.
         second: String,
     },
+    /// The last attempt's reply came while a late answer to an earlier attempt was still
+    /// due, so that which one answered the request could not be told (the bus or the
+    /// adapter delays frames by about the reply timeout). No value is credited.
+    #[error(
+        "{joint}: replies to {request} came late: {reply} came while an answer to an \
+         earlier attempt was still due, and which one it was could not be told in \
+         {attempts} attempt(s); the bus or its adapter delays frames by about the reply \
+         timeout"
+    )]
+    LateReply {
+        /// The joint.
+        joint: JointId,
+        /// What was sent.
+        request: String,
+        /// The last reply that could not be credited, summarised.
+        reply: String,
+        /// Attempts made.
+        attempts: u32,
+    },
     /// Two reads of the same registers disagreed on every attempt (with
     /// [`JointBusConfig::verify_reads`](super::JointBusConfig::verify_reads)).
     #[error(
@@ -293,6 +312,12 @@ pub(crate) fn attempt_error(
             request: description,
             first: summarize(&first),
             second: summarize(&second),
+        },
+        Attempt::Late { reply } => WhjError::LateReply {
+            joint,
+            request: description,
+            reply: summarize(&reply),
+            attempts,
         },
         Attempt::Reply {
             reply: Reply::CmdErr { error, code, .. },

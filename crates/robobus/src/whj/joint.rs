@@ -761,7 +761,12 @@ fn release_iap_many(
                 Ok(a @ (Attempt::Link(_) | Attempt::Busy | Attempt::Duplicate { .. })) => {
                     results[i] = Some(Err(attempt_error(id, req, a, attempts[i])));
                 }
-                Ok(Attempt::Mismatch(_) | Attempt::Timeout { .. } | Attempt::Bus { .. }) => {
+                Ok(
+                    Attempt::Mismatch(_)
+                    | Attempt::Timeout { .. }
+                    | Attempt::Bus { .. }
+                    | Attempt::Late { .. },
+                ) => {
                     again.push(i);
                 }
             }

@@ -51,20 +51,28 @@ pub(crate) enum Attempt {
         /// The second, different one.
         second: Reply,
     },
+    /// The reply came alone while an answer to an earlier attempt of this kind on its
+    /// reply ID, which timed out, was still due: it may be that late answer. It is not
+    /// credited, and the attempt is made again.
+    Late {
+        /// The reply.
+        reply: Reply,
+    },
 }
 
 impl Attempt {
     /// Whether a transaction that may be resent ([`Txn::attempts`](super::Txn::attempts)
     /// above 1) is resent after this attempt: after a timeout, a malformed reply, a bus
-    /// error, and a `CMD_ERR` format error or undefined error code (a corrupted request
-    /// causes the one, only a corrupted reply carries the other). Never after a reply,
+    /// error, a reply that may be late ([`Attempt::Late`]), and a `CMD_ERR`
+    /// format error or undefined error code (a corrupted request causes the one, only a
+    /// corrupted reply carries the other). Never after a reply,
     /// another `CMD_ERR`, a duplicate reply, a busy reply ID or a failed link.
     pub(crate) const fn retryable(&self) -> bool {
         match self {
             Self::Reply {
                 reply: Reply::CmdErr { error, .. },
             } => matches!(error, CmdError::Format | CmdError::Unknown(_)),
-            Self::Timeout { .. } | Self::Mismatch(_) | Self::Bus { .. } => true,
+            Self::Timeout { .. } | Self::Mismatch(_) | Self::Bus { .. } | Self::Late { .. } => true,
             Self::Reply { .. } | Self::Link(_) | Self::Busy | Self::Duplicate { .. } => false,
         }
     }

@@ -31,8 +31,12 @@ pub struct BusHealth {
     /// Frames received.
     pub frames_received: u64,
     /// Received frames no request was waiting for, or that answer another request than
-    /// the one waiting (late replies, other hosts' traffic); they are ignored.
+    /// the one waiting (other hosts' traffic, stray frames); they are ignored.
     pub unmatched: u64,
+    /// Received frames that came while an attempt that had timed out on their reply ID
+    /// could still be answered: late replies, never credited (a request they fall beside
+    /// is made again rather than taken for two joints at one ID).
+    pub late: u64,
     /// Received frames that are not valid joint replies.
     pub malformed: u64,
     /// Requests answered by two different replies (two nodes at one ID).

@@ -136,7 +136,7 @@ fn a_reply_to_another_register_is_not_credited_and_the_deadline_is_exact() {
     // Now the second request goes out, and the same reply is credited to it.
     let t1 = t0 + ms(20);
     assert_eq!(s.poll_transmit(t1).unwrap().frame, other.to_frame());
-    s.handle_frame(&late.to_frame(), t1);
+    s.handle_frame(&late.to_frame(), t1 + us(100));
     let got = s.poll_outcome(second).map(|o| o.attempt);
     assert!(
         matches!(&got, Some(Attempt::Reply { reply: Reply::Read { addr, words, .. } }) if addr.get() == 0x2A && words.len() >= 6),
@@ -233,7 +233,8 @@ fn a_settle_time_holds_the_next_request_to_the_joint_until_it_ends() {
         quiet_after: ms(5),
         ..txn(write, t0)
     });
-    s.poll_transmit(t0).unwrap();
+    // Sent 0.2 ms before its ack comes at t0.
+    s.poll_transmit(t0 - us(200)).unwrap();
     let ack = Reply::WriteAck {
         joint: j1(),
         addr: RegisterAddr::new(0x0A).unwrap(),
@@ -311,11 +312,12 @@ fn a_second_different_reply_within_the_collision_window_is_a_duplicate_not_a_val
     // the window closed, not before.
     let t2 = t1 + us(150);
     assert!(s.poll_transmit(t2).is_some());
-    s.handle_frame(&first.to_frame(), t2);
-    s.handle_frame(&first.to_frame(), t2 + us(100));
-    s.handle_timeout(t2 + us(499));
+    let t3 = t2 + us(100);
+    s.handle_frame(&first.to_frame(), t3);
+    s.handle_frame(&first.to_frame(), t3 + us(100));
+    s.handle_timeout(t3 + us(499));
     assert!(s.poll_outcome(next).is_none());
-    s.handle_timeout(t2 + window);
+    s.handle_timeout(t3 + window);
     assert!(matches!(
         s.poll_outcome(next).map(|o| o.attempt),
         Some(Attempt::Reply { reply }) if reply == first
@@ -622,4 +624,204 @@ fn a_closed_link_fails_everything_and_ends_the_loop() {
     assert!(s.is_idle());
     let t = snapshot(&mut s);
     assert!(t.bus.last_error.unwrap().contains("peer gone"));
+}
+
+/// Two status replies of joint 1 that differ (it moved between them).
+fn two_statuses() -> (Reply, Reply) {
+    let (req, range) = read(0x14, 2);
+    let _ = req;
+    (
+        Reply::read(j1(), range, &[0x1000, 0]).unwrap(),
+        Reply::read(j1(), range, &[0x1200, 0]).unwrap(),
+    )
+}
+
+/// A read of 0x14 with three attempts whose first timed out at `t0 + 20 ms`: the retry
+/// went out then. Returns the transaction.
+fn retry_after_a_timeout(s: &mut Session, t0: Instant) -> TxnId {
+    let (req, _) = read(0x14, 2);
+    let id = s.submit(retried(req, t0, 3));
+    assert_eq!(transmit(s, t0).len(), 1);
+    s.handle_timeout(t0 + ms(20));
+    assert!(s.poll_outcome(id).is_none());
+    assert_eq!(transmit(s, t0 + ms(20)).len(), 1);
+    id
+}
+
+#[test]
+fn a_late_answer_then_the_retrys_own_is_one_joint_answering_twice_not_two_joints() {
+    let t0 = Instant::now();
+    let window = JointBusConfig::default().collision_window;
+    let mut s = Session::new(JointBusConfig::default());
+    let id = retry_after_a_timeout(&mut s, t0);
+    // The first attempt's answer, a reply timeout late, then the retry's own: different.
+    let (late, own) = two_statuses();
+    let t1 = t0 + ms(20) + us(300);
+    s.handle_frame(&late.to_frame(), t1);
+    s.handle_frame(&own.to_frame(), t1 + us(100));
+    // Not a duplicate: the second (a joint answers in order) is held for its own window.
+    assert!(s.poll_outcome(id).is_none());
+    s.handle_timeout(t1 + us(100) + window);
+    let got = s.poll_outcome(id).unwrap();
+    assert!(
+        matches!(&got.attempt, Attempt::Reply { reply } if *reply == own),
+        "{got:?}"
+    );
+    assert_eq!(got.attempts, 2);
+    let bus = snapshot(&mut s).bus;
+    assert_eq!((bus.duplicates, bus.late, bus.unmatched), (0, 1, 0));
+}
+
+#[test]
+fn a_late_answer_alone_in_the_retrys_window_is_not_credited_and_the_request_is_made_again() {
+    let t0 = Instant::now();
+    let window = JointBusConfig::default().collision_window;
+    // The bus delivered a frame late a moment ago.
+    let mut s = seen_late(t0);
+    s.config = JointBusConfig::default();
+    let id = retry_after_a_timeout(&mut s, t0);
+    // One reply comes: the first attempt's late answer or the retry's own, which cannot
+    // be told. Nothing is credited; a third attempt goes out when the window closes.
+    let (late, own) = two_statuses();
+    let t1 = t0 + ms(20) + us(300);
+    s.handle_frame(&late.to_frame(), t1);
+    s.handle_timeout(t1 + window);
+    assert!(s.poll_outcome(id).is_none());
+    assert_eq!(transmit(&mut s, t1 + window).len(), 1);
+    // The other answer (still due) and the third attempt's own arrive together: the
+    // first of them is the one still due, the second is credited.
+    let t2 = t1 + window + us(300);
+    s.handle_frame(&own.to_frame(), t2);
+    s.handle_frame(&late.to_frame(), t2 + us(50));
+    s.handle_timeout(t2 + us(50) + window);
+    let got = s.poll_outcome(id).unwrap();
+    assert!(
+        matches!(&got.attempt, Attempt::Reply { reply } if *reply == late),
+        "{got:?}"
+    );
+    assert_eq!(got.attempts, 3);
+    // Two here, and the one before.
+    assert_eq!(snapshot(&mut s).bus.late, 3);
+}
+
+#[test]
+fn a_late_answer_before_the_retry_is_on_the_wire_is_never_its_answer() {
+    let t0 = Instant::now();
+    let mut s = Session::new(no_window());
+    let id = retry_after_a_timeout(&mut s, t0);
+    let (late, own) = two_statuses();
+    // 10 µs after the retry went out: the request itself is still on the wire.
+    s.handle_frame(&late.to_frame(), t0 + ms(20) + us(10));
+    assert!(s.poll_outcome(id).is_none());
+    s.handle_frame(&own.to_frame(), t0 + ms(20) + us(300));
+    let got = s.poll_outcome(id).unwrap();
+    assert!(
+        matches!(&got.attempt, Attempt::Reply { reply } if *reply == own),
+        "{got:?}"
+    );
+    assert_eq!(snapshot(&mut s).bus.late, 1);
+}
+
+#[test]
+fn two_joints_at_one_id_are_still_a_duplicate_after_a_late_answer_was_accounted_for() {
+    let t0 = Instant::now();
+    let mut s = Session::new(JointBusConfig::default());
+    let id = retry_after_a_timeout(&mut s, t0);
+    let (late, own) = two_statuses();
+    let (_, range) = read(0x14, 2);
+    let other = Reply::read(j1(), range, &[0x7000, 0]).unwrap();
+    let t1 = t0 + ms(20) + us(300);
+    // The late answer, the retry's own, and a third, different one: a second joint.
+    s.handle_frame(&late.to_frame(), t1);
+    s.handle_frame(&own.to_frame(), t1 + us(100));
+    s.handle_frame(&other.to_frame(), t1 + us(250));
+    let got = s.poll_outcome(id).unwrap();
+    assert!(
+        matches!(&got.attempt, Attempt::Duplicate { first, second } if *first == own && *second == other),
+        "{got:?}"
+    );
+    assert_eq!(snapshot(&mut s).bus.duplicates, 1);
+}
+
+/// A session that saw a frame come late (the answer to a timed-out read of joint 2, after
+/// its attempt ended) at `t0 - 1 ms`.
+fn seen_late(t0: Instant) -> Session {
+    let mut s = Session::new(no_window());
+    let (_, range) = read(0x14, 2);
+    let req = Request::Read { joint: j(2), range };
+    let id = s.submit(txn(req, t0 - ms(30)));
+    transmit(&mut s, t0 - ms(30));
+    s.handle_timeout(t0 - ms(10));
+    assert!(s.poll_outcome(id).is_some());
+    let stray = Reply::read(j(2), range, &[0, 0]).unwrap();
+    s.handle_frame(&stray.to_frame(), t0 - ms(1));
+    assert_eq!(snapshot(&mut s).bus.late, 1);
+    s
+}
+
+#[test]
+fn an_answer_due_late_is_due_only_for_the_late_horizon() {
+    let t0 = Instant::now();
+    let mut s = seen_late(t0);
+    let (req, _) = read(0x14, 2);
+    let (reply, _) = two_statuses();
+    // One attempt, timed out with no frame at all: its answer may come late.
+    let first = s.submit(txn(req, t0));
+    transmit(&mut s, t0);
+    s.handle_timeout(t0 + ms(20));
+    assert!(s.poll_outcome(first).is_some());
+    // Within the horizon, a reply alone to the next read may be that late answer.
+    let horizon = ms(20) * LATE_HORIZON_TIMEOUTS;
+    let t1 = t0 + horizon - ms(1);
+    let second = s.submit(txn(req, t1));
+    transmit(&mut s, t1);
+    s.handle_frame(&reply.to_frame(), t1 + us(300));
+    assert!(matches!(
+        s.poll_outcome(second).map(|o| o.attempt),
+        Some(Attempt::Late { reply: r }) if r == reply
+    ));
+    // After it, the same is credited.
+    let t2 = t0 + horizon;
+    s.handle_timeout(t2);
+    let third = s.submit(txn(req, t2));
+    transmit(&mut s, t2);
+    s.handle_frame(&reply.to_frame(), t2 + us(300));
+    assert!(matches!(
+        s.poll_outcome(third).map(|o| o.attempt),
+        Some(Attempt::Reply { reply: r }) if r == reply
+    ));
+}
+
+#[test]
+fn a_joint_that_was_only_silent_is_credited_its_first_reply() {
+    // No frame ever came late on this bus: the joint was off, not late.
+    let t0 = Instant::now();
+    let mut s = Session::new(no_window());
+    let (req, _) = read(0x14, 2);
+    let (reply, _) = two_statuses();
+    let first = s.submit(txn(req, t0));
+    transmit(&mut s, t0);
+    s.handle_timeout(t0 + ms(20));
+    assert!(s.poll_outcome(first).is_some());
+    let second = s.submit(txn(req, t0 + ms(20)));
+    transmit(&mut s, t0 + ms(20));
+    s.handle_frame(&reply.to_frame(), t0 + ms(20) + us(300));
+    assert!(matches!(
+        s.poll_outcome(second).map(|o| o.attempt),
+        Some(Attempt::Reply { reply: r }) if r == reply
+    ));
+    // Once a frame came late, a reply alone while an answer is due is doubted.
+    let t1 = t0 + ms(40);
+    let mut s = seen_late(t1);
+    let third = s.submit(txn(req, t1));
+    transmit(&mut s, t1);
+    s.handle_timeout(t1 + ms(20));
+    assert!(s.poll_outcome(third).is_some());
+    let fourth = s.submit(txn(req, t1 + ms(20)));
+    transmit(&mut s, t1 + ms(20));
+    s.handle_frame(&reply.to_frame(), t1 + ms(20) + us(300));
+    assert!(matches!(
+        s.poll_outcome(fourth).map(|o| o.attempt),
+        Some(Attempt::Late { .. })
+    ));
 }
