@@ -29,18 +29,39 @@ mod teach;
 pub(crate) use args::{Args, OnStop, parse_baud, parse_margin, parse_u32};
 use args::{Direction, GetParam, KeepArg, ProgramCommand, ServoIds, SetParam, WckCommand};
 
-/// `wck tune` as text: the table of responses and the best set; the traces are in
-/// `--json`.
+/// `wck tune` as text: the table of responses and the best set, or the tie; the traces
+/// are in `--json`.
 fn print_tune(mut report: Report) -> anyhow::Result<()> {
     if let Some(Value::Object(s)) = &mut report.summary {
-        let best = s.get("best").and_then(Value::as_u64).unwrap_or(0);
-        if let Some(r) = s
-            .get("responses")
-            .and_then(|r| r.get(usize::try_from(best).unwrap_or(0)))
+        let set = |s: &serde_json::Map<String, Value>, i: u64| {
+            s.get("responses")
+                .and_then(|r| r.get(usize::try_from(i).ok()?))
+                .map(|r| format!("P {} D {} (row {})", r["p"], r["d"], i + 1))
+        };
+        if let Some(text) = s
+            .get("best")
+            .and_then(Value::as_u64)
+            .and_then(|b| set(s, b))
         {
-            let text = format!("P {} D {} (row {})", r["p"], r["d"], best + 1);
             s.insert("best".into(), Value::String(text));
+        } else {
+            let tied: Vec<String> = s
+                .get("tied")
+                .and_then(Value::as_array)
+                .into_iter()
+                .flatten()
+                .filter_map(Value::as_u64)
+                .filter_map(|i| set(s, i))
+                .collect();
+            s.insert(
+                "best".into(),
+                Value::String(format!(
+                    "none: a tie of {} (the responses differ by no more than a reading)",
+                    tied.join(", ")
+                )),
+            );
         }
+        s.remove("tied");
         s.remove("responses");
     }
     report::print(&report, false, &WCK_TABLE)

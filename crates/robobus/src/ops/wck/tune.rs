@@ -1,9 +1,9 @@
 //! Guided gain tuning of one wCK servo: the same position step with each of several
 //! runtime gain sets, the response recorded and measured, the best kept on request.
 //!
-//! For each gain set, in the order given: the runtime P and D gains are set (A-1 (12),
-//! effective at once, lost at power-off), the servo is moved to the start position and
-//! left to settle, then the step is commanded and the position read as fast as the bus
+//! For each gain set, in the order given: the servo is brought back to the start
+//! position and waited for until it is at rest there, the runtime P and D gains are set
+//! (A-1 (12), effective at once, lost at power-off), then the step is commanded and the position read as fast as the bus
 //! allows for the hold time, on the bus's clock (the simulator's virtual clock, or the
 //! wall clock on a real port). The start is where the servo was found; the step goes
 //! away from the nearer boundary and must stay within the servo's boundaries, or nothing
@@ -20,9 +20,18 @@
 //! - steady-state error: the mean of the last 10 % of the readings minus `A`, in steps.
 //!
 //! The best set settles soonest (one that never settles is worst); equal settling times
-//! go to the smaller overshoot. Afterwards the servo returns to the start and its runtime
-//! gains are those of its EEPROM (the gains it has after a power-up: wCK cannot report
-//! its runtime gains), unless the best set is kept: in runtime, or in EEPROM.
+//! go to the smaller overshoot. Sets whose responses do not differ from the first place
+//! by more than the measurement's resolution (the interval between two readings in
+//! settling time, one position step in overshoot) are a tie, and no set is named best.
+//!
+//! Every step starts from the same state: before it the servo is brought back to the
+//! start with the gains of its EEPROM (the gains it has after a power-up: wCK cannot
+//! report its runtime gains) and waited for until it reads the start for [`AT_REST`]
+//! (at most [`RETURN_LIMIT`]); only then are the set's gains written and the step
+//! commanded, so identical gains give identical responses on the simulator. The same
+//! return ends the run, before [`tune`] returns, and the runtime gains stay the EEPROM's
+//! unless the best set is kept (a tie keeps the first tied set, in the order given): in
+//! runtime, or in EEPROM.
 
 use std::time::{Duration, Instant};
 
@@ -40,8 +49,12 @@ pub const MAX_GAIN_SETS: usize = 8;
 pub const HOLD_MS: std::ops::RangeInclusive<u32> = 100..=5000;
 /// The step sizes allowed, position steps.
 pub const AMPLITUDE_STEPS: std::ops::RangeInclusive<u8> = 2..=60;
-/// How long the servo is left to settle at the start before each step.
-const SETTLE_BEFORE: Duration = Duration::from_millis(500);
+/// How long the servo must read its start position, reading after reading, to count as
+/// back and at rest there (before each step, and before [`tune`] returns).
+pub const AT_REST: Duration = Duration::from_millis(300);
+/// The longest the servo is waited for to come back to its start: past this, the run
+/// fails saying where it is.
+pub const RETURN_LIMIT: Duration = Duration::from_secs(3);
 
 /// What to do with the best gain set.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
@@ -137,8 +150,11 @@ pub struct TuneReport {
     pub target: u8,
     /// One response per gain set, in the order given.
     pub responses: Vec<StepResponse>,
-    /// The index of the best set.
-    pub best: usize,
+    /// The index of the best set; `None`: a tie (see `tied`).
+    pub best: Option<usize>,
+    /// The sets that tie for the first place (their responses do not differ by more than
+    /// the measurement's resolution), in the order given; empty when one is best.
+    pub tied: Vec<usize>,
     /// What was kept: `none`, `runtime` or `eeprom`.
     pub kept: Keep,
 }
@@ -192,17 +208,45 @@ pub fn figures(trace: &[(f64, u8)], start: u8, target: u8, p: u8, d: u8) -> Step
     }
 }
 
-/// The index of the best response: settles soonest, then the smaller overshoot.
+/// The best response and the ties (see the [module docs](self)): `(Some(best), [])`
+/// when one set settles soonest (then has the smaller overshoot) by more than the
+/// measurement's resolution, `(None, tied)` when several do not differ from the first
+/// place by more than it: the longest interval between two readings of either trace in
+/// settling time, one position step of `amplitude` in overshoot.
 #[must_use]
-pub fn best(responses: &[StepResponse]) -> usize {
+pub fn rank(responses: &[StepResponse], amplitude: u8) -> (Option<usize>, Vec<usize>) {
     let key = |r: &StepResponse| (r.settling_ms.unwrap_or(f64::INFINITY), r.overshoot_pct);
-    (0..responses.len())
-        .min_by(|&a, &b| {
-            key(&responses[a])
-                .partial_cmp(&key(&responses[b]))
-                .unwrap_or(std::cmp::Ordering::Equal)
+    let Some(first) = (0..responses.len()).min_by(|&a, &b| {
+        key(&responses[a])
+            .partial_cmp(&key(&responses[b]))
+            .unwrap_or(std::cmp::Ordering::Equal)
+    }) else {
+        return (None, Vec::new());
+    };
+    let gap = |r: &StepResponse| {
+        r.trace
+            .windows(2)
+            .map(|w| w[1].0 - w[0].0)
+            .fold(0.0f64, f64::max)
+    };
+    let step_pct = 100.0 / f64::from(amplitude.max(1));
+    let b = &responses[first];
+    let tied: Vec<usize> = (0..responses.len())
+        .filter(|&i| {
+            let r = &responses[i];
+            let settles_alike = match (r.settling_ms, b.settling_ms) {
+                (Some(x), Some(y)) => (x - y).abs() <= gap(r).max(gap(b)),
+                (None, None) => true,
+                _ => false,
+            };
+            settles_alike && (r.overshoot_pct - b.overshoot_pct).abs() <= step_pct
         })
-        .unwrap_or(0)
+        .collect();
+    if tied.len() > 1 {
+        (None, tied)
+    } else {
+        (Some(first), Vec::new())
+    }
 }
 
 /// Runs the steps (see the [module docs](self)); `confirmed` allows [`Keep::Eeprom`].
@@ -249,7 +293,7 @@ pub fn tune<L: ByteLink>(
             args.amplitude
         ))
     })?;
-    let result = run_steps(bus, args, here, target, control);
+    let result = run_steps(bus, args, (here, target), eeprom, control);
     let mut s = bus.servo(id);
     let mut report = match result {
         Ok(r) => r,
@@ -262,17 +306,67 @@ pub fn tune<L: ByteLink>(
             return Err(e);
         }
     };
-    let keep = match args.keep {
-        Keep::None => eeprom,
-        Keep::Runtime | Keep::Eeprom => args.gains[report.best],
-    };
-    s.set_runtime_gains(keep)?;
-    s.move_to(args.torque, pos(here))?;
-    if args.keep == Keep::Eeprom {
-        s.set_gains(keep)?;
+    drop(s);
+    // Back at the start, at rest, with the gains of a power-up (which reach it), before
+    // anything is kept or the call returns.
+    back_at_start(bus, args, here, eeprom, control)?;
+    if args.keep != Keep::None {
+        // A tie keeps the first of the tied sets, in the order given.
+        let chosen = report.best.or_else(|| report.tied.first().copied());
+        if let Some(g) = chosen.and_then(|i| args.gains.get(i)).copied() {
+            let mut s = bus.servo(id);
+            s.set_runtime_gains(g)?;
+            if args.keep == Keep::Eeprom {
+                s.set_gains(g)?;
+            }
+        }
     }
     report.kept = args.keep;
     Ok(report)
+}
+
+/// Brings the servo back to `start` with the runtime gains `gains` and waits until it
+/// reads `start` for [`AT_REST`], at most [`RETURN_LIMIT`] (a stop holds it where it is).
+fn back_at_start<L: ByteLink>(
+    bus: &mut WckBus<L>,
+    args: &TuneArgs,
+    start: u8,
+    gains: Gains,
+    control: &mut Control<'_>,
+) -> Result<(), OpError> {
+    let id = args.id;
+    bus.servo(id).set_runtime_gains(gains)?;
+    bus.servo(id).move_to(args.torque, pos(start))?;
+    let limit = bus.now() + RETURN_LIMIT;
+    let mut since: Option<Instant> = None;
+    loop {
+        if control.stopped() {
+            return Err(SafeState::Hold.interrupted(&mut WckServos {
+                bus,
+                ids: &[id],
+                torque: args.torque,
+            }));
+        }
+        let at = bus.servo(id).status()?.position.get();
+        let now = bus.now();
+        if at == start {
+            let first = *since.get_or_insert(now);
+            if now.saturating_duration_since(first) >= AT_REST {
+                return Ok(());
+            }
+        } else {
+            since = None;
+        }
+        if now >= limit {
+            return Err(OpError::Device(format!(
+                "servo {}: not back at its start position {start} within {} s (at {at});                  its runtime gains are P {} D {}",
+                id.get(),
+                RETURN_LIMIT.as_secs(),
+                gains.p.get(),
+                gains.d.get()
+            )));
+        }
+    }
 }
 
 /// A position read from the device or computed within its boundaries.
@@ -283,8 +377,8 @@ fn pos(p: u8) -> Position {
 fn run_steps<L: ByteLink>(
     bus: &mut WckBus<L>,
     args: &TuneArgs,
-    start: u8,
-    target: u8,
+    (start, target): (u8, u8),
+    eeprom: Gains,
     control: &mut Control<'_>,
 ) -> Result<TuneReport, OpError> {
     let id = args.id;
@@ -307,15 +401,10 @@ fn run_steps<L: ByteLink>(
             total: Some(total),
             note: Some(format!("P {} D {}", g.p.get(), g.d.get())),
         });
+        // Every step from the same state: at rest at the start, reached with the gains
+        // of a power-up; then this set's gains.
+        back_at_start(bus, args, start, eeprom, control)?;
         bus.servo(id).set_runtime_gains(g)?;
-        bus.servo(id).move_to(args.torque, pos(start))?;
-        let settle = bus.now() + SETTLE_BEFORE;
-        while bus.now() < settle {
-            if control.stopped() {
-                return Err(stop(bus));
-            }
-            bus.servo(id).status()?;
-        }
         let t0: Instant = bus.now();
         bus.servo(id).move_to(args.torque, pos(target))?;
         let end = t0 + Duration::from_millis(u64::from(args.hold_ms));
@@ -332,12 +421,13 @@ fn run_steps<L: ByteLink>(
         }
         responses.push(figures(&trace, start, target, g.p.get(), g.d.get()));
     }
-    let best = best(&responses);
+    let (best, tied) = rank(&responses, args.amplitude);
     Ok(TuneReport {
         start,
         target,
         responses,
         best,
+        tied,
         kept: Keep::None,
     })
 }
