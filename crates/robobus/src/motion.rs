@@ -35,6 +35,11 @@ impl Limiter {
         }
     }
 
+    /// A limiter at `position` moving at `speed` (units per second).
+    pub const fn moving(position: f64, speed: f64) -> Self {
+        Self { position, speed }
+    }
+
     /// The current set-point.
     pub const fn position(&self) -> f64 {
         self.position
@@ -90,6 +95,19 @@ impl Limiter {
         self.position = target;
         self.speed = 0.0;
     }
+}
+
+/// The set-point a joint may be sent when it was last measured at `measured`: `set_point`
+/// itself when it lies within `step_limit` of it, else the nearest point that does (a
+/// joint refuses, and latches an error for, a target too far from where it *is*, not from
+/// its previous target). The one rule of the WHJ cyclic loop and of planned move / wave
+/// streams; a non-finite or negative `step_limit` changes nothing.
+#[must_use]
+pub fn within_step(set_point: f64, measured: f64, step_limit: f64) -> f64 {
+    if !(step_limit.is_finite() && step_limit >= 0.0 && measured.is_finite()) {
+        return set_point;
+    }
+    set_point.clamp(measured - step_limit, measured + step_limit)
 }
 
 #[cfg(test)]

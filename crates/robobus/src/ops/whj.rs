@@ -17,10 +17,13 @@
 //! # One plan
 //!
 //! [`plan_move`] and [`plan_wave`] compute every frame and its time once ([`Plan`]). A
-//! dry-run shows the plan; the real run ([`run_move`], [`run_wave`]) sends exactly the
-//! plan's servo frames at the plan's times. A move depends on where the joint is: the dry
-//! run names the start angle it assumed ([`Plan::assumed`]), the real run plans from the
-//! measured one (after checking that it is plausible and within the joint's limits).
+//! dry-run shows the plan; the real run ([`run_move`], [`run_wave`]) sends the plan's servo
+//! frames at the plan's times. A move depends on where the joint is: the dry run names the
+//! start angle it assumed ([`Plan::assumed`]), the real run plans from the measured one
+//! (after checking that it is plausible and within the joint's limits). While it runs, a
+//! position set-point is held back when the joint lags further behind the plan than the
+//! step limit allows (never a target beyond the joint's step protection from where it was
+//! measured; counted as `held_back`); on a joint that follows, the frames are the plan's.
 //!
 //! # Report schema (`--json`)
 //!
@@ -35,9 +38,14 @@
 //! - [`EnableReport`]: `enabled`, `error`; [`ClearReport`]: `error_before`, `error_after`;
 //! - [`MoveReport`]: `from_deg`, `target_deg`, `position_deg` (a fresh reading after the
 //!   move settled), `frames`, `seconds`, `step_limited` (the plan ran slower than asked so
-//!   that no frame exceeds the step limit), `error`;
+//!   that no frame exceeds the step limit), `held_back` (frames held back to the step
+//!   limit from the joint's measured position: it lagged; a move whose last set-point was
+//!   held back sends the target again until it goes out unchanged), `error`;
 //! - [`WaveReport`]: `cycles`, `complete`, `missing_replies`, `deadline_misses`, `overruns`, `clamped`
-//!   (set-points the step limiter changed), `tracking_rms`, `tracking_max` (against the
+//!   (set-points the plan's step limiter changed because the wave asked for more speed or
+//!   acceleration than allowed, or started away from the joint: none for a wave within the
+//!   limits), `held_back` (set-points held back to the step limit from the joint's measured
+//!   position because it lagged), `tracking_rms`, `tracking_max` (against the
 //!   *requested* target, in the loop's unit), `last` (the last feedback, or null when none
 //!   came), `stale` (true when the last cycle had no reply), `missing_at_end`,
 //!   `round_trip_p50_us`, `round_trip_p99_us`, `round_trip_max_us` (send to feedback of the
@@ -171,7 +179,7 @@ pub use joints::*;
 pub use motion::*;
 pub use registers::*;
 
-pub use stream::{FOLLOW_STEPS, SILENT_AFTER, SILENT_FRAMES, check_plan_steps};
+pub use stream::{SILENT_AFTER, SILENT_FRAMES, STALL_AFTER, check_plan_steps};
 
 pub use broadcast::{
     BROADCAST_WAVE_MIN_HZ, BroadcastPlan, END_BOARD_WRITE_TEXT, EndBoardArg, EndBoardStatus,

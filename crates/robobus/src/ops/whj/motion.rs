@@ -7,6 +7,7 @@ use robobus_whj::units::{Current, CurrentScale, Position, TargetSpeed};
 use robobus_whj::{JointId, Request};
 use serde::Serialize;
 
+use crate::motion::Limiter;
 use crate::ops::{Control, OpError, SafeState};
 use crate::whj::{Joint, MotionLimits, Percentiles, Profile, WhjError};
 
@@ -174,6 +175,9 @@ pub struct MoveReport {
     pub seconds: f64,
     /// Whether the move ran slower than `--max-speed` to respect the step limit.
     pub step_limited: bool,
+    /// Position frames whose set-point was held back to the step limit from the joint's
+    /// latest measured position (the joint lagged further behind the plan than that).
+    pub held_back: u64,
     /// Error bits after the move.
     pub error: String,
 }
@@ -195,6 +199,9 @@ pub(super) struct FrameTimes {
     pub(super) late: Duration,
     /// From handing the frame to the bus to its feedback (`None`: no feedback came).
     pub(super) round_trip: Option<Duration>,
+    /// Whether its position set-point was held back to the step limit from the joint's
+    /// measured position (the joint lagged further behind the plan than that).
+    pub(super) held_back: bool,
 }
 
 /// The joint's position limits in degrees (what feedback is checked against).
@@ -236,10 +243,18 @@ pub fn execute_move(
         step_limit_deg: args.step_limit_deg,
         stage: "move",
     };
-    let Ok(sent) = stream::send_frames(j, plan, control, &watch, |_, _, _| {})? else {
+    let mut held_back = 0u64;
+    let limits = args.limits();
+    let finish = stream::Finish {
+        period: limits.period,
+        within: limits.settle_timeout,
+    };
+    let Ok(sent) = stream::send_frames(j, plan, control, &watch, Some(finish), |_, _, times| {
+        held_back += u64::from(times.held_back);
+    })?
+    else {
         return Err(interrupted(j, on_stop, ServoLoop::Position));
     };
-    let limits = args.limits();
     let settle_start = bus.now();
     let status = loop {
         if control.stopped() {
@@ -281,6 +296,7 @@ pub fn execute_move(
         frames: sent,
         seconds: bus.now().saturating_duration_since(began).as_secs_f64(),
         step_limited,
+        held_back,
         error: status.error.to_string(),
     })
 }
@@ -406,10 +422,59 @@ pub fn wave_targets(args: &WaveArgs) -> Vec<f64> {
         .collect()
 }
 
+/// The step limiter of a position wave: the requested value itself whenever the step to it
+/// keeps within the limits (speed, and speed change per frame), so a wave the joint may
+/// follow is sent unchanged; otherwise the one motion limiter
+/// ([`Limiter`](crate::motion::Limiter)) from the present set-point and speed, until it
+/// lands on the request again. A set-point differs from the request only where the request
+/// asked for more than the limits allow, and while it catches up after that.
+#[derive(Debug, Clone, Copy)]
+struct WaveLimiter {
+    limiter: Limiter,
+    on_track: bool,
+    max_speed: f64,
+    max_accel: f64,
+}
+
+impl WaveLimiter {
+    const fn new(from_deg: f64, max_speed: f64, max_accel: f64) -> Self {
+        Self {
+            limiter: Limiter::new(from_deg),
+            on_track: true,
+            max_speed,
+            max_accel,
+        }
+    }
+
+    /// The set-point of the next frame, `dt` seconds on, for the request `want`.
+    fn step(&mut self, want: f64, dt: f64) -> f64 {
+        // (A rounding error's worth of slack, as the limiter has.)
+        let slack = 1.0 + 1e-9;
+        if self.on_track {
+            let speed = (want - self.limiter.position()) / dt;
+            if speed.abs() <= self.max_speed * slack
+                && (speed - self.limiter.speed()).abs() <= self.max_accel * dt * slack
+            {
+                self.limiter = Limiter::moving(want, speed);
+                return want;
+            }
+            self.on_track = false;
+        }
+        let next = self.limiter.step(want, dt, self.max_speed, self.max_accel);
+        #[allow(clippy::float_cmp)] // the limiter lands exactly on the request
+        if next == want {
+            self.on_track = true;
+        }
+        next
+    }
+}
+
 /// Plans a wave: one servo frame per period. Position waves start at `from_deg` and go
-/// through the step limiter ([`WAVE_LIMITS`] at the wave's rate), so a square wave becomes
-/// steep ramps and no frame steps beyond the step limit; speed and current waves are sent
-/// as requested. `scale` converts mA to counts (the joint's model).
+/// through the wave's step limiter ([`WAVE_LIMITS`] at the wave's rate, never a frame
+/// beyond the step limit): a wave within the limits is sent as requested, a square wave
+/// becomes steep ramps, and a wave that starts away from `from_deg` gets a lead-in ramp
+/// (the plan's notes say how long). Speed and current waves are sent as requested. `scale`
+/// converts mA to counts (the joint's model).
 pub fn plan_wave(
     args: &WaveArgs,
     from_deg: f64,
@@ -419,17 +484,13 @@ pub fn plan_wave(
     args.validate()?;
     let period = Duration::from_secs_f64(1.0 / args.rate_hz);
     let dt = period.as_secs_f64();
-    let mut profile = Profile::new(
-        from_deg,
-        MotionLimits {
-            period,
-            // Never a frame beyond the step limit, however low the rate.
-            max_speed_deg_s: WAVE_LIMITS
-                .max_speed_deg_s
-                .min(args.step_limit_deg * args.rate_hz),
-            ..WAVE_LIMITS
-        },
-    );
+    // Never a frame beyond the step limit, however low the rate.
+    let max_speed = WAVE_LIMITS
+        .max_speed_deg_s
+        .min(args.step_limit_deg * args.rate_hz);
+    let mut limiter = WaveLimiter::new(from_deg, max_speed, WAVE_LIMITS.max_accel_deg_s2);
+    // Frames before the set-point first reaches the request (a lead-in from `from_deg`).
+    let mut lead_in: Option<usize> = None;
     let mut plan = Plan::default();
     if args.servo == ServoLoop::Position {
         plan.reads.push(Request::StatusQuery { joint: args.joint });
@@ -447,7 +508,10 @@ pub fn plan_wave(
     for (k, want) in wave_targets(args).into_iter().enumerate() {
         let request = match args.servo {
             ServoLoop::Position => {
-                let v = profile.step(want, dt);
+                let v = limiter.step(want, dt);
+                if lead_in.is_none() && limiter.on_track {
+                    lead_in = Some(k);
+                }
                 Request::PositionServo {
                     joint,
                     target: Position::from_degrees(v).map_err(bad)?,
@@ -479,11 +543,33 @@ pub fn plan_wave(
         args.rate_hz,
         mode_name(args.servo.mode()),
         if args.servo == ServoLoop::Position {
-            " (position frames go through the step limiter: at most 180 deg/s, 3000 deg/s^2)"
+            format!(
+                " (position frames go through the step limiter: at most {max_speed} deg/s, \
+                 {} deg/s^2; a real run also holds each set-point within {} deg of the \
+                 joint's measured position)",
+                WAVE_LIMITS.max_accel_deg_s2, args.step_limit_deg
+            )
         } else {
-            ""
+            String::new()
         }
     ));
+    let first = wave_targets(args).first().copied().unwrap_or(from_deg);
+    if args.servo == ServoLoop::Position && (first - from_deg).abs() > args.step_limit_deg {
+        plan.notes.push(match lead_in {
+            Some(k) => format!(
+                "the wave starts {:.4} deg from {from_deg} deg, more than the step limit of {} \
+                 deg: its first {k} set-point(s) are a lead-in ramp to it (counted as clamped)",
+                (first - from_deg).abs(),
+                args.step_limit_deg
+            ),
+            None => format!(
+                "the wave starts {:.4} deg from {from_deg} deg and its set-points never reach \
+                 what it asks for (every one counted as clamped): move the joint nearer \
+                 --offset first, or lower --amplitude / --frequency",
+                (first - from_deg).abs()
+            ),
+        });
+    }
     Ok(plan)
 }
 
@@ -564,8 +650,17 @@ pub struct WaveReport {
     pub deadline_misses: u64,
     /// Frames whose exchange took longer than one period.
     pub overruns: u64,
-    /// Position set-points the step limiter changed from the requested value.
+    /// Position set-points the plan's step limiter changed from the requested value:
+    /// where the wave asked for more speed or acceleration than allowed (a square wave's
+    /// edges, a lead-in from where the joint was), and while it caught up after that. A
+    /// wave within the limits has none (a joint lagging behind is not clamping: see
+    /// `held_back` and the tracking error).
     pub clamped: u64,
+    /// Position frames whose set-point the run held back to the step limit from the
+    /// joint's latest measured position, because the joint lagged further behind the plan
+    /// than that (a load, a current limit); those frames differ from the plan. 0 on a
+    /// joint that follows.
+    pub held_back: u64,
     /// RMS of (measured − requested), in the loop's unit (`None` without replies).
     pub tracking_rms: Option<f64>,
     /// Largest |measured − requested|.
@@ -640,6 +735,7 @@ pub fn execute_wave(
         deadline_misses: 0,
         overruns: 0,
         clamped: 0,
+        held_back: 0,
         tracking_rms: None,
         tracking_max: None,
         unit: args.servo.unit(),
@@ -675,7 +771,7 @@ pub fn execute_wave(
         step_limit_deg: args.step_limit_deg,
         stage: "wave",
     };
-    let outcome = stream::send_frames(j, plan, control, &watch, |k, fb, times| {
+    let outcome = stream::send_frames(j, plan, control, &watch, None, |k, fb, times| {
         let late = times.late;
         round_trips.extend(times.round_trip);
         let now = bus.now();
@@ -684,6 +780,7 @@ pub fn execute_wave(
         }
         last_sent = now;
         r.cycles += 1;
+        r.held_back += u64::from(times.held_back);
         if late > period {
             r.deadline_misses += 1;
         }

@@ -2,10 +2,16 @@
 //!
 //! A planned stream (a move's or a wave's frames) is checked once, before its first frame
 //! ([`check_plan_steps`]): no frame steps further than the step limit from the frame before
-//! it (or, for the first, from the planned start). While it runs, each frame goes out as
-//! planned; the host does not re-check it against the last feedback, which is the position
-//! *before* the previous frame and so lags the plan by a frame or two. Instead the run is
-//! watched:
+//! it (or, for the first, from the planned start). A joint, though, checks each position
+//! target against where it *is*, and a joint that lags (a load, a current limit) is further
+//! behind the plan than one step. So every position set-point goes out planned against the
+//! joint's measured position ([`motion::within_step`](crate::motion::within_step), the
+//! rule of the cyclic loop too): never more than the step limit from its latest feedback
+//! (before the first frame, its present position), held back to that when the plan is
+//! further ahead, and counted ([`FrameTimes::held_back`]). A plan whose first set-point is
+//! more than the step limit from where the joint is (a plan made elsewhere, or the joint
+//! moved since) is refused before its first frame, naming the distance. On a joint that
+//! follows, the frames go out exactly as planned. While it runs the feedback is watched:
 //!
 //! - **silence**: after [`SILENT_FRAMES`] frames in a row without feedback *and* at least
 //!   [`SILENT_AFTER`] without any, the run stops, the joint is brought to the run's safe
@@ -14,17 +20,21 @@
 //!   at once (safe state, *device* error naming the bits);
 //! - **implausible feedback** ([`reading_fault`](super::reading_fault): a position outside
 //!   the joint's limits) is never used: the run stops as a *device* error;
-//! - **not following**: a position frame about to go out further than
-//!   [`FOLLOW_STEPS`] step limits from the joint's reported position means the joint is not
-//!   following the plan (stalled, blocked, or commanded by someone else): the run stops as a
-//!   *device* error, before that frame is sent.
+//! - **not following**: set-points held back for [`STALL_AFTER`] in a row while the joint
+//!   moved less than one step limit means it is not following the plan (stalled, blocked,
+//!   or commanded by someone else): the run stops as a *device* error. A joint that lags
+//!   but moves runs to the end.
 
 use std::time::{Duration, Instant};
 
 use robobus_whj::Request;
 use robobus_whj::reply::ServoFeedback;
+use robobus_whj::units::Position;
 
-use super::{FrameTimes, OpError, Plan, ServoLoop, broadcast, pause_until, reading_fault, whj};
+use super::{
+    FrameTimes, OpError, Plan, PlannedFrame, ServoLoop, broadcast, pause_until, reading_fault, whj,
+};
+use crate::motion::within_step;
 use crate::ops::safe::WhjJoints;
 use crate::ops::{Control, Progress, SafeState};
 use crate::whj::Joint;
@@ -36,10 +46,9 @@ pub const SILENT_FRAMES: u32 = 3;
 /// with [`SILENT_FRAMES`]: at 20 Hz three frames take 150 ms, at 1 kHz 100 ms take 100).
 pub const SILENT_AFTER: Duration = Duration::from_millis(100);
 
-/// How many step limits a position frame may lie from the joint's reported position
-/// before the run stops as "not following". The feedback is the position before the
-/// previous frame, so a joint that follows lies about two steps behind the next frame.
-pub const FOLLOW_STEPS: f64 = 3.0;
+/// How long set-points may be held back in a row, while the joint moves less than one step
+/// limit, before the run stops as "not following".
+pub const STALL_AFTER: Duration = Duration::from_millis(500);
 
 /// Refuses a plan (nothing sent) whose position frames step further than `step_limit_deg`
 /// from the frame before (the first from `plan.start_deg`). `hint` names the options that
@@ -104,53 +113,212 @@ pub(super) fn stop_with(j: &Joint<'_>, watch: &Watch, error: OpError) -> OpError
     }
 }
 
-/// Sends the timed frames of `plan` at their times, watched as the module docs say.
-/// `on_frame` gets each frame's index, its feedback (`None`: no reply) and its times.
-/// Returns the frames sent, or `Err(())` inside `Ok` when the caller's token stopped it
-/// (the caller applies the safe state and reports the interruption).
+/// The position set-point `request` carries for `joint` (point-to-point, or its slot of a
+/// 0x2F broadcast frame), degrees.
+fn position_target(request: Request, joint: robobus_whj::JointId) -> Option<f64> {
+    match request {
+        Request::PositionServo { joint: to, target } if to == joint => Some(target.degrees()),
+        Request::BroadcastPosition(b) => b.slot(joint).map(|s| s.position.degrees()),
+        _ => None,
+    }
+}
+
+/// `request` with `joint`'s position set-point replaced by `deg` (a broadcast frame keeps
+/// its other slots and feed-forward); `None` when `deg` has no position value.
+fn with_position(request: Request, joint: robobus_whj::JointId, deg: f64) -> Option<Request> {
+    let target = Position::from_degrees(deg).ok()?;
+    match request {
+        Request::PositionServo { joint: to, .. } if to == joint => {
+            Some(Request::PositionServo { joint, target })
+        }
+        Request::BroadcastPosition(mut b) => {
+            let slot = b.slots.get_mut(usize::from(joint.get()).checked_sub(1)?)?;
+            slot.as_mut()?.position = target;
+            Some(Request::BroadcastPosition(b))
+        }
+        _ => None,
+    }
+}
+
+/// Where the joint is before a stream's first frame, and the refusal of a plan whose first
+/// position set-point is more than the step limit from it (nothing sent). `None` when the
+/// plan has no position frame for the joint.
+fn measured_start(j: &Joint<'_>, plan: &Plan, watch: &Watch) -> Result<Option<f64>, OpError> {
+    let Some(first) = plan
+        .frames
+        .iter()
+        .find_map(|f| position_target(f.request, j.id()))
+    else {
+        return Ok(None);
+    };
+    let id = j.id().get();
+    let at = j.recent_position().map_err(whj)?.degrees();
+    if let Some(fault) = reading_fault(at, watch.limits, None) {
+        return Err(OpError::Device(format!(
+            "joint {id}: present {fault}; {} not started, nothing sent",
+            watch.stage
+        )));
+    }
+    let off = (first - at).abs();
+    if off > watch.step_limit_deg + 1e-9 {
+        return Err(OpError::Refused(format!(
+            "joint {id}: the {}'s first set-point {first:.4} deg is {off:.4} deg from where \
+             the joint is ({at:.4} deg), beyond the step limit of {} deg: plan it from the \
+             joint's present position, or move the joint there first (whj move {id} \
+             {first:.4}); nothing sent",
+            watch.stage, watch.step_limit_deg
+        )));
+    }
+    Ok(Some(at))
+}
+
+/// The joint's own step protection, degrees: a position target further than this from its
+/// actual position is refused and latches 0x4000 (§6.6, C10).
+const JOINT_STEP_PROTECTION_DEG: f64 = 10.0;
+
+/// The position set-point a stream may send now: the planned one, held back to within
+/// two step limits (at most [`JOINT_STEP_PROTECTION_DEG`]) of every place the joint may be
+/// when the frame arrives. The feedback is the joint's position when the previous frame
+/// arrived, one period old; since then the joint went toward its last set-point
+/// (`last_sent`), or carried on as it moved over the period before (`previous`, the
+/// feedback before `measured`: a joint that overshoots). A joint that follows gets the
+/// plan unchanged (the plan steps at most one step limit a frame); one that lags or
+/// overshoots never a target beyond its protection.
+fn allowed_set_point(
+    planned: f64,
+    measured: f64,
+    previous: Option<f64>,
+    last_sent: f64,
+    step_limit: f64,
+) -> f64 {
+    let reach = (2.0 * step_limit).min(JOINT_STEP_PROTECTION_DEG);
+    let carried = previous.map_or(measured, |p| measured + (measured - p));
+    let lo = measured.min(carried).min(last_sent);
+    let hi = measured.max(carried).max(last_sent);
+    if hi - lo > 2.0 * reach {
+        // The joint moves further in a period than any set-point can cover: hold it in
+        // the middle (the watch stops a joint that does not follow).
+        return f64::midpoint(lo, hi);
+    }
+    // Within `reach` of both ends of [lo, hi]: of its middle, less half its width.
+    within_step(planned, f64::midpoint(lo, hi), reach - (hi - lo) / 2.0)
+}
+
+/// How a move finishes when its last set-point was held back (the joint lagged): the
+/// target goes out again every `period` until it goes out unchanged, for at most `within`
+/// after the plan's last frame.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Finish {
+    /// Time between two frames (the plan's period).
+    pub period: Duration,
+    /// How long after the plan's last frame the target may still go out.
+    pub within: Duration,
+}
+
+/// Sends the timed frames of `plan` at their times, planned against the joint's measured
+/// position and watched as the module docs say. `on_frame` gets each frame's index, its
+/// feedback (`None`: no reply) and its times; with `finish`, a held-back last set-point
+/// goes out again as [`Finish`] says. Returns the frames sent, or `Err(())` inside
+/// `Ok` when the caller's token stopped it (the caller applies the safe state and reports
+/// the interruption).
 pub(super) fn send_frames(
     j: &Joint<'_>,
     plan: &Plan,
     control: &mut Control<'_>,
     watch: &Watch,
+    finish: Option<Finish>,
     mut on_frame: impl FnMut(usize, Option<&ServoFeedback>, FrameTimes),
 ) -> Result<Result<u64, ()>, OpError> {
     let bus = j.bus();
-    let id = j.id().get();
+    let joint = j.id();
+    let id = joint.get();
+    // Where the joint is: its present position, then each feedback's.
+    let mut measured = measured_start(j, plan, watch)?;
+    // The feedback before `measured`.
+    let mut previous: Option<f64> = None;
+    // The position set-point last sent (at first: the joint holds where it is).
+    let mut last_sent = measured;
     let start = bus.now();
     let total = plan.frames.len() as u64;
     let mut sent = 0u64;
     let mut missing = 0u32;
     let mut last_heard: Instant = start;
-    let mut last_position: Option<f64> = None;
-    for (k, f) in plan.frames.iter().enumerate() {
+    // While set-points are held back in a row: since when, where the joint was then, and
+    // which way the plan was from it.
+    let mut held_since: Option<(Instant, f64, f64)> = None;
+    let mut last_held_back = false;
+    for k in 0.. {
+        let f = match (plan.frames.get(k), plan.frames.last(), finish) {
+            (Some(f), _, _) => *f,
+            // The plan's last set-point was held back: it goes out again, one period
+            // apart, until it goes out unchanged (or `within` is over).
+            (None, Some(last), Some(finish)) if last_held_back => {
+                let extra = u32::try_from(k + 1 - plan.frames.len()).unwrap_or(u32::MAX);
+                let after = finish.period.saturating_mul(extra);
+                if after > finish.within {
+                    break;
+                }
+                PlannedFrame {
+                    at: last.at + after,
+                    request: last.request,
+                }
+            }
+            _ => break,
+        };
         let due = start + f.at;
         if control.stopped() || !pause_until(bus, control, due) {
             return Ok(Err(()));
         }
-        if let (Request::PositionServo { target, .. }, Some(at)) = (f.request, last_position) {
-            let off = (target.degrees() - at).abs();
-            if off > FOLLOW_STEPS * watch.step_limit_deg {
-                return Err(stop_with(
-                    j,
-                    watch,
-                    OpError::Device(format!(
-                        "joint {id} is not following the plan: frame {k} ({:.4} deg) is {off:.4} \
-                         deg from its reported position {at:.4} deg (more than {FOLLOW_STEPS} \
-                         step limits of {} deg); {} stopped after {sent} frame(s)",
-                        target.degrees(),
-                        watch.step_limit_deg,
-                        watch.stage
-                    )),
-                ));
+        let now = bus.now();
+        let mut request = f.request;
+        let mut held_back = false;
+        if let (Some(planned), Some(at), Some(last)) =
+            (position_target(f.request, joint), measured, last_sent)
+        {
+            let allowed = allowed_set_point(planned, at, previous, last, watch.step_limit_deg);
+            #[allow(clippy::float_cmp)] // exact: did the step limit change it
+            if allowed != planned {
+                request = with_position(f.request, joint, allowed).unwrap_or(request);
+                held_back = true;
+                match held_since {
+                    Some((since, from, way))
+                        if (at - from) * way < watch.step_limit_deg
+                            && now.saturating_duration_since(since) >= STALL_AFTER =>
+                    {
+                        return Err(stop_with(
+                            j,
+                            watch,
+                            OpError::Device(format!(
+                                "joint {id} is not following the plan: its set-points were \
+                                 held back to the step limit of {} deg for {} ms while it \
+                                 moved from {from:.4} to {at:.4} deg, not one step limit \
+                                 toward them; {} stopped after {sent} frame(s)",
+                                watch.step_limit_deg,
+                                now.saturating_duration_since(since).as_millis(),
+                                watch.stage
+                            )),
+                        ));
+                    }
+                    // Held back before, and not yet a step limit nearer: waiting.
+                    Some((_, from, way)) if (at - from) * way < watch.step_limit_deg => {}
+                    // The first held-back set-point, or the joint moved on: time from here.
+                    _ => held_since = Some((now, at, (planned - at).signum())),
+                }
             }
+        }
+        if !held_back {
+            held_since = None;
+        }
+        last_held_back = held_back;
+        if let Some(p) = position_target(request, joint) {
+            last_sent = Some(p);
         }
         let sent_at = bus.now();
         let late = sent_at.saturating_duration_since(due);
-        let fb = if f.request.joint().is_none() {
-            broadcast::broadcast_servo(j, f.request).map_err(whj)?
+        let fb = if request.joint().is_none() {
+            broadcast::broadcast_servo(j, request).map_err(whj)?
         } else {
-            match j.send_planned(f.request) {
+            match j.send_planned(request) {
                 Ok(fb) => Some(fb),
                 Err(e) if e.is_timeout() => None,
                 Err(e) => return Err(stop_with(j, watch, whj(e))),
@@ -159,8 +327,16 @@ pub(super) fn send_frames(
         let now = bus.now();
         let round_trip = fb.is_some().then(|| now.saturating_duration_since(sent_at));
         sent += 1;
-        on_frame(k, fb.as_ref(), FrameTimes { late, round_trip });
-        if sent.is_multiple_of(16) || sent == total {
+        on_frame(
+            k,
+            fb.as_ref(),
+            FrameTimes {
+                late,
+                round_trip,
+                held_back,
+            },
+        );
+        if sent <= total && (sent.is_multiple_of(16) || sent == total) {
             control.report(&Progress::new(watch.stage, sent, Some(total)));
         }
         let Some(fb) = fb else {
@@ -184,8 +360,8 @@ pub(super) fn send_frames(
         last_heard = now;
         let when = format!("at frame {k} of {total}");
         check_feedback(j, watch, &fb, &when)?;
-        let at = fb.position.degrees();
-        last_position = Some(at);
+        previous = measured;
+        measured = Some(fb.position.degrees());
     }
     Ok(Ok(sent))
 }

@@ -267,7 +267,7 @@ impl CyclicRun {
                 };
                 if let Some(a) = actual {
                     let a = a.degrees();
-                    let clamped = cmd.clamp(a - self.step_limit_deg, a + self.step_limit_deg);
+                    let clamped = crate::motion::within_step(cmd, a, self.step_limit_deg);
                     #[allow(clippy::float_cmp)] // exact: did the clamp change it
                     if clamped != cmd {
                         clamps += 1;
