@@ -179,14 +179,30 @@ fn a_second_bridge_on_a_namespace_in_use_exits_4_and_the_first_serves_on() {
         .read_line(&mut line)
         .unwrap();
     assert!(line.starts_with("bridge: zenoh "), "{line}");
-    let second = robobus(&[
-        "bridge",
-        "--no-listen",
-        "--connect",
-        &endpoint,
-        "--namespace",
-        "/bot1/",
-    ]);
+    let mut second = Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .args([
+            "bridge",
+            "--no-listen",
+            "--connect",
+            &endpoint,
+            "--namespace",
+            "/bot1/",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // It must end by itself (a bridge that started would serve until stopped).
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
+    while second.try_wait().unwrap().is_none() {
+        if std::time::Instant::now() > deadline {
+            let _ = second.kill();
+            let _ = first.kill();
+            panic!("the second bridge started on a namespace in use");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let second = second.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&second.stderr);
     assert_eq!(second.status.code(), Some(4), "{err}");
     assert!(
