@@ -795,6 +795,94 @@ fn the_capture_folder_is_private_fresh_and_only_its_own_files_are_removed() {
     assert!(!dirs[0].exists(), "{}", dirs[0].display());
 }
 
+#[test]
+fn idle_and_slow_connections_are_closed_and_never_starve_the_api() {
+    // 256 file descriptors, as the report that found the flaw: more idle connections
+    // than that would leave nothing for /api/info without the cap.
+    let mut child = Command::new("sh")
+        .args(["-c", "ulimit -n 256 && exec \"$0\" studio --port 0"])
+        .arg(env!("CARGO_BIN_EXE_robobus"))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let addr = line
+        .trim()
+        .strip_prefix("studio: http://")
+        .and_then(|a| a.strip_suffix('/'))
+        .unwrap_or_else(|| panic!("first line: {line:?}"))
+        .to_owned();
+    let s = Studio { child, addr };
+    // 200 connections that say nothing and 100 that send half a header, slowly.
+    let opened = Instant::now();
+    let mut flood = Vec::new();
+    for n in 0..300 {
+        let mut c = TcpStream::connect(&s.addr).unwrap();
+        if n % 3 == 0 {
+            write!(c, "GET /api/info HTTP/1.1\r\nHost: {}\r\nX-Slow:", s.addr).unwrap();
+        }
+        flood.push(c);
+    }
+    // The API still answers during the flood.
+    for _ in 0..5 {
+        let asked = Instant::now();
+        let (status, body) = http(&s.addr, "GET", "/api/info", &[], "");
+        assert_eq!(status, 200, "{body}");
+        assert!(
+            asked.elapsed() < Duration::from_secs(5),
+            "{:?}",
+            asked.elapsed()
+        );
+        for c in flood.iter_mut().step_by(3) {
+            // A byte of the header now and then: still slower than the header timeout.
+            let _ = c.write_all(b"a");
+        }
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    // After the header timeout, the server has closed every one of them.
+    let timeout = Duration::from_secs(robobus_studio_header_timeout_s());
+    std::thread::sleep(
+        (opened + timeout + Duration::from_secs(2)).saturating_duration_since(Instant::now()),
+    );
+    let mut open = 0;
+    for c in &mut flood {
+        c.set_read_timeout(Some(Duration::from_millis(200)))
+            .unwrap();
+        let mut buf = [0u8; 1024];
+        loop {
+            match c.read(&mut buf) {
+                Ok(0) => break,
+                // A 503 or 408 before the close.
+                Ok(_) => {}
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                    ) =>
+                {
+                    open += 1;
+                    break;
+                }
+                Err(_) => break,
+            }
+        }
+    }
+    assert_eq!(
+        open, 0,
+        "of 300 idle or slow connections, {open} are still open"
+    );
+    assert_eq!(http(&s.addr, "GET", "/api/info", &[], "").0, 200);
+}
+
+/// The header timeout of the studio, s (docs/studio.md says it).
+const fn robobus_studio_header_timeout_s() -> u64 {
+    10
+}
+
 /// The guard's `safe` report and the end of run `id`, which come in either order.
 fn safe_and_end(ws: &mut tungstenite::WebSocket<TcpStream>, id: u64) -> (Value, Value) {
     let (mut event, mut ended) = (None, None);

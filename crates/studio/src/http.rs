@@ -4,7 +4,7 @@
 use std::sync::Arc;
 
 use axum::Router;
-use axum::body::Bytes;
+use axum::body::{Body, Bytes};
 use axum::extract::{DefaultBodyLimit, Path, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
@@ -12,7 +12,7 @@ use axum::routing::{get, post};
 use robobus::catalogue::{self, Request};
 use robobus::ops::{OpError, StopToken};
 
-use crate::{ApiError, App, HEARTBEAT_MS, MAX_BODY, assets};
+use crate::{ApiError, App, BODY_TIMEOUT, HEARTBEAT_MS, MAX_BODY, assets};
 
 /// The header that proves control: the secret the controlling page received in its
 /// WebSocket's `control` message.
@@ -140,8 +140,31 @@ fn session(app: &App, headers: &HeaderMap, request: &Request) -> Result<Option<u
     Ok(None)
 }
 
-async fn run(State(app): State<Arc<App>>, headers: HeaderMap, body: Bytes) -> ApiResult {
+/// A request's body: at most [`MAX_BODY`] bytes (413), sent within [`BODY_TIMEOUT`] (408).
+async fn read_body(body: Body) -> Result<Bytes, ApiError> {
+    match tokio::time::timeout(BODY_TIMEOUT, axum::body::to_bytes(body, MAX_BODY)).await {
+        Ok(Ok(bytes)) => Ok(bytes),
+        Ok(Err(e)) => Err(ApiError {
+            status: StatusCode::PAYLOAD_TOO_LARGE,
+            kind: "bad-input",
+            message: format!("the request body: {e} (at most {MAX_BODY} bytes); nothing was sent"),
+            retry_after: None,
+        }),
+        Err(_) => Err(ApiError {
+            status: StatusCode::REQUEST_TIMEOUT,
+            kind: "bad-input",
+            message: format!(
+                "the request body did not arrive within {} s; nothing was sent",
+                BODY_TIMEOUT.as_secs()
+            ),
+            retry_after: None,
+        }),
+    }
+}
+
+async fn run(State(app): State<Arc<App>>, headers: HeaderMap, body: Body) -> ApiResult {
     app.gate.check(&headers, true, true, None)?;
+    let body = read_body(body).await?;
     let request = parse(&body)?;
     let session = session(&app, &headers, &request)?;
     app.admit(session, &request)?;
@@ -149,8 +172,9 @@ async fn run(State(app): State<Arc<App>>, headers: HeaderMap, body: Bytes) -> Ap
     Ok(json(&report))
 }
 
-async fn plan(State(app): State<Arc<App>>, headers: HeaderMap, body: Bytes) -> ApiResult {
+async fn plan(State(app): State<Arc<App>>, headers: HeaderMap, body: Body) -> ApiResult {
     app.gate.check(&headers, true, true, None)?;
+    let body = read_body(body).await?;
     let request = parse(&body)?;
     let plan = catalogue::plan(&request)?;
     let confirm = catalogue::confirmation(&request)?;

@@ -19,6 +19,7 @@
 
 mod assets;
 mod capture;
+mod conn;
 mod http;
 mod security;
 mod ws;
@@ -38,6 +39,7 @@ use robobus::catalogue::{Request, Station};
 use robobus::ops::{OpError, StopToken};
 
 pub use capture::CaptureDir;
+pub use conn::{BODY_TIMEOUT, HEADER_TIMEOUT, MAX_CONNECTIONS};
 
 /// EEPROM, flash and ID writes allowed per minute.
 pub const EEPROM_WRITES_PER_MINUTE: usize = 10;
@@ -434,15 +436,8 @@ impl Studio {
                 }
                 let _ = events.send(Event::Shutdown);
             };
-            // Telemetry is many small messages to a page that only reads: without
-            // TCP_NODELAY each would wait for the previous one's delayed ACK (up to 40 ms).
-            let listener = axum::serve::ListenerExt::tap_io(listener, |tcp| {
-                let _ = tcp.set_nodelay(true);
-            });
-            axum::serve(listener, router)
-                .with_graceful_shutdown(shutdown)
-                .await
-                .map_err(StudioError::Start)
+            conn::serve(listener, router, shutdown).await;
+            Ok::<(), StudioError>(())
         })?;
         // Connections still open (a page's WebSocket) end with the runtime.
         drop(rt);
