@@ -21,6 +21,9 @@ struct LateBus {
     pending: VecDeque<(Instant, u8)>,
     /// The link's clock.
     now: Instant,
+    /// How many more replies come with a stray byte 0.1 ms after their command (before
+    /// any module can have answered: line noise).
+    stray: u32,
 }
 
 impl LateBus {
@@ -29,6 +32,7 @@ impl LateBus {
             delay,
             pending: VecDeque::new(),
             now: Instant::now(),
+            stray: 0,
         }
     }
 }
@@ -46,6 +50,12 @@ impl ByteLink for LateBus {
                 let i = self.pending.partition_point(|&(t, _)| t <= at);
                 self.pending.insert(i, (at, 10 * id + 10));
                 self.pending.insert(i, (at, 0)); // load 0
+                if self.stray > 0 {
+                    self.stray -= 1;
+                    let noise = self.now + Duration::from_micros(100);
+                    let i = self.pending.partition_point(|&(t, _)| t <= noise);
+                    self.pending.insert(i, (noise, 0x55));
+                }
             }
         }
         Ok(())
@@ -275,4 +285,18 @@ fn a_scan_of_silent_ids_costs_only_their_reply_waits() {
         took,
         58 * wait + 2 * (wait + Duration::from_millis(50) + reply + robobus::wck::DEFAULT_GUARD)
     );
+}
+
+/// A servo whose answers to every status read of a probe come with a stray byte before
+/// them (line noise right after the command: the attempt is unattributable, its bytes are
+/// not credited) is never reported absent: it answered. It is probed again and found
+/// once an answer is clean.
+#[test]
+fn a_servo_whose_probes_come_with_stray_bytes_is_probed_again_never_absent() {
+    for wait in MODES {
+        let mut link = LateBus::new(|id| (id == 3).then(|| Duration::from_micros(1500)));
+        link.stray = 4;
+        let (found, _) = scan_late_in(link, 2..=4, wait);
+        assert_eq!(found, [3], "{wait:?}");
+    }
 }

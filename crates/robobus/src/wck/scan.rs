@@ -155,7 +155,8 @@ impl<L: ByteLink> WckBus<L> {
     /// `progress` after each ID. Restores the bus's baud rate at the end.
     ///
     /// An ID counts as absent when [`ScanOptions::probes`] status reads bring no byte at
-    /// all. A silent ID costs only those reads' reply waits: the next probe goes out at
+    /// all (bytes that cannot be its reply, such as a stray byte before any module can
+    /// have answered, make it a suspect that is probed again, never an absent ID). A silent ID costs only those reads' reply waits: the next probe goes out at
     /// once, and a reply that arrives while a silent attempt's late window
     /// ([`WckConfig::late_window`](super::WckConfig::late_window)) is still open is not
     /// credited; the window is waited out and the ID asked again. With [`ScanOptions::check_duplicates`], a module that answers is read three
@@ -286,7 +287,14 @@ impl<L: ByteLink> WckBus<L> {
                     self.settle();
                     evidence.push(format!("status read: {}", anomaly.describe(&bytes, 2)));
                 }
-                Err(Failure::Bad { .. } | Failure::Unattributable { .. }) => self.settle(),
+                // Bytes that came while no late window was open and cannot be the reply
+                // (stray bytes before any module can have answered): something answered,
+                // so the ID is never absent on them; it is probed again.
+                Err(Failure::Unattributable { bytes, anomaly }) => {
+                    self.settle();
+                    evidence.push(format!("status read: {}", anomaly.describe(&bytes, 2)));
+                }
+                Err(Failure::Bad { .. }) => self.settle(),
             }
         }
         let Some(bytes) = clean else {
