@@ -204,6 +204,90 @@ fn allowed_set_point(
     within_step(planned, f64::midpoint(lo, hi), reach - (hi - lo) / 2.0)
 }
 
+/// What a stream knows of where its joint is, and how long its set-points have been held
+/// back.
+#[derive(Debug, Clone, Copy)]
+struct Follow {
+    /// The latest feedback's position (at first: the present position).
+    measured: Option<f64>,
+    /// The feedback before `measured`.
+    previous: Option<f64>,
+    /// The position set-point last sent (at first: where the joint holds).
+    last_sent: Option<f64>,
+    /// While set-points are held back in a row: since when, where the joint was then, and
+    /// which way the plan was from it.
+    held_since: Option<(Instant, f64, f64)>,
+}
+
+impl Follow {
+    const fn new(measured: Option<f64>) -> Self {
+        Self {
+            measured,
+            previous: None,
+            last_sent: measured,
+            held_since: None,
+        }
+    }
+
+    /// `request` as it may go out at `now` ([`allowed_set_point`]), and whether it was
+    /// held back; `Err` (the message) when the joint is not following.
+    fn hold(
+        &mut self,
+        request: Request,
+        joint: robobus_whj::JointId,
+        now: Instant,
+        step_limit: f64,
+    ) -> Result<(Request, bool), String> {
+        let mut out = (request, false);
+        if let (Some(planned), Some(at), Some(last)) = (
+            position_target(request, joint),
+            self.measured,
+            self.last_sent,
+        ) {
+            let allowed = allowed_set_point(planned, at, self.previous, last, step_limit);
+            #[allow(clippy::float_cmp)] // exact: did the step limit change it
+            if allowed != planned {
+                out = (
+                    with_position(request, joint, allowed).unwrap_or(request),
+                    true,
+                );
+                match self.held_since {
+                    Some((since, from, way))
+                        if (at - from) * way < step_limit
+                            && now.saturating_duration_since(since) >= STALL_AFTER =>
+                    {
+                        return Err(format!(
+                            "joint {} is not following the plan: its set-points were held \
+                             back to the step limit of {step_limit} deg for {} ms while it \
+                             moved from {from:.4} to {at:.4} deg, not one step limit toward \
+                             them",
+                            joint.get(),
+                            now.saturating_duration_since(since).as_millis(),
+                        ));
+                    }
+                    // Held back before, and not yet a step limit nearer: waiting.
+                    Some((_, from, way)) if (at - from) * way < step_limit => {}
+                    // The first held-back set-point, or the joint moved on: time from here.
+                    _ => self.held_since = Some((now, at, (planned - at).signum())),
+                }
+            }
+        }
+        if !out.1 {
+            self.held_since = None;
+        }
+        if let Some(p) = position_target(out.0, joint) {
+            self.last_sent = Some(p);
+        }
+        Ok(out)
+    }
+
+    /// A feedback came: the joint was at `deg`.
+    const fn measured(&mut self, deg: f64) {
+        self.previous = self.measured;
+        self.measured = Some(deg);
+    }
+}
+
 /// How a move finishes when its last set-point was held back (the joint lagged): the
 /// target goes out again every `period` until it goes out unchanged, for at most `within`
 /// after the plan's last frame.
@@ -232,20 +316,12 @@ pub(super) fn send_frames(
     let bus = j.bus();
     let joint = j.id();
     let id = joint.get();
-    // Where the joint is: its present position, then each feedback's.
-    let mut measured = measured_start(j, plan, watch)?;
-    // The feedback before `measured`.
-    let mut previous: Option<f64> = None;
-    // The position set-point last sent (at first: the joint holds where it is).
-    let mut last_sent = measured;
+    let mut follow = Follow::new(measured_start(j, plan, watch)?);
     let start = bus.now();
     let total = plan.frames.len() as u64;
     let mut sent = 0u64;
     let mut missing = 0u32;
     let mut last_heard: Instant = start;
-    // While set-points are held back in a row: since when, where the joint was then, and
-    // which way the plan was from it.
-    let mut held_since: Option<(Instant, f64, f64)> = None;
     let mut last_held_back = false;
     for k in 0.. {
         let f = match (plan.frames.get(k), plan.frames.last(), finish) {
@@ -269,50 +345,13 @@ pub(super) fn send_frames(
         if control.stopped() || !pause_until(bus, control, due) {
             return Ok(Err(()));
         }
-        let now = bus.now();
-        let mut request = f.request;
-        let mut held_back = false;
-        if let (Some(planned), Some(at), Some(last)) =
-            (position_target(f.request, joint), measured, last_sent)
-        {
-            let allowed = allowed_set_point(planned, at, previous, last, watch.step_limit_deg);
-            #[allow(clippy::float_cmp)] // exact: did the step limit change it
-            if allowed != planned {
-                request = with_position(f.request, joint, allowed).unwrap_or(request);
-                held_back = true;
-                match held_since {
-                    Some((since, from, way))
-                        if (at - from) * way < watch.step_limit_deg
-                            && now.saturating_duration_since(since) >= STALL_AFTER =>
-                    {
-                        return Err(stop_with(
-                            j,
-                            watch,
-                            OpError::Device(format!(
-                                "joint {id} is not following the plan: its set-points were \
-                                 held back to the step limit of {} deg for {} ms while it \
-                                 moved from {from:.4} to {at:.4} deg, not one step limit \
-                                 toward them; {} stopped after {sent} frame(s)",
-                                watch.step_limit_deg,
-                                now.saturating_duration_since(since).as_millis(),
-                                watch.stage
-                            )),
-                        ));
-                    }
-                    // Held back before, and not yet a step limit nearer: waiting.
-                    Some((_, from, way)) if (at - from) * way < watch.step_limit_deg => {}
-                    // The first held-back set-point, or the joint moved on: time from here.
-                    _ => held_since = Some((now, at, (planned - at).signum())),
-                }
-            }
-        }
-        if !held_back {
-            held_since = None;
-        }
+        let (request, held_back) = follow
+            .hold(f.request, j.id(), bus.now(), watch.step_limit_deg)
+            .map_err(|m| {
+                let m = format!("{m}; {} stopped after {sent} frame(s)", watch.stage);
+                stop_with(j, watch, OpError::Device(m))
+            })?;
         last_held_back = held_back;
-        if let Some(p) = position_target(request, joint) {
-            last_sent = Some(p);
-        }
         let sent_at = bus.now();
         let late = sent_at.saturating_duration_since(due);
         let fb = if request.joint().is_none() {
@@ -360,8 +399,7 @@ pub(super) fn send_frames(
         last_heard = now;
         let when = format!("at frame {k} of {total}");
         check_feedback(j, watch, &fb, &when)?;
-        previous = measured;
-        measured = Some(fb.position.degrees());
+        follow.measured(fb.position.degrees());
     }
     Ok(Ok(sent))
 }
