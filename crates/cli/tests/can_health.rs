@@ -197,7 +197,16 @@ fn inner_can_health() {
     until("error-active again", || {
         health::read("can0").unwrap().state == Some(ControllerState::ErrorActive)
     });
-    // The catalogue's whj.can-health on a station's CAN FD bus (vcan0: no controller).
+    catalogue_on_vcan0();
+    let _ = attach.stdin.take().map(|mut s| s.write_all(b"\n"));
+    let _ = attach.kill();
+    let _ = attach.wait();
+    println!("CAN HEALTH OK");
+}
+
+/// The catalogue's whj.can-health on a station's CAN FD bus (vcan0: no controller, MTU
+/// 72: not classic).
+fn catalogue_on_vcan0() {
     let mut station = robobus::catalogue::Station::new();
     station.add_whj(
         "vcan0",
@@ -228,8 +237,4 @@ fn inner_can_health() {
         (Some(false), Some(72), true),
         "{row}"
     );
-    let _ = attach.stdin.take().map(|mut s| s.write_all(b"\n"));
-    let _ = attach.kill();
-    let _ = attach.wait();
-    println!("CAN HEALTH OK");
 }
