@@ -277,3 +277,25 @@ fn temperature_rises_with_current_and_voltage_sags() {
     let w = read(&mut bus2, 1, 0x05, 2);
     assert_eq!(w[1] as i16, (st2.temperature_c * 10.0).round() as i16);
 }
+
+/// A joint whose drive gives less current than a motion needs
+/// (`JointConfig::drive_current_limit_a`) falls behind its position target, as a loaded
+/// joint does, its current at that limit; the same joint with its full current is nearly
+/// there in that time.
+#[test]
+fn a_drive_current_limit_makes_the_joint_lag_behind_its_target() {
+    let at = |amps: Option<f64>, ms: u64| {
+        let mut cfg = JointConfig::new(1, WhjModel::Whj30);
+        cfg.drive_current_limit_a = amps;
+        let mut bus = started(cfg);
+        one(&mut bus, pos_cmd(1, 50_000));
+        wait_ms(&mut bus, ms);
+        state(&bus)
+    };
+    let full = at(None, 60);
+    let weak = at(Some(0.2), 60);
+    assert!(full.position_deg > 4.0, "{full:?}");
+    assert!(weak.position_deg < 2.0, "{weak:?}");
+    assert_eq!(weak.current_a.abs(), 0.2, "{weak:?}");
+    assert!(weak.error.is_empty(), "{weak:?}");
+}
