@@ -494,6 +494,26 @@ fn wck_open_by_path() {
     assert_eq!(slot_mode_pty(&sim, 0), Mode::Position);
 }
 
+/// A pty's other end is a process the scheduler may hold (the simulator on a loaded
+/// machine held replies past the 10 ms margin, and a fresh simulator's first scan missed
+/// servos): opening one adds `PTY_MARGIN` to the reply margin, through its path and
+/// through a symlink to it.
+#[test]
+fn opening_a_pty_adds_the_pty_margin() {
+    let sim = wck_support::serve_pty(&[0]);
+    let path = sim.endpoint.path();
+    let bus = robobus::wck::WckBus::open(path, BaudRate::B115200).unwrap();
+    let pty = robobus::wck::DEFAULT_MARGIN + robobus::wck::PTY_MARGIN;
+    assert_eq!(bus.config().margin, pty);
+    drop(bus);
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("wck");
+    std::os::unix::fs::symlink(path, &link).unwrap();
+    let mut bus = robobus::wck::WckBus::open(&link, BaudRate::B115200).unwrap();
+    assert_eq!(bus.config().margin, pty);
+    assert_eq!(bus.servo(id(0)).status().unwrap().position, pos(127));
+}
+
 fn slot_mode_pty(sim: &wck_support::PtySim, servo_id: u8) -> Mode {
     sim.with_bus(move |b| b.servo(b.slot_of(servo_id).unwrap()).unwrap().mode())
 }

@@ -31,6 +31,14 @@ pub const DEFAULT_LATE_WINDOW: Duration = Duration::from_millis(50);
 /// Default quiet time after a reply before it is credited: one module turnaround.
 pub const DEFAULT_GUARD: Duration = timing::T_PROC;
 
+/// Added to the reply margin when [`WckBus::open`] opens a pseudo-terminal. A pty has no
+/// wire: whatever answers on it (`robobus sim wck`, a bridge to a remote port) is a
+/// process, and on a loaded machine the scheduler holds it past the 10 ms default margin
+/// now and then (with four busy processes on two cores, 4 of 40 fresh simulators had
+/// servos missing from their first scan). A reply so held would make a present servo
+/// look absent; 50 ms more covers such stalls, at the cost of 50 ms per silent attempt.
+pub const PTY_MARGIN: Duration = Duration::from_millis(50);
+
 /// How a [`WckBus`] talks: retries, reply margin, confirmation of reads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct WckConfig {
@@ -170,7 +178,8 @@ impl WckBus<robobus_link::SerialLink> {
     ///
     /// If the port is a USB-serial adapter whose latency timer can be read (FTDI on
     /// Linux), the timer is added to the reply margin: such an adapter holds short
-    /// replies that long (16 ms by default).
+    /// replies that long (16 ms by default). If it is a pseudo-terminal (the simulator),
+    /// [`PTY_MARGIN`] is added instead.
     pub fn open(path: impl AsRef<Path>, baud: BaudRate) -> Result<Self, WckError> {
         let path = path.as_ref();
         let device = path.display().to_string();
@@ -185,8 +194,23 @@ impl WckBus<robobus_link::SerialLink> {
         let latency = link.latency_timer().unwrap_or(0);
         let mut bus = Self::new(link, baud)?.with_device_name(device);
         bus.config.margin += Duration::from_millis(u64::from(latency));
+        if is_pty(path) {
+            bus.config.margin += PTY_MARGIN;
+        }
         Ok(bus)
     }
+}
+
+/// Whether `path` is a pseudo-terminal's slave (Linux's Unix 98 ptys: character devices
+/// with major numbers 136..=143).
+#[cfg(unix)]
+fn is_pty(path: &Path) -> bool {
+    use std::os::unix::fs::{FileTypeExt as _, MetadataExt as _};
+    std::fs::metadata(path).is_ok_and(|m| {
+        let rdev = m.rdev();
+        let major = ((rdev >> 8) & 0xfff) | ((rdev >> 32) & !0xfff);
+        m.file_type().is_char_device() && (136..=143).contains(&major)
+    })
 }
 
 impl<L: ByteLink> WckBus<L> {
