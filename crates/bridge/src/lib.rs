@@ -192,8 +192,8 @@ pub enum BridgeError {
          --namespace (one per robot, like bot2 or site/arm2), or stop the other one",
         other.as_ref().map(|z| format!(" (Zenoh ID {z})")).unwrap_or_default(),
         if *gave_way {
-            ", and started first: this one gave way and stopped, bringing what it moved \
-             to the safe state"
+            ", and started first: this one gave way and stopped (anything it had moved \
+             is brought to its safe state)"
         } else {
             ": this one did not start and declared nothing"
         }
