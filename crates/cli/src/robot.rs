@@ -111,8 +111,10 @@ enum RobotCommand {
     /// The wCK servos go passive and the WHJ joints into current mode at --hold-ma (0:
     /// limp): an arm falls unless you hold it, so this asks for confirmation (--yes). Every
     /// joint is read --rate-hz times a second for --seconds; a reading in which a joint
-    /// did not answer is left out (and counted). At the end every joint holds where it
-    /// is. The trajectory (CSV) goes to -o FILE. Ctrl-C ends the reading early: what was
+    /// did not answer is left out (and counted). At the end the WHJ joints are back in
+    /// position mode and each bus is left in the robot file's safe_state (by default WHJ
+    /// joints hold where they are, wCK servos passive). The trajectory (CSV) goes to -o
+    /// FILE. Ctrl-C ends the reading early: what was
     /// read is written, and the exit code is 130.
     Teach {
         /// The robot file: its buses are opened, its joints read.
@@ -143,10 +145,12 @@ enum RobotCommand {
     /// Every cycle reads each leader joint and steps its follower toward the leader's
     /// angle × SCALE + OFFSET (in degrees; the joint angles of the file, its offsets and
     /// directions applied), at most 2° (WHJ) or 8 steps (wCK) a cycle, within the follower's soft
-    /// limits and its --limit. A WHJ follower must be enabled in position mode first. A
-    /// cycle without every leader reading sends nothing: the follower holds. After
-    /// --leader-timeout-ms without one, the run ends (exit 3), the follower holding.
-    /// Without --seconds it runs until Ctrl-C.
+    /// limits and its --limit. A WHJ follower must be enabled in position mode first: a
+    /// silent follower, one outside its soft limits or a WHJ one not ready refuses the run
+    /// before anything is sent. A cycle without every leader reading sends nothing: the
+    /// follower holds. After --leader-timeout-ms without one, the run ends (exit 3).
+    /// Without --seconds it runs until Ctrl-C. At the end each bus is left in the robot
+    /// file's safe_state.
     Teleop {
         /// The robot file: its buses are opened, its joints named in --map.
         #[arg(long, value_name = "FILE")]

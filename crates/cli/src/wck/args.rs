@@ -174,7 +174,9 @@ pub(super) enum WckCommand {
     Set(SetParam),
     /// Tune the P and D gains: the same position step with each gain set (as runtime
     /// gains), its rise time, overshoot, settling time and steady-state error measured,
-    /// the best one named; the servo returns to where it was. --keep keeps the best set.
+    /// the best one named (or a tie when they differ by no more than a reading); each step
+    /// starts at rest at the start, and the servo is back there when it ends. --keep keeps
+    /// the best set.
     Tune {
         /// Servo ID, 0..=30.
         #[arg(value_parser = parse_servo_id)]

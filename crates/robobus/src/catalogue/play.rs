@@ -2,8 +2,9 @@
 //! played on the station's robot file, across its buses and both families.
 //!
 //! The whole trajectory is checked against the file before anything is sent (joint names,
-//! soft limits, `max_velocity`), and every joint it names is read: one that does not
-//! answer, or stands outside its soft limits, refuses the run. The joints then go from
+//! soft limits, `max_velocity`), and every joint it names is read
+//! ([`ready_at`](super::robot::ready_at)): one that does not answer, stands outside its
+//! soft limits, or is a WHJ joint not enabled in position mode refuses the run. The joints then go from
 //! where they are to the first point, each no faster than its `max_velocity` (the lead-in,
 //! as long as the slowest needs), and follow the trajectory, linearly between its points.
 //! Every tick (`rate_hz`) each bus gets its joints' targets at the same instant, each bus
@@ -12,7 +13,8 @@
 //! joint must be enabled in position mode). The report gives per joint the tracking error
 //! (the distance from where a joint reported itself to the target of the tick before) and
 //! its failures, and for the run the skew between the buses' sends in a tick and how late
-//! the sends were.
+//! the sends were. Finished, failed or stopped, the run ends with each bus of its joints
+//! in the robot file's `safe_state` ([`settle`](super::robot::settle)).
 
 use std::time::{Duration, Instant};
 
@@ -85,12 +87,13 @@ impl Play {
              the first point no faster than each one's max_velocity, then plays {n} points over \
              {d} s, {r} ticks a second: each bus at the same instant, a position command per \
              wCK servo (torque {torque}) and a position servo frame per WHJ joint (enabled in \
-             position mode)",
+             position mode){END}",
             joints = t.joints().join(", "),
             n = t.len(),
             d = t.duration_s(),
             r = self.rate_hz,
             torque = self.torque,
+            END = super::robot::END_NOTE,
         ))
     }
 }
@@ -389,7 +392,7 @@ pub(super) fn run_play(
     let timing = run.inspect_err(|_| settled.log())?;
     let names = traj.joints();
     Ok(PlayedRun {
-        joints: settled.into_rows(
+        joints: settled.fail_rows(
             names
                 .iter()
                 .zip(rows)

@@ -48,7 +48,8 @@ pub enum ZeroPose {
 /// recorded range, `margin_deg` inside at each end), in the same joint frame; the file is
 /// not written (`robobus robot calibrate --write` writes it, keeping its comments). A
 /// joint that never answered, or moved through less than twice the margin, is a failed
-/// row. Stops early at the stop token, with what was read so far.
+/// row. Stops early at the stop token, with what was read so far. Every bus of the file
+/// is then left in its `safe_state` ([`settle`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Calibrate {
@@ -114,8 +115,8 @@ impl Calibrate {
             match self.zero {
                 ZeroPose::End => "the pose at the end becomes each joint's zero",
                 ZeroPose::Keep => "the offsets stay",
-            }
-        ))
+            },
+        ) + END_NOTE)
     }
 }
 
@@ -167,7 +168,7 @@ pub(super) fn run_calibrate(
         })
         .collect();
     Ok(Calibrated {
-        joints: settled.into_rows(results),
+        joints: settled.fail_rows(results),
         taken,
         asked: readings,
     })
@@ -302,6 +303,12 @@ pub(super) fn ready_at(
     Ok(at)
 }
 
+/// How every robot operation ends, for its plan.
+pub(super) const END_NOTE: &str = "; at the end (finished, failed or stopped) each bus of \
+     its joints is left in the robot file's safe_state (hold: a position frame at each enabled \
+     WHJ joint's measured angle, a disabled one left so; disable: the WHJ joints disabled; \
+     passive / break: the wCK servos passive / the bus-wide break)";
+
 /// How a robot operation left one bus: in the robot file's `safe_state` for it.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub struct BusEnd {
@@ -325,7 +332,7 @@ pub(super) struct Settled {
 impl Settled {
     /// `rows` with the joints that did not reach their safe state failed (a row that had
     /// failed already says both).
-    pub(super) fn into_rows<T>(
+    pub(super) fn fail_rows<T>(
         &self,
         rows: Vec<DeviceResult<String, T>>,
     ) -> Vec<DeviceResult<String, T>> {

@@ -6,10 +6,11 @@
 //! needs confirmation: a limp arm falls unless it is held. Every joint is then read
 //! `seconds × rate_hz` times while the user moves it; a reading in which a joint did not
 //! answer is left out of the trajectory (never filled with an older value) and counted.
-//! At the end, and when stopped, every joint holds where it is: a wCK servo gets a
-//! position command to its present position, a WHJ joint is disabled, set to position
-//! mode and enabled again (it then holds where it is). The report's summary is the
-//! trajectory file (the CSV of [`crate::robot::trajectory`]).
+//! At the end, and when stopped, every WHJ joint is disabled, set to position mode and
+//! enabled again, then every bus goes to the robot file's `safe_state` (the robot
+//! operations' one end, [`settle`](super::robot::settle)): with the defaults a WHJ joint
+//! holds where it is and a wCK servo is passive. The report's summary is the trajectory
+//! file (the CSV of [`crate::robot::trajectory`]).
 
 use std::fmt::Write as _;
 use std::time::Duration;
@@ -58,7 +59,8 @@ pub const HOLD_MA: std::ops::RangeInclusive<f64> = -2000.0..=2000.0;
 /// What a teach run needs confirmed.
 pub const TEACH_CONFIRM: &str = "The robot file's wCK servos go passive and its WHJ joints \
      into current mode at the hold current: they go limp, and an arm falls under gravity \
-     unless it is held. They hold where they are at the end.";
+     unless it is held. At the end each bus is left in the robot file's safe_state \
+     (by default WHJ joints hold where they are, wCK servos stay passive).";
 
 impl Teach {
     /// Checks the values (named as the command line's options); the number of readings.
@@ -89,9 +91,11 @@ impl Teach {
         Ok(format!(
             "makes {} movable by hand (a wCK servo passive: FF <0xC0|ID> 00 <checksum>; a WHJ \
              joint disabled, set to current mode, enabled, and given {} mA), reads them {n} \
-             times at {} Hz while you move them, then holds each where it is (a wCK position \
-             command; a WHJ joint disabled, set to position mode and enabled); the report's \
-             summary is the trajectory (CSV)",
+             times at {} Hz while you move them, then sets each WHJ joint back to position mode \
+             (disabled, mode written, enabled) and leaves each bus in the robot file's \
+             safe_state (hold: a position frame at the WHJ joint's measured angle; \
+             disable: disabled; passive / break: the wCK servos passive / the bus-wide \
+             break); the report's summary is the trajectory (CSV)",
             self.joints.as_ref().map_or_else(
                 || "every joint of the robot file".to_owned(),
                 |j| j.join(", ")

@@ -11,7 +11,13 @@
 //! within the device's limits, a WHJ joint only when it is enabled in position mode. A
 //! cycle in which any leader joint did not answer sends nothing: the follower holds where
 //! it is (never moved half way on a partial reading). When no complete reading has come
-//! for `leader_timeout_ms`, the run ends with the leader's failure, the follower holding.
+//! for `leader_timeout_ms`, the run ends with the leader's failure.
+//!
+//! Before the first cycle every follower joint is read with `robot.play`'s check
+//! ([`ready_at`](super::robot::ready_at)): a silent one, one outside its soft limits, or
+//! a WHJ joint not enabled in position mode refuses the run, nothing sent. However the run
+//! ends, each bus of the leader and the follower is left in the robot file's `safe_state`
+//! ([`settle`](super::robot::settle)).
 
 use std::collections::VecDeque;
 use std::ops::RangeInclusive;
@@ -188,7 +194,7 @@ impl Teleop {
              and a move of at most 8 steps, a follower WHJ joint (enabled in position mode) \
              one position servo frame of at most 2°; a cycle without every leader reading \
              sends nothing (the follower holds); after {} ms without one the run ends, the \
-             follower holding; {}",
+             follower holding; {}{}",
             if self.passive_leader {
                 "makes the leader's wCK servos passive (FF <0xC0|ID> 00 <checksum>, torque \
                  off), then "
@@ -200,7 +206,8 @@ impl Teleop {
             pairs.join("; "),
             self.leader_timeout_ms,
             self.seconds
-                .map_or_else(|| "until stopped".to_owned(), |s| format!("for {s} s"))
+                .map_or_else(|| "until stopped".to_owned(), |s| format!("for {s} s")),
+            super::robot::END_NOTE,
         ))
     }
 }
@@ -338,7 +345,7 @@ pub(super) fn run_teleop(
     let elapsed = run.clock.now().saturating_duration_since(start);
     // Each bus of the leader and the follower as the robot file says.
     let settled = super::robot::settle(station, &run.config, &run.names);
-    Ok(run.finish(r, elapsed, interrupted && end.is_some(), settled))
+    Ok(run.finish(r, elapsed, interrupted && end.is_some(), &settled))
 }
 
 /// The leader joints of `r`'s map, each once, in the map's order; a name the file does
@@ -604,7 +611,7 @@ impl Run {
         r: &Teleop,
         elapsed: Duration,
         interrupted: bool,
-        settled: super::robot::Settled,
+        settled: &super::robot::Settled,
     ) -> Teleoperated {
         let s = &mut self.summary;
         s.seconds = elapsed.as_secs_f64();
@@ -653,7 +660,7 @@ impl Run {
         let lost = self.lost.or_else(|| settled.first_of(&leaders));
         s.safe_state.clone_from(&settled.buses);
         Teleoperated {
-            joints: settled.into_rows(joints),
+            joints: settled.fail_rows(joints),
             summary: self.summary,
             lost,
         }

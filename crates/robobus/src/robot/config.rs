@@ -13,7 +13,9 @@ use robobus_wck::Position;
 use super::RobotError;
 use crate::actuator::{JointMap, WCK_DEFAULT_CENTRE, WckScale};
 
-/// The safe state a bus is put in by the watchdog, a Ctrl-C stop and a drop.
+/// The safe state a bus is put in by the watchdog, a Ctrl-C stop and a drop, and at the
+/// end of every robot operation of the catalogue (`robot.play`, `robot.teleop`,
+/// `robot.calibrate`, `robot.teach`), finished, failed or stopped.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum SafeState {

@@ -294,19 +294,17 @@ pub fn tune<L: ByteLink>(
         ))
     })?;
     let result = run_steps(bus, args, (here, target), eeprom, control);
-    let mut s = bus.servo(id);
     let mut report = match result {
         Ok(r) => r,
         Err(e) => {
             // Stopped or failed: the gains of a power-up again, and no further motion
             // (a stopped servo holds where the stop left it).
-            if let Err(g) = s.set_runtime_gains(eeprom) {
+            if let Err(g) = bus.servo(id).set_runtime_gains(eeprom) {
                 tracing::warn!(error = %g, "tune: setting the runtime gains back");
             }
             return Err(e);
         }
     };
-    drop(s);
     // Back at the start, at rest, with the gains of a power-up (which reach it), before
     // anything is kept or the call returns.
     back_at_start(bus, args, here, eeprom, control)?;
