@@ -306,23 +306,8 @@ fn handle(
             rate_hz,
             fps,
         } => {
-            if streams.len() >= MAX_STREAMS && !streams.contains_key(&stream) {
-                let e = OpError::invalid(
-                    "stream",
-                    robobus::ops::cut(&stream),
-                    format!("at most {MAX_STREAMS} streams per page: unsubscribe one first"),
-                );
+            if let Err(e) = resubscribe(app, streams, stream, request, rate_hz, fps, tx.clone()) {
                 let _ = tx.try_send(error_msg(None, &e));
-                return;
-            }
-            streams.remove(&stream);
-            match subscribe(app, &stream, request, rate_hz, fps, tx.clone()) {
-                Ok(s) => {
-                    streams.insert(stream, s);
-                }
-                Err(e) => {
-                    let _ = tx.try_send(error_msg(None, &e));
-                }
             }
         }
         FromPage::Unsubscribe { stream } => {
@@ -486,6 +471,29 @@ fn jog(
         going.jogging.store(false, Ordering::Release);
         let _ = tx.send(out).await;
     });
+}
+
+/// (Re)starts a page's stream `name` (the one it replaces stops by itself).
+fn resubscribe(
+    app: &Arc<App>,
+    streams: &mut HashMap<String, Stream>,
+    name: String,
+    request: Value,
+    rate_hz: f64,
+    fps: Option<f64>,
+    tx: mpsc::Sender<String>,
+) -> Result<(), OpError> {
+    if streams.len() >= MAX_STREAMS && !streams.contains_key(&name) {
+        return Err(OpError::invalid(
+            "stream",
+            robobus::ops::cut(&name),
+            format!("at most {MAX_STREAMS} streams per page: unsubscribe one first"),
+        ));
+    }
+    streams.remove(&name);
+    let s = subscribe(app, &name, request, rate_hz, fps, tx)?;
+    streams.insert(name, s);
+    Ok(())
 }
 
 /// Starts a telemetry stream and its forwarder: the latest sample at most `fps` times a
