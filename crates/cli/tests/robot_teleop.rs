@@ -127,7 +127,7 @@ fn the_follower_tracks_the_leader_and_holds_when_its_simulator_is_killed() {
     assert_eq!(r.status.code(), Some(3), "{stderr}");
     assert!(
         stderr.contains("the leader gave no complete reading for")
-            && stderr.contains("the follower holds where it is"),
+            && stderr.contains("the follower held where it was"),
         "{stderr}"
     );
     let v: Value = serde_json::from_slice(&r.stdout).unwrap();

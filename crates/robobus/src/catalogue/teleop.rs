@@ -597,7 +597,7 @@ impl Run {
         Failure::of(
             ErrorKind::NoDevice,
             &format!(
-                "the leader gave no complete reading for {} ms; the follower holds where it is \
+                "the leader gave no complete reading for {} ms; the follower held where it was \
                  ({})",
                 silent.as_millis(),
                 joints.join("; ")
