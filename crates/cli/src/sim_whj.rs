@@ -70,6 +70,12 @@ pub(crate) struct Args {
     /// position-holding one does not. Repeatable.
     #[arg(long, value_name = "ID:FROM:TO:PERIOD", allow_negative_numbers = true)]
     hand: Vec<String>,
+    /// Joint ID's drive gives at most AMPS (A), whatever its current limit register says:
+    /// `ID:AMPS`, e.g. `2:0.3`. It then falls behind position targets that need more, as a
+    /// loaded joint or one on a weak supply does (to try how moves and waves handle a
+    /// lagging joint). Repeatable.
+    #[arg(long, value_name = "ID:AMPS")]
+    weak_drive: Vec<String>,
     /// Put an end board on the bus too: it answers the end-board field of broadcast
     /// frames (0xF7 / 0x87) with its own small register map.
     #[arg(long)]
@@ -156,7 +162,33 @@ fn check_ranges(args: &Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Serves the simulated bus until interrupted.
+/// `--weak-drive ID:AMPS`: a joint of `ids` and a current from 0 to the model's peak.
+fn parse_weak_drive(text: &str, ids: &[u8], model: WhjModel) -> anyhow::Result<(u8, f64)> {
+    let peak = JointConfig::new(1, model).params.peak_current_a();
+    let bad = |why: String| usage(format!("--weak-drive {text}: {why} (ID:AMPS, e.g. 2:0.3)"));
+    let Some((id, amps)) = text.split_once(':') else {
+        return Err(bad("two fields".into()));
+    };
+    let id: u8 = id
+        .trim()
+        .parse()
+        .map_err(|_| bad("the ID is not a number".into()))?;
+    if !ids.contains(&id) {
+        return Err(bad("no simulated joint has this ID".into()));
+    }
+    let amps = amps
+        .trim()
+        .parse::<f64>()
+        .ok()
+        .filter(|a| a.is_finite() && (0.0..=peak).contains(a))
+        .ok_or_else(|| {
+            bad(format!(
+                "AMPS out of range 0..={peak:.3} (the model's peak)"
+            ))
+        })?;
+    Ok((id, amps))
+}
+
 /// The device faults the options schedule.
 fn faults_of(args: &Args) -> anyhow::Result<Vec<robobus_sim::faults::DeviceFault>> {
     device_faults(
@@ -193,8 +225,14 @@ pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
         .iter()
         .map(|h| Hand::parse(h, &args.joints.0, 360.0))
         .collect::<anyhow::Result<Vec<_>>>()?;
+    let weak = args
+        .weak_drive
+        .iter()
+        .map(|w| parse_weak_drive(w, &args.joints.0, args.model))
+        .collect::<anyhow::Result<Vec<_>>>()?;
     let configs = args.joints.0.iter().map(|&id| {
         let mut cfg = JointConfig::new(id, args.model);
+        cfg.drive_current_limit_a = weak.iter().rev().find(|(w, _)| *w == id).map(|w| w.1);
         cfg.current_noise_ma = args.current_noise_ma;
         cfg.boot.wait_for_iap_flag = !args.no_iap;
         cfg.processing_delay = Duration::from_micros(args.processing_delay_us);
@@ -288,5 +326,23 @@ mod tests {
         assert!(parse_joints("5-2").unwrap_err().contains("5-2"));
         assert!(parse_joints("x").is_err());
         assert!(parse_joints("").is_err());
+    }
+
+    #[test]
+    fn a_weak_drive_names_a_simulated_joint_and_a_current_up_to_the_peak() {
+        let ids = [1, 2];
+        let m = WhjModel::Whj30;
+        assert_eq!(parse_weak_drive("2:0.3", &ids, m).unwrap(), (2, 0.3));
+        for (text, why) in [
+            ("3:0.3", "no simulated joint has this ID"),
+            ("2", "two fields"),
+            ("x:1", "the ID is not a number"),
+            ("2:-1", "AMPS out of range 0..="),
+            ("2:NaN", "AMPS out of range 0..="),
+            ("2:1000", "AMPS out of range 0..="),
+        ] {
+            let e = parse_weak_drive(text, &ids, m).unwrap_err().to_string();
+            assert!(e.contains(&format!("--weak-drive {text}: {why}")), "{e}");
+        }
     }
 }
