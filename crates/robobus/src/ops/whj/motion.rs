@@ -545,9 +545,10 @@ pub fn plan_wave(
         if args.servo == ServoLoop::Position {
             format!(
                 " (position frames go through the step limiter: at most {max_speed} deg/s, \
-                 {} deg/s^2; a real run also holds each set-point within {} deg of the \
-                 joint's measured position)",
-                WAVE_LIMITS.max_accel_deg_s2, args.step_limit_deg
+                 {} deg/s^2; a real run holds back, and counts as held_back, a set-point \
+                 more than {} deg from where a lagging joint can be)",
+                WAVE_LIMITS.max_accel_deg_s2,
+                (2.0 * args.step_limit_deg).min(10.0)
             )
         } else {
             String::new()
