@@ -32,10 +32,11 @@ pub(crate) struct Args {
     read_only: bool,
     #[command(flatten)]
     station: crate::run::StationArgs,
-    /// Heartbeat timeout of an armed page, ms (50..=1000): past it, the devices it moved
-    /// are brought to their safe state. The page beats every 100 ms; on a machine with every
-    /// core busy its beats arrive up to about 300 ms apart, hence 500 (docs/studio.md).
-    #[arg(long, default_value_t = 500, value_parser = clap::value_parser!(u64).range(50..=1000))]
+    /// Heartbeat timeout of an armed page, ms (50..=5000): past it, the devices it moved
+    /// are brought to their safe state. The page beats every 100 ms; on a machine loaded
+    /// beyond its cores its beats arrive more than 500 ms apart now and then, hence 1000
+    /// (docs/studio.md).
+    #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u64).range(50..=5000))]
     heartbeat_timeout_ms: u64,
 }
 

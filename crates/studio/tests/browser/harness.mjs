@@ -19,10 +19,10 @@ export const SCREENS = process.env.STUDIO_SCREENS ?? path.join(root, "target/stu
 
 /**
  * The heartbeat timeout the tests' studios use unless a test gives its own
- * `--heartbeat-timeout-ms`: longer than the default 500 ms, since the tests run a debug
- * build beside Chromium on two busy cores (arming.test.mjs holds the default under load).
+ * `--heartbeat-timeout-ms`: the studio's default (1000 ms) unless
+ * STUDIO_HEARTBEAT_TIMEOUT_MS says otherwise.
  */
-export const HEARTBEAT_TIMEOUT_MS = process.env.STUDIO_HEARTBEAT_TIMEOUT_MS ?? "1000";
+export const HEARTBEAT_TIMEOUT_MS = process.env.STUDIO_HEARTBEAT_TIMEOUT_MS;
 
 /**
  * Start `robobus studio --port 0 ...args`; resolves when its first stdout line names the
@@ -30,7 +30,8 @@ export const HEARTBEAT_TIMEOUT_MS = process.env.STUDIO_HEARTBEAT_TIMEOUT_MS ?? "
  */
 export function startStudio(args = []) {
   return new Promise((resolve, reject) => {
-    const extra = args.includes("--heartbeat-timeout-ms") ? [] : ["--heartbeat-timeout-ms", HEARTBEAT_TIMEOUT_MS];
+    const extra =
+      args.includes("--heartbeat-timeout-ms") || !HEARTBEAT_TIMEOUT_MS ? [] : ["--heartbeat-timeout-ms", HEARTBEAT_TIMEOUT_MS];
     const proc = spawn(ROBOBUS_BIN, ["studio", "--port", "0", ...extra, ...args], {
       stdio: ["ignore", "pipe", "pipe"],
     });
