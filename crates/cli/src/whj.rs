@@ -342,8 +342,10 @@ enum WhjCommand {
         mode: Option<IoModeArg>,
     },
     /// List the settings on which a joint differs from a settings file, or from another
-    /// joint (--with). Against a file, only the settings it holds count (a `whj defaults`
-    /// file leaves out the gains, limits and bus identity); `left_out` says how many.
+    /// joint (--with).
+    ///
+    /// Against a file, only the settings it holds count (a `whj defaults` file leaves out
+    /// the gains, limits and bus identity); `left_out` says how many the file leaves out.
     Diff {
         /// Joint ID, 1..=30.
         #[arg(value_parser = parse_joint)]
