@@ -112,7 +112,7 @@ enum RobotCommand {
     /// limp): an arm falls unless you hold it, so this asks for confirmation (--yes). Every
     /// joint is read --rate-hz times a second for --seconds; a reading in which a joint
     /// did not answer is left out (and counted). At the end the WHJ joints are back in
-    /// position mode and each bus is left in the robot file's safe_state (by default WHJ
+    /// position mode and each bus is left in the robot file's `safe_state` (by default WHJ
     /// joints hold where they are, wCK servos passive). The trajectory (CSV) goes to -o
     /// FILE. Ctrl-C ends the reading early: what was
     /// read is written, and the exit code is 130.
@@ -150,7 +150,7 @@ enum RobotCommand {
     /// before anything is sent. A cycle without every leader reading sends nothing: the
     /// follower holds. After --leader-timeout-ms without one, the run ends (exit 3).
     /// Without --seconds it runs until Ctrl-C. At the end each bus is left in the robot
-    /// file's safe_state.
+    /// file's `safe_state`.
     Teleop {
         /// The robot file: its buses are opened, its joints named in --map.
         #[arg(long, value_name = "FILE")]

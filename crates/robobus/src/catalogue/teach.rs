@@ -482,8 +482,11 @@ mod tests {
             (s0["ended"].as_str(), j1["ended"].as_str()),
             (Some("passive"), Some("holding"))
         );
-        let j = whj.with_bus(|b| b.joint(1).unwrap().state());
-        assert!(j.enabled && j.mode == 3 && !j.brake_locked, "{j:?}");
+        let held = whj.with_bus(|b| b.joint(1).unwrap().state());
+        assert!(
+            held.enabled && held.mode == 3 && !held.brake_locked,
+            "{held:?}"
+        );
         // The trajectory is a file robot.play reads, and plays back.
         let text = s["trajectory"].as_str().unwrap();
         let parsed = crate::robot::trajectory::Trajectory::parse(text).unwrap();
