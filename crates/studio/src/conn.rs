@@ -181,3 +181,44 @@ pub(crate) async fn serve(
         tokio::time::sleep(Duration::from_millis(20)).await;
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn over_the_cap_the_longest_idle_connection_gives_way_and_none_in_a_request_does() {
+        let conns = Conns::default();
+        let mut all: Vec<_> = (0..MAX_CONNECTIONS)
+            .map(|_| conns.admit().unwrap())
+            .collect();
+        // Every one in a request: a new connection is refused.
+        for (_, c) in &all {
+            c.busy.store(1, Ordering::Release);
+        }
+        assert!(conns.admit().is_none());
+        // Two idle ones: the one idle the longer is closed for the new one.
+        let now = Instant::now();
+        for (i, when) in [(7, now + Duration::from_secs(2)), (9, now)] {
+            all[i].1.busy.store(0, Ordering::Release);
+            *all[i].1.idle_since.lock().unwrap() = when;
+        }
+        let (new, _) = conns.admit().unwrap();
+        let open = conns.open.lock().unwrap();
+        assert_eq!(open.len(), MAX_CONNECTIONS);
+        assert!(!open.contains_key(&all[9].0), "the longest idle was closed");
+        assert!(open.contains_key(&all[7].0) && open.contains_key(&new));
+        drop(open);
+        // It was told to close: its `notified` completes at once.
+        let closed = all.swap_remove(9).1;
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .unwrap();
+        rt.block_on(async {
+            tokio::time::timeout(Duration::from_secs(1), closed.close.notified())
+                .await
+                .unwrap();
+        });
+    }
+}
