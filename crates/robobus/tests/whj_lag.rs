@@ -224,3 +224,19 @@ fn a_move_on_a_lagging_joint_arrives_its_target_sent_again_until_unchanged() {
     assert_eq!(r.error, "no error");
     assert!(latched(&sim).is_empty(), "{}", latched(&sim));
 }
+
+/// A broadcast (0x2F) wave is held against the joint's measured position as a
+/// point-to-point one is: on the lagging joint it completes, its held-back set-points in
+/// the joint's slot, without a step fault.
+#[test]
+fn a_broadcast_wave_on_a_lagging_joint_is_held_back_too() {
+    let (bus, sim) = joint(Some(0.7), 0.0);
+    let j = bus.joint(id(1)).unwrap();
+    let args = sine();
+    let plan = ops::prepare_broadcast_wave(&j, &args).unwrap();
+    let r = ops::execute_wave(&j, &args, &plan, &mut Control::none(), SafeState::Hold).unwrap();
+    assert_eq!(r.complete, plan.frames.len() as u64, "{r:?}");
+    assert!(r.held_back > 0, "{r:?}");
+    assert_eq!(r.clamped, START, "{r:?}");
+    assert!(latched(&sim).is_empty(), "{}", latched(&sim));
+}
