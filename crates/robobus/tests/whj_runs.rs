@@ -288,13 +288,13 @@ fn a_broadcast_status_with_four_joints_absent_costs_one_reply_budget_then_the_wi
     for (n, row) in r.results.iter().enumerate() {
         if n < 3 {
             let joint = u8::try_from(n + 1).unwrap();
-            let real = sim.with_bus(|b| b.joint(joint).unwrap().state().position_deg);
-            let read = row["position_deg"]
+            let actual = sim.with_bus(|b| b.joint(joint).unwrap().state().position_deg);
+            let reported = row["position_deg"]
                 .as_f64()
                 .unwrap_or_else(|| panic!("{row}"));
             assert!(
-                (read - real).abs() < 0.01,
-                "joint {joint}: {read} read, {real} real"
+                (reported - actual).abs() < 0.01,
+                "joint {joint}: {reported} reported, {actual} actual"
             );
         } else {
             assert_eq!(row["kind"], "no-device", "{row}");

@@ -280,16 +280,10 @@ impl<L: ByteLink> WckBus<L> {
                     ));
                 }
                 Err(Failure::Link(source)) => return Err(self.link_error("scan", source)),
-                Err(Failure::Unattributable {
-                    bytes,
-                    anomaly: anomaly @ Anomaly::Extra { .. },
-                }) => {
-                    self.settle();
-                    evidence.push(format!("status read: {}", anomaly.describe(&bytes, 2)));
-                }
-                // Bytes that came while no late window was open and cannot be the reply
-                // (stray bytes before any module can have answered): something answered,
-                // so the ID is never absent on them; it is probed again.
+                // More than one answer, or bytes that came while no late window was open
+                // and cannot be the reply (stray bytes before any module can have
+                // answered): something answered, so the ID is never absent on them; it is
+                // probed again.
                 Err(Failure::Unattributable { bytes, anomaly }) => {
                     self.settle();
                     evidence.push(format!("status read: {}", anomaly.describe(&bytes, 2)));
