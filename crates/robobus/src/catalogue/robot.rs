@@ -476,7 +476,16 @@ fn settle_whj(
     for j in joints {
         let done = robobus_whj::JointId::new(j.id)
             .map_err(|e| OpError::invalid("robot", &j.name, e.to_string()))
-            .and_then(|id| Ok(port.bus().joint(id)?))
+            .and_then(|id| {
+                // A joint the operation connected is not connected again (a silent one
+                // would cost the connect timeout, not a reply's).
+                let bus = port.bus();
+                Ok(if bus.cached_identity(id).is_some() {
+                    bus.joint_unchecked(id)
+                } else {
+                    bus.joint(id)?
+                })
+            })
             .and_then(|joint| {
                 let (state, servo) = match state {
                     SafeState::Hold => {
@@ -872,6 +881,55 @@ mod end_tests {
                 (Mode::Passive, Mode::Passive)
             );
         }
+    }
+
+    /// Makes WHJ joint 2 silent at the 20th tick.
+    struct Silence(robobus_sim::whj::WhjSimHandle, usize);
+
+    impl Interaction for Silence {
+        fn play_tick(&mut self, _: &PlayTick<'_>) -> Result<(), OpError> {
+            self.1 += 1;
+            if self.1 == 20 {
+                self.0.with_bus(|b| {
+                    let now = b.now();
+                    b.joint_mut(2).unwrap().fall_silent(now);
+                });
+            }
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_joint_silent_at_the_end_fails_its_row_and_the_others_still_hold() {
+        let (station, wck, whj) = station(None, None);
+        let request = req(json!({"op": "robot.play", "trajectory": WAVE, "rate_hz": 50}));
+        let mut silence = Silence(whj.clone(), 0);
+        let report = run_with(&station, &request, &mut Control::none(), &mut silence).unwrap();
+        let v = serde_json::to_value(report).unwrap();
+        assert_eq!(v["failed"], "no-device", "{v:#}");
+        let j2 = v["results"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|r| r["id"] == "j2")
+            .unwrap();
+        assert!(
+            j2["error"]
+                .as_str()
+                .unwrap()
+                .contains("j2: did not reach its safe state (hold)"),
+            "{j2}"
+        );
+        let failed = &v["summary"]["safe_state"][1]["failed"];
+        assert_eq!(failed.as_array().unwrap().len(), 1, "{v:#}");
+        assert!(failed[0].as_str().unwrap().starts_with("j2: "), "{v:#}");
+        // The others reached theirs.
+        let (enabled, position, locked, off) = whj_state(&whj, 1);
+        assert!(enabled && position && !locked && off < 0.5);
+        assert_eq!(
+            (wck_mode(&wck, 0), wck_mode(&wck, 1)),
+            (Mode::Passive, Mode::Passive)
+        );
     }
 
     #[test]
