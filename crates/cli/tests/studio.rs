@@ -388,35 +388,15 @@ fn error_of(ws: &mut tungstenite::WebSocket<TcpStream>, id: u64) -> Value {
     }
 }
 
-#[test]
-fn only_the_controlling_pages_own_secret_changes_a_device() {
-    // A long heartbeat allowance: the test's HTTP requests come between two beats.
-    let s = start(&["--heartbeat-timeout-ms", "1000"]);
-    let mut a = page(&s);
-    send(&mut a, &json!({"type": "take-control"}));
-    let secret = control_secret(&mut a);
-    // Arming proves control too.
-    send(&mut a, &json!({"type": "arm"}));
-    let e = wait_for(&mut a, "error", None);
-    assert_eq!(e["kind"], "refused", "{e}");
-    assert!(e["message"].as_str().unwrap().contains("control"), "{e}");
-    send(&mut a, &json!({"type": "arm", "control": secret}));
-    loop {
-        if wait_for(&mut a, "control", None)["armed"] == true {
-            break;
-        }
-    }
-    send(&mut a, &json!({"type": "heartbeat"}));
-    let before = sim_joint(&s, 4);
-    let wck_before = |s: &Studio| -> Value {
-        serde_json::from_str::<Value>(&http(&s.addr, "GET", "/api/sim", &[], "").1).unwrap()["wck"]
-            .clone()
-    };
-    let servos = wck_before(&s);
-    let enable = json!({"op": "whj.enable", "joints": "4"}).to_string();
-    let mv = json!({"op": "whj.move", "joint": 4, "degrees": 15}).to_string();
-    let servo = json!({"op": "wck.move", "id": 3, "position": 60}).to_string();
-
+/// Other local processes (HTTP: a session number, a guessed secret, none) and another page
+/// (with the controller's secret copied) ask for `enable`, `mv` and `servo`: all refused.
+/// `owner`, the controlling page, beats in between.
+fn others_are_refused(
+    studio: &Studio,
+    owner: &mut tungstenite::WebSocket<TcpStream>,
+    secret: &str,
+    [enable, mv, servo]: [&String; 3],
+) {
     // Another local process, over HTTP: a session number, a guessed secret, none.
     let guessed = "0".repeat(64);
     for (header, value, want) in [
@@ -426,50 +406,85 @@ fn only_the_controlling_pages_own_secret_changes_a_device() {
         ("X-Robobus-Control", "1", 403),
         ("X-Other", "1", 409),
     ] {
-        for body in [&enable, &mv, &servo] {
-            let (status, answer) = http(&s.addr, "POST", "/api/run", &[(header, value)], body);
+        for body in [enable, mv, servo] {
+            let (status, answer) = http(&studio.addr, "POST", "/api/run", &[(header, value)], body);
             assert_eq!(status, want, "{header}: {value} {body}: {answer}");
-            send(&mut a, &json!({"type": "heartbeat"}));
+            send(owner, &json!({"type": "heartbeat"}));
         }
     }
     // Another page, with the controller's secret copied: refused, it is not its own.
-    let mut b = page(&s);
-    for (id, request) in [(1, &enable), (2, &mv)] {
+    let mut other = page(studio);
+    for (id, request) in [(1, enable), (2, mv)] {
         let request: Value = serde_json::from_str(request).unwrap();
         send(
-            &mut b,
+            &mut other,
             &json!({"type": "run", "id": id, "request": request, "control": secret}),
         );
-        let e = error_of(&mut b, id);
-        assert_eq!(e["kind"], "refused", "{e}");
+        let err = error_of(&mut other, id);
+        assert_eq!(err["kind"], "refused", "{err}");
         assert!(
-            e["message"]
+            err["message"]
                 .as_str()
                 .unwrap()
                 .contains("another connection"),
-            "{e}"
+            "{err}"
         );
     }
     send(
-        &mut b,
+        &mut other,
         &json!({"type": "jog", "id": 3, "family": "whj", "device": 4, "target": 5, "control": secret}),
     );
-    assert_eq!(error_of(&mut b, 3)["kind"], "refused");
-    send(&mut a, &json!({"type": "heartbeat"}));
+    assert_eq!(error_of(&mut other, 3)["kind"], "refused");
+    send(owner, &json!({"type": "heartbeat"}));
+}
+
+#[test]
+fn only_the_controlling_pages_own_secret_changes_a_device() {
+    // A long heartbeat allowance: the test's HTTP requests come between two beats.
+    let studio = start(&["--heartbeat-timeout-ms", "1000"]);
+    let mut owner = page(&studio);
+    send(&mut owner, &json!({"type": "take-control"}));
+    let secret = control_secret(&mut owner);
+    // Arming proves control too.
+    send(&mut owner, &json!({"type": "arm"}));
+    let err = wait_for(&mut owner, "error", None);
+    assert_eq!(err["kind"], "refused", "{err}");
+    assert!(
+        err["message"].as_str().unwrap().contains("control"),
+        "{err}"
+    );
+    send(&mut owner, &json!({"type": "arm", "control": secret}));
+    loop {
+        if wait_for(&mut owner, "control", None)["armed"] == true {
+            break;
+        }
+    }
+    send(&mut owner, &json!({"type": "heartbeat"}));
+    let before = sim_joint(&studio, 4);
+    let wck_before = |st: &Studio| -> Value {
+        serde_json::from_str::<Value>(&http(&st.addr, "GET", "/api/sim", &[], "").1).unwrap()["wck"]
+            .clone()
+    };
+    let servos = wck_before(&studio);
+    let enable = json!({"op": "whj.enable", "joints": "4"}).to_string();
+    let mv = json!({"op": "whj.move", "joint": 4, "degrees": 15}).to_string();
+    let servo = json!({"op": "wck.move", "id": 3, "position": 60}).to_string();
+
+    others_are_refused(&studio, &mut owner, &secret, [&enable, &mv, &servo]);
     // Nothing moved: joint 4 and the wCK servos are as they were.
-    let after = sim_joint(&s, 4);
+    let after = sim_joint(&studio, 4);
     assert_eq!(after["enabled"], before["enabled"], "{before} -> {after}");
     assert_eq!(
         after["target_position_deg"], before["target_position_deg"],
         "{after}"
     );
-    assert_eq!(wck_before(&s), servos);
+    assert_eq!(wck_before(&studio), servos);
 
     // The page itself, with its secret (as core.js sends it): obeyed.
     let proof = [("X-Robobus-Control", secret.as_str())];
     for body in [&enable, &mv] {
         // The page keeps beating while the request runs (the move waits for the joint).
-        let (addr, secret, body) = (s.addr.clone(), secret.clone(), body.clone());
+        let (addr, secret, body) = (studio.addr.clone(), secret.clone(), body.clone());
         let request = std::thread::spawn(move || {
             let (status, answer) = http(
                 &addr,
@@ -481,12 +496,12 @@ fn only_the_controlling_pages_own_secret_changes_a_device() {
             assert_eq!(status, 200, "{body}: {answer}");
         });
         while !request.is_finished() {
-            send(&mut a, &json!({"type": "heartbeat"}));
+            send(&mut owner, &json!({"type": "heartbeat"}));
             std::thread::sleep(Duration::from_millis(100));
         }
         request.join().unwrap();
     }
-    let moved = sim_joint(&s, 4);
+    let moved = sim_joint(&studio, 4);
     assert_eq!(moved["enabled"], true, "{moved}");
     assert!(
         (moved["target_position_deg"].as_f64().unwrap() - 15.0).abs() < 0.1,
@@ -494,14 +509,14 @@ fn only_the_controlling_pages_own_secret_changes_a_device() {
     );
 
     // The page closes: its secret is stale, for HTTP and for any other page.
-    a.close(None).unwrap();
-    while a.read().is_ok() {}
-    drop(a);
+    owner.close(None).unwrap();
+    while owner.read().is_ok() {}
+    drop(owner);
     let deadline = Instant::now() + Duration::from_secs(10);
-    let mut c = page(&s);
+    let mut next = page(&studio);
     loop {
-        send(&mut c, &json!({"type": "take-control"}));
-        let v = wait_for(&mut c, "control", None);
+        send(&mut next, &json!({"type": "take-control"}));
+        let v = wait_for(&mut next, "control", None);
         if v["controller"] == true {
             assert_ne!(v["secret"].as_str().unwrap(), secret);
             break;
@@ -510,14 +525,14 @@ fn only_the_controlling_pages_own_secret_changes_a_device() {
         std::thread::sleep(Duration::from_millis(50));
     }
     let torque = json!({"op": "wck.brake"}).to_string();
-    let (status, answer) = http(&s.addr, "POST", "/api/run", &proof, &torque);
+    let (status, answer) = http(&studio.addr, "POST", "/api/run", &proof, &torque);
     assert_eq!(status, 403, "{answer}");
     send(
-        &mut c,
+        &mut next,
         &json!({"type": "run", "id": 1, "request": {"op": "wck.move", "id": 3, "position": 60}, "control": secret}),
     );
-    assert_eq!(error_of(&mut c, 1)["kind"], "refused");
-    assert_eq!(wck_before(&s), servos);
+    assert_eq!(error_of(&mut next, 1)["kind"], "refused");
+    assert_eq!(wck_before(&studio), servos);
 }
 
 #[test]
