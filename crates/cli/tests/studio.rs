@@ -19,7 +19,17 @@ struct Studio {
 }
 
 impl Drop for Studio {
+    /// Stopped as Ctrl-C does (so it removes its capture folder), killed if it does not.
     fn drop(&mut self) {
+        if !matches!(self.child.try_wait(), Ok(None)) {
+            return; // ended already (and reaped: its pid is no longer ours to signal)
+        }
+        let pid = self.child.id().to_string();
+        let _ = Command::new("kill").args(["-INT", &pid]).status();
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while matches!(self.child.try_wait(), Ok(None)) && Instant::now() < deadline {
+            std::thread::sleep(Duration::from_millis(20));
+        }
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
