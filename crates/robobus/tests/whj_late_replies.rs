@@ -71,7 +71,7 @@ impl<L: FrameLink> FrameLink for LateFrames<L> {
             match self.inner.recv(until) {
                 Ok(r) => {
                     if self.uniform() < self.share {
-                        let jitter = Duration::from_micros((self.uniform() * 1000.0) as u64);
+                        let jitter = Duration::from_secs_f64(self.uniform() * 1e-3);
                         let at = self.inner.now() + self.delay + jitter;
                         // In order: a frame held back holds back the ones behind it.
                         let at = self.due.back().map_or(at, |(t, _)| at.max(*t));

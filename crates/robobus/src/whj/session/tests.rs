@@ -234,7 +234,7 @@ fn a_settle_time_holds_the_next_request_to_the_joint_until_it_ends() {
         ..txn(write, t0)
     });
     // Sent 0.2 ms before its ack comes at t0.
-    s.poll_transmit(t0 - us(200)).unwrap();
+    s.poll_transmit(t0.checked_sub(us(200)).unwrap()).unwrap();
     let ack = Reply::WriteAck {
         joint: j1(),
         addr: RegisterAddr::new(0x0A).unwrap(),
@@ -746,15 +746,16 @@ fn two_joints_at_one_id_are_still_a_duplicate_after_a_late_answer_was_accounted_
 /// A session that saw a frame come late (the answer to a timed-out read of joint 2, after
 /// its attempt ended) at `t0 - 1 ms`.
 fn seen_late(t0: Instant) -> Session {
+    let before = |d: Duration| t0.checked_sub(d).unwrap();
     let mut s = Session::new(no_window());
     let (_, range) = read(0x14, 2);
     let req = Request::Read { joint: j(2), range };
-    let id = s.submit(txn(req, t0 - ms(30)));
-    transmit(&mut s, t0 - ms(30));
-    s.handle_timeout(t0 - ms(10));
+    let id = s.submit(txn(req, before(ms(30))));
+    transmit(&mut s, before(ms(30)));
+    s.handle_timeout(before(ms(10)));
     assert!(s.poll_outcome(id).is_some());
     let stray = Reply::read(j(2), range, &[0, 0]).unwrap();
-    s.handle_frame(&stray.to_frame(), t0 - ms(1));
+    s.handle_frame(&stray.to_frame(), before(ms(1)));
     assert_eq!(snapshot(&mut s).bus.late, 1);
     s
 }
@@ -772,7 +773,7 @@ fn an_answer_due_late_is_due_only_for_the_late_horizon() {
     assert!(s.poll_outcome(first).is_some());
     // Within the horizon, a reply alone to the next read may be that late answer.
     let horizon = ms(20) * LATE_HORIZON_TIMEOUTS;
-    let t1 = t0 + horizon - ms(1);
+    let t1 = t0 + horizon.checked_sub(ms(1)).unwrap();
     let second = s.submit(txn(req, t1));
     transmit(&mut s, t1);
     s.handle_frame(&reply.to_frame(), t1 + us(300));
