@@ -173,10 +173,10 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
             }
         }
     }
-    let failures = station.close();
-    for f in &failures {
-        eprintln!("robobus: safe stop: {f}");
-    }
+    // Every device is left as its requests left it, as the `wck` and `whj` subcommands
+    // leave theirs: a robot operation ends in its file's `safe_state` itself, and an
+    // interrupted request has brought its devices to its own stop state.
+    station.leave();
     // A list prints the reports of the requests that ran; a single request that failed
     // as a whole prints none.
     if many || !reports.is_empty() {

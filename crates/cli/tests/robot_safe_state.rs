@@ -110,8 +110,19 @@ fn states(bus: &str) -> Vec<(bool, String, String)> {
         .collect()
 }
 
-/// Plays the wave twice on a file whose WHJ bus says `safe` (empty: the default).
+/// Plays the wave twice on a file whose WHJ bus says `safe` (empty: the default), with
+/// `robobus robot play`.
 fn play_twice(group: &str, port: &str, safe: &str) -> (common::Run, common::Run, String) {
+    play_twice_with(group, port, safe, false)
+}
+
+/// [`play_twice`], through `robobus run` and a `robot.play` request with `run`.
+fn play_twice_with(
+    group: &str,
+    port: &str,
+    safe: &str,
+    run: bool,
+) -> (common::Run, common::Run, String) {
     let bus = format!("udp:{group}:{port}");
     let _sim = Sim::start(&bus);
     for args in [["mode", "1-2", "position"].as_slice(), &["enable", "1-2"]] {
@@ -129,14 +140,16 @@ fn play_twice(group: &str, port: &str, safe: &str) -> (common::Run, common::Run,
     std::fs::write(&robot, text).unwrap();
     let wave = dir.path().join("wave.csv");
     std::fs::write(&wave, WAVE).unwrap();
-    let args = [
-        "--json",
-        "robot",
-        "play",
-        wave.to_str().unwrap(),
-        "--robot",
-        robot.to_str().unwrap(),
-    ];
+    let request = dir.path().join("play.json");
+    let json = serde_json::json!({"op": "robot.play", "trajectory": WAVE});
+    std::fs::write(&request, json.to_string()).unwrap();
+    let args: Vec<&str> = if run {
+        let (robot, request) = (robot.to_str().unwrap(), request.to_str().unwrap());
+        vec!["run", "--robot", robot, request]
+    } else {
+        let (wave, robot) = (wave.to_str().unwrap(), robot.to_str().unwrap());
+        vec!["--json", "robot", "play", wave, "--robot", robot]
+    };
     let first = common::robobus(&args);
     let after = format!("{:?}", states(&bus));
     let second = common::robobus(&args);
@@ -178,4 +191,16 @@ fn robot_play_leaves_whj_joints_disabled_when_the_file_says_disable() {
         "{}",
         second.stderr
     );
+}
+
+#[test]
+fn a_robot_play_request_through_robobus_run_leaves_the_joints_holding_too() {
+    if !in_netns("a_robot_play_request_through_robobus_run_leaves_the_joints_holding_too") {
+        return;
+    }
+    let (first, second, after) = play_twice_with("239.74.163.23", "43133", "", true);
+    assert_eq!(first.code, Some(0), "{first:#?}");
+    let holding = "(true, \"position\", \"released\")";
+    assert_eq!(after, format!("[{holding}, {holding}]"));
+    assert_eq!(second.code, Some(0), "{second:#?}");
 }
