@@ -384,8 +384,12 @@ fn page(s: &Studio) -> tungstenite::WebSocket<TcpStream> {
 
 /// The simulators' own state of WHJ joint `joint`.
 fn sim_joint(s: &Studio, joint: usize) -> Value {
-    let v: Value = serde_json::from_str(&http(&s.addr, "GET", "/api/sim", &[], "").1).unwrap();
-    v["whj"][joint - 1].clone()
+    let (status, body) = http(&s.addr, "GET", "/api/sim", &[], "");
+    assert_eq!(status, 200, "{body}");
+    let v: Value = serde_json::from_str(&body).unwrap();
+    let j = v["whj"][joint - 1].clone();
+    assert_eq!(j["id"], joint, "{body}");
+    j
 }
 
 /// The next error message (of run or jog `id`).
