@@ -610,7 +610,7 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
         wait: g.wait,
         ..robobus::whj::JointBusConfig::default()
     };
-    station.add_whj(
+    station.add_whj_at(
         bus,
         station::open_whj_with(bus, args.capture.as_deref(), config)?,
     );

@@ -208,7 +208,7 @@ fn inner_can_health() {
 /// 72: not classic).
 fn catalogue_on_vcan0() {
     let mut station = robobus::catalogue::Station::new();
-    station.add_whj(
+    station.add_whj_at(
         "vcan0",
         robobus::catalogue::station::open_whj("vcan0", None).unwrap(),
     );

@@ -26,8 +26,9 @@ fn new_bit_rates_take_at_power_up_and_the_joints_then_answer_only_there() {
         robobus_sim::whj::WhjModel::Whj30,
         5,
     ));
+    // The simulated joints as if behind a SocketCAN adapter on can0.
     let mut station = Station::new();
-    station.add_whj(
+    station.add_whj_at(
         "can0",
         robobus::whj::JointBus::open_with(link, virtual_config()).unwrap(),
     );
@@ -141,4 +142,23 @@ fn a_bus_without_a_can_controller_has_no_can_health() {
     // A telemetry stream takes it (read-only), as it takes the other readings.
     let request: Request = serde_json::from_value(json!({"op": "whj.can-health"})).unwrap();
     assert_eq!(request.effect(), robobus::catalogue::Effect::Read);
+}
+
+#[test]
+fn on_the_simulated_robot_the_next_steps_name_the_simulator_not_an_adapter() {
+    let station = Station::simulated().unwrap();
+    run(&station, json!({"op": "whj.disable", "joints": "1"})).unwrap();
+    let r = run(
+        &station,
+        json!({"op": "whj.set-rates", "joints": "1", "bitrate": 500_000,
+               "dbitrate": 2_000_000, "confirm": true}),
+    )
+    .unwrap();
+    assert_eq!(r["failed"], Value::Null, "{r:#}");
+    let next = r["summary"]["next"].as_str().unwrap();
+    assert!(
+        next.contains("robobus sim whj --bitrate 500000 --dbitrate 2000000"),
+        "{next}"
+    );
+    assert!(!next.contains("ip link"), "{next}");
 }

@@ -340,7 +340,7 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
             args,
         );
         let mut station = Station::new();
-        station.add_whj(bus.as_str(), jb);
+        station.add_whj_at(bus.as_str(), jb);
         let request = Request::WhjSample(catalogue::whj::Sample {
             bus: None,
             joints: id_list(&ids),

@@ -257,14 +257,7 @@ fn can_health_report(station: &Station, bus: Option<&str>, op: &str) -> Result<R
     use robobus_link::socketcan::health::{self, HealthError};
     let port = station.whj(bus)?;
     let name = port.name();
-    let from_file = station.robot().and_then(|r| match r.buses.get(name) {
-        Some(crate::robot::BusConfig::WhjCan { iface, .. }) => Some(iface.clone()),
-        _ => None,
-    });
-    let iface = match (name.parse::<robobus_link::FrameLinkSpec>(), from_file) {
-        (_, Some(iface)) | (Ok(robobus_link::FrameLinkSpec::SocketCan(iface)), None) => Some(iface),
-        _ => None,
-    };
+    let iface = port.can_interface().map(str::to_owned);
     let none = || {
         json!({
             "id": name,
@@ -789,8 +782,9 @@ fn run_whj(
             let results = hops::rates::set_rates(bus, ids, *rates)?;
             let mut out = device_report(op, name, &results);
             // Next steps only for joints that saved new rates: a refused run changed none.
-            out.summary = hops::rates::next_steps_after(name, *rates, &results)
-                .map(|next| json!({ "next": next }));
+            out.summary =
+                hops::rates::next_steps_after(name, port.can_interface(), *rates, &results)
+                    .map(|next| json!({ "next": next }));
             out
         }
         J::Backup(id) | J::Defaults(id) => {

@@ -99,19 +99,39 @@ pub struct WhjPort(Arc<WhjInner>);
 #[derive(Debug)]
 struct WhjInner {
     name: String,
+    /// The SocketCAN interface the bus runs on, if it does (not on a UDP or simulated bus).
+    can_interface: Option<String>,
     bus: Arc<JointBus>,
     /// Joints a sample has tried to connect (by ID), answered or not.
     tried: Mutex<[bool; 31]>,
 }
 
 impl WhjPort {
-    /// A port over an open bus.
+    /// A port over an open bus (a UDP or simulated one: [`WhjPort::on_can`] for a bus on
+    /// a SocketCAN interface).
     pub fn new(name: impl Into<String>, bus: JointBus) -> Self {
         Self(Arc::new(WhjInner {
             name: name.into(),
+            can_interface: None,
             bus: Arc::new(bus),
             tried: Mutex::new([false; 31]),
         }))
+    }
+
+    /// A port over a bus open on the SocketCAN interface `iface`.
+    pub fn on_can(name: impl Into<String>, iface: impl Into<String>, bus: JointBus) -> Self {
+        Self(Arc::new(WhjInner {
+            name: name.into(),
+            can_interface: Some(iface.into()),
+            bus: Arc::new(bus),
+            tried: Mutex::new([false; 31]),
+        }))
+    }
+
+    /// The SocketCAN interface the bus runs on (`None` for a UDP or simulated bus): what
+    /// the kernel's CAN health and the `ip link` advice name.
+    pub fn can_interface(&self) -> Option<&str> {
+        self.0.can_interface.as_deref()
     }
 
     /// Of `ids`, those neither connected on this bus nor tried by an earlier call, now
@@ -266,10 +286,7 @@ impl Station {
         }
         for addr in &config.whj_buses {
             let capture = dir.map(|d| capture_path(d, addr));
-            s.add_whj(
-                addr.clone(),
-                open_whj_limited(addr, capture.as_deref(), whj)?,
-            );
+            s.add_whj_at(addr, open_whj_limited(addr, capture.as_deref(), whj)?);
             if let Some(path) = capture {
                 s.captures.push((addr.clone(), path));
             }
@@ -434,7 +451,26 @@ impl Station {
         port
     }
 
-    /// Adds a WHJ bus named `name`.
+    /// Adds the WHJ bus opened from the address `addr` (what `--whj-bus` takes: `udp`,
+    /// `udp:GROUP:PORT` or a SocketCAN interface), named so: on a SocketCAN interface when
+    /// the address names one.
+    pub fn add_whj_at(&mut self, addr: &str, bus: JointBus) -> WhjPort {
+        match addr.parse::<robobus_link::FrameLinkSpec>() {
+            Ok(robobus_link::FrameLinkSpec::SocketCan(iface)) => {
+                self.add_whj_port(WhjPort::on_can(addr, iface, bus))
+            }
+            _ => self.add_whj(addr, bus),
+        }
+    }
+
+    /// Adds a WHJ port made by the caller ([`WhjPort::on_can`]).
+    pub fn add_whj_port(&mut self, port: WhjPort) -> WhjPort {
+        self.whj.push(port.clone());
+        port
+    }
+
+    /// Adds a WHJ bus named `name` (a UDP or simulated one: [`Station::add_whj_port`] with
+    /// [`WhjPort::on_can`] for one on a SocketCAN interface).
     pub fn add_whj(&mut self, name: impl Into<String>, bus: JointBus) -> WhjPort {
         let p = WhjPort::new(name, bus);
         self.whj.push(p.clone());

@@ -329,9 +329,13 @@ pub fn open_robot_ports(
                 };
                 wck_ports.push(WckPort::new(name.clone(), open.with_config(wck)));
             }
-            BusConfig::WhjUdp { .. } | BusConfig::WhjCan { .. } => {
+            BusConfig::WhjUdp { .. } => {
                 let jb = crate::robot::open_whj_bus(name, bus, whj)?;
                 whj_ports.push(WhjPort::new(name.clone(), jb));
+            }
+            BusConfig::WhjCan { iface, .. } => {
+                let jb = crate::robot::open_whj_bus(name, bus, whj)?;
+                whj_ports.push(WhjPort::on_can(name.clone(), iface.clone(), jb));
             }
             BusConfig::WckExternal { .. } | BusConfig::WhjExternal { .. } => {
                 return Err(RobotError::Invalid {

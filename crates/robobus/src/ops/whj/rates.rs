@@ -68,12 +68,24 @@ pub fn plan_set_rates(id: JointId, rates: BitRates) -> Result<Vec<Request>, OpEr
 }
 
 /// What to do after the change on bus `bus` (a SocketCAN interface's name, or a UDP /
-/// simulated bus's) for the new `rates`.
+/// simulated bus's address) for the new `rates`.
 #[must_use]
 pub fn next_steps(bus: &str, rates: BitRates) -> String {
+    match bus.parse::<robobus_link::FrameLinkSpec>() {
+        Ok(robobus_link::FrameLinkSpec::SocketCan(iface)) => {
+            next_steps_on(bus, Some(&iface), rates)
+        }
+        _ => next_steps_on(bus, None, rates),
+    }
+}
+
+/// What to do after the change on the bus named `bus`, which runs on the SocketCAN
+/// interface `iface` (`None`: a UDP or simulated bus), for the new `rates`.
+#[must_use]
+pub fn next_steps_on(bus: &str, iface: Option<&str>, rates: BitRates) -> String {
     let (b, d) = (rates.nominal.get(), rates.data.get());
-    let adapter = match bus.parse::<robobus_link::FrameLinkSpec>() {
-        Ok(robobus_link::FrameLinkSpec::SocketCan(iface)) => format!(
+    let adapter = match iface {
+        Some(iface) => format!(
             "set the adapter to the new rates (`sudo ip link set {iface} down && sudo ip link \
              set {iface} type can bitrate {b} sample-point 0.8 dbitrate {d} dsample-point 0.75 \
              fd on && sudo ip link set {iface} up`)"
@@ -94,13 +106,15 @@ pub fn next_steps(bus: &str, rates: BitRates) -> String {
     )
 }
 
-/// What to do after a run whose per-joint `results` these are: [`next_steps`] when every
+/// What to do after a run on the bus `bus` (on the SocketCAN interface `iface`, if any)
+/// whose per-joint `results` these are: [`next_steps_on`] when every
 /// joint saved the new rates, naming the joints that did when only some did, and nothing
 /// when none did (a refused or failed run changed no joint: there is nothing to power-cycle
 /// or to set the adapter for).
 #[must_use]
 pub fn next_steps_after(
     bus: &str,
+    iface: Option<&str>,
     rates: BitRates,
     results: &[DeviceResult<u8, RatesReport>],
 ) -> Option<String> {
@@ -112,7 +126,7 @@ pub fn next_steps_after(
     if saved.is_empty() {
         return None;
     }
-    let next = next_steps(bus, rates);
+    let next = next_steps_on(bus, iface, rates);
     Some(if saved.len() == results.len() {
         next
     } else {
