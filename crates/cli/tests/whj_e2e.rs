@@ -1145,3 +1145,42 @@ fn whj_e2e_a_refused_set_rates_prints_no_next_steps() {
         "{next}"
     );
 }
+
+#[test]
+fn whj_e2e_late_replies_are_never_taken_for_two_joints_at_one_id() {
+    if !in_netns("whj_e2e_late_replies_are_never_taken_for_two_joints_at_one_id") {
+        return;
+    }
+    // 30 % of the simulator's frames held back for the client's reply timeout (20 ms): the
+    // answer to an attempt that timed out comes while the retry waits.
+    let sim = Sim::start(
+        "udp:239.74.163.40:43140",
+        &["--delay", "0.3", "--delay-ms", "20", "--fault-seed", "11"],
+    );
+    // A turning joint: every status differs from the one before.
+    for args in [
+        ["mode", "1", "speed"].as_slice(),
+        &["enable", "1"],
+        &["speed", "1", "2"],
+    ] {
+        let ok = (0..10).any(|_| sim.whj(args).code == Some(0));
+        assert!(ok, "whj {args:?} never went through");
+    }
+    let mut ok = 0;
+    for i in 0..12 {
+        let r = sim.whj(&["status", "1"]);
+        assert!(
+            !r.stderr.contains("two joints answer"),
+            "read {i}: one joint taken for two: {}",
+            r.stderr
+        );
+        match r.code {
+            Some(0) => ok += 1,
+            // Every attempt's reply held back (a timeout), or beside a late one.
+            Some(3) => {}
+            Some(1) => assert!(r.stderr.contains("came late"), "read {i}: {}", r.stderr),
+            _ => panic!("read {i}: {r:?}"),
+        }
+    }
+    assert!(ok > 0, "no read of 12 went through");
+}
