@@ -383,13 +383,25 @@ fn page(s: &Studio) -> tungstenite::WebSocket<TcpStream> {
 }
 
 /// The simulators' own state of WHJ joint `joint`.
+/// (The simulated joints' list fills at the serving loop's first observation, a moment
+/// after the studio starts.)
 fn sim_joint(s: &Studio, joint: usize) -> Value {
-    let (status, body) = http(&s.addr, "GET", "/api/sim", &[], "");
-    assert_eq!(status, 200, "{body}");
-    let v: Value = serde_json::from_str(&body).unwrap();
-    let j = v["whj"][joint - 1].clone();
-    assert_eq!(j["id"], joint, "{body}");
-    j
+    let deadline = Instant::now() + Duration::from_secs(10);
+    loop {
+        let (status, body) = http(&s.addr, "GET", "/api/sim", &[], "");
+        assert_eq!(status, 200, "{body}");
+        let v: Value = serde_json::from_str(&body).unwrap();
+        let j = v["whj"][joint - 1].clone();
+        if !j.is_null() {
+            assert_eq!(j["id"], joint, "{body}");
+            return j;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "no simulated joint {joint}: {body}"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
 }
 
 /// The next error message (of run or jog `id`).
