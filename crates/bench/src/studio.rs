@@ -650,15 +650,17 @@ fn poll_target(sim: &LiveSimulator, jogs: &mpsc::Receiver<()>, changes: &Mutex<V
 type Jogs = HashMap<u64, (Instant, Option<(Instant, f64)>)>;
 
 /// Takes control, arms, and puts joint 1 in position mode (disable, mode, enable); returns
-/// when the last heartbeat was sent.
-fn take_control(s: &mut PageSocket) -> Result<Instant, BenchError> {
+/// when the last heartbeat was sent, and the control secret the studio gave this socket
+/// (what every message that changes a device carries).
+fn take_control(s: &mut PageSocket) -> Result<(Instant, Value), BenchError> {
     s.send(&json!({"type": "take-control"}))?;
-    s.expect(
+    let control = s.expect(
         |v| v["type"] == "control" && v["controller"] == true,
         SETUP_TIMEOUT,
         None,
-    )?;
-    s.send(&json!({"type": "arm"}))?;
+    )?["secret"]
+        .clone();
+    s.send(&json!({"type": "arm", "control": control}))?;
     s.expect(
         |v| v["type"] == "control" && v["armed"] == true,
         SETUP_TIMEOUT,
@@ -674,14 +676,14 @@ fn take_control(s: &mut PageSocket) -> Result<Instant, BenchError> {
         ),
         (3, json!({"op": "whj.enable", "joints": "1"})),
     ] {
-        s.send(&json!({"type": "run", "id": id, "request": request}))?;
+        s.send(&json!({"type": "run", "id": id, "request": request, "control": control}))?;
         s.expect(
             |v| v["type"] == "report" && v["id"] == id,
             SETUP_TIMEOUT,
             Some(&mut beat),
         )?;
     }
-    Ok(beat)
+    Ok((beat, control))
 }
 
 /// Jogs joint 1 between −1° and +1° at [`JOG_HZ`] for `secs`, with a heartbeat every
@@ -689,7 +691,7 @@ fn take_control(s: &mut PageSocket) -> Result<Instant, BenchError> {
 /// each jog just before it is sent.
 fn jog_loop(
     s: &mut PageSocket,
-    mut beat: Instant,
+    (mut beat, control): (Instant, Value),
     poll: &mpsc::Sender<()>,
     secs: Duration,
     out: &mut Jog,
@@ -714,6 +716,7 @@ fn jog_loop(
             let at = Instant::now();
             s.send(&json!({
                 "type": "jog", "id": id, "family": "whj", "device": 1, "target": target,
+                "control": control,
             }))?;
             jogs.insert(id, (at, None));
             out.sent += 1;
@@ -775,7 +778,7 @@ fn timings(jogs: Jogs, changes: &[Change], out: &mut Jog) {
 /// between −1° and +1° at [`JOG_HZ`] for `secs`.
 fn jog(studio: &Running, secs: Duration) -> Result<Jog, BenchError> {
     let mut s = PageSocket::connect(studio.addr, Duration::from_millis(1))?;
-    let beat = take_control(&mut s)?;
+    let taken = take_control(&mut s)?;
     let changes: Arc<Mutex<Vec<Change>>> = Arc::default();
     let (tx, rx) = mpsc::channel();
     let poller = {
@@ -788,7 +791,7 @@ fn jog(studio: &Running, secs: Duration) -> Result<Jog, BenchError> {
     };
     let mut out = Jog::default();
     let mut jogs = Jogs::new();
-    let result = jog_loop(&mut s, beat, &tx, secs, &mut out, &mut jogs);
+    let result = jog_loop(&mut s, taken, &tx, secs, &mut out, &mut jogs);
     drop(tx);
     let _ = poller.join();
     let _ = s.send(&json!({"type": "disarm"}));
