@@ -7,10 +7,6 @@
 
 mod common;
 
-use std::io::Read as _;
-use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
-
 use serde_json::Value;
 
 const INSIDE: &str = "ROBOBUS_IN_NETNS";
@@ -26,44 +22,6 @@ fn in_netns(name: &str) -> bool {
         .in_private_netns()
         .expect_marker("1 passed");
     false
-}
-
-/// `robobus sim whj --joints 1-2` on `bus`; killed on drop.
-struct Sim(Child);
-
-impl Sim {
-    fn start(bus: &str) -> Self {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
-            .args(["sim", "whj", "--joints", "1-2", "--seed", "3", "--bus", bus])
-            .stdin(Stdio::null())
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
-        let mut err = child.stderr.take().unwrap();
-        let start = Instant::now();
-        let mut seen = Vec::new();
-        let mut buf = [0u8; 256];
-        while !String::from_utf8_lossy(&seen).contains("serving") {
-            assert!(start.elapsed() < Duration::from_secs(20), "no serving line");
-            let n = err.read(&mut buf).unwrap();
-            assert!(
-                n > 0,
-                "simulator exited: {}",
-                String::from_utf8_lossy(&seen)
-            );
-            seen.extend_from_slice(&buf[..n]);
-        }
-        std::thread::spawn(move || std::io::copy(&mut err, &mut std::io::sink()));
-        Self(child)
-    }
-}
-
-impl Drop for Sim {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
 }
 
 const ROBOT: &str = r#"[buses.arm]
@@ -124,7 +82,7 @@ fn play_twice_with(
     run: bool,
 ) -> (common::Run, common::Run, String) {
     let bus = format!("udp:{group}:{port}");
-    let _sim = Sim::start(&bus);
+    let _sim = common::WhjSim::start(&bus, &[]);
     for args in [["mode", "1-2", "position"].as_slice(), &["enable", "1-2"]] {
         let mut all = vec!["whj", "--bus", bus.as_str()];
         all.extend_from_slice(args);

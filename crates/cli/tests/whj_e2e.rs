@@ -20,7 +20,7 @@
 mod common;
 
 use std::io::Read as _;
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use serde_json::Value;
@@ -42,81 +42,7 @@ fn in_netns(name: &str) -> bool {
     false
 }
 
-/// `robobus sim whj` on a UDP bus; killed on drop.
-struct Sim {
-    child: Child,
-    bus: String,
-}
-
-impl Sim {
-    fn start(bus: &str, extra: &[&str]) -> Self {
-        Self::start_model(bus, "whj30", extra)
-    }
-
-    fn start_model(bus: &str, model: &str, extra: &[&str]) -> Self {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
-            .args(["sim", "whj", "--joints", "1-7", "--model", model])
-            .args(["--seed", "3"])
-            .args(["--bus", bus])
-            .args(extra)
-            .stdin(Stdio::null())
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped())
-            .spawn()
-            .expect("starting robobus sim whj");
-        // Wait for its "serving" line.
-        let mut err = child.stderr.take().unwrap();
-        let start = Instant::now();
-        let mut seen = Vec::new();
-        let mut buf = [0u8; 256];
-        while !String::from_utf8_lossy(&seen).contains("serving") {
-            assert!(
-                start.elapsed() < Duration::from_secs(20),
-                "simulator did not start: {}",
-                String::from_utf8_lossy(&seen)
-            );
-            let n = err.read(&mut buf).unwrap();
-            assert!(
-                n > 0,
-                "simulator exited: {}",
-                String::from_utf8_lossy(&seen)
-            );
-            seen.extend_from_slice(&buf[..n]);
-        }
-        // Keep draining stderr so the simulator never blocks on a full pipe.
-        std::thread::spawn(move || std::io::copy(&mut err, &mut std::io::sink()));
-        Self {
-            child,
-            bus: bus.to_owned(),
-        }
-    }
-
-    /// `robobus whj --bus BUS ARGS`.
-    fn whj(&self, args: &[&str]) -> common::Run {
-        let mut all = vec!["whj", "--bus", self.bus.as_str()];
-        all.extend_from_slice(args);
-        common::robobus(&all)
-    }
-
-    /// `robobus whj --bus BUS --json ARGS`, expecting success; the `results` array.
-    fn json(&self, args: &[&str]) -> Vec<Value> {
-        let mut all = vec!["--json"];
-        all.extend_from_slice(args);
-        let r = self.whj(&all);
-        assert_eq!(r.code, Some(0), "whj {args:?} failed: {}", r.stderr);
-        let doc: Value = serde_json::from_str(&r.stdout)
-            .unwrap_or_else(|e| panic!("whj {args:?}: not JSON ({e}): {}", r.stdout));
-        assert_eq!(doc["bus"], self.bus.as_str());
-        doc["results"].as_array().unwrap().clone()
-    }
-}
-
-impl Drop for Sim {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
+use common::WhjSim as Sim;
 
 fn f(v: &Value) -> f64 {
     v.as_f64().unwrap_or_else(|| panic!("not a number: {v}"))

@@ -2,7 +2,7 @@
 
 #![allow(dead_code)] // each test file uses a different subset
 
-use std::io::{BufRead as _, BufReader};
+use std::io::{BufRead as _, BufReader, Read as _};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
@@ -141,6 +141,86 @@ impl Drop for WckSim {
             }
             std::thread::sleep(Duration::from_millis(10));
         }
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// `robobus sim whj --joints 1-7` (seed 3) on a UDP bus, up once it says it serves; killed
+/// on drop.
+pub(crate) struct WhjSim {
+    child: Child,
+    /// The bus address clients use.
+    pub(crate) bus: String,
+}
+
+impl WhjSim {
+    /// WHJ30 joints on `bus` (`udp:GROUP:PORT`), with the simulator's `extra` options.
+    pub(crate) fn start(bus: &str, extra: &[&str]) -> Self {
+        Self::start_model(bus, "whj30", extra)
+    }
+
+    /// [`WhjSim::start`] with joints of `model`.
+    pub(crate) fn start_model(bus: &str, model: &str, extra: &[&str]) -> Self {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
+            .args(["sim", "whj", "--joints", "1-7", "--model", model])
+            .args(["--seed", "3"])
+            .args(["--bus", bus])
+            .args(extra)
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("starting robobus sim whj");
+        // Wait for its "serving" line.
+        let mut err = child.stderr.take().unwrap();
+        let start = Instant::now();
+        let mut seen = Vec::new();
+        let mut buf = [0u8; 256];
+        while !String::from_utf8_lossy(&seen).contains("serving") {
+            assert!(
+                start.elapsed() < Duration::from_secs(20),
+                "simulator did not start: {}",
+                String::from_utf8_lossy(&seen)
+            );
+            let n = err.read(&mut buf).unwrap();
+            assert!(
+                n > 0,
+                "simulator exited: {}",
+                String::from_utf8_lossy(&seen)
+            );
+            seen.extend_from_slice(&buf[..n]);
+        }
+        // Keep draining stderr so the simulator never blocks on a full pipe.
+        std::thread::spawn(move || std::io::copy(&mut err, &mut std::io::sink()));
+        Self {
+            child,
+            bus: bus.to_owned(),
+        }
+    }
+
+    /// `robobus whj --bus BUS ARGS`.
+    pub(crate) fn whj(&self, args: &[&str]) -> Run {
+        let mut all = vec!["whj", "--bus", self.bus.as_str()];
+        all.extend_from_slice(args);
+        robobus(&all)
+    }
+
+    /// `robobus whj --bus BUS --json ARGS`, expecting success; the `results` array.
+    pub(crate) fn json(&self, args: &[&str]) -> Vec<serde_json::Value> {
+        let mut all = vec!["--json"];
+        all.extend_from_slice(args);
+        let r = self.whj(&all);
+        assert_eq!(r.code, Some(0), "whj {args:?} failed: {}", r.stderr);
+        let doc: serde_json::Value = serde_json::from_str(&r.stdout)
+            .unwrap_or_else(|e| panic!("whj {args:?}: not JSON ({e}): {}", r.stdout));
+        assert_eq!(doc["bus"], self.bus.as_str());
+        doc["results"].as_array().unwrap().clone()
+    }
+}
+
+impl Drop for WhjSim {
+    fn drop(&mut self) {
         let _ = self.child.kill();
         let _ = self.child.wait();
     }

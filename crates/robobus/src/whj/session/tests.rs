@@ -793,36 +793,30 @@ fn an_answer_due_late_is_due_only_for_the_late_horizon() {
     ));
 }
 
+/// On session `s` at `t0`: a read of 0x14 that times out with no frame at all, then
+/// another whose reply comes alone; what that second read came to.
+fn a_reply_after_a_silent_read(s: &mut Session, t0: Instant) -> Option<Attempt> {
+    let (req, _) = read(0x14, 2);
+    let (reply, _) = two_statuses();
+    let first = s.submit(txn(req, t0));
+    transmit(s, t0);
+    s.handle_timeout(t0 + ms(20));
+    assert!(s.poll_outcome(first).is_some());
+    let second = s.submit(txn(req, t0 + ms(20)));
+    transmit(s, t0 + ms(20));
+    s.handle_frame(&reply.to_frame(), t0 + ms(20) + us(300));
+    s.poll_outcome(second).map(|o| o.attempt)
+}
+
 #[test]
 fn a_joint_that_was_only_silent_is_credited_its_first_reply() {
     // No frame ever came late on this bus: the joint was off, not late.
     let t0 = Instant::now();
-    let mut s = Session::new(no_window());
-    let (req, _) = read(0x14, 2);
     let (reply, _) = two_statuses();
-    let first = s.submit(txn(req, t0));
-    transmit(&mut s, t0);
-    s.handle_timeout(t0 + ms(20));
-    assert!(s.poll_outcome(first).is_some());
-    let second = s.submit(txn(req, t0 + ms(20)));
-    transmit(&mut s, t0 + ms(20));
-    s.handle_frame(&reply.to_frame(), t0 + ms(20) + us(300));
-    assert!(matches!(
-        s.poll_outcome(second).map(|o| o.attempt),
-        Some(Attempt::Reply { reply: r }) if r == reply
-    ));
+    let got = a_reply_after_a_silent_read(&mut Session::new(no_window()), t0);
+    assert!(matches!(got, Some(Attempt::Reply { reply: r }) if r == reply));
     // Once a frame came late, a reply alone while an answer is due is doubted.
     let t1 = t0 + ms(40);
-    let mut s = seen_late(t1);
-    let third = s.submit(txn(req, t1));
-    transmit(&mut s, t1);
-    s.handle_timeout(t1 + ms(20));
-    assert!(s.poll_outcome(third).is_some());
-    let fourth = s.submit(txn(req, t1 + ms(20)));
-    transmit(&mut s, t1 + ms(20));
-    s.handle_frame(&reply.to_frame(), t1 + ms(20) + us(300));
-    assert!(matches!(
-        s.poll_outcome(fourth).map(|o| o.attempt),
-        Some(Attempt::Late { .. })
-    ));
+    let got = a_reply_after_a_silent_read(&mut seen_late(t1), t1);
+    assert!(matches!(got, Some(Attempt::Late { reply: r }) if r == reply));
 }
