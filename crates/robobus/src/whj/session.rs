@@ -52,7 +52,7 @@
 //! request itself can have crossed the wire. A reply to another request, or one before that
 //! instant, is not credited and the request keeps waiting. Late replies: an attempt that
 //! timed out with no frame at all on its reply ID may still be answered late (for
-//! [`LATE_HORIZON_TIMEOUTS`] of its timeouts); a frame on that ID meanwhile that is not
+//! [`late::LATE_HORIZON_TIMEOUTS`] of its timeouts); a frame on that ID meanwhile that is not
 //! credited counts as that late answer ([`BusHealth::late`]; otherwise unmatched). A
 //! credited reply is held for the collision window, and a second, different one within it
 //! makes the attempt a [`Attempt::Duplicate`] (two joints at one ID), unless a late answer
@@ -60,7 +60,7 @@
 //! then this one explains the two (a joint answers in order), and the second is held for
 //! a window of its own (a third would be a second joint). A reply alone is credited unless
 //! a late answer of its kind is due on its ID and the bus was seen delivering late within
-//! [`LATE_EVIDENCE`] (a joint that was only silent never answers late); then it may be
+//! [`late::LATE_EVIDENCE`] (a joint that was only silent never answers late); then it may be
 //! that late answer, and the attempt is an [`Attempt::Late`]: nothing credited, made
 //! again. Retries: an attempt whose outcome is [`Attempt::retryable`] is
 //! queued again (behind what is queued) while the transaction has attempts left; after a
@@ -76,6 +76,7 @@ use robobus_whj::{CanFrame, JointId, Reply, Request};
 
 mod config;
 pub(crate) mod cyclic;
+mod late;
 mod matching;
 mod telemetry;
 #[cfg(test)]
@@ -83,6 +84,7 @@ mod tests;
 
 pub use config::{BusState, JointBusConfig};
 use cyclic::{CyclicRun, CyclicSetup, CyclicStats};
+use late::Owed;
 use matching::Unanswered;
 pub(crate) use matching::{Attempt, Expect, Outcome, describe};
 pub use telemetry::{BusHealth, JointTelemetry, Telemetry};
@@ -94,20 +96,6 @@ pub(crate) const BROADCAST_LOG: usize = 64;
 
 /// At most this many finished transactions wait to be polled (their callers gave up).
 const MAX_DONE: usize = 4096;
-
-/// How long, in reply timeouts of the attempt, an answer to an attempt that timed out is
-/// still expected: a frame on its reply ID until then may be that late answer.
-const LATE_HORIZON_TIMEOUTS: u32 = 4;
-
-/// At most this many timed-out attempts per reply ID are remembered as possibly still
-/// answered late (the oldest is forgotten first).
-const LATE_KEPT: usize = 16;
-
-/// For how long after a frame on the bus was known to be late a reply alone is doubted
-/// while an answer to an earlier attempt is due on its ID: a bus that delivers late does so
-/// for a while (a loaded host, a busy adapter), and a joint that was only silent (off,
-/// starting, unplugged) never answers late.
-const LATE_EVIDENCE: Duration = Duration::from_secs(5);
 
 /// One transaction: a request and how to wait for its reply.
 #[derive(Debug, Clone, Copy)]
@@ -171,14 +159,6 @@ struct InFlight {
     stray: bool,
 }
 
-/// An attempt that timed out without any frame on its reply ID: its answer (to a request
-/// of the kind `expect`) may still come late, until `until`.
-#[derive(Debug, Clone, Copy)]
-struct Owed {
-    expect: Expect,
-    until: Instant,
-}
-
 /// A request whose reply arrived, held for the collision window: a second, different
 /// reply to it before `until` makes it a [`Attempt::Duplicate`].
 #[derive(Debug)]
@@ -213,7 +193,7 @@ pub(crate) struct Session {
     /// Replies received and held for the collision window, by reply ID.
     credited: HashMap<u16, Credited>,
     /// Per reply ID, one entry per attempt that timed out there with no frame on it:
-    /// answers that may still come late (oldest first, at most [`LATE_KEPT`]).
+    /// answers that may still come late (oldest first, at most [`late::LATE_KEPT`]).
     late_possible: HashMap<u16, VecDeque<Owed>>,
     /// When a frame was last known to be late (it came while nothing on its ID could
     /// take it, or beside an attempt's own reply, with an answer due on that ID).
@@ -470,50 +450,6 @@ impl Session {
             Err(e) => Attempt::Mismatch(e.to_string()),
         };
         self.conclude(f.pending, outcome, now);
-    }
-
-    /// A frame on reply ID `key` (its reply, if it decodes) arrived at `now` while a
-    /// reply on that ID is held for its collision window: a second answer to the same
-    /// request if it answers it, and a fault if it differs.
-    fn second_answer(&mut self, key: u16, frame: &CanFrame, reply: Option<&Reply>, now: Instant) {
-        let Some(c) = self.credited.get(&key) else {
-            return;
-        };
-        let expect = c.pending.txn.expect;
-        let answers = reply.is_some_and(|r| expect.check(r, frame).is_ok());
-        let (true, Some(second)) = (answers && c.frame != *frame, reply) else {
-            self.count_stray(key, now, answers.then_some(expect));
-            return;
-        };
-        let Some(c) = self.credited.remove(&key) else {
-            return;
-        };
-        if self.take_late(key, now, Some(expect)) {
-            // An answer of this kind to an earlier attempt was still due: one joint
-            // answering that attempt late, then this one, explains the two replies (in
-            // that order: a joint answers in order). The second is held for a window of
-            // its own: a third would be a second joint.
-            tracing::debug!(late = ?c.reply, reply = ?second, "a late reply before a WHJ request's own");
-            self.health().late += 1;
-            self.late_seen = Some(now);
-            self.credited.insert(
-                key,
-                Credited {
-                    frame: *frame,
-                    reply: *second,
-                    until: now + self.config.collision_window,
-                    ..c
-                },
-            );
-        } else {
-            tracing::warn!(first = ?c.reply, second = ?second, "two different replies to one WHJ request");
-            self.health().duplicates += 1;
-            let outcome = Attempt::Duplicate {
-                first: c.reply,
-                second: *second,
-            };
-            self.conclude(c.pending, outcome, now);
-        }
     }
 
     /// A receive failed with `e` at `now`. Bus errors change the bus state (a bus-off
@@ -847,14 +783,7 @@ impl Session {
         for key in expired {
             if let Some(f) = self.in_flight.remove(&key) {
                 if !f.stray {
-                    let late = self.late_possible.entry(key).or_default();
-                    if late.len() >= LATE_KEPT {
-                        late.pop_front();
-                    }
-                    late.push_back(Owed {
-                        expect: f.pending.txn.expect,
-                        until: f.sent + f.pending.txn.timeout * LATE_HORIZON_TIMEOUTS,
-                    });
+                    self.owe(key, &f);
                 }
                 let outcome = Attempt::Timeout {
                     waited: now.saturating_duration_since(f.sent),
@@ -864,70 +793,7 @@ impl Session {
             }
         }
         self.quiet.retain(|_, until| *until > now);
-        self.late_possible.retain(|_, late| {
-            late.retain(|o| o.until > now);
-            !late.is_empty()
-        });
-    }
-
-    /// Whether a frame on reply ID `key` at `now` may be the late answer to an attempt
-    /// that timed out there (one of the kind `expect` first, else any); if so, that
-    /// attempt counts as answered from now on.
-    fn take_late(&mut self, key: u16, now: Instant, expect: Option<Expect>) -> bool {
-        let Some(late) = self.late_possible.get_mut(&key) else {
-            return false;
-        };
-        late.retain(|o| o.until > now);
-        let owed = late
-            .iter()
-            .position(|o| expect.is_some_and(|e| e == o.expect))
-            .or_else(|| late.front().map(|_| 0));
-        let taken = owed.and_then(|i| late.remove(i)).is_some();
-        if late.is_empty() {
-            self.late_possible.remove(&key);
-        }
-        taken
-    }
-
-    /// A frame on reply ID `key` that answers nothing waiting (a reply of the kind
-    /// `expect`, if known): a late answer to an attempt that timed out
-    /// ([`BusHealth::late`]: `true`), or else unmatched.
-    fn count_stray(&mut self, key: u16, now: Instant, expect: Option<Expect>) -> bool {
-        let late = self.take_late(key, now, expect);
-        if late {
-            self.health().late += 1;
-            self.late_seen = Some(now);
-        } else {
-            self.health().unmatched += 1;
-        }
-        late
-    }
-
-    /// What `reply`, alone on `key` at `at` for a request of the kind `expect`, comes to:
-    /// the attempt's reply, unless an answer of that kind to an earlier attempt that timed
-    /// out there is still due and the bus delivered a frame late within
-    /// [`LATE_EVIDENCE`]; then it may be that late answer, and it is not credited
-    /// ([`Attempt::Late`]: the attempt is made again, and one answer stays due).
-    fn credit(&mut self, key: u16, expect: Expect, reply: Reply, at: Instant) -> Attempt {
-        let doubted = self
-            .late_seen
-            .is_some_and(|seen| at.saturating_duration_since(seen) < LATE_EVIDENCE);
-        let (true, Some(late)) = (doubted, self.late_possible.get_mut(&key)) else {
-            return Attempt::Reply { reply };
-        };
-        let Some(owed) = late.iter_mut().find(|o| o.expect == expect && o.until > at) else {
-            return Attempt::Reply { reply };
-        };
-        // One answer stays due: that late one, or this attempt's own. It stays due no
-        // longer than the late one would have (a lost answer holds up its ID only so long).
-        tracing::debug!(
-            ?reply,
-            "a WHJ reply that may be a late answer to an earlier attempt"
-        );
-        let until = owed.until;
-        *owed = Owed { expect, until };
-        self.health().late += 1;
-        Attempt::Late { reply }
+        self.forget_late(now);
     }
 
     const fn state(&self) -> BusState {

@@ -7,6 +7,7 @@ use robobus_whj::units::{ActualSpeed, Current, Position, Temperature, Voltage};
 use robobus_whj::{BroadcastFeedback, CmdError, ErrorCode, RegisterAddr, ServoFeedback};
 
 use super::cyclic::{CyclicConfig, ServoMode};
+use super::late::LATE_HORIZON_TIMEOUTS;
 use super::*;
 
 fn j(n: u8) -> JointId {
