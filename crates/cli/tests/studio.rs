@@ -41,7 +41,7 @@ fn start(args: &[&str]) -> Studio {
 
 /// A studio whose temporary folder (`TMPDIR`) is `tmp`.
 fn start_in(args: &[&str], tmp: &std::path::Path) -> Studio {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
+    let child = Command::new(env!("CARGO_BIN_EXE_robobus"))
         .env("TMPDIR", tmp)
         .arg("studio")
         .args(["--port", "0"])
@@ -50,6 +50,11 @@ fn start_in(args: &[&str], tmp: &std::path::Path) -> Studio {
         .stderr(Stdio::inherit())
         .spawn()
         .unwrap();
+    started(child)
+}
+
+/// The studio `child` started, once it printed its address (its first line).
+fn started(mut child: std::process::Child) -> Studio {
     let mut line = String::new();
     BufReader::new(child.stdout.take().unwrap())
         .read_line(&mut line)
@@ -840,24 +845,15 @@ fn the_capture_folder_is_private_fresh_and_only_its_own_files_are_removed() {
 fn idle_and_slow_connections_are_closed_and_never_starve_the_api() {
     // 256 file descriptors, as the report that found the flaw: more idle connections
     // than that would leave nothing for /api/info without the cap.
-    let mut child = Command::new("sh")
-        .args(["-c", "ulimit -n 256 && exec \"$0\" studio --port 0"])
-        .arg(env!("CARGO_BIN_EXE_robobus"))
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    let addr = line
-        .trim()
-        .strip_prefix("studio: http://")
-        .and_then(|a| a.strip_suffix('/'))
-        .unwrap_or_else(|| panic!("first line: {line:?}"))
-        .to_owned();
-    let s = Studio { child, addr };
+    let s = started(
+        Command::new("sh")
+            .args(["-c", "ulimit -n 256 && exec \"$0\" studio --port 0"])
+            .arg(env!("CARGO_BIN_EXE_robobus"))
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .unwrap(),
+    );
     // 200 connections that say nothing and 100 that send half a header, slowly.
     let opened = Instant::now();
     let mut flood = Vec::new();
