@@ -253,6 +253,21 @@ pub fn run_with(
 /// `whj.can-health` on the station's WHJ bus `bus`: its interface is the bus's address
 /// (`can0`) or, for a robot file's bus, the file's `iface`. A bus without one (UDP, a
 /// simulator) is a row without a controller that says so.
+#[cfg(not(target_os = "linux"))]
+fn can_health_report(station: &Station, bus: Option<&str>, _op: &str) -> Result<Report, OpError> {
+    let port = station.whj(bus)?;
+    Err(OpError::NotAvailable(format!(
+        "whj.can-health on {}: a CAN controller's state is read from Linux's SocketCAN \
+         (netlink) only; on this system run `robobus whj monitor` on the bus (an adapter's \
+         bus-off, error-passive and overruns show there) or `robobus doctor`",
+        port.name()
+    )))
+}
+
+/// `whj.can-health` on the station's WHJ bus `bus`: its interface is the bus's address
+/// (`can0`) or, for a robot file's bus, the file's `iface`. A bus without one (UDP, a
+/// simulator) is a row without a controller that says so.
+#[cfg(target_os = "linux")]
 fn can_health_report(station: &Station, bus: Option<&str>, op: &str) -> Result<Report, OpError> {
     use robobus_link::socketcan::health::{self, HealthError};
     let port = station.whj(bus)?;
