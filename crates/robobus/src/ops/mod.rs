@@ -49,6 +49,7 @@ use serde::Serialize;
 pub mod capture;
 mod ids;
 pub mod monitor;
+pub mod ports;
 pub mod replay;
 pub mod safe;
 pub mod wck;
