@@ -71,6 +71,7 @@
 //! `scripts/uml/ensure-uml` unpacks User-Mode Linux and can-utils into `target/uml`, and
 //! `scripts/uml/run-in-uml` boots it with a CAN FD `vcan0` to run the `SocketCAN` test.
 
+pub mod adapter;
 pub mod byte;
 pub mod capture;
 pub mod fault;
@@ -81,6 +82,7 @@ pub mod pty;
 pub mod pycan;
 #[cfg(unix)]
 pub mod serial;
+pub mod slcan;
 #[cfg(target_os = "linux")]
 pub mod socketcan;
 pub mod spec;
@@ -88,6 +90,7 @@ pub mod spec;
 pub mod udp;
 pub mod wait;
 
+pub use adapter::{AdapterError, AdapterErrorKind};
 pub use byte::{ByteLink, LinkError};
 pub use capture::{
     CandumpError, CandumpRecord, CandumpWriter, CaptureByteLink, CaptureFrameLink, CaptureReader,
@@ -100,6 +103,7 @@ pub use memory::{MemoryBus, MemoryBusEndpoint, MemoryByteLink};
 pub use pty::{PtyLink, PtyOptions, PtyPair, PtySymlink};
 #[cfg(unix)]
 pub use serial::{SerialLink, set_usb_latency_timer, usb_latency_timer};
+pub use slcan::{SlcanConfig, SlcanLink, SlcanStats};
 #[cfg(target_os = "linux")]
 pub use socketcan::SocketCanLink;
 pub use spec::{FrameLinkSpec, OpenError, SpecError};
