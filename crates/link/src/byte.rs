@@ -83,6 +83,30 @@ pub enum LinkError {
         /// Which link refused it.
         context: String,
     },
+    /// Nothing accepts a connection at a network address (`socket://HOST:PORT`):
+    /// refused, unreachable, or no answer in time.
+    #[error(
+        "nothing answers at {address}: {reason} (is the simulator or serial server running \
+         and listening there?)"
+    )]
+    Unreachable {
+        /// The address, as `socket://HOST:PORT`.
+        address: String,
+        /// Why the connection failed.
+        reason: String,
+    },
+    /// This kind of port does not exist on this operating system (a COM port outside
+    /// Windows).
+    #[error("{what} is not available on this system: {instead}")]
+    NotAvailable {
+        /// What was asked for.
+        what: String,
+        /// What to use instead.
+        instead: String,
+    },
+    /// A port address that does not parse ([`crate::PortSpec`]); nothing was opened.
+    #[error(transparent)]
+    BadPort(#[from] crate::port::PortSpecError),
     /// Any other operating-system error.
     #[error("{context}: {source}")]
     Io {

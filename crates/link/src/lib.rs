@@ -4,7 +4,9 @@
 //!
 //! - [`ByteLink`] (wCK servos, UART): [`SerialLink`] (a real port), [`PtyPair`] /
 //!   [`PtyLink`] (a simulator as a serial device any program opens by path),
-//!   [`MemoryByteLink`] (deterministic tests).
+//!   [`TcpByteLink`] / [`TcpServer`] (a simulator over TCP, pyserial's
+//!   `socket://HOST:PORT`, on every OS), [`MemoryByteLink`] (deterministic tests).
+//!   [`PortSpec`] turns a user's `--port` (a device path, `COM12`, `socket://…`) into one.
 //! - [`FrameLink`] (WHJ joints, CAN FD): [`SocketCanLink`] (Linux `SocketCAN`), [`UdpBus`]
 //!   (python-can's `udp_multicast` virtual bus), [`MemoryBus`] (deterministic tests).
 //! - Wrappers implementing the same traits: [`FaultyByteLink`] / [`FaultyFrameLink`]
@@ -75,18 +77,21 @@ pub mod adapter;
 pub mod byte;
 pub mod capture;
 pub mod fault;
+pub mod fdcanusb;
 pub mod frame_link;
 pub mod memory;
+pub mod port;
 #[cfg(unix)]
 pub mod pty;
 pub mod pycan;
-#[cfg(unix)]
+#[cfg(any(unix, windows))]
 pub mod serial;
 pub mod slcan;
 #[cfg(target_os = "linux")]
 pub mod socketcan;
 pub mod spec;
-#[cfg(unix)]
+pub mod tcp;
+#[cfg(any(unix, windows))]
 pub mod udp;
 pub mod wait;
 
@@ -97,16 +102,19 @@ pub use capture::{
     HexRecord, ReplayByteLink, ReplayFrameLink, read_candump, read_hex_log,
 };
 pub use fault::{FaultConfig, FaultStats, FaultyByteLink, FaultyFrameLink};
+pub use fdcanusb::{FdcanusbConfig, FdcanusbError, FdcanusbLink};
 pub use frame_link::{BusErrorKind, FrameLink, FrameLinkError, IdFilter, Received};
 pub use memory::{MemoryBus, MemoryBusEndpoint, MemoryByteLink};
+pub use port::{PortSpec, PortSpecError};
 #[cfg(unix)]
 pub use pty::{PtyLink, PtyOptions, PtyPair, PtySymlink};
-#[cfg(unix)]
-pub use serial::{SerialLink, set_usb_latency_timer, usb_latency_timer};
+#[cfg(any(unix, windows))]
+pub use serial::{LATENCY_TIMER_ADVICE, SerialLink, set_usb_latency_timer, usb_latency_timer};
 pub use slcan::{SlcanConfig, SlcanLink, SlcanStats};
 #[cfg(target_os = "linux")]
 pub use socketcan::SocketCanLink;
 pub use spec::{FrameLinkSpec, OpenError, SpecError};
-#[cfg(unix)]
+pub use tcp::{TcpByteLink, TcpServer, TcpServerStats};
+#[cfg(any(unix, windows))]
 pub use udp::{UdpBus, UdpBusConfig, UdpBusStats};
 pub use wait::{WaitMode, WaitModeError};

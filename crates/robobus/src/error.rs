@@ -68,8 +68,13 @@ impl core::fmt::Display for ErrorKind {
 /// everything else is [`ErrorKind::Link`].
 pub fn link_error_kind(e: &LinkError) -> ErrorKind {
     match e {
-        LinkError::Timeout { .. } | LinkError::NoSuchDevice { .. } => ErrorKind::NoDevice,
-        LinkError::UnsupportedBaud { .. } => ErrorKind::NotAvailable,
+        LinkError::Timeout { .. }
+        | LinkError::NoSuchDevice { .. }
+        | LinkError::Unreachable { .. } => ErrorKind::NoDevice,
+        LinkError::UnsupportedBaud { .. } | LinkError::NotAvailable { .. } => {
+            ErrorKind::NotAvailable
+        }
+        LinkError::BadPort(_) => ErrorKind::BadInput,
         _ => ErrorKind::Link,
     }
 }
