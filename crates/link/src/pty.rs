@@ -12,6 +12,13 @@
 //! are set or read later; minicom, picocom, screen, this crate's [`crate::SerialLink`]);
 //! programs that insist on the modem lines cannot open a pty, for example .NET / mono
 //! `System.IO.Ports` (`SerialPort.Open` sets DTR and RTS).
+//!
+//! Unix only (Linux and macOS): Windows has no pseudo-terminals, and a simulator serves
+//! its bus over TCP there. Waits end at their exact deadline on both: Linux waits in
+//! `ppoll` (nanoseconds); macOS has no `ppoll`, so it waits in `poll` for the whole
+//! milliseconds before the deadline and polls without blocking for the rest (under one
+//! millisecond). The speed constants are Linux's; macOS keeps the rate in termios as the
+//! number itself, so both accept the same rates.
 
 use std::fs::File;
 use std::io::{self, Read, Write};
@@ -22,12 +29,23 @@ use std::time::{Duration, Instant};
 use nix::errno::Errno;
 use nix::fcntl::{FcntlArg, OFlag};
 use nix::poll::{PollFd, PollFlags};
-use nix::sys::termios::{self, BaudRate, SetArg, SpecialCharacterIndices};
-use nix::sys::time::TimeSpec;
+#[cfg(any(target_os = "linux", target_os = "android"))]
+use nix::sys::termios::BaudRate;
+use nix::sys::termios::{self, SetArg, SpecialCharacterIndices};
 
 use crate::byte::{ByteLink, LinkError};
 
+/// A rate as termios takes it: a speed constant on Linux, the number itself on the BSDs
+/// (macOS).
+#[cfg(any(target_os = "linux", target_os = "android"))]
+type Speed = BaudRate;
+/// A rate as termios takes it: a speed constant on Linux, the number itself on the BSDs
+/// (macOS).
+#[cfg(not(any(target_os = "linux", target_os = "android")))]
+type Speed = u32;
+
 /// The termios speed constants robobus uses, with their baud rates.
+#[cfg(any(target_os = "linux", target_os = "android"))]
 const BAUD_TABLE: [(u32, BaudRate); 19] = [
     (1200, BaudRate::B1200),
     (2400, BaudRate::B2400),
@@ -51,8 +69,22 @@ const BAUD_TABLE: [(u32, BaudRate); 19] = [
 ];
 
 /// Maps a baud rate to a termios speed constant (the standard rates 1200..=4000000).
-fn termios_baud(baud: u32) -> Option<BaudRate> {
+#[cfg(any(target_os = "linux", target_os = "android"))]
+fn termios_baud(baud: u32) -> Option<Speed> {
     BAUD_TABLE.iter().find(|(b, _)| *b == baud).map(|(_, r)| *r)
+}
+
+/// The rates robobus sets on a pty: the ones Linux has constants for.
+#[cfg(not(any(target_os = "linux", target_os = "android")))]
+const RATES: [u32; 19] = [
+    1200, 2400, 4800, 9600, 19_200, 38_400, 57_600, 115_200, 230_400, 460_800, 500_000, 576_000,
+    921_600, 1_000_000, 1_152_000, 1_500_000, 2_000_000, 3_000_000, 4_000_000,
+];
+
+/// Checks a baud rate against the standard rates 1200..=4000000 (termios holds the number).
+#[cfg(not(any(target_os = "linux", target_os = "android")))]
+fn termios_baud(baud: u32) -> Option<Speed> {
+    RATES.contains(&baud).then_some(baud)
 }
 
 fn errno_io(e: Errno) -> io::Error {
@@ -60,7 +92,7 @@ fn errno_io(e: Errno) -> io::Error {
 }
 
 /// Puts a terminal in raw mode at `baud` (8N1, no flow control, no echo).
-fn make_raw(fd: impl AsFd, baud: BaudRate) -> Result<(), Errno> {
+fn make_raw(fd: impl AsFd, baud: Speed) -> Result<(), Errno> {
     let mut t = termios::tcgetattr(&fd)?;
     termios::cfmakeraw(&mut t);
     termios::cfsetspeed(&mut t, baud)?;
@@ -74,18 +106,47 @@ fn make_raw(fd: impl AsFd, baud: BaudRate) -> Result<(), Errno> {
 pub const WRITE_TIMEOUT: Duration = Duration::from_secs(2);
 
 /// Waits until `fd` is readable or `deadline` passes; returns whether it is readable
-/// (or hung up, which the following read reports). `ppoll` with a nanosecond timeout: no
-/// rounding to the kernel tick, unlike `SO_RCVTIMEO`.
+/// (or hung up, which the following read reports). See [`wait_for`].
 pub(crate) fn wait_readable(fd: impl AsFd, deadline: Instant) -> io::Result<bool> {
     wait_for(fd, PollFlags::POLLIN, deadline)
 }
 
+/// Waits until `fd` is ready for `what` or `deadline` passes; returns whether it is.
+/// `ppoll` with a nanosecond timeout: no rounding to the kernel tick, unlike
+/// `SO_RCVTIMEO`.
+#[cfg(any(target_os = "linux", target_os = "android", target_os = "freebsd"))]
 pub(crate) fn wait_for(fd: impl AsFd, what: PollFlags, deadline: Instant) -> io::Result<bool> {
+    use nix::sys::time::TimeSpec;
     loop {
         let remaining = deadline.saturating_duration_since(Instant::now());
         let mut fds = [PollFd::new(fd.as_fd(), what)];
         match nix::poll::ppoll(&mut fds, Some(TimeSpec::from_duration(remaining)), None) {
             Ok(0) => return Ok(false),
+            Ok(_) => return Ok(true),
+            Err(Errno::EINTR) => {}
+            Err(e) => return Err(errno_io(e)),
+        }
+    }
+}
+
+/// Waits until `fd` is ready for `what` or `deadline` passes; returns whether it is.
+/// Without `ppoll` (macOS): `poll` for the whole milliseconds left (rounded down, so it
+/// never wakes after the deadline), then polls without blocking for the rest under one
+/// millisecond, so the wait ends at the deadline as it does with `ppoll`.
+#[cfg(not(any(target_os = "linux", target_os = "android", target_os = "freebsd")))]
+pub(crate) fn wait_for(fd: impl AsFd, what: PollFlags, deadline: Instant) -> io::Result<bool> {
+    use nix::poll::PollTimeout;
+    loop {
+        let remaining = deadline.saturating_duration_since(Instant::now());
+        let timeout = PollTimeout::try_from(remaining).unwrap_or(PollTimeout::MAX);
+        let mut fds = [PollFd::new(fd.as_fd(), what)];
+        match nix::poll::poll(&mut fds, timeout) {
+            Ok(0) if remaining.is_zero() => return Ok(false),
+            Ok(0) => {
+                if timeout == PollTimeout::ZERO {
+                    std::thread::yield_now();
+                }
+            }
             Ok(_) => return Ok(true),
             Err(Errno::EINTR) => {}
             Err(e) => return Err(errno_io(e)),
@@ -188,8 +249,17 @@ impl PtyPair {
     }
 }
 
-/// Where pty slave devices live; a dangling symlink into here is a stale pty link.
-const PTS_DIR: &str = "/dev/pts/";
+/// Whether `path` names a pty slave device (`/dev/pts/N` on Linux, `/dev/ttysN` on
+/// macOS); a dangling symlink to one is a stale pty link.
+fn is_pty_slave_path(path: &Path) -> bool {
+    if cfg!(any(target_os = "linux", target_os = "android")) {
+        path.starts_with("/dev/pts/")
+    } else {
+        path.to_str()
+            .and_then(|p| p.strip_prefix("/dev/ttys"))
+            .is_some_and(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()))
+    }
+}
 
 /// A symbolic link at a stable path (e.g. `/tmp/wck0`) to a pty slave, owned by this
 /// process: made by [`PtySymlink::create`], removed on drop, but only if it still points to
@@ -197,7 +267,7 @@ const PTS_DIR: &str = "/dev/pts/";
 ///
 /// While it lives, an exclusive `flock` on `PATH.lock` (holding our process ID) marks the
 /// path as served by a live simulator. [`PtySymlink::create`] replaces only a stale link
-/// of its own kind: a dangling symlink into `/dev/pts/`, or a symlink left by a simulator
+/// of its own kind: a dangling symlink to a pty slave (`/dev/pts/N`, macOS `/dev/ttysN`), or a symlink left by a simulator
 /// that is gone (its lock file is still there, but nobody holds it). It refuses, with
 /// [`LinkError::PathInUse`], a path another live simulator serves, a symlink somebody else
 /// made to an existing file, and anything that is not a symlink (a regular file, a
@@ -270,7 +340,7 @@ impl PtySymlink {
                         LinkError::io(format!("reading symlink {}", link.display()), e)
                     })?;
                     let dangling = std::fs::metadata(link).is_err();
-                    let stale_pty = dangling && old.starts_with(PTS_DIR);
+                    let stale_pty = dangling && is_pty_slave_path(&old);
                     // A lock file nobody held: the simulator that made the link is gone.
                     if !(stale_pty || lock_existed) {
                         return Err(in_use(

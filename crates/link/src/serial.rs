@@ -1,11 +1,19 @@
-//! Serial ports (USB-serial adapters, on-board UARTs) through the `serialport` crate, and
-//! the Linux USB-serial `latency_timer`.
+//! Serial ports (USB-serial adapters, on-board UARTs) through the `serialport` crate, on
+//! Linux, macOS and Windows, and the Linux USB-serial `latency_timer`.
 //!
-//! The port is opened 8N1 without flow control, exclusively (TIOCEXCL and an exclusive
-//! `flock`, so a second robobus program gets [`LinkError::Busy`]). Reads return as soon as
-//! any byte is there ("low latency" at this level). On FTDI adapters the chip itself holds
-//! short replies back until its latency timer runs out (16 ms by default on Linux):
-//! [`usb_latency_timer`] reads it and [`set_usb_latency_timer`] lowers it.
+//! The port is opened 8N1 without flow control, exclusively (on Unix TIOCEXCL and an
+//! exclusive `flock`; Windows opens a COM port for one program only), so a second robobus
+//! program gets [`LinkError::Busy`]. Reads return as soon as any byte is there ("low
+//! latency" at this level) and end at their deadline: on Linux `serialport` waits in
+//! `ppoll` (nanoseconds); where the wait counts whole milliseconds (macOS `poll`, Windows'
+//! COM timeouts) the remainder under a millisecond is polled, so a read never ends early.
+//! Windows may end a COM timeout late by up to a tick of its system timer.
+//!
+//! On FTDI adapters the chip itself holds short replies back until its latency timer runs
+//! out (16 ms by default): on Linux [`usb_latency_timer`] reads it from sysfs and
+//! [`set_usb_latency_timer`] lowers it; on other systems it is the driver's setting
+//! ([`LATENCY_TIMER_ADVICE`] says where), and these answer `None` and
+//! [`LinkError::NotAvailable`].
 
 use std::io::{self, Read, Write};
 use std::path::{Path, PathBuf};
@@ -18,10 +26,18 @@ use crate::byte::{ByteLink, LinkError};
 /// How long a write may wait for the port to take the bytes.
 pub const WRITE_TIMEOUT: Duration = Duration::from_secs(2);
 
-/// A serial port opened by path.
+/// The `serialport` type of this system's ports.
+#[cfg(unix)]
+type NativePort = serialport::TTYPort;
+/// The `serialport` type of this system's ports.
+#[cfg(windows)]
+type NativePort = serialport::COMPort;
+
+/// A serial port opened by path (`/dev/ttyUSB0`, `/dev/cu.usbserial-A1`, `COM3`,
+/// `\\.\COM12`).
 #[derive(Debug)]
 pub struct SerialLink {
-    port: serialport::TTYPort,
+    port: NativePort,
     path: PathBuf,
     baud: u32,
 }
@@ -34,6 +50,7 @@ impl SerialLink {
     /// another rate than `baud`, more than 2 % off), or [`LinkError::Io`].
     pub fn open(path: impl AsRef<Path>, baud: u32) -> Result<Self, LinkError> {
         let path = path.as_ref().to_path_buf();
+        #[cfg(unix)]
         match std::fs::metadata(&path) {
             Ok(_) => {}
             Err(e) if e.kind() == io::ErrorKind::NotFound => {
@@ -51,13 +68,15 @@ impl SerialLink {
             });
         }
         let path_str = path.to_string_lossy().into_owned();
-        let port = serialport::new(path_str, baud)
+        let builder = serialport::new(path_str, baud)
             .data_bits(DataBits::Eight)
             .parity(Parity::None)
             .stop_bits(StopBits::One)
             .flow_control(FlowControl::None)
-            .timeout(Duration::from_millis(1))
-            .exclusive(true)
+            .timeout(Duration::from_millis(1));
+        #[cfg(unix)]
+        let builder = builder.exclusive(true);
+        let port = builder
             .open_native()
             .map_err(|e| map_open_error(&path, &e))?;
         let link = Self { port, path, baud };
@@ -87,7 +106,7 @@ impl SerialLink {
     }
 
     /// This port's USB-serial latency timer in milliseconds, if it has one (Linux, FTDI
-    /// and similar adapters).
+    /// and similar adapters; `None` on other systems, where the driver holds it).
     pub fn latency_timer(&self) -> Option<u32> {
         usb_latency_timer(&self.path)
     }
@@ -102,7 +121,18 @@ fn map_open_error(path: &Path, e: &serialport::Error) -> LinkError {
     match e.kind() {
         // serialport reports a held TIOCEXCL / flock as NoDevice ("Unable to acquire
         // exclusive lock", or EBUSY); the path exists (checked before), so it is busy.
+        #[cfg(unix)]
         serialport::ErrorKind::NoDevice => LinkError::Busy { path },
+        // Windows: NoDevice is "not found" and "access denied" alike, and a COM port
+        // another program holds answers "access denied": busy if the system lists it.
+        #[cfg(windows)]
+        serialport::ErrorKind::NoDevice => {
+            if listed_port(&path) {
+                LinkError::Busy { path }
+            } else {
+                LinkError::NoSuchDevice { path }
+            }
+        }
         serialport::ErrorKind::Io(io::ErrorKind::NotFound) => LinkError::NoSuchDevice { path },
         serialport::ErrorKind::Io(io::ErrorKind::PermissionDenied) => {
             LinkError::PermissionDenied { path }
@@ -118,6 +148,30 @@ fn map_open_error(path: &Path, e: &serialport::Error) -> LinkError {
             ),
             io::Error::other(e.description.clone()),
         ),
+    }
+}
+
+/// Whether the system lists the port at `path` (`COM3`, `\\.\COM3`), by name.
+#[cfg(windows)]
+fn listed_port(path: &Path) -> bool {
+    let name = path.to_string_lossy();
+    let name = name.strip_prefix(r"\\.\").unwrap_or(&name);
+    serialport::available_ports()
+        .is_ok_and(|ports| ports.iter().any(|p| p.port_name.eq_ignore_ascii_case(name)))
+}
+
+/// Whether a read's error means the device went away (unplugged).
+fn device_gone(e: &io::Error) -> bool {
+    #[cfg(unix)]
+    {
+        e.raw_os_error() == Some(nix::errno::Errno::EIO as i32)
+    }
+    #[cfg(windows)]
+    {
+        /// `ERROR_BAD_COMMAND` and `ERROR_DEVICE_REMOVED` (winerror.h): what a read of a
+        /// USB-serial port answers once the adapter is unplugged.
+        const GONE: [i32; 2] = [22, 1617];
+        e.raw_os_error().is_some_and(|code| GONE.contains(&code))
     }
 }
 
@@ -166,6 +220,9 @@ impl ByteLink for SerialLink {
                     });
                 }
                 Ok(n) => return Ok(n),
+                // A timeout in whole milliseconds ends before a deadline between them:
+                // the rest is polled (a zero timeout returns at once).
+                Err(e) if e.kind() == io::ErrorKind::TimedOut && Instant::now() < deadline => {}
                 Err(e) if e.kind() == io::ErrorKind::TimedOut => {
                     return Err(LinkError::Timeout {
                         received: 0,
@@ -173,9 +230,9 @@ impl ByteLink for SerialLink {
                     });
                 }
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
-                Err(e) if e.raw_os_error() == Some(nix::errno::Errno::EIO as i32) => {
+                Err(e) if device_gone(&e) => {
                     return Err(LinkError::Closed {
-                        context: format!("{}: device gone (EIO)", self.path.display()),
+                        context: format!("{}: device gone ({e})", self.path.display()),
                     });
                 }
                 Err(e) => return Err(self.io_err("reading from", e)),
@@ -216,17 +273,49 @@ fn baud_close_enough(asked: u32, actual: u32) -> bool {
 /// The sysfs directory where Linux lists USB-serial ports.
 pub const USB_SERIAL_SYSFS: &str = "/sys/bus/usb-serial/devices";
 
+/// Where this system keeps an FTDI-style adapter's latency timer, and how to lower it.
+#[cfg(target_os = "linux")]
+pub const LATENCY_TIMER_ADVICE: &str = "Linux: /sys/bus/usb-serial/devices/<tty>/latency_timer \
+     (robobus sets it with root or a udev rule: ATTR{latency_timer}=\"1\")";
+/// Where this system keeps an FTDI-style adapter's latency timer, and how to lower it.
+#[cfg(windows)]
+pub const LATENCY_TIMER_ADVICE: &str = "Windows: Device Manager, the port's Properties, Port \
+     Settings, Advanced..., Latency Timer (msec): set 1";
+/// Where this system keeps an FTDI-style adapter's latency timer, and how to lower it.
+#[cfg(target_os = "macos")]
+pub const LATENCY_TIMER_ADVICE: &str = "macOS: the driver holds it (FTDI's VCP driver reads \
+     LatencyTimer from its ConfigData; Apple's own driver has no setting)";
+/// Where this system keeps an FTDI-style adapter's latency timer, and how to lower it.
+#[cfg(not(any(target_os = "linux", target_os = "macos", windows)))]
+pub const LATENCY_TIMER_ADVICE: &str = "the serial driver's settings";
+
 /// The latency timer (ms) of the USB-serial adapter behind `path` (Linux, FTDI-style
-/// drivers), or `None` if the device is not a USB-serial port with a latency timer.
-/// Symlinks such as `/dev/serial/by-id/...` are resolved first.
+/// drivers), or `None` if the device is not a USB-serial port with a latency timer, and
+/// always on other systems (their drivers hold it: [`LATENCY_TIMER_ADVICE`]). Symlinks
+/// such as `/dev/serial/by-id/...` are resolved first.
 pub fn usb_latency_timer(path: impl AsRef<Path>) -> Option<u32> {
-    latency_timer_at(Path::new(USB_SERIAL_SYSFS), path.as_ref())
+    if cfg!(target_os = "linux") {
+        latency_timer_at(Path::new(USB_SERIAL_SYSFS), path.as_ref())
+    } else {
+        None
+    }
 }
 
 /// Sets the latency timer (1..=255 ms) of the USB-serial adapter behind `path`. Needs write
-/// access to sysfs (root, or a udev rule).
+/// access to sysfs (root, or a udev rule). Linux only: elsewhere
+/// [`LinkError::NotAvailable`], naming the driver setting to use instead.
 pub fn set_usb_latency_timer(path: impl AsRef<Path>, ms: u32) -> Result<(), LinkError> {
-    set_latency_timer_at(Path::new(USB_SERIAL_SYSFS), path.as_ref(), ms)
+    if cfg!(target_os = "linux") {
+        set_latency_timer_at(Path::new(USB_SERIAL_SYSFS), path.as_ref(), ms)
+    } else {
+        Err(LinkError::NotAvailable {
+            what: format!(
+                "setting the USB latency timer of {} from robobus",
+                path.as_ref().display()
+            ),
+            instead: LATENCY_TIMER_ADVICE.into(),
+        })
+    }
 }
 
 /// The sysfs `latency_timer` file for a device path under a given sysfs directory.
@@ -282,6 +371,7 @@ mod tests {
         assert!(!baud_close_enough(4_800, 0));
     }
 
+    #[cfg(unix)]
     #[test]
     fn latency_timer_resolves_symlinks_and_reads_sysfs() {
         let dir = tempfile::tempdir().unwrap();
@@ -305,6 +395,18 @@ mod tests {
         assert_eq!(latency_timer_at(&sysfs, &dir.path().join("missing")), None);
     }
 
+    #[cfg(not(target_os = "linux"))]
+    #[test]
+    fn the_latency_timer_is_the_drivers_elsewhere() {
+        assert_eq!(usb_latency_timer("COM3"), None);
+        let err = set_usb_latency_timer("COM3", 1).unwrap_err();
+        assert!(
+            matches!(&err, LinkError::NotAvailable { instead, .. } if instead == LATENCY_TIMER_ADVICE),
+            "{err}"
+        );
+    }
+
+    #[cfg(unix)]
     #[test]
     fn missing_device_is_a_clear_error() {
         let err = SerialLink::open("/dev/robobus-no-such-tty", 115_200).unwrap_err();
@@ -315,6 +417,16 @@ mod tests {
         assert!(
             text.contains("/dev/robobus-no-such-tty") && text.contains("plugged in"),
             "{text}"
+        );
+    }
+
+    #[cfg(windows)]
+    #[test]
+    fn a_com_port_the_system_does_not_have_is_no_such_device() {
+        let err = SerialLink::open(r"\\.\COM250", 115_200).unwrap_err();
+        assert!(
+            matches!(&err, LinkError::NoSuchDevice { path } if path == Path::new(r"\\.\COM250")),
+            "{err}"
         );
     }
 }

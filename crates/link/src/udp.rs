@@ -13,6 +13,17 @@
 //! strictly increasing per endpoint, so another endpoint's datagram is never byte-identical
 //! to one of ours in practice; and since each remembered datagram cancels only one echo, a
 //! byte-identical foreign datagram would still be delivered.
+//!
+//! # On each system
+//!
+//! Waits end at their exact deadline. On Unix the non-blocking socket is waited on with
+//! `ppoll` (nanoseconds; macOS: `poll` in whole milliseconds, then a poll without blocking
+//! for the rest, see [`crate::pty`]). Windows has neither: there the socket blocks in a
+//! peek with a read timeout (`SO_RCVTIMEO`, whole milliseconds) until [`WINDOWS_FINE_WAIT`]
+//! before the deadline, since the system timer may end it late by up to a tick, and the
+//! rest is polled without blocking in short sleeps. Windows cannot bind a socket to a
+//! multicast address, so it binds to `0.0.0.0:PORT`: buses on other groups that share the
+//! port are not kept apart there (give each bus its own port).
 
 use std::collections::VecDeque;
 use std::io;
@@ -27,6 +38,12 @@ use crate::pycan;
 
 /// How long a send may wait for room in the socket buffer before it fails.
 const SEND_TIMEOUT: Duration = Duration::from_secs(1);
+/// Windows: the last stretch of a wait that is polled instead of waited in the kernel (a
+/// read timeout may end up to a system timer tick, 15.6 ms by default, late).
+pub const WINDOWS_FINE_WAIT: Duration = Duration::from_millis(16);
+/// Windows: the sleep between two polls of the last stretch.
+#[cfg(windows)]
+const WINDOWS_POLL_SLEEP: Duration = Duration::from_micros(200);
 
 /// python-can's default IPv4 group.
 pub const DEFAULT_GROUP: Ipv4Addr = Ipv4Addr::new(239, 74, 163, 2);
@@ -121,10 +138,17 @@ impl UdpBus {
             .map_err(|e| FrameLinkError::io(ctx("creating socket"), e))?;
         let setup = || -> io::Result<()> {
             socket.set_reuse_address(true)?;
+            #[cfg(unix)]
             socket.set_reuse_port(true)?;
             // Bound to the group address: only this group's datagrams arrive, so buses on
-            // other groups sharing the port stay separate.
-            socket.bind(&SocketAddrV4::new(config.group, config.port).into())?;
+            // other groups sharing the port stay separate (not on Windows, which cannot
+            // bind a multicast address).
+            let bind_to = if cfg!(windows) {
+                Ipv4Addr::UNSPECIFIED
+            } else {
+                config.group
+            };
+            socket.bind(&SocketAddrV4::new(bind_to, config.port).into())?;
             socket.set_multicast_if_v4(&config.interface)?;
             socket.set_multicast_loop_v4(true)?;
             socket.set_multicast_ttl_v4(config.ttl)?;
@@ -232,9 +256,8 @@ impl UdpBus {
                 Ok(_) => return Ok(datagram),
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
                 Err(e) if e.kind() == io::ErrorKind::WouldBlock => {
-                    let writable =
-                        crate::pty::wait_for(&self.socket, nix::poll::PollFlags::POLLOUT, deadline)
-                            .map_err(|e| self.io_error("waiting to send on", e))?;
+                    let writable = wait_writable(&self.socket, deadline)
+                        .map_err(|e| self.io_error("waiting to send on", e))?;
                     if !writable {
                         return Err(self.io_error("sending to", e));
                     }
@@ -253,8 +276,7 @@ impl UdpBus {
         if Instant::now() >= deadline {
             return Ok(false);
         }
-        crate::pty::wait_readable(&self.socket, deadline)
-            .map_err(|e| self.io_error("waiting on", e))
+        wait_readable(&self.socket, deadline).map_err(|e| self.io_error("waiting on", e))
     }
 
     /// Removes `datagram` from the echo memory if it is one of ours.
@@ -264,6 +286,75 @@ impl UdpBus {
             true
         } else {
             false
+        }
+    }
+}
+
+/// Waits until `socket` can send or `deadline` passes; returns whether it can.
+#[cfg(unix)]
+fn wait_writable(socket: &UdpSocket, deadline: Instant) -> io::Result<bool> {
+    crate::pty::wait_for(socket, nix::poll::PollFlags::POLLOUT, deadline)
+}
+
+/// Waits until `socket` has a datagram or `deadline` passes; returns whether it has.
+#[cfg(unix)]
+fn wait_readable(socket: &UdpSocket, deadline: Instant) -> io::Result<bool> {
+    crate::pty::wait_readable(socket, deadline)
+}
+
+/// Waits until `socket` can send or `deadline` passes (Windows: a full send buffer is rare
+/// on UDP; it is retried in short sleeps).
+#[cfg(windows)]
+#[expect(
+    clippy::unnecessary_wraps,
+    reason = "the same signature as the Unix wait, which can fail"
+)]
+fn wait_writable(_socket: &UdpSocket, deadline: Instant) -> io::Result<bool> {
+    let remaining = deadline.saturating_duration_since(Instant::now());
+    std::thread::sleep(remaining.min(WINDOWS_POLL_SLEEP));
+    Ok(Instant::now() < deadline)
+}
+
+/// Waits until `socket` has a datagram or `deadline` passes (Windows; see the [module
+/// notes](self)): blocks in a peek with a read timeout until [`WINDOWS_FINE_WAIT`] before
+/// the deadline, then peeks without blocking in short sleeps until the deadline.
+#[cfg(windows)]
+fn wait_readable(socket: &UdpSocket, deadline: Instant) -> io::Result<bool> {
+    /// `WSAEMSGSIZE`: a datagram larger than the peek's buffer is there.
+    const MSG_SIZE: i32 = 10040;
+    let mut buf = [0u8; 2048];
+    loop {
+        let remaining = deadline.saturating_duration_since(Instant::now());
+        let coarse = remaining.saturating_sub(WINDOWS_FINE_WAIT);
+        // Whole milliseconds, at least one: a zero SO_RCVTIMEO would wait forever.
+        let blocking = coarse >= Duration::from_millis(1);
+        if blocking {
+            socket.set_nonblocking(false)?;
+            socket.set_read_timeout(Some(Duration::from_millis(
+                u64::try_from(coarse.as_millis()).unwrap_or(u64::MAX),
+            )))?;
+        }
+        let peeked = socket.peek(&mut buf);
+        if blocking {
+            socket.set_nonblocking(true)?;
+        }
+        match peeked {
+            Ok(_) => return Ok(true),
+            Err(e) if e.raw_os_error() == Some(MSG_SIZE) => return Ok(true),
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    io::ErrorKind::WouldBlock
+                        | io::ErrorKind::TimedOut
+                        | io::ErrorKind::Interrupted
+                ) => {}
+            Err(e) => return Err(e),
+        }
+        if remaining.is_zero() {
+            return Ok(false);
+        }
+        if !blocking {
+            std::thread::sleep(remaining.min(WINDOWS_POLL_SLEEP));
         }
     }
 }
