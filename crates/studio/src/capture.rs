@@ -1,9 +1,11 @@
 //! The studio's private capture folder: made fresh (never adopted) with an unpredictable
-//! name and mode 0700, its files read without following a symbolic link, and only what
-//! the studio made removed when it stops.
+//! name, only this user's (mode 0700 on Unix; on Windows the ACL it inherits from the
+//! user's own temporary folder, `%LOCALAPPDATA%\Temp`), its files read without following a
+//! symbolic link, and only what the studio made removed when it stops.
 
 use std::fs::File;
 use std::io;
+#[cfg(unix)]
 use std::os::unix::fs::{DirBuilderExt as _, MetadataExt as _};
 use std::path::{Path, PathBuf};
 
@@ -18,8 +20,10 @@ pub struct CaptureDir {
 }
 
 impl CaptureDir {
-    /// Makes `PARENT/robobus-studio-RANDOM` with mode 0700. A name that exists already
-    /// (a folder or a symbolic link someone made) is never used: another name is drawn.
+    /// Makes `PARENT/robobus-studio-RANDOM` with mode 0700 (on Windows: with the ACL of
+    /// `PARENT`, so `PARENT` must be the user's own folder, as [`std::env::temp_dir`] is
+    /// there). A name that exists already (a folder, a symbolic link or a junction someone
+    /// made) is never used: another name is drawn.
     pub fn create(parent: &Path) -> io::Result<Self> {
         let mut last = None;
         for _ in 0..ATTEMPTS {
@@ -35,7 +39,7 @@ impl CaptureDir {
             let path = parent.join(name);
             // `create`, not `create_all`: it fails on anything already there, a symbolic
             // link too, instead of adopting it.
-            match std::fs::DirBuilder::new().mode(0o700).create(&path) {
+            match private_dir_builder().create(&path) {
                 Ok(()) => return Ok(Self { path }),
                 Err(e) if e.kind() == io::ErrorKind::AlreadyExists => last = Some(e),
                 Err(e) => return Err(e),
@@ -77,32 +81,79 @@ impl CaptureDir {
     }
 }
 
+/// A builder of folders only this user can enter: mode 0700.
+#[cfg(unix)]
+fn private_dir_builder() -> std::fs::DirBuilder {
+    let mut builder = std::fs::DirBuilder::new();
+    builder.mode(0o700);
+    builder
+}
+
+/// A builder of folders only this user can enter: the folder inherits the ACL of its
+/// parent, the user's own folder.
+#[cfg(not(unix))]
+fn private_dir_builder() -> std::fs::DirBuilder {
+    std::fs::DirBuilder::new()
+}
+
 /// Opens a capture file for reading, refusing a symbolic link (or anything but a regular
 /// file) in its place: the file opened is the one looked at, checked by its device and
 /// inode after opening.
+#[cfg(unix)]
 pub(crate) fn open_regular(path: &Path) -> io::Result<File> {
     let before = std::fs::symlink_metadata(path)?;
     if !before.is_file() {
-        return Err(io::Error::new(
-            io::ErrorKind::InvalidData,
-            "not a regular file (a symbolic link or another kind of file is not followed)",
-        ));
+        return Err(not_followed());
     }
     let file = File::open(path)?;
     let opened = file.metadata()?;
     if (opened.dev(), opened.ino()) != (before.dev(), before.ino()) {
-        return Err(io::Error::new(
-            io::ErrorKind::InvalidData,
-            "the file was replaced while it was opened (not followed)",
-        ));
+        return Err(replaced());
     }
     Ok(file)
+}
+
+/// Opens a capture file for reading, refusing a symbolic link, a junction (any reparse
+/// point) or anything but a regular file in its place. The file is opened with
+/// `FILE_FLAG_OPEN_REPARSE_POINT`, so a link is opened itself instead of followed, and the
+/// opened handle's own attributes are checked: what is read is what was checked, with no
+/// window between a look by path and the open.
+#[cfg(windows)]
+pub(crate) fn open_regular(path: &Path) -> io::Result<File> {
+    use std::os::windows::fs::{MetadataExt as _, OpenOptionsExt as _};
+    /// `FILE_FLAG_OPEN_REPARSE_POINT` (winbase.h).
+    const OPEN_REPARSE_POINT: u32 = 0x0020_0000;
+    /// `FILE_ATTRIBUTE_REPARSE_POINT` (winnt.h).
+    const ATTRIBUTE_REPARSE_POINT: u32 = 0x0400;
+    let file = std::fs::OpenOptions::new()
+        .read(true)
+        .custom_flags(OPEN_REPARSE_POINT)
+        .open(path)?;
+    let opened = file.metadata()?;
+    if !opened.is_file() || opened.file_attributes() & ATTRIBUTE_REPARSE_POINT != 0 {
+        return Err(not_followed());
+    }
+    Ok(file)
+}
+
+fn not_followed() -> io::Error {
+    io::Error::new(
+        io::ErrorKind::InvalidData,
+        "not a regular file (a symbolic link or another kind of file is not followed)",
+    )
+}
+
+#[cfg(unix)]
+fn replaced() -> io::Error {
+    io::Error::new(
+        io::ErrorKind::InvalidData,
+        "the file was replaced while it was opened (not followed)",
+    )
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::os::unix::fs::PermissionsExt as _;
 
     #[test]
     fn made_private_and_fresh_and_only_its_own_files_removed() {
@@ -110,8 +161,12 @@ mod tests {
         let a = CaptureDir::create(parent.path()).unwrap();
         let b = CaptureDir::create(parent.path()).unwrap();
         assert_ne!(a.path(), b.path());
-        let mode = std::fs::metadata(a.path()).unwrap().permissions().mode();
-        assert_eq!(mode & 0o777, 0o700);
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt as _;
+            let mode = std::fs::metadata(a.path()).unwrap().permissions().mode();
+            assert_eq!(mode & 0o777, 0o700);
+        }
         let mine = a.path().join("sim-wck.log");
         std::fs::write(&mine, "x").unwrap();
         let theirs = a.path().join("theirs");
@@ -128,6 +183,7 @@ mod tests {
         assert!(!dir.exists());
     }
 
+    #[cfg(unix)]
     #[test]
     fn a_symbolic_link_is_not_opened() {
         let parent = tempfile::tempdir().unwrap();
@@ -140,5 +196,14 @@ mod tests {
             io::ErrorKind::InvalidData
         );
         assert!(open_regular(&target).is_ok());
+    }
+
+    #[test]
+    fn a_folder_is_not_opened_a_regular_file_is() {
+        let parent = tempfile::tempdir().unwrap();
+        let file = parent.path().join("capture.log");
+        std::fs::write(&file, "x").unwrap();
+        assert!(open_regular(parent.path()).is_err());
+        assert!(open_regular(&file).is_ok());
     }
 }
