@@ -102,7 +102,7 @@ pub use capture::{
     HexRecord, ReplayByteLink, ReplayFrameLink, read_candump, read_hex_log,
 };
 pub use fault::{FaultConfig, FaultStats, FaultyByteLink, FaultyFrameLink};
-pub use fdcanusb::{FdcanusbConfig, FdcanusbError, FdcanusbLink};
+pub use fdcanusb::{FdcanusbConfig, FdcanusbLink};
 pub use frame_link::{BusErrorKind, FrameLink, FrameLinkError, IdFilter, Received};
 pub use memory::{MemoryBus, MemoryBusEndpoint, MemoryByteLink};
 pub use port::{PortSpec, PortSpecError};

@@ -11,7 +11,7 @@
 //! automatic retransmission, each read back with `conf get`, then `can on` and one
 //! `can status`. Every command must be answered within [`FdcanusbConfig::reply_timeout`];
 //! a silent port, one that answers something that is not the protocol, or a setting the
-//! adapter refuses or does not keep ends the open with an [`FdcanusbError`] that names
+//! adapter refuses or does not keep ends the open with an [`AdapterError`] that names
 //! it, and no frame has been sent.
 //!
 //! Sending writes `can std` (or `can ext`) with the frame's own format flags and waits for
@@ -41,6 +41,7 @@ use self::codec::{
     AUTOMATIC_RETRANSMISSION, BITRATE, BITRATE_SWITCH, Command, DeviceLine, FD_BITRATE,
     FDCAN_FRAME, Line, LineSplitter, Status,
 };
+use crate::adapter::{AdapterError, AdapterErrorKind, escape_bytes};
 use crate::byte::{ByteLink, LinkError};
 use crate::frame_link::{BusErrorKind, FrameLink, FrameLinkError, IdFilter, Received, passes};
 
@@ -95,87 +96,6 @@ impl Default for FdcanusbConfig {
             status_every: DEFAULT_STATUS_EVERY,
         }
     }
-}
-
-/// Why an fdcanusb could not be opened. Nothing was sent on the CAN bus.
-#[derive(Debug, thiserror::Error)]
-pub enum FdcanusbError {
-    /// The port failed (it does not exist, is busy, or closed).
-    #[error("fdcanusb on {port}: {source}")]
-    Port {
-        /// The port.
-        port: String,
-        /// Why.
-        #[source]
-        source: LinkError,
-    },
-    /// Nothing answered a command in time.
-    #[error(
-        "fdcanusb on {port}: no answer to `{command}` within {} ms: is an fdcanusb on this \
-         port, plugged in and powered? (nothing was sent on the CAN bus)",
-        waited.as_millis()
-    )]
-    Silent {
-        /// The port.
-        port: String,
-        /// The command that went unanswered.
-        command: String,
-        /// How long it waited.
-        waited: Duration,
-    },
-    /// Something answered, but not in the fdcanusb protocol.
-    #[error(
-        "fdcanusb on {port}: the answer to `{command}` is not the fdcanusb protocol ({got}): \
-         is the device on this port an fdcanusb? (nothing was sent on the CAN bus)"
-    )]
-    NotFdcanusb {
-        /// The port.
-        port: String,
-        /// The command answered.
-        command: String,
-        /// What came, quoted and cut short.
-        got: String,
-    },
-    /// The adapter refused a command.
-    #[error(
-        "fdcanusb on {port} refused `{command}`: ERR {details} (nothing was sent on the CAN bus)"
-    )]
-    Refused {
-        /// The port.
-        port: String,
-        /// The command refused.
-        command: String,
-        /// The adapter's details.
-        details: String,
-    },
-    /// The adapter cannot take a setting the joints need: it refused it, or kept another
-    /// value.
-    #[error(
-        "fdcanusb on {port} cannot set {setting} to {value}: {answer} (the joints need \
-         {setting} {value}; {allowed}) (nothing was sent on the CAN bus)"
-    )]
-    SettingNotTaken {
-        /// The port.
-        port: String,
-        /// The setting (`can.fd_bitrate`).
-        setting: &'static str,
-        /// The value asked for.
-        value: u32,
-        /// What the adapter answered (`ERR ...`, or the value it kept).
-        answer: String,
-        /// What the adapter allows, as far as it said, or what an fdcanusb allows.
-        allowed: String,
-    },
-    /// A bit rate no fdcanusb has, refused before anything was opened.
-    #[error("{setting} {value} bit/s is out of range for an fdcanusb (allowed: {allowed})")]
-    BadRate {
-        /// The setting.
-        setting: &'static str,
-        /// The value given.
-        value: u32,
-        /// The range.
-        allowed: String,
-    },
 }
 
 /// What an fdcanusb link skipped or dropped while it was used.
@@ -263,6 +183,8 @@ pub struct FdcanusbLink<L: ByteLink> {
     overflowing: bool,
     last_poll: Option<Instant>,
     on: bool,
+    /// The first bytes heard while opening, for messages.
+    heard: Vec<u8>,
     stats: FdcanusbStats,
 }
 
@@ -271,12 +193,12 @@ impl<L: ByteLink> FdcanusbLink<L> {
     /// switches it on the bus. See the [module notes](self).
     ///
     /// # Errors
-    /// [`FdcanusbError`]: a bit rate out of range (nothing was written), a silent port, an
+    /// [`AdapterError`]: a bit rate out of range (nothing was written), a silent port, an
     /// answer that is not the protocol, a refused command or a setting not kept. In every
     /// case no frame has been sent.
-    pub fn open(link: L, port: &str, config: FdcanusbConfig) -> Result<Self, FdcanusbError> {
-        check_rate(BITRATE, config.bitrate, &BITRATE_RANGE)?;
-        check_rate(FD_BITRATE, config.fd_bitrate, &FD_BITRATE_RANGE)?;
+    pub fn open(link: L, port: &str, config: FdcanusbConfig) -> Result<Self, AdapterError> {
+        check_rate(port, BITRATE, config.bitrate, &BITRATE_RANGE)?;
+        check_rate(port, FD_BITRATE, config.fd_bitrate, &FD_BITRATE_RANGE)?;
         let mut this = Self {
             link,
             name: format!("fdcanusb:{port}"),
@@ -295,6 +217,7 @@ impl<L: ByteLink> FdcanusbLink<L> {
             overflowing: false,
             last_poll: None,
             on: false,
+            heard: Vec::new(),
             stats: FdcanusbStats::default(),
         };
         this.link
@@ -306,7 +229,7 @@ impl<L: ByteLink> FdcanusbLink<L> {
     }
 
     /// The open's command sequence.
-    fn configure(&mut self) -> Result<(), FdcanusbError> {
+    fn configure(&mut self) -> Result<(), AdapterError> {
         // An adapter may start on the bus (the firmware's autostart); `ERR` here is one
         // that is off already.
         match self.command(&Command::CanOff, Expect::Final) {
@@ -388,58 +311,75 @@ impl<L: ByteLink> FdcanusbLink<L> {
                 self.apply_status(&s);
                 Ok(())
             }
-            Err(e) => Err(FdcanusbError::NotFdcanusb {
-                port: self.port.clone(),
-                command: "can status".into(),
-                got: e.to_string(),
-            }),
+            Err(e) => Err(self.open_error("can status", Failure::Garbage(e.to_string()))),
         }
     }
 
-    fn not_taken(
-        &self,
-        setting: &'static str,
-        value: u32,
-        answer: String,
-        allowed: &str,
-    ) -> FdcanusbError {
-        FdcanusbError::SettingNotTaken {
-            port: self.port.clone(),
-            setting,
-            value,
-            answer,
-            allowed: allowed.to_owned(),
-        }
+    fn adapter_error(&self, kind: AdapterErrorKind, detail: String) -> AdapterError {
+        AdapterError::new("fdcanusb", self.port.clone(), kind, detail)
     }
 
-    fn port_error(&self, source: LinkError) -> FdcanusbError {
-        FdcanusbError::Port {
-            port: self.port.clone(),
-            source,
-        }
+    fn not_taken(&self, setting: &str, value: u32, answer: String, allowed: &str) -> AdapterError {
+        let kind = if setting == BITRATE || setting == FD_BITRATE {
+            AdapterErrorKind::RateUnsupported
+        } else {
+            AdapterErrorKind::Refused
+        };
+        self.adapter_error(
+            kind,
+            format!(
+                "cannot set {setting} to {value}: {answer} (the joints need {setting} {value}; \
+                 {allowed}); nothing was sent to a joint"
+            ),
+        )
     }
 
-    fn open_error(&self, command: &str, f: Failure) -> FdcanusbError {
-        let port = self.port.clone();
-        let command = command.to_owned();
+    fn port_error(&self, source: LinkError) -> AdapterError {
+        let kind = match source {
+            LinkError::NoSuchDevice { .. } => AdapterErrorKind::NoPort,
+            _ => AdapterErrorKind::Io,
+        };
+        self.adapter_error(kind, source.to_string())
+    }
+
+    fn open_error(&self, command: &str, f: Failure) -> AdapterError {
+        let garbage = |got: String| {
+            self.adapter_error(
+                AdapterErrorKind::Garbage,
+                format!(
+                    "answered `{command}` with {got}, not the fdcanusb protocol: is the device \
+                     on this port an fdcanusb? (nothing was sent to a joint)"
+                ),
+            )
+        };
+        // Silence after part of a line that never ended is an answer in another protocol
+        // (an slcan adapter's BEL, for one).
+        let silent = |waited: Duration| {
+            if self.lines.is_mid_line() && !self.heard.is_empty() {
+                garbage(format!("\"{}\"", escape_bytes(&self.heard, 48)))
+            } else {
+                self.adapter_error(
+                    AdapterErrorKind::NotAnswering,
+                    format!(
+                        "no answer to `{command}` within {} ms: is an fdcanusb on this port, \
+                         plugged in and powered? (nothing was sent to a joint)",
+                        waited.as_millis()
+                    ),
+                )
+            }
+        };
         match f {
-            Failure::Silent(waited) => FdcanusbError::Silent {
-                port,
-                command,
-                waited,
-            },
-            Failure::Refused(details) => FdcanusbError::Refused {
-                port,
-                command,
-                details,
-            },
-            Failure::Garbage(got) => FdcanusbError::NotFdcanusb { port, command, got },
-            Failure::Link(source) => FdcanusbError::Port { port, source },
-            Failure::Busy => FdcanusbError::Silent {
-                port,
-                command,
-                waited: self.config.reply_timeout,
-            },
+            Failure::Silent(waited) => silent(waited),
+            Failure::Busy => silent(self.config.reply_timeout),
+            Failure::Refused(details) => self.adapter_error(
+                AdapterErrorKind::Refused,
+                format!(
+                    "refused `{command}`: ERR {} (nothing was sent to a joint)",
+                    codec::quote(&details)
+                ),
+            ),
+            Failure::Garbage(got) => garbage(got),
+            Failure::Link(source) => self.port_error(source),
         }
     }
 
@@ -458,6 +398,7 @@ impl<L: ByteLink> FdcanusbLink<L> {
     /// meanwhile are handled as they come.
     fn command(&mut self, cmd: &Command, expect: Expect) -> Result<Option<String>, Failure> {
         let line = codec::encode_command(cmd);
+        self.heard.clear();
         self.exchange(line.as_bytes(), expect)
     }
 
@@ -516,6 +457,10 @@ impl<L: ByteLink> FdcanusbLink<L> {
             Err(e) => return Err(Failure::Link(e)),
         };
         let now = SystemTime::now();
+        if self.opening && self.heard.len() < 64 {
+            let room = 64 - self.heard.len();
+            self.heard.extend(buf.iter().take(n.min(room)));
+        }
         let mut lines = core::mem::take(&mut self.lines);
         let mut bad = None;
         lines.feed(buf.get(..n).unwrap_or_default(), |line| {
@@ -736,18 +681,25 @@ impl<L: ByteLink> FdcanusbLink<L> {
 }
 
 fn check_rate(
+    port: &str,
     setting: &'static str,
     value: u32,
     range: &core::ops::RangeInclusive<u32>,
-) -> Result<(), FdcanusbError> {
+) -> Result<(), AdapterError> {
     if range.contains(&value) {
         Ok(())
     } else {
-        Err(FdcanusbError::BadRate {
-            setting,
-            value,
-            allowed: format!("{}..={}", range.start(), range.end()),
-        })
+        Err(AdapterError::new(
+            "fdcanusb",
+            port,
+            AdapterErrorKind::RateUnsupported,
+            format!(
+                "{setting} {value} bit/s is out of range for an fdcanusb (allowed: {}..={}); \
+                 nothing was sent",
+                range.start(),
+                range.end()
+            ),
+        ))
     }
 }
 
