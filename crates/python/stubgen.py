@@ -108,6 +108,7 @@ class Station:
     wck: WckOps
     whj: WhjOps
     robot: RobotOps
+    host: HostOps
     @classmethod
     def simulated(cls) -> Station: ...
     @classmethod
@@ -215,7 +216,7 @@ def stub(schema: dict[str, Any]) -> str:
             "(``check=False``: the report with its row).\"\"\"\n"
         )
     out = [HEAD]
-    for family in ("wck", "whj", "robot"):
+    for family in ("wck", "whj", "robot", "host"):
         out.append(f"\nclass {family.capitalize()}Ops:\n")
         out.extend(sorted(families.get(family, [])))
     return "".join(out)

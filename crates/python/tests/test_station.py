@@ -173,6 +173,7 @@ CALLS: list[tuple[str, tuple[Any, ...], dict[str, Any], dict[str, Any]]] = [
         {"op": "whj.restore", "joint": 2, "settings": WHJ_SETTINGS, "confirm": True},
     ),
     ("robot.sample", (), {}, {"op": "robot.sample"}),
+    ("host.ports", (), {}, {"op": "host.ports"}),
     ("robot.calibrate", (0.2,), {}, {"op": "robot.calibrate", "seconds": 0.2}),
     (
         "robot.play",

@@ -15,7 +15,8 @@ the host safety limits and the confirmation rule decided there, as for the comma
   line's address strings, :func:`open_wck` / :func:`open_whj` for one bus.
 - ``station.run(request)`` returns the request's report as a dict equal to what
   ``robobus run`` prints; ``station.wck.<op>(...)``, ``station.whj.<op>(...)`` and
-  ``station.robot.sample()`` are the same requests with the command line's argument names
+  ``station.robot.sample()`` (and ``station.host.ports()``, the machine's serial ports) are
+  the same requests with the command line's argument names
   as keyword arguments (the required ones may be given in order).
 - ``station.telemetry(request, rate_hz)`` streams a reading request; iterate it.
 - Hot paths take and give numpy arrays: ``station.wck_servos(ids)`` /
@@ -242,6 +243,7 @@ class Station:
         self.wck = _Family(self, "wck")
         self.whj = _Family(self, "whj")
         self.robot = _Family(self, "robot")
+        self.host = _Family(self, "host")
 
     @classmethod
     def simulated(cls) -> "Station":

@@ -84,6 +84,7 @@ class Station:
     wck: WckOps
     whj: WhjOps
     robot: RobotOps
+    host: HostOps
     @classmethod
     def simulated(cls) -> Station: ...
     @classmethod
@@ -681,3 +682,11 @@ class RobotOps:
         check: bool = ...,
     ) -> Report:
         """The request ``robot.teleop``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+
+class HostOps:
+    def ports(
+        self,
+        *,
+        check: bool = ...,
+    ) -> Report:
+        """The request ``host.ports``; a failed device raises its kind's error (``check=False``: the report with its row)."""

@@ -42,6 +42,7 @@ pub fn validate(request: &Request) -> Result<(), OpError> {
             Request::RobotTeach(r) => r.readings().map(drop),
             _ => Ok(()),
         },
+        Family::Host => Ok(()),
     }
 }
 
@@ -66,6 +67,7 @@ pub fn confirmation(request: &Request) -> Result<Option<String>, OpError> {
             }
             _ => None,
         },
+        Family::Host => None,
     })
 }
 
@@ -106,6 +108,9 @@ pub fn plan_at(request: &Request, baud: BaudRate) -> Result<Plan, OpError> {
                 plan.confirm_text = Some(super::teach::TEACH_CONFIRM.to_owned());
             }
             plan
+        }
+        Family::Host => {
+            Plan::notes_only(&op, Family::Host, vec![super::host::PORTS_NOTE.to_owned()])
         }
     })
 }
@@ -247,6 +252,8 @@ pub fn run_with(
             }
             _ => robot_report(station, &op),
         },
+        // Nothing of the station is used: the host's own serial ports.
+        Family::Host => super::host::ports_report(&op),
     }
 }
 

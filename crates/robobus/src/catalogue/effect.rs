@@ -111,7 +111,8 @@ impl Request {
             | Self::WhjDiff(_)
             | Self::WckBackup(_)
             | Self::WckDiff(_)
-            | Self::RobotSample(_) => Effect::Read,
+            | Self::RobotSample(_)
+            | Self::HostPorts(_) => Effect::Read,
             Self::WhjEndBoard(r) => match (r.action, r.volts) {
                 (super::whj::EndBoardAction::Status | super::whj::EndBoardAction::Force, _) => {
                     Effect::Read

@@ -379,6 +379,7 @@ impl Guard {
             Family::Wck => station.wck(bus)?.name().to_owned(),
             Family::Whj => station.whj(bus)?.name().to_owned(),
             Family::Robot => bus.unwrap_or("robot").to_owned(),
+            Family::Host => super::host::HOST.to_owned(),
         })
     }
 }
@@ -538,7 +539,7 @@ fn trip(
                 failed.extend(unreachable);
                 failed
             }),
-            Family::Robot => Ok(Vec::new()),
+            Family::Robot | Family::Host => Ok(Vec::new()),
         };
         match failed {
             Ok(f) => failures.extend(f),

@@ -96,6 +96,11 @@ impl Jogger {
                 "robot",
                 "a jog moves one device: wck or whj",
             )),
+            Family::Host => Err(OpError::invalid(
+                "family",
+                "host",
+                "a jog moves one device: wck or whj",
+            )),
         }
     }
 
@@ -222,7 +227,7 @@ fn soft_limits(station: &Station, family: Family, bus: &str, id: u8) -> Option<(
             };
             (steps(a), steps(b))
         }
-        Family::Robot => return None,
+        Family::Robot | Family::Host => return None,
     };
     Some((a.min(b), a.max(b)))
 }

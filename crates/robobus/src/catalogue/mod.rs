@@ -81,6 +81,7 @@
 //! | `robot.play` | `trajectory` (the CSV text: `time_s`, a column per joint of the robot file, degrees), `rate_hz`=50 (1..=500), `torque`=2 (wCK, 0..=4) | per joint by name: `commands`, `failed`, `start_deg`, `target_deg`, `position_deg`, `tracking_max_deg`, `tracking_rms_deg`; `summary`: `lead_in_s`, `duration_s`, `ticks`, `overruns`, `buses`, `skew_ms` and `late_ms` (`p50`, `p99`, `max`), `interrupted` | - |
 //! | `robot.teach` | `seconds` (0.1..=3600), `rate_hz`=20 (1..=100), `joints` (names; none: all), `hold_ma`=0 (WHJ current while moved by hand, ±2000), `confirm` | per joint by name: `samples`, `failed`, `min_deg`, `max_deg`, `ended` (`holding`); `summary`: `trajectory` (the CSV `robot.play` plays), `points`, `dropped`, `readings`, `interrupted` | limp joints |
 //! | `robot.teleop` | `map` (1..=64 of `leader`, `follower`, `scale`=1 (±10), `offset_deg`=0 (±360), `limits_deg`), `rate_hz`=50 (1..=200), `seconds` (0.1..=86400; none: until stopped), `leader_timeout_ms`=500 (10..=10000), `passive_leader`=true | per follower joint by name: `leader`, `commands`, `limited`, `failed`, `target_deg`, `position_deg`, `tracking_max_deg`, `tracking_rms_deg`; `summary`: `cycles`, `commanded`, `held`, `overruns`, `seconds`, `rate_hz`, `latency_ms` (`p50`, `p99`, `max`), `leaders` (readings, failures), `leader_lost`, `interrupted` | - |
+//! | `host.ports` | - | one row per serial port the OS lists (`id`: `COM3`, `/dev/cu.usbserial-A10K`, `/dev/ttyUSB0`): `kind` (`usb`, `pci`, `bluetooth`, `unknown`), `vid`, `pid`, `manufacturer`, `product`, `serial_number`, `adapter` (recognised: `FTDI FT232R`, `CANable 2.0 (slcan firmware)`, ...), `use_for` (`wCK bus: --port PORT`, `CAN FD adapter: --bus slcan:PORT`), `latency_timer_ms` (Linux), `latency_advice` (this OS's); `summary`: `os`, `ports`, `left_out`, `where`. No port is opened | - |
 //!
 //! # Report
 //!
@@ -101,6 +102,7 @@ pub mod effect;
 pub mod follow;
 pub mod guard;
 pub mod handles;
+pub mod host;
 pub mod jog;
 #[cfg(feature = "sim")]
 pub mod live;
@@ -240,6 +242,8 @@ pub enum Request {
     RobotPlay(play::Play),
     #[serde(rename = "robot.teach")]
     RobotTeach(teach::Teach),
+    #[serde(rename = "host.ports")]
+    HostPorts(host::Ports),
 }
 
 macro_rules! each_variant {
@@ -300,6 +304,8 @@ macro_rules! each_variant {
             | Request::RobotTeleop(_)
             | Request::RobotPlay(_)
             | Request::RobotTeach(_) => None,
+            // A host request names no bus.
+            Request::HostPorts(_) => None,
         }
     };
 }
@@ -344,6 +350,7 @@ impl Request {
             | Self::RobotTeleop(_)
             | Self::RobotPlay(_)
             | Self::RobotTeach(_) => Family::Robot,
+            Self::HostPorts(_) => Family::Host,
             _ => Family::Whj,
         }
     }

@@ -49,6 +49,8 @@ pub enum Family {
     Whj,
     /// A robot file's joints, on the buses of both families it names.
     Robot,
+    /// The host computer itself (its serial ports): no bus.
+    Host,
 }
 
 /// The plan of a request.

@@ -283,6 +283,8 @@ impl Telemetry {
         match request.family() {
             super::Family::Wck => drop(station.wck(request.bus())?),
             super::Family::Whj => drop(station.whj(request.bus())?),
+            // Not a reading request: refused above.
+            super::Family::Host => {}
             super::Family::Robot => {
                 if station.robot().is_none() {
                     return Err(OpError::invalid(
