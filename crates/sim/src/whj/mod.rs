@@ -9,6 +9,8 @@
 //! - [`WhjSimLink`]: the bus as an in-process frame link on a virtual clock (no thread).
 //! - [`serve`]: the same bus on a real frame link (python-can UDP bus, `SocketCAN`) on the
 //!   wall clock; [`Served`] runs it on a thread of its own, [`spawn`] on an in-memory bus.
+//! - [`adapter`]: emulated serial-line CAN FD adapters (slcan) with the joints behind
+//!   them, served to a host program on a byte stream or in process on the virtual clock.
 //! - Options for every rule the vendor documents disagree on: [`JointConfig`]; defaults
 //!   follow the "Sim default" column of §10 of the WHJ joint protocol reference.
 //!
@@ -37,6 +39,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod adapter;
 mod bus;
 mod config;
 mod end_board;
