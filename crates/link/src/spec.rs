@@ -5,6 +5,10 @@
 //! - `udp`: python-can's `udp_multicast` bus on its default group and port
 //!   (239.74.163.2:43113), loopback only;
 //! - `udp:GROUP:PORT`: the same on another multicast group (224.0.0.0/4) and port 1..=65535;
+//! - `slcan:PORT[@BAUD]`: an slcan CAN FD adapter (CANable 2.0 class) on a serial port
+//!   (`/dev/ttyACM0`, `COM8`) or a TCP one (`socket://127.0.0.1:5601`), see
+//!   [`crate::PortSpec`]; `BAUD` is the serial line's rate (default 115200; a USB adapter
+//!   ignores it);
 //! - anything else: a `SocketCAN` interface name (1..=15 characters, no `/`, `:` or space),
 //!   such as `can0` or `vcan0`.
 //!
@@ -21,7 +25,10 @@ use std::fmt;
 use std::net::Ipv4Addr;
 use std::str::FromStr;
 
+use crate::adapter::{AdapterError, AdapterErrorKind};
+use crate::byte::LinkError;
 use crate::frame_link::{FrameLink, FrameLinkError};
+use crate::port::PortSpec;
 
 /// Where a CAN FD bus is: the python-can compatible UDP multicast bus or a `SocketCAN`
 /// interface.
@@ -36,7 +43,20 @@ pub enum FrameLinkSpec {
     },
     /// A `SocketCAN` interface (`can0`, `vcan0`).
     SocketCan(String),
+    /// An slcan CAN FD adapter on a serial or TCP port.
+    Slcan {
+        /// The port.
+        port: PortSpec,
+        /// The serial line's rate (`None`: [`SLCAN_DEFAULT_BAUD`]).
+        baud: Option<u32>,
+    },
 }
+
+/// The serial line rate an slcan adapter is opened at unless `@BAUD` says otherwise
+/// (python-can's default; a USB CDC adapter ignores it).
+pub const SLCAN_DEFAULT_BAUD: u32 = 115_200;
+/// The serial line rates `@BAUD` accepts.
+pub const SLCAN_BAUDS: core::ops::RangeInclusive<u32> = 300..=12_000_000;
 
 /// A bus address that does not parse; the message names the value and the syntax.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -73,6 +93,28 @@ pub enum OpenError {
     /// This kind of bus does not exist on this operating system.
     #[error("{0}")]
     Unsupported(String),
+    /// The port of a serial-line adapter cannot be opened.
+    #[error("opening the adapter's port {port}: {source}")]
+    Port {
+        /// The port as given.
+        port: String,
+        /// Why.
+        source: LinkError,
+    },
+    /// A serial-line adapter that does not answer, answers garbage, refuses its setup or
+    /// cannot be set to the bus's rates.
+    #[error(transparent)]
+    Adapter(#[from] AdapterError),
+}
+
+impl OpenError {
+    /// The adapter failure's kind, for an [`OpenError::Adapter`].
+    pub const fn adapter_kind(&self) -> Option<AdapterErrorKind> {
+        match self {
+            Self::Adapter(e) => Some(e.kind),
+            _ => None,
+        }
+    }
 }
 
 /// python-can's default `udp_multicast` group.
@@ -94,6 +136,7 @@ impl FrameLinkSpec {
         match self {
             Self::Udp { group, port } => format!("udp_multicast {group}:{port}"),
             Self::SocketCan(iface) => format!("SocketCAN {iface}"),
+            Self::Slcan { port, .. } => format!("slcan adapter on {}", port.describe()),
         }
     }
 
@@ -103,6 +146,7 @@ impl FrameLinkSpec {
         match self {
             Self::SocketCan(iface) => iface,
             Self::Udp { .. } => "udp",
+            Self::Slcan { .. } => "slcan",
         }
     }
 
@@ -142,6 +186,18 @@ impl FrameLinkSpec {
             Self::SocketCan(iface) => Err(OpenError::Unsupported(format!(
                 "SocketCAN interface {iface}: SocketCAN exists on Linux only; use --bus udp"
             ))),
+            Self::Slcan { port, baud } => {
+                let name = port.to_string();
+                let link = port
+                    .open(baud.unwrap_or(SLCAN_DEFAULT_BAUD))
+                    .map_err(|source| OpenError::Port {
+                        port: name.clone(),
+                        source,
+                    })?;
+                crate::slcan::SlcanLink::open(link, &name, &crate::slcan::SlcanConfig::default())
+                    .map(|l| Box::new(l) as Box<dyn FrameLink + Send>)
+                    .map_err(OpenError::Adapter)
+            }
         }
     }
 }
@@ -154,6 +210,11 @@ impl fmt::Display for FrameLinkSpec {
             }
             Self::Udp { group, port } => write!(f, "udp:{group}:{port}"),
             Self::SocketCan(iface) => f.write_str(iface),
+            Self::Slcan { port, baud: None } => write!(f, "slcan:{port}"),
+            Self::Slcan {
+                port,
+                baud: Some(baud),
+            } => write!(f, "slcan:{port}@{baud}"),
         }
     }
 }
@@ -192,15 +253,51 @@ impl FromStr for FrameLinkSpec {
             }
             return Ok(Self::Udp { group, port });
         }
+        if let Some(rest) = s.strip_prefix("slcan:") {
+            return parse_slcan(rest).map_err(err);
+        }
         if s.is_empty() || s.len() > 15 || s.contains(['/', ' ', ':']) {
             return Err(err(
-                "expected udp, udp:GROUP:PORT, or a SocketCAN interface name such as vcan0 \
-                 (1..=15 characters, no '/', ':' or space)"
+                "expected udp, udp:GROUP:PORT, slcan:PORT[@BAUD] (an slcan adapter such as \
+                 slcan:/dev/ttyACM0 or slcan:COM8), or a SocketCAN interface name such as \
+                 vcan0 (1..=15 characters, no '/', ':' or space)"
                     .into(),
             ));
         }
         Ok(Self::SocketCan(s.to_owned()))
     }
+}
+
+/// `PORT[@BAUD]` of `slcan:PORT[@BAUD]`.
+fn parse_slcan(rest: &str) -> Result<FrameLinkSpec, String> {
+    let (port, baud) = match rest.rsplit_once('@') {
+        Some((port, baud)) => {
+            let baud = baud
+                .parse::<u32>()
+                .ok()
+                .filter(|b| SLCAN_BAUDS.contains(b))
+                .ok_or_else(|| {
+                    format!(
+                        "serial rate {:?} is not a number in {}..={} (slcan:PORT[@BAUD], e.g. \
+                         slcan:/dev/ttyACM0@115200)",
+                        short(baud),
+                        SLCAN_BAUDS.start(),
+                        SLCAN_BAUDS.end()
+                    )
+                })?;
+            (port, Some(baud))
+        }
+        None => (rest, None),
+    };
+    if port.is_empty() {
+        return Err(
+            "expected slcan:PORT[@BAUD], e.g. slcan:/dev/ttyACM0, slcan:COM8 or \
+                    slcan:socket://127.0.0.1:5601"
+                .into(),
+        );
+    }
+    let port = port.parse::<PortSpec>().map_err(|e| e.to_string())?;
+    Ok(FrameLinkSpec::Slcan { port, baud })
 }
 
 /// At most 32 characters of a user's text, for messages.
@@ -236,6 +333,52 @@ mod tests {
         assert!(e.to_string().len() < 300);
         for s in ["udp", "udp:239.1.2.3:5000", "can0"] {
             assert_eq!(s.parse::<FrameLinkSpec>().unwrap().to_string(), s);
+        }
+    }
+
+    #[test]
+    fn slcan_addresses_parse_print_back_and_bad_ones_name_the_syntax() {
+        assert_eq!(
+            "slcan:/dev/ttyACM0".parse(),
+            Ok(FrameLinkSpec::Slcan {
+                port: PortSpec::Device("/dev/ttyACM0".into()),
+                baud: None
+            })
+        );
+        assert_eq!(
+            "slcan:COM8@921600".parse(),
+            Ok(FrameLinkSpec::Slcan {
+                port: PortSpec::Com(8),
+                baud: Some(921_600)
+            })
+        );
+        for s in [
+            "slcan:/dev/ttyACM0",
+            "slcan:COM8",
+            "slcan:COM8@921600",
+            "slcan:socket://127.0.0.1:5601",
+            "slcan:socket://127.0.0.1:5601@115200",
+        ] {
+            let spec = s.parse::<FrameLinkSpec>().unwrap();
+            assert_eq!(spec.to_string(), s);
+            assert_eq!(spec.candump_iface(), "slcan");
+        }
+        assert_eq!(
+            "slcan:COM8".parse::<FrameLinkSpec>().unwrap().describe(),
+            "slcan adapter on serial port COM8"
+        );
+        for (bad, says) in [
+            ("slcan:", "expected slcan:PORT[@BAUD]"),
+            (
+                "slcan:COM8@fast",
+                "serial rate \"fast\" is not a number in 300..=12000000",
+            ),
+            ("slcan:COM8@0", "is not a number in 300..=12000000"),
+            ("slcan:socket://127.0.0.1", "port \"socket://127.0.0.1\""),
+            ("foo:/dev/ttyACM0", "slcan:PORT[@BAUD]"),
+        ] {
+            let e = bad.parse::<FrameLinkSpec>().unwrap_err().to_string();
+            assert!(e.contains(says), "{bad}: {e}");
         }
     }
 }

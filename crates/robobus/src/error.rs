@@ -82,9 +82,19 @@ pub fn link_error_kind(e: &LinkError) -> ErrorKind {
 /// The kind of a bus that cannot be opened ([`robobus_link::FrameLinkSpec::open`]): a
 /// kernel without SocketCAN (or an OS without the bus) is [`ErrorKind::NotAvailable`], an
 /// interface that is missing or unusable [`ErrorKind::NoDevice`], a UDP bus that cannot be
-/// joined [`ErrorKind::Link`].
-pub const fn open_error_kind(e: &OpenError) -> ErrorKind {
+/// joined [`ErrorKind::Link`]; a serial-line adapter's port as its link error says, an
+/// adapter that is silent or answers garbage [`ErrorKind::NoDevice`], a rate it cannot be
+/// set to [`ErrorKind::BadInput`], a refused setup [`ErrorKind::Device`].
+pub fn open_error_kind(e: &OpenError) -> ErrorKind {
+    use robobus_link::AdapterErrorKind as A;
     match e {
+        OpenError::Port { source, .. } => link_error_kind(source),
+        OpenError::Adapter(a) => match a.kind {
+            A::NoPort | A::NotAnswering | A::Garbage => ErrorKind::NoDevice,
+            A::RateUnsupported => ErrorKind::BadInput,
+            A::Refused => ErrorKind::Device,
+            A::Io => ErrorKind::Link,
+        },
         OpenError::NoInterface {
             source: FrameLinkError::NoCanSupport { .. },
             ..
