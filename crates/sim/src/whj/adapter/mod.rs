@@ -30,6 +30,7 @@
 //! cost 60 + 20n µs each way. USB's 1 ms frame and the host controller's polling are not
 //! modelled: the wire plus this serial time is the best a real adapter gives.
 
+pub mod fdcanusb;
 pub mod slcan;
 
 use core::time::Duration;
@@ -41,6 +42,7 @@ use robobus_link::{ByteLink, FrameLink, FrameLinkError, LinkError};
 use robobus_whj::CanFrame;
 use robobus_whj::timing::BitRates;
 
+pub use self::fdcanusb::FdcanusbAdapter;
 pub use self::slcan::SlcanAdapter;
 use super::bus::WhjBus;
 use super::link::{WhjSimHandle, WhjSimLink};
