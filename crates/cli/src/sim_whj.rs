@@ -3,16 +3,22 @@
 //!
 //! `--bus udp` joins python-can's `udp_multicast` bus (group 239.74.163.2, port 43113) on
 //! the loopback interface; `--bus udp:GROUP:PORT` picks another group; any other value is
-//! a `SocketCAN` interface (`vcan0`, `can0`; Linux only).
+//! a `SocketCAN` interface (`vcan0`, `can0`; Linux only). `--bus slcan:PATH` presents an
+//! emulated slcan CAN FD adapter (CANable 2.0 class) with the joints behind it on a pty
+//! at PATH, `--bus slcan:socket://127.0.0.1:PORT` on TCP (every OS): clients open it as
+//! they open a real adapter (`--bus slcan:PATH`, python-can's `slcan` interface).
 
 use std::time::Duration;
 
 use anyhow::Context;
 use robobus::ops::IdList;
 use robobus::ops::capture::{Overwrite, capture_frame_link};
-use robobus_link::{FaultyFrameLink, FrameLinkSpec};
+use robobus_link::{FaultyFrameLink, FrameLink, FrameLinkSpec, PortSpec, TcpServer};
+#[cfg(unix)]
+use robobus_link::{LinkError, PtyOptions, PtyPair, PtySymlink};
 use robobus_sim::faults::{DeviceFaultKind, FaultSchedule};
-use robobus_sim::whj::{JointConfig, WhjBus, WhjModel, serve_observed};
+use robobus_sim::whj::adapter::{self, AdapterModel, SerialTime, SlcanAdapter};
+use robobus_sim::whj::{JointConfig, WhjBus, WhjModel, WhjSimLink, serve_observed};
 use robobus_whj::JointId;
 
 use crate::exit::usage;
@@ -28,7 +34,13 @@ Faults: --drop / --corrupt / --duplicate / --truncate / --delay / --disconnect-a
 on every frame (both directions) through the link layer's seeded fault injector: the same
 --fault-seed and the same traffic give the same faults. --fault-error, --fault-silent and
 --fault-power-cycle act on one joint at a time, SECONDS after serving starts (repeat them
-for more).";
+for more).
+
+slcan: with --bus slcan:PATH the joints sit behind an emulated slcan adapter whose
+channel the client opens and sets to its rates (S / Y commands); --bitrate / --dbitrate
+are then the adapter's rates at power-up, which it must be able to take (nominal 10k..1M,
+data 2M or 5M). Every character costs 10 µs each way on the adapter's serial link, as on
+a USB full-speed adapter, on top of the CAN wire time.";
 
 /// Options of `robobus sim whj`.
 #[derive(Debug, clap::Args)]
@@ -45,8 +57,9 @@ pub(crate) struct Args {
     /// overwritten.
     #[arg(long, value_name = "FILE")]
     capture: Option<std::path::PathBuf>,
-    /// The bus: `udp` (python-can `udp_multicast`, 239.74.163.2:43113), `udp:GROUP:PORT`, or
-    /// a `SocketCAN` interface such as `vcan0`.
+    /// The bus: `udp` (python-can `udp_multicast`, 239.74.163.2:43113), `udp:GROUP:PORT`,
+    /// a `SocketCAN` interface such as `vcan0`, or `slcan:PATH` / `slcan:socket://IP:PORT`
+    /// (an emulated slcan adapter on a pty at PATH or on TCP).
     #[arg(long, default_value = "udp", value_parser = parse_bus)]
     bus: FrameLinkSpec,
     /// Seed of the simulated measurement noise (same seed, same noise).
@@ -241,6 +254,14 @@ pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
     });
     let rates = robobus::ops::whj::rates::check_rates(args.bitrate, args.dbitrate)
         .map_err(|e| usage(e.to_string()))?;
+    if matches!(args.bus, FrameLinkSpec::Slcan { .. }) {
+        SlcanAdapter::check_rates(rates).map_err(|e| {
+            usage(format!(
+                "--bitrate / --dbitrate with --bus {}: {e}",
+                args.bus
+            ))
+        })?;
+    }
     let mut bus = WhjBus::with_configs(configs, args.seed).with_rates(rates);
     if args.end_board {
         bus = bus.with_end_board();
@@ -261,6 +282,18 @@ pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
             }
         ))?;
         return Ok(());
+    }
+    if let FrameLinkSpec::Slcan { port, .. } = &args.bus {
+        let adapter = SlcanAdapter::new(rates, SerialTime::default());
+        return serve_adapter(
+            args,
+            bus,
+            Box::new(adapter),
+            port,
+            wire_faults,
+            device,
+            &hands,
+        );
     }
     let mut link = args.bus.open()?;
     if let Some(faults) = wire_faults {
@@ -309,6 +342,144 @@ pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
         stats.received,
         stats.sent,
         stats.max_lateness.as_micros()
+    );
+    Ok(())
+}
+
+/// Where an emulated adapter meets its host: a pty at a path, or a TCP listener.
+fn adapter_host(port: &PortSpec, bus: &FrameLinkSpec) -> anyhow::Result<AdapterHost> {
+    match port {
+        #[cfg(unix)]
+        PortSpec::Device(path) => {
+            let pair =
+                PtyPair::open(&PtyOptions::default()).context("creating the pseudo-terminal")?;
+            let slave_path = pair.slave_path.clone();
+            // The master keeps its own slave descriptor; clients open the path.
+            drop(pair.slave);
+            let symlink = PtySymlink::create(path, &slave_path).map_err(|e| match e {
+                LinkError::PathInUse { .. } => usage(format!("--bus {bus}: {e}")),
+                e => anyhow::Error::new(e),
+            })?;
+            Ok(AdapterHost::Pty {
+                master: pair.master,
+                _symlink: symlink,
+            })
+        }
+        #[cfg(not(unix))]
+        PortSpec::Device(_) => Err(crate::exit::NotAvailable(format!(
+            "--bus {bus}: this system has no pseudo-terminals; serve the adapter over TCP \
+             with --bus slcan:socket://127.0.0.1:PORT"
+        ))
+        .into()),
+        PortSpec::Com(_) => Err(usage(format!(
+            "--bus {bus}: a simulator presents its adapter on a pty path (slcan:/tmp/robobus-slcan) \
+             or on TCP (slcan:socket://127.0.0.1:PORT), not on a COM port"
+        ))),
+        PortSpec::Tcp { host, port: tcp } => {
+            let ip: std::net::IpAddr = host.parse().map_err(|_| {
+                usage(format!(
+                    "--bus {bus}: the simulator listens on an IP address of this machine \
+                     (socket://127.0.0.1:PORT), not {host:?}"
+                ))
+            })?;
+            let server = TcpServer::bind(std::net::SocketAddr::new(ip, *tcp), 115_200)
+                .with_context(|| format!("listening on {host}:{tcp}"))?;
+            Ok(AdapterHost::Tcp(server))
+        }
+    }
+}
+
+/// The byte stream an emulated adapter serves its host on.
+enum AdapterHost {
+    /// A pty master and the symlink clients open.
+    #[cfg(unix)]
+    Pty {
+        /// The pty master.
+        master: robobus_link::PtyLink,
+        /// Removed when dropped (if it still points to this pty).
+        _symlink: PtySymlink,
+    },
+    /// A TCP listener serving one client at a time.
+    Tcp(TcpServer),
+}
+
+/// Serves the joints of `bus` behind the emulated `adapter` on `port` until Ctrl-C.
+fn serve_adapter(
+    args: &Args,
+    bus: WhjBus,
+    mut adapter: Box<dyn AdapterModel>,
+    port: &PortSpec,
+    wire_faults: Option<robobus_link::FaultConfig>,
+    device: Vec<robobus_sim::faults::DeviceFault>,
+    hands: &[Hand],
+) -> anyhow::Result<()> {
+    let (sim, handle) = WhjSimLink::with_faults(bus, FaultSchedule::new(device));
+    let mut link: Box<dyn FrameLink + Send> = Box::new(sim);
+    if let Some(faults) = wire_faults {
+        link = Box::new(FaultyFrameLink::new(link, faults));
+    }
+    if let Some(path) = &args.capture {
+        link = Box::new(capture_frame_link(
+            link,
+            path,
+            args.bus.candump_iface(),
+            Overwrite::No,
+        )?);
+    }
+    let mut host = adapter_host(port, &args.bus)?;
+    let token = crate::interrupt::stop_token();
+    let stop = token.flag();
+    let ids: Vec<String> = args.joints.0.iter().map(u8::to_string).collect();
+    let announce = || {
+        eprintln!(
+            "robobus sim whj: serving {} joint(s) [{}] ({}) on {}; Ctrl-C to stop",
+            ids.len(),
+            ids.join(","),
+            args.model,
+            args.bus.describe()
+        );
+    };
+    let t0 = std::time::Instant::now();
+    let observe = |bus: &mut WhjBus| {
+        let t = t0.elapsed().as_secs_f64();
+        for h in hands {
+            if let Some(j) = bus.joint_mut(h.id) {
+                j.set_hand(Some(h.angle(t)));
+            }
+        }
+    };
+    let served = match &mut host {
+        #[cfg(unix)]
+        AdapterHost::Pty { master, .. } => adapter::run(
+            &mut *adapter,
+            master,
+            &mut *link,
+            &handle,
+            stop,
+            announce,
+            observe,
+        ),
+        AdapterHost::Tcp(server) => adapter::run(
+            &mut *adapter,
+            server,
+            &mut *link,
+            &handle,
+            stop,
+            announce,
+            observe,
+        ),
+    };
+    let stats = served.context("serving the emulated adapter")?;
+    // The symlink goes with the pty, after serving.
+    drop(host);
+    eprintln!(
+        "robobus sim whj: stopped after {:.3} s: {} bytes in, {} bytes out, {} frames to the \
+         joints, {} frames from them",
+        t0.elapsed().as_secs_f64(),
+        stats.host_bytes_in,
+        stats.host_bytes_out,
+        stats.frames_to_bus,
+        stats.frames_from_bus
     );
     Ok(())
 }
