@@ -9,6 +9,8 @@
 //!   (`/dev/ttyACM0`, `COM8`) or a TCP one (`socket://127.0.0.1:5601`), see
 //!   [`crate::PortSpec`]; `BAUD` is the serial line's rate (default 115200; a USB adapter
 //!   ignores it);
+//! - `fdcanusb:PORT`: mjbots' fdcanusb (its text line protocol over USB CDC) on a serial
+//!   port or a TCP one, the same port forms;
 //! - anything else: a `SocketCAN` interface name (1..=15 characters, no `/`, `:` or space),
 //!   such as `can0` or `vcan0`.
 //!
@@ -50,7 +52,15 @@ pub enum FrameLinkSpec {
         /// The serial line's rate (`None`: [`SLCAN_DEFAULT_BAUD`]).
         baud: Option<u32>,
     },
+    /// mjbots' fdcanusb on a serial or TCP port.
+    Fdcanusb {
+        /// The port.
+        port: PortSpec,
+    },
 }
+
+/// The serial line rate an fdcanusb's port is opened at (its USB CDC port ignores it).
+pub const FDCANUSB_BAUD: u32 = 115_200;
 
 /// The serial line rate an slcan adapter is opened at unless `@BAUD` says otherwise
 /// (python-can's default; a USB CDC adapter ignores it).
@@ -137,6 +147,7 @@ impl FrameLinkSpec {
             Self::Udp { group, port } => format!("udp_multicast {group}:{port}"),
             Self::SocketCan(iface) => format!("SocketCAN {iface}"),
             Self::Slcan { port, .. } => format!("slcan adapter on {}", port.describe()),
+            Self::Fdcanusb { port } => format!("fdcanusb on {}", port.describe()),
         }
     }
 
@@ -147,6 +158,7 @@ impl FrameLinkSpec {
             Self::SocketCan(iface) => iface,
             Self::Udp { .. } => "udp",
             Self::Slcan { .. } => "slcan",
+            Self::Fdcanusb { .. } => "fdcanusb",
         }
     }
 
@@ -198,6 +210,20 @@ impl FrameLinkSpec {
                     .map(|l| Box::new(l) as Box<dyn FrameLink + Send>)
                     .map_err(OpenError::Adapter)
             }
+            Self::Fdcanusb { port } => {
+                let name = port.to_string();
+                let link = port.open(FDCANUSB_BAUD).map_err(|source| OpenError::Port {
+                    port: name.clone(),
+                    source,
+                })?;
+                crate::fdcanusb::FdcanusbLink::open(
+                    link,
+                    &name,
+                    crate::fdcanusb::FdcanusbConfig::default(),
+                )
+                .map(|l| Box::new(l) as Box<dyn FrameLink + Send>)
+                .map_err(OpenError::Adapter)
+            }
         }
     }
 }
@@ -215,6 +241,7 @@ impl fmt::Display for FrameLinkSpec {
                 port,
                 baud: Some(baud),
             } => write!(f, "slcan:{port}@{baud}"),
+            Self::Fdcanusb { port } => write!(f, "fdcanusb:{port}"),
         }
     }
 }
@@ -256,11 +283,20 @@ impl FromStr for FrameLinkSpec {
         if let Some(rest) = s.strip_prefix("slcan:") {
             return parse_slcan(rest).map_err(err);
         }
+        if let Some(port) = s.strip_prefix("fdcanusb:") {
+            if port.is_empty() {
+                return Err(err("expected fdcanusb:PORT, e.g. fdcanusb:/dev/ttyACM0, \
+                                fdcanusb:COM8 or fdcanusb:socket://127.0.0.1:5602"
+                    .into()));
+            }
+            let port = port.parse::<PortSpec>().map_err(|e| err(e.to_string()))?;
+            return Ok(Self::Fdcanusb { port });
+        }
         if s.is_empty() || s.len() > 15 || s.contains(['/', ' ', ':']) {
             return Err(err(
-                "expected udp, udp:GROUP:PORT, slcan:PORT[@BAUD] (an slcan adapter such as \
-                 slcan:/dev/ttyACM0 or slcan:COM8), or a SocketCAN interface name such as \
-                 vcan0 (1..=15 characters, no '/', ':' or space)"
+                "expected udp, udp:GROUP:PORT, slcan:PORT[@BAUD] or fdcanusb:PORT (e.g. \
+                 slcan:COM8, fdcanusb:/dev/ttyACM0), or a SocketCAN interface such as vcan0 \
+                 (1..=15 characters, no '/', ':' or space)"
                     .into(),
             ));
         }
@@ -376,6 +412,43 @@ mod tests {
             ("slcan:COM8@0", "is not a number in 300..=12000000"),
             ("slcan:socket://127.0.0.1", "port \"socket://127.0.0.1\""),
             ("foo:/dev/ttyACM0", "slcan:PORT[@BAUD]"),
+        ] {
+            let e = bad.parse::<FrameLinkSpec>().unwrap_err().to_string();
+            assert!(e.contains(says), "{bad}: {e}");
+        }
+    }
+
+    #[test]
+    fn fdcanusb_addresses_parse_print_back_and_bad_ones_name_the_syntax() {
+        assert_eq!(
+            "fdcanusb:/dev/ttyACM0".parse(),
+            Ok(FrameLinkSpec::Fdcanusb {
+                port: PortSpec::Device("/dev/ttyACM0".into()),
+            })
+        );
+        assert_eq!(
+            "fdcanusb:COM8".parse(),
+            Ok(FrameLinkSpec::Fdcanusb {
+                port: PortSpec::Com(8)
+            })
+        );
+        for s in [
+            "fdcanusb:/dev/ttyACM0",
+            "fdcanusb:COM8",
+            "fdcanusb:socket://127.0.0.1:5602",
+        ] {
+            let spec = s.parse::<FrameLinkSpec>().unwrap();
+            assert_eq!(spec.to_string(), s);
+            assert_eq!(spec.candump_iface(), "fdcanusb");
+        }
+        assert_eq!(
+            "fdcanusb:COM8".parse::<FrameLinkSpec>().unwrap().describe(),
+            "fdcanusb on serial port COM8"
+        );
+        for (bad, says) in [
+            ("fdcanusb:", "expected fdcanusb:PORT"),
+            ("fdcanusb:socket://127.0.0.1", "port \"socket://127.0.0.1\""),
+            ("fdcan:/dev/ttyACM0", "or fdcanusb:PORT (e.g."),
         ] {
             let e = bad.parse::<FrameLinkSpec>().unwrap_err().to_string();
             assert!(e.contains(says), "{bad}: {e}");
