@@ -1,11 +1,15 @@
-//! `robobus sim wck`: simulated wCK servos behind a pseudo-terminal.
+//! `robobus sim wck`: simulated wCK servos behind a pseudo-terminal, or over TCP
+//! (`--listen`, pyserial's `socket://HOST:PORT`, on every OS).
 //!
-//! Prints the path clients open (the `--link` symlink if given, else the pty slave) as the
-//! only line on stdout once the simulated servos listen (past the manual's 65 ms of
-//! deafness after power-up, unless `--power-up-on-open`), then serves until SIGINT /
-//! SIGTERM, and removes the symlink if it still points to its own pty.
+//! Prints what clients open (the `--link` symlink if given, else the pty slave; with
+//! `--listen`, `socket://HOST:PORT` with the port chosen) as the only line on stdout once
+//! the simulated servos listen (past the manual's 65 ms of deafness after power-up, unless
+//! `--power-up-on-open`), then serves until SIGINT / SIGTERM, and removes the symlink if it
+//! still points to its own pty.
 
 use std::io::Write as _;
+use std::net::SocketAddr;
+#[cfg(unix)]
 use std::os::fd::AsFd as _;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -15,9 +19,9 @@ use std::ops::RangeInclusive;
 
 use anyhow::Context as _;
 use robobus::ops::capture::{Overwrite, capture_device_byte_link};
-use robobus_link::{
-    ByteLink, FaultConfig, FaultyByteLink, LinkError, PtyLink, PtyOptions, PtyPair, PtySymlink,
-};
+use robobus_link::{ByteLink, FaultConfig, FaultyByteLink, PortSpec, TcpServer, WaitMode};
+#[cfg(unix)]
+use robobus_link::{LinkError, PtyLink, PtyOptions, PtyPair, PtySymlink};
 use robobus_sim::faults::{DeviceFault, DeviceFaultKind, FaultSchedule};
 use robobus_sim::wck::{Bus, BusConfig, Eeprom, Endpoint, Model, Timing};
 use robobus_wck::{BaudRate, ExtServoId};
@@ -41,6 +45,15 @@ when it sets DTR / RTS on open), but setting ser.dtr or ser.rts later, or readin
 ser.cts / ser.dsr, raises OSError. Programs that insist on the modem lines when opening
 cannot use it: .NET / mono System.IO.Ports (SerialPort.Open sets DTR and RTS) fails.
 Such programs need a real serial port (a USB-serial adapter wired to the servos).
+
+--listen IP:PORT serves the bus over TCP instead (every OS; the only way where there are
+no ptys, as on Windows): clients name it socket://IP:PORT (robobus --port, pyserial's
+serial.serial_for_url). Port 0 picks a free port; the line printed says which. Exactly
+the address given is listened on: 127.0.0.1 keeps it on this machine, anything else lets
+other machines drive the simulated servos. One client is served at a time, as one
+program has a serial port open; a connection made while one is served is closed at once,
+and the next is served once the client leaves (a port closed and opened again). A TCP
+stream has no line rate: the wire runs at --baud, with the same timing as on the pty.
 
 Faults: --drop / --flip / --duplicate / --truncate / --delay / --disconnect-after act on
 the wire (both directions) through the link layer's seeded fault injector: the same
@@ -66,8 +79,13 @@ pub(crate) struct Args {
     /// Also make this symlink to the pty (removed on exit if it still points to it). Only
     /// a stale link of a simulator is replaced; a file or another live simulator's link
     /// there is an error (exit 2).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "listen")]
     link: Option<PathBuf>,
+    /// Serve over TCP on this address instead of a pty, e.g. `127.0.0.1:5600` (port 0
+    /// picks a free one; the printed `socket://` line names it). Only the address given is
+    /// listened on.
+    #[arg(long, value_name = "IP:PORT")]
+    listen: Option<String>,
     /// Record every byte the simulated servos receive and send to FILE (a timestamped hex
     /// log from the servos' side; `robobus replay FILE` decodes it). An existing FILE is
     /// not overwritten.
@@ -252,25 +270,81 @@ fn duration_of(name: &str, value: f64, unit: f64) -> anyhow::Result<Duration> {
 }
 
 /// What a dry run prints: the bus it would serve; nothing is opened.
-fn print_dry_run(args: &Args, ids: &[u8]) -> anyhow::Result<()> {
-    // A dry run opens nothing: no pty, no link, no EEPROM file written.
+fn print_dry_run(args: &Args, ids: &[u8], listen: Option<SocketAddr>) -> anyhow::Result<()> {
+    // A dry run opens nothing: no pty, no socket, no link, no EEPROM file written.
     let ids: Vec<String> = ids.iter().map(u8::to_string).collect();
+    let on = listen.map_or_else(
+        || {
+            format!(
+                "a new pty{}",
+                args.link
+                    .as_ref()
+                    .map(|l| format!(" linked from {}", l.display()))
+                    .unwrap_or_default()
+            )
+        },
+        |addr| format!("TCP {addr}"),
+    );
     crate::output::print(&format!(
-        "# would serve {} simulated wCK {} servo(s) [{}] at {} bit/s on a new pty{}; \
+        "# would serve {} simulated wCK {} servo(s) [{}] at {} bit/s on {on}; \
          nothing opened\n",
         ids.len(),
         args.model,
         ids.join(","),
         args.baud,
-        args.link
-            .as_ref()
-            .map(|l| format!(" linked from {}", l.display()))
-            .unwrap_or_default()
     ))
+}
+
+/// Reads `--listen`: `IP:PORT` (or `socket://IP:PORT`), an IPv6 address in brackets.
+fn parse_listen(value: &str) -> anyhow::Result<SocketAddr> {
+    let text = value
+        .strip_prefix("socket://")
+        .or_else(|| value.strip_prefix("SOCKET://"))
+        .unwrap_or(value);
+    text.parse().map_err(|_| {
+        usage(format!(
+            "--listen {:?}: expected IP:PORT, e.g. 127.0.0.1:5600 (an IPv6 address in \
+             brackets, [::1]:5600; port 0..=65535, 0 picks a free port)",
+            crate::exit::cut_long(value)
+        ))
+    })
+}
+
+/// Wraps `link` in the wire faults and the capture when asked for.
+fn wrap_link(
+    link: Box<dyn ByteLink + Send>,
+    wire_faults: Option<FaultConfig>,
+    capture: Option<&std::path::Path>,
+) -> anyhow::Result<Box<dyn ByteLink + Send>> {
+    let mut link = link;
+    if let Some(faults) = wire_faults {
+        link = Box::new(FaultyByteLink::new(link, faults));
+    }
+    if let Some(path) = capture {
+        link = Box::new(capture_device_byte_link(link, path, Overwrite::No)?);
+    }
+    Ok(link)
+}
+
+/// Starts the thread that serves `bus` over TCP, through the wire faults and the capture
+/// when asked for.
+fn spawn_tcp_endpoint(
+    bus: Bus,
+    server: TcpServer,
+    wire_faults: Option<FaultConfig>,
+    capture: Option<&std::path::Path>,
+) -> anyhow::Result<Endpoint> {
+    if wire_faults.is_none() && capture.is_none() {
+        return Ok(Endpoint::spawn_tcp(bus, server, WaitMode::Sleep)?);
+    }
+    let port = server.port_spec();
+    let link = wrap_link(Box::new(server), wire_faults, capture)?;
+    Ok(Endpoint::spawn_at(bus, link, None, port, WaitMode::Sleep)?)
 }
 
 /// Starts the thread that serves `bus` on the pty master, through the wire faults and the
 /// capture when asked for.
+#[cfg(unix)]
 fn spawn_endpoint(
     bus: Bus,
     master: PtyLink,
@@ -284,13 +358,7 @@ fn spawn_endpoint(
             // Wire faults through the link layer's seeded fault injector, both directions;
             // the capture sees what the simulated servos received and sent.
             let termios = master.as_fd().try_clone_to_owned()?;
-            let mut link: Box<dyn ByteLink + Send> = Box::new(master);
-            if let Some(faults) = faults {
-                link = Box::new(FaultyByteLink::new(link, faults));
-            }
-            if let Some(path) = capture {
-                link = Box::new(capture_device_byte_link(link, path, Overwrite::No)?);
-            }
+            let link = wrap_link(Box::new(master), faults, capture)?;
             Endpoint::spawn_link(bus, link, Some(termios), slave_path.to_path_buf())?
         }
     })
@@ -324,6 +392,7 @@ pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
         .iter()
         .map(|h| Hand::parse(h, &ids, 135.0))
         .collect::<anyhow::Result<Vec<_>>>()?;
+    let listen = args.listen.as_deref().map(parse_listen).transpose()?;
     if let Some(link) = &args.link {
         check_link_path(link)?;
     }
@@ -345,11 +414,104 @@ pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
         bus.advance(timing.power_up_deaf);
     }
     let opened_at = bus.now();
-    let mut schedule = FaultSchedule::new(device).shifted(opened_at);
+    let schedule = FaultSchedule::new(device).shifted(opened_at);
 
     if dry_run {
-        return print_dry_run(args, &ids);
+        return print_dry_run(args, &ids, listen);
     }
+    let served = Served {
+        ids: &ids,
+        model,
+        opened_at,
+    };
+    match listen {
+        Some(addr) => serve_tcp(args, bus, addr, (wire_faults, schedule, &hands), &served),
+        None => serve_pty(args, bus, (wire_faults, schedule, &hands), &served),
+    }
+}
+
+/// What both ways of serving print and need.
+struct Served<'a> {
+    ids: &'a [u8],
+    model: Model,
+    opened_at: Duration,
+}
+
+/// The wire faults, the device-fault schedule and the hands.
+type Extras<'a> = (Option<FaultConfig>, FaultSchedule, &'a [Hand]);
+
+/// Serves over TCP on `addr` until interrupted.
+fn serve_tcp(
+    args: &Args,
+    bus: Bus,
+    addr: SocketAddr,
+    (wire_faults, mut schedule, hands): Extras<'_>,
+    served: &Served<'_>,
+) -> anyhow::Result<()> {
+    let server = TcpServer::bind(addr, args.baud).map_err(|e| match &e {
+        robobus_link::LinkError::Io { source, .. }
+            if matches!(
+                source.kind(),
+                std::io::ErrorKind::AddrInUse | std::io::ErrorKind::AddrNotAvailable
+            ) =>
+        {
+            usage(format!(
+                "--listen {addr}: {source} (pick another port, 0 for a free one, or an \
+                 address of this machine such as 127.0.0.1)"
+            ))
+        }
+        _ => anyhow::Error::new(e),
+    })?;
+    let port: PortSpec = server.port_spec();
+    let endpoint = spawn_tcp_endpoint(bus, server, wire_faults, args.capture.as_deref())
+        .context("starting the simulator thread")?;
+    let token = crate::interrupt::stop_token();
+    let stop = token.flag();
+    let mut out = std::io::stdout().lock();
+    writeln!(out, "{port}")?;
+    out.flush()?;
+    drop(out);
+    let reach = if addr.ip().is_loopback() {
+        ""
+    } else {
+        " (not loopback: other machines can reach it)"
+    };
+    eprintln!(
+        "robobus sim wck: {} x {} (IDs {}) at {} bit/s on {port}{reach}, one client at a \
+         time; Ctrl-C stops",
+        served.ids.len(),
+        served.model,
+        args.servos,
+        args.baud,
+    );
+    serve_until_stopped(&endpoint, &mut schedule, hands, served.opened_at, stop);
+    finish(args, endpoint, || {})
+}
+
+/// Serves on a new pty until interrupted.
+#[cfg(not(unix))]
+fn serve_pty(
+    _args: &Args,
+    _bus: Bus,
+    _extras: Extras<'_>,
+    _served: &Served<'_>,
+) -> anyhow::Result<()> {
+    Err(anyhow::Error::new(crate::exit::NotAvailable(
+        "this system has no pseudo-terminals: serve over TCP with --listen 127.0.0.1:5600 \
+         and name the port socket://127.0.0.1:5600"
+            .into(),
+    )))
+}
+
+/// Serves on a new pty until interrupted.
+#[cfg(unix)]
+fn serve_pty(
+    args: &Args,
+    bus: Bus,
+    (wire_faults, mut schedule, hands): Extras<'_>,
+    served: &Served<'_>,
+) -> anyhow::Result<()> {
+    let (ids, model, opened_at) = (served.ids, served.model, served.opened_at);
     let pair = PtyPair::open(&PtyOptions {
         baud: args.baud,
         symlink: None,
@@ -395,7 +557,14 @@ pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
         slave_path.display(),
     );
 
-    serve_until_stopped(&endpoint, &mut schedule, &hands, opened_at, stop);
+    serve_until_stopped(&endpoint, &mut schedule, hands, opened_at, stop);
+    // After the pty is closed; removed only if it still points to our pty.
+    finish(args, endpoint, move || drop(symlink))
+}
+
+/// Stops the endpoint, saves the EEPROM file and reports; `after_close` runs once the
+/// link is closed.
+fn finish(args: &Args, endpoint: Endpoint, after_close: impl FnOnce()) -> anyhow::Result<()> {
     // The serving thread may be inside an injected delay (--delay-ms up to 10 s): Ctrl-C
     // is answered within STOP_WAIT all the same; the process then ends without it.
     let (tx, rx) = std::sync::mpsc::channel();
@@ -404,8 +573,7 @@ pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
         let _ = tx.send((eeproms, endpoint.stop()));
     });
     let stopped = rx.recv_timeout(STOP_WAIT);
-    // After the pty is closed; removed only if it still points to our pty.
-    drop(symlink);
+    after_close();
     let Ok((eeproms, stats)) = stopped else {
         eprintln!(
             "robobus sim wck: stopped while an injected delay was pending (after {} ms); \
@@ -518,7 +686,7 @@ fn report(stats: &robobus_sim::wck::EndpointStats) {
 
 /// Refuses a `--link` path that is plainly not ours before anything is opened: a regular
 /// file, a directory, a device (the full check, against live simulators too, is
-/// [`PtySymlink::create`]).
+/// `PtySymlink::create`).
 fn check_link_path(link: &std::path::Path) -> anyhow::Result<()> {
     match std::fs::symlink_metadata(link) {
         Ok(meta) if !meta.file_type().is_symlink() => {

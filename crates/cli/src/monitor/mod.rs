@@ -67,8 +67,13 @@ pub(crate) struct Args {
     /// two requests per joint.
     #[arg(long, requires = "bus")]
     broadcast: bool,
-    /// A wCK serial port (with --servos).
-    #[arg(long, value_name = "PATH", conflicts_with_all = ["sim", "robot"])]
+    /// A wCK port (with --servos): a serial device, COMn, or socket://HOST:PORT.
+    #[arg(
+        long,
+        value_name = "PORT",
+        value_parser = crate::wck::parse_port::<PathBuf>,
+        conflicts_with_all = ["sim", "robot"]
+    )]
     port: Option<PathBuf>,
     /// wCK servo IDs to watch, e.g. `0-15`.
     #[arg(long, default_value = "0-15", value_parser = parse_ids_0_30)]

@@ -47,9 +47,11 @@ Commands marked (EEPROM) rewrite the servo's non-volatile memory.";
 #[derive(Debug, clap::Args)]
 #[command(after_help = AFTER_HELP)]
 pub(crate) struct Args {
-    /// Serial port of the wCK bus, e.g. /dev/ttyUSB0 or the path `robobus sim wck` printed.
-    /// Required unless --dry-run is given or the subcommand needs no device.
-    #[arg(long, value_name = "PATH", global = true)]
+    /// Port of the wCK bus: a serial device (/dev/ttyUSB0, /dev/cu.usbserial-A1), a
+    /// Windows port (COM3, COM12), or what `robobus sim wck` printed (a pty path, or
+    /// socket://127.0.0.1:5600 with --listen). Required unless --dry-run is given or the
+    /// subcommand needs no device.
+    #[arg(long, value_name = "PORT", value_parser = parse_port::<String>, global = true)]
     pub(super) port: Option<String>,
     /// Baud rate the servos are set to: 4800, 9600, 38400, 57600, 115200, 230400, 460800 or
     /// 921600.
@@ -555,6 +557,14 @@ pub(crate) fn parse_margin(s: &str) -> Result<core::time::Duration, String> {
             "{s:?} is not a reply margin: whole milliseconds, 0..=10000"
         )),
     }
+}
+
+/// Checks a `--port` value ([`robobus_link::PortSpec`]: a device path, `COMn`,
+/// `socket://HOST:PORT`) and keeps it as given; a bad one names the value and the forms.
+pub(crate) fn parse_port<T: for<'a> From<&'a str>>(s: &str) -> Result<T, String> {
+    s.parse::<robobus_link::PortSpec>()
+        .map(|_| T::from(s))
+        .map_err(|e| format!("{e}; a port is {}", robobus_link::port::PORT_SYNTAX))
 }
 
 /// Parses a baud rate in bit/s.

@@ -26,7 +26,7 @@ use crate::{output, report};
 mod args;
 mod teach;
 
-pub(crate) use args::{Args, OnStop, parse_baud, parse_margin, parse_u32};
+pub(crate) use args::{Args, OnStop, parse_baud, parse_margin, parse_port, parse_u32};
 use args::{Direction, GetParam, KeepArg, ProgramCommand, ServoIds, SetParam, WckCommand};
 
 /// `wck tune` as text: the table of responses and the best set, or the tie; the traces
@@ -128,7 +128,8 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     }
     let Some(port) = args.port.as_deref() else {
         return Err(usage(
-            "robobus wck: --port PATH is required (e.g. --port /dev/ttyUSB0), unless --dry-run is given",
+            "robobus wck: --port PORT is required (e.g. --port /dev/ttyUSB0, --port COM3 or \
+             --port socket://127.0.0.1:5600), unless --dry-run is given",
         ));
     };
     // Validated (and confirmed) before anything is opened.

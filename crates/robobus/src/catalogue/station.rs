@@ -681,7 +681,6 @@ fn open_whj_capture(
 
 /// Opens the wCK port `port` at `baud` as [`Station::open`] does, optionally logging
 /// every byte written and read to `capture` (an existing file is refused).
-#[cfg(unix)]
 pub fn open_wck_port(
     port: &str,
     baud: BaudRate,
@@ -703,7 +702,6 @@ fn open_wck_limited(
     )
 }
 
-#[cfg(unix)]
 fn open_wck_capture(
     port: &str,
     baud: BaudRate,
@@ -716,27 +714,4 @@ fn open_wck_capture(
             capture_byte_link_limited(l, path, overwrite, limit).map(|l| Box::new(l) as DynByteLink)
         }),
     }
-}
-
-#[cfg(not(unix))]
-fn open_wck_capture(
-    port: &str,
-    _baud: BaudRate,
-    _capture: Option<(&Path, Overwrite, u64)>,
-) -> Result<WckBus<DynByteLink>, OpError> {
-    Err(OpError::NotAvailable(format!(
-        "{port}: serial ports need a Unix host"
-    )))
-}
-
-/// Not on this host: serial ports need a Unix host.
-#[cfg(not(unix))]
-pub fn open_wck_port(
-    port: &str,
-    _baud: BaudRate,
-    _capture: Option<&Path>,
-) -> Result<WckBus<DynByteLink>, OpError> {
-    Err(OpError::NotAvailable(format!(
-        "{port}: serial ports need a Unix host"
-    )))
 }

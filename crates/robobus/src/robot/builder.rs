@@ -254,7 +254,6 @@ fn build_joint(
 /// `kind`) for a WHJ bus.
 pub fn open_wck_bus(name: &str, bus: &BusConfig) -> Result<WckBus<DynByteLink>, RobotError> {
     match bus {
-        #[cfg(unix)]
         BusConfig::Wck { port, baud, .. } => {
             let rate = BaudRate::from_bits_per_second(*baud).map_err(|e| RobotError::Invalid {
                 item: format!("bus {name}"),

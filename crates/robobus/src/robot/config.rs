@@ -507,6 +507,20 @@ impl RobotConfig {
                 }
                 _ => None,
             };
+            if let BusConfig::Wck { port, .. } = bus
+                && names_something(port)
+                && let Err(e) = port.parse::<robobus_link::PortSpec>()
+            {
+                return Err(Box::new((
+                    Site::Bus(name.clone(), "port"),
+                    RobotError::Invalid {
+                        item: format!("bus {name}"),
+                        field: "port",
+                        value: format!("{:?}", e.value),
+                        expected: format!("{} ({})", robobus_link::port::PORT_SYNTAX, e.reason),
+                    },
+                )));
+            }
             if let Some((field, value)) = empty {
                 return Err(Box::new((
                     Site::Bus(name.clone(), field),

@@ -5,7 +5,7 @@ use core::time::Duration;
 use std::path::Path;
 use std::time::Instant;
 
-use robobus_link::{ByteLink, WaitMode};
+use robobus_link::{ByteLink, LinkError, PortSpec, WaitMode};
 use robobus_wck::{
     BaudRate, Command, DataByte, ExtServoId, Position, Position10, Reply, ServoId, SyncMove,
     TorqueLevel, timing,
@@ -171,39 +171,129 @@ pub struct WckBus<L> {
     quiet_until: Option<Instant>,
 }
 
-#[cfg(unix)]
-impl WckBus<robobus_link::SerialLink> {
-    /// Opens the serial port at `path` (a USB adapter, or the pty of the simulator:
-    /// `robobus sim wck`) at `baud`.
+/// Added to the reply margin when [`WckBus::open`] opens a TCP address
+/// (`socket://HOST:PORT`): whatever answers there is a process, as behind a pty
+/// ([`PTY_MARGIN`]), and a local network adds well under a millisecond. A link over a
+/// slower network needs a larger [`WckConfig::margin`].
+pub const TCP_MARGIN: Duration = PTY_MARGIN;
+
+/// The link [`WckBus::open`] opens: whatever the port address names (a serial port, a
+/// pty, a TCP connection), named by it.
+pub struct PortLink {
+    link: Box<dyn ByteLink + Send>,
+    port: PortSpec,
+}
+
+impl PortLink {
+    /// Opens `port` at `baud` (see [`PortSpec::open`]).
+    ///
+    /// # Errors
+    /// What [`PortSpec::open`] reports.
+    pub fn open(port: &PortSpec, baud: u32) -> Result<Self, LinkError> {
+        Ok(Self {
+            link: port.open(baud)?,
+            port: port.clone(),
+        })
+    }
+
+    /// The address it was opened by.
+    pub const fn port(&self) -> &PortSpec {
+        &self.port
+    }
+}
+
+impl core::fmt::Debug for PortLink {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("PortLink")
+            .field("port", &self.port)
+            .finish_non_exhaustive()
+    }
+}
+
+impl ByteLink for PortLink {
+    fn write_all(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
+        self.link.write_all(bytes)
+    }
+    fn read_some(&mut self, buf: &mut [u8], deadline: Instant) -> Result<usize, LinkError> {
+        self.link.read_some(buf, deadline)
+    }
+    fn read_exact(&mut self, buf: &mut [u8], deadline: Instant) -> Result<(), LinkError> {
+        self.link.read_exact(buf, deadline)
+    }
+    fn discard_input(&mut self) -> Result<(), LinkError> {
+        self.link.discard_input()
+    }
+    robobus_link::forward_byte_link_rate_and_clock!(link);
+}
+
+impl WckBus<PortLink> {
+    /// Opens the port `port` names at `baud`: a serial device (a USB adapter, the pty of
+    /// the simulator `robobus sim wck`), a Windows COM port (`COM12`), or a simulator
+    /// over TCP (`socket://127.0.0.1:5600`); see [`PortSpec`].
     ///
     /// If the port is a USB-serial adapter whose latency timer can be read (FTDI on
     /// Linux), the timer is added to the reply margin: such an adapter holds short
     /// replies that long (16 ms by default). If it is a pseudo-terminal (the simulator),
-    /// [`PTY_MARGIN`] is added instead.
-    pub fn open(path: impl AsRef<Path>, baud: BaudRate) -> Result<Self, WckError> {
-        let path = path.as_ref();
-        let device = path.display().to_string();
+    /// [`PTY_MARGIN`] is added instead; over TCP, [`TCP_MARGIN`].
+    ///
+    /// # Errors
+    /// [`WckError::Link`] naming the port: an address that does not parse
+    /// ([`LinkError::BadPort`], nothing opened), or what opening it reports.
+    pub fn open(port: impl AsRef<Path>, baud: BaudRate) -> Result<Self, WckError> {
+        let port = port.as_ref();
+        let spec = PortSpec::from_os(port.as_os_str()).map_err(|e| WckError::Link {
+            device: port.display().to_string(),
+            command: "open",
+            source: e.into(),
+        })?;
+        Self::open_port(&spec, baud)
+    }
+
+    /// [`WckBus::open`] with the address parsed.
+    ///
+    /// # Errors
+    /// [`WckError::Link`] naming the port.
+    pub fn open_port(port: &PortSpec, baud: BaudRate) -> Result<Self, WckError> {
+        let device = port.to_string();
         let link =
-            robobus_link::SerialLink::open(path, baud.bits_per_second()).map_err(|source| {
-                WckError::Link {
-                    device: device.clone(),
-                    command: "open",
-                    source,
-                }
+            PortLink::open(port, baud.bits_per_second()).map_err(|source| WckError::Link {
+                device: device.clone(),
+                command: "open",
+                source,
             })?;
-        let latency = link.latency_timer().unwrap_or(0);
         let mut bus = Self::new(link, baud)?.with_device_name(device);
-        bus.config.margin += Duration::from_millis(u64::from(latency));
-        if is_pty(path) {
-            bus.config.margin += PTY_MARGIN;
-        }
+        bus.config.margin += port_margin(port);
         Ok(bus)
     }
 }
 
-/// Whether `path` is a pseudo-terminal's slave (Linux's Unix 98 ptys: character devices
-/// with major numbers 136..=143).
+/// What a port adds to the reply margin: an adapter's latency timer, [`PTY_MARGIN`] for
+/// a pty, [`TCP_MARGIN`] for TCP.
+fn port_margin(port: &PortSpec) -> Duration {
+    match port {
+        PortSpec::Tcp { .. } => TCP_MARGIN,
+        PortSpec::Device(path) if is_pty(path) => PTY_MARGIN,
+        PortSpec::Device(path) => latency_timer(path),
+        PortSpec::Com(_) => Duration::ZERO,
+    }
+}
+
 #[cfg(unix)]
+fn latency_timer(path: &Path) -> Duration {
+    Duration::from_millis(u64::from(
+        robobus_link::usb_latency_timer(path).unwrap_or(0),
+    ))
+}
+
+#[cfg(not(unix))]
+const fn latency_timer(_path: &Path) -> Duration {
+    Duration::ZERO
+}
+
+/// Whether `path` is a pseudo-terminal's slave: on Linux a character device with a Unix
+/// 98 pty major number (136..=143); on macOS `/dev/ttysNNN` (symlinks resolved); on
+/// other Unix systems a device under `/dev/pts/`.
+#[cfg(target_os = "linux")]
 fn is_pty(path: &Path) -> bool {
     use std::os::unix::fs::{FileTypeExt as _, MetadataExt as _};
     std::fs::metadata(path).is_ok_and(|m| {
@@ -211,6 +301,27 @@ fn is_pty(path: &Path) -> bool {
         let major = ((rdev >> 8) & 0xfff) | ((rdev >> 32) & !0xfff);
         m.file_type().is_char_device() && (136..=143).contains(&major)
     })
+}
+
+#[cfg(all(unix, not(target_os = "linux")))]
+fn is_pty(path: &Path) -> bool {
+    use std::os::unix::fs::FileTypeExt as _;
+    let Ok(real) = std::fs::canonicalize(path) else {
+        return false;
+    };
+    let is_char = std::fs::metadata(&real).is_ok_and(|m| m.file_type().is_char_device());
+    let macos_slave = real
+        .strip_prefix("/dev")
+        .ok()
+        .and_then(|p| p.to_str())
+        .and_then(|name| name.strip_prefix("ttys"))
+        .is_some_and(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()));
+    is_char && (macos_slave || real.starts_with("/dev/pts/"))
+}
+
+#[cfg(not(unix))]
+const fn is_pty(_path: &Path) -> bool {
+    false
 }
 
 impl<L: ByteLink> WckBus<L> {

@@ -1,10 +1,13 @@
-//! The wCK bus behind a pseudo-terminal, on the wall clock (Linux).
+//! The wCK bus behind a pseudo-terminal (Unix) or a TCP listener (every OS), on the wall
+//! clock.
 //!
-//! One thread owns the [`Bus`] and the pty master. It reads what a client writes to the
-//! slave side, stamps each chunk with its arrival time and puts it on the simulated wire
-//! at the client's baud rate (read from the pty's termios, which Linux shares between
-//! master and slave, so a client's `tcsetattr` is seen here and a mismatch garbles the
-//! bytes as on a real bus). It writes each reply byte to the master the moment its stop
+//! One thread owns the [`Bus`] and the pty master (or the [`TcpServer`]). It reads what a
+//! client writes to the slave side (or the socket), stamps each chunk with its arrival
+//! time and puts it on the simulated wire at the client's baud rate (on a pty, read from
+//! its termios, which the kernel shares between master and slave, so a client's
+//! `tcsetattr` is seen here and a mismatch garbles the bytes as on a real bus; over TCP
+//! there is no line rate to set, and the wire runs at the bus's host rate, the
+//! simulator's `--baud`). It writes each reply byte to the master the moment its stop
 //! bit would leave the wire, sleeping in `ppoll` with a 1 µs timer slack until then.
 //! Input is taken from the pty no faster than the wire carries it (a few milliseconds
 //! ahead at most), so a client that floods the port blocks in its write, as on a real
@@ -14,9 +17,14 @@
 //! command and for each reply byte, not for every byte a module receives.
 //! Other threads reach the bus through [`Endpoint::with_bus`] (a small command queue),
 //! so the test API (push, hold, set the A/D input, power-cycle) works while it serves.
+//!
+//! Over TCP ([`spawn_tcp`]) the timing model is the same; the listener serves one client
+//! at a time and the next once it leaves, as a port closed and opened again (see
+//! [`TcpServer`]); reply bytes due while no client is connected are dropped.
 
 use core::time::Duration;
-use std::os::fd::{AsFd, OwnedFd};
+#[cfg(unix)]
+use std::os::fd::AsFd;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -24,8 +32,11 @@ use std::sync::mpsc;
 use std::thread::JoinHandle;
 use std::time::Instant;
 
+#[cfg(unix)]
 use robobus_link::pty::termios_speed;
-use robobus_link::{ByteLink, LinkError, PtyLink, PtyOptions, PtyPair, WaitMode, wait};
+use robobus_link::{ByteLink, LinkError, PortSpec, TcpServer, WaitMode, wait};
+#[cfg(unix)]
+use robobus_link::{PtyLink, PtyOptions, PtyPair};
 
 use super::bus::Bus;
 use crate::lateness::{Lateness, LatenessSummary};
@@ -78,6 +89,16 @@ pub enum EndpointError {
 
 type Job = Box<dyn FnOnce(&mut Bus) + Send>;
 
+/// A descriptor of the pty whose termios holds the client's baud rate (see
+/// [`Endpoint::spawn_link`]).
+#[cfg(unix)]
+pub type TermiosFd = std::os::fd::OwnedFd;
+
+/// Without ptys there is no termios to follow: no value of this type exists.
+#[cfg(not(unix))]
+#[derive(Debug)]
+pub enum TermiosFd {}
+
 /// A simulated bus served on a pty by a background thread. Dropping it stops the thread.
 #[derive(Debug)]
 pub struct Endpoint {
@@ -85,12 +106,14 @@ pub struct Endpoint {
     jobs: mpsc::Sender<Job>,
     thread: Option<JoinHandle<Result<EndpointStats, EndpointError>>>,
     path: PathBuf,
+    port: PortSpec,
 }
 
 impl Endpoint {
     /// Serves `bus` on the master side of a pty (from `robobus_link::PtyPair`); `path` is
     /// what clients open (the slave device or its symlink), kept for [`Endpoint::path`].
     /// Simulation time continues from the bus's current time.
+    #[cfg(unix)]
     pub fn spawn(bus: Bus, master: PtyLink, path: PathBuf) -> std::io::Result<Self> {
         let termios = master.as_fd().try_clone_to_owned()?;
         Self::spawn_link(bus, master, Some(termios), path)
@@ -103,7 +126,7 @@ impl Endpoint {
     pub fn spawn_link<L: ByteLink + Send + 'static>(
         bus: Bus,
         link: L,
-        termios: Option<OwnedFd>,
+        termios: Option<TermiosFd>,
         path: PathBuf,
     ) -> std::io::Result<Self> {
         Self::spawn_waiting(bus, link, termios, path, WaitMode::Sleep)
@@ -117,10 +140,35 @@ impl Endpoint {
     pub fn spawn_waiting<L: ByteLink + Send + 'static>(
         bus: Bus,
         link: L,
-        termios: Option<OwnedFd>,
+        termios: Option<TermiosFd>,
         path: PathBuf,
         wait: WaitMode,
     ) -> std::io::Result<Self> {
+        Self::spawn_at(bus, link, termios, PortSpec::Device(path), wait)
+    }
+
+    /// Serves `bus` on a [`TcpServer`] (one client at a time; the wire runs at the bus's
+    /// host rate). [`Endpoint::path`] and [`Endpoint::port`] are then its
+    /// `socket://HOST:PORT` address.
+    pub fn spawn_tcp(bus: Bus, server: TcpServer, wait: WaitMode) -> std::io::Result<Self> {
+        let port = server.port_spec();
+        Self::spawn_at(bus, server, None, port, wait)
+    }
+
+    /// Serves `bus` on any byte link that clients reach at `port`: a pty master (with the
+    /// `termios` descriptor whose baud rate the client sets), or a [`TcpServer`] wrapped in
+    /// a fault injector or a capture (`termios` `None`: the bus's host rate applies).
+    pub fn spawn_at<L: ByteLink + Send + 'static>(
+        bus: Bus,
+        link: L,
+        termios: Option<TermiosFd>,
+        port: PortSpec,
+        wait: WaitMode,
+    ) -> std::io::Result<Self> {
+        let path = match &port {
+            PortSpec::Device(path) => path.clone(),
+            other => PathBuf::from(other.to_string()),
+        };
         let stop = Arc::new(AtomicBool::new(false));
         let (jobs, rx) = mpsc::channel::<Job>();
         let flag = Arc::clone(&stop);
@@ -132,12 +180,19 @@ impl Endpoint {
             jobs,
             thread: Some(thread),
             path,
+            port,
         })
     }
 
-    /// The path clients open.
+    /// The path clients open: the pty's slave device (or its symlink), or over TCP the
+    /// `socket://HOST:PORT` address as text (which `WckBus::open` takes as it is).
     pub fn path(&self) -> &Path {
         &self.path
+    }
+
+    /// What clients name to reach it (`--port`): the pty's path, or `socket://HOST:PORT`.
+    pub const fn port(&self) -> &PortSpec {
+        &self.port
     }
 
     /// Whether the serving thread is still running.
@@ -188,6 +243,7 @@ impl Drop for Endpoint {
 /// time: the modules are deaf for the first 65 ms after power-up.
 ///
 /// Errors: the pty cannot be opened or the thread cannot be started.
+#[cfg(unix)]
 pub fn spawn(bus: Bus) -> Result<(Endpoint, PtyLink), LinkError> {
     spawn_waiting(bus, WaitMode::Sleep)
 }
@@ -195,6 +251,7 @@ pub fn spawn(bus: Bus) -> Result<(Endpoint, PtyLink), LinkError> {
 /// [`spawn`], the serving thread waiting in `wait` (see [`Endpoint::spawn_waiting`]).
 ///
 /// Errors: the pty cannot be opened or the thread cannot be started.
+#[cfg(unix)]
 pub fn spawn_waiting(bus: Bus, wait: WaitMode) -> Result<(Endpoint, PtyLink), LinkError> {
     let pair = PtyPair::open(&PtyOptions::default())?;
     let termios = pair
@@ -207,7 +264,24 @@ pub fn spawn_waiting(bus: Bus, wait: WaitMode) -> Result<(Endpoint, PtyLink), Li
     Ok((endpoint, pair.slave))
 }
 
+/// Serves `bus` over TCP on `addr` (`127.0.0.1:0` picks a free port; the endpoint's
+/// [`Endpoint::port`] names it), the serving thread waiting in `wait`: the simulator for
+/// systems without ptys, and for clients that speak pyserial's `socket://`. The wire runs
+/// at the bus's host rate ([`Bus::set_host_bps`]).
+///
+/// Errors: the address cannot be listened on or the thread cannot be started.
+pub fn spawn_tcp(
+    bus: Bus,
+    addr: std::net::SocketAddr,
+    wait: WaitMode,
+) -> Result<Endpoint, LinkError> {
+    let server = TcpServer::bind(addr, bus.host_bps())?;
+    Endpoint::spawn_tcp(bus, server, wait)
+        .map_err(|e| LinkError::io("starting the wCK endpoint", e))
+}
+
 /// CPU time of the calling thread.
+#[cfg(target_os = "linux")]
 fn thread_cpu() -> Duration {
     use nix::sys::resource::{UsageWho, getrusage};
     getrusage(UsageWho::RUSAGE_THREAD).map_or(Duration::ZERO, |u| {
@@ -220,6 +294,12 @@ fn thread_cpu() -> Duration {
     })
 }
 
+/// CPU time of the calling thread (not measured on this system).
+#[cfg(not(target_os = "linux"))]
+const fn thread_cpu() -> Duration {
+    Duration::ZERO
+}
+
 /// A little past the instant there is room again, so one wake-up finds it.
 const BYTE_SLACK: Duration = Duration::from_micros(100);
 
@@ -229,13 +309,17 @@ fn bytes_in(d: Duration, bps: u32) -> usize {
     usize::try_from(bits / 10).unwrap_or(usize::MAX)
 }
 
-fn follow_client_baud(bus: &mut Bus, termios: Option<&OwnedFd>) {
+#[cfg(unix)]
+fn follow_client_baud(bus: &mut Bus, termios: Option<&TermiosFd>) {
     if let Some(fd) = termios
         && let Ok(Some(bps)) = termios_speed(fd)
     {
         bus.set_host_bps(bps);
     }
 }
+
+#[cfg(not(unix))]
+const fn follow_client_baud(_bus: &mut Bus, _termios: Option<&TermiosFd>) {}
 
 /// Runs the model ahead of the present, through the events before `wire_free` (the end
 /// of the client's bytes already on the simulated wire), until a reply byte is on its way
@@ -254,12 +338,13 @@ fn run_ahead(bus: &mut Bus, wire_free: Duration) {
 fn serve<L: ByteLink>(
     mut bus: Bus,
     mut master: L,
-    termios: Option<&OwnedFd>,
+    termios: Option<&TermiosFd>,
     stop: &AtomicBool,
     jobs: &mpsc::Receiver<Job>,
     wait: WaitMode,
 ) -> Result<EndpointStats, EndpointError> {
     // Wake-ups as close to the requested instant as the kernel allows.
+    #[cfg(target_os = "linux")]
     let _ = nix::sys::prctl::set_timerslack(1);
     let cpu0 = thread_cpu();
     let t0 = Instant::now();

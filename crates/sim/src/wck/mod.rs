@@ -16,8 +16,9 @@
 //! * [`VirtualHost`]: a host on the virtual clock for deterministic tests.
 //! * [`SimLink`]: the bus as an in-process byte link on the wall clock, whose replies do
 //!   not depend on thread scheduling (for client tests on a loaded machine).
-//! * [`endpoint`] (Linux): the bus behind a pseudo-terminal on the wall clock ([`spawn`]
-//!   opens the pty and serves it).
+//! * [`endpoint`]: the bus behind a pseudo-terminal (Unix; [`spawn`] opens the pty and
+//!   serves it) or a TCP listener (every OS; [`spawn_tcp`], `socket://HOST:PORT`) on the
+//!   wall clock.
 //!
 //! # Where the manual is silent
 //!
@@ -68,7 +69,6 @@
 
 mod bus;
 mod clock;
-#[cfg(target_os = "linux")]
 pub mod endpoint;
 mod link;
 pub mod mechanics;
@@ -79,8 +79,9 @@ mod uart;
 
 pub use bus::{Bus, BusConfig, BusStats, Faults};
 pub use clock::VirtualHost;
-#[cfg(target_os = "linux")]
-pub use endpoint::{Endpoint, EndpointError, EndpointStats, spawn, spawn_waiting};
+pub use endpoint::{Endpoint, EndpointError, EndpointStats, spawn_tcp};
+#[cfg(unix)]
+pub use endpoint::{spawn, spawn_waiting};
 pub use link::{SimHandle, SimLink};
 pub use mechanics::{Drive, Mechanics};
 pub use model::{Model, UnknownModel};
