@@ -7,14 +7,26 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use robobus_link::{ByteLink, FrameLink, MemoryBus, PtyOptions, PtyPair, WaitMode, wait};
+#[cfg(unix)]
+use robobus_link::{ByteLink, PtyOptions, PtyPair};
+use robobus_link::{FrameLink, MemoryBus, WaitMode, wait};
 use robobus_whj::CanFrame;
 
 use crate::BenchError;
 use crate::stats::Summary;
 
+/// `n` one-byte round trips through a pty: not on this system (it has no ptys).
+#[cfg(not(unix))]
+pub fn pty_echo(_n: usize) -> Result<Summary, BenchError> {
+    Err(BenchError::new(
+        "opening a pty",
+        "this system has no pseudo-terminals (the benchmarks measure on Linux)",
+    ))
+}
+
 /// `n` one-byte round trips through a pty: the client writes to the slave, an echo
 /// thread spinning on the master writes the byte back, the client spins until it is in.
+#[cfg(unix)]
 pub fn pty_echo(n: usize) -> Result<Summary, BenchError> {
     let PtyPair {
         mut master,

@@ -2,12 +2,11 @@
 //! status polling and paced synchronized-move streaming, and the pyserial peer on the same
 //! endpoint.
 
-use std::os::fd::AsFd as _;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use robobus::wck::{WckBus, WckConfig};
-use robobus_link::{ByteLink, MemoryByteLink, PtyOptions, PtyPair, WaitMode};
+use robobus_link::{ByteLink, MemoryByteLink, WaitMode};
 use robobus_sim::wck::{Bus, BusConfig, Endpoint, EndpointStats, Model, Timing};
 use robobus_wck::timing;
 use robobus_wck::{BaudRate, Command, Position, ServoId, TorqueLevel};
@@ -40,12 +39,15 @@ impl Rig {
     /// turnaround spread between modules).
     /// In [`WaitMode::Spin`] the endpoint serves in its precise mode (it polls for
     /// requests and spins to each reply byte's release instant).
+    #[cfg(unix)]
     pub fn open(
         servos: u8,
         baud: BaudRate,
         timing: Timing,
         wait: WaitMode,
     ) -> Result<Self, BenchError> {
+        use robobus_link::{PtyOptions, PtyPair};
+        use std::os::fd::AsFd as _;
         let bus = modules(servos, baud, timing);
         let pair = PtyPair::open(&PtyOptions {
             baud: baud.bits_per_second(),
@@ -69,6 +71,39 @@ impl Rig {
             endpoint,
             slave: Box::new(pair.slave),
             path: pair.slave_path,
+        })
+    }
+
+    /// Serves `servos` W1108 modules at `baud` with `timing` on a TCP port of 127.0.0.1
+    /// (this system has no ptys), the client connected to it.
+    #[cfg(not(unix))]
+    pub fn open(
+        servos: u8,
+        baud: BaudRate,
+        timing: Timing,
+        wait: WaitMode,
+    ) -> Result<Self, BenchError> {
+        use robobus_link::{PortSpec, TcpByteLink};
+        let any_port = std::net::SocketAddr::from((std::net::Ipv4Addr::LOCALHOST, 0));
+        let endpoint = robobus_sim::wck::spawn_tcp(modules(servos, baud, timing), any_port, wait)
+            .map_err(|e| BenchError::new("starting the wCK endpoint", e))?;
+        let path = endpoint.path().to_path_buf();
+        let spec: PortSpec = path
+            .to_string_lossy()
+            .parse()
+            .map_err(|e| BenchError::new("naming the wCK endpoint", e))?;
+        let PortSpec::Tcp { host, port } = spec else {
+            return Err(BenchError::new(
+                "naming the wCK endpoint",
+                format!("{} is not a TCP address", path.display()),
+            ));
+        };
+        let slave = TcpByteLink::connect(&host, port, Duration::from_secs(2))
+            .map_err(|e| BenchError::new("connecting to the wCK endpoint", e))?;
+        Ok(Self {
+            endpoint,
+            slave: Box::new(slave),
+            path,
         })
     }
 

@@ -1,6 +1,8 @@
 //! Pseudo-terminal pairs: raw transparency at every wCK baud code, deadlines, symlinks,
 //! and the serial-port path (`serialport` opening the slave side by path).
 
+// Pseudo-terminals are Unix's (Windows has none: simulators serve TCP there).
+#![cfg(unix)]
 // Helpers outside #[test] functions may unwrap and panic too: a failure is a failed test.
 #![allow(clippy::unwrap_used, clippy::panic)]
 

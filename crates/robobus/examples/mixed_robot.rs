@@ -8,8 +8,8 @@
 //!
 //! The robot file (default `examples/robot.toml`) names the buses. Without
 //! `--hardware` both buses are replaced by simulators, wired the way real links are:
-//! the wCK simulator behind a pseudo-terminal, the WHJ simulator on the in-process CAN
-//! FD bus. Ctrl-C safe-stops the robot (wCK passive, WHJ hold) and ends the program.
+//! the wCK simulator behind a pseudo-terminal (on Windows, which has none, on a TCP port of
+//! 127.0.0.1), the WHJ simulator on the in-process CAN FD bus. Ctrl-C safe-stops the robot (wCK passive, WHJ hold) and ends the program.
 #![allow(clippy::print_stdout)]
 
 use std::error::Error;
@@ -35,6 +35,27 @@ struct Simulators {
     whj: Vec<Served>,
 }
 
+/// Serves a simulated wCK bus behind a pseudo-terminal; returns the simulator and the
+/// client's side.
+#[cfg(unix)]
+fn serve_wck(sim: Bus) -> Result<(Endpoint, robobus_link::PtyLink), Box<dyn Error>> {
+    Ok(robobus_sim::wck::spawn(sim)?)
+}
+
+/// Serves a simulated wCK bus on a TCP port of 127.0.0.1 (no pseudo-terminals here);
+/// returns the simulator and the client's connection.
+#[cfg(not(unix))]
+fn serve_wck(sim: Bus) -> Result<(Endpoint, robobus_link::TcpByteLink), Box<dyn Error>> {
+    use robobus_link::{PortSpec, TcpByteLink, WaitMode};
+    let any_port = std::net::SocketAddr::from((std::net::Ipv4Addr::LOCALHOST, 0));
+    let sim = robobus_sim::wck::spawn_tcp(sim, any_port, WaitMode::Sleep)?;
+    let PortSpec::Tcp { host, port } = sim.path().to_string_lossy().parse()? else {
+        return Err(format!("the simulator serves {}, not TCP", sim.path().display()).into());
+    };
+    let link = TcpByteLink::connect(&host, port, Duration::from_secs(2))?;
+    Ok((sim, link))
+}
+
 /// Opens the robot with every bus replaced by a simulator holding the file's IDs.
 fn simulated(config: &RobotConfig) -> Result<(Robot, Simulators), Box<dyn Error>> {
     let ids_on = |bus: &str| -> Vec<u8> {
@@ -55,7 +76,7 @@ fn simulated(config: &RobotConfig) -> Result<(Robot, Simulators), Box<dyn Error>
         let ids = ids_on(name);
         if bus.is_wck() {
             let sim = Bus::with_servos(WckSimConfig::default(), Model::W1108, ids.clone());
-            let (sim, link) = robobus_sim::wck::spawn(sim)?;
+            let (sim, link) = serve_wck(sim)?;
             println!(
                 "bus {name}: simulated wCK servos {ids:?} on {}",
                 sim.path().display()

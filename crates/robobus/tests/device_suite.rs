@@ -37,6 +37,7 @@ use robobus::catalogue::record::SampleTable;
 use robobus::catalogue::telemetry::Telemetry;
 use robobus::catalogue::{self, Report, Request, Station, StationConfig};
 use robobus::ops::Control;
+#[cfg(target_os = "linux")]
 use robobus_testkit::Inner;
 use robobus_testkit::devices::{self, Hardware};
 
@@ -323,8 +324,10 @@ fn suite_a_small_move_arrives_and_is_undone() {
 }
 
 /// Set inside the private network namespace of the environment test.
+#[cfg(target_os = "linux")]
 const NETNS_ENV: &str = "ROBOBUS_SUITE_IN_NETNS";
 
+#[cfg(target_os = "linux")] // a private network namespace, and the wCK simulator on a pty
 #[test]
 fn devices_named_by_the_environment_on_a_serial_port_and_a_udp_bus() {
     Inner::exact("inner_serves_the_simulators_as_hardware", NETNS_ENV)
@@ -333,6 +336,7 @@ fn devices_named_by_the_environment_on_a_serial_port_and_a_udp_bus() {
         .expect_marker("DEVICE SUITE ON HARDWARE PATHS OK");
 }
 
+#[cfg(target_os = "linux")]
 #[test]
 #[ignore = "run by devices_named_by_the_environment_on_a_serial_port_and_a_udp_bus inside unshare -n"]
 fn inner_serves_the_simulators_as_hardware() {

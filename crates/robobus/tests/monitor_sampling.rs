@@ -7,12 +7,16 @@
 mod wck_support;
 
 use robobus::ErrorKind;
-use robobus::ops::monitor::{
-    MonitoredJoint, RobotJointSample, RobotSampler, WckSample, WckSampler,
+use robobus::ops::monitor::{WckSample, WckSampler};
+use wck_support::{id, serve_ids};
+// The robot-file test serves its wCK bus on a pty (Unix).
+#[cfg(unix)]
+use {
+    robobus::ops::monitor::{MonitoredJoint, RobotJointSample, RobotSampler},
+    robobus::robot::{RobotConfig, RobotError},
+    robobus::whj::JointBusConfig,
+    wck_support::serve_pty,
 };
-use robobus::robot::{RobotConfig, RobotError};
-use robobus::whj::JointBusConfig;
-use wck_support::{id, serve_ids, serve_pty};
 
 /// Degrees of a wCK position step, as `robobus wck status` prints them (269° over 255
 /// steps).
@@ -57,6 +61,7 @@ fn wck_samples_report_each_servo_and_derive_the_speed_from_the_callers_clock() {
     assert!(second[2].value().is_none(), "never an older value");
 }
 
+#[cfg(unix)] // a robot file's wCK bus on a pty
 #[test]
 fn a_robot_file_is_sampled_as_joint_angles_in_its_order() {
     let mut sim = serve_pty(&[0, 1]);

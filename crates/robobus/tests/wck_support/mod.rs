@@ -7,8 +7,11 @@
 use core::time::Duration;
 
 use robobus::wck::{WckBus, WckConfig};
+#[cfg(unix)]
 use robobus_link::PtyLink;
-use robobus_sim::wck::{Bus, BusConfig, Eeprom, Endpoint, Model, SimHandle, SimLink};
+#[cfg(unix)]
+use robobus_sim::wck::Endpoint;
+use robobus_sim::wck::{Bus, BusConfig, Eeprom, Model, SimHandle, SimLink};
 use robobus_wck::{BaudRate, ExtServoId, ServoId};
 
 /// Past the 65 ms a module is deaf after power-up.
@@ -114,7 +117,8 @@ fn bus_with_ids(ids: &[u8], baud: BaudRate) -> Bus {
 }
 
 /// A simulated bus served on a pty by the simulator's endpoint thread, and the client
-/// side of that pty.
+/// side of that pty (Unix: Windows has no ptys).
+#[cfg(unix)]
 #[derive(Debug)]
 pub struct PtySim {
     /// The serving simulator.
@@ -123,6 +127,7 @@ pub struct PtySim {
     pub slave: Option<PtyLink>,
 }
 
+#[cfg(unix)]
 impl PtySim {
     /// The client: a [`WckBus`] on the pty's slave side at 115200 with [`PTY_MARGIN`],
     /// named by its path.
@@ -152,6 +157,7 @@ pub fn pty_config() -> WckConfig {
 
 /// Serves modules with `ids` (factory defaults) on a fresh pty and waits until they are
 /// awake (in simulated time: the serving thread may start late on a busy machine).
+#[cfg(unix)]
 pub fn serve_pty(ids: &[u8]) -> PtySim {
     let (endpoint, slave) = robobus_sim::wck::spawn(bus_with_ids(ids, BaudRate::B115200)).unwrap();
     while endpoint.with_bus(|b| b.now()).unwrap() < AWAKE {
