@@ -40,6 +40,7 @@ mod interrupt;
 mod monitor;
 mod output;
 mod plot;
+mod ports;
 mod replay;
 mod report;
 mod robot;
@@ -152,6 +153,13 @@ enum Command {
     Replay(replay::Args),
     /// Check the machine's setup: serial ports, USB latency, SocketCAN, the UDP bus.
     Doctor(doctor::Args),
+    /// List the machine's serial ports: USB IDs, the adapter, what it is for, latency advice.
+    ///
+    /// COM ports on Windows, /dev/cu.* on macOS, /dev/ttyUSB* and /dev/ttyACM* on Linux,
+    /// as the OS knows them; adapters robobus recognises are named with the option that
+    /// uses them (a wCK bus: --port PORT; a CAN FD adapter: --bus slcan:PORT or
+    /// --bus fdcanusb:PORT). Nothing is opened or sent.
+    Ports(ports::Args),
     /// Print a shell completion script (bash, zsh, fish, elvish, powershell).
     Completions(generate::CompletionArgs),
     /// Write the man pages (robobus.1 and one per subcommand).
@@ -290,6 +298,7 @@ fn main() -> ExitCode {
         Command::Robot(args) => robot::run(g, &args),
         Command::Replay(args) => replay::run(g, &args),
         Command::Doctor(args) => doctor::run(g, &args),
+        Command::Ports(args) => ports::run(g, &args),
         Command::Completions(args) => generate::completions(&args),
         Command::Man(args) => generate::man(&args),
         Command::Sim(SimCommand::Wck(args)) => sim_wck::run(&args, g.dry_run),

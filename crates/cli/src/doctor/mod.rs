@@ -1,8 +1,10 @@
 //! `robobus doctor`: checks what breaks real setups, each finding with a concrete fix.
 //!
 //! The checks are independent functions returning [`Finding`]s, grouped by what they look
-//! at: serial ports ([`check_serial`]), SocketCAN interfaces ([`check_can`]) and the UDP
-//! bus ([`check_udp`]); none of them opens a port or sends anything. The device checks in
+//! at: serial ports ([`serial`]: the library's port listing, the same as `robobus ports`
+//! on every OS, with each adapter's use and the OS's latency advice), SocketCAN interfaces
+//! ([`check_can`], Linux) and the UDP bus ([`check_udp`]); none of them opens a port or
+//! sends anything. The device checks in
 //! [`probe`] (silent devices, joints waiting in their bootloader, shared IDs, firmware
 //! gates) talk to the devices through the client, and run only when asked
 //! (`--wck-port`, `--whj-bus`).
@@ -19,15 +21,20 @@ use crate::Global;
 use crate::exit::{ProblemsFound, usage};
 
 mod probe;
+mod serial;
 
 /// Options of `robobus doctor`.
 #[derive(Debug, clap::Args)]
 #[command(after_help = "\
-Without --port / --can, every USB serial port (/dev/ttyUSB*, /dev/ttyACM*) and every CAN
-interface found is checked, and the UDP bus always is. Nothing is opened or sent, except
-to the devices named by --wck-port / --whj-bus: those are probed (a wCK scan; WHJ status
-queries, the IAP release of a joint waiting in its bootloader, identity reads).
-Exit code 0 when no check failed (warnings allowed), 5 when one did.")]
+Without --port / --can, every USB serial port the OS lists (as `robobus ports` shows
+them: COM ports on Windows, /dev/cu.* on macOS, /dev/ttyUSB* and /dev/ttyACM* on Linux)
+and every CAN interface found (Linux) is checked, and the UDP bus always is. A recognised
+CAN FD adapter is named with the --bus that uses it (slcan:PORT, fdcanusb:PORT). Nothing
+is opened or sent, except to the devices named by --wck-port / --whj-bus: those are
+probed (a wCK scan; WHJ status queries, the IAP release of a joint waiting in its
+bootloader, identity reads).
+Exit code 0 when no check failed (warnings allowed), 5 when one did; --can on a system
+without SocketCAN is exit code 4.")]
 pub(crate) struct Args {
     /// Serial port(s) to check (repeatable).
     #[arg(long, value_name = "PATH")]
@@ -50,7 +57,8 @@ pub(crate) struct Args {
     /// raise it for a simulator on a loaded machine).
     #[arg(long, value_name = "MS", value_parser = crate::wck::parse_margin)]
     reply_margin: Option<std::time::Duration>,
-    /// Probe the WHJ joints on this bus (udp, udp:GROUP:PORT, or a SocketCAN interface):
+    /// Probe the WHJ joints on this bus (udp, udp:GROUP:PORT, a SocketCAN interface, or a
+    /// serial-line CAN FD adapter: slcan:PORT, fdcanusb:PORT):
     /// silent joints, joints waiting in their bootloader (released), IDs shared by two
     /// joints, firmware lacking a feature robobus uses.
     #[arg(long, value_name = "BUS")]
@@ -175,7 +183,13 @@ fn check_args(args: &Args) -> anyhow::Result<()> {
         check_path("--wck-port", std::ffi::OsStr::new(p))?;
     }
     if let Some(b) = &args.whj_bus {
-        if b == "udp" || b.starts_with("udp:") {
+        if let Some(port) = b
+            .strip_prefix("slcan:")
+            .or_else(|| b.strip_prefix("fdcanusb:"))
+        {
+            // A serial-line CAN FD adapter: its port is a path (or COM name).
+            check_path("--whj-bus", std::ffi::OsStr::new(port))?;
+        } else if b == "udp" || b.starts_with("udp:") {
             if b.len() > 64 {
                 return Err(usage(format!(
                     "--whj-bus {}: a UDP bus is `udp` or `udp:GROUP:PORT` (at most 64 bytes)",
@@ -192,28 +206,33 @@ fn check_args(args: &Args) -> anyhow::Result<()> {
 /// Runs `robobus doctor`.
 pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     check_args(args)?;
-    let ports = if args.port.is_empty() && args.can.is_empty() {
-        find_serial_ports()
+    if !args.can.is_empty() && !cfg!(target_os = "linux") {
+        return Err(anyhow::Error::new(robobus::ops::OpError::NotAvailable(
+            "doctor --can checks a SocketCAN interface, which only Linux has; here a CAN FD \
+             adapter is a serial-line one: `robobus ports` lists it, `robobus doctor --whj-bus \
+             slcan:PORT` (or fdcanusb:PORT) probes the joints behind it"
+                .into(),
+        )));
+    }
+    let everything = args.port.is_empty() && args.can.is_empty();
+    // The same listing as `robobus ports`, on every OS.
+    let listing = robobus::ops::ports::list();
+    let mut findings = Vec::new();
+    let ports = if everything {
+        let (ports, notes) = serial::listed(&listing);
+        findings.extend(notes);
+        ports
     } else {
         args.port.clone()
     };
-    let cans = if args.port.is_empty() && args.can.is_empty() {
+    let cans = if everything {
         find_can_interfaces(Path::new(NET_DIR))
     } else {
         args.can.clone()
     };
-    let mut findings = Vec::new();
-    if ports.is_empty() && args.can.is_empty() {
-        findings.push(finding(
-            "serial",
-            "ports",
-            Status::Skip,
-            "no USB serial port found (/dev/ttyUSB*, /dev/ttyACM*)",
-            None,
-        ));
-    }
     for p in &ports {
-        findings.extend(check_serial(p, args.fix));
+        let info = serial::info_of(listing.as_ref().ok(), p);
+        findings.extend(serial::check_serial(p, info, args.fix));
     }
     findings.extend(check_can_kernel());
     for iface in &cans {
@@ -327,154 +346,6 @@ fn table(findings: &[Finding]) -> String {
     s
 }
 
-// ---------------------------------------------------------------- serial ports
-
-fn find_serial_ports() -> Vec<PathBuf> {
-    let mut out: Vec<PathBuf> = std::fs::read_dir("/dev")
-        .into_iter()
-        .flatten()
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| {
-            p.file_name()
-                .and_then(|n| n.to_str())
-                .is_some_and(|n| n.starts_with("ttyUSB") || n.starts_with("ttyACM"))
-        })
-        .collect();
-    out.sort();
-    out
-}
-
-/// The name of group `gid` from /etc/group.
-fn group_name(gid: u32) -> Option<String> {
-    let text = std::fs::read_to_string("/etc/group").ok()?;
-    text.lines().find_map(|l| {
-        let mut f = l.split(':');
-        let name = f.next()?;
-        let _pw = f.next()?;
-        (f.next()?.parse::<u32>().ok()? == gid).then(|| name.to_owned())
-    })
-}
-
-/// Checks a serial port: exists, is a character device, readable and writable, latency
-/// timer.
-pub(crate) fn check_serial(path: &Path, fix: bool) -> Vec<Finding> {
-    use std::os::unix::fs::{FileTypeExt as _, MetadataExt as _};
-    let subject = path.display().to_string();
-    let mut out = Vec::new();
-    let meta = match std::fs::metadata(path) {
-        Ok(m) => m,
-        Err(e) => {
-            out.push(finding(
-                &subject,
-                "exists",
-                Status::Fail,
-                format!("cannot stat: {e}"),
-                Some(
-                    "check the cable and the adapter; `ls -l /dev/serial/by-id/` lists the \
-                     serial adapters the kernel sees; `robobus sim wck` prints a simulated \
-                     port's path"
-                        .into(),
-                ),
-            ));
-            return out;
-        }
-    };
-    if meta.file_type().is_char_device() {
-        out.push(finding(
-            &subject,
-            "exists",
-            Status::Ok,
-            "character device",
-            None,
-        ));
-    } else {
-        out.push(finding(
-            &subject,
-            "exists",
-            Status::Warn,
-            "exists but is not a character device (not a serial port)",
-            Some("pass the device node, e.g. /dev/ttyUSB0".into()),
-        ));
-    }
-    let access = nix::unistd::access(
-        path,
-        nix::unistd::AccessFlags::R_OK | nix::unistd::AccessFlags::W_OK,
-    );
-    let group = group_name(meta.gid()).unwrap_or_else(|| meta.gid().to_string());
-    match access {
-        Ok(()) => out.push(finding(
-            &subject,
-            "permissions",
-            Status::Ok,
-            format!("readable and writable (group {group})"),
-            None,
-        )),
-        Err(e) => out.push(finding(
-            &subject,
-            "permissions",
-            Status::Fail,
-            format!(
-                "no read/write access ({e}); mode {:o}, group {group}",
-                meta.mode() & 0o777
-            ),
-            Some(format!(
-                "sudo usermod -aG {group} \"$USER\", then log out and in again"
-            )),
-        )),
-    }
-    out.push(check_latency(path, &subject, fix));
-    out
-}
-
-fn check_latency(path: &Path, subject: &str, fix: bool) -> Finding {
-    let tty = std::fs::canonicalize(path)
-        .ok()
-        .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
-        .unwrap_or_else(|| "ttyUSB0".into());
-    let manual_fix = format!(
-        "robobus doctor --port {subject} --fix (as root), or `echo 1 | sudo tee \
-         /sys/bus/usb-serial/devices/{tty}/latency_timer`; to keep it, a udev rule: \
-         ACTION==\"add\", SUBSYSTEM==\"usb-serial\", DRIVER==\"ftdi_sio\", ATTR{{latency_timer}}=\"1\""
-    );
-    match robobus_link::usb_latency_timer(path) {
-        None => finding(
-            subject,
-            "latency timer",
-            Status::Skip,
-            "no USB-serial latency timer (not an FTDI-style adapter)",
-            None,
-        ),
-        Some(1) => finding(subject, "latency timer", Status::Ok, "1 ms", None),
-        Some(ms) if fix => match robobus_link::set_usb_latency_timer(path, 1) {
-            Ok(()) => finding(
-                subject,
-                "latency timer",
-                Status::Ok,
-                format!("was {ms} ms, set to 1 ms (until the adapter is replugged)"),
-                None,
-            ),
-            Err(e) => finding(
-                subject,
-                "latency timer",
-                Status::Warn,
-                format!("{ms} ms; setting it to 1 ms failed: {e}"),
-                Some(manual_fix),
-            ),
-        },
-        Some(ms) => finding(
-            subject,
-            "latency timer",
-            Status::Warn,
-            format!(
-                "{ms} ms: each reply can wait up to {ms} ms in the adapter, capping the poll \
-                 rate"
-            ),
-            Some(manual_fix),
-        ),
-    }
-}
-
 // ---------------------------------------------------------------- SocketCAN
 
 const NET_DIR: &str = "/sys/class/net";
@@ -508,7 +379,19 @@ fn check_can_kernel() -> Vec<Finding> {
     #[cfg(target_os = "linux")]
     let has = robobus_link::socketcan::kernel_has_can();
     #[cfg(not(target_os = "linux"))]
-    let has = false;
+    return vec![finding(
+        "socketcan",
+        "kernel",
+        Status::Skip,
+        format!(
+            "SocketCAN is Linux's; on {} WHJ joints are reached through a serial-line CAN FD \
+             adapter (--bus slcan:PORT or fdcanusb:PORT; `robobus ports` names them) or the \
+             UDP bus",
+            robobus::ops::ports::Os::current().name()
+        ),
+        None,
+    )];
+    #[cfg(target_os = "linux")]
     vec![if has {
         finding(
             "socketcan",
@@ -634,7 +517,20 @@ pub(crate) fn check_can(net_dir: &Path, iface: &str) -> Vec<Finding> {
     out
 }
 
+/// The controller's state (Linux's netlink data; not on another OS).
+#[cfg(not(target_os = "linux"))]
+pub(crate) fn check_controller(iface: &str) -> Finding {
+    finding(
+        iface,
+        "controller",
+        Status::Skip,
+        "a CAN controller's state is read from Linux's netlink",
+        None,
+    )
+}
+
 /// The controller's state, error counters and restarts, from the kernel's netlink data.
+#[cfg(target_os = "linux")]
 pub(crate) fn check_controller(iface: &str) -> Finding {
     match robobus_link::socketcan::health::read(iface) {
         Ok(h) => controller_finding(&h),
@@ -651,6 +547,7 @@ pub(crate) fn check_controller(iface: &str) -> Finding {
 /// Judges a CAN interface's health: error-active is fine, error-warning and -passive
 /// warn, bus-off and stopped fail, and so does a controller running classic CAN (CAN FD
 /// off: WHJ joints cannot hear it); the counters and the state changes so far are shown.
+#[cfg(target_os = "linux")]
 pub(crate) fn controller_finding(h: &robobus_link::socketcan::health::CanHealth) -> Finding {
     use robobus_link::socketcan::health::ControllerState as S;
     let Some(state) = h.state else {
@@ -793,6 +690,18 @@ pub(crate) fn bit_rate_finding(iface: &str, data: &serde_json::Value, setup: &st
 /// route on `lo`.
 pub(crate) fn check_udp(net_dir: &Path) -> Vec<Finding> {
     let subject = "udp bus";
+    if !cfg!(target_os = "linux") {
+        return vec![finding(
+            subject,
+            "loopback",
+            Status::Skip,
+            format!(
+                "not checked on {} (the checks read Linux's /sys/class/net and `ip`)",
+                robobus::ops::ports::Os::current().name()
+            ),
+            None,
+        )];
+    }
     let mut out = Vec::new();
     let lo_up = read_u32(&net_dir.join("lo").join("flags")).is_some_and(|f| f & 1 != 0);
     out.push(if lo_up {
