@@ -16,8 +16,11 @@
 //! separate flags: `E`/`e` extended / base identifier, `B`/`b` bit-rate switch on / off,
 //! `F`/`f` CAN FD / classic format, `R`/`r` remote / data frame, `tNNNN` the device's
 //! receive time in microseconds (a 32-bit counter that wraps) and `fNN` the index of the
-//! filter that matched it (`-1`: none). Firmware that leaves flags out is understood: a
-//! missing `F` is a classic frame, a missing `E` a base identifier.
+//! filter that matched it, in hexadecimal (`-1`: none). Firmware that leaves flags out is
+//! understood: a missing `F` is a classic frame, a missing `E` a base identifier.
+//!
+//! A frame without data bytes cannot be sent: `can std ID` with no data is refused by the
+//! firmware (`ERR insufficient options`), and [`encode_send`] refuses it before then.
 //!
 //! `can status` answers one line of `key=value` fields: `lec`, `dlec` (last error codes),
 //! `err` (error passive), `warn` (error warning), `busoff`, `pexc` (protocol exception),
@@ -251,7 +254,13 @@ impl fmt::Display for Command {
 /// empty payload (the device would read the flags as the data).
 pub fn encode_send(frame: &CanFrame) -> Result<String, String> {
     if frame.is_empty() {
-        return Err("an fdcanusb cannot send a frame without data bytes".into());
+        return Err(
+            "an fdcanusb cannot send a frame without data bytes (its `can std` needs at least \
+             one); WHJ's point-to-point status query (0x600+ID) is one: read status with the \
+             broadcast status query (whj status --broadcast, monitor --broadcast), or use an \
+             slcan adapter or SocketCAN"
+                .into(),
+        );
     }
     let req = SendRequest {
         id: frame.id(),
@@ -275,7 +284,8 @@ pub struct RcvLine {
     pub frame: CanFrame,
     /// The device's receive time, µs (wraps at 2³²), if the line has one.
     pub timestamp_us: Option<u32>,
-    /// The index of the filter that matched (`-1`: none), if the line has one.
+    /// The index of the filter that matched (`-1`: none), if the line has one (written in
+    /// hexadecimal on the line).
     pub filter: Option<i32>,
 }
 
@@ -357,12 +367,7 @@ fn parse_rcv(rest: &str) -> Result<DeviceLine, &'static str> {
                             .ok_or("the timestamp is not a 32-bit count of µs")?,
                     );
                 } else if let Some(n) = field.strip_prefix('f') {
-                    filter = Some(
-                        n.parse::<i32>()
-                            .ok()
-                            .filter(|&n| (-1..=255).contains(&n))
-                            .ok_or("the filter index is not -1..=255")?,
-                    );
+                    filter = Some(parse_filter(n).ok_or("the filter index is not -1 or 00..=FF")?);
                 } else {
                     return Err("unknown flag");
                 }
@@ -396,6 +401,18 @@ fn parse_rcv(rest: &str) -> Result<DeviceLine, &'static str> {
     }))
 }
 
+/// A filter index: `-1` (none matched) or one or two hexadecimal digits (the firmware
+/// writes it as a hex byte).
+fn parse_filter(n: &str) -> Option<i32> {
+    if n == "-1" {
+        return Some(-1);
+    }
+    if n.is_empty() || n.len() > 2 || !n.bytes().all(|b| b.is_ascii_hexdigit()) {
+        return None;
+    }
+    i32::from_str_radix(n, 16).ok()
+}
+
 /// The device's line (with `\r\n`) for a received frame.
 pub fn encode_rcv(frame: &CanFrame, timestamp_us: Option<u32>, filter: Option<i32>) -> String {
     let mut line = format!("rcv {:X} ", frame.raw_id());
@@ -412,8 +429,12 @@ pub fn encode_rcv(frame: &CanFrame, timestamp_us: Option<u32>, filter: Option<i3
     if let Some(t) = timestamp_us {
         let _ = write!(line, " t{t}");
     }
-    if let Some(n) = filter {
-        let _ = write!(line, " f{n}");
+    match filter {
+        Some(n) if n < 0 => line.push_str(" f-1"),
+        Some(n) => {
+            let _ = write!(line, " f{n:02X}");
+        }
+        None => {}
     }
     line.push_str("\r\n");
     line
@@ -713,7 +734,20 @@ mod tests {
                 filter: Some(-1),
             }))
         );
-        // The firmware's own order without a timestamp; an empty payload.
+        // The firmware's own form: the identifier in whole bytes, no timestamp, the filter
+        // index in hexadecimal; an empty payload.
+        assert_eq!(
+            parse_device_line("rcv 0501 0102 e B F r f0A"),
+            Ok(DeviceLine::Rcv(RcvLine {
+                frame: fd(0x501, &[1, 2]),
+                timestamp_us: None,
+                filter: Some(10),
+            }))
+        );
+        assert_eq!(
+            encode_rcv(&fd(0x501, &[1, 2]), None, Some(10)),
+            "rcv 501 0102 e B F r f0A\r\n"
+        );
         assert_eq!(
             parse_device_line("rcv 1FFFFFFF  E b F r f3"),
             Ok(DeviceLine::Rcv(RcvLine {
@@ -760,7 +794,8 @@ mod tests {
             ("rcv 7 000000000000000000 e b f", "classic data above 8"),
             ("rcv 7 01 e B F t4294967296", "timestamp"),
             ("rcv 7 01 e B F t-1", "timestamp"),
-            ("rcv 7 01 e B F f256", "filter"),
+            ("rcv 7 01 e B F f100", "filter"),
+            ("rcv 7 01 e B F f-2", "filter"),
             ("rcv 7 01 X", "unknown flag"),
         ] {
             let e = parse_device_line(line).unwrap_err();
