@@ -1,4 +1,5 @@
-//! The one Ctrl-C / SIGTERM handler of the `robobus` command.
+//! The one Ctrl-C / SIGTERM handler of the `robobus` command (on Windows: Ctrl-C,
+//! Ctrl-Break and closing the console window, through the same `ctrlc` handler).
 //!
 //! [`stop_token`] installs it on first use: from then on a signal sets the shared
 //! [`StopToken`] instead of killing the process, so the running library operation brings

@@ -256,6 +256,7 @@ fn execution_opens_the_port_and_names_it_when_it_is_missing() {
 
 /// The exit code of opening a SocketCAN interface that does not exist: 3 (no device) on a
 /// kernel with SocketCAN, 4 (not available) on one without.
+#[cfg(target_os = "linux")]
 fn missing_can_interface() -> i32 {
     if robobus_link::socketcan::kernel_has_can() {
         3
@@ -264,10 +265,18 @@ fn missing_can_interface() -> i32 {
     }
 }
 
+/// The exit code of opening a SocketCAN interface: 4 (not available) where SocketCAN does
+/// not exist.
+#[cfg(not(target_os = "linux"))]
+const fn missing_can_interface() -> i32 {
+    4
+}
+
 /// Exit code 4 end to end: a SocketCAN bus on a kernel without SocketCAN (`socket(AF_CAN)`
 /// fails with EAFNOSUPPORT, as on the development machine, whose CAN tests run in
 /// User-Mode Linux). Nothing is opened; the message names the interface and says what
 /// is missing. On a kernel with SocketCAN the same command is a missing interface (3).
+#[cfg(target_os = "linux")]
 #[test]
 fn socketcan_on_a_kernel_without_it_is_exit_4_naming_the_interface() {
     let r = robobus(&["whj", "--bus", "vcan0", "status", "1"]);
@@ -284,6 +293,21 @@ fn socketcan_on_a_kernel_without_it_is_exit_4_naming_the_interface() {
             r.stderr
         );
     }
+}
+
+/// Exit code 4 end to end where SocketCAN does not exist (Windows, macOS): nothing is
+/// opened, and the message names the interface and that SocketCAN is Linux's.
+#[cfg(not(target_os = "linux"))]
+#[test]
+fn socketcan_on_a_system_without_it_is_exit_4_naming_the_interface() {
+    let r = robobus(&["whj", "--bus", "vcan0", "status", "1"]);
+    assert!(r.stdout.is_empty(), "{r:#?}");
+    assert_eq!(r.code, Some(4), "{r:#?}");
+    assert!(
+        r.stderr.contains("vcan0") && r.stderr.contains("Linux"),
+        "{}",
+        r.stderr
+    );
 }
 
 #[test]

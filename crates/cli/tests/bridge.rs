@@ -5,8 +5,12 @@
 
 #![allow(clippy::unwrap_used, clippy::panic)] // test helpers: a failed unwrap is a failed test
 
-use std::io::{BufRead as _, BufReader};
-use std::process::{Command, Stdio};
+use std::process::Command;
+#[cfg(unix)]
+use {
+    std::io::{BufRead as _, BufReader},
+    std::process::Stdio,
+};
 
 fn robobus(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_robobus"))
@@ -137,6 +141,7 @@ fn bad_options_exit_2_naming_the_option_and_open_nothing() {
     }
 }
 
+#[cfg(unix)] // stopped with kill -INT
 #[test]
 fn it_starts_serves_and_stops_cleanly_on_ctrl_c() {
     let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
@@ -160,6 +165,7 @@ fn it_starts_serves_and_stops_cleanly_on_ctrl_c() {
     assert_eq!(status.code(), Some(0), "{status:?}");
 }
 
+#[cfg(unix)] // stopped with kill -INT
 #[test]
 fn a_second_bridge_on_a_namespace_in_use_exits_4_and_the_first_serves_on() {
     let port = std::net::TcpListener::bind("127.0.0.1:0")
@@ -219,6 +225,7 @@ fn a_second_bridge_on_a_namespace_in_use_exits_4_and_the_first_serves_on() {
     assert_eq!(first.wait().unwrap().code(), Some(0));
 }
 
+#[cfg(unix)]
 fn nix_kill(pid: u32) {
     let status = Command::new("kill")
         .args(["-INT", &pid.to_string()])

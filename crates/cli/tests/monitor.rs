@@ -186,7 +186,9 @@ fn monitor_refuses_bad_options() {
 }
 
 /// A dashboard whose terminal goes away (a killed tmux, a dropped SSH session) ends
-/// promptly instead of spinning on end of file until killed.
+/// promptly instead of spinning on end of file until killed (Unix: a pty plays the
+/// terminal).
+#[cfg(unix)]
 #[test]
 fn monitor_ends_when_its_terminal_hangs_up() {
     use std::process::{Command, Stdio};

@@ -2,6 +2,7 @@
 //! replies byte for byte (`scripts/py/wck_endpoint_check.py`). The test installs pyserial
 //! into the shared venv (`target/pyenv`) with `scripts/py/ensure-pyserial`.
 
+#![cfg(unix)] // the simulator on a pty, stopped with kill
 #![allow(clippy::unwrap_used)] // test helpers
 
 use std::io::{BufRead as _, BufReader};

@@ -8,6 +8,7 @@
 //! leave the machine. The test provisions python-can itself (`scripts/py/ensure-venv`)
 //! and fails loudly if it cannot.
 
+#![cfg(target_os = "linux")] // a private network namespace
 #![allow(
     clippy::unwrap_used,
     clippy::float_cmp,

@@ -7,6 +7,7 @@
 //! capture with `robobus_link::read_candump` and checks every reply and that the feedback
 //! followed.
 
+#![cfg(target_os = "linux")] // User-Mode Linux
 #![allow(
     clippy::unwrap_used,
     clippy::float_cmp,

@@ -735,6 +735,7 @@ fn a_token_studio_on_every_address_answers_the_names_clients_use() {
 }
 
 /// The folders in `tmp` a studio made (`robobus-studio-*`), but `except`.
+#[cfg(unix)]
 fn studio_dirs(tmp: &std::path::Path, except: &std::path::Path) -> Vec<std::path::PathBuf> {
     std::fs::read_dir(tmp)
         .unwrap()
@@ -750,6 +751,7 @@ fn studio_dirs(tmp: &std::path::Path, except: &std::path::Path) -> Vec<std::path
 }
 
 /// Stops a studio as Ctrl-C does, and waits for it to end.
+#[cfg(unix)]
 fn interrupt(mut s: Studio) {
     let pid = s.child.id().to_string();
     assert!(
@@ -769,6 +771,7 @@ fn interrupt(mut s: Studio) {
     }
 }
 
+#[cfg(unix)] // mode 0700, and symbolic links swapped in (a privilege on Windows)
 #[test]
 fn the_capture_folder_is_private_fresh_and_only_its_own_files_are_removed() {
     use std::os::unix::fs::PermissionsExt as _;
@@ -841,6 +844,7 @@ fn the_capture_folder_is_private_fresh_and_only_its_own_files_are_removed() {
     assert!(!dirs[0].exists(), "{}", dirs[0].display());
 }
 
+#[cfg(unix)] // sh and ulimit
 #[test]
 fn idle_and_slow_connections_are_closed_and_never_starve_the_api() {
     // 256 file descriptors, as the report that found the flaw: more idle connections
@@ -916,6 +920,7 @@ fn idle_and_slow_connections_are_closed_and_never_starve_the_api() {
 }
 
 /// The header timeout of the studio, s (docs/studio.md says it).
+#[cfg(unix)]
 const fn robobus_studio_header_timeout_s() -> u64 {
     10
 }

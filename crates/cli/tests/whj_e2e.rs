@@ -7,6 +7,7 @@
 //! status shows enabled, move → position reached, write → read back, ...). No datagram
 //! can leave the namespace.
 
+#![cfg(target_os = "linux")] // private network namespaces
 #![allow(
     clippy::unwrap_used,
     clippy::expect_used,

@@ -5,6 +5,7 @@
 //!
 //! The outer test re-runs this test binary inside the namespace to run the inner tests.
 
+#![cfg(target_os = "linux")] // a private network namespace
 #![allow(clippy::unwrap_used, clippy::panic)]
 
 mod whj_common;

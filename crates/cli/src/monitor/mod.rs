@@ -503,6 +503,7 @@ fn id_list(ids: &[u8]) -> catalogue::args::Ids {
 }
 
 /// Whether the terminal on stdin has hung up (reads would only return end of file).
+#[cfg(unix)]
 fn terminal_gone() -> bool {
     use nix::poll::{PollFd, PollFlags, PollTimeout, poll};
     use std::os::fd::AsFd as _;
@@ -512,6 +513,13 @@ fn terminal_gone() -> bool {
         && fds[0].revents().is_some_and(|r| {
             r.intersects(PollFlags::POLLHUP | PollFlags::POLLERR | PollFlags::POLLNVAL)
         })
+}
+
+/// Whether the console on stdin has gone: never seen here, since Windows ends the
+/// programs of a console that closes (after their Ctrl-C handler, which stops the monitor).
+#[cfg(not(unix))]
+const fn terminal_gone() -> bool {
+    false
 }
 
 /// Key presses, read on their own thread: crossterm's reader can spin forever on a
