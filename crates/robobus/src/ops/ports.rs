@@ -272,7 +272,7 @@ pub fn latency_advice(
                 "{now}: each reply can wait that long in the adapter; set 1 ms: `echo 1 | sudo \
                  tee /sys/bus/usb-serial/devices/{tty}/latency_timer` (or `robobus doctor \
                  --port {port} --fix` as root); to keep it, a udev rule in \
-                 /etc/udev/rules.d/99-robobus-ftdi.rules: {FTDI_UDEV_RULE}"
+                 /etc/udev/rules.d/99-ftdi-latency.rules: {FTDI_UDEV_RULE}"
             )
         }
         Os::Windows => format!(

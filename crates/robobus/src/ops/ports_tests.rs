@@ -260,7 +260,7 @@ fn linux_reads_an_ftdi_latency_timer_and_advises_only_when_it_is_not_1_ms() {
             "latency timer 16 ms: each reply can wait that long in the adapter; set 1 ms: \
              `echo 1 | sudo tee /sys/bus/usb-serial/devices/ttyUSB1/latency_timer` (or \
              `robobus doctor --port /dev/ttyUSB1 --fix` as root); to keep it, a udev rule in \
-             /etc/udev/rules.d/99-robobus-ftdi.rules: ACTION==\"add\", \
+             /etc/udev/rules.d/99-ftdi-latency.rules: ACTION==\"add\", \
              SUBSYSTEM==\"usb-serial\", DRIVER==\"ftdi_sio\", ATTR{latency_timer}=\"1\""
         )
     );
