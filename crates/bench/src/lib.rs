@@ -38,6 +38,7 @@ pub mod cpu;
 pub mod observe;
 pub mod peers;
 pub mod report;
+pub mod slcan;
 pub mod simspeed;
 pub mod stats;
 pub mod studio;

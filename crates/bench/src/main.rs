@@ -4,6 +4,7 @@
 //! robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]
 //! robobus-bench serve-whj --joints N --delay-us D [--fast-wire] [--wait sleep|spin]
 //! robobus-bench poll-wck --servos N --baud B --secs S [--turnaround] [--wait sleep|spin] [--memory]
+//! robobus-bench slcan [--joints N] [--secs S]
 //! robobus-bench telemetry --secs S
 //! robobus-bench studio --secs S
 //! robobus-bench bridge [--bridges N] [--rate HZ] [--secs S] [--smoke]
@@ -31,7 +32,7 @@ use robobus_bench::{Options, report, run, wck, whj};
 fn usage() -> ExitCode {
     let _ = writeln!(
         std::io::stderr(),
-        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire] [--wait sleep|spin]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround] [--wait sleep|spin] [--memory]\n       robobus-bench telemetry --secs S\n       robobus-bench studio --secs S\n       robobus-bench bridge [--bridges N] [--rate HZ] [--secs S] [--smoke]\n       robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window] [--external-sim]\n       robobus-bench free-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window]\n       robobus-bench syscalls [--udp] [--python PATH]\n       robobus-bench echo"
+        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire] [--wait sleep|spin]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround] [--wait sleep|spin] [--memory]\n       robobus-bench telemetry --secs S\n       robobus-bench studio --secs S\n       robobus-bench bridge [--bridges N] [--rate HZ] [--secs S] [--smoke]\n       robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window] [--external-sim]\n       robobus-bench free-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window]\n       robobus-bench syscalls [--udp] [--python PATH]\n       robobus-bench echo\n       robobus-bench slcan [--joints N] [--secs S]"
     );
     ExitCode::from(2)
 }
@@ -77,6 +78,37 @@ fn serve_whj(args: &[String]) -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             let _ = writeln!(std::io::stderr(), "serve-whj: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// `slcan [--joints N] [--secs S]`: the client through an emulated slcan adapter on a pty.
+fn slcan(args: &[String]) -> ExitCode {
+    let mut joints = 7u8;
+    let mut secs = 2.0_f64;
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--joints" => match it.next().and_then(|v| v.parse().ok()) {
+                Some(n) if (1..=7).contains(&n) => joints = n,
+                _ => return usage(),
+            },
+            "--secs" => match it.next().and_then(|v| v.parse().ok()) {
+                Some(s) if (0.1..=600.0).contains(&s) => secs = s,
+                _ => return usage(),
+            },
+            _ => return usage(),
+        }
+    }
+    let period = Duration::from_millis(4);
+    match robobus_bench::slcan::run(joints, 500, period, Duration::from_secs_f64(secs)) {
+        Ok(r) => {
+            let _ = writeln!(std::io::stdout(), "{}", r.lines());
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            let _ = writeln!(std::io::stderr(), "slcan: {e}");
             ExitCode::FAILURE
         }
     }
@@ -424,6 +456,7 @@ fn main() -> ExitCode {
         Some("studio") => return studio(rest),
         Some("bridge") => return bridge(rest),
         Some("poll-wck") => return poll_wck(rest),
+        Some("slcan") => return slcan(rest),
         Some("syscalls") => return syscalls(rest),
         Some("echo") => return echo(),
         _ => {}
