@@ -7,6 +7,8 @@
 //! emulated slcan CAN FD adapter (CANable 2.0 class) with the joints behind it on a pty
 //! at PATH, `--bus slcan:socket://127.0.0.1:PORT` on TCP (every OS): clients open it as
 //! they open a real adapter (`--bus slcan:PATH`, python-can's `slcan` interface).
+//! `--bus fdcanusb:PATH` (or `fdcanusb:socket://127.0.0.1:PORT`) does the same with an
+//! emulated mjbots fdcanusb.
 
 use std::time::Duration;
 
@@ -17,7 +19,7 @@ use robobus_link::{FaultyFrameLink, FrameLink, FrameLinkSpec, PortSpec, TcpServe
 #[cfg(unix)]
 use robobus_link::{LinkError, PtyOptions, PtyPair, PtySymlink};
 use robobus_sim::faults::{DeviceFaultKind, FaultSchedule};
-use robobus_sim::whj::adapter::{self, AdapterModel, SerialTime, SlcanAdapter};
+use robobus_sim::whj::adapter::{self, AdapterModel, FdcanusbAdapter, SerialTime, SlcanAdapter};
 use robobus_sim::whj::{JointConfig, WhjBus, WhjModel, WhjSimLink, serve_observed};
 use robobus_whj::JointId;
 
@@ -40,7 +42,12 @@ slcan: with --bus slcan:PATH the joints sit behind an emulated slcan adapter who
 channel the client opens and sets to its rates (S / Y commands); --bitrate / --dbitrate
 are then the adapter's rates at power-up, which it must be able to take (nominal 10k..1M,
 data 2M or 5M). Every character costs 10 µs each way on the adapter's serial link, as on
-a USB full-speed adapter, on top of the CAN wire time.";
+a USB full-speed adapter, on top of the CAN wire time.
+
+fdcanusb: with --bus fdcanusb:PATH the joints sit behind an emulated mjbots fdcanusb,
+off the bus until the client sends `can on`; the client sets its rates with `conf set`
+(--bitrate / --dbitrate are what it powers up configured to). Its text lines cost the
+same 10 µs a character each way.";
 
 /// Options of `robobus sim whj`.
 #[derive(Debug, clap::Args)]
@@ -59,7 +66,8 @@ pub(crate) struct Args {
     capture: Option<std::path::PathBuf>,
     /// The bus: `udp` (python-can `udp_multicast`, 239.74.163.2:43113), `udp:GROUP:PORT`,
     /// a `SocketCAN` interface such as `vcan0`, or `slcan:PATH` / `slcan:socket://IP:PORT`
-    /// (an emulated slcan adapter on a pty at PATH or on TCP).
+    /// (an emulated slcan adapter on a pty at PATH or on TCP), or `fdcanusb:PATH` /
+    /// `fdcanusb:socket://IP:PORT` (an emulated mjbots fdcanusb).
     #[arg(long, default_value = "udp", value_parser = parse_bus)]
     bus: FrameLinkSpec,
     /// Seed of the simulated measurement noise (same seed, same noise).
@@ -285,6 +293,18 @@ pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
     }
     if let FrameLinkSpec::Slcan { port, .. } = &args.bus {
         let adapter = SlcanAdapter::new(rates, SerialTime::default());
+        return serve_adapter(
+            args,
+            bus,
+            Box::new(adapter),
+            port,
+            wire_faults,
+            device,
+            &hands,
+        );
+    }
+    if let FrameLinkSpec::Fdcanusb { port } = &args.bus {
+        let adapter = FdcanusbAdapter::new(rates, SerialTime::default());
         return serve_adapter(
             args,
             bus,

@@ -1,0 +1,226 @@
+//! WHJ joints through mjbots' fdcanusb, end to end: `robobus sim whj --bus fdcanusb:PATH`
+//! presents an emulated fdcanusb on a pty; the client's suites run over `--bus
+//! fdcanusb:PATH` as far as an fdcanusb carries them (it cannot send the point-to-point
+//! status query, a frame without data: joints are read with the broadcast query); and a
+//! bad address, a missing port, a rate the adapter cannot be set to, and an adapter that
+//! answers nothing or garbage end with their documented exit codes, nothing sent to a
+//! joint. (Linux: the simulator's pty.)
+
+#![cfg(unix)]
+#![allow(clippy::unwrap_used, clippy::panic, clippy::float_cmp)] // test code
+
+mod common;
+
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use common::WhjSim;
+use robobus_link::{ByteLink, LinkError, PtyOptions, PtyPair};
+use serde_json::Value;
+
+/// An emulated fdcanusb with joints 1-7 behind it on a pty at a fresh path.
+fn sim(dir: &Path, extra: &[&str]) -> WhjSim {
+    let path = dir.join("fdcanusb");
+    WhjSim::start(&format!("fdcanusb:{}", path.display()), extra)
+}
+
+#[test]
+fn fdcanusb_e2e_scan_broadcast_status_monitor_and_run_over_the_emulated_adapter() {
+    let dir = tempfile::tempdir().unwrap();
+    let sim = sim(
+        dir.path(),
+        &["--current-noise-ma", "0", "--initial-deg", "2.5"],
+    );
+    let bus = sim.bus.clone();
+
+    let found = sim.json(&["scan", "--joints", "1-8"]);
+    let ids: Vec<u64> = found.iter().map(|r| r["id"].as_u64().unwrap()).collect();
+    assert_eq!(ids, [1, 2, 3, 4, 5, 6, 7], "{found:?}");
+
+    let st = sim.json(&["status", "--broadcast", "1-3"]);
+    assert_eq!(st.len(), 3, "{st:?}");
+    assert!(st.iter().all(|r| r["position_deg"] == 2.5), "{st:?}");
+
+    // The point-to-point query cannot go through an fdcanusb: refused, naming what works.
+    let r = sim.whj(&["status", "1"]);
+    assert_eq!(r.code, Some(1), "{}", r.stderr);
+    assert!(
+        r.stderr
+            .contains("an fdcanusb cannot send a frame without data bytes")
+            && r.stderr.contains("whj status --broadcast"),
+        "{}",
+        r.stderr
+    );
+
+    // monitor samples the joints by broadcast through the adapter and records them.
+    let csv = dir.path().join("m.csv");
+    let r = common::robobus(&[
+        "monitor",
+        "--bus",
+        &bus,
+        "--joints",
+        "1-2",
+        "--broadcast",
+        "--duration",
+        "1",
+        "--record",
+        csv.to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, Some(0), "{}", r.stderr);
+    let rows = std::fs::read_to_string(&csv).unwrap();
+    assert!(rows.lines().count() > 3, "{rows}");
+
+    // `run` gives the subcommand's report; a dry run opens nothing.
+    let file = dir.path().join("request.json");
+    std::fs::write(&file, r#"{"op": "whj.scan", "joints": "1-8"}"#).unwrap();
+    let r = common::robobus(&["run", "--whj-bus", &bus, file.to_str().unwrap()]);
+    assert_eq!(r.code, Some(0), "{}", r.stderr);
+    let report: Value = serde_json::from_str(&r.stdout).unwrap();
+    assert_eq!(report["results"].as_array().unwrap(), &found);
+    let r = common::robobus(&[
+        "--dry-run",
+        "whj",
+        "--bus",
+        "fdcanusb:/nonexistent/robobus-fdcanusb",
+        "move",
+        "1",
+        "5",
+    ]);
+    assert_eq!(r.code, Some(0), "{}", r.stderr);
+}
+
+#[test]
+fn fdcanusb_e2e_bad_addresses_and_ports_exit_2_3_4_naming_the_value() {
+    for (bus, code, says) in [
+        ("fdcanusb:", 2, "expected fdcanusb:PORT"),
+        (
+            "fdcanusb:/nonexistent/robobus-fdcanusb",
+            3,
+            "/nonexistent/robobus-fdcanusb",
+        ),
+        ("fdcanusb:COM8", 4, "COM8"),
+    ] {
+        let r = common::robobus(&["whj", "--bus", bus, "status", "--broadcast", "1"]);
+        assert_eq!(r.code, Some(code), "{bus}: {}", r.stderr);
+        assert!(r.stderr.contains(says), "{bus}: {}", r.stderr);
+    }
+}
+
+/// Runs `whj --bus fdcanusb:<pty> status --broadcast 1` against a pty whose other end
+/// answers each line the client writes with `answer(line)`; returns the run, how long it
+/// took and every line the client wrote.
+fn against(answer: fn(&str) -> String) -> (common::Run, Duration, Vec<String>) {
+    let PtyPair {
+        mut master,
+        slave,
+        slave_path,
+    } = PtyPair::open(&PtyOptions::default()).unwrap();
+    drop(slave);
+    let bus = format!("fdcanusb:{}", slave_path.display());
+    let reader = std::thread::spawn(move || {
+        let mut written = Vec::new();
+        let mut partial = Vec::new();
+        let mut buf = [0u8; 256];
+        let end = Instant::now() + Duration::from_secs(10);
+        while Instant::now() < end {
+            match master.read_some(&mut buf, Instant::now() + Duration::from_millis(50)) {
+                Ok(n) => {
+                    for &b in &buf[..n] {
+                        if b == b'\n' {
+                            let line = String::from_utf8_lossy(&partial).into_owned();
+                            partial.clear();
+                            let reply = answer(&line);
+                            written.push(line);
+                            if !reply.is_empty() {
+                                master.write_all(reply.as_bytes()).unwrap();
+                            }
+                        } else {
+                            partial.push(b);
+                        }
+                    }
+                }
+                Err(LinkError::Timeout { .. }) => {}
+                Err(LinkError::Closed { .. }) => break,
+                Err(e) => panic!("{e}"),
+            }
+        }
+        written
+    });
+    let t0 = Instant::now();
+    let r = common::robobus(&["whj", "--bus", &bus, "status", "--broadcast", "1"]);
+    let took = t0.elapsed();
+    (r, took, reader.join().unwrap())
+}
+
+fn no_frame_and_never_on(written: &[String]) {
+    assert!(
+        !written
+            .iter()
+            .any(|l| l.starts_with("can std") || l.starts_with("can ext") || l == "can on"),
+        "{written:?}"
+    );
+}
+
+#[test]
+fn fdcanusb_e2e_an_adapter_answering_nothing_or_garbage_is_no_device_and_nothing_reaches_a_joint() {
+    let (r, took, written) = against(|_| String::new());
+    assert_eq!(r.code, Some(3), "{}", r.stderr);
+    assert!(
+        r.stderr.contains("no answer to `can off` within 500 ms"),
+        "{}",
+        r.stderr
+    );
+    assert!(took < Duration::from_secs(5), "{took:?}");
+    assert_eq!(written, ["can off"]);
+
+    // An slcan adapter refuses what it does not know with BEL.
+    let (r, _, written) = against(|_| "\x07".into());
+    assert_eq!(r.code, Some(3), "{}", r.stderr);
+    assert!(
+        r.stderr.contains("not the fdcanusb protocol") && r.stderr.contains("\\a"),
+        "{}",
+        r.stderr
+    );
+    no_frame_and_never_on(&written);
+
+    let (r, _, written) = against(|_| "ERROR 42\r\n".into());
+    assert_eq!(r.code, Some(3), "{}", r.stderr);
+    assert!(r.stderr.contains("\"ERROR 42\""), "{}", r.stderr);
+    no_frame_and_never_on(&written);
+}
+
+/// An fdcanusb that cannot be set to 5 Mbit/s data: it refuses the rate as the emulated
+/// one does, and takes everything else.
+fn no_5_mbit(line: &str) -> String {
+    if line == "can off" {
+        "ERR already in BusOff\r\n".into()
+    } else if line.starts_with("conf set can.fd_bitrate ") {
+        "ERR can.fd_bitrate 5000000 cannot be set (allowed: 125000..=2000000 bit/s)\r\n".into()
+    } else if let Some(key) = line.strip_prefix("conf get ") {
+        let value = if key == "can.bitrate" { "1000000" } else { "1" };
+        format!("{value}\r\nOK\r\n")
+    } else {
+        "OK\r\n".into()
+    }
+}
+
+#[test]
+fn fdcanusb_e2e_a_data_rate_the_adapter_cannot_take_is_bad_input_naming_it_and_what_it_allows() {
+    let (r, _, written) = against(no_5_mbit);
+    assert_eq!(r.code, Some(2), "{}", r.stderr);
+    assert!(
+        r.stderr.contains("cannot set can.fd_bitrate to 5000000")
+            && r.stderr.contains("allowed: 125000..=2000000 bit/s"),
+        "{}",
+        r.stderr
+    );
+    assert_eq!(
+        written,
+        [
+            "can off",
+            "conf set can.bitrate 1000000",
+            "conf get can.bitrate",
+            "conf set can.fd_bitrate 5000000",
+        ]
+    );
+}
