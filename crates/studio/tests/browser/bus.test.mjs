@@ -3,7 +3,7 @@
 
 import { test, before, after } from "node:test";
 import assert from "node:assert/strict";
-import { startStudio, launchBrowser, openPage, simState, screenshot, openTab, teardown, until } from "./harness.mjs";
+import { startStudio, launchBrowser, openPage, simState, screenshot, openTab, teardown, until, ROBOBUS_BIN } from "./harness.mjs";
 
 let studio;
 let browser;
@@ -106,6 +106,31 @@ test("a WHJ scan lists the joints with model and firmware; Set ID is verified", 
   await page.getByRole("dialog").getByRole("button", { name: "Confirm" }).click();
   await whj.getByText(/read back 9 \(verified\)/).waitFor();
   await screenshot(page, "bus-whj");
+});
+
+test("the serial ports of the machine are listed as robobus ports lists them", async () => {
+  const { execFileSync } = await import("node:child_process");
+  const want = JSON.parse(execFileSync(ROBOBUS_BIN, ["ports", "--json"], { encoding: "utf8" }));
+  const panel = await openTab(page, "Bus");
+  const ports = panel.getByRole("region", { name: "Serial ports" });
+  await ports.getByRole("button", { name: "List serial ports" }).click();
+  const ids = want.results.map((r) => r.id);
+  if (ids.length === 0) {
+    await ports.getByText(`No serial port found; ${want.summary.where}`).waitFor();
+    return;
+  }
+  const n = ids.length;
+  await ports.getByText(`${n} serial port${n === 1 ? "" : "s"} on ${want.summary.os}.`).waitFor();
+  const table = ports.getByRole("table", { name: "Serial ports of this machine" });
+  assert.deepEqual(await table.locator("thead th").allTextContents(), [
+    "Port", "Kind", "USB", "Device", "Adapter", "Use", "Latency timer",
+  ]);
+  assert.deepEqual(await table.locator("tbody tr td:first-child").allTextContents(), ids);
+  assert.deepEqual(
+    await table.locator("tbody tr td:nth-child(2)").allTextContents(),
+    want.results.map((r) => r.kind),
+  );
+  await screenshot(page, "bus-ports");
 });
 
 test("no console errors", () => {

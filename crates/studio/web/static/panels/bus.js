@@ -18,8 +18,74 @@ export default {
       if (studio.buses(family).length) grid.append(familySection(studio, family));
     }
     if (!grid.children.length) root.append(el("p", {}, "This studio has no bus."));
+    root.append(portsSection(studio));
   },
 };
+
+// The serial ports of the machine the studio runs on, as its OS knows them (the
+// catalogue's read-only `host.ports`: what `robobus ports` prints): each with the adapter
+// robobus recognises, what it is for, and this OS's latency-timer advice.
+function portsSection(studio) {
+  const list = el("button", { type: "button", className: "secondary" }, "List serial ports");
+  const summary = el("p", { className: "summary", "aria-live": "polite" }, "Not listed yet.");
+  const results = el("div", { className: "results" });
+  const usb = (r) =>
+    r.vid === null || r.vid === undefined
+      ? "—"
+      : `${r.vid.toString(16).padStart(4, "0")}:${r.pid.toString(16).padStart(4, "0")}`;
+  const strings = (r) => [r.manufacturer, r.product, r.serial_number && `serial ${r.serial_number}`].filter(Boolean).join(", ") || "—";
+  const latency = (r) => {
+    const parts = [];
+    if (r.latency_timer_ms !== null && r.latency_timer_ms !== undefined) parts.push(`${r.latency_timer_ms} ms`);
+    if (r.latency_advice) parts.push(r.latency_advice);
+    return parts.join(": ") || "—";
+  };
+  list.addEventListener("click", async () => {
+    list.disabled = true;
+    summary.textContent = "Listing…";
+    try {
+      const report = await studio.run({ op: "host.ports" });
+      const rows = report.results ?? [];
+      const os = report.summary?.os ?? "this machine";
+      summary.textContent = rows.length
+        ? `${rows.length} serial port${rows.length === 1 ? "" : "s"} on ${os}.`
+        : `No serial port found; ${report.summary?.where ?? ""}`;
+      results.replaceChildren(
+        rows.length
+          ? el(
+              "div",
+              { className: "table-wrap" },
+              table(
+                [
+                  ["Port", (r) => r.id, "mono"],
+                  ["Kind", (r) => r.kind],
+                  ["USB", usb, "mono"],
+                  ["Device", strings],
+                  ["Adapter", (r) => r.adapter ?? "—"],
+                  ["Use", (r) => r.use_for ?? "—"],
+                  ["Latency timer", latency],
+                ],
+                rows,
+                { caption: "Serial ports of this machine" },
+              ),
+            )
+          : "",
+      );
+    } catch (e) {
+      summary.textContent = `Failed: ${describeError(e)}`;
+      studio.toast(e);
+    } finally {
+      list.disabled = false;
+    }
+  });
+  return el("section", { className: "card", "aria-label": "Serial ports" }, [
+    el("h3", {}, "Serial ports of this machine"),
+    el("p", { className: "hint" }, "What the OS knows of each port (COM ports, /dev/cu.*, /dev/ttyUSB*): the adapter robobus recognises, the option that uses it, and the latency-timer advice. Nothing is opened."),
+    el("div", { className: "row" }, [list]),
+    summary,
+    results,
+  ]);
+}
 
 function familySection(studio, family) {
   const wck = family === "wck";
