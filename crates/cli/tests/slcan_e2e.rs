@@ -236,3 +236,63 @@ fn slcan_e2e_an_adapter_answering_nothing_or_garbage_is_no_device_and_nothing_re
         String::from_utf8_lossy(&written)
     );
 }
+
+#[test]
+fn slcan_e2e_a_robot_files_whj_bus_reaches_the_joints_through_the_adapter() {
+    let dir = tempfile::tempdir().unwrap();
+    let sim = sim(dir.path(), &[]);
+    sim.json(&["enable", "2"]);
+    sim.json(&["move", "2", "12", "--max-speed", "60"]);
+    let robot = dir.path().join("robot.toml");
+    std::fs::write(
+        &robot,
+        format!(
+            r#"
+[buses.arm]
+kind = "whj-bus"
+bus = "{}"
+
+[[joints]]
+name = "elbow"
+bus = "arm"
+id = 2
+limits = [-1.0, 1.0]
+max_velocity = 1.0
+max_acceleration = 1.0
+"#,
+            sim.bus
+        ),
+    )
+    .unwrap();
+    let r = common::robobus(&[
+        "--json",
+        "monitor",
+        "--robot",
+        robot.to_str().unwrap(),
+        "--rate-hz",
+        "10",
+        "--duration",
+        "1",
+    ]);
+    assert_eq!(r.code, Some(0), "{r:#?}");
+    let samples = common::json_lines(&r.stdout);
+    let last = &samples.last().unwrap()["channels"];
+    assert_eq!(last[0]["name"], "elbow");
+    let at = last[0]["position_deg"].as_f64().unwrap();
+    assert!((at - 12.0).abs() < 0.2, "{last}");
+    // A bus address that does not parse is named with the syntax.
+    std::fs::write(
+        &robot,
+        "[buses.arm]\nkind = \"whj-bus\"\nbus = \"canable:COM8\"\n\n[[joints]]\nname = \"elbow\"\nbus = \"arm\"\nid = 2\nlimits = [-1.0, 1.0]\nmax_velocity = 1.0\nmax_acceleration = 1.0\n",
+    )
+    .unwrap();
+    let r = common::robobus(&[
+        "monitor",
+        "--robot",
+        robot.to_str().unwrap(),
+        "--duration",
+        "1",
+    ]);
+    assert_eq!(r.code, Some(2), "{r:#?}");
+    assert!(r.stderr.contains("slcan:PORT[@BAUD]"), "{}", r.stderr);
+}

@@ -329,7 +329,7 @@ pub fn open_robot_ports(
                 };
                 wck_ports.push(WckPort::new(name.clone(), open.with_config(wck)));
             }
-            BusConfig::WhjUdp { .. } => {
+            BusConfig::WhjUdp { .. } | BusConfig::WhjBus { .. } => {
                 let jb = crate::robot::open_whj_bus(name, bus, whj)?;
                 whj_ports.push(WhjPort::new(name.clone(), jb));
             }
@@ -342,7 +342,7 @@ pub fn open_robot_ports(
                     item: format!("bus {name}"),
                     field: "kind",
                     value: format!("\"{}\"", bus.kind()),
-                    expected: "a bus opened from the file (kind wck, whj-udp or whj-can); an \
+                    expected: "a bus opened from the file (kind wck, whj-udp, whj-can or whj-bus); an \
                                external bus is one a program supplies"
                         .into(),
                 });
@@ -371,6 +371,7 @@ pub fn bus_description(name: &str, bus: &BusConfig) -> String {
         BusConfig::Wck { port, baud, .. } => format!("{name}: wCK {port} at {baud} bit/s"),
         BusConfig::WhjCan { iface, .. } => format!("{name}: WHJ {iface}"),
         BusConfig::WhjUdp { .. } => format!("{name}: WHJ UDP"),
+        BusConfig::WhjBus { bus, .. } => format!("{name}: WHJ {bus}"),
         BusConfig::WckExternal { .. } => format!("{name}: wCK (supplied by the program)"),
         BusConfig::WhjExternal { .. } => format!("{name}: WHJ (supplied by the program)"),
     }

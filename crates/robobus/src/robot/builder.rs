@@ -330,6 +330,16 @@ pub fn open_whj_bus(
                 .map_err(|e| fail(what.clone(), e.to_string()))?;
             JointBus::open_with(link, config).map_err(|e| fail(what, e.to_string()))
         }
+        BusConfig::WhjBus { bus: addr, .. } => {
+            let spec: robobus_link::FrameLinkSpec = addr
+                .parse()
+                .map_err(|e: robobus_link::SpecError| fail(addr.clone(), e.to_string()))?;
+            let what = spec.describe();
+            let link = spec
+                .open()
+                .map_err(|e| fail(what.clone(), e.to_string()))?;
+            JointBus::open_with(link, config).map_err(|e| fail(what, e.to_string()))
+        }
         BusConfig::WhjExternal { .. } => Err(RobotError::MissingBus {
             bus: name.to_owned(),
             kind: "whj-external",

@@ -77,6 +77,16 @@ pub enum BusConfig {
         #[serde(default = "default_whj_safe")]
         safe_state: SafeState,
     },
+    /// `kind = "whj-bus"`: WHJ joints on any bus address `--bus` takes: a serial-line CAN
+    /// FD adapter (`slcan:/dev/ttyACM0`, `slcan:COM8`), `udp:GROUP:PORT`, or a `SocketCAN`
+    /// interface.
+    WhjBus {
+        /// The bus address (`slcan:COM8`).
+        bus: String,
+        /// `"hold"` (default) or `"disable"`.
+        #[serde(default = "default_whj_safe")]
+        safe_state: SafeState,
+    },
     /// `kind = "wck-external"`: a wCK bus the program supplies
     /// ([`RobotBuilder::wck_bus`](super::RobotBuilder::wck_bus)), for example a simulator.
     WckExternal {
@@ -121,6 +131,7 @@ impl BusConfig {
             Self::Wck { .. } => "wck",
             Self::WhjUdp { .. } => "whj-udp",
             Self::WhjCan { .. } => "whj-can",
+            Self::WhjBus { .. } => "whj-bus",
             Self::WckExternal { .. } => "wck-external",
             Self::WhjExternal { .. } => "whj-external",
         }
@@ -132,6 +143,7 @@ impl BusConfig {
             Self::Wck { safe_state, .. }
             | Self::WhjUdp { safe_state, .. }
             | Self::WhjCan { safe_state, .. }
+            | Self::WhjBus { safe_state, .. }
             | Self::WckExternal { safe_state, .. }
             | Self::WhjExternal { safe_state } => *safe_state,
         }
@@ -518,6 +530,19 @@ impl RobotConfig {
                         field: "port",
                         value: format!("{:?}", e.value),
                         expected: format!("{} ({})", robobus_link::port::PORT_SYNTAX, e.reason),
+                    },
+                )));
+            }
+            if let BusConfig::WhjBus { bus: addr, .. } = bus
+                && let Err(e) = addr.parse::<robobus_link::FrameLinkSpec>()
+            {
+                return Err(Box::new((
+                    Site::Bus(name.clone(), "bus"),
+                    RobotError::Invalid {
+                        item: format!("bus {name}"),
+                        field: "bus",
+                        value: format!("{:?}", e.value),
+                        expected: e.reason,
                     },
                 )));
             }
