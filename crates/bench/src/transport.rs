@@ -1,15 +1,15 @@
-//! The transports' own round trip, with nothing simulated: a byte through the pty and
-//! straight back (wCK), a frame through the in-process memory bus and straight back
-//! (WHJ), both sides spinning. What a request/reply loop over that transport loses per
+//! The transports' own round trip, with nothing simulated: a byte through the pty, or over
+//! TCP on 127.0.0.1, and straight back (wCK), a frame through the in-process memory bus
+//! and straight back (WHJ), both sides spinning. What a request/reply loop over that transport loses per
 //! transaction at the least, whatever the client and the simulator do.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+use robobus_link::{ByteLink, FrameLink, MemoryBus, TcpServer, WaitMode, wait};
 #[cfg(unix)]
-use robobus_link::{ByteLink, PtyOptions, PtyPair};
-use robobus_link::{FrameLink, MemoryBus, WaitMode, wait};
+use robobus_link::{PtyOptions, PtyPair};
 use robobus_whj::CanFrame;
 
 use crate::BenchError;
@@ -64,6 +64,57 @@ pub fn pty_echo(n: usize) -> Result<Summary, BenchError> {
             )
         }) {
             result = Err(BenchError::new("pty echo", e));
+            break;
+        }
+        rtt.push(t0.elapsed());
+    }
+    stop.store(true, Ordering::Relaxed);
+    let _ = echo.join();
+    result.map(|()| Summary::of(&rtt))
+}
+
+/// `n` one-byte round trips over TCP on 127.0.0.1: the client ([`TcpByteLink`], as
+/// `--port socket://...` opens it) writes a byte, an echo thread spinning on the
+/// simulator's side ([`TcpServer`]) writes it back, the client spins until it is in.
+pub fn tcp_echo(n: usize) -> Result<Summary, BenchError> {
+    let any_port = std::net::SocketAddr::from((std::net::Ipv4Addr::LOCALHOST, 0));
+    let mut server =
+        TcpServer::bind(any_port, 115_200).map_err(|e| BenchError::new("listening", e))?;
+    let mut client = server
+        .port_spec()
+        .open(115_200)
+        .map_err(|e| BenchError::new("connecting", e))?;
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = Arc::clone(&stop);
+    let echo = std::thread::spawn(move || {
+        let mut b = [0u8; 16];
+        while !flag.load(Ordering::Relaxed) {
+            let now = Instant::now();
+            let deadline = now + Duration::from_millis(10);
+            if let Ok(k) = wait::read_some(&mut server, &mut b, deadline, now, WaitMode::SPIN)
+                && server.write_all(b.get(..k).unwrap_or_default()).is_err()
+            {
+                return;
+            }
+        }
+    });
+    let mut rtt = Vec::with_capacity(n);
+    let mut b = [0u8; 1];
+    let mut result = Ok(());
+    for i in 0..n {
+        let t0 = Instant::now();
+        #[allow(clippy::cast_possible_truncation)] // any byte will do
+        let byte = [i as u8];
+        if let Err(e) = client.write_all(&byte).and_then(|()| {
+            wait::read_some(
+                &mut client,
+                &mut b,
+                t0 + Duration::from_secs(1),
+                t0,
+                WaitMode::SPIN,
+            )
+        }) {
+            result = Err(BenchError::new("TCP echo", e));
             break;
         }
         rtt.push(t0.elapsed());

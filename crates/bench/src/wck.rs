@@ -107,6 +107,29 @@ impl Rig {
         })
     }
 
+    /// The same modules served over TCP on a free port of 127.0.0.1 (what `robobus sim
+    /// wck --listen` serves), the client connected with [`robobus_link::TcpByteLink`]
+    /// through the port address it announces, as `--port socket://...` connects.
+    pub fn open_tcp(
+        servos: u8,
+        baud: BaudRate,
+        timing: Timing,
+        wait: WaitMode,
+    ) -> Result<Self, BenchError> {
+        let any_port = std::net::SocketAddr::from((std::net::Ipv4Addr::LOCALHOST, 0));
+        let endpoint = robobus_sim::wck::spawn_tcp(modules(servos, baud, timing), any_port, wait)
+            .map_err(|e| BenchError::new("starting the wCK endpoint", e))?;
+        let slave = endpoint
+            .port()
+            .open(baud.bits_per_second())
+            .map_err(|e| BenchError::new("connecting to the wCK endpoint", e))?;
+        Ok(Self {
+            path: endpoint.path().to_path_buf(),
+            endpoint,
+            slave,
+        })
+    }
+
     /// The same modules served over an in-process memory byte link instead of a pty:
     /// no kernel between client and simulator (no path for an outside program).
     pub fn open_memory(
@@ -274,6 +297,22 @@ pub fn poll(
     } else {
         Rig::open(spec.servos, spec.baud, spec.timing(), spec.wait)?
     };
+    poll_on(rig, spec, duration, python)
+}
+
+/// [`poll`] with the simulator served over TCP on 127.0.0.1 ([`Rig::open_tcp`]) instead
+/// of the pty (`spec.memory` is ignored; no pyserial peer).
+pub fn poll_tcp(spec: PollSpec, duration: Duration) -> Result<PollResult, BenchError> {
+    let rig = Rig::open_tcp(spec.servos, spec.baud, spec.timing(), spec.wait)?;
+    poll_on(rig, spec, duration, None)
+}
+
+fn poll_on(
+    rig: Rig,
+    spec: PollSpec,
+    duration: Duration,
+    python: Option<&std::path::Path>,
+) -> Result<PollResult, BenchError> {
     let mut bus = WckBus::new(rig.slave, spec.baud)
         .map_err(|e| BenchError::new("opening WckBus", e))?
         .with_config(spec.client_config());
