@@ -30,6 +30,7 @@ use std::process::ExitCode;
 
 use clap::{CommandFactory as _, FromArgMatches as _, Parser, Subcommand};
 
+#[cfg(feature = "bridge")]
 mod bridge;
 mod demo;
 mod doctor;
@@ -193,6 +194,7 @@ enum Command {
     /// with scouting off, unless --listen / --connect say otherwise; commands move
     /// nothing until armed, and a command stream quiet for --command-timeout holds the
     /// joints (docs/bridge.md).
+    #[cfg(feature = "bridge")]
     Bridge(bridge::Args),
 }
 
@@ -306,6 +308,7 @@ fn main() -> ExitCode {
         Command::Run(args) => run::run(g, &args),
         Command::Schema(args) => run::schema(&args),
         Command::Studio(args) => studio::run(g, &args),
+        #[cfg(feature = "bridge")]
         Command::Bridge(args) => bridge::run(g, &args),
     };
     match result {
