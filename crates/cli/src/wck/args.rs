@@ -59,8 +59,8 @@ pub(crate) struct Args {
     pub(super) baud: BaudRate,
     /// Extra time to wait for each reply beyond its modelled wire time and turnaround, in
     /// ms (default 10, plus a USB adapter's latency timer when it can be read, or 50 on
-    /// a pseudo-terminal: a simulator in another process). Raise it for a simulator on a
-    /// heavily loaded machine.
+    /// a pseudo-terminal or over TCP: a simulator in another process). Raise it for a
+    /// simulator on a heavily loaded machine.
     #[arg(long, value_name = "MS", value_parser = parse_margin, global = true)]
     pub(super) reply_margin: Option<core::time::Duration>,
     /// Accept a read only when two replies in a row agree (wCK replies carry no checksum,
