@@ -232,11 +232,19 @@ pub trait FrameLink {
     fn virtual_time(&self) -> bool {
         false
     }
+
+    /// Whether the link can send a frame without data bytes. `true` except through an
+    /// adapter whose protocol cannot write one (mjbots' fdcanusb): a client then asks
+    /// what it would ask with such a frame another way (WHJ's status query by broadcast).
+    fn sends_empty_frames(&self) -> bool {
+        true
+    }
 }
 
 /// The clock methods of a [`FrameLink`] that wraps another, forwarded to the wrapped
-/// link (the field named): `now`, `sleep_until`, `virtual_time`. For use inside an
-/// `impl FrameLink for Wrapper` block.
+/// link (the field named): `now`, `sleep_until`, `virtual_time`, and what the wrapped
+/// link can carry (`sends_empty_frames`). For use inside an `impl FrameLink for Wrapper`
+/// block.
 #[macro_export]
 macro_rules! forward_frame_link_clock {
     ($field:tt) => {
@@ -250,6 +258,10 @@ macro_rules! forward_frame_link_clock {
 
         fn virtual_time(&self) -> bool {
             $crate::FrameLink::virtual_time(&self.$field)
+        }
+
+        fn sends_empty_frames(&self) -> bool {
+            $crate::FrameLink::sends_empty_frames(&self.$field)
         }
     };
 }
@@ -273,6 +285,9 @@ impl<T: FrameLink + ?Sized> FrameLink for &mut T {
     fn virtual_time(&self) -> bool {
         (**self).virtual_time()
     }
+    fn sends_empty_frames(&self) -> bool {
+        (**self).sends_empty_frames()
+    }
 }
 
 impl<T: FrameLink + ?Sized> FrameLink for Box<T> {
@@ -293,6 +308,9 @@ impl<T: FrameLink + ?Sized> FrameLink for Box<T> {
     }
     fn virtual_time(&self) -> bool {
         (**self).virtual_time()
+    }
+    fn sends_empty_frames(&self) -> bool {
+        (**self).sends_empty_frames()
     }
 }
 

@@ -818,6 +818,11 @@ impl<L: ByteLink> FrameLink for FdcanusbLink<L> {
     fn virtual_time(&self) -> bool {
         self.link.virtual_time()
     }
+
+    /// `false`: the firmware refuses `can std` without data.
+    fn sends_empty_frames(&self) -> bool {
+        false
+    }
 }
 
 impl<L: ByteLink> Drop for FdcanusbLink<L> {

@@ -3,7 +3,8 @@
 //! reply work and by a thread of its own for the cyclic loop; it publishes what the
 //! session polls out ([`Telemetry`], the loop's reports) where callers read it without
 //! that lock. `driving.rs` holds the lock and the step, `mailbox.rs` a loop's exchange with
-//! its handle.
+//! its handle, `status_by_broadcast.rs` the status query of a link that cannot send a
+//! frame without data.
 
 use core::time::Duration;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -22,6 +23,7 @@ use super::session::{Attempt, Expect, JointBusConfig, Outcome, Session, Telemetr
 
 mod driving;
 mod mailbox;
+mod status_by_broadcast;
 
 use driving::{Core, CoreLock, Wake, background};
 pub(crate) use mailbox::{CyclicMailbox, Polled};
@@ -85,6 +87,9 @@ pub struct JointBus {
     shared: Arc<Shared>,
     config: JointBusConfig,
     virtual_time: bool,
+    /// Whether the link sends frames without data ([`FrameLink::sends_empty_frames`]);
+    /// when not, status queries go by broadcast.
+    empty_frames: bool,
     wake: Mutex<Sender<Wake>>,
     thread: Option<JoinHandle<()>>,
 }
@@ -103,6 +108,7 @@ impl JointBus {
         let shared = Arc::new(Shared::default());
         let last_drain = link.now();
         let virtual_time = link.virtual_time();
+        let empty_frames = link.sends_empty_frames();
         let core = Arc::new(CoreLock::new(Core {
             link: Box::new(link),
             session: Session::new(config),
@@ -133,6 +139,7 @@ impl JointBus {
             shared,
             config,
             virtual_time,
+            empty_frames,
             wake: Mutex::new(tx),
             thread,
         })
@@ -355,8 +362,28 @@ impl JointBus {
     }
 
     /// Submits one transaction per request and drives the session until every one is
-    /// finished; their outcomes in request order.
+    /// finished; their outcomes in request order. On a link that cannot send a frame
+    /// without data, status queries are asked by broadcast instead
+    /// ([`JointBus::run_status_by_broadcast`]).
     fn run(
+        &self,
+        requests: &[Request],
+        timeout: Duration,
+        quiet_after: Duration,
+        attempts: u32,
+    ) -> Result<Vec<Result<Outcome, WhjError>>, WhjError> {
+        if !self.empty_frames
+            && requests
+                .iter()
+                .any(|r| matches!(r, Request::StatusQuery { .. }))
+        {
+            return self.run_status_by_broadcast(requests, timeout, quiet_after, attempts);
+        }
+        self.run_session(requests, timeout, quiet_after, attempts)
+    }
+
+    /// [`JointBus::run`] through the session, every request as it is.
+    fn run_session(
         &self,
         requests: &[Request],
         timeout: Duration,
