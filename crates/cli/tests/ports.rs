@@ -9,7 +9,9 @@ mod common;
 
 use std::collections::BTreeSet;
 
-use common::{WckSim, ok, robobus};
+#[cfg(unix)]
+use common::WckSim;
+use common::{ok, robobus};
 use serde_json::Value;
 
 const ROW_KEYS: [&str; 11] = [
@@ -93,6 +95,7 @@ fn ports_json_is_the_host_ports_report_of_exactly_the_ports_the_kernel_has() {
     }
 }
 
+#[cfg(unix)]
 #[test]
 fn a_simulators_pseudo_terminal_is_not_a_port_the_os_lists() {
     let sim = WckSim::start("0", &[]);
@@ -243,4 +246,86 @@ fn doctor_takes_a_serial_line_can_fd_adapter_as_whj_bus_and_bounds_its_port() {
             .contains("/nonexistent/ttyACM9"),
         "{open}"
     );
+}
+
+/// `robobus sim whj --bus ADDR --joints 1-2` in its own process, killed on drop.
+#[cfg(unix)]
+struct AdapterSim(std::process::Child, tempfile::TempDir);
+
+#[cfg(unix)]
+impl Drop for AdapterSim {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// Starts an emulated adapter (`slcan` or `fdcanusb`) at a pty symlink; returns its path.
+#[cfg(unix)]
+fn adapter_sim(kind: &str) -> (AdapterSim, String) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join(kind).display().to_string();
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .args([
+            "sim",
+            "whj",
+            "--joints",
+            "1-2",
+            "--bus",
+            &format!("{kind}:{path}"),
+        ])
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let sim = AdapterSim(child, dir);
+    let t0 = std::time::Instant::now();
+    while !std::path::Path::new(&path).exists() {
+        assert!(
+            t0.elapsed() < std::time::Duration::from_secs(20),
+            "no {path}"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    (sim, path)
+}
+
+#[cfg(unix)]
+#[test]
+fn doctor_says_a_serial_line_can_fd_adapter_answers_then_probes_its_joints() {
+    for kind in ["slcan", "fdcanusb"] {
+        let (_sim, path) = adapter_sim(kind);
+        let bus = format!("{kind}:{path}");
+        let r = robobus(&["--json", "doctor", "--whj-bus", &bus, "--joints", "1-2"]);
+        let d: Value = serde_json::from_str(&r.stdout).unwrap_or_else(|e| panic!("{e}: {r:#?}"));
+        let findings = d["findings"].as_array().unwrap();
+        let adapter = findings
+            .iter()
+            .find(|f| f["subject"] == bus.as_str() && f["check"] == "adapter")
+            .unwrap_or_else(|| panic!("no adapter finding: {findings:#?}"));
+        assert_eq!(adapter["status"], "ok");
+        let detail = adapter["detail"].as_str().unwrap();
+        if kind == "slcan" {
+            let version = detail
+                .strip_prefix(&format!("slcan adapter on {path} answers (version "))
+                .and_then(|v| v.strip_suffix("), set to 1 / 5 Mbit/s"))
+                .unwrap_or_else(|| panic!("{detail}"));
+            assert!(!version.is_empty(), "{detail}");
+        } else {
+            assert_eq!(
+                detail,
+                format!("fdcanusb on {path} answers, set to 1 / 5 Mbit/s")
+            );
+        }
+        // Then the joints behind it, each found once.
+        for joint in ["J1", "J2"] {
+            let subject = format!("{joint} on {bus}");
+            let dup = findings
+                .iter()
+                .find(|f| f["subject"] == subject.as_str() && f["check"] == "duplicate-id")
+                .unwrap_or_else(|| panic!("no {subject}: {findings:#?}"));
+            assert_eq!(dup["status"], "ok", "{dup}");
+        }
+    }
 }

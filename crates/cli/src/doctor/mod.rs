@@ -243,6 +243,7 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
         findings.extend(probe_wck(port, args.wck_baud, args.reply_margin));
     }
     if let Some(bus) = &args.whj_bus {
+        findings.extend(probe_adapter(bus));
         findings.extend(probe_whj(bus, &args.joints.0));
     }
     report(g, &findings)
@@ -262,6 +263,45 @@ fn probe_wck(
         }
         Err(e) => vec![finding(port, "open", Status::Fail, e.to_string(), None)],
     }
+}
+
+/// A serial-line CAN FD adapter named by `--whj-bus` (`slcan:PORT`, `fdcanusb:PORT`),
+/// opened alone (set to the joints' rates, no frame sent) so that the findings say the
+/// adapter itself answers, and which slcan version it is, before its joints are probed.
+/// `None` for another bus, or when it does not open: the probe's open finding says why.
+fn probe_adapter(bus: &str) -> Option<Finding> {
+    use robobus_link::FrameLinkSpec as Spec;
+    let detail = match bus.parse::<Spec>().ok()? {
+        Spec::Slcan { port, baud } => {
+            let name = port.to_string();
+            let link = port
+                .open(baud.unwrap_or(robobus_link::spec::SLCAN_DEFAULT_BAUD))
+                .ok()?;
+            let adapter = robobus_link::slcan::SlcanLink::open(
+                link,
+                &name,
+                &robobus_link::slcan::SlcanConfig::default(),
+            )
+            .ok()?;
+            format!(
+                "slcan adapter on {name} answers (version {}), set to 1 / 5 Mbit/s",
+                adapter.version()
+            )
+        }
+        Spec::Fdcanusb { port } => {
+            let name = port.to_string();
+            let link = port.open(robobus_link::spec::FDCANUSB_BAUD).ok()?;
+            robobus_link::fdcanusb::FdcanusbLink::open(
+                link,
+                &name,
+                robobus_link::fdcanusb::FdcanusbConfig::default(),
+            )
+            .ok()?;
+            format!("fdcanusb on {name} answers, set to 1 / 5 Mbit/s")
+        }
+        _ => return None,
+    };
+    Some(finding(bus, "adapter", Status::Ok, detail, None))
 }
 
 fn probe_whj(bus_name: &str, ids: &[u8]) -> Vec<Finding> {
