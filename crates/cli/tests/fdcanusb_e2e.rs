@@ -1,8 +1,7 @@
 //! WHJ joints through mjbots' fdcanusb, end to end: `robobus sim whj --bus fdcanusb:PATH`
 //! presents an emulated fdcanusb on a pty; the client's suites run over `--bus
-//! fdcanusb:PATH` as far as an fdcanusb carries them (it cannot send the point-to-point
-//! status query, a frame without data: joints are read with the broadcast query); and a
-//! bad address, a missing port, a rate the adapter cannot be set to, and an adapter that
+//! fdcanusb:PATH` (an fdcanusb cannot send the point-to-point status query, a frame
+//! without data: the bus asks status by broadcast); and a bad address, a missing port, a rate the adapter cannot be set to, and an adapter that
 //! answers nothing or garbage end with their documented exit codes, nothing sent to a
 //! joint. (Linux: the simulator's pty.)
 
@@ -25,7 +24,7 @@ fn sim(dir: &Path, extra: &[&str]) -> WhjSim {
 }
 
 #[test]
-fn fdcanusb_e2e_scan_broadcast_status_monitor_and_run_over_the_emulated_adapter() {
+fn fdcanusb_e2e_scan_status_move_wave_monitor_and_run_over_the_emulated_adapter() {
     let dir = tempfile::tempdir().unwrap();
     let sim = sim(
         dir.path(),
@@ -40,43 +39,53 @@ fn fdcanusb_e2e_scan_broadcast_status_monitor_and_run_over_the_emulated_adapter(
     let st = sim.json(&["status", "--broadcast", "1-3"]);
     assert_eq!(st.len(), 3, "{st:?}");
     assert!(st.iter().all(|r| r["position_deg"] == 2.5), "{st:?}");
+    // The point-to-point status: an fdcanusb cannot send its empty frame, so the bus asks
+    // by broadcast; the same values.
+    let st = sim.json(&["status", "1-3"]);
+    assert_eq!(st.len(), 3, "{st:?}");
+    assert!(st.iter().all(|r| r["position_deg"] == 2.5), "{st:?}");
 
-    // The point-to-point query cannot go through an fdcanusb: refused, naming what works.
-    let r = sim.whj(&["status", "1"]);
-    assert_eq!(r.code, Some(1), "{}", r.stderr);
-    assert!(
-        r.stderr
-            .contains("an fdcanusb cannot send a frame without data bytes")
-            && r.stderr.contains("whj status --broadcast"),
-        "{}",
-        r.stderr
-    );
+    sim.json(&["enable", "1"]);
+    sim.json(&["move", "1", "12", "--max-speed", "60"]);
+    let st = sim.json(&["status", "1"]);
+    let at = st[0]["position_deg"].as_f64().unwrap();
+    assert!((at - 12.0).abs() < 0.05, "{st:?}");
 
-    // monitor samples the joints by broadcast through the adapter and records them.
-    let csv = dir.path().join("m.csv");
-    let r = common::robobus(&[
-        "monitor",
-        "--bus",
-        &bus,
-        "--joints",
-        "1-2",
-        "--broadcast",
-        "--duration",
-        "1",
-        "--record",
-        csv.to_str().unwrap(),
-    ]);
+    sim.json(&["enable", "3"]);
+    let r = sim.whj(&["wave", "3", "--amplitude", "5", "--duration", "0.5"]);
     assert_eq!(r.code, Some(0), "{}", r.stderr);
-    let rows = std::fs::read_to_string(&csv).unwrap();
-    assert!(rows.lines().count() > 3, "{rows}");
+
+    // monitor samples the joints through the adapter, point to point and by broadcast,
+    // and records them.
+    for broadcast in [false, true] {
+        let csv = dir.path().join(format!("m-{broadcast}.csv"));
+        let mut args = vec![
+            "monitor",
+            "--bus",
+            &bus,
+            "--joints",
+            "1-2",
+            "--duration",
+            "1",
+        ];
+        if broadcast {
+            args.push("--broadcast");
+        }
+        args.extend(["--record", csv.to_str().unwrap()]);
+        let r = common::robobus(&args);
+        assert_eq!(r.code, Some(0), "{}", r.stderr);
+        let rows = std::fs::read_to_string(&csv).unwrap();
+        assert!(rows.lines().count() > 3, "{rows}");
+    }
 
     // `run` gives the subcommand's report; a dry run opens nothing.
     let file = dir.path().join("request.json");
-    std::fs::write(&file, r#"{"op": "whj.scan", "joints": "1-8"}"#).unwrap();
+    let want = sim.json(&["status", "1-3"]);
+    std::fs::write(&file, r#"{"op": "whj.status", "joints": "1-3"}"#).unwrap();
     let r = common::robobus(&["run", "--whj-bus", &bus, file.to_str().unwrap()]);
     assert_eq!(r.code, Some(0), "{}", r.stderr);
     let report: Value = serde_json::from_str(&r.stdout).unwrap();
-    assert_eq!(report["results"].as_array().unwrap(), &found);
+    assert_eq!(report["results"].as_array().unwrap(), &want);
     let r = common::robobus(&[
         "--dry-run",
         "whj",

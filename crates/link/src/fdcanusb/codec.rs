@@ -256,9 +256,8 @@ pub fn encode_send(frame: &CanFrame) -> Result<String, String> {
     if frame.is_empty() {
         return Err(
             "an fdcanusb cannot send a frame without data bytes (its `can std` needs at least \
-             one); WHJ's point-to-point status query (0x600+ID) is one: read status with the \
-             broadcast status query (whj status --broadcast, monitor --broadcast), or use an \
-             slcan adapter or SocketCAN"
+             one; a WHJ bus asks status by broadcast instead): use an slcan adapter or \
+             SocketCAN for such frames"
                 .into(),
         );
     }
