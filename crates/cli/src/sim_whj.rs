@@ -4,7 +4,7 @@
 //! `--bus udp` joins python-can's `udp_multicast` bus (group 239.74.163.2, port 43113) on
 //! the loopback interface; `--bus udp:GROUP:PORT` picks another group; any other value is
 //! a `SocketCAN` interface (`vcan0`, `can0`; Linux only). `--bus slcan:PATH` presents an
-//! emulated slcan CAN FD adapter (CANable 2.0 class) with the joints behind it on a pty
+//! emulated slcan CAN FD adapter (`CANable` 2.0 class) with the joints behind it on a pty
 //! at PATH, `--bus slcan:socket://127.0.0.1:PORT` on TCP (every OS): clients open it as
 //! they open a real adapter (`--bus slcan:PATH`, python-can's `slcan` interface).
 //! `--bus fdcanusb:PATH` (or `fdcanusb:socket://127.0.0.1:PORT`) does the same with an

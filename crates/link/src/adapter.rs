@@ -1,7 +1,7 @@
 //! What can go wrong opening a serial-line CAN FD adapter (slcan, fdcanusb): one error type
 //! for every adapter protocol, with a kind to match on.
 
-use std::fmt;
+use std::fmt::{self, Write as _};
 
 /// Why a serial-line CAN adapter could not be opened or configured.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -72,11 +72,13 @@ pub fn escape_bytes(bytes: &[u8], max: usize) -> String {
             b'\n' => out.push_str("\\n"),
             0x07 => out.push_str("\\a"),
             0x20..=0x7E => out.push(char::from(b)),
-            _ => out.push_str(&format!("\\x{b:02X}")),
+            _ => {
+                let _ = write!(out, "\\x{b:02X}");
+            }
         }
     }
     if bytes.len() > max {
-        out.push_str(&format!("…({} bytes)", bytes.len()));
+        let _ = write!(out, "…({} bytes)", bytes.len());
     }
     out
 }

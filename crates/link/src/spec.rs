@@ -5,7 +5,7 @@
 //! - `udp`: python-can's `udp_multicast` bus on its default group and port
 //!   (239.74.163.2:43113), loopback only;
 //! - `udp:GROUP:PORT`: the same on another multicast group (224.0.0.0/4) and port 1..=65535;
-//! - `slcan:PORT[@BAUD]`: an slcan CAN FD adapter (CANable 2.0 class) on a serial port
+//! - `slcan:PORT[@BAUD]`: an `slcan` CAN FD adapter (`CANable` 2.0 class) on a serial port
 //!   (`/dev/ttyACM0`, `COM8`) or a TCP one (`socket://127.0.0.1:5601`), see
 //!   [`crate::PortSpec`]; `BAUD` is the serial line's rate (default 115200; a USB adapter
 //!   ignores it);

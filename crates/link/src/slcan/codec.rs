@@ -388,7 +388,7 @@ pub const STATUS_OVERRUN: u8 = 1 << 3;
 pub const STATUS_ERROR_PASSIVE: u8 = 1 << 5;
 /// Lawicel status flag: arbitration lost.
 pub const STATUS_ARBITRATION_LOST: u8 = 1 << 6;
-/// Lawicel status flag: bus error; CANable-class adapters raise it while the controller
+/// Lawicel status flag: bus error; `CANable`-class adapters raise it while the controller
 /// is bus-off.
 pub const STATUS_BUS_ERROR: u8 = 1 << 7;
 

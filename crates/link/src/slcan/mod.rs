@@ -1,4 +1,4 @@
-//! CAN FD through a serial-line slcan adapter (CANable 2.0 class, slcan firmware with the
+//! CAN FD through a serial-line `slcan` adapter (`CANable` 2.0 class, `slcan` firmware with the
 //! CAN FD extension): [`SlcanLink`] is a [`FrameLink`] over any [`ByteLink`] (a USB CDC
 //! serial port, a TCP socket to a simulator, an in-process emulation).
 //!
@@ -334,8 +334,8 @@ impl<L: ByteLink> SlcanLink<L> {
     }
 
     /// Applies one message from the adapter.
-    fn take(&mut self, m: Message) {
-        let reply = match &m {
+    fn take(&mut self, m: &Message) {
+        let reply = match m {
             Message::Line(line) => codec::parse_reply(Some(line)),
             Message::Bel => Reply::Refused,
             Message::Overlong => Reply::Garbage(Vec::new()),
@@ -489,7 +489,7 @@ impl<L: ByteLink> FrameLink for SlcanLink<L> {
             let mut messages = Vec::new();
             self.splitter
                 .feed(buf.get(..n).unwrap_or_default(), |m| messages.push(m));
-            for m in messages {
+            for m in &messages {
                 self.take(m);
             }
             // A stream of lines that all get skipped ends at the deadline too.

@@ -1,4 +1,4 @@
-//! An emulated slcan CAN FD adapter (CANable 2.0 class, slcan firmware with the CAN FD
+//! An emulated slcan CAN FD adapter (`CANable` 2.0 class, slcan firmware with the CAN FD
 //! extension), device side.
 //!
 //! What it does, command by command (see [`robobus_link::slcan::codec`] for the lines):
