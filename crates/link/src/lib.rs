@@ -63,7 +63,16 @@
 //! links wait in `ppoll` (nanosecond timeout), `SocketCanLink` polls its non-blocking
 //! socket the same way (`SO_RCVTIMEO`, which Linux rounds up to whole ticks of 4-20 ms,
 //! made replies one to two ticks late), `SerialLink` through `serialport`'s `ppoll`, the
-//! memory links on a condition variable.
+//! memory links on a condition variable. Where a wait counts whole milliseconds (macOS's
+//! `poll`, Windows' COM timeouts and `SO_RCVTIMEO`), the rest before the deadline is
+//! polled without blocking, so no wait ends early (see [`pty`], [`serial`], [`udp`]).
+//!
+//! # On each operating system
+//!
+//! Linux has everything. macOS and Windows have [`SerialLink`], [`UdpBus`], the TCP links
+//! and the serial-line CAN FD adapters; ptys are Unix's (Linux, macOS); `SocketCAN` and the
+//! sysfs USB latency timer are Linux's, and answer elsewhere with the not-available errors
+//! ([`LinkError::NotAvailable`], [`OpenError::Unsupported`]) naming what to use instead.
 //!
 //! # Tests that provision outside programs
 //!
