@@ -448,7 +448,7 @@ fn serve_tcp(
     (wire_faults, mut schedule, hands): Extras<'_>,
     served: &Served<'_>,
 ) -> anyhow::Result<()> {
-    let server = TcpServer::bind(addr, args.baud).map_err(|e| match &e {
+    let listener = TcpServer::bind(addr, args.baud).map_err(|e| match &e {
         robobus_link::LinkError::Io { source, .. }
             if matches!(
                 source.kind(),
@@ -462,8 +462,8 @@ fn serve_tcp(
         }
         _ => anyhow::Error::new(e),
     })?;
-    let port: PortSpec = server.port_spec();
-    let endpoint = spawn_tcp_endpoint(bus, server, wire_faults, args.capture.as_deref())
+    let port: PortSpec = listener.port_spec();
+    let endpoint = spawn_tcp_endpoint(bus, listener, wire_faults, args.capture.as_deref())
         .context("starting the simulator thread")?;
     let token = crate::interrupt::stop_token();
     let stop = token.flag();

@@ -67,7 +67,7 @@ pub(crate) struct Args {
     /// two requests per joint.
     #[arg(long, requires = "bus")]
     broadcast: bool,
-    /// A wCK port (with --servos): a serial device, COMn, or socket://HOST:PORT.
+    /// A wCK port (with --servos): a serial device, `COMn`, or `socket://HOST:PORT`.
     #[arg(
         long,
         value_name = "PORT",

@@ -49,7 +49,7 @@ Commands marked (EEPROM) rewrite the servo's non-volatile memory.";
 pub(crate) struct Args {
     /// Port of the wCK bus: a serial device (/dev/ttyUSB0, /dev/cu.usbserial-A1), a
     /// Windows port (COM3, COM12), or what `robobus sim wck` printed (a pty path, or
-    /// socket://127.0.0.1:5600 with --listen). Required unless --dry-run is given or the
+    /// `socket://127.0.0.1:5600` with --listen). Required unless --dry-run is given or the
     /// subcommand needs no device.
     #[arg(long, value_name = "PORT", value_parser = parse_port::<String>, global = true)]
     pub(super) port: Option<String>,

@@ -521,17 +521,8 @@ impl RobotConfig {
             };
             if let BusConfig::Wck { port, .. } = bus
                 && names_something(port)
-                && let Err(e) = port.parse::<robobus_link::PortSpec>()
             {
-                return Err(Box::new((
-                    Site::Bus(name.clone(), "port"),
-                    RobotError::Invalid {
-                        item: format!("bus {name}"),
-                        field: "port",
-                        value: format!("{:?}", e.value),
-                        expected: format!("{} ({})", robobus_link::port::PORT_SYNTAX, e.reason),
-                    },
-                )));
+                check_port(name, port)?;
             }
             if let BusConfig::WhjBus { bus: addr, .. } = bus
                 && let Err(e) = addr.parse::<robobus_link::FrameLinkSpec>()
@@ -720,4 +711,21 @@ fn line_column(text: &str, offset: usize) -> (usize, usize) {
         before.get(nl + 1..).map_or(0, |s| s.chars().count())
     }) + 1;
     (line, column)
+}
+
+/// A wCK bus's `port` must be a port address ([`robobus_link::PortSpec`]).
+fn check_port(name: &str, port: &str) -> Result<(), Box<(Site, RobotError)>> {
+    port.parse::<robobus_link::PortSpec>()
+        .map(drop)
+        .map_err(|e| {
+            Box::new((
+                Site::Bus(name.to_owned(), "port"),
+                RobotError::Invalid {
+                    item: format!("bus {name}"),
+                    field: "port",
+                    value: format!("{:?}", e.value),
+                    expected: format!("{} ({})", robobus_link::port::PORT_SYNTAX, e.reason),
+                },
+            ))
+        })
 }
