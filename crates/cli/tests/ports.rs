@@ -250,13 +250,16 @@ fn doctor_takes_a_serial_line_can_fd_adapter_as_whj_bus_and_bounds_its_port() {
 
 /// `robobus sim whj --bus ADDR --joints 1-2` in its own process, killed on drop.
 #[cfg(unix)]
-struct AdapterSim(std::process::Child, tempfile::TempDir);
+struct AdapterSim {
+    child: std::process::Child,
+    _dir: tempfile::TempDir,
+}
 
 #[cfg(unix)]
 impl Drop for AdapterSim {
     fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
+        let _ = self.child.kill();
+        let _ = self.child.wait();
     }
 }
 
@@ -279,7 +282,7 @@ fn adapter_sim(kind: &str) -> (AdapterSim, String) {
         .stderr(std::process::Stdio::null())
         .spawn()
         .unwrap();
-    let sim = AdapterSim(child, dir);
+    let sim = AdapterSim { child, _dir: dir };
     let t0 = std::time::Instant::now();
     while !std::path::Path::new(&path).exists() {
         assert!(

@@ -1,7 +1,7 @@
 //! The serial ports of this machine as its OS knows them, with what robobus makes of each.
 //!
 //! [`list`] asks the OS through `serialport::available_ports()`: on Windows the COM ports
-//! of its device manager (`COM3`), on macOS the IOKit serial devices (the call-out
+//! of its device manager (`COM3`), on macOS the `IOKit` serial devices (the call-out
 //! `/dev/cu.*`; their dial-in `/dev/tty.*` twins are left out), on Linux a scan of
 //! `/sys/class/tty` (robobus is built without libudev): `/dev/ttyUSB*`, `/dev/ttyACM*`,
 //! on-board UARTs. A pseudo-terminal (a simulator's `--link` path) is not a device the OS
@@ -117,9 +117,9 @@ const fn usb(
 ///   `0x5523` (CH341 in UART mode).
 /// - Silicon Labs (`10c4`): Linux `drivers/usb/serial/cp210x.c`: `0xEA60` ("Silicon Labs
 ///   factory default": CP2102, CP2104, ...), `0xEA70` (CP2105).
-/// - CANable 2.0 with its slcan firmware: `normaldotcom/canable2-fw` `src/usbd_desc.c`:
+/// - `CANable` 2.0 with its slcan firmware: `normaldotcom/canable2-fw` `src/usbd_desc.c`:
 ///   `USBD_VID 0x16d0`, `USBD_PID 0x117e`, manufacturer "Openlight Labs", product
-///   "CANable2 ...".
+///   `CANable2 ...`.
 /// - mjbots fdcanusb: `mjbots/fdcanusb` `fw/stm32g4_async_usb_cdc.cc`: `idVendor 0x1209`,
 ///   `idProduct 0x2323`, manufacturer "mjbots", product "fdcanusb"; its udev rule
 ///   (`70-fdcanusb.rules`) matches those two strings, which older firmware also reports.

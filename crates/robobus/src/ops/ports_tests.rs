@@ -18,106 +18,65 @@ fn raw(name: &str, ids: Option<(u16, u16)>, manufacturer: &str, product: &str) -
 
 #[test]
 fn the_adapter_table_names_each_known_id_and_its_use() {
-    let rows: Vec<(u16, u16, Option<&str>, Option<String>)> = [
-        (0x0403, 0x6001),
-        (0x0403, 0x6010),
-        (0x0403, 0x6011),
-        (0x0403, 0x6014),
-        (0x0403, 0x6015),
-        (0x1a86, 0x7523),
-        (0x1a86, 0x5523),
-        (0x10c4, 0xea60),
-        (0x10c4, 0xea70),
-        (0x16d0, 0x117e),
-        (0x1209, 0x2323),
-        (0x0403, 0x6002),
-        (0x0483, 0x5740),
-    ]
-    .into_iter()
-    .map(|(v, p)| {
-        let a = identify(v, p, None, None);
+    let want: [(u16, u16, &str, &str); 13] = [
+        (0x0403, 0x6001, "FTDI FT232R", "wCK bus: --port P / true"),
+        (0x0403, 0x6010, "FTDI FT2232", "wCK bus: --port P / true"),
+        (0x0403, 0x6011, "FTDI FT4232H", "wCK bus: --port P / true"),
         (
-            v,
-            p,
-            a.map(|a| a.name),
-            a.map(|a| format!("{} / {}", use_for(a.role, "P"), a.latency_timer)),
-        )
-    })
-    .collect();
-    let s = |t: &str| Some(t.to_owned());
-    assert_eq!(
-        rows,
-        [
-            (
-                0x0403,
-                0x6001,
-                Some("FTDI FT232R"),
-                s("wCK bus: --port P / true")
-            ),
-            (
-                0x0403,
-                0x6010,
-                Some("FTDI FT2232"),
-                s("wCK bus: --port P / true")
-            ),
-            (
-                0x0403,
-                0x6011,
-                Some("FTDI FT4232H"),
-                s("wCK bus: --port P / true")
-            ),
-            (
-                0x0403,
-                0x6014,
-                Some("FTDI FT232H (as in the ROBOTIS U2D2)"),
-                s("wCK bus: --port P / true")
-            ),
-            (
-                0x0403,
-                0x6015,
-                Some("FTDI FT-X (FT231X, FT230X)"),
-                s("wCK bus: --port P / true")
-            ),
-            (
-                0x1a86,
-                0x7523,
-                Some("WCH CH340"),
-                s("wCK bus: --port P / false")
-            ),
-            (
-                0x1a86,
-                0x5523,
-                Some("WCH CH341"),
-                s("wCK bus: --port P / false")
-            ),
-            (
-                0x10c4,
-                0xea60,
-                Some("Silicon Labs CP210x"),
-                s("wCK bus: --port P / false")
-            ),
-            (
-                0x10c4,
-                0xea70,
-                Some("Silicon Labs CP2105"),
-                s("wCK bus: --port P / false")
-            ),
-            (
-                0x16d0,
-                0x117e,
-                Some("CANable 2.0 (slcan firmware)"),
-                s("CAN FD adapter: --bus slcan:P / false")
-            ),
-            (
-                0x1209,
-                0x2323,
-                Some("mjbots fdcanusb"),
-                s("CAN FD adapter: --bus fdcanusb:P / false")
-            ),
-            (0x0403, 0x6002, None, None),
-            (0x0483, 0x5740, None, None),
-        ]
-    );
+            0x0403,
+            0x6014,
+            "FTDI FT232H (as in the ROBOTIS U2D2)",
+            "wCK bus: --port P / true",
+        ),
+        (
+            0x0403,
+            0x6015,
+            "FTDI FT-X (FT231X, FT230X)",
+            "wCK bus: --port P / true",
+        ),
+        (0x1a86, 0x7523, "WCH CH340", "wCK bus: --port P / false"),
+        (0x1a86, 0x5523, "WCH CH341", "wCK bus: --port P / false"),
+        (
+            0x10c4,
+            0xea60,
+            "Silicon Labs CP210x",
+            "wCK bus: --port P / false",
+        ),
+        (
+            0x10c4,
+            0xea70,
+            "Silicon Labs CP2105",
+            "wCK bus: --port P / false",
+        ),
+        (
+            0x16d0,
+            0x117e,
+            "CANable 2.0 (slcan firmware)",
+            "CAN FD adapter: --bus slcan:P / false",
+        ),
+        (
+            0x1209,
+            0x2323,
+            "mjbots fdcanusb",
+            "CAN FD adapter: --bus fdcanusb:P / false",
+        ),
+        // Not in the table: another FTDI chip, ST's generic virtual COM port.
+        (0x0403, 0x6002, "", ""),
+        (0x0483, 0x5740, "", ""),
+    ];
+    let got: Vec<(u16, u16, &str, String)> = want
+        .iter()
+        .map(|&(v, p, ..)| {
+            let a = identify(v, p, None, None);
+            let use_ = a.map(|a| format!("{} / {}", use_for(a.role, "P"), a.latency_timer));
+            (v, p, a.map_or("", |a| a.name), use_.unwrap_or_default())
+        })
+        .collect();
+    let want: Vec<(u16, u16, &str, String)> = want
+        .iter()
+        .map(|&(v, p, n, u)| (v, p, n, u.to_owned()))
+        .collect();
+    assert_eq!(got, want);
     assert_eq!(ADAPTERS.len(), 12);
 }
 
