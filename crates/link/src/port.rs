@@ -149,13 +149,13 @@ impl PortSpec {
 }
 
 /// Opens a serial port by the name the OS gives it (a path; `\\.\COM12` on Windows).
-#[cfg(unix)]
+#[cfg(any(unix, windows))]
 fn open_serial(name: &Path, baud: u32) -> Result<Box<dyn ByteLink + Send>, LinkError> {
     crate::serial::SerialLink::open(name, baud).map(|l| Box::new(l) as Box<dyn ByteLink + Send>)
 }
 
 /// Serial ports are not built for this system.
-#[cfg(not(unix))]
+#[cfg(not(any(unix, windows)))]
 fn open_serial(name: &Path, _baud: u32) -> Result<Box<dyn ByteLink + Send>, LinkError> {
     Err(LinkError::NotAvailable {
         what: format!("serial port {}", name.display()),
