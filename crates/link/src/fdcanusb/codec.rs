@@ -133,7 +133,6 @@ pub fn parse_command(line: &str) -> Result<Command, CommandError> {
         (Some("can"), Some(kind @ ("std" | "ext"))) => {
             parse_send(kind == "ext", words).map(Command::Send)
         }
-        (Some("can"), _) => err("unknown subcommand"),
         (Some("conf"), Some("get")) => match (words.next(), words.next()) {
             (Some(key), None) => Ok(Command::ConfGet { key: key.into() }),
             _ => err("usage: conf get KEY"),
@@ -145,7 +144,7 @@ pub fn parse_command(line: &str) -> Result<Command, CommandError> {
             }),
             _ => err("usage: conf set KEY VALUE"),
         },
-        (Some("conf"), _) => err("unknown subcommand"),
+        (Some("can" | "conf"), _) => err("unknown subcommand"),
         _ => err("unknown command"),
     }
 }
@@ -196,7 +195,7 @@ fn parse_hex_id(s: &str) -> Option<u32> {
 
 /// Pairs of hexadecimal digits, at most [`MAX_FD_LEN`] bytes.
 fn parse_hex_data(s: &str) -> Option<Vec<u8>> {
-    if s.len() % 2 != 0 || s.len() > 2 * MAX_FD_LEN {
+    if !s.len().is_multiple_of(2) || s.len() > 2 * MAX_FD_LEN {
         return None;
     }
     s.as_bytes()
@@ -449,6 +448,7 @@ pub fn encode_err(details: &str) -> String {
 
 /// The controller's state as `can status` reports it.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[allow(clippy::struct_excessive_bools)] // the firmware's own flags, one field each
 pub struct Status {
     /// Last error code of the arbitration phase (0 none, 7 unchanged).
     pub lec: u32,

@@ -222,7 +222,7 @@ impl<L: ByteLink> FdcanusbLink<L> {
         };
         this.link
             .discard_input()
-            .map_err(|source| this.port_error(source))?;
+            .map_err(|source| this.port_error(&source))?;
         this.configure()?;
         this.opening = false;
         Ok(this)
@@ -275,7 +275,7 @@ impl<L: ByteLink> FdcanusbLink<L> {
                     return Err(self.not_taken(
                         setting,
                         *value,
-                        format!("it answered ERR {details}"),
+                        &format!("it answered ERR {details}"),
                         allowed,
                     ));
                 }
@@ -292,7 +292,7 @@ impl<L: ByteLink> FdcanusbLink<L> {
                 return Err(self.not_taken(
                     setting,
                     *value,
-                    format!("it kept {:?}", codec::quote(&kept)),
+                    &format!("it kept {:?}", codec::quote(&kept)),
                     allowed,
                 ));
             }
@@ -319,7 +319,7 @@ impl<L: ByteLink> FdcanusbLink<L> {
         AdapterError::new("fdcanusb", self.port.clone(), kind, detail)
     }
 
-    fn not_taken(&self, setting: &str, value: u32, answer: String, allowed: &str) -> AdapterError {
+    fn not_taken(&self, setting: &str, value: u32, answer: &str, allowed: &str) -> AdapterError {
         let kind = if setting == BITRATE || setting == FD_BITRATE {
             AdapterErrorKind::RateUnsupported
         } else {
@@ -334,7 +334,7 @@ impl<L: ByteLink> FdcanusbLink<L> {
         )
     }
 
-    fn port_error(&self, source: LinkError) -> AdapterError {
+    fn port_error(&self, source: &LinkError) -> AdapterError {
         let kind = match source {
             LinkError::NoSuchDevice { .. } => AdapterErrorKind::NoPort,
             _ => AdapterErrorKind::Io,
@@ -379,7 +379,7 @@ impl<L: ByteLink> FdcanusbLink<L> {
                 ),
             ),
             Failure::Garbage(got) => garbage(got),
-            Failure::Link(source) => self.port_error(source),
+            Failure::Link(source) => self.port_error(&source),
         }
     }
 
@@ -784,7 +784,6 @@ impl<L: ByteLink> FrameLink for FdcanusbLink<L> {
                 self.push_pending(Expect::Poll);
             }
             match self.read_some(deadline) {
-                Ok(()) => {}
                 Err(Failure::Silent(_)) => {
                     // Whatever the last read completed is still delivered.
                     if let Some(e) = self.events.pop_front() {
@@ -793,7 +792,8 @@ impl<L: ByteLink> FrameLink for FdcanusbLink<L> {
                     return self.frames.pop_front().ok_or(FrameLinkError::Timeout);
                 }
                 Err(Failure::Link(e)) => return Err(self.link_error(e)),
-                Err(Failure::Garbage(_) | Failure::Refused(_) | Failure::Busy) => {}
+                // Lines that are not the protocol are counted and skipped once open.
+                Ok(()) | Err(Failure::Garbage(_) | Failure::Refused(_) | Failure::Busy) => {}
             }
         }
     }

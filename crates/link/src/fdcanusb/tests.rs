@@ -9,7 +9,7 @@ use crate::MemoryByteLink;
 use crate::adapter::AdapterErrorKind;
 
 /// What the scripted adapter does; the test may change it while the link runs.
-#[derive(Debug)]
+#[derive(Debug, Default)]
 struct Script {
     conf: HashMap<String, String>,
     on: bool,
@@ -30,24 +30,6 @@ struct Script {
     refuse_send: Option<&'static str>,
     /// Every line the adapter received.
     log: Vec<String>,
-}
-
-impl Default for Script {
-    fn default() -> Self {
-        Self {
-            conf: HashMap::new(),
-            on: false,
-            refuse: None,
-            keep: None,
-            silent: false,
-            garbage: None,
-            echo: Vec::new(),
-            before_next: Vec::new(),
-            status: Status::default(),
-            refuse_send: None,
-            log: Vec::new(),
-        }
-    }
 }
 
 impl Script {
@@ -72,7 +54,9 @@ impl Script {
                 self.on = false;
                 codec::OK_LINE.into()
             }
-            Ok(Command::CanStatus) if !self.on => codec::encode_err("not in BusOn"),
+            Ok(Command::CanStatus | Command::Send(_)) if !self.on => {
+                codec::encode_err("not in BusOn")
+            }
             Ok(Command::CanStatus) => {
                 format!("{}{}", codec::encode_status(&self.status), codec::OK_LINE)
             }
@@ -92,10 +76,10 @@ impl Script {
                 self.conf.get(&key).cloned().unwrap_or_else(|| "0".into()),
                 codec::OK_LINE
             ),
-            Ok(Command::Send(_)) if !self.on => codec::encode_err("not in BusOn"),
-            Ok(Command::Send(_)) => match self.refuse_send {
-                Some(details) => codec::encode_err(details),
-                None => {
+            Ok(Command::Send(_)) => {
+                if let Some(details) = self.refuse_send {
+                    codec::encode_err(details)
+                } else {
                     let mut s: String = self
                         .echo
                         .iter()
@@ -104,7 +88,7 @@ impl Script {
                     s.push_str(codec::OK_LINE);
                     s
                 }
-            },
+            }
         };
         out.push_str(&reply);
         out.into_bytes()
@@ -126,9 +110,8 @@ fn adapter(script: Script) -> (MemoryByteLink, Shared, JoinHandle<()>) {
         let mut lines = LineSplitter::new();
         let mut buf = [0u8; 256];
         loop {
-            let n = match dev.read_some(&mut buf, Instant::now() + Duration::from_secs(30)) {
-                Ok(n) => n,
-                Err(_) => return,
+            let Ok(n) = dev.read_some(&mut buf, Instant::now() + Duration::from_secs(30)) else {
+                return;
             };
             let mut out = Vec::new();
             lines.feed(buf.get(..n).unwrap_or_default(), |line| {
@@ -485,8 +468,8 @@ fn the_queue_of_received_frames_is_bounded_and_an_overflow_reported() {
         },
     )
     .unwrap();
-    let line = codec::encode_rcv(&fd(0x501, &[1]), None, None);
-    lock(&s).before_next = vec![line.repeat(MAX_QUEUED + 10)];
+    let rcv = codec::encode_rcv(&fd(0x501, &[1]), None, None);
+    lock(&s).before_next = vec![rcv.repeat(MAX_QUEUED + 10)];
     link.send(&fd(0x201, &[1])).unwrap();
     assert!(matches!(
         link.recv(Instant::now()),
