@@ -22,6 +22,7 @@ use robobus_sim::faults::{DeviceFaultKind, FaultSchedule};
 use robobus_sim::whj::adapter::{self, AdapterModel, FdcanusbAdapter, SerialTime, SlcanAdapter};
 use robobus_sim::whj::{JointConfig, WhjBus, WhjModel, WhjSimLink, serve_observed};
 use robobus_whj::JointId;
+use robobus_whj::timing::BitRates;
 
 use crate::exit::usage;
 use crate::hand::Hand;
@@ -235,17 +236,9 @@ fn faults_of(args: &Args) -> anyhow::Result<Vec<robobus_sim::faults::DeviceFault
     )
 }
 
-pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
-    check_ranges(args)?;
-    let wire_faults =
-        args.faults
-            .config(args.seed, ("drop", args.drop), ("corrupt", args.corrupt))?;
-    let device = faults_of(args)?;
-    let hands = args
-        .hand
-        .iter()
-        .map(|h| Hand::parse(h, &args.joints.0, 360.0))
-        .collect::<anyhow::Result<Vec<_>>>()?;
+/// The simulated joints the options describe, on a bus at the options' rates (which an
+/// emulated adapter must be able to take).
+fn simulated_bus(args: &Args) -> anyhow::Result<(WhjBus, BitRates)> {
     let weak = args
         .weak_drive
         .iter()
@@ -274,6 +267,21 @@ pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
     if args.end_board {
         bus = bus.with_end_board();
     }
+    Ok((bus, rates))
+}
+
+pub(crate) fn run(args: &Args, dry_run: bool) -> anyhow::Result<()> {
+    check_ranges(args)?;
+    let wire_faults =
+        args.faults
+            .config(args.seed, ("drop", args.drop), ("corrupt", args.corrupt))?;
+    let device = faults_of(args)?;
+    let hands = args
+        .hand
+        .iter()
+        .map(|h| Hand::parse(h, &args.joints.0, 360.0))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let (mut bus, rates) = simulated_bus(args)?;
     if dry_run {
         // A dry run opens nothing: no bus joined, no socket.
         let ids: Vec<String> = args.joints.0.iter().map(u8::to_string).collect();

@@ -1,5 +1,5 @@
 //! WHJ joints through an slcan CAN FD adapter, end to end: `robobus sim whj --bus
-//! slcan:PATH` presents an emulated adapter (CANable 2.0 class) on a pty; python-can's own
+//! slcan:PATH` presents an emulated adapter (`CANable` 2.0 class) on a pty; python-can's own
 //! `slcan` interface, unchanged, reads and writes a joint through it; the client's suites
 //! run over `--bus slcan:PATH`; and a bad adapter address, a missing port, a rate the
 //! adapter cannot take, and an adapter that answers nothing or garbage end with their
