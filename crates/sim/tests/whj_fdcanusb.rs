@@ -1,6 +1,8 @@
 //! The host's fdcanusb link against the emulated fdcanusb with simulated joints behind it,
 //! in process on the virtual clock.
 
+#![allow(clippy::unwrap_used)] // test code
+
 use core::time::Duration;
 
 use robobus_link::fdcanusb::codec;

@@ -62,6 +62,7 @@ enum HostLine {
 
 /// The settings `conf get` / `conf set` reach.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[allow(clippy::struct_excessive_bools)] // the firmware's own settings, one field each
 struct Conf {
     bitrate: u32,
     fd_bitrate: u32,
