@@ -471,3 +471,28 @@ mod properties {
         }
     }
 }
+
+/// A wCK bus's port is any port address (`COM12`, `socket://HOST:PORT`, a device path);
+/// one in none of those forms names the bus, the value and the forms.
+#[test]
+fn a_wck_port_is_a_port_address_and_a_bad_one_names_the_forms() {
+    for port in ["COM12", "socket://127.0.0.1:5600", "/dev/cu.usbserial-A1"] {
+        let text = GOOD.replace("/dev/ttyUSB7", port);
+        let config = RobotConfig::from_toml_str(&text).unwrap();
+        assert!(
+            matches!(&config.buses["legs"], BusConfig::Wck { port: p, .. } if p == port),
+            "{port}"
+        );
+    }
+    let text = GOOD.replace("/dev/ttyUSB7", "socket://127.0.0.1:0");
+    let msg = err(&text);
+    let line = text.lines().position(|l| l.contains("socket://")).unwrap() + 1;
+    assert!(
+        msg.contains("legs")
+            && msg.contains("socket://127.0.0.1:0")
+            && msg.contains("port 0")
+            && msg.contains("COM3")
+            && msg.contains(&format!("line {line}")),
+        "{msg}"
+    );
+}
