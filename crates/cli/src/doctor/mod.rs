@@ -415,24 +415,10 @@ fn find_can_interfaces(net_dir: &Path) -> Vec<String> {
     out
 }
 
+/// Whether this kernel has SocketCAN (Linux).
+#[cfg(target_os = "linux")]
 fn check_can_kernel() -> Vec<Finding> {
-    #[cfg(target_os = "linux")]
-    let has = robobus_link::socketcan::kernel_has_can();
-    #[cfg(not(target_os = "linux"))]
-    return vec![finding(
-        "socketcan",
-        "kernel",
-        Status::Skip,
-        format!(
-            "SocketCAN is Linux's; on {} WHJ joints are reached through a serial-line CAN FD \
-             adapter (--bus slcan:PORT or fdcanusb:PORT; `robobus ports` names them) or the \
-             UDP bus",
-            robobus::ops::ports::Os::current().name()
-        ),
-        None,
-    )];
-    #[cfg(target_os = "linux")]
-    vec![if has {
+    vec![if robobus_link::socketcan::kernel_has_can() {
         finding(
             "socketcan",
             "kernel",
@@ -453,6 +439,23 @@ fn check_can_kernel() -> Vec<Finding> {
             ),
         )
     }]
+}
+
+/// SocketCAN is Linux's: elsewhere, what reaches WHJ joints instead.
+#[cfg(not(target_os = "linux"))]
+fn check_can_kernel() -> Vec<Finding> {
+    vec![finding(
+        "socketcan",
+        "kernel",
+        Status::Skip,
+        format!(
+            "SocketCAN is Linux's; on {} WHJ joints are reached through a serial-line CAN FD \
+             adapter (--bus slcan:PORT or fdcanusb:PORT; `robobus ports` names them) or the \
+             UDP bus",
+            robobus::ops::ports::Os::current().name()
+        ),
+        None,
+    )]
 }
 
 /// The WHJ joints' bit timing as `ip link ... type can` arguments: 1 Mbit/s arbitration
