@@ -455,16 +455,28 @@ fn serve_adapter(
         )?);
     }
     let mut host = adapter_host(port, &args.bus)?;
+    // Over TCP, the address with the port chosen (port 0 picks a free one).
+    let (shown, address) = match &host {
+        AdapterHost::Tcp(server) => {
+            let (given, chosen) = (port.to_string(), server.port_spec().to_string());
+            (
+                args.bus.describe().replace(&given, &chosen),
+                args.bus.to_string().replace(&given, &chosen),
+            )
+        }
+        #[cfg(unix)]
+        AdapterHost::Pty { .. } => (args.bus.describe(), args.bus.to_string()),
+    };
     let token = crate::interrupt::stop_token();
     let stop = token.flag();
     let ids: Vec<String> = args.joints.0.iter().map(u8::to_string).collect();
     let announce = || {
         eprintln!(
-            "robobus sim whj: serving {} joint(s) [{}] ({}) on {}; Ctrl-C to stop",
+            "robobus sim whj: serving {} joint(s) [{}] ({}) on {shown} (--bus {address}); \
+             Ctrl-C to stop",
             ids.len(),
             ids.join(","),
             args.model,
-            args.bus.describe()
         );
     };
     let t0 = std::time::Instant::now();

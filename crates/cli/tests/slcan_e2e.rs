@@ -296,3 +296,48 @@ max_acceleration = 1.0
     assert_eq!(r.code, Some(2), "{r:#?}");
     assert!(r.stderr.contains("slcan:PORT[@BAUD]"), "{}", r.stderr);
 }
+
+#[test]
+fn slcan_e2e_the_emulated_adapter_serves_over_tcp_and_announces_its_address() {
+    // A port free a moment ago (loopback only).
+    let free = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let given = format!("slcan:socket://127.0.0.1:{free}");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .args(["sim", "whj", "--joints", "1-2", "--no-iap"])
+        .args(["--bus", &given])
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut err = std::io::BufReader::new(child.stderr.take().unwrap());
+    let mut line = String::new();
+    std::io::BufRead::read_line(&mut err, &mut line).unwrap();
+    let bus = line
+        .split("(--bus ")
+        .nth(1)
+        .and_then(|rest| rest.split(')').next())
+        .unwrap_or_else(|| panic!("no address in {line:?}"))
+        .to_owned();
+    assert_eq!(bus, given, "{line}");
+    assert!(
+        line.contains(&format!("slcan adapter on TCP socket://127.0.0.1:{free}")),
+        "{line}"
+    );
+    let r = common::robobus(&["--json", "whj", "--bus", &bus, "scan", "--joints", "1-3"]);
+    let _ = child.kill();
+    let _ = child.wait();
+    assert_eq!(r.code, Some(0), "{}", r.stderr);
+    let doc: Value = serde_json::from_str(&r.stdout).unwrap();
+    let ids: Vec<u64> = doc["results"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["id"].as_u64().unwrap())
+        .collect();
+    assert_eq!(ids, [1, 2]);
+}
