@@ -55,14 +55,17 @@ impl JointBus {
         quiet_after: Duration,
         attempts: u32,
     ) -> Result<Vec<Result<Outcome, WhjError>>, WhjError> {
-        let (status, others): (Vec<(usize, &Request)>, Vec<(usize, &Request)>) = requests
+        let is_status = |r: &Request| matches!(r, Request::StatusQuery { .. });
+        let others: Vec<(usize, Request)> = requests
             .iter()
             .enumerate()
-            .partition(|(_, r)| matches!(r, Request::StatusQuery { .. }));
+            .filter(|(_, r)| !is_status(r))
+            .map(|(i, r)| (i, *r))
+            .collect();
         let mut out: Vec<Option<Result<Outcome, WhjError>>> =
             requests.iter().map(|_| None).collect();
         if !others.is_empty() {
-            let batch: Vec<Request> = others.iter().map(|(_, r)| **r).collect();
+            let batch: Vec<Request> = others.iter().map(|(_, r)| *r).collect();
             let done = self.run_session(&batch, timeout, quiet_after, attempts)?;
             for ((i, _), o) in others.iter().zip(done) {
                 if let Some(slot) = out.get_mut(*i) {
@@ -70,9 +73,11 @@ impl JointBus {
                 }
             }
         }
-        let joints: Vec<(usize, JointId)> = status
+        let joints: Vec<(usize, JointId)> = requests
             .iter()
-            .filter_map(|(i, r)| r.joint().map(|j| (*i, j)))
+            .enumerate()
+            .filter(|(_, r)| is_status(r))
+            .filter_map(|(i, r)| r.joint().map(|j| (i, j)))
             .collect();
         for (i, result) in self.status_by_broadcast(&joints, timeout, attempts.max(1)) {
             if let Some(slot) = out.get_mut(i) {
