@@ -108,9 +108,7 @@ pub enum FrameLinkError {
         context: String,
     },
     /// The controller reported bus-off. The link stays open; receiving continues.
-    #[error(
-        "CAN interface {iface} is bus-off: check wiring, termination and bit rate, then restart it (`sudo ip link set {iface} type can restart`, or down and up; `restart-ms 100`, set while it is down, restarts it by itself)"
-    )]
+    #[error("CAN interface {iface} is bus-off: {}", bus_off_advice(iface))]
     BusOff {
         /// The interface.
         iface: String,
@@ -183,6 +181,22 @@ pub enum FrameLinkError {
         #[source]
         source: io::Error,
     },
+}
+
+/// What to do about a bus-off on `iface`: restart a `SocketCAN` interface; open a
+/// serial-line adapter's bus (`slcan:COM8`, named with its kind) again.
+fn bus_off_advice(iface: &str) -> String {
+    if iface.contains(':') {
+        "check wiring, termination and bit rate, then open the bus again (the adapter \
+         restarts its controller when its channel is opened)"
+            .to_owned()
+    } else {
+        format!(
+            "check wiring, termination and bit rate, then restart it (`sudo ip link set {iface} \
+             type can restart`, or down and up; `restart-ms 100`, set while it is down, \
+             restarts it by itself)"
+        )
+    }
 }
 
 impl FrameLinkError {

@@ -740,9 +740,13 @@ mod tests {
         assert!(short(&mut link).unwrap_err().is_timeout());
         assert_eq!(link.stats().status_polls, 1);
         std::thread::sleep(Duration::from_millis(100));
-        assert!(
-            matches!(short(&mut link), Err(FrameLinkError::BusOff { iface }) if iface == "slcan:COM8")
+        let e = short(&mut link).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "CAN interface slcan:COM8 is bus-off: check wiring, termination and bit rate, then \
+             open the bus again (the adapter restarts its controller when its channel is opened)"
         );
+        assert!(matches!(e, FrameLinkError::BusOff { iface } if iface == "slcan:COM8"));
         assert!(matches!(
             short(&mut link),
             Err(FrameLinkError::ErrorPassive { .. })
