@@ -7,6 +7,7 @@
 
 mod common;
 
+#[cfg(target_os = "linux")]
 use std::collections::BTreeSet;
 
 #[cfg(unix)]
