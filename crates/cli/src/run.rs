@@ -44,7 +44,8 @@ pub(crate) struct StationArgs {
     /// The baud rate of the wCK ports.
     #[arg(long, default_value = "115200", value_parser = crate::wck::parse_baud)]
     wck_baud: BaudRate,
-    /// A WHJ bus to open: udp, udp:GROUP:PORT or a SocketCAN interface (repeatable).
+    /// A WHJ bus to open: udp, udp:GROUP:PORT, a SocketCAN interface, slcan:PORT or
+    /// fdcanusb:PORT (repeatable).
     #[arg(long, value_name = "BUS")]
     whj_bus: Vec<String>,
     /// A robot file whose buses are opened too (named as in the file).

@@ -78,8 +78,9 @@ starting with `#` are comments; --json prints them as JSON.";
 #[command(after_help = AFTER_HELP)]
 pub(crate) struct Args {
     /// The bus: `udp` (python-can UDP multicast 239.74.163.2:43113, what `robobus sim whj`
-    /// serves), `udp:GROUP:PORT`, or a SocketCAN interface such as can0 / vcan0. Required
-    /// unless --dry-run is given.
+    /// serves), `udp:GROUP:PORT`, a SocketCAN interface such as can0 / vcan0, or a
+    /// serial-line adapter: `slcan:PORT` (CANable 2.0 class) or `fdcanusb:PORT` (PORT:
+    /// /dev/ttyACM0, COM8, socket://HOST:PORT). Required unless --dry-run is given.
     #[arg(long, value_name = "BUS", global = true)]
     bus: Option<String>,
     /// Joint model, for current scaling: whj03, whj10, whj30, whj60, whj120 (2 mA per
@@ -600,8 +601,8 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     }
     let Some(bus) = args.bus.as_deref() else {
         return Err(usage(
-            "robobus whj: --bus is required (udp, udp:GROUP:PORT or a SocketCAN interface \
-             such as can0), unless --dry-run is given",
+            "robobus whj: --bus is required (udp, udp:GROUP:PORT, a SocketCAN interface \
+             such as can0, slcan:PORT or fdcanusb:PORT), unless --dry-run is given",
         ));
     };
     let request = report::confirm(request, g.yes)?;

@@ -57,7 +57,8 @@ const WINDOW_S: f64 = 10.0;
 #[derive(Debug, clap::Args)]
 #[command(after_help = crate::plot::FORMAT_HELP)]
 pub(crate) struct Args {
-    /// A WHJ bus: `udp`, `udp:GROUP:PORT` or a SocketCAN interface (with --joints).
+    /// A WHJ bus: `udp`, `udp:GROUP:PORT`, a SocketCAN interface, `slcan:PORT` or
+    /// `fdcanusb:PORT` (with --joints).
     #[arg(long, value_name = "BUS", conflicts_with_all = ["port", "sim", "robot"])]
     bus: Option<String>,
     /// WHJ joint IDs to watch, e.g. `1-7` or `1,3`.
