@@ -233,3 +233,45 @@ fn fdcanusb_e2e_a_data_rate_the_adapter_cannot_take_is_bad_input_naming_it_and_w
         ]
     );
 }
+
+#[test]
+fn fdcanusb_e2e_the_emulated_adapter_serves_over_tcp_and_its_joints_report_through_it() {
+    // A port free a moment ago (loopback only).
+    let free = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let given = format!("fdcanusb:socket://127.0.0.1:{free}");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .args([
+            "sim",
+            "whj",
+            "--joints",
+            "1-2",
+            "--no-iap",
+            "--initial-deg",
+            "-4",
+        ])
+        .args(["--bus", &given])
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut err = std::io::BufReader::new(child.stderr.take().unwrap());
+    let mut line = String::new();
+    std::io::BufRead::read_line(&mut err, &mut line).unwrap();
+    assert!(
+        line.contains(&format!("fdcanusb on TCP socket://127.0.0.1:{free}")),
+        "{line}"
+    );
+    let r = common::robobus(&["--json", "whj", "--bus", &given, "status", "1-2"]);
+    let _ = child.kill();
+    let _ = child.wait();
+    assert_eq!(r.code, Some(0), "{}", r.stderr);
+    let doc: Value = serde_json::from_str(&r.stdout).unwrap();
+    let rows = doc["results"].as_array().unwrap();
+    assert_eq!(rows.len(), 2, "{doc}");
+    assert!(rows.iter().all(|r| r["position_deg"] == -4.0), "{doc}");
+}
