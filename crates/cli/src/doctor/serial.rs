@@ -271,8 +271,9 @@ fn access(path: &Path, subject: &str, _info: Option<&PortInfo>) -> Vec<Finding> 
     out
 }
 
-/// Windows: the port is one the OS lists (a COM port's access is only known by opening
-/// it, which doctor does not do).
+/// Windows: the port is one the OS lists. Whether it opens is only known by opening it,
+/// which doctor does not do, so a port the listing lacks is a warning (wine, for one,
+/// maps COM ports to Linux devices without listing them).
 #[cfg(not(unix))]
 fn access(_path: &Path, subject: &str, info: Option<&PortInfo>) -> Vec<Finding> {
     vec![if info.is_some() {
@@ -281,8 +282,8 @@ fn access(_path: &Path, subject: &str, info: Option<&PortInfo>) -> Vec<Finding> 
         finding(
             subject,
             "exists",
-            Status::Fail,
-            "not a port the OS lists",
+            Status::Warn,
+            "not among the ports the OS lists (doctor does not open it to find out more)",
             Some(format!(
                 "check the cable and the driver; `robobus ports` lists the ports ({})",
                 ports::where_ports_are(Os::current())
