@@ -28,8 +28,13 @@ struct TcpSim {
 
 impl TcpSim {
     fn start(servos: &str) -> Self {
+        Self::start_with(servos, &[])
+    }
+
+    fn start_with(servos: &str, extra: &[&str]) -> Self {
         let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
             .args(["sim", "wck", "--servos", servos, "--listen", "127.0.0.1:0"])
+            .args(extra)
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::null())
@@ -241,4 +246,31 @@ fn a_com_port_outside_windows_exits_4_naming_the_device_paths() {
         "{}",
         r.stderr
     );
+}
+
+/// The simulator's capture and wire faults work over TCP as on the pty: the capture holds
+/// what the servos received and sent.
+#[test]
+fn the_simulator_captures_its_tcp_traffic() {
+    let dir = tempfile::tempdir().unwrap();
+    let capture = dir.path().join("sim.hex");
+    let sim = TcpSim::start_with("0-1", &["--capture", capture.to_str().unwrap()]);
+    assert_eq!(sim.position(1), 127);
+    drop(sim);
+    let records =
+        robobus_link::read_hex_log(BufReader::new(std::fs::File::open(&capture).unwrap())).unwrap();
+    // The servos' side: the status read of servo 1 came in, its reply went out.
+    let status = [0xFF, 0xA1, 0x00, 0x21];
+    let read: Vec<u8> = records
+        .iter()
+        .filter(|r| r.dir == Dir::Read)
+        .flat_map(|r| r.bytes.clone())
+        .collect();
+    assert!(read.windows(4).any(|w| w == status), "{records:?}");
+    let written: Vec<u8> = records
+        .iter()
+        .filter(|r| r.dir == Dir::Written)
+        .flat_map(|r| r.bytes.clone())
+        .collect();
+    assert!(written.ends_with(&[0x00, 0x7F]), "{records:?}");
 }
