@@ -21,9 +21,11 @@
 //! for the rest, see [`crate::pty`]). Windows has neither: there the socket blocks in a
 //! peek with a read timeout (`SO_RCVTIMEO`, whole milliseconds) until [`WINDOWS_FINE_WAIT`]
 //! before the deadline, since the system timer may end it late by up to a tick, and the
-//! rest is polled without blocking in short sleeps. Windows cannot bind a socket to a
-//! multicast address, so it binds to `0.0.0.0:PORT`: buses on other groups that share the
-//! port are not kept apart there (give each bus its own port).
+//! rest is polled without blocking in short sleeps. Windows refuses to bind a socket to a
+//! multicast address, so the socket binds `0.0.0.0:PORT` there, and buses on other groups
+//! that share the port stay apart because Windows delivers a socket only the groups it
+//! joined (not under wine, which hands the socket to Linux: there give each bus its own
+//! port).
 
 use std::collections::VecDeque;
 use std::io;
@@ -134,35 +136,28 @@ impl UdpBus {
                 ),
             ));
         }
-        let socket = Socket::new(Domain::IPV4, Type::DGRAM, Some(Protocol::UDP))
-            .map_err(|e| FrameLinkError::io(ctx("creating socket"), e))?;
-        let setup = || -> io::Result<()> {
-            socket.set_reuse_address(true)?;
-            #[cfg(unix)]
-            socket.set_reuse_port(true)?;
-            // Bound to the group address: only this group's datagrams arrive, so buses on
-            // other groups sharing the port stay separate (not on Windows, which cannot
-            // bind a multicast address).
-            let bind_to = if cfg!(windows) {
-                Ipv4Addr::UNSPECIFIED
+        // Bound to the group address: only this group's datagrams arrive, so buses on
+        // other groups sharing the port stay separate. Windows refuses to bind a multicast
+        // address: there the socket binds 0.0.0.0, and Windows delivers a socket only the
+        // groups it joined itself.
+        let mut socket = multicast_socket(config, config.group);
+        if cfg!(windows)
+            && socket
+                .as_ref()
+                .is_err_and(|(_, e)| e.kind() == io::ErrorKind::AddrNotAvailable)
+        {
+            socket = multicast_socket(config, Ipv4Addr::UNSPECIFIED);
+        }
+        let socket = socket.map_err(|(what, e)| {
+            let what = if what == "creating socket" {
+                what.to_owned()
             } else {
-                config.group
-            };
-            socket.bind(&SocketAddrV4::new(bind_to, config.port).into())?;
-            socket.set_multicast_if_v4(&config.interface)?;
-            socket.set_multicast_loop_v4(true)?;
-            socket.set_multicast_ttl_v4(config.ttl)?;
-            socket.join_multicast_v4(&config.group, &config.interface)?;
-            Ok(())
-        };
-        setup().map_err(|e| {
-            FrameLinkError::io(
-                ctx(&format!(
+                format!(
                     "setting up multicast on interface {} (is the loopback interface up?)",
                     config.interface
-                )),
-                e,
-            )
+                )
+            };
+            FrameLinkError::io(ctx(&what), e)
         })?;
         // Best effort: a larger receive buffer rides out a stalled process without
         // dropping datagrams (at 1 kHz a 200 ms stall queues 200 frames, and each small
@@ -288,6 +283,29 @@ impl UdpBus {
             false
         }
     }
+}
+
+/// A UDP socket bound to `bind_to`:`config.port` that has joined `config.group` on
+/// `config.interface`; an error says which step failed (`creating socket` or the set-up).
+fn multicast_socket(
+    config: &UdpBusConfig,
+    bind_to: Ipv4Addr,
+) -> Result<Socket, (&'static str, io::Error)> {
+    let socket = Socket::new(Domain::IPV4, Type::DGRAM, Some(Protocol::UDP))
+        .map_err(|e| ("creating socket", e))?;
+    let setup = || -> io::Result<()> {
+        socket.set_reuse_address(true)?;
+        #[cfg(unix)]
+        socket.set_reuse_port(true)?;
+        socket.bind(&SocketAddrV4::new(bind_to, config.port).into())?;
+        socket.set_multicast_if_v4(&config.interface)?;
+        socket.set_multicast_loop_v4(true)?;
+        socket.set_multicast_ttl_v4(config.ttl)?;
+        socket.join_multicast_v4(&config.group, &config.interface)?;
+        Ok(())
+    };
+    setup().map_err(|e| ("setting up multicast", e))?;
+    Ok(socket)
 }
 
 /// Waits until `socket` can send or `deadline` passes; returns whether it can.
