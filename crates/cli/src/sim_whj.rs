@@ -396,12 +396,15 @@ fn adapter_host(port: &PortSpec, bus: &FrameLinkSpec) -> anyhow::Result<AdapterH
         #[cfg(not(unix))]
         PortSpec::Device(_) => Err(crate::exit::NotAvailable(format!(
             "--bus {bus}: this system has no pseudo-terminals; serve the adapter over TCP \
-             with --bus slcan:socket://127.0.0.1:PORT"
+             with --bus {kind}:socket://127.0.0.1:PORT",
+            kind = bus.candump_iface()
         ))
         .into()),
         PortSpec::Com(_) => Err(usage(format!(
-            "--bus {bus}: a simulator presents its adapter on a pty path (slcan:/tmp/robobus-slcan) \
-             or on TCP (slcan:socket://127.0.0.1:PORT), not on a COM port"
+            "--bus {bus}: a simulator presents its adapter on a pty path \
+             ({kind}:/tmp/robobus-{kind}) or on TCP ({kind}:socket://127.0.0.1:PORT), not on a \
+             COM port",
+            kind = bus.candump_iface()
         ))),
         PortSpec::Tcp { host, port: tcp } => {
             let ip: std::net::IpAddr = host.parse().map_err(|_| {

@@ -113,6 +113,15 @@ fn fdcanusb_e2e_bad_addresses_and_ports_exit_2_3_4_naming_the_value() {
         assert_eq!(r.code, Some(code), "{bus}: {}", r.stderr);
         assert!(r.stderr.contains(says), "{bus}: {}", r.stderr);
     }
+    // A simulator serves its adapter on a pty path or TCP, not on a COM port.
+    let r = common::robobus(&["sim", "whj", "--bus", "fdcanusb:COM3"]);
+    assert_eq!(r.code, Some(2), "{}", r.stderr);
+    assert!(
+        r.stderr
+            .contains("(fdcanusb:/tmp/robobus-fdcanusb) or on TCP (fdcanusb:socket://"),
+        "{}",
+        r.stderr
+    );
 }
 
 /// Runs `whj --bus fdcanusb:<pty> status --broadcast 1` against a pty whose other end
