@@ -168,7 +168,7 @@ impl FrameLinkSpec {
     /// [`OpenError`] naming the interface or group.
     pub fn open(&self) -> Result<Box<dyn FrameLink + Send>, OpenError> {
         match self {
-            #[cfg(unix)]
+            #[cfg(any(unix, windows))]
             Self::Udp { group, port } => {
                 let cfg = crate::udp::UdpBusConfig {
                     group: *group,
@@ -183,9 +183,9 @@ impl FrameLinkSpec {
                         source,
                     })
             }
-            #[cfg(not(unix))]
+            #[cfg(not(any(unix, windows)))]
             Self::Udp { .. } => Err(OpenError::Unsupported(
-                "the UDP multicast bus needs a Unix host".into(),
+                "the UDP multicast bus needs a Unix or Windows host".into(),
             )),
             #[cfg(target_os = "linux")]
             Self::SocketCan(iface) => crate::socketcan::SocketCanLink::open(iface)
