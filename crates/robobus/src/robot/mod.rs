@@ -27,7 +27,8 @@
 //!   safe stop
 //!   commands are refused ([`RobotError::SafeStopped`]) until [`Robot::resume`].
 //!
-//! Buses of kind `wck`, `whj-udp` and `whj-can` are opened from the file; kinds
+//! Buses of kind `wck`, `whj-udp`, `whj-can` and `whj-bus` (any `--bus` address, such as
+//! a serial-line CAN FD adapter's `slcan:COM8`) are opened from the file; kinds
 //! `wck-external` / `whj-external` (and any bus the program wants to replace, such as
 //! a simulator) are supplied through [`RobotBuilder::wck_bus`] /
 //! [`RobotBuilder::whj_bus`].
