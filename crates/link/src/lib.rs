@@ -8,7 +8,8 @@
 //!   `socket://HOST:PORT`, on every OS), [`MemoryByteLink`] (deterministic tests).
 //!   [`PortSpec`] turns a user's `--port` (a device path, `COM12`, `socket://…`) into one.
 //! - [`FrameLink`] (WHJ joints, CAN FD): [`SocketCanLink`] (Linux `SocketCAN`), [`UdpBus`]
-//!   (python-can's `udp_multicast` virtual bus), [`MemoryBus`] (deterministic tests).
+//!   (python-can's `udp_multicast` virtual bus), [`SlcanLink`] (an `slcan` CAN FD adapter
+//!   on any byte link), [`MemoryBus`] (deterministic tests).
 //! - Wrappers implementing the same traits: [`FaultyByteLink`] / [`FaultyFrameLink`]
 //!   (seeded fault injection), [`CaptureByteLink`] / [`CaptureFrameLink`] (hex log /
 //!   candump log capture), [`ReplayByteLink`] / [`ReplayFrameLink`] (play a capture back);
