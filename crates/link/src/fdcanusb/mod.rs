@@ -185,6 +185,8 @@ pub struct FdcanusbLink<L: ByteLink> {
     on: bool,
     /// The first bytes heard while opening, for messages.
     heard: Vec<u8>,
+    /// Whether the firmware answers `can status`.
+    status_supported: bool,
     stats: FdcanusbStats,
 }
 
@@ -218,6 +220,7 @@ impl<L: ByteLink> FdcanusbLink<L> {
             last_poll: None,
             on: false,
             heard: Vec::new(),
+            status_supported: true,
             stats: FdcanusbStats::default(),
         };
         this.link
@@ -303,6 +306,18 @@ impl<L: ByteLink> FdcanusbLink<L> {
         }
         let status = match self.command(&Command::CanStatus, Expect::Reply) {
             Ok(reply) => reply.unwrap_or_default(),
+            // Early firmware answers `ERR not implemented`: the controller's state is
+            // then not known, and not asked again.
+            Err(Failure::Refused(details)) => {
+                tracing::warn!(
+                    port = %self.port,
+                    %details,
+                    "fdcanusb: no `can status` in this firmware; bus-off and error-passive \
+                     will not be reported"
+                );
+                self.status_supported = false;
+                return Ok(());
+            }
             Err(f) => return Err(self.open_error("can status", f)),
         };
         match codec::parse_status(&status) {
@@ -589,7 +604,7 @@ impl<L: ByteLink> FdcanusbLink<L> {
                 }
             },
             // The adapter left the bus by itself (reset, or its own error handling).
-            Answer::Err(details) => {
+            Answer::Err(details) if details.contains("BusOn") => {
                 if self.bus != BusState::Off {
                     tracing::warn!(port = %self.port, %details, "fdcanusb is off the bus");
                     self.bus = BusState::Off;
@@ -597,6 +612,9 @@ impl<L: ByteLink> FdcanusbLink<L> {
                         iface: self.name.clone(),
                     });
                 }
+            }
+            Answer::Err(details) => {
+                let _ = self.garbage(format!("ERR {} to can status", codec::quote(&details)));
             }
         }
     }
@@ -659,7 +677,7 @@ impl<L: ByteLink> FdcanusbLink<L> {
         let due = self
             .last_poll
             .is_none_or(|t| now.saturating_duration_since(t) >= self.config.status_every);
-        if !due || self.pending.iter().any(|p| p.expect == Expect::Poll) {
+        if !due || !self.status_supported || self.pending.iter().any(|p| p.expect == Expect::Poll) {
             return None;
         }
         if self.pending.len() >= MAX_PENDING {

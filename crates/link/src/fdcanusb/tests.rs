@@ -28,6 +28,8 @@ struct Script {
     status: Status,
     /// Answer `can std` with `ERR` and these details.
     refuse_send: Option<&'static str>,
+    /// Answer `can status` as early firmware does (`ERR not implemented`).
+    no_status: bool,
     /// Every line the adapter received.
     log: Vec<String>,
 }
@@ -57,6 +59,7 @@ impl Script {
             Ok(Command::CanStatus | Command::Send(_)) if !self.on => {
                 codec::encode_err("not in BusOn")
             }
+            Ok(Command::CanStatus) if self.no_status => codec::encode_err("not implemented"),
             Ok(Command::CanStatus) => {
                 format!("{}{}", codec::encode_status(&self.status), codec::OK_LINE)
             }
@@ -484,4 +487,32 @@ fn the_queue_of_received_frames_is_bounded_and_an_overflow_reported() {
     }
     assert_eq!(n, MAX_QUEUED);
     assert_eq!(link.stats().overrun, 10);
+}
+
+#[test]
+fn firmware_without_can_status_opens_and_is_not_asked_again() {
+    let (host, s, _t) = adapter(Script {
+        no_status: true,
+        echo: vec![fd(0x501, &[1])],
+        ..Script::default()
+    });
+    let mut link = FdcanusbLink::open(
+        host,
+        "p",
+        FdcanusbConfig {
+            status_every: Duration::ZERO,
+            ..quick()
+        },
+    )
+    .unwrap();
+    link.send(&fd(0x201, &[1])).unwrap();
+    assert_eq!(link.recv(Instant::now()).unwrap().frame.raw_id(), 0x501);
+    assert!(
+        link.recv(Instant::now() + Duration::from_millis(20))
+            .unwrap_err()
+            .is_timeout()
+    );
+    let asked = lock(&s).log.iter().filter(|l| *l == "can status").count();
+    assert_eq!(asked, 1);
+    assert_eq!(link.stats().status_polls, 0);
 }
