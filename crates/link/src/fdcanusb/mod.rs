@@ -185,8 +185,6 @@ pub struct FdcanusbLink<L: ByteLink> {
     on: bool,
     /// The first bytes heard while opening, for messages.
     heard: Vec<u8>,
-    /// Whether the firmware answers `can status`.
-    status_supported: bool,
     stats: FdcanusbStats,
 }
 
@@ -220,7 +218,6 @@ impl<L: ByteLink> FdcanusbLink<L> {
             last_poll: None,
             on: false,
             heard: Vec::new(),
-            status_supported: true,
             stats: FdcanusbStats::default(),
         };
         this.link
@@ -315,7 +312,8 @@ impl<L: ByteLink> FdcanusbLink<L> {
                     "fdcanusb: no `can status` in this firmware; bus-off and error-passive \
                      will not be reported"
                 );
-                self.status_supported = false;
+                self.config.status_every = Duration::MAX;
+                self.last_poll = Some(self.link.now());
                 return Ok(());
             }
             Err(f) => return Err(self.open_error("can status", f)),
@@ -677,7 +675,7 @@ impl<L: ByteLink> FdcanusbLink<L> {
         let due = self
             .last_poll
             .is_none_or(|t| now.saturating_duration_since(t) >= self.config.status_every);
-        if !due || !self.status_supported || self.pending.iter().any(|p| p.expect == Expect::Poll) {
+        if !due || self.pending.iter().any(|p| p.expect == Expect::Poll) {
             return None;
         }
         if self.pending.len() >= MAX_PENDING {
