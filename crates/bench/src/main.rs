@@ -3,7 +3,7 @@
 //! ```text
 //! robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]
 //! robobus-bench serve-whj --joints N --delay-us D [--fast-wire] [--wait sleep|spin]
-//! robobus-bench poll-wck --servos N --baud B --secs S [--turnaround] [--wait sleep|spin] [--memory]
+//! robobus-bench poll-wck --servos N --baud B --secs S [--turnaround] [--wait sleep|spin] [--memory|--tcp]
 //! robobus-bench slcan [--joints N] [--secs S]
 //! robobus-bench telemetry --secs S
 //! robobus-bench studio --secs S
@@ -18,9 +18,10 @@
 //! `poll-wck` runs the wCK polling case alone, once, and prints its rate as a share of the
 //! wire (for a quick look, or under `strace`); `free-whj` the WHJ free-running case over
 //! the memory bus. Both take `--wait sleep|spin` (spin: the client spins for its replies
-//! and the simulator serves in its precise mode). `syscalls` counts system calls per
-//! transaction with `strace`; `echo` measures the pty's and the memory bus's own round
-//! trip.
+//! and the simulator serves in its precise mode); `poll-wck --tcp` serves the simulator
+//! over TCP on 127.0.0.1 instead of the pty. `syscalls` counts system calls per
+//! transaction with `strace`; `echo` measures the pty's, TCP's and the memory bus's own
+//! round trip.
 
 use std::io::Write as _;
 use std::path::PathBuf;
@@ -32,7 +33,7 @@ use robobus_bench::{Options, report, run, wck, whj};
 fn usage() -> ExitCode {
     let _ = writeln!(
         std::io::stderr(),
-        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire] [--wait sleep|spin]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround] [--wait sleep|spin] [--memory]\n       robobus-bench telemetry --secs S\n       robobus-bench studio --secs S\n       robobus-bench bridge [--bridges N] [--rate HZ] [--secs S] [--smoke]\n       robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window] [--external-sim]\n       robobus-bench free-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window]\n       robobus-bench syscalls [--udp] [--python PATH]\n       robobus-bench echo\n       robobus-bench slcan [--joints N] [--secs S]"
+        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire] [--wait sleep|spin]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround] [--wait sleep|spin] [--memory|--tcp]\n       robobus-bench telemetry --secs S\n       robobus-bench studio --secs S\n       robobus-bench bridge [--bridges N] [--rate HZ] [--secs S] [--smoke]\n       robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window] [--external-sim]\n       robobus-bench free-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window]\n       robobus-bench syscalls [--udp] [--python PATH]\n       robobus-bench echo\n       robobus-bench slcan [--joints N] [--secs S]"
     );
     ExitCode::from(2)
 }
@@ -123,6 +124,7 @@ fn poll_wck(args: &[String]) -> ExitCode {
         memory: false,
     };
     let mut secs = 1.0_f64;
+    let mut tcp = false;
     let mut it = args.iter();
     while let Some(a) = it.next() {
         match a.as_str() {
@@ -144,6 +146,7 @@ fn poll_wck(args: &[String]) -> ExitCode {
             },
             "--turnaround" => spec.manual_turnaround = true,
             "--memory" => spec.memory = true,
+            "--tcp" => tcp = true,
             "--wait" => match it.next().map(|v| v.parse()) {
                 Some(Ok(w)) => spec.wait = w,
                 Some(Err(e)) => {
@@ -155,7 +158,13 @@ fn poll_wck(args: &[String]) -> ExitCode {
             _ => return usage(),
         }
     }
-    match wck::poll(spec, Duration::from_secs_f64(secs), None) {
+    let duration = Duration::from_secs_f64(secs);
+    let run = if tcp {
+        wck::poll_tcp(spec, duration)
+    } else {
+        wck::poll(spec, duration, None)
+    };
+    match run {
         Ok(r) => {
             let _ = writeln!(
                 std::io::stdout(),
@@ -421,10 +430,11 @@ fn syscalls(args: &[String]) -> ExitCode {
     ExitCode::SUCCESS
 }
 
-/// `echo`: the pty's and the memory bus's own round trip, both sides spinning.
+/// `echo`: the pty's, TCP's and the memory bus's own round trip, both sides spinning.
 fn echo() -> ExitCode {
     for (what, r) in [
         ("pty", robobus_bench::transport::pty_echo(5000)),
+        ("TCP (127.0.0.1)", robobus_bench::transport::tcp_echo(5000)),
         ("memory bus", robobus_bench::transport::memory_echo(5000)),
     ] {
         match r {
