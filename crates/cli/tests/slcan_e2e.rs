@@ -119,10 +119,11 @@ fn slcan_e2e_scan_status_move_wave_monitor_and_run_over_the_emulated_adapter() {
     let rows = std::fs::read_to_string(&csv).unwrap();
     assert!(rows.lines().count() > 3, "{rows}");
 
-    // `run` gives the subcommand's report; a dry run opens nothing.
-    let want = sim.json(&["status", "1-3"]);
+    // `run` gives the subcommand's report (of joints at rest, never enabled: the same
+    // values twice); a dry run opens nothing.
+    let want = sim.json(&["status", "4-5"]);
     let file = dir.path().join("request.json");
-    std::fs::write(&file, r#"{"op": "whj.status", "joints": "1-3"}"#).unwrap();
+    std::fs::write(&file, r#"{"op": "whj.status", "joints": "4-5"}"#).unwrap();
     let r = common::robobus(&["run", "--whj-bus", &bus, file.to_str().unwrap()]);
     assert_eq!(r.code, Some(0), "{}", r.stderr);
     let report: Value = serde_json::from_str(&r.stdout).unwrap();
