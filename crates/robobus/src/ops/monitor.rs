@@ -342,8 +342,8 @@ pub fn open_robot_ports(
                     item: format!("bus {name}"),
                     field: "kind",
                     value: format!("\"{}\"", bus.kind()),
-                    expected: "a bus opened from the file (kind wck, whj-udp, whj-can or whj-bus); an \
-                               external bus is one a program supplies"
+                    expected: "a bus opened from the file (kind wck, whj-udp, whj-can or \
+                               whj-bus); an external bus is one a program supplies"
                         .into(),
                 });
             }

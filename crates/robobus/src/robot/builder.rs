@@ -335,9 +335,7 @@ pub fn open_whj_bus(
                 .parse()
                 .map_err(|e: robobus_link::SpecError| fail(addr.clone(), e.to_string()))?;
             let what = spec.describe();
-            let link = spec
-                .open()
-                .map_err(|e| fail(what.clone(), e.to_string()))?;
+            let link = spec.open().map_err(|e| fail(what.clone(), e.to_string()))?;
             JointBus::open_with(link, config).map_err(|e| fail(what, e.to_string()))
         }
         BusConfig::WhjExternal { .. } => Err(RobotError::MissingBus {
