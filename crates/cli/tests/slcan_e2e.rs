@@ -170,6 +170,18 @@ fn slcan_e2e_bad_addresses_ports_and_rates_exit_2_3_4_naming_the_value() {
         r.stderr
     );
     assert!(!path.exists());
+    // A dry run says what it would serve and makes no pty.
+    let r = common::robobus(&["--dry-run", "sim", "whj", "--bus", &bus]);
+    assert_eq!(r.code, Some(0), "{}", r.stderr);
+    assert!(
+        r.stdout.contains(&format!(
+            "on slcan adapter on serial port {}; nothing opened",
+            path.display()
+        )),
+        "{}",
+        r.stdout
+    );
+    assert!(!path.exists());
 }
 
 /// Runs `whj --bus slcan:<pty> status 1` against a pty whose other end `answer`s each
