@@ -183,6 +183,7 @@ fn wait_writable(stream: &TcpStream, deadline: Instant) -> io::Result<bool> {
 
 /// The socket blocks with a write timeout: a timed-out write is the end of the wait.
 #[cfg(not(unix))]
+#[allow(clippy::unnecessary_wraps)] // the signature of the Unix version, which polls
 fn wait_writable(_stream: &TcpStream, deadline: Instant) -> io::Result<bool> {
     Ok(Instant::now() < deadline)
 }
@@ -543,13 +544,11 @@ impl ByteLink for TcpServer {
                 None => None,
             };
             #[cfg(not(unix))]
-            let result = match self.client.as_mut() {
-                Some((stream, _)) => {
-                    let step = deadline.min(Instant::now() + SERVER_STEP);
+            let result = {
+                let step = deadline.min(Instant::now() + SERVER_STEP);
+                if let Some((stream, _)) = self.client.as_mut() {
                     read_until(stream, buf, step).transpose()
-                }
-                None => {
-                    let step = deadline.min(Instant::now() + SERVER_STEP);
+                } else {
                     std::thread::sleep(step.saturating_duration_since(Instant::now()));
                     None
                 }
