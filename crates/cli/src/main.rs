@@ -4,7 +4,7 @@
 //!
 //! | module | subcommand |
 //! | --- | --- |
-//! | [`wck`] | `robobus wck --port PATH ...` (wCK servos on a serial bus) |
+//! | [`wck`] | `robobus wck --port PORT ...` (wCK servos on a serial bus, or a simulator over TCP) |
 //! | [`whj`] | `robobus whj --bus BUS ...` (WHJ joints on CAN FD) |
 //! | [`demo`] | `robobus demo` (the built-in simulated robot) |
 //! | [`monitor`] | `robobus monitor` (live dashboard) |

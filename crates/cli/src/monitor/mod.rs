@@ -7,8 +7,9 @@
 //!   `whj.sample` on a station holding that bus: each sample is a status query (position,
 //!   current, enable, error bits) and a speed register read per joint; with `--broadcast`,
 //!   one broadcast status frame (0x7F) for all joints (1..=7).
-//! - `--port PATH --servos 0-15`: wCK servos, read-only, the stream of `wck.sample`: a
-//!   status read (position, load) per servo; the speed is the position's derivative.
+//! - `--port PORT --servos 0-15`: wCK servos (a serial device, `COMn` or
+//!   `socket://HOST:PORT`), read-only, the stream of `wck.sample`: a status read
+//!   (position, load) per servo; the speed is the position's derivative.
 //! - `--robot FILE.toml`: every joint of a robot file, by name, in the file's order, as
 //!   joint angles (the file's `offset`, `direction` and wCK `centre` applied) in degrees
 //!   and deg/s: the stream of `robot.sample` on a station opened from the file. The
@@ -386,7 +387,7 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
         return watch(&mut Source::Stream(src), d, args, out);
     }
     Err(usage(
-        "robobus monitor: give --bus BUS (WHJ), --port PATH (wCK), --robot FILE.toml or \
+        "robobus monitor: give --bus BUS (WHJ), --port PORT (wCK), --robot FILE.toml or \
          --sim (the built-in simulated arm)",
     ))
 }
