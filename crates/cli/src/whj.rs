@@ -79,7 +79,7 @@ starting with `#` are comments; --json prints them as JSON.";
 pub(crate) struct Args {
     /// The bus: `udp` (python-can UDP multicast 239.74.163.2:43113, what `robobus sim whj`
     /// serves), `udp:GROUP:PORT`, a SocketCAN interface such as can0 / vcan0, or a
-    /// serial-line adapter: `slcan:PORT` (CANable 2.0 class) or `fdcanusb:PORT` (PORT:
+    /// serial-line adapter: `slcan:PORT` (a `CANable` 2.0-class adapter) or `fdcanusb:PORT` (PORT:
     /// /dev/ttyACM0, COM8, socket://HOST:PORT). Required unless --dry-run is given.
     #[arg(long, value_name = "BUS", global = true)]
     bus: Option<String>,
