@@ -22,16 +22,15 @@
 //!   adapter's microsecond clock (`t`, from power-up) and `f-1` (no filter), after the
 //!   answers queued before it, each character taking its serial time;
 //! - `can status` answers `lec dlec err warn busoff pexc tdc` as the firmware does, and
-//!   `rxovf`: the frames it dropped because more than [`SerialLine::CAPACITY`] lines were
+//!   `rxovf`: the frames it dropped because more than [`SerialLine::CAPACITY`](super::SerialLine::CAPACITY) lines were
 //!   waiting for the host. The controller states can be set by a test
 //!   ([`FdcanusbAdapter::set_status`]); the simulated bus has no acknowledgement errors to
 //!   raise them by itself.
 //!
 //! Bounded: a line longer than [`MAX_LINE`](robobus_link::fdcanusb::codec::MAX_LINE), or
 //! with bytes that are not text, is skipped to its end and refused; more than
-//! [`SerialLine::CAPACITY`] messages waiting in either direction drop the newest.
+//! [`SerialLine::CAPACITY`](super::SerialLine::CAPACITY) messages waiting in either direction drop the newest.
 
-use std::collections::VecDeque;
 use std::time::Instant;
 
 use robobus_link::fdcanusb::codec::{
@@ -41,7 +40,7 @@ use robobus_link::fdcanusb::codec::{
 use robobus_whj::CanFrame;
 use robobus_whj::timing::BitRates;
 
-use super::{AdapterModel, Output, SerialLine, SerialTime};
+use super::{AdapterModel, Output, Queues, SerialTime};
 
 /// The slowest nominal bit rate the adapter makes, bit/s.
 pub const MIN_BITRATE: u32 = 10_000;
@@ -78,9 +77,7 @@ struct Conf {
 #[derive(Debug, Clone)]
 pub struct FdcanusbAdapter {
     splitter: LineSplitter,
-    from_host: SerialLine<HostLine>,
-    to_host: SerialLine<Vec<u8>>,
-    to_bus: VecDeque<(Instant, CanFrame)>,
+    q: Queues<HostLine>,
     conf: Conf,
     /// The rates the controller is at while on the bus (taken at `can on`).
     active: Option<BitRates>,
@@ -104,9 +101,7 @@ impl FdcanusbAdapter {
     pub fn new(rates: BitRates, serial: SerialTime) -> Self {
         Self {
             splitter: LineSplitter::new(),
-            from_host: SerialLine::new(serial),
-            to_host: SerialLine::new(serial),
-            to_bus: VecDeque::new(),
+            q: Queues::new(serial),
             conf: Conf {
                 bitrate: rates.nominal.get(),
                 fd_bitrate: rates.data.get(),
@@ -153,7 +148,7 @@ impl FdcanusbAdapter {
     /// Queues bytes for the host at `at`; `false` when the line to the host is full.
     fn answer(&mut self, at: Instant, text: &str) -> bool {
         let bytes = text.as_bytes().to_vec();
-        self.to_host.send(at, bytes.len(), bytes).is_some()
+        self.q.to_host.send(at, bytes.len(), bytes).is_some()
     }
 
     fn ok(&mut self, at: Instant) {
@@ -247,7 +242,7 @@ impl FdcanusbAdapter {
             Command::CanOff if !on => self.refuse(at, "already in BusOff"),
             Command::CanOff => {
                 self.active = None;
-                self.to_bus.clear();
+                self.q.clear_bus();
                 self.ok(at);
             }
             Command::CanStatus if !on => self.refuse(at, "not in BusOn"),
@@ -280,12 +275,12 @@ impl FdcanusbAdapter {
             Command::Send(req) => {
                 match req.frame(self.conf.fdcan_frame, self.conf.bitrate_switch) {
                     Err(details) => self.refuse(at, &details),
-                    Ok(_) if self.to_bus.len() >= SerialLine::<()>::CAPACITY => {
-                        self.refuse(at, "transmit queue full");
-                    }
                     Ok(frame) => {
-                        self.to_bus.push_back((at, frame));
-                        self.ok(at);
+                        if self.q.to_bus(at, frame) {
+                            self.ok(at);
+                        } else {
+                            self.refuse(at, "transmit queue full");
+                        }
                     }
                 }
             }
@@ -305,7 +300,7 @@ impl AdapterModel for FdcanusbAdapter {
         });
         for (chars, line) in lines {
             // A full line from the host is lost, as an overrun USB buffer loses it.
-            let _ = self.from_host.send(at, chars, line);
+            let _ = self.q.from_host.send(at, chars, line);
         }
     }
 
@@ -321,31 +316,14 @@ impl AdapterModel for FdcanusbAdapter {
     }
 
     fn next_due(&self) -> Option<Instant> {
-        [
-            self.from_host.next_due(),
-            self.to_host.next_due(),
-            self.to_bus.front().map(|(t, _)| *t),
-        ]
-        .into_iter()
-        .flatten()
-        .min()
+        self.q.next_due()
     }
 
     fn poll(&mut self, now: Instant, out: &mut Vec<Output>) {
-        while let Some((at, line)) = self.from_host.pop_due(now) {
+        while let Some((at, line)) = self.q.from_host.pop_due(now) {
             self.carry_out(&line, at);
         }
-        while let Some((_, frame)) = self.to_bus.front().filter(|(t, _)| *t <= now).copied() {
-            self.to_bus.pop_front();
-            out.push(Output::Bus(frame));
-        }
-        let mut bytes = Vec::new();
-        while let Some((_, msg)) = self.to_host.pop_due(now) {
-            bytes.extend_from_slice(&msg);
-        }
-        if !bytes.is_empty() {
-            out.push(Output::Host(bytes));
-        }
+        self.q.release(now, out);
     }
 
     fn bus_rates(&self) -> Option<BitRates> {
@@ -357,6 +335,7 @@ impl AdapterModel for FdcanusbAdapter {
 mod tests {
     use core::time::Duration;
 
+    use super::super::SerialLine;
     use super::*;
 
     /// Feeds `input` at `t0` and runs the adapter until nothing is due: the bytes for the

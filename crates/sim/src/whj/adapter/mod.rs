@@ -93,6 +93,72 @@ impl<M: AdapterModel + ?Sized> AdapterModel for Box<M> {
     }
 }
 
+/// What every emulated adapter holds between its host and the bus: the host's lines on
+/// their way in, frames for the bus, and bytes for the host on their way out, each with
+/// the instant it is through.
+#[derive(Debug, Clone)]
+pub struct Queues<L> {
+    /// The host's lines, each ready once its last character is through.
+    pub from_host: SerialLine<L>,
+    /// Bytes for the host, each released once its last character is through.
+    pub to_host: SerialLine<Vec<u8>>,
+    to_bus: VecDeque<(Instant, CanFrame)>,
+}
+
+impl<L> Queues<L> {
+    /// Empty queues on a host link of `serial` time.
+    pub const fn new(serial: SerialTime) -> Self {
+        Self {
+            from_host: SerialLine::new(serial),
+            to_host: SerialLine::new(serial),
+            to_bus: VecDeque::new(),
+        }
+    }
+
+    /// Queues `frame` for the bus at `at`; `false` (dropped) when
+    /// [`SerialLine::CAPACITY`] frames already wait.
+    pub fn to_bus(&mut self, at: Instant, frame: CanFrame) -> bool {
+        if self.to_bus.len() >= SerialLine::<()>::CAPACITY {
+            return false;
+        }
+        self.to_bus.push_back((at, frame));
+        true
+    }
+
+    /// Drops the frames not yet on the bus (the channel closed).
+    pub fn clear_bus(&mut self) {
+        self.to_bus.clear();
+    }
+
+    /// The next instant anything is due.
+    pub fn next_due(&self) -> Option<Instant> {
+        [
+            self.from_host.next_due(),
+            self.to_host.next_due(),
+            self.to_bus.front().map(|(t, _)| *t),
+        ]
+        .into_iter()
+        .flatten()
+        .min()
+    }
+
+    /// Releases the frames for the bus and the host's bytes due by `now` into `out`, in
+    /// that order (the host's lines are the adapter's to carry out first).
+    pub fn release(&mut self, now: Instant, out: &mut Vec<Output>) {
+        while let Some((_, frame)) = self.to_bus.front().filter(|(t, _)| *t <= now).copied() {
+            self.to_bus.pop_front();
+            out.push(Output::Bus(frame));
+        }
+        let mut bytes = Vec::new();
+        while let Some((_, msg)) = self.to_host.pop_due(now) {
+            bytes.extend_from_slice(&msg);
+        }
+        if !bytes.is_empty() {
+            out.push(Output::Host(bytes));
+        }
+    }
+}
+
 /// The serial time of an adapter's host link: what each character costs, each way. See
 /// the [module notes](self#serial-time).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -18,10 +18,9 @@
 //!   power-up rates until then): a joint at other rates hears nothing.
 //!
 //! Bounded: a line longer than [`MAX_LINE`](robobus_link::slcan::codec::MAX_LINE) is
-//! refused whole; more than [`SerialLine::CAPACITY`] messages waiting in either direction
+//! refused whole; more than [`SerialLine::CAPACITY`](super::SerialLine::CAPACITY) messages waiting in either direction
 //! drop the newest and raise the overrun flags.
 
-use std::collections::VecDeque;
 use std::time::Instant;
 
 use robobus_link::slcan::codec::{
@@ -30,7 +29,7 @@ use robobus_link::slcan::codec::{
 use robobus_whj::CanFrame;
 use robobus_whj::timing::BitRates;
 
-use super::{AdapterModel, Output, SerialLine, SerialTime};
+use super::{AdapterModel, Output, Queues, SerialTime};
 
 /// What `V` answers (after the `V`): hardware 10, software 13.
 pub const VERSION: &str = "1013";
@@ -47,9 +46,7 @@ enum HostLine {
 #[derive(Debug, Clone)]
 pub struct SlcanAdapter {
     splitter: LineSplitter,
-    from_host: SerialLine<HostLine>,
-    to_host: SerialLine<Vec<u8>>,
-    to_bus: VecDeque<(Instant, CanFrame)>,
+    q: Queues<HostLine>,
     open: bool,
     listen_only: bool,
     nominal: u8,
@@ -71,9 +68,7 @@ impl SlcanAdapter {
     pub fn new(rates: BitRates, serial: SerialTime) -> Self {
         Self {
             splitter: LineSplitter::new(),
-            from_host: SerialLine::new(serial),
-            to_host: SerialLine::new(serial),
-            to_bus: VecDeque::new(),
+            q: Queues::new(serial),
             open: false,
             listen_only: false,
             nominal: codec::nominal_code(rates.nominal.get()).unwrap_or(8),
@@ -123,7 +118,7 @@ impl SlcanAdapter {
 
     fn answer(&mut self, at: Instant, bytes: Vec<u8>) {
         let len = bytes.len();
-        if self.to_host.send(at, len, bytes).is_none() {
+        if self.q.to_host.send(at, len, bytes).is_none() {
             self.flags |= STATUS_RX_FULL | STATUS_OVERRUN;
         }
     }
@@ -157,7 +152,7 @@ impl SlcanAdapter {
             }
             Command::Close if !closed => {
                 self.open = false;
-                self.to_bus.clear();
+                self.q.clear_bus();
                 self.ok(at);
             }
             Command::Nominal(code) if closed => {
@@ -181,12 +176,11 @@ impl SlcanAdapter {
                 self.answer(at, format!("F{flags:02X}\r").into_bytes());
             }
             Command::Frame(frame) if !closed && !self.listen_only => {
-                if self.to_bus.len() >= SerialLine::<()>::CAPACITY {
+                if self.q.to_bus(at, frame) {
+                    self.ok(at);
+                } else {
                     self.flags |= STATUS_TX_FULL;
                     self.refuse(at);
-                } else {
-                    self.to_bus.push_back((at, frame));
-                    self.ok(at);
                 }
             }
             _ => self.refuse(at),
@@ -208,7 +202,7 @@ impl AdapterModel for SlcanAdapter {
                 HostLine::Line(l) => l.len() + 1,
                 HostLine::Bad => 1,
             };
-            if self.from_host.send(at, chars, line).is_none() {
+            if self.q.from_host.send(at, chars, line).is_none() {
                 self.flags |= STATUS_TX_FULL | STATUS_OVERRUN;
             }
         }
@@ -221,31 +215,14 @@ impl AdapterModel for SlcanAdapter {
     }
 
     fn next_due(&self) -> Option<Instant> {
-        [
-            self.from_host.next_due(),
-            self.to_host.next_due(),
-            self.to_bus.front().map(|(t, _)| *t),
-        ]
-        .into_iter()
-        .flatten()
-        .min()
+        self.q.next_due()
     }
 
     fn poll(&mut self, now: Instant, out: &mut Vec<Output>) {
-        while let Some((at, line)) = self.from_host.pop_due(now) {
+        while let Some((at, line)) = self.q.from_host.pop_due(now) {
             self.carry_out(&line, at);
         }
-        while let Some((_, frame)) = self.to_bus.front().filter(|(t, _)| *t <= now).copied() {
-            self.to_bus.pop_front();
-            out.push(Output::Bus(frame));
-        }
-        let mut bytes = Vec::new();
-        while let Some((_, msg)) = self.to_host.pop_due(now) {
-            bytes.extend_from_slice(&msg);
-        }
-        if !bytes.is_empty() {
-            out.push(Output::Host(bytes));
-        }
+        self.q.release(now, out);
     }
 
     fn bus_rates(&self) -> Option<BitRates> {
@@ -261,6 +238,7 @@ impl AdapterModel for SlcanAdapter {
 mod tests {
     use core::time::Duration;
 
+    use super::super::SerialLine;
     use super::*;
 
     fn drive(a: &mut SlcanAdapter, t0: Instant, input: &[u8]) -> (Vec<u8>, Vec<CanFrame>, Instant) {
@@ -347,7 +325,7 @@ mod tests {
         drive(&mut a, t0, b"O\r");
         let flood = b"\r".repeat(SerialLine::<()>::CAPACITY + 10);
         a.host_bytes(&flood, t0);
-        assert_eq!(a.from_host.len(), SerialLine::<()>::CAPACITY);
+        assert_eq!(a.q.from_host.len(), SerialLine::<()>::CAPACITY);
         drive(&mut a, t0, b"");
         let (host, _, _) = drive(&mut a, t0, b"F\r");
         assert!(
