@@ -41,8 +41,14 @@ pub const NOMINAL_RATES: [u32; 9] = [
     10_000, 20_000, 50_000, 100_000, 125_000, 250_000, 500_000, 750_000, 1_000_000,
 ];
 
-/// The data bit rates an slcan FD adapter can be set to: `Y2`, `Y5`.
-pub const DATA_RATES: [(u8, u32); 2] = [(2, 2_000_000), (5, 5_000_000)];
+/// The data bit rates an slcan FD adapter can be set to: `Y1`, `Y2`, `Y4`, `Y5` (the
+/// `CANable` 2.0 firmware's codes; the WHJ joints' 250 and 500 kbit/s have none).
+pub const DATA_RATES: [(u8, u32); 4] = [
+    (1, 1_000_000),
+    (2, 2_000_000),
+    (4, 4_000_000),
+    (5, 5_000_000),
+];
 
 /// The `S` code of a nominal rate.
 pub fn nominal_code(rate: u32) -> Option<u8> {
@@ -603,7 +609,7 @@ mod tests {
             &b"S9"[..],
             b"S",
             b"S88",
-            b"Y4",
+            b"Y3",
             b"Y",
             b"M2",
             b"A",
@@ -672,8 +678,12 @@ mod tests {
         assert_eq!(nominal_code(10_000), Some(0));
         assert_eq!(nominal_code(800_000), None);
         assert_eq!(data_code(5_000_000), Some(5));
-        assert_eq!(data_code(4_000_000), None);
+        assert_eq!(data_code(4_000_000), Some(4));
+        assert_eq!(data_code(500_000), None);
         assert_eq!(data_rate(2), Some(2_000_000));
-        assert_eq!(list_rates(DATA_RATES.map(|d| d.1)), "2000000, 5000000");
+        assert_eq!(
+            list_rates(DATA_RATES.map(|d| d.1)),
+            "1000000, 2000000, 4000000, 5000000"
+        );
     }
 }

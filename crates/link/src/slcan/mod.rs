@@ -3,7 +3,10 @@
 //! serial port, a TCP socket to a simulator, an in-process emulation).
 //!
 //! Opening configures the adapter before anything reaches a joint: the channel is closed
-//! (`C`), the adapter must answer `V` with its version within
+//! (`C`; never an empty line first: the `CANable` 2.0 firmware carries out its previous
+//! command again on an empty line, which after a frame is that frame sent once more), the
+//! adapter must answer `V` with its version (`V…`, or the `CANable` 2.0 firmware's build and
+//! source without the `V`, taken once the adapter has answered `C` the `slcan` way) within
 //! [`SlcanConfig::answer_timeout`] (a dead port or one that answers garbage is an
 //! [`AdapterError`] naming the port and what was expected), the nominal and data rates are
 //! set (`S8` / `Y5` for the WHJ bus's 1 / 5 Mbit/s; rates the adapter has no code for are
@@ -96,7 +99,7 @@ impl SlcanConfig {
         })?;
         let y = codec::data_code(data).ok_or_else(|| {
             bad(format!(
-                "data bit rate {data} bit/s cannot be set (allowed: {} bit/s, Y2 / Y5)",
+                "data bit rate {data} bit/s cannot be set (allowed: {} bit/s, Y1 / Y2 / Y4 / Y5)",
                 codec::list_rates(codec::DATA_RATES.map(|d| d.1))
             ))
         })?;
@@ -122,6 +125,12 @@ pub struct SlcanStats {
 enum Outstanding {
     Frame,
     Status,
+}
+
+/// Whether a line can be a version text: printable ASCII and spaces, at least one
+/// character.
+fn is_version_text(line: &[u8]) -> bool {
+    !line.is_empty() && line.iter().all(|&b| b.is_ascii_graphic() || b == b' ')
 }
 
 /// A CAN FD bus through an slcan adapter on a byte link. See the [module notes](self).
@@ -166,9 +175,10 @@ impl<L: ByteLink> SlcanLink<L> {
             version: String::new(),
             stats: SlcanStats::default(),
         };
-        // Carriage returns end whatever half line the adapter holds; the channel is
-        // closed so the rates can be set. Their answers are skipped until `V`'s.
-        this.write_open(b"\r\r\rC\r")?;
+        // The channel is closed so the rates can be set; its answer is skipped until `V`'s.
+        // No empty line: the CANable 2.0 firmware repeats its last command on one (a
+        // frame a program sent last would go out again).
+        this.write_open(b"C\r")?;
         this.write_open(&codec::encode_command(&Command::Version))?;
         this.version = this.await_version(config.answer_timeout)?;
         for (command, what) in [
@@ -203,12 +213,13 @@ impl<L: ByteLink> SlcanLink<L> {
     }
 
     /// Reads the adapter's messages while opening until `done` takes one or the
-    /// deadline passes.
+    /// deadline passes; `done` is also told whether the adapter has answered the `slcan`
+    /// way (`\r`, BEL, a reply) before this message.
     fn await_open<T>(
         &mut self,
         what: &str,
         timeout: Duration,
-        mut done: impl FnMut(&Reply) -> Option<Result<T, String>>,
+        mut done: impl FnMut(&Reply, bool) -> Option<Result<T, String>>,
     ) -> Result<T, AdapterError> {
         let deadline = self.link.now() + timeout;
         let mut garbage: Vec<u8> = Vec::new();
@@ -255,7 +266,7 @@ impl<L: ByteLink> SlcanLink<L> {
                     Message::Bel => Reply::Refused,
                     Message::Overlong => Reply::Garbage(b"(an over-long line)".to_vec()),
                 };
-                if let Some(result) = done(&reply) {
+                if let Some(result) = done(&reply, heard) {
                     return result
                         .map_err(|detail| self.adapter_error(AdapterErrorKind::Refused, detail));
                 }
@@ -283,8 +294,13 @@ impl<L: ByteLink> SlcanLink<L> {
         self.await_open(
             "V (version, expected V<version>\\r)",
             timeout,
-            |r| match r {
+            |r, heard| match r {
                 Reply::Version(v) => Some(Ok(v.clone())),
+                // The CANable 2.0 firmware answers `V` with "<build> <source>", without the
+                // `V`: text from an adapter that has just answered `C` the slcan way.
+                Reply::Garbage(line) if heard && is_version_text(line) => {
+                    Some(Ok(String::from_utf8_lossy(line).into_owned()))
+                }
                 _ => None,
             },
         )
@@ -293,7 +309,7 @@ impl<L: ByteLink> SlcanLink<L> {
     fn await_ack(&mut self, what: &str, timeout: Duration) -> Result<(), AdapterError> {
         let expected = format!("{what}, expected \\r");
         let refused = format!("refused {what} (answered BEL)");
-        self.await_open(&expected, timeout, |r| match r {
+        self.await_open(&expected, timeout, |r, _| match r {
             Reply::Ack => Some(Ok(())),
             Reply::Refused => Some(Err(refused.clone())),
             _ => None,
@@ -647,7 +663,7 @@ mod tests {
         drop(link);
         assert_eq!(
             adapter.join(),
-            ["", "", "", "C", "V", "S8", "Y5", "O", "b0073010A00", "C"]
+            ["C", "V", "S8", "Y5", "O", "b0073010A00", "C"]
         );
     }
 
@@ -656,8 +672,8 @@ mod tests {
         let (host, adapter) = Scripted::start(conforming(Arc::default()));
         for (rates, named) in [
             (
-                BitRates::new(1_000_000, 4_000_000).unwrap(),
-                "data bit rate 4000000 bit/s cannot be set (allowed: 2000000, 5000000 bit/s, Y2 / Y5)",
+                BitRates::new(1_000_000, 500_000).unwrap(),
+                "data bit rate 500000 bit/s cannot be set (allowed: 1000000, 2000000, 4000000, 5000000 bit/s, Y1 / Y2 / Y4 / Y5)",
             ),
             (
                 BitRates::new(800_000, 5_000_000).unwrap(),
@@ -668,7 +684,7 @@ mod tests {
             assert_eq!(e.kind, AdapterErrorKind::RateUnsupported);
             assert_eq!(e.to_string(), format!("slcan adapter on COM8: {named}"));
         }
-        let rates = BitRates::new(1_000_000, 4_000_000).unwrap();
+        let rates = BitRates::new(1_000_000, 500_000).unwrap();
         let e = SlcanLink::open(host, "COM8", &SlcanConfig { rates, ..fast() }).unwrap_err();
         assert_eq!(e.kind, AdapterErrorKind::RateUnsupported);
         assert!(adapter.join().is_empty());
@@ -692,7 +708,7 @@ mod tests {
         );
         let lines = adapter.join();
         // The channel is closed again on the way out; no frame was ever written.
-        assert_eq!(lines, ["", "", "", "C", "V", "C"]);
+        assert_eq!(lines, ["C", "V", "C"]);
     }
 
     #[test]
@@ -706,6 +722,34 @@ mod tests {
             "{e}"
         );
         assert!(!adapter.join().iter().any(|l| l.starts_with('b')));
+    }
+
+    #[test]
+    fn the_canable_2_firmware_is_opened_without_an_empty_line_and_its_bare_version_taken() {
+        // The CANable 2.0 firmware answers V with "<build> <source>" (no V), and carries
+        // out its previous command again on an empty line (a frame would go out twice).
+        let (host, adapter) = Scripted::start(Box::new(|line: &[u8]| match line {
+            b"V" => b"a1b2c3d4 github.com/normaldotcom/canable2-fw\r".to_vec(),
+            b"" => b"b0073010A00\r".to_vec(),
+            _ => b"\r".to_vec(),
+        }));
+        let link = SlcanLink::open(host, "COM8", &fast()).unwrap();
+        assert_eq!(
+            link.version(),
+            "a1b2c3d4 github.com/normaldotcom/canable2-fw"
+        );
+        drop(link);
+        let lines = adapter.join();
+        assert_eq!(lines, ["C", "V", "S8", "Y5", "O", "C"]);
+    }
+
+    #[test]
+    fn a_bare_version_text_from_a_port_that_never_answered_the_slcan_way_is_garbage() {
+        let (host, adapter) = Scripted::start(Box::new(|_: &[u8]| b"OK ready\r".to_vec()));
+        let e = SlcanLink::open(host, "COM8", &fast()).unwrap_err();
+        assert_eq!(e.kind, AdapterErrorKind::Garbage);
+        assert!(e.to_string().contains("\"OK ready\\r"), "{e}");
+        assert_eq!(adapter.join(), ["C", "V", "C"]);
     }
 
     #[test]
