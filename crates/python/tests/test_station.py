@@ -293,7 +293,9 @@ def test_errors_are_their_kinds_classes_and_nothing_is_sent() -> None:
     with pytest.raises((robobus.NoDeviceError, robobus.NotAvailableError)) as gone:
         robobus.open_whj("nocan7")
     assert isinstance(gone.value, OSError)
-    with pytest.raises(ValueError, match="SocketCAN interface name"):
+    with pytest.raises(
+        ValueError, match=r"a SocketCAN interface such as vcan0 \(1\.\.=15 characters"
+    ):
         robobus.open_whj("no-such-can-interface-0")
 
 
