@@ -42,8 +42,8 @@ use std::thread;
 use std::time::{Duration, Instant, SystemTime};
 
 use robobus::RobotConfig;
-use robobus::catalogue::Station;
 use robobus::ops::StopToken;
+use robobus::station::Station;
 use robobus::whj::{JointBus, JointBusConfig};
 use robobus_bridge::cdr::JointState;
 use robobus_bridge::{Bridge, BridgeConfig, ZenohMode};

@@ -26,8 +26,9 @@ use std::thread;
 use std::time::{Duration, Instant, SystemTime};
 
 use robobus::catalogue::live::LiveSimulator;
-use robobus::catalogue::{Request, Station, whj as cat_whj};
+use robobus::catalogue::{Request, whj as cat_whj};
 use robobus::ops::{Control, StopToken};
+use robobus::station::Station;
 use robobus::whj::{JointBus, JointBusConfig};
 use robobus_link::{FrameLink, FrameLinkError, IdFilter, MemoryBus, Received};
 use robobus_sim::whj::{Served, WhjBus, WhjModel};

@@ -7,7 +7,8 @@ use std::sync::Arc;
 use std::thread;
 use std::time::{Duration, Instant};
 
-use robobus::catalogue::{Request, Station, Telemetry, whj};
+use robobus::catalogue::{Request, Telemetry, whj};
+use robobus::station::Station;
 
 use crate::BenchError;
 

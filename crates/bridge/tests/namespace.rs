@@ -10,8 +10,8 @@ use std::sync::{Arc, Barrier};
 use std::time::{Duration, Instant};
 
 use robobus::ErrorKind;
-use robobus::catalogue::Station;
 use robobus::ops::StopToken;
+use robobus::station::Station;
 use robobus_bridge::{Bridge, BridgeConfig, BridgeError};
 use zenoh::Wait as _;
 

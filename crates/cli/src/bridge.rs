@@ -6,7 +6,7 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Duration;
 
-use robobus::catalogue::{Station, StationConfig};
+use robobus::station::{Station, StationConfig};
 use robobus_bridge::{Bridge, BridgeConfig, DEFAULT_LISTEN, Keys, ZenohMode};
 
 use crate::Global;

@@ -3,7 +3,8 @@
 
 use std::fmt::Write as _;
 
-use robobus::catalogue::{self, Report, Request, Station};
+use robobus::catalogue::{self, Report, Request};
+use robobus::station::Station;
 use serde_json::Value;
 
 use crate::Global;

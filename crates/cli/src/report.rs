@@ -14,8 +14,9 @@ use std::io::{BufRead as _, IsTerminal as _, Write as _};
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use robobus::ErrorKind;
-use robobus::catalogue::{self, Interaction, NoInteraction, Report, Request, Station};
+use robobus::catalogue::{self, Interaction, NoInteraction, Report, Request};
 use robobus::ops::{Control, OpError, Progress};
+use robobus::station::Station;
 use serde_json::{Map, Value};
 
 use crate::exit::{Interrupted, Timeout, usage};

@@ -12,8 +12,9 @@
 use std::io::Read as _;
 use std::path::PathBuf;
 
-use robobus::catalogue::{self, Request, Station, StationConfig};
+use robobus::catalogue::{self, Request};
 use robobus::ops::{Control, OpError, read_bounded};
+use robobus::station::{Station, StationConfig};
 use robobus_wck::BaudRate;
 use serde_json::Value;
 

@@ -7,8 +7,8 @@ use std::path::PathBuf;
 
 use anyhow::Context as _;
 use robobus::catalogue::guard::GuardConfig;
-use robobus::catalogue::{Station, StationConfig};
 use robobus::ops::{OpError, read_bounded};
+use robobus::station::{Station, StationConfig};
 use robobus_studio::{CaptureDir, Studio, StudioConfig};
 
 use crate::Global;

@@ -14,10 +14,10 @@ use anyhow::Context as _;
 use clap::{Subcommand, ValueEnum};
 use robobus::catalogue::args::{Ids, WhjOnStop};
 use robobus::catalogue::bounds::{self, Bound};
-use robobus::catalogue::station::{self, Station};
 use robobus::catalogue::{self, whj as cw};
 use robobus::ops::IdList;
 use robobus::ops::whj as ops;
+use robobus::station::{self, Station};
 use robobus_link::FrameLinkSpec;
 use robobus_whj::{JointId, REGISTERS, RegisterAddr, RegisterInfo};
 

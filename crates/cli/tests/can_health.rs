@@ -207,11 +207,8 @@ fn inner_can_health() {
 /// The catalogue's whj.can-health on a station's CAN FD bus (vcan0: no controller, MTU
 /// 72: not classic).
 fn catalogue_on_vcan0() {
-    let mut station = robobus::catalogue::Station::new();
-    station.add_whj_at(
-        "vcan0",
-        robobus::catalogue::station::open_whj("vcan0", None).unwrap(),
-    );
+    let mut station = robobus::station::Station::new();
+    station.add_whj_at("vcan0", robobus::station::open_whj("vcan0", None).unwrap());
     let request: robobus::catalogue::Request =
         serde_json::from_value(serde_json::json!({"op": "whj.can-health"})).unwrap();
     let r =

@@ -1,5 +1,5 @@
 //! The hot-path handles: groups of wCK servos and WHJ joints on a station's bus
-//! (`robobus::catalogue::handles`) and a robot in SI units (`robobus::robot::Robot`).
+//! (`robobus::station::handles`) and a robot in SI units (`robobus::robot::Robot`).
 //! Results come back as flat columns (lists of floats with `NaN` where a device gave no
 //! value, a `valid` mask, per-device error messages and kinds), which the Python side turns
 //! into numpy arrays; no JSON on the way.
@@ -9,11 +9,11 @@ use std::sync::{Arc, Mutex};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use robobus::ErrorKind;
-use robobus::catalogue::cyclic::JointFeedback;
-use robobus::catalogue::handles::{WckReading, WckServos, WhjJoints};
 use robobus::ops::DeviceResult;
 use robobus::ops::whj::{JointSample, ServoLoop};
 use robobus::robot::Robot;
+use robobus::station::cyclic::JointFeedback;
+use robobus::station::handles::{WckReading, WckServos, WhjJoints};
 
 use crate::life::{Life, forked_error};
 use crate::{op_error, raise};

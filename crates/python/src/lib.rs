@@ -29,8 +29,9 @@ use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 use robobus::ErrorKind;
 use robobus::catalogue::telemetry::RecvError;
-use robobus::catalogue::{self, Request, StationConfig};
+use robobus::catalogue::{self, Request};
 use robobus::ops::{Control, OpError, StopToken};
+use robobus::station::StationConfig;
 
 mod handles;
 mod life;
@@ -183,14 +184,14 @@ fn wait_for<T: Send>(py: Python<'_>, rx: mpsc::Receiver<T>, stop: &StopToken) ->
 #[pyclass(module = "robobus._robobus", name = "NativeStation", frozen)]
 #[derive(Debug)]
 struct NativeStation {
-    station: Mutex<Option<Arc<catalogue::Station>>>,
+    station: Mutex<Option<Arc<robobus::station::Station>>>,
     /// Its process, whether it is closed, and what runs on it.
     life: Arc<Life>,
 }
 
 impl NativeStation {
     /// The station for `call`: refused when it is closed or this is a forked child.
-    fn get(&self, py: Python<'_>, call: &str) -> PyResult<Arc<catalogue::Station>> {
+    fn get(&self, py: Python<'_>, call: &str) -> PyResult<Arc<robobus::station::Station>> {
         self.life.check(py, call)?;
         self.station
             .lock()
@@ -199,7 +200,7 @@ impl NativeStation {
             .ok_or_else(|| closed_error(py, call))
     }
 
-    fn wrap(station: catalogue::Station) -> Self {
+    fn wrap(station: robobus::station::Station) -> Self {
         Self {
             station: Mutex::new(Some(Arc::new(station))),
             life: Life::new(),
@@ -213,7 +214,7 @@ impl NativeStation {
         &self,
         py: Python<'_>,
         call: &str,
-        end: impl FnOnce(catalogue::Station) -> Vec<String> + Send,
+        end: impl FnOnce(robobus::station::Station) -> Vec<String> + Send,
     ) -> PyResult<Vec<String>> {
         if let Some(e) = self.life.fork_error(py, call, "station") {
             return Err(e);
@@ -296,7 +297,7 @@ impl NativeStation {
     #[staticmethod]
     fn simulated(py: Python<'_>) -> PyResult<Self> {
         let s = py
-            .detach(catalogue::Station::simulated)
+            .detach(robobus::station::Station::simulated)
             .map_err(|e| op_error(py, &e))?;
         Ok(Self::wrap(s))
     }
@@ -348,7 +349,7 @@ impl NativeStation {
             ..StationConfig::default()
         };
         let s = py
-            .detach(|| catalogue::Station::open(&config))
+            .detach(|| robobus::station::Station::open(&config))
             .map_err(|e| op_error(py, &e))?;
         Ok(Self::wrap(s))
     }
@@ -422,7 +423,7 @@ impl NativeStation {
     /// bus-wide break, every connected WHJ joint disabled) and the ports released. The
     /// failures, one message per device. Closing twice does nothing the second time.
     fn close(&self, py: Python<'_>) -> PyResult<Vec<String>> {
-        self.release(py, "Station.close", catalogue::Station::close)
+        self.release(py, "Station.close", robobus::station::Station::close)
     }
 
     /// Closes the station leaving every device as the last request left it (its streams
@@ -457,7 +458,7 @@ impl NativeStation {
         let station = self.get(py, call)?;
         let l = py
             .detach(move || {
-                catalogue::cyclic::CyclicLoop::start(
+                robobus::station::cyclic::CyclicLoop::start(
                     &station,
                     bus.as_deref(),
                     &joints,
@@ -483,7 +484,7 @@ impl NativeStation {
         bus: Option<String>,
     ) -> PyResult<handles::NativeWckServos> {
         let station = self.get(py, "Station.wck_servos")?;
-        catalogue::handles::WckServos::new(&station, bus.as_deref(), &ids)
+        robobus::station::handles::WckServos::new(&station, bus.as_deref(), &ids)
             .map(|inner| handles::NativeWckServos {
                 inner,
                 life: Arc::clone(&self.life),
@@ -500,7 +501,7 @@ impl NativeStation {
         bus: Option<String>,
     ) -> PyResult<handles::NativeWhjJoints> {
         let station = self.get(py, "Station.whj_joints")?;
-        py.detach(move || catalogue::handles::WhjJoints::new(&station, bus.as_deref(), &ids))
+        py.detach(move || robobus::station::handles::WhjJoints::new(&station, bus.as_deref(), &ids))
             .map(|inner| handles::NativeWhjJoints {
                 inner,
                 life: Arc::clone(&self.life),
@@ -555,7 +556,7 @@ struct NativeCyclic {
 }
 
 impl NativeCyclic {
-    fn lock(&self) -> std::sync::RwLockReadGuard<'_, catalogue::cyclic::CyclicLoop> {
+    fn lock(&self) -> std::sync::RwLockReadGuard<'_, robobus::station::cyclic::CyclicLoop> {
         self.inner
             .read()
             .unwrap_or_else(std::sync::PoisonError::into_inner)
@@ -581,8 +582,8 @@ impl Drop for NativeCyclic {
 
 /// A cycle as flat columns (what the Python side turns into arrays): `NaN` / `False`
 /// where a joint's feedback did not arrive.
-fn columns(c: &catalogue::cyclic::CycleSample) -> serde_json::Value {
-    let f = |get: &dyn Fn(&catalogue::cyclic::JointFeedback) -> serde_json::Value| {
+fn columns(c: &robobus::station::cyclic::CycleSample) -> serde_json::Value {
+    let f = |get: &dyn Fn(&robobus::station::cyclic::JointFeedback) -> serde_json::Value| {
         c.feedback
             .iter()
             .map(|x| x.as_ref().map_or(serde_json::Value::Null, get))

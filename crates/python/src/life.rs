@@ -20,8 +20,9 @@ use std::sync::{Arc, Mutex, MutexGuard, RwLock, Weak};
 
 use pyo3::prelude::*;
 use robobus::ErrorKind;
-use robobus::catalogue::{self, cyclic::CyclicLoop};
+use robobus::catalogue;
 use robobus::ops::StopToken;
+use robobus::station::cyclic::CyclicLoop;
 
 use crate::raise;
 

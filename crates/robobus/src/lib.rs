@@ -94,7 +94,9 @@ pub mod demo;
 pub mod error;
 pub mod motion;
 pub mod ops;
+pub mod record;
 pub mod robot;
+pub mod station;
 pub mod wck;
 pub mod whj;
 

@@ -13,8 +13,9 @@
 mod station_support;
 
 use robobus::catalogue::bounds::ConfirmClass;
-use robobus::catalogue::{self, ErrorKind, Request, Station, WckPort, WhjPort};
+use robobus::catalogue::{self, ErrorKind, Request};
 use robobus::ops::Control;
+use robobus::station::{Station, WckPort, WhjPort};
 use robobus::whj::{JointBus, JointBusConfig};
 use robobus_sim::whj::{WhjBus, WhjModel, WhjSimLink};
 
@@ -277,7 +278,7 @@ fn fill(
     s: &std::sync::Arc<Station>,
     request: &str,
     n: u64,
-    table: &mut robobus::catalogue::record::SampleTable,
+    table: &mut robobus::record::SampleTable,
 ) {
     use robobus::catalogue::telemetry::Telemetry;
     let t = Telemetry::paused(s, parse(request), 50.0, Some(n)).unwrap();
@@ -291,7 +292,7 @@ fn fill(
 
 #[test]
 fn every_stream_fills_one_sample_table_and_a_silent_device_is_stale() {
-    use robobus::catalogue::record::{Effort, SampleTable, SpeedUnit};
+    use robobus::record::{Effort, SampleTable, SpeedUnit};
     let (s, _w, _j) = station();
     let s = std::sync::Arc::new(s);
     // wCK servos by ID: servo 3 does not exist, servo 2 answers every sample.
@@ -594,8 +595,8 @@ fn robot_sample_streams_with_each_wck_joints_speed_from_its_previous_reading() {
 
 #[test]
 fn a_cyclic_loop_checks_its_joints_and_every_target_before_the_loop_sends_it() {
-    use robobus::catalogue::cyclic::CyclicLoop;
     use robobus::ops::whj::ServoLoop;
+    use robobus::station::cyclic::CyclicLoop;
     use std::time::Duration;
     let s = Station::simulated().unwrap();
     // Not enabled in position mode: refused, no loop.

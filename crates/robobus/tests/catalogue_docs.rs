@@ -8,8 +8,9 @@
 
 use std::collections::BTreeSet;
 
-use robobus::catalogue::{self, Request, Station};
+use robobus::catalogue::{self, Request};
 use robobus::ops::{Control, StopToken};
+use robobus::station::Station;
 use serde_json::Value;
 
 fn docs() -> String {

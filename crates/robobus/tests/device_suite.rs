@@ -33,10 +33,11 @@ mod station_support;
 use std::sync::Arc;
 use std::time::Duration;
 
-use robobus::catalogue::record::SampleTable;
 use robobus::catalogue::telemetry::Telemetry;
-use robobus::catalogue::{self, Report, Request, Station, StationConfig};
+use robobus::catalogue::{self, Report, Request};
 use robobus::ops::Control;
+use robobus::record::SampleTable;
+use robobus::station::{Station, StationConfig};
 #[cfg(target_os = "linux")]
 use robobus_testkit::Inner;
 use robobus_testkit::devices::{self, Hardware};

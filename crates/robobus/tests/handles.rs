@@ -1,4 +1,4 @@
-//! The hot-path handles (`catalogue::handles`) and the simulated robot: fresh readings per
+//! The hot-path handles (`robobus::station::handles`) and the simulated robot: fresh readings per
 //! device, a silent device failed without stopping the call, and every value checked
 //! before anything is sent. The station is on the simulators' virtual clocks.
 
@@ -6,11 +6,12 @@
 
 mod station_support;
 
-use robobus::catalogue::handles::{WckServos, WhjJoints};
-use robobus::catalogue::{self, ErrorKind, Request, Station, WckPort, WhjPort};
+use robobus::catalogue::{self, ErrorKind, Request};
 use robobus::ops::Control;
 use robobus::ops::whj::ServoLoop;
 use robobus::robot::{Robot, StopCause};
+use robobus::station::handles::{WckServos, WhjJoints};
+use robobus::station::{Station, WckPort, WhjPort};
 
 /// wCK servos 0..=2 on `legs`, WHJ joints 1 and 2 on `arm`.
 fn station() -> (Station, WckPort, WhjPort) {
@@ -195,7 +196,8 @@ fn whj_joints_command_only_what_each_joint_accepts() {
 
     // A cyclic loop owns the bus's servo frames.
     let mut cyc =
-        catalogue::cyclic::CyclicLoop::start(&s, None, &[1], ServoLoop::Position, 100.0).unwrap();
+        robobus::station::cyclic::CyclicLoop::start(&s, None, &[1], ServoLoop::Position, 100.0)
+            .unwrap();
     let e = joints.command(ServoLoop::Position, &here).unwrap_err();
     assert_eq!(e.kind(), ErrorKind::Refused, "{e}");
     cyc.stop();

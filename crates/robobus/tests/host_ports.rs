@@ -5,8 +5,9 @@
 
 use std::collections::BTreeSet;
 
-use robobus::catalogue::{self, Effect, Request, Station};
+use robobus::catalogue::{self, Effect, Request};
 use robobus::ops::{Control, StopToken};
+use robobus::station::Station;
 use serde_json::json;
 
 const ROW_KEYS: [&str; 11] = [

@@ -10,7 +10,8 @@ use std::time::Duration;
 
 use robobus::catalogue::guard::{Guard, GuardConfig, GuardedDevice};
 use robobus::catalogue::jog::{JogRequest, Jogger, WCK_JOG_STEP, WHJ_JOG_STEP_DEG};
-use robobus::catalogue::{ErrorKind, Family, Request, Station};
+use robobus::catalogue::{ErrorKind, Family, Request};
+use robobus::station::Station;
 
 fn jog(family: Family, device: u8, target: f64) -> JogRequest {
     JogRequest {

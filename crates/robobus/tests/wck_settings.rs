@@ -7,9 +7,10 @@
 
 mod station_support;
 
-use robobus::catalogue::{self, Report, Request, Station};
+use robobus::catalogue::{self, Report, Request};
 use robobus::ops::wck::settings::{self, WckSettings};
 use robobus::ops::{Control, ErrorKind, OpError};
+use robobus::station::Station;
 use robobus::wck::Gains;
 use robobus_wck::{Boundaries, DGain, PGain, Position, ServoId};
 

@@ -7,8 +7,9 @@
 
 mod whj_common;
 
-use robobus::catalogue::{self, Request, Station};
+use robobus::catalogue::{self, Request};
 use robobus::ops::{Control, ErrorKind};
+use robobus::station::Station;
 use robobus_whj::timing::BitRates;
 use serde_json::{Value, json};
 use whj_common::{sim_link, virtual_config};

@@ -9,9 +9,10 @@ mod whj_common;
 
 use std::time::Duration;
 
-use robobus::catalogue::{self, Station};
+use robobus::catalogue;
 use robobus::ops::whj::{self as ops, MoveArgs, ServoLoop, Shape, TargetArgs, WaveArgs};
 use robobus::ops::{Control, ErrorKind, OpError, Progress, SafeState, StopToken};
+use robobus::station::Station;
 use robobus::whj::{JointBus, JointBusConfig};
 use robobus_sim::faults::{DeviceFault, DeviceFaultKind, FaultSchedule};
 use robobus_sim::whj::{WhjSimHandle, WhjSimLink};

@@ -201,7 +201,7 @@ mod station_support;
 
 /// Runs one catalogue request on `s`.
 fn run(
-    s: &robobus::catalogue::Station,
+    s: &robobus::station::Station,
     json: &str,
 ) -> Result<robobus::catalogue::Report, robobus::ops::OpError> {
     let r = robobus::catalogue::Request::parse_many(json)

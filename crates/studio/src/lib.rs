@@ -32,11 +32,12 @@ use std::time::{Duration, Instant};
 
 use axum::http::StatusCode;
 use robobus::ErrorKind;
+use robobus::catalogue::Request;
 use robobus::catalogue::guard::{Guard, GuardConfig, SafeEvent};
 use robobus::catalogue::jog::Jogger;
 use robobus::catalogue::live::LiveSimulator;
-use robobus::catalogue::{Request, Station};
 use robobus::ops::{OpError, StopToken};
+use robobus::station::Station;
 
 pub use capture::CaptureDir;
 pub use conn::{BODY_TIMEOUT, HEADER_TIMEOUT, MAX_CONNECTIONS};

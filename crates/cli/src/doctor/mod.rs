@@ -305,7 +305,7 @@ fn probe_adapter(bus: &str) -> Option<Finding> {
 }
 
 fn probe_whj(bus_name: &str, ids: &[u8]) -> Vec<Finding> {
-    let opened = robobus::catalogue::station::open_whj_with(
+    let opened = robobus::station::open_whj_with(
         bus_name,
         None,
         robobus::whj::JointBusConfig {

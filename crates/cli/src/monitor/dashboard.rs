@@ -10,7 +10,7 @@ use ratatui::symbols::Marker;
 use ratatui::text::Line;
 use ratatui::widgets::{Axis, Block, Cell, Chart, Dataset, GraphType, Paragraph, Row, Table};
 
-use robobus::catalogue::record::SampleTable;
+use robobus::record::SampleTable;
 
 use super::WINDOW_S;
 

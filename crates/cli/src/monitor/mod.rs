@@ -29,21 +29,20 @@
 //! one JSON object per sample (JSON lines, never the dashboard). `--record FILE` writes
 //! every sample as CSV (the format `robobus plot` reads), JSON lines or MCAP (with
 //! `sensor_msgs/msg/JointState`); `--duration` ends the run by itself. The rows, their staleness and both formats are the library's
-//! [`robobus::catalogue::record`]; this module only waits, draws and prints.
+//! [`robobus::record`]; this module only waits, draws and prints.
 
 use robobus::catalogue::telemetry::RecvError;
-use robobus::catalogue::{
-    self, Delivery, Request, Station, StationConfig, Subscriber, Telemetry, station,
-};
+use robobus::catalogue::{self, Delivery, Request, Subscriber, Telemetry};
 use robobus::ops::{IdList, ListId};
+use robobus::station::{self, Station, StationConfig};
 use std::io::IsTerminal as _;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
-use robobus::catalogue::record::{RecordFormat, Recorder, SampleTable};
 use robobus::ops::monitor::{bus_description, monitored_joints};
+use robobus::record::{RecordFormat, Recorder, SampleTable};
 use robobus::whj::JointBusConfig;
 use robobus_wck::{BaudRate, ServoId};
 use robobus_whj::JointId;

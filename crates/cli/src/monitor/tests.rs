@@ -1,7 +1,7 @@
 use ratatui::Terminal;
 use ratatui::backend::TestBackend;
 
-use robobus::catalogue::record::{RecordFormat, Recorder, SampleTable};
+use robobus::record::{RecordFormat, Recorder, SampleTable};
 
 use std::io::Cursor;
 

@@ -164,7 +164,7 @@ impl Recording {
     /// The samples of an MCAP recording (`robobus monitor --record FILE.mcap`) as the
     /// CSV form's columns, held to the same limits as a CSV cell.
     pub(crate) fn from_mcap(bytes: &[u8]) -> Result<Self, String> {
-        let cols = robobus::catalogue::record::read_columns(bytes)?;
+        let cols = robobus::record::read_columns(bytes)?;
         let check = |what: &str, k: usize, v: f64| {
             if v.is_finite() && v.abs() <= MAX_ABS_VALUE {
                 Ok(v)

@@ -12,10 +12,10 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use robobus::catalogue::args::{Ids, WckOnStop};
-use robobus::catalogue::station::{self, Station, WckPort};
 use robobus::catalogue::{self, Report, Request, wck as cw};
 use robobus::ops::wck::MOTION_FILE_LIMIT;
 use robobus::ops::{Control, OpError, read_bounded};
+use robobus::station::{self, Station, WckPort};
 use robobus_wck::ServoId;
 use serde_json::Value;
 

@@ -9,11 +9,11 @@ use serde_json::{Map, Value, json};
 
 use super::bounds::{ConfirmClass, refused};
 use super::plan::Plan;
-use super::station::{Station, WckPort, WhjPort};
 use super::{Family, Report, Request, wck, whj};
 use crate::ops::wck as wops;
 use crate::ops::whj as hops;
 use crate::ops::{Control, DeviceResult, ErrorKind, Failure, OpError, worst_kind};
+use crate::station::{Station, WckPort, WhjPort};
 use crate::whj::JointBus;
 
 /// Frames without a reply at the end of a wave after which the joint counts as gone (a

@@ -20,9 +20,9 @@ use serde::Serialize;
 
 use super::Family;
 use super::jog::{JogRequest, Jogged, Jogger};
-use super::station::Station;
 use crate::actuator::{JointMap, WckScale};
 use crate::ops::{DeviceResult, Failure, OpError};
+use crate::station::Station;
 
 /// A joint of the robot file as the follower commands it.
 #[derive(Debug, Clone, PartialEq, Serialize)]

@@ -25,11 +25,11 @@ use robobus_wck::{ServoId, TorqueLevel};
 use robobus_whj::JointId;
 use serde::Serialize;
 
-use super::station::Station;
 use super::{Effect, Family, Request};
 use crate::ops::safe::{self, SafeDevices};
 use crate::ops::whj::ServoLoop;
 use crate::ops::{OpError, SafeState, StopToken};
+use crate::station::Station;
 
 /// The reason of a safe stop the guard made because the heartbeat stopped (it disarms).
 pub const HEARTBEAT_LOST: &str = "heartbeat lost";

@@ -15,10 +15,10 @@ use robobus_whj::JointId;
 use serde::{Deserialize, Serialize};
 
 use super::Family;
-use super::handles::{WckServos, WhjJoints};
-use super::station::Station;
 use crate::ops::whj::ServoLoop;
 use crate::ops::{Failure, OpError};
+use crate::station::Station;
+use crate::station::handles::{WckServos, WhjJoints};
 
 /// The largest step of one WHJ jog, degrees.
 pub const WHJ_JOG_STEP_DEG: f64 = 2.0;
@@ -243,8 +243,8 @@ fn one_result<T: Serialize>(
 }
 
 fn one_reading(
-    mut r: Vec<crate::ops::DeviceResult<u8, super::handles::WckReading>>,
-) -> Result<super::handles::WckReading, OpError> {
+    mut r: Vec<crate::ops::DeviceResult<u8, crate::station::handles::WckReading>>,
+) -> Result<crate::station::handles::WckReading, OpError> {
     let r = r
         .pop()
         .ok_or_else(|| OpError::Device("no result for the jogged servo".into()))?;

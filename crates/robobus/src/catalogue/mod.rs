@@ -95,22 +95,17 @@
 
 pub mod args;
 pub mod bounds;
-mod clock;
-pub mod cyclic;
 mod dispatch;
 pub mod effect;
 pub mod follow;
 pub mod guard;
-pub mod handles;
 pub mod host;
 pub mod jog;
 #[cfg(feature = "sim")]
 pub mod live;
 pub mod plan;
 pub mod play;
-pub mod record;
 pub mod robot;
-pub mod station;
 pub mod teach;
 pub mod telemetry;
 pub mod teleop;
@@ -126,7 +121,6 @@ pub use dispatch::{
 };
 pub use effect::{Effect, Moved};
 pub use plan::{Family, Plan, PlanStep};
-pub use station::{Station, StationConfig, WckPort, WeakWckPort, WeakWhjPort, WhjPort};
 pub use telemetry::{Delivery, Sample, Subscriber, Telemetry};
 
 /// One request: an operation and its arguments (see the [module docs](self)).

@@ -21,14 +21,14 @@ use std::time::{Duration, Instant};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use super::clock::BusClock;
-use super::handles::{WckServos, WhjJoints};
-use super::station::Station;
 use crate::actuator::{JointMap, WckScale};
 use crate::ops::whj::ServoLoop;
 use crate::ops::{Control, DeviceResult, Failure, OpError, Outcome, Progress};
 use crate::robot::RobotConfig;
 use crate::robot::trajectory::Trajectory;
+use crate::station::Station;
+use crate::station::clock::BusClock;
+use crate::station::handles::{WckServos, WhjJoints};
 use crate::whj::Percentiles;
 
 /// `robot.play` (see the [module docs](self)).
@@ -670,9 +670,10 @@ mod tests {
 
     use serde_json::{Value, json};
 
-    use super::super::{Interaction, Request, Station, run, run_with};
+    use super::super::{Interaction, Request, run, run_with};
     use super::PlayTick;
     use crate::ops::{Control, ErrorKind, OpError};
+    use crate::station::Station;
 
     const WAVE: &str = "# two wCK servos and two WHJ joints\n\
         time_s,s0,s1,j1,j2\n\

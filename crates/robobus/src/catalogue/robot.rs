@@ -17,7 +17,7 @@ use crate::ops::{Control, DeviceResult, ErrorKind, Failure, OpError, Outcome, Pr
 use crate::robot::calibration::{self, JointCalibration, MAX_MARGIN_DEG, Range};
 use crate::robot::{JointConfig, RobotConfig, SafeState};
 
-use super::station::Station;
+use crate::station::Station;
 
 /// `robot.sample`: one reading of every joint of the station's robot file, in the file's
 /// order: its joint angle (deg, the file's `offset`, `direction` and wCK `centre`
@@ -561,9 +561,10 @@ mod tests {
 
     use serde_json::{Value, json};
 
-    use super::super::{Request, Station, run};
+    use super::super::{Request, run};
     use crate::ops::Control;
     use crate::robot::calibration::apply_to_toml;
+    use crate::station::Station;
 
     /// Servo `id`'s shaft turned by hand to `deg` joint degrees (from step 127) at
     /// simulated time `at` after now.
@@ -657,7 +658,7 @@ mod tests {
                 ((*n).to_owned(), c)
             })
             .collect();
-        let text = apply_to_toml(&super::super::station::simulated_robot(), &done).unwrap();
+        let text = apply_to_toml(&crate::station::simulated_robot(), &done).unwrap();
         let back = crate::robot::RobotConfig::from_toml_str(&text).unwrap();
         assert_eq!(back.joints[0].limits, done[0].1.limits_rad);
         assert_eq!(back.joints[1].offset, done[1].1.offset_rad);
@@ -702,10 +703,10 @@ mod end_tests {
     use serde_json::{Value, json};
 
     use super::super::play::PlayTick;
-    use super::super::station::simulated_robot;
-    use super::super::{Interaction, Request, Station, run, run_with};
+    use super::super::{Interaction, Request, run, run_with};
     use crate::ops::{Control, ErrorKind, OpError, StopToken};
     use crate::robot::RobotConfig;
+    use crate::station::{Station, simulated_robot};
 
     const WAVE: &str = "time_s,s0,s1,j1,j2\n0,0,0,0,0\n0.5,10,-10,5,-5\n1,0,0,0,0\n";
 

@@ -18,11 +18,11 @@ use std::time::Duration;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use super::clock::BusClock;
-use super::station::Station;
 use crate::ops::monitor::RobotSampler;
 use crate::ops::{Control, DeviceResult, ErrorKind, Failure, OpError, Outcome, Progress};
 use crate::robot::RobotConfig;
+use crate::station::Station;
+use crate::station::clock::BusClock;
 
 /// `robot.teach` (see the [module docs](self)).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
@@ -176,8 +176,8 @@ fn joints_of(config: &RobotConfig, r: &Teach) -> Result<Vec<Joint>, OpError> {
 
 /// A joint's device on its bus.
 enum Device {
-    Wck(super::station::WckPort, robobus_wck::ServoId),
-    Whj(super::station::WhjPort, robobus_whj::JointId),
+    Wck(crate::station::WckPort, robobus_wck::ServoId),
+    Whj(crate::station::WhjPort, robobus_whj::JointId),
 }
 
 impl Joint {
@@ -199,7 +199,7 @@ impl Joint {
 
 /// A WHJ joint switched to `mode`: disabled, the mode written, enabled again.
 fn switch(
-    port: &super::station::WhjPort,
+    port: &crate::station::WhjPort,
     id: robobus_whj::JointId,
     mode: robobus_whj::WorkMode,
 ) -> Result<crate::whj::Joint<'_>, OpError> {
@@ -410,8 +410,9 @@ mod tests {
 
     use serde_json::{Value, json};
 
-    use super::super::{Request, Station, confirmation, run};
+    use super::super::{Request, confirmation, run};
     use crate::ops::{Control, ErrorKind};
+    use crate::station::Station;
 
     fn req(v: Value) -> Request {
         serde_json::from_value(v).unwrap()

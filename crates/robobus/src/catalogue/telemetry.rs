@@ -20,8 +20,9 @@ use std::time::{Duration, Instant, SystemTime};
 
 use serde::Serialize;
 
-use super::{Report, Request, Station, kind_name};
+use super::{Report, Request, kind_name};
 use crate::ops::{Control, OpError, StopToken};
+use crate::station::Station;
 
 /// Sampling rates a stream takes, Hz.
 pub const RATE_HZ: std::ops::RangeInclusive<f64> = 0.1..=1000.0;

@@ -26,13 +26,13 @@ use std::time::{Duration, Instant};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use super::clock::BusClock;
 use super::follow::Follower;
 use super::play::Spread;
 use super::robot::{out_of, within};
-use super::station::Station;
 use crate::ops::monitor::RobotSampler;
 use crate::ops::{Control, DeviceResult, ErrorKind, Failure, OpError, Outcome, Progress};
+use crate::station::Station;
+use crate::station::clock::BusClock;
 
 /// One leader joint driving one follower joint.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
@@ -688,8 +688,9 @@ mod tests {
 
     use serde_json::{Value, json};
 
-    use super::super::{Request, Station, run, validate};
+    use super::super::{Request, run, validate};
     use crate::ops::Control;
+    use crate::station::Station;
 
     const CENTRE: f64 = 127.0 * robobus_sim::wck::mechanics::DEG_PER_STEP8;
 

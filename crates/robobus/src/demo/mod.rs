@@ -40,13 +40,13 @@ use robobus_whj::timing::{BitRates, frame_duration};
 use robobus_whj::{JointId, Reply, Request, WorkMode};
 
 use crate::actuator::{WCK_DEFAULT_CENTRE, WCK_DEGREES_PER_STEP};
-use crate::catalogue::Station;
-use crate::catalogue::cyclic::CyclicLoop;
-use crate::catalogue::handles::WckServos;
-use crate::catalogue::station::WckPort;
 use crate::ops::wck::{Frame, Motion, Pose, ScanArgs};
 use crate::ops::whj::{ServoLoop, Tracking};
 use crate::ops::{self, Control, DeviceResult, OpError, Progress, SafeState};
+use crate::station::Station;
+use crate::station::WckPort;
+use crate::station::cyclic::CyclicLoop;
+use crate::station::handles::WckServos;
 use crate::whj::{CyclicStats, MotionLimits};
 
 /// wCK servos of the humanoid (IDs 0..SERVOS).

@@ -22,8 +22,8 @@ use serde::Serialize;
 
 use super::{DeviceResult, ErrorKind, Failure, Outcome};
 use crate::actuator::{JointMap, WckScale};
-use crate::catalogue::{WckPort, WhjPort};
 use crate::robot::{BusConfig, RobotConfig, RobotError};
+use crate::station::{WckPort, WhjPort};
 use crate::wck::{WckBus, WckConfig};
 use crate::whj::{JointBus, JointBusConfig};
 

@@ -1,6 +1,6 @@
 //! The built-in simulated robot as a [`Robot`]: the humanoid and the arm of
 //! `robobus demo`, in-process on the wall clock, with the robot file of
-//! [`Station::simulated`](crate::catalogue::Station::simulated).
+//! [`Station::simulated`](crate::station::Station::simulated).
 
 use robobus_sim::wck::{Bus, BusConfig, Model, SimLink};
 use robobus_wck::BaudRate;
@@ -16,7 +16,7 @@ impl Robot {
     /// in this process on the wall clock (the robot's watchdog and speed limits are
     /// measured on it), and stop when the robot is dropped, after its safe stop.
     pub fn simulated() -> Result<Self, RobotError> {
-        let config = RobotConfig::from_toml_str(&crate::catalogue::station::simulated_robot())?;
+        let config = RobotConfig::from_toml_str(&crate::station::simulated_robot())?;
         let (link, wck_sim) = SimLink::new(Bus::with_servos(
             BusConfig::default(),
             Model::W1108,

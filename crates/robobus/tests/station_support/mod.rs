@@ -2,7 +2,7 @@
 
 #![allow(dead_code, unreachable_pub, clippy::unwrap_used)]
 
-use robobus::catalogue::{Station, WckPort, WhjPort};
+use robobus::station::{Station, WckPort, WhjPort};
 use robobus::wck::WckBus;
 use robobus::whj::{JointBus, JointBusConfig};
 use robobus_link::ByteLink as _;

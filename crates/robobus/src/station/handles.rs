@@ -22,7 +22,7 @@ use robobus_whj::{JointId, Request};
 use serde::Serialize;
 
 use super::cyclic::{JointFeedback, allowed, check_targets};
-use super::station::{Station, WckPort, WeakWckPort, WeakWhjPort, WhjPort};
+use super::{Station, WckPort, WeakWckPort, WeakWhjPort, WhjPort};
 use crate::ops::distinct_ids;
 use crate::ops::whj::{JointSample, ServoLoop, require_ready};
 use crate::ops::{DeviceResult, Failure, OpError};

@@ -7,6 +7,10 @@
 //! `Send + Sync` and clone as one `Arc`. Closing the station (or dropping it) brings every
 //! device to its safe state: the wCK bus-wide break, every connected WHJ joint disabled.
 
+pub(crate) mod clock;
+pub mod cyclic;
+pub mod handles;
+
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;

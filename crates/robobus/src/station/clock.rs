@@ -10,7 +10,7 @@
 
 use std::time::{Duration, Instant};
 
-use super::station::{WckPort, WhjPort};
+use super::{WckPort, WhjPort};
 
 /// A bus of a [`BusClock`].
 #[derive(Debug, Clone)]
@@ -87,7 +87,7 @@ impl BusClock {
 
     /// The clock of `config`'s buses (each opened on the station under its name).
     pub(crate) fn of(
-        station: &super::station::Station,
+        station: &super::Station,
         config: &crate::robot::RobotConfig,
     ) -> Result<Self, crate::ops::OpError> {
         let buses = config

@@ -19,8 +19,8 @@ use robobus_whj::JointId;
 use robobus_whj::units::{Current, CurrentScale, Position, TargetSpeed};
 use serde::Serialize;
 
-use super::bounds;
-use super::station::Station;
+use super::Station;
+use crate::catalogue::bounds;
 use crate::ops::OpError;
 use crate::ops::whj::{ServoLoop, require_ready};
 use crate::whj::{
