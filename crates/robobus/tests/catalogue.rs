@@ -193,7 +193,10 @@ fn a_request_names_its_bus_when_the_station_has_more_than_one() {
         r#"{"op": "whj.status", "joints": "3", "bus": "gripper"}"#,
     )
     .unwrap();
-    assert_eq!((r.bus.as_str(), r.failed.as_deref()), ("gripper", None));
+    assert_eq!(
+        (r.bus.as_str(), r.failed.map(robobus::ErrorKind::name)),
+        ("gripper", None)
+    );
     let e = run(&s, r#"{"op": "whj.status", "joints": "3", "bus": "nope"}"#).unwrap_err();
     assert!(e.to_string().contains("nope"), "{e}");
 }
@@ -360,7 +363,7 @@ fn telemetry_marks_a_silent_device_and_refuses_what_it_cannot_stream() {
         let rep = d.sample.report.as_ref().unwrap();
         assert!(rep.results[0]["position_deg"].is_number(), "{rep:?}");
         assert_eq!(rep.results[1]["kind"], "no-device", "{rep:?}");
-        assert_eq!(rep.failed.as_deref(), Some("no-device"));
+        assert_eq!(rep.failed.map(robobus::ErrorKind::name), Some("no-device"));
         // Servo 2 rests: no speed from its first reading, 0 deg/s from two.
         let speed = &rep.results[0]["speed_deg_s"];
         if k == 0 {
@@ -429,7 +432,7 @@ fn a_stopped_scan_keeps_what_it_found_and_says_how_far_it_got() {
         .map(|v| v["id"].as_u64().unwrap())
         .collect();
     assert_eq!(ids, [0, 1]);
-    assert_eq!(r.failed.as_deref(), Some("interrupted"));
+    assert_eq!(r.failed.map(robobus::ErrorKind::name), Some("interrupted"));
     assert_eq!(
         r.error.as_deref(),
         Some("arm-wck: scan stopped after 2 of 6 probes")
@@ -442,7 +445,7 @@ fn a_stopped_scan_keeps_what_it_found_and_says_how_far_it_got() {
         .map(|v| v["id"].as_u64().unwrap())
         .collect();
     assert_eq!(ids, [1, 2]);
-    assert_eq!(r.failed.as_deref(), Some("interrupted"));
+    assert_eq!(r.failed.map(robobus::ErrorKind::name), Some("interrupted"));
     assert_eq!(
         r.error.as_deref(),
         Some("arm-whj: scan stopped after 2 of 5 IDs")
@@ -554,7 +557,12 @@ fn robot_sample_marks_a_silent_joint_and_needs_a_robot_file() {
     // Servo 9 and joint 7 are not there: their rows are failures, never values.
     for _ in 0..2 {
         let r = run(&s, r#"{"op": "robot.sample"}"#).unwrap();
-        assert_eq!(r.failed.as_deref(), Some("no-device"), "{:?}", r.results);
+        assert_eq!(
+            r.failed.map(robobus::ErrorKind::name),
+            Some("no-device"),
+            "{:?}",
+            r.results
+        );
         for silent in ["gone", "lost"] {
             let row = row(&r, silent);
             assert_eq!(row["kind"], "no-device", "{row}");

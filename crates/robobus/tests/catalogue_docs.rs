@@ -94,31 +94,55 @@ fn the_documented_report_is_what_its_request_returns() {
     assert_eq!(serde_json::to_value(&report).unwrap(), shown);
 }
 
+/// The table of operations in `docs/catalogue.md` and the one the crate's docs include
+/// (`catalogue/operations.md`) are the registry's (`UPDATE_SNAPSHOTS=1` rewrites both), and
+/// the registry, the request schema and the report schema list the same operations.
 #[test]
-fn the_table_of_operations_is_the_schemas_list() {
-    let schema = catalogue::request_schema();
-    let in_schema: BTreeSet<String> = schema["oneOf"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v["properties"]["op"]["const"].as_str().unwrap().to_owned())
-        .collect();
+fn the_tables_of_operations_are_generated_from_the_registry() {
+    let table = catalogue::operation_table();
+    let module = concat!(env!("CARGO_MANIFEST_DIR"), "/src/catalogue/operations.md");
+    let guide = concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/catalogue.md");
     let text = docs();
-    let table = text.split("## The operations").nth(1).unwrap();
-    let in_docs: BTreeSet<String> = table
-        .lines()
-        .take_while(|l| !l.starts_with("## "))
-        .filter_map(|l| l.strip_prefix("| `"))
-        .flat_map(|l| {
-            let first = l.split(" |").next().unwrap_or_default();
-            first
-                .split(" / ")
-                .map(|op| op.trim_matches('`').to_owned())
-                .collect::<Vec<_>>()
-        })
+    let start = text.find("## The operations\n\n").unwrap() + "## The operations\n\n".len();
+    let end = start + text[start..].find("\n## ").unwrap();
+    let guide_table = text[start..end].trim_end().to_owned() + "\n";
+    if std::env::var_os("UPDATE_SNAPSHOTS").is_some() {
+        std::fs::write(module, &table).unwrap();
+        std::fs::write(guide, format!("{}{table}{}", &text[..start], &text[end..])).unwrap();
+        return;
+    }
+    let hint = "regenerate with UPDATE_SNAPSHOTS=1 cargo test -p robobus --test catalogue_docs";
+    assert_eq!(std::fs::read_to_string(module).unwrap(), table, "{hint}");
+    assert_eq!(guide_table, table, "{hint}");
+
+    let registry: BTreeSet<String> = catalogue::operations()
+        .iter()
+        .map(|o| o.op.to_owned())
         .collect();
-    assert_eq!(in_docs, in_schema);
-    assert!(in_schema.len() > 30, "{in_schema:?}");
+    let consts = |schema: Value, path: &[&str]| -> BTreeSet<String> {
+        schema["oneOf"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| {
+                let mut v = v;
+                for p in path {
+                    v = if let Ok(i) = p.parse::<usize>() {
+                        &v[i]
+                    } else {
+                        &v[*p]
+                    };
+                }
+                v.as_str().unwrap().to_owned()
+            })
+            .collect()
+    };
+    assert_eq!(
+        consts(catalogue::request_schema(), &["properties", "op", "const"]),
+        registry
+    );
+    assert_eq!(consts(catalogue::report_schema(), &["title"]), registry);
+    assert!(registry.len() > 50, "{registry:?}");
 }
 
 #[test]

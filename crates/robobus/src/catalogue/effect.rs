@@ -53,8 +53,9 @@ pub struct Moved {
 }
 
 impl Request {
-    /// What the request does to its devices.
-    pub const fn effect(&self) -> Effect {
+    /// What the request does to its devices (for an operation not yet in a file of its
+    /// own).
+    pub(super) const fn legacy_effect(&self) -> Effect {
         match self {
             Self::WckMove(_)
             | Self::WckMove10(_)
@@ -127,7 +128,7 @@ impl Request {
     /// The devices a [`Effect::Motion`] request sets moving (`None` for any other
     /// request), validated as a run validates them.
     #[allow(clippy::result_large_err)] // OpError carries the client errors by value
-    pub fn moved(&self) -> Result<Option<Moved>, OpError> {
+    pub(super) fn legacy_moved(&self) -> Result<Option<Moved>, OpError> {
         let wck = |ids: Vec<u8>| Moved {
             family: Family::Wck,
             bus: self.bus().map(str::to_owned),
