@@ -114,6 +114,8 @@ impl Request {
             | Self::WckDiff(_)
             | Self::RobotSample(_)
             | Self::HostPorts(_) => Effect::Read,
+            #[cfg(test)]
+            Self::TestEcho(_) => Effect::Read,
             Self::WhjEndBoard(r) => match (r.action, r.volts) {
                 (super::whj::EndBoardAction::Status | super::whj::EndBoardAction::Force, _) => {
                     Effect::Read

@@ -45,6 +45,8 @@ pub mod args;
 pub mod bounds;
 mod dispatch;
 pub mod effect;
+#[cfg(test)]
+mod fixture;
 pub mod host;
 mod legacy;
 pub mod operation;
@@ -129,6 +131,9 @@ registry! {
     "robot.play" => RobotPlay(play::Play),
     "robot.teach" => RobotTeach(teach::Teach),
     "host.ports" => HostPorts(host::Ports),
+    // What adding an operation takes (a test fixture: its file and this row).
+    #[cfg(test)]
+    "test.echo" => TestEcho(fixture::Echo),
 }
 
 impl Request {

@@ -491,7 +491,7 @@ mod tests {
     use super::*;
 
     fn report(rows: &serde_json::Value) -> Report {
-        super::super::dispatch::report(
+        Report::with_rows(
             "wck.sample",
             "legs",
             rows.as_array().cloned().unwrap_or_default(),
