@@ -25,7 +25,7 @@ use std::sync::{Arc, Barrier, Mutex, PoisonError};
 use std::thread;
 use std::time::{Duration, Instant, SystemTime};
 
-use robobus::catalogue::live::LiveSimulator;
+use robobus::frontend::live::LiveSimulator;
 use robobus::catalogue::{Request, whj as cat_whj};
 use robobus::ops::{Control, StopToken};
 use robobus::station::Station;
@@ -451,7 +451,7 @@ impl Running {
                 listen: SocketAddr::from(([127, 0, 0, 1], 0)),
                 token: None,
                 read_only: false,
-                guard: robobus::catalogue::guard::GuardConfig::default(),
+                guard: robobus::frontend::guard::GuardConfig::default(),
             },
         )
         .map_err(|e| BenchError::new("binding the studio", e))?;

@@ -5,9 +5,9 @@ use std::sync::PoisonError;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
 
-use robobus::catalogue::guard::SafeEvent;
 use robobus::catalogue::telemetry::RecvError;
 use robobus::catalogue::{Sample, Telemetry};
+use robobus::frontend::guard::SafeEvent;
 use serde::Serialize;
 use zenoh::Wait as _;
 

@@ -44,10 +44,11 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use robobus::ErrorKind;
-use robobus::catalogue::follow::Follower;
-use robobus::catalogue::guard::{Guard, GuardConfig, SafeEvent};
-use robobus::catalogue::live::LiveSimulator;
 use robobus::catalogue::{Request, Telemetry};
+use robobus::frontend::follow::Follower;
+use robobus::frontend::guard::{Guard, GuardConfig, SafeEvent};
+use robobus::frontend::live::LiveSimulator;
+use robobus::frontend::{Admission, Arming, FrontEnd, PlanView, parse};
 use robobus::ops::{OpError, SafeState, StopToken};
 use robobus::station::Station;
 use zenoh::Wait as _;
@@ -113,6 +114,8 @@ pub struct BridgeConfig {
     pub zenoh_config: Option<PathBuf>,
     /// Armed from the start.
     pub armed: bool,
+    /// Serve reads only: no request that changes a device, no command, no arming.
+    pub read_only: bool,
     /// A command stream quiet for this long holds its joints.
     pub command_timeout: Duration,
     /// The state devices are brought to.
@@ -129,6 +132,7 @@ impl Default for BridgeConfig {
             mode: ZenohMode::Peer,
             zenoh_config: None,
             armed: false,
+            read_only: false,
             command_timeout: Duration::from_millis(200),
             safe_state: SafeState::Hold,
         }
@@ -309,6 +313,8 @@ pub(crate) struct Shared {
     pub(crate) station: Arc<Station>,
     pub(crate) sim: Option<LiveSimulator>,
     pub(crate) guard: Guard,
+    /// Read-only, arming and the write rate: the library's one admission.
+    pub(crate) admission: Admission,
     pub(crate) follower: Option<Follower>,
     pub(crate) config: BridgeConfig,
     pub(crate) keys: Keys,
@@ -345,6 +351,7 @@ impl Shared {
     /// Arms or disarms (the operator's intent and the guard).
     pub(crate) fn set_armed(&self, armed: bool) -> Result<(), OpError> {
         if armed {
+            self.admission.may_arm()?;
             self.guard.arm(SESSION)?;
         } else if self.status.armed.load(Ordering::SeqCst) || self.guard.has_moved() {
             self.guard.disarm(SESSION)?;
@@ -356,6 +363,82 @@ impl Shared {
 
     pub(crate) fn armed(&self) -> bool {
         self.status.armed.load(Ordering::SeqCst)
+    }
+
+    /// How the admission sees the bridge: its guard, as its one session.
+    fn arming(&self) -> Arming<'_> {
+        Arming::Guard {
+            guard: &self.guard,
+            session: Some(SESSION),
+        }
+    }
+
+    /// What every thread shares, before anything is declared: the guard (its control
+    /// taken by the bridge's session) and the admission.
+    fn new(
+        station: Station,
+        sim: Option<LiveSimulator>,
+        config: BridgeConfig,
+        keys: Keys,
+    ) -> Result<Arc<Self>, BridgeError> {
+        let station = Arc::new(station);
+        let follower = Follower::new(&station).ok();
+        let joints = follower.as_ref().map_or(0, |f| f.joints().len());
+        let status = Arc::new(Status::default());
+        let report = Arc::clone(&status);
+        let guard = Guard::new(
+            Arc::clone(&station),
+            GuardConfig {
+                heartbeat_timeout: STALL_TIMEOUT,
+                safe_state: config.safe_state,
+            },
+            move |e: &SafeEvent| {
+                tracing::info!(
+                    "safe stop ({}): {} devices {} in {:.1} ms",
+                    e.reason,
+                    e.devices.len(),
+                    e.state,
+                    e.took_ms
+                );
+                bump(&report.safe_stops);
+                // The guard disarmed itself: the bridge stalled (a disarm asked for is
+                // already recorded, and a re-arm may have followed it).
+                if e.reason == robobus::frontend::guard::HEARTBEAT_LOST {
+                    report.armed.store(false, Ordering::SeqCst);
+                }
+                report.streaming.store(false, Ordering::SeqCst);
+                *report
+                    .last_safe
+                    .lock()
+                    .unwrap_or_else(PoisonError::into_inner) = Some(e.clone());
+            },
+        )?;
+        guard.take_control(SESSION);
+        let admission = Admission::new(
+            FrontEnd {
+                name: "this bridge".into(),
+                read_only_how: "started with --read-only".into(),
+                arm_how: format!("--armed, or arm on {}", keys.arm),
+            },
+            config.read_only,
+        );
+        Ok(Arc::new(Self {
+            station,
+            sim,
+            guard,
+            admission,
+            follower,
+            config,
+            keys,
+            status,
+            counters: Counters::default(),
+            last_refusal: Mutex::new(None),
+            joint_ok: Mutex::new(vec![None; joints]),
+            mailbox: Mailbox::default(),
+            stop: StopToken::new(),
+            displaced: Mutex::new(None),
+            started: Instant::now(),
+        }))
     }
 }
 
@@ -398,54 +481,7 @@ impl Bridge {
         config: BridgeConfig,
     ) -> Result<Self, BridgeError> {
         let (keys, zconf) = config.prepare()?;
-        let station = Arc::new(station);
-        let follower = Follower::new(&station).ok();
-        let joints = follower.as_ref().map_or(0, |f| f.joints().len());
-        let status = Arc::new(Status::default());
-        let report = Arc::clone(&status);
-        let guard = Guard::new(
-            Arc::clone(&station),
-            GuardConfig {
-                heartbeat_timeout: STALL_TIMEOUT,
-                safe_state: config.safe_state,
-            },
-            move |e: &SafeEvent| {
-                tracing::info!(
-                    "safe stop ({}): {} devices {} in {:.1} ms",
-                    e.reason,
-                    e.devices.len(),
-                    e.state,
-                    e.took_ms
-                );
-                bump(&report.safe_stops);
-                // The guard disarmed itself: the bridge stalled (a disarm asked for is
-                // already recorded, and a re-arm may have followed it).
-                if e.reason == robobus::catalogue::guard::HEARTBEAT_LOST {
-                    report.armed.store(false, Ordering::SeqCst);
-                }
-                report.streaming.store(false, Ordering::SeqCst);
-                *report
-                    .last_safe
-                    .lock()
-                    .unwrap_or_else(PoisonError::into_inner) = Some(e.clone());
-            },
-        )?;
-        let shared = Arc::new(Shared {
-            station,
-            sim,
-            guard,
-            follower,
-            config,
-            keys,
-            status,
-            counters: Counters::default(),
-            last_refusal: Mutex::new(None),
-            joint_ok: Mutex::new(vec![None; joints]),
-            mailbox: Mailbox::default(),
-            stop: StopToken::new(),
-            displaced: Mutex::new(None),
-            started: Instant::now(),
-        });
+        let shared = Shared::new(station, sim, config, keys)?;
         Self::declare(shared, zconf)
     }
 
@@ -462,7 +498,6 @@ impl Bridge {
                 s.mailbox.ready.notify_all();
             }
         })?;
-        shared.guard.take_control(SESSION);
         if shared.config.armed {
             shared.set_armed(true)?;
         }
@@ -775,13 +810,8 @@ fn follow(s: &Shared, payload: &[u8]) -> bool {
         );
         return false;
     };
-    if !s.armed() {
-        s.refuse(
-            &c.refused_not_armed,
-            "joint_commands: not armed (start with --armed or arm on robobus/arm); nothing \
-             was sent"
-                .into(),
-        );
+    if let Err(r) = s.admission.check_motion(s.arming(), "joint_commands") {
+        s.refuse(&c.refused_not_armed, r.to_string());
         return false;
     }
     let plan = match follower.plan(&msg.data) {
@@ -792,11 +822,11 @@ fn follow(s: &Shared, payload: &[u8]) -> bool {
         }
     };
     for j in follower.joints() {
-        if let Err(e) = s
-            .guard
-            .admit_jog(Some(SESSION), j.family, Some(&j.bus), j.id)
+        if let Err(r) = s
+            .admission
+            .admit_jog(s.arming(), j.family, Some(&j.bus), j.id)
         {
-            s.refuse(&c.refused_not_armed, format!("joint_commands: {e}"));
+            s.refuse(&c.refused_not_armed, format!("joint_commands: {r}"));
             return false;
         }
     }
@@ -868,9 +898,9 @@ fn answer(s: &Shared, kind: QueryKind, query: &Query) {
     };
     let result = match kind {
         QueryKind::Run => run_request(s, &text),
-        QueryKind::Plan => Request::parse(&text)
-            .and_then(|r| robobus::catalogue::plan(&r))
-            .map(|p| serde_json::to_value(p).unwrap_or_default()),
+        QueryKind::Plan => parse::request_text(&text)
+            .and_then(|r| PlanView::of(&r))
+            .map(|v| v.to_value()),
         QueryKind::Arm => arm(s, &text),
         QueryKind::Sim => Ok(s
             .sim
@@ -884,16 +914,11 @@ fn answer(s: &Shared, kind: QueryKind, query: &Query) {
     }
 }
 
+/// One request of `robobus/run`: parsed, admitted (read-only, arming, the write rate),
+/// run.
 fn run_request(s: &Shared, text: &str) -> Result<serde_json::Value, OpError> {
-    let request = Request::parse(text)?;
-    if request.effect() == robobus::catalogue::Effect::Motion && !s.armed() {
-        return Err(OpError::Refused(format!(
-            "{}: motion needs the bridge armed (--armed, or arm on {}); nothing was sent",
-            request.op(),
-            s.keys.arm
-        )));
-    }
-    s.guard.admit(Some(SESSION), &request)?;
+    let request = parse::request_text(text)?;
+    let request = s.admission.admit(s.arming(), request)?.into_request();
     let token = StopToken::new();
     let _ticket = s.guard.running(&token);
     let mut control = robobus::ops::Control::new(&token);
@@ -928,3 +953,6 @@ fn arm(s: &Shared, text: &str) -> Result<serde_json::Value, OpError> {
         "joints": s.follower.as_ref().map(Follower::joints),
     }))
 }
+
+#[cfg(test)]
+mod tests;

@@ -157,7 +157,7 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
         let joints = if sim {
             Station::simulated()
                 .ok()
-                .and_then(|s| robobus::catalogue::follow::Follower::new(&s).ok())
+                .and_then(|s| robobus::frontend::follow::Follower::new(&s).ok())
                 .map(|f| f.joints().iter().map(|j| j.name.clone()).collect())
                 .unwrap_or_default()
         } else {

@@ -6,7 +6,7 @@ use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::path::PathBuf;
 
 use anyhow::Context as _;
-use robobus::catalogue::guard::GuardConfig;
+use robobus::frontend::guard::GuardConfig;
 use robobus::ops::{OpError, read_bounded};
 use robobus::station::{Station, StationConfig};
 use robobus_studio::{CaptureDir, Studio, StudioConfig};

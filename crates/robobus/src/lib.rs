@@ -92,6 +92,7 @@ pub mod cdr;
 #[cfg(feature = "sim")]
 pub mod demo;
 pub mod error;
+pub mod frontend;
 pub mod motion;
 pub mod ops;
 pub mod record;

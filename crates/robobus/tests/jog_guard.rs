@@ -8,8 +8,8 @@ use std::sync::Arc;
 use std::sync::mpsc;
 use std::time::Duration;
 
-use robobus::catalogue::guard::{Guard, GuardConfig, GuardedDevice};
-use robobus::catalogue::jog::{JogRequest, Jogger, WCK_JOG_STEP, WHJ_JOG_STEP_DEG};
+use robobus::frontend::guard::{Guard, GuardConfig, GuardedDevice};
+use robobus::frontend::jog::{JogRequest, Jogger, WCK_JOG_STEP, WHJ_JOG_STEP_DEG};
 use robobus::catalogue::{ErrorKind, Family, Request};
 use robobus::station::Station;
 
@@ -200,7 +200,7 @@ fn a_hold_brings_the_moved_devices_to_the_safe_state_and_stays_armed() {
 
 #[test]
 fn a_follower_steps_every_joint_and_refuses_a_bad_command_whole() {
-    use robobus::catalogue::follow::Follower;
+    use robobus::frontend::follow::Follower;
     let station = Station::simulated().unwrap();
     let f = Follower::new(&station).unwrap();
     let names: Vec<&str> = f.joints().iter().map(|j| j.name.as_str()).collect();

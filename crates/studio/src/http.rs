@@ -1,18 +1,22 @@
 //! The HTTP side: the page's files and the API (`/api/info`, `/api/schema`, `/api/run`,
-//! `/api/plan`, `/api/capture`, `/api/sim`), each request checked by the gate first.
+//! `/api/plan`, `/api/capture`, `/api/sim`). Each group of routes has the gate as its
+//! layer ([`security::layer`]), so every request is checked before its handler runs; a
+//! run is an [`AdmittedRun`], which only the admission makes.
 
 use std::sync::Arc;
 
 use axum::Router;
 use axum::body::{Body, Bytes};
-use axum::extract::{DefaultBodyLimit, Path, State};
+use axum::extract::{DefaultBodyLimit, FromRequest, Path, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use robobus::catalogue::{self, Request};
+use robobus::frontend::{Admitted, PlanView, parse};
 use robobus::ops::{OpError, StopToken};
 
-use crate::{ApiError, App, BODY_TIMEOUT, HEARTBEAT_MS, MAX_BODY, assets};
+use crate::security::{self, Access};
+use crate::{ApiError, App, BODY_TIMEOUT, HEARTBEAT_MS, MAX_BODY, assets, msg};
 
 /// The header that proves control: the secret the controlling page received in its
 /// WebSocket's `control` message.
@@ -23,7 +27,11 @@ const OLD_SESSION_HEADER: &str = "x-robobus-session";
 
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
-        let mut r = (self.status, axum::Json(self.body())).into_response();
+        let body = msg::ErrorBody {
+            kind: self.kind,
+            message: &self.message,
+        };
+        let mut r = (self.status, axum::Json(body)).into_response();
         if let Some(s) = self.retry_after {
             r.headers_mut()
                 .insert(header::RETRY_AFTER, HeaderValue::from(s));
@@ -41,17 +49,43 @@ impl From<OpError> for ApiError {
 type ApiResult = Result<Response, ApiError>;
 
 pub(crate) fn router(app: Arc<App>) -> Router {
+    // Each group behind its gate: a route added to a group is checked as its group is.
+    let gated = |access: Access, routes: Router<Arc<App>>| {
+        routes.route_layer(axum::middleware::from_fn_with_state(
+            (Arc::clone(&app), access),
+            security::layer,
+        ))
+    };
+    let pages = gated(
+        Access::Page,
+        Router::new()
+            .route("/", get(index))
+            .route("/static/{*path}", get(file)),
+    );
+    let reads = gated(
+        Access::Read,
+        Router::new()
+            .route("/api/info", get(info))
+            .route("/api/schema", get(schema))
+            .route("/api/capture", get(captures))
+            .route("/api/capture/{bus}", get(capture))
+            .route("/api/sim", get(sim)),
+    );
+    let changes = gated(
+        Access::Change,
+        Router::new()
+            .route("/api/run", post(run))
+            .route("/api/plan", post(plan)),
+    );
+    let socket = gated(
+        Access::Socket,
+        Router::new().route("/api/ws", get(crate::ws::upgrade)),
+    );
     Router::new()
-        .route("/api/info", get(info))
-        .route("/api/schema", get(schema))
-        .route("/api/run", post(run))
-        .route("/api/plan", post(plan))
-        .route("/api/capture", get(captures))
-        .route("/api/capture/{bus}", get(capture))
-        .route("/api/sim", get(sim))
-        .route("/api/ws", get(crate::ws::upgrade))
-        .route("/", get(index))
-        .route("/static/{*path}", get(file))
+        .merge(pages)
+        .merge(reads)
+        .merge(changes)
+        .merge(socket)
         .route("/favicon.ico", get(|| async { StatusCode::NO_CONTENT }))
         .fallback(|| async {
             ApiError {
@@ -69,51 +103,42 @@ fn json(v: &impl serde::Serialize) -> Response {
     axum::Json(v).into_response()
 }
 
-async fn info(State(app): State<Arc<App>>, headers: HeaderMap) -> ApiResult {
-    app.gate.check(&headers, false, true, None)?;
+fn named(names: &[String]) -> Vec<msg::Named<'_>> {
+    names.iter().map(|n| msg::Named { name: n }).collect()
+}
+
+async fn info(State(app): State<Arc<App>>) -> Response {
     let (wck, whj) = app.station.names();
     let robot = app.station.robot().map(|r| {
         r.joints
             .iter()
-            .map(|j| {
-                let family = r
+            .map(|j| msg::InfoJoint {
+                name: &j.name,
+                bus: &j.bus,
+                family: r
                     .buses
                     .get(&j.bus)
-                    .map_or("whj", |b| if b.is_wck() { "wck" } else { "whj" });
-                serde_json::json!({"name": j.name, "bus": j.bus, "family": family, "id": j.id})
+                    .map_or("whj", |b| if b.is_wck() { "wck" } else { "whj" }),
+                id: j.id,
             })
-            .collect::<Vec<_>>()
+            .collect()
     });
-    Ok(json(&serde_json::json!({
-        "version": env!("CARGO_PKG_VERSION"),
-        "read_only": app.config.read_only,
-        "simulated": app.sim.is_some(),
-        "wck": wck.iter().map(|n| serde_json::json!({"name": n})).collect::<Vec<_>>(),
-        "whj": whj.iter().map(|n| serde_json::json!({"name": n})).collect::<Vec<_>>(),
-        "robot": robot,
-        "heartbeat_ms": HEARTBEAT_MS,
-        "heartbeat_timeout_ms": app.guard.config().heartbeat_timeout.as_millis(),
-        "capture": !app.station.captures().is_empty(),
-        "eeprom_writes_per_minute": crate::EEPROM_WRITES_PER_MINUTE,
-    })))
-}
-
-async fn schema(State(app): State<Arc<App>>, headers: HeaderMap) -> ApiResult {
-    app.gate.check(&headers, false, true, None)?;
-    Ok(json(&catalogue::schemas()))
-}
-
-/// One request from a body: bad JSON or an unknown operation or field is bad input.
-pub(crate) fn parse(body: &[u8]) -> Result<Request, OpError> {
-    let text = std::str::from_utf8(body)
-        .map_err(|e| OpError::invalid("request", "body", format!("not UTF-8: {e}")))?;
-    serde_json::from_str(text).map_err(|e| {
-        OpError::invalid(
-            "request",
-            "JSON",
-            format!("{e} (one request object; see GET /api/schema)"),
-        )
+    json(&msg::Info {
+        version: env!("CARGO_PKG_VERSION"),
+        read_only: app.admission.read_only(),
+        simulated: app.sim.is_some(),
+        wck: named(&wck),
+        whj: named(&whj),
+        robot,
+        heartbeat_ms: HEARTBEAT_MS,
+        heartbeat_timeout_ms: app.guard.config().heartbeat_timeout.as_millis(),
+        capture: !app.station.captures().is_empty(),
+        eeprom_writes_per_minute: crate::EEPROM_WRITES_PER_MINUTE,
     })
+}
+
+async fn schema() -> Response {
+    json(&catalogue::schemas())
 }
 
 /// The session a state-changing request proves with its control secret: `None` without
@@ -162,32 +187,35 @@ async fn read_body(body: Body) -> Result<Bytes, ApiError> {
     }
 }
 
-async fn run(State(app): State<Arc<App>>, headers: HeaderMap, body: Body) -> ApiResult {
-    app.gate.check(&headers, true, true, None)?;
-    let body = read_body(body).await?;
-    let request = parse(&body)?;
-    let session = session(&app, &headers, &request)?;
-    app.admit(session, &request)?;
-    let report = app.run(request, StopToken::new(), None, None).await?;
+/// A request to run, admitted: its body read and parsed, its session proved, and the
+/// admission passed (read-only, arming and control, the write rate); the only way a
+/// handler gets a request it may run.
+pub(crate) struct AdmittedRun(Admitted);
+
+impl FromRequest<Arc<App>> for AdmittedRun {
+    type Rejection = ApiError;
+
+    async fn from_request(req: axum::extract::Request, app: &Arc<App>) -> Result<Self, ApiError> {
+        let (parts, body) = req.into_parts();
+        let body = read_body(body).await?;
+        let request = parse::request_bytes(&body)?;
+        let session = session(app, &parts.headers, &request)?;
+        Ok(Self(app.admit(session, request)?))
+    }
+}
+
+async fn run(State(app): State<Arc<App>>, AdmittedRun(admitted): AdmittedRun) -> ApiResult {
+    let report = app.run(admitted, StopToken::new(), None, None).await?;
     Ok(json(&report))
 }
 
-async fn plan(State(app): State<Arc<App>>, headers: HeaderMap, body: Body) -> ApiResult {
-    app.gate.check(&headers, true, true, None)?;
+async fn plan(body: Body) -> ApiResult {
     let body = read_body(body).await?;
-    let request = parse(&body)?;
-    let plan = catalogue::plan(&request)?;
-    let confirm = catalogue::confirmation(&request)?;
-    Ok(json(&serde_json::json!({
-        "text": plan.to_text(),
-        "plan": plan,
-        "confirm": confirm,
-        "effect": request.effect().name(),
-    })))
+    let request = parse::request_bytes(&body)?;
+    Ok(json(&PlanView::of(&request)?))
 }
 
-async fn captures(State(app): State<Arc<App>>, headers: HeaderMap) -> ApiResult {
-    app.gate.check(&headers, false, true, None)?;
+async fn captures(State(app): State<Arc<App>>) -> Response {
     let list: Vec<_> = app
         .station
         .captures()
@@ -202,18 +230,13 @@ async fn captures(State(app): State<Arc<App>>, headers: HeaderMap) -> ApiResult 
             } else {
                 "candump"
             };
-            serde_json::json!({"bus": bus, "format": format, "bytes": bytes})
+            msg::CaptureFile { bus, format, bytes }
         })
         .collect();
-    Ok(json(&list))
+    json(&list)
 }
 
-async fn capture(
-    State(app): State<Arc<App>>,
-    headers: HeaderMap,
-    Path(bus): Path<String>,
-) -> ApiResult {
-    app.gate.check(&headers, false, true, None)?;
+async fn capture(State(app): State<Arc<App>>, Path(bus): Path<String>) -> ApiResult {
     let Some((_, path)) = app.station.captures().iter().find(|(b, _)| *b == bus) else {
         return Err(OpError::invalid(
             "bus",
@@ -259,8 +282,7 @@ async fn capture(
     Ok(r)
 }
 
-async fn sim(State(app): State<Arc<App>>, headers: HeaderMap) -> ApiResult {
-    app.gate.check(&headers, false, true, None)?;
+async fn sim(State(app): State<Arc<App>>) -> ApiResult {
     match &app.sim {
         Some(sim) => Ok(json(&sim.snapshot())),
         None => Err(ApiError {
@@ -274,16 +296,10 @@ async fn sim(State(app): State<Arc<App>>, headers: HeaderMap) -> ApiResult {
     }
 }
 
-async fn index(State(app): State<Arc<App>>, headers: HeaderMap) -> ApiResult {
-    app.gate.check(&headers, false, false, None)?;
+async fn index() -> ApiResult {
     assets::serve("index.html")
 }
 
-async fn file(
-    State(app): State<Arc<App>>,
-    headers: HeaderMap,
-    Path(path): Path<String>,
-) -> ApiResult {
-    app.gate.check(&headers, false, false, None)?;
+async fn file(Path(path): Path<String>) -> ApiResult {
     assets::serve(&format!("static/{path}"))
 }

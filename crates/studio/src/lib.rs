@@ -21,29 +21,33 @@ mod assets;
 mod capture;
 mod conn;
 mod http;
+mod msg;
 mod security;
 mod ws;
 
-use std::collections::{HashMap, VecDeque};
+use std::collections::HashMap;
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use axum::http::StatusCode;
 use robobus::ErrorKind;
 use robobus::catalogue::Request;
-use robobus::catalogue::guard::{Guard, GuardConfig, SafeEvent};
-use robobus::catalogue::jog::Jogger;
-use robobus::catalogue::live::LiveSimulator;
+use robobus::frontend::guard::{Guard, GuardConfig, SafeEvent};
+use robobus::frontend::jog::Jogger;
+use robobus::frontend::live::LiveSimulator;
+use robobus::frontend::{Admission, Admitted, Arming, FrontEnd, Refusal, RefusalKind};
 use robobus::ops::{OpError, StopToken};
 use robobus::station::Station;
+
+use crate::msg::ToPage;
 
 pub use capture::CaptureDir;
 pub use conn::{BODY_TIMEOUT, HEADER_TIMEOUT, MAX_CONNECTIONS};
 
-/// EEPROM, flash and ID writes allowed per minute.
-pub const EEPROM_WRITES_PER_MINUTE: usize = 10;
+/// EEPROM, flash and ID writes allowed per minute (the library's admission's).
+pub const EEPROM_WRITES_PER_MINUTE: usize = robobus::frontend::admission::WRITES_PER_MINUTE;
 /// How often an armed page sends its heartbeat, ms.
 pub const HEARTBEAT_MS: u64 = 100;
 /// The largest request body, bytes (a motion program or a keyframe file fits easily).
@@ -144,9 +148,20 @@ impl ApiError {
             retry_after: None,
         }
     }
+}
 
-    pub(crate) fn body(&self) -> serde_json::Value {
-        serde_json::json!({"kind": self.kind, "message": self.message})
+impl From<Refusal> for ApiError {
+    /// A rate-limited write is 429 with `Retry-After`; the others as their error's kind.
+    fn from(r: Refusal) -> Self {
+        match r.kind {
+            RefusalKind::RateLimited => Self {
+                status: StatusCode::TOO_MANY_REQUESTS,
+                kind: "rate-limited",
+                message: r.error.to_string(),
+                retry_after: Some(r.retry_after.map_or(1, |d| d.as_secs().max(1))),
+            },
+            _ => Self::of(&r.error),
+        }
     }
 }
 
@@ -167,7 +182,6 @@ pub(crate) struct App {
     pub(crate) sim: Option<LiveSimulator>,
     pub(crate) guard: Guard,
     pub(crate) jogger: Jogger,
-    pub(crate) config: StudioConfig,
     pub(crate) gate: security::Gate,
     pub(crate) events: tokio::sync::broadcast::Sender<Event>,
     sessions: AtomicU64,
@@ -176,7 +190,8 @@ pub(crate) struct App {
     secrets: Mutex<HashMap<u64, security::Secret>>,
     /// Pages connected now (at most `ws::MAX_PAGES`).
     pages: std::sync::atomic::AtomicUsize,
-    eeprom: Mutex<VecDeque<Instant>>,
+    /// Read-only, arming and the write rate: the library's one admission.
+    pub(crate) admission: Admission,
 }
 
 impl App {
@@ -233,71 +248,54 @@ impl App {
         }
     }
 
-    /// Whether `session` may run `request` now: read-only, the guard, the EEPROM rate.
-    pub(crate) fn admit(&self, session: Option<u64>, request: &Request) -> Result<(), ApiError> {
-        if self.config.read_only && request.effect() != robobus::catalogue::Effect::Read {
-            return Err(ApiError::of(&OpError::Refused(format!(
-                "{}: this studio is read-only (started with --read-only); nothing was sent",
-                request.op()
-            ))));
-        }
-        self.guard
-            .admit(session, request)
-            .map_err(|e| ApiError::of(&e))?;
-        let plan = robobus::catalogue::plan(request).map_err(|e| ApiError::of(&e))?;
-        if plan.confirm != robobus::catalogue::bounds::ConfirmClass::None {
-            let mut writes = self.eeprom.lock().unwrap_or_else(PoisonError::into_inner);
-            let now = Instant::now();
-            while writes
-                .front()
-                .is_some_and(|t| now.duration_since(*t) > Duration::from_secs(60))
-            {
-                writes.pop_front();
-            }
-            if writes.len() >= EEPROM_WRITES_PER_MINUTE {
-                // The oldest write leaves the minute's window first.
-                let wait = writes.front().map_or(60, |t| {
-                    60u64.saturating_sub(now.duration_since(*t).as_secs())
-                });
-                return Err(ApiError {
-                    status: StatusCode::TOO_MANY_REQUESTS,
-                    kind: "rate-limited",
-                    message: format!(
-                        "{}: at most {EEPROM_WRITES_PER_MINUTE} EEPROM / flash / ID writes a \
-                         minute (they wear the device's memory); try again in {wait} s; \
-                         nothing was sent",
-                        request.op()
-                    ),
-                    retry_after: Some(wait.max(1)),
-                });
-            }
-            writes.push_back(now);
-        }
-        Ok(())
+    /// Whether `session` may run `request` now: the admission (read-only, arming and
+    /// control through the guard, the write rate).
+    pub(crate) fn admit(
+        &self,
+        session: Option<u64>,
+        request: Request,
+    ) -> Result<Admitted, ApiError> {
+        Ok(self.admission.admit(
+            Arming::Guard {
+                guard: &self.guard,
+                session,
+            },
+            request,
+        )?)
     }
 
     /// Runs an admitted request on a blocking thread, stopped by `token` or the guard.
     pub(crate) async fn run(
         self: &Arc<Self>,
-        request: Request,
+        admitted: Admitted,
         token: StopToken,
         progress: Option<tokio::sync::mpsc::Sender<String>>,
         id: Option<u64>,
     ) -> Result<robobus::catalogue::Report, OpError> {
+        let request = admitted.into_request();
         // Every page's plots show the target from the moment the move starts.
-        if let Some(t) = target_of(&self.station, &request) {
-            self.announce(&t);
+        if let Some((family, bus, device, value)) = target_of(&self.station, &request) {
+            self.announce(&ToPage::Target {
+                family,
+                bus: &bus,
+                device,
+                value,
+                unix_ms: unix_ms(),
+            });
         }
         let app = Arc::clone(self);
         tokio::task::spawn_blocking(move || {
             let _ticket = app.guard.running(&token);
             let mut on_progress = |p: &robobus::ops::Progress| {
                 if let Some(tx) = &progress {
-                    let msg = serde_json::json!({
-                        "type": "progress", "id": id, "stage": p.stage, "done": p.done,
-                        "total": p.total, "note": p.note,
-                    });
-                    let _ = tx.try_send(msg.to_string());
+                    let msg = ToPage::Progress {
+                        id,
+                        stage: p.stage,
+                        done: p.done,
+                        total: p.total,
+                        note: p.note.as_deref(),
+                    };
+                    let _ = tx.try_send(msg.text());
                 }
             };
             let mut control = robobus::ops::Control::new(&token).with_progress(&mut on_progress);
@@ -308,36 +306,34 @@ impl App {
     }
 
     /// Tells every page about a commanded target.
-    pub(crate) fn announce(&self, target: &serde_json::Value) {
-        let _ = self
-            .events
-            .send(Event::Message(Arc::new(target.to_string())));
+    pub(crate) fn announce(&self, target: &ToPage<'_>) {
+        let _ = self.events.send(Event::Message(Arc::new(target.text())));
     }
 }
 
-/// The position target a move commands, as a `target` message on its resolved bus (for
-/// every page's plots). Jogs send theirs as they go; waves, plays and speed or current
-/// targets have none of a single value.
-fn target_of(station: &Station, request: &Request) -> Option<serde_json::Value> {
-    let (family, bus, device, value) = match request {
+/// The position target a move commands on its resolved bus (a `target` message for
+/// every page's plots): family, bus, device, value. Jogs send theirs as they go; waves,
+/// plays and speed or current targets have none of a single value.
+fn target_of(
+    station: &Station,
+    request: &Request,
+) -> Option<(robobus::catalogue::Family, String, u32, f64)> {
+    use robobus::catalogue::Family;
+    Some(match request {
         Request::WhjMove(r) => (
-            "whj",
+            Family::Whj,
             station.whj(r.bus.as_deref()).ok()?.name().to_owned(),
             r.joint,
             r.degrees,
         ),
         Request::WckMove(r) => (
-            "wck",
+            Family::Wck,
             station.wck(r.bus.as_deref()).ok()?.name().to_owned(),
             r.id,
             f64::from(r.position),
         ),
         _ => return None,
-    };
-    Some(serde_json::json!({
-        "type": "target", "family": family, "bus": bus, "device": device, "value": value,
-        "unix_ms": unix_ms(),
-    }))
+    })
 }
 
 pub(crate) fn unix_ms() -> f64 {
@@ -382,28 +378,31 @@ impl Studio {
         let station = Arc::new(station);
         let notify = events.clone();
         let guard = Guard::new(Arc::clone(&station), config.guard, move |e: &SafeEvent| {
-            let mut v = serde_json::to_value(e).unwrap_or_default();
-            if let Some(o) = v.as_object_mut() {
-                o.insert("type".into(), "safe".into());
-            }
-            let _ = notify.send(Event::Message(Arc::new(v.to_string())));
+            let _ = notify.send(Event::Message(Arc::new(ToPage::Safe(e).text())));
             let _ = notify.send(Event::Control);
         })
         .map_err(StudioError::Start)?;
         let gate = security::Gate::new(addr, config.token.clone());
+        let admission = Admission::new(
+            FrontEnd {
+                name: "this studio".into(),
+                read_only_how: "started with --read-only".into(),
+                arm_how: "take control and arm first".into(),
+            },
+            config.read_only,
+        );
         Ok(Self {
             app: Arc::new(App {
                 station,
                 sim,
                 guard,
                 jogger: Jogger::new(),
-                config,
                 gate,
                 events,
                 sessions: AtomicU64::new(0),
                 secrets: Mutex::new(HashMap::new()),
                 pages: std::sync::atomic::AtomicUsize::new(0),
-                eeprom: Mutex::new(VecDeque::new()),
+                admission,
             }),
             listener,
             addr,

@@ -2,12 +2,50 @@
 //! `Origin` of every state-changing request and of the WebSocket (against other sites'
 //! pages), and the token of a studio that listens beyond loopback.
 
+use std::collections::HashMap;
 use std::net::SocketAddr;
+use std::sync::Arc;
 
+use axum::extract::{Query, Request, State};
 use axum::http::HeaderMap;
 use axum::http::header::{AUTHORIZATION, HOST, ORIGIN};
+use axum::middleware::Next;
+use axum::response::{IntoResponse, Response};
 
-use crate::ApiError;
+use crate::{ApiError, App};
+
+/// What a route serves, and so what its requests must carry.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Access {
+    /// The page's own files: `Host` only (the page must load to ask for the token).
+    Page,
+    /// An API read: `Host` and the token.
+    Read,
+    /// A state-changing API request: `Host`, `Origin` when present, and the token.
+    Change,
+    /// The WebSocket: as [`Access::Change`], the token also as `?token=`.
+    Socket,
+}
+
+/// The gate of one group of routes, as a layer: every route of the group is checked
+/// before its handler runs, so no handler can forget it.
+pub(crate) async fn layer(
+    State((app, access)): State<(Arc<App>, Access)>,
+    request: Request,
+    next: Next,
+) -> Response {
+    let query = Query::<HashMap<String, String>>::try_from_uri(request.uri())
+        .map(|q| q.0)
+        .unwrap_or_default();
+    match app.gate.check(
+        request.headers(),
+        access,
+        query.get("token").map(String::as_str),
+    ) {
+        Ok(()) => next.run(request).await,
+        Err(e) => e.into_response(),
+    }
+}
 
 /// What a request must carry.
 #[derive(Debug, Clone)]
@@ -55,15 +93,22 @@ impl Gate {
         })
     }
 
-    /// Checks `Host` (always), `Origin` (when `changes` or it is present on a WebSocket),
-    /// and the token of an API request (`token_query`: a WebSocket's `?token=`).
+    /// Checks `Host` (always), `Origin` (when present on a state-changing request or the
+    /// WebSocket), and the token of an API request (`token_query`: a WebSocket's
+    /// `?token=`).
     pub(crate) fn check(
         &self,
         headers: &HeaderMap,
-        changes: bool,
-        api: bool,
+        access: Access,
         token_query: Option<&str>,
     ) -> Result<(), ApiError> {
+        let changes = matches!(access, Access::Change | Access::Socket);
+        let api = access != Access::Page;
+        let token_query = if access == Access::Socket {
+            token_query
+        } else {
+            None
+        };
         let host = headers
             .get(HOST)
             .and_then(|h| h.to_str().ok())
@@ -173,20 +218,24 @@ mod tests {
     fn host_origin_and_token() {
         let g = Gate::new("127.0.0.1:8000".parse().unwrap(), None);
         assert!(
-            g.check(&headers("127.0.0.1:8000", None, None), true, true, None)
+            g.check(&headers("127.0.0.1:8000", None, None), Access::Change, None)
                 .is_ok()
         );
         assert!(
-            g.check(&headers("localhost:8000", None, None), true, true, None)
+            g.check(&headers("localhost:8000", None, None), Access::Change, None)
                 .is_ok()
         );
         let e = g
-            .check(&headers("evil.example:8000", None, None), false, true, None)
+            .check(
+                &headers("evil.example:8000", None, None),
+                Access::Read,
+                None,
+            )
             .unwrap_err();
         assert_eq!(e.status.as_u16(), 403);
         let foreign = headers("127.0.0.1:8000", Some("http://evil.example"), None);
         assert_eq!(
-            g.check(&foreign, true, true, None)
+            g.check(&foreign, Access::Change, None)
                 .unwrap_err()
                 .status
                 .as_u16(),
@@ -194,38 +243,52 @@ mod tests {
         );
         // A read does not need its Origin checked (a plain GET from another site cannot
         // read the answer without CORS headers, which the studio never sends).
-        assert!(g.check(&foreign, false, true, None).is_ok());
+        assert!(g.check(&foreign, Access::Read, None).is_ok());
         let own = headers("127.0.0.1:8000", Some("http://localhost:8000"), None);
-        assert!(g.check(&own, true, true, None).is_ok());
+        assert!(g.check(&own, Access::Change, None).is_ok());
 
         let g = Gate::new("10.0.0.2:9000".parse().unwrap(), Some("s3cret".into()));
         let h = headers("10.0.0.2:9000", None, None);
         assert_eq!(
-            g.check(&h, false, true, None).unwrap_err().status.as_u16(),
+            g.check(&h, Access::Read, None).unwrap_err().status.as_u16(),
             401
         );
         assert!(
-            g.check(&h, false, false, None).is_ok(),
+            g.check(&h, Access::Page, None).is_ok(),
             "static files need no token"
         );
-        assert!(g.check(&h, false, true, Some("s3cret")).is_ok());
+        assert!(g.check(&h, Access::Socket, Some("s3cret")).is_ok());
+        // `?token=` is the WebSocket's only: an API request carries the header.
+        assert_eq!(
+            g.check(&h, Access::Read, Some("s3cret"))
+                .unwrap_err()
+                .status
+                .as_u16(),
+            401
+        );
         let h = headers("10.0.0.2:9000", None, Some("Bearer s3cret"));
-        assert!(g.check(&h, true, true, None).is_ok());
+        assert!(g.check(&h, Access::Change, None).is_ok());
         let h = headers("10.0.0.2:9000", None, Some("Bearer s3cre"));
         assert_eq!(
-            g.check(&h, true, true, None).unwrap_err().status.as_u16(),
+            g.check(&h, Access::Change, None)
+                .unwrap_err()
+                .status
+                .as_u16(),
             401
         );
         // With a token, the name the client used at this port (the token is the proof):
         // a studio on 0.0.0.0 reached as localhost, 127.0.0.1 or its host name.
         for host in ["localhost:9000", "127.0.0.1:9000", "robot-pc.lan:9000"] {
             let h = headers(host, Some(&format!("http://{host}")), Some("Bearer s3cret"));
-            assert!(g.check(&h, true, true, None).is_ok(), "{host}");
+            assert!(g.check(&h, Access::Change, None).is_ok(), "{host}");
         }
         // Not another port, and not another site's page.
         let h = headers("localhost:9001", None, Some("Bearer s3cret"));
         assert_eq!(
-            g.check(&h, true, true, None).unwrap_err().status.as_u16(),
+            g.check(&h, Access::Change, None)
+                .unwrap_err()
+                .status
+                .as_u16(),
             403
         );
         let h = headers(
@@ -234,7 +297,10 @@ mod tests {
             Some("Bearer s3cret"),
         );
         assert_eq!(
-            g.check(&h, true, true, None).unwrap_err().status.as_u16(),
+            g.check(&h, Access::Change, None)
+                .unwrap_err()
+                .status
+                .as_u16(),
             403
         );
         assert_eq!(port_of("[::1]:7480"), Some(7480));

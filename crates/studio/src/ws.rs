@@ -2,25 +2,26 @@
 //! telemetry streams decimated to the page's frame rate, long runs with their progress,
 //! and jogs. One JSON object per message (`docs/studio.md` lists them).
 //!
-//! [`Guard`]: robobus::catalogue::guard::Guard
+//! [`Guard`]: robobus::frontend::guard::Guard
 
 use std::collections::HashMap;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+use axum::extract::State;
 use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
-use axum::extract::{Query, State};
-use axum::http::HeaderMap;
 use axum::response::Response;
-use robobus::catalogue::jog::JogRequest;
+use robobus::catalogue::Family;
 use robobus::catalogue::telemetry::{RecvError, Telemetry};
-use robobus::catalogue::{Family, Request};
+use robobus::frontend::jog::JogRequest;
+use robobus::frontend::{Arming, parse};
 use robobus::ops::{OpError, StopToken};
 use serde::Deserialize;
-use serde_json::{Value, json};
+use serde_json::Value;
 use tokio::sync::mpsc;
 
+use crate::msg::ToPage;
 use crate::{ApiError, App, Event};
 
 /// The most streams one page may hold.
@@ -100,14 +101,11 @@ fn proves(app: &App, me: u64, given: Option<&str>) -> Result<(), OpError> {
     }
 }
 
+/// The upgrade (its route's gate checked it first: `Host`, `Origin`, the token).
 pub(crate) async fn upgrade(
     State(app): State<Arc<App>>,
-    headers: HeaderMap,
-    Query(query): Query<HashMap<String, String>>,
     ws: WebSocketUpgrade,
 ) -> Result<Response, ApiError> {
-    app.gate
-        .check(&headers, true, true, query.get("token").map(String::as_str))?;
     // Each page costs threads (its streams, its runs): their number is bounded.
     let Some(page) = PageSlot::take(&app) else {
         return Err(ApiError {
@@ -172,7 +170,12 @@ fn error_msg(id: Option<u64>, e: &OpError) -> String {
 }
 
 fn api_error_msg(id: Option<u64>, a: &ApiError) -> String {
-    json!({"type": "error", "id": id, "kind": a.kind, "message": a.message}).to_string()
+    ToPage::Error {
+        id,
+        kind: a.kind,
+        message: &a.message,
+    }
+    .text()
 }
 
 async fn session(app: Arc<App>, mut socket: WebSocket, _page: PageSlot) {
@@ -181,12 +184,12 @@ async fn session(app: Arc<App>, mut socket: WebSocket, _page: PageSlot) {
     let mut events = app.events.subscribe();
     let mut streams: HashMap<String, Stream> = HashMap::new();
     let going: Arc<Going> = Arc::default();
-    let hello = json!({
-        "type": "hello", "read_only": app.config.read_only,
-        "simulated": app.sim.is_some(),
-    });
+    let hello = ToPage::Hello {
+        read_only: app.admission.read_only(),
+        simulated: app.sim.is_some(),
+    };
     if socket
-        .send(Message::Text(hello.to_string().into()))
+        .send(Message::Text(hello.text().into()))
         .await
         .is_err()
     {
@@ -248,11 +251,13 @@ async fn session(app: Arc<App>, mut socket: WebSocket, _page: PageSlot) {
 fn control_msg(app: &App, me: u64) -> String {
     let secret = app.secret_of(me);
     let v = app.guard.view(me);
-    json!({
-        "type": "control", "controller": v.controller, "armed": v.armed,
-        "held_by_other": v.held_by_other, "secret": secret,
-    })
-    .to_string()
+    ToPage::Control {
+        controller: v.controller,
+        armed: v.armed,
+        held_by_other: v.held_by_other,
+        secret,
+    }
+    .text()
 }
 
 fn handle(
@@ -289,13 +294,12 @@ fn handle(
             changed(Ok(()));
         }
         FromPage::Arm { control } => {
-            let r = if app.config.read_only {
-                Err(OpError::Refused(
-                    "this studio is read-only (started with --read-only): nothing moves".into(),
-                ))
-            } else {
-                proves(app, me, control.as_deref()).and_then(|()| app.guard.arm(me))
-            };
+            let r = app
+                .admission
+                .may_arm()
+                .map_err(OpError::from)
+                .and_then(|()| proves(app, me, control.as_deref()))
+                .and_then(|()| app.guard.arm(me));
             changed(r);
         }
         FromPage::Disarm => changed(app.guard.disarm(me)),
@@ -361,26 +365,30 @@ fn run(
     tx: mpsc::Sender<String>,
     going: &Arc<Going>,
 ) {
-    let request: Request = match serde_json::from_value(request) {
+    let request = match parse::request_value(request) {
         Ok(r) => r,
         Err(e) => {
-            let e = OpError::invalid("request", "JSON", e.to_string());
             let _ = tx.try_send(error_msg(Some(id), &e));
             return;
         }
     };
+    // A change proves control first; a read-only studio says so whatever the proof.
     let proof = if request.effect() == robobus::catalogue::Effect::Read {
         Ok(())
     } else {
         proves(app, me, control)
     };
-    if let Err(e) = proof
-        .map_err(|e| ApiError::of(&e))
-        .and_then(|()| app.admit(Some(me), &request))
-    {
-        let _ = tx.try_send(api_error_msg(Some(id), &e));
-        return;
-    }
+    let admitted = match proof {
+        Err(e) if !app.admission.read_only() => Err(ApiError::of(&e)),
+        _ => app.admit(Some(me), request),
+    };
+    let admitted = match admitted {
+        Ok(a) => a,
+        Err(e) => {
+            let _ = tx.try_send(api_error_msg(Some(id), &e));
+            return;
+        }
+    };
     let token = StopToken::new();
     {
         let mut runs = going
@@ -400,8 +408,12 @@ fn run(
     let app = Arc::clone(app);
     let going = Arc::clone(going);
     tokio::spawn(async move {
-        let out = match app.run(request, token, Some(tx.clone()), Some(id)).await {
-            Ok(report) => json!({"type": "report", "id": id, "report": report}).to_string(),
+        let out = match app.run(admitted, token, Some(tx.clone()), Some(id)).await {
+            Ok(report) => ToPage::Report {
+                id,
+                report: &report,
+            }
+            .text(),
             Err(e) => error_msg(Some(id), &e),
         };
         going
@@ -422,15 +434,23 @@ fn jog(
     tx: mpsc::Sender<String>,
     going: &Arc<Going>,
 ) {
-    if app.config.read_only {
-        let e = OpError::Refused("this studio is read-only: nothing moves".into());
-        let _ = tx.try_send(error_msg(id, &e));
-        return;
-    }
-    if let Err(e) = proves(app, me, control).and_then(|()| {
-        app.guard
-            .admit_jog(Some(me), req.family, req.bus.as_deref(), req.device)
-    }) {
+    // A read-only studio says so whatever the proof.
+    let admitted = match proves(app, me, control) {
+        Err(e) if !app.admission.read_only() => Err(e),
+        _ => app
+            .admission
+            .admit_jog(
+                Arming::Guard {
+                    guard: &app.guard,
+                    session: Some(me),
+                },
+                req.family,
+                req.bus.as_deref(),
+                req.device,
+            )
+            .map_err(OpError::from),
+    };
+    if let Err(e) = admitted {
         let _ = tx.try_send(error_msg(id, &e));
         return;
     }
@@ -451,16 +471,14 @@ fn jog(
             tokio::task::spawn_blocking(move || worker.jogger.jog(&worker.station, &req)).await;
         let out = match done {
             Ok(Ok(j)) => {
-                app.announce(&json!({
-                    "type": "target", "family": j.family, "bus": j.bus, "device": j.device,
-                    "value": j.sent, "unix_ms": crate::unix_ms(),
-                }));
-                let mut v = serde_json::to_value(&j).unwrap_or_default();
-                if let Some(o) = v.as_object_mut() {
-                    o.insert("type".into(), "jogged".into());
-                    o.insert("id".into(), json!(id));
-                }
-                v.to_string()
+                app.announce(&ToPage::Target {
+                    family: j.family,
+                    bus: &j.bus,
+                    device: u32::from(j.device),
+                    value: j.sent,
+                    unix_ms: crate::unix_ms(),
+                });
+                ToPage::Jogged { id, jogged: &j }.text()
             }
             Ok(Err(e)) => error_msg(id, &e),
             Err(e) => error_msg(
@@ -506,8 +524,7 @@ fn subscribe(
     fps: Option<f64>,
     tx: mpsc::Sender<String>,
 ) -> Result<Stream, OpError> {
-    let request: Request = serde_json::from_value(request)
-        .map_err(|e| OpError::invalid("request", "JSON", e.to_string()))?;
+    let request = parse::request_value(request)?;
     let fps = fps.unwrap_or(30.0);
     if !(1.0..=120.0).contains(&fps) {
         return Err(OpError::invalid("fps", fps, "allowed: 1..=120"));
@@ -540,12 +557,14 @@ fn subscribe(
                 if Instant::now() >= next {
                     next = Instant::now() + frame;
                     if let Some(s) = latest.take() {
-                        let msg = json!({
-                            "type": "telemetry", "stream": name, "sample": &*s,
-                            "skipped": skipped,
-                        });
+                        let msg = ToPage::Telemetry {
+                            stream: &name,
+                            sample: &s,
+                            skipped,
+                        }
+                        .text();
                         skipped = 0;
-                        if tx.blocking_send(msg.to_string()).is_err() {
+                        if tx.blocking_send(msg).is_err() {
                             break;
                         }
                     }

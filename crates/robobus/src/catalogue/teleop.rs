@@ -26,9 +26,9 @@ use std::time::{Duration, Instant};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use super::follow::Follower;
 use super::play::Spread;
 use super::robot::{out_of, within};
+use crate::frontend::follow::Follower;
 use crate::ops::monitor::RobotSampler;
 use crate::ops::{Control, DeviceResult, ErrorKind, Failure, OpError, Outcome, Progress};
 use crate::station::Station;

@@ -25,7 +25,7 @@ use robobus_wck::{ServoId, TorqueLevel};
 use robobus_whj::JointId;
 use serde::Serialize;
 
-use super::{Effect, Family, Request};
+use crate::catalogue::{Effect, Family, Request};
 use crate::ops::safe::{self, SafeDevices};
 use crate::ops::whj::ServoLoop;
 use crate::ops::{OpError, SafeState, StopToken};
@@ -379,7 +379,7 @@ impl Guard {
             Family::Wck => station.wck(bus)?.name().to_owned(),
             Family::Whj => station.whj(bus)?.name().to_owned(),
             Family::Robot => bus.unwrap_or("robot").to_owned(),
-            Family::Host => super::host::HOST.to_owned(),
+            Family::Host => crate::catalogue::host::HOST.to_owned(),
         })
     }
 }

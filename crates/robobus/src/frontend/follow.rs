@@ -18,9 +18,9 @@
 
 use serde::Serialize;
 
-use super::Family;
 use super::jog::{JogRequest, Jogged, Jogger};
 use crate::actuator::{JointMap, WckScale};
+use crate::catalogue::Family;
 use crate::ops::{DeviceResult, Failure, OpError};
 use crate::station::Station;
 
