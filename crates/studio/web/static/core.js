@@ -152,7 +152,11 @@ export class Studio {
     return this.#post("/api/run", request);
   }
 
-  /** The plan of a request (POST /api/plan): `{plan, text, confirm, effect}`; nothing is sent. */
+  /**
+   * The plan view of a request (POST /api/plan): the plan's fields (`steps`, `notes`,
+   * `confirm`: the class, `truncated`, ...), `text`, `effect` and `ask` (what to ask the
+   * user first, or null); nothing is sent.
+   */
   plan(request) {
     return this.#post("/api/plan", request);
   }
@@ -198,7 +202,7 @@ export class Studio {
   async confirmAndRun(request, { long = false, onProgress, onStart } = {}) {
     const plan = await this.plan(request);
     let req = request;
-    if (plan.confirm) {
+    if (plan.ask) {
       const ok = await this.#confirmDialog(request, plan);
       if (!ok) return null;
       req = { ...request, confirm: true };
@@ -218,7 +222,7 @@ export class Studio {
       dlg.setAttribute("aria-labelledby", "confirm-title");
       dlg.setAttribute("aria-describedby", "confirm-what");
       const title = el("h2", { id: "confirm-title" }, "Confirm a permanent write");
-      const what = el("p", { id: "confirm-what" }, plan.confirm);
+      const what = el("p", { id: "confirm-what" }, plan.ask);
       const target = el("p", { className: "confirm-request" }, describeRequest(request));
       const frames = el("details", {}, [
         el("summary", {}, "What will be sent"),

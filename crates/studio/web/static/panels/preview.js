@@ -125,11 +125,11 @@ export default {
         const p = await studio.plan(r);
         effect.textContent = EFFECTS[p.effect] ?? p.effect ?? '–';
         effect.dataset.value = p.effect ?? '';
-        const cls = p.plan?.confirm ?? (p.confirm == null ? 'none' : 'yes');
-        confirm.textContent = p.confirm == null ? 'none: runs without asking' : `${cls}: ${p.confirm}`;
+        const cls = p.confirm ?? (p.ask == null ? 'none' : 'yes');
+        confirm.textContent = p.ask == null ? 'none: runs without asking' : `${cls}: ${p.ask}`;
         confirm.dataset.value = cls;
-        const n = p.plan?.steps?.length ?? 0;
-        steps.textContent = `${n}${p.plan?.truncated ? ' (the first ones of a streamed plan)' : ''}`;
+        const n = p.steps?.length ?? 0;
+        steps.textContent = `${n}${p.truncated ? ' (the first ones of a streamed plan)' : ''}`;
         frames.textContent = p.text || '(nothing is sent)';
         say(`Dry run of ${r.op}: nothing was sent.`, 'ok');
       } catch (e) {
