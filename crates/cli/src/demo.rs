@@ -10,8 +10,9 @@ use std::io::IsTerminal as _;
 use std::path::PathBuf;
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use robobus::demo::{AMPLITUDE_DEG, DemoConfig, DemoReport, FREQUENCY_HZ, PERIOD, SERVOS, Trace};
+use robobus::demo::{AMPLITUDE_DEG, DemoConfig, DemoReport, FREQUENCY_HZ, PERIOD, Trace};
 use robobus::ops::{Control, Progress};
+use robobus::robot::simulated::SERVOS;
 use robobus_wck::BaudRate;
 
 use crate::Global;

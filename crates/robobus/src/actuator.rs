@@ -23,6 +23,7 @@ use robobus_wck::{Position, TorqueLevel};
 use robobus_whj::WorkMode;
 use robobus_whj::units::{CurrentScale, Position as WhjPosition};
 
+use crate::error::ErrorKind;
 use crate::ops::SafeState;
 use crate::ops::safe::{SafeFailure, WckServos, WhjJoints};
 use crate::ops::whj::ServoLoop;
@@ -174,6 +175,18 @@ pub enum ActuatorError {
         #[source]
         source: Box<SafeFailure>,
     },
+}
+
+impl ActuatorError {
+    /// What kind of failure this is.
+    pub fn kind(&self) -> ErrorKind {
+        match self {
+            Self::NotFinite { .. } | Self::OutOfDeviceRange { .. } => ErrorKind::BadInput,
+            Self::Wck { source, .. } => source.kind(),
+            Self::Whj { source, .. } => source.kind(),
+            Self::Safe { source, .. } => source.error.kind(),
+        }
+    }
 }
 
 /// The one result of [`SafeState::apply`] on a single joint: its first failure.

@@ -17,13 +17,10 @@
 use robobus_link::{FrameLinkError, LinkError, OpenError};
 use serde::Serialize;
 
-use crate::actuator::ActuatorError;
-use crate::robot::RobotError;
-use crate::wck::WckError;
-use crate::whj::WhjError;
-
 /// What kind of failure an error is (see the [module docs](self) for the table).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, serde::Deserialize, schemars::JsonSchema,
+)]
 #[serde(rename_all = "kebab-case")]
 #[non_exhaustive]
 pub enum ErrorKind {
@@ -102,79 +99,5 @@ pub fn open_error_kind(e: &OpenError) -> ErrorKind {
         | OpenError::Unsupported(_) => ErrorKind::NotAvailable,
         OpenError::NoInterface { .. } => ErrorKind::NoDevice,
         OpenError::Udp { .. } => ErrorKind::Link,
-    }
-}
-
-impl WckError {
-    /// What kind of failure this is.
-    pub fn kind(&self) -> ErrorKind {
-        match self {
-            Self::Timeout { .. } => ErrorKind::NoDevice,
-            Self::BadReply { .. }
-            | Self::Unconfirmed { .. }
-            | Self::Unattributable { .. }
-            | Self::NotApplied { .. }
-            | Self::NotVerified { .. } => ErrorKind::Device,
-            Self::IdInUse { .. } => ErrorKind::Refused,
-            Self::Link { source, .. } => link_error_kind(source),
-            Self::Value { .. } => ErrorKind::BadInput,
-        }
-    }
-}
-
-impl WhjError {
-    /// What kind of failure this is.
-    pub fn kind(&self) -> ErrorKind {
-        match self {
-            Self::Timeout { .. } | Self::Silent { .. } => ErrorKind::NoDevice,
-            Self::CmdErr { .. }
-            | Self::WriteRefused { .. }
-            | Self::EnableRefused { .. }
-            | Self::BadReply { .. }
-            | Self::DuplicateReply { .. }
-            | Self::LateReply { .. }
-            | Self::Unverified { .. }
-            | Self::MoveIncomplete { .. } => ErrorKind::Device,
-            Self::SaveWhileEnabled { .. } | Self::StepTooLarge { .. } | Self::Busy { .. } => {
-                ErrorKind::Refused
-            }
-            Self::UnknownRegister { .. }
-            | Self::Request { .. }
-            | Self::Unit { .. }
-            | Self::InvalidConfig { .. } => ErrorKind::BadInput,
-            Self::Bus { .. } | Self::Link { .. } | Self::Closed => ErrorKind::Link,
-        }
-    }
-}
-
-impl ActuatorError {
-    /// What kind of failure this is.
-    pub fn kind(&self) -> ErrorKind {
-        match self {
-            Self::NotFinite { .. } | Self::OutOfDeviceRange { .. } => ErrorKind::BadInput,
-            Self::Wck { source, .. } => source.kind(),
-            Self::Whj { source, .. } => source.kind(),
-            Self::Safe { source, .. } => source.error.kind(),
-        }
-    }
-}
-
-impl RobotError {
-    /// What kind of failure this is.
-    pub fn kind(&self) -> ErrorKind {
-        match self {
-            Self::Parse { .. }
-            | Self::Invalid { .. }
-            | Self::Io { .. }
-            | Self::MissingBus { .. }
-            | Self::WrongBus { .. }
-            | Self::NoSuchJoint { .. }
-            | Self::TargetCount { .. } => ErrorKind::BadInput,
-            Self::OpenWck { source, .. } => source.kind(),
-            Self::OpenWhj { .. } => ErrorKind::NoDevice,
-            Self::Actuator(e) => e.kind(),
-            Self::SafeStopped { .. } => ErrorKind::Refused,
-            Self::Watchdog(_) => ErrorKind::NotAvailable,
-        }
     }
 }

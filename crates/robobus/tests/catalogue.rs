@@ -327,7 +327,7 @@ fn every_stream_fills_one_sample_table_and_a_silent_device_is_stale() {
     // A robot file's joints by name, across both families.
     let sim = std::sync::Arc::new(Station::simulated().unwrap());
     let config = sim.robot().unwrap();
-    let joints = robobus::ops::monitor::monitored_joints(config);
+    let joints = robobus::station::sampler::monitored_joints(config);
     let mut robot = SampleTable::robot(joints.iter().map(|j| (j.name.as_str(), j.wck)));
     fill(&sim, r#"{"op": "robot.sample"}"#, 1, &mut robot);
     assert_eq!(robot.rows.len(), joints.len());

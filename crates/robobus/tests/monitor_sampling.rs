@@ -1,4 +1,4 @@
-//! `robobus::ops::monitor` against the wCK simulator: one result per device per sample, a
+//! `robobus::station::sampler` against the wCK simulator: one result per device per sample, a
 //! silent device failed (never an older value), speeds from consecutive readings on the
 //! caller's clock, robot-file joints as joint angles in the file's order.
 
@@ -7,13 +7,13 @@
 mod wck_support;
 
 use robobus::ErrorKind;
-use robobus::ops::monitor::{WckSample, WckSampler};
+use robobus::station::sampler::{WckSample, WckSampler};
 use wck_support::{id, serve_ids};
 // The robot-file test serves its wCK bus on a pty (Unix).
 #[cfg(unix)]
 use {
-    robobus::ops::monitor::{MonitoredJoint, RobotJointSample, RobotSampler},
     robobus::robot::{RobotConfig, RobotError},
+    robobus::station::sampler::{MonitoredJoint, RobotJointSample, RobotSampler},
     robobus::whj::JointBusConfig,
     wck_support::serve_pty,
 };

@@ -3,7 +3,8 @@
 
 #![allow(clippy::unwrap_used, clippy::panic)]
 
-use robobus::robot::{BusConfig, Robot, RobotConfig, RobotError, SafeState};
+use robobus::ops::SafeState;
+use robobus::robot::{BusConfig, Robot, RobotConfig, RobotError};
 
 const GOOD: &str = r#"
 watchdog_timeout = 0.05

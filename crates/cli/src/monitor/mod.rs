@@ -41,8 +41,8 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
-use robobus::ops::monitor::{bus_description, monitored_joints};
 use robobus::record::{RecordFormat, Recorder, SampleTable};
+use robobus::station::sampler::{bus_description, monitored_joints};
 use robobus::whj::JointBusConfig;
 use robobus_wck::{BaudRate, ServoId};
 use robobus_whj::JointId;
@@ -157,7 +157,7 @@ fn parse_duration(s: &str) -> Result<f64, String> {
 /// and samples itself on its own clock.
 enum Source {
     Stream(Stream),
-    Sim(robobus::demo::SimArm),
+    Sim(robobus::robot::simulated::SimArm),
 }
 
 /// The monitor as one subscriber of a telemetry stream ([`Telemetry`]) on a station that
@@ -478,7 +478,7 @@ fn run_sim(args: &Args, out: Output) -> anyhow::Result<()> {
         .iter()
         .filter_map(|&j| JointId::new(j).ok())
         .collect();
-    let arm = robobus::demo::SimArm::start(&ids)?;
+    let arm = robobus::robot::simulated::SimArm::start(&ids)?;
     let d = dashboard(
         format!("simulated WHJ30 arm, joints {}", ids_text(&joints)),
         "current mA",

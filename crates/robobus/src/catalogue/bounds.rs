@@ -7,57 +7,10 @@
 
 use serde::Serialize;
 
+pub use crate::ops::Bound;
 use crate::ops::OpError;
-
-/// One bounded quantity: its name as the CLI's option or argument, its unit and its range.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, schemars::JsonSchema)]
-pub struct Bound {
-    /// The quantity, as the CLI's messages name it (`angle (degrees)`).
-    pub what: &'static str,
-    /// The unit (`deg`, `deg/s`, `RPM`, `mA`, `Hz`, `s`).
-    pub unit: &'static str,
-    /// Smallest value allowed.
-    pub min: f64,
-    /// Largest value allowed.
-    pub max: f64,
-}
-
-impl Bound {
-    /// Checks `value` against the bound: a finite number within `min..=max`; the error is
-    /// the CLI's message (`angle (degrees) 400 is out of range -360..=360`).
-    pub fn message(&self, value: f64) -> Option<String> {
-        if !value.is_finite() {
-            return Some(format!("`{value}` is not a finite number"));
-        }
-        (!(self.min..=self.max).contains(&value)).then(|| {
-            format!(
-                "{} {value} is out of range {}..={}",
-                self.what, self.min, self.max
-            )
-        })
-    }
-
-    /// [`Bound::message`] as an [`OpError::Invalid`] naming `option`.
-    #[allow(clippy::result_large_err)] // OpError carries the client errors by value
-    pub fn check(&self, option: &str, value: f64) -> Result<f64, OpError> {
-        match self.message(value) {
-            None => Ok(value),
-            Some(m) => Err(OpError::invalid(
-                option,
-                value,
-                format!("{m} (allowed: {}..={} {})", self.min, self.max, self.unit),
-            )),
-        }
-    }
-}
-
-/// Largest |target angle| sent to a WHJ joint, degrees: one turn either way.
-pub const MAX_DEG: f64 = 360.0;
-/// Largest |target speed| sent to a WHJ joint, output RPM: the highest published peak
-/// output speed of any model (WHJ10 / WHJ30, 37.5 RPM).
-pub const MAX_RPM: f64 = 37.5;
-/// Largest |target current| sent to a WHJ joint, mA (the vendor publishes no peak).
-pub const MAX_MA: f64 = 30_000.0;
+pub use crate::ops::whj::FRAME_RATE_HZ;
+use crate::ops::whj::{MAX_DEG, MAX_MA, MAX_RPM};
 
 /// WHJ target angle (`move <DEGREES>`, `--from`).
 pub const ANGLE_DEG: Bound = Bound {
@@ -72,13 +25,6 @@ pub const MOVE_SPEED_DEG_S: Bound = Bound {
     unit: "deg/s",
     min: 0.1,
     max: 180.0,
-};
-/// WHJ frame rate (`--rate-hz` of move and wave).
-pub const FRAME_RATE_HZ: Bound = Bound {
-    what: "rate (Hz)",
-    unit: "Hz",
-    min: 1.0,
-    max: 1000.0,
 };
 /// WHJ speed target (`speed <RPM>`).
 pub const SPEED_RPM: Bound = Bound {

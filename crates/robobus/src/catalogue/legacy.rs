@@ -465,7 +465,7 @@ fn run_wck(
             wck_settings(bus, op, &name, job)?
         }
         wck::Job::Sample(ids) => {
-            let mut sampler = crate::ops::monitor::WckSampler::new(&ids);
+            let mut sampler = crate::station::sampler::WckSampler::new(&ids);
             let results = sampler.sample(bus, 0.0);
             device_report(op, &name, &results)
         }

@@ -10,14 +10,15 @@ use serde::{Deserialize, Serialize};
 use robobus_wck::{ServoId, TorqueLevel};
 use robobus_whj::WorkMode;
 
-use crate::ops::monitor::RobotSampler;
+use crate::ops::SafeState;
 use crate::ops::safe::{SafeDevice, WckServos as WckDevices, WhjJoints as WhjDevices};
 use crate::ops::whj::ServoLoop;
 use crate::ops::{Control, DeviceResult, ErrorKind, Failure, OpError, Outcome, Progress};
 use crate::robot::calibration::{self, JointCalibration, MAX_MARGIN_DEG, Range};
-use crate::robot::{JointConfig, RobotConfig, SafeState};
+use crate::robot::{JointConfig, RobotConfig};
 
 use crate::station::Station;
+use crate::station::sampler::RobotSampler;
 
 /// `robot.sample`: one reading of every joint of the station's robot file, in the file's
 /// order: its joint angle (deg, the file's `offset`, `direction` and wCK `centre`
@@ -658,7 +659,7 @@ mod tests {
                 ((*n).to_owned(), c)
             })
             .collect();
-        let text = apply_to_toml(&crate::station::simulated_robot(), &done).unwrap();
+        let text = apply_to_toml(&crate::robot::simulated::simulated_robot(), &done).unwrap();
         let back = crate::robot::RobotConfig::from_toml_str(&text).unwrap();
         assert_eq!(back.joints[0].limits, done[0].1.limits_rad);
         assert_eq!(back.joints[1].offset, done[1].1.offset_rad);
@@ -706,7 +707,8 @@ mod end_tests {
     use super::super::{Interaction, Request, run, run_with};
     use crate::ops::{Control, ErrorKind, OpError, StopToken};
     use crate::robot::RobotConfig;
-    use crate::station::{Station, simulated_robot};
+    use crate::robot::simulated::simulated_robot;
+    use crate::station::Station;
 
     const WAVE: &str = "time_s,s0,s1,j1,j2\n0,0,0,0,0\n0.5,10,-10,5,-5\n1,0,0,0,0\n";
 

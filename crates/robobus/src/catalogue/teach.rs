@@ -18,11 +18,11 @@ use std::time::Duration;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use crate::ops::monitor::RobotSampler;
 use crate::ops::{Control, DeviceResult, ErrorKind, Failure, OpError, Outcome, Progress};
 use crate::robot::RobotConfig;
 use crate::station::Station;
 use crate::station::clock::BusClock;
+use crate::station::sampler::RobotSampler;
 
 /// `robot.teach` (see the [module docs](self)).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]

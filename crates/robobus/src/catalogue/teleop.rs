@@ -29,10 +29,10 @@ use serde::{Deserialize, Serialize};
 use super::play::Spread;
 use super::robot::{out_of, within};
 use crate::frontend::follow::Follower;
-use crate::ops::monitor::RobotSampler;
 use crate::ops::{Control, DeviceResult, ErrorKind, Failure, OpError, Outcome, Progress};
 use crate::station::Station;
 use crate::station::clock::BusClock;
+use crate::station::sampler::RobotSampler;
 
 /// One leader joint driving one follower joint.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]

@@ -43,16 +43,13 @@ use crate::actuator::{WCK_DEFAULT_CENTRE, WCK_DEGREES_PER_STEP};
 use crate::ops::wck::{Frame, Motion, Pose, ScanArgs};
 use crate::ops::whj::{ServoLoop, Tracking};
 use crate::ops::{self, Control, DeviceResult, OpError, Progress, SafeState};
+use crate::robot::simulated::{JOINTS, SERVOS};
 use crate::station::Station;
 use crate::station::WckPort;
 use crate::station::cyclic::CyclicLoop;
 use crate::station::handles::WckServos;
 use crate::whj::{CyclicStats, MotionLimits};
 
-/// wCK servos of the humanoid (IDs 0..SERVOS).
-pub const SERVOS: u8 = 16;
-/// WHJ joints of the arm (IDs 1..=JOINTS).
-pub const JOINTS: u8 = 7;
 /// The cyclic loop's period: 500 Hz.
 pub const PERIOD: Duration = Duration::from_millis(2);
 /// Sine amplitude of the arm trajectory, degrees.
@@ -552,10 +549,7 @@ fn whj_report(
 }
 
 mod report;
-mod sim_arm;
 
 pub use report::{
     DemoReport, JointIdentity, JointTracking, LatencyUs, PoseReport, Trace, WckReport, WhjReport,
 };
-pub(crate) use sim_arm::ArmServer;
-pub use sim_arm::SimArm;

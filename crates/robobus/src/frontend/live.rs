@@ -12,11 +12,11 @@ use robobus_sim::whj::{JointState, Served, WhjBus, WhjModel};
 use robobus_wck::BaudRate;
 use serde::Serialize;
 
-use crate::demo::{JOINTS, SERVOS};
 use crate::ops::OpError;
 use crate::ops::capture::{Overwrite, capture_byte_link_limited, capture_frame_link_limited};
 use crate::robot::DynByteLink;
 use crate::robot::RobotConfig;
+use crate::robot::simulated::{JOINTS, SERVOS};
 use crate::station::{CAPTURE_LIMIT, Station, capture_path};
 use crate::wck::WckBus;
 use crate::whj::{JointBus, JointBusConfig};
@@ -190,7 +190,7 @@ impl Station {
         for (name, path) in captures {
             s.add_capture(name, path);
         }
-        let robot = RobotConfig::from_toml_str(&crate::station::simulated_robot())
+        let robot = RobotConfig::from_toml_str(&crate::robot::simulated::simulated_robot())
             .map_err(|e| OpError::Device(format!("the built-in robot file: {e}")))?;
         s.set_robot(robot)?;
         Ok((

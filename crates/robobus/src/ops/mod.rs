@@ -46,9 +46,9 @@ use std::time::{Duration, Instant};
 use robobus_link::ByteLink;
 use serde::Serialize;
 
+mod bound;
 pub mod capture;
 mod ids;
-pub mod monitor;
 pub mod ports;
 pub mod replay;
 pub mod safe;
@@ -56,10 +56,11 @@ pub mod wck;
 pub mod whj;
 
 pub use crate::error::ErrorKind;
-pub use crate::robot::SafeState;
 use crate::wck::WckError;
 use crate::whj::WhjError;
+pub use bound::Bound;
 pub use ids::{IdList, ListId, distinct_ids};
+pub use safe::SafeState;
 
 /// A flag a caller sets to stop a running operation; clones share the flag.
 ///

@@ -20,12 +20,40 @@
 use robobus_link::ByteLink;
 use robobus_wck::{ServoId, TorqueLevel};
 use robobus_whj::units::TargetSpeed;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
+use super::OpError;
 use super::whj::ServoLoop;
-use super::{OpError, SafeState};
 use crate::wck::WckBus;
 use crate::whj::Joint;
+
+/// The safe state a bus is put in by the watchdog, a Ctrl-C stop and a drop, and at the
+/// end of every robot operation of the catalogue (`robot.play`, `robot.teleop`,
+/// `robot.calibrate`, `robot.teach`), finished, failed or stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SafeState {
+    /// wCK: every module passive (torque released; the shaft turns freely).
+    Passive,
+    /// wCK: the bus-wide break command (dynamic brake).
+    Break,
+    /// WHJ: a position servo frame at the actual angle (powered, holding).
+    Hold,
+    /// WHJ: drive disabled (brake models lock the brake).
+    Disable,
+}
+
+impl SafeState {
+    /// The keyword used in the TOML file.
+    pub const fn keyword(self) -> &'static str {
+        match self {
+            Self::Passive => "passive",
+            Self::Break => "break",
+            Self::Hold => "hold",
+            Self::Disable => "disable",
+        }
+    }
+}
 
 /// The devices of one bus that a safe state is brought to: [`WckServos`] or [`WhjJoints`].
 pub trait SafeDevices {

@@ -12,34 +12,7 @@ use robobus_wck::Position;
 
 use super::RobotError;
 use crate::actuator::{JointMap, WCK_DEFAULT_CENTRE, WckScale};
-
-/// The safe state a bus is put in by the watchdog, a Ctrl-C stop and a drop, and at the
-/// end of every robot operation of the catalogue (`robot.play`, `robot.teleop`,
-/// `robot.calibrate`, `robot.teach`), finished, failed or stopped.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum SafeState {
-    /// wCK: every module passive (torque released; the shaft turns freely).
-    Passive,
-    /// wCK: the bus-wide break command (dynamic brake).
-    Break,
-    /// WHJ: a position servo frame at the actual angle (powered, holding).
-    Hold,
-    /// WHJ: drive disabled (brake models lock the brake).
-    Disable,
-}
-
-impl SafeState {
-    /// The keyword used in the TOML file.
-    pub const fn keyword(self) -> &'static str {
-        match self {
-            Self::Passive => "passive",
-            Self::Break => "break",
-            Self::Hold => "hold",
-            Self::Disable => "disable",
-        }
-    }
-}
+use crate::ops::SafeState;
 
 /// A bus in the robot file (`[buses.NAME]`, selected by `kind`).
 #[derive(Debug, Clone, PartialEq, Deserialize)]

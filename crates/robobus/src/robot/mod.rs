@@ -79,7 +79,7 @@ mod config;
 mod hardware;
 mod safety;
 #[cfg(feature = "sim")]
-mod simulated;
+pub mod simulated;
 pub mod trajectory;
 
 use std::collections::BTreeMap;
@@ -96,11 +96,13 @@ use robobus_whj::JointId;
 use robobus_whj::units::CurrentScale;
 
 pub use builder::{RobotBuilder, open_wck_bus, open_whj_bus};
-pub use config::{BusConfig, JointConfig, RobotConfig, SafeState};
+pub use config::{BusConfig, JointConfig, RobotConfig};
 use hardware::{Device, Hardware, JointSlot, Shared, WckSlot, WhjSlot, lock};
 pub use safety::{LimitEvent, LimitKind, RateLimiter};
 
 use crate::actuator::{ActuatorError, ActuatorState, JointLimits, JointMap, WckScale, whj_to_rad};
+use crate::error::ErrorKind;
+use crate::ops::SafeState;
 use crate::ops::safe::{SafeDevice, WckServos, WhjJoints};
 use crate::ops::whj::ServoLoop;
 use crate::wck::{WckBus, WckError};
@@ -217,6 +219,26 @@ pub enum RobotError {
     /// The watchdog thread cannot be started.
     #[error("cannot start the watchdog thread: {0}")]
     Watchdog(String),
+}
+
+impl RobotError {
+    /// What kind of failure this is.
+    pub fn kind(&self) -> ErrorKind {
+        match self {
+            Self::Parse { .. }
+            | Self::Invalid { .. }
+            | Self::Io { .. }
+            | Self::MissingBus { .. }
+            | Self::WrongBus { .. }
+            | Self::NoSuchJoint { .. }
+            | Self::TargetCount { .. } => ErrorKind::BadInput,
+            Self::OpenWck { source, .. } => source.kind(),
+            Self::OpenWhj { .. } => ErrorKind::NoDevice,
+            Self::Actuator(e) => e.kind(),
+            Self::SafeStopped { .. } => ErrorKind::Refused,
+            Self::Watchdog(_) => ErrorKind::NotAvailable,
+        }
+    }
 }
 
 /// Why the robot went to its safe state.

@@ -1,13 +1,52 @@
-//! The built-in simulated robot as a [`Robot`]: the humanoid and the arm of
-//! `robobus demo`, in-process on the wall clock, with the robot file of
-//! [`Station::simulated`](crate::station::Station::simulated).
+//! The built-in simulated robot (feature `sim`): the humanoid of [`SERVOS`] wCK servos
+//! and the arm of [`JOINTS`] WHJ joints of `robobus demo` and
+//! [`Station::simulated`](crate::station::Station::simulated), their robot file
+//! ([`simulated_robot`]), the robot itself as a [`Robot`] (in-process on the wall clock)
+//! and the arm a monitor watches without hardware ([`SimArm`]).
 
 use robobus_sim::wck::{Bus, BusConfig, Model, SimLink};
 use robobus_wck::BaudRate;
 
 use super::{Robot, RobotConfig, RobotError};
-use crate::demo::{ArmServer, JOINTS, SERVOS};
 use crate::wck::WckBus;
+
+mod arm;
+
+pub(crate) use arm::ArmServer;
+pub use arm::SimArm;
+
+/// wCK servos of the humanoid (IDs 0..SERVOS).
+pub const SERVOS: u8 = 16;
+/// WHJ joints of the arm (IDs 1..=JOINTS).
+pub const JOINTS: u8 = 7;
+
+/// The robot file of [`Robot::simulated`] and
+/// [`Station::simulated`](crate::station::Station::simulated): the humanoid's servos `s0`..`s15` on
+/// `sim-wck` (centre 127, joint angle 0 there) and the arm's joints `j1`..`j7` on `sim-whj`.
+/// Its watchdog allows 0.5 s between commands (the default is 0.1 s): a cycle of
+/// [`Robot::simulated`] reads 16 servos at 115200 bit/s
+/// (about 45 ms), and the simulators share the caller's processor.
+pub(crate) fn simulated_robot() -> String {
+    use std::fmt::Write as _;
+    let mut t = String::from(
+        "watchdog_timeout = 0.5\n\n[buses.sim-wck]\nkind = \"wck-external\"\n\n\
+         [buses.sim-whj]\nkind = \"whj-external\"\n",
+    );
+    let joint = |t: &mut String, name: String, bus: &str, id: u8| {
+        let _ = write!(
+            t,
+            "\n[[joints]]\nname = \"{name}\"\nbus = \"{bus}\"\nid = {id}\nlimits = [-2.0, 2.0]\n\
+             max_velocity = 2.0\nmax_acceleration = 20.0\n"
+        );
+    };
+    for id in 0..SERVOS {
+        joint(&mut t, format!("s{id}"), "sim-wck", id);
+    }
+    for id in 1..=JOINTS {
+        joint(&mut t, format!("j{id}"), "sim-whj", id);
+    }
+    t
+}
 
 impl Robot {
     /// The built-in simulated robot, opened: 16 wCK servos (IDs 0..=15, W1108) on the bus
@@ -16,7 +55,7 @@ impl Robot {
     /// in this process on the wall clock (the robot's watchdog and speed limits are
     /// measured on it), and stop when the robot is dropped, after its safe stop.
     pub fn simulated() -> Result<Self, RobotError> {
-        let config = RobotConfig::from_toml_str(&crate::station::simulated_robot())?;
+        let config = RobotConfig::from_toml_str(&simulated_robot())?;
         let (link, wck_sim) = SimLink::new(Bus::with_servos(
             BusConfig::default(),
             Model::W1108,

@@ -20,9 +20,8 @@ use robobus_whj::units::{Current, CurrentScale, Position, TargetSpeed};
 use serde::Serialize;
 
 use super::Station;
-use crate::catalogue::bounds;
 use crate::ops::OpError;
-use crate::ops::whj::{ServoLoop, require_ready};
+use crate::ops::whj::{self as whj_ops, ServoLoop, require_ready};
 use crate::whj::{
     CycleReport, CyclicConfig, CyclicStats, Joint, MotionLimits, OwnedCyclic, Protocol, ServoMode,
 };
@@ -122,16 +121,16 @@ pub(crate) fn allowed(
         ServoLoop::Position => {
             let (min, max) = j.position_limits()?;
             (
-                min.degrees().max(-bounds::MAX_DEG),
-                max.degrees().min(bounds::MAX_DEG),
+                min.degrees().max(-whj_ops::MAX_DEG),
+                max.degrees().min(whj_ops::MAX_DEG),
             )
         }
         ServoLoop::Speed => {
             let peak = identity
                 .model
                 .peak_output_speed_rpm()
-                .unwrap_or(bounds::MAX_RPM)
-                .min(bounds::MAX_RPM);
+                .unwrap_or(whj_ops::MAX_RPM)
+                .min(whj_ops::MAX_RPM);
             (-peak, peak)
         }
         ServoLoop::Current => {
@@ -139,8 +138,8 @@ pub(crate) fn allowed(
                 .read_register("LIT_MAX_CURRENT")?
                 .value
                 .filter(|v| *v > 0.0)
-                .unwrap_or(bounds::MAX_MA)
-                .min(bounds::MAX_MA);
+                .unwrap_or(whj_ops::MAX_MA)
+                .min(whj_ops::MAX_MA);
             (-limit, limit)
         }
     };
@@ -217,7 +216,7 @@ impl CyclicLoop {
         rate_hz: f64,
         smooth: MotionLimits,
     ) -> Result<Self, OpError> {
-        let rate_hz = bounds::FRAME_RATE_HZ.check("rate_hz", rate_hz)?;
+        let rate_hz = whj_ops::FRAME_RATE_HZ.check("rate_hz", rate_hz)?;
         let ids = crate::ops::distinct_ids::<JointId>("joints", "joints", joints)?;
         let port = station.whj(bus)?;
         let mut limits = Vec::with_capacity(ids.len());

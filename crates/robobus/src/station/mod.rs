@@ -10,6 +10,7 @@
 pub(crate) mod clock;
 pub mod cyclic;
 pub mod handles;
+pub mod sampler;
 
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -17,9 +18,9 @@ use std::time::Duration;
 
 use robobus_wck::{BaudRate, TorqueLevel};
 use robobus_whj::JointId;
+use sampler::{RobotJointSample, RobotSampler};
 
 use crate::ops::capture::{Overwrite, capture_byte_link_limited, capture_frame_link_limited};
-use crate::ops::monitor::{RobotJointSample, RobotSampler};
 use crate::ops::safe::{WckServos, WhjJoints};
 use crate::ops::whj::ServoLoop;
 use crate::ops::{DeviceResult, OpError, SafeState};
@@ -308,8 +309,7 @@ impl Station {
                 e => refuse(&e),
             };
             let (wck, whj) =
-                crate::ops::monitor::open_robot_ports(&robot, whj, config.wck_reply_margin)
-                    .map_err(absent)?;
+                sampler::open_robot_ports(&robot, whj, config.wck_reply_margin).map_err(absent)?;
             for p in wck {
                 s.add_wck_port(p);
             }
@@ -417,7 +417,7 @@ impl Station {
         let (mut link, wck_sim) = SimLink::virtual_clock(Bus::with_servos(
             BusConfig::default(),
             Model::W1108,
-            0..crate::demo::SERVOS,
+            0..crate::robot::simulated::SERVOS,
         ));
         // The modules are deaf for 65 ms after power-up: wait that out on their clock.
         let now = link.now();
@@ -426,8 +426,11 @@ impl Station {
         );
         let bus = WckBus::new(Box::new(link) as DynByteLink, BaudRate::B115200)?
             .with_device_name("sim-wck");
-        let (whj_link, whj_sim) =
-            WhjSimLink::new(WhjBus::chain(1..=crate::demo::JOINTS, WhjModel::Whj30, 11));
+        let (whj_link, whj_sim) = WhjSimLink::new(WhjBus::chain(
+            1..=crate::robot::simulated::JOINTS,
+            WhjModel::Whj30,
+            11,
+        ));
         let mut s = Self::new();
         s.add_wck("sim-wck", bus);
         s.add_whj(
@@ -436,7 +439,7 @@ impl Station {
         );
         s.keep.push(Box::new(Mutex::new(wck_sim.clone())));
         s.keep.push(Box::new(Mutex::new(whj_sim.clone())));
-        let robot = RobotConfig::from_toml_str(&simulated_robot())
+        let robot = RobotConfig::from_toml_str(&crate::robot::simulated::simulated_robot())
             .map_err(|e| OpError::Device(format!("the built-in robot file: {e}")))?;
         s.set_robot(robot)?;
         Ok((s, wck_sim, whj_sim))
@@ -558,34 +561,6 @@ impl Drop for Station {
             tracing::warn!("station close: {f}");
         }
     }
-}
-
-/// The robot file of [`Station::simulated`]: the humanoid's servos `s0`..`s15` on
-/// `sim-wck` (centre 127, joint angle 0 there) and the arm's joints `j1`..`j7` on `sim-whj`.
-/// Its watchdog allows 0.5 s between commands (the default is 0.1 s): a cycle of
-/// [`Robot::simulated`](crate::robot::Robot::simulated) reads 16 servos at 115200 bit/s
-/// (about 45 ms), and the simulators share the caller's processor.
-#[cfg(feature = "sim")]
-pub(crate) fn simulated_robot() -> String {
-    use std::fmt::Write as _;
-    let mut t = String::from(
-        "watchdog_timeout = 0.5\n\n[buses.sim-wck]\nkind = \"wck-external\"\n\n\
-         [buses.sim-whj]\nkind = \"whj-external\"\n",
-    );
-    let joint = |t: &mut String, name: String, bus: &str, id: u8| {
-        let _ = write!(
-            t,
-            "\n[[joints]]\nname = \"{name}\"\nbus = \"{bus}\"\nid = {id}\nlimits = [-2.0, 2.0]\n\
-             max_velocity = 2.0\nmax_acceleration = 20.0\n"
-        );
-    };
-    for id in 0..crate::demo::SERVOS {
-        joint(&mut t, format!("s{id}"), "sim-wck", id);
-    }
-    for id in 1..=crate::demo::JOINTS {
-        joint(&mut t, format!("j{id}"), "sim-whj", id);
-    }
-    t
 }
 
 fn pick<T: Clone>(

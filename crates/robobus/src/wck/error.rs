@@ -6,6 +6,8 @@ use core::time::Duration;
 use robobus_link::LinkError;
 use robobus_wck::{BaudRate, RangeError, ReplyError, Target};
 
+use crate::error::{ErrorKind, link_error_kind};
+
 /// Bytes as hex, like the manual prints packets: `07 D0` (`none` when empty).
 #[derive(Debug, Clone, Copy)]
 pub struct Hex<'a>(pub &'a [u8]);
@@ -182,6 +184,23 @@ pub enum WckError {
         #[source]
         source: RangeError,
     },
+}
+
+impl WckError {
+    /// What kind of failure this is.
+    pub fn kind(&self) -> ErrorKind {
+        match self {
+            Self::Timeout { .. } => ErrorKind::NoDevice,
+            Self::BadReply { .. }
+            | Self::Unconfirmed { .. }
+            | Self::Unattributable { .. }
+            | Self::NotApplied { .. }
+            | Self::NotVerified { .. } => ErrorKind::Device,
+            Self::IdInUse { .. } => ErrorKind::Refused,
+            Self::Link { source, .. } => link_error_kind(source),
+            Self::Value { .. } => ErrorKind::BadInput,
+        }
+    }
 }
 
 impl WckError {

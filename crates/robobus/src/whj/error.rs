@@ -7,6 +7,7 @@ use robobus_whj::units::{Position, UnitRangeError};
 use robobus_whj::{CmdError, ErrorCode, JointId, Reply, Request, RequestError};
 
 use super::session::{Attempt, BusState, Expect, describe};
+use crate::error::ErrorKind;
 
 /// Why a WHJ operation failed.
 ///
@@ -258,6 +259,31 @@ pub enum WhjError {
     /// deadline the session gives it).
     #[error("WHJ bus is not running")]
     Closed,
+}
+
+impl WhjError {
+    /// What kind of failure this is.
+    pub fn kind(&self) -> ErrorKind {
+        match self {
+            Self::Timeout { .. } | Self::Silent { .. } => ErrorKind::NoDevice,
+            Self::CmdErr { .. }
+            | Self::WriteRefused { .. }
+            | Self::EnableRefused { .. }
+            | Self::BadReply { .. }
+            | Self::DuplicateReply { .. }
+            | Self::LateReply { .. }
+            | Self::Unverified { .. }
+            | Self::MoveIncomplete { .. } => ErrorKind::Device,
+            Self::SaveWhileEnabled { .. } | Self::StepTooLarge { .. } | Self::Busy { .. } => {
+                ErrorKind::Refused
+            }
+            Self::UnknownRegister { .. }
+            | Self::Request { .. }
+            | Self::Unit { .. }
+            | Self::InvalidConfig { .. } => ErrorKind::BadInput,
+            Self::Bus { .. } | Self::Link { .. } | Self::Closed => ErrorKind::Link,
+        }
+    }
 }
 
 impl WhjError {

@@ -8,7 +8,7 @@ use robobus_whj::{JointId, Request};
 use serde::Serialize;
 
 use crate::motion::Limiter;
-use crate::ops::{Control, OpError, SafeState};
+use crate::ops::{Bound, Control, OpError, SafeState};
 use crate::whj::{Joint, MotionLimits, Percentiles, Profile, WhjError};
 
 use super::{
@@ -78,7 +78,7 @@ impl MoveArgs {
 
 /// Checks a frame rate (1..=1000 Hz) and a step limit (positive).
 fn check_rate_and_step(rate_hz: f64, step_limit_deg: f64) -> Result<(), OpError> {
-    if !(rate_hz.is_finite() && (1.0..=1000.0).contains(&rate_hz)) {
+    if !(rate_hz.is_finite() && (FRAME_RATE_HZ.min..=FRAME_RATE_HZ.max).contains(&rate_hz)) {
         return Err(OpError::invalid("--rate-hz", rate_hz, "allowed: 1..=1000"));
     }
     if !(step_limit_deg.is_finite() && step_limit_deg > 0.0) {
@@ -338,12 +338,20 @@ pub struct WaveArgs {
     pub step_limit_deg: f64,
 }
 
-/// Largest |angle| a wave may ask for, degrees.
-pub const WAVE_MAX_DEG: f64 = 360.0;
-/// Largest |speed| a wave may ask for, RPM.
-pub const WAVE_MAX_RPM: f64 = 37.5;
-/// Largest |current| a wave may ask for, mA.
-pub const WAVE_MAX_MA: f64 = 30_000.0;
+/// Largest |target angle| sent to a WHJ joint, degrees: one turn either way.
+pub const MAX_DEG: f64 = 360.0;
+/// Largest |target speed| sent to a WHJ joint, output RPM: the highest published peak
+/// output speed of any model (WHJ10 / WHJ30, 37.5 RPM).
+pub const MAX_RPM: f64 = 37.5;
+/// Largest |target current| sent to a WHJ joint, mA (the vendor publishes no peak).
+pub const MAX_MA: f64 = 30_000.0;
+/// WHJ frame rate (`--rate-hz` of move and wave, the rate of a station's cyclic loop).
+pub const FRAME_RATE_HZ: Bound = Bound {
+    what: "rate (Hz)",
+    unit: "Hz",
+    min: 1.0,
+    max: 1000.0,
+};
 /// The step limiter of position waves: a square wave becomes steep ramps.
 pub const WAVE_LIMITS: MotionLimits = MotionLimits {
     max_speed_deg_s: 180.0,
@@ -390,9 +398,9 @@ impl WaveArgs {
             ));
         }
         let limit = match self.servo {
-            ServoLoop::Position => WAVE_MAX_DEG,
-            ServoLoop::Speed => WAVE_MAX_RPM,
-            ServoLoop::Current => WAVE_MAX_MA,
+            ServoLoop::Position => MAX_DEG,
+            ServoLoop::Speed => MAX_RPM,
+            ServoLoop::Current => MAX_MA,
         };
         let peak = self.offset.abs() + self.amplitude;
         if peak.is_nan() || peak > limit {

@@ -10,11 +10,14 @@ use robobus_link::MemoryBus;
 use robobus_whj::JointId;
 use robobus_whj::units::Position;
 
-use super::internal;
 use crate::ops::safe::WhjJoints;
 use crate::ops::whj::ServoLoop;
 use crate::ops::{OpError, SafeState};
 use crate::whj::{CyclicConfig, JointBus, JointBusConfig};
+
+fn internal(what: &str, e: impl core::fmt::Display) -> OpError {
+    OpError::Device(format!("simulated robot: {what}: {e}"))
+}
 
 /// Every joint of `ids` to [`SafeState::Disable`] through [`SafeState::apply`] (the one
 /// safe stop), whatever happened before; a failure is logged.

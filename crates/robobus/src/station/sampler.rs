@@ -1,7 +1,8 @@
-//! The monitor's sampling (`robobus monitor`): read-only, one result per device per sample.
+//! Sampling (`robobus monitor`, the `*.sample` operations, the telemetry stream): read-only,
+//! one result per device per sample.
 //!
-//! - WHJ joints by ID: [`whj::sample`](super::whj::sample) (a status query and a speed
-//!   read per joint, [`JointSample`](super::whj::JointSample), device units).
+//! - WHJ joints by ID: [`whj::sample`](crate::ops::whj::sample) (a status query and a
+//!   speed read per joint, [`JointSample`](crate::ops::whj::JointSample), device units).
 //! - wCK servos by ID: [`WckSampler`] (a status read per servo, [`WckSample`]; the speed is
 //!   the position's derivative between two readings).
 //! - A robot file's joints by name: [`RobotSampler`] opens the file's buses for reading only
@@ -20,10 +21,10 @@ use robobus_wck::ServoId;
 use robobus_whj::JointId;
 use serde::Serialize;
 
-use super::{DeviceResult, ErrorKind, Failure, Outcome};
+use super::{WckPort, WhjPort};
 use crate::actuator::{JointMap, WckScale};
+use crate::ops::{DeviceResult, ErrorKind, Failure, Outcome};
 use crate::robot::{BusConfig, RobotConfig, RobotError};
-use crate::station::{WckPort, WhjPort};
 use crate::wck::{WckBus, WckConfig};
 use crate::whj::{JointBus, JointBusConfig};
 
@@ -31,7 +32,7 @@ use crate::whj::{JointBus, JointBusConfig};
 const DEG_S_PER_RPM: f64 = 6.0;
 
 /// One reading of a wCK servo.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, schemars::JsonSchema)]
 pub struct WckSample {
     /// Position, degrees: the servo's own (0..=269°, as `robobus wck status` prints), or a
     /// robot file's joint angle.
@@ -100,7 +101,7 @@ impl WckSampler {
 }
 
 /// One reading of a robot file's joint, as a joint angle.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, schemars::JsonSchema)]
 pub struct RobotJointSample {
     /// Joint angle, degrees.
     pub position_deg: f64,
@@ -268,7 +269,7 @@ impl RobotSampler {
                 }
                 RobotBus::Whj { port, joints } => {
                     let ids: Vec<JointId> = joints.iter().map(|j| j.1).collect();
-                    let results = super::whj::sample(port.bus(), &ids);
+                    let results = crate::ops::whj::sample(port.bus(), &ids);
                     for (&(i, id, map), r) in joints.iter().zip(results) {
                         let kt = port.bus().cached_identity(id).and_then(|d| {
                             robobus_whj::models::ProductFacts::torque_constant_of(
