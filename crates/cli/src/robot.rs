@@ -8,10 +8,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
 use clap::Subcommand;
-use robobus::catalogue::play::{Play, PlayTick};
-use robobus::catalogue::robot::{Calibrate, ZeroPose};
-use robobus::catalogue::teach::Teach;
-use robobus::catalogue::teleop::{Pair, Teleop};
+use robobus::catalogue::robot::{Calibrate, Pair, Play, PlayTick, Teach, Teleop, ZeroPose};
 use robobus::catalogue::{self, Request};
 use robobus::catalogue::{Interaction, NoInteraction};
 use robobus::ops::read_bounded;

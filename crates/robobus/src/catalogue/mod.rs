@@ -51,12 +51,9 @@ pub mod host;
 mod legacy;
 pub mod operation;
 pub mod plan;
-pub mod play;
 pub mod registry;
 pub mod robot;
-pub mod teach;
 pub mod telemetry;
-pub mod teleop;
 pub mod wck;
 pub mod whj;
 
@@ -127,9 +124,9 @@ registry! {
     "whj.restore" => WhjRestore(whj::Restore),
     "robot.sample" => RobotSample(robot::Sample),
     "robot.calibrate" => RobotCalibrate(robot::Calibrate),
-    "robot.teleop" => RobotTeleop(teleop::Teleop),
-    "robot.play" => RobotPlay(play::Play),
-    "robot.teach" => RobotTeach(teach::Teach),
+    "robot.teleop" => RobotTeleop(robot::Teleop),
+    "robot.play" => RobotPlay(robot::Play),
+    "robot.teach" => RobotTeach(robot::Teach),
     "host.ports" => HostPorts(host::Ports),
     // What adding an operation takes (a test fixture: its file and this row).
     #[cfg(test)]

@@ -159,7 +159,7 @@ pub trait Interaction {
     /// `robot.play`: one tick was sent (a front end records it; an error ends the run
     /// where it is).
     #[allow(clippy::result_large_err)] // OpError carries the client errors by value
-    fn play_tick(&mut self, tick: &super::play::PlayTick<'_>) -> Result<(), OpError> {
+    fn play_tick(&mut self, tick: &super::robot::PlayTick<'_>) -> Result<(), OpError> {
         let _ = tick;
         Ok(())
     }

@@ -251,7 +251,7 @@ impl<'a> Control<'a> {
 }
 
 /// A failure of one device in a multi-device operation: its kind and its message.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, schemars::JsonSchema)]
 pub struct Failure {
     /// What kind of failure.
     pub kind: ErrorKind,
@@ -298,7 +298,7 @@ impl From<&OpError> for Failure {
 /// let silent: DeviceResult<u8, Pos> = DeviceResult::failed(4, Failure::of(ErrorKind::NoDevice, &"servo 4 did not answer"));
 /// assert!(ok.is_ok() && !silent.is_ok());
 /// ```
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, schemars::JsonSchema)]
 pub struct DeviceResult<I, T> {
     /// The device (servo or joint ID).
     pub id: I,
@@ -308,7 +308,7 @@ pub struct DeviceResult<I, T> {
 }
 
 /// The outcome of one device: its value, or its failure.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, schemars::JsonSchema)]
 #[serde(untagged)]
 pub enum Outcome<T> {
     /// The device answered; the value's fields.

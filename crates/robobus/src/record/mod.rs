@@ -334,7 +334,7 @@ impl SampleTable {
 
     /// Fills the rows from one tick of a played trajectory (its joints in the table's
     /// order): each row's target, and its position where the joint reported one.
-    pub fn take_tick(&mut self, tick: &crate::catalogue::play::PlayTick<'_>) {
+    pub fn take_tick(&mut self, tick: &crate::catalogue::robot::PlayTick<'_>) {
         self.begin(tick.t_s);
         for ((row, target), at) in self.rows.iter_mut().zip(tick.targets).zip(tick.positions) {
             row.target_deg = Some(*target);

@@ -54,7 +54,7 @@ impl Range {
 }
 
 /// One joint's calibration: what was recorded and what the file gets.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct JointCalibration {
     /// Readings taken.
     pub samples: u64,

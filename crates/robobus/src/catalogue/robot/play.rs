@@ -3,7 +3,7 @@
 //!
 //! The whole trajectory is checked against the file before anything is sent (joint names,
 //! soft limits, `max_velocity`), and every joint it names is read
-//! ([`ready_at`](super::robot::ready_at)): one that does not answer, stands outside its
+//! ([`ready_at`](super::ready_at)): one that does not answer, stands outside its
 //! soft limits, or is a WHJ joint not enabled in position mode refuses the run. The joints then go from
 //! where they are to the first point, each no faster than its `max_velocity` (the lead-in,
 //! as long as the slowest needs), and follow the trajectory, linearly between its points.
@@ -14,14 +14,20 @@
 //! (the distance from where a joint reported itself to the target of the tick before) and
 //! its failures, and for the run the skew between the buses' sends in a tick and how late
 //! the sends were. Finished, failed or stopped, the run ends with each bus of its joints
-//! in the robot file's `safe_state` ([`settle`](super::robot::settle)).
+//! in the robot file's `safe_state` ([`settle`](super::settle)).
 
 use std::time::{Duration, Instant};
 
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
+use robobus_wck::BaudRate;
+
+use super::ROBOT;
 use crate::actuator::{JointMap, WckScale};
+use crate::catalogue::effect::{Effect, Moved};
+use crate::catalogue::operation::{Confirm, OpDoc, Operation, Report, RunCx};
+use crate::catalogue::plan::{Family, Plan};
 use crate::ops::whj::ServoLoop;
 use crate::ops::{Control, DeviceResult, Failure, OpError, Outcome, Progress};
 use crate::robot::RobotConfig;
@@ -93,13 +99,68 @@ impl Play {
             d = t.duration_s(),
             r = self.rate_hz,
             torque = self.torque,
-            END = super::robot::END_NOTE,
+            END = super::END_NOTE,
         ))
     }
 }
 
+impl Operation for Play {
+    const OP: &'static str = "robot.play";
+    const FAMILY: Family = Family::Robot;
+    const DOC: OpDoc = OpDoc {
+        args: "`trajectory` (a trajectory file's text: `time_s`, then a column per joint of \
+               the robot file, degrees in its joint frame; see `docs/hardware.md`), \
+               `rate_hz`=50 (1..=500), `torque`=2 (wCK servos, 0..=4)",
+        report: "one row per joint by name: `commands`, `failed`, `limited` (sent short of the \
+                 trajectory's target: a WHJ joint that lagged), `start_deg`, `target_deg` (the \
+                 last), `position_deg` (reported at the last command), `tracking_max_deg`, \
+                 `tracking_rms_deg` (from where the joint reported itself to the target of the \
+                 tick before); `summary`: `lead_in_s`, `duration_s`, `ticks`, `overruns`, \
+                 `buses`, `skew_ms` (per tick, the first send of the first bus to that of the \
+                 last) and `late_ms` (`p50`, `p99`, `max`), `interrupted`, `safe_state` (per \
+                 bus: `bus`, the file's `safe_state` it was left in, `failed`: the joints that \
+                 did not get there). Refused before anything moves when the trajectory does \
+                 not fit the robot file or a joint is silent, outside its limits, or a WHJ \
+                 joint not enabled in position mode. Finished, failed or stopped, it ends with \
+                 each bus of its joints in the robot file's `safe_state` (as `robot.teleop`, \
+                 `robot.calibrate` and `robot.teach` do)",
+        confirm: "motion",
+    };
+    type Row = DeviceResult<String, Played>;
+    type Summary = PlaySummary;
+
+    fn effect(&self) -> Effect {
+        Effect::Motion
+    }
+
+    fn moved(&self) -> Result<Option<Moved>, OpError> {
+        Play::check(self).map(|_| None)
+    }
+
+    fn check(&self) -> Result<Confirm, OpError> {
+        Play::check(self).map(|_| Confirm::NONE)
+    }
+
+    fn plan(&self, _baud: BaudRate) -> Result<Plan, OpError> {
+        Ok(Plan::notes_only(
+            Self::OP,
+            Family::Robot,
+            vec![self.note()?],
+        ))
+    }
+
+    /// Each tick goes to the front end's [`Interaction::play_tick`](crate::catalogue::Interaction::play_tick).
+    fn run(&self, cx: &mut RunCx<'_, '_>) -> Result<Report<Self::Row, PlaySummary>, OpError> {
+        let interaction = &mut *cx.interaction;
+        let p = run_play(cx.station, self, cx.control, &mut |t| {
+            interaction.play_tick(t)
+        })?;
+        Ok(Report::devices_with(Self::OP, ROBOT, p.joints).summary(p.summary))
+    }
+}
+
 /// A joint's run (its row of the report, by name).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
 pub struct Played {
     /// Commands sent.
     pub commands: u64,
@@ -128,7 +189,7 @@ pub struct Played {
 }
 
 /// How a run's times spread, ms.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, JsonSchema)]
 pub struct Spread {
     /// Median.
     pub p50: f64,
@@ -152,7 +213,7 @@ impl Spread {
 }
 
 /// The whole run.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
 pub struct PlaySummary {
     /// The lead-in to the first point, s.
     pub lead_in_s: f64,
@@ -172,13 +233,13 @@ pub struct PlaySummary {
     pub interrupted: bool,
     /// How it left each bus: in the robot file's `safe_state` (finished, failed or
     /// stopped).
-    pub safe_state: Vec<super::robot::BusEnd>,
+    pub safe_state: Vec<super::BusEnd>,
 }
 
 /// What a `robot.play` run did.
-pub(super) struct PlayedRun {
-    pub(super) joints: Vec<DeviceResult<String, Played>>,
-    pub(super) summary: PlaySummary,
+struct PlayedRun {
+    joints: Vec<DeviceResult<String, Played>>,
+    summary: PlaySummary,
 }
 
 /// A joint's outcome in a tick, by its column: the position it reported (joint degrees),
@@ -290,7 +351,7 @@ fn groups(
             )
         });
     }
-    let clock = BusClock::of(station, &super::robot::only(config, traj.joints()))?;
+    let clock = BusClock::of(station, &super::only(config, traj.joints()))?;
     Ok((groups, clock))
 }
 
@@ -350,22 +411,19 @@ fn check_steps(
 }
 
 /// `robot.play` on the station's robot file.
-pub(super) fn run_play(
+fn run_play(
     station: &Station,
     r: &Play,
     control: &mut Control<'_>,
     on_tick: &mut dyn FnMut(&PlayTick<'_>) -> Result<(), OpError>,
 ) -> Result<PlayedRun, OpError> {
     let traj = r.check()?;
-    let config = station
-        .robot()
-        .cloned()
-        .ok_or_else(super::robot::no_robot)?;
+    let config = station.robot().cloned().ok_or_else(super::no_robot)?;
     let index = traj
         .check(&config)
         .map_err(|e| OpError::invalid("trajectory", "(file)", e.to_string()))?;
     let (groups, clock) = groups(station, &config, &traj, &index)?;
-    let from = super::robot::ready_at(station, &config, traj.joints(), "a trajectory")?;
+    let from = super::ready_at(station, &config, traj.joints(), "a trajectory")?;
     // The lead-in: as long as the slowest joint needs at its max_velocity.
     let lead_in = traj
         .first()
@@ -388,7 +446,7 @@ pub(super) fn run_play(
     };
     let run = player.run(&mut rows, control, on_tick);
     // Finished, stopped or failed: each bus as the robot file says.
-    let settled = super::robot::settle(station, &config, traj.joints());
+    let settled = super::settle(station, &config, traj.joints());
     let timing = run.inspect_err(|_| settled.log())?;
     let names = traj.joints();
     Ok(PlayedRun {
@@ -670,8 +728,8 @@ mod tests {
 
     use serde_json::{Value, json};
 
-    use super::super::{Interaction, Request, run, run_with};
     use super::PlayTick;
+    use crate::catalogue::{Interaction, Request, run, run_with};
     use crate::ops::{Control, ErrorKind, OpError};
     use crate::station::Station;
 

@@ -8,7 +8,7 @@
 //! answer is left out of the trajectory (never filled with an older value) and counted.
 //! At the end, and when stopped, every WHJ joint is disabled, set to position mode and
 //! enabled again, then every bus goes to the robot file's `safe_state` (the robot
-//! operations' one end, [`settle`](super::robot::settle)): with the defaults a WHJ joint
+//! operations' one end, [`settle`](super::settle)): with the defaults a WHJ joint
 //! holds where it is and a wCK servo is passive. The report's summary is the trajectory
 //! file (the CSV of [`crate::robot::trajectory`]).
 
@@ -18,6 +18,13 @@ use std::time::Duration;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
+use robobus_wck::BaudRate;
+
+use super::ROBOT;
+use crate::catalogue::bounds::ConfirmClass;
+use crate::catalogue::effect::{Effect, Moved};
+use crate::catalogue::operation::{Confirm, OpDoc, Operation, Report, RunCx};
+use crate::catalogue::plan::{Family, Plan};
 use crate::ops::{Control, DeviceResult, ErrorKind, Failure, OpError, Outcome, Progress};
 use crate::robot::RobotConfig;
 use crate::station::Station;
@@ -70,7 +77,7 @@ impl Teach {
             ("--rate-hz", self.rate_hz, TEACH_RATE_HZ),
             ("--hold-ma", self.hold_ma, HOLD_MA),
         ] {
-            super::robot::within(option, v, &range)?;
+            super::within(option, v, &range)?;
         }
         if let Some(j) = &self.joints
             && (j.is_empty() || j.len() > crate::robot::trajectory::MAX_JOINTS)
@@ -106,8 +113,62 @@ impl Teach {
     }
 }
 
+impl Operation for Teach {
+    const OP: &'static str = "robot.teach";
+    const FAMILY: Family = Family::Robot;
+    const DOC: OpDoc = OpDoc {
+        args: "`seconds` (0.1..=3600), `rate_hz`=20 (1..=100), `joints` (names; none: every \
+               joint of the robot file), `hold_ma`=0 (a WHJ joint's current while moved by \
+               hand, -2000..=2000), `confirm`",
+        report: "one row per joint by name: `samples`, `failed`, `min_deg`, `max_deg`, `ended` \
+                 (how it was left: its bus's `safe_state` in the robot file, `holding`, \
+                 `disabled`, `passive` or `braked`, or why not); `summary`: `trajectory` (the \
+                 trajectory file `robot.play` plays), `points`, `dropped` (readings left out: a \
+                 joint did not answer), `readings`, `interrupted`. wCK servos go passive and \
+                 WHJ joints into current mode first, so it needs `confirm`",
+        confirm: "limp joints",
+    };
+    type Row = DeviceResult<String, Taught>;
+    type Summary = TeachSummary;
+
+    /// Limp joints: an arm falls unless held.
+    fn effect(&self) -> Effect {
+        Effect::Motion
+    }
+
+    fn moved(&self) -> Result<Option<Moved>, OpError> {
+        self.readings().map(|_| None)
+    }
+
+    fn confirmed(&self) -> bool {
+        self.confirm
+    }
+
+    fn confirm(&mut self) {
+        self.confirm = true;
+    }
+
+    fn check(&self) -> Result<Confirm, OpError> {
+        self.readings()?;
+        Ok(Confirm::of(ConfirmClass::Register, TEACH_CONFIRM))
+    }
+
+    /// Limp joints: asked like a register of the `confirm` class.
+    fn plan(&self, _baud: BaudRate) -> Result<Plan, OpError> {
+        let mut plan = Plan::notes_only(Self::OP, Family::Robot, vec![self.note()?]);
+        plan.confirm = ConfirmClass::Register;
+        plan.confirm_text = Some(TEACH_CONFIRM.to_owned());
+        Ok(plan)
+    }
+
+    fn run(&self, cx: &mut RunCx<'_, '_>) -> Result<Report<Self::Row, TeachSummary>, OpError> {
+        let t = run_teach(cx.station, self, cx.control)?;
+        Ok(Report::devices_with(Self::OP, ROBOT, t.joints).summary(t.summary))
+    }
+}
+
 /// A recorded joint (its row of the report, by name).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
 pub struct Taught {
     /// Readings it answered.
     pub samples: u64,
@@ -127,14 +188,24 @@ pub struct Taught {
 }
 
 /// What a `robot.teach` run did.
-pub(super) struct TaughtRun {
-    pub(super) joints: Vec<DeviceResult<String, Taught>>,
-    /// The trajectory's CSV text.
-    pub(super) trajectory: String,
-    pub(super) points: u64,
-    pub(super) dropped: u64,
-    pub(super) asked: u64,
-    pub(super) interrupted: bool,
+struct TaughtRun {
+    joints: Vec<DeviceResult<String, Taught>>,
+    summary: TeachSummary,
+}
+
+/// The summary of `robot.teach`.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, JsonSchema)]
+pub struct TeachSummary {
+    /// The trajectory file (CSV) `robot.play` plays.
+    pub trajectory: String,
+    /// Its points (the readings every joint answered).
+    pub points: u64,
+    /// Readings left out: a joint did not answer.
+    pub dropped: u64,
+    /// Readings asked for.
+    pub readings: u64,
+    /// The stop token ended the reading early.
+    pub interrupted: bool,
 }
 
 /// A joint being taught: its name, family, bus and ID.
@@ -226,7 +297,7 @@ fn release(station: &Station, j: &Joint, hold_ma: f64) -> Result<(), OpError> {
 /// Undoes [`release`] on a WHJ joint: back in position mode, enabled (it holds where it
 /// is); a wCK servo stays as it is. The robot file's safe state follows ([`settle`]).
 ///
-/// [`settle`]: super::robot::settle
+/// [`settle`]: super::settle
 fn restore(station: &Station, j: &Joint) -> Result<(), OpError> {
     if let Device::Whj(port, id) = j.device(station)? {
         switch(&port, id, robobus_whj::WorkMode::Position)?;
@@ -239,7 +310,7 @@ fn restore(station: &Station, j: &Joint) -> Result<(), OpError> {
 fn end(station: &Station, config: &RobotConfig, joints: &[Joint], rows: &mut [Taught]) {
     let restored: Vec<Result<(), OpError>> = joints.iter().map(|j| restore(station, j)).collect();
     let names: Vec<String> = joints.iter().map(|j| j.name.clone()).collect();
-    let settled = super::robot::settle(station, config, &names);
+    let settled = super::settle(station, config, &names);
     for ((row, j), back) in rows.iter_mut().zip(joints).zip(restored) {
         let state = config
             .buses
@@ -260,11 +331,8 @@ fn reader(
     joints: &[Joint],
 ) -> Result<(RobotSampler, BusClock), OpError> {
     let names: Vec<String> = joints.iter().map(|j| j.name.clone()).collect();
-    let sub = super::robot::only(config, &names);
-    Ok((
-        super::robot::sampler(station, &sub)?,
-        BusClock::of(station, &sub)?,
-    ))
+    let sub = super::only(config, &names);
+    Ok((super::sampler(station, &sub)?, BusClock::of(station, &sub)?))
 }
 
 /// Each joint's row: a joint that missed readings, or does not hold at the end, fails it.
@@ -302,19 +370,16 @@ fn results(joints: &[Joint], rows: Vec<Taught>) -> Vec<DeviceResult<String, Taug
 }
 
 /// `robot.teach` on the station's robot file.
-pub(super) fn run_teach(
+fn run_teach(
     station: &Station,
     r: &Teach,
     control: &mut Control<'_>,
 ) -> Result<TaughtRun, OpError> {
     let readings = r.readings()?;
     if !r.confirm {
-        return Err(super::bounds::refused(TEACH_CONFIRM));
+        return Err(crate::catalogue::bounds::refused(TEACH_CONFIRM));
     }
-    let config = station
-        .robot()
-        .cloned()
-        .ok_or_else(super::robot::no_robot)?;
+    let config = station.robot().cloned().ok_or_else(super::no_robot)?;
     let joints = joints_of(&config, r)?;
     let (mut sampler, clock) = reader(station, &config, &joints)?;
     let mut rows: Vec<Taught> = joints
@@ -394,11 +459,13 @@ pub(super) fn run_teach(
     let results = results(&joints, rows);
     Ok(TaughtRun {
         joints: results,
-        trajectory: csv,
-        points,
-        dropped,
-        asked: readings,
-        interrupted: taken < readings,
+        summary: TeachSummary {
+            trajectory: csv,
+            points,
+            dropped,
+            readings,
+            interrupted: taken < readings,
+        },
     })
 }
 
@@ -410,7 +477,7 @@ mod tests {
 
     use serde_json::{Value, json};
 
-    use super::super::{Request, confirmation, run};
+    use crate::catalogue::{Request, confirmation, run};
     use crate::ops::{Control, ErrorKind};
     use crate::station::Station;
 

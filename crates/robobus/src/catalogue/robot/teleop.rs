@@ -14,10 +14,10 @@
 //! for `leader_timeout_ms`, the run ends with the leader's failure.
 //!
 //! Before the first cycle every follower joint is read with `robot.play`'s check
-//! ([`ready_at`](super::robot::ready_at)): a silent one, one outside its soft limits, or
+//! ([`ready_at`](super::ready_at)): a silent one, one outside its soft limits, or
 //! a WHJ joint not enabled in position mode refuses the run, nothing sent. However the run
 //! ends, each bus of the leader and the follower is left in the robot file's `safe_state`
-//! ([`settle`](super::robot::settle)).
+//! ([`settle`](super::settle)).
 
 use std::collections::VecDeque;
 use std::ops::RangeInclusive;
@@ -26,8 +26,13 @@ use std::time::{Duration, Instant};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
+use robobus_wck::BaudRate;
+
 use super::play::Spread;
-use super::robot::{out_of, within};
+use super::{ROBOT, out_of, within};
+use crate::catalogue::effect::{Effect, Moved};
+use crate::catalogue::operation::{Confirm, OpDoc, Operation, Report, RunCx};
+use crate::catalogue::plan::{Family, Plan};
 use crate::frontend::follow::Follower;
 use crate::ops::{Control, DeviceResult, ErrorKind, Failure, OpError, Outcome, Progress};
 use crate::station::Station;
@@ -76,7 +81,7 @@ pub struct Teleop {
     #[serde(default = "default_timeout")]
     pub leader_timeout_ms: u64,
     /// Make the leader's wCK servos passive first, to be moved by hand (default true).
-    #[serde(default = "super::robot::yes")]
+    #[serde(default = "super::yes")]
     pub passive_leader: bool,
 }
 
@@ -207,13 +212,70 @@ impl Teleop {
             self.leader_timeout_ms,
             self.seconds
                 .map_or_else(|| "until stopped".to_owned(), |s| format!("for {s} s")),
-            super::robot::END_NOTE,
+            super::END_NOTE,
         ))
     }
 }
 
+impl Operation for Teleop {
+    const OP: &'static str = "robot.teleop";
+    const FAMILY: Family = Family::Robot;
+    const DOC: OpDoc = OpDoc {
+        args: r#"`map`: 1..=64 pairs `{"leader", "follower", "scale"=1 (-10..=10), "offset_deg"=0 (-360..=360), "limits_deg": [min, max]}` (joint names of the robot file; a follower once, never also a leader), `rate_hz`=50 (1..=200), `seconds` (0.1..=86400; none: until stopped), `leader_timeout_ms`=500 (10..=10000), `passive_leader`=true"#,
+        report: "one row per follower joint by name: `leader`, `commands`, `limited` (cut \
+                 short by a jog step or a limit), `failed`, `target_deg`, `position_deg` (at \
+                 the last command), `tracking_max_deg`, `tracking_rms_deg`; `summary`: \
+                 `cycles`, `commanded`, `held` (cycles without every leader reading: nothing \
+                 sent), `overruns`, `seconds`, `rate_hz`, `latency_ms` (`p50`, `p99`, `max`: \
+                 from a cycle's leader reading to its last command), `leaders` (each one's \
+                 `name`, `readings`, `failed`, `error`), `leader_lost` (the run ended because \
+                 the leader went silent: `failed` is `no-device`), `interrupted`, `safe_state` \
+                 (as `robot.play`'s). Refused before anything is sent when a follower joint is \
+                 silent, outside its soft limits, or a WHJ joint not enabled in position mode \
+                 (`robot.play`'s check)",
+        confirm: "motion",
+    };
+    type Row = DeviceResult<String, Followed>;
+    type Summary = TeleopSummary;
+
+    fn effect(&self) -> Effect {
+        Effect::Motion
+    }
+
+    fn moved(&self) -> Result<Option<Moved>, OpError> {
+        Teleop::check(self).map(|()| None)
+    }
+
+    fn check(&self) -> Result<Confirm, OpError> {
+        Teleop::check(self).map(|()| Confirm::NONE)
+    }
+
+    fn plan(&self, _baud: BaudRate) -> Result<Plan, OpError> {
+        Ok(Plan::notes_only(
+            Self::OP,
+            Family::Robot,
+            vec![self.note()?],
+        ))
+    }
+
+    /// The leader's silence fails the run (its kind first, `no-device`), whatever the
+    /// follower did.
+    fn run(&self, cx: &mut RunCx<'_, '_>) -> Result<Report<Self::Row, TeleopSummary>, OpError> {
+        let t = run_teleop(cx.station, self, cx.control)?;
+        let mut report = Report::devices_with(Self::OP, ROBOT, t.joints).summary(t.summary);
+        if let Some(lost) = t.lost {
+            report.failed = Some(lost.kind);
+            report.error = Some(match report.error.take() {
+                Some(e) => format!("{}; {e}", lost.error),
+                None => lost.error,
+            });
+        }
+        Ok(report)
+    }
+}
+
 /// A follower joint's run (its row of the report, by the follower's name).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
 pub struct Followed {
     /// The leader joint that drove it.
     pub leader: String,
@@ -238,7 +300,7 @@ pub struct Followed {
 }
 
 /// A leader joint's readings.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
 pub struct Led {
     /// Its name.
     pub name: String,
@@ -251,7 +313,7 @@ pub struct Led {
 }
 
 /// The whole run.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
 pub struct TeleopSummary {
     /// Cycles run.
     pub cycles: u64,
@@ -278,21 +340,21 @@ pub struct TeleopSummary {
     pub interrupted: bool,
     /// How it left each bus of the leader and the follower: in the robot file's
     /// `safe_state` (finished, the leader lost, or stopped).
-    pub safe_state: Vec<super::robot::BusEnd>,
+    pub safe_state: Vec<super::BusEnd>,
 }
 
 /// What a `robot.teleop` run did.
-pub(super) struct Teleoperated {
+struct Teleoperated {
     /// Each follower joint's run, by name.
-    pub(super) joints: Vec<DeviceResult<String, Followed>>,
+    joints: Vec<DeviceResult<String, Followed>>,
     /// The whole run.
-    pub(super) summary: TeleopSummary,
+    summary: TeleopSummary,
     /// The leader's failure that ended it.
-    pub(super) lost: Option<Failure>,
+    lost: Option<Failure>,
 }
 
 /// `robot.teleop` on the station's robot file.
-pub(super) fn run_teleop(
+fn run_teleop(
     station: &Station,
     r: &Teleop,
     control: &mut Control<'_>,
@@ -344,7 +406,7 @@ pub(super) fn run_teleop(
     }
     let elapsed = run.clock.now().saturating_duration_since(start);
     // Each bus of the leader and the follower as the robot file says.
-    let settled = super::robot::settle(station, &run.config, &run.names);
+    let settled = super::settle(station, &run.config, &run.names);
     Ok(run.finish(r, elapsed, interrupted && end.is_some(), &settled))
 }
 
@@ -435,19 +497,16 @@ impl Run {
     /// Resolves the map on the station's robot file, opens the leader's sampler and the
     /// follower, and makes the leader's wCK servos passive if asked.
     fn open(station: &Station, r: &Teleop) -> Result<Self, OpError> {
-        let config = station
-            .robot()
-            .cloned()
-            .ok_or_else(super::robot::no_robot)?;
+        let config = station.robot().cloned().ok_or_else(super::no_robot)?;
         let leaders = leader_names(&config, r)?;
         let followers: Vec<String> = r.map.iter().map(|p| p.follower.clone()).collect();
         let follower = Follower::of_joints(station, &followers)?;
         // The leader's own sampler: only its joints and their buses.
         // The loop's clock spans the leader's and the follower's buses.
         let all: Vec<String> = leaders.iter().chain(&followers).cloned().collect();
-        let clock = BusClock::of(station, &super::robot::only(&config, &all))?;
-        let led = super::robot::only(&config, &leaders);
-        let sampler = super::robot::sampler(station, &led)?;
+        let clock = BusClock::of(station, &super::only(&config, &all))?;
+        let led = super::only(&config, &leaders);
+        let sampler = super::sampler(station, &led)?;
         let mut ranges = Vec::with_capacity(r.map.len());
         for (p, f) in r.map.iter().zip(follower.joints()) {
             let [lo, hi] = f.limits_rad.map(f64::to_degrees);
@@ -466,9 +525,9 @@ impl Run {
         }
         // Refused before anything is sent: a follower joint that is silent, outside its
         // soft limits, or a WHJ joint not enabled in position mode (as play refuses).
-        super::robot::ready_at(station, &config, &followers, "teleoperation")?;
+        super::ready_at(station, &config, &followers, "teleoperation")?;
         if r.passive_leader {
-            super::robot::make_passive(station, &led)?;
+            super::make_passive(station, &led)?;
         }
         let pair_leader = r
             .map
@@ -611,7 +670,7 @@ impl Run {
         r: &Teleop,
         elapsed: Duration,
         interrupted: bool,
-        settled: &super::robot::Settled,
+        settled: &super::Settled,
     ) -> Teleoperated {
         let s = &mut self.summary;
         s.seconds = elapsed.as_secs_f64();
@@ -688,7 +747,7 @@ mod tests {
 
     use serde_json::{Value, json};
 
-    use super::super::{Request, run, validate};
+    use crate::catalogue::{Request, run, validate};
     use crate::ops::Control;
     use crate::station::Station;
 
