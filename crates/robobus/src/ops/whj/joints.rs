@@ -17,7 +17,7 @@ use super::{check_reading, mode_name, per_joint, whj};
 // ---------------------------------------------------------------------------------------
 
 /// One joint's status (`whj status`).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, schemars::JsonSchema)]
 pub struct StatusReport {
     /// Drive enabled.
     pub enabled: bool,
@@ -76,7 +76,7 @@ pub fn status(bus: &JointBus, ids: &[JointId]) -> Vec<DeviceResult<u8, StatusRep
 }
 
 /// The state a joint reports after enable / disable.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, schemars::JsonSchema)]
 pub struct EnableReport {
     /// Drive enabled, as the joint reports it afterwards.
     pub enabled: bool,
@@ -114,7 +114,7 @@ pub fn enable(bus: &JointBus, ids: &[JointId], on: bool) -> Vec<DeviceResult<u8,
 }
 
 /// The error bits before and after `whj clear`.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, schemars::JsonSchema)]
 pub struct ClearReport {
     /// Error bits before the clear.
     pub error_before: String,
@@ -149,7 +149,7 @@ pub fn answers(bus: &JointBus, id: JointId) -> Result<bool, OpError> {
 }
 
 /// What `whj set-id` did.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, schemars::JsonSchema)]
 pub struct SetIdReport {
     /// The new ID.
     pub new_id: u8,
@@ -258,7 +258,7 @@ pub fn check_id_free(bus: &JointBus, id: JointId, new_id: JointId) -> Result<(),
 // ---------------------------------------------------------------------------------------
 
 /// A joint's identity (`whj scan`, `whj info`, `whj release-iap`).
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, schemars::JsonSchema)]
 pub struct IdentityReport {
     /// Model name.
     pub model: &'static str,
@@ -286,7 +286,7 @@ impl IdentityReport {
 }
 
 /// Two joints answering at one ID (two different unique IDs 0x2A..0x2F to one read).
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, schemars::JsonSchema)]
 pub struct Duplicate {
     /// The shared ID.
     pub id: u8,
@@ -421,7 +421,7 @@ pub fn scan(
 }
 
 /// `whj info`: identity, mode and position limits.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, schemars::JsonSchema)]
 pub struct InfoReport {
     /// Identity.
     #[serde(flatten)]
@@ -449,7 +449,7 @@ pub fn info(bus: &JointBus, id: JointId) -> Result<InfoReport, OpError> {
 }
 
 /// The work mode a joint reports after `whj mode`.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, schemars::JsonSchema)]
 pub struct ModeReport {
     /// Work mode read back.
     pub mode: &'static str,
@@ -479,7 +479,7 @@ pub fn set_mode(
 }
 
 /// The position after `whj zero`.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, schemars::JsonSchema)]
 pub struct ZeroReport {
     /// Position read after the zero, degrees.
     pub position_deg: f64,
@@ -495,7 +495,7 @@ pub fn zero(bus: &JointBus, id: JointId) -> Result<ZeroReport, OpError> {
 }
 
 /// `whj save`.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, schemars::JsonSchema)]
 pub struct SaveReport {
     /// Saved.
     pub saved: bool,
@@ -524,7 +524,7 @@ pub fn release_iap(bus: &JointBus, ids: &[JointId]) -> Vec<DeviceResult<u8, Iden
 // ---------------------------------------------------------------------------------------
 
 /// One sample of one joint (`robobus monitor`): a status query and a speed read.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, schemars::JsonSchema)]
 pub struct JointSample {
     /// Actual position, degrees.
     pub position_deg: f64,

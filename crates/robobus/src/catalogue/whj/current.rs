@@ -1,0 +1,97 @@
+//! `whj.current`: a current target (0x400+ID) in mA, kept for a time or left running.
+
+use robobus_wck::BaudRate;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use super::speed::{TARGET_REPORT, run_target};
+use super::{JointRow, Model, R, duration, joint, moved, plan_of, scale_for, target_steps};
+use crate::catalogue::args::WhjOnStop;
+use crate::catalogue::bounds;
+use crate::catalogue::operation::{Confirm, OpDoc, Operation, Report, RunCx};
+use crate::catalogue::plan::WhjSteps;
+use crate::catalogue::wck::request;
+use crate::catalogue::{Effect, Family, Moved, Plan};
+use crate::ops::OpError;
+use crate::ops::whj::{ServoLoop, TargetArgs, TargetReport};
+
+request!(
+    /// `whj.current`: current target (0x400+ID), mA.
+    Current {
+        /// Joint ID.
+        joint: u32,
+        /// Target, mA, -30000..=30000.
+        milliamps: f64,
+        /// Keep it this many seconds (0.01..=3600), then target 0.
+        #[serde(default)]
+        duration: Option<f64>,
+        /// Model for the plan's current scale (a run reads it from the joint).
+        #[serde(default)]
+        model: Option<Model>,
+        /// What a stop leaves the joint in.
+        #[serde(default)]
+        on_stop: WhjOnStop,
+    }
+);
+
+impl Current {
+    fn args(&self) -> R<TargetArgs> {
+        Ok(TargetArgs {
+            joint: joint("<JOINT>", self.joint)?,
+            servo: ServoLoop::Current,
+            value: bounds::CURRENT_MA.check("<MILLIAMPS>", self.milliamps)?,
+            duration: duration(self.duration)?,
+        })
+    }
+
+    /// The frames (`dry_run`: for a plan, whose mA-to-counts scale needs `model`).
+    fn steps(&self, dry_run: bool) -> R<(TargetArgs, WhjSteps)> {
+        let args = self.args()?;
+        let scale = scale_for(self.model, dry_run, "current <MILLIAMPS>")?;
+        let steps = target_steps(&args, scale)?;
+        Ok((args, steps))
+    }
+}
+
+impl Operation for Current {
+    const OP: &'static str = "whj.current";
+    const FAMILY: Family = Family::Whj;
+    const DOC: OpDoc = OpDoc {
+        args: "`joint`, `milliamps` (±30000), `duration`, `model`, `on_stop`",
+        report: TARGET_REPORT,
+        confirm: "-",
+    };
+    type Row = JointRow<TargetReport>;
+    type Summary = ();
+
+    fn bus(&self) -> Option<&str> {
+        self.bus.as_deref()
+    }
+
+    fn effect(&self) -> Effect {
+        Effect::Motion
+    }
+
+    fn moved(&self) -> Result<Option<Moved>, OpError> {
+        let (args, _) = self.steps(false)?;
+        Ok(Some(moved(
+            self.bus(),
+            vec![args.joint.get()],
+            ServoLoop::Current,
+        )))
+    }
+
+    fn check(&self) -> Result<Confirm, OpError> {
+        self.steps(false).map(|_| Confirm::NONE)
+    }
+
+    fn plan(&self, _baud: BaudRate) -> Result<Plan, OpError> {
+        let (_, steps) = self.steps(true)?;
+        Ok(plan_of(Self::OP, steps, true, Confirm::NONE))
+    }
+
+    fn run(&self, cx: &mut RunCx<'_, '_>) -> Result<Report<Self::Row, ()>, OpError> {
+        let (args, _) = self.steps(false)?;
+        run_target(Self::OP, self.bus(), &args, self.on_stop, cx)
+    }
+}
