@@ -11,9 +11,9 @@
 //!    is its own operator (Python: armed unless its caller disarms). A guard also refuses
 //!    a change from a session that does not control.
 //! 3. **The write rate.** At most [`WRITES_PER_MINUTE`] requests whose plan writes
-//!    non-volatile memory (the plan's [`ConfirmClass`] is not `None`: EEPROM, flash, IDs,
-//!    the `confirm` registers) within any [`WRITE_WINDOW`]: they wear the devices'
-//!    memory. A refused write is not counted.
+//!    non-volatile memory (the plan's [`ConfirmClass`], as the operation's own check
+//!    says it, is not `None`: EEPROM, flash, IDs, the `confirm` registers) within any
+//!    [`WRITE_WINDOW`]: they wear the devices' memory. A refused write is not counted.
 //!
 //! The clock is injected ([`Clock`]): the front ends run on [`WallClock`], the tests on a
 //! [`ManualClock`].
@@ -25,7 +25,7 @@ use std::time::{Duration, Instant};
 
 use super::guard::Guard;
 use crate::catalogue::bounds::ConfirmClass;
-use crate::catalogue::{self, Effect, Family, Request};
+use crate::catalogue::{Effect, Family, Request};
 use crate::ops::OpError;
 
 /// Non-volatile writes admitted within one [`WRITE_WINDOW`].
@@ -311,12 +311,14 @@ impl Admission {
             })?;
         }
         if effect != Effect::Read {
-            let plan = catalogue::plan(&request).map_err(|e| Refusal {
+            // The class the plan carries, found without a station (a WHJ current target's
+            // plan needs the joint's model; its class does not).
+            let confirm = request.operation().check().map_err(|e| Refusal {
                 kind: RefusalKind::BadInput,
                 error: e,
                 retry_after: None,
             })?;
-            if plan.confirm != ConfirmClass::None {
+            if confirm.class != ConfirmClass::None {
                 self.count_write(&op)?;
             }
         }

@@ -85,6 +85,21 @@ fn what_the_plan_calls_a_confirmed_write_is_counted_and_nothing_else() {
         RefusalKind::RateLimited
     );
     a.admit(Arming::Local, req(MOVE)).unwrap();
+    // A current target, whose plan needs the joint's model, is a motion and no write.
+    a.admit(
+        Arming::Local,
+        req(r#"{"op":"whj.current","joint":3,"milliamps":100}"#),
+    )
+    .unwrap();
+    // A request that does not validate is bad input, whatever the window.
+    let bad = a
+        .admit(
+            Arming::Local,
+            req(r#"{"op":"wck.set-id","id":40,"new_id":3}"#),
+        )
+        .unwrap_err();
+    assert_eq!(bad.kind, RefusalKind::BadInput);
+    assert_eq!(bad.error.kind(), ErrorKind::BadInput);
 }
 
 #[test]
