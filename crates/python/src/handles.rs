@@ -181,6 +181,10 @@ impl NativeWckServos {
     /// Moves each servo (one position command each), every value checked first.
     fn move_to(&self, py: Python<'_>, positions: Vec<f64>, torque: u8) -> PyResult<Py<PyAny>> {
         self.life.check(py, "WckServos.move")?;
+        self.life
+            .admission
+            .check_motion(robobus::frontend::Arming::Local, "WckServos.move")
+            .map_err(|r| op_error(py, &r.error))?;
         let rows = py
             .detach(|| self.inner.move_to(&positions, torque))
             .map_err(|e| op_error(py, &e))?;
@@ -190,6 +194,10 @@ impl NativeWckServos {
     /// One synchronized position packet for servos 0..N-1.
     fn sync_move(&self, py: Python<'_>, positions: Vec<f64>, torque: u8) -> PyResult<()> {
         self.life.check(py, "WckServos.sync_move")?;
+        self.life
+            .admission
+            .check_motion(robobus::frontend::Arming::Local, "WckServos.sync_move")
+            .map_err(|r| op_error(py, &r.error))?;
         py.detach(|| self.inner.sync_move(&positions, torque))
             .map_err(|e| op_error(py, &e))
     }
@@ -197,6 +205,10 @@ impl NativeWckServos {
     /// Makes each servo passive; each one's position, as columns.
     fn passive(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
         self.life.check(py, "WckServos.passive")?;
+        self.life
+            .admission
+            .check_change("WckServos.passive")
+            .map_err(|r| op_error(py, &r.error))?;
         let rows = py
             .detach(|| self.inner.passive())
             .map_err(|e| op_error(py, &e))?;
@@ -245,6 +257,10 @@ impl NativeWhjJoints {
     /// One `mode` servo frame per joint; each joint's feedback, as columns.
     fn command(&self, py: Python<'_>, mode: &str, targets: Vec<f64>) -> PyResult<Py<PyAny>> {
         self.life.check(py, "WhjJoints.command")?;
+        self.life
+            .admission
+            .check_motion(robobus::frontend::Arming::Local, "WhjJoints.command")
+            .map_err(|r| op_error(py, &r.error))?;
         let servo = servo_loop(py, mode)?;
         let rows = py
             .detach(|| self.inner.command(servo, &targets))

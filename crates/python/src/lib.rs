@@ -93,20 +93,13 @@ fn to_py(py: Python<'_>, value: &impl serde::Serialize) -> PyResult<Py<PyAny>> {
     from_json(py, &text)
 }
 
-/// A request from a dict (or its JSON text): bad input naming what is wrong.
+/// A request from a dict (or its JSON text): the library's one parser, its wording.
 fn request(py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<Request> {
     let text = match value.extract::<String>() {
         Ok(s) => s,
         Err(_) => to_json(py, value)?,
     };
-    serde_json::from_str(&text).map_err(|e| {
-        raise(
-            py,
-            ErrorKind::BadInput,
-            &format!("request: {e}; nothing was sent"),
-            None,
-        )
-    })
+    robobus::frontend::parse::request_text(&text).map_err(|e| op_error(py, &e))
 }
 
 /// A job the main thread hands to its worker.
@@ -200,10 +193,10 @@ impl NativeStation {
             .ok_or_else(|| closed_error(py, call))
     }
 
-    fn wrap(station: robobus::station::Station) -> Self {
+    fn wrap(station: robobus::station::Station, read_only: bool) -> Self {
         Self {
             station: Mutex::new(Some(Arc::new(station))),
-            life: Life::new(),
+            life: Life::new(read_only),
         }
     }
 
@@ -295,16 +288,18 @@ fn without_gil(f: impl FnOnce() + Send) {
 impl NativeStation {
     /// The built-in simulated robot, in-process.
     #[staticmethod]
-    fn simulated(py: Python<'_>) -> PyResult<Self> {
+    #[pyo3(signature = (read_only = false))]
+    fn simulated(py: Python<'_>, read_only: bool) -> PyResult<Self> {
         let s = py
             .detach(robobus::station::Station::simulated)
             .map_err(|e| op_error(py, &e))?;
-        Ok(Self::wrap(s))
+        Ok(Self::wrap(s, read_only))
     }
 
     /// Opens wCK ports, WHJ buses and a robot file from the CLI's address strings.
     #[staticmethod]
-    #[pyo3(signature = (wck_ports, whj_buses, robot, wck_baud, reply_margin_ms, wait = "sleep"))]
+    #[pyo3(signature = (wck_ports, whj_buses, robot, wck_baud, reply_margin_ms, wait = "sleep", read_only = false))]
+    #[allow(clippy::too_many_arguments)]
     fn open(
         py: Python<'_>,
         wck_ports: Vec<String>,
@@ -313,6 +308,7 @@ impl NativeStation {
         wck_baud: u32,
         reply_margin_ms: Option<f64>,
         wait: &str,
+        read_only: bool,
     ) -> PyResult<Self> {
         let wait: robobus::WaitMode = wait.parse().map_err(|e: robobus::WaitModeError| {
             raise(py, ErrorKind::BadInput, &format!("wait: {e}"), None)
@@ -351,7 +347,36 @@ impl NativeStation {
         let s = py
             .detach(|| robobus::station::Station::open(&config))
             .map_err(|e| op_error(py, &e))?;
-        Ok(Self::wrap(s))
+        Ok(Self::wrap(s, read_only))
+    }
+
+    /// Arms: motion requests, moves of handles and cyclic loops run (a station opened
+    /// without `read_only` starts armed).
+    fn arm(&self, py: Python<'_>) -> PyResult<()> {
+        self.life.check(py, "Station.arm")?;
+        self.life
+            .admission
+            .arm()
+            .map_err(|r| op_error(py, &r.error))
+    }
+
+    /// Disarms: motion is refused until `arm`.
+    fn disarm(&self, py: Python<'_>) -> PyResult<()> {
+        self.life.check(py, "Station.disarm")?;
+        self.life.admission.disarm();
+        Ok(())
+    }
+
+    /// Whether motion is armed.
+    #[getter]
+    fn armed(&self) -> bool {
+        self.life.admission.armed()
+    }
+
+    /// Whether it was opened read-only.
+    #[getter]
+    fn read_only(&self) -> bool {
+        self.life.admission.read_only()
     }
 
     /// Runs one request (a dict in the catalogue's JSON form) and returns its report.
@@ -359,8 +384,15 @@ impl NativeStation {
         let req = request(py, request_obj)?;
         let call = format!("Station.run({})", req.op());
         self.life.check(py, &call)?;
-        // Checked before anything is opened or sent, as `robobus run` does.
+        // Checked before anything is opened or sent, as `robobus run` does; then
+        // admitted (read-only, arming, the write rate) as every front end admits it.
         catalogue::validate(&req).map_err(|e| op_error(py, &e))?;
+        let req = self
+            .life
+            .admission
+            .admit(robobus::frontend::Arming::Local, req)
+            .map_err(|r| op_error(py, &r.error))?
+            .into_request();
         let station = self.get(py, &call)?;
         let stop = StopToken::new();
         // Stopped by a `close` on another thread.
@@ -401,11 +433,8 @@ impl NativeStation {
     #[staticmethod]
     fn plan(py: Python<'_>, request_obj: &Bound<'_, PyAny>) -> PyResult<Py<PyAny>> {
         let req = request(py, request_obj)?;
-        let plan = catalogue::plan(&req).map_err(|e| op_error(py, &e))?;
-        let mut value = serde_json::to_value(&plan)
-            .map_err(|e| PyRuntimeError::new_err(format!("serialising a plan: {e}")))?;
-        value["text"] = serde_json::Value::String(plan.to_text().to_owned());
-        to_py(py, &value)
+        let view = robobus::frontend::PlanView::of(&req).map_err(|e| op_error(py, &e))?;
+        to_py(py, &view)
     }
 
     /// The names of the wCK ports and the WHJ buses.
@@ -455,6 +484,11 @@ impl NativeStation {
     ) -> PyResult<NativeCyclic> {
         let call = "Station.cyclic";
         let servo = handles::servo_loop(py, mode)?;
+        self.life.check(py, call)?;
+        self.life
+            .admission
+            .check_motion(robobus::frontend::Arming::Local, call)
+            .map_err(|r| op_error(py, &r.error))?;
         let station = self.get(py, call)?;
         let l = py
             .detach(move || {

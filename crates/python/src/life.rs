@@ -49,6 +49,9 @@ pub(crate) struct Life {
     /// held by one of the parent's threads.
     closed: AtomicBool,
     state: Mutex<State>,
+    /// Read-only, arming and the write rate: the library's one admission, for the
+    /// station and everything made from it.
+    pub(crate) admission: robobus::frontend::Admission,
 }
 
 /// A request under way, registered until it is dropped.
@@ -64,12 +67,25 @@ impl Drop for Running<'_> {
 }
 
 impl Life {
-    /// A station opened now, in this process.
-    pub(crate) fn new() -> Arc<Self> {
+    /// A station opened now, in this process: armed unless `read_only` (a script is its
+    /// own operator; it disarms with `Station.disarm()`).
+    pub(crate) fn new(read_only: bool) -> Arc<Self> {
+        let admission = robobus::frontend::Admission::new(
+            robobus::frontend::FrontEnd {
+                name: "this station".into(),
+                read_only_how: "opened with read_only=True".into(),
+                arm_how: "station.arm()".into(),
+            },
+            read_only,
+        );
+        if !read_only {
+            let _ = admission.arm();
+        }
         Arc::new(Self {
             pid: std::process::id(),
             closed: AtomicBool::new(false),
             state: Mutex::new(State::default()),
+            admission,
         })
     }
 

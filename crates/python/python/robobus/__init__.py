@@ -246,11 +246,12 @@ class Station:
         self.host = _Family(self, "host")
 
     @classmethod
-    def simulated(cls) -> "Station":
+    def simulated(cls, *, read_only: bool = False) -> "Station":
         """The built-in simulated robot, in-process: 16 wCK servos (IDs 0..=15) on the
         bus ``sim-wck``, 7 WHJ30 joints (IDs 1..=7) on ``sim-whj``, and a robot file
-        naming them ``s0``..``s15`` and ``j1``..``j7``. No pty, no network."""
-        return cls(NativeStation.simulated())
+        naming them ``s0``..``s15`` and ``j1``..``j7``. No pty, no network.
+        ``read_only``: see :meth:`open`."""
+        return cls(NativeStation.simulated(read_only))
 
     @classmethod
     def open(
@@ -262,6 +263,7 @@ class Station:
         wck_baud: int = 115200,
         reply_margin_ms: float | None = None,
         wait: str = "sleep",
+        read_only: bool = False,
     ) -> "Station":
         """Opens wCK serial ports (at ``wck_baud``), WHJ buses (``udp``,
         ``udp:GROUP:PORT``, a SocketCAN interface) and a robot file's buses, from the
@@ -269,13 +271,18 @@ class Station:
         Requests name a bus under ``bus`` when the station has several of a family.
         ``wait`` is the command line's ``--wait``: ``"sleep"`` (in the kernel), or
         ``"spin"`` / ``"spin:US"`` (poll from shortly before each reply is due: lower
-        latency, a core busy while a reply is awaited)."""
+        latency, a core busy while a reply is awaited).
+
+        Every station admits requests as the studio and the bridge do: at most 10
+        EEPROM / flash / ID writes a minute, motion only while armed (a station starts
+        armed: :meth:`disarm` and :meth:`arm`), and with ``read_only=True`` only reading
+        requests (it never arms); a refusal raises :class:`RefusedError`, nothing sent."""
         if isinstance(wck_ports, str):
             wck_ports = [wck_ports]
         if isinstance(whj_buses, str):
             whj_buses = [whj_buses]
         native = NativeStation.open(
-            list(wck_ports), list(whj_buses), robot, wck_baud, reply_margin_ms, wait
+            list(wck_ports), list(whj_buses), robot, wck_baud, reply_margin_ms, wait, read_only
         )
         return cls(native)
 
@@ -306,6 +313,25 @@ class Station:
     def closed(self) -> bool:
         """Whether it is closed."""
         return self._native.closed
+
+    @property
+    def armed(self) -> bool:
+        """Whether motion is armed (moves, waves, handles' moves, cyclic loops)."""
+        return self._native.armed
+
+    @property
+    def read_only(self) -> bool:
+        """Whether it was opened ``read_only``: only reading requests run."""
+        return self._native.read_only
+
+    def arm(self) -> None:
+        """Arms motion again after :meth:`disarm` (refused on a read-only station)."""
+        self._native.arm()
+
+    def disarm(self) -> None:
+        """Disarms: every motion request, handle move and cyclic loop is refused
+        (:class:`RefusedError`, nothing sent) until :meth:`arm`."""
+        self._native.disarm()
 
     def telemetry(
         self,
