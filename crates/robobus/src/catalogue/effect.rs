@@ -5,12 +5,8 @@
 
 use serde::Serialize;
 
-use super::{Family, Request, wck, whj};
-use robobus_wck::ServoId;
-use robobus_whj::JointId;
-
+use super::Family;
 use crate::ops::whj::ServoLoop;
-use crate::ops::{ListId, OpError};
 
 /// What a request does to its devices.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -52,152 +48,10 @@ pub struct Moved {
     pub servo: ServoLoop,
 }
 
-impl Request {
-    /// What the request does to its devices (for an operation not yet in a file of its
-    /// own).
-    pub(super) const fn legacy_effect(&self) -> Effect {
-        match self {
-            Self::WckMove(_)
-            | Self::WckMove10(_)
-            | Self::WckSyncMove(_)
-            | Self::WckWheel(_)
-            | Self::WckPlay(_)
-            | Self::WckTeach(_)
-            | Self::WckTune(_)
-            // An uploaded program starts at once: the servo runs it by itself.
-            | Self::WckProgramUpload(_)
-            | Self::WhjEnable(_)
-            | Self::WhjMove(_)
-            | Self::WhjSpeed(_)
-            | Self::WhjCurrent(_)
-            | Self::WhjWave(_)
-            | Self::RobotTeleop(_)
-            | Self::RobotPlay(_)
-            // Limp joints: an arm falls unless held.
-            | Self::RobotTeach(_) => Effect::Motion,
-            Self::WckPassive(_)
-            | Self::WckBrake(_)
-            | Self::WckSet(_)
-            | Self::WckSetId(_)
-            | Self::WckSetBaud(_)
-            | Self::WhjDisable(_)
-            | Self::WhjMode(_)
-            | Self::WhjZero(_)
-            | Self::WhjClear(_)
-            | Self::WhjSave(_)
-            | Self::WhjWrite(_)
-            | Self::WhjSetId(_)
-            | Self::WhjSetRates(_)
-            | Self::WhjRestore(_)
-            | Self::WckRestore(_)
-            // wCK servos made passive while the joints are moved by hand.
-            | Self::RobotCalibrate(_) => Effect::Configure,
-            Self::WckScan(_)
-            | Self::WckStatus(_)
-            | Self::WckRead10(_)
-            | Self::WckGet(_)
-            | Self::WckProgramDownload(_)
-            | Self::WckProgramCheck(_)
-            | Self::WckSample(_)
-            | Self::WhjScan(_)
-            | Self::WhjInfo(_)
-            | Self::WhjStatus(_)
-            | Self::WhjRegisters(_)
-            | Self::WhjReleaseIap(_)
-            | Self::WhjRead(_)
-            | Self::WhjSample(_)
-            | Self::WhjBackup(_)
-            | Self::WhjDefaults(_)
-            | Self::WhjCanHealth(_)
-            | Self::WhjDiff(_)
-            | Self::WckBackup(_)
-            | Self::WckDiff(_)
-            | Self::RobotSample(_)
-            | Self::HostPorts(_) => Effect::Read,
-            #[cfg(test)]
-            Self::TestEcho(_) => Effect::Read,
-            Self::WhjEndBoard(r) => match (r.action, r.volts) {
-                (super::whj::EndBoardAction::Status | super::whj::EndBoardAction::Force, _) => {
-                    Effect::Read
-                }
-                // Power on for a tool can make it move (a gripper).
-                (super::whj::EndBoardAction::Power, Some(v)) if v > 0 => Effect::Motion,
-                _ => Effect::Configure,
-            },
-        }
-    }
-
-    /// The devices a [`Effect::Motion`] request sets moving (`None` for any other
-    /// request), validated as a run validates them.
-    #[allow(clippy::result_large_err)] // OpError carries the client errors by value
-    pub(super) fn legacy_moved(&self) -> Result<Option<Moved>, OpError> {
-        let wck = |ids: Vec<u8>| Moved {
-            family: Family::Wck,
-            bus: self.bus().map(str::to_owned),
-            ids,
-            servo: ServoLoop::Position,
-        };
-        let whj = |ids: Vec<u8>, servo| Moved {
-            family: Family::Whj,
-            bus: self.bus().map(str::to_owned),
-            ids,
-            servo,
-        };
-        let one = |id: u32| vec![u8::try_from(id).unwrap_or(u8::MAX)];
-        super::validate(self)?;
-        Ok(Some(match self {
-            Self::WckMove(r) => wck(one(r.id)),
-            Self::WckMove10(r) => wck(one(r.id)),
-            Self::WckWheel(r) => wck(one(r.id)),
-            Self::WckTune(r) => wck(one(r.id)),
-            Self::WckProgramUpload(r) => wck(one(r.id)),
-            Self::WckSyncMove(r) => wck(count(r.positions.len())),
-            Self::WckTeach(r) => wck(ids::<ServoId>(&r.ids, "ids")?),
-            Self::WckPlay(_) => {
-                let prepared = wck::prepare(self, robobus_wck::BaudRate::B115200)?;
-                let wck::Job::Play(motion, ..) = prepared.job else {
-                    return Ok(None);
-                };
-                let servos = motion.frames.iter().filter_map(|f| match f {
-                    crate::ops::wck::Frame::Pose(p) => Some(p.positions.len()),
-                    crate::ops::wck::Frame::Hold(_) => None,
-                });
-                wck(count(servos.max().unwrap_or(0)))
-            }
-            Self::WhjEnable(r) => whj(ids::<JointId>(&r.joints, "joints")?, ServoLoop::Position),
-            Self::WhjMove(r) => whj(one(r.joint), ServoLoop::Position),
-            Self::WhjSpeed(r) => whj(one(r.joint), ServoLoop::Speed),
-            Self::WhjCurrent(r) => whj(one(r.joint), ServoLoop::Current),
-            Self::WhjWave(r) => whj(
-                one(r.joint),
-                match r.mode {
-                    whj::WaveMode::Position => ServoLoop::Position,
-                    whj::WaveMode::Speed => ServoLoop::Speed,
-                    whj::WaveMode::Current => ServoLoop::Current,
-                },
-            ),
-            _ => return Ok(None),
-        }))
-    }
-}
-
-/// Servos `0..n`.
-fn count(n: usize) -> Vec<u8> {
-    (0..n).filter_map(|i| u8::try_from(i).ok()).collect()
-}
-
-#[allow(clippy::result_large_err)] // OpError carries the client errors by value
-fn ids<T: ListId>(list: &super::args::Ids, option: &str) -> Result<Vec<u8>, OpError> {
-    list.parse::<T>(option).map(|v| {
-        v.into_iter()
-            .filter_map(|i| u8::try_from(i.raw()).ok())
-            .collect()
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::catalogue::Request;
 
     fn req(json: &str) -> Request {
         serde_json::from_str(json).unwrap()

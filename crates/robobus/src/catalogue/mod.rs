@@ -48,7 +48,6 @@ pub mod effect;
 #[cfg(test)]
 mod fixture;
 pub mod host;
-mod legacy;
 pub mod operation;
 pub mod plan;
 pub mod registry;
@@ -66,7 +65,7 @@ use registry::registry;
 pub use crate::error::ErrorKind;
 pub use dispatch::{confirmation, plan, plan_at, run, run_typed, run_with, validate};
 pub use effect::{Effect, Moved};
-pub use legacy::GONE_AFTER;
+pub use whj::GONE_AFTER;
 pub use operation::{Confirm, Interaction, NoInteraction, OpDoc, Report, RunCx};
 pub use plan::{Family, Plan, PlanStep};
 pub use registry::{DynOperation, OpInfo};

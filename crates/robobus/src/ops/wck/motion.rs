@@ -55,11 +55,12 @@ const MAX_MS: u32 = 600_000;
 
 /// One keyframe: positions of servos `0..n` and the time to get there; serialized as
 /// `{"ms", "positions": [0..=254, ...]}`.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, schemars::JsonSchema)]
 pub struct Pose {
     /// Transition time from the previous pose, ms.
     pub ms: u32,
     /// Positions of servos 0, 1, ...
+    #[schemars(with = "Vec<u8>")]
     pub positions: Vec<Position>,
 }
 

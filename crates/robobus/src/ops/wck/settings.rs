@@ -31,10 +31,11 @@ pub const WCK_SETTINGS_FILE_LIMIT: u64 = 64 << 10;
 
 /// A servo's settings, as a settings file holds them (raw values as the manual gives
 /// them).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct WckSettings {
     /// Always [`WCK_SETTINGS_FORMAT`].
     #[serde(with = "format_tag")]
+    #[schemars(schema_with = "format_tag::schema")]
     pub format: (),
     /// The file format's version ([`WCK_SETTINGS_VERSION`]).
     pub version: u32,
@@ -67,6 +68,11 @@ mod format_tag {
         s.serialize_str(super::WCK_SETTINGS_FORMAT)
     }
 
+    /// The schema of the field: the one text it holds.
+    pub(super) fn schema(_: &mut schemars::SchemaGenerator) -> schemars::Schema {
+        schemars::json_schema!({"type": "string", "const": super::WCK_SETTINGS_FORMAT})
+    }
+
     pub(super) fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<(), D::Error> {
         let s = String::deserialize(d)?;
         if s == super::WCK_SETTINGS_FORMAT {
@@ -81,7 +87,7 @@ mod format_tag {
 }
 
 /// One group of settings on which two documents differ.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, schemars::JsonSchema)]
 pub struct WckSettingDiff {
     /// The group: `gains`, `i_gain`, `speed`, `overload` or `bounds`.
     pub setting: &'static str,
@@ -92,7 +98,7 @@ pub struct WckSettingDiff {
 }
 
 /// What a restore did with one group that differed.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, schemars::JsonSchema)]
 pub struct WckRestoreStep {
     /// The group.
     pub setting: &'static str,

@@ -57,7 +57,7 @@ pub const AT_REST: Duration = Duration::from_millis(300);
 pub const RETURN_LIMIT: Duration = Duration::from_secs(3);
 
 /// What to do with the best gain set.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, schemars::JsonSchema)]
 #[serde(rename_all = "kebab-case")]
 pub enum Keep {
     /// Nothing: the runtime gains go back to the EEPROM's.
@@ -123,7 +123,7 @@ impl TuneArgs {
 }
 
 /// The response to one gain set.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, schemars::JsonSchema)]
 pub struct StepResponse {
     /// P gain.
     pub p: u8,
@@ -142,7 +142,7 @@ pub struct StepResponse {
 }
 
 /// What [`tune`] measured.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, schemars::JsonSchema)]
 pub struct TuneReport {
     /// Where the steps started, position steps.
     pub start: u8,
