@@ -97,6 +97,29 @@ pub fn run_steps<L: ByteLink>(
     plan: &WckPlan,
     control: &mut Control<'_>,
 ) -> Result<StepsReport, OpError> {
+    let results = run_steps_with(bus, command, plan, control, target_value, |c, reply| {
+        Ok(reply_fields(c, reply))
+    })?;
+    Ok(StepsReport {
+        port: bus.device().to_string(),
+        baud: bus.baud().bits_per_second(),
+        command,
+        results,
+    })
+}
+
+/// [`run_steps`] with each result's ID and row made by the caller: `id` from the step's
+/// command, `row` from the command and its reply (a row it cannot make of that reply is
+/// the servo's failure).
+#[allow(clippy::result_large_err)] // OpError carries the client errors by value
+pub fn run_steps_with<L: ByteLink, I, T>(
+    bus: &mut WckBus<L>,
+    command: &'static str,
+    plan: &WckPlan,
+    control: &mut Control<'_>,
+    id: impl Fn(&Command) -> I,
+    mut row: impl FnMut(&Command, Option<Reply>) -> Result<T, Failure>,
+) -> Result<Vec<DeviceResult<I, T>>, OpError> {
     let mut results = Vec::with_capacity(plan.steps.len());
     let total = plan.steps.len() as u64;
     for (n, step) in plan.steps.iter().enumerate() {
@@ -106,20 +129,18 @@ pub fn run_steps<L: ByteLink>(
         if let Some(b) = step.baud {
             bus.set_host_baud(b)?;
         }
-        let id = target_value(&step.command);
+        let id = id(&step.command);
         match bus.execute(&step.command) {
-            Ok(reply) => results.push(DeviceResult::ok(id, reply_fields(&step.command, reply))),
+            Ok(reply) => results.push(match row(&step.command, reply) {
+                Ok(r) => DeviceResult::ok(id, r),
+                Err(f) => DeviceResult::failed(id, f),
+            }),
             Err(e) if e.kind() == ErrorKind::Link => return Err(e.into()),
             Err(e) => results.push(DeviceResult::failed(id, Failure::from(&e))),
         }
         control.report(&Progress::new(command, n as u64 + 1, Some(total)));
     }
-    Ok(StepsReport {
-        port: bus.device().to_string(),
-        baud: bus.baud().bits_per_second(),
-        command,
-        results,
-    })
+    Ok(results)
 }
 
 /// How many equal replies a read of `plan` needs ([`crate::wck::WckConfig::confirm_reads`]):
@@ -218,7 +239,7 @@ impl ScanArgs {
 }
 
 /// A servo found by [`scan`].
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, schemars::JsonSchema)]
 pub struct Found {
     /// Its ID.
     pub id: u8,
@@ -245,7 +266,7 @@ impl From<&FoundServo> for Found {
 }
 
 /// An ID answered by more than one module (confirmed by repeated probes).
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, schemars::JsonSchema)]
 pub struct SharedId {
     /// The ID.
     pub id: u8,
@@ -521,7 +542,7 @@ pub fn wheel<L: ByteLink>(
 
 /// The report of [`play`]: `{"port", "command": "play", "moves", "sent", "planned_ms",
 /// "duration_ms", "last_positions"}`.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, schemars::JsonSchema)]
 pub struct PlayReport {
     /// The port.
     pub port: String,

@@ -1,0 +1,83 @@
+//! `wck.passive` (A-1 (4)): release the torque of servos; each replies its position.
+
+use robobus_wck::{BaudRate, Command, Reply};
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use super::common::{degrees, run_steps};
+use super::{R, each, plan_of};
+use crate::catalogue::args::Ids;
+use crate::catalogue::bounds::ConfirmClass;
+use crate::catalogue::operation::{Confirm, OpDoc, Operation, Report, RunCx};
+use crate::catalogue::{Effect, Family, Plan};
+use crate::ops::DeviceResult;
+use crate::ops::wck::WckPlan;
+
+request!(
+    /// `wck.passive` (A-1 (4)): release the torque; replies the position.
+    Passive { /// Servo IDs.
+        ids: Ids }
+);
+
+/// A passive servo's position.
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
+pub struct PassiveRow {
+    /// Its position, 0..=254.
+    pub position: u8,
+    /// The same in degrees.
+    pub degrees: f64,
+}
+
+impl Passive {
+    /// A passive command per servo.
+    fn steps(&self) -> R<WckPlan> {
+        Ok(each(&self.ids.parse("<IDS>")?, |id| Command::Passive {
+            id,
+        }))
+    }
+}
+
+impl Operation for Passive {
+    const OP: &'static str = "wck.passive";
+    const FAMILY: Family = Family::Wck;
+    const DOC: OpDoc = OpDoc {
+        args: "`ids`",
+        report: "per servo: `position`, `degrees`",
+        confirm: "-",
+    };
+    type Row = DeviceResult<u8, PassiveRow>;
+    type Summary = ();
+
+    fn bus(&self) -> Option<&str> {
+        self.bus.as_deref()
+    }
+
+    fn effect(&self) -> Effect {
+        Effect::Configure
+    }
+
+    fn check(&self) -> R<Confirm> {
+        self.steps().map(|_| Confirm::NONE)
+    }
+
+    fn plan(&self, baud: BaudRate) -> R<Plan> {
+        Ok(plan_of(Self::OP, &self.steps()?, baud, ConfirmClass::None))
+    }
+
+    fn run(&self, cx: &mut RunCx<'_, '_>) -> R<Report<Self::Row, ()>> {
+        run_steps(
+            cx,
+            Self::OP,
+            self.bus(),
+            "passive",
+            &self.steps()?,
+            |_, reply| match reply? {
+                Reply::Passive { position } => Some(PassiveRow {
+                    position: position.get(),
+                    degrees: degrees(position),
+                }),
+                _ => None,
+            },
+        )
+    }
+}
