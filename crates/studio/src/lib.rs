@@ -382,7 +382,7 @@ impl Studio {
             let _ = notify.send(Event::Control);
         })
         .map_err(StudioError::Start)?;
-        let gate = security::Gate::new(addr, config.token.clone());
+        let gate = security::Gate::new(addr, config.token);
         let admission = Admission::new(
             FrontEnd {
                 name: "this studio".into(),

@@ -2,6 +2,8 @@
 //! rate, arming, read-only), the one parser's wording, the one plan view, and the gate
 //! on every group of routes.
 
+#![allow(clippy::unwrap_used)] // test helpers: a failed unwrap is a failed test
+
 use std::io::{Read as _, Write as _};
 use std::net::TcpStream;
 use std::time::Duration;

@@ -298,10 +298,10 @@ impl Admission {
         let effect = request.effect();
         let op = request.op();
         if effect != Effect::Read {
-            self.check_change(&op)?;
+            self.check_change(op)?;
         }
         if effect == Effect::Motion && !self.is_armed(arming) {
-            return Err(self.not_armed(&op));
+            return Err(self.not_armed(op));
         }
         if let Arming::Guard { guard, session } = arming {
             guard.admit(session, &request).map_err(|e| Refusal {
@@ -319,7 +319,7 @@ impl Admission {
                 retry_after: None,
             })?;
             if confirm.class != ConfirmClass::None {
-                self.count_write(&op)?;
+                self.count_write(op)?;
             }
         }
         Ok(Admitted(request))
