@@ -77,93 +77,96 @@ fn row_set(names: &[&str]) -> BTreeSet<String> {
     s
 }
 
+/// Each robot operation: its rows' fields (beside `id`, or `kind` and `error`) and its
+/// summary's.
+const ROBOT_FIELDS: &[(&str, &[&str], &[&str])] = &[
+    (
+        "robot.sample",
+        &[
+            "position_deg",
+            "speed_deg_s",
+            "current_ma",
+            "effort_nm",
+            "load",
+            "enabled",
+        ],
+        &[],
+    ),
+    (
+        "robot.calibrate",
+        &[
+            "samples",
+            "failed",
+            "min_deg",
+            "max_deg",
+            "zero_deg",
+            "offset_before_rad",
+            "offset_rad",
+            "limits_before_rad",
+            "limits_rad",
+        ],
+        &["readings", "interrupted"],
+    ),
+    (
+        "robot.play",
+        &[
+            "commands",
+            "failed",
+            "limited",
+            "start_deg",
+            "target_deg",
+            "position_deg",
+            "tracking_max_deg",
+            "tracking_rms_deg",
+        ],
+        &[
+            "lead_in_s",
+            "duration_s",
+            "ticks",
+            "overruns",
+            "buses",
+            "skew_ms",
+            "late_ms",
+            "interrupted",
+            "safe_state",
+        ],
+    ),
+    (
+        "robot.teach",
+        &["samples", "failed", "min_deg", "max_deg", "ended"],
+        &["trajectory", "points", "dropped", "readings", "interrupted"],
+    ),
+    (
+        "robot.teleop",
+        &[
+            "leader",
+            "commands",
+            "limited",
+            "failed",
+            "target_deg",
+            "position_deg",
+            "tracking_max_deg",
+            "tracking_rms_deg",
+        ],
+        &[
+            "cycles",
+            "commanded",
+            "held",
+            "overruns",
+            "seconds",
+            "rate_hz",
+            "latency_ms",
+            "leaders",
+            "leader_lost",
+            "interrupted",
+            "safe_state",
+        ],
+    ),
+];
+
 #[test]
 fn the_report_schema_names_each_robot_and_host_operations_row_and_summary_fields() {
-    let cases: &[(&str, &[&str], &[&str])] = &[
-        (
-            "robot.sample",
-            &[
-                "position_deg",
-                "speed_deg_s",
-                "current_ma",
-                "effort_nm",
-                "load",
-                "enabled",
-            ],
-            &[],
-        ),
-        (
-            "robot.calibrate",
-            &[
-                "samples",
-                "failed",
-                "min_deg",
-                "max_deg",
-                "zero_deg",
-                "offset_before_rad",
-                "offset_rad",
-                "limits_before_rad",
-                "limits_rad",
-            ],
-            &["readings", "interrupted"],
-        ),
-        (
-            "robot.play",
-            &[
-                "commands",
-                "failed",
-                "limited",
-                "start_deg",
-                "target_deg",
-                "position_deg",
-                "tracking_max_deg",
-                "tracking_rms_deg",
-            ],
-            &[
-                "lead_in_s",
-                "duration_s",
-                "ticks",
-                "overruns",
-                "buses",
-                "skew_ms",
-                "late_ms",
-                "interrupted",
-                "safe_state",
-            ],
-        ),
-        (
-            "robot.teach",
-            &["samples", "failed", "min_deg", "max_deg", "ended"],
-            &["trajectory", "points", "dropped", "readings", "interrupted"],
-        ),
-        (
-            "robot.teleop",
-            &[
-                "leader",
-                "commands",
-                "limited",
-                "failed",
-                "target_deg",
-                "position_deg",
-                "tracking_max_deg",
-                "tracking_rms_deg",
-            ],
-            &[
-                "cycles",
-                "commanded",
-                "held",
-                "overruns",
-                "seconds",
-                "rate_hz",
-                "latency_ms",
-                "leaders",
-                "leader_lost",
-                "interrupted",
-                "safe_state",
-            ],
-        ),
-    ];
-    for &(op, row, summary) in cases {
+    for &(op, row, summary) in ROBOT_FIELDS {
         assert_eq!(report_fields(op), (row_set(row), set(summary)), "{op}");
     }
     // A port's row has no failure: the listing fails whole or not at all.
