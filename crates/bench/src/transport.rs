@@ -73,7 +73,7 @@ pub fn pty_echo(n: usize) -> Result<Summary, BenchError> {
     result.map(|()| Summary::of(&rtt))
 }
 
-/// `n` one-byte round trips over TCP on 127.0.0.1: the client ([`TcpByteLink`], as
+/// `n` one-byte round trips over TCP on 127.0.0.1: the client ([`TcpByteLink`](robobus_link::TcpByteLink), as
 /// `--port socket://...` opens it) writes a byte, an echo thread spinning on the
 /// simulator's side ([`TcpServer`]) writes it back, the client spins until it is in.
 pub fn tcp_echo(n: usize) -> Result<Summary, BenchError> {

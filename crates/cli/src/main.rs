@@ -16,8 +16,8 @@
 //! | [`sim_wck`], [`sim_whj`] | `robobus sim wck`, `robobus sim whj` |
 //!
 //! Cross-cutting pieces: [`exit`] (exit codes and the error kinds that select them),
-//! [`output`] (how `--dry-run` prints packets and frames), [`client`] (the single place
-//! where a planned command meets a device).
+//! [`output`] (how `--dry-run` prints packets and frames), [`report`] (the one place a
+//! subcommand's request meets the station: its confirmation, its run and its report).
 //!
 //! # Exit codes
 //!

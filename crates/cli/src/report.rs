@@ -3,7 +3,7 @@
 //! ([`robobus::catalogue`]).
 //!
 //! A subcommand builds its [`Request`] from its arguments; [`confirm`] asks what the
-//! request's plan says needs asking (or refuses without a terminal), [`execute`] runs it
+//! request's plan says needs asking (or refuses without a terminal), [`run`] runs it
 //! on a station holding the one bus the subcommand opened, with the one stop token and a
 //! progress bar, and renders the [`Report`]: `--json` prints the report itself, the text
 //! form is a table (one row per device or register, columns named like the JSON fields)

@@ -14,7 +14,7 @@
 //!   [`whj_matching`]: seeded streams of honest, late, stray and foreign replies on a
 //!   virtual clock, and every value a read returns must be the honest one);
 //! - no allocation grows beyond the input's size times a small constant
-//!   ([`alloc::CountingAlloc`], [`alloc::check_bounded`]), which the fuzz binaries install.
+//!   ([`alloc::check_bounded`], fed by the allocator the fuzz binaries install).
 //!
 //! The checks are generic where a test must be able to break the checked code on purpose
 //! (`*_with`): the test suite shows each property catches a decoder that skips its

@@ -1,5 +1,5 @@
-//! The native part of the `robobus` Python package: the catalogue's [`Station`], its
-//! dispatcher and its telemetry stream, with requests and reports as Python dicts in the
+//! The native part of the `robobus` Python package: the library's
+//! [`Station`](robobus::station::Station), the catalogue's dispatcher and its telemetry stream, with requests and reports as Python dicts in the
 //! catalogue's JSON form. The Python side (`python/robobus`) adds the methods generated
 //! from the request schema, the exception classes and the type stubs.
 //!

@@ -174,7 +174,8 @@ struct Stream {
 const QUEUE: usize = 256;
 
 impl Stream {
-    /// A paused stream of `request` on `station` (sampling starts with [`Source::begin`]).
+    /// A paused stream of `request` on `station` (sampling starts when the dashboard
+    /// resumes it: [`Telemetry::resume`](robobus::catalogue::Telemetry::resume)).
     fn new(station: Station, request: Request, rate_hz: f64) -> anyhow::Result<Self> {
         let station = Arc::new(station);
         let telemetry = Telemetry::paused(&station, request, rate_hz, None)?;

@@ -10,7 +10,8 @@ use std::time::Duration;
 use robobus::ErrorKind;
 use robobus::catalogue::{Interaction, Report, Request};
 use robobus::ops::OpError;
-use robobus::ops::wck::{MotionWriter, Pose, TeachEvent, ids_text};
+use robobus::ops::ids_text;
+use robobus::ops::wck::{MotionWriter, Pose, TeachEvent};
 use robobus_wck::{ServoId, TorqueLevel};
 
 use crate::exit::usage;

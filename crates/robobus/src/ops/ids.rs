@@ -95,6 +95,30 @@ impl<T: ListId> IdList<T> {
     }
 }
 
+/// `0-2,5`: servo IDs as ranges (what [`IdList`] parses back).
+pub fn ids_text(ids: &[ServoId]) -> String {
+    let mut raw: Vec<u8> = ids.iter().map(|i| i.get()).collect();
+    raw.sort_unstable();
+    raw.dedup();
+    let mut runs: Vec<(u8, u8)> = Vec::new();
+    for id in raw {
+        match runs.last_mut() {
+            Some((_, hi)) if hi.checked_add(1) == Some(id) => *hi = id,
+            _ => runs.push((id, id)),
+        }
+    }
+    runs.iter()
+        .map(|&(lo, hi)| {
+            if lo == hi {
+                lo.to_string()
+            } else {
+                format!("{lo}-{hi}")
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(",")
+}
+
 /// IDs given as numbers (a front end's list, in its order): at least one, each in the
 /// type's range, none twice; `option` and `plural` name them in the refusal
 /// (`ids 31: servo ID 31 is out of range (allowed: 0..=30)`).

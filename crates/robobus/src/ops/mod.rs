@@ -59,7 +59,7 @@ pub use crate::error::ErrorKind;
 use crate::wck::WckError;
 use crate::whj::WhjError;
 pub use bound::Bound;
-pub use ids::{IdList, ListId, distinct_ids};
+pub use ids::{IdList, ListId, distinct_ids, ids_text};
 pub use safe::SafeState;
 
 /// A flag a caller sets to stop a running operation; clones share the flag.

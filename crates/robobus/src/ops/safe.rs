@@ -189,7 +189,7 @@ impl<L: ByteLink> SafeDevices for WckServos<'_, L> {
     }
 
     fn describe(&self) -> String {
-        format!("servo(s) {}", super::wck::ids_text(self.ids))
+        format!("servo(s) {}", super::ids_text(self.ids))
     }
 }
 

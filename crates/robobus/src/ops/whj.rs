@@ -182,9 +182,9 @@ pub use registers::*;
 pub use stream::{SILENT_AFTER, SILENT_FRAMES, STALL_AFTER, check_plan_steps};
 
 pub use broadcast::{
-    BROADCAST_WAVE_MIN_HZ, BroadcastPlan, END_BOARD_WRITE_TEXT, EndBoardArg, EndBoardStatus,
-    SECOND_ANSWER_GUARD, Slot, StatusWithEndBoard, broadcast_read, broadcast_status,
-    broadcast_status_with_end_board, broadcast_window, broadcast_write, connect_for_broadcast,
-    plan_broadcast_read, plan_broadcast_wave, plan_broadcast_write, prepare_broadcast_wave,
-    reply_mask, reply_mask_with, run_broadcast_plan, sample_broadcast,
+    BROADCAST_WAVE_MIN_HZ, BroadcastPlan, EndBoardArg, EndBoardStatus, SECOND_ANSWER_GUARD, Slot,
+    StatusWithEndBoard, broadcast_read, broadcast_status, broadcast_status_with_end_board,
+    broadcast_window, broadcast_write, connect_for_broadcast, plan_broadcast_read,
+    plan_broadcast_wave, plan_broadcast_write, prepare_broadcast_wave, reply_mask, reply_mask_with,
+    run_broadcast_plan, sample_broadcast,
 };

@@ -1,8 +1,8 @@
 //! The built-in simulated robot (feature `sim`): the humanoid of [`SERVOS`] wCK servos
 //! and the arm of [`JOINTS`] WHJ joints of `robobus demo` and
-//! [`Station::simulated`](crate::station::Station::simulated), their robot file
-//! ([`simulated_robot`]), the robot itself as a [`Robot`] (in-process on the wall clock)
-//! and the arm a monitor watches without hardware ([`SimArm`]).
+//! [`Station::simulated`](crate::station::Station::simulated), their robot file, the
+//! robot itself as a [`Robot`] (in-process on the wall clock) and the arm a monitor
+//! watches without hardware ([`SimArm`]).
 
 use robobus_sim::wck::{Bus, BusConfig, Model, SimLink};
 use robobus_wck::BaudRate;

@@ -7,13 +7,12 @@ use std::time::Instant;
 
 use robobus_link::{ByteLink, LinkError, PortSpec, WaitMode};
 use robobus_wck::{
-    BaudRate, Command, DataByte, ExtServoId, Position, Position10, Reply, ServoId, SyncMove,
-    TorqueLevel, timing,
+    BaudRate, Command, DataByte, ExtServoId, Position, Position10, Reply, SyncMove, TorqueLevel,
+    timing,
 };
 
 use super::error::WckError;
 use super::policy::{RetryClass, retry_class};
-use super::servo::Servo;
 mod transaction;
 mod verify;
 
@@ -151,7 +150,7 @@ pub struct WckStats {
 /// A wCK bus: one UART line with up to 31 modules (IDs 0..=30; up to 254 with the
 /// 10-bit commands), owned through its byte link.
 ///
-/// Device handles borrow it: [`WckBus::servo`] gives a [`Servo`] with a typed method per
+/// Device handles borrow it: [`WckBus::servo`] gives a [`Servo`](super::Servo) with a typed method per
 /// command of the manual. Every transaction flushes stale input, writes the packet, and
 /// waits for the reply until the modelled response time plus
 /// [`WckConfig::margin`]. Commands are retried per [`retry_class`].
@@ -395,7 +394,7 @@ impl<L: ByteLink> WckBus<L> {
 
     /// Switches the host side (the link) to `baud`, without telling any module (to talk
     /// to modules already at that rate). To change a module's rate use
-    /// [`Servo::set_baud`].
+    /// [`Servo::set_baud`](super::Servo::set_baud).
     pub fn set_host_baud(&mut self, baud: BaudRate) -> Result<(), WckError> {
         self.link
             .set_baud(baud.bits_per_second())
@@ -450,11 +449,6 @@ impl<L: ByteLink> WckBus<L> {
         self.link.sleep_until(deadline);
     }
 
-    /// A handle on the module with ID `id` (0..=30).
-    pub const fn servo(&mut self, id: ServoId) -> Servo<'_, L> {
-        Servo::new(self, id)
-    }
-
     /// How long the bus waits for the reply to `command`, counted from the moment it
     /// starts writing the packet: [`timing::transaction_time`] at the bus's baud rate
     /// (command and reply wire time plus turnaround, 121 ms for EEPROM writes) plus
@@ -468,7 +462,8 @@ impl<L: ByteLink> WckBus<L> {
     /// collided: see [`WckBus::break_all`]).
     ///
     /// ID and baud changes and motion program uploads are verified as
-    /// [`Servo::set_id`], [`Servo::set_baud`] and [`Servo::upload_program`] describe.
+    /// [`Servo::set_id`](super::Servo::set_id), [`Servo::set_baud`](super::Servo::set_baud)
+    /// and [`Servo::upload_program`](super::Servo::upload_program) describe.
     pub fn execute(&mut self, command: &Command) -> Result<Option<Reply>, WckError> {
         match retry_class(command) {
             RetryClass::Read | RetryClass::Idempotent => {

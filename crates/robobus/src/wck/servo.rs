@@ -69,6 +69,13 @@ pub struct Servo<'a, L> {
     id: ServoId,
 }
 
+impl<L: ByteLink> WckBus<L> {
+    /// A handle on the module with ID `id` (0..=30).
+    pub const fn servo(&mut self, id: ServoId) -> Servo<'_, L> {
+        Servo::new(self, id)
+    }
+}
+
 impl<'a, L: ByteLink> Servo<'a, L> {
     pub(crate) const fn new(bus: &'a mut WckBus<L>, id: ServoId) -> Self {
         Self { bus, id }

@@ -132,7 +132,7 @@ fn failure(name: &str, args: &ScanArgs, r: &ScanOpReport) -> Option<(ErrorKind, 
             format!(
                 "{name}: no servo answered at any of the scanned IDs ({}) at {}; check \
                  power, wiring and the baud rate (--all-bauds tries every rate)",
-                wops::ids_text(&args.ids),
+                crate::ops::ids_text(&args.ids),
                 rates.join(", ")
             ),
         ))

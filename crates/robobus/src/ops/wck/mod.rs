@@ -98,8 +98,8 @@ pub use report::{BREAK_CLEAN, BREAK_COLLIDED, FieldValue, Fields, reply_fields};
 pub use run::{
     ASSUMED_POSITION, Found, PlayReport, ScanArgs, ScanOpReport, SharedId, StepResult, StepsReport,
     TeachArgs, TeachEvent, TeachReport, TeachTrigger, WHEEL_WATCH_PERIOD, WheelArgs, WheelReport,
-    check_rate, confirm_reads_for, ids_text, play, run_steps, run_steps_with, scan, target_value,
-    teach, wheel,
+    check_rate, confirm_reads_for, play, run_steps, run_steps_with, scan, target_value, teach,
+    wheel,
 };
 pub use shared::{SharedServo, SharedWckBus};
 

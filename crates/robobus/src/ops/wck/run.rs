@@ -33,30 +33,6 @@ fn interrupted<L: ByteLink>(
     state.interrupted(&mut WckServos { bus, ids, torque })
 }
 
-/// `0-2,5`: IDs as ranges.
-pub fn ids_text(ids: &[ServoId]) -> String {
-    let mut raw: Vec<u8> = ids.iter().map(|i| i.get()).collect();
-    raw.sort_unstable();
-    raw.dedup();
-    let mut runs: Vec<(u8, u8)> = Vec::new();
-    for id in raw {
-        match runs.last_mut() {
-            Some((_, hi)) if hi.checked_add(1) == Some(id) => *hi = id,
-            _ => runs.push((id, id)),
-        }
-    }
-    runs.iter()
-        .map(|&(lo, hi)| {
-            if lo == hi {
-                lo.to_string()
-            } else {
-                format!("{lo}-{hi}")
-            }
-        })
-        .collect::<Vec<_>>()
-        .join(",")
-}
-
 // ----- one exchange per step -----
 
 /// One servo's row of a [`StepsReport`].

@@ -29,8 +29,8 @@ mod status;
 mod wave;
 
 pub use registers::{
-    BroadcastPlan, END_BOARD_WRITE_TEXT, EndBoardArg, broadcast_read, broadcast_write,
-    plan_broadcast_read, plan_broadcast_write, run_broadcast_plan,
+    BroadcastPlan, EndBoardArg, broadcast_read, broadcast_write, plan_broadcast_read,
+    plan_broadcast_write, run_broadcast_plan,
 };
 pub use status::{
     EndBoardStatus, StatusWithEndBoard, broadcast_status, broadcast_status_with_end_board,

@@ -192,18 +192,6 @@ pub fn prepare_move(j: &Joint<'_>, args: &MoveArgs) -> Result<Plan, OpError> {
     plan_move(args, from, false)
 }
 
-/// When a planned frame went out and how long its exchange took.
-#[derive(Debug, Clone, Copy)]
-pub(super) struct FrameTimes {
-    /// How late after its planned time the frame was handed to the bus.
-    pub(super) late: Duration,
-    /// From handing the frame to the bus to its feedback (`None`: no feedback came).
-    pub(super) round_trip: Option<Duration>,
-    /// Whether its position set-point was held back to the step limit from the joint's
-    /// measured position (the joint lagged further behind the plan than that).
-    pub(super) held_back: bool,
-}
-
 /// The joint's position limits in degrees (what feedback is checked against).
 pub(super) fn degree_limits(j: &Joint<'_>) -> Result<(f64, f64), OpError> {
     let (min, max) = j.position_limits().map_err(whj)?;

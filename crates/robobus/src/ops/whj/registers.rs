@@ -10,8 +10,8 @@ use crate::ops::{Control, OpError, SafeState};
 use crate::whj::{Joint, JointBus};
 
 use super::{
-    FeedbackReport, ServoLoop, broadcast, check_demand, check_id_free, check_reading,
-    degree_limits, interrupted, pause_until, require_ready, speed_fault, stream, whj,
+    FeedbackReport, ServoLoop, check_demand, check_id_free, check_reading, degree_limits,
+    interrupted, pause_until, require_ready, speed_fault, stream, whj,
 };
 
 // ---------------------------------------------------------------------------------------
@@ -130,10 +130,14 @@ pub fn check_write(
     }
 }
 
+/// What an end-board write does, for a confirmation prompt.
+pub const END_BOARD_WRITE_TEXT: &str =
+    "switches what is attached to the tool (power, IO, Modbus) through the end board";
+
 /// The safety class of the register a request writes, if it is a confirm write: what it
 /// does (for a front end's confirmation prompt).
 /// A broadcast register frame: the first confirm write among its slots, or the end
-/// board's write ([`END_BOARD_WRITE_TEXT`](super::END_BOARD_WRITE_TEXT)).
+/// board's write ([`END_BOARD_WRITE_TEXT`]).
 pub fn confirm_text(request: &Request) -> Option<&'static str> {
     use robobus_whj::{RegisterOp, RegisterSlot};
     let of = |addr| match robobus_whj::registers::safety_class(addr) {
@@ -154,7 +158,7 @@ pub fn confirm_text(request: &Request) -> Option<&'static str> {
                     robobus_whj::EndBoardOp::decode(&b.end_board),
                     Some(robobus_whj::EndBoardOp::Write { .. })
                 )
-                .then_some(broadcast::END_BOARD_WRITE_TEXT)
+                .then_some(END_BOARD_WRITE_TEXT)
             }),
         _ => None,
     }

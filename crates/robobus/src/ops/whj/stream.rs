@@ -31,13 +31,23 @@ use robobus_whj::Request;
 use robobus_whj::reply::ServoFeedback;
 use robobus_whj::units::Position;
 
-use super::{
-    FrameTimes, OpError, Plan, PlannedFrame, ServoLoop, broadcast, pause_until, reading_fault, whj,
-};
+use super::{OpError, Plan, PlannedFrame, ServoLoop, broadcast, pause_until, reading_fault, whj};
 use crate::motion::within_step;
 use crate::ops::safe::WhjJoints;
 use crate::ops::{Control, Progress, SafeState};
 use crate::whj::Joint;
+
+/// When a planned frame went out and how long its exchange took.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct FrameTimes {
+    /// How late after its planned time the frame was handed to the bus.
+    pub(super) late: Duration,
+    /// From handing the frame to the bus to its feedback (`None`: no feedback came).
+    pub(super) round_trip: Option<Duration>,
+    /// Whether its position set-point was held back to the step limit from the joint's
+    /// measured position (the joint lagged further behind the plan than that).
+    pub(super) held_back: bool,
+}
 
 /// Frames in a row without feedback before a run counts its joint as silent.
 pub const SILENT_FRAMES: u32 = 3;

@@ -11,8 +11,8 @@ use robobus_whj::{Address, CanFrame, JointId, RegisterAddr, RegisterInfo, Reply,
 
 use super::{Slot, collect, reply_mask_with, scale_of, silent};
 use crate::ops::whj::{
-    RegisterReport, check_joint_write, check_write, confirm_text, register_report, whj,
-    word_reports, write_request,
+    END_BOARD_WRITE_TEXT, RegisterReport, check_joint_write, check_write, confirm_text,
+    register_report, whj, word_reports, write_request,
 };
 use crate::ops::{DeviceResult, ErrorKind, Failure, OpError};
 use crate::whj::{JointBus, RegisterValue};
@@ -48,10 +48,6 @@ pub struct BroadcastPlan {
     /// Notes for a human.
     pub notes: Vec<String>,
 }
-
-/// What an end-board write does, for a confirmation prompt.
-pub const END_BOARD_WRITE_TEXT: &str =
-    "switches what is attached to the tool (power, IO, Modbus) through the end board";
 
 fn end_board_register(addr: u8) -> &'static str {
     EndBoardRegister::by_addr(addr).map_or("(reserved)", |r| r.name)

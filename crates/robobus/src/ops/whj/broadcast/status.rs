@@ -130,7 +130,7 @@ fn status_report(bus: &JointBus, id: JointId, f: &BroadcastFeedback) -> StatusRe
 
 /// Connects joints `ids` before a broadcast (IAP releases pipelined, identities read for
 /// their current scales), waiting for them only as long as one point-to-point request
-/// waits with its retries ([`connect_budget`]), not the connect timeout (5 s, for joints
+/// waits with its retries (`connect_budget`), not the connect timeout (5 s, for joints
 /// that power up late): a joint in its bootloader answers the release at once, and a
 /// status query reports what answers now. Absent joints cost that budget once in all,
 /// not once each; they are named by the broadcast's own result (as silent). Returns how
