@@ -1,7 +1,8 @@
 //! Admission: whether a front end runs a request now, by one rule for every front end
 //! (the studio, the bridge, Python).
 //!
-//! In order, and the first that refuses answers (nothing is sent):
+//! In order, and the first that refuses answers (nothing is sent); a request that does
+//! not validate is bad input after the read-only check and before the others:
 //!
 //! 1. **Read-only.** A front end started read-only runs only [`Effect::Read`] requests,
 //!    and never arms ([`Admission::may_arm`]).
@@ -292,14 +293,22 @@ impl Admission {
     ///
     /// # Errors
     ///
-    /// The first [`Refusal`]: read-only, not armed, not the controller, its plan's own
-    /// error (bad input), the write rate.
+    /// The first [`Refusal`]: read-only, bad input (the request does not validate), not
+    /// armed, not the controller, the write rate.
     pub fn admit(&self, arming: Arming<'_>, request: Request) -> Result<Admitted, Refusal> {
         let effect = request.effect();
         let op = request.op();
         if effect != Effect::Read {
             self.check_change(op)?;
         }
+        // Bad input is said as such before anything else: validated as a run validates it,
+        // with the class its plan carries, found without a station (a WHJ current
+        // target's plan needs the joint's model; its class does not).
+        let confirm = request.operation().check().map_err(|e| Refusal {
+            kind: RefusalKind::BadInput,
+            error: e,
+            retry_after: None,
+        })?;
         if effect == Effect::Motion && !self.is_armed(arming) {
             return Err(self.not_armed(op));
         }
@@ -310,17 +319,8 @@ impl Admission {
                 retry_after: None,
             })?;
         }
-        if effect != Effect::Read {
-            // The class the plan carries, found without a station (a WHJ current target's
-            // plan needs the joint's model; its class does not).
-            let confirm = request.operation().check().map_err(|e| Refusal {
-                kind: RefusalKind::BadInput,
-                error: e,
-                retry_after: None,
-            })?;
-            if confirm.class != ConfirmClass::None {
-                self.count_write(op)?;
-            }
+        if confirm.class != ConfirmClass::None {
+            self.count_write(op)?;
         }
         Ok(Admitted(request))
     }

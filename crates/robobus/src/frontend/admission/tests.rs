@@ -212,3 +212,17 @@ fn a_guard_admits_motion_from_its_armed_controller_only_in_the_same_wording() {
         RefusalKind::RateLimited
     );
 }
+
+#[test]
+fn bad_input_is_said_before_arming_and_after_read_only() {
+    let bad_move = r#"{"op":"wck.move","id":3,"position":300}"#;
+    let (a, _clock) = admission(false);
+    let e = a.admit(Arming::Local, req(bad_move)).unwrap_err();
+    assert_eq!(e.kind, RefusalKind::BadInput);
+    assert!(e.to_string().contains("300"), "{e}");
+    let (ro, _clock) = admission(true);
+    assert_eq!(
+        ro.admit(Arming::Local, req(bad_move)).unwrap_err().kind,
+        RefusalKind::ReadOnly
+    );
+}
