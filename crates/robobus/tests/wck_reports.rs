@@ -10,6 +10,7 @@
 mod station_support;
 
 use std::collections::BTreeMap;
+use std::fmt::Write as _;
 
 use robobus::catalogue::{self, Request};
 use robobus::ops::Control;
@@ -168,7 +169,7 @@ fn reachable(all: &Value, schema: &Value, seen: &mut Vec<String>, out: &mut Stri
                     seen.push(name.to_owned());
                     reachable(all, &all["$defs"][name], seen, out);
                 }
-                out.push_str(&format!("\"{k}\" "));
+                let _ = write!(out, "\"{k}\" ");
                 reachable(all, v, seen, out);
             }
         }
