@@ -57,6 +57,22 @@ impl Serialize for Slot {
     }
 }
 
+impl schemars::JsonSchema for Slot {
+    fn schema_name() -> std::borrow::Cow<'static, str> {
+        "Slot".into()
+    }
+
+    fn json_schema(_: &mut schemars::SchemaGenerator) -> schemars::Schema {
+        schemars::json_schema!({
+            "description": "A joint's number (1..=7), or `end-board`.",
+            "oneOf": [
+                {"type": "integer", "minimum": 1, "maximum": 7},
+                {"const": "end-board"}
+            ]
+        })
+    }
+}
+
 impl fmt::Display for Slot {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {

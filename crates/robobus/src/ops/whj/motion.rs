@@ -161,7 +161,7 @@ pub fn plan_move(args: &MoveArgs, from_deg: f64, assumed: bool) -> Result<Plan, 
 }
 
 /// What a move did.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, schemars::JsonSchema)]
 pub struct MoveReport {
     /// Measured start, degrees.
     pub from_deg: f64,
@@ -571,7 +571,7 @@ pub fn plan_wave(
 }
 
 /// The last feedback of a wave.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, schemars::JsonSchema)]
 pub struct FeedbackReport {
     /// Drive enabled.
     pub enabled: bool,
@@ -635,7 +635,7 @@ impl Tracking {
 }
 
 /// What a wave did.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, schemars::JsonSchema)]
 pub struct WaveReport {
     /// Frames sent.
     pub cycles: u64,
@@ -664,7 +664,8 @@ pub struct WaveReport {
     pub tracking_max: Option<f64>,
     /// The unit of the tracking values.
     pub unit: &'static str,
-    /// The last feedback that came (`None` when none came).
+    /// The last feedback that came (`None` when none came; left out of the JSON then).
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub last: Option<FeedbackReport>,
     /// Whether the last frame went without a reply (`last` is then older).
     pub stale: bool,

@@ -144,7 +144,7 @@ fn join(r: &[u32]) -> String {
 }
 
 /// One joint's change.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, schemars::JsonSchema)]
 pub struct RatesReport {
     /// The rates it had saved, bit/s (`None`: codes no rate has).
     pub before: Option<[u32; 2]>,

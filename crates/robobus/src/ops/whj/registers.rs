@@ -19,7 +19,7 @@ use super::{
 // ---------------------------------------------------------------------------------------
 
 /// One register value (`whj read`, `whj write`).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, schemars::JsonSchema)]
 pub struct RegisterReport {
     /// Address, `0x14`.
     pub addr: String,
@@ -258,7 +258,7 @@ pub struct TargetArgs {
 }
 
 /// What a speed or current target did.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, schemars::JsonSchema)]
 pub struct TargetReport {
     /// The feedback to the target frame.
     #[serde(flatten)]

@@ -46,7 +46,7 @@ pub const SETTINGS_FILE_LIMIT: u64 = 256 << 10;
 const BUS_IDENTITY: [&str; 3] = ["SYS_ID", "SYS_BPS_CANFD_BRT", "SYS_BPS_CANFD_DATA"];
 
 /// One setting: a register and its value.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Setting {
     /// The register's name (a pair by its name without `_L`).
     pub register: String,
@@ -64,7 +64,7 @@ pub struct Setting {
 }
 
 /// A joint's settings, as a settings file holds them.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Settings {
     /// Always [`SETTINGS_FORMAT`].
     pub format: String,
@@ -246,7 +246,7 @@ pub fn defaults(bus: &JointBus, id: JointId) -> Result<Settings, OpError> {
 }
 
 /// One register on which two documents differ.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, schemars::JsonSchema)]
 pub struct SettingDiff {
     /// The register.
     pub register: String,
@@ -262,8 +262,8 @@ pub struct SettingDiff {
     /// The value in its unit in the second.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub b_value: Option<f64>,
-    /// The unit of the values.
-    #[serde(skip_serializing_if = "String::is_empty")]
+    /// The unit of the values (left out when they have none).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
     pub unit: String,
 }
 
@@ -312,7 +312,7 @@ pub fn diff_file(joint: &Settings, file: &Settings) -> (Vec<SettingDiff>, usize)
 }
 
 /// What a restore did with one register.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, schemars::JsonSchema)]
 pub struct RestoreStep {
     /// The register.
     pub register: String,

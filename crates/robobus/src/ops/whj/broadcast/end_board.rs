@@ -126,7 +126,7 @@ fn words(r: &EndBoardReply) -> Vec<u16> {
 }
 
 /// The board's state.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, schemars::JsonSchema)]
 pub struct EndBoardState {
     /// Model register.
     pub model: u16,
@@ -176,7 +176,7 @@ fn write_verified(bus: &JointBus, index: u8, value: u16, what: &str) -> Result<u
 }
 
 /// What a write did.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, schemars::JsonSchema)]
 pub struct EndBoardSet {
     /// The register written.
     pub register: String,
@@ -220,7 +220,7 @@ pub fn io_register(channel: u8) -> Result<u8, OpError> {
 
 /// The force sensor's six values, raw (the vendor documents the registers, not their
 /// unit).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, schemars::JsonSchema)]
 pub struct Force {
     /// Fx, raw.
     pub fx: i32,

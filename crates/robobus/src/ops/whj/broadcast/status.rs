@@ -165,7 +165,7 @@ pub fn broadcast_status(
 }
 
 /// The end board's state in its answer to a status query (status0 bits, §8.10).
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, schemars::JsonSchema)]
 #[allow(clippy::struct_excessive_bools)] // eight independent status bits, as JSON booleans
 pub struct EndBoardStatus {
     /// Digital channel 1 is an output.

@@ -1,0 +1,248 @@
+//! `whj.wave`: a test signal (sine or square) as servo frames, with its tracking
+//! statistics.
+
+use robobus_wck::BaudRate;
+use robobus_whj::units::CurrentScale;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use super::{Model, R, joint, moved, plan_of, scale_for, step_limit};
+use crate::catalogue::args::WhjOnStop;
+use crate::catalogue::bounds;
+use crate::catalogue::operation::{Confirm, OpDoc, Operation, Report, RunCx};
+use crate::catalogue::plan::WhjSteps;
+use crate::catalogue::wck::request;
+use crate::catalogue::{Effect, Family, Moved, Plan};
+use crate::error::ErrorKind;
+use crate::ops::OpError;
+use crate::ops::whj::{self as ops, FeedbackReport, ServoLoop, WaveArgs, WaveReport};
+
+/// Frames without a reply at the end of a wave after which the joint counts as gone (a
+/// no-device failure): one lost reply is a glitch, ten in a row at the end a silent joint.
+pub const GONE_AFTER: u64 = 10;
+
+const fn d05() -> f64 {
+    0.5
+}
+const fn d4() -> f64 {
+    4.0
+}
+const fn d200() -> f64 {
+    200.0
+}
+
+/// Wave shape.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum Shape {
+    /// Sine.
+    #[default]
+    Sine,
+    /// Square.
+    Square,
+}
+
+/// Which loop a wave drives.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum WaveMode {
+    /// Position frames, degrees.
+    #[default]
+    Position,
+    /// Speed frames, RPM.
+    Speed,
+    /// Current frames, mA.
+    Current,
+}
+
+impl WaveMode {
+    /// The joint's loop this mode drives.
+    pub const fn servo(self) -> ServoLoop {
+        match self {
+            Self::Position => ServoLoop::Position,
+            Self::Speed => ServoLoop::Speed,
+            Self::Current => ServoLoop::Current,
+        }
+    }
+}
+
+request!(
+    /// `whj.wave`: a test signal as servo frames.
+    Wave {
+        /// Joint ID.
+        joint: u32,
+        /// `sine` or `square`.
+        #[serde(default)]
+        shape: Shape,
+        /// `position` (deg), `speed` (RPM) or `current` (mA).
+        #[serde(default)]
+        mode: WaveMode,
+        /// Amplitude, >= 0.
+        amplitude: f64,
+        /// Hz, 0.01..=20 and at most `rate_hz` / 4.
+        #[serde(default = "d05")]
+        frequency: f64,
+        /// Offset.
+        #[serde(default)]
+        offset: f64,
+        /// Seconds, 0.01..=600.
+        #[serde(default = "d4")]
+        duration: f64,
+        /// Frames per second, 1..=1000.
+        #[serde(default = "d200")]
+        rate_hz: f64,
+        /// As broadcast frames (0x2F / 0x4F).
+        #[serde(default)]
+        broadcast: bool,
+        /// Where a plan assumes the joint starts, degrees (a run measures it).
+        #[serde(default)]
+        from: Option<f64>,
+        /// Model for the current scale of a plan.
+        #[serde(default)]
+        model: Option<Model>,
+        /// What a stop leaves the joint in.
+        #[serde(default)]
+        on_stop: WhjOnStop,
+    }
+);
+
+/// The joint's row: its last feedback (left out when none came), the frames sent, and
+/// whether that feedback is older than the last frame.
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
+pub struct WaveRow {
+    /// The joint.
+    pub id: u8,
+    /// The last feedback that came.
+    #[serde(flatten)]
+    pub last: Option<FeedbackReport>,
+    /// Frames sent.
+    pub cycles: u64,
+    /// The last frame went without a reply, or none came: the values shown are older.
+    pub stale: bool,
+}
+
+impl Wave {
+    /// The wave's arguments, validated.
+    fn args(&self) -> R<WaveArgs> {
+        Ok(WaveArgs {
+            joint: joint("<JOINT>", self.joint)?,
+            shape: match self.shape {
+                Shape::Sine => ops::Shape::Sine,
+                Shape::Square => ops::Shape::Square,
+            },
+            servo: self.mode.servo(),
+            amplitude: self.amplitude,
+            frequency: self.frequency,
+            offset: self.offset,
+            duration: self.duration,
+            rate_hz: bounds::FRAME_RATE_HZ.check("--rate-hz", self.rate_hz)?,
+            step_limit_deg: step_limit(),
+        })
+    }
+
+    /// Its frames from `from` (or 0°, assumed), their mA-to-counts scale from `model`
+    /// (`dry_run`: a plan of a current wave needs it).
+    fn steps(&self, dry_run: bool) -> R<(WaveArgs, WhjSteps)> {
+        let args = self.args()?;
+        let scale = if self.mode == WaveMode::Current {
+            scale_for(self.model, dry_run, "wave --mode current")?
+        } else {
+            CurrentScale::OneMilliamp
+        };
+        let from = self
+            .from
+            .map(|f| bounds::ANGLE_DEG.check("--from", f))
+            .transpose()?;
+        let start = from.unwrap_or(0.0);
+        let plan = if self.broadcast {
+            ops::plan_broadcast_wave(&args, start, scale, from.is_none())?
+        } else {
+            ops::plan_wave(&args, start, scale, from.is_none())?
+        };
+        Ok((args, WhjSteps::of(&plan)))
+    }
+}
+
+/// Why a wave's joint counts as silent, if it does: no reply at all, or none to the
+/// last [`GONE_AFTER`] frames.
+fn silence(joint: u8, r: &WaveReport) -> Option<String> {
+    if r.complete == 0 {
+        Some(format!(
+            "joint {joint}: no reply to any of the {} wave frames",
+            r.cycles
+        ))
+    } else if r.missing_at_end >= GONE_AFTER {
+        Some(format!(
+            "joint {joint}: silent for the last {} wave frames ({} of {} without a reply; the \
+             last values shown are stale)",
+            r.missing_at_end, r.missing_replies, r.cycles
+        ))
+    } else {
+        None
+    }
+}
+
+impl Operation for Wave {
+    const OP: &'static str = "whj.wave";
+    const FAMILY: Family = Family::Whj;
+    const DOC: OpDoc = OpDoc {
+        args: "`joint`, `shape`, `mode`, `amplitude`, `frequency` Hz=0.5, `offset`, `duration` \
+               s=4, `rate_hz`=200, `broadcast`, `model`, `on_stop`",
+        report: "last feedback; summary: wave statistics",
+        confirm: "-",
+    };
+    type Row = WaveRow;
+    type Summary = WaveReport;
+
+    fn bus(&self) -> Option<&str> {
+        self.bus.as_deref()
+    }
+
+    fn effect(&self) -> Effect {
+        Effect::Motion
+    }
+
+    fn moved(&self) -> R<Option<Moved>> {
+        let (args, _) = self.steps(false)?;
+        Ok(Some(moved(
+            self.bus(),
+            vec![args.joint.get()],
+            self.mode.servo(),
+        )))
+    }
+
+    fn check(&self) -> R<Confirm> {
+        self.steps(false).map(|_| Confirm::NONE)
+    }
+
+    fn plan(&self, _baud: BaudRate) -> R<Plan> {
+        let (_, steps) = self.steps(true)?;
+        Ok(plan_of(Self::OP, steps, true, Confirm::NONE))
+    }
+
+    fn run(&self, cx: &mut RunCx<'_, '_>) -> Result<Report<WaveRow, WaveReport>, OpError> {
+        let (args, _) = self.steps(false)?;
+        let port = cx.station.whj(self.bus())?;
+        let j = port.bus().joint(args.joint)?;
+        let plan = if self.broadcast {
+            ops::prepare_broadcast_wave(&j, &args)?
+        } else {
+            ops::prepare_wave(&j, &args)?
+        };
+        let mut r = ops::execute_wave(&j, &args, &plan, cx.control, self.on_stop.into())?;
+        let id = args.joint.get();
+        let row = WaveRow {
+            id,
+            stale: r.stale || r.last.is_none(),
+            last: r.last.take(),
+            cycles: r.cycles,
+        };
+        let silent = silence(id, &r);
+        // The summary is the statistics: the last feedback is the row's.
+        let mut report = Report::with_rows(Self::OP, port.name(), vec![row]).summary(r);
+        if let Some(e) = silent {
+            report.fail(ErrorKind::NoDevice, e);
+        }
+        Ok(report)
+    }
+}
