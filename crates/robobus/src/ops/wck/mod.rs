@@ -9,7 +9,7 @@
 //! | operation | plan | run | report |
 //! |---|---|---|---|
 //! | scan (one rate / all rates) | [`ScanArgs::plan`] | [`scan`] | [`ScanOpReport`] |
-//! | status, move, move10, read10, sync-move, passive, brake, get / set parameters, set-id, set-baud, program upload / download | [`WckPlan::one`], [`WckPlan::push`] | [`run_steps`] | [`StepsReport`] |
+//! | status, move, move10, read10, sync-move, passive, brake, get / set parameters, set-id, set-baud, program upload / download | [`WckPlan::one`], [`WckPlan::push`] | [`run_steps`] ([`run_steps_with`]: rows of the caller's type) | [`StepsReport`] |
 //! | wheel (timed, watched) | [`WheelArgs::plan`] | [`wheel`] | [`WheelReport`] |
 //! | play a keyframe motion | [`Motion::moves`] (streamed) | [`play`] | [`PlayReport`] |
 //! | teach | [`TeachArgs::plan`] | [`teach`] (each pose to the caller as recorded) | [`TeachReport`] |
