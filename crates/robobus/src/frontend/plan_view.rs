@@ -32,7 +32,7 @@ impl PlanView {
     ///
     /// # Errors
     ///
-    /// The request does not validate ([`catalogue::plan`], [`catalogue::confirmation`]).
+    /// The request does not validate ([`catalogue::plan()`], [`catalogue::confirmation`]).
     pub fn of(request: &Request) -> Result<Self, OpError> {
         let plan = catalogue::plan(request)?;
         let ask = catalogue::confirmation(request)?;
