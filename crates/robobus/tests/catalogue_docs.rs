@@ -142,6 +142,13 @@ fn the_tables_of_operations_are_generated_from_the_registry() {
         registry
     );
     assert_eq!(consts(catalogue::report_schema(), &["title"]), registry);
+    // Each operation's schema carries its request's own description (what Python's
+    // docstrings and the studio show), not just its name.
+    for entry in catalogue::request_schema()["oneOf"].as_array().unwrap() {
+        let op = entry["properties"]["op"]["const"].as_str().unwrap();
+        let text = entry["description"].as_str().unwrap_or_default();
+        assert!(text.len() > op.len() + 10, "{op}: {text:?}");
+    }
     assert!(registry.len() > 50, "{registry:?}");
 }
 

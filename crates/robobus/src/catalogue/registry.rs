@@ -173,10 +173,11 @@ macro_rules! registry {
         /// One request: an operation and its arguments (see the [module docs](self)).
         #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
         #[serde(tag = "op")]
+        // A variant's docs would replace its request's own in the schema: none here.
+        #[allow(missing_docs)]
         pub enum Request {
             $(
                 $(#[$meta])*
-                #[doc = concat!("`", $op, "`")]
                 #[serde(rename = $op)]
                 $variant($ty),
             )*
