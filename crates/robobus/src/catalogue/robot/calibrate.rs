@@ -36,7 +36,7 @@ pub enum ZeroPose {
 /// not written (`robobus robot calibrate --write` writes it, keeping its comments). A
 /// joint that never answered, or moved through less than twice the margin, is a failed
 /// row. Stops early at the stop token, with what was read so far. Every bus of the file
-/// is then left in its `safe_state` ([`settle`](super::settle)).
+/// is then left in its `safe_state` (`settle`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Calibrate {
@@ -248,7 +248,7 @@ impl Operation for Calibrate {
 #[cfg(all(test, feature = "sim"))]
 mod tests {
     // Exact comparisons: the file must carry these very numbers.
-    #![allow(clippy::unwrap_used, clippy::panic, clippy::float_cmp)]
+    #![allow(clippy::unwrap_used, clippy::float_cmp)]
 
     use std::time::Duration;
 

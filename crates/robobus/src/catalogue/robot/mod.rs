@@ -1,9 +1,9 @@
 //! The robot operations (`robot.*`): a station's robot file read as one robot, its joints
 //! by name in joint units, across every bus the file names. One file per operation
 //! ([`sample`], [`calibrate`], [`play`], [`teach`], [`teleop`]); this module holds what
-//! they share: the checks before a robot operation moves anything ([`ready_at`]) and how
+//! they share: the checks before a robot operation moves anything (`ready_at`) and how
 //! every one of them ends, each bus of its joints in the robot file's `safe_state`
-//! ([`settle`]).
+//! (`settle`).
 
 use std::ops::RangeInclusive;
 
@@ -390,7 +390,7 @@ pub(super) fn no_robot() -> OpError {
 /// `safe_state`: finished, failed or stopped.
 #[cfg(all(test, feature = "sim"))]
 mod end_tests {
-    #![allow(clippy::unwrap_used, clippy::panic)]
+    #![allow(clippy::unwrap_used)]
 
     use robobus_sim::wck::Mode;
     use serde_json::{Value, json};
@@ -450,7 +450,6 @@ mod end_tests {
     fn whj_state(sim: &robobus_sim::whj::WhjSimHandle, id: u8) -> (bool, bool, bool, f64) {
         sim.with_bus(|b| {
             let s = b.joint(id).unwrap().state();
-            #[allow(clippy::cast_precision_loss)] // counts of 1e-4°
             let target = s.target_position as f64 / 10_000.0;
             (
                 s.enabled,

@@ -3,7 +3,7 @@
 //!
 //! The whole trajectory is checked against the file before anything is sent (joint names,
 //! soft limits, `max_velocity`), and every joint it names is read
-//! ([`ready_at`](super::ready_at)): one that does not answer, stands outside its
+//! (`ready_at`): one that does not answer, stands outside its
 //! soft limits, or is a WHJ joint not enabled in position mode refuses the run. The joints then go from
 //! where they are to the first point, each no faster than its `max_velocity` (the lead-in,
 //! as long as the slowest needs), and follow the trajectory, linearly between its points.
@@ -14,7 +14,7 @@
 //! (the distance from where a joint reported itself to the target of the tick before) and
 //! its failures, and for the run the skew between the buses' sends in a tick and how late
 //! the sends were. Finished, failed or stopped, the run ends with each bus of its joints
-//! in the robot file's `safe_state` ([`settle`](super::settle)).
+//! in the robot file's `safe_state` (`settle`).
 
 use std::time::{Duration, Instant};
 
@@ -28,6 +28,7 @@ use crate::actuator::{JointMap, WckScale};
 use crate::catalogue::effect::{Effect, Moved};
 use crate::catalogue::operation::{Confirm, OpDoc, Operation, Report, RunCx};
 use crate::catalogue::plan::{Family, Plan};
+use crate::motion::Tracking;
 use crate::ops::whj::ServoLoop;
 use crate::ops::{Control, DeviceResult, Failure, OpError, Outcome, Progress};
 use crate::robot::RobotConfig;
@@ -181,9 +182,7 @@ pub struct Played {
     /// The root mean square of that distance, degrees.
     pub tracking_rms_deg: f64,
     #[serde(skip)]
-    sum_sq: f64,
-    #[serde(skip)]
-    tracked: u64,
+    tracking: Tracking,
     #[serde(skip)]
     last_error: Option<Failure>,
 }
@@ -666,8 +665,7 @@ impl Played {
             position_deg: None,
             tracking_max_deg: 0.0,
             tracking_rms_deg: 0.0,
-            sum_sq: 0.0,
-            tracked: 0,
+            tracking: Tracking::default(),
             last_error: None,
         }
     }
@@ -682,10 +680,7 @@ impl Played {
                 if p.is_finite() {
                     self.position_deg = Some(*p);
                     if let Some(b) = before {
-                        let e = (p - b).abs();
-                        self.tracking_max_deg = self.tracking_max_deg.max(e);
-                        self.sum_sq += e * e;
-                        self.tracked += 1;
+                        self.tracking.add(*p, b);
                     }
                 }
             }
@@ -697,11 +692,8 @@ impl Played {
     }
 
     fn result(mut self, name: &str) -> DeviceResult<String, Played> {
-        if self.tracked > 0 {
-            #[allow(clippy::cast_precision_loss)] // a count of ticks
-            let n = self.tracked as f64;
-            self.tracking_rms_deg = (self.sum_sq / n).sqrt();
-        }
+        self.tracking_max_deg = self.tracking.max().unwrap_or(0.0);
+        self.tracking_rms_deg = self.tracking.rms().unwrap_or(0.0);
         match self.last_error.take() {
             Some(f) => DeviceResult::failed(
                 name.to_owned(),
@@ -722,7 +714,7 @@ impl Played {
 
 #[cfg(all(test, feature = "sim"))]
 mod tests {
-    #![allow(clippy::unwrap_used, clippy::panic)]
+    #![allow(clippy::unwrap_used)]
 
     use std::time::Duration;
 

@@ -8,7 +8,7 @@
 //! answer is left out of the trajectory (never filled with an older value) and counted.
 //! At the end, and when stopped, every WHJ joint is disabled, set to position mode and
 //! enabled again, then every bus goes to the robot file's `safe_state` (the robot
-//! operations' one end, [`settle`](super::settle)): with the defaults a WHJ joint
+//! operations' one end, `settle`): with the defaults a WHJ joint
 //! holds where it is and a wCK servo is passive. The report's summary is the trajectory
 //! file (the CSV of [`crate::robot::trajectory`]).
 
@@ -471,7 +471,7 @@ fn run_teach(
 
 #[cfg(all(test, feature = "sim"))]
 mod tests {
-    #![allow(clippy::unwrap_used, clippy::panic)]
+    #![allow(clippy::unwrap_used)]
 
     use std::time::Duration;
 

@@ -14,10 +14,10 @@
 //! for `leader_timeout_ms`, the run ends with the leader's failure.
 //!
 //! Before the first cycle every follower joint is read with `robot.play`'s check
-//! ([`ready_at`](super::ready_at)): a silent one, one outside its soft limits, or
+//! (`ready_at`): a silent one, one outside its soft limits, or
 //! a WHJ joint not enabled in position mode refuses the run, nothing sent. However the run
 //! ends, each bus of the leader and the follower is left in the robot file's `safe_state`
-//! ([`settle`](super::settle)).
+//! (`settle`).
 
 use std::collections::VecDeque;
 use std::ops::RangeInclusive;
@@ -34,6 +34,7 @@ use crate::catalogue::effect::{Effect, Moved};
 use crate::catalogue::operation::{Confirm, OpDoc, Operation, Report, RunCx};
 use crate::catalogue::plan::{Family, Plan};
 use crate::frontend::follow::Follower;
+use crate::motion::Tracking;
 use crate::ops::{Control, DeviceResult, ErrorKind, Failure, OpError, Outcome, Progress};
 use crate::station::Station;
 use crate::station::clock::BusClock;
@@ -294,7 +295,7 @@ pub struct Followed {
     /// The root mean square of that distance over the commands, degrees.
     pub tracking_rms_deg: f64,
     #[serde(skip)]
-    sum_sq: f64,
+    tracking: Tracking,
     #[serde(skip)]
     last_error: Option<Failure>,
 }
@@ -440,7 +441,7 @@ impl Followed {
             position_deg: None,
             tracking_max_deg: 0.0,
             tracking_rms_deg: 0.0,
-            sum_sq: 0.0,
+            tracking: Tracking::default(),
             last_error: None,
         }
     }
@@ -625,10 +626,8 @@ impl Run {
                     }
                     if let Some(at) = self.follower.joint_rad(i, j.from) {
                         let at = at.to_degrees();
-                        let e = (target_deg - at).abs();
                         row.position_deg = Some(at);
-                        row.tracking_max_deg = row.tracking_max_deg.max(e);
-                        row.sum_sq += e * e;
+                        row.tracking.add(at, target_deg);
                     }
                 }
                 Outcome::Failed(f) => {
@@ -690,11 +689,8 @@ impl Run {
             .iter()
             .zip(self.rows)
             .map(|(p, mut row)| {
-                if row.commands > 0 {
-                    #[allow(clippy::cast_precision_loss)] // a count of commands
-                    let n = row.commands as f64;
-                    row.tracking_rms_deg = (row.sum_sq / n).sqrt();
-                }
+                row.tracking_max_deg = row.tracking.max().unwrap_or(0.0);
+                row.tracking_rms_deg = row.tracking.rms().unwrap_or(0.0);
                 match row.last_error.take() {
                     Some(f) => DeviceResult::failed(
                         p.follower.clone(),
@@ -741,7 +737,7 @@ fn next_tick(elapsed: Duration, period: Duration, tick: u64, overruns: &mut u64)
 
 #[cfg(all(test, feature = "sim"))]
 mod tests {
-    #![allow(clippy::unwrap_used, clippy::panic)]
+    #![allow(clippy::unwrap_used)]
 
     use std::time::Duration;
 
