@@ -3,7 +3,7 @@
 //! those fields, and a Rust front end gets the rows and the summary as types
 //! (`catalogue::run_typed`), the same report `catalogue::run` gives as JSON.
 
-#![allow(clippy::unwrap_used, clippy::panic, clippy::result_large_err)]
+#![allow(clippy::unwrap_used, clippy::panic)]
 
 use std::collections::BTreeSet;
 
