@@ -79,6 +79,9 @@ pub struct Health {
     pub uptime_s: f64,
     /// Commands and motion requests may move.
     pub armed: bool,
+    /// Serves reads only (`BridgeConfig::read_only`): nothing that changes a device runs,
+    /// nothing arms.
+    pub read_only: bool,
     /// A command stream is being followed.
     pub streaming: bool,
     /// The joint state rate, Hz.
@@ -136,6 +139,7 @@ pub(crate) fn of(s: &Shared) -> Health {
     Health {
         uptime_s: s.started.elapsed().as_secs_f64(),
         armed: s.armed(),
+        read_only: s.admission.read_only(),
         streaming: s.status.streaming.load(Ordering::SeqCst),
         rate_hz: s.config.rate_hz,
         command_timeout_ms: u64::try_from(s.config.command_timeout.as_millis()).unwrap_or(0),

@@ -862,10 +862,24 @@ fn reply_json(query: &Query, value: &serde_json::Value) {
         .wait();
 }
 
+/// An error reply: the kind's name and the message.
+#[derive(Debug, serde::Serialize)]
+struct ErrorReply<'a> {
+    kind: &'a str,
+    message: &'a str,
+}
+
+/// The reply of `robobus/arm`: the state, and the joints of a command in order.
+#[derive(Debug, serde::Serialize)]
+struct ArmReply<'a> {
+    armed: bool,
+    joints: Option<&'a [robobus::frontend::follow::FollowedJoint]>,
+}
+
 fn reply_error(query: &Query, kind: &str, message: &str) {
-    let body = serde_json::json!({"kind": kind, "message": message});
+    let body = serde_json::to_string(&ErrorReply { kind, message }).unwrap_or_default();
     let _ = query
-        .reply_err(body.to_string())
+        .reply_err(body)
         .encoding(Encoding::APPLICATION_JSON)
         .wait();
 }
@@ -948,10 +962,11 @@ fn arm(s: &Shared, text: &str) -> Result<serde_json::Value, OpError> {
     if let Some(a) = want {
         s.set_armed(a)?;
     }
-    Ok(serde_json::json!({
-        "armed": s.armed(),
-        "joints": s.follower.as_ref().map(Follower::joints),
-    }))
+    Ok(serde_json::to_value(ArmReply {
+        armed: s.armed(),
+        joints: s.follower.as_ref().map(Follower::joints),
+    })
+    .unwrap_or_default())
 }
 
 #[cfg(test)]

@@ -85,4 +85,7 @@ fn a_read_only_bridge_reads_and_never_arms() {
     }
     assert_eq!(s.set_armed(true).unwrap_err().kind(), ErrorKind::Refused);
     assert!(!s.armed());
+    let h = health::of(&s);
+    assert!(h.read_only && !h.armed, "{h:?}");
+    assert!(!health::of(&shared(false)).read_only);
 }
