@@ -1,6 +1,7 @@
-//! The WHJ requests (`whj.*`): one struct per `robobus whj` subcommand, its arguments
-//! under the CLI's names (`-` written `_`), and how each is planned through
-//! [`crate::ops::whj`].
+//! The WHJ operations (`whj.*`): one file per operation (its request, under the CLI's
+//! names with `-` written `_`, its typed report, check, plan and run through
+//! [`crate::ops::whj`]), and what they share here: the joint-ID and register parsers, the
+//! joint model's current scale, and `plan_of`, the connect note every plan opens with.
 
 use std::time::Duration;
 
@@ -18,6 +19,8 @@ use crate::whj::JointBusConfig;
 
 mod backup;
 mod can_health;
+#[cfg(feature = "cli")]
+mod cli;
 mod defaults;
 mod diff;
 mod end_board;
@@ -76,15 +79,16 @@ pub use zero::Zero;
 
 /// Work mode.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum ModeName {
-    /// Open loop.
+    /// Open loop (PWM duty; not recommended).
     OpenLoop,
-    /// Current servo.
+    /// Current (torque) servo.
     Current,
     /// Speed servo.
     Speed,
-    /// Position servo.
+    /// Position servo (factory default).
     Position,
 }
 
