@@ -19,8 +19,6 @@ use crate::whj::JointBusConfig;
 
 mod backup;
 mod can_health;
-#[cfg(feature = "cli")]
-mod cli;
 mod defaults;
 mod diff;
 mod end_board;
@@ -79,16 +77,15 @@ pub use zero::Zero;
 
 /// Work mode.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
-#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum ModeName {
-    /// Open loop (PWM duty; not recommended).
+    /// Open loop.
     OpenLoop,
-    /// Current (torque) servo.
+    /// Current servo.
     Current,
     /// Speed servo.
     Speed,
-    /// Position servo (factory default).
+    /// Position servo.
     Position,
 }
 
