@@ -371,7 +371,6 @@ impl Float64MultiArray {
 }
 
 #[cfg(test)]
-#[allow(clippy::unwrap_used, clippy::float_cmp)]
 mod tests {
     use super::*;
 

@@ -3,7 +3,8 @@
 //!
 //! [`robot::RateLimiter`](crate::robot::RateLimiter) (radians, a robot file's joint
 //! limits) and [`whj::Profile`](crate::whj::Profile) (degrees, a WHJ move's limits) are
-//! this limiter in their units.
+//! this limiter in their units. Beside it, [`Tracking`]: how closely a joint followed
+//! what it was asked for.
 //!
 //! The rule, per step of `dt` seconds with speed limit `v` and acceleration limit `a`
 //! (`dv = a·dt`, the largest speed change per step):
@@ -108,6 +109,44 @@ pub fn within_step(set_point: f64, measured: f64, step_limit: f64) -> f64 {
         return set_point;
     }
     set_point.clamp(measured - step_limit, measured + step_limit)
+}
+
+/// How closely a joint followed what it was asked for: the RMS and the largest of
+/// |measured − wanted| over the samples compared. The one measure of every report that
+/// says how a joint tracked: a WHJ wave's
+/// ([`WaveReport::tracking_rms`](crate::ops::whj::WaveReport::tracking_rms)), `robot.play`'s
+/// and `robot.teleop`'s rows (`tracking_rms_deg`, `tracking_max_deg`) and the demo's arm.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Tracking {
+    sum_sq: f64,
+    max: f64,
+    samples: u64,
+}
+
+impl Tracking {
+    /// Compares one measurement with what was wanted.
+    pub fn add(&mut self, measured: f64, wanted: f64) {
+        let e = (measured - wanted).abs();
+        self.sum_sq += e * e;
+        self.max = self.max.max(e);
+        self.samples += 1;
+    }
+
+    /// Samples compared.
+    pub const fn samples(&self) -> u64 {
+        self.samples
+    }
+
+    /// The RMS error (`None` before the first sample).
+    pub fn rms(&self) -> Option<f64> {
+        #[allow(clippy::cast_precision_loss)] // counts far below 2^52
+        (self.samples > 0).then(|| (self.sum_sq / self.samples as f64).sqrt())
+    }
+
+    /// The largest error (`None` before the first sample).
+    pub fn max(&self) -> Option<f64> {
+        (self.samples > 0).then_some(self.max)
+    }
 }
 
 #[cfg(test)]

@@ -21,12 +21,7 @@
 //! multicast inside a private network namespace) and re-runs the suite pointed at them,
 //! reading only and then moving.
 
-#![allow(
-    clippy::unwrap_used,
-    clippy::panic,
-    clippy::float_cmp,
-    clippy::print_stdout
-)] // tests
+#![allow(clippy::unwrap_used, clippy::panic, clippy::print_stdout)] // tests
 
 mod station_support;
 

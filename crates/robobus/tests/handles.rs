@@ -2,7 +2,7 @@
 //! device, a silent device failed without stopping the call, and every value checked
 //! before anything is sent. The station is on the simulators' virtual clocks.
 
-#![allow(clippy::unwrap_used, clippy::panic, clippy::result_large_err)]
+#![allow(clippy::unwrap_used)]
 
 mod station_support;
 

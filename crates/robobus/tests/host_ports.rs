@@ -1,8 +1,6 @@
 //! `host.ports` through the catalogue: the machine's serial ports as the OS lists them,
 //! read-only, on any station (the station's buses are not used).
 
-#![allow(clippy::unwrap_used, clippy::panic, clippy::result_large_err)]
-
 use std::collections::BTreeSet;
 
 use robobus::catalogue::{self, Effect, Request};

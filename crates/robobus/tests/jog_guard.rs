@@ -2,15 +2,15 @@
 //! one bounded step within the limits, and the guard admits by controller, arming and
 //! effect, and brings what was moved to a hold when disarmed.
 
-#![allow(clippy::unwrap_used, clippy::panic, clippy::result_large_err)]
+#![allow(clippy::unwrap_used)]
 
 use std::sync::Arc;
 use std::sync::mpsc;
 use std::time::Duration;
 
+use robobus::catalogue::{ErrorKind, Family, Request};
 use robobus::frontend::guard::{Guard, GuardConfig, GuardedDevice};
 use robobus::frontend::jog::{JogRequest, Jogger, WCK_JOG_STEP, WHJ_JOG_STEP_DEG};
-use robobus::catalogue::{ErrorKind, Family, Request};
 use robobus::station::Station;
 
 fn jog(family: Family, device: u8, target: f64) -> JogRequest {

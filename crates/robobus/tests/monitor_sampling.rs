@@ -2,7 +2,7 @@
 //! silent device failed (never an older value), speeds from consecutive readings on the
 //! caller's clock, robot-file joints as joint angles in the file's order.
 
-#![allow(clippy::unwrap_used, clippy::panic, clippy::float_cmp)] // tests
+#![allow(clippy::unwrap_used, clippy::float_cmp)] // tests
 
 mod wck_support;
 

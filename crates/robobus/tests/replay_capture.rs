@@ -2,7 +2,7 @@
 //! replayed by `ops::replay` with their meanings; malformed lines, corrupted frames and
 //! packets flagged; arbitrary input never panics the decoder.
 
-#![allow(clippy::unwrap_used, clippy::panic)]
+#![allow(clippy::unwrap_used)]
 
 mod wck_support;
 mod whj_common;

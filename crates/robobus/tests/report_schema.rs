@@ -4,7 +4,7 @@
 //! valid under the schema of its own operation: a client generated from the schema accepts
 //! what the catalogue returns.
 
-#![allow(clippy::unwrap_used, clippy::panic, clippy::result_large_err)]
+#![allow(clippy::result_large_err)]
 
 use std::collections::BTreeSet;
 

@@ -1,7 +1,7 @@
 //! The robot file: parsing errors name the line, the field and the value; value checks
 //! name the joint or bus.
 
-#![allow(clippy::unwrap_used, clippy::panic)]
+#![allow(clippy::unwrap_used)]
 
 use robobus::ops::SafeState;
 use robobus::robot::{BusConfig, Robot, RobotConfig, RobotError};

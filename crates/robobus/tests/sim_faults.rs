@@ -9,7 +9,7 @@
 //!   answers, a power-cycled joint is back in its bootloader until connected again, a
 //!   joint that latches error bits reports them in its status.
 
-#![allow(clippy::unwrap_used, clippy::panic)] // test code
+#![allow(clippy::unwrap_used)] // test code
 #![cfg(target_os = "linux")]
 
 mod wck_support;

@@ -1,7 +1,7 @@
 //! Fault tests: the seeded fault injector between the client and the simulator, a
 //! device that is unplugged, a link that goes away.
 #![cfg(target_os = "linux")]
-#![allow(clippy::unwrap_used, clippy::panic)] // test helpers
+#![allow(clippy::unwrap_used)] // test helpers
 
 mod wck_support;
 

@@ -1,7 +1,7 @@
 //! Late replies (issue: a reply must never be credited to another request): a scripted
 //! fake bus whose servos answer status reads after a delay, some of them 15-45 ms late,
 //! on a virtual clock of its own (time moves only when the client waits).
-#![allow(clippy::unwrap_used, clippy::panic, missing_docs)]
+#![allow(clippy::unwrap_used)]
 
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};

@@ -1,11 +1,6 @@
 //! `robobus::ops::wck` against the simulator: what a real run sends is, packet by packet,
 //! the plan a dry-run shows; per-servo results; stop, progress and the safe state.
-#![allow(
-    clippy::unwrap_used,
-    clippy::panic,
-    clippy::result_large_err,
-    missing_docs
-)]
+#![allow(clippy::unwrap_used, clippy::result_large_err)]
 
 mod wck_support;
 

@@ -1,6 +1,6 @@
 //! The retry policy, plausibility checks and verification, against a scripted fake
 //! module on an in-memory link (each scripted reply says exactly what the module does).
-#![allow(clippy::unwrap_used, clippy::panic)] // test helpers
+#![allow(clippy::unwrap_used)] // test helpers
 
 use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};

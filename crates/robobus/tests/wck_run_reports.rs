@@ -5,7 +5,7 @@
 //! `tests/snapshots/wck_run_reports.json` (`UPDATE_SNAPSHOTS=1` rewrites it), and that
 //! each report validates against its operation's typed schema. On the virtual clock.
 
-#![allow(clippy::unwrap_used, clippy::panic, clippy::result_large_err)]
+#![allow(clippy::unwrap_used)]
 
 mod station_support;
 

@@ -3,7 +3,7 @@
 //! a fresh servo gives an equal backup, only the groups that differ are written, the
 //! factory settings are the manual's A-5, and a file is checked when it is read.
 
-#![allow(clippy::unwrap_used, clippy::panic, clippy::result_large_err)] // tests
+#![allow(clippy::unwrap_used, clippy::result_large_err)] // tests
 
 mod station_support;
 

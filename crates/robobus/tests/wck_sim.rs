@@ -2,7 +2,7 @@
 //! that the outcome does not depend on how loaded the machine is), and a real-port open of
 //! the simulator's pseudo-terminal.
 #![cfg(target_os = "linux")]
-#![allow(clippy::unwrap_used, clippy::panic)] // test helpers
+#![allow(clippy::unwrap_used)] // test helpers
 
 mod wck_support;
 

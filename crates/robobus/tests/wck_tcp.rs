@@ -3,7 +3,7 @@
 //! opening `socket://127.0.0.1:PORT` with `WckBus::open` as it opens any port: scan,
 //! status, moves, the TCP margin, a simulator that goes away, and a client that leaves
 //! and comes back.
-#![allow(clippy::unwrap_used, clippy::panic)] // test helpers
+#![allow(clippy::unwrap_used)] // test helpers
 
 mod wck_support;
 

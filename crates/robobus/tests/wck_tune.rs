@@ -2,7 +2,7 @@
 //! step responses of two gain sets, their figures of merit, the better one found, the
 //! runtime gains set back, and the refusals before anything moves.
 
-#![allow(clippy::unwrap_used, clippy::panic, clippy::result_large_err)] // tests
+#![allow(clippy::unwrap_used)] // tests
 
 mod station_support;
 

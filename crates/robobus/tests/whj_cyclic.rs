@@ -3,7 +3,7 @@
 //! (`WhjSimLink`: exact counts, no misses), and the matching of late and lost feedback
 //! (a relay holds feedback frames back by exact amounts of simulated time).
 
-#![allow(clippy::unwrap_used, clippy::panic, clippy::cast_precision_loss)]
+#![allow(clippy::unwrap_used)]
 
 mod whj_common;
 

@@ -3,7 +3,7 @@
 //! confirmation to switch it on, not off), a digital channel's direction shown in the
 //! status bits, the force sensor's six values, and a silent board reported as no device.
 
-#![allow(clippy::unwrap_used, clippy::panic, clippy::result_large_err)] // tests
+#![allow(clippy::unwrap_used, clippy::result_large_err)] // tests
 
 mod whj_common;
 

@@ -3,7 +3,7 @@
 //! is surfaced and recovered from. On the simulator's virtual clock (`WhjSimLink`), so
 //! times are exact and seeded faults give the same counts on every run.
 
-#![allow(clippy::unwrap_used, clippy::panic)]
+#![allow(clippy::unwrap_used)]
 
 mod whj_common;
 

@@ -9,7 +9,7 @@
 //! connect, report, move, and the cyclic loop completes every cycle at a period the
 //! adapter carries.
 
-#![allow(clippy::unwrap_used, clippy::panic, clippy::float_cmp)] // test code
+#![allow(clippy::unwrap_used, clippy::float_cmp)] // test code
 
 mod whj_common;
 

@@ -2,7 +2,7 @@
 //! virtual clock (`WhjSimLink`: the client drives the simulated bus itself, no thread, no
 //! wall clock), so times and counts are exact.
 
-#![allow(clippy::unwrap_used, clippy::panic, clippy::float_cmp)]
+#![allow(clippy::unwrap_used)]
 
 mod whj_common;
 

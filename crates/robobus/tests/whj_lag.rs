@@ -6,7 +6,7 @@
 //! not move at all stops the stream as "not following". On a joint that follows, the
 //! frames go out exactly as planned, and a wave within the limits is not "clamped".
 
-#![allow(clippy::unwrap_used, clippy::panic, clippy::float_cmp)] // tests
+#![allow(clippy::unwrap_used)] // tests
 
 mod whj_common;
 

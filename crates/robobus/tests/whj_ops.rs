@@ -3,7 +3,7 @@
 //! safety checks before a move. On the simulator's virtual clock (`WhjSimLink`): timed
 //! operations (moves, waves, settle times) take simulated time only.
 
-#![allow(clippy::unwrap_used, clippy::panic, clippy::float_cmp)] // tests
+#![allow(clippy::unwrap_used, clippy::float_cmp)] // tests
 
 mod whj_common;
 

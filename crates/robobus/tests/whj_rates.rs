@@ -3,7 +3,7 @@
 //! change is written, read back and saved; the joints answer at the old rates until they
 //! are power-cycled, then only once the bus (the adapter) is at the new rates.
 
-#![allow(clippy::unwrap_used, clippy::panic, clippy::result_large_err)] // tests
+#![allow(clippy::unwrap_used, clippy::result_large_err)] // tests
 
 mod whj_common;
 

@@ -5,7 +5,7 @@
 //! published report schema describes it: each operation's rows are its own typed fields,
 //! and every report validates against its operation's schema.
 
-#![allow(clippy::unwrap_used, clippy::panic, clippy::result_large_err)]
+#![allow(clippy::unwrap_used, clippy::panic)]
 
 mod station_support;
 

@@ -3,7 +3,7 @@
 //! run stops when its joint falls silent or latches an error, and a timed target fails when
 //! its joint did.
 
-#![allow(clippy::unwrap_used, clippy::panic, clippy::float_cmp)] // tests
+#![allow(clippy::unwrap_used)] // tests
 
 mod whj_common;
 

@@ -4,7 +4,7 @@
 //! simulator serves seven joints on one `SocketCanLink`, the client talks to them through
 //! another: the code path real hardware uses.
 
-#![allow(clippy::unwrap_used, clippy::panic)]
+#![allow(clippy::unwrap_used)]
 #![cfg(target_os = "linux")]
 
 mod whj_common;

@@ -6,7 +6,7 @@
 //! The outer test re-runs this test binary inside the namespace to run the inner tests.
 
 #![cfg(target_os = "linux")] // a private network namespace
-#![allow(clippy::unwrap_used, clippy::panic)]
+#![allow(clippy::unwrap_used)]
 
 mod whj_common;
 

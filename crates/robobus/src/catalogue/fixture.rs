@@ -109,7 +109,6 @@ impl Operation for Echo {
 
 #[cfg(test)]
 mod tests {
-    #![allow(clippy::unwrap_used)]
 
     use super::*;
     use crate::catalogue::{self, Request};

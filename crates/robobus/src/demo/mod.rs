@@ -40,8 +40,9 @@ use robobus_whj::timing::{BitRates, frame_duration};
 use robobus_whj::{JointId, Reply, Request, WorkMode};
 
 use crate::actuator::{WCK_DEFAULT_CENTRE, WCK_DEGREES_PER_STEP};
+use crate::motion::Tracking;
 use crate::ops::wck::{Frame, Motion, Pose, ScanArgs};
-use crate::ops::whj::{ServoLoop, Tracking};
+use crate::ops::whj::ServoLoop;
 use crate::ops::{self, Control, DeviceResult, OpError, Progress, SafeState};
 use crate::robot::simulated::{JOINTS, SERVOS};
 use crate::station::Station;

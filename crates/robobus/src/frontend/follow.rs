@@ -216,7 +216,6 @@ impl Follower {
 }
 
 #[cfg(all(test, feature = "sim"))]
-#[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
 

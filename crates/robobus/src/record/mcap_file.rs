@@ -212,7 +212,6 @@ fn stamped(at_ns: u64) -> JointState {
         stamp: Time {
             sec: i32::try_from(at_ns / 1_000_000_000).unwrap_or(0),
             // Below 1e9.
-            #[allow(clippy::cast_possible_truncation)]
             nanosec: (at_ns % 1_000_000_000) as u32,
         },
         ..JointState::default()

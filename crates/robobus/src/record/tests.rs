@@ -1,5 +1,3 @@
-#![allow(clippy::unwrap_used, clippy::float_cmp)] // tests
-
 use std::io::Cursor;
 
 use super::*;

@@ -291,7 +291,7 @@ impl Trajectory {
 
 #[cfg(test)]
 mod tests {
-    #![allow(clippy::unwrap_used, clippy::float_cmp)] // exact interpolation values
+    #![allow(clippy::float_cmp)] // exact interpolation values
 
     use super::*;
 

@@ -7,7 +7,7 @@ use robobus_whj::units::{Current, CurrentScale, Position, TargetSpeed};
 use robobus_whj::{JointId, Request};
 use serde::Serialize;
 
-use crate::motion::Limiter;
+use crate::motion::{Limiter, Tracking};
 use crate::ops::{Bound, Control, OpError, SafeState};
 use crate::whj::{Joint, MotionLimits, Percentiles, Profile, WhjError};
 
@@ -595,42 +595,6 @@ impl FeedbackReport {
             current_ma: fb.current.milliamps(scale),
             error: fb.error.to_string(),
         }
-    }
-}
-
-/// How closely a joint followed what it was asked for: the RMS and the largest of
-/// |measured − wanted| over the samples compared (a wave's [`WaveReport::tracking_rms`] and
-/// [`WaveReport::tracking_max`]; the demo's arm, per joint).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct Tracking {
-    sum_sq: f64,
-    max: f64,
-    samples: u64,
-}
-
-impl Tracking {
-    /// Compares one measurement with what was wanted.
-    pub fn add(&mut self, measured: f64, wanted: f64) {
-        let e = (measured - wanted).abs();
-        self.sum_sq += e * e;
-        self.max = self.max.max(e);
-        self.samples += 1;
-    }
-
-    /// Samples compared.
-    pub const fn samples(&self) -> u64 {
-        self.samples
-    }
-
-    /// The RMS error (`None` before the first sample).
-    pub fn rms(&self) -> Option<f64> {
-        #[allow(clippy::cast_precision_loss)] // counts far below 2^52
-        (self.samples > 0).then(|| (self.sum_sq / self.samples as f64).sqrt())
-    }
-
-    /// The largest error (`None` before the first sample).
-    pub fn max(&self) -> Option<f64> {
-        (self.samples > 0).then_some(self.max)
     }
 }
 

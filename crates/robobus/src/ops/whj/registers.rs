@@ -314,7 +314,6 @@ pub fn run_target(
     let fb = j.servo_request(request).map_err(whj)?;
     let id = j.id().get();
     let Some(duration) = args.duration else {
-        #[allow(clippy::float_cmp)]
         let idle = args.value == 0.0;
         return Ok(TargetReport {
             feedback: FeedbackReport::of(&fb, scale),
