@@ -14,6 +14,12 @@ use std::fmt::Write as _;
 
 use robobus::catalogue::{self, Request};
 use robobus::ops::Control;
+use robobus::ops::wck::reply_fields;
+use robobus::station::Station;
+use robobus::wck::WckBus;
+use robobus_link::ByteLink as _;
+use robobus_sim::wck::{Bus, BusConfig, Faults, Model, SimLink};
+use robobus_wck::{BaudRate, Command};
 use serde_json::Value;
 
 /// One request per row shape of the operations (and a silent servo, and a refusal).
@@ -86,6 +92,56 @@ fn the_wck_reports_are_the_pinned_json() {
     }
     assert_eq!(got.len(), want.len());
 }
+
+/// A break whose reply comes back garbled (on a shared bus: the modules' replies
+/// collided; here one module's reply bytes have a bit flipped each) is the row
+/// `reply_fields` made of it: `"reply"` collided and what that `"meaning"`s, no failure
+/// (the command was heard).
+#[test]
+fn a_garbled_break_reply_is_the_collided_row_and_no_failure() {
+    let config = BusConfig {
+        seed: SEED,
+        faults: Faults {
+            flip_reply: 1.0,
+            ..Faults::default()
+        },
+        ..BusConfig::default()
+    };
+    let (mut link, sim) = SimLink::virtual_clock(Bus::with_servos(config, Model::W1108, 0..1));
+    let now = link.now();
+    link.sleep_until(now + std::time::Duration::from_millis(100));
+    let bus = WckBus::new(
+        Box::new(link) as robobus::robot::DynByteLink,
+        BaudRate::B115200,
+    )
+    .unwrap();
+    let mut s = Station::new();
+    s.add_wck("wck", bus);
+    s.keep(Box::new(std::sync::Mutex::new(sim)));
+    let r = catalogue::run(
+        &s,
+        &Request::parse(r#"{"op": "wck.brake"}"#).unwrap(),
+        &mut Control::none(),
+    )
+    .unwrap();
+    let mut want = serde_json::to_value(reply_fields(&Command::Break, None)).unwrap();
+    want["id"] = "all".into();
+    assert_eq!(r.results, [want], "{r:?}");
+    assert_eq!((r.failed, r.error.as_deref()), (None, None));
+    // Its operation's schema describes this row too.
+    let schema = schema_of(&catalogue::report_schema(), "wck.brake");
+    let report = serde_json::to_value(&r).unwrap();
+    assert!(
+        jsonschema::validator_for(&schema)
+            .unwrap()
+            .is_valid(&report),
+        "{report}"
+    );
+}
+
+/// A seed whose bit flips make the break's reply implausible (an ID past 30 or the
+/// position 255).
+const SEED: u64 = 3;
 
 /// The schema of `op`'s report, standalone (its `$defs` beside it).
 fn schema_of(all: &Value, op: &str) -> Value {
