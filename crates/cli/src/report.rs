@@ -62,7 +62,7 @@ pub(crate) fn run_with(
     request: &Request,
     interaction: &mut dyn Interaction,
 ) -> anyhow::Result<Report> {
-    let pb = progress_bar(&request.op());
+    let pb = progress_bar(request.op());
     let mut on_progress = |p: &Progress| {
         if let Some(total) = p.total {
             pb.set_length(total);
