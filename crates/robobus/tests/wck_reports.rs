@@ -12,9 +12,10 @@ mod station_support;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
-use robobus::catalogue::{self, Request};
-use robobus::ops::Control;
+use robobus::catalogue::args::Ids;
+use robobus::catalogue::{self, ErrorKind, NoInteraction, Request, wck};
 use robobus::ops::wck::reply_fields;
+use robobus::ops::{Control, Outcome};
 use robobus::station::Station;
 use robobus::wck::WckBus;
 use robobus_link::ByteLink as _;
@@ -91,6 +92,41 @@ fn the_wck_reports_are_the_pinned_json() {
         assert_eq!(Some(report), want.get(json), "{json}");
     }
     assert_eq!(got.len(), want.len());
+}
+
+/// A Rust front end gets the rows as the operations' own types (`run_typed`): a status
+/// row's `position`, a parameter's `ParamRow` variant, a silent servo's failure.
+#[test]
+fn a_rust_front_end_gets_the_wck_rows_as_types() {
+    let (s, _w, _j) = station_support::station("wck", "whj");
+    let status = wck::Status {
+        bus: None,
+        ids: Ids::Text("0-1,7".into()),
+    };
+    let r = catalogue::run_typed(&s, &status, &mut Control::none(), &mut NoInteraction).unwrap();
+    let rows: Vec<(u8, Option<u8>)> = r
+        .results
+        .iter()
+        .map(|d| match &d.outcome {
+            Outcome::Ok(row) => (d.id, Some(row.position)),
+            Outcome::Failed(f) => (d.id, (f.kind == ErrorKind::NoDevice).then_some(0)),
+        })
+        .collect();
+    assert_eq!(rows, [(0, Some(127)), (1, Some(127)), (7, Some(0))]);
+    assert_eq!(r.failed, Some(ErrorKind::NoDevice));
+    let get = wck::Get {
+        bus: None,
+        param: wck::Param::Gains,
+        id: 0,
+    };
+    let r = catalogue::run_typed(&s, &get, &mut Control::none(), &mut NoInteraction).unwrap();
+    assert_eq!(
+        r.results[0].outcome,
+        Outcome::Ok(wck::ParamRow::Gains {
+            p_gain: 20,
+            d_gain: 30
+        })
+    );
 }
 
 /// A break whose reply comes back garbled (on a shared bus: the modules' replies
