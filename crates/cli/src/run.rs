@@ -5,9 +5,10 @@
 //! simulated robot, [`Station::simulated`]) and runs them in order through the library's
 //! dispatcher; it prints each report ([`robobus::catalogue::Report`]) as JSON (one object,
 //! or an array for an array). `--dry-run` prints the plans instead (text: the lines the
-//! subcommand's `--dry-run` prints; `--json`: the plan objects). The first request that
-//! fails as a whole ends the run (later ones are not sent); the exit code is the worst
-//! failure, a device's included. Confirmation is part of the request (`confirm: true`).
+//! subcommand's `--dry-run` prints; `--json`: the plan views every front end shows,
+//! `robobus::frontend::PlanView`). The first request that fails as a whole ends the run
+//! (later ones are not sent); the exit code is the worst failure, a device's included.
+//! Confirmation is part of the request (`confirm: true`).
 
 use std::io::Read as _;
 use std::path::PathBuf;
@@ -124,13 +125,13 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
         let plans = requests
             .iter()
             .enumerate()
-            .map(|(n, r)| catalogue::plan(r).map_err(|e| numbered(n, e)))
+            .map(|(n, r)| robobus::frontend::PlanView::of(r).map_err(|e| numbered(n, e)))
             .collect::<anyhow::Result<Vec<_>>>()?;
         if g.json {
             let v = serde_json::to_value(&plans)?;
             return output::print_json(&if many { v } else { first(v) });
         }
-        let text: String = plans.iter().map(catalogue::Plan::to_text).collect();
+        let text: String = plans.iter().map(|p| p.text.as_str()).collect();
         return output::print(&text);
     }
     // Every request is checked before any is sent: bad input anywhere in a list sends
