@@ -25,6 +25,22 @@ const fn default_passive() -> WckOnStop {
 }
 
 macro_rules! request {
+    // `cli`: the request is also a `robobus` subcommand's arguments (`clap::Args`, with the
+    // `cli` feature): each field's doc comment is its help; `bus` is the command's own.
+    (cli $(#[$m:meta])* $name:ident { $($(#[$fm:meta])* $f:ident : $t:ty),* $(,)? }) => {
+        $(#[$m])*
+        #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+        #[cfg_attr(feature = "cli", derive(clap::Args))]
+        #[serde(deny_unknown_fields)]
+        pub struct $name {
+            /// The bus it acts on (the station's name for it); needed only when the
+            /// station holds more than one bus of the family.
+            #[serde(default, skip_serializing_if = "Option::is_none")]
+            #[cfg_attr(feature = "cli", arg(skip))]
+            pub bus: Option<String>,
+            $($(#[$fm])* pub $f: $t,)*
+        }
+    };
     ($(#[$m:meta])* $name:ident { $($(#[$fm:meta])* $f:ident : $t:ty),* $(,)? }) => {
         $(#[$m])*
         #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]

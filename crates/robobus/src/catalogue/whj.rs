@@ -19,6 +19,8 @@ use crate::whj::JointBusConfig;
 
 mod backup;
 mod can_health;
+#[cfg(feature = "cli")]
+pub mod cli;
 mod defaults;
 mod diff;
 mod end_board;
@@ -77,15 +79,16 @@ pub use zero::Zero;
 
 /// Work mode.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum ModeName {
-    /// Open loop.
+    /// Open loop (PWM duty; not recommended).
     OpenLoop,
-    /// Current servo.
+    /// Current (torque) servo.
     Current,
     /// Speed servo.
     Speed,
-    /// Position servo.
+    /// Position servo (factory default).
     Position,
 }
 

@@ -14,11 +14,14 @@ use crate::catalogue::{Effect, Family, Plan};
 use crate::ops::whj::settings::{self as ops, Settings};
 use crate::ops::{DeviceResult, OpError};
 
-request!(
+request!(cli
     /// `whj.backup`: every setting of a joint (the registers it keeps in flash), as the
     /// settings file (the report's `summary`).
-    Backup { /// Joint ID, 1..=30.
-        joint: u32 }
+    Backup {
+        /// Joint ID, 1..=30.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::whj::cli::joint))]
+        joint: u32,
+    }
 );
 
 impl Backup {

@@ -12,7 +12,7 @@ use crate::catalogue::wck::request;
 use crate::catalogue::{Effect, Family, Plan};
 use crate::ops::OpError;
 
-request!(
+request!(cli
     /// `whj.can-health`: the bus's CAN interface as the kernel reports it (netlink): the
     /// controller's state (error-active, error-warning, error-passive, bus-off), its error
     /// counters, its state changes and restarts, and the advice for bus-off and

@@ -14,10 +14,13 @@ use crate::catalogue::{Effect, Family, Plan};
 use crate::ops::OpError;
 use crate::ops::whj::{self as ops, ClearReport};
 
-request!(
+request!(cli
     /// `whj.clear`: clear latched errors (0x0F := 1).
-    Clear { /// Joint IDs.
-        joints: Ids }
+    Clear {
+        /// Joint IDs, e.g. `1-7`.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::whj::cli::joints))]
+        joints: Ids,
+    }
 );
 
 impl Operation for Clear {

@@ -15,21 +15,27 @@ use crate::catalogue::{Effect, Family, Moved, Plan};
 use crate::ops::OpError;
 use crate::ops::whj::{ServoLoop, TargetArgs, TargetReport};
 
-request!(
+request!(cli
     /// `whj.current`: current target (0x400+ID), mA.
     Current {
-        /// Joint ID.
+        /// Joint ID, 1..=30.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::whj::cli::joint))]
         joint: u32,
-        /// Target, mA, -30000..=30000.
+        /// Target current, mA, -30000..=30000.
+        #[cfg_attr(feature = "cli", arg(allow_hyphen_values = true, value_parser = crate::catalogue::whj::cli::milliamps))]
         milliamps: f64,
-        /// Keep it this many seconds (0.01..=3600), then target 0.
+        /// Keep the target this many seconds (0.01..=3600), then target 0 (also when
+        /// stopped). Without it the joint keeps the current after the request.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long, value_name = "SECS", value_parser = crate::catalogue::whj::cli::duration))]
         duration: Option<f64>,
         /// Model for the plan's current scale (a run reads it from the joint).
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(skip))]
         model: Option<Model>,
         /// What a stop leaves the joint in.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(skip))]
         on_stop: WhjOnStop,
     }
 );

@@ -16,12 +16,15 @@ use crate::catalogue::{Effect, Family, Plan};
 use crate::ops::whj::settings::{self as ops, Settings};
 use crate::ops::{DeviceResult, OpError};
 
-request!(
+request!(cli
     /// `whj.defaults`: the settings whose factory value the vendor documents, for the
     /// joint's model and firmware, as a settings file (the report's `summary`) that
     /// `whj.restore` writes back (the joints have no factory reset of their own).
-    Defaults { /// Joint ID, 1..=30.
-        joint: u32 }
+    Defaults {
+        /// Joint ID, 1..=30.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::whj::cli::joint))]
+        joint: u32,
+    }
 );
 
 impl Defaults {

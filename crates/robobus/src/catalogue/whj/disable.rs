@@ -13,10 +13,13 @@ use crate::catalogue::{Effect, Family, Plan};
 use crate::ops::OpError;
 use crate::ops::whj::EnableReport;
 
-request!(
+request!(cli
     /// `whj.disable`: register 0x0A := 0.
-    Disable { /// Joint IDs.
-        joints: Ids }
+    Disable {
+        /// Joint IDs, e.g. `1-7`.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::whj::cli::joints))]
+        joints: Ids,
+    }
 );
 
 impl Operation for Disable {

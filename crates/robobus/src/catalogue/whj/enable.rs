@@ -14,10 +14,13 @@ use crate::catalogue::{Effect, Family, Moved, Plan};
 use crate::ops::OpError;
 use crate::ops::whj::{self as ops, EnableReport, ServoLoop};
 
-request!(
+request!(cli
     /// `whj.enable`: register 0x0A := 1.
-    Enable { /// Joint IDs.
-        joints: Ids }
+    Enable {
+        /// Joint IDs, e.g. `1-7`.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::whj::cli::joints))]
+        joints: Ids,
+    }
 );
 
 /// The report of `whj.enable` / `whj.disable` on `joints`: each joint's state read back.

@@ -16,6 +16,7 @@ use crate::ops::{DeviceResult, Failure, OpError};
 
 /// What `whj.end-board` does.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum EndBoardAction {
     /// Read its state: model, version, tool power, the digital channels' direction and
@@ -31,6 +32,7 @@ pub enum EndBoardAction {
 
 /// A digital channel's direction.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum IoMode {
     /// Input.
@@ -39,24 +41,28 @@ pub enum IoMode {
     Output,
 }
 
-request!(
+request!(cli
     /// `whj.end-board`: the end-effector board's typed operations (its state, tool power,
     /// a digital channel's direction, its force sensor). Switching the tool power on or a
     /// channel's direction needs `confirm`: it switches what is attached to the tool.
     EndBoard {
-        /// `status`, `power`, `io` or `force`.
+        /// `status`, `power` (with `volts`), `io` (with `channel` and `mode`) or `force`.
         action: EndBoardAction,
         /// `power`: the tool power, volts (0, 12 or 24).
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long))]
         volts: Option<u8>,
         /// `io`: the digital channel, 1 or 2.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long))]
         channel: Option<u8>,
-        /// `io`: `input` or `output`.
+        /// `io`: the channel's direction, `input` or `output`.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long))]
         mode: Option<IoMode>,
         /// Confirms switching the tool power on or a channel's direction.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(skip))]
         confirm: bool,
     }
 );

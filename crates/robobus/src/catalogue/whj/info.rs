@@ -13,10 +13,13 @@ use crate::catalogue::{Effect, Family, Plan};
 use crate::ops::whj::{self as ops, InfoReport};
 use crate::ops::{DeviceResult, OpError};
 
-request!(
+request!(cli
     /// `whj.info`: identity, unique ID and position limits of a joint.
-    Info { /// Joint ID, 1..=30.
-        joint: u32 }
+    Info {
+        /// Joint ID, 1..=30.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::whj::cli::joint))]
+        joint: u32,
+    }
 );
 
 impl Operation for Info {

@@ -13,12 +13,13 @@ use crate::catalogue::{Effect, Family, Plan};
 use crate::ops::OpError;
 use crate::ops::whj::{self as ops, ModeReport};
 
-request!(
+request!(cli
     /// `whj.mode`: work mode (register 0x30).
     Mode {
-        /// Joint IDs.
+        /// Joint IDs, e.g. `1-7`.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::whj::cli::joints))]
         joints: Ids,
-        /// `open-loop`, `current`, `speed` or `position`.
+        /// The mode: `open-loop`, `current`, `speed` or `position`.
         mode: ModeName,
     }
 );

@@ -21,24 +21,31 @@ const fn d200() -> f64 {
     200.0
 }
 
-request!(
+request!(cli
     /// `whj.move`: smooth move in position mode.
     Move {
         /// Joint ID, 1..=30.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::whj::cli::joint))]
         joint: u32,
-        /// Target angle, degrees, -360..=360.
+        /// Target angle in degrees, -360..=360.
+        #[cfg_attr(feature = "cli", arg(allow_hyphen_values = true, value_parser = crate::catalogue::whj::cli::angle))]
         degrees: f64,
-        /// Largest speed, degrees per second, 0.1..=180.
+        /// Largest speed of the steps, degrees per second (0.1..=180).
         #[serde(default = "d10")]
+        #[cfg_attr(feature = "cli", arg(long, default_value_t = 10.0, value_parser = crate::catalogue::whj::cli::max_speed))]
         max_speed: f64,
-        /// Position frames per second, 1..=1000.
+        /// Position frames per second (1..=1000).
         #[serde(default = "d200")]
+        #[cfg_attr(feature = "cli", arg(long, default_value_t = 200.0, value_parser = crate::catalogue::whj::cli::frame_rate))]
         rate_hz: f64,
-        /// Start angle of a plan (a run reads the present position).
+        /// Start angle of a plan (a dry run; a real run reads the present position;
+        /// without `from` a plan assumes 0).
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long, allow_hyphen_values = true, value_parser = crate::catalogue::whj::cli::angle))]
         from: Option<f64>,
         /// What a stop leaves the joint in: `hold` or `disable`.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(skip))]
         on_stop: WhjOnStop,
     }
 );

@@ -16,21 +16,28 @@ use crate::catalogue::{Effect, Family, Plan};
 use crate::ops::whj::{self as ops, RegisterReport, Slot};
 use crate::ops::{DeviceResult, OpError};
 
-request!(
+request!(cli
     /// `whj.read`: registers by name or address.
     Read {
-        /// Joint ID (with `broadcast`: joints 1..=7).
+        /// Joint ID, 1..=30 (with `broadcast`: joints 1..=7, e.g. `1-7`).
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::whj::cli::joints))]
         joints: Ids,
-        /// Register name (`cur_position`) or address (`"0x14"`).
+        /// Register name (`cur_position`, `SYS_TEMP`) or address (`0x14`, `20`),
+        /// 0x00..=0x91.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::whj::cli::register))]
         register: String,
-        /// Registers, 1..=31 (default: 2 for a 32-bit pair, else 1).
+        /// Number of registers, 1..=31 (default: 2 for a 32-bit pair, else 1).
         #[serde(default)]
         count: Option<u8>,
-        /// One broadcast frame (0x0F).
+        /// Read the register of joints 1..=7 with one broadcast frame (0x0F) instead of
+        /// one request each; a joint that does not answer is named.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long))]
         broadcast: bool,
-        /// With `broadcast`: an end-board register too (name or address).
+        /// With `broadcast`: also read this register of the end board's own map (name or
+        /// address, e.g. `EB_SW_VERSION` or 0x03).
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long, value_name = "REGISTER", requires = "broadcast", value_parser = crate::catalogue::whj::cli::end_board_register))]
         end_board: Option<String>,
     }
 );

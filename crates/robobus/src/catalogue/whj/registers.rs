@@ -13,7 +13,7 @@ use crate::catalogue::wck::request;
 use crate::catalogue::{Effect, Family, Plan};
 use crate::ops::OpError;
 
-request!(
+request!(cli
     /// `whj.registers`: the register table (nothing sent).
     Registers {}
 );

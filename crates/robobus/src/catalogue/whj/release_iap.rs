@@ -14,10 +14,13 @@ use crate::catalogue::{Effect, Family, Plan};
 use crate::ops::whj::{self as hops, IdentityReport};
 use crate::ops::{DeviceResult, OpError};
 
-request!(
+request!(cli
     /// `whj.release-iap`: start the application of joints in the bootloader (connect).
-    ReleaseIap { /// Joint IDs.
-        joints: Ids }
+    ReleaseIap {
+        /// Joint IDs, e.g. `1-7`.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::whj::cli::joints))]
+        joints: Ids,
+    }
 );
 
 /// A joint released from its bootloader: who it is.

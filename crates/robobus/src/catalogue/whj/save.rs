@@ -14,13 +14,15 @@ use crate::catalogue::{Effect, Family, Plan};
 use crate::ops::OpError;
 use crate::ops::whj::{self as ops, SaveReport};
 
-request!(
+request!(cli
     /// `whj.save`: save the register table to flash; needs `confirm`.
     Save {
-        /// Joint IDs.
+        /// Joint IDs, e.g. `1-7`.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::whj::cli::joints))]
         joints: Ids,
         /// Confirms the flash write.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(skip))]
         confirm: bool,
     }
 );

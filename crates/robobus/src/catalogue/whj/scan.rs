@@ -18,10 +18,14 @@ fn default_scan_joints() -> Ids {
     Ids::Text("1-30".into())
 }
 
-request!(
+request!(cli
     /// `whj.scan`: find joints (identity of every ID).
-    Scan { /// Joint IDs to try (`"1-30"`).
-        #[serde(default = "default_scan_joints")] joints: Ids }
+    Scan {
+        /// Joint IDs to try.
+        #[serde(default = "default_scan_joints")]
+        #[cfg_attr(feature = "cli", arg(long, default_value = "1-30", value_parser = crate::catalogue::whj::cli::joints))]
+        joints: Ids,
+    }
 );
 
 /// The summary of `whj.scan`.

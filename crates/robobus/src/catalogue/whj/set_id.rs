@@ -14,15 +14,18 @@ use crate::catalogue::{Effect, Family, Plan};
 use crate::ops::whj::{self as hops, SetIdReport};
 use crate::ops::{DeviceResult, OpError};
 
-request!(
+request!(cli
     /// `whj.set-id`: new ID, saved to flash; needs `confirm`.
     SetId {
-        /// Current ID.
+        /// Current joint ID, 1..=30.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::whj::cli::joint))]
         joint: u32,
-        /// New ID, 1..=30.
+        /// New joint ID, 1..=30.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::whj::cli::joint))]
         new_id: u32,
         /// Confirms the ID change.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(skip))]
         confirm: bool,
     }
 );

@@ -17,21 +17,25 @@ use crate::catalogue::{Effect, Family, Plan};
 use crate::ops::whj::rates::{self as ops, RatesReport};
 use crate::ops::{DeviceResult, OpError};
 
-request!(
+request!(cli
     /// `whj.set-rates`: sets joints' CAN FD bit rates (registers 0x08 / 0x09), reads them
     /// back and saves them. The joints keep the old rates until they are power-cycled and
     /// answer only at the new ones after that: the adapter must follow (the report's
     /// summary says how, and how to find a joint that is lost).
     SetRates {
-        /// Joint IDs (`"1-6"`): every joint on a bus must be at the bus's rates.
+        /// Joint IDs, e.g. `1-6`: every joint on a bus must be at the bus's rates.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::whj::cli::joints))]
         joints: Ids,
         /// Arbitration bit rate, bit/s: 250000, 500000 or 1000000.
+        #[cfg_attr(feature = "cli", arg(long))]
         bitrate: u32,
         /// Data bit rate, bit/s: 250000, 500000, 1000000, 2000000, 4000000 or 5000000, at
         /// least the arbitration rate.
+        #[cfg_attr(feature = "cli", arg(long))]
         dbitrate: u32,
         /// Confirms the change (the joints must then be reached at the new rates).
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(skip))]
         confirm: bool,
     }
 );

@@ -15,18 +15,23 @@ use crate::catalogue::{Effect, Family, Moved, Plan};
 use crate::ops::whj::{self as ops, ServoLoop, TargetArgs, TargetReport};
 use crate::ops::{DeviceResult, OpError};
 
-request!(
+request!(cli
     /// `whj.speed`: speed target (0x300+ID), output RPM.
     Speed {
-        /// Joint ID.
+        /// Joint ID, 1..=30.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::whj::cli::joint))]
         joint: u32,
-        /// Target, RPM, -37.5..=37.5.
+        /// Target speed, RPM, -37.5..=37.5.
+        #[cfg_attr(feature = "cli", arg(allow_hyphen_values = true, value_parser = crate::catalogue::whj::cli::rpm))]
         rpm: f64,
-        /// Keep it this many seconds (0.01..=3600), then target 0.
+        /// Keep the target this many seconds (0.01..=3600), then target 0 (also when
+        /// stopped). Without it the joint keeps turning after the request.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long, value_name = "SECS", value_parser = crate::catalogue::whj::cli::duration))]
         duration: Option<f64>,
         /// What a stop leaves the joint in.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(skip))]
         on_stop: WhjOnStop,
     }
 );

@@ -15,16 +15,21 @@ use crate::catalogue::{Effect, Family, Plan};
 use crate::ops::whj::{self as ops, EndBoardStatus, Slot, StatusReport};
 use crate::ops::{DeviceResult, OpError};
 
-request!(
+request!(cli
     /// `whj.status` (0x600+ID, or one broadcast 0x7F frame).
     Status {
-        /// Joint IDs (`"1-7"`).
+        /// Joint IDs, e.g. `1-7`.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::whj::cli::joints))]
         joints: Ids,
-        /// One broadcast status frame for joints 1..=7.
+        /// Ask joints 1..=7 with one broadcast status frame (0x7F) instead of one query
+        /// each; a joint that does not answer is named.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long))]
         broadcast: bool,
-        /// With `broadcast`: the end board answers too.
+        /// With `broadcast`: the end board answers the same frame (IO modes and levels,
+        /// buttons, gripper / hand in position, error byte).
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long, requires = "broadcast"))]
         end_board: bool,
     }
 );

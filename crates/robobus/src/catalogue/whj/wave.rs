@@ -33,25 +33,27 @@ const fn d200() -> f64 {
 
 /// Wave shape.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Shape {
-    /// Sine.
+    /// offset + amplitude * sin(2 pi f t).
     #[default]
     Sine,
-    /// Square.
+    /// offset + amplitude while sin(2 pi f t) >= 0, else offset - amplitude.
     Square,
 }
 
 /// Which loop a wave drives.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum WaveMode {
-    /// Position frames, degrees.
+    /// Position servo frames (0x200+ID); amplitude and offset in degrees.
     #[default]
     Position,
-    /// Speed frames, RPM.
+    /// Speed servo frames (0x300+ID); amplitude and offset in RPM.
     Speed,
-    /// Current frames, mA.
+    /// Current servo frames (0x400+ID); amplitude and offset in mA.
     Current,
 }
 
@@ -66,42 +68,57 @@ impl WaveMode {
     }
 }
 
-request!(
+request!(cli
     /// `whj.wave`: a test signal as servo frames.
     Wave {
-        /// Joint ID.
+        /// Joint ID, 1..=30.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::whj::cli::joint))]
         joint: u32,
-        /// `sine` or `square`.
+        /// Signal shape.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long, value_enum, default_value = "sine"))]
         shape: Shape,
-        /// `position` (deg), `speed` (RPM) or `current` (mA).
+        /// Which servo loop the signal drives.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long, value_enum, default_value = "position"))]
         mode: WaveMode,
-        /// Amplitude, >= 0.
+        /// Amplitude (degrees, RPM or mA by `mode`), >= 0.
+        #[cfg_attr(feature = "cli", arg(long, value_parser = crate::catalogue::whj::cli::finite))]
         amplitude: f64,
-        /// Hz, 0.01..=20 and at most `rate_hz` / 4.
+        /// Frequency in Hz, 0.01..=20 and at most `rate_hz` / 4.
         #[serde(default = "d05")]
+        #[cfg_attr(feature = "cli", arg(long, default_value_t = 0.5, value_parser = crate::catalogue::whj::cli::finite))]
         frequency: f64,
-        /// Offset.
+        /// Offset (degrees, RPM or mA by `mode`).
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long, default_value_t = 0.0, allow_hyphen_values = true, value_parser = crate::catalogue::whj::cli::finite))]
         offset: f64,
-        /// Seconds, 0.01..=600.
+        /// Duration in seconds, 0.01..=600.
         #[serde(default = "d4")]
+        #[cfg_attr(feature = "cli", arg(long, default_value_t = 4.0, value_parser = crate::catalogue::whj::cli::finite))]
         duration: f64,
-        /// Frames per second, 1..=1000.
+        /// Frames per second (1..=1000).
         #[serde(default = "d200")]
+        #[cfg_attr(feature = "cli", arg(long, default_value_t = 200.0, value_parser = crate::catalogue::whj::cli::frame_rate))]
         rate_hz: f64,
-        /// As broadcast frames (0x2F / 0x4F).
+        /// Send the wave as broadcast frames (0x2F position, 0x4F current; joints 1..=7;
+        /// position waves at `rate_hz` >= 100, since a joint stops a broadcast position
+        /// stream after 20 ms without a frame).
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long))]
         broadcast: bool,
-        /// Where a plan assumes the joint starts, degrees (a run measures it).
+        /// Start angle of a position wave in a plan (a dry run; a real run starts the step
+        /// limiter at the present position; without `from` a plan assumes 0).
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long, allow_hyphen_values = true, value_parser = crate::catalogue::whj::cli::angle))]
         from: Option<f64>,
         /// Model for the current scale of a plan.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(skip))]
         model: Option<Model>,
         /// What a stop leaves the joint in.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(skip))]
         on_stop: WhjOnStop,
     }
 );

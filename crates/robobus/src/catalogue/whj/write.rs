@@ -19,30 +19,42 @@ use crate::catalogue::{Effect, Family, Plan};
 use crate::ops::whj::{self as ops, EndBoardArg, RegisterReport, Slot};
 use crate::ops::{DeviceResult, OpError};
 
-request!(
+request!(cli
     /// `whj.write`: a register in its unit, read back; the register's safety class decides
     /// (refused, or needs `confirm`).
     Write {
-        /// Joint ID (with `broadcast`: joints 1..=7).
+        /// Joint ID, 1..=30 (with `broadcast`: joints 1..=7, e.g. `1-7`).
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::whj::cli::joints))]
         joints: Ids,
-        /// Register name or address.
+        /// Register name (`cur_position`, `SYS_TEMP`) or address (`0x14`, `20`),
+        /// 0x00..=0x91.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::whj::cli::register))]
         register: String,
-        /// The value, in the register's unit (with `raw`: counts).
+        /// The value, in the register's unit (see `robobus whj registers`); with `raw`, in
+        /// counts.
+        #[cfg_attr(feature = "cli", arg(allow_hyphen_values = true, value_parser = crate::catalogue::whj::cli::finite))]
         value: f64,
-        /// The value is in counts.
+        /// The value is in raw counts.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long))]
         raw: bool,
-        /// One broadcast frame, then a read-back.
+        /// Write the register of joints 1..=7 with one broadcast frame (0x0F), then read
+        /// it back with a second one; a joint that does not answer is named.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long))]
         broadcast: bool,
-        /// With `broadcast`: an end-board write `REGISTER=VALUE`.
+        /// With `broadcast`: also write a register of the end board's own map,
+        /// `REGISTER=VALUE` (e.g. `EB_IO1_MODE=1`, 0x07=3); needs `confirm`.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long, value_name = "REGISTER=VALUE", requires = "broadcast", value_parser = crate::catalogue::whj::cli::end_board_write))]
         end_board: Option<String>,
         /// Model for the current scale of a plan.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(skip))]
         model: Option<Model>,
         /// Confirms a write of the `confirm` class.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(skip))]
         confirm: bool,
     }
 );

@@ -13,10 +13,13 @@ use crate::catalogue::{Effect, Family, Plan};
 use crate::ops::whj::{self as ops, ZeroReport};
 use crate::ops::{DeviceResult, OpError};
 
-request!(
+request!(cli
     /// `whj.zero`: the present position becomes 0° (register 0x0E := 1).
-    Zero { /// Joint ID.
-        joint: u32 }
+    Zero {
+        /// Joint ID, 1..=30.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::whj::cli::joint))]
+        joint: u32,
+    }
 );
 
 impl Operation for Zero {
