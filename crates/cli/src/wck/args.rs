@@ -3,27 +3,13 @@
 //! refused with exit code 2, naming the value, the range and the argument).
 
 use std::path::PathBuf;
-use std::time::Duration;
 
-use clap::{Subcommand, ValueEnum};
-use robobus::ops::IdList;
+use clap::Subcommand;
+use robobus::catalogue::wck as cw;
 use robobus::ops::wck::FORMAT_HELP;
 use robobus_wck::{
-    Accel, BaudRate, DGain, DataByte, ExtServoId, IGain, IoBits, Overload, PGain, Position,
-    Position10, RangeError, ServoId, Speed, TorqueLevel, WheelSpeed,
+    Accel, BaudRate, DGain, IGain, IoBits, Overload, PGain, Position, RangeError, ServoId, Speed,
 };
-
-/// The safe state of a loop that ends early (play, teach, timed wheel) or, for teach and
-/// wheel, when it ends at all.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub(crate) enum OnStop {
-    /// Release the torque (the servos turn freely).
-    Passive,
-    /// Dynamic brake on every servo of the bus (A-1 (6) break mode).
-    Break,
-    /// Keep the current position, with torque (a position move to where each servo is).
-    Hold,
-}
 
 pub(super) const AFTER_HELP: &str = "\
 IDs: 4- and 6-byte commands address servos 0..=30 (31 is the broadcast ID used by
@@ -82,6 +68,10 @@ pub(crate) struct Args {
     pub(super) command: WckCommand,
 }
 
+/// The subcommands of `robobus wck`. Each takes its arguments from its catalogue request
+/// ([`robobus::catalogue::wck`], whose field docs are the help, with the `cli` feature);
+/// what only the command has (a file named on the command line, the `get` / `set`
+/// parameter subcommands) is in the small structs below.
 #[derive(Debug, Subcommand)]
 pub(super) enum WckCommand {
     /// Find servos: read the status of every ID (0..=30 unless --ids is given).
@@ -89,86 +79,23 @@ pub(super) enum WckCommand {
     /// Prints the servos found (ID, baud rate, load, position); IDs answered by more than
     /// one module are flagged as duplicates. On a terminal a progress bar shows on stderr.
     /// Exit code 3 if no servo answers.
-    Scan {
-        /// Try every baud rate the wCK supports, not just --baud.
-        #[arg(long)]
-        all_bauds: bool,
-        /// IDs to try: a list of IDs and ranges, e.g. `0-5,7`.
-        #[arg(long, default_value = "0-30", value_parser = parse_servo_ids)]
-        ids: ServoIds,
-    },
+    Scan(cw::Scan),
     /// Read load and position of servos (A-1 (3) status read).
-    Status {
-        /// Servo IDs: a list of IDs and ranges, e.g. `3` or `0-5,7`.
-        #[arg(value_parser = parse_servo_ids)]
-        ids: ServoIds,
-    },
+    Status(cw::Status),
     /// Move one servo to a position (A-1 (1) position move); replies load and position
-    Move {
-        /// Servo ID, 0..=30.
-        #[arg(value_parser = parse_servo_id)]
-        id: ServoId,
-        /// Target position, 0..=254.
-        #[arg(value_parser = parse_position)]
-        position: Position,
-        /// Torque level, 0 (maximum) ..= 4 (minimum).
-        #[arg(long, default_value = "0", value_parser = parse_torque)]
-        torque: TorqueLevel,
-    },
+    Move(cw::Move),
     /// Move one servo to a 10-bit position (A-1 (26)).
-    Move10 {
-        /// Servo ID, 0..=253.
-        #[arg(value_parser = parse_ext_id)]
-        id: ExtServoId,
-        /// Target position, 0..=1023.
-        #[arg(value_parser = parse_position10)]
-        position: Position10,
-        /// Torque, 0..=254 (a full data byte, as the manual gives it).
-        #[arg(long, default_value = "0", value_parser = parse_data_byte)]
-        torque: DataByte,
-    },
+    Move10(cw::Move10),
     /// Read the 10-bit position of a servo (A-1 (27)).
-    Read10 {
-        /// Servo ID, 0..=253.
-        #[arg(value_parser = parse_ext_id)]
-        id: ExtServoId,
-    },
+    Read10(cw::Read10),
     /// Move servos 0..N-1 at once (A-1 (2) synchronized move, no reply).
-    SyncMove {
-        /// Target positions of servos 0, 1, 2, ... (1..=31 values, each 0..=254).
-        #[arg(required = true, num_args = 1..=31, value_parser = parse_position)]
-        positions: Vec<Position>,
-        /// Torque level, 0 (maximum) ..= 4 (minimum).
-        #[arg(long, default_value = "0", value_parser = parse_torque)]
-        torque: TorqueLevel,
-    },
+    SyncMove(cw::SyncMove),
     /// Release the torque of servos (A-1 (4) passive); replies the position.
-    Passive {
-        /// Servo IDs, e.g. `3` or `0-5`.
-        #[arg(value_parser = parse_servo_ids)]
-        ids: ServoIds,
-    },
+    Passive(cw::Passive),
     /// Turn a servo continuously (A-1 (5) wheel mode).
-    Wheel {
-        /// Servo ID, 0..=30.
-        #[arg(value_parser = parse_servo_id)]
-        id: ServoId,
-        /// Direction.
-        direction: Direction,
-        /// Speed 0 (stop), 1 (minimum) ..= 15 (maximum).
-        #[arg(value_parser = parse_wheel_speed)]
-        speed: WheelSpeed,
-        /// Turn for this many seconds (0.1..=3600), then stop per --on-stop. Without it the
-        /// servo keeps turning after the command returns.
-        #[arg(long, value_name = "SECS", value_parser = parse_seconds)]
-        duration: Option<Duration>,
-        /// How the servo stops after --duration or on Ctrl-C: hold (position move to where
-        /// it is), passive or break.
-        #[arg(long, value_enum, default_value = "hold", hide_possible_values = true)]
-        on_stop: OnStop,
-    },
+    Wheel(cw::Wheel),
     /// Put every servo on the bus into break mode (A-1 (6)).
-    Brake,
+    Brake(cw::Brake),
     /// Read a parameter of a servo.
     #[command(subcommand)]
     Get(GetParam),
@@ -180,86 +107,22 @@ pub(super) enum WckCommand {
     /// the best one named (or a tie when they differ by no more than a reading); each step
     /// starts at rest at the start, and the servo is back there when it ends. --keep keeps
     /// the best set.
-    Tune {
-        /// Servo ID, 0..=30.
-        #[arg(value_parser = parse_servo_id)]
-        id: ServoId,
-        /// A gain set `P,D` (repeat for each, 1..=8), e.g. --gains 20,30 --gains 40,20.
-        #[arg(long, required = true, value_name = "P,D", value_parser = robobus::ops::wck::tune::parse_gains)]
-        gains: Vec<robobus::wck::Gains>,
-        /// The step, position steps (2..=60), away from the nearer boundary.
-        #[arg(long, default_value_t = 20)]
-        amplitude: u8,
-        /// How long each step is recorded, ms (100..=5000).
-        #[arg(long, default_value_t = 1000)]
-        hold_ms: u32,
-        /// Torque level of the moves, 0 (strongest)..=4.
-        #[arg(long, default_value = "0", value_parser = parse_torque)]
-        torque: TorqueLevel,
-        /// Keep the best set: none (the runtime gains go back to the EEPROM's), runtime
-        /// (until power-off) or eeprom (needs --yes).
-        #[arg(long, value_enum, default_value = "none")]
-        keep: KeepArg,
-    },
+    Tune(cw::Tune),
     /// Back up a servo's settings (gains, I gain, speed, over-load, boundaries) to a
     /// JSON settings file.
-    Backup {
-        /// Servo ID, 0..=30.
-        #[arg(value_parser = parse_servo_id)]
-        id: ServoId,
-        /// The settings file to write (an existing one is replaced).
-        #[arg(short, long, value_name = "FILE.json")]
-        output: PathBuf,
-    },
+    Backup(Backup),
     /// List the settings on which a servo differs from a settings file, the factory
     /// settings (--factory) or another servo (--with).
-    Diff {
-        /// Servo ID, 0..=30.
-        #[arg(value_parser = parse_servo_id)]
-        id: ServoId,
-        /// A settings file (from `wck backup`).
-        #[arg(required_unless_present_any = ["factory", "with"], conflicts_with_all = ["factory", "with"])]
-        file: Option<PathBuf>,
-        /// Compare with the manual's factory settings (A-5).
-        #[arg(long, conflicts_with = "with")]
-        factory: bool,
-        /// Compare with this servo.
-        #[arg(long, value_name = "ID", value_parser = parse_servo_id)]
-        with: Option<ServoId>,
-    },
+    Diff(Diff),
     /// Restore a settings file (or, with --factory, the manual's factory settings, A-5)
     /// into a servo's EEPROM: only the groups that differ are written, each verified.
     /// Needs --yes.
-    Restore {
-        /// Servo ID, 0..=30.
-        #[arg(value_parser = parse_servo_id)]
-        id: ServoId,
-        /// A settings file (from `wck backup`).
-        #[arg(required_unless_present = "factory", conflicts_with = "factory")]
-        file: Option<PathBuf>,
-        /// Restore the factory settings.
-        #[arg(long)]
-        factory: bool,
-    },
+    Restore(Restore),
     /// Give a servo a new ID (A-1 (14), EEPROM). IDs above 30 are reachable only with
     /// move10 / read10.
-    SetId {
-        /// Current ID, 0..=30.
-        #[arg(value_parser = parse_servo_id)]
-        id: ServoId,
-        /// New ID, 0..=253.
-        #[arg(value_parser = parse_ext_id)]
-        new_id: ExtServoId,
-    },
+    SetId(cw::SetId),
     /// Set a servo's baud rate (A-1 (7), EEPROM); reach it afterwards with --baud RATE.
-    SetBaud {
-        /// Servo ID, 0..=30.
-        #[arg(value_parser = parse_servo_id)]
-        id: ServoId,
-        /// New baud rate: 4800, 9600, 38400, 57600, 115200, 230400, 460800 or 921600.
-        #[arg(value_parser = parse_baud)]
-        rate: BaudRate,
-    },
+    SetBaud(cw::SetBaud),
     /// Self-running motion programs (manual section 3-11).
     #[command(subcommand)]
     Program(ProgramCommand),
@@ -268,58 +131,82 @@ pub(super) enum WckCommand {
     /// Move the servos by hand; each Enter records a pose (q + Enter or Ctrl-D finishes).
     /// With --rate-hz / --duration poses are recorded at a rate instead (for --duration,
     /// or until Enter). Writes a keyframe motion file that `play` plays.
-    Teach {
-        /// Servo IDs to record: 0..N-1 (e.g. `0-15`), since a pose lists servos 0, 1, ...
-        #[arg(value_parser = parse_servo_ids)]
-        ids: ServoIds,
-        /// Record at this many poses per second (0.1..=200) instead of per keypress.
-        #[arg(long, value_parser = parse_rate)]
-        rate_hz: Option<f64>,
-        /// Record for this many seconds (0.1..=3600), at --rate-hz (default 10).
-        #[arg(long, value_name = "SECS", value_parser = parse_seconds)]
-        duration: Option<Duration>,
-        /// Transition time written for each pose recorded by keypress, ms (0..=600000).
-        #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u32).range(0..=600_000))]
-        pose_ms: u32,
-        /// Torque level written into the file, 0 (maximum) ..= 4 (minimum).
-        #[arg(long, default_value = "0", value_parser = parse_torque)]
-        torque: TorqueLevel,
-        /// Write the poses as a keyframe motion file (see `robobus wck play --help`);
-        /// without it the file is printed on stdout.
-        #[arg(short, long, value_name = "FILE")]
-        output: Option<PathBuf>,
-        /// What the servos do when recording ends: passive (stay limp), hold (keep the last
-        /// pose with torque) or break.
-        #[arg(
-            long,
-            value_enum,
-            default_value = "passive",
-            hide_possible_values = true
-        )]
-        on_stop: OnStop,
-    },
+    Teach(Teach),
     /// Play a keyframe motion file: poses with transition times, interpolated and sent as
     /// synchronized moves.
     #[command(after_help = FORMAT_HELP)]
-    Play {
-        /// The keyframe motion file.
-        file: PathBuf,
-        /// Synchronized moves per second while interpolating (1..=200).
-        #[arg(long, default_value_t = 50.0, value_parser = parse_rate)]
-        rate_hz: f64,
-        /// What the servos do on Ctrl-C: hold (keep the current position), passive or
-        /// break.
-        #[arg(long, value_enum, default_value = "hold", hide_possible_values = true)]
-        on_stop: OnStop,
-    },
+    Play(Play),
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub(super) enum Direction {
-    /// Counter-clockwise.
-    Ccw,
-    /// Clockwise.
-    Cw,
+// What only the command has: the files it reads into a request's text field or writes
+// a report to. Each holds its request (flattened) and the file.
+
+#[derive(Debug, clap::Args)]
+#[group(skip)]
+pub(super) struct Backup {
+    #[command(flatten)]
+    pub(super) request: cw::Backup,
+    /// The settings file to write (an existing one is replaced).
+    #[arg(short, long, value_name = "FILE.json")]
+    pub(super) output: PathBuf,
+}
+
+#[derive(Debug, clap::Args)]
+#[group(skip)]
+pub(super) struct Diff {
+    #[command(flatten)]
+    pub(super) request: cw::Diff,
+    /// A settings file (from `wck backup`).
+    #[arg(required_unless_present_any = ["factory", "other"], conflicts_with_all = ["factory", "other"])]
+    pub(super) file: Option<PathBuf>,
+}
+
+#[derive(Debug, clap::Args)]
+#[group(skip)]
+pub(super) struct Restore {
+    #[command(flatten)]
+    pub(super) request: cw::Restore,
+    /// A settings file (from `wck backup`).
+    #[arg(required_unless_present = "factory", conflicts_with = "factory")]
+    pub(super) file: Option<PathBuf>,
+}
+
+#[derive(Debug, clap::Args)]
+#[group(skip)]
+pub(super) struct Teach {
+    #[command(flatten)]
+    pub(super) request: cw::Teach,
+    /// Write the poses as a keyframe motion file (see `robobus wck play --help`);
+    /// without it the file is printed on stdout.
+    #[arg(short, long, value_name = "FILE")]
+    pub(super) output: Option<PathBuf>,
+}
+
+#[derive(Debug, clap::Args)]
+#[group(skip)]
+pub(super) struct Play {
+    /// The keyframe motion file.
+    pub(super) file: PathBuf,
+    #[command(flatten)]
+    pub(super) request: cw::Play,
+}
+
+#[derive(Debug, clap::Args)]
+#[group(skip)]
+pub(super) struct ProgramUpload {
+    #[command(flatten)]
+    pub(super) request: cw::ProgramUpload,
+    /// The program, in the text form (see `robobus wck program check --help`).
+    pub(super) file: PathBuf,
+}
+
+#[derive(Debug, clap::Args)]
+#[group(skip)]
+pub(super) struct ProgramCheck {
+    /// The program, in the text form.
+    pub(super) file: PathBuf,
+    #[command(flatten)]
+    pub(super) request: cw::ProgramCheck,
 }
 
 #[derive(Debug, Subcommand)]
@@ -425,29 +312,13 @@ pub(super) enum SetParam {
 pub(super) enum ProgramCommand {
     /// Store a motion program (text form) in a servo (A-1 (24), EEPROM).
     #[command(after_help = PROGRAM_HELP)]
-    Upload {
-        /// Servo ID, 0..=30.
-        #[arg(value_parser = parse_servo_id)]
-        id: ServoId,
-        /// The program, in the text form (see `robobus wck program check --help`).
-        file: PathBuf,
-    },
+    Upload(ProgramUpload),
     /// Read how many instructions a servo's program has (A-1 (25)).
-    Download {
-        /// Servo ID, 0..=30.
-        #[arg(value_parser = parse_servo_id)]
-        id: ServoId,
-    },
+    Download(cw::ProgramDownload),
     /// Check a program file without a device: report errors with line:column, print the
     /// encoded bytes.
     #[command(after_help = PROGRAM_HELP)]
-    Check {
-        /// The program, in the text form.
-        file: PathBuf,
-        /// Servo ID for the printed upload packet, 0..=30.
-        #[arg(long, default_value = "0", value_parser = parse_servo_id)]
-        id: ServoId,
-    },
+    Check(ProgramCheck),
 }
 
 pub(super) const PROGRAM_HELP: &str = "\
@@ -464,59 +335,14 @@ comment.
   repeat <1..=254> | repeat forever
   end";
 
-/// A parsed list of servo IDs (`0-5,7`), in the order given, without repeats.
-pub(super) type ServoIds = IdList<ServoId>;
+use robobus::catalogue::wck::cli::parse_u32;
+use robobus::catalogue::wck::cli::ranged;
 
-/// Parses a number: decimal or `0x` hex.
-pub(crate) fn parse_u32(s: &str) -> Result<u32, String> {
-    let t = s.trim();
-    let parsed = match t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
-        Some(hex) => u32::from_str_radix(hex, 16),
-        None => t.parse(),
-    };
-    parsed.map_err(|_| format!("`{s}` is not a whole number"))
-}
-
-/// Parses a byte-sized value with a protocol constructor; values above 255 get the same
-/// message as the constructor's own range error.
-fn ranged<T>(s: &str, new: impl Fn(u8) -> Result<T, RangeError>) -> Result<T, String> {
-    // A negative number is out of range, not "not a number": name the range.
-    if let Some(magnitude) = s.trim().strip_prefix('-')
-        && parse_u32(magnitude).is_ok()
-    {
-        let (what, min, max) = (0..=u8::MAX)
-            .find_map(|b| new(b).err())
-            .or_else(|| new(u8::MAX).err())
-            .map_or(("value", 0, 255), |e| (e.what, e.min, e.max));
-        return Err(format!("{what} {} is out of range {min}..={max}", s.trim()));
-    }
-    let v = parse_u32(s)?;
-    match u8::try_from(v) {
-        Ok(b) => new(b).map_err(|e| e.to_string()),
-        Err(_) => match new(u8::MAX) {
-            Err(e) => Err(RangeError { value: v, ..e }.to_string()),
-            Ok(_) => Err(format!("{v} is out of range 0..=255")),
-        },
-    }
-}
-
-pub(crate) fn parse_servo_id(s: &str) -> Result<ServoId, String> {
-    ranged(s, ServoId::new)
-}
-fn parse_ext_id(s: &str) -> Result<ExtServoId, String> {
-    ranged(s, ExtServoId::new)
-}
-pub(crate) fn parse_position(s: &str) -> Result<Position, String> {
+fn parse_position(s: &str) -> Result<Position, String> {
     ranged(s, Position::new)
 }
-pub(crate) fn parse_torque(s: &str) -> Result<TorqueLevel, String> {
-    ranged(s, TorqueLevel::new)
-}
-fn parse_data_byte(s: &str) -> Result<DataByte, String> {
-    ranged(s, DataByte::new)
-}
-fn parse_wheel_speed(s: &str) -> Result<WheelSpeed, String> {
-    ranged(s, WheelSpeed::new)
+fn parse_servo_id(s: &str) -> Result<ServoId, String> {
+    ranged(s, ServoId::new)
 }
 fn parse_p_gain(s: &str) -> Result<PGain, String> {
     ranged(s, PGain::new)
@@ -535,12 +361,6 @@ fn parse_accel(s: &str) -> Result<Accel, String> {
 }
 fn parse_io_bits(s: &str) -> Result<IoBits, String> {
     ranged(s, IoBits::new)
-}
-
-fn parse_position10(s: &str) -> Result<Position10, String> {
-    let v = parse_u32(s)?;
-    let raw = u16::try_from(v).unwrap_or(u16::MAX);
-    Position10::new(raw).map_err(|e| RangeError { value: v, ..e }.to_string())
 }
 
 fn parse_overload_ma(s: &str) -> Result<Overload, String> {
@@ -571,46 +391,4 @@ pub(crate) fn parse_port<T: for<'a> From<&'a str>>(s: &str) -> Result<T, String>
 pub(crate) fn parse_baud(s: &str) -> Result<BaudRate, String> {
     let v = parse_u32(s)?;
     BaudRate::from_bits_per_second(v).map_err(|e| e.to_string())
-}
-
-/// A rate in Hz, 0.1..=200.
-fn parse_rate(s: &str) -> Result<f64, String> {
-    let v: f64 = s
-        .trim()
-        .parse()
-        .map_err(|_| format!("`{s}` is not a number"))?;
-    if (0.1..=200.0).contains(&v) {
-        Ok(v)
-    } else {
-        Err(format!("rate {v} Hz is out of range 0.1..=200"))
-    }
-}
-
-/// A duration in seconds, 0.1..=3600.
-fn parse_seconds(s: &str) -> Result<Duration, String> {
-    let v: f64 = s
-        .trim()
-        .trim_end_matches('s')
-        .parse()
-        .map_err(|_| format!("`{s}` is not a number of seconds"))?;
-    if (0.1..=3600.0).contains(&v) {
-        Ok(Duration::from_secs_f64(v))
-    } else {
-        Err(format!("{v} s is out of range 0.1..=3600"))
-    }
-}
-
-fn parse_servo_ids(spec: &str) -> Result<ServoIds, String> {
-    spec.parse()
-}
-
-/// What `wck tune` keeps.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub(super) enum KeepArg {
-    /// Nothing.
-    None,
-    /// The runtime gains.
-    Runtime,
-    /// The EEPROM gains.
-    Eeprom,
 }

@@ -11,7 +11,6 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use robobus::catalogue::args::{Ids, WckOnStop};
 use robobus::catalogue::{self, Report, Request, wck as cw};
 use robobus::ops::wck::MOTION_FILE_LIMIT;
 use robobus::ops::{Control, OpError, read_bounded};
@@ -26,8 +25,8 @@ use crate::{output, report};
 mod args;
 mod teach;
 
-pub(crate) use args::{Args, OnStop, parse_baud, parse_margin, parse_port, parse_u32};
-use args::{Direction, GetParam, KeepArg, ProgramCommand, ServoIds, SetParam, WckCommand};
+pub(crate) use args::{Args, parse_baud, parse_margin, parse_port};
+use args::{GetParam, ProgramCommand, SetParam, WckCommand};
 
 /// `wck tune` as text: the table of responses and the best set, or the tie; the traces
 /// are in `--json`.
@@ -99,9 +98,10 @@ fn in_file(e: OpError, path: Option<&Path>) -> anyhow::Error {
 /// The file a subcommand reads, if any (for [`in_file`]).
 fn input_file(c: &WckCommand) -> Option<&Path> {
     match c {
-        WckCommand::Play { file, .. }
+        WckCommand::Play(args::Play { file, .. })
         | WckCommand::Program(
-            ProgramCommand::Upload { file, .. } | ProgramCommand::Check { file, .. },
+            ProgramCommand::Upload(args::ProgramUpload { file, .. })
+            | ProgramCommand::Check(args::ProgramCheck { file, .. }),
         ) => Some(file),
         _ => None,
     }
@@ -112,10 +112,12 @@ fn input_file(c: &WckCommand) -> Option<&Path> {
 pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     let file = input_file(&args.command);
     let request = request(args)?;
-    if let WckCommand::Program(ProgramCommand::Check { file, .. }) = &args.command {
+    if let WckCommand::Program(ProgramCommand::Check(args::ProgramCheck { file, .. })) =
+        &args.command
+    {
         return check_program(g, file, &request);
     }
-    if let WckCommand::Backup { output, .. } = &args.command {
+    if let WckCommand::Backup(args::Backup { output, .. }) = &args.command {
         output::check_output_path(output, "--output")?;
     }
     if g.dry_run {
@@ -138,7 +140,7 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     // A teach output file is created before the port is opened: an unwritable path fails
     // before any servo is touched.
     let mut teacher = match &args.command {
-        WckCommand::Teach { output, .. } => {
+        WckCommand::Teach(args::Teach { output, .. }) => {
             Some(teach::Teacher::new(&request, output.as_deref(), g.json)?)
         }
         _ => None,
@@ -161,13 +163,15 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     };
     station.leave();
     let report = report?;
-    if let (WckCommand::Backup { output, id }, Some(doc)) = (&args.command, &report.summary) {
+    if let (WckCommand::Backup(args::Backup { output, request }), Some(doc)) =
+        (&args.command, &report.summary)
+    {
         let text = serde_json::to_string_pretty(doc)? + "\n";
         std::fs::write(output, text)
             .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", output.display()))?;
         eprintln!(
             "robobus: the settings of servo {} written to {}",
-            id.get(),
+            request.id,
             output.display()
         );
     }
@@ -175,10 +179,10 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
         return report::print(&report, true, &WCK_TABLE);
     }
     match &args.command {
-        WckCommand::Scan { .. } => print_scan(&report),
-        WckCommand::Play { .. } => print_play(&report),
-        WckCommand::Tune { .. } => print_tune(report),
-        WckCommand::Teach { output, .. } => {
+        WckCommand::Scan(_) => print_scan(&report),
+        WckCommand::Play(_) => print_play(&report),
+        WckCommand::Tune(_) => print_tune(report),
+        WckCommand::Teach(args::Teach { output, .. }) => {
             teacher.map_or(Ok(()), |t| t.finish(&report, output.as_deref()))?;
             report::outcome(&report)
         }
@@ -240,219 +244,71 @@ fn print_play(r: &Report) -> anyhow::Result<()> {
     report::outcome(r)
 }
 
-fn ids(list: &ServoIds) -> Ids {
-    Ids::List(list.as_slice().iter().map(|i| u32::from(i.get())).collect())
-}
-
 fn id(i: ServoId) -> u32 {
     u32::from(i.get())
 }
 
-const fn on_stop(o: OnStop) -> WckOnStop {
-    match o {
-        OnStop::Passive => WckOnStop::Passive,
-        OnStop::Break => WckOnStop::Break,
-        OnStop::Hold => WckOnStop::Hold,
-    }
-}
-
-/// The catalogue request of a subcommand (its files read as text); the library
-/// validates it again and plans it.
-#[allow(clippy::too_many_lines)] // one arm per subcommand
+/// The catalogue request of a subcommand: the request its arguments are, with the files
+/// the command names read into its text fields; the library validates it and plans it.
 fn request(args: &Args) -> anyhow::Result<Request> {
     use Request as Q;
+    let settings =
+        |file: &Option<std::path::PathBuf>| file.as_deref().map(settings_file).transpose();
     Ok(match &args.command {
-        WckCommand::Scan {
-            all_bauds,
-            ids: list,
-        } => Q::WckScan(cw::Scan {
-            bus: None,
-            ids: ids(list),
-            all_bauds: *all_bauds,
-        }),
-        WckCommand::Status { ids: list } => Q::WckStatus(cw::Status {
-            bus: None,
-            ids: ids(list),
-        }),
-        WckCommand::Move {
-            id: i,
-            position,
-            torque,
-        } => Q::WckMove(cw::Move {
-            bus: None,
-            id: id(*i),
-            position: u32::from(position.get()),
-            torque: u32::from(torque.get()),
-        }),
-        WckCommand::Move10 {
-            id: i,
-            position,
-            torque,
-        } => Q::WckMove10(cw::Move10 {
-            bus: None,
-            id: u32::from(i.get()),
-            position: u32::from(position.get()),
-            torque: u32::from(torque.get()),
-        }),
-        WckCommand::Read10 { id: i } => Q::WckRead10(cw::Read10 {
-            bus: None,
-            id: u32::from(i.get()),
-        }),
-        WckCommand::SyncMove { positions, torque } => Q::WckSyncMove(cw::SyncMove {
-            bus: None,
-            positions: positions.iter().map(|p| u32::from(p.get())).collect(),
-            torque: u32::from(torque.get()),
-        }),
-        WckCommand::Passive { ids: list } => Q::WckPassive(cw::Passive {
-            bus: None,
-            ids: ids(list),
-        }),
-        WckCommand::Wheel {
-            id: i,
-            direction,
-            speed,
-            duration,
-            on_stop: o,
-        } => Q::WckWheel(cw::Wheel {
-            bus: None,
-            id: id(*i),
-            direction: match direction {
-                Direction::Ccw => cw::Direction::Ccw,
-                Direction::Cw => cw::Direction::Cw,
-            },
-            speed: u32::from(speed.get()),
-            duration: duration.map(|d| d.as_secs_f64()),
-            on_stop: on_stop(*o),
-        }),
-        WckCommand::Brake => Q::WckBrake(cw::Brake { bus: None }),
-        WckCommand::Get(p) => {
-            let (param, a) = match p {
-                GetParam::Gains(a) => (cw::Param::Gains, a),
-                GetParam::IGain(a) => (cw::Param::IGain, a),
-                GetParam::Speed(a) => (cw::Param::Speed, a),
-                GetParam::Overload(a) => (cw::Param::Overload, a),
-                GetParam::Bounds(a) => (cw::Param::Bounds, a),
-                GetParam::Io(a) => (cw::Param::Io, a),
-            };
-            Q::WckGet(cw::Get {
-                bus: None,
-                param,
-                id: id(a.id),
-            })
-        }
+        WckCommand::Scan(r) => Q::WckScan(r.clone()),
+        WckCommand::Status(r) => Q::WckStatus(r.clone()),
+        WckCommand::Move(r) => Q::WckMove(r.clone()),
+        WckCommand::Move10(r) => Q::WckMove10(r.clone()),
+        WckCommand::Read10(r) => Q::WckRead10(r.clone()),
+        WckCommand::SyncMove(r) => Q::WckSyncMove(r.clone()),
+        WckCommand::Passive(r) => Q::WckPassive(r.clone()),
+        WckCommand::Wheel(r) => Q::WckWheel(r.clone()),
+        WckCommand::Brake(r) => Q::WckBrake(r.clone()),
+        WckCommand::Get(p) => Q::WckGet(get_request(p)),
         WckCommand::Set(p) => Q::WckSet(set_request(p)),
-        WckCommand::Tune {
-            id: i,
-            gains,
-            amplitude,
-            hold_ms,
-            torque,
-            keep,
-        } => Q::WckTune(cw::Tune {
-            bus: None,
-            id: id(*i),
-            gains: gains
-                .iter()
-                .map(|g| [u32::from(g.p.get()), u32::from(g.d.get())])
-                .collect(),
-            amplitude: u32::from(*amplitude),
-            hold_ms: *hold_ms,
-            torque: u32::from(torque.get()),
-            keep: match keep {
-                KeepArg::None => cw::KeepArg::None,
-                KeepArg::Runtime => cw::KeepArg::Runtime,
-                KeepArg::Eeprom => cw::KeepArg::Eeprom,
-            },
-            confirm: false,
+        WckCommand::Tune(r) => Q::WckTune(r.clone()),
+        WckCommand::Backup(a) => Q::WckBackup(a.request.clone()),
+        WckCommand::Diff(a) => Q::WckDiff(cw::Diff {
+            settings: settings(&a.file)?,
+            ..a.request.clone()
         }),
-        WckCommand::Backup { id: i, .. } => Q::WckBackup(cw::Backup {
-            bus: None,
-            id: id(*i),
+        WckCommand::Restore(a) => Q::WckRestore(cw::Restore {
+            settings: settings(&a.file)?,
+            ..a.request.clone()
         }),
-        WckCommand::Diff {
-            id: i,
-            file,
-            factory,
-            with,
-        } => Q::WckDiff(cw::Diff {
-            bus: None,
-            id: id(*i),
-            settings: file.as_deref().map(settings_file).transpose()?,
-            factory: *factory,
-            other: with.map(id),
+        WckCommand::SetId(r) => Q::WckSetId(r.clone()),
+        WckCommand::SetBaud(r) => Q::WckSetBaud(r.clone()),
+        WckCommand::Program(ProgramCommand::Upload(a)) => Q::WckProgramUpload(cw::ProgramUpload {
+            program: read_bounded(&a.file, PROGRAM_FILE_LIMIT)?,
+            ..a.request.clone()
         }),
-        WckCommand::Restore {
-            id: i,
-            file,
-            factory,
-        } => Q::WckRestore(cw::Restore {
-            bus: None,
-            id: id(*i),
-            settings: file.as_deref().map(settings_file).transpose()?,
-            factory: *factory,
-            confirm: false,
+        WckCommand::Program(ProgramCommand::Download(r)) => Q::WckProgramDownload(r.clone()),
+        WckCommand::Program(ProgramCommand::Check(a)) => Q::WckProgramCheck(cw::ProgramCheck {
+            program: read_bounded(&a.file, PROGRAM_FILE_LIMIT)?,
+            ..a.request.clone()
         }),
-        WckCommand::SetId { id: i, new_id } => Q::WckSetId(cw::SetId {
-            bus: None,
-            id: id(*i),
-            new_id: u32::from(new_id.get()),
-            confirm: false,
-        }),
-        WckCommand::SetBaud { id: i, rate } => Q::WckSetBaud(cw::SetBaud {
-            bus: None,
-            id: id(*i),
-            rate: rate.bits_per_second(),
-            confirm: false,
-        }),
-        WckCommand::Program(ProgramCommand::Upload { id: i, file }) => {
-            Q::WckProgramUpload(cw::ProgramUpload {
-                bus: None,
-                id: id(*i),
-                program: read_bounded(file, PROGRAM_FILE_LIMIT)?,
-                confirm: false,
-            })
-        }
-        WckCommand::Program(ProgramCommand::Download { id: i }) => {
-            Q::WckProgramDownload(cw::ProgramDownload {
-                bus: None,
-                id: id(*i),
-            })
-        }
-        WckCommand::Program(ProgramCommand::Check { id: i, file }) => {
-            Q::WckProgramCheck(cw::ProgramCheck {
-                bus: None,
-                id: id(*i),
-                program: read_bounded(file, PROGRAM_FILE_LIMIT)?,
-            })
-        }
-        WckCommand::Teach {
-            ids: list,
-            rate_hz,
-            duration,
-            pose_ms,
-            torque,
-            output: _,
-            on_stop: o,
-        } => Q::WckTeach(cw::Teach {
-            bus: None,
-            ids: ids(list),
-            rate_hz: *rate_hz,
-            duration: duration.map(|d| d.as_secs_f64()),
-            pose_ms: *pose_ms,
-            torque: u32::from(torque.get()),
-            on_stop: on_stop(*o),
-        }),
-        WckCommand::Play {
-            file,
-            rate_hz,
-            on_stop: o,
-        } => Q::WckPlay(cw::Play {
-            bus: None,
-            motion: read_bounded(file, MOTION_FILE_LIMIT)?,
-            rate_hz: *rate_hz,
-            on_stop: on_stop(*o),
+        WckCommand::Teach(a) => Q::WckTeach(a.request.clone()),
+        WckCommand::Play(a) => Q::WckPlay(cw::Play {
+            motion: read_bounded(&a.file, MOTION_FILE_LIMIT)?,
+            ..a.request.clone()
         }),
     })
+}
+
+fn get_request(p: &GetParam) -> cw::Get {
+    let (param, a) = match p {
+        GetParam::Gains(a) => (cw::Param::Gains, a),
+        GetParam::IGain(a) => (cw::Param::IGain, a),
+        GetParam::Speed(a) => (cw::Param::Speed, a),
+        GetParam::Overload(a) => (cw::Param::Overload, a),
+        GetParam::Bounds(a) => (cw::Param::Bounds, a),
+        GetParam::Io(a) => (cw::Param::Io, a),
+    };
+    cw::Get {
+        bus: None,
+        param,
+        id: id(a.id),
+    }
 }
 
 fn set_request(p: &SetParam) -> cw::Set {

@@ -62,6 +62,7 @@ impl From<&str> for Ids {
 
 /// What a wCK servo is left in when a loop ends or is stopped (the CLI's `--on-stop`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum WckOnStop {
     /// Release the torque.

@@ -56,6 +56,8 @@ macro_rules! request {
 }
 pub(crate) use request;
 
+#[cfg(feature = "cli")]
+pub mod cli;
 mod program_check;
 pub use program_check::{Instruction, ProgramCheck, ProgramCheckSummary, UploadPacket};
 mod play;

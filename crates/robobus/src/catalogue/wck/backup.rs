@@ -12,11 +12,14 @@ use crate::ops::OpError;
 use crate::ops::wck::WckPlan;
 use crate::ops::wck::settings::{self as wsettings, WckSettings};
 
-request!(
+request!(cli
     /// `wck.backup`: a servo's settings (gains, I gain, speed, over-load, boundaries) as
     /// the settings file (the report's `summary`).
-    Backup { /// Servo ID, 0..=30.
-        id: u32 }
+    Backup {
+        /// Servo ID, 0..=30.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::wck::cli::servo_id))]
+        id: u32,
+    }
 );
 
 impl Operation for Backup {

@@ -13,7 +13,7 @@ use crate::catalogue::{Effect, Family, Plan};
 use crate::ops::DeviceResult;
 use crate::ops::wck::{BREAK_CLEAN, BREAK_COLLIDED, WckPlan};
 
-request!(
+request!(cli
     /// `wck.brake` (A-1 (6)): break mode on every servo of the bus.
     Brake {}
 );

@@ -14,20 +14,24 @@ use crate::ops::OpError;
 use crate::ops::wck::WckPlan;
 use crate::ops::wck::settings::{self as wsettings, WckSettingDiff, WckSettings};
 
-request!(
+request!(cli
     /// `wck.diff`: the settings on which a servo differs from a settings file, the
     /// factory settings, or another servo.
     Diff {
         /// Servo ID, 0..=30.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::wck::cli::servo_id))]
         id: u32,
         /// A settings file's text (what `wck.backup` gives).
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(skip))]
         settings: Option<String>,
-        /// Compare with the factory settings (the manual's A-5).
+        /// Compare with the manual's factory settings.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long, conflicts_with = "other"))]
         factory: bool,
-        /// Another servo to compare with.
+        /// Compare with this servo, 0..=30.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long = "with", value_name = "ID", value_parser = crate::catalogue::wck::cli::servo_id))]
         other: Option<u32>,
     }
 );

@@ -13,15 +13,18 @@ use crate::catalogue::{Effect, Family, Moved, Plan};
 use crate::ops::DeviceResult;
 use crate::ops::wck::WckPlan;
 
-request!(
+request!(cli
     /// `wck.move` (A-1 (1)): position move of one servo.
     Move {
         /// Servo ID, 0..=30.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::wck::cli::servo_id))]
         id: u32,
         /// Target position, 0..=254.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::wck::cli::position))]
         position: u32,
-        /// Torque level 0 (maximum) ..= 4.
+        /// Torque level, 0 (maximum) ..= 4 (minimum).
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long, default_value = "0", value_parser = crate::catalogue::wck::cli::torque))]
         torque: u32,
     }
 );

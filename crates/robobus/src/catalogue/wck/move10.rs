@@ -13,15 +13,18 @@ use crate::catalogue::{Effect, Family, Moved, Plan};
 use crate::ops::wck::WckPlan;
 use crate::ops::{DeviceResult, OpError};
 
-request!(
+request!(cli
     /// `wck.move10` (A-1 (26)): 10-bit position move.
     Move10 {
         /// Servo ID, 0..=253.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::wck::cli::ext_servo_id))]
         id: u32,
         /// Target position, 0..=1023.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::wck::cli::position10))]
         position: u32,
-        /// Torque, 0..=254.
+        /// Torque, 0..=254 (a full data byte, as the manual gives it).
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long, default_value = "0", value_parser = crate::catalogue::wck::cli::data_byte))]
         torque: u32,
     }
 );

@@ -13,10 +13,13 @@ use crate::catalogue::{Effect, Family, Plan};
 use crate::ops::DeviceResult;
 use crate::ops::wck::WckPlan;
 
-request!(
+request!(cli
     /// `wck.passive` (A-1 (4)): release the torque; replies the position.
-    Passive { /// Servo IDs.
-        ids: Ids }
+    Passive {
+        /// Servo IDs: IDs and ranges, e.g. `3` or `0-5,7` (in JSON also an array, `[0, 1]`).
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::wck::cli::servo_ids))]
+        ids: Ids,
+    }
 );
 
 /// A passive servo's position.

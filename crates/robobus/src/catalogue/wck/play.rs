@@ -17,16 +17,20 @@ const fn default_rate() -> f64 {
     50.0
 }
 
-request!(
+request!(cli
     /// `wck.play`: play a keyframe motion (its text) as synchronized moves.
     Play {
         /// The keyframe motion text (what a motion file holds).
+        #[cfg_attr(feature = "cli", arg(skip))]
         motion: String,
-        /// Synchronized moves per second, 0.1..=200.
+        /// Synchronized moves per second while interpolating, 0.1..=200.
         #[serde(default = "default_rate")]
+        #[cfg_attr(feature = "cli", arg(long, default_value_t = 50.0, value_parser = crate::catalogue::wck::cli::rate_hz))]
         rate_hz: f64,
-        /// What the servos do on a stop.
+        /// What the servos do on a stop (Ctrl-C): hold (keep the current position),
+        /// passive or break.
         #[serde(default = "default_hold")]
+        #[cfg_attr(feature = "cli", arg(long, value_enum, default_value = "hold", hide_possible_values = true))]
         on_stop: WckOnStop,
     }
 );

@@ -13,13 +13,15 @@ use crate::catalogue::{Effect, Family, Plan};
 use crate::ops::OpError;
 use crate::ops::wck::WckPlan;
 
-request!(
+request!(cli
     /// `wck.program.check`: parse a program and show its upload packet (nothing sent).
     ProgramCheck {
-        /// Servo ID the packet is for, 0..=30 (the CLI's `--id`, default 0).
+        /// Servo ID for the printed upload packet, 0..=30.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long, default_value = "0", value_parser = crate::catalogue::wck::cli::servo_id))]
         id: u32,
         /// The program text.
+        #[cfg_attr(feature = "cli", arg(skip))]
         program: String,
     }
 );

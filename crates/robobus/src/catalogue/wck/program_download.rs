@@ -12,10 +12,13 @@ use crate::catalogue::{Effect, Family, Plan};
 use crate::ops::DeviceResult;
 use crate::ops::wck::WckPlan;
 
-request!(
+request!(cli
     /// `wck.program.download` (A-1 (25)): read a servo's motion program.
-    ProgramDownload { /// Servo ID, 0..=30.
-        id: u32 }
+    ProgramDownload {
+        /// Servo ID, 0..=30.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::wck::cli::servo_id))]
+        id: u32,
+    }
 );
 
 impl ProgramDownload {

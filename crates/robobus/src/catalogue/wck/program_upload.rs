@@ -13,15 +13,18 @@ use crate::catalogue::{Effect, Family, Moved, Plan};
 use crate::ops::DeviceResult;
 use crate::ops::wck::WckPlan;
 
-request!(
+request!(cli
     /// `wck.program.upload` (A-1 (24), EEPROM): store a motion program; needs `confirm`.
     ProgramUpload {
         /// Servo ID, 0..=30.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::wck::cli::servo_id))]
         id: u32,
         /// The program in its text form (what a program file holds).
+        #[cfg_attr(feature = "cli", arg(skip))]
         program: String,
         /// Confirms the EEPROM write.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(skip))]
         confirm: bool,
     }
 );

@@ -12,10 +12,13 @@ use crate::catalogue::{Effect, Family, Plan};
 use crate::ops::DeviceResult;
 use crate::ops::wck::WckPlan;
 
-request!(
+request!(cli
     /// `wck.read10` (A-1 (27)): 10-bit position of a servo.
-    Read10 { /// Servo ID, 0..=253.
-        id: u32 }
+    Read10 {
+        /// Servo ID, 0..=253.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::wck::cli::ext_servo_id))]
+        id: u32,
+    }
 );
 
 /// A servo's 10-bit position.

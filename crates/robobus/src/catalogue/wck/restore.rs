@@ -13,20 +13,24 @@ use crate::ops::OpError;
 use crate::ops::wck::WckPlan;
 use crate::ops::wck::settings::{self as wsettings, WckRestoreStep, WckSettings};
 
-request!(
+request!(cli
     /// `wck.restore`: writes a settings file (or the factory settings) into a servo's
     /// EEPROM where it differs, each write verified; needs `confirm`.
     Restore {
         /// Servo ID, 0..=30.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::wck::cli::servo_id))]
         id: u32,
         /// A settings file's text.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(skip))]
         settings: Option<String>,
         /// Restore the factory settings (the manual's A-5) instead of a file.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long))]
         factory: bool,
         /// Confirms the EEPROM writes.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(skip))]
         confirm: bool,
     }
 );

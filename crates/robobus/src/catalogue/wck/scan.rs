@@ -18,14 +18,16 @@ fn default_scan_ids() -> Ids {
     Ids::Text("0-30".into())
 }
 
-request!(
+request!(cli
     /// `wck.scan`: find servos (status read of every ID).
     Scan {
-        /// IDs to try (`"0-30"`).
+        /// IDs to try: IDs and ranges, e.g. `0-5,7` (in JSON also an array, `[0, 1]`).
         #[serde(default = "default_scan_ids")]
+        #[cfg_attr(feature = "cli", arg(long, default_value = "0-30", value_parser = crate::catalogue::wck::cli::servo_ids))]
         ids: Ids,
         /// Try every baud rate the wCK supports, not only the bus's.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long))]
         all_bauds: bool,
     }
 );

@@ -12,15 +12,19 @@ use crate::catalogue::{Effect, Family, Plan};
 use crate::ops::wck::WckPlan;
 use crate::ops::{DeviceResult, OpError};
 
-request!(
+request!(cli
     /// `wck.set-baud` (A-1 (7), EEPROM): a servo's baud rate; needs `confirm`.
     SetBaud {
         /// Servo ID, 0..=30.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::wck::cli::servo_id))]
         id: u32,
-        /// New rate, bit/s.
+        /// New baud rate, bit/s: 4800, 9600, 38400, 57600, 115200, 230400, 460800 or
+        /// 921600.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::wck::cli::baud))]
         rate: u32,
         /// Confirms the EEPROM write.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(skip))]
         confirm: bool,
     }
 );

@@ -13,15 +13,18 @@ use crate::catalogue::{Effect, Family, Plan};
 use crate::ops::DeviceResult;
 use crate::ops::wck::WckPlan;
 
-request!(
+request!(cli
     /// `wck.set-id` (A-1 (14), EEPROM): a new ID; needs `confirm`.
     SetId {
         /// Current ID, 0..=30.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::wck::cli::servo_id))]
         id: u32,
         /// New ID, 0..=253.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::wck::cli::ext_servo_id))]
         new_id: u32,
         /// Confirms the EEPROM write.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(skip))]
         confirm: bool,
     }
 );

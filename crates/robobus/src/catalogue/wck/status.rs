@@ -13,10 +13,13 @@ use crate::catalogue::{Effect, Family, Plan};
 use crate::ops::DeviceResult;
 use crate::ops::wck::WckPlan;
 
-request!(
+request!(cli
     /// `wck.status` (A-1 (3)): load and position of servos.
-    Status { /// Servo IDs (`"0-5,7"` or `[0, 1]`).
-        ids: Ids }
+    Status {
+        /// Servo IDs: IDs and ranges, e.g. `3` or `0-5,7` (in JSON also an array, `[0, 1]`).
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::wck::cli::servo_ids))]
+        ids: Ids,
+    }
 );
 
 /// A servo's status.

@@ -13,13 +13,15 @@ use crate::catalogue::{Effect, Family, Moved, Plan};
 use crate::ops::wck::WckPlan;
 use crate::ops::{DeviceResult, OpError};
 
-request!(
+request!(cli
     /// `wck.sync-move` (A-1 (2)): servos 0..N-1 at once, no reply.
     SyncMove {
-        /// Positions of servos 0, 1, ... (1..=31 values, each 0..=254).
+        /// Target positions of servos 0, 1, 2, ... (1..=31 values, each 0..=254).
+        #[cfg_attr(feature = "cli", arg(required = true, num_args = 1..=31, value_parser = crate::catalogue::wck::cli::position))]
         positions: Vec<u32>,
-        /// Torque level.
+        /// Torque level, 0 (maximum) ..= 4 (minimum).
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long, default_value = "0", value_parser = crate::catalogue::wck::cli::torque))]
         torque: u32,
     }
 );

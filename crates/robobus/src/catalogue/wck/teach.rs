@@ -21,29 +21,36 @@ const fn default_pose_ms() -> u32 {
     1000
 }
 
-request!(
+request!(cli
     /// `wck.teach`: record poses at a rate for a time (servos passive meanwhile).
     Teach {
-        /// Servos 0..N-1.
+        /// Servo IDs to record: 0..N-1 (e.g. `0-15`), since a pose lists servos 0, 1, ...
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::wck::cli::servo_ids))]
         ids: Ids,
-        /// Poses per second, 0.1..=200 (10 when only `duration` is given). Without it and
-        /// without `duration` a pose is recorded at each of the front end's record
-        /// events ([`crate::catalogue::Interaction::teach_event`]) until its finish
-        /// event.
+        /// Record at this many poses per second (0.1..=200; 10 when only `duration` is
+        /// given) instead of at each record event of the front end (a keypress).
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long, value_parser = crate::catalogue::wck::cli::rate_hz))]
         rate_hz: Option<f64>,
-        /// Seconds, 0.1..=3600; without it a recording at a rate runs until the front
-        /// end's finish event or a stop.
+        /// Record for this many seconds (0.1..=3600), at `rate_hz`; without it a recording
+        /// at a rate runs until the front end's finish event or a stop.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long, value_name = "SECS", value_parser = crate::catalogue::wck::cli::seconds))]
         duration: Option<f64>,
-        /// Transition time written for each pose recorded by an event, ms (0..=600000).
+        /// Transition time written for each pose recorded by an event (a keypress), ms
+        /// (0..=600000).
         #[serde(default = "default_pose_ms")]
+        #[cfg_attr(feature = "cli", arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u32).range(0..=600_000)))]
         pose_ms: u32,
-        /// Torque level written into the poses (and of a hold at the end).
+        /// Torque level written into the poses (and of a hold at the end), 0 (maximum)
+        /// ..= 4 (minimum).
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long, default_value = "0", value_parser = crate::catalogue::wck::cli::torque))]
         torque: u32,
-        /// What the servos do at the end: `passive`, `hold` or `break`.
+        /// What the servos do when recording ends: passive (stay limp), hold (keep the
+        /// last pose with torque) or break.
         #[serde(default = "default_passive")]
+        #[cfg_attr(feature = "cli", arg(long, value_enum, default_value = "passive", hide_possible_values = true))]
         on_stop: WckOnStop,
     }
 );

@@ -21,35 +21,45 @@ const fn d1000() -> u32 {
     1000
 }
 
-request!(
+request!(cli
     /// `wck.tune`: the same position step with each gain set (runtime gains), the
     /// responses measured (rise, overshoot, settling, steady-state error) and the best
     /// one found; kept in runtime or EEPROM (`confirm`) on request.
     Tune {
         /// Servo ID, 0..=30.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::wck::cli::servo_id))]
         id: u32,
-        /// The gain sets, `[[P, D], ...]` (1..=8).
+        /// The gain sets, each `P,D` (1..=8 sets; in JSON `[[P, D], ...]`), e.g.
+        /// `--gains 20,30 --gains 40,20`.
+        #[cfg_attr(feature = "cli", arg(long, required = true, value_name = "P,D", value_parser = crate::catalogue::wck::cli::gains))]
         gains: Vec<[u32; 2]>,
-        /// The step, position steps (2..=60).
+        /// The step, position steps (2..=60), away from the nearer boundary.
         #[serde(default = "d20")]
+        #[cfg_attr(feature = "cli", arg(long, default_value_t = 20, value_parser = crate::catalogue::wck::cli::small))]
         amplitude: u32,
         /// How long each step is recorded, ms (100..=5000).
         #[serde(default = "d1000")]
+        #[cfg_attr(feature = "cli", arg(long, default_value_t = 1000))]
         hold_ms: u32,
-        /// Torque level of the moves, 0..=4.
+        /// Torque level of the moves, 0 (strongest)..=4.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long, default_value = "0", value_parser = crate::catalogue::wck::cli::torque))]
         torque: u32,
-        /// Keep the best set: `none` (default), `runtime` or `eeprom`.
+        /// Keep the best set: none (the runtime gains go back to the EEPROM's), runtime
+        /// (until power-off) or eeprom (needs confirming).
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long, value_enum, default_value = "none"))]
         keep: KeepArg,
         /// Confirms an EEPROM keep.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(skip))]
         confirm: bool,
     }
 );
 
 /// What `wck.tune` keeps.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum KeepArg {
     /// Nothing.

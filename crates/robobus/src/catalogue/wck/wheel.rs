@@ -14,26 +14,34 @@ use crate::error::ErrorKind;
 use crate::ops::wck::{self as wops, FieldValue, Fields, WheelArgs};
 use crate::ops::{DeviceResult, Failure, Outcome};
 
-request!(
+request!(cli
     /// `wck.wheel` (A-1 (5)): turn continuously, optionally for a time.
     Wheel {
         /// Servo ID, 0..=30.
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::wck::cli::servo_id))]
         id: u32,
-        /// `ccw` or `cw`.
+        /// Direction: `ccw` or `cw`.
+        #[cfg_attr(feature = "cli", arg(value_enum))]
         direction: Direction,
-        /// Speed 0 (stop) ..= 15.
+        /// Speed 0 (stop), 1 (minimum) ..= 15 (maximum).
+        #[cfg_attr(feature = "cli", arg(value_parser = crate::catalogue::wck::cli::wheel_speed))]
         speed: u32,
-        /// Seconds (0.1..=3600), then stop per `on_stop`.
+        /// Turn for this many seconds (0.1..=3600), then stop per `on_stop`. Without it the
+        /// servo keeps turning after the request returns.
         #[serde(default)]
+        #[cfg_attr(feature = "cli", arg(long, value_name = "SECS", value_parser = crate::catalogue::wck::cli::seconds))]
         duration: Option<f64>,
-        /// How it stops: `hold`, `passive` or `break`.
+        /// How the servo stops after `duration` or on a stop (Ctrl-C): hold (position move
+        /// to where it is), passive or break.
         #[serde(default = "default_hold")]
+        #[cfg_attr(feature = "cli", arg(long, value_enum, default_value = "hold", hide_possible_values = true))]
         on_stop: WckOnStop,
     }
 );
 
 /// Wheel direction.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Direction {
     /// Counter-clockwise.
