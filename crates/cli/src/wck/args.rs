@@ -392,3 +392,109 @@ pub(crate) fn parse_baud(s: &str) -> Result<BaudRate, String> {
     let v = parse_u32(s)?;
     BaudRate::from_bits_per_second(v).map_err(|e| e.to_string())
 }
+
+#[cfg(test)]
+mod tests {
+    use std::collections::BTreeSet;
+
+    use clap::Args as _;
+    use robobus::catalogue::registry::root_schema;
+    use robobus::catalogue::{self, Family, wck as cw};
+
+    /// A subcommand (its path under `wck`) and its request's schema.
+    fn subcommands() -> Vec<(&'static str, serde_json::Value)> {
+        vec![
+            ("scan", root_schema::<cw::Scan>()),
+            ("status", root_schema::<cw::Status>()),
+            ("move", root_schema::<cw::Move>()),
+            ("move10", root_schema::<cw::Move10>()),
+            ("read10", root_schema::<cw::Read10>()),
+            ("sync-move", root_schema::<cw::SyncMove>()),
+            ("passive", root_schema::<cw::Passive>()),
+            ("wheel", root_schema::<cw::Wheel>()),
+            ("brake", root_schema::<cw::Brake>()),
+            ("get", root_schema::<cw::Get>()),
+            ("set", root_schema::<cw::Set>()),
+            ("tune", root_schema::<cw::Tune>()),
+            ("backup", root_schema::<cw::Backup>()),
+            ("diff", root_schema::<cw::Diff>()),
+            ("restore", root_schema::<cw::Restore>()),
+            ("set-id", root_schema::<cw::SetId>()),
+            ("set-baud", root_schema::<cw::SetBaud>()),
+            ("program upload", root_schema::<cw::ProgramUpload>()),
+            ("program download", root_schema::<cw::ProgramDownload>()),
+            ("program check", root_schema::<cw::ProgramCheck>()),
+            ("teach", root_schema::<cw::Teach>()),
+            ("play", root_schema::<cw::Play>()),
+        ]
+    }
+
+    /// Where the command and its request differ, on purpose: (subcommand, the command's
+    /// own arguments, the request fields the command fills itself). A file named on the
+    /// command line is read into a text field; `get` / `set` name the parameter as a
+    /// subcommand; diff's other servo is `--with`.
+    const CLI_ONLY: &[(&str, &[&str], &[&str])] = &[
+        ("get", &[], &["param"]),
+        ("set", &[], &["param"]),
+        ("backup", &["output"], &[]),
+        ("diff", &["file", "with"], &["settings", "other"]),
+        ("restore", &["file"], &["settings"]),
+        ("program upload", &["file"], &["program"]),
+        ("program check", &["file"], &["program"]),
+        ("teach", &["output"], &[]),
+        ("play", &["file"], &["motion"]),
+    ];
+
+    /// The long options and positionals of a subcommand (and of its own subcommands,
+    /// `get gains`, ...), `-` written `_`, without `--help`.
+    fn arguments(cmd: &clap::Command) -> BTreeSet<String> {
+        let mut names: BTreeSet<String> = cmd
+            .get_arguments()
+            .filter(|a| !a.is_global_set())
+            .map(|a| {
+                a.get_long()
+                    .map_or_else(|| a.get_id().to_string(), str::to_owned)
+                    .replace('-', "_")
+            })
+            .filter(|n| n != "help")
+            .collect();
+        for sub in cmd.get_subcommands() {
+            names.extend(arguments(sub));
+        }
+        names
+    }
+
+    #[test]
+    fn every_request_field_is_an_argument_of_its_subcommand_without_a_cli_edit() {
+        let wck = super::Args::augment_args(clap::Command::new("wck"));
+        let covered: BTreeSet<String> = subcommands()
+            .iter()
+            .map(|(path, _)| format!("wck.{}", path.replace(' ', ".")))
+            .collect();
+        // Every wCK operation is a subcommand, except the monitor's sample.
+        for info in catalogue::operations() {
+            if info.family == Family::Wck && info.op != "wck.sample" {
+                assert!(covered.contains(info.op), "{} has no subcommand", info.op);
+            }
+        }
+        for (path, schema) in subcommands() {
+            let cmd = path.split(' ').fold(&wck, |c, name| {
+                c.find_subcommand(name)
+                    .unwrap_or_else(|| panic!("no subcommand {path}"))
+            });
+            let (cli, request) = CLI_ONLY
+                .iter()
+                .find(|(p, _, _)| *p == path)
+                .map_or((&[][..], &[][..]), |(_, c, r)| (*c, *r));
+            let mut expected: BTreeSet<String> = schema["properties"]
+                .as_object()
+                .unwrap_or_else(|| panic!("{path}: no properties"))
+                .keys()
+                .filter(|k| *k != "bus" && *k != "confirm" && !request.contains(&k.as_str()))
+                .cloned()
+                .collect();
+            expected.extend(cli.iter().map(|s| (*s).to_owned()));
+            assert_eq!(arguments(cmd), expected, "robobus wck {path}");
+        }
+    }
+}
