@@ -2,9 +2,12 @@
 //! each registered operation runs on the built-in simulated robot (answering devices and a
 //! silent one where it takes IDs, failures as well as successes), and every report is
 //! valid under the schema of its own operation: a client generated from the schema accepts
-//! what the catalogue returns.
+//! what the catalogue returns. So is every report the other report tests pin
+//! (`tests/snapshots/*.json`, each checked against a run there).
 
 #![allow(clippy::result_large_err)]
+
+mod common;
 
 use std::collections::BTreeSet;
 
@@ -124,12 +127,9 @@ fn every_operations_report_is_valid_under_its_own_schema() {
     let mut problems = Vec::new();
     for case in cases() {
         let station = Station::simulated().unwrap();
-        let mut last_settings: Option<String> = None;
+        let mut last_settings = Value::Null;
         for text in &case {
-            let text = &match &last_settings {
-                Some(file) => text.replace("SETTINGS", &Value::from(file.as_str()).to_string()),
-                None => text.clone(),
-            };
+            let text = &common::reports::with_settings(text, &last_settings);
             let request = Request::parse(text).unwrap_or_else(|e| panic!("{text}: {e}"));
             let report = match run(&station, &request) {
                 Ok(r) => r,
@@ -139,7 +139,7 @@ fn every_operations_report_is_valid_under_its_own_schema() {
                 }
             };
             if request.op() == "whj.backup" {
-                last_settings = report.summary.as_ref().map(Value::to_string);
+                last_settings = report.summary.clone().unwrap_or_default();
             }
             let json = serde_json::to_value(&report).unwrap();
             let errors: Vec<String> = validator
@@ -160,4 +160,30 @@ fn every_operations_report_is_valid_under_its_own_schema() {
         .collect();
     let missing: Vec<&String> = all.iter().filter(|o| !covered.contains(*o)).collect();
     assert_eq!(missing, Vec::<&String>::new(), "operations without a case");
+}
+
+#[test]
+fn every_report_the_report_tests_pin_is_valid_under_its_operations_schema() {
+    let all = catalogue::report_schema();
+    let pinned = common::reports::pinned_reports();
+    let problems: Vec<String> = pinned
+        .iter()
+        .filter_map(|(case, report)| {
+            let errors = common::reports::schema_errors(&all, report);
+            (!errors.is_empty()).then(|| format!("{case}: {errors:?}\n  report: {report}"))
+        })
+        .collect();
+    assert_eq!(problems, Vec::<String>::new());
+    // The four pinned suites, each with its reports (not only refusals).
+    let files: BTreeSet<&str> = pinned
+        .iter()
+        .filter_map(|(case, _)| case.split_once(": ").map(|(file, _)| file))
+        .collect();
+    let want = [
+        "wck_reports.json",
+        "wck_run_reports.json",
+        "whj_config_reports.json",
+        "whj_reports.json",
+    ];
+    assert_eq!(files, BTreeSet::from(want));
 }

@@ -2,15 +2,16 @@
 //! exchange per packet (scan, status, move, move10, read10, sync-move, passive, wheel,
 //! brake, get, set, set-id) the exact JSON of its report on the simulated bus (pinned in
 //! `tests/snapshots/wck_reports.json`: `UPDATE_SNAPSHOTS=1` rewrites it), and that the
-//! published report schema describes it: each operation's rows are its own typed fields,
-//! and every report validates against its operation's schema. On the virtual clock.
+//! published report schema describes it: each operation's rows are its own typed fields
+//! (that every pinned report validates against its operation's schema:
+//! `report_schema.rs`). On the virtual clock.
 
 #![allow(clippy::unwrap_used, clippy::panic)]
 
+mod common;
 mod station_support;
 
 use std::collections::BTreeMap;
-use std::fmt::Write as _;
 
 use robobus::catalogue::args::Ids;
 use robobus::catalogue::{self, ErrorKind, NoInteraction, Request, wck};
@@ -22,6 +23,8 @@ use robobus_link::ByteLink as _;
 use robobus_sim::wck::{Bus, BusConfig, Faults, Model, SimLink};
 use robobus_wck::{BaudRate, Command};
 use serde_json::Value;
+
+use common::reports::{assert_pinned, assert_schema_names, schema_errors};
 
 /// One request per row shape of the operations (and a silent servo, and a refusal).
 const REQUESTS: &[&str] = &[
@@ -57,41 +60,20 @@ const REQUESTS: &[&str] = &[
     r#"{"op": "wck.set-id", "id": 2, "new_id": 9, "confirm": true}"#,
 ];
 
-/// The report of `json` on a fresh station, or its error as `{"error", "kind"}`.
-fn report_of(json: &str) -> Value {
-    let (s, _w, _j) = station_support::station("wck", "whj");
-    let r = Request::parse(json).unwrap();
-    match catalogue::run(&s, &r, &mut Control::none()) {
-        Ok(r) => serde_json::to_value(r).unwrap(),
-        Err(e) => serde_json::json!({"error": e.to_string(), "kind": e.kind().name()}),
-    }
-}
-
 fn reports() -> BTreeMap<String, Value> {
     REQUESTS
         .iter()
-        .map(|json| ((*json).to_owned(), report_of(json)))
+        .map(|json| {
+            let (s, _w, _j) = station_support::station("wck", "whj");
+            let report = common::reports::last_report(&s, &[*json]);
+            ((*json).to_owned(), report)
+        })
         .collect()
 }
 
 #[test]
 fn the_wck_reports_are_the_pinned_json() {
-    let got = reports();
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/tests/snapshots/wck_reports.json"
-    );
-    let text = serde_json::to_string_pretty(&got).unwrap() + "\n";
-    if std::env::var_os("UPDATE_SNAPSHOTS").is_some() {
-        std::fs::create_dir_all(std::path::Path::new(path).parent().unwrap()).unwrap();
-        std::fs::write(path, &text).unwrap();
-    }
-    let want: BTreeMap<String, Value> =
-        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
-    for (json, report) in &got {
-        assert_eq!(Some(report), want.get(json), "{json}");
-    }
-    assert_eq!(got.len(), want.len());
+    assert_pinned("wck_reports", &reports());
 }
 
 /// A Rust front end gets the rows as the operations' own types (`run_typed`): a status
@@ -165,111 +147,44 @@ fn a_garbled_break_reply_is_the_collided_row_and_no_failure() {
     assert_eq!(r.results, [want], "{r:?}");
     assert_eq!((r.failed, r.error.as_deref()), (None, None));
     // Its operation's schema describes this row too.
-    let schema = schema_of(&catalogue::report_schema(), "wck.brake");
     let report = serde_json::to_value(&r).unwrap();
-    assert!(
-        jsonschema::validator_for(&schema)
-            .unwrap()
-            .is_valid(&report),
-        "{report}"
-    );
+    let errors = schema_errors(&catalogue::report_schema(), &report);
+    assert!(errors.is_empty(), "{errors:?}\n{report}");
 }
 
 /// A seed whose bit flips make the break's reply implausible (an ID past 30 or the
 /// position 255).
 const SEED: u64 = 3;
 
-/// The schema of `op`'s report, standalone (its `$defs` beside it).
-fn schema_of(all: &Value, op: &str) -> Value {
-    let one = all["oneOf"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|s| s["title"] == op)
-        .unwrap_or_else(|| panic!("{op} is not in the report schema"));
-    let mut schema = one.clone();
-    schema["$defs"] = all["$defs"].clone();
-    schema
-}
-
+/// Each operation's rows are its own type: its schema (and what it refers to) names their
+/// fields (a row of JSON values would accept anything). That every report is valid under
+/// its schema: `report_schema.rs`, over these pinned reports too.
 #[test]
-fn every_wck_report_validates_against_its_operations_typed_schema() {
-    let all = catalogue::report_schema();
-    for (json, report) in reports() {
-        if report.get("results").is_none() {
-            continue; // a refusal: no report
-        }
-        let op = report["op"].as_str().unwrap();
-        let schema = schema_of(&all, op);
-        let v = jsonschema::validator_for(&schema).unwrap();
-        let errors: Vec<String> = v.iter_errors(&report).map(|e| e.to_string()).collect();
-        assert!(errors.is_empty(), "{json}: {errors:?}\n{report:#}");
-    }
-    // Each operation's rows are its own type: its schema (and what it refers to) names
-    // their fields (a row of JSON values would accept anything).
-    let text = |op: &str| {
-        let mut seen = Vec::new();
-        let mut out = String::new();
-        reachable(&all, &schema_of(&all, op), &mut seen, &mut out);
-        out
-    };
-    for (op, fields) in [
-        ("wck.scan", &["baud", "bauds_tried", "duplicates"][..]),
-        ("wck.status", &["load", "position", "degrees"]),
-        (
-            "wck.move",
-            &["target_position", "load_before", "degrees_before"],
-        ),
-        ("wck.move10", &["target_position10", "position10_before"]),
-        ("wck.read10", &["position10"]),
-        ("wck.sync-move", &["positions", "reply"]),
-        ("wck.passive", &["position", "degrees"]),
-        (
-            "wck.wheel",
-            &["rotations", "ran_ms", "stopped_at", "stopped_load"],
-        ),
-        ("wck.brake", &["answered_by", "meaning"]),
-        (
-            "wck.get",
-            &["p_gain", "overload_code", "adc_volts", "lower_degrees"],
-        ),
-        ("wck.set", &["i_gain", "milliamps", "do1", "accel"]),
-        ("wck.set-id", &["new_id"]),
-    ] {
-        let schema = text(op);
-        for f in fields {
-            assert!(
-                schema.contains(&format!("\"{f}\"")),
-                "{op}: no {f} in {schema}"
-            );
-        }
-    }
-}
-
-/// The text of `schema` and of every definition it refers to, directly or not.
-fn reachable(all: &Value, schema: &Value, seen: &mut Vec<String>, out: &mut String) {
-    match schema {
-        Value::Object(m) => {
-            for (k, v) in m {
-                if k == "$defs" {
-                    continue;
-                }
-                if k == "$ref"
-                    && let Some(name) = v.as_str().and_then(|r| r.rsplit('/').next())
-                    && !seen.iter().any(|s| s == name)
-                {
-                    seen.push(name.to_owned());
-                    reachable(all, &all["$defs"][name], seen, out);
-                }
-                let _ = write!(out, "\"{k}\" ");
-                reachable(all, v, seen, out);
-            }
-        }
-        Value::Array(items) => {
-            for v in items {
-                reachable(all, v, seen, out);
-            }
-        }
-        _ => {}
-    }
+fn the_report_schema_names_each_wck_operations_row_fields() {
+    assert_schema_names(
+        &catalogue::report_schema(),
+        &[
+            ("wck.scan", &["baud", "bauds_tried", "duplicates"][..]),
+            ("wck.status", &["load", "position", "degrees"]),
+            (
+                "wck.move",
+                &["target_position", "load_before", "degrees_before"],
+            ),
+            ("wck.move10", &["target_position10", "position10_before"]),
+            ("wck.read10", &["position10"]),
+            ("wck.sync-move", &["positions", "reply"]),
+            ("wck.passive", &["position", "degrees"]),
+            (
+                "wck.wheel",
+                &["rotations", "ran_ms", "stopped_at", "stopped_load"],
+            ),
+            ("wck.brake", &["answered_by", "meaning"]),
+            (
+                "wck.get",
+                &["p_gain", "overload_code", "adc_volts", "lower_degrees"],
+            ),
+            ("wck.set", &["i_gain", "milliamps", "do1", "accel"]),
+            ("wck.set-id", &["new_id"]),
+        ],
+    );
 }

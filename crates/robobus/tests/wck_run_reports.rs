@@ -2,18 +2,21 @@
 //! through the catalogue: for set-baud, program upload / download / check, teach, play,
 //! sample, tune, backup, diff and restore the exact JSON of each plan and report on the
 //! simulated bus (servos 0..=2; 7 silent), pinned in
-//! `tests/snapshots/wck_run_reports.json` (`UPDATE_SNAPSHOTS=1` rewrites it), and that
-//! each report validates against its operation's typed schema. On the virtual clock.
+//! `tests/snapshots/wck_run_reports.json` (`UPDATE_SNAPSHOTS=1` rewrites it; that each
+//! pinned report validates against its operation's typed schema: `report_schema.rs`). On
+//! the virtual clock.
 
 #![allow(clippy::unwrap_used)]
 
+mod common;
 mod station_support;
 
 use std::collections::BTreeMap;
 
 use robobus::catalogue::{self, Request};
-use robobus::ops::Control;
 use serde_json::{Value, json};
+
+use common::reports::{assert_pinned, error, report_of};
 
 const PROGRAM: &str = r"move 82 torque 0\ndelay 266ms\nmove 172 torque 0\nrepeat forever\n";
 const MOTION: &str = r"torque 1\npose 100 100 140\nhold 40\npose 100 127 127\n";
@@ -90,11 +93,6 @@ fn cases() -> Vec<Vec<String>> {
     ]
 }
 
-/// An error as `{"error", "kind"}`.
-fn error(e: &robobus::ops::OpError) -> Value {
-    json!({"error": e.to_string(), "kind": e.kind().name()})
-}
-
 /// The plan and the report (or their errors) of the case's last request, after the ones
 /// before it, on a fresh station.
 fn outcome_of(case: &[String]) -> Value {
@@ -103,8 +101,7 @@ fn outcome_of(case: &[String]) -> Value {
     for text in case {
         let r = Request::parse(text).unwrap();
         let plan = catalogue::plan(&r).map_or_else(|e| error(&e), |p| json!(p));
-        let report = catalogue::run(&s, &r, &mut Control::none())
-            .map_or_else(|e| error(&e), |r| serde_json::to_value(r).unwrap());
+        let report = report_of(&s, &r);
         last = json!({"plan": plan, "report": report});
     }
     last
@@ -119,43 +116,5 @@ fn outcomes() -> BTreeMap<String, Value> {
 
 #[test]
 fn the_wck_run_reports_and_plans_are_the_pinned_json() {
-    let got = outcomes();
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/tests/snapshots/wck_run_reports.json"
-    );
-    if std::env::var_os("UPDATE_SNAPSHOTS").is_some() {
-        let text = serde_json::to_string_pretty(&got).unwrap() + "\n";
-        std::fs::create_dir_all(std::path::Path::new(path).parent().unwrap()).unwrap();
-        std::fs::write(path, &text).unwrap();
-    }
-    let want: BTreeMap<String, Value> =
-        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
-    for (case, outcome) in &got {
-        assert_eq!(Some(outcome), want.get(case), "{case}");
-    }
-    assert_eq!(got.len(), want.len());
-}
-
-#[test]
-fn every_wck_run_report_validates_against_its_operations_typed_schema() {
-    let all = catalogue::report_schema();
-    for (case, outcome) in outcomes() {
-        let report = &outcome["report"];
-        if report.get("results").is_none() {
-            continue; // refused or invalid: no report
-        }
-        let op = report["op"].as_str().unwrap();
-        let one = all["oneOf"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|s| s["title"] == op)
-            .unwrap_or_else(|| panic!("{op} is not in the report schema"));
-        let mut schema = one.clone();
-        schema["$defs"] = all["$defs"].clone();
-        let v = jsonschema::validator_for(&schema).unwrap();
-        let errors: Vec<String> = v.iter_errors(report).map(|e| e.to_string()).collect();
-        assert!(errors.is_empty(), "{case}: {errors:?}\n{report:#}");
-    }
+    assert_pinned("wck_run_reports", &outcomes());
 }

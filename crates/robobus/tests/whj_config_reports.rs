@@ -3,21 +3,22 @@
 //! end-board, set-rates, can-health, diff and restore the exact JSON of each report on the
 //! simulated bus (joints 1 and 2; 9 silent), pinned in
 //! `tests/snapshots/whj_config_reports.json` (`UPDATE_SNAPSHOTS=1` rewrites it), and that
-//! each report validates against its operation's typed schema, whose rows name their
-//! fields.
+//! each operation's typed schema names its rows' fields (that each pinned report validates
+//! against it: `report_schema.rs`).
 
 #![allow(clippy::unwrap_used, clippy::panic)]
 
+mod common;
 mod whj_common;
 
 use std::collections::BTreeMap;
-use std::fmt::Write as _;
 
-use robobus::catalogue::{self, Request};
-use robobus::ops::Control;
+use robobus::catalogue;
 use robobus::station::Station;
 use robobus::whj::JointBus;
 use serde_json::Value;
+
+use common::reports::{assert_pinned, assert_schema_names, last_report, pinned_ops};
 use whj_common::{sim_link, virtual_config};
 
 /// One case per row shape (and silent joints, and refusals): requests run in order on
@@ -122,109 +123,25 @@ fn station() -> Station {
     s
 }
 
-/// The report of the case's last request (after the ones before it) on a fresh station,
-/// or its error as `{"error", "kind"}`.
-fn report_of(case: &[&str]) -> Value {
-    let s = station();
-    let mut last = Value::Null;
-    let mut settings = Value::Null;
-    for json in case {
-        let json = json.replace("SETTINGS", &Value::from(settings.to_string()).to_string());
-        let r = Request::parse(&json).unwrap();
-        last = match catalogue::run(&s, &r, &mut Control::none()) {
-            Ok(r) => serde_json::to_value(r).unwrap(),
-            Err(e) => serde_json::json!({"error": e.to_string(), "kind": e.kind().name()}),
-        };
-        if r.op() == "whj.backup" {
-            settings = last["summary"].clone();
-        }
-    }
-    last
-}
-
 fn reports() -> BTreeMap<String, Value> {
     CASES
         .iter()
-        .map(|case| (case.join(" then "), report_of(case)))
+        .map(|case| (case.join(" then "), last_report(&station(), case)))
         .collect()
 }
 
 #[test]
 fn the_whj_config_reports_are_the_pinned_json() {
-    let got = reports();
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/tests/snapshots/whj_config_reports.json"
-    );
-    let text = serde_json::to_string_pretty(&got).unwrap() + "\n";
-    if std::env::var_os("UPDATE_SNAPSHOTS").is_some() {
-        std::fs::create_dir_all(std::path::Path::new(path).parent().unwrap()).unwrap();
-        std::fs::write(path, &text).unwrap();
-    }
-    let want: BTreeMap<String, Value> =
-        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
-    for (json, report) in &got {
-        assert_eq!(Some(report), want.get(json), "{json}");
-    }
-    assert_eq!(got.len(), want.len());
+    assert_pinned("whj_config_reports", &reports());
 }
 
-/// The schema of `op`'s report, standalone (its `$defs` beside it).
-fn schema_of(all: &Value, op: &str) -> Value {
-    let one = all["oneOf"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|s| s["title"] == op)
-        .unwrap_or_else(|| panic!("{op} is not in the report schema"));
-    let mut schema = one.clone();
-    schema["$defs"] = all["$defs"].clone();
-    schema
-}
-
-/// The text of `schema` and of every definition it refers to, directly or not.
-fn reachable(all: &Value, schema: &Value, seen: &mut Vec<String>, out: &mut String) {
-    match schema {
-        Value::Object(m) => {
-            for (k, v) in m {
-                if k == "$defs" {
-                    continue;
-                }
-                if k == "$ref"
-                    && let Some(name) = v.as_str().and_then(|r| r.strip_prefix("#/$defs/"))
-                {
-                    if !seen.iter().any(|s| s == name) {
-                        seen.push(name.to_owned());
-                        reachable(all, &all["$defs"][name], seen, out);
-                    }
-                    continue;
-                }
-                let _ = write!(out, "\"{k}\" ");
-                reachable(all, v, seen, out);
-            }
-        }
-        Value::Array(a) => a.iter().for_each(|v| reachable(all, v, seen, out)),
-        _ => {}
-    }
-}
-
+/// Each operation's rows and summary are its own types: its schema (and what it refers
+/// to) names their fields (a row of JSON values would accept anything), and a report of
+/// each is pinned. That every report is valid under its schema: `report_schema.rs`, over
+/// these pinned reports too.
 #[test]
-fn every_whj_config_report_validates_against_its_operations_typed_schema() {
-    let all = catalogue::report_schema();
-    let mut ran = Vec::new();
-    for (json, report) in reports() {
-        if report.get("results").is_none() {
-            continue; // a refusal: no report
-        }
-        let op = report["op"].as_str().unwrap().to_owned();
-        let v = jsonschema::validator_for(&schema_of(&all, &op)).unwrap();
-        let errors: Vec<String> = v.iter_errors(&report).map(|e| e.to_string()).collect();
-        assert!(errors.is_empty(), "{json}: {errors:?}\n{report:#}");
-        ran.push(op);
-    }
-    // Each operation's rows and summary are its own types: its schema (and what it
-    // refers to) names their fields (a row of JSON values would accept anything).
-    for (op, fields) in [
+fn the_report_schema_names_each_whj_config_operations_row_and_summary_fields() {
+    let ops: &[(&str, &[&str])] = &[
         ("whj.write", &["addr", "register", "raw", "unit"][..]),
         (
             "whj.registers",
@@ -250,13 +167,10 @@ fn every_whj_config_report_validates_against_its_operations_typed_schema() {
         ("whj.can-health", &["state", "advice", "classic", "bus_off"]),
         ("whj.diff", &["a", "b", "differ", "left_out"]),
         ("whj.restore", &["from", "to", "action", "differ_after"]),
-    ] {
-        assert!(ran.iter().any(|o| o == op), "{op}: no report ran");
-        let mut seen = Vec::new();
-        let mut text = String::new();
-        reachable(&all, &schema_of(&all, op), &mut seen, &mut text);
-        for f in fields {
-            assert!(text.contains(&format!("\"{f}\"")), "{op}: no {f} in {text}");
-        }
+    ];
+    assert_schema_names(&catalogue::report_schema(), ops);
+    let pinned = pinned_ops("whj_config_reports");
+    for (op, _) in ops {
+        assert!(pinned.contains(*op), "{op}: no report ran");
     }
 }
