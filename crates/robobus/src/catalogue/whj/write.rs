@@ -44,7 +44,7 @@ request!(cli
         #[cfg_attr(feature = "cli", arg(long))]
         broadcast: bool,
         /// With `broadcast`: also write a register of the end board's own map,
-        /// `REGISTER=VALUE` (e.g. `EB_IO1_MODE=1`, 0x07=3); needs `confirm`.
+        /// `REGISTER=VALUE` (e.g. `EB_IO1_MODE=1`, 0x07=3); needs confirming.
         #[serde(default)]
         #[cfg_attr(feature = "cli", arg(long, value_name = "REGISTER=VALUE", requires = "broadcast", value_parser = crate::catalogue::whj::cli::end_board_write))]
         end_board: Option<String>,
