@@ -13,7 +13,7 @@ use robobus::ops::DeviceResult;
 use robobus::ops::whj::{JointSample, ServoLoop};
 use robobus::robot::Robot;
 use robobus::station::cyclic::JointFeedback;
-use robobus::station::handles::{WckReading, WckServos, WhjJoints};
+use robobus::station::handles::{WckGroup, WckReading, WhjGroup};
 
 use crate::life::{Life, forked_error};
 use crate::{op_error, raise};
@@ -149,7 +149,7 @@ pub(crate) fn servo_loop(py: Python<'_>, mode: &str) -> PyResult<ServoLoop> {
 #[pyclass(module = "robobus._robobus", name = "NativeWckServos", frozen)]
 #[derive(Debug)]
 pub(crate) struct NativeWckServos {
-    pub(crate) inner: WckServos,
+    pub(crate) inner: WckGroup,
     /// Its station's.
     pub(crate) life: Arc<Life>,
 }
@@ -220,7 +220,7 @@ impl NativeWckServos {
 #[pyclass(module = "robobus._robobus", name = "NativeWhjJoints", frozen)]
 #[derive(Debug)]
 pub(crate) struct NativeWhjJoints {
-    pub(crate) inner: WhjJoints,
+    pub(crate) inner: WhjGroup,
     /// Its station's.
     pub(crate) life: Arc<Life>,
 }

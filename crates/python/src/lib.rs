@@ -518,7 +518,7 @@ impl NativeStation {
         bus: Option<String>,
     ) -> PyResult<handles::NativeWckServos> {
         let station = self.get(py, "Station.wck_servos")?;
-        robobus::station::handles::WckServos::new(&station, bus.as_deref(), &ids)
+        robobus::station::handles::WckGroup::new(&station, bus.as_deref(), &ids)
             .map(|inner| handles::NativeWckServos {
                 inner,
                 life: Arc::clone(&self.life),
@@ -535,7 +535,7 @@ impl NativeStation {
         bus: Option<String>,
     ) -> PyResult<handles::NativeWhjJoints> {
         let station = self.get(py, "Station.whj_joints")?;
-        py.detach(move || robobus::station::handles::WhjJoints::new(&station, bus.as_deref(), &ids))
+        py.detach(move || robobus::station::handles::WhjGroup::new(&station, bus.as_deref(), &ids))
             .map(|inner| handles::NativeWhjJoints {
                 inner,
                 life: Arc::clone(&self.life),

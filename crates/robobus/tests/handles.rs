@@ -10,7 +10,7 @@ use robobus::catalogue::{self, ErrorKind, Request};
 use robobus::ops::Control;
 use robobus::ops::whj::ServoLoop;
 use robobus::robot::{Robot, StopCause};
-use robobus::station::handles::{WckServos, WhjJoints};
+use robobus::station::handles::{WckGroup, WhjGroup};
 use robobus::station::{Station, WckPort, WhjPort};
 
 /// wCK servos 0..=2 on `legs`, WHJ joints 1 and 2 on `arm`.
@@ -38,7 +38,7 @@ fn json<T: serde::Serialize>(v: &T) -> String {
 #[test]
 fn wck_servos_read_each_servo_and_fail_a_silent_one_alone() {
     let (s, _, _) = station();
-    let servos = WckServos::new(&s, None, &[0, 5, 2]).unwrap();
+    let servos = WckGroup::new(&s, None, &[0, 5, 2]).unwrap();
     assert_eq!(servos.ids(), [0, 5, 2]);
     assert_eq!(servos.bus(), "legs");
     let got = servos.status().unwrap();
@@ -54,7 +54,7 @@ fn wck_servos_read_each_servo_and_fail_a_silent_one_alone() {
 #[test]
 fn wck_moves_check_every_value_before_the_first_packet() {
     let (s, w, j) = station();
-    let servos = WckServos::new(&s, Some("legs"), &[0, 1, 2]).unwrap();
+    let servos = WckGroup::new(&s, Some("legs"), &[0, 1, 2]).unwrap();
     let before = sent(&w, &j);
     for (positions, torque, what) in [
         (vec![100.0, 254.5, 120.0], 2, "position of servo 1 254.5"),
@@ -91,7 +91,7 @@ fn wck_moves_check_every_value_before_the_first_packet() {
 #[test]
 fn a_wck_sync_move_needs_the_servos_it_addresses() {
     let (s, w, j) = station();
-    let servos = WckServos::new(&s, None, &[1, 2]).unwrap();
+    let servos = WckGroup::new(&s, None, &[1, 2]).unwrap();
     let before = sent(&w, &j);
     let e = servos.sync_move(&[100.0, 100.0], 2).unwrap_err();
     assert_eq!(e.kind(), ErrorKind::Refused);
@@ -102,20 +102,20 @@ fn a_wck_sync_move_needs_the_servos_it_addresses() {
         (&[31], "ids 31"),
         (&[1, 1], "ids 1: given twice"),
     ] {
-        let e = WckServos::new(&s, None, ids).unwrap_err();
+        let e = WckGroup::new(&s, None, ids).unwrap_err();
         assert_eq!(e.kind(), ErrorKind::BadInput);
         assert!(e.to_string().starts_with(what), "{e}");
     }
-    let e = WckServos::new(&s, Some("arms"), &[0]).unwrap_err();
+    let e = WckGroup::new(&s, Some("arms"), &[0]).unwrap_err();
     assert_eq!(e.kind(), ErrorKind::BadInput, "{e}");
 }
 
 #[test]
 fn whj_joints_command_only_what_each_joint_accepts() {
     let (s, w, j) = station();
-    let e = WhjJoints::new(&s, None, &[1, 3]).unwrap_err();
+    let e = WhjGroup::new(&s, None, &[1, 3]).unwrap_err();
     assert_eq!(e.kind(), ErrorKind::NoDevice, "{e}");
-    let joints = WhjJoints::new(&s, None, &[2, 1]).unwrap();
+    let joints = WhjGroup::new(&s, None, &[2, 1]).unwrap();
     assert_eq!(joints.ids(), [2, 1]);
     let limits = joints.limits(ServoLoop::Speed);
     assert_eq!(limits, [(-37.5, 37.5), (-37.5, 37.5)]);
@@ -255,8 +255,8 @@ fn on_the_wall_clock_a_thread_watches_the_simulated_robot() {
 #[test]
 fn a_handle_does_not_keep_its_bus_open() {
     let (s, w, j) = station();
-    let servos = WckServos::new(&s, None, &[0]).unwrap();
-    let joints = WhjJoints::new(&s, None, &[1]).unwrap();
+    let servos = WckGroup::new(&s, None, &[0]).unwrap();
+    let joints = WhjGroup::new(&s, None, &[1]).unwrap();
     assert!(servos.status().is_ok());
     // The test's own strong handles go; closing the station then closes both buses.
     drop((w, j));

@@ -1,11 +1,12 @@
 //! The catalogue: one request type for every device operation of both families, one
-//! dispatcher, a station of open buses, and the [`telemetry`] stream that front ends
-//! subscribe to.
+//! dispatcher that runs them on a [station](crate::station) of open buses, and the
+//! [`telemetry`] stream that front ends subscribe to.
 //!
 //! A [`Request`] is plain data: the CLI's arguments, a JSON document from a web page or a
 //! pub/sub bridge, or Python keyword arguments all become one. [`plan()`] turns it into the
 //! exact packets / frames the CLI's `--dry-run` prints ([`Plan::to_text`]); [`run`]
-//! executes the same plan on a [`Station`]'s bus and returns the [`Report`] envelope.
+//! executes the same plan on a [`Station`](crate::station::Station)'s bus and returns the
+//! [`Report`] envelope.
 //! Validation (the protocol's ranged newtypes, the host [`bounds`] table), the confirmation
 //! rule and the safe state on stop are decided here, not in a front end: a request that
 //! needs `confirm: true` and lacks it is refused with [`ErrorKind::Refused`] before

@@ -1,4 +1,4 @@
-//! The registry's machinery: [`registry!`] turns one row per operation into the
+//! The registry's machinery: `registry!` turns one row per operation into the
 //! [`Request`](super::Request) enum, its conversions, the dispatch to each operation's
 //! [`Operation`] methods, and the list of [`OpInfo`] the schemas and the operation table
 //! are made from. The rows themselves are in `catalogue/mod.rs`.

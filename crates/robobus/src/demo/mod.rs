@@ -9,7 +9,7 @@
 //! - the wCK humanoid: [`ops::wck::scan`] finds the servos; the three keyframes are a
 //!   keyframe [`Motion`] played with [`ops::wck::play`] pose by pose (an interpolated
 //!   transition, then a hold), each pose checked with one status read of every servo
-//!   through the station's [`WckServos`] handle;
+//!   through the station's [`WckGroup`] handle;
 //! - the WHJ arm: [`ops::whj::info`] connects and identifies each joint,
 //!   [`ops::whj::set_mode`] / [`ops::whj::enable`] prepare them, and the station's checked
 //!   cyclic loop ([`CyclicLoop`]) streams a 500 Hz sine, its tracking measured with
@@ -48,7 +48,7 @@ use crate::robot::simulated::{JOINTS, SERVOS};
 use crate::station::Station;
 use crate::station::WckPort;
 use crate::station::cyclic::CyclicLoop;
-use crate::station::handles::WckServos;
+use crate::station::handles::WckGroup;
 use crate::whj::{CyclicStats, MotionLimits};
 
 /// The cyclic loop's period: 500 Hz.
@@ -262,7 +262,7 @@ fn humanoid(
     }
     check_stop(control)?;
 
-    let servos = WckServos::new(station, Some(WCK_BUS), &found)?;
+    let servos = WckGroup::new(station, Some(WCK_BUS), &found)?;
     let (poses, polls) = keyframes(&port, &servos, start, control, trace)?;
     let stats = port.lock().stats();
     Ok((
@@ -293,7 +293,7 @@ fn humanoid(
 /// with a status read of every servo of `servos`; the poses and the status reads made.
 fn keyframes(
     port: &WckPort,
-    servos: &WckServos,
+    servos: &WckGroup,
     start: Instant,
     control: &mut Control<'_>,
     trace: &mut Trace,

@@ -5,7 +5,7 @@
 //! ([`WHJ_JOG_STEP_DEG`], [`WCK_JOG_STEP`]), never past the device's limits (a WHJ joint's
 //! own position limits, the host bounds) nor the soft limits of the station's robot file
 //! for that device. A WHJ joint must be enabled in position mode; the frame goes through
-//! the [`WhjJoints`] handle, so its step-limit and readiness checks apply as well.
+//! the [`WhjGroup`] handle, so its step-limit and readiness checks apply as well.
 
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, PoisonError};
@@ -18,7 +18,7 @@ use crate::catalogue::Family;
 use crate::ops::whj::ServoLoop;
 use crate::ops::{Failure, OpError};
 use crate::station::Station;
-use crate::station::handles::{WckServos, WhjJoints};
+use crate::station::handles::{WckGroup, WhjGroup};
 
 /// The largest step of one WHJ jog, degrees.
 pub const WHJ_JOG_STEP_DEG: f64 = 2.0;
@@ -63,12 +63,12 @@ pub struct Jogged {
 }
 
 /// A jogged wCK servo's handle and its limits (steps).
-type WckJog = (WckServos, (f64, f64));
+type WckJog = (WckGroup, (f64, f64));
 
 /// Jogs devices of a station; keeps each device's handle and limits after the first jog.
 #[derive(Debug, Default)]
 pub struct Jogger {
-    whj: Mutex<HashMap<(String, u8), Arc<WhjJoints>>>,
+    whj: Mutex<HashMap<(String, u8), Arc<WhjGroup>>>,
     wck: Mutex<HashMap<(String, u8), Arc<WckJog>>>,
 }
 
@@ -110,7 +110,7 @@ impl Jogger {
         })?;
         let port = station.whj(req.bus.as_deref())?;
         let handle = cached(&self.whj, port.name(), req.device, || {
-            WhjJoints::new(station, Some(port.name()), &[req.device])
+            WhjGroup::new(station, Some(port.name()), &[req.device])
         })?;
         let limits = within_soft_limits(
             station,
@@ -139,7 +139,7 @@ impl Jogger {
         })?;
         let port = station.wck(req.bus.as_deref())?;
         let entry = cached(&self.wck, port.name(), req.device, || {
-            let servos = WckServos::new(station, Some(port.name()), &[req.device])?;
+            let servos = WckGroup::new(station, Some(port.name()), &[req.device])?;
             let b = port.lock().servo(id).boundaries()?;
             let bounds = (f64::from(b.lower().get()), f64::from(b.upper().get()));
             let limits =

@@ -51,7 +51,7 @@ impl WckReading {
 
 /// wCK servos on one of a station's ports (clones share the port).
 #[derive(Debug, Clone)]
-pub struct WckServos {
+pub struct WckGroup {
     port: WeakWckPort,
     name: String,
     ids: Vec<ServoId>,
@@ -64,7 +64,7 @@ fn closed(bus: &str) -> OpError {
     ))
 }
 
-impl WckServos {
+impl WckGroup {
     /// Servos `ids` on the station's wCK port `bus` (`None`: its only one). Nothing is
     /// sent.
     pub fn new(station: &Station, bus: Option<&str>, ids: &[u8]) -> Result<Self, OpError> {
@@ -214,7 +214,7 @@ struct Allowed {
 /// WHJ joints on one of a station's buses: fresh status, and one servo frame per joint
 /// per command, each target checked against the host bounds and the joint's own limits.
 #[derive(Debug)]
-pub struct WhjJoints {
+pub struct WhjGroup {
     port: WeakWhjPort,
     name: String,
     ids: Vec<JointId>,
@@ -224,7 +224,7 @@ pub struct WhjJoints {
     ready: Mutex<Option<ServoLoop>>,
 }
 
-impl WhjJoints {
+impl WhjGroup {
     /// Joints `ids` on the station's WHJ bus `bus` (`None`: its only one): connects each
     /// (the identity handshake) and reads what it accepts (its position limits, its
     /// model's peak speed, its current limit). A joint that does not answer fails the
@@ -392,6 +392,6 @@ impl WhjJoints {
 /// The handles are `Send + Sync`: a front end may keep them on any thread.
 const _: () = {
     const fn send_sync<T: Send + Sync>() {}
-    send_sync::<WckServos>();
-    send_sync::<WhjJoints>();
+    send_sync::<WckGroup>();
+    send_sync::<WhjGroup>();
 };

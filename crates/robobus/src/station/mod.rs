@@ -81,18 +81,18 @@ impl WckPort {
 
     /// A reference that does not keep the port open: once its station and every strong
     /// handle are gone, [`WeakWckPort::upgrade`] gives `None` (the port is closed).
-    pub fn downgrade(&self) -> WeakWckPort {
+    pub(crate) fn downgrade(&self) -> WeakWckPort {
         WeakWckPort(Arc::downgrade(&self.0))
     }
 }
 
 /// A [`WckPort`] that does not keep the port open (see [`WckPort::downgrade`]).
 #[derive(Debug, Clone)]
-pub struct WeakWckPort(std::sync::Weak<WckInner>);
+pub(crate) struct WeakWckPort(std::sync::Weak<WckInner>);
 
 impl WeakWckPort {
     /// The port, if it is still open.
-    pub fn upgrade(&self) -> Option<WckPort> {
+    pub(crate) fn upgrade(&self) -> Option<WckPort> {
         self.0.upgrade().map(WckPort)
     }
 }
@@ -171,23 +171,23 @@ impl WhjPort {
 
     /// The bus as a shared handle (what a loop that outlives a borrow keeps:
     /// [`JointBus::cyclic_owned`]).
-    pub fn shared_bus(&self) -> Arc<JointBus> {
+    pub(crate) fn shared_bus(&self) -> Arc<JointBus> {
         Arc::clone(&self.0.bus)
     }
 
     /// A reference that does not keep the bus open (see [`WckPort::downgrade`]).
-    pub fn downgrade(&self) -> WeakWhjPort {
+    pub(crate) fn downgrade(&self) -> WeakWhjPort {
         WeakWhjPort(Arc::downgrade(&self.0))
     }
 }
 
 /// A [`WhjPort`] that does not keep the bus open (see [`WhjPort::downgrade`]).
 #[derive(Debug, Clone)]
-pub struct WeakWhjPort(std::sync::Weak<WhjInner>);
+pub(crate) struct WeakWhjPort(std::sync::Weak<WhjInner>);
 
 impl WeakWhjPort {
     /// The bus, if it is still open.
-    pub fn upgrade(&self) -> Option<WhjPort> {
+    pub(crate) fn upgrade(&self) -> Option<WhjPort> {
         self.0.upgrade().map(WhjPort)
     }
 }

@@ -59,7 +59,9 @@ impl WckSampler {
     }
 
     /// Servos with their conversion to joint angles (`None`: the servo's own degrees).
-    pub fn with_scales(servos: impl IntoIterator<Item = (ServoId, Option<WckScale>)>) -> Self {
+    pub(crate) fn with_scales(
+        servos: impl IntoIterator<Item = (ServoId, Option<WckScale>)>,
+    ) -> Self {
         let servos: Vec<_> = servos.into_iter().collect();
         Self {
             last: vec![None; servos.len()],
@@ -380,7 +382,7 @@ pub fn bus_description(name: &str, bus: &BusConfig) -> String {
 
 /// Releases and identifies joints (the vendor's required first operation) before they are
 /// sampled; one that stays silent shows in its samples (logged here).
-pub fn connect_joints(bus: &JointBus, ids: impl IntoIterator<Item = JointId>) {
+fn connect_joints(bus: &JointBus, ids: impl IntoIterator<Item = JointId>) {
     for id in ids {
         if let Err(e) = bus.joint(id) {
             tracing::info!("joint {id}: {e}");

@@ -35,7 +35,7 @@ use crate::robot::RobotConfig;
 use crate::robot::trajectory::Trajectory;
 use crate::station::Station;
 use crate::station::clock::BusClock;
-use crate::station::handles::{WckServos, WhjJoints};
+use crate::station::handles::{WckGroup, WhjGroup};
 use crate::whj::Percentiles;
 
 /// `robot.play` (see the [module docs](self)).
@@ -248,8 +248,8 @@ type Outcomes = Vec<(usize, Result<f64, Failure>)>;
 /// The joints of one bus and their handle, each by its column with how its angles turn
 /// into its device's units.
 enum Group {
-    Wck(WckServos, Vec<(usize, WckScale)>),
-    Whj(WhjJoints, Vec<(usize, JointMap)>),
+    Wck(WckGroup, Vec<(usize, WckScale)>),
+    Whj(WhjGroup, Vec<(usize, JointMap)>),
 }
 
 impl Group {
@@ -340,12 +340,12 @@ fn groups(
         let ids: Vec<u8> = cols.iter().map(|(_, j)| j.id).collect();
         groups.push(if config.is_wck(first) {
             Group::Wck(
-                WckServos::new(station, Some(name), &ids)?,
+                WckGroup::new(station, Some(name), &ids)?,
                 cols.iter().map(|(c, j)| (*c, j.wck_scale())).collect(),
             )
         } else {
             Group::Whj(
-                WhjJoints::new(station, Some(name), &ids)?,
+                WhjGroup::new(station, Some(name), &ids)?,
                 cols.iter().map(|(c, j)| (*c, j.map())).collect(),
             )
         });
