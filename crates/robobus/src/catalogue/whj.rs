@@ -299,6 +299,33 @@ pub(crate) fn moved(bus: Option<&str>, ids: Vec<u8>, servo: ServoLoop) -> super:
 /// One joint's row of a report whose run fails as a whole when that joint does.
 pub(crate) type JointRow<T> = crate::ops::DeviceResult<u8, T>;
 
+/// The report of `op` on the station's WHJ bus `bus` (the only one when `None`): `rows`
+/// runs it on that bus, a row per joint.
+pub(crate) fn bus_report<T: Serialize>(
+    cx: &super::operation::RunCx<'_, '_>,
+    op: &str,
+    bus: Option<&str>,
+    rows: impl FnOnce(&crate::whj::JointBus) -> R<Vec<JointRow<T>>>,
+) -> R<super::operation::Report<JointRow<T>, ()>> {
+    let port = cx.station.whj(bus)?;
+    let rows = rows(port.bus())?;
+    Ok(super::operation::Report::devices(op, port.name(), rows))
+}
+
+/// The report of `op` on joint `j` of the station's WHJ bus `bus`: `run` runs it there,
+/// its one row (a failure fails the run as a whole).
+pub(crate) fn joint_report<T: Serialize>(
+    cx: &super::operation::RunCx<'_, '_>,
+    op: &str,
+    bus: Option<&str>,
+    j: JointId,
+    run: impl FnOnce(&crate::whj::JointBus) -> R<T>,
+) -> R<super::operation::Report<JointRow<T>, ()>> {
+    bus_report(cx, op, bus, |b| {
+        Ok(vec![crate::ops::DeviceResult::ok(j.get(), run(b)?)])
+    })
+}
+
 fn duration(d: Option<f64>) -> R<Option<Duration>> {
     d.map(|d| {
         bounds::TARGET_DURATION_S

@@ -6,7 +6,7 @@ use robobus_whj::Request as Wire;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use super::{JointRow, each, joint_list, plan_of};
+use super::{JointRow, bus_report, each, joint_list, plan_of};
 use crate::catalogue::args::Ids;
 use crate::catalogue::operation::{Confirm, OpDoc, Operation, Report, RunCx};
 use crate::catalogue::wck::request;
@@ -54,11 +54,6 @@ impl Operation for Clear {
 
     fn run(&self, cx: &mut RunCx<'_, '_>) -> Result<Report<Self::Row, ()>, OpError> {
         let ids = joint_list(&self.joints)?;
-        let port = cx.station.whj(self.bus())?;
-        Ok(Report::devices(
-            Self::OP,
-            port.name(),
-            ops::clear(port.bus(), &ids),
-        ))
+        bus_report(cx, Self::OP, self.bus(), |b| Ok(ops::clear(b, &ids)))
     }
 }

@@ -4,8 +4,8 @@ use robobus_wck::BaudRate;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use super::speed::{TARGET_REPORT, run_target};
-use super::{JointRow, Model, R, duration, joint, moved, plan_of, scale_for, target_steps};
+use super::speed::{TARGET_REPORT, run_target, target_moved};
+use super::{JointRow, Model, R, duration, joint, plan_of, scale_for, target_steps};
 use crate::catalogue::args::WhjOnStop;
 use crate::catalogue::bounds;
 use crate::catalogue::operation::{Confirm, OpDoc, Operation, Report, RunCx};
@@ -80,11 +80,7 @@ impl Operation for Current {
 
     fn moved(&self) -> Result<Option<Moved>, OpError> {
         let (args, _) = self.steps(false)?;
-        Ok(Some(moved(
-            self.bus(),
-            vec![args.joint.get()],
-            ServoLoop::Current,
-        )))
+        Ok(Some(target_moved(self.bus(), &args)))
     }
 
     fn check(&self) -> Result<Confirm, OpError> {

@@ -7,7 +7,7 @@ use robobus_whj::{JointId, Request as Wire};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use super::settings::{SettingsRow, settings_report};
+use super::settings::{SettingsRow, settings_run};
 use super::{R, joint, plan_of};
 use crate::catalogue::operation::{Confirm, OpDoc, Operation, Report, RunCx};
 use crate::catalogue::plan::WhjSteps;
@@ -81,9 +81,6 @@ impl Operation for Defaults {
     }
 
     fn run(&self, cx: &mut RunCx<'_, '_>) -> Result<Report<Self::Row, Settings>, OpError> {
-        let j = self.joint()?;
-        let port = cx.station.whj(self.bus())?;
-        let s = ops::defaults(port.bus(), j)?;
-        Ok(settings_report(Self::OP, port.name(), j, s))
+        settings_run(cx, Self::OP, self.bus(), self.joint()?, ops::defaults)
     }
 }

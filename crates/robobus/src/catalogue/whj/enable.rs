@@ -6,7 +6,7 @@ use robobus_whj::Request as Wire;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use super::{JointRow, each, joint_list, moved, plan_of};
+use super::{JointRow, bus_report, each, joint_list, moved, plan_of};
 use crate::catalogue::args::Ids;
 use crate::catalogue::operation::{Confirm, OpDoc, Operation, Report, RunCx};
 use crate::catalogue::wck::request;
@@ -32,12 +32,7 @@ pub(super) fn run(
     cx: &RunCx<'_, '_>,
 ) -> Result<Report<JointRow<EnableReport>, ()>, OpError> {
     let ids = joint_list(joints)?;
-    let port = cx.station.whj(bus)?;
-    Ok(Report::devices(
-        op,
-        port.name(),
-        ops::enable(port.bus(), &ids, on),
-    ))
+    bus_report(cx, op, bus, |b| Ok(ops::enable(b, &ids, on)))
 }
 
 /// The plan of `whj.enable` / `whj.disable` on `joints`.

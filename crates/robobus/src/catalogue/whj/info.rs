@@ -5,13 +5,13 @@ use robobus_whj::Request as Wire;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use super::{JointRow, joint, plan_of};
+use super::{JointRow, joint, joint_report, plan_of};
 use crate::catalogue::operation::{Confirm, OpDoc, Operation, Report, RunCx};
 use crate::catalogue::plan::WhjSteps;
 use crate::catalogue::wck::request;
 use crate::catalogue::{Effect, Family, Plan};
+use crate::ops::OpError;
 use crate::ops::whj::{self as ops, InfoReport};
-use crate::ops::{DeviceResult, OpError};
 
 request!(cli
     /// `whj.info`: identity, unique ID and position limits of a joint.
@@ -58,8 +58,6 @@ impl Operation for Info {
 
     fn run(&self, cx: &mut RunCx<'_, '_>) -> Result<Report<Self::Row, ()>, OpError> {
         let j = joint("<JOINT>", self.joint)?;
-        let port = cx.station.whj(self.bus())?;
-        let row = DeviceResult::ok(j.get(), ops::info(port.bus(), j)?);
-        Ok(Report::devices(Self::OP, port.name(), vec![row]))
+        joint_report(cx, Self::OP, self.bus(), j, |b| ops::info(b, j))
     }
 }

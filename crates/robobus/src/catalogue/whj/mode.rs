@@ -5,7 +5,7 @@ use robobus_whj::Request as Wire;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use super::{JointRow, ModeName, each, joint_list, plan_of, work_mode};
+use super::{JointRow, ModeName, bus_report, each, joint_list, plan_of, work_mode};
 use crate::catalogue::args::Ids;
 use crate::catalogue::operation::{Confirm, OpDoc, Operation, Report, RunCx};
 use crate::catalogue::wck::request;
@@ -56,8 +56,8 @@ impl Operation for Mode {
 
     fn run(&self, cx: &mut RunCx<'_, '_>) -> Result<Report<Self::Row, ()>, OpError> {
         let ids = joint_list(&self.joints)?;
-        let port = cx.station.whj(self.bus())?;
-        let results = ops::set_mode(port.bus(), &ids, work_mode(self.mode));
-        Ok(Report::devices(Self::OP, port.name(), results))
+        bus_report(cx, Self::OP, self.bus(), |b| {
+            Ok(ops::set_mode(b, &ids, work_mode(self.mode)))
+        })
     }
 }

@@ -5,7 +5,7 @@ use robobus_whj::Request as Wire;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use super::{JointRow, each, joint_list, plan_of};
+use super::{JointRow, bus_report, each, joint_list, plan_of};
 use crate::catalogue::args::Ids;
 use crate::catalogue::bounds::{ConfirmClass, NON_VOLATILE_TEXT};
 use crate::catalogue::operation::{Confirm, OpDoc, Operation, Report, RunCx};
@@ -70,11 +70,6 @@ impl Operation for Save {
 
     fn run(&self, cx: &mut RunCx<'_, '_>) -> Result<Report<Self::Row, ()>, OpError> {
         let ids = joint_list(&self.joints)?;
-        let port = cx.station.whj(self.bus())?;
-        Ok(Report::devices(
-            Self::OP,
-            port.name(),
-            ops::save(port.bus(), &ids),
-        ))
+        bus_report(cx, Self::OP, self.bus(), |b| Ok(ops::save(b, &ids)))
     }
 }

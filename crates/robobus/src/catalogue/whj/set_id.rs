@@ -5,7 +5,7 @@ use robobus_whj::JointId;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use super::{R, joint, plan_of};
+use super::{R, joint, joint_report, plan_of};
 use crate::catalogue::bounds::{ConfirmClass, NON_VOLATILE_TEXT};
 use crate::catalogue::operation::{Confirm, OpDoc, Operation, Report, RunCx};
 use crate::catalogue::plan::WhjSteps;
@@ -90,12 +90,6 @@ impl Operation for SetId {
 
     fn run(&self, cx: &mut RunCx<'_, '_>) -> Result<Report<Self::Row, ()>, OpError> {
         let (j, new_id) = self.ids()?;
-        let port = cx.station.whj(self.bus())?;
-        let r = hops::set_id(port.bus(), j, new_id)?;
-        Ok(Report::devices(
-            Self::OP,
-            port.name(),
-            vec![DeviceResult::ok(j.get(), r)],
-        ))
+        joint_report(cx, Self::OP, self.bus(), j, |b| hops::set_id(b, j, new_id))
     }
 }

@@ -6,11 +6,11 @@ use robobus_whj::{JointId, Request as Wire};
 use schemars::JsonSchema;
 use serde::Serialize;
 
-use crate::catalogue::operation::Report;
+use crate::catalogue::operation::{Report, RunCx};
 use crate::catalogue::plan::WhjSteps;
-use crate::ops::DeviceResult;
 use crate::ops::whj as ops;
 use crate::ops::whj::settings::Settings;
+use crate::ops::{DeviceResult, OpError};
 
 /// What `whj.diff` compares a joint with.
 #[derive(Debug, Clone)]
@@ -48,8 +48,23 @@ pub struct SettingsRow {
     pub settings: usize,
 }
 
+/// The report of `op` reading joint `j`'s settings file (`read`: `whj.backup`'s
+/// [`ops::settings::backup`], `whj.defaults`' [`ops::settings::defaults`]) on the
+/// station's WHJ bus `bus`.
+pub(super) fn settings_run(
+    cx: &RunCx<'_, '_>,
+    op: &str,
+    bus: Option<&str>,
+    j: JointId,
+    read: impl FnOnce(&crate::whj::JointBus, JointId) -> Result<Settings, OpError>,
+) -> Result<Report<DeviceResult<u8, SettingsRow>, Settings>, OpError> {
+    let port = cx.station.whj(bus)?;
+    let s = read(port.bus(), j)?;
+    Ok(settings_report(op, port.name(), j, s))
+}
+
 /// The report of settings `s` read from joint `j`: one row, the file as the summary.
-pub(super) fn settings_report(
+fn settings_report(
     op: &str,
     bus: &str,
     j: JointId,

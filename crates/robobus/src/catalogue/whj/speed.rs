@@ -41,6 +41,11 @@ pub(super) const TARGET_REPORT: &str = "one row: the feedback to the target fram
      (`enabled`, `position_deg`, `speed_rpm`, `current_ma`, `error`), `keeps_running` (no \
      `duration`: the joint keeps the target), `note`";
 
+/// The joint a speed or current target on `bus` sets moving, running its loop.
+pub(super) fn target_moved(bus: Option<&str>, args: &TargetArgs) -> Moved {
+    moved(bus, vec![args.joint.get()], args.servo)
+}
+
 /// Runs a speed or current target on the station's joint (validated already).
 pub(super) fn run_target(
     op: &str,
@@ -88,8 +93,7 @@ impl Operation for Speed {
 
     fn moved(&self) -> Result<Option<Moved>, OpError> {
         self.check()?;
-        let j = self.args()?.joint;
-        Ok(Some(moved(self.bus(), vec![j.get()], ServoLoop::Speed)))
+        Ok(Some(target_moved(self.bus(), &self.args()?)))
     }
 
     fn check(&self) -> Result<Confirm, OpError> {
