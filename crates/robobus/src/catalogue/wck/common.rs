@@ -25,6 +25,12 @@ pub(super) fn degrees(p: Position) -> f64 {
     round2(p.degrees())
 }
 
+/// The servo a one-servo motion request (`wck.move`, `wck.move10`) on `bus` sets moving:
+/// its `id` (checked already by the request's steps).
+pub(super) fn moved_servo(bus: Option<&str>, id: u32) -> crate::catalogue::Moved {
+    super::moved(bus, vec![u8::try_from(id).unwrap_or(u8::MAX)])
+}
+
 /// The `id` of a broadcast's row: `"all"`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, JsonSchema)]
 pub enum All {

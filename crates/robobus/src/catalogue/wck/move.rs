@@ -5,8 +5,8 @@ use robobus_wck::{BaudRate, Command, Reply};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use super::common::{degrees, run_steps};
-use super::{R, moved, plan_of, pos, sid, torque};
+use super::common::{degrees, moved_servo, run_steps};
+use super::{R, plan_of, pos, sid, torque};
 use crate::catalogue::bounds::ConfirmClass;
 use crate::catalogue::operation::{Confirm, OpDoc, Operation, Report, RunCx};
 use crate::catalogue::{Effect, Family, Moved, Plan};
@@ -79,8 +79,7 @@ impl Operation for Move {
 
     fn moved(&self) -> R<Option<Moved>> {
         self.steps()?;
-        let id = u8::try_from(self.id).unwrap_or(u8::MAX);
-        Ok(Some(moved(self.bus(), vec![id])))
+        Ok(Some(moved_servo(self.bus(), self.id)))
     }
 
     fn check(&self) -> R<Confirm> {

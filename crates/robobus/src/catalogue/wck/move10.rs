@@ -5,8 +5,8 @@ use robobus_wck::{BaudRate, Command, DataByte, ExtServoId, Position10, Reply};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use super::common::{round2, run_steps};
-use super::{R, byte, moved, plan_of};
+use super::common::{moved_servo, round2, run_steps};
+use super::{R, byte, plan_of};
 use crate::catalogue::bounds::ConfirmClass;
 use crate::catalogue::operation::{Confirm, OpDoc, Operation, Report, RunCx};
 use crate::catalogue::{Effect, Family, Moved, Plan};
@@ -78,8 +78,7 @@ impl Operation for Move10 {
 
     fn moved(&self) -> R<Option<Moved>> {
         self.steps()?;
-        let id = u8::try_from(self.id).unwrap_or(u8::MAX);
-        Ok(Some(moved(self.bus(), vec![id])))
+        Ok(Some(moved_servo(self.bus(), self.id)))
     }
 
     fn check(&self) -> R<Confirm> {

@@ -6,7 +6,7 @@ use robobus_whj::{JointId, Request as Wire};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use super::{R, each, plan_of};
+use super::{R, bus_report, each, plan_of};
 use crate::catalogue::args::Ids;
 use crate::catalogue::operation::{Confirm, OpDoc, Operation, Report, RunCx};
 use crate::catalogue::wck::request;
@@ -70,17 +70,17 @@ impl Operation for ReleaseIap {
 
     fn run(&self, cx: &mut RunCx<'_, '_>) -> Result<Report<Self::Row, ()>, OpError> {
         let ids = self.ids()?;
-        let port = cx.station.whj(self.bus())?;
-        let results = hops::release_iap(port.bus(), &ids)
-            .into_iter()
-            .map(|r| DeviceResult {
-                id: r.id,
-                outcome: r.outcome.map(|identity| Released {
-                    identity,
-                    released: true,
-                }),
-            })
-            .collect();
-        Ok(Report::devices(Self::OP, port.name(), results))
+        bus_report(cx, Self::OP, self.bus(), |b| {
+            Ok(hops::release_iap(b, &ids)
+                .into_iter()
+                .map(|r| DeviceResult {
+                    id: r.id,
+                    outcome: r.outcome.map(|identity| Released {
+                        identity,
+                        released: true,
+                    }),
+                })
+                .collect())
+        })
     }
 }
