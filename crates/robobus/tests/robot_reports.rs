@@ -5,6 +5,8 @@
 
 #![allow(clippy::unwrap_used, clippy::panic)]
 
+mod common;
+
 use std::collections::BTreeSet;
 
 use robobus::catalogue::host::Ports;
@@ -13,6 +15,8 @@ use robobus::catalogue::{self, NoInteraction, Request};
 use robobus::ops::{Control, ErrorKind, Outcome};
 use robobus::station::Station;
 use serde_json::Value;
+
+use common::reports::schema_of;
 
 /// The schema `$ref` points at, in `root`'s `$defs`.
 fn resolve<'a>(root: &'a Value, node: &'a Value) -> &'a Value {
@@ -49,18 +53,12 @@ fn fields(root: &Value, node: &Value) -> BTreeSet<String> {
 
 /// `op`'s report schema: (its rows' fields, its summary's fields).
 fn report_fields(op: &str) -> (BTreeSet<String>, BTreeSet<String>) {
-    let root = catalogue::report_schema();
-    let entry = root["oneOf"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|e| e["title"] == op)
-        .unwrap_or_else(|| panic!("{op} is not in the report schema"));
-    let report = resolve(&root, &entry["allOf"][0]);
+    let entry = schema_of(&catalogue::report_schema(), op);
+    let report = resolve(&entry, &entry["allOf"][0]);
     let props = &report["properties"];
     (
-        fields(&root, &props["results"]["items"]),
-        fields(&root, &props["summary"]),
+        fields(&entry, &props["results"]["items"]),
+        fields(&entry, &props["summary"]),
     )
 }
 
