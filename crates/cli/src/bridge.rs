@@ -40,8 +40,12 @@ pub(crate) struct Args {
     #[arg(long, value_name = "FILE")]
     zenoh_config: Option<PathBuf>,
     /// Armed from the start: joint commands and motion requests move the robot.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "read_only")]
     armed: bool,
+    /// Serve reads only: joint states, health and read-only requests; no request that
+    /// changes a device, no joint command, no arming.
+    #[arg(long)]
+    read_only: bool,
     /// A command stream quiet for this long holds the joints it moved, ms (20..=5000).
     #[arg(long, default_value_t = 200, value_name = "MS",
           value_parser = clap::value_parser!(u64).range(20..=5000))]
@@ -77,6 +81,7 @@ impl Args {
             mode,
             zenoh_config: self.zenoh_config.clone(),
             armed: self.armed,
+            read_only: self.read_only,
             command_timeout: Duration::from_millis(self.command_timeout),
             ..BridgeConfig::default()
         }
@@ -115,7 +120,13 @@ fn describe(keys: &Keys, config: &BridgeConfig, joints: &[String], sim: bool) ->
         } else {
             format!(" ({})", joints.join(" "))
         },
-        if config.armed { "ARMED" } else { "not armed" },
+        if config.read_only {
+            "read-only"
+        } else if config.armed {
+            "ARMED"
+        } else {
+            "not armed"
+        },
     );
     let rows = [
         (

@@ -94,8 +94,18 @@ fn a_client_dry_run_names_its_routers() {
 }
 
 #[test]
+fn a_read_only_bridge_says_so_and_cannot_be_armed() {
+    let out = robobus(&["--dry-run", "bridge", "--read-only"]);
+    assert!(out.status.success(), "{out:?}");
+    let text = String::from_utf8(out.stdout).unwrap();
+    let first = text.lines().next().unwrap_or_default();
+    assert!(first.ends_with("23 joints (s0 s1 s2 s3 s4 s5 s6 s7 s8 s9 s10 s11 s12 s13 s14 s15 j1 j2 j3 j4 j5 j6 j7); read-only"), "{first}");
+}
+
+#[test]
 fn bad_options_exit_2_naming_the_option_and_open_nothing() {
     for (args, option) in [
+        (&["bridge", "--read-only", "--armed"][..], "--armed"),
         (&["bridge", "--namespace", "a/*"][..], "--namespace"),
         (&["bridge", "--rate", "5000"][..], "--rate"),
         (&["bridge", "--connect", "127.0.0.1:7447"][..], "--connect"),
