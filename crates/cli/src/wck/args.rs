@@ -1,6 +1,8 @@
-//! The arguments of `robobus wck`: its subcommands and options, and the value parsers that
-//! turn text into the protocol crate's range-checked newtypes (an out-of-range value is
-//! refused with exit code 2, naming the value, the range and the argument).
+//! The arguments of `robobus wck`: its options, its subcommands (each the catalogue request
+//! it runs, or a small struct holding the request and the file it names), and the value
+//! parsers of `get` / `set`'s parameter subcommands, which turn text into the protocol
+//! crate's range-checked newtypes (an out-of-range value is refused with exit code 2,
+//! naming the value, the range and the argument).
 
 use std::path::PathBuf;
 

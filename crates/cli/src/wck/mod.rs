@@ -1,12 +1,13 @@
 //! `robobus wck`: drive wCK servos on a serial (UART) bus.
 //!
 //! Every subcommand maps onto the commands of the wCK manual's appendix A-1
-//! ([`robobus_wck::Command`]). Arguments are parsed into the protocol crate's range-checked
-//! newtypes by clap value parsers, so an out-of-range value is refused (exit code 2, the
-//! message names the value, the range and the argument) before anything is opened. The
-//! subcommand then becomes its catalogue request ([`robobus::catalogue::wck`]); the library
-//! validates and plans it: `--dry-run` prints the plan, otherwise [`crate::report`] runs it
-//! on a station holding the one port.
+//! ([`robobus_wck::Command`]). A subcommand's arguments are its catalogue request
+//! ([`robobus::catalogue::wck`], `clap::Args` with the library's `cli` feature), whose
+//! value parsers check each range, so an out-of-range value is refused (exit code 2, the
+//! message names the value, the range and the argument) before anything is opened; the
+//! command adds only the files it names (read into the request's text) and `get` / `set`'s
+//! parameter subcommands. The library validates and plans the request: `--dry-run` prints
+//! the plan, otherwise [`crate::report`] runs it on a station holding the one port.
 
 use std::fmt::Write as _;
 use std::path::Path;

@@ -2,7 +2,8 @@
 //! wck` subcommand, its arguments under the CLI's names, `-` written `_`), its typed
 //! report rows and summary, its check, plan and run through [`crate::ops::wck`]. Here:
 //! what they share (the request macro, the argument parsers, the confirmation question,
-//! the plan and row helpers).
+//! the plan and row helpers); with the `cli` feature, the `cli` module: the value parsers of
+//! the requests as command-line arguments.
 
 use std::time::Duration;
 
