@@ -1,8 +1,8 @@
 //! Error kinds: one classification of every library error, for every front end.
 //!
-//! Each error type of the library has a `kind()`. A front end maps the kind once: the
-//! command line to its exit code, Python bindings to an exception class, a web server to
-//! an HTTP status. The kinds:
+//! Each error type of the library has a `kind()`, beside the type. A front end maps the
+//! kind once: the command line to its exit code, the Python package to an exception class,
+//! the web studio to an HTTP status. The kinds:
 //!
 //! | kind | meaning | `robobus` exit code |
 //! | --- | --- | --- |

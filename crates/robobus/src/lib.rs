@@ -3,10 +3,34 @@
 //! The same API works on real hardware and on the robobus simulators; the link is the
 //! only difference.
 //!
-//! Front ends (the `robobus` command, later a web server or Python bindings) call the
-//! operations of [`ops`]: typed arguments, a plan, a typed report, a stop token and a
-//! progress callback. Playing a keyframe motion on the simulated wCK bus with progress,
-//! stopped halfway (the servos then hold where they are):
+//! # Layers
+//!
+//! The rows run from the lowest layer up, and a module uses only the layers of the rows
+//! above its own (one exception remains: the catalogue's `robot.teleop` drives its
+//! followers through the front-end kit's [`frontend::follow`]):
+//!
+//! | layer | where | what |
+//! |---|---|---|
+//! | protocol cores | crates `robobus-wck`, `robobus-whj` | packets and frames, sans-IO, `no_std` |
+//! | links | crate `robobus-link` | byte links (serial, TCP, pty), CAN FD frame links, capture and replay |
+//! | error kinds | [`error`] | [`ErrorKind`]: the one classification every front end maps (exit code, exception, HTTP status) |
+//! | clients | [`wck`], [`whj`], [`motion`], [`cdr`] | a bus, its transactions and its device handles ([`wck::WckBus`] / [`wck::Servo`], [`whj::JointBus`] / [`whj::Joint`]); the one motion limiter and tracking measure; ROS 2's CDR |
+//! | operations | [`ops`] | one library call per device operation: typed arguments, a plan, a typed report, a stop token, progress, the one safe stop |
+//! | actuators, robots | [`actuator`], [`robot`] | a joint in SI units over either family; a robot file's named joints, limits and watchdog |
+//! | station | [`station`] | the open buses a long-lived front end holds, their handles ([`station::handles`]), the checked cyclic loop, sampling |
+//! | demo | `demo` (feature `sim`) | the built-in simulated robot driven as a program drives hardware |
+//! | catalogue | [`catalogue`] | one request type for every operation (one registered file each), its plan and its run on a station, typed reports, the telemetry stream |
+//! | front-end kit | [`frontend`] | one request parser, admission (read-only, arming, the write-rate limit), the plan view, guard, jog, follow, the live simulator |
+//! | recordings | [`record`] | sample tables and their formats (CSV, JSON lines, MCAP) |
+//!
+//! The front ends (the `robobus` command, the web studio, the Python package and the Zenoh
+//! bridge, each a crate of its own) call the catalogue: each turns its input into a
+//! [`catalogue::Request`], admits it through [`frontend`], runs it on a
+//! [`station::Station`] and renders the typed report; none holds device logic of its own.
+//!
+//! A program can call the operations of [`ops`] directly: typed arguments, a plan, a typed
+//! report, a stop token and a progress callback. Playing a keyframe motion on the simulated
+//! wCK bus with progress, stopped halfway (the servos then hold where they are):
 //!
 //! ```
 //! use std::time::Duration;

@@ -1,9 +1,9 @@
 //! Operations: every device operation the `robobus` command offers, as one library call.
 //!
-//! This is the layer every front end calls: the command line, and later a web server,
-//! Python bindings and a pub/sub bridge. None of them holds device logic of its own; each
-//! parses its input into the typed arguments of an operation, shows the operation's plan or
-//! runs it, and renders its typed report.
+//! This is the layer the catalogue's operations run on (the front ends reach it through
+//! the catalogue) and a program may call directly. None of the front ends holds device
+//! logic of its own; an operation takes typed arguments, has a plan a front end can show,
+//! runs it, and returns its typed report.
 //!
 //! Conventions shared by all operations:
 //!
