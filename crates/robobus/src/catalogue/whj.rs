@@ -1,7 +1,8 @@
 //! The WHJ operations (`whj.*`): one file per operation (its request, under the CLI's
 //! names with `-` written `_`, its typed report, check, plan and run through
 //! [`crate::ops::whj`]), and what they share here: the joint-ID and register parsers, the
-//! joint model's current scale, and `plan_of`, the connect note every plan opens with.
+//! joint model's current scale, `plan_of`, the connect note every plan opens with, and
+//! `bus_report` / `joint_report`, the report of rows run on the station's bus.
 
 use std::time::Duration;
 
