@@ -1,7 +1,7 @@
 //! [`JointBus`], the driver of the WHJ client: the frame link and the sans-IO
 //! [`Session`](super::session) behind one lock, driven by the caller's thread for request /
 //! reply work and by a thread of its own for the cyclic loop; it publishes what the
-//! session polls out ([`Telemetry`], the loop's reports) where callers read it without
+//! session polls out ([`BusTelemetry`], the loop's reports) where callers read it without
 //! that lock. `driving.rs` holds the lock and the step, `mailbox.rs` a loop's exchange with
 //! its handle, `status_by_broadcast.rs` the status query of a link that cannot send a
 //! frame without data.
@@ -19,7 +19,7 @@ use robobus_whj::{CanFrame, JointId, Reply, Request};
 use super::error::{WhjError, attempt_error};
 use super::identity::Identity;
 use super::session::cyclic::{CyclicSetup, CyclicStats};
-use super::session::{Attempt, Expect, JointBusConfig, Outcome, Session, Telemetry, Txn, TxnId};
+use super::session::{Attempt, BusTelemetry, Expect, JointBusConfig, Outcome, Session, Txn, TxnId};
 
 mod driving;
 mod mailbox;
@@ -33,7 +33,7 @@ pub(crate) use mailbox::{CyclicMailbox, Polled};
 #[derive(Debug, Default)]
 pub(crate) struct Shared {
     /// The session's telemetry as of the last time the lock was let go.
-    pub(crate) telemetry: Mutex<Telemetry>,
+    pub(crate) telemetry: Mutex<BusTelemetry>,
     /// The identity of each joint, read once per bus (by index = joint ID), so short-lived
     /// [`Joint`](super::Joint) handles do not read it again.
     pub(crate) identities: Mutex<[Option<Identity>; 31]>,
@@ -62,7 +62,7 @@ pub const MAX_PIPELINED: usize = 256;
 /// unsolicited frames are all handled by whichever thread is receiving. A thread of the
 /// bus's own runs the cyclic loop ([`JointBus::cyclic`]) and, while nothing else uses the
 /// bus, picks up unsolicited frames (other hosts' traffic, controller error reports) now
-/// and then for [`Telemetry`]. On a link with a virtual clock there is no such thread:
+/// and then for [`BusTelemetry`]. On a link with a virtual clock there is no such thread:
 /// the cyclic loop then runs while a caller waits (a request, [`JointBus::sleep_until`],
 /// [`Cyclic::next_report`](super::Cyclic::next_report)).
 ///
@@ -78,7 +78,7 @@ pub const MAX_PIPELINED: usize = 256;
 /// Bus errors: a bus-off report fails the requests in flight ([`WhjError::Bus`]) and
 /// holds new ones until the bus has **recovered**, which means: the link reported a
 /// controller restart, or any frame arrived again. Error-passive and error-warning reports
-/// are surfaced in [`Telemetry::bus`] and in timeout errors; they count as recovered after
+/// are surfaced in [`BusTelemetry::bus`] and in timeout errors; they count as recovered after
 /// [`JointBusConfig::error_passive_hold`] without a new report. Reads and idempotent
 /// operations are resent after a recovery; nothing else is.
 #[derive(Debug)]
@@ -150,7 +150,7 @@ impl JointBus {
         &self.config
     }
 
-    /// The bus's clock: the link's ([`FrameLink::now`]). Instants in [`Telemetry`] and
+    /// The bus's clock: the link's ([`FrameLink::now`]). Instants in [`BusTelemetry`] and
     /// cycle reports are on this clock.
     pub fn now(&self) -> Instant {
         self.core.lock().now()
@@ -162,7 +162,7 @@ impl JointBus {
     }
 
     /// Waits until the bus's clock reaches `deadline`, receiving frames meanwhile (into
-    /// [`Telemetry`]; the cyclic loop keeps its ticks). On a simulated bus on virtual time
+    /// [`BusTelemetry`]; the cyclic loop keeps its ticks). On a simulated bus on virtual time
     /// this returns as soon as simulated time got there.
     pub fn sleep_until(&self, deadline: Instant) {
         loop {
@@ -267,7 +267,7 @@ impl JointBus {
 
     /// Sends one broadcast frame (0x7F status query, 0x0F register access, ...) outside a
     /// cyclic loop and returns when it went out. Replies are not matched to it: they land
-    /// in [`Telemetry`] (newer than the returned instant), see
+    /// in [`BusTelemetry`] (newer than the returned instant), see
     /// [`ops::whj::broadcast_status`](crate::ops::whj::broadcast_status). A point-to-point
     /// request is refused ([`WhjError::InvalidConfig`]).
     pub fn send_broadcast(&self, request: Request) -> Result<Instant, WhjError> {
@@ -315,7 +315,7 @@ impl JointBus {
     }
 
     /// A snapshot of the bus health and the latest values from every joint.
-    pub fn telemetry(&self) -> Telemetry {
+    pub fn telemetry(&self) -> BusTelemetry {
         lock(&self.shared.telemetry).clone()
     }
 

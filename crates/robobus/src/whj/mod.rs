@@ -6,7 +6,7 @@
 //!   simulator on the other end: the code path is the same. The session matches
 //!   replies to requests by CAN ID and function, applies per-request timeouts and the
 //!   documented settle times, surfaces bus errors and waits for recovery, and keeps
-//!   [`Telemetry`] (the small command / telemetry interface that displays and bridges
+//!   [`BusTelemetry`] (the small command / telemetry interface that displays and bridges
 //!   attach to).
 //! - [`JointBus::joint`] connects: IAP release (`IAP_FLAG := 0`, the vendor's required
 //!   operation), then identify (model, firmware, unique ID). A silent joint gives a
@@ -74,5 +74,5 @@ pub use joint::{Joint, OwnedJoint, RegisterValue};
 pub use session::cyclic::{
     CycleReport, CyclicConfig, CyclicStats, Feedback, Percentiles, Protocol, ServoMode,
 };
-pub use session::{BusHealth, BusState, JointBusConfig, JointTelemetry, Telemetry};
+pub use session::{BusHealth, BusState, BusTelemetry, JointBusConfig, JointTelemetry};
 pub use trajectory::{MotionLimits, Profile};

@@ -87,7 +87,7 @@ use cyclic::{CyclicRun, CyclicSetup, CyclicStats};
 use late::Owed;
 use matching::Unanswered;
 pub(crate) use matching::{Attempt, Expect, Outcome, describe};
-pub use telemetry::{BusHealth, JointTelemetry, Telemetry};
+pub use telemetry::{BusHealth, BusTelemetry, JointTelemetry};
 
 /// How many frames on broadcast reply IDs the session keeps
 /// ([`Session::broadcast_replies_since`]): eight nodes answer one broadcast frame, so this
@@ -211,7 +211,7 @@ pub(crate) struct Session {
     /// The latest frames on broadcast reply IDs (joints' 0x8x / 0xFx, the end board's
     /// 0x87 / 0xF7) with their receive instants, oldest first, at most [`BROADCAST_LOG`].
     broadcast_log: VecDeque<(Instant, CanFrame)>,
-    telemetry: Telemetry,
+    telemetry: BusTelemetry,
     /// What changed in `telemetry` since the last poll: joints by bit (`1 << ID`), and
     /// the bus health.
     changed_joints: u32,
@@ -238,7 +238,7 @@ impl Session {
             events: VecDeque::new(),
             broadcast_until: None,
             broadcast_log: VecDeque::new(),
-            telemetry: Telemetry::default(),
+            telemetry: BusTelemetry::default(),
             changed_joints: 0,
             changed_bus: false,
         }
@@ -623,7 +623,7 @@ impl Session {
     /// Copies into `snapshot` what changed in the telemetry since the last poll; `false`
     /// (and nothing is copied) if nothing did. A snapshot that got every copy equals the
     /// session's own.
-    pub(crate) fn poll_telemetry(&mut self, snapshot: &mut Telemetry) -> bool {
+    pub(crate) fn poll_telemetry(&mut self, snapshot: &mut BusTelemetry) -> bool {
         if !self.telemetry_changed() {
             return false;
         }

@@ -1,5 +1,5 @@
 //! What the session has seen, as plain values: [`BusHealth`] (counters and controller
-//! state) and [`JointTelemetry`] per joint, together a [`Telemetry`]. The session owns one
+//! state) and [`JointTelemetry`] per joint, together a [`BusTelemetry`]. The session owns one
 //! and records every frame into it; its driver publishes a copy
 //! (`Session::poll_telemetry`).
 
@@ -74,13 +74,13 @@ pub struct JointTelemetry {
 
 /// A snapshot of everything the client knows: bus health and per-joint values.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
-pub struct Telemetry {
+pub struct BusTelemetry {
     /// Bus counters and state.
     pub bus: BusHealth,
     joints: [JointTelemetry; 31],
 }
 
-impl Telemetry {
+impl BusTelemetry {
     /// The latest values of one joint.
     pub fn joint(&self, id: JointId) -> &JointTelemetry {
         // IDs are 1..=30, so the index is always in bounds; fall back to slot 0 anyway.

@@ -69,8 +69,8 @@ fn us(n: u64) -> Duration {
     Duration::from_micros(n)
 }
 
-fn snapshot(s: &mut Session) -> Telemetry {
-    let mut t = Telemetry::default();
+fn snapshot(s: &mut Session) -> BusTelemetry {
+    let mut t = BusTelemetry::default();
     s.poll_telemetry(&mut t);
     t
 }
@@ -95,7 +95,7 @@ fn a_matching_reply_finishes_the_transaction_and_lands_in_the_telemetry() {
     // Polled once.
     assert!(s.poll_outcome(id).is_none());
     assert!(s.is_idle());
-    let mut t = Telemetry::default();
+    let mut t = BusTelemetry::default();
     assert!(s.poll_telemetry(&mut t));
     assert_eq!((t.bus.frames_sent, t.bus.frames_received), (1, 1));
     let joint = t.joint(j1());
@@ -517,7 +517,7 @@ fn a_malformed_frame_is_counted_and_changes_no_joint() {
 fn telemetry_polls_copy_only_what_changed() {
     let t0 = Instant::now();
     let mut s = Session::new(no_window());
-    let mut published = Telemetry::default();
+    let mut published = BusTelemetry::default();
     assert!(!s.poll_telemetry(&mut published));
     s.handle_frame(&broadcast_feedback(j(2), 5).to_frame(), t0);
     assert!(s.poll_telemetry(&mut published));
