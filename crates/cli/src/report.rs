@@ -330,6 +330,19 @@ pub(crate) fn table(rows: &[Map<String, Value>], style: &Style) -> String {
     s
 }
 
+/// `--dry-run`: the plan's text (the packets / frames, one per line) or, with `--json`,
+/// the one plan view every front end shows (`robobus::frontend::PlanView`).
+pub(crate) fn print_plan(
+    g: crate::Global,
+    view: &robobus::frontend::PlanView,
+) -> anyhow::Result<()> {
+    if g.json {
+        output::print_json(&view.to_value())
+    } else {
+        output::print(&view.text)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -464,12 +464,7 @@ fn run_on_with(
 
 /// Prints the plan of `request` (`--dry-run`): nothing is opened.
 fn print_plan(g: Global, request: &Request) -> anyhow::Result<()> {
-    let plan = catalogue::plan(request)?;
-    if g.json {
-        crate::output::print_json(&serde_json::to_value(&plan)?)
-    } else {
-        crate::output::print(plan.to_text())
-    }
+    crate::report::print_plan(g, &robobus::frontend::PlanView::of(request)?)
 }
 
 /// `robobus robot calibrate`.

@@ -245,12 +245,7 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
         output::check_output_path(output, "--output")?;
     }
     if g.dry_run {
-        let plan = catalogue::plan(&request)?;
-        return if g.json {
-            output::print_json(&serde_json::to_value(&plan)?)
-        } else {
-            output::print(plan.to_text())
-        };
+        return report::print_plan(g, &robobus::frontend::PlanView::of(&request)?);
     }
     let Some(bus) = args.bus.as_deref() else {
         return Err(usage(

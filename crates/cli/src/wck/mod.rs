@@ -122,12 +122,9 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
         output::check_output_path(output, "--output")?;
     }
     if g.dry_run {
-        let plan = catalogue::plan_at(&request, args.baud).map_err(|e| in_file(e, file))?;
-        return if g.json {
-            output::print_json(&serde_json::to_value(&plan)?)
-        } else {
-            output::print(plan.to_text())
-        };
+        let view =
+            robobus::frontend::PlanView::at(&request, args.baud).map_err(|e| in_file(e, file))?;
+        return report::print_plan(g, &view);
     }
     let Some(port) = args.port.as_deref() else {
         return Err(usage(

@@ -34,7 +34,17 @@ impl PlanView {
     ///
     /// The request does not validate ([`catalogue::plan()`], [`catalogue::confirmation`]).
     pub fn of(request: &Request) -> Result<Self, OpError> {
-        let plan = catalogue::plan(request)?;
+        Self::at(request, robobus_wck::BaudRate::B115200)
+    }
+
+    /// [`PlanView::of`] with the wCK packets shown at `baud` (the rate of the port a run
+    /// would use; [`catalogue::plan_at`]).
+    ///
+    /// # Errors
+    ///
+    /// The request does not validate.
+    pub fn at(request: &Request, baud: robobus_wck::BaudRate) -> Result<Self, OpError> {
+        let plan = catalogue::plan_at(request, baud)?;
         let ask = catalogue::confirmation(request)?;
         Ok(Self {
             text: plan.to_text().to_owned(),
