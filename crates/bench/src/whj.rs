@@ -40,8 +40,9 @@ pub struct ChainSpec {
     /// How the client waits; in [`WaitMode::Spin`] the simulator serves in its precise
     /// mode too.
     pub wait: WaitMode,
-    /// Whether the client holds each reply for its collision window before crediting it
-    /// (`JointBusConfig::collision_window`, 0.5 ms: duplicate detection), as by default.
+    /// Whether the client holds each reply for a second answer before crediting it
+    /// (duplicate detection: one frame of the reply's length on the wire plus
+    /// `JointBusConfig::collision_window`, the link's allowance), as by default.
     pub collision_window: bool,
 }
 

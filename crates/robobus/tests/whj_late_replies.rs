@@ -178,13 +178,13 @@ fn a_late_answer_to_a_retried_request_is_counted_late_never_as_a_second_joint() 
     assert_eq!(
         counts,
         Counts {
-            fresh: 1879,
+            fresh: 1826,
             stale: 0,
-            late: 78,
-            timeout: 43,
+            late: 59,
+            timeout: 115,
             duplicate: 0,
         }
     );
     // Every frame is accounted for: none was taken for a stray.
-    assert_eq!((health.unmatched, health.late), (0, 1642), "{health:?}");
+    assert_eq!((health.unmatched, health.late), (0, 1702), "{health:?}");
 }

@@ -303,9 +303,9 @@ fn ten_thousand_status_reads_through_doubled_late_and_implausible_replies_give_n
         counts,
         [
             (9835, Some(165), injected(170, 67, 197, 99)),
-            (9821, Some(179), injected(269, 54, 302, 126)),
+            (9821, Some(179), injected(268, 56, 303, 124)),
             (9835, Some(165), injected(170, 67, 197, 99)),
-            (9821, Some(179), injected(269, 54, 302, 126)),
+            (9821, Some(179), injected(268, 56, 303, 124)),
         ]
     );
 }

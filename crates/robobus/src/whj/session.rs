@@ -54,8 +54,13 @@
 //! timed out with no frame at all on its reply ID may still be answered late (for
 //! [`late::LATE_HORIZON_TIMEOUTS`] of its timeouts); a frame on that ID meanwhile that is not
 //! credited counts as that late answer ([`BusHealth::late`]; otherwise unmatched). A
-//! credited reply is held for the collision window, and a second, different one within it
-//! makes the attempt a [`Attempt::Duplicate`] (two joints at one ID), unless a late answer
+//! credited reply is held for a second answer, from its caller only (requests to other
+//! reply IDs go out meanwhile): one frame of its length on the wire (an arbitration
+//! loser's answer follows the winner's at once), lengthened by the wire time of every
+//! request sent meanwhile (which wins arbitration over the loser's answer), plus the
+//! link's allowance ([`JointBusConfig::collision_window`]). A second, different reply
+//! within the hold makes the attempt a [`Attempt::Duplicate`] (two joints at one ID),
+//! unless a late answer
 //! of that kind is due on the ID: then one joint answering the earlier attempt late and
 //! then this one explains the two (a joint answers in order), and the second is held for
 //! a window of its own (a third would be a second joint). A reply alone is credited unless
@@ -167,6 +172,14 @@ struct Credited {
     frame: CanFrame,
     reply: Reply,
     until: Instant,
+}
+
+/// How long after a reply in `frame` has arrived a second node that answered the same
+/// request at the same ID, and lost arbitration to it, is done sending its own: the
+/// intermission, then a frame as long as the winner's, at the WHJ rates (one frame's wire
+/// time: [`timing::frame_duration`] counts the intermission after each frame).
+fn loser_time(frame: &CanFrame) -> Duration {
+    timing::frame_duration(frame, BitRates::WHJ)
 }
 
 /// Whether `raw` is an ID on which joints or the end board answer broadcast frames.
@@ -437,7 +450,7 @@ impl Session {
                                 pending: f.pending,
                                 frame: *frame,
                                 reply,
-                                until: now + self.config.collision_window,
+                                until: now + self.hold(frame),
                             },
                         );
                         return;
@@ -552,6 +565,7 @@ impl Session {
     /// [`Session::handle_send_failed`].
     pub(crate) fn poll_transmit(&mut self, now: Instant) -> Option<Transmit> {
         if let Some(frame) = self.to_send.pop_front() {
+            self.outbid(&frame, now);
             return Some(Transmit { frame, txn: None });
         }
         let bus_off = self.state() == BusState::BusOff;
@@ -587,6 +601,7 @@ impl Session {
             }
             self.queued.remove(i);
             let frame = p.txn.request.to_frame();
+            self.outbid(&frame, now);
             self.in_flight.insert(
                 key,
                 InFlight {
@@ -712,6 +727,29 @@ impl Session {
     fn health(&mut self) -> &mut BusHealth {
         self.changed_bus = true;
         &mut self.telemetry.bus
+    }
+
+    /// How long a reply that arrived in `frame` is held for a second answer: the wire
+    /// time of the arbitration loser's frame (as long as the winner's: same ID, same
+    /// kind) and the intermission before it, at the WHJ rates, plus the link's allowance
+    /// ([`JointBusConfig::collision_window`]).
+    fn hold(&self, frame: &CanFrame) -> Duration {
+        loser_time(frame) + self.config.collision_window
+    }
+
+    /// `frame` goes out at `now` while replies are held: a request wins arbitration over
+    /// an arbitration loser's reply (its ID is lower), so each held reply's second answer
+    /// may come only after it: each hold lasts at least until `frame` has crossed the
+    /// wire and a loser's frame could have followed, plus the link's allowance.
+    fn outbid(&mut self, frame: &CanFrame, now: Instant) {
+        if self.credited.is_empty() {
+            return;
+        }
+        let sent = now + timing::frame_duration(frame, BitRates::WHJ);
+        let allowance = self.config.collision_window;
+        for c in self.credited.values_mut() {
+            c.until = c.until.max(sent + loser_time(&c.frame) + allowance);
+        }
     }
 
     /// Attempt `p` ended with `outcome` at `now`: queued again if the transaction may

@@ -14,6 +14,7 @@ use core::time::Duration;
 use std::time::Instant;
 
 use robobus_whj::broadcast::{BroadcastStatus, ReplyMask};
+use robobus_whj::timing::{BitRates, frame_duration};
 use robobus_whj::{BroadcastFeedback, JointId, JointStatus, Reply, Request};
 
 use super::JointBus;
@@ -204,11 +205,16 @@ impl JointBus {
             let now = self.now();
             let answers: Vec<Vec<(Instant, Reply)>> =
                 joints.iter().map(|&j| answers_of(&got, j)).collect();
-            // Every joint answered and its collision window passed, or the time is up.
-            let settled = answers.iter().all(|a| {
-                a.first()
-                    .is_some_and(|(at, _)| now >= at.checked_add(window).unwrap_or(*at))
+            // Every joint answered, and a second node at any of their IDs, which lost
+            // arbitration to every answer on the bus (a lower ID wins), would have sent
+            // its own by now: one frame after the last one received, plus the link's
+            // allowance (`JointBusConfig::collision_window`). Or the time is up.
+            let last = got.last().map(|(at, f)| {
+                at.checked_add(frame_duration(f, BitRates::WHJ) + window)
+                    .unwrap_or(*at)
             });
+            let settled = answers.iter().all(|a| !a.is_empty())
+                && (window.is_zero() || last.is_some_and(|t| now >= t));
             if settled || now >= deadline {
                 return answers
                     .into_iter()

@@ -45,12 +45,26 @@ pub struct JointBusConfig {
     /// After an error-passive or error-warning report, how long without a new report
     /// before the bus counts as recovered (default 1 s).
     pub error_passive_hold: Duration,
-    /// How long a received reply is held before it is credited (default 0.5 ms): a
-    /// second, different reply to the same request within it (two nodes at one ID; the
-    /// one that lost arbitration follows the winner within one frame, about 0.15 ms at
-    /// 1 / 5 Mbit/s) fails the request with [`WhjError::DuplicateReply`] instead of
-    /// crediting either. The next request on that reply ID waits for the window too.
-    /// Zero credits the first reply at once (no duplicate detection).
+    /// Duplicate detection: the link's allowance (default 0.15 ms) in how long a received
+    /// reply is held before it is credited to whoever asked for it. Two nodes at one ID
+    /// both answer a request; the one that lost arbitration sends its answer right after
+    /// the winner's, so a reply is held for one frame of its own length on the wire at
+    /// the WHJ rates (the loser's; a 16-byte status or servo feedback takes about 0.07 ms
+    /// at 1 / 5 Mbit/s, a 64-byte frame about 0.15 ms), plus this allowance for the link
+    /// delivering the second frame later than the first (a host's scheduling, an
+    /// adapter's buffering; raise it for an slcan or fdcanusb adapter, whose USB link
+    /// delivers in 1 ms frames). A request the client sends meanwhile, to another joint,
+    /// wins arbitration over the loser's answer and delays it, so it lengthens the hold
+    /// by its own wire time. A second, different reply within the hold fails the request
+    /// with [`WhjError::DuplicateReply`] instead of crediting either. Only the request's
+    /// caller waits for it: requests to other joints go out meanwhile; the next request
+    /// on the same reply ID waits for it too.
+    ///
+    /// Zero turns duplicate detection off: the first reply is credited at once, so a
+    /// second joint at the same ID (a joint given a used ID, a replaced joint left at its
+    /// factory ID) goes unnoticed, and whichever answer comes first is reported as the
+    /// joint's value (another joint's position, status or register); its second answer
+    /// then only counts as unmatched in the bus health.
     ///
     /// [`WhjError::DuplicateReply`]: crate::whj::WhjError::DuplicateReply
     pub collision_window: Duration,
@@ -77,7 +91,7 @@ impl Default for JointBusConfig {
             save_settle: Duration::from_millis(50),
             bus_recovery_timeout: Duration::from_secs(1),
             error_passive_hold: Duration::from_secs(1),
-            collision_window: Duration::from_micros(500),
+            collision_window: Duration::from_micros(150),
             poll_interval: Duration::from_micros(500),
             wait: WaitMode::Sleep,
         }

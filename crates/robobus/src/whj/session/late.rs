@@ -89,7 +89,7 @@ impl Session {
                 Credited {
                     frame: *frame,
                     reply: *second,
-                    until: now + self.config.collision_window,
+                    until: now + self.hold(frame),
                     ..c
                 },
             );

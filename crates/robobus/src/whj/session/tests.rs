@@ -69,6 +69,12 @@ fn us(n: u64) -> Duration {
     Duration::from_micros(n)
 }
 
+/// How long the default settings hold `reply` for a second answer when nothing is sent
+/// meanwhile: the arbitration loser's frame and the link's allowance.
+fn hold(reply: &Reply) -> Duration {
+    loser_time(&reply.to_frame()) + JointBusConfig::default().collision_window
+}
+
 fn snapshot(s: &mut Session) -> BusTelemetry {
     let mut t = BusTelemetry::default();
     s.poll_telemetry(&mut t);
@@ -287,14 +293,16 @@ fn a_failed_write_ack_starts_no_settle_time() {
 #[test]
 fn a_second_different_reply_within_the_collision_window_is_a_duplicate_not_a_value() {
     let t0 = Instant::now();
-    let window = JointBusConfig::default().collision_window;
-    assert_eq!(window, us(500));
+    assert_eq!(JointBusConfig::default().collision_window, us(150));
     let mut s = Session::new(JointBusConfig::default());
     let (req, range) = read(0x14, 2);
     let id = s.submit(txn(req, t0));
     s.poll_transmit(t0).unwrap();
     let first = Reply::read(j1(), range, &[0, 0]).unwrap();
     let second = Reply::read(j1(), range, &[0x1A80, 0x0007]).unwrap();
+    // One frame of the reply's length on the wire, and the link's allowance.
+    let window = hold(&first);
+    assert!(window > us(150) && window < us(300), "{window:?}");
     let t1 = t0 + us(200);
     s.handle_frame(&first.to_frame(), t1);
     // Held for the window: not credited yet, and the reply ID stays busy.
@@ -316,7 +324,7 @@ fn a_second_different_reply_within_the_collision_window_is_a_duplicate_not_a_val
     let t3 = t2 + us(100);
     s.handle_frame(&first.to_frame(), t3);
     s.handle_frame(&first.to_frame(), t3 + us(100));
-    s.handle_timeout(t3 + us(499));
+    s.handle_timeout(t3 + window.saturating_sub(us(1)));
     assert!(s.poll_outcome(next).is_none());
     s.handle_timeout(t3 + window);
     assert!(matches!(
@@ -324,6 +332,53 @@ fn a_second_different_reply_within_the_collision_window_is_a_duplicate_not_a_val
         Some(Attempt::Reply { reply }) if reply == first
     ));
     assert_eq!(snapshot(&mut s).bus.duplicates, 1);
+}
+
+#[test]
+fn a_duplicate_during_the_next_transaction_to_another_joint_fails_its_own_reading_only() {
+    let t0 = Instant::now();
+    let mut s = Session::new(JointBusConfig::default());
+    let (_, range) = read(0x14, 2);
+    let ask = |n: u8| Request::Read { joint: j(n), range };
+    let first = s.submit(txn(ask(1), t0));
+    assert_eq!(transmit(&mut s, t0).len(), 1);
+    let own = Reply::read(j1(), range, &[0x1000, 0]).unwrap();
+    let impostor = Reply::read(j1(), range, &[0x1200, 0]).unwrap();
+    let t1 = t0 + us(200);
+    s.handle_frame(&own.to_frame(), t1);
+    // Joint 1's reading is held from its caller; another caller's request to joint 2
+    // goes out at once.
+    assert!(s.poll_outcome(first).is_none());
+    let second = s.submit(txn(ask(2), t1));
+    let sent = transmit(&mut s, t1);
+    assert_eq!(sent.len(), 1);
+    // That request won arbitration over a loser's answer on joint 1's ID: the hold of
+    // joint 1's reply lasts until a loser's frame could have followed it.
+    let request = timing::frame_duration(&sent[0], BitRates::WHJ);
+    let held_until = t1 + request + hold(&own);
+    assert_eq!(s.next_deadline(t1), held_until);
+    s.handle_timeout(t1 + hold(&own));
+    assert!(s.poll_outcome(first).is_none());
+    // The second joint at ID 1 answers during joint 2's transaction, after the hold
+    // joint 1's reply had without that request; joint 2's reply comes after it.
+    let t2 = t1 + hold(&own) + request / 2;
+    s.handle_frame(&impostor.to_frame(), t2);
+    let got = s.poll_outcome(first).map(|o| o.attempt);
+    assert!(
+        matches!(&got, Some(Attempt::Duplicate { first: f, second: g }) if *f == own && *g == impostor),
+        "{got:?}"
+    );
+    let theirs = Reply::read(j(2), range, &[0x0100, 0]).unwrap();
+    let t3 = t2 + us(50);
+    s.handle_frame(&theirs.to_frame(), t3);
+    s.handle_timeout(t3 + hold(&theirs));
+    let got = s.poll_outcome(second).map(|o| o.attempt);
+    assert!(
+        matches!(&got, Some(Attempt::Reply { reply }) if *reply == theirs),
+        "{got:?}"
+    );
+    let bus = snapshot(&mut s).bus;
+    assert_eq!((bus.duplicates, bus.unmatched, bus.late), (1, 0, 0));
 }
 
 #[test]
@@ -652,11 +707,11 @@ fn retry_after_a_timeout(s: &mut Session, t0: Instant) -> TxnId {
 #[test]
 fn a_late_answer_then_the_retrys_own_is_one_joint_answering_twice_not_two_joints() {
     let t0 = Instant::now();
-    let window = JointBusConfig::default().collision_window;
     let mut s = Session::new(JointBusConfig::default());
     let id = retry_after_a_timeout(&mut s, t0);
     // The first attempt's answer, a reply timeout late, then the retry's own: different.
     let (late, own) = two_statuses();
+    let window = hold(&own);
     let t1 = t0 + ms(20) + us(300);
     s.handle_frame(&late.to_frame(), t1);
     s.handle_frame(&own.to_frame(), t1 + us(100));
@@ -676,7 +731,6 @@ fn a_late_answer_then_the_retrys_own_is_one_joint_answering_twice_not_two_joints
 #[test]
 fn a_late_answer_alone_in_the_retrys_window_is_not_credited_and_the_request_is_made_again() {
     let t0 = Instant::now();
-    let window = JointBusConfig::default().collision_window;
     // The bus delivered a frame late a moment ago.
     let mut s = seen_late(t0);
     s.config = JointBusConfig::default();
@@ -684,6 +738,7 @@ fn a_late_answer_alone_in_the_retrys_window_is_not_credited_and_the_request_is_m
     // One reply comes: the first attempt's late answer or the retry's own, which cannot
     // be told. Nothing is credited; a third attempt goes out when the window closes.
     let (late, own) = two_statuses();
+    let window = hold(&late);
     let t1 = t0 + ms(20) + us(300);
     s.handle_frame(&late.to_frame(), t1);
     s.handle_timeout(t1 + window);
