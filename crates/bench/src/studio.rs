@@ -25,8 +25,8 @@ use std::sync::{Arc, Barrier, Mutex, PoisonError};
 use std::thread;
 use std::time::{Duration, Instant, SystemTime};
 
-use robobus::frontend::live::LiveSimulator;
 use robobus::catalogue::{Request, whj as cat_whj};
+use robobus::frontend::live::LiveSimulator;
 use robobus::ops::{Control, StopToken};
 use robobus::station::Station;
 use robobus::whj::{JointBus, JointBusConfig};

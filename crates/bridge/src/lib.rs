@@ -45,12 +45,12 @@ use std::time::{Duration, Instant};
 
 use robobus::ErrorKind;
 use robobus::catalogue::{Request, Telemetry};
-use robobus::frontend::follow::Follower;
 use robobus::frontend::guard::{Guard, GuardConfig, SafeEvent};
 use robobus::frontend::live::LiveSimulator;
 use robobus::frontend::{Admission, Arming, FrontEnd, PlanView, parse};
 use robobus::ops::{OpError, SafeState, StopToken};
 use robobus::station::Station;
+use robobus::station::follow::Follower;
 use zenoh::Wait as _;
 use zenoh::bytes::Encoding;
 use zenoh::query::Query;
@@ -873,7 +873,7 @@ struct ErrorReply<'a> {
 #[derive(Debug, serde::Serialize)]
 struct ArmReply<'a> {
     armed: bool,
-    joints: Option<&'a [robobus::frontend::follow::FollowedJoint]>,
+    joints: Option<&'a [robobus::station::follow::FollowedJoint]>,
 }
 
 fn reply_error(query: &Query, kind: &str, message: &str) {

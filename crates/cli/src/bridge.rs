@@ -168,7 +168,7 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
         let joints = if sim {
             Station::simulated()
                 .ok()
-                .and_then(|s| robobus::frontend::follow::Follower::new(&s).ok())
+                .and_then(|s| robobus::station::follow::Follower::new(&s).ok())
                 .map(|f| f.joints().iter().map(|j| j.name.clone()).collect())
                 .unwrap_or_default()
         } else {

@@ -6,8 +6,7 @@
 //! # Layers
 //!
 //! The rows run from the lowest layer up, and a module uses only the layers of the rows
-//! above its own (one exception remains: the catalogue's `robot.teleop` drives its
-//! followers through the front-end kit's [`frontend::follow`]):
+//! above its own (a test, `tests/layers.rs`, finds any import circle and names its lines):
 //!
 //! | layer | where | what |
 //! |---|---|---|
@@ -17,10 +16,10 @@
 //! | clients | [`wck`], [`whj`], [`motion`], [`cdr`] | a bus, its transactions and its device handles ([`wck::WckBus`] / [`wck::Servo`], [`whj::JointBus`] / [`whj::Joint`]); the one motion limiter and tracking measure; ROS 2's CDR |
 //! | operations | [`ops`] | one library call per device operation: typed arguments, a plan, a typed report, a stop token, progress, the one safe stop |
 //! | actuators, robots | [`actuator`], [`robot`] | a joint in SI units over either family; a robot file's named joints, limits and watchdog |
-//! | station | [`station`] | the open buses a long-lived front end holds, their handles ([`station::handles`]), the checked cyclic loop, sampling |
+//! | station | [`station`] | the open buses a long-lived front end holds, their handles ([`station::handles`]), the checked cyclic loop, sampling, one bounded jog step ([`station::jog`]) and a robot's followed joint targets ([`station::follow`]) |
 //! | demo | `demo` (feature `sim`) | the built-in simulated robot driven as a program drives hardware |
 //! | catalogue | [`catalogue`] | one request type for every operation (one registered file each), its plan and its run on a station, typed reports, the telemetry stream |
-//! | front-end kit | [`frontend`] | one request parser, admission (read-only, arming, the write-rate limit), the plan view, guard, jog, follow, the live simulator |
+//! | front-end kit | [`frontend`] | one request parser, admission (read-only, arming, the write-rate limit), the plan view, the guard, the live simulator |
 //! | recordings | [`record`] | sample tables and their formats (CSV, JSON lines, MCAP) |
 //!
 //! The front ends (the `robobus` command, the web studio, the Python package and the Zenoh

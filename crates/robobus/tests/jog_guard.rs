@@ -10,8 +10,8 @@ use std::time::Duration;
 
 use robobus::catalogue::{ErrorKind, Family, Request};
 use robobus::frontend::guard::{Guard, GuardConfig, GuardedDevice};
-use robobus::frontend::jog::{JogRequest, Jogger, WCK_JOG_STEP, WHJ_JOG_STEP_DEG};
 use robobus::station::Station;
+use robobus::station::jog::{JogRequest, Jogger, WCK_JOG_STEP, WHJ_JOG_STEP_DEG};
 
 fn jog(family: Family, device: u8, target: f64) -> JogRequest {
     JogRequest {
@@ -200,7 +200,7 @@ fn a_hold_brings_the_moved_devices_to_the_safe_state_and_stays_armed() {
 
 #[test]
 fn a_follower_steps_every_joint_and_refuses_a_bad_command_whole() {
-    use robobus::frontend::follow::Follower;
+    use robobus::station::follow::Follower;
     let station = Station::simulated().unwrap();
     let f = Follower::new(&station).unwrap();
     let names: Vec<&str> = f.joints().iter().map(|j| j.name.as_str()).collect();

@@ -35,11 +35,11 @@ use axum::http::StatusCode;
 use robobus::ErrorKind;
 use robobus::catalogue::Request;
 use robobus::frontend::guard::{Guard, GuardConfig, SafeEvent};
-use robobus::frontend::jog::Jogger;
 use robobus::frontend::live::LiveSimulator;
 use robobus::frontend::{Admission, Admitted, Arming, FrontEnd, Refusal, RefusalKind};
 use robobus::ops::{OpError, StopToken};
 use robobus::station::Station;
+use robobus::station::jog::Jogger;
 
 use crate::msg::ToPage;
 

@@ -3,7 +3,7 @@
 
 use robobus::catalogue::{Family, Report, Sample};
 use robobus::frontend::guard::SafeEvent;
-use robobus::frontend::jog::Jogged;
+use robobus::station::jog::Jogged;
 use serde::Serialize;
 
 /// A message to a page over its WebSocket.

@@ -159,7 +159,7 @@ pub trait Interaction {
     /// `robot.play`: one tick was sent (a front end records it; an error ends the run
     /// where it is).
     #[allow(clippy::result_large_err)] // OpError carries the client errors by value
-    fn play_tick(&mut self, tick: &super::robot::PlayTick<'_>) -> Result<(), OpError> {
+    fn play_tick(&mut self, tick: &PlayTick<'_>) -> Result<(), OpError> {
         let _ = tick;
         Ok(())
     }
@@ -169,6 +169,22 @@ pub trait Interaction {
     fn keep_poses(&self) -> bool {
         true
     }
+}
+
+/// One tick, as a front end records it: the time since the start of the lead-in, and per
+/// joint (by name, in the trajectory's order) the target sent (the trajectory's, or short
+/// of it for a lagging WHJ joint) and the position it reported (`None`: no reply this
+/// tick), degrees.
+#[derive(Debug, Clone, Copy)]
+pub struct PlayTick<'a> {
+    /// Seconds since the run started (the lead-in included).
+    pub t_s: f64,
+    /// The joints' names.
+    pub joints: &'a [String],
+    /// Each joint's target this tick, degrees.
+    pub targets: &'a [f64],
+    /// Each joint's reported position this tick, degrees.
+    pub positions: &'a [Option<f64>],
 }
 
 /// The [`Interaction`] of a front end without one: the defaults.

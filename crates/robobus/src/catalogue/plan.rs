@@ -27,31 +27,7 @@ pub struct PlanStep {
     pub line: String,
 }
 
-/// Which family a plan or a request is for.
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    PartialOrd,
-    Ord,
-    Hash,
-    Serialize,
-    serde::Deserialize,
-    JsonSchema,
-)]
-#[serde(rename_all = "lowercase")]
-pub enum Family {
-    /// wCK servos on a UART.
-    Wck,
-    /// WHJ joints on CAN FD.
-    Whj,
-    /// A robot file's joints, on the buses of both families it names.
-    Robot,
-    /// The host computer itself (its serial ports): no bus.
-    Host,
-}
+pub use crate::ops::Family;
 
 /// The plan of a request.
 #[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]

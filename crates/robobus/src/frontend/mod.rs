@@ -7,14 +7,14 @@
 //! - [`admission`]: whether a request runs now: read-only mode, arming, the write rate
 //!   of non-volatile memory.
 //! - [`plan_view`]: one JSON view of a plan.
-//! - Front-end safety: [`guard`] (one controlling session, arming, the dead man's switch),
-//!   [`jog`] (one bounded step of one device), [`follow`] (a robot's joint targets,
-//!   checked whole) and `live` (feature `sim`: the built-in robot on the wall clock).
+//! - Front-end safety: [`guard`] (one controlling session, arming, the dead man's switch)
+//!   and `live` (feature `sim`: the built-in robot on the wall clock). The bounded motions
+//!   a front end sends through it are the station's: [`crate::station::jog`] (one bounded
+//!   step of one device) and [`crate::station::follow`] (a robot's joint targets, checked
+//!   whole; `robot.teleop` follows its leaders through it too).
 
 pub mod admission;
-pub mod follow;
 pub mod guard;
-pub mod jog;
 #[cfg(feature = "sim")]
 pub mod live;
 pub mod parse;

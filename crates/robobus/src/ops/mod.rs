@@ -48,6 +48,7 @@ use serde::Serialize;
 
 mod bound;
 pub mod capture;
+mod family;
 mod ids;
 pub mod ports;
 pub mod replay;
@@ -59,6 +60,7 @@ pub use crate::error::ErrorKind;
 use crate::wck::WckError;
 use crate::whj::WhjError;
 pub use bound::Bound;
+pub use family::Family;
 pub use ids::{IdList, ListId, distinct_ids, ids_text};
 pub use safe::SafeState;
 

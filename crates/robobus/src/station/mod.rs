@@ -9,7 +9,9 @@
 
 pub(crate) mod clock;
 pub mod cyclic;
+pub mod follow;
 pub mod handles;
+pub mod jog;
 pub mod sampler;
 
 use std::path::{Path, PathBuf};

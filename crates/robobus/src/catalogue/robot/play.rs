@@ -470,21 +470,7 @@ fn run_play(
     })
 }
 
-/// One tick, as a front end records it: the time since the start of the lead-in, and per
-/// joint (by name, in the trajectory's order) the target sent (the trajectory's, or short
-/// of it for a lagging WHJ joint) and the position it reported (`None`: no reply this
-/// tick), degrees.
-#[derive(Debug, Clone, Copy)]
-pub struct PlayTick<'a> {
-    /// Seconds since the run started (the lead-in included).
-    pub t_s: f64,
-    /// The joints' names.
-    pub joints: &'a [String],
-    /// Each joint's target this tick, degrees.
-    pub targets: &'a [f64],
-    /// Each joint's reported position this tick, degrees.
-    pub positions: &'a [Option<f64>],
-}
+pub use crate::catalogue::operation::PlayTick;
 
 /// What the tick loop measured.
 #[derive(Debug, Default)]

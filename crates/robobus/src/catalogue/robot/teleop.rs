@@ -33,11 +33,11 @@ use super::{ROBOT, out_of, within};
 use crate::catalogue::effect::{Effect, Moved};
 use crate::catalogue::operation::{Confirm, OpDoc, Operation, Report, RunCx};
 use crate::catalogue::plan::{Family, Plan};
-use crate::frontend::follow::Follower;
 use crate::motion::Tracking;
 use crate::ops::{Control, DeviceResult, ErrorKind, Failure, OpError, Outcome, Progress};
 use crate::station::Station;
 use crate::station::clock::BusClock;
+use crate::station::follow::Follower;
 use crate::station::sampler::RobotSampler;
 
 /// One leader joint driving one follower joint.

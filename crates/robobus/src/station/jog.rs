@@ -14,7 +14,7 @@ use robobus_wck::{Position, ServoId};
 use robobus_whj::JointId;
 use serde::{Deserialize, Serialize};
 
-use crate::catalogue::Family;
+use crate::ops::Family;
 use crate::ops::whj::ServoLoop;
 use crate::ops::{Failure, OpError};
 use crate::station::Station;

@@ -14,13 +14,13 @@
 //! device is its failure and the others still move.
 //!
 //! Admission (who may move, armed or not) is the caller's: a remote front end asks its
-//! [`Guard`](super::guard::Guard) first (`admit_jog` for each of [`Follower::joints`]).
+//! guard (`frontend::guard::Guard`) first (`admit_jog` for each of [`Follower::joints`]).
 
 use serde::Serialize;
 
 use super::jog::{JogRequest, Jogged, Jogger};
 use crate::actuator::{JointMap, WckScale};
-use crate::catalogue::Family;
+use crate::ops::Family;
 use crate::ops::{DeviceResult, Failure, OpError};
 use crate::station::Station;
 
