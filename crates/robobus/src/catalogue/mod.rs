@@ -66,11 +66,11 @@ use registry::registry;
 pub use crate::error::ErrorKind;
 pub use dispatch::{confirmation, plan, plan_at, run, run_typed, run_with, validate};
 pub use effect::{Effect, Moved};
-pub use whj::GONE_AFTER;
 pub use operation::{Confirm, Interaction, NoInteraction, OpDoc, Report, RunCx};
 pub use plan::{Family, Plan, PlanStep};
 pub use registry::{DynOperation, OpInfo};
 pub use telemetry::{Delivery, Sample, Subscriber, Telemetry};
+pub use whj::GONE_AFTER;
 
 registry! {
     "wck.scan" => WckScan(wck::Scan),
