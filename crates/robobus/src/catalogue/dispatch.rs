@@ -7,6 +7,7 @@ use super::Request;
 use super::bounds::refused;
 use super::operation::{Interaction, NoInteraction, Operation, Report, RunCx};
 use super::plan::Plan;
+use super::registry::DynOperation;
 use crate::ops::{Control, OpError};
 use crate::station::Station;
 
@@ -35,7 +36,11 @@ pub fn validate(request: &Request) -> Result<(), OpError> {
 /// the CLI's prompt), validated as [`run`] validates it; `None` when it runs without
 /// confirmation or carries `confirm: true` already.
 pub fn confirmation(request: &Request) -> Result<Option<String>, OpError> {
-    let op = request.operation();
+    asked(request.operation())
+}
+
+/// What `op` asks before it runs (validated), `None` once it carries `confirm: true`.
+fn asked(op: &dyn DynOperation) -> Result<Option<String>, OpError> {
     let confirm = op.check()?;
     Ok(if op.confirmed() { None } else { confirm.text })
 }
@@ -79,10 +84,7 @@ pub fn run_typed<O: Operation>(
     control: &mut Control<'_>,
     interaction: &mut dyn Interaction,
 ) -> Result<Report<O::Row, O::Summary>, OpError> {
-    let confirm = operation.check()?;
-    if !operation.confirmed()
-        && let Some(text) = confirm.text
-    {
+    if let Some(text) = asked(operation)? {
         return Err(refused(&text));
     }
     let mut cx = RunCx {
