@@ -26,8 +26,11 @@ use super::config::{BroadcastReadReply, JointConfig, SpeedLimitUnit};
 use super::model::rpm_to_rad_s;
 use super::physics::{Drive, DriveLimits, Environment, Mechanics};
 
+mod load;
 mod protocol;
 mod table;
+
+pub use load::Obstacle;
 
 use table::{factory_flash, init_word};
 
@@ -197,6 +200,7 @@ impl SimJoint {
             gravity_nm: cfg.load.gravity_nm,
             external_nm: cfg.load.constant_nm,
             hand: None,
+            obstacle: None,
         };
         let mech = Mechanics::new(cfg.initial_position_deg.to_radians(), &env);
         let rng = ChaCha8Rng::seed_from_u64(seed ^ (u64::from(cfg.id) << 32));

@@ -55,6 +55,6 @@ pub use config::{
 };
 pub use end_board::SimEndBoard;
 pub use endpoint::{ServeStats, Served, serve, serve_observed, serve_precise, serve_with, spawn};
-pub use joint::{JointState, Phase, Reply, Sample, SimJoint};
+pub use joint::{JointState, Obstacle, Phase, Reply, Sample, SimJoint};
 pub use link::{WhjSimHandle, WhjSimLink};
 pub use model::{ModelParams, UnknownModel, WhjModel};

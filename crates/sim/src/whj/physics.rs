@@ -78,6 +78,8 @@ pub(crate) struct Environment {
     /// A hand holding the output at this angle, rad (`None`: no hand): it pulls the output
     /// toward it like a firm grip, [`HAND_STIFFNESS`] and [`HAND_DAMPING`].
     pub hand: Option<f64>,
+    /// A stop in the output's way (`None`: none).
+    pub obstacle: Option<super::joint::Obstacle>,
 }
 
 /// A hand's grip on the output: torque per radian between the hand and the output,
@@ -280,7 +282,10 @@ impl Mechanics {
         let tau_hand = env.hand.map_or(0.0, |at| {
             HAND_STIFFNESS * (at - self.theta) - HAND_DAMPING * self.omega
         });
-        let tau_load = -env.gravity_nm * self.theta.cos() + env.external_nm + tau_hand;
+        let tau_stop = env
+            .obstacle
+            .map_or(0.0, |o| o.torque(self.theta, self.omega));
+        let tau_load = -env.gravity_nm * self.theta.cos() + env.external_nm + tau_hand + tau_stop;
         let tau_drive = tau_motor + tau_load - p.viscous_friction_nms * self.omega;
         let at_rest = self.omega.abs() < REST_SPEED && tau_drive.abs() <= p.coulomb_friction_nm;
         if locked || at_rest {
@@ -344,6 +349,7 @@ mod tests {
             gravity_nm: 0.0,
             external_nm: 0.0,
             hand: None,
+            obstacle: None,
         }
     }
 
