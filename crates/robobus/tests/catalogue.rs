@@ -308,7 +308,7 @@ fn every_stream_fills_one_sample_table_and_a_silent_device_is_stale() {
     assert!(s2.position_deg.is_some() && s2.effort.is_some());
     assert!(!s3.fresh && s3.answered == 0 && s3.failures == 2, "{s3:?}");
     assert_eq!(s3.error, "no reply");
-    assert_eq!(wck.silent(), ["S3 (2 of 2 samples missing)"]);
+    assert_eq!(wck.silent(), ["s3 (2 of 2 samples missing)"]);
     let line: serde_json::Value = serde_json::from_str(&wck.json_line()).unwrap();
     assert!(line["channels"][1]["position_deg"].is_null());
     assert_eq!(line["channels"][1]["stale"], true);

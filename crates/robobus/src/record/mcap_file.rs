@@ -6,9 +6,13 @@
 //!   (message encoding `json`, a `jsonschema` schema), every device with its failures
 //!   and staleness, the units in its keys;
 //! - [`JOINT_STATES_TOPIC`]: `sensor_msgs/msg/JointState` in CDR (message encoding
-//!   `cdr`, schema `ros2msg`), with the devices that answered that sample: position in
-//!   radians, velocity in radians per second, effort `NaN` (the current or load is not a
-//!   torque; it is in the samples channel). A sample no device answered has none.
+//!   `cdr`, schema `ros2msg`), with the devices that answered that sample, named as the
+//!   bridge names them (a robot file's joint names; a device by ID as the built-in
+//!   simulated robot names it, `j1`, `s0`): position in radians, velocity in radians per
+//!   second, effort the torque in N·m the bridge publishes ([`SampleRow::effort_nm`],
+//!   estimated from a WHJ joint's current by [`sampler::effort_nm`]), `NaN` where there is
+//!   none (a wCK servo's load is not a torque; it is in the samples channel, as is the
+//!   current). A sample no device answered has none.
 //!
 //! A metadata record `robobus` names the source (`heading`) and the speed unit.
 
@@ -17,6 +21,8 @@ use std::io::{Seek, Write};
 
 use mcap::records::{MessageHeader, Metadata};
 
+#[cfg(doc)]
+use super::{SampleRow, sampler};
 use super::{SampleTable, SpeedUnit};
 use crate::cdr::{JointState, Time};
 
@@ -247,7 +253,7 @@ fn joint_state(table: &SampleTable, at_ns: u64) -> Option<JointState> {
         msg.name.push(row.name.clone());
         msg.position.push(deg.to_radians());
         msg.velocity.push(row.speed.map_or(f64::NAN, to_rad_s));
-        msg.effort.push(f64::NAN);
+        msg.effort.push(row.effort_nm.unwrap_or(f64::NAN));
     }
     (!msg.name.is_empty()).then_some(msg)
 }

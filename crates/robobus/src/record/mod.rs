@@ -25,6 +25,7 @@ use robobus_whj::units::CurrentScale;
 
 use crate::catalogue::Delivery;
 use crate::ops::{ErrorKind, OpError};
+use crate::station::sampler;
 use crate::whj::CycleReport;
 
 /// The unit of a table's speed column.
@@ -88,7 +89,9 @@ impl Effort {
 /// One watched device: its latest values and how its samples went.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SampleRow {
-    /// Label: `J3`, `S12`, or a robot file's joint name.
+    /// Label: a robot file's joint name, or for a device by ID the name the built-in
+    /// simulated robot gives it (`j3` for WHJ joint 3, `s12` for wCK servo 12), as the
+    /// bridge, the studio and the recordings name joints.
     pub name: String,
     /// The device's `id` in a report's rows (a number, or a robot file's joint name).
     pub id: serde_json::Value,
@@ -103,6 +106,14 @@ pub struct SampleRow {
     pub speed: Option<f64>,
     /// Current (mA) or load (0..=255), as [`effort_kind`](Self::effort_kind) says.
     pub effort: Option<f64>,
+    /// Torque, N·m, estimated from the current (WHJ): a robot sample's `effort_nm`, or
+    /// [`sampler::effort_nm`] of the current and the row's
+    /// [`nm_per_a`](Self::nm_per_a); `None` for wCK and where no estimate exists.
+    pub effort_nm: Option<f64>,
+    /// The joint's torque constant, N·m per A (a WHJ joint by ID whose model is known:
+    /// its rated torque over rated current), for the [`effort_nm`](Self::effort_nm) of
+    /// samples that carry only a current.
+    pub nm_per_a: Option<f64>,
     /// Drive enabled (WHJ).
     pub enabled: Option<bool>,
     /// Error text of the latest sample (`no error`, `ok`, the error bits, `timeout`).
@@ -127,6 +138,8 @@ impl SampleRow {
             target_deg: None,
             speed: None,
             effort: None,
+            effort_nm: None,
+            nm_per_a: None,
             enabled: None,
             error: "-".into(),
             failures: 0,
@@ -192,26 +205,39 @@ impl SampleTable {
         }
     }
 
-    /// WHJ joints by ID (`J1`, ...; speed in RPM, effort the current).
+    /// WHJ joints by ID (`j1`, ...: the built-in simulated robot's names; speed in RPM,
+    /// effort the current).
     #[must_use]
     pub fn whj(ids: &[u8]) -> Self {
         Self::new(
             SpeedUnit::Rpm,
             ids.iter()
-                .map(|&i| SampleRow::new(format!("J{i}"), i.into(), Effort::Milliamps))
+                .map(|&i| SampleRow::new(whj_name(i), i.into(), Effort::Milliamps))
                 .collect(),
         )
     }
 
-    /// wCK servos by ID (`S0`, ...; speed in degrees per second, effort the load).
+    /// wCK servos by ID (`s0`, ...: the built-in simulated robot's names; speed in
+    /// degrees per second, effort the load).
     #[must_use]
     pub fn wck(ids: &[u8]) -> Self {
         Self::new(
             SpeedUnit::DegPerS,
             ids.iter()
-                .map(|&i| SampleRow::new(format!("S{i}"), i.into(), Effort::Load))
+                .map(|&i| SampleRow::new(wck_name(i), i.into(), Effort::Load))
                 .collect(),
         )
+    }
+
+    /// The table with each row's torque constant ([`SampleRow::nm_per_a`], in the rows'
+    /// order; a row without one keeps `None`): its samples then carry the torque
+    /// estimated from the current, as the robot sample and the bridge estimate it.
+    #[must_use]
+    pub fn with_torque_constants(mut self, nm_per_a: &[Option<f64>]) -> Self {
+        for (row, k) in self.rows.iter_mut().zip(nm_per_a) {
+            row.nm_per_a = *k;
+        }
+        self
     }
 
     /// A robot file's joints by name, each with whether it is a wCK servo (speeds in
@@ -276,6 +302,10 @@ impl SampleTable {
                     row.position_deg = r["position_deg"].as_f64();
                     row.speed = r[speed_key].as_f64();
                     row.effort = r["current_ma"].as_f64().or_else(|| r["load"].as_f64());
+                    row.effort_nm = r["effort_nm"].as_f64().or_else(|| {
+                        let ma = r["current_ma"].as_i64()?;
+                        Some(sampler::effort_nm(ma, row.nm_per_a?, false))
+                    });
                     row.enabled = r["enabled"].as_bool();
                     r["error"]
                         .as_str()
@@ -304,9 +334,11 @@ impl SampleTable {
                         SpeedUnit::Rpm => fb.speed.rpm(),
                         SpeedUnit::DegPerS => fb.speed.rpm() * 6.0,
                     });
+                    let ma = fb.current.milliamps(CurrentScale::OneMilliamp);
                     #[allow(clippy::cast_precision_loss)] // |mA| < 2^53
-                    let ma = fb.current.milliamps(CurrentScale::OneMilliamp) as f64;
-                    row.effort = Some(ma);
+                    let effort = ma as f64;
+                    row.effort = Some(effort);
+                    row.effort_nm = row.nm_per_a.map(|k| sampler::effort_nm(ma, k, false));
                     row.enabled = Some(fb.enabled);
                     row.error = fb.error.to_string();
                     row.got();
@@ -437,6 +469,20 @@ impl SampleTable {
         })
         .to_string()
     }
+}
+
+/// The name of WHJ joint `id` on its own: `j{id}`, as the built-in simulated robot's
+/// file names it.
+#[must_use]
+pub fn whj_name(id: u8) -> String {
+    format!("j{id}")
+}
+
+/// The name of wCK servo `id` on its own: `s{id}`, as the built-in simulated robot's
+/// file names it.
+#[must_use]
+pub fn wck_name(id: u8) -> String {
+    format!("s{id}")
 }
 
 /// A device name as a CSV column prefix: lower case, anything but letters, digits and `_`

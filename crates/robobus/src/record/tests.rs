@@ -91,7 +91,7 @@ fn a_silent_device_is_stale_in_every_output_and_named_by_silent() {
     assert_eq!(j["error"], "timeout");
     // The row keeps its values for a front end that shows them dimmed.
     assert_eq!(t.rows[0].position_deg, Some(12.0));
-    assert_eq!(t.silent(), ["J2 (1 of 2 samples missing)"]);
+    assert_eq!(t.silent(), ["j2 (1 of 2 samples missing)"]);
     // A device that answered every sample is not silent; before any sample nobody is.
     t.rows[0].got();
     assert!(t.silent().is_empty());
@@ -103,7 +103,7 @@ fn a_device_that_never_answered_is_silent() {
     let mut t = SampleTable::wck(&[3]);
     t.take_cycle(None, 0.1);
     assert_eq!(t.samples, 1);
-    assert_eq!(t.silent(), ["S3 (0 of 1 samples missing)"]);
+    assert_eq!(t.silent(), ["s3 (0 of 1 samples missing)"]);
 }
 
 #[test]
@@ -179,7 +179,7 @@ fn a_recordings_format_comes_from_its_name() {
 
 #[test]
 fn rows_start_empty_and_stale() {
-    let r = row("J1", Effort::Milliamps);
+    let r = row("j1", Effort::Milliamps);
     assert!(!r.fresh && r.answered == 0 && r.failures == 0);
     assert_eq!(r.now(Some(1.0)), None);
     assert_eq!(r.error, "-");
@@ -257,13 +257,14 @@ fn an_mcap_recording_holds_every_sample_and_the_joint_states_of_those_that_answe
         states[1].0
     );
     let (first, second) = (&states[0].1, &states[1].1);
-    assert_eq!(first.name, ["J1", "J2"]);
+    assert_eq!(first.name, ["j1", "j2"]);
     assert!((first.position[0] - core::f64::consts::FRAC_PI_2).abs() < 1e-12);
-    // 60 RPM is 2π rad/s; the effort (a current, not a torque) is unknown.
+    // 60 RPM is 2π rad/s; without a torque constant the effort (a current, not a torque)
+    // is unknown.
     assert!((first.velocity[0] - core::f64::consts::TAU).abs() < 1e-12);
     assert!(first.effort.iter().all(|e| e.is_nan()));
     // The silent joint is left out, never given its last value.
-    assert_eq!(second.name, ["J1"]);
+    assert_eq!(second.name, ["j1"]);
     assert_eq!(samples[1].1["channels"][1]["stale"], true);
     assert!(samples[1].1["channels"][1]["position_deg"].is_null());
     assert_eq!(samples[2].1["sample"], 3);
@@ -287,4 +288,89 @@ fn an_mcap_recording_holds_every_sample_and_the_joint_states_of_those_that_answe
             .unwrap_err()
             .contains("not MCAP")
     );
+}
+
+#[test]
+fn devices_by_id_are_named_as_the_built_in_robot_names_them() {
+    let whj = SampleTable::whj(&[1, 7]);
+    let wck = SampleTable::wck(&[0, 15]);
+    let names: Vec<&str> = whj
+        .rows
+        .iter()
+        .chain(&wck.rows)
+        .map(|r| r.name.as_str())
+        .collect();
+    assert_eq!(names, ["j1", "j7", "s0", "s15"]);
+    // The CSV columns are the names, as before.
+    assert_eq!(
+        whj.csv_header(),
+        "t_s,j1_deg,j1_rpm,j1_mA,j7_deg,j7_rpm,j7_mA"
+    );
+}
+
+/// The joint states of an MCAP recording of `t`'s latest sample.
+fn recorded_states(t: &SampleTable) -> Vec<crate::cdr::JointState> {
+    let mut rec = Recorder::new(Cursor::new(Vec::new()), RecordFormat::Mcap, "x", t).unwrap();
+    rec.record(t).unwrap();
+    let bytes = rec.finish().unwrap().into_inner();
+    mcap::MessageStream::new(&bytes)
+        .unwrap()
+        .map(Result::unwrap)
+        .filter(|m| m.channel.topic == JOINT_STATES_TOPIC)
+        .map(|m| crate::cdr::JointState::decode(&m.data).unwrap())
+        .collect()
+}
+
+#[test]
+fn an_mcap_joint_states_effort_is_the_torque_estimated_from_the_current() {
+    // Joint 1 with a torque constant of 2.5 N·m/A, joint 2 without one (model unknown).
+    let mut t = SampleTable::whj(&[1, 2]).with_torque_constants(&[Some(2.5)]);
+    assert_eq!((t.rows[0].nm_per_a, t.rows[1].nm_per_a), (Some(2.5), None));
+    let feedback = |ma| {
+        Some(crate::whj::Feedback {
+            position: robobus_whj::units::Position::from_degrees(10.0).unwrap(),
+            speed: robobus_whj::units::ActualSpeed::from_rpm(0.0).unwrap(),
+            current: robobus_whj::units::Current::from_milliamps(ma, CurrentScale::OneMilliamp)
+                .unwrap(),
+            enabled: true,
+            error: robobus_whj::ErrorCode::default(),
+        })
+    };
+    let report = CycleReport {
+        cycle: 0,
+        scheduled: std::time::Instant::now(),
+        start_lateness: std::time::Duration::ZERO,
+        round_trip: None,
+        commanded: vec![0, 0],
+        feedback: vec![feedback(-400.0), feedback(300.0)],
+        missed: false,
+    };
+    t.take_cycle(Some(&report), 0.1);
+    // -400 mA at 2.5 N·m/A: -1 N·m, the bridge's estimate (sampler::effort_nm).
+    assert_eq!(t.rows[0].effort_nm, Some(-1.0));
+    assert_eq!(
+        t.rows[0].effort_nm,
+        Some(crate::station::sampler::effort_nm(-400, 2.5, false))
+    );
+    assert_eq!(t.rows[1].effort_nm, None);
+    let states = recorded_states(&t);
+    assert_eq!(states.len(), 1);
+    assert_eq!(states[0].name, ["j1", "j2"]);
+    assert_eq!(states[0].effort[0], -1.0);
+    assert!(states[0].effort[1].is_nan(), "{:?}", states[0].effort);
+}
+
+#[test]
+fn a_robot_samples_effort_nm_is_the_recorded_effort() {
+    // As the bridge publishes it: a robot sample's `effort_nm`, whatever its current.
+    let mut t = SampleTable::robot([("elbow", false), ("s0", true)]);
+    t.rows[0].position_deg = Some(1.0);
+    t.rows[0].effort_nm = Some(0.75);
+    t.rows[0].got();
+    t.rows[1].position_deg = Some(2.0);
+    t.rows[1].got();
+    let states = recorded_states(&t);
+    assert_eq!(states[0].name, ["elbow", "s0"]);
+    assert_eq!(states[0].effort[0], 0.75);
+    assert!(states[0].effort[1].is_nan());
 }

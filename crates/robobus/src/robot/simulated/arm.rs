@@ -107,6 +107,22 @@ impl SimArm {
         &self.ids
     }
 
+    /// Each joint's torque constant, N·m per A, in [`joints`](Self::joints)' order: its
+    /// identified model's rated torque over rated current (the simulated WHJ30's), for a
+    /// sample table's torque estimate ([`SampleTable::with_torque_constants`]).
+    ///
+    /// [`SampleTable::with_torque_constants`]: crate::record::SampleTable::with_torque_constants
+    #[must_use]
+    pub fn torque_constants(&self) -> Vec<Option<f64>> {
+        self.ids
+            .iter()
+            .map(|&id| {
+                let d = self.bus.cached_identity(id)?;
+                robobus_whj::models::ProductFacts::torque_constant_of(d.model, d.reduction_ratio)
+            })
+            .collect()
+    }
+
     /// The loop's latest cycle (feedback per joint, `None` for a joint that did not answer
     /// in it), after which the sine's next targets are set.
     pub fn sample(&self) -> Option<crate::whj::CycleReport> {
