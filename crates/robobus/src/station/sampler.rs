@@ -283,10 +283,10 @@ impl RobotSampler {
                             position_deg: map.to_joint(s.position_deg.to_radians()).to_degrees(),
                             speed_deg_s: s.speed_rpm.map(|r| map.speed_to_joint(r * DEG_S_PER_RPM)),
                             current_ma: s.current_ma,
-                            effort_nm: s.current_ma.zip(kt).map(|(ma, k)| {
-                                let nm = ma as f64 / 1e3 * k;
-                                if map.reversed { -nm } else { nm }
-                            }),
+                            effort_nm: s
+                                .current_ma
+                                .zip(kt)
+                                .map(|(ma, k)| effort_nm(ma, k, map.reversed)),
                             load: None,
                             enabled: Some(s.enabled),
                             error: s.error,
@@ -309,6 +309,14 @@ impl RobotSampler {
             })
             .collect()
     }
+}
+
+/// A WHJ joint's torque, N·m, from its current `ma` (mA) and its rated torque over rated
+/// current `nm_per_a` (N·m per A), negated for a `reversed` joint.
+pub fn effort_nm(ma: i64, nm_per_a: f64, reversed: bool) -> f64 {
+    #[allow(clippy::cast_precision_loss)] // |mA| < 2^53
+    let nm = ma as f64 / 1e3 * nm_per_a;
+    if reversed { -nm } else { nm }
 }
 
 /// Opens every bus of a robot file for reading, as station ports named as in the file
