@@ -127,6 +127,7 @@ const ROBOT_FIELDS: &[(&str, &[&str], &[&str])] = &[
             "late_ms",
             "interrupted",
             "safe_state",
+            "protection",
         ],
     ),
     (

@@ -51,6 +51,7 @@ pub mod capture;
 mod family;
 mod ids;
 pub mod ports;
+pub mod protect;
 pub mod replay;
 pub mod safe;
 pub mod wck;

@@ -13,6 +13,7 @@ use robobus_wck::Position;
 use super::RobotError;
 use crate::actuator::{JointMap, WCK_DEFAULT_CENTRE, WckScale};
 use crate::ops::SafeState;
+use crate::ops::protect::{Limits, Overrides};
 
 /// A bus in the robot file (`[buses.NAME]`, selected by `kind`).
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -156,6 +157,10 @@ pub struct JointConfig {
     pub max_acceleration: f64,
     /// wCK only: the position step taken as device angle 0 (default 127).
     pub centre: Option<u8>,
+    /// The host's protection of this joint instead of the defaults
+    /// (`[joints.protection]`; see [`crate::ops::protect`]).
+    #[serde(default)]
+    pub protection: Option<Overrides>,
 }
 
 const fn default_direction() -> i8 {
@@ -302,6 +307,28 @@ pub struct RobotConfig {
     /// The joints, in the order of [`Robot::read`](super::Robot::read) and
     /// [`Robot::command`](super::Robot::command).
     pub joints: Vec<JointConfig>,
+    /// The host's protection (`[protection]`; see [`crate::ops::protect`]).
+    #[serde(default)]
+    pub protection: Protection,
+}
+
+/// The robot file's `[protection]` table.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Protection {
+    /// `false`: no joint of the file is protected by the host (default true).
+    #[serde(default = "default_protected")]
+    pub enabled: bool,
+}
+
+impl Default for Protection {
+    fn default() -> Self {
+        Self { enabled: true }
+    }
+}
+
+const fn default_protected() -> bool {
+    true
 }
 
 const fn default_watchdog() -> f64 {
@@ -313,6 +340,26 @@ impl RobotConfig {
     #[must_use]
     pub fn is_wck(&self, joint: &JointConfig) -> bool {
         self.buses.get(&joint.bus).is_some_and(BusConfig::is_wck)
+    }
+
+    /// The host's protection of `joint` (a WHJ joint of `model`, as it identified; `None`
+    /// for a wCK servo or a model not known): the defaults of its family and model with
+    /// the file's overrides, nothing checked when the file turns protection off.
+    #[must_use]
+    pub fn protection_of(
+        &self,
+        joint: &JointConfig,
+        model: Option<robobus_whj::units::Model>,
+    ) -> Limits {
+        if !self.protection.enabled {
+            return Limits::OFF;
+        }
+        let defaults = if self.is_wck(joint) {
+            Limits::wck()
+        } else {
+            Limits::whj(model)
+        };
+        defaults.with(joint.protection.as_ref())
     }
 
     /// The joints' names, as a list for a message (`hip, knee, ankle`).
@@ -652,6 +699,36 @@ impl RobotConfig {
             }
             if centre > 254 {
                 return Err(invalid("centre", centre.to_string(), "0..=254"));
+            }
+        }
+        if let Some(p) = &joint.protection {
+            if bus.is_wck() {
+                let measured = [
+                    ("stall_current_a", p.stall_current_a),
+                    ("stall_time_s", p.stall_time_s),
+                    ("stall_error_deg", p.stall_error_deg),
+                    ("collision_current_jump_a", p.collision_current_jump_a),
+                    ("temperature_warn_c", p.temperature_warn_c),
+                    ("temperature_derate_c", p.temperature_derate_c),
+                    ("temperature_stop_c", p.temperature_stop_c),
+                    ("derate", p.derate),
+                ];
+                if let Some((name, Some(v))) = measured.iter().find(|(_, v)| v.is_some()) {
+                    return Err(invalid(
+                        "protection",
+                        format!("{name} = {v}"),
+                        "on a wCK servo only enabled and collision_error_jump_deg (its replies \
+                         carry no current and no temperature)",
+                    ));
+                }
+            }
+            let defaults = if bus.is_wck() {
+                Limits::wck()
+            } else {
+                Limits::whj(None)
+            };
+            if let Err((name, value, allowed)) = p.check(defaults) {
+                return Err(invalid("protection", format!("{name} = {value}"), &allowed));
             }
         }
         if bus.is_wck() {

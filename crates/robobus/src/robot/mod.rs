@@ -96,7 +96,7 @@ use robobus_whj::JointId;
 use robobus_whj::units::CurrentScale;
 
 pub use builder::{RobotBuilder, open_wck_bus, open_whj_bus};
-pub use config::{BusConfig, JointConfig, RobotConfig};
+pub use config::{BusConfig, JointConfig, Protection, RobotConfig};
 use hardware::{Device, Hardware, JointSlot, Shared, WckSlot, WhjSlot, lock};
 pub use safety::{LimitEvent, LimitKind, RateLimiter};
 

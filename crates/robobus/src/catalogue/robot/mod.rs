@@ -213,6 +213,18 @@ impl Settled {
 /// joint (brake models lock the brake). Every joint is tried; a joint that does not answer
 /// is a failure of its own.
 pub(super) fn settle(station: &Station, config: &RobotConfig, names: &[String]) -> Settled {
+    settle_with(station, config, names, &[])
+}
+
+/// [`settle`], with the WHJ joints `torque_off` disabled whatever their bus's
+/// `safe_state` (a joint the host's protection stopped, which would keep pushing or
+/// heating while it holds; see [`crate::ops::protect::torque_off_is_safe`]).
+pub(super) fn settle_with(
+    station: &Station,
+    config: &RobotConfig,
+    names: &[String],
+    torque_off: &[String],
+) -> Settled {
     let sub = only(config, names);
     let mut settled = Settled::default();
     for (bus, cfg) in &sub.buses {
@@ -221,7 +233,13 @@ pub(super) fn settle(station: &Station, config: &RobotConfig, names: &[String]) 
         let failed = if cfg.is_wck() {
             settle_wck(station, bus, cfg.torque().unwrap_or(2), state, &joints)
         } else {
-            settle_whj(station, bus, state, &joints)
+            let (off, rest): (Vec<&JointConfig>, Vec<&JointConfig>) =
+                joints.iter().partition(|j| torque_off.contains(&j.name));
+            let mut failed = settle_whj(station, bus, state, &rest);
+            if !off.is_empty() {
+                failed.extend(settle_whj(station, bus, SafeState::Disable, &off));
+            }
+            failed
         };
         let mut end = BusEnd {
             bus: bus.clone(),

@@ -29,11 +29,13 @@ use crate::catalogue::effect::{Effect, Moved};
 use crate::catalogue::operation::{Confirm, OpDoc, Operation, Report, RunCx};
 use crate::catalogue::plan::{Family, Plan};
 use crate::motion::Tracking;
+use crate::ops::protect::{self, Action, Fault, Monitor, Reading};
 use crate::ops::whj::ServoLoop;
 use crate::ops::{Control, DeviceResult, Failure, OpError, Outcome, Progress};
 use crate::robot::RobotConfig;
 use crate::robot::trajectory::Trajectory;
 use crate::station::Station;
+use crate::station::WhjPort;
 use crate::station::clock::BusClock;
 use crate::station::handles::{WckGroup, WhjGroup};
 use crate::whj::Percentiles;
@@ -124,7 +126,10 @@ impl Operation for Play {
                  not fit the robot file or a joint is silent, outside its limits, or a WHJ \
                  joint not enabled in position mode. Finished, failed or stopped, it ends with \
                  each bus of its joints in the robot file's `safe_state` (as `robot.teleop`, \
-                 `robot.calibrate` and `robot.teach` do)",
+                 `robot.calibrate` and `robot.teach` do). `summary.protection`: the host's \
+                 protection events (`joint`, `check`: stall / collision / thermal, \
+                 `quantity`, `value`, `limit`, `at_s`, `action`: warn / derate / stop); a \
+                 stop ends the run in the safe state and fails its joint's row",
         confirm: "motion",
     };
     type Row = DeviceResult<String, Played>;
@@ -185,6 +190,9 @@ pub struct Played {
     tracking: Tracking,
     #[serde(skip)]
     last_error: Option<Failure>,
+    /// The host's protection stopped the run on this joint.
+    #[serde(skip)]
+    protection: Option<Failure>,
 }
 
 /// How a run's times spread, ms.
@@ -233,6 +241,9 @@ pub struct PlaySummary {
     /// How it left each bus: in the robot file's `safe_state` (finished, failed or
     /// stopped).
     pub safe_state: Vec<super::BusEnd>,
+    /// The host's protection events, in order: warnings, deratings and the stop (a stop
+    /// ends the run in the safe state and fails its joint's row).
+    pub protection: Vec<Fault>,
 }
 
 /// What a `robot.play` run did.
@@ -241,28 +252,50 @@ struct PlayedRun {
     summary: PlaySummary,
 }
 
-/// A joint's outcome in a tick, by its column: the position it reported (joint degrees),
-/// or why not.
-type Outcomes = Vec<(usize, Result<f64, Failure>)>;
+/// What a joint reported in a tick: its position (joint degrees), and where read, its
+/// current and temperature.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Sensed {
+    position: f64,
+    current_a: Option<f64>,
+    temperature_c: Option<f64>,
+}
+
+impl Sensed {
+    const fn at(position: f64) -> Self {
+        Self {
+            position,
+            current_a: None,
+            temperature_c: None,
+        }
+    }
+}
+
+/// A joint's outcome in a tick, by its column: what it reported, or why not.
+type Outcomes = Vec<(usize, Result<Sensed, Failure>)>;
+
+/// How often each WHJ joint's temperature is read during a run (a status query), s.
+const TEMPERATURE_EVERY_S: f64 = 0.25;
 
 /// The joints of one bus and their handle, each by its column with how its angles turn
 /// into its device's units.
 enum Group {
     Wck(WckGroup, Vec<(usize, WckScale)>),
-    Whj(WhjGroup, Vec<(usize, JointMap)>),
+    Whj(WhjGroup, WhjPort, Vec<(usize, JointMap)>),
 }
 
 impl Group {
     fn columns(&self) -> Vec<usize> {
         match self {
             Self::Wck(_, c) => c.iter().map(|x| x.0).collect(),
-            Self::Whj(_, c) => c.iter().map(|x| x.0).collect(),
+            Self::Whj(_, _, c) => c.iter().map(|x| x.0).collect(),
         }
     }
 
     /// Sends `targets` (joint degrees, by column) to the group's devices: each column's
-    /// outcome, the position it reported in joint degrees.
-    fn send(&self, targets: &[f64], torque: u8) -> Outcomes {
+    /// outcome, what it reported (with `temperature`, a WHJ joint's temperature read
+    /// after its command).
+    fn send(&self, targets: &[f64], torque: u8, temperature: bool) -> Outcomes {
         let rad = |c: usize| targets.get(c).copied().unwrap_or(0.0).to_radians();
         let results: Result<Outcomes, OpError> = match self {
             Self::Wck(h, cols) => {
@@ -277,7 +310,7 @@ impl Group {
                             let at = match d.outcome {
                                 Outcome::Ok(reading) => {
                                     robobus_wck::Position::new(reading.position)
-                                        .map(|p| s.to_rad(p).to_degrees())
+                                        .map(|p| Sensed::at(s.to_rad(p).to_degrees()))
                                         .map_err(|e| Failure::of(crate::ErrorKind::Device, &e))
                                 }
                                 Outcome::Failed(f) => Err(f),
@@ -287,25 +320,48 @@ impl Group {
                         .collect()
                 })
             }
-            Self::Whj(h, cols) => {
+            Self::Whj(h, port, cols) => {
                 let degrees: Vec<f64> = cols
                     .iter()
                     .map(|&(c, m)| m.to_device(rad(c)).to_degrees())
                     .collect();
-                h.command(ServoLoop::Position, &degrees).map(|r| {
-                    cols.iter()
-                        .zip(r)
-                        .map(|(&(c, m), d)| {
-                            let at = match d.outcome {
-                                Outcome::Ok(fb) => {
-                                    Ok(m.to_joint(fb.position_deg.to_radians()).to_degrees())
+                h.command(ServoLoop::Position, &degrees)
+                    .map(|r| {
+                        cols.iter()
+                            .zip(r)
+                            .map(|(&(c, m), d)| {
+                                let at = match d.outcome {
+                                    Outcome::Ok(fb) => Ok(Sensed {
+                                    position: m.to_joint(fb.position_deg.to_radians()).to_degrees(),
+                                    #[allow(clippy::cast_precision_loss)] // mA of a joint
+                                    current_a: Some(fb.current_ma as f64 / 1e3),
+                                    temperature_c: None,
+                                }),
+                                    Outcome::Failed(f) => Err(f),
+                                };
+                                (c, at)
+                            })
+                            .collect::<Outcomes>()
+                    })
+                    .map(|mut out| {
+                        if temperature {
+                            let bus = port.bus();
+                            for ((_, o), id) in out.iter_mut().zip(h.ids()) {
+                                let Ok(sensed) = o else { continue };
+                                let Ok(joint) = robobus_whj::JointId::new(id) else {
+                                    continue;
+                                };
+                                match bus.joint_unchecked(joint).status() {
+                                    Ok(st) => {
+                                        sensed.temperature_c =
+                                            Some(f64::from(st.temperature.celsius()));
+                                    }
+                                    Err(e) => *o = Err(Failure::from(&OpError::from(e))),
                                 }
-                                Outcome::Failed(f) => Err(f),
-                            };
-                            (c, at)
-                        })
-                        .collect()
-                })
+                            }
+                        }
+                        out
+                    })
             }
         };
         results.unwrap_or_else(|e| {
@@ -346,6 +402,7 @@ fn groups(
         } else {
             Group::Whj(
                 WhjGroup::new(station, Some(name), &ids)?,
+                station.whj(Some(name))?,
                 cols.iter().map(|(c, j)| (*c, j.map())).collect(),
             )
         });
@@ -359,7 +416,7 @@ fn groups(
 fn steps_of(groups: &[Group], columns: usize) -> Result<Vec<Option<f64>>, OpError> {
     let mut steps = vec![None; columns];
     for g in groups {
-        if let Group::Whj(h, cols) = g {
+        if let Group::Whj(h, _, cols) = g {
             let limit = h.step_limit_deg()?;
             for &(c, _) in cols {
                 if let Some(s) = steps.get_mut(c) {
@@ -382,7 +439,7 @@ fn check_steps(
     rate_hz: f64,
 ) -> Result<(), OpError> {
     for g in groups {
-        let Group::Whj(h, cols) = g else { continue };
+        let Group::Whj(h, _, cols) = g else { continue };
         let limit = h.step_limit_deg()?;
         for &(c, _) in cols {
             let lead = match (traj.first().get(c), from.get(c)) {
@@ -409,6 +466,26 @@ fn check_steps(
     Ok(())
 }
 
+/// Per column, the model a WHJ joint identified as (`None`: a wCK servo).
+fn models_of(index: &[usize], groups: &[Group]) -> Vec<Option<robobus_whj::units::Model>> {
+    (0..index.len())
+        .map(|c| {
+            groups.iter().find_map(|g| match g {
+                Group::Whj(h, port, cols) => {
+                    let k = cols.iter().position(|x| x.0 == c)?;
+                    let id = robobus_whj::JointId::new(*h.ids().get(k)?).ok()?;
+                    port.bus()
+                        .joint_unchecked(id)
+                        .identity()
+                        .ok()
+                        .map(|i| i.model)
+                }
+                Group::Wck(..) => None,
+            })
+        })
+        .collect()
+}
+
 /// `robot.play` on the station's robot file.
 fn run_play(
     station: &Station,
@@ -433,6 +510,18 @@ fn run_play(
         .fold(0.0, f64::max);
     check_steps(&groups, &traj, &from, lead_in, r.rate_hz)?;
     let mut rows: Vec<Played> = from.iter().map(|&s| Played::new(s)).collect();
+    let models = models_of(&index, &groups);
+    let monitor = Monitor::new(
+        clock.now(),
+        index
+            .iter()
+            .zip(&models)
+            .map(|(&i, &m)| {
+                let j = &config.joints[i];
+                (j.name.clone(), config.protection_of(j, m))
+            })
+            .collect(),
+    );
     let mut player = Player {
         traj: &traj,
         from: &from,
@@ -442,10 +531,38 @@ fn run_play(
         clock: &clock,
         torque: r.torque,
         steps: steps_of(&groups, traj.joints().len())?,
+        max_speed_deg: index
+            .iter()
+            .map(|&i| config.joints[i].max_velocity.to_degrees())
+            .collect(),
+        monitor,
+        faults: Vec::new(),
     };
     let run = player.run(&mut rows, control, on_tick);
+    let faults = std::mem::take(&mut player.faults);
+    // A protection stop fails its joint's row, naming what it measured; the joint goes
+    // torque off where that is safe (it would keep pushing or heating while it holds).
+    let mut torque_off = Vec::new();
+    if let Some(stop) = faults.iter().find(|f| f.action == Action::Stop)
+        && let Some(c) = traj.joints().iter().position(|n| *n == stop.joint)
+        && let Some(row) = rows.get_mut(c)
+    {
+        let off = models
+            .get(c)
+            .is_some_and(|m| m.is_some() && protect::torque_off_is_safe(*m));
+        let end = if off {
+            torque_off.push(stop.joint.clone());
+            "; its drive disabled (its brake holds it: holding would keep it pushing or heating)"
+        } else {
+            ""
+        };
+        row.protection = Some(Failure::of(
+            crate::ErrorKind::Device,
+            &format!("{stop}{end}"),
+        ));
+    }
     // Finished, stopped or failed: each bus as the robot file says.
-    let settled = super::settle(station, &config, traj.joints());
+    let settled = super::settle_with(station, &config, traj.joints(), &torque_off);
     let timing = run.inspect_err(|_| settled.log())?;
     let names = traj.joints();
     Ok(PlayedRun {
@@ -466,6 +583,7 @@ fn run_play(
             late_ms: Spread::of(&timing.late),
             interrupted: timing.interrupted,
             safe_state: settled.buses,
+            protection: faults,
         },
     })
 }
@@ -496,6 +614,13 @@ struct Player<'a> {
     /// Per column, how far a WHJ joint's target may be from where it last reported
     /// itself (`None`: a wCK servo, which takes any target in its range).
     steps: Vec<Option<f64>>,
+    /// Per column, the joint's `max_velocity`, degrees a second (a derated joint keeps
+    /// its share of it).
+    max_speed_deg: Vec<f64>,
+    /// The host's protection of the joints, by column.
+    monitor: Monitor,
+    /// Its events so far.
+    faults: Vec<Fault>,
 }
 
 impl Player<'_> {
@@ -525,6 +650,9 @@ impl Player<'_> {
         let mut timing = Timing::default();
         let mut before: Option<Vec<f64>> = None;
         let mut last_at: Vec<Option<f64>> = self.from.iter().map(|&f| Some(f)).collect();
+        let mut last_sent: Vec<f64> = self.from.to_vec();
+        let mut next_temperature = 0.0;
+        let period_s = self.period.as_secs_f64();
         let mut k: u64 = 0;
         #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // ≤ 3600 s × 500 Hz
         let last = (total / self.period.as_secs_f64()).ceil() as u64;
@@ -541,17 +669,37 @@ impl Player<'_> {
             }
             let t_s = (due - start).as_secs_f64().min(total);
             let targets = self.targets(t_s);
-            // A WHJ joint lagging behind is sent no further than its step allows.
+            // A WHJ joint lagging behind is sent no further than its step allows; a
+            // derated one no faster than its share of its max_velocity.
             let sent: Vec<f64> = targets
                 .iter()
                 .zip(&self.steps)
                 .zip(&last_at)
-                .map(|((&t, step), at)| match (step, at) {
-                    (Some(s), Some(a)) => t.clamp(a - s, a + s),
-                    _ => t,
+                .enumerate()
+                .map(|(c, ((&t, step), at))| {
+                    let t = match (step, at) {
+                        (Some(s), Some(a)) => t.clamp(a - s, a + s),
+                        _ => t,
+                    };
+                    let share = self.monitor.speed_share(c);
+                    match (share < 1.0, last_sent.get(c), self.max_speed_deg.get(c)) {
+                        (true, Some(&prev), Some(&v)) => {
+                            let most = share * v * period_s;
+                            t.clamp(prev - most, prev + most)
+                        }
+                        _ => t,
+                    }
                 })
                 .collect();
-            let (positions, sends) = self.tick(&sent);
+            let temperature = t_s >= next_temperature;
+            if temperature {
+                next_temperature = t_s + TEMPERATURE_EVERY_S;
+            }
+            let (sensed, sends) = self.tick(&sent, temperature);
+            let stop = self.protect(clock.now(), &sensed, &last_sent);
+            last_sent.clone_from(&sent);
+            let positions: Vec<Result<f64, Failure>> =
+                sensed.into_iter().map(|r| r.map(|s| s.position)).collect();
             if let (Some(first), Some(last)) = (sends.iter().min(), sends.iter().max())
                 && timing.skew.len() < MAX_TIMED_TICKS
             {
@@ -580,6 +728,9 @@ impl Player<'_> {
             before = Some(targets);
             timing.ticks += 1;
             control.report(&Progress::new("play", k + 1, Some(last + 1)));
+            if stop {
+                break;
+            }
             // Ticks a slow one ran past are skipped, not caught up.
             let now = clock.now().saturating_duration_since(start);
             #[allow(clippy::cast_possible_truncation)] // ticks of at most an hour
@@ -594,11 +745,42 @@ impl Player<'_> {
         Ok(timing)
     }
 
-    /// Sends one tick's targets, each bus from its own thread; each joint's outcome by
-    /// column and each bus's first send (this clock).
-    fn tick(&self, targets: &[f64]) -> (Vec<Result<f64, Failure>>, Vec<Instant>) {
+    /// Feeds what the joints reported at `now` to the protection (the following error
+    /// against the targets sent the tick before); whether it stops the run.
+    fn protect(
+        &mut self,
+        now: Instant,
+        sensed: &[Result<Sensed, Failure>],
+        sent_before: &[f64],
+    ) -> bool {
+        let mut stop = false;
+        for (c, s) in sensed.iter().enumerate() {
+            let Ok(s) = s else { continue };
+            let reading = Reading {
+                at: now,
+                error_deg: sent_before.get(c).map(|t| (s.position - t).abs()),
+                current_a: s.current_a,
+                temperature_c: s.temperature_c,
+            };
+            for f in self.monitor.feed(c, &reading) {
+                stop |= f.action == Action::Stop;
+                tracing::warn!("{f}");
+                self.faults.push(f);
+            }
+        }
+        stop
+    }
+
+    /// Sends one tick's targets, each bus from its own thread (a WHJ joint's temperature
+    /// read after its command when `temperature`); each joint's outcome by column and
+    /// each bus's first send (this clock).
+    fn tick(
+        &self,
+        targets: &[f64],
+        temperature: bool,
+    ) -> (Vec<Result<Sensed, Failure>>, Vec<Instant>) {
         let n = targets.len();
-        let mut positions: Vec<Result<f64, Failure>> = (0..n)
+        let mut positions: Vec<Result<Sensed, Failure>> = (0..n)
             .map(|_| {
                 Err(Failure::of(
                     crate::ErrorKind::Device,
@@ -619,7 +801,7 @@ impl Player<'_> {
                         // Every bus is at the tick (the clock slept them there); the
                         // instant its first send goes, on the clock's time line.
                         let sent = clock.bus_now(i);
-                        (sent, g.send(targets, torque))
+                        (sent, g.send(targets, torque, temperature))
                     })
                 })
                 .collect();
@@ -653,6 +835,7 @@ impl Played {
             tracking_rms_deg: 0.0,
             tracking: Tracking::default(),
             last_error: None,
+            protection: None,
         }
     }
 
@@ -680,6 +863,9 @@ impl Played {
     fn result(mut self, name: &str) -> DeviceResult<String, Played> {
         self.tracking_max_deg = self.tracking.max().unwrap_or(0.0);
         self.tracking_rms_deg = self.tracking.rms().unwrap_or(0.0);
+        if let Some(f) = self.protection.take() {
+            return DeviceResult::failed(name.to_owned(), f);
+        }
         match self.last_error.take() {
             Some(f) => DeviceResult::failed(
                 name.to_owned(),
@@ -760,6 +946,8 @@ mod tests {
         // Time-aligned: on the simulators' clocks both buses send at each tick's instant.
         assert_eq!(s["skew_ms"]["max"], 0.0, "{s}");
         assert_eq!(s["late_ms"]["max"], 0.0, "{s}");
+        // A free motion with the default protection: no event.
+        assert_eq!(s["protection"], json!([]), "{s}");
         for row in v["results"].as_array().unwrap() {
             assert_eq!(row["commands"], 101, "{row}");
             assert_eq!(row["failed"], 0, "{row}");
@@ -842,5 +1030,154 @@ mod tests {
             assert!(e.to_string().contains(says), "{text:?}: {e}");
             assert_eq!(wck.with_bus(|b| b.servo(4).unwrap().position()), before);
         }
+    }
+
+    /// A WHJ trajectory of j1 and j2 at 50 Hz: j1 0 -> 40° over 2 s, j2 0 -> 20°.
+    const REACH: &str = "time_s,j1,j2\n0,0,0\n2,40,20\n";
+
+    #[test]
+    fn an_obstacle_stops_play_within_the_stall_time_and_names_the_joint() {
+        let (station, _wck, whj) = Station::simulated_with_handles().unwrap();
+        ready_whj(&station);
+        // A stop at 5° in j1's way: j1 reaches it at 0.25 s (20°/s).
+        whj.with_bus(|b| {
+            b.joint_mut(1)
+                .unwrap()
+                .set_obstacle(Some(robobus_sim::whj::Obstacle::above(5.0)));
+        });
+        let request = req(json!({"op": "robot.play", "trajectory": REACH, "rate_hz": 50}));
+        let mut ticks = Ticks::default();
+        let report = run_with(&station, &request, &mut Control::none(), &mut ticks).unwrap();
+        let v = serde_json::to_value(&report).unwrap();
+        let s = &v["summary"];
+        let events = s["protection"].as_array().unwrap();
+        assert_eq!(events.len(), 1, "{s:#}");
+        let stop = &events[0];
+        assert_eq!(stop["joint"], "j1", "{stop}");
+        assert_eq!(stop["action"], "stop", "{stop}");
+        assert_eq!(stop["check"], "stall", "{stop}");
+        assert_eq!(stop["quantity"], "current_a", "{stop}");
+        // The WHJ30's rated current, from the models table.
+        assert_eq!(stop["limit"], 7.8, "{stop}");
+        let at = stop["at_s"].as_f64().unwrap();
+        // The current reaches the stall current 0.21 s after the contact at 0.25 s (the
+        // target 4.2° into the stop), and the stall time (0.3 s) later the run stops: at
+        // the feedback of the tick at 0.76 s.
+        assert!((at - 0.76).abs() < 0.001, "{stop}");
+        assert_eq!(s["ticks"], ticks.0.len(), "{s}");
+        let last = ticks.0.last().unwrap().0;
+        assert!(
+            (last - 0.76).abs() < 1e-9,
+            "the run ended at the stop's tick: {last}"
+        );
+        // The row names the joint, the quantity, the limit and the time; j2 is fine.
+        let rows = v["results"].as_array().unwrap();
+        assert_eq!(rows[0]["id"], "j1");
+        assert_eq!(rows[0]["kind"], "device", "{}", rows[0]);
+        let error = rows[0]["error"].as_str().unwrap();
+        assert!(
+            error.starts_with("j1: stall protection: current ")
+                && error.contains("reached the limit 7.8 A at ")
+                && error.contains("stopped in the safe state"),
+            "{error}"
+        );
+        assert_eq!(rows[1]["id"], "j2");
+        assert_eq!(rows[1]["failed"], 0, "{}", rows[1]);
+        assert_eq!(s["safe_state"][0]["safe_state"], "hold", "{s}");
+        // j1 (a WHJ30: a pin brake) is disabled, no longer pushing into the stop; j2
+        // holds where it is.
+        assert!(
+            error.ends_with(
+                "its drive disabled (its brake holds it: holding would keep it pushing or heating)"
+            ),
+            "{error}"
+        );
+        let j1 = whj.with_bus(|b| b.joint(1).unwrap().state());
+        assert!(!j1.enabled && j1.brake_locked, "{j1:?}");
+        assert!(j1.current_a.abs() < 1e-9, "{j1:?}");
+        let j2 = whj.with_bus(|b| b.joint(2).unwrap().state());
+        assert!(j2.enabled, "{j2:?}");
+    }
+
+    /// Heats joint 1 at given ticks of a run.
+    struct Heat {
+        whj: robobus_sim::whj::WhjSimHandle,
+        at: Vec<(f64, f64)>,
+        ticks: Ticks,
+    }
+
+    impl Interaction for Heat {
+        fn play_tick(&mut self, t: &PlayTick<'_>) -> Result<(), OpError> {
+            for &(when, celsius) in &self.at {
+                if (t.t_s - when).abs() < 1e-9 {
+                    self.whj.with_bus(|b| {
+                        b.joint_mut(1).unwrap().set_winding_temperature(celsius);
+                    });
+                }
+            }
+            self.ticks.play_tick(t)
+        }
+    }
+
+    #[test]
+    fn a_hot_joint_is_derated_then_stopped() {
+        let (station, _wck, whj) = Station::simulated_with_handles().unwrap();
+        ready_whj(&station);
+        // j1 at 60°/s; the temperature is read every 0.25 s.
+        let request = req(json!({
+            "op": "robot.play",
+            "trajectory": "time_s,j1,j2\n0,0,0\n1.5,90,0\n",
+            "rate_hz": 50,
+        }));
+        let mut heat = Heat {
+            whj,
+            at: vec![(0.4, 81.0), (1.2, 86.0)],
+            ticks: Ticks::default(),
+        };
+        let report = run_with(&station, &request, &mut Control::none(), &mut heat).unwrap();
+        let v = serde_json::to_value(&report).unwrap();
+        let events = v["summary"]["protection"].as_array().unwrap().clone();
+        let seen: Vec<(&str, &str, f64, f64)> = events
+            .iter()
+            .map(|e| {
+                (
+                    e["joint"].as_str().unwrap(),
+                    e["action"].as_str().unwrap(),
+                    e["limit"].as_f64().unwrap(),
+                    e["at_s"].as_f64().unwrap(),
+                )
+            })
+            .collect();
+        // The temperature is read every 13 ticks (0.26 s): at 0.52 s (derate, 80 °C) and
+        // at 1.30 s (stop, 85 °C).
+        assert_eq!(seen.len(), 2, "{events:?}");
+        assert_eq!(seen[0].0, "j1");
+        assert_eq!((seen[0].1, seen[0].2), ("derate", 80.0));
+        assert_eq!((seen[1].1, seen[1].2), ("stop", 85.0));
+        assert!((seen[0].3 - 0.52).abs() < 0.001, "{events:?}");
+        assert!((seen[1].3 - 1.30).abs() < 0.001, "{events:?}");
+        assert_eq!(v["results"][0]["kind"], "device", "{v:#}");
+        assert!(
+            v["results"][0]["error"].as_str().unwrap().starts_with(
+                "j1: thermal protection: temperature 86.00 °C reached the limit 85 °C"
+            )
+        );
+        // Before the derating j1 was sent 1.2° a tick (60°/s); after it, at most half its
+        // max_velocity (2 rad/s): 0.5 × 114.59°/s × 0.02 s = 1.146°.
+        let steps: Vec<(f64, f64)> = heat
+            .ticks
+            .0
+            .windows(2)
+            .map(|w| (w[1].0, w[1].1[0] - w[0].1[0]))
+            .collect();
+        let most = 0.5 * 2f64.to_degrees() * 0.02;
+        for &(t, step) in &steps {
+            if t <= 0.52 {
+                assert!((step - 1.2).abs() < 1e-9, "{t}: {step}");
+            } else if t > 0.54 {
+                assert!(step <= most + 1e-9 && step > most - 1e-9, "{t}: {step}");
+            }
+        }
+        assert!((heat.ticks.0.last().unwrap().0 - 1.30).abs() < 1e-9);
     }
 }

@@ -1,0 +1,703 @@
+//! Protection on the host: a joint pushing into an obstacle, hit by something, or running
+//! hot is stopped by robobus, before the joint's own protection trips.
+//!
+//! [`Monitor`] is sans-IO: an operation that moves joints feeds it each joint's readings
+//! with their instants ([`Reading`]: the position it reported, the target it was sent
+//! before, its current, its temperature; a value it did not read is `None` and checks
+//! nothing) and gets back what to do ([`Fault`] with its [`Action`]). Every moving
+//! operation uses this one monitor (`robot.play`, `robot.teleop`, the station's jogs and
+//! followed targets); what it does on [`Action::Stop`] is the operation's one safe stop
+//! (the robot file's `safe_state` through [`SafeState::apply`](super::SafeState::apply)).
+//!
+//! The checks, per joint ([`Limits`]):
+//!
+//! - **stall**: the current stays at or over `stall_current_a` for `stall_time_s` while
+//!   the following error (the distance from where the joint reported itself to its
+//!   target) is at least `stall_error_deg` and does not shrink (by a tenth) meanwhile: a
+//!   joint pushing against something that does not give. A joint holding a load at its
+//!   target (error under `stall_error_deg`) is not stalled.
+//! - **collision**: the current rises by `collision_current_jump_a`, or the following
+//!   error grows by `collision_error_jump_deg`, between two readings at most
+//!   [`JUMP_WINDOW`] apart: a knock.
+//! - **thermal**: the temperature reaches `temperature_warn_c` (a warning),
+//!   `temperature_derate_c` (the joint's speed is held to `derate` of its
+//!   `max_velocity` until it cools 5 K below) and `temperature_stop_c` (stopped).
+//!
+//! The defaults come from the models table ([`robobus_whj::models::PRODUCTS`]): a WHJ
+//! joint's stall current and current jump are its model's rated current, and the
+//! temperatures are 15, 10 and 5 K under the joints' 90 °C over-temperature alarm
+//! ([`WHJ_OVER_TEMPERATURE_C`]). A wCK reply carries no current and no temperature: a
+//! wCK servo is watched for the following-error jump only. The robot file overrides any
+//! of them per joint (`[joints.protection]`, [`Overrides`]) or turns protection off for a
+//! joint or the whole file.
+
+use std::fmt;
+use std::time::{Duration, Instant};
+
+use robobus_whj::units::Model;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+/// The WHJ joints' over-temperature alarm, °C (error bit 0x0008, "90 °C alarm reached").
+pub const WHJ_OVER_TEMPERATURE_C: f64 = 90.0;
+
+/// The longest time between two readings a jump is measured over: readings further apart
+/// are a new start, not a jump.
+pub const JUMP_WINDOW: Duration = Duration::from_millis(100);
+
+/// How far under its derate temperature a derated joint must cool to run at full speed
+/// again, K.
+pub const DERATE_HYSTERESIS_K: f64 = 5.0;
+
+/// The following error at which a joint pushing with a stall current counts as stalled,
+/// by default, degrees.
+pub const DEFAULT_STALL_ERROR_DEG: f64 = 1.0;
+/// How long a stall lasts before the joint is stopped, by default, s.
+pub const DEFAULT_STALL_TIME_S: f64 = 0.3;
+/// The following-error jump between two readings that is a collision, by default,
+/// degrees.
+pub const DEFAULT_COLLISION_ERROR_JUMP_DEG: f64 = 5.0;
+/// The share of its `max_velocity` a derated joint keeps, by default.
+pub const DEFAULT_DERATE: f64 = 0.5;
+
+/// Whether a WHJ joint of `model` may be stopped with its torque off: every product with
+/// that code has a pin brake, which locks when the drive is disabled (WHJ10 is made with
+/// and without one: held, not disabled). A joint stopped for pushing into something, or
+/// for heat, keeps pushing or heating while it holds, so the operation disables it where
+/// it may.
+pub fn torque_off_is_safe(model: Option<Model>) -> bool {
+    let mut products = robobus_whj::models::PRODUCTS
+        .iter()
+        .filter(|p| Some(p.model) == model)
+        .peekable();
+    products.peek().is_some() && products.all(|p| p.pin_brake)
+}
+
+/// One joint's checks (see the [module docs](self)); a `None` limit checks nothing.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, JsonSchema)]
+pub struct Limits {
+    /// The current of a stall, A (its magnitude).
+    pub stall_current_a: Option<f64>,
+    /// How long a stall lasts before the stop, s.
+    pub stall_time_s: f64,
+    /// The least following error of a stall, degrees.
+    pub stall_error_deg: f64,
+    /// A rise of the current between two readings that is a collision, A.
+    pub collision_current_jump_a: Option<f64>,
+    /// A growth of the following error between two readings that is a collision,
+    /// degrees.
+    pub collision_error_jump_deg: Option<f64>,
+    /// The temperature of a warning, °C.
+    pub temperature_warn_c: Option<f64>,
+    /// The temperature from which the joint is derated, °C.
+    pub temperature_derate_c: Option<f64>,
+    /// The temperature of a stop, °C.
+    pub temperature_stop_c: Option<f64>,
+    /// The share of its `max_velocity` a derated joint keeps (0.05..=1).
+    pub derate: f64,
+}
+
+impl Limits {
+    /// Nothing checked (a joint whose protection the robot file turned off).
+    pub const OFF: Self = Self {
+        stall_current_a: None,
+        stall_time_s: DEFAULT_STALL_TIME_S,
+        stall_error_deg: DEFAULT_STALL_ERROR_DEG,
+        collision_current_jump_a: None,
+        collision_error_jump_deg: None,
+        temperature_warn_c: None,
+        temperature_derate_c: None,
+        temperature_stop_c: None,
+        derate: 1.0,
+    };
+
+    /// The defaults of a WHJ joint of `model` (see the [module docs](self)); a model the
+    /// table does not know (`None`, the gripper) is watched for the following-error jump
+    /// and its temperature only.
+    pub fn whj(model: Option<Model>) -> Self {
+        let rated = model.and_then(Model::facts).map(|f| f.rated_current_a);
+        Self {
+            stall_current_a: rated,
+            collision_current_jump_a: rated,
+            collision_error_jump_deg: Some(DEFAULT_COLLISION_ERROR_JUMP_DEG),
+            temperature_warn_c: Some(WHJ_OVER_TEMPERATURE_C - 15.0),
+            temperature_derate_c: Some(WHJ_OVER_TEMPERATURE_C - 10.0),
+            temperature_stop_c: Some(WHJ_OVER_TEMPERATURE_C - 5.0),
+            derate: DEFAULT_DERATE,
+            ..Self::OFF
+        }
+    }
+
+    /// The defaults of a wCK servo: the following-error jump only (its replies carry no
+    /// current and no temperature).
+    pub fn wck() -> Self {
+        Self {
+            collision_error_jump_deg: Some(DEFAULT_COLLISION_ERROR_JUMP_DEG),
+            ..Self::OFF
+        }
+    }
+
+    /// These limits with the robot file's `overrides` for the joint (all of them off
+    /// when it says `enabled = false`).
+    #[must_use]
+    pub fn with(self, overrides: Option<&Overrides>) -> Self {
+        let Some(o) = overrides else { return self };
+        if o.enabled == Some(false) {
+            return Self::OFF;
+        }
+        Self {
+            stall_current_a: o.stall_current_a.or(self.stall_current_a),
+            stall_time_s: o.stall_time_s.unwrap_or(self.stall_time_s),
+            stall_error_deg: o.stall_error_deg.unwrap_or(self.stall_error_deg),
+            collision_current_jump_a: o.collision_current_jump_a.or(self.collision_current_jump_a),
+            collision_error_jump_deg: o.collision_error_jump_deg.or(self.collision_error_jump_deg),
+            temperature_warn_c: o.temperature_warn_c.or(self.temperature_warn_c),
+            temperature_derate_c: o.temperature_derate_c.or(self.temperature_derate_c),
+            temperature_stop_c: o.temperature_stop_c.or(self.temperature_stop_c),
+            derate: o.derate.unwrap_or(self.derate),
+        }
+    }
+}
+
+/// A joint's protection in the robot file (`[joints.protection]`): any of the
+/// [`Limits`] instead of the default, or `enabled = false` to turn the joint's
+/// protection off. Each value is checked ([`Overrides::check`]).
+#[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Overrides {
+    /// `false`: no check on this joint (default true).
+    pub enabled: Option<bool>,
+    /// The current of a stall, A (0.01..=100).
+    pub stall_current_a: Option<f64>,
+    /// How long a stall lasts before the stop, s (0.02..=10).
+    pub stall_time_s: Option<f64>,
+    /// The least following error of a stall, degrees (0.1..=90).
+    pub stall_error_deg: Option<f64>,
+    /// A current rise that is a collision, A (0.01..=100).
+    pub collision_current_jump_a: Option<f64>,
+    /// A following-error growth that is a collision, degrees (0.1..=90).
+    pub collision_error_jump_deg: Option<f64>,
+    /// The temperature of a warning, °C (20..=150).
+    pub temperature_warn_c: Option<f64>,
+    /// The temperature from which the joint is derated, °C (20..=150).
+    pub temperature_derate_c: Option<f64>,
+    /// The temperature of a stop, °C (20..=150).
+    pub temperature_stop_c: Option<f64>,
+    /// The share of its `max_velocity` a derated joint keeps (0.05..=1).
+    pub derate: Option<f64>,
+}
+
+impl Overrides {
+    /// Each value's range, by the field's name.
+    pub const RANGES: [(&'static str, f64, f64, &'static str); 9] = [
+        ("stall_current_a", 0.01, 100.0, "A"),
+        ("stall_time_s", 0.02, 10.0, "s"),
+        ("stall_error_deg", 0.1, 90.0, "°"),
+        ("collision_current_jump_a", 0.01, 100.0, "A"),
+        ("collision_error_jump_deg", 0.1, 90.0, "°"),
+        ("temperature_warn_c", 20.0, 150.0, "°C"),
+        ("temperature_derate_c", 20.0, 150.0, "°C"),
+        ("temperature_stop_c", 20.0, 150.0, "°C"),
+        ("derate", 0.05, 1.0, ""),
+    ];
+
+    fn values(&self) -> [Option<f64>; 9] {
+        [
+            self.stall_current_a,
+            self.stall_time_s,
+            self.stall_error_deg,
+            self.collision_current_jump_a,
+            self.collision_error_jump_deg,
+            self.temperature_warn_c,
+            self.temperature_derate_c,
+            self.temperature_stop_c,
+            self.derate,
+        ]
+    }
+
+    /// Checks every value against its range, and that the temperatures of the limits
+    /// `with` these overrides rise from warning to derating to stop. The error is the
+    /// field, the value and what is allowed.
+    pub fn check(&self, with: Limits) -> Result<(), (&'static str, String, String)> {
+        for ((field, lo, hi, unit), v) in Self::RANGES.iter().zip(self.values()) {
+            if let Some(v) = v
+                && !(v.is_finite() && (*lo..=*hi).contains(&v))
+            {
+                return Err((field, v.to_string(), format!("{lo}..={hi} {unit}")));
+            }
+        }
+        let l = with.with(Some(self));
+        let temps = [
+            ("temperature_warn_c", l.temperature_warn_c),
+            ("temperature_derate_c", l.temperature_derate_c),
+            ("temperature_stop_c", l.temperature_stop_c),
+        ];
+        for pair in temps.windows(2) {
+            if let [(low_name, Some(low)), (name, Some(high))] = pair
+                && high < low
+            {
+                return Err((
+                    name,
+                    high.to_string(),
+                    format!("at least {low_name} ({low} °C): warning <= derating <= stop"),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Which check found a fault.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum Check {
+    /// A joint pushing against something that does not give.
+    Stall,
+    /// A jump of the current or of the following error.
+    Collision,
+    /// The temperature.
+    Thermal,
+}
+
+/// What a fault makes the operation do.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum Action {
+    /// Go on; the fault is reported.
+    Warn,
+    /// Go on with the joint's speed held to its `derate` share.
+    Derate,
+    /// Stop every joint of the operation in its safe state.
+    Stop,
+}
+
+/// A protection event: which joint, what was measured against which limit, when, and
+/// what it made the operation do.
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
+pub struct Fault {
+    /// The joint, by its name in the robot file.
+    pub joint: String,
+    /// The check.
+    pub check: Check,
+    /// The quantity measured: `current_a`, `current_jump_a`, `following_error_jump_deg`
+    /// or `temperature_c`.
+    pub quantity: &'static str,
+    /// Its value.
+    pub value: f64,
+    /// The limit it reached.
+    pub limit: f64,
+    /// When, s since the operation's start.
+    pub at_s: f64,
+    /// What it made the operation do.
+    pub action: Action,
+}
+
+impl fmt::Display for Fault {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let (what, unit) = match self.quantity {
+            "current_a" => ("current", "A"),
+            "current_jump_a" => ("current jump", "A"),
+            "following_error_jump_deg" => ("following-error jump", "°"),
+            _ => ("temperature", "°C"),
+        };
+        let check = match self.check {
+            Check::Stall => "stall",
+            Check::Collision => "collision",
+            Check::Thermal => "thermal",
+        };
+        let action = match self.action {
+            Action::Warn => "warning",
+            Action::Derate => "derated",
+            Action::Stop => "stopped in the safe state",
+        };
+        write!(
+            f,
+            "{joint}: {check} protection: {what} {value:.2} {unit} reached the limit {limit} \
+             {unit} at {at:.3} s; {action}",
+            joint = self.joint,
+            value = self.value,
+            limit = self.limit,
+            at = self.at_s,
+        )?;
+        if self.check == Check::Stall {
+            write!(f, " (the following error did not shrink meanwhile)")?;
+        }
+        Ok(())
+    }
+}
+
+/// One joint's readings at an instant; `None`: not read (that check waits).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Reading {
+    /// When it was read.
+    pub at: Instant,
+    /// The following error: the distance from where the joint reported itself to the
+    /// target it was sent before, degrees.
+    pub error_deg: Option<f64>,
+    /// The current, A.
+    pub current_a: Option<f64>,
+    /// The temperature, °C.
+    pub temperature_c: Option<f64>,
+}
+
+impl Reading {
+    /// A reading at `at` with nothing read yet.
+    pub const fn at(at: Instant) -> Self {
+        Self {
+            at,
+            error_deg: None,
+            current_a: None,
+            temperature_c: None,
+        }
+    }
+}
+
+/// What the monitor keeps of one joint.
+#[derive(Debug, Clone)]
+struct Watch {
+    name: String,
+    limits: Limits,
+    /// The last current and following error, with their instants.
+    last_current: Option<(Instant, f64)>,
+    last_error: Option<(Instant, f64)>,
+    /// A stall under way: since when, and the following error it started with.
+    stall: Option<(Instant, f64)>,
+    /// The thermal action in force (`None`: below the warning).
+    thermal: Option<Action>,
+    stopped: bool,
+}
+
+/// The protection of an operation's joints (see the [module docs](self)).
+#[derive(Debug, Clone)]
+pub struct Monitor {
+    start: Instant,
+    joints: Vec<Watch>,
+}
+
+impl Monitor {
+    /// A monitor of `joints` (name and limits, by the operation's index), started at
+    /// `start` (faults give their time since then).
+    pub fn new(start: Instant, joints: Vec<(String, Limits)>) -> Self {
+        Self {
+            start,
+            joints: joints
+                .into_iter()
+                .map(|(name, limits)| Watch {
+                    name,
+                    limits,
+                    last_current: None,
+                    last_error: None,
+                    stall: None,
+                    thermal: None,
+                    stopped: false,
+                })
+                .collect(),
+        }
+    }
+
+    /// The limits of joint `index`.
+    pub fn limits(&self, index: usize) -> Option<&Limits> {
+        self.joints.get(index).map(|w| &w.limits)
+    }
+
+    /// The share of its speed joint `index` keeps: its `derate` while derated, else 1.
+    pub fn speed_share(&self, index: usize) -> f64 {
+        self.joints.get(index).map_or(1.0, |w| {
+            if w.thermal >= Some(Action::Derate) {
+                w.limits.derate
+            } else {
+                1.0
+            }
+        })
+    }
+
+    /// Feeds joint `index`'s reading: the new events it makes, the most severe first
+    /// (none past a stop, which is reported once; nothing for an index past the joints).
+    pub fn feed(&mut self, index: usize, r: &Reading) -> Vec<Fault> {
+        let start = self.start;
+        let Some(w) = self.joints.get_mut(index) else {
+            return Vec::new();
+        };
+        if w.stopped {
+            return Vec::new();
+        }
+        let at_s = r.at.saturating_duration_since(start).as_secs_f64();
+        let mut out = Vec::new();
+        let fault = |check, quantity, value: f64, limit: f64, action| Fault {
+            joint: w.name.clone(),
+            check,
+            quantity,
+            value,
+            limit,
+            at_s,
+            action,
+        };
+        let l = w.limits;
+        let within = |before: Option<(Instant, f64)>| {
+            before.filter(|(t, _)| r.at.saturating_duration_since(*t) <= JUMP_WINDOW)
+        };
+        // Collision: a jump of the current or of the following error.
+        if let (Some(i), Some(jump)) = (r.current_a, l.collision_current_jump_a)
+            && let Some((_, before)) = within(w.last_current)
+            && i.abs() - before.abs() >= jump
+        {
+            out.push(fault(
+                Check::Collision,
+                "current_jump_a",
+                i.abs() - before.abs(),
+                jump,
+                Action::Stop,
+            ));
+        }
+        if let (Some(e), Some(jump)) = (r.error_deg, l.collision_error_jump_deg)
+            && let Some((_, before)) = within(w.last_error)
+            && e.abs() - before.abs() >= jump
+        {
+            out.push(fault(
+                Check::Collision,
+                "following_error_jump_deg",
+                e.abs() - before.abs(),
+                jump,
+                Action::Stop,
+            ));
+        }
+        // Stall: a high current while the following error does not shrink.
+        match (r.current_a, r.error_deg, l.stall_current_a) {
+            (Some(i), Some(e), Some(stall)) if i.abs() >= stall && e.abs() >= l.stall_error_deg => {
+                match w.stall {
+                    Some((_, e0)) if e.abs() < 0.9 * e0 => w.stall = Some((r.at, e.abs())),
+                    Some((since, _)) => {
+                        let held = r.at.saturating_duration_since(since).as_secs_f64();
+                        if held >= l.stall_time_s {
+                            out.push(fault(
+                                Check::Stall,
+                                "current_a",
+                                i.abs(),
+                                stall,
+                                Action::Stop,
+                            ));
+                        }
+                    }
+                    None => w.stall = Some((r.at, e.abs())),
+                }
+            }
+            (Some(_), Some(_), _) => w.stall = None,
+            _ => {}
+        }
+        // Thermal: warning, derating, stop; derating ends 5 K under its temperature.
+        if let Some(t) = r.temperature_c {
+            let levels = [
+                (l.temperature_stop_c, Action::Stop),
+                (l.temperature_derate_c, Action::Derate),
+                (l.temperature_warn_c, Action::Warn),
+            ];
+            let reached = levels
+                .iter()
+                .find(|(limit, _)| limit.is_some_and(|c| t >= c))
+                .map(|&(limit, a)| (limit.unwrap_or(t), a));
+            match reached {
+                Some((limit, a)) if Some(a) > w.thermal => {
+                    w.thermal = Some(a);
+                    out.push(fault(Check::Thermal, "temperature_c", t, limit, a));
+                }
+                _ => {
+                    let cool = |c: Option<f64>| c.is_some_and(|c| t < c - DERATE_HYSTERESIS_K);
+                    if w.thermal == Some(Action::Derate) && cool(l.temperature_derate_c) {
+                        w.thermal = if cool(l.temperature_warn_c) {
+                            None
+                        } else {
+                            Some(Action::Warn)
+                        };
+                    } else if w.thermal == Some(Action::Warn) && cool(l.temperature_warn_c) {
+                        w.thermal = None;
+                    }
+                }
+            }
+        }
+        if let Some(i) = r.current_a {
+            w.last_current = Some((r.at, i));
+        }
+        if let Some(e) = r.error_deg {
+            w.last_error = Some((r.at, e));
+        }
+        out.sort_by(|a, b| b.action.cmp(&a.action));
+        if out.first().is_some_and(|f| f.action == Action::Stop) {
+            w.stopped = true;
+            out.truncate(1);
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+
+    use super::*;
+
+    const MS: Duration = Duration::from_millis(1);
+
+    fn reading(at: Instant, error: f64, current: f64) -> Reading {
+        Reading {
+            at,
+            error_deg: Some(error),
+            current_a: Some(current),
+            temperature_c: None,
+        }
+    }
+
+    fn whj30() -> Limits {
+        Limits::whj(Some(Model::Joint30))
+    }
+
+    #[test]
+    fn the_defaults_come_from_the_models_table() {
+        let l = whj30();
+        assert_eq!(l.stall_current_a, Some(7.8));
+        assert_eq!(l.collision_current_jump_a, Some(7.8));
+        assert_eq!(
+            (
+                l.temperature_warn_c,
+                l.temperature_derate_c,
+                l.temperature_stop_c
+            ),
+            (Some(75.0), Some(80.0), Some(85.0))
+        );
+        assert_eq!(
+            Limits::whj(Some(Model::Joint60)).stall_current_a,
+            Some(12.0)
+        );
+        assert_eq!(Limits::wck().stall_current_a, None);
+        assert!(torque_off_is_safe(Some(Model::Joint30)));
+        assert!(!torque_off_is_safe(Some(Model::Joint10)));
+        assert!(!torque_off_is_safe(None));
+    }
+
+    #[test]
+    fn a_stall_stops_after_its_time_and_not_before() {
+        let t0 = Instant::now();
+        let mut m = Monitor::new(t0, vec![("j1".into(), whj30())]);
+        // 8 A against 6° of error, a reading every 20 ms, rising slowly (no jump).
+        for k in 0..15u32 {
+            let f = m.feed(
+                0,
+                &reading(t0 + 20 * MS * k, 6.0, 8.0 + 0.01 * f64::from(k)),
+            );
+            assert!(f.is_empty(), "{k}: {f:?}");
+        }
+        let f = m.feed(0, &reading(t0 + 300 * MS, 6.0, 8.2));
+        assert_eq!(f.len(), 1, "{f:?}");
+        assert_eq!((f[0].check, f[0].action), (Check::Stall, Action::Stop));
+        assert_eq!((f[0].quantity, f[0].limit), ("current_a", 7.8));
+        assert!((f[0].at_s - 0.3).abs() < 1e-9);
+        assert!(
+            f[0].to_string()
+                .starts_with("j1: stall protection: current 8.20 A")
+        );
+        // Reported once.
+        assert!(m.feed(0, &reading(t0 + 320 * MS, 6.0, 8.2)).is_empty());
+    }
+
+    #[test]
+    fn a_shrinking_error_or_a_small_one_is_no_stall() {
+        let t0 = Instant::now();
+        let mut m = Monitor::new(t0, vec![("j1".into(), whj30())]);
+        // High current, the error shrinking by a tenth every 100 ms: accelerating a load.
+        let mut e = 8.0;
+        for k in 0..50u32 {
+            if k % 5 == 0 {
+                e *= 0.85;
+            }
+            assert!(
+                m.feed(0, &reading(t0 + 20 * MS * k, e, 9.0)).is_empty(),
+                "{k}"
+            );
+        }
+        // Holding a load at the target: high current, error under 1°.
+        let mut m = Monitor::new(t0, vec![("j1".into(), whj30())]);
+        for k in 0..100u32 {
+            assert!(
+                m.feed(0, &reading(t0 + 20 * MS * k, 0.5, 9.0)).is_empty(),
+                "{k}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_jump_of_the_current_or_the_error_is_a_collision() {
+        let t0 = Instant::now();
+        let mut m = Monitor::new(t0, vec![("j1".into(), whj30())]);
+        assert!(m.feed(0, &reading(t0, 1.0, 1.0)).is_empty());
+        let f = m.feed(0, &reading(t0 + 20 * MS, 1.5, 9.0));
+        assert_eq!(
+            (f[0].check, f[0].quantity),
+            (Check::Collision, "current_jump_a")
+        );
+        assert!((f[0].value - 8.0).abs() < 1e-9);
+        let mut m = Monitor::new(t0, vec![("j1".into(), whj30())]);
+        assert!(m.feed(0, &reading(t0, 1.0, 1.0)).is_empty());
+        let f = m.feed(0, &reading(t0 + 20 * MS, 6.5, 1.0));
+        assert_eq!(f[0].quantity, "following_error_jump_deg");
+        // The same change over more than the jump window is no jump.
+        let mut m = Monitor::new(t0, vec![("j1".into(), whj30())]);
+        assert!(m.feed(0, &reading(t0, 1.0, 1.0)).is_empty());
+        assert!(m.feed(0, &reading(t0 + 101 * MS, 6.5, 1.0)).is_empty());
+    }
+
+    #[test]
+    fn heat_warns_derates_and_stops_and_derating_ends_when_it_cools() {
+        let t0 = Instant::now();
+        let mut m = Monitor::new(t0, vec![("j1".into(), whj30())]);
+        let hot = |c: f64, k: u32| Reading {
+            temperature_c: Some(c),
+            ..Reading::at(t0 + 100 * MS * k)
+        };
+        assert!(m.feed(0, &hot(74.9, 0)).is_empty());
+        assert_eq!(m.feed(0, &hot(75.0, 1))[0].action, Action::Warn);
+        assert!(m.feed(0, &hot(76.0, 2)).is_empty());
+        let f = m.feed(0, &hot(80.5, 3));
+        assert_eq!((f[0].action, f[0].limit), (Action::Derate, 80.0));
+        assert!((m.speed_share(0) - 0.5).abs() < 1e-12);
+        // Cooling 5 K under the derating temperature ends it.
+        assert!(m.feed(0, &hot(75.5, 4)).is_empty());
+        assert!((m.speed_share(0) - 0.5).abs() < 1e-12);
+        assert!(m.feed(0, &hot(74.9, 5)).is_empty());
+        assert!((m.speed_share(0) - 1.0).abs() < 1e-12);
+        assert_eq!(m.feed(0, &hot(81.0, 6))[0].action, Action::Derate);
+        let f = m.feed(0, &hot(85.0, 7));
+        assert_eq!((f[0].action, f[0].check), (Action::Stop, Check::Thermal));
+        assert_eq!(
+            f[0].to_string(),
+            "j1: thermal protection: temperature 85.00 °C reached the limit 85 °C at 0.700 s; \
+             stopped in the safe state"
+        );
+    }
+
+    #[test]
+    fn overrides_replace_the_defaults_and_are_checked() {
+        let o = Overrides {
+            stall_current_a: Some(3.0),
+            temperature_stop_c: Some(70.0),
+            ..Overrides::default()
+        };
+        // 70 °C under the default derating temperature (80): refused.
+        let e = o.check(whj30()).unwrap_err();
+        assert_eq!(e.0, "temperature_stop_c");
+        let o = Overrides {
+            stall_current_a: Some(3.0),
+            ..Overrides::default()
+        };
+        o.check(whj30()).unwrap();
+        assert_eq!(whj30().with(Some(&o)).stall_current_a, Some(3.0));
+        let bad = Overrides {
+            stall_time_s: Some(f64::NAN),
+            ..Overrides::default()
+        };
+        assert_eq!(bad.check(whj30()).unwrap_err().2, "0.02..=10 s");
+        let off = Overrides {
+            enabled: Some(false),
+            ..Overrides::default()
+        };
+        assert_eq!(whj30().with(Some(&off)), Limits::OFF);
+    }
+}
