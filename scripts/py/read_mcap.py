@@ -41,6 +41,8 @@ def main(path: str) -> None:
                 "position": list(decoded.position),
                 # A velocity that was not measured is NaN in the message, null here.
                 "velocity": [None if math.isnan(v) else v for v in decoded.velocity],
+                # An effort without an estimate (a wCK servo's) is NaN too: null here.
+                "effort": [None if math.isnan(e) else e for e in decoded.effort],
             }
             for _schema, _channel, message, decoded in reader.iter_decoded_messages(
                 topics=["/joint_states"]

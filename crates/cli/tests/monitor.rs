@@ -29,7 +29,7 @@ fn monitor_records_the_simulated_arm_to_csv_and_stops_by_itself() {
     // One plain line per second, naming the joints.
     assert!(r.stdout.lines().count() >= 2, "{}", r.stdout);
     assert!(
-        r.stdout.contains("J1") && r.stdout.contains("J3"),
+        r.stdout.contains("j1") && r.stdout.contains("j3"),
         "{}",
         r.stdout
     );
@@ -147,6 +147,18 @@ fn monitor_records_mcap_that_plot_and_pythons_mcap_reader_read_back() {
             .filter(|c| c["stale"] == false)
             .collect();
         assert_eq!(js["name"].as_array().unwrap().len(), fresh.len());
+        // The joints as the bridge names them, each with the torque the bridge would
+        // estimate from its current (the simulated WHJ30's torque constant), never NaN.
+        assert_eq!(js["effort"].as_array().unwrap().len(), fresh.len(), "{js}");
+        for (name, effort) in js["name"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .zip(js["effort"].as_array().unwrap())
+        {
+            assert!(name == "j1" || name == "j2", "{js}");
+            assert!(effort.is_f64(), "{js}");
+        }
         for (i, c) in fresh.iter().enumerate() {
             assert_eq!(js["name"][i], c["name"]);
             let radians = js["position"][i].as_f64().unwrap();

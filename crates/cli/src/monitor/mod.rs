@@ -483,7 +483,7 @@ fn run_sim(args: &Args, out: Output) -> anyhow::Result<()> {
     let d = dashboard(
         format!("simulated WHJ30 arm, joints {}", ids_text(&joints)),
         "current mA",
-        SampleTable::whj(&joints),
+        SampleTable::whj(&joints).with_torque_constants(&arm.torque_constants()),
         args,
     );
     // Dropping the arm disables its joints and stops the simulator.

@@ -110,7 +110,7 @@ fn a_silent_device_is_marked_stale_and_exits_3() {
     // Exit code 3 at the end.
     let e = silent(&d).unwrap_err();
     assert_eq!(crate::exit::Exit::of(&e), crate::exit::Exit::Timeout);
-    assert!(e.to_string().contains("J2 (1 of 2 samples missing)"), "{e}");
+    assert!(e.to_string().contains("j2 (1 of 2 samples missing)"), "{e}");
 }
 
 #[test]
