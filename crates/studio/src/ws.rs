@@ -1,6 +1,9 @@
 //! The WebSocket `/api/ws`: control, arming and the heartbeat (the library's [`Guard`]),
 //! telemetry streams decimated to the page's frame rate, long runs with their progress,
-//! and jogs. One JSON object per message (`docs/studio.md` lists them).
+//! and jogs. One JSON object per message (`docs/studio.md` lists them). A page's stream
+//! is a subscription to the station's one sampling of that bus
+//! ([`Station::telemetry`](robobus::station::Station::telemetry)): any number of pages
+//! and plots on a bus cost it one sampling.
 //!
 //! [`Guard`]: robobus::frontend::guard::Guard
 
@@ -13,7 +16,7 @@ use axum::extract::State;
 use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
 use axum::response::Response;
 use robobus::catalogue::Family;
-use robobus::catalogue::telemetry::{RecvError, Telemetry};
+use robobus::catalogue::telemetry::RecvError;
 use robobus::frontend::{Arming, parse};
 use robobus::ops::{OpError, StopToken};
 use robobus::station::jog::JogRequest;
@@ -151,10 +154,10 @@ struct Going {
 /// How often a stream's forwarder looks whether it was stopped, at the latest.
 const STOP_POLL: Duration = Duration::from_millis(50);
 
-/// One telemetry stream of a page: the flag that stops the thread which samples and
-/// forwards it. Dropping it never waits (it runs on the server's one runtime thread):
-/// the thread sees the flag within [`STOP_POLL`] and ends on its own, stopping its
-/// sampler there.
+/// One telemetry stream of a page: the flag that stops the thread which forwards its
+/// subscription. Dropping it never waits (it runs on the server's one runtime thread):
+/// the thread sees the flag within [`STOP_POLL`] and ends on its own, leaving the bus's
+/// sampling there (the last subscriber to leave stops it).
 struct Stream {
     stop: Arc<AtomicBool>,
 }
@@ -514,8 +517,8 @@ fn resubscribe(
     Ok(())
 }
 
-/// Starts a telemetry stream and its forwarder: the latest sample at most `fps` times a
-/// second, with how many were skipped since the previous one.
+/// Subscribes to the bus's shared sampling and starts the forwarder: the latest sample
+/// at most `fps` times a second, with how many were skipped since the previous one.
 fn subscribe(
     app: &Arc<App>,
     name: &str,
@@ -529,8 +532,7 @@ fn subscribe(
     if !(1.0..=120.0).contains(&fps) {
         return Err(OpError::invalid("fps", fps, "allowed: 1..=120"));
     }
-    let telemetry = Telemetry::start(&app.station, request, rate_hz, None)?;
-    let sub = telemetry.subscribe(64)?;
+    let sub = app.station.telemetry(request, rate_hz, 64)?;
     let stop = Arc::new(AtomicBool::new(false));
     let flag = Arc::clone(&stop);
     let name = name.to_owned();
@@ -538,7 +540,6 @@ fn subscribe(
     std::thread::Builder::new()
         .name("studio-stream".into())
         .spawn(move || {
-            let _telemetry = telemetry;
             let mut next = Instant::now();
             let mut latest = None;
             let mut skipped = 0u64;

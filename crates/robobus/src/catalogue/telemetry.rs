@@ -1,7 +1,49 @@
-//! The telemetry stream: one sampler per bus that runs a reading request (`wck.sample`,
+//! The telemetry stream: a sampler that runs a reading request (`wck.sample`,
 //! `wck.status`, `whj.sample` with or without `broadcast`, `whj.status`, or `robot.sample`:
 //! a robot file's joints in joint units across its buses) on a [`Station`]
 //! at a chosen rate and hands every sample to any number of subscribers.
+//!
+//! # One sampler per bus, shared: [`Station::telemetry`]
+//!
+//! Every reader of a bus (a studio page, the bridge, Python, the monitor, a recording)
+//! asks the station, not a stream of its own:
+//!
+//! ```no_run
+//! # use std::sync::Arc;
+//! # use std::time::Duration;
+//! # use robobus::catalogue::{Request, whj};
+//! # fn demo(station: Arc<robobus::station::Station>) -> Result<(), robobus::ops::OpError> {
+//! let request = Request::WhjSample(whj::Sample {
+//!     bus: None,
+//!     joints: "1-3".into(),
+//!     broadcast: false,
+//! });
+//! let sub = station.telemetry(request, 100.0, 64)?; // rate_hz, queue capacity
+//! while let Ok(d) = sub.recv_timeout(Duration::from_secs(1)) {
+//!     // d.sample.report: joints 1..=3 only; d.lost: samples this subscriber lost
+//!     // (its queue was full); d.sample.sampled_by: how the bus was read.
+//! }
+//! drop(sub); // the last subscription gone, the bus is no longer sampled
+//! # Ok(()) }
+//! ```
+//!
+//! The station keeps one sampling per bus and kind of reading: every `whj.sample`
+//! subscription of a bus shares one, which reads the union of the joints its subscribers
+//! asked for (`broadcast` if any of them asked for it) at the highest rate any of them
+//! asked; so does every `wck.sample` of a wCK bus, and `robot.sample`. Any other reading
+//! request (`wck.status`, `whj.status`, `whj.can-health`) is shared by the subscriptions
+//! that ask for exactly the same request. Each [`Subscription`] gets its own devices' rows
+//! only, at its own rate (the sampling's samples decimated: at most one per period of its
+//! own rate, each the latest there was), in its own bounded queue with its own lost count
+//! and sequence numbers (`seq` 0, 1, 2, ... of the samples it was given or lost). A second
+//! subscriber costs the bus nothing; a subscriber that asks for more devices or a higher
+//! rate changes the sampling from its next sample on; the last subscription dropped (or
+//! [`Subscription::close`]d) stops the sampling. A sample of WHJ joints says how the bus
+//! was read ([`Sample::sampled_by`]: pipelined requests, the broadcast status, the cyclic
+//! loop's feedback; see [`sample_whj`](crate::station::sampler::sample_whj)).
+//!
+//! [`Telemetry`] is a sampler of its own, for a caller that wants one whatever else reads
+//! the bus (and a `limit` of samples).
 //!
 //! Each subscriber has its own bounded queue. A subscriber that does not keep up loses
 //! its *oldest* samples, and the next [`Delivery`] says how many it lost; the sampler
@@ -13,7 +55,7 @@
 //! and no report. The sampler stops when the [`Telemetry`] is stopped or dropped, or after
 //! its `limit` of samples; subscribers then get what is queued, then the end.
 
-use std::collections::VecDeque;
+use std::collections::{BTreeSet, VecDeque};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard, Weak};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant, SystemTime};
@@ -23,6 +65,7 @@ use serde::Serialize;
 use super::{Report, Request, kind_name};
 use crate::ops::{Control, OpError, StopToken};
 use crate::station::Station;
+use crate::station::sampler::{SampledBy, sample_whj};
 
 /// Sampling rates a stream takes, Hz.
 pub const RATE_HZ: std::ops::RangeInclusive<f64> = 0.1..=1000.0;
@@ -47,6 +90,10 @@ pub struct Sample {
     /// reading in this stream (`null` until it has two).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub report: Option<Report>,
+    /// How the bus was read for it, where the request says (`whj.sample`: `pipelined`,
+    /// `one-by-one`, `broadcast` or `cyclic`; `wck.sample`: `status-reads`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sampled_by: Option<SampledBy>,
     /// The kind of the failure, if the read failed as a whole (a frame that could not be
     /// sent, a link that went away): the [`ErrorKind`](crate::ErrorKind) name.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -99,10 +146,41 @@ struct Queue {
 }
 
 impl Queue {
+    fn new(capacity: usize) -> Self {
+        Self {
+            state: Mutex::new(QueueState {
+                buf: VecDeque::with_capacity(capacity.min(1024)),
+                capacity,
+                lost_since: 0,
+                lost_total: 0,
+                ended: false,
+            }),
+            ready: Condvar::new(),
+        }
+    }
+
     fn lock(&self) -> MutexGuard<'_, QueueState> {
         self.state
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
+    /// Queues `sample`, losing the oldest one when full.
+    fn push(&self, sample: Arc<Sample>) {
+        let mut s = self.lock();
+        if s.buf.len() >= s.capacity {
+            s.buf.pop_front();
+            s.lost_since += 1;
+            s.lost_total += 1;
+        }
+        s.buf.push_back(sample);
+        drop(s);
+        self.ready.notify_one();
+    }
+
+    fn end(&self) {
+        self.lock().ended = true;
+        self.ready.notify_all();
     }
 }
 
@@ -185,15 +263,7 @@ impl Hub {
         let mut subs = self.lock();
         subs.0.retain(|w| w.strong_count() > 0);
         for q in subs.0.iter().filter_map(Weak::upgrade) {
-            let mut s = q.lock();
-            if s.buf.len() >= s.capacity {
-                s.buf.pop_front();
-                s.lost_since += 1;
-                s.lost_total += 1;
-            }
-            s.buf.push_back(Arc::clone(sample));
-            drop(s);
-            q.ready.notify_one();
+            q.push(Arc::clone(sample));
         }
     }
 
@@ -252,61 +322,15 @@ impl Telemetry {
         rate_hz: f64,
         limit: Option<u64>,
     ) -> Result<Self, OpError> {
-        if !matches!(
-            request,
-            Request::WckSample(_)
-                | Request::WckStatus(_)
-                | Request::WhjSample(_)
-                | Request::WhjStatus(_)
-                | Request::WhjCanHealth(_)
-                | Request::RobotSample(_)
-        ) {
-            return Err(OpError::invalid(
-                "request",
-                request.op(),
-                "a telemetry stream takes a reading request only (wck.sample, wck.status, \
-                 whj.sample, whj.status, whj.can-health, robot.sample)",
-            ));
-        }
-        if !(rate_hz.is_finite() && RATE_HZ.contains(&rate_hz)) {
-            return Err(OpError::invalid(
-                "rate_hz",
-                rate_hz,
-                format!(
-                    "out of range (allowed: {}..={} Hz)",
-                    RATE_HZ.start(),
-                    RATE_HZ.end()
-                ),
-            ));
-        }
-        super::validate(&request)?;
-        // The bus it names must be there now, not at the first read.
-        match request.family() {
-            super::Family::Wck => drop(station.wck(request.bus())?),
-            super::Family::Whj => drop(station.whj(request.bus())?),
-            // Not a reading request: refused above.
-            super::Family::Host => {}
-            super::Family::Robot => {
-                if station.robot().is_none() {
-                    return Err(OpError::invalid(
-                        "robot",
-                        "(none)",
-                        "the station has no robot file (open it with --robot FILE.toml)",
-                    ));
-                }
-            }
-        }
+        let reading = check_stream(station, &request, rate_hz)?;
+        let devices = devices_of(&request)?.unwrap_or_default();
         let hub = Arc::new(Hub::default());
         let stop = StopToken::new();
         let (go, gate) = std::sync::mpsc::sync_channel::<()>(1);
         let period = Duration::from_secs_f64(1.0 / rate_hz);
         let thread = {
-            let (hub, stop, station, request) = (
-                Arc::clone(&hub),
-                stop.clone(),
-                Arc::clone(station),
-                request.clone(),
-            );
+            let (hub, stop, station) = (Arc::clone(&hub), stop.clone(), Arc::clone(station));
+            let broadcast = matches!(&request, Request::WhjSample(r) if r.broadcast);
             std::thread::Builder::new()
                 .name("robobus-telemetry".into())
                 .spawn(move || {
@@ -315,7 +339,13 @@ impl Telemetry {
                         hub.end();
                         return StreamStats::default();
                     }
-                    sample_loop(&hub, &stop, &station, &request, period, limit)
+                    let taking = Taking {
+                        station: &station,
+                        reading: &reading,
+                        devices: &devices,
+                        broadcast,
+                    };
+                    sample_loop(&hub, &stop, &taking, period, limit)
                 })
                 .map_err(|e| OpError::Device(format!("starting the telemetry thread: {e}")))?
         };
@@ -331,23 +361,8 @@ impl Telemetry {
     /// A new subscriber with room for `capacity` samples (1..=[`MAX_QUEUE`]); it gets
     /// every sample taken from now on.
     pub fn subscribe(&self, capacity: usize) -> Result<Subscriber, OpError> {
-        if !(1..=MAX_QUEUE).contains(&capacity) {
-            return Err(OpError::invalid(
-                "capacity",
-                capacity,
-                format!("out of range (allowed: 1..={MAX_QUEUE} samples)"),
-            ));
-        }
-        let queue = Arc::new(Queue {
-            state: Mutex::new(QueueState {
-                buf: VecDeque::with_capacity(capacity.min(1024)),
-                capacity,
-                lost_since: 0,
-                lost_total: 0,
-                ended: false,
-            }),
-            ready: Condvar::new(),
-        });
+        check_capacity(capacity)?;
+        let queue = Arc::new(Queue::new(capacity));
         let mut subs = self.hub.lock();
         queue.lock().ended = subs.1;
         subs.0.push(Arc::downgrade(&queue));
@@ -406,49 +421,62 @@ impl Drop for Telemetry {
     }
 }
 
+/// One read of a stream's devices, timed and checked, as a sample (its `seq` 0).
+fn take_sample(
+    taking: &Taking<'_>,
+    stop: &StopToken,
+    speeds: Option<&mut Speeds>,
+    late: bool,
+    stats: &mut StreamStats,
+) -> Sample {
+    let start = Instant::now();
+    let (outcome, sampled_by) = taking.take(&mut Control::new(stop));
+    let done = Instant::now();
+    let unix_ms = SystemTime::now()
+        .duration_since(SystemTime::UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64() * 1e3);
+    let (report, failed, error) = match outcome {
+        Ok(mut r) => {
+            if let Some(speeds) = speeds {
+                speeds.fill(&mut r, done);
+            }
+            (Some(r), None, None)
+        }
+        Err(e) => {
+            stats.failed += 1;
+            (None, Some(kind_name(e.kind())), Some(e.to_string()))
+        }
+    };
+    stats.samples += 1;
+    stats.late += u64::from(late);
+    Sample {
+        seq: 0,
+        unix_ms,
+        read_ms: done.saturating_duration_since(start).as_secs_f64() * 1e3,
+        late,
+        report,
+        sampled_by,
+        failed,
+        error,
+        at: Some(done),
+    }
+}
+
 fn sample_loop(
     hub: &Hub,
     stop: &StopToken,
-    station: &Station,
-    request: &Request,
+    taking: &Taking<'_>,
     period: Duration,
     limit: Option<u64>,
 ) -> StreamStats {
     let mut stats = StreamStats::default();
-    let mut speeds = matches!(request, Request::WckSample(_)).then(Speeds::default);
+    let mut speeds = matches!(taking.reading, Reading::Wck { .. }).then(Speeds::default);
     let mut slot = Instant::now();
     while !stop.is_stopped() && limit.is_none_or(|n| stats.samples < n) {
-        let start = Instant::now();
-        let late = start.saturating_duration_since(slot) > period;
-        let outcome = super::run(station, request, &mut Control::new(stop));
-        let done = Instant::now();
-        let unix_ms = SystemTime::now()
-            .duration_since(SystemTime::UNIX_EPOCH)
-            .map_or(0.0, |d| d.as_secs_f64() * 1e3);
-        let (report, failed, error) = match outcome {
-            Ok(mut r) => {
-                if let Some(speeds) = &mut speeds {
-                    speeds.fill(&mut r, done);
-                }
-                (Some(r), None, None)
-            }
-            Err(e) => {
-                stats.failed += 1;
-                (None, Some(kind_name(e.kind())), Some(e.to_string()))
-            }
-        };
-        let sample = Arc::new(Sample {
-            seq: stats.samples,
-            unix_ms,
-            read_ms: done.saturating_duration_since(start).as_secs_f64() * 1e3,
-            late,
-            report,
-            failed,
-            error,
-            at: Some(done),
-        });
-        stats.samples += 1;
-        stats.late += u64::from(late);
+        let late = Instant::now().saturating_duration_since(slot) > period;
+        let seq = stats.samples;
+        let sample = take_sample(taking, stop, speeds.as_mut(), late, &mut stats);
+        let sample = Arc::new(Sample { seq, ..sample });
         hub.publish(&sample);
         slot += period;
         if late {
@@ -461,6 +489,518 @@ fn sample_loop(
     }
     hub.end();
     stats
+}
+
+fn check_capacity(capacity: usize) -> Result<(), OpError> {
+    if (1..=MAX_QUEUE).contains(&capacity) {
+        Ok(())
+    } else {
+        Err(OpError::invalid(
+            "capacity",
+            capacity,
+            format!("out of range (allowed: 1..={MAX_QUEUE} samples)"),
+        ))
+    }
+}
+
+/// Refuses what cannot be streamed (not a reading request, a rate out of range, a request
+/// that does not validate, a bus the station does not have); what the stream reads.
+fn check_stream(station: &Station, request: &Request, rate_hz: f64) -> Result<Reading, OpError> {
+    if !matches!(
+        request,
+        Request::WckSample(_)
+            | Request::WckStatus(_)
+            | Request::WhjSample(_)
+            | Request::WhjStatus(_)
+            | Request::WhjCanHealth(_)
+            | Request::RobotSample(_)
+    ) {
+        return Err(OpError::invalid(
+            "request",
+            request.op(),
+            "a telemetry stream takes a reading request only (wck.sample, wck.status, \
+             whj.sample, whj.status, whj.can-health, robot.sample)",
+        ));
+    }
+    if !(rate_hz.is_finite() && RATE_HZ.contains(&rate_hz)) {
+        return Err(OpError::invalid(
+            "rate_hz",
+            rate_hz,
+            format!(
+                "out of range (allowed: {}..={} Hz)",
+                RATE_HZ.start(),
+                RATE_HZ.end()
+            ),
+        ));
+    }
+    super::validate(request)?;
+    // The bus it names must be there now, not at the first read.
+    match request.family() {
+        super::Family::Wck => {
+            let port = station.wck(request.bus())?;
+            if matches!(request, Request::WckSample(_)) {
+                return Ok(Reading::Wck {
+                    bus: port.name().to_owned(),
+                });
+            }
+        }
+        super::Family::Whj => {
+            let port = station.whj(request.bus())?;
+            if matches!(request, Request::WhjSample(_)) {
+                return Ok(Reading::Whj {
+                    bus: port.name().to_owned(),
+                });
+            }
+        }
+        // Not a reading request: refused above.
+        super::Family::Host => {}
+        super::Family::Robot => {
+            if station.robot().is_none() {
+                return Err(OpError::invalid(
+                    "robot",
+                    "(none)",
+                    "the station has no robot file (open it with --robot FILE.toml)",
+                ));
+            }
+        }
+    }
+    Ok(Reading::Whole(request.clone()))
+}
+
+/// The devices a `whj.sample` / `wck.sample` names (`None`: another request, read whole).
+fn devices_of(request: &Request) -> Result<Option<BTreeSet<u64>>, OpError> {
+    Ok(match request {
+        Request::WhjSample(r) => Some(
+            r.joints
+                .parse_sorted::<robobus_whj::JointId>("joints")?
+                .iter()
+                .map(|j| u64::from(j.get()))
+                .collect(),
+        ),
+        Request::WckSample(r) => Some(
+            r.ids
+                .parse::<robobus_wck::ServoId>("ids")?
+                .iter()
+                .map(|j| u64::from(j.get()))
+                .collect(),
+        ),
+        _ => None,
+    })
+}
+
+/// What a stream reads.
+#[derive(Debug, Clone)]
+enum Reading {
+    /// `whj.sample` on this WHJ bus: the joints asked.
+    Whj { bus: String },
+    /// `wck.sample` on this wCK port: the servos asked.
+    Wck { bus: String },
+    /// Any other reading request, as it is.
+    Whole(Request),
+}
+
+impl Reading {
+    /// The key of its shared sampling in the station.
+    fn key(&self) -> String {
+        match self {
+            Self::Whj { bus } => format!("whj.sample\u{0}{bus}"),
+            Self::Wck { bus } => format!("wck.sample\u{0}{bus}"),
+            Self::Whole(r) => format!("{r:?}"),
+        }
+    }
+}
+
+/// One read of a stream: what, of which devices, on which station.
+struct Taking<'a> {
+    station: &'a Station,
+    reading: &'a Reading,
+    devices: &'a BTreeSet<u64>,
+    broadcast: bool,
+}
+
+impl Taking<'_> {
+    fn take(&self, control: &mut Control<'_>) -> (Result<Report, OpError>, Option<SampledBy>) {
+        match self.reading {
+            Reading::Whj { bus } => {
+                let ids: Vec<robobus_whj::JointId> = self
+                    .devices
+                    .iter()
+                    .filter_map(|&d| u8::try_from(d).ok())
+                    .filter_map(|d| robobus_whj::JointId::new(d).ok())
+                    .collect();
+                let port = match self.station.whj(Some(bus)) {
+                    Ok(p) => p,
+                    Err(e) => return (Err(e), None),
+                };
+                // Joints this bus has not connected yet are connected first (together; a
+                // silent one shows in its rows), once per station.
+                let _ = port.bus().joints(&port.untried(&ids));
+                match sample_whj(port.bus(), &ids, self.broadcast) {
+                    Ok((rows, by)) => (
+                        Ok(
+                            super::operation::Report::devices("whj.sample", port.name(), rows)
+                                .erase(),
+                        ),
+                        Some(by),
+                    ),
+                    Err(e) => (Err(e), None),
+                }
+            }
+            Reading::Wck { bus } => {
+                let ids: Vec<String> = self.devices.iter().map(u64::to_string).collect();
+                let request = Request::WckSample(super::wck::Sample {
+                    bus: Some(bus.clone()),
+                    ids: ids.join(",").as_str().into(),
+                });
+                (
+                    super::run(self.station, &request, control),
+                    Some(SampledBy::StatusReads),
+                )
+            }
+            Reading::Whole(request) => (super::run(self.station, request, control), None),
+        }
+    }
+}
+
+/// `report` with the rows of `devices` only, its failure summed up from them.
+fn rows_of(report: &Report, devices: Option<&BTreeSet<u64>>) -> Report {
+    let Some(devices) = devices else {
+        return report.clone();
+    };
+    let results: Vec<serde_json::Value> = report
+        .results
+        .iter()
+        .filter(|row| row["id"].as_u64().is_some_and(|id| devices.contains(&id)))
+        .cloned()
+        .collect();
+    let failures: Vec<crate::ops::DeviceResult<u64, ()>> = results
+        .iter()
+        .filter_map(|row| {
+            let kind = serde_json::from_value::<crate::ErrorKind>(row.get("kind")?.clone()).ok()?;
+            Some(crate::ops::DeviceResult::failed(
+                0,
+                crate::ops::Failure::of(kind, &row["error"].as_str().unwrap_or("")),
+            ))
+        })
+        .collect();
+    let errors: Vec<String> = results
+        .iter()
+        .filter(|row| row.get("kind").is_some())
+        .filter_map(|row| row["error"].as_str().map(str::to_owned))
+        .collect();
+    let mut out = Report::with_rows(&report.op, &report.bus, results);
+    out.summary.clone_from(&report.summary);
+    if let Some(kind) = crate::ops::worst_kind(&failures) {
+        out.failed = Some(kind);
+        out.error = Some(errors.join("; "));
+    }
+    out
+}
+
+/// One subscriber of a shared sampling.
+#[derive(Debug)]
+struct Member {
+    id: u64,
+    /// Its devices (`None`: the request's every row).
+    devices: Option<BTreeSet<u64>>,
+    broadcast: bool,
+    period: Duration,
+    /// When its next sample is due (`None`: at once).
+    due: Option<Instant>,
+    /// Samples given to it (or lost from its queue) so far.
+    seq: u64,
+    queue: Arc<Queue>,
+}
+
+#[derive(Debug, Default)]
+struct Members {
+    list: Vec<Member>,
+    next_id: u64,
+    /// The last subscriber left: the sampling ends, no one joins it any more.
+    stopping: bool,
+}
+
+/// The one sampling of a bus that its subscribers share (see the [module docs](self)).
+#[derive(Debug)]
+struct Shared {
+    members: Mutex<Members>,
+    /// Rings when a subscriber joins or the last one leaves.
+    changed: Condvar,
+    stop: StopToken,
+    thread: Mutex<Option<JoinHandle<StreamStats>>>,
+}
+
+impl Shared {
+    fn lock(&self) -> MutexGuard<'_, Members> {
+        self.members
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
+    /// Removes member `id` (its queue ends); whether it was the last (the sampling stops).
+    fn leave(&self, id: u64) -> bool {
+        let mut m = self.lock();
+        if let Some(k) = m.list.iter().position(|s| s.id == id) {
+            m.list.remove(k).queue.end();
+        }
+        let last = m.list.is_empty() && !m.stopping;
+        if m.list.is_empty() {
+            m.stopping = true;
+            self.stop.stop();
+        }
+        drop(m);
+        self.changed.notify_all();
+        last
+    }
+
+    /// What the next sample reads: the union of the members' devices, whether any asked
+    /// for the broadcast status, the shortest period; `None` once stopping.
+    fn plan(&self) -> Option<(BTreeSet<u64>, bool, Duration)> {
+        let m = self.lock();
+        if m.stopping {
+            return None;
+        }
+        let period = m.list.iter().map(|s| s.period).min()?;
+        let devices = m
+            .list
+            .iter()
+            .flat_map(|s| s.devices.iter().flatten().copied())
+            .collect();
+        Some((devices, m.list.iter().any(|s| s.broadcast), period))
+    }
+
+    /// Gives `sample`, taken for the sampling's `slot`, to every member whose turn it is,
+    /// each its own rows.
+    fn deliver(&self, sample: &Sample, slot: Instant, period: Duration) {
+        let mut m = self.lock();
+        for s in &mut m.list {
+            // A slot up to half the sampling's period before the member's turn is on time.
+            if s.due.is_some_and(|d| slot + period / 2 < d) {
+                continue;
+            }
+            s.due = Some(match s.due {
+                Some(d) if d + s.period > slot => d + s.period,
+                _ => slot + s.period,
+            });
+            let mine = Sample {
+                seq: s.seq,
+                report: sample
+                    .report
+                    .as_ref()
+                    .map(|r| rows_of(r, s.devices.as_ref())),
+                ..sample.clone()
+            };
+            s.seq += 1;
+            s.queue.push(Arc::new(mine));
+        }
+    }
+
+    /// Waits until `next` (the slot after `base` at the shortest period now) or until
+    /// stopping; `None` when stopping.
+    fn wait_slot(&self, base: Instant) -> Option<Instant> {
+        let mut m = self.lock();
+        loop {
+            if m.stopping {
+                return None;
+            }
+            let period = m.list.iter().map(|s| s.period).min()?;
+            let now = Instant::now();
+            let next = base + period;
+            if now >= next {
+                return Some(next);
+            }
+            m = self
+                .changed
+                .wait_timeout(m, next - now)
+                .unwrap_or_else(std::sync::PoisonError::into_inner)
+                .0;
+        }
+    }
+
+    fn run(&self, station: &Station, reading: &Reading) -> StreamStats {
+        let mut stats = StreamStats::default();
+        let mut speeds = matches!(reading, Reading::Wck { .. }).then(Speeds::default);
+        let mut slot = Instant::now();
+        while let Some((devices, broadcast, period)) = self.plan() {
+            let late = Instant::now().saturating_duration_since(slot) > period;
+            let taking = Taking {
+                station,
+                reading,
+                devices: &devices,
+                broadcast,
+            };
+            let sample = take_sample(&taking, &self.stop, speeds.as_mut(), late, &mut stats);
+            self.deliver(&sample, slot, period);
+            // Behind: start again from now rather than bursting to catch up.
+            let base = if late { Instant::now().max(slot) } else { slot };
+            match self.wait_slot(base) {
+                Some(next) => slot = next,
+                None => break,
+            }
+        }
+        let mut m = self.lock();
+        m.stopping = true;
+        for s in &m.list {
+            s.queue.end();
+        }
+        m.list.clear();
+        stats
+    }
+}
+
+/// A subscription to the shared sampling of a bus ([`Station::telemetry`]): a
+/// [`Subscriber`] (its queue: `recv_timeout`, `try_recv`, `queued`, `lost`) that leaves
+/// the sampling when dropped or [closed](Subscription::close).
+#[derive(Debug)]
+pub struct Subscription {
+    subscriber: Subscriber,
+    shared: Arc<Shared>,
+    id: u64,
+    request: Request,
+    left: bool,
+}
+
+impl Subscription {
+    /// The request it asked for.
+    pub const fn request(&self) -> &Request {
+        &self.request
+    }
+
+    /// Leaves the sampling (what is queued can still be received, then the end); if it
+    /// was the last subscriber, stops the sampling, waits until its read under way has
+    /// completed and returns what the sampling did (`None`: others still read it, or it
+    /// had left already).
+    pub fn close(&mut self) -> Option<StreamStats> {
+        if std::mem::replace(&mut self.left, true) {
+            return None;
+        }
+        if !self.shared.leave(self.id) {
+            return None;
+        }
+        let thread = self
+            .shared
+            .thread
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .take();
+        thread.and_then(|t| t.join().ok())
+    }
+}
+
+impl std::ops::Deref for Subscription {
+    type Target = Subscriber;
+
+    fn deref(&self) -> &Subscriber {
+        &self.subscriber
+    }
+}
+
+/// Every sample until the subscription's stream ends.
+impl Iterator for Subscription {
+    type Item = Delivery;
+
+    fn next(&mut self) -> Option<Delivery> {
+        self.subscriber.next()
+    }
+}
+
+impl Drop for Subscription {
+    fn drop(&mut self) {
+        // Never waits: the sampling's thread ends on its own after its read under way.
+        if !self.left {
+            self.shared.leave(self.id);
+        }
+    }
+}
+
+impl Station {
+    /// A subscription to the one sampling of the bus `request` reads (see the [module
+    /// docs](crate::catalogue::telemetry)): `request` a reading request (`whj.sample`,
+    /// `wck.sample`, `robot.sample`, `whj.status`, `wck.status`, `whj.can-health`), its
+    /// rows given at `rate_hz` ([`RATE_HZ`]) into a queue of `capacity`
+    /// (1..=[`MAX_QUEUE`]) samples. The sampling starts with the first subscription of
+    /// its bus and reading, and stops with the last.
+    ///
+    /// # Errors
+    ///
+    /// Bad input naming the value and the allowed range: not a reading request, a rate or
+    /// capacity out of range, a request that does not validate, a bus the station does
+    /// not have; nothing is read then. A thread that cannot be started: a device error.
+    pub fn telemetry(
+        self: &Arc<Self>,
+        request: Request,
+        rate_hz: f64,
+        capacity: usize,
+    ) -> Result<Subscription, OpError> {
+        check_capacity(capacity)?;
+        let reading = check_stream(self, &request, rate_hz)?;
+        let devices = devices_of(&request)?;
+        let broadcast = matches!(&request, Request::WhjSample(r) if r.broadcast);
+        let key = reading.key();
+        let queue = Arc::new(Queue::new(capacity));
+        let mut streams = self.streams();
+        streams.retain(|_, w| w.strong_count() > 0);
+        let member = |id| Member {
+            id,
+            devices: devices.clone(),
+            broadcast,
+            period: Duration::from_secs_f64(1.0 / rate_hz),
+            due: None,
+            seq: 0,
+            queue: Arc::clone(&queue),
+        };
+        let running = streams
+            .get(&key)
+            .and_then(std::sync::Weak::upgrade)
+            .and_then(|a| a.downcast::<Shared>().ok());
+        if let Some(shared) = running {
+            let mut m = shared.lock();
+            if !m.stopping {
+                let id = m.next_id;
+                m.next_id += 1;
+                m.list.push(member(id));
+                drop(m);
+                shared.changed.notify_all();
+                return Ok(Subscription {
+                    subscriber: Subscriber { queue },
+                    shared,
+                    id,
+                    request,
+                    left: false,
+                });
+            }
+        }
+        let shared = Arc::new(Shared {
+            members: Mutex::new(Members {
+                list: vec![member(0)],
+                next_id: 1,
+                stopping: false,
+            }),
+            changed: Condvar::new(),
+            stop: StopToken::new(),
+            thread: Mutex::new(None),
+        });
+        let thread = {
+            let (shared, station) = (Arc::clone(&shared), Arc::clone(self));
+            std::thread::Builder::new()
+                .name("robobus-sampler".into())
+                .spawn(move || shared.run(&station, &reading))
+                .map_err(|e| OpError::Device(format!("starting the sampler thread: {e}")))?
+        };
+        *shared
+            .thread
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner) = Some(thread);
+        let erased: Arc<dyn std::any::Any + Send + Sync> = Arc::clone(&shared) as _;
+        streams.insert(key, Arc::downgrade(&erased));
+        Ok(Subscription {
+            subscriber: Subscriber { queue },
+            shared,
+            id: 0,
+            request,
+            left: false,
+        })
+    }
 }
 
 /// Each servo's previous reading in a `wck.sample` stream, for its speed.

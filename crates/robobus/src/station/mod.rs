@@ -253,8 +253,14 @@ pub struct Station {
     /// Its sampler, made at the first `robot.sample` (that connects the WHJ joints once),
     /// with the time it was made (for the wCK speeds between two readings).
     robot_sampler: Mutex<Option<(std::time::Instant, RobotSampler)>>,
+    /// The shared samplings of its buses (`catalogue::telemetry`: one per bus and kind of
+    /// reading), by key; each lives as long as a subscription to it or its thread.
+    streams: Mutex<std::collections::HashMap<String, SharedStream>>,
     closed: bool,
 }
+
+/// A shared sampling of a station's bus, as the station keeps it (not keeping it alive).
+pub(crate) type SharedStream = std::sync::Weak<dyn std::any::Any + Send + Sync>;
 
 impl Station {
     /// An empty station.
@@ -351,6 +357,15 @@ impl Station {
             .get_mut()
             .unwrap_or_else(std::sync::PoisonError::into_inner) = None;
         Ok(())
+    }
+
+    /// The shared samplings of the station's buses, by key (see `catalogue::telemetry`).
+    pub(crate) fn streams(
+        &self,
+    ) -> MutexGuard<'_, std::collections::HashMap<String, SharedStream>> {
+        self.streams
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
     }
 
     /// Each captured bus's capture file (bus name, path).

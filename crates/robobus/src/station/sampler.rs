@@ -1,8 +1,12 @@
 //! Sampling (`robobus monitor`, the `*.sample` operations, the telemetry stream): read-only,
 //! one result per device per sample.
 //!
-//! - WHJ joints by ID: [`whj::sample`](crate::ops::whj::sample) (a status query and a
-//!   speed read per joint, [`JointSample`](crate::ops::whj::JointSample), device units).
+//! - WHJ joints by ID: [`sample_whj`] ([`JointSample`], device units), the fastest way the
+//!   bus allows, and it says which ([`SampledBy`]): the cyclic loop's own feedback when a
+//!   loop runs on the bus, one broadcast status frame for the joints that have a slot in
+//!   it when asked (`broadcast`), else a status query and a speed read per joint, all of
+//!   them pipelined ([`JointBus::request_many`]: sent together, each reply credited only
+//!   to its request).
 //! - wCK servos by ID: [`WckSampler`] (a status read per servo, [`WckSample`]; the speed is
 //!   the position's derivative between two readings).
 //! - A robot file's joints by name: [`RobotSampler`] opens the file's buses for reading only
@@ -12,18 +16,21 @@
 //!
 //! A device that does not answer is a failed [`DeviceResult`] for that sample: its values
 //! are missing, never the older ones of an earlier sample (a front end shows them as
-//! stale). A sample never stops at a silent device.
+//! stale). A sample never stops at a silent device. The buses of a robot file are read in
+//! parallel, one thread per bus.
 
 use std::time::Duration;
 
 use robobus_link::ByteLink;
 use robobus_wck::ServoId;
-use robobus_whj::JointId;
+use robobus_whj::units::CurrentScale;
+use robobus_whj::{JointId, Reply, Request};
 use serde::Serialize;
 
 use super::{WckPort, WhjPort};
 use crate::actuator::{JointMap, WckScale};
-use crate::ops::{DeviceResult, ErrorKind, Failure, Outcome};
+use crate::ops::whj::{JointSample, check_reading, sample_broadcast};
+use crate::ops::{DeviceResult, ErrorKind, Failure, OpError, Outcome};
 use crate::robot::{BusConfig, RobotConfig, RobotError};
 use crate::wck::{WckBus, WckConfig};
 use crate::whj::{JointBus, JointBusConfig};
@@ -245,20 +252,67 @@ impl RobotSampler {
         &self.descriptions
     }
 
-    /// One reading of every joint, in the file's order, at `t_s` seconds since the start.
+    /// One reading of every joint, in the file's order, at `t_s` seconds since the start:
+    /// each bus read by a thread of its own, all at once.
     pub fn sample(&mut self, t_s: f64) -> Vec<DeviceResult<String, RobotJointSample>> {
         let mut out: Vec<Option<Outcome<RobotJointSample>>> =
             (0..self.joints.len()).map(|_| None).collect();
-        for bus in &mut self.buses {
-            match bus {
-                RobotBus::Wck {
-                    port,
-                    joints,
-                    sampler,
-                } => {
-                    let results = sampler.sample(&mut port.lock(), t_s);
-                    for (&i, r) in joints.iter().zip(results) {
-                        out[i] = Some(r.outcome.map(|s| RobotJointSample {
+        let per_bus: Vec<Vec<(usize, Outcome<RobotJointSample>)>> = match &mut self.buses[..] {
+            [] => Vec::new(),
+            [one] => vec![sample_robot_bus(one, t_s)],
+            many => std::thread::scope(|scope| {
+                let running: Vec<_> = many
+                    .iter_mut()
+                    .map(|bus| {
+                        std::thread::Builder::new()
+                            .name("robobus-sample-bus".into())
+                            .spawn_scoped(scope, move || sample_robot_bus(bus, t_s))
+                    })
+                    .collect();
+                running
+                    .into_iter()
+                    .map(|t| t.ok().and_then(|t| t.join().ok()).unwrap_or_default())
+                    .collect()
+            }),
+        };
+        for (i, outcome) in per_bus.into_iter().flatten() {
+            if let Some(slot) = out.get_mut(i) {
+                *slot = Some(outcome);
+            }
+        }
+        out.into_iter()
+            .zip(&self.joints)
+            .map(|(outcome, j)| DeviceResult {
+                id: j.name.clone(),
+                // A robot file's IDs are checked when it is read, and a bus whose thread
+                // could not run leaves its joints here: never left out silently.
+                outcome: outcome.unwrap_or_else(|| {
+                    Outcome::Failed(Failure::of(
+                        ErrorKind::Device,
+                        &format!("joint {}: its bus was not read", j.name),
+                    ))
+                }),
+            })
+            .collect()
+    }
+}
+
+/// One reading of the joints of one bus of a robot file: (index in the file, outcome).
+fn sample_robot_bus(bus: &mut RobotBus, t_s: f64) -> Vec<(usize, Outcome<RobotJointSample>)> {
+    match bus {
+        RobotBus::Wck {
+            port,
+            joints,
+            sampler,
+        } => {
+            let results = sampler.sample(&mut port.lock(), t_s);
+            joints
+                .iter()
+                .zip(results)
+                .map(|(&i, r)| {
+                    (
+                        i,
+                        r.outcome.map(|s| RobotJointSample {
                             position_deg: s.position_deg,
                             speed_deg_s: s.speed_deg_s,
                             current_ma: None,
@@ -266,20 +320,33 @@ impl RobotSampler {
                             load: Some(s.load),
                             enabled: None,
                             error: "ok".into(),
-                        }));
-                    }
-                }
-                RobotBus::Whj { port, joints } => {
-                    let ids: Vec<JointId> = joints.iter().map(|j| j.1).collect();
-                    let results = crate::ops::whj::sample(port.bus(), &ids);
-                    for (&(i, id, map), r) in joints.iter().zip(results) {
-                        let kt = port.bus().cached_identity(id).and_then(|d| {
-                            robobus_whj::models::ProductFacts::torque_constant_of(
-                                d.model,
-                                d.reduction_ratio,
-                            )
-                        });
-                        out[i] = Some(r.outcome.map(|s| RobotJointSample {
+                        }),
+                    )
+                })
+                .collect()
+        }
+        RobotBus::Whj { port, joints } => {
+            let ids: Vec<JointId> = joints.iter().map(|j| j.1).collect();
+            let results = match sample_whj(port.bus(), &ids, false) {
+                Ok((results, _)) => results,
+                Err(e) => ids
+                    .iter()
+                    .map(|id| DeviceResult::failed(id.get(), Failure::from(&e)))
+                    .collect(),
+            };
+            joints
+                .iter()
+                .zip(results)
+                .map(|(&(i, id, map), r)| {
+                    let kt = port.bus().cached_identity(id).and_then(|d| {
+                        robobus_whj::models::ProductFacts::torque_constant_of(
+                            d.model,
+                            d.reduction_ratio,
+                        )
+                    });
+                    (
+                        i,
+                        r.outcome.map(|s| RobotJointSample {
                             position_deg: map.to_joint(s.position_deg.to_radians()).to_degrees(),
                             speed_deg_s: s.speed_rpm.map(|r| map.speed_to_joint(r * DEG_S_PER_RPM)),
                             current_ma: s.current_ma,
@@ -290,24 +357,11 @@ impl RobotSampler {
                             load: None,
                             enabled: Some(s.enabled),
                             error: s.error,
-                        }));
-                    }
-                }
-            }
+                        }),
+                    )
+                })
+                .collect()
         }
-        out.into_iter()
-            .zip(&self.joints)
-            .map(|(outcome, j)| DeviceResult {
-                id: j.name.clone(),
-                // A robot file's IDs are checked when it is read; never left out silently.
-                outcome: outcome.unwrap_or_else(|| {
-                    Outcome::Failed(Failure::of(
-                        ErrorKind::BadInput,
-                        &format!("joint {}: not on an opened bus", j.name),
-                    ))
-                }),
-            })
-            .collect()
     }
 }
 
@@ -317,6 +371,204 @@ pub fn effort_nm(ma: i64, nm_per_a: f64, reversed: bool) -> f64 {
     #[allow(clippy::cast_precision_loss)] // |mA| < 2^53
     let nm = ma as f64 / 1e3 * nm_per_a;
     if reversed { -nm } else { nm }
+}
+
+/// How a sample of WHJ joints was taken ([`sample_whj`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, schemars::JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum SampledBy {
+    /// A status query and a speed read per joint, all sent together and each reply
+    /// credited to its own request.
+    Pipelined,
+    /// A status query and a speed read per joint, one after the other (the bus confirms
+    /// every read by a second equal one: `verify_reads`).
+    OneByOne,
+    /// One broadcast status frame for the joints that have a slot in it (the others
+    /// pipelined in the same sample).
+    Broadcast,
+    /// The feedback the cyclic loop running on the bus received after the sample began
+    /// (a joint the loop did not answer for is read by pipelined requests).
+    Cyclic,
+    /// wCK: a status read per servo, back to back.
+    StatusReads,
+}
+
+impl SampledBy {
+    /// Its name as in reports: `pipelined`, `one-by-one`, `broadcast`, `cyclic`,
+    /// `status-reads`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Pipelined => "pipelined",
+            Self::OneByOne => "one-by-one",
+            Self::Broadcast => "broadcast",
+            Self::Cyclic => "cyclic",
+            Self::StatusReads => "status-reads",
+        }
+    }
+}
+
+/// One sample of WHJ joints `ids` (sorted, no repeats) the fastest way the bus allows, and
+/// which way that was: the cyclic loop's feedback when a loop runs on the bus; with
+/// `broadcast`, one broadcast status frame for the joints that have a slot in it; else a
+/// status query and a speed read per joint, pipelined (one by one when the bus confirms
+/// its reads, `verify_reads`). Each joint's reading is checked as
+/// [`whj::sample`](crate::ops::whj::sample) checks it; a joint that does not answer is a
+/// failed row, never an older value. The joints are not connected here (a caller connects
+/// them once: a joint never connected still answers, its current in 1 mA counts).
+///
+/// # Errors
+///
+/// The broadcast frame could not be sent (the rows of a pipelined sample carry their own
+/// failures).
+pub fn sample_whj(
+    bus: &crate::whj::JointBus,
+    ids: &[JointId],
+    broadcast: bool,
+) -> Result<(Vec<DeviceResult<u8, JointSample>>, SampledBy), OpError> {
+    if bus.cyclic_running() {
+        return Ok((from_cyclic(bus, ids), SampledBy::Cyclic));
+    }
+    if broadcast && ids.iter().any(|id| id.has_broadcast_slot()) {
+        let (slotted, rest): (Vec<JointId>, Vec<JointId>) =
+            ids.iter().partition(|id| id.has_broadcast_slot());
+        let mut rows = sample_broadcast(bus, &slotted)?;
+        if !rest.is_empty() {
+            rows.extend(pipelined(bus, &rest));
+            rows.sort_by_key(|r| r.id);
+        }
+        return Ok((rows, SampledBy::Broadcast));
+    }
+    if bus.config().verify_reads {
+        return Ok((crate::ops::whj::sample(bus, ids), SampledBy::OneByOne));
+    }
+    Ok((pipelined(bus, ids), SampledBy::Pipelined))
+}
+
+fn scale_of(bus: &crate::whj::JointBus, id: JointId) -> CurrentScale {
+    bus.cached_identity(id)
+        .map_or(CurrentScale::OneMilliamp, |i| i.current_scale())
+}
+
+/// A status query and a speed read per joint, all sent at once.
+fn pipelined(bus: &crate::whj::JointBus, ids: &[JointId]) -> Vec<DeviceResult<u8, JointSample>> {
+    let speed = robobus_whj::registers::addr::CUR_SPEED;
+    let mut requests = Vec::with_capacity(ids.len() * 2);
+    for &id in ids {
+        requests.push(Request::StatusQuery { joint: id });
+        match Request::read(id, speed, 2) {
+            Ok(r) => requests.push(r),
+            Err(_) => requests.push(Request::StatusQuery { joint: id }),
+        }
+    }
+    let replies = match bus.request_many(&requests) {
+        Ok(r) => r,
+        Err(e) => {
+            let e = OpError::Whj(e);
+            return ids
+                .iter()
+                .map(|id| DeviceResult::failed(id.get(), Failure::from(&e)))
+                .collect();
+        }
+    };
+    let mut replies = replies.into_iter();
+    ids.iter()
+        .map(|&id| {
+            let status = replies.next();
+            let speed_reply = replies.next();
+            let reading = (|| {
+                let st = match status {
+                    Some(Ok(Reply::Status { status, .. })) => status,
+                    Some(Err(e)) => return Err(OpError::Whj(e)),
+                    other => {
+                        return Err(OpError::Device(format!(
+                            "joint {}: expected a status reply, got {other:?}",
+                            id.get()
+                        )));
+                    }
+                };
+                let speed_rpm = match speed_reply {
+                    Some(Ok(Reply::Read { addr, words, .. })) if addr == speed => {
+                        let w = words.truncated(2);
+                        let at = |i: usize| w.as_slice().get(i).copied().unwrap_or(0);
+                        Some(
+                            robobus_whj::units::ActualSpeed(robobus_whj::registers::join_i32(
+                                at(0),
+                                at(1),
+                            ))
+                            .rpm(),
+                        )
+                    }
+                    _ => None,
+                };
+                let j = bus.joint_unchecked(id);
+                check_reading(&j, st.position.degrees(), speed_rpm)?;
+                Ok(JointSample {
+                    position_deg: st.position.degrees(),
+                    speed_rpm,
+                    current_ma: st.current.map(|c| c.milliamps(scale_of(bus, id))),
+                    enabled: st.is_enabled(),
+                    error: st.error.to_string(),
+                })
+            })();
+            match reading {
+                Ok(s) => DeviceResult::ok(id.get(), s),
+                Err(e) => DeviceResult::failed(id.get(), Failure::from(&e)),
+            }
+        })
+        .collect()
+}
+
+/// The cyclic loop's feedback that arrived after this call began, for each joint; a joint
+/// without any within the bus's reply timeout is read by pipelined requests instead.
+fn from_cyclic(bus: &crate::whj::JointBus, ids: &[JointId]) -> Vec<DeviceResult<u8, JointSample>> {
+    let began = bus.now();
+    let limit = began + bus.config().reply_timeout;
+    let step = Duration::from_micros(250);
+    let fresh = |t: &crate::whj::BusTelemetry| {
+        ids.iter()
+            .filter(|&&id| t.joint(id).updated.is_some_and(|u| u > began))
+            .count()
+    };
+    let mut telemetry = bus.telemetry();
+    while fresh(&telemetry) < ids.len() && bus.now() < limit && bus.cyclic_running() {
+        bus.sleep_until((bus.now() + step).min(limit));
+        telemetry = bus.telemetry();
+    }
+    let mut rows = Vec::with_capacity(ids.len());
+    let mut missing = Vec::new();
+    for &id in ids {
+        let j = telemetry.joint(id);
+        let value = j
+            .updated
+            .filter(|&u| u > began)
+            .and_then(|_| Some((j.position?, j.speed, j.current, j.enabled?, j.error?)));
+        match value {
+            Some((position, speed, current, enabled, error)) => {
+                let speed_rpm = speed.map(robobus_whj::units::ActualSpeed::rpm);
+                let row =
+                    match check_reading(&bus.joint_unchecked(id), position.degrees(), speed_rpm) {
+                        Ok(()) => DeviceResult::ok(
+                            id.get(),
+                            JointSample {
+                                position_deg: position.degrees(),
+                                speed_rpm,
+                                current_ma: current.map(|c| c.milliamps(scale_of(bus, id))),
+                                enabled,
+                                error: error.to_string(),
+                            },
+                        ),
+                        Err(e) => DeviceResult::failed(id.get(), Failure::from(&e)),
+                    };
+                rows.push(row);
+            }
+            None => missing.push(id),
+        }
+    }
+    if !missing.is_empty() {
+        rows.extend(pipelined(bus, &missing));
+        rows.sort_by_key(|r| r.id);
+    }
+    rows
 }
 
 /// Opens every bus of a robot file for reading, as station ports named as in the file
