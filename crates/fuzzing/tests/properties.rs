@@ -183,7 +183,7 @@ fn a_wck_client_without_its_quiet_guard_is_caught_crediting_shifted_replies() {
     data.extend(std::iter::repeat_n([0u8, 0x08], 64).flatten());
     assert_eq!(robobus_fuzzing::wck_matching(&data), Ok(()));
     let unguarded = robobus::wck::WckConfig {
-        guard: Duration::ZERO,
+        guard: Some(Duration::ZERO),
         ..robobus::wck::WckConfig::default()
     };
     let e = robobus_fuzzing::wck_matching_with(&data, unguarded).unwrap_err();

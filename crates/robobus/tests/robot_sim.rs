@@ -314,7 +314,7 @@ fn the_watchdog_puts_wck_servos_passive_within_its_timeout() {
     );
     // Each is its transaction, then the line stays quiet for the guard time; the bit-level
     // simulator's reply ends a few µs after the timing model's.
-    let each = passive_command + robobus::wck::DEFAULT_GUARD;
+    let each = passive_command + robobus::wck::reply_guard(robobus_wck::BaudRate::B115200);
     assert!(
         report.applied_in >= 2 * passive_command
             && report.applied_in < 2 * each + Duration::from_micros(20),

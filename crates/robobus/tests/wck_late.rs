@@ -272,7 +272,7 @@ fn a_scan_of_silent_ids_costs_only_their_reply_waits() {
     assert_eq!(took, 62 * Duration::from_nanos(11_527_433));
     // Two servos: each found after silent IDs waits out one late window (50 ms) and is
     // asked again; that reply is credited once the line stayed quiet for the guard time
-    // (one turnaround) after it.
+    // (one byte time plus the turnaround spread) after it.
     let link = LateBus::new(|id| match id {
         5 | 20 => Some(Duration::from_micros(1500)),
         _ => None,
@@ -283,7 +283,11 @@ fn a_scan_of_silent_ids_costs_only_their_reply_waits() {
     let reply = Duration::from_micros(1500);
     assert_eq!(
         took,
-        58 * wait + 2 * (wait + Duration::from_millis(50) + reply + robobus::wck::DEFAULT_GUARD)
+        58 * wait
+            + 2 * (wait
+                + Duration::from_millis(50)
+                + reply
+                + robobus::wck::reply_guard(BaudRate::B115200))
     );
 }
 

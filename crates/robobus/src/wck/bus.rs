@@ -27,8 +27,35 @@ pub const DEFAULT_SETTLE: Duration = Duration::from_millis(2);
 /// Default time after a reply deadline during which a late reply may still arrive.
 pub const DEFAULT_LATE_WINDOW: Duration = Duration::from_millis(50);
 
-/// Default quiet time after a reply before it is credited: one module turnaround.
-pub const DEFAULT_GUARD: Duration = timing::T_PROC;
+/// How far apart two modules' turnarounds for one command may be (firmware and clock
+/// spread; the simulator's `BusConfig::max_skew`): two modules at one ID both start
+/// answering within this of each other.
+pub const TURNAROUND_SPREAD: Duration = Duration::from_micros(3);
+
+/// The quiet time after a reply before it is credited, at `baud`: one byte time plus
+/// [`TURNAROUND_SPREAD`] (86.8 + 3 µs at 115200 bit/s, 10.9 + 3 µs at 921600, 2.08 ms
+/// + 3 µs at 4800). What the default [`WckConfig::guard`] waits, and why it is enough:
+///
+/// - a byte the link repeats (a duplicated byte, which shifts the reply by one: `a a b`
+///   instead of `a b`) follows the reply's last byte on the wire at once: it is complete
+///   one byte time after it;
+/// - a second module at the same ID (an impostor) starts its answer within the spread of
+///   turnarounds after the first, so its answer overlaps the first one's and its last
+///   byte (or whatever the host's UART makes of the two) is complete at most the spread
+///   plus one byte time after the first one's last byte;
+/// - anything later cannot have changed the two bytes already received: a module that
+///   answers the same command twice (its same two bytes again, within a turnaround of
+///   the first answer), an impostor whose turnaround lies further off, noise. The next
+///   transaction catches it instead. Its command may go out at once (the wCK line is
+///   full duplex: the host's command and a module's answer travel on different wires and
+///   cannot collide), and no module can answer it before the command's wire time plus a
+///   turnaround (1006.6 µs; [`WckConfig::min_turnaround`] if set lower), so a byte that
+///   arrives before then fails that attempt, and only it ([`WckError::Unattributable`],
+///   retried after the late window), and is never credited. A byte that arrives between
+///   two transactions is dropped before the next packet ([`WckStats::dropped`]).
+pub const fn reply_guard(baud: BaudRate) -> Duration {
+    timing::byte_time(baud).saturating_add(TURNAROUND_SPREAD)
+}
 
 /// Added to the reply margin when [`WckBus::open`] opens a pseudo-terminal. A pty has no
 /// wire: whatever answers on it (`robobus sim wck`, a bridge to a remote port) is a
@@ -83,17 +110,28 @@ pub struct WckConfig {
     /// port before (see [`WckBus::new`]).
     pub late_window: Duration,
     /// How long the line must stay quiet after a complete reply before the reply is
-    /// credited. A wCK reply carries no ID, so a byte that follows it within this time
-    /// (a duplicated byte, a module answering twice, a second module) means the bytes
-    /// received are not one module's one answer: the attempt fails (it is never "the first
-    /// two bytes win"), the late window is waited out and the command is asked again.
-    /// Default [`DEFAULT_GUARD`] (one module turnaround, 1006.6 µs): whatever answers the
-    /// same command answers within a turnaround of the first answer. Bytes that arrive
-    /// later still fall before the next command's earliest reply instant and fail that
-    /// attempt instead (see [`WckBus::reply_wait`]). Zero credits a reply as soon as its
-    /// last byte is read (bytes read with it still fail it): for a bus whose modules are
-    /// known to answer alone.
-    pub guard: Duration,
+    /// credited. A wCK reply carries no ID and no checksum, so a byte that follows it
+    /// within this time (a byte the link duplicated, a second module at the same ID) means
+    /// the bytes received are not one module's one answer: the attempt fails with
+    /// [`WckError::Unattributable`] (it is never "the first two bytes win"), the late
+    /// window is waited out and the command is asked again.
+    ///
+    /// `None` (the default): [`reply_guard`] at the bus's baud rate, one byte time plus the
+    /// modules' [`TURNAROUND_SPREAD`] (89.8 µs at 115200 bit/s, 13.9 µs at 921600):
+    /// whatever can change the reply's two bytes comes within it. A byte that comes later
+    /// (a module answering twice, noise) is caught by the next transaction: it arrives
+    /// before any module can have answered that command, which fails that attempt and
+    /// only it (see [`reply_guard`]). `Some(d)` waits `d` instead (a USB adapter that may
+    /// deliver the bytes of one answer in two transfers needs its latency timer).
+    ///
+    /// `Some(Duration::ZERO)` turns the check off: a reply is credited as soon as its last
+    /// byte is read (bytes read with it still fail it), so a byte the link duplicates
+    /// within the reply (`a a b`) is credited as the reply `a a`, a wrong value, and a
+    /// second module at the same ID goes unnoticed (its overlapping answer may read as a
+    /// plausible, wrong value); its extra bytes then only fail the next command's attempt.
+    /// Only for a bus whose modules are known to answer alone over a link that does not
+    /// duplicate bytes.
+    pub guard: Option<Duration>,
     /// The earliest a module begins to answer after a command's last byte; bytes that
     /// come sooner cannot be its reply (see [`robobus_wck::timing::earliest_reply`]).
     /// `None` (the default): the manual's turnaround for the command (1006.6 µs, 121 ms
@@ -115,10 +153,18 @@ impl Default for WckConfig {
             confirm_reads: 0,
             settle: DEFAULT_SETTLE,
             late_window: DEFAULT_LATE_WINDOW,
-            guard: DEFAULT_GUARD,
+            guard: None,
             min_turnaround: None,
             wait: WaitMode::Sleep,
         }
+    }
+}
+
+impl WckConfig {
+    /// The quiet time [`WckConfig::guard`] asks for after a reply at `baud`:
+    /// [`reply_guard`] unless set.
+    pub fn guard_at(&self, baud: BaudRate) -> Duration {
+        self.guard.unwrap_or_else(|| reply_guard(baud))
     }
 }
 

@@ -52,8 +52,8 @@ mod scan;
 mod servo;
 
 pub use bus::{
-    DEFAULT_GUARD, DEFAULT_LATE_WINDOW, DEFAULT_MARGIN, DEFAULT_SETTLE, PTY_MARGIN, PortLink,
-    TCP_MARGIN, WckBus, WckConfig, WckStats,
+    DEFAULT_LATE_WINDOW, DEFAULT_MARGIN, DEFAULT_SETTLE, PTY_MARGIN, PortLink, TCP_MARGIN,
+    TURNAROUND_SPREAD, WckBus, WckConfig, WckStats, reply_guard,
 };
 pub use error::{Hex, WckError};
 pub use policy::{RetryClass, needs_confirmation, read_back, retry_class};

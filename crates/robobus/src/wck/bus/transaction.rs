@@ -124,7 +124,7 @@ impl<L: ByteLink> WckBus<L> {
                 _ => timing::earliest_reply(command, self.baud),
             };
         let reply_len = command.reply_len();
-        let guard = self.config.guard;
+        let guard = self.config.guard_at(self.baud);
         let mut kept: Vec<u8> = Vec::with_capacity(reply_len);
         let (mut total, mut early) = (0usize, 0usize);
         let mut until = deadline;
