@@ -159,6 +159,7 @@ const ROBOT_FIELDS: &[(&str, &[&str], &[&str])] = &[
             "leader_lost",
             "interrupted",
             "safe_state",
+            "protection",
         ],
     ),
 ];

@@ -13,12 +13,14 @@
 //!
 //! - **stall**: the current stays at or over `stall_current_a` for `stall_time_s` while
 //!   the following error (the distance from where the joint reported itself to its
-//!   target) is at least `stall_error_deg` and does not shrink (by a tenth) meanwhile: a
-//!   joint pushing against something that does not give. A joint holding a load at its
-//!   target (error under `stall_error_deg`) is not stalled.
+//!   target) is at least `stall_error_deg` and neither shrinks (by a tenth) nor the joint
+//!   moves (by `stall_error_deg`) meanwhile: a joint pushing against something that does
+//!   not give. A joint holding a load at its target (error under `stall_error_deg`), or
+//!   lifting one behind its target (moving), is not stalled.
 //! - **collision**: the current rises by `collision_current_jump_a`, or the following
-//!   error grows by `collision_error_jump_deg`, between two readings at most
-//!   [`JUMP_WINDOW`] apart: a knock.
+//!   error grows by `collision_error_jump_deg` more than the target moved (the joint
+//!   pushed away from its target), between two readings at most [`JUMP_WINDOW`] apart: a
+//!   knock.
 //! - **thermal**: the temperature reaches `temperature_warn_c` (a warning),
 //!   `temperature_derate_c` (the joint's speed is held to `derate` of its
 //!   `max_velocity` until it cools 5 K below) and `temperature_stop_c` (stopped).
@@ -331,9 +333,14 @@ impl fmt::Display for Fault {
 pub struct Reading {
     /// When it was read.
     pub at: Instant,
+    /// Where the joint reported itself, degrees.
+    pub position_deg: Option<f64>,
     /// The following error: the distance from where the joint reported itself to the
     /// target it was sent before, degrees.
     pub error_deg: Option<f64>,
+    /// That target, degrees (a jump of the error is counted beyond the target's own
+    /// move).
+    pub target_deg: Option<f64>,
     /// The current, A.
     pub current_a: Option<f64>,
     /// The temperature, °C.
@@ -345,7 +352,9 @@ impl Reading {
     pub const fn at(at: Instant) -> Self {
         Self {
             at,
+            position_deg: None,
             error_deg: None,
+            target_deg: None,
             current_a: None,
             temperature_c: None,
         }
@@ -359,9 +368,10 @@ struct Watch {
     limits: Limits,
     /// The last current and following error, with their instants.
     last_current: Option<(Instant, f64)>,
-    last_error: Option<(Instant, f64)>,
-    /// A stall under way: since when, and the following error it started with.
-    stall: Option<(Instant, f64)>,
+    last_error: Option<(Instant, f64, Option<f64>)>,
+    /// A stall under way: since when, and the following error and the position it
+    /// started with.
+    stall: Option<(Instant, f64, Option<f64>)>,
     /// The thermal action in force (`None`: below the warning).
     thermal: Option<Action>,
     stopped: bool,
@@ -449,40 +459,54 @@ impl Monitor {
                 Action::Stop,
             ));
         }
+        let last_error = w
+            .last_error
+            .filter(|(t, _, _)| r.at.saturating_duration_since(*t) <= JUMP_WINDOW);
         if let (Some(e), Some(jump)) = (r.error_deg, l.collision_error_jump_deg)
-            && let Some((_, before)) = within(w.last_error)
-            && e.abs() - before.abs() >= jump
+            && let Some((_, before, target_before)) = last_error
         {
-            out.push(fault(
-                Check::Collision,
-                "following_error_jump_deg",
-                e.abs() - before.abs(),
-                jump,
-                Action::Stop,
-            ));
+            let moved = r
+                .target_deg
+                .zip(target_before)
+                .map_or(0.0, |(a, b)| (a - b).abs());
+            let grown = e.abs() - before.abs() - moved;
+            if grown >= jump {
+                out.push(fault(
+                    Check::Collision,
+                    "following_error_jump_deg",
+                    grown,
+                    jump,
+                    Action::Stop,
+                ));
+            }
         }
-        // Stall: a high current while the following error does not shrink.
-        match (r.current_a, r.error_deg, l.stall_current_a) {
-            (Some(i), Some(e), Some(stall)) if i.abs() >= stall && e.abs() >= l.stall_error_deg => {
+        // Stall: a high current while the following error does not shrink and the joint
+        // does not move.
+        let pushing = match (r.current_a, r.error_deg, l.stall_current_a) {
+            (Some(i), Some(e), Some(stall)) => Some((i.abs(), e.abs(), stall)),
+            _ => None,
+        };
+        match pushing {
+            Some((i, e, stall)) if i >= stall && e >= l.stall_error_deg => {
+                let moved = |p0: Option<f64>| {
+                    p0.zip(r.position_deg)
+                        .is_some_and(|(a, b)| (a - b).abs() >= l.stall_error_deg)
+                };
                 match w.stall {
-                    Some((_, e0)) if e.abs() < 0.9 * e0 => w.stall = Some((r.at, e.abs())),
-                    Some((since, _)) => {
+                    Some((_, e0, p0)) if e < 0.9 * e0 || moved(p0) => {
+                        w.stall = Some((r.at, e, r.position_deg));
+                    }
+                    Some((since, _, _)) => {
                         let held = r.at.saturating_duration_since(since).as_secs_f64();
                         if held >= l.stall_time_s {
-                            out.push(fault(
-                                Check::Stall,
-                                "current_a",
-                                i.abs(),
-                                stall,
-                                Action::Stop,
-                            ));
+                            out.push(fault(Check::Stall, "current_a", i, stall, Action::Stop));
                         }
                     }
-                    None => w.stall = Some((r.at, e.abs())),
+                    None => w.stall = Some((r.at, e, r.position_deg)),
                 }
             }
-            (Some(_), Some(_), _) => w.stall = None,
-            _ => {}
+            Some(_) => w.stall = None,
+            None => {}
         }
         // Thermal: warning, derating, stop; derating ends 5 K under its temperature.
         if let Some(t) = r.temperature_c {
@@ -518,7 +542,7 @@ impl Monitor {
             w.last_current = Some((r.at, i));
         }
         if let Some(e) = r.error_deg {
-            w.last_error = Some((r.at, e));
+            w.last_error = Some((r.at, e, r.target_deg));
         }
         out.sort_by(|a, b| b.action.cmp(&a.action));
         if out.first().is_some_and(|f| f.action == Action::Stop) {
@@ -540,7 +564,9 @@ mod tests {
     fn reading(at: Instant, error: f64, current: f64) -> Reading {
         Reading {
             at,
+            position_deg: Some(10.0),
             error_deg: Some(error),
+            target_deg: None,
             current_a: Some(current),
             temperature_c: None,
         }
@@ -621,6 +647,15 @@ mod tests {
                 "{k}"
             );
         }
+        // Lifting a load 3° behind its target, moving 0.2° a reading.
+        let mut m = Monitor::new(t0, vec![("j1".into(), whj30())]);
+        for k in 0..100u32 {
+            let r = Reading {
+                position_deg: Some(0.2 * f64::from(k)),
+                ..reading(t0 + 20 * MS * k, 3.0, 9.0)
+            };
+            assert!(m.feed(0, &r).is_empty(), "{k}");
+        }
     }
 
     #[test]
@@ -637,6 +672,17 @@ mod tests {
         let mut m = Monitor::new(t0, vec![("j1".into(), whj30())]);
         assert!(m.feed(0, &reading(t0, 1.0, 1.0)).is_empty());
         let f = m.feed(0, &reading(t0 + 20 * MS, 6.5, 1.0));
+        assert_eq!(f[0].quantity, "following_error_jump_deg");
+        // An error that grows no more than its target moved is no jump (a joint left
+        // behind by a big step).
+        let mut m = Monitor::new(t0, vec![("j1".into(), whj30())]);
+        let step = |at, error, target| Reading {
+            target_deg: Some(target),
+            ..reading(at, error, 1.0)
+        };
+        assert!(m.feed(0, &step(t0, 0.0, 0.0)).is_empty());
+        assert!(m.feed(0, &step(t0 + 20 * MS, 8.4, 8.4)).is_empty());
+        let f = m.feed(0, &step(t0 + 40 * MS, 14.0, 8.4));
         assert_eq!(f[0].quantity, "following_error_jump_deg");
         // The same change over more than the jump window is no jump.
         let mut m = Monitor::new(t0, vec![("j1".into(), whj30())]);

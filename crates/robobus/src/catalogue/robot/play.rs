@@ -275,7 +275,7 @@ impl Sensed {
 type Outcomes = Vec<(usize, Result<Sensed, Failure>)>;
 
 /// How often each WHJ joint's temperature is read during a run (a status query), s.
-const TEMPERATURE_EVERY_S: f64 = 0.25;
+pub(super) const TEMPERATURE_EVERY_S: f64 = 0.25;
 
 /// The joints of one bus and their handle, each by its column with how its angles turn
 /// into its device's units.
@@ -758,7 +758,9 @@ impl Player<'_> {
             let Ok(s) = s else { continue };
             let reading = Reading {
                 at: now,
+                position_deg: Some(s.position),
                 error_deg: sent_before.get(c).map(|t| (s.position - t).abs()),
+                target_deg: sent_before.get(c).copied(),
                 current_a: s.current_a,
                 temperature_c: s.temperature_c,
             };

@@ -34,6 +34,7 @@ use crate::catalogue::effect::{Effect, Moved};
 use crate::catalogue::operation::{Confirm, OpDoc, Operation, Report, RunCx};
 use crate::catalogue::plan::{Family, Plan};
 use crate::motion::Tracking;
+use crate::ops::protect::{self, Action, Fault, Monitor, Reading};
 use crate::ops::{Control, DeviceResult, ErrorKind, Failure, OpError, Outcome, Progress};
 use crate::station::Station;
 use crate::station::clock::BusClock;
@@ -231,7 +232,9 @@ impl Operation for Teleop {
                  from a cycle's leader reading to its last command), `leaders` (each one's \
                  `name`, `readings`, `failed`, `error`), `leader_lost` (the run ended because \
                  the leader went silent: `failed` is `no-device`), `interrupted`, `safe_state` \
-                 (as `robot.play`'s). Refused before anything is sent when a follower joint is \
+                 (as `robot.play`'s), `protection` (the host's protection events of the \
+                 follower joints, as `robot.play`'s: a stop ends the run and fails its \
+                 joint's row). Refused before anything is sent when a follower joint is \
                  silent, outside its soft limits, or a WHJ joint not enabled in position mode \
                  (`robot.play`'s check)",
         confirm: "motion",
@@ -342,6 +345,10 @@ pub struct TeleopSummary {
     /// How it left each bus of the leader and the follower: in the robot file's
     /// `safe_state` (finished, the leader lost, or stopped).
     pub safe_state: Vec<super::BusEnd>,
+    /// The host's protection events of the follower joints, in order: warnings,
+    /// deratings and the stop (a stop ends the run in the safe state and fails its
+    /// joint's row).
+    pub protection: Vec<Fault>,
 }
 
 /// What a `robot.teleop` run did.
@@ -398,6 +405,9 @@ fn run_teleop(
             break;
         }
         control.report(&Progress::new("teleop", run.summary.cycles, total));
+        if run.stopped.is_some() {
+            break;
+        }
         tick = next_tick(
             run.clock.now() - start,
             period,
@@ -406,8 +416,10 @@ fn run_teleop(
         );
     }
     let elapsed = run.clock.now().saturating_duration_since(start);
-    // Each bus of the leader and the follower as the robot file says.
-    let settled = super::settle(station, &run.config, &run.names);
+    // Each bus of the leader and the follower as the robot file says; a follower joint
+    // the host's protection stopped torque off where its brake holds it.
+    let torque_off = run.torque_off();
+    let settled = super::settle_with(station, &run.config, &run.names, &torque_off);
     Ok(run.finish(r, elapsed, interrupted && end.is_some(), &settled))
 }
 
@@ -468,6 +480,7 @@ impl TeleopSummary {
             leader_lost: false,
             interrupted: false,
             safe_state: Vec::new(),
+            protection: Vec::new(),
         }
     }
 }
@@ -492,6 +505,18 @@ struct Run {
     /// The latest readings of the leader joints (`None`: failed in this cycle).
     angles: Vec<Option<f64>>,
     lost: Option<Failure>,
+    /// The host's protection of the follower joints, by pair.
+    monitor: Monitor,
+    /// Per pair, the follower's model (a WHJ joint's, as it identified), its
+    /// `max_velocity` (degrees a second) and the position it was last sent (joint
+    /// degrees).
+    models: Vec<Option<robobus_whj::units::Model>>,
+    max_speed_deg: Vec<f64>,
+    last_sent: Vec<Option<f64>>,
+    /// When the WHJ followers' temperature is read next, s into the run.
+    next_temperature: f64,
+    /// The protection's stop, by pair.
+    stopped: Option<usize>,
 }
 
 impl Run {
@@ -542,6 +567,36 @@ impl Run {
             .collect();
         let rows = r.map.iter().map(|p| Followed::new(&p.leader)).collect();
         let summary = TeleopSummary::new(led.joints.iter().map(|j| j.name.clone()));
+        let models: Vec<Option<robobus_whj::units::Model>> = follower
+            .joints()
+            .iter()
+            .map(|f| {
+                if f.family != Family::Whj {
+                    return None;
+                }
+                let id = robobus_whj::JointId::new(f.id).ok()?;
+                let port = station.whj(Some(&f.bus)).ok()?;
+                let model = port.bus().joint_unchecked(id).identity().ok();
+                model.map(|i| i.model)
+            })
+            .collect();
+        let joint_of = |name: &str| config.joints.iter().find(|j| j.name == name);
+        let monitor = Monitor::new(
+            clock.now(),
+            followers
+                .iter()
+                .zip(&models)
+                .map(|(n, &m)| {
+                    let limits =
+                        joint_of(n).map_or(protect::Limits::OFF, |j| config.protection_of(j, m));
+                    (n.clone(), limits)
+                })
+                .collect(),
+        );
+        let max_speed_deg = followers
+            .iter()
+            .map(|n| joint_of(n).map_or(0.0, |j| j.max_velocity.to_degrees()))
+            .collect();
         Ok(Self {
             follower,
             sampler,
@@ -556,6 +611,12 @@ impl Run {
             names: all,
             config,
             lost: None,
+            monitor,
+            last_sent: vec![None; r.map.len()],
+            models,
+            max_speed_deg,
+            next_temperature: 0.0,
+            stopped: None,
         })
     }
 
@@ -591,7 +652,21 @@ impl Run {
             let want =
                 self.angles.get(li).copied().flatten().unwrap_or(0.0) * p.scale + p.offset_deg;
             clamped.push(!(lo..=hi).contains(&want));
-            targets.push(want.clamp(lo, hi).to_radians());
+            targets.push(want.clamp(lo, hi));
+        }
+        // A derated follower moves no faster than its share of its max_velocity.
+        let period_s = 1.0 / r.rate_hz;
+        for (i, t) in targets.iter_mut().enumerate() {
+            let share = self.monitor.speed_share(i);
+            if let (true, Some(Some(prev)), Some(v)) = (
+                share < 1.0,
+                self.last_sent.get(i),
+                self.max_speed_deg.get(i),
+            ) {
+                let most = share * v * period_s;
+                *t = t.clamp(prev - most, prev + most);
+            }
+            *t = t.to_radians();
         }
         // Within the soft limits, a target can still lie past a wCK servo's range (a file
         // whose limits reach beyond it): every follower row fails this cycle, and nothing
@@ -615,6 +690,49 @@ impl Run {
         }
         self.latencies.push_back(took);
         self.summary.commanded += 1;
+        let temperatures = if t_s >= self.next_temperature {
+            self.next_temperature = t_s + super::play::TEMPERATURE_EVERY_S;
+            self.temperatures(station)
+        } else {
+            vec![None; self.rows.len()]
+        };
+        let now = self.clock.now();
+        for (i, result) in done.iter().enumerate() {
+            let Outcome::Ok(j) = &result.outcome else {
+                continue;
+            };
+            // Where the joint reported itself at this command, and its current.
+            let device = j
+                .feedback
+                .get("position_deg")
+                .or_else(|| j.feedback.get("position"))
+                .and_then(serde_json::Value::as_f64);
+            let at = device.and_then(|d| self.follower.joint_rad(i, d));
+            let reading = Reading {
+                at: now,
+                position_deg: at.map(f64::to_degrees),
+                error_deg: at
+                    .zip(self.last_sent.get(i).copied().flatten())
+                    .map(|(a, sent)| (a.to_degrees() - sent).abs()),
+                target_deg: self.last_sent.get(i).copied().flatten(),
+                current_a: j
+                    .feedback
+                    .get("current_ma")
+                    .and_then(serde_json::Value::as_f64)
+                    .map(|ma| ma / 1e3),
+                temperature_c: temperatures.get(i).copied().flatten(),
+            };
+            for f in self.monitor.feed(i, &reading) {
+                tracing::warn!("{f}");
+                if f.action == Action::Stop {
+                    self.stopped = Some(i);
+                }
+                self.summary.protection.push(f);
+            }
+            if let Some(slot) = self.last_sent.get_mut(i) {
+                *slot = self.follower.joint_rad(i, j.sent).map(f64::to_degrees);
+            }
+        }
         for (i, (row, result)) in self.rows.iter_mut().zip(done).enumerate() {
             let target_deg = targets.get(i).copied().unwrap_or(0.0).to_degrees();
             row.target_deg = Some(target_deg);
@@ -637,6 +755,33 @@ impl Run {
             }
         }
         true
+    }
+
+    /// Each WHJ follower's temperature, read now (a status query; `None` for a wCK servo
+    /// or a joint that did not answer, whose next command finds it silent).
+    fn temperatures(&self, station: &Station) -> Vec<Option<f64>> {
+        self.follower
+            .joints()
+            .iter()
+            .map(|f| {
+                if f.family != Family::Whj {
+                    return None;
+                }
+                let id = robobus_whj::JointId::new(f.id).ok()?;
+                let port = station.whj(Some(&f.bus)).ok()?;
+                let status = port.bus().joint_unchecked(id).status().ok()?;
+                Some(f64::from(status.temperature.celsius()))
+            })
+            .collect()
+    }
+
+    /// The follower joint the protection stopped, if torque off is safe for it.
+    fn torque_off(&self) -> Vec<String> {
+        self.stopped
+            .filter(|&i| protect::torque_off_is_safe(self.models.get(i).copied().flatten()))
+            .and_then(|i| self.follower.joints().get(i))
+            .map(|f| vec![f.name.clone()])
+            .unwrap_or_default()
     }
 
     /// The failure of a leader silent for `silent`: which joints, and why.
@@ -671,6 +816,7 @@ impl Run {
         interrupted: bool,
         settled: &super::Settled,
     ) -> Teleoperated {
+        let torque_off = self.torque_off();
         let s = &mut self.summary;
         s.seconds = elapsed.as_secs_f64();
         #[allow(clippy::cast_precision_loss)] // a count of cycles
@@ -688,9 +834,24 @@ impl Run {
             .map
             .iter()
             .zip(self.rows)
-            .map(|(p, mut row)| {
+            .enumerate()
+            .map(|(i, (p, mut row))| {
                 row.tracking_max_deg = row.tracking.max().unwrap_or(0.0);
                 row.tracking_rms_deg = row.tracking.rms().unwrap_or(0.0);
+                if self.stopped == Some(i)
+                    && let Some(stop) = s.protection.iter().find(|f| f.action == Action::Stop)
+                {
+                    let off = if torque_off.contains(&p.follower) {
+                        "; its drive disabled (its brake holds it: holding would keep it \
+                         pushing or heating)"
+                    } else {
+                        ""
+                    };
+                    return DeviceResult::failed(
+                        p.follower.clone(),
+                        Failure::of(ErrorKind::Device, &format!("{stop}{off}")),
+                    );
+                }
                 match row.last_error.take() {
                     Some(f) => DeviceResult::failed(
                         p.follower.clone(),
@@ -808,6 +969,8 @@ mod tests {
         assert!(e.contains("s0: sim-wck: servo 0 did not answer"), "{e}");
         let s = &v["summary"];
         assert_eq!(s["leader_lost"], true, "{s}");
+        // Free following with the default protection: no event.
+        assert_eq!(s["protection"], json!([]), "{s}");
         assert_eq!(s["interrupted"], false, "{s}");
         // 50 Hz on the simulated clock: a command every 20 ms until the kill at 0.9 s,
         // then cycles that hold (each as long as its silent reading).
@@ -895,5 +1058,67 @@ mod tests {
         let e = run(&station, &request, &mut Control::none()).unwrap_err();
         assert_eq!(e.kind(), crate::ErrorKind::BadInput, "{e}");
         assert!(e.to_string().contains("elbow"), "{e}");
+    }
+
+    #[test]
+    fn a_follower_pushing_into_an_obstacle_is_stopped_and_named() {
+        let (station, wck, whj) = Station::simulated_with_handles().unwrap();
+        for r in [
+            json!({"op": "whj.mode", "joints": "1", "mode": "position"}),
+            json!({"op": "whj.enable", "joints": "1"}),
+        ] {
+            run(
+                &station,
+                &serde_json::from_value(r).unwrap(),
+                &mut Control::none(),
+            )
+            .unwrap();
+        }
+        // A stop at 10° in j1's way; the leader s0 is turned to 30°.
+        whj.with_bus(|b| {
+            b.joint_mut(1)
+                .unwrap()
+                .set_obstacle(Some(robobus_sim::whj::Obstacle::above(10.0)));
+        });
+        let t = u64::try_from(wck.now().as_millis()).unwrap();
+        turn(&wck, t + 50, 0, 30.0);
+        let request: Request = serde_json::from_value(json!({
+            "op": "robot.teleop",
+            "rate_hz": 50,
+            "seconds": 5,
+            "map": [{"leader": "s0", "follower": "j1"}],
+        }))
+        .unwrap();
+        let report = run(&station, &request, &mut Control::none()).unwrap();
+        let v = serde_json::to_value(&report).unwrap();
+        // The stall ends the run long before its 5 s and fails it, naming the joint, the
+        // quantity, the limit and the time.
+        assert_eq!(v["failed"], "device", "{v:#}");
+        let s = &v["summary"];
+        let events = s["protection"].as_array().unwrap();
+        assert_eq!(events.len(), 1, "{s:#}");
+        let stop = &events[0];
+        assert_eq!(
+            (&stop["joint"], &stop["check"], &stop["action"]),
+            (&json!("j1"), &json!("stall"), &json!("stop")),
+            "{stop}"
+        );
+        assert_eq!(
+            (&stop["quantity"], &stop["limit"]),
+            (&json!("current_a"), &json!(7.8))
+        );
+        // j1 reaches the stop about 0.2 s in (2° a cycle); the current passes the stall
+        // current within 0.2 s and the stall time (0.3 s) later the run stops.
+        let at = stop["at_s"].as_f64().unwrap();
+        assert!((at - 0.68).abs() < 0.005, "{stop}");
+        assert!((s["seconds"].as_f64().unwrap() - at).abs() < 0.001, "{s}");
+        let e = row(&v, "j1")["error"].as_str().unwrap();
+        assert!(
+            e.starts_with("j1: stall protection: current 23.40 A reached the limit 7.8 A at 0.6"),
+            "{e}"
+        );
+        // j1 (a WHJ30, braked) is disabled: no longer pushing.
+        let j1 = whj.with_bus(|b| b.joint(1).unwrap().state());
+        assert!(!j1.enabled && j1.current_a.abs() < 1e-9, "{j1:?}");
     }
 }
