@@ -322,6 +322,7 @@ fn recorded_states(t: &SampleTable) -> Vec<crate::cdr::JointState> {
 }
 
 #[test]
+#[allow(clippy::float_cmp)] // exact: the value written is the value read back
 fn an_mcap_joint_states_effort_is_the_torque_estimated_from_the_current() {
     // Joint 1 with a torque constant of 2.5 N·m/A, joint 2 without one (model unknown).
     let mut t = SampleTable::whj(&[1, 2]).with_torque_constants(&[Some(2.5)]);
@@ -361,6 +362,7 @@ fn an_mcap_joint_states_effort_is_the_torque_estimated_from_the_current() {
 }
 
 #[test]
+#[allow(clippy::float_cmp)] // exact: the value written is the value read back
 fn a_robot_samples_effort_nm_is_the_recorded_effort() {
     // As the bridge publishes it: a robot sample's `effort_nm`, whatever its current.
     let mut t = SampleTable::robot([("elbow", false), ("s0", true)]);
