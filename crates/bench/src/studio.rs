@@ -247,24 +247,20 @@ impl<L: FrameLink> FrameLink for Recorder<L> {
     robobus_link::forward_frame_link_clock!(inner);
 }
 
-/// Each request sent with the reply received before the next request: (requests,
-/// replies, Σ request + max(delay, intermission) + reply − intermission).
+/// The frames as request–reply transactions back to back, whatever order they went in (a
+/// pipelined sample sends its requests together): (requests, replies, Σ request +
+/// Σ (max(delay, intermission) + reply − intermission)).
 fn transactions(frames: &[(bool, CanFrame)], rates: BitRates) -> (usize, usize, Duration) {
     let gap = whj::intermission(rates);
     let (mut n, mut replies) = (0, 0);
     let mut total = Duration::ZERO;
-    let mut it = frames.iter().peekable();
-    while let Some((sent, f)) = it.next() {
-        if !*sent {
-            continue;
-        }
-        n += 1;
-        total += frame_duration(f, rates);
-        if let Some((false, reply)) = it.peek() {
-            total +=
-                (whj::DEFAULT_DELAY.max(gap) + frame_duration(reply, rates)).saturating_sub(gap);
+    for (sent, f) in frames {
+        if *sent {
+            n += 1;
+            total += frame_duration(f, rates);
+        } else {
             replies += 1;
-            it.next();
+            total += (whj::DEFAULT_DELAY.max(gap) + frame_duration(f, rates)).saturating_sub(gap);
         }
     }
     (n, replies, total)
