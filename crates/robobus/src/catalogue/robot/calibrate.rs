@@ -260,9 +260,9 @@ mod tests {
     use crate::station::Station;
 
     /// Servo `id`'s shaft turned by hand to `deg` joint degrees (from step 127) at
-    /// simulated time `at` after now.
-    fn turn(sim: &robobus_sim::wck::SimHandle, at_ms: u64, id: usize, deg: f64) {
-        let at = sim.now() + Duration::from_millis(at_ms);
+    /// simulated time `after` from now.
+    fn turn(sim: &robobus_sim::wck::SimHandle, after: Duration, id: usize, deg: f64) {
+        let at = sim.now() + after;
         sim.at(at, move |bus| {
             let centre = 127.0 * robobus_sim::wck::mechanics::DEG_PER_STEP8;
             bus.servo_mut(id).unwrap().set_angle(centre + deg);
@@ -282,10 +282,20 @@ mod tests {
     fn the_range_moved_through_by_hand_becomes_the_files_limits_and_the_end_its_zero() {
         let (station, wck, _) = Station::simulated_with_handles().unwrap();
         // Servo 0 is turned to -40°, then +50°, and left at +10°; servo 1 to -20°, +30°,
-        // then back to 0. The others stay where they are.
-        for (t, d0, d1) in [(100, -40.0, -20.0), (250, 50.0, 30.0), (400, 10.0, 0.0)] {
-            turn(&wck, t, 0, d0);
-            turn(&wck, t, 1, d1);
+        // then back to 0, half-way between readings 2 and 3, 5 and 6, 8 and 9. The others
+        // stay where they are. The simulated clock moves only while the bus waits: one
+        // reading is a status read of each servo, each transaction followed by the quiet
+        // time after its reply.
+        let baud = robobus_wck::BaudRate::B115200;
+        let status = robobus_wck::Command::StatusRead {
+            id: robobus_wck::ServoId::new(0).unwrap(),
+        };
+        let reading = (robobus_wck::timing::transaction_time(&status, baud)
+            + crate::wck::reply_guard(baud))
+            * u32::from(crate::robot::simulated::SERVOS);
+        for (k, d0, d1) in [(2.5, -40.0, -20.0), (5.5, 50.0, 30.0), (8.5, 10.0, 0.0)] {
+            turn(&wck, reading.mul_f64(k), 0, d0);
+            turn(&wck, reading.mul_f64(k), 1, d1);
         }
         let request: Request =
             serde_json::from_value(json!({"op": "robot.calibrate", "seconds": 0.5})).unwrap();
@@ -360,8 +370,8 @@ mod tests {
     #[test]
     fn keeping_the_offsets_and_bad_values() {
         let (station, wck, _) = Station::simulated_with_handles().unwrap();
-        turn(&wck, 50, 3, -30.0);
-        turn(&wck, 200, 3, 30.0);
+        turn(&wck, Duration::from_millis(50), 3, -30.0);
+        turn(&wck, Duration::from_millis(200), 3, 30.0);
         let request: Request = serde_json::from_value(
             json!({"op": "robot.calibrate", "seconds": 0.3, "zero": "keep", "margin_deg": 5}),
         )
