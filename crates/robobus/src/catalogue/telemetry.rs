@@ -795,8 +795,8 @@ impl Shared {
         }
     }
 
-    /// Waits until `next` (the slot after `base` at the shortest period now) or until
-    /// stopping; `None` when stopping.
+    /// Waits until the slot after `base` at the shortest period now (at once if that has
+    /// passed) and returns it; `None` when stopping.
     fn wait_slot(&self, base: Instant) -> Option<Instant> {
         let mut m = self.lock();
         loop {
@@ -831,9 +831,9 @@ impl Shared {
             };
             let sample = take_sample(&taking, &self.stop, speeds.as_mut(), late, &mut stats);
             self.deliver(&sample, slot, period);
-            // Behind: start again from now rather than bursting to catch up.
-            let base = if late { Instant::now().max(slot) } else { slot };
-            match self.wait_slot(base) {
+            match self.wait_slot(slot) {
+                // Behind: start again from now rather than bursting to catch up.
+                Some(next) if late => slot = next.max(Instant::now()),
                 Some(next) => slot = next,
                 None => break,
             }
