@@ -69,8 +69,24 @@ pub use safe::SafeState;
 ///
 /// Operations check it between steps and while they wait, so a stop takes effect within one
 /// step (a few milliseconds), then the devices are brought to the chosen safe state.
-#[derive(Debug, Clone, Default)]
-pub struct StopToken(Arc<AtomicBool>);
+///
+/// A front end whose stop request can only be seen on the thread running the operation
+/// (Python's signals, on its main thread) gives it a poll ([`StopToken::with_poll`]): every
+/// check asks it too, and a `true` sets the flag.
+#[derive(Clone, Default)]
+pub struct StopToken(Arc<AtomicBool>, Option<Arc<StopPoll>>);
+
+/// What [`StopToken::with_poll`] takes: `true` asks to stop.
+pub type StopPoll = dyn Fn() -> bool + Send + Sync;
+
+impl fmt::Debug for StopToken {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("StopToken")
+            .field("stopped", &self.0.load(Ordering::SeqCst))
+            .field("poll", &self.1.is_some())
+            .finish()
+    }
+}
 
 impl StopToken {
     /// A token that is not set.
@@ -78,14 +94,29 @@ impl StopToken {
         Self::default()
     }
 
+    /// The same token, whose every check also calls `poll` (on the checking thread; it
+    /// should return at once): `true` sets the flag. Clones made from it share the poll.
+    #[must_use]
+    pub fn with_poll(mut self, poll: impl Fn() -> bool + Send + Sync + 'static) -> Self {
+        self.1 = Some(Arc::new(poll));
+        self
+    }
+
     /// Asks every operation holding a clone of this token to stop.
     pub fn stop(&self) {
         self.0.store(true, Ordering::SeqCst);
     }
 
-    /// Whether [`stop`](Self::stop) was called.
+    /// Whether [`stop`](Self::stop) was called (or the poll asked to stop).
     pub fn is_stopped(&self) -> bool {
-        self.0.load(Ordering::SeqCst)
+        if self.0.load(Ordering::SeqCst) {
+            return true;
+        }
+        if self.1.as_ref().is_some_and(|poll| poll()) {
+            self.stop();
+            return true;
+        }
+        false
     }
 
     /// Clears the flag (a front end reusing one token for several operations).
@@ -603,6 +634,28 @@ mod tests {
         token.stop();
         assert!(!token.sleep_on(&mut link, deadline + Duration::from_secs(1)));
         assert_eq!(link.now(), deadline);
+    }
+
+    #[test]
+    fn a_polled_token_stops_a_sleep_at_its_next_slice_and_stays_stopped() {
+        use robobus_sim::wck::{Bus, BusConfig, SimLink};
+        let (mut link, _handle) = SimLink::virtual_clock(Bus::new(BusConfig::default()));
+        let polls = Arc::new(std::sync::atomic::AtomicU32::new(0));
+        let p = Arc::clone(&polls);
+        // Asks to stop on its fourth call.
+        let token = StopToken::new().with_poll(move || p.fetch_add(1, Ordering::SeqCst) == 3);
+        let start = link.now();
+        assert!(
+            !token
+                .clone()
+                .sleep_on(&mut link, start + Duration::from_secs(60))
+        );
+        // Polled before each 5 ms slice: stopped after three slices.
+        assert_eq!(link.now(), start + 3 * STOP_SLICE);
+        assert_eq!(polls.load(Ordering::SeqCst), 4);
+        // The flag is set: no more polls, and a clone without the poll sees it too.
+        assert!(token.is_stopped() && StopToken(Arc::clone(&token.0), None).is_stopped());
+        assert_eq!(polls.load(Ordering::SeqCst), 4);
     }
 
     #[test]

@@ -18,15 +18,15 @@ use std::sync::Mutex;
 
 use robobus_wck::{Position, ServoId, TorqueLevel};
 use robobus_whj::units::{Current, CurrentScale, Position as WhjPosition, TargetSpeed};
-use robobus_whj::{JointId, Request};
+use robobus_whj::{JointId, Reply, Request};
 use serde::Serialize;
 
 use super::cyclic::{JointFeedback, allowed, check_targets};
 use super::{Station, WckPort, WeakWckPort, WeakWhjPort, WhjPort};
 use crate::ops::distinct_ids;
-use crate::ops::whj::{JointSample, ServoLoop, require_ready};
+use crate::ops::whj::{JointSample, ServoLoop, check_reading, require_ready};
 use crate::ops::{DeviceResult, Failure, OpError};
-use crate::whj::WhjError;
+use crate::whj::{MAX_PIPELINED, WhjError};
 
 /// One wCK servo's reading.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -291,6 +291,40 @@ impl WhjGroup {
     /// enabled, error bits).
     pub fn status(&self) -> Result<Vec<DeviceResult<u8, JointSample>>, OpError> {
         Ok(crate::ops::whj::sample(self.port()?.bus(), &self.ids))
+    }
+
+    /// Reads each joint's position, degrees: the status queries go out together
+    /// ([`JointBus::request_many`](crate::whj::JointBus::request_many), at most
+    /// [`MAX_PIPELINED`] at a time), each answer credited only to its own query and checked
+    /// as [`status`](Self::status) checks it (within the joint's limits). One attempt each:
+    /// a joint that does not answer is a failed result, never an older value.
+    pub fn positions(&self) -> Result<Vec<DeviceResult<u8, f64>>, OpError> {
+        let port = self.port()?;
+        let bus = port.bus();
+        let mut out = Vec::with_capacity(self.ids.len());
+        for chunk in self.ids.chunks(MAX_PIPELINED) {
+            let queries: Vec<Request> = chunk
+                .iter()
+                .map(|&joint| Request::StatusQuery { joint })
+                .collect();
+            for (&id, reply) in chunk.iter().zip(bus.request_many(&queries)?) {
+                let read = reply.map_err(OpError::from).and_then(|r| match r {
+                    Reply::Status { status, .. } => {
+                        let deg = status.position.degrees();
+                        check_reading(&bus.joint_unchecked(id), deg, None)?;
+                        Ok(deg)
+                    }
+                    other => Err(OpError::Device(format!(
+                        "joint {id}: a status query was answered with {other:?}"
+                    ))),
+                });
+                out.push(match read {
+                    Ok(deg) => DeviceResult::ok(id.get(), deg),
+                    Err(e) => DeviceResult::failed(id.get(), Failure::from(&e)),
+                });
+            }
+        }
+        Ok(out)
     }
 
     fn lock_ready(&self) -> std::sync::MutexGuard<'_, Option<ServoLoop>> {
