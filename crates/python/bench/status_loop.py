@@ -16,6 +16,13 @@ CPU per transaction, one run each:
 
     target/pybind/bin/python crates/python/bench/status_loop.py [--seconds 3]
 
+- The bindings' own cost per call, in-process on the built-in simulated robot (its
+  simulators on their virtual clock, so a call is CPU only): each handle call in a Python
+  loop against the same library call in a Rust loop on the same handle (the native
+  module's `_bench_*`, the GIL released as the call releases it), and `station.run(request)`
+  against the library running the same parsed request, beside the library's parse of the
+  request's JSON text. Python and Rust alternate, five rounds; the median of each.
+
 Needs the package installed (scripts/py/test-bindings does it, with the dev profile; for
 figures a user sees, install it with the release profile), the release robobus and
 robobus-bench binaries (cargo build --release -p robobus-cli -p robobus-bench), the
@@ -34,6 +41,7 @@ import subprocess
 import sys
 import threading
 import time
+from typing import Any
 
 import robobus
 
@@ -172,6 +180,75 @@ def pyserial(port: str, seconds: float) -> dict[str, float]:
     return {"rate": d["cycles"] / d["elapsed"], "cpu_us": d["cpu"] / d["cycles"] * 1e6}
 
 
+def _per_call(f: Any, n: int) -> float:
+    f()
+    t0 = time.perf_counter()
+    for _ in range(n):
+        f()
+    return (time.perf_counter() - t0) / n
+
+
+def _median(xs: list[float]) -> float:
+    return sorted(xs)[len(xs) // 2]
+
+
+def calls(rounds: int = 5, n: int = 2000) -> list[tuple[str, float, float]]:
+    """(call, Python µs, Rust µs) per call, each the median of `rounds` alternations."""
+    from robobus import _robobus
+
+    out: list[tuple[str, float, float]] = []
+    with robobus.Station.simulated() as station:
+        station.whj.mode("1-7", "position", check=True)
+        station.whj.enable("1-7", check=True)
+        servo = station.wck_servo(0)
+        joint = station.whj_joint(1)
+        joints = station.whj_joints(range(1, 8))
+        here = joint.status()["position_deg"]
+        wck_native = servo._group._native
+        whj_native = joint._group._native
+        cases: list[tuple[str, Any, Any]] = [
+            ("`wck_servo(0).status()`", servo.status, lambda k: wck_native._bench_status(k)),
+            ("`whj_joint(1).status()`", joint.status, lambda k: whj_native._bench_status(k)),
+            (
+                "`whj_joint(1).command_position(x)`",
+                lambda: joint.command_position(here),
+                lambda k: whj_native._bench_command("position", [here], k),
+            ),
+            (
+                "`whj_joints(1..7).read_positions()`",
+                joints.read_positions,
+                lambda k: joints._native._bench_positions(k),
+            ),
+        ]
+        req = {"op": "wck.status", "ids": [0]}
+        cases.append(
+            (
+                "`station.run({\"op\": \"wck.status\", \"ids\": [0]})`",
+                lambda: station.run(req),
+                lambda k: station._native._bench_run(req, k),
+            )
+        )
+        for name, py_call, rust_loop in cases:
+            py_t: list[float] = []
+            rust_t: list[float] = []
+            for _ in range(rounds):
+                py_t.append(_per_call(py_call, n))
+                rust_t.append(rust_loop(n))
+            out.append((name, _median(py_t) * 1e6, _median(rust_t) * 1e6))
+        text = json.dumps(req)
+        parse = _median([_robobus._bench_parse(text, n * 10) for _ in range(rounds)]) * 1e6
+        out.append((f"the library's parse of `{text}`", parse, parse))
+    return out
+
+
+def calls_table(rows: list[tuple[str, float, float]]) -> None:
+    print("\nThe bindings' cost per call, in-process simulated robot (virtual clock)\n")
+    print("| call | Python µs | the same call in Rust µs | Python over Rust µs |")
+    print("|---|---|---|---|")
+    for name, py_us, rust_us in rows:
+        print(f"| {name} | {py_us:.2f} | {rust_us:.2f} | {py_us - rust_us:.2f} |")
+
+
 def table(title: str, results: dict[str, dict[str, float]], base: str, peer: str) -> None:
     print(f"\n{title}\n")
     print(f"| loop | per second | CPU µs each | rate / Rust | rate / {peer.split()[0]} | CPU / {peer.split()[0]} |")
@@ -188,10 +265,15 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--seconds", type=float, default=3.0)
     ap.add_argument("--whj-only", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--calls-only", action="store_true", help="only the in-process call costs")
     args = ap.parse_args()
+    if args.calls_only:
+        calls_table(calls())
+        return
     if args.whj_only:
         print(json.dumps(whj(args.seconds)))
         return
+    calls_table(calls())
     sim, port = sim_port()
     try:
         results = {

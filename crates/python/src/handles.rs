@@ -9,8 +9,8 @@ use std::sync::{Arc, Mutex};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use robobus::ErrorKind;
-use robobus::ops::DeviceResult;
 use robobus::ops::whj::{JointSample, ServoLoop};
+use robobus::ops::{DeviceResult, Outcome};
 use robobus::robot::Robot;
 use robobus::station::cyclic::JointFeedback;
 use robobus::station::handles::{WckGroup, WckReading, WhjGroup};
@@ -131,6 +131,81 @@ fn whj_columns<T: JointValues>(
     Ok(d.into_any().unbind())
 }
 
+/// The one device's value of a single-device call, or its failure raised as its kind's
+/// class.
+fn one<T>(py: Python<'_>, rows: Vec<DeviceResult<u8, T>>) -> PyResult<T> {
+    match rows.into_iter().next().map(|r| r.outcome) {
+        Some(Outcome::Ok(v)) => Ok(v),
+        Some(Outcome::Failed(f)) => Err(raise(py, f.kind, &f.error, None)),
+        None => Err(raise(
+            py,
+            ErrorKind::BadInput,
+            "no device in the handle",
+            None,
+        )),
+    }
+}
+
+/// A wCK servo's reading as a dict: `position` (steps), `position_deg` and, where the reply
+/// has it, `load`.
+fn wck_dict(py: Python<'_>, v: &WckReading) -> PyResult<Py<PyAny>> {
+    let d = PyDict::new(py);
+    d.set_item("position", f64::from(v.position))?;
+    d.set_item("position_deg", v.position_deg)?;
+    if let Some(load) = v.load {
+        d.set_item("load", f64::from(load))?;
+    }
+    Ok(d.into_any().unbind())
+}
+
+/// A WHJ joint's values as a dict: `position_deg`, `speed_rpm`, `current_ma` (`NaN` where
+/// the device gave none), `enabled`, `errors`.
+#[allow(clippy::cast_precision_loss)] // currents far below 2^52 mA
+fn whj_dict<T: JointValues>(py: Python<'_>, v: &T) -> PyResult<Py<PyAny>> {
+    let d = PyDict::new(py);
+    d.set_item("position_deg", v.position_deg())?;
+    d.set_item("speed_rpm", v.speed_rpm().unwrap_or(f64::NAN))?;
+    d.set_item("current_ma", v.current_ma().map_or(f64::NAN, |c| c as f64))?;
+    d.set_item("enabled", v.enabled())?;
+    d.set_item("errors", v.error())?;
+    Ok(d.into_any().unbind())
+}
+
+/// A number argument as `f64`, or bad input naming it (nothing sent).
+fn number(py: Python<'_>, what: &str, v: &Bound<'_, PyAny>) -> PyResult<f64> {
+    if v.is_instance_of::<pyo3::types::PyString>() {
+        return Err(bad_number(py, what, v));
+    }
+    v.extract::<f64>().map_err(|_| bad_number(py, what, v))
+}
+
+fn bad_number(py: Python<'_>, what: &str, v: &Bound<'_, PyAny>) -> PyErr {
+    let shown = v.repr().map_or_else(|_| "?".to_owned(), |r| r.to_string());
+    raise(
+        py,
+        ErrorKind::BadInput,
+        &format!("{what}: {shown} is not a number; nothing was sent"),
+        None,
+    )
+}
+
+/// Benchmark: `f` run `n` times with the GIL released; seconds each on average.
+fn bench<E>(py: Python<'_>, n: u32, f: impl Fn() -> Result<(), E> + Send + Sync) -> PyResult<f64>
+where
+    E: Send,
+    robobus::ops::OpError: From<E>,
+{
+    let n = crate::bench_count(py, n)?;
+    py.detach(|| {
+        let start = std::time::Instant::now();
+        for _ in 0..n {
+            f()?;
+        }
+        Ok(start.elapsed().as_secs_f64() / f64::from(n))
+    })
+    .map_err(|e: E| op_error(py, &robobus::ops::OpError::from(e)))
+}
+
 pub(crate) fn servo_loop(py: Python<'_>, mode: &str) -> PyResult<ServoLoop> {
     match mode {
         "position" => Ok(ServoLoop::Position),
@@ -214,6 +289,77 @@ impl NativeWckServos {
             .map_err(|e| op_error(py, &e))?;
         wck_columns(py, &rows)
     }
+
+    /// The first servo's position and load as a dict; its failure raised.
+    fn status_one(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        self.life.check(py, "WckServos.status")?;
+        let rows = py
+            .detach(|| self.inner.status())
+            .map_err(|e| op_error(py, &e))?;
+        wck_dict(py, &one(py, rows)?)
+    }
+
+    /// Moves the one servo of the handle; its reply as a dict, its failure raised.
+    fn move_one(
+        &self,
+        py: Python<'_>,
+        position: &Bound<'_, PyAny>,
+        torque: u8,
+    ) -> PyResult<Py<PyAny>> {
+        self.life.check(py, "WckServos.move")?;
+        self.life
+            .admission
+            .check_motion(robobus::frontend::Arming::Local, "WckServos.move")
+            .map_err(|r| op_error(py, &r.error))?;
+        let p = number(py, "position", position)?;
+        let rows = py
+            .detach(|| self.inner.move_to(&[p], torque))
+            .map_err(|e| op_error(py, &e))?;
+        wck_dict(py, &one(py, rows)?)
+    }
+
+    /// Makes the one servo of the handle passive; its position as a dict.
+    fn passive_one(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        self.life.check(py, "WckServos.passive")?;
+        self.life
+            .admission
+            .check_change("WckServos.passive")
+            .map_err(|r| op_error(py, &r.error))?;
+        let rows = py
+            .detach(|| self.inner.passive())
+            .map_err(|e| op_error(py, &e))?;
+        wck_dict(py, &one(py, rows)?)
+    }
+
+    /// Each servo's position in degrees (`NaN` where it did not answer; with `check`, the
+    /// first failure raised instead).
+    fn positions(&self, py: Python<'_>, check: bool) -> PyResult<Vec<f64>> {
+        self.life.check(py, "WckServos.read_positions")?;
+        let rows = py
+            .detach(|| self.inner.status())
+            .map_err(|e| op_error(py, &e))?;
+        position_column(py, &rows, check, |v| v.position_deg)
+    }
+
+    /// Benchmark: the same status read `n` times in Rust; seconds each.
+    #[pyo3(name = "_bench_status")]
+    fn bench_status(&self, py: Python<'_>, n: u32) -> PyResult<f64> {
+        self.life.check(py, "WckServos._bench_status")?;
+        bench(py, n, || self.inner.status().map(drop))
+    }
+}
+
+/// A position column (`NaN` where a device failed), or with `check` the first failure.
+fn position_column<T>(
+    py: Python<'_>,
+    rows: &[DeviceResult<u8, T>],
+    check: bool,
+    f: impl Fn(&T) -> f64,
+) -> PyResult<Vec<f64>> {
+    if check && let Some(fail) = rows.iter().find_map(DeviceResult::failure) {
+        return Err(raise(py, fail.kind, &fail.error, None));
+    }
+    Ok(column(rows, |v| Some(f(v))))
 }
 
 /// WHJ joints on one of a station's buses.
@@ -266,6 +412,78 @@ impl NativeWhjJoints {
             .detach(|| self.inner.command(servo, &targets))
             .map_err(|e| op_error(py, &e))?;
         whj_columns(py, &rows)
+    }
+
+    /// The one joint's status as a dict; its failure raised.
+    fn status_one(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        self.life.check(py, "WhjJoints.status")?;
+        let rows = py
+            .detach(|| self.inner.status())
+            .map_err(|e| op_error(py, &e))?;
+        whj_dict(py, &one(py, rows)?)
+    }
+
+    /// One `mode` servo frame to the one joint of the handle; its feedback as a dict, its
+    /// failure raised.
+    fn command_one(
+        &self,
+        py: Python<'_>,
+        mode: &str,
+        target: &Bound<'_, PyAny>,
+    ) -> PyResult<Py<PyAny>> {
+        self.life.check(py, "WhjJoints.command")?;
+        self.life
+            .admission
+            .check_motion(robobus::frontend::Arming::Local, "WhjJoints.command")
+            .map_err(|r| op_error(py, &r.error))?;
+        let servo = servo_loop(py, mode)?;
+        let t = number(py, "target", target)?;
+        let rows = py
+            .detach(|| self.inner.command(servo, &[t]))
+            .map_err(|e| op_error(py, &e))?;
+        whj_dict(py, &one(py, rows)?)
+    }
+
+    /// Each joint's position in degrees, the status queries pipelined (`NaN` where a joint
+    /// did not answer; with `check`, the first failure raised instead).
+    fn positions(&self, py: Python<'_>, check: bool) -> PyResult<Vec<f64>> {
+        self.life.check(py, "WhjJoints.read_positions")?;
+        let rows = py
+            .detach(|| self.inner.positions())
+            .map_err(|e| op_error(py, &e))?;
+        position_column(py, &rows, check, |&deg| deg)
+    }
+
+    /// Benchmark: the same `mode` servo frames `n` times in Rust; seconds each.
+    #[pyo3(name = "_bench_command")]
+    fn bench_command(
+        &self,
+        py: Python<'_>,
+        mode: &str,
+        targets: Vec<f64>,
+        n: u32,
+    ) -> PyResult<f64> {
+        self.life.check(py, "WhjJoints._bench_command")?;
+        self.life
+            .admission
+            .check_motion(robobus::frontend::Arming::Local, "WhjJoints._bench_command")
+            .map_err(|r| op_error(py, &r.error))?;
+        let servo = servo_loop(py, mode)?;
+        bench(py, n, || self.inner.command(servo, &targets).map(drop))
+    }
+
+    /// Benchmark: the pipelined position read `n` times in Rust; seconds each.
+    #[pyo3(name = "_bench_positions")]
+    fn bench_positions(&self, py: Python<'_>, n: u32) -> PyResult<f64> {
+        self.life.check(py, "WhjJoints._bench_positions")?;
+        bench(py, n, || self.inner.positions().map(drop))
+    }
+
+    /// Benchmark: the status read `n` times in Rust; seconds each.
+    #[pyo3(name = "_bench_status")]
+    fn bench_status(&self, py: Python<'_>, n: u32) -> PyResult<f64> {
+        self.life.check(py, "WhjJoints._bench_status")?;
+        bench(py, n, || self.inner.status().map(drop))
     }
 }
 

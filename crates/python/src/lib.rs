@@ -3,12 +3,18 @@
 //! catalogue's JSON form. The Python side (`python/robobus`) adds the methods generated
 //! from the request schema, the exception classes and the type stubs.
 //!
-//! - Every call that waits on a device releases the GIL.
-//! - On the main thread a request runs on a worker thread while the caller waits in short
-//!   slices and checks Python's signals between them: Ctrl-C stops the request through its
-//!   stop token (the operation brings its devices to their safe state) and raises
-//!   `KeyboardInterrupt` once it has. Python's own SIGINT handler stays in place; no
-//!   handler is installed here.
+//! - Every call that waits on a device releases the GIL, and runs on the calling thread
+//!   (no hand-off to another thread).
+//! - On the main thread a request's stop token polls Python's signals
+//!   ([`StopToken::with_poll`]): whenever the operation checks its token (between steps, and
+//!   every 5 ms while it waits), at most once per [`SIGNAL_SLICE`], the GIL is taken back for
+//!   `check_signals`. Ctrl-C so stops the request (the operation brings its devices to their
+//!   safe state) and raises `KeyboardInterrupt` once it has; a short request never polls.
+//!   Python's own SIGINT handler stays in place; no handler is installed here.
+//! - Requests come in as dicts walked into the library's JSON value (bounded: at most
+//!   [`MAX_REQUEST_BYTES`](robobus::frontend::parse::MAX_REQUEST_BYTES) of strings and
+//!   [`MAX_DEPTH`] levels), or as JSON text, parsed once; the handles' results are Python
+//!   objects built here.
 //! - Errors are raised as `robobus.errors` classes chosen by the error kind, with the
 //!   library's message.
 //! - The library's log events go to Python's `logging` (pyo3-log).
@@ -20,13 +26,14 @@
 // OpError carries the client errors by value, as the library returns them.
 #![allow(clippy::result_large_err)]
 
-use std::sync::mpsc;
 use std::sync::{Arc, Mutex, OnceLock};
 use std::thread::ThreadId;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
+use pyo3::sync::PyOnceLock;
+use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
 use robobus::ErrorKind;
 use robobus::catalogue::telemetry::RecvError;
 use robobus::catalogue::{self, Request};
@@ -38,8 +45,12 @@ mod life;
 
 use life::{Life, LoopCell, StreamCell, closed_error};
 
-/// How often a wait on the main thread looks at Python's signals.
+/// How often a wait (or a request's stop token) on the main thread looks at Python's
+/// signals.
 const SIGNAL_SLICE: Duration = Duration::from_millis(10);
+
+/// How deep a request's dicts and lists may nest.
+const MAX_DEPTH: usize = 32;
 
 /// The thread that imported the module: the one Python delivers signals to.
 static MAIN: OnceLock<ThreadId> = OnceLock::new();
@@ -75,101 +86,171 @@ fn op_error(py: Python<'_>, e: &OpError) -> PyErr {
     raise(py, e.kind(), &e.to_string(), None)
 }
 
-/// A Python object as JSON text (through Python's own `json`, so a dict, a list, a str or
-/// numbers all work).
-fn to_json(py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<String> {
-    py.import("json")?
-        .call_method1("dumps", (value,))?
-        .extract::<String>()
+/// Python's `json.loads`, looked up once.
+fn json_loads(py: Python<'_>) -> PyResult<&Bound<'_, PyAny>> {
+    static LOADS: PyOnceLock<Py<PyAny>> = PyOnceLock::new();
+    LOADS
+        .get_or_try_init(py, || {
+            Ok::<_, PyErr>(py.import("json")?.getattr("loads")?.unbind())
+        })
+        .map(|f| f.bind(py))
 }
 
 fn from_json(py: Python<'_>, text: &str) -> PyResult<Py<PyAny>> {
-    Ok(py.import("json")?.call_method1("loads", (text,))?.unbind())
+    Ok(json_loads(py)?.call1((text,))?.unbind())
 }
 
+/// A report as Python objects: its JSON text (serde, in the report's field order) read by
+/// Python's C parser.
 fn to_py(py: Python<'_>, value: &impl serde::Serialize) -> PyResult<Py<PyAny>> {
     let text = serde_json::to_string(value)
         .map_err(|e| PyRuntimeError::new_err(format!("serialising a report: {e}")))?;
     from_json(py, &text)
 }
 
-/// A request from a dict (or its JSON text): the library's one parser, its wording.
-fn request(py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<Request> {
-    let text = match value.extract::<String>() {
-        Ok(s) => s,
-        Err(_) => to_json(py, value)?,
+/// Walks a Python request (dicts with string keys, lists, tuples, strings, numbers, bools,
+/// `None`, and anything with numpy's `tolist`) into a JSON value, within `budget` bytes of
+/// strings and [`MAX_DEPTH`] levels.
+fn json_value(
+    py: Python<'_>,
+    v: &Bound<'_, PyAny>,
+    depth: usize,
+    budget: &mut usize,
+) -> PyResult<serde_json::Value> {
+    use serde_json::Value;
+    let bad = |what: String| raise(py, ErrorKind::BadInput, &what, None);
+    if depth > MAX_DEPTH {
+        return Err(bad(format!(
+            "request: nested deeper than {MAX_DEPTH} levels; nothing was sent"
+        )));
+    }
+    let spend = |budget: &mut usize, n: usize| -> PyResult<()> {
+        *budget = budget.checked_sub(n).ok_or_else(|| {
+            bad(format!(
+                "request: over {} bytes (the largest request taken); nothing was sent",
+                robobus::frontend::parse::MAX_REQUEST_BYTES
+            ))
+        })?;
+        Ok(())
     };
-    robobus::frontend::parse::request_text(&text).map_err(|e| op_error(py, &e))
+    spend(budget, 8)?;
+    if v.is_none() {
+        return Ok(Value::Null);
+    }
+    if let Ok(s) = v.cast::<PyString>() {
+        let s = s.to_str()?;
+        spend(budget, s.len())?;
+        return Ok(Value::String(s.to_owned()));
+    }
+    if let Ok(b) = v.cast::<PyBool>() {
+        return Ok(Value::Bool(b.is_true()));
+    }
+    if v.is_instance_of::<PyInt>() {
+        if let Ok(i) = v.extract::<i64>() {
+            return Ok(Value::from(i));
+        }
+        if let Ok(u) = v.extract::<u64>() {
+            return Ok(Value::from(u));
+        }
+        return Err(bad(format!(
+            "request: the number {v} is out of range (allowed: 64-bit integers); nothing was sent"
+        )));
+    }
+    if let Ok(f) = v.cast::<PyFloat>() {
+        let x = f.value();
+        return serde_json::Number::from_f64(x).map(Value::Number).ok_or_else(|| {
+            bad(format!(
+                "request: the number {x} is not finite (allowed: finite numbers); nothing was sent"
+            ))
+        });
+    }
+    if let Ok(d) = v.cast::<PyDict>() {
+        let mut map = serde_json::Map::new();
+        for (k, item) in d.iter() {
+            let key = k
+                .cast::<PyString>()
+                .map_err(|_| {
+                    bad(format!(
+                        "request: the key {k} is not a string; nothing was sent"
+                    ))
+                })?
+                .to_str()?
+                .to_owned();
+            spend(budget, key.len())?;
+            map.insert(key, json_value(py, &item, depth + 1, budget)?);
+        }
+        return Ok(Value::Object(map));
+    }
+    if v.is_instance_of::<PyList>() || v.is_instance_of::<PyTuple>() {
+        let mut out = Vec::new();
+        for item in v.try_iter()? {
+            out.push(json_value(py, &item?, depth + 1, budget)?);
+        }
+        return Ok(Value::Array(out));
+    }
+    // numpy arrays and scalars.
+    if let Ok(plain) = v.call_method0("tolist")
+        && !plain.is(v)
+    {
+        return json_value(py, &plain, depth + 1, budget);
+    }
+    Err(bad(format!(
+        "request: a {} is not a JSON value (allowed: dict, list, str, int, float, bool, None); \
+         nothing was sent",
+        v.get_type().name()?
+    )))
 }
 
-/// A job the main thread hands to its worker.
-type Job = Box<dyn FnOnce() + Send>;
-
-/// The main thread's worker: one long-lived thread that runs its requests while the main
-/// thread waits and watches for signals (a thread per request would cost its start-up on
-/// every call), with the process it was started in: a forked child has none of its
-/// parent's threads, so it starts its own.
-static WORKER: Mutex<Option<(u32, mpsc::Sender<Job>)>> = Mutex::new(None);
-
-fn main_worker(job: Job) -> PyResult<()> {
-    let pid = std::process::id();
-    let mut worker = WORKER
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
-    let tx = match &*worker {
-        Some((p, tx)) if *p == pid => tx,
-        _ => {
-            let (tx, rx) = mpsc::channel::<Job>();
-            std::thread::Builder::new()
-                .name("robobus-main-worker".into())
-                .spawn(move || {
-                    for job in rx {
-                        job();
-                    }
-                })
-                .map_err(|e| {
-                    PyRuntimeError::new_err(format!("starting the robobus worker thread: {e}"))
-                })?;
-            &worker.insert((pid, tx)).1
-        }
-    };
-    tx.send(job)
-        .map_err(|_| PyRuntimeError::new_err("the robobus worker thread is not running"))
+/// A request from a dict (walked into the library's JSON value) or from its JSON text:
+/// the library's one parser, its wording.
+fn request(py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<Request> {
+    if let Ok(text) = value.cast::<PyString>() {
+        return robobus::frontend::parse::request_text(text.to_str()?)
+            .map_err(|e| op_error(py, &e));
+    }
+    let mut budget = robobus::frontend::parse::MAX_REQUEST_BYTES;
+    let v = json_value(py, value, 0, &mut budget)?;
+    robobus::frontend::parse::request_value(v).map_err(|e| op_error(py, &e))
 }
 
 /// How long `close` waits for a call on another thread to let go of the station once it
 /// was stopped (it brings its devices to its safe state first).
 const CLOSE_WAIT: Duration = Duration::from_secs(10);
 
-/// Waits for `rx` with the GIL released; on the main thread in slices, checking Python's
-/// signals between them: on a signal `stop` is set, the wait goes on until the worker has
-/// ended (its devices in their safe state), and the signal's exception is returned.
-fn wait_for<T: Send>(py: Python<'_>, rx: mpsc::Receiver<T>, stop: &StopToken) -> PyResult<T> {
-    // Behind a mutex so that a reference to it may cross into the GIL-free closure.
-    let rx = Mutex::new(rx);
-    let mut signal: Option<PyErr> = None;
-    loop {
-        let got = py.detach(|| {
-            rx.lock()
-                .unwrap_or_else(std::sync::PoisonError::into_inner)
-                .recv_timeout(SIGNAL_SLICE)
-        });
-        match got {
-            Ok(v) => return signal.map_or(Ok(v), Err),
-            Err(mpsc::RecvTimeoutError::Disconnected) => {
-                return Err(signal.unwrap_or_else(|| {
-                    PyRuntimeError::new_err("the request's worker thread ended without a report")
-                }));
-            }
-            Err(mpsc::RecvTimeoutError::Timeout) => {}
-        }
-        if signal.is_none()
-            && let Err(e) = py.check_signals()
-        {
-            stop.stop();
-            signal = Some(e);
-        }
+/// A stop token for a request run on this thread: on the main thread it also polls
+/// Python's signals (at most once per [`SIGNAL_SLICE`], and only when the operation checks
+/// its token), keeping the signal's exception in `raised`.
+fn signal_token(stop: &StopToken, raised: &Arc<Mutex<Option<PyErr>>>) -> StopToken {
+    if !on_main_thread() {
+        // Python delivers signals to the main thread only.
+        return stop.clone();
     }
+    let thread = std::thread::current().id();
+    let last = Mutex::new(Instant::now());
+    let raised = Arc::clone(raised);
+    stop.clone().with_poll(move || {
+        if std::thread::current().id() != thread {
+            return false;
+        }
+        {
+            let mut last = last
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
+            if last.elapsed() < SIGNAL_SLICE {
+                return false;
+            }
+            *last = Instant::now();
+        }
+        Python::attach(|py| match py.check_signals() {
+            Ok(()) => false,
+            Err(e) => {
+                *raised
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner) = Some(e);
+                true
+            }
+        })
+    })
 }
 
 /// The station: the buses a Python session holds (see the module docs of
@@ -397,28 +478,53 @@ impl NativeStation {
         let stop = StopToken::new();
         // Stopped by a `close` on another thread.
         let running = self.life.running(py, &call, &stop)?;
-        let outcome = if on_main_thread() {
-            let (tx, rx) = mpsc::channel();
-            let job_stop = stop.clone();
-            main_worker(Box::new(move || {
-                let r = catalogue::run(&station, &req, &mut Control::new(&job_stop));
-                // Let go of the station before the caller hears of the report, so that a
-                // `close()` right after it finds the station unshared and closes it.
-                drop(station);
-                let _ = tx.send(r);
-            }))?;
-            wait_for(py, rx, &stop)?
-        } else {
-            // Python delivers signals to the main thread only: run here, GIL released.
-            py.detach(move || {
-                let r = catalogue::run(&station, &req, &mut Control::new(&stop));
-                drop(station);
-                r
-            })
-        };
+        let raised = Arc::new(Mutex::new(None));
+        let token = signal_token(&stop, &raised);
+        let outcome = py.detach(move || {
+            let r = catalogue::run(&station, &req, &mut Control::new(&token));
+            // Let go of the station before the caller hears of the report, so that a
+            // `close()` right after it finds the station unshared and closes it.
+            drop(station);
+            r
+        });
         drop(running);
+        if let Some(e) = raised
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .take()
+        {
+            return Err(e);
+        }
         let report = outcome.map_err(|e| op_error(py, &e))?;
         to_py(py, &report)
+    }
+
+    /// Benchmark: `request` run `n` times by the library alone (parsed, checked and
+    /// admitted once, each run in Rust with the GIL released, as `run` runs it); the
+    /// seconds each took on average. What `run` adds over it is the bindings' cost.
+    #[pyo3(name = "_bench_run")]
+    fn bench_run(&self, py: Python<'_>, request_obj: &Bound<'_, PyAny>, n: u32) -> PyResult<f64> {
+        let n = bench_count(py, n)?;
+        let req = request(py, request_obj)?;
+        let call = format!("Station._bench_run({})", req.op());
+        catalogue::validate(&req).map_err(|e| op_error(py, &e))?;
+        let req = self
+            .life
+            .admission
+            .admit(robobus::frontend::Arming::Local, req)
+            .map_err(|r| op_error(py, &r.error))?
+            .into_request();
+        let station = self.get(py, &call)?;
+        let stop = StopToken::new();
+        let _running = self.life.running(py, &call, &stop)?;
+        py.detach(move || {
+            let start = Instant::now();
+            for _ in 0..n {
+                catalogue::run(&station, &req, &mut Control::new(&stop))?;
+            }
+            Ok(start.elapsed().as_secs_f64() / f64::from(n))
+        })
+        .map_err(|e: robobus::ops::OpError| op_error(py, &e))
     }
 
     /// Checks a request as `run` will (its arguments against the protocol's ranges and
@@ -886,6 +992,36 @@ fn facts(py: Python<'_>) -> PyResult<Py<PyAny>> {
     Ok(d.into_any().unbind())
 }
 
+/// A benchmark's repeat count: 1..=10,000,000.
+pub(crate) fn bench_count(py: Python<'_>, n: u32) -> PyResult<u32> {
+    if (1..=10_000_000).contains(&n) {
+        Ok(n)
+    } else {
+        Err(raise(
+            py,
+            ErrorKind::BadInput,
+            &format!("n {n}: out of range (allowed: 1..=10000000)"),
+            None,
+        ))
+    }
+}
+
+/// Benchmark: the library's parse of the request text `text` (`robobus run`'s, the
+/// studio's), `n` times; the seconds each took on average.
+#[pyfunction]
+#[pyo3(name = "_bench_parse")]
+fn bench_parse(py: Python<'_>, text: &str, n: u32) -> PyResult<f64> {
+    let n = bench_count(py, n)?;
+    robobus::frontend::parse::request_text(text).map_err(|e| op_error(py, &e))?;
+    let start = Instant::now();
+    for _ in 0..n {
+        let _ = std::hint::black_box(robobus::frontend::parse::request_text(
+            std::hint::black_box(text),
+        ));
+    }
+    Ok(start.elapsed().as_secs_f64() / f64::from(n))
+}
+
 /// The library's version.
 #[pyfunction]
 fn version() -> &'static str {
@@ -909,6 +1045,7 @@ fn _robobus(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<handles::NativeRobot>()?;
     m.add_function(wrap_pyfunction!(schema, m)?)?;
     m.add_function(wrap_pyfunction!(version, m)?)?;
+    m.add_function(wrap_pyfunction!(bench_parse, m)?)?;
     m.add_function(wrap_pyfunction!(facts, m)?)?;
     Ok(())
 }
