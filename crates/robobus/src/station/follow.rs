@@ -15,6 +15,13 @@
 //!
 //! Admission (who may move, armed or not) is the caller's: a remote front end asks its
 //! guard (`frontend::guard::Guard`) first (`admit_jog` for each of [`Follower::joints`]).
+//!
+//! A follower of the whole file ([`Follower::new`]) is watched by the host's protection
+//! ([`crate::ops::protect`]; `guard.rs`): a stall, a collision or heat stops the joint
+//! that tripped (disabled where its brake holds it, else held) and refuses every later
+//! command, nothing sent, until [`Follower::resume`]; its events are
+//! [`Follower::protection`]. A follower of some joints ([`Follower::of_joints`],
+//! `robot.teleop`'s) is watched by its operation.
 
 use serde::Serialize;
 
@@ -23,6 +30,8 @@ use crate::actuator::{JointMap, WckScale};
 use crate::ops::Family;
 use crate::ops::{DeviceResult, Failure, OpError};
 use crate::station::Station;
+
+mod guard;
 
 /// A joint of the robot file as the follower commands it.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -52,6 +61,8 @@ enum Units {
 pub struct Follower {
     joints: Vec<FollowedJoint>,
     jogger: Jogger,
+    /// The host's protection (a follower of the whole file).
+    guard: Option<guard::Guard>,
 }
 
 impl Follower {
@@ -94,6 +105,10 @@ impl Follower {
                 })
                 .collect::<Result<_, _>>()?,
         };
+        let index: Vec<usize> = chosen
+            .iter()
+            .filter_map(|c| robot.joints.iter().position(|j| std::ptr::eq(j, *c)))
+            .collect();
         let joints = chosen
             .into_iter()
             .map(|j| {
@@ -112,9 +127,14 @@ impl Follower {
                 }
             })
             .collect();
+        let guard = match names {
+            None => Some(guard::Guard::new(station, index)?),
+            Some(_) => None,
+        };
         Ok(Self {
             joints,
             jogger: Jogger::new(),
+            guard,
         })
     }
 
@@ -204,14 +224,50 @@ impl Follower {
         station: &Station,
         plan: &[JogRequest],
     ) -> Vec<DeviceResult<String, Jogged>> {
-        self.joints
+        // After a protection stop nothing is sent until resumed; a derated joint is
+        // stepped at its share of its max_velocity.
+        let mut plan = plan.to_vec();
+        if let Some(g) = &self.guard {
+            if let Some(refused) = g.refusal(&self.joints) {
+                return refused;
+            }
+            g.derate(station, &mut plan);
+        }
+        let done = self
+            .joints
             .iter()
-            .zip(plan)
+            .zip(&plan)
             .map(|(j, jog)| match self.jogger.jog(station, jog) {
                 Ok(done) => DeviceResult::ok(j.name.clone(), done),
                 Err(e) => DeviceResult::failed(j.name.clone(), Failure::from(&e)),
             })
-            .collect()
+            .collect();
+        match &self.guard {
+            Some(g) => g.watch(station, &self.joints, done),
+            None => done,
+        }
+    }
+
+    /// The host's protection events so far (the last 256), in order (none for a
+    /// follower of some joints).
+    pub fn protection(&self) -> Vec<crate::ops::protect::Fault> {
+        self.guard
+            .as_ref()
+            .map(guard::Guard::events)
+            .unwrap_or_default()
+    }
+
+    /// The protection stop that refuses every command, if one came.
+    pub fn protection_stop(&self) -> Option<crate::ops::protect::Fault> {
+        self.guard.as_ref().and_then(guard::Guard::stopped)
+    }
+
+    /// Takes commands again after a protection stop (once its cause is cleared); the
+    /// protection starts afresh.
+    pub fn resume(&self) {
+        if let Some(g) = &self.guard {
+            g.resume();
+        }
     }
 }
 

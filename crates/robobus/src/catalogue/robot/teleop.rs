@@ -702,11 +702,13 @@ impl Run {
                 continue;
             };
             // Where the joint reported itself at this command, and its current.
-            let device = j
-                .feedback
-                .get("position_deg")
-                .or_else(|| j.feedback.get("position"))
-                .and_then(serde_json::Value::as_f64);
+            // The device position it answered with: WHJ degrees, wCK steps.
+            let key = if j.family == Family::Wck {
+                "position"
+            } else {
+                "position_deg"
+            };
+            let device = j.feedback.get(key).and_then(serde_json::Value::as_f64);
             let at = device.and_then(|d| self.follower.joint_rad(i, d));
             let reading = Reading {
                 at: now,
