@@ -217,6 +217,28 @@ impl Follower {
             .collect()
     }
 
+    /// Makes every joint's handle now, as the first command would (reads only: a WHJ
+    /// joint's identity and limits, a wCK servo's boundaries), so that the first command
+    /// costs no more than the next. Nothing moves; a joint that does not answer is its
+    /// error here (named), and is tried again by the first command.
+    pub fn prepare(&self, station: &Station) -> Vec<DeviceResult<String, ()>> {
+        self.joints
+            .iter()
+            .map(|j| {
+                let req = JogRequest {
+                    family: j.family,
+                    bus: Some(j.bus.clone()),
+                    device: j.id,
+                    target: 0.0,
+                };
+                match self.jogger.prepare(station, &req) {
+                    Ok(()) => DeviceResult::ok(j.name.clone(), ()),
+                    Err(e) => DeviceResult::failed(j.name.clone(), Failure::from(&e)),
+                }
+            })
+            .collect()
+    }
+
     /// Steps every joint of a planned command toward its target, one result per joint
     /// (named as in the file), in the file's order.
     pub fn apply(

@@ -1,14 +1,18 @@
 //! Jogging: one bounded step of one device toward a target, what a slider or a held
 //! button of a front end sends again and again.
 //!
-//! Every jog reads where the device is now and commands at most one jog step from there
+//! Every jog takes where the device is now and commands at most one jog step from there
 //! ([`WHJ_JOG_STEP_DEG`], [`WCK_JOG_STEP`]), never past the device's limits (a WHJ joint's
 //! own position limits, the host bounds) nor the soft limits of the station's robot file
-//! for that device. A WHJ joint must be enabled in position mode; the frame goes through
+//! for that device. "Now" is the device's own latest answer when it is younger than
+//! [`RECENT`] on the bus's clock (a WHJ joint's feedback or status, a wCK servo's reply to
+//! the previous jog's move or status read), else a status read first: so a steady stream
+//! of jogs costs one transaction per device, not two. A WHJ joint must be enabled in position mode; the frame goes through
 //! the [`WhjGroup`] handle, so its step-limit and readiness checks apply as well.
 
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, PoisonError};
+use std::time::{Duration, Instant};
 
 use robobus_wck::{Position, ServoId};
 use robobus_whj::JointId;
@@ -26,6 +30,9 @@ pub const WHJ_JOG_STEP_DEG: f64 = 2.0;
 pub const WCK_JOG_STEP: u8 = 8;
 /// The torque level of a wCK jog's move (2: medium).
 pub const WCK_JOG_TORQUE: u8 = 2;
+/// How old a device's latest answer may be, on its bus's clock, for a jog to step from it
+/// without reading the device first (the WHJ client's own rule for its step limit).
+pub const RECENT: Duration = Duration::from_millis(100);
 
 /// One jog: a device and the target it is stepped toward.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -70,6 +77,8 @@ type WckJog = (WckGroup, (f64, f64));
 pub struct Jogger {
     whj: Mutex<HashMap<(String, u8), Arc<WhjGroup>>>,
     wck: Mutex<HashMap<(String, u8), Arc<WckJog>>>,
+    /// Each wCK servo's latest answered position (steps), on its bus's clock.
+    wck_seen: Mutex<HashMap<(String, u8), (Instant, u8)>>,
 }
 
 impl Jogger {
@@ -104,14 +113,54 @@ impl Jogger {
         }
     }
 
-    fn jog_whj(&self, station: &Station, req: &JogRequest) -> Result<Jogged, OpError> {
-        let id = JointId::new(req.device).map_err(|e| {
-            OpError::invalid("device", req.device, format!("{e} (allowed: 1..=30)"))
-        })?;
+    /// Makes the handle of `req`'s device now, as its first jog would (a WHJ joint's
+    /// identity handshake and limits, a wCK servo's boundaries: reads only), so that the
+    /// first jog costs no more than the next. Nothing moves.
+    pub fn prepare(&self, station: &Station, req: &JogRequest) -> Result<(), OpError> {
+        match req.family {
+            Family::Whj => self.whj_handle(station, req).map(drop),
+            Family::Wck => self.wck_handle(station, req).map(drop),
+            Family::Robot | Family::Host => Ok(()),
+        }
+    }
+
+    fn whj_handle(
+        &self,
+        station: &Station,
+        req: &JogRequest,
+    ) -> Result<(crate::station::WhjPort, Arc<WhjGroup>), OpError> {
         let port = station.whj(req.bus.as_deref())?;
         let handle = cached(&self.whj, port.name(), req.device, || {
             WhjGroup::new(station, Some(port.name()), &[req.device])
         })?;
+        Ok((port, handle))
+    }
+
+    fn wck_handle(
+        &self,
+        station: &Station,
+        req: &JogRequest,
+    ) -> Result<(crate::station::WckPort, Arc<WckJog>), OpError> {
+        let id = ServoId::new(req.device).map_err(|e| {
+            OpError::invalid("device", req.device, format!("{e} (allowed: 0..=30)"))
+        })?;
+        let port = station.wck(req.bus.as_deref())?;
+        let entry = cached(&self.wck, port.name(), req.device, || {
+            let servos = WckGroup::new(station, Some(port.name()), &[req.device])?;
+            let b = port.lock().servo(id).boundaries()?;
+            let bounds = (f64::from(b.lower().get()), f64::from(b.upper().get()));
+            let limits =
+                within_soft_limits(station, (Family::Wck, port.name(), req.device), bounds);
+            Ok((servos, limits))
+        })?;
+        Ok((port, entry))
+    }
+
+    fn jog_whj(&self, station: &Station, req: &JogRequest) -> Result<Jogged, OpError> {
+        let id = JointId::new(req.device).map_err(|e| {
+            OpError::invalid("device", req.device, format!("{e} (allowed: 1..=30)"))
+        })?;
+        let (port, handle) = self.whj_handle(station, req)?;
         let limits = within_soft_limits(
             station,
             (Family::Whj, port.name(), req.device),
@@ -134,24 +183,36 @@ impl Jogger {
     }
 
     fn jog_wck(&self, station: &Station, req: &JogRequest) -> Result<Jogged, OpError> {
-        let id = ServoId::new(req.device).map_err(|e| {
-            OpError::invalid("device", req.device, format!("{e} (allowed: 0..=30)"))
-        })?;
-        let port = station.wck(req.bus.as_deref())?;
-        let entry = cached(&self.wck, port.name(), req.device, || {
-            let servos = WckGroup::new(station, Some(port.name()), &[req.device])?;
-            let b = port.lock().servo(id).boundaries()?;
-            let bounds = (f64::from(b.lower().get()), f64::from(b.upper().get()));
-            let limits =
-                within_soft_limits(station, (Family::Wck, port.name(), req.device), bounds);
-            Ok((servos, limits))
-        })?;
+        let (port, entry) = self.wck_handle(station, req)?;
         let (servos, limits) = &*entry;
-        let from = f64::from(one_reading(servos.status()?)?.position);
+        let key = (port.name().to_owned(), req.device);
+        let now = port.lock().now();
+        let seen = self
+            .wck_seen
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .get(&key)
+            .copied();
+        let from = match seen {
+            Some((at, p)) if now.saturating_duration_since(at) < RECENT => f64::from(p),
+            _ => f64::from(one_reading(servos.status()?)?.position),
+        };
         let (sent, limited) = step(from, req.target.round(), *limits, f64::from(WCK_JOG_STEP));
         let sent = sent.round();
         let out = servos.move_to(&[sent], WCK_JOG_TORQUE)?;
-        let feedback = one_result(out.into_iter().next())?;
+        let reply = out.into_iter().next();
+        let mut seen = self.wck_seen.lock().unwrap_or_else(PoisonError::into_inner);
+        match reply.as_ref().map(|r| &r.outcome) {
+            Some(crate::ops::Outcome::Ok(r)) => {
+                seen.insert(key, (port.lock().now(), r.position));
+            }
+            // A servo that did not answer is read again before its next step.
+            _ => {
+                seen.remove(&key);
+            }
+        }
+        drop(seen);
+        let feedback = one_result(reply)?;
         Ok(Jogged {
             family: Family::Wck,
             bus: port.name().to_owned(),
@@ -270,6 +331,46 @@ fn failure(f: &Failure) -> OpError {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Commands the wCK bus of `station` has issued so far.
+    #[cfg(feature = "sim")]
+    fn wck_commands(station: &Station) -> u64 {
+        station.wck(None).unwrap().lock().stats().commands
+    }
+
+    #[cfg(feature = "sim")]
+    #[test]
+    fn a_wck_jog_steps_from_the_servos_answer_while_it_is_recent_and_reads_it_again_after() {
+        let station = Station::simulated().unwrap();
+        let jogger = Jogger::new();
+        let req = JogRequest {
+            family: Family::Wck,
+            bus: None,
+            device: 3,
+            target: 200.0,
+        };
+        jogger.prepare(&station, &req).unwrap();
+        // The first jog reads the servo, then moves it: two commands.
+        let before = wck_commands(&station);
+        let first = jogger.jog(&station, &req).unwrap();
+        assert_eq!(wck_commands(&station) - before, 2);
+        assert_eq!(first.sent, first.from + f64::from(WCK_JOG_STEP));
+        // The next, within RECENT on the bus's clock, steps from the move's reply: one.
+        let before = wck_commands(&station);
+        let second = jogger.jog(&station, &req).unwrap();
+        assert_eq!(wck_commands(&station) - before, 1);
+        assert!((second.from - second.sent).abs() <= f64::from(WCK_JOG_STEP));
+        // Once the reply is older than RECENT, the servo is read again first.
+        {
+            let port = station.wck(None).unwrap();
+            let mut bus = port.lock();
+            let later = bus.now() + RECENT;
+            bus.sleep_until(later);
+        }
+        let before = wck_commands(&station);
+        jogger.jog(&station, &req).unwrap();
+        assert_eq!(wck_commands(&station) - before, 2);
+    }
 
     #[test]
     fn a_step_is_bounded_by_the_jog_step_and_the_limits() {
