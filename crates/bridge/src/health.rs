@@ -1,12 +1,11 @@
-//! The bridge's outputs on a clock: joint states from the telemetry stream, and its
-//! health about once a second.
+//! The bridge's outputs on a clock: joint states, and its health about once a second.
 
-use std::sync::PoisonError;
+use std::collections::VecDeque;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::time::Duration;
+use std::sync::{Mutex, PoisonError};
+use std::time::{Duration, Instant};
 
-use robobus::catalogue::telemetry::RecvError;
-use robobus::catalogue::{Sample, Telemetry};
+use robobus::catalogue::Report;
 use robobus::frontend::guard::SafeEvent;
 use serde::Serialize;
 use zenoh::Wait as _;
@@ -16,6 +15,63 @@ use crate::cdr::{JointState, Time};
 
 /// How often the health is published.
 const HEALTH_PERIOD: Duration = Duration::from_secs(1);
+/// The window the joint state rate achieved is measured over.
+pub const RATE_WINDOW: Duration = Duration::from_secs(2);
+/// Why samples were lost: the slot passed while a command stream had the buses.
+pub(crate) const LOST_TO_COMMANDS: &str = "the buses were busy with commands (commands come first)";
+/// Why samples were lost: a sample took longer than the period asked.
+pub(crate) const LOST_TO_BUSES: &str =
+    "a sample took longer than the period asked (the buses cannot carry the rate)";
+
+/// The joint states' timing: when each of the last [`RATE_WINDOW`] was taken, and the
+/// slots lost.
+#[derive(Debug, Default)]
+pub(crate) struct StateClock {
+    taken: Mutex<VecDeque<Instant>>,
+    lost_reason: Mutex<Option<&'static str>>,
+    lost_to_commands: AtomicU64,
+    lost_total: AtomicU64,
+}
+
+impl StateClock {
+    /// `n` slots passed without a sample, for `why`.
+    pub(crate) fn lose(&self, n: u64, why: &'static str) {
+        self.lost_total.fetch_add(n, Ordering::Relaxed);
+        if why == LOST_TO_COMMANDS {
+            self.lost_to_commands.fetch_add(n, Ordering::Relaxed);
+        }
+        *self
+            .lost_reason
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner) = Some(why);
+    }
+
+    /// A sample was taken at `at` (published or not).
+    fn took(&self, at: Instant) {
+        let mut t = self.taken.lock().unwrap_or_else(PoisonError::into_inner);
+        t.push_back(at);
+        while t
+            .front()
+            .is_some_and(|&f| at.saturating_duration_since(f) > RATE_WINDOW)
+        {
+            t.pop_front();
+        }
+    }
+
+    /// Samples a second over the last [`RATE_WINDOW`] (or since the first sample, if
+    /// that is shorter); `None` before two samples.
+    fn achieved_hz(&self, now: Instant, started: Instant) -> Option<f64> {
+        let mut t = self.taken.lock().unwrap_or_else(PoisonError::into_inner);
+        while t
+            .front()
+            .is_some_and(|&f| now.saturating_duration_since(f) > RATE_WINDOW)
+        {
+            t.pop_front();
+        }
+        let span = now.saturating_duration_since(started).min(RATE_WINDOW);
+        (t.len() >= 2 && !span.is_zero()).then(|| t.len() as f64 / span.as_secs_f64())
+    }
+}
 
 /// One bus of the robot file: its joints, and how many answered their last reading.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
@@ -29,16 +85,30 @@ pub struct BusHealth {
 }
 
 /// Joint state publishing.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct StatesHealth {
+    /// The rate asked, Hz.
+    pub asked_hz: f64,
+    /// Samples taken a second over the last [`RATE_WINDOW`] (2 s), Hz; `None` before two.
+    pub achieved_hz: Option<f64>,
+    /// The highest rate the buses carry, computed from their timing
+    /// ([`Capacity`](crate::Capacity)), Hz; `None` without joints.
+    pub bus_limit_hz: Option<f64>,
+    /// Why the rate asked cannot be kept, when the buses cannot carry it.
+    pub limited: Option<String>,
     /// Messages published.
     pub published: u64,
     /// Joints left out of a message (their reading failed), summed over messages.
     pub joints_left_out: u64,
     /// Samples whose read failed as a whole (nothing published for them).
     pub failed_samples: u64,
-    /// Samples the publisher did not keep up with (dropped oldest first).
+    /// Slots of the rate asked that passed without a sample: published + failed + lost
+    /// is every slot since the first sample.
     pub lost_samples: u64,
+    /// Of them, those that passed while commands had the buses.
+    pub lost_to_commands: u64,
+    /// Why the newest samples were lost.
+    pub lost_reason: Option<String>,
 }
 
 /// Command following.
@@ -50,8 +120,14 @@ pub struct CommandsHealth {
     pub applied: u64,
     /// Commands replaced by a newer one before they were taken.
     pub superseded: u64,
-    /// Commands that waited longer than the command timeout before they could be taken
-    /// (the buses were slower than the stream): dropped, nothing moved.
+    /// Commands the safety rules held: nothing moved (not armed, out of range, no robot
+    /// file, stale). Received = applied + superseded + held + malformed, and one more
+    /// while a command waits or is applied.
+    pub held: u64,
+    /// Why the newest held command moved nothing.
+    pub last_held: Option<String>,
+    /// Of the held, commands that waited longer than the command timeout before they
+    /// could be taken (the buses were slower than the stream).
     pub stale: u64,
     /// Joints that failed in an applied command, summed.
     pub joint_failures: u64,
@@ -84,7 +160,7 @@ pub struct Health {
     pub read_only: bool,
     /// A command stream is being followed.
     pub streaming: bool,
-    /// The joint state rate, Hz.
+    /// The joint state rate asked, Hz (what was achieved: `states.achieved_hz`).
     pub rate_hz: f64,
     /// The command timeout, ms.
     pub command_timeout_ms: u64,
@@ -145,15 +221,32 @@ pub(crate) fn of(s: &Shared) -> Health {
         command_timeout_ms: u64::try_from(s.config.command_timeout.as_millis()).unwrap_or(0),
         buses,
         states: StatesHealth {
+            asked_hz: s.config.rate_hz,
+            achieved_hz: s.states.achieved_hz(Instant::now(), s.started),
+            bus_limit_hz: s.capacity.states_hz(),
+            limited: s.capacity.note(s.config.rate_hz),
             published: get(&c.states_published),
             joints_left_out: get(&c.joints_left_out),
             failed_samples: get(&c.samples_failed),
-            lost_samples: get(&c.samples_lost),
+            lost_samples: get(&s.states.lost_total),
+            lost_to_commands: get(&s.states.lost_to_commands),
+            lost_reason: s
+                .states
+                .lost_reason
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .map(str::to_owned),
         },
         commands: CommandsHealth {
             received: get(&c.commands_received),
             applied: get(&c.commands_applied),
             superseded: get(&c.commands_superseded),
+            held: get(&c.commands_held),
+            last_held: s
+                .last_held
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .clone(),
             stale: get(&c.commands_stale),
             joint_failures: get(&c.joint_failures),
             holds: get(&c.holds),
@@ -198,16 +291,16 @@ pub(crate) fn publish_health(s: &Shared, publisher: &zenoh::pubsub::Publisher<'s
 /// The joint state message of one sample: every joint whose reading answered, in the
 /// robot file's order; `None` when none did (a read that failed as a whole). Marks each
 /// joint answering or not.
-fn joint_state(s: &Shared, sample: &Sample) -> Option<JointState> {
+fn joint_state(s: &Shared, report: Option<&Report>, unix_ms: f64) -> Option<JointState> {
     let c = &s.counters;
     let mut ok = s.joint_ok.lock().unwrap_or_else(PoisonError::into_inner);
-    let Some(report) = &sample.report else {
+    let Some(report) = report else {
         c.samples_failed.fetch_add(1, Ordering::Relaxed);
         ok.iter_mut().for_each(|o| *o = Some(false));
         return None;
     };
     let mut msg = JointState {
-        stamp: Time::from_unix_ms(sample.unix_ms),
+        stamp: Time::from_unix_ms(unix_ms),
         ..JointState::default()
     };
     for (i, row) in report.results.iter().enumerate() {
@@ -235,39 +328,30 @@ fn joint_state(s: &Shared, sample: &Sample) -> Option<JointState> {
                 .unwrap_or(f64::NAN),
         );
     }
-    (!msg.name.is_empty()).then_some(msg)
+    if msg.name.is_empty() {
+        // No joint answered: the sample failed as a whole.
+        c.samples_failed.fetch_add(1, Ordering::Relaxed);
+        return None;
+    }
+    Some(msg)
 }
 
-/// Publishes every sample of `telemetry` as a joint state until the bridge stops.
-pub(crate) fn publish_states(
+/// Publishes one sample (its report, or `None` for a read that failed as a whole) taken
+/// at `at` as a joint state.
+pub(crate) fn publish_sample(
     s: &Shared,
-    telemetry: Telemetry,
+    report: Option<&Report>,
+    unix_ms: f64,
+    at: Instant,
     publisher: &zenoh::pubsub::Publisher<'static>,
 ) {
-    let sub = match telemetry.subscribe(8) {
-        Ok(sub) => sub,
-        Err(e) => {
-            tracing::error!("joint states: {e}");
-            return;
-        }
-    };
-    telemetry.resume();
-    while !s.stop.is_stopped() {
-        match sub.recv_timeout(Duration::from_millis(50)) {
-            Ok(d) => {
-                s.counters.samples_lost.fetch_add(d.lost, Ordering::Relaxed);
-                if let Some(msg) = joint_state(s, &d.sample) {
-                    match publisher.put(msg.encode()).wait() {
-                        Ok(()) => {
-                            s.counters.states_published.fetch_add(1, Ordering::Relaxed);
-                        }
-                        Err(e) => tracing::warn!("joint states: {e}"),
-                    }
-                }
+    s.states.took(at);
+    if let Some(msg) = joint_state(s, report, unix_ms) {
+        match publisher.put(msg.encode()).wait() {
+            Ok(()) => {
+                s.counters.states_published.fetch_add(1, Ordering::Relaxed);
             }
-            Err(RecvError::Timeout) => {}
-            Err(RecvError::Ended) => break,
+            Err(e) => tracing::warn!("joint states: {e}"),
         }
     }
-    let _ = telemetry.stop();
 }

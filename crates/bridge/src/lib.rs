@@ -3,13 +3,18 @@
 //! Keys, under an optional namespace `NS` (see [`Keys`]):
 //!
 //! - `NS/joint_states`: `sensor_msgs/msg/JointState` in CDR ([`cdr`]), every joint of the
-//!   station's robot file that answered this sample, at the configured rate; a joint whose
-//!   reading failed is left out of that message, never repeated from an older one.
+//!   station's robot file that answered this sample, at the configured rate when the
+//!   buses carry it ([`Capacity`]: otherwise as fast as they do, said at start and in the
+//!   health); a joint whose reading failed is left out of that message, never repeated
+//!   from an older one. Commands come first: a sample is not started while a command
+//!   waits or is being applied, nor when the next command of a steady stream is due
+//!   before the sample would end; the samples a slot missed are counted lost.
 //! - `NS/joint_commands`: `std_msgs/msg/Float64MultiArray` in CDR, one target per joint
 //!   in the file's order, in radians (the forward position controller of `ros2_controllers`).
 //!   Each command is checked whole ([`Follower::plan`]) and stepped toward
-//!   ([`Follower::apply`]); a malformed, out-of-range or unarmed one is refused and
-//!   counted.
+//!   ([`Follower::apply`]); a malformed one is refused, an out-of-range, unarmed or stale
+//!   one is held (nothing moves), each counted with its reason; one replaced by a newer
+//!   one before it could be applied is counted superseded.
 //! - `NS/robobus/run`: a queryable: a catalogue request in JSON in, its report out.
 //! - `NS/robobus/plan`: a queryable: a request's dry run.
 //! - `NS/robobus/arm`: a queryable: `true` / `false` (or `{"armed": B}`) arms or disarms,
@@ -33,6 +38,7 @@
 #![allow(clippy::result_large_err)]
 
 pub use robobus::cdr;
+mod capacity;
 mod claim;
 mod health;
 mod zconfig;
@@ -44,7 +50,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use robobus::ErrorKind;
-use robobus::catalogue::{Request, Telemetry};
+use robobus::catalogue::Request;
 use robobus::frontend::guard::{Guard, GuardConfig, SafeEvent};
 use robobus::frontend::live::LiveSimulator;
 use robobus::frontend::{Admission, Arming, FrontEnd, PlanView, parse};
@@ -55,7 +61,8 @@ use zenoh::Wait as _;
 use zenoh::bytes::Encoding;
 use zenoh::query::Query;
 
-pub use health::Health;
+pub use capacity::{BusTiming, Capacity};
+pub use health::{Health, RATE_WINDOW};
 pub use zconfig::{DEFAULT_LISTEN, namespace_prefix};
 
 /// The guard session the bridge controls the station with.
@@ -272,11 +279,11 @@ pub(crate) struct Counters {
     pub(crate) states_published: AtomicU64,
     pub(crate) joints_left_out: AtomicU64,
     pub(crate) samples_failed: AtomicU64,
-    pub(crate) samples_lost: AtomicU64,
     pub(crate) commands_received: AtomicU64,
     pub(crate) commands_applied: AtomicU64,
     pub(crate) commands_superseded: AtomicU64,
     pub(crate) commands_stale: AtomicU64,
+    pub(crate) commands_held: AtomicU64,
     pub(crate) refused_malformed: AtomicU64,
     pub(crate) refused_out_of_range: AtomicU64,
     pub(crate) refused_not_armed: AtomicU64,
@@ -290,10 +297,32 @@ fn bump(c: &AtomicU64) {
     c.fetch_add(1, Ordering::Relaxed);
 }
 
-/// The newest command payload, waiting for the command thread.
+/// What the command subscriber left for the command thread.
+#[derive(Debug, Default)]
+struct Inbox {
+    /// The newest command payload not yet taken, and when it arrived.
+    newest: Option<(Vec<u8>, Instant)>,
+    /// When the latest command arrived.
+    last_arrival: Option<Instant>,
+    /// The stream's interval between commands (smoothed), while it is steady.
+    interval: Option<Duration>,
+    /// A command is being applied.
+    applying: bool,
+}
+
+impl Inbox {
+    /// When the stream's next command is due, and its interval.
+    fn next_due(&self) -> Option<(Instant, Duration)> {
+        self.last_arrival
+            .zip(self.interval)
+            .map(|(at, every)| (at + every, every))
+    }
+}
+
+/// The newest command, waiting for the command thread.
 #[derive(Debug, Default)]
 struct Mailbox {
-    slot: Mutex<Option<(Vec<u8>, Instant)>>,
+    slot: Mutex<Inbox>,
     ready: Condvar,
 }
 
@@ -321,6 +350,12 @@ pub(crate) struct Shared {
     pub(crate) status: Arc<Status>,
     pub(crate) counters: Counters,
     pub(crate) last_refusal: Mutex<Option<String>>,
+    /// Why the newest held command moved nothing.
+    pub(crate) last_held: Mutex<Option<String>>,
+    /// What the buses carry.
+    pub(crate) capacity: Capacity,
+    /// The joint states' timing.
+    pub(crate) states: health::StateClock,
     /// Each joint's last reading: answered or not (in the file's order).
     pub(crate) joint_ok: Mutex<Vec<Option<bool>>>,
     mailbox: Mailbox,
@@ -346,6 +381,41 @@ impl Shared {
             .last_refusal
             .lock()
             .unwrap_or_else(PoisonError::into_inner) = Some(why);
+    }
+
+    /// A command the safety rules kept from moving anything (not armed, out of range,
+    /// stale), counted under `counter` too.
+    fn hold_command(&self, counter: &AtomicU64, why: String) {
+        bump(&self.counters.commands_held);
+        *self
+            .last_held
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner) = Some(why.clone());
+        self.refuse(counter, why);
+    }
+
+    /// A command payload as it arrives: it replaces a waiting one (superseded, counted)
+    /// and wakes the command thread.
+    fn post(&self, payload: Vec<u8>, now: Instant) {
+        let mut inbox = self
+            .mailbox
+            .slot
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        if inbox.newest.replace((payload, now)).is_some() {
+            bump(&self.counters.commands_superseded);
+        }
+        // A steady stream's interval: a gap longer than the command timeout starts again.
+        let gap = inbox.last_arrival.map(|t| now.saturating_duration_since(t));
+        inbox.interval = match (gap, inbox.interval) {
+            (Some(g), _) if g > self.config.command_timeout => None,
+            (Some(g), None) => Some(g),
+            (Some(g), Some(i)) => Some((i * 3 + g) / 4),
+            (None, _) => None,
+        };
+        inbox.last_arrival = Some(now);
+        drop(inbox);
+        self.mailbox.ready.notify_all();
     }
 
     /// Arms or disarms (the operator's intent and the guard).
@@ -384,6 +454,19 @@ impl Shared {
         let station = Arc::new(station);
         let follower = Follower::new(&station).ok();
         let joints = follower.as_ref().map_or(0, |f| f.joints().len());
+        // Each joint's handle now (reads only), so that the first command costs no more
+        // than the next; a silent joint is tried again by the first command.
+        if let Some(f) = follower.as_ref().filter(|_| !config.read_only) {
+            for r in f.prepare(&station) {
+                if let robobus::ops::Outcome::Failed(e) = r.outcome {
+                    tracing::info!("joint {}: {}", r.id, e.error);
+                }
+            }
+        }
+        let capacity = Capacity::of(&station, follower.as_ref().map_or(&[], Follower::joints));
+        if let Some(note) = capacity.note(config.rate_hz) {
+            tracing::warn!("{note}");
+        }
         let status = Arc::new(Status::default());
         let report = Arc::clone(&status);
         let guard = Guard::new(
@@ -433,6 +516,9 @@ impl Shared {
             status,
             counters: Counters::default(),
             last_refusal: Mutex::new(None),
+            last_held: Mutex::new(None),
+            capacity,
+            states: health::StateClock::default(),
             joint_ok: Mutex::new(vec![None; joints]),
             mailbox: Mailbox::default(),
             stop: StopToken::new(),
@@ -523,17 +609,7 @@ impl Bridge {
                     );
                     return;
                 }
-                let bytes = payload.to_bytes().into_owned();
-                let mut slot = s
-                    .mailbox
-                    .slot
-                    .lock()
-                    .unwrap_or_else(PoisonError::into_inner);
-                if slot.replace((bytes, Instant::now())).is_some() {
-                    bump(&s.counters.commands_superseded);
-                }
-                drop(slot);
-                s.mailbox.ready.notify_one();
+                s.post(payload.to_bytes().into_owned(), Instant::now());
             })
             .wait()
             .map_err(zerr)?;
@@ -550,15 +626,9 @@ impl Bridge {
                 .encoding(Encoding::APPLICATION_CDR)
                 .wait()
                 .map_err(zerr)?;
-            let telemetry = Telemetry::paused(
-                &shared.station,
-                Request::RobotSample(robobus::catalogue::robot::Sample {}),
-                shared.config.rate_hz,
-                None,
-            )?;
             let s = Arc::clone(&shared);
             threads.push(spawn("robobus-states", move || {
-                health::publish_states(&s, telemetry, &publisher);
+                states(&s, &publisher);
             })?);
         }
 
@@ -604,6 +674,17 @@ impl Bridge {
     /// Its Zenoh ID.
     pub fn zid(&self) -> String {
         self.session.zid().to_string()
+    }
+
+    /// What the station's buses carry (computed from their timing).
+    pub fn capacity(&self) -> &Capacity {
+        &self.shared.capacity
+    }
+
+    /// What to tell the user at start when the buses carry less than the joint state rate
+    /// asked; `None` when they carry it.
+    pub fn rate_note(&self) -> Option<String> {
+        self.shared.capacity.note(self.shared.config.rate_hz)
     }
 
     /// The health now (what `NS/robobus/health` publishes).
@@ -752,35 +833,48 @@ fn commands(s: &Shared) {
     let mut last: Option<Instant> = None;
     while !s.stop.is_stopped() {
         let next = {
-            let slot = s
+            let inbox = s
                 .mailbox
                 .slot
                 .lock()
                 .unwrap_or_else(PoisonError::into_inner);
-            let (mut slot, _) = s
+            let (mut inbox, _) = s
                 .mailbox
                 .ready
-                .wait_timeout_while(slot, tick, |m| m.is_none() && !s.stop.is_stopped())
+                .wait_timeout_while(inbox, tick, |m| m.newest.is_none() && !s.stop.is_stopped())
                 .unwrap_or_else(PoisonError::into_inner);
-            slot.take()
+            let next = inbox.newest.take();
+            // The state sampler stays off the buses until this one is applied.
+            inbox.applying = next.is_some();
+            next
         };
         if s.armed() {
             s.guard.heartbeat(SESSION);
         }
-        // A command that waited longer than the timeout (the buses were slower than the
-        // stream) is stale: the stream may have ended since, so it moves nothing.
-        let next = next.filter(|(_, at)| {
-            let fresh = at.elapsed() <= timeout;
-            if !fresh {
-                bump(&s.counters.commands_stale);
+        if let Some((payload, at)) = next {
+            // A command that waited longer than the timeout (the buses were slower than
+            // the stream) is stale: the stream may have ended since, so it moves nothing.
+            let waited = at.elapsed();
+            if waited > timeout {
+                s.hold_command(
+                    &s.counters.commands_stale,
+                    format!(
+                        "joint_commands: waited {} ms, longer than the command timeout {} ms \
+                         (the buses were busy): nothing was sent",
+                        waited.as_millis(),
+                        timeout.as_millis()
+                    ),
+                );
+            } else if follow(s, &payload) {
+                last = Some(at);
+                s.status.streaming.store(true, Ordering::SeqCst);
             }
-            fresh
-        });
-        if let Some((payload, at)) = next
-            && follow(s, &payload)
-        {
-            last = Some(at);
-            s.status.streaming.store(true, Ordering::SeqCst);
+            s.mailbox
+                .slot
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .applying = false;
+            s.mailbox.ready.notify_all();
         }
         if let Some(t) = last
             && t.elapsed() > timeout
@@ -790,6 +884,98 @@ fn commands(s: &Shared) {
             let _ = s.guard.hold(SESSION, HOLD_REASON, t + timeout);
             last = None;
         }
+    }
+}
+
+/// The joint state thread: one `robot.sample` per slot of the rate asked, published as a
+/// `JointState`, after the commands (see the [crate docs](crate)): it does not start a
+/// sample while a command waits or is applied, nor when a steady stream's next command is
+/// due before the sample would end. Every slot not sampled is counted lost.
+fn states(s: &Shared, publisher: &zenoh::pubsub::Publisher<'static>) {
+    let request = Request::RobotSample(robobus::catalogue::robot::Sample {});
+    let period = Duration::from_secs_f64(1.0 / s.config.rate_hz);
+    // What a sample costs: the buses' timing until one was measured.
+    let mut cost = Duration::from_secs_f64(s.capacity.sample_ms() / 1e3);
+    let mut slot = Instant::now();
+    let mut deferred = false;
+    while !s.stop.is_stopped() {
+        let now = Instant::now();
+        // Every whole period that passed since the slot, waiting for the buses or the
+        // commands, is a sample lost.
+        let behind = now.saturating_duration_since(slot).as_nanos() / period.as_nanos().max(1);
+        if behind > 0 {
+            let n = u32::try_from(behind).unwrap_or(u32::MAX);
+            s.states.lose(
+                u64::from(n),
+                if deferred {
+                    health::LOST_TO_COMMANDS
+                } else {
+                    health::LOST_TO_BUSES
+                },
+            );
+            slot += period * n;
+        }
+        if now < slot {
+            let inbox = s
+                .mailbox
+                .slot
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner);
+            let _ = s
+                .mailbox
+                .ready
+                .wait_timeout_while(inbox, slot - now, |_| {
+                    !s.stop.is_stopped() && Instant::now() < slot
+                })
+                .unwrap_or_else(PoisonError::into_inner);
+            continue;
+        }
+        // The commands first.
+        let wait = {
+            let inbox = s
+                .mailbox
+                .slot
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner);
+            let due = inbox.next_due().filter(|&(due, every)| {
+                s.status.streaming.load(Ordering::SeqCst)
+                    && now + cost > due
+                    && now < due + every / 2
+            });
+            if inbox.applying || inbox.newest.is_some() {
+                Some(now + period)
+            } else {
+                due.map(|(due, every)| due + every / 2)
+            }
+        };
+        if let Some(until) = wait {
+            deferred = true;
+            let inbox = s
+                .mailbox
+                .slot
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner);
+            let _ = s
+                .mailbox
+                .ready
+                .wait_timeout(inbox, until.saturating_duration_since(Instant::now()))
+                .unwrap_or_else(PoisonError::into_inner);
+            continue;
+        }
+        deferred = false;
+        let start = Instant::now();
+        let outcome = robobus::catalogue::run(
+            &s.station,
+            &request,
+            &mut robobus::ops::Control::new(&s.stop),
+        );
+        let done = Instant::now();
+        cost = done.saturating_duration_since(start);
+        let unix_ms = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0.0, |d| d.as_secs_f64() * 1e3);
+        health::publish_sample(s, outcome.ok().as_ref(), unix_ms, done, publisher);
+        slot += period;
     }
 }
 
@@ -804,20 +990,20 @@ fn follow(s: &Shared, payload: &[u8]) -> bool {
         }
     };
     let Some(follower) = &s.follower else {
-        s.refuse(
+        s.hold_command(
             &c.refused_out_of_range,
             "joint_commands: the station has no robot file".into(),
         );
         return false;
     };
     if let Err(r) = s.admission.check_motion(s.arming(), "joint_commands") {
-        s.refuse(&c.refused_not_armed, r.to_string());
+        s.hold_command(&c.refused_not_armed, r.to_string());
         return false;
     }
     let plan = match follower.plan(&msg.data) {
         Ok(p) => p,
         Err(e) => {
-            s.refuse(&c.refused_out_of_range, format!("joint_commands: {e}"));
+            s.hold_command(&c.refused_out_of_range, format!("joint_commands: {e}"));
             return false;
         }
     };
@@ -826,7 +1012,7 @@ fn follow(s: &Shared, payload: &[u8]) -> bool {
             .admission
             .admit_jog(s.arming(), j.family, Some(&j.bus), j.id)
         {
-            s.refuse(&c.refused_not_armed, format!("joint_commands: {r}"));
+            s.hold_command(&c.refused_not_armed, format!("joint_commands: {r}"));
             return false;
         }
     }

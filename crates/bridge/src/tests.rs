@@ -89,3 +89,51 @@ fn a_read_only_bridge_reads_and_never_arms() {
     assert!(h.read_only && !h.armed, "{h:?}");
     assert!(!health::of(&shared(false)).read_only);
 }
+
+#[test]
+fn a_command_replaced_before_it_was_taken_is_counted_superseded() {
+    let s = shared(false);
+    let t0 = Instant::now();
+    for k in 0..3u32 {
+        s.post(
+            vec![u8::try_from(k).unwrap()],
+            t0 + Duration::from_millis(u64::from(k) * 20),
+        );
+    }
+    assert_eq!(s.counters.commands_superseded.load(Ordering::Relaxed), 2);
+    let inbox = s.mailbox.slot.lock().unwrap();
+    // The newest waits; the stream's interval is the commands' 20 ms.
+    assert_eq!(inbox.newest.as_ref().map(|(p, _)| p.clone()), Some(vec![2]));
+    assert_eq!(
+        inbox.next_due(),
+        Some((t0 + Duration::from_millis(60), Duration::from_millis(20)))
+    );
+}
+
+#[test]
+fn a_held_command_is_counted_with_its_reason() {
+    let s = shared(false);
+    let n = s.follower.as_ref().unwrap().joints().len();
+    let command = |len: usize| {
+        cdr::Float64MultiArray {
+            dim: Vec::new(),
+            data_offset: 0,
+            data: vec![0.0; len],
+        }
+        .encode()
+    };
+    assert!(!follow(&s, &command(n)));
+    s.set_armed(true).unwrap();
+    assert!(!follow(&s, &command(n - 1)));
+    let h = health::of(&s);
+    assert_eq!(
+        (h.commands.held, h.refused.not_armed, h.refused.out_of_range),
+        (2, 1, 1)
+    );
+    let why = h.commands.last_held.unwrap();
+    assert!(
+        why.starts_with("joint_commands: ") && why.contains("22 values"),
+        "{why}"
+    );
+    s.set_armed(false).unwrap();
+}
