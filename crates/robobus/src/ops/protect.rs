@@ -47,6 +47,10 @@ pub const WHJ_OVER_TEMPERATURE_C: f64 = 90.0;
 /// are a new start, not a jump.
 pub const JUMP_WINDOW: Duration = Duration::from_millis(100);
 
+/// The most events an operation keeps (a joint hovering at a temperature limit for
+/// hours would otherwise grow its report without bound); a stop is always kept.
+pub const MAX_EVENTS: usize = 256;
+
 /// How far under its derate temperature a derated joint must cool to run at full speed
 /// again, K.
 pub const DERATE_HYSTERESIS_K: f64 = 5.0;
@@ -425,45 +429,71 @@ impl Monitor {
     /// (none past a stop, which is reported once; nothing for an index past the joints).
     pub fn feed(&mut self, index: usize, r: &Reading) -> Vec<Fault> {
         let start = self.start;
-        let Some(w) = self.joints.get_mut(index) else {
+        let Some(watch) = self.joints.get_mut(index) else {
             return Vec::new();
         };
-        if w.stopped {
+        if watch.stopped {
             return Vec::new();
         }
         let at_s = r.at.saturating_duration_since(start).as_secs_f64();
-        let mut out = Vec::new();
-        let fault = |check, quantity, value: f64, limit: f64, action| Fault {
-            joint: w.name.clone(),
+        let mut out = watch.collisions(r, at_s);
+        out.extend(watch.stall(r, at_s));
+        out.extend(watch.thermal(r, at_s));
+        if let Some(i) = r.current_a {
+            watch.last_current = Some((r.at, i));
+        }
+        if let Some(e) = r.error_deg {
+            watch.last_error = Some((r.at, e, r.target_deg));
+        }
+        out.sort_by_key(|f| std::cmp::Reverse(f.action));
+        if out.first().is_some_and(|f| f.action == Action::Stop) {
+            watch.stopped = true;
+            out.truncate(1);
+        }
+        out
+    }
+}
+
+impl Watch {
+    fn fault(
+        &self,
+        check: Check,
+        quantity: &'static str,
+        (value, limit): (f64, f64),
+        at_s: f64,
+        action: Action,
+    ) -> Fault {
+        Fault {
+            joint: self.name.clone(),
             check,
             quantity,
             value,
             limit,
             at_s,
             action,
-        };
-        let l = w.limits;
-        let within = |before: Option<(Instant, f64)>| {
-            before.filter(|(t, _)| r.at.saturating_duration_since(*t) <= JUMP_WINDOW)
-        };
-        // Collision: a jump of the current or of the following error.
-        if let (Some(i), Some(jump)) = (r.current_a, l.collision_current_jump_a)
-            && let Some((_, before)) = within(w.last_current)
+        }
+    }
+
+    /// A jump of the current or of the following error since the reading before.
+    fn collisions(&self, r: &Reading, at_s: f64) -> Vec<Fault> {
+        let mut out = Vec::new();
+        let lim = self.limits;
+        let recent = |t: Instant| r.at.saturating_duration_since(t) <= JUMP_WINDOW;
+        if let (Some(i), Some(jump)) = (r.current_a, lim.collision_current_jump_a)
+            && let Some((_, before)) = self.last_current.filter(|(t, _)| recent(*t))
             && i.abs() - before.abs() >= jump
         {
-            out.push(fault(
+            let rise = i.abs() - before.abs();
+            out.push(self.fault(
                 Check::Collision,
                 "current_jump_a",
-                i.abs() - before.abs(),
-                jump,
+                (rise, jump),
+                at_s,
                 Action::Stop,
             ));
         }
-        let last_error = w
-            .last_error
-            .filter(|(t, _, _)| r.at.saturating_duration_since(*t) <= JUMP_WINDOW);
-        if let (Some(e), Some(jump)) = (r.error_deg, l.collision_error_jump_deg)
-            && let Some((_, before, target_before)) = last_error
+        if let (Some(e), Some(jump)) = (r.error_deg, lim.collision_error_jump_deg)
+            && let Some((_, before, target_before)) = self.last_error.filter(|(t, ..)| recent(*t))
         {
             let moved = r
                 .target_deg
@@ -471,85 +501,77 @@ impl Monitor {
                 .map_or(0.0, |(a, b)| (a - b).abs());
             let grown = e.abs() - before.abs() - moved;
             if grown >= jump {
-                out.push(fault(
+                out.push(self.fault(
                     Check::Collision,
                     "following_error_jump_deg",
-                    grown,
-                    jump,
+                    (grown, jump),
+                    at_s,
                     Action::Stop,
                 ));
             }
         }
-        // Stall: a high current while the following error does not shrink and the joint
-        // does not move.
-        let pushing = match (r.current_a, r.error_deg, l.stall_current_a) {
-            (Some(i), Some(e), Some(stall)) => Some((i.abs(), e.abs(), stall)),
-            _ => None,
-        };
-        match pushing {
-            Some((i, e, stall)) if i >= stall && e >= l.stall_error_deg => {
-                let moved = |p0: Option<f64>| {
-                    p0.zip(r.position_deg)
-                        .is_some_and(|(a, b)| (a - b).abs() >= l.stall_error_deg)
-                };
-                match w.stall {
-                    Some((_, e0, p0)) if e < 0.9 * e0 || moved(p0) => {
-                        w.stall = Some((r.at, e, r.position_deg));
-                    }
-                    Some((since, _, _)) => {
-                        let held = r.at.saturating_duration_since(since).as_secs_f64();
-                        if held >= l.stall_time_s {
-                            out.push(fault(Check::Stall, "current_a", i, stall, Action::Stop));
-                        }
-                    }
-                    None => w.stall = Some((r.at, e, r.position_deg)),
-                }
-            }
-            Some(_) => w.stall = None,
-            None => {}
-        }
-        // Thermal: warning, derating, stop; derating ends 5 K under its temperature.
-        if let Some(t) = r.temperature_c {
-            let levels = [
-                (l.temperature_stop_c, Action::Stop),
-                (l.temperature_derate_c, Action::Derate),
-                (l.temperature_warn_c, Action::Warn),
-            ];
-            let reached = levels
-                .iter()
-                .find(|(limit, _)| limit.is_some_and(|c| t >= c))
-                .map(|&(limit, a)| (limit.unwrap_or(t), a));
-            match reached {
-                Some((limit, a)) if Some(a) > w.thermal => {
-                    w.thermal = Some(a);
-                    out.push(fault(Check::Thermal, "temperature_c", t, limit, a));
-                }
-                _ => {
-                    let cool = |c: Option<f64>| c.is_some_and(|c| t < c - DERATE_HYSTERESIS_K);
-                    if w.thermal == Some(Action::Derate) && cool(l.temperature_derate_c) {
-                        w.thermal = if cool(l.temperature_warn_c) {
-                            None
-                        } else {
-                            Some(Action::Warn)
-                        };
-                    } else if w.thermal == Some(Action::Warn) && cool(l.temperature_warn_c) {
-                        w.thermal = None;
-                    }
-                }
-            }
-        }
-        if let Some(i) = r.current_a {
-            w.last_current = Some((r.at, i));
-        }
-        if let Some(e) = r.error_deg {
-            w.last_error = Some((r.at, e, r.target_deg));
-        }
-        out.sort_by(|a, b| b.action.cmp(&a.action));
-        if out.first().is_some_and(|f| f.action == Action::Stop) {
-            w.stopped = true;
-            out.truncate(1);
-        }
         out
+    }
+
+    /// A high current while the following error does not shrink and the joint does not
+    /// move.
+    fn stall(&mut self, r: &Reading, at_s: f64) -> Option<Fault> {
+        let lim = self.limits;
+        let (i, e, stall) = match (r.current_a, r.error_deg, lim.stall_current_a) {
+            (Some(i), Some(e), Some(stall)) => (i.abs(), e.abs(), stall),
+            _ => return None,
+        };
+        if i < stall || e < lim.stall_error_deg {
+            self.stall = None;
+            return None;
+        }
+        let moved = |p0: Option<f64>| {
+            p0.zip(r.position_deg)
+                .is_some_and(|(a, b)| (a - b).abs() >= lim.stall_error_deg)
+        };
+        match self.stall {
+            Some((since, e0, p0)) if !(e < 0.9 * e0 || moved(p0)) => {
+                let held = r.at.saturating_duration_since(since).as_secs_f64();
+                (held >= lim.stall_time_s)
+                    .then(|| self.fault(Check::Stall, "current_a", (i, stall), at_s, Action::Stop))
+            }
+            _ => {
+                self.stall = Some((r.at, e, r.position_deg));
+                None
+            }
+        }
+    }
+
+    /// Warning, derating, stop; derating ends 5 K under its temperature.
+    fn thermal(&mut self, r: &Reading, at_s: f64) -> Option<Fault> {
+        let t = r.temperature_c?;
+        let lim = self.limits;
+        let levels = [
+            (lim.temperature_stop_c, Action::Stop),
+            (lim.temperature_derate_c, Action::Derate),
+            (lim.temperature_warn_c, Action::Warn),
+        ];
+        let reached = levels
+            .iter()
+            .find(|(limit, _)| limit.is_some_and(|c| t >= c))
+            .map(|&(limit, a)| (limit.unwrap_or(t), a));
+        if let Some((limit, a)) = reached
+            && Some(a) > self.thermal
+        {
+            self.thermal = Some(a);
+            return Some(self.fault(Check::Thermal, "temperature_c", (t, limit), at_s, a));
+        }
+        let cool = |c: Option<f64>| c.is_some_and(|c| t < c - DERATE_HYSTERESIS_K);
+        if self.thermal == Some(Action::Derate) && cool(lim.temperature_derate_c) {
+            self.thermal = if cool(lim.temperature_warn_c) {
+                None
+            } else {
+                Some(Action::Warn)
+            };
+        } else if self.thermal == Some(Action::Warn) && cool(lim.temperature_warn_c) {
+            self.thermal = None;
+        }
+        None
     }
 }
 

@@ -767,7 +767,9 @@ impl Player<'_> {
             for f in self.monitor.feed(c, &reading) {
                 stop |= f.action == Action::Stop;
                 tracing::warn!("{f}");
-                self.faults.push(f);
+                if self.faults.len() < protect::MAX_EVENTS || f.action == Action::Stop {
+                    self.faults.push(f);
+                }
             }
         }
         stop

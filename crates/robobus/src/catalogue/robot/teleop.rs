@@ -690,6 +690,39 @@ impl Run {
         }
         self.latencies.push_back(took);
         self.summary.commanded += 1;
+        self.protect(station, &done, t_s);
+        for (i, (row, result)) in self.rows.iter_mut().zip(done).enumerate() {
+            let target_deg = targets.get(i).copied().unwrap_or(0.0).to_degrees();
+            row.target_deg = Some(target_deg);
+            match result.outcome {
+                Outcome::Ok(j) => {
+                    row.commands += 1;
+                    if j.limited || clamped.get(i).copied().unwrap_or(false) {
+                        row.limited += 1;
+                    }
+                    if let Some(at) = self.follower.joint_rad(i, j.from) {
+                        let at = at.to_degrees();
+                        row.position_deg = Some(at);
+                        row.tracking.add(at, target_deg);
+                    }
+                }
+                Outcome::Failed(f) => {
+                    row.failed += 1;
+                    row.last_error = Some(f);
+                }
+            }
+        }
+        true
+    }
+
+    /// Feeds the follower's answers to a command (`t_s` seconds into the run) to the
+    /// host's protection, a WHJ follower's temperature read every 0.25 s.
+    fn protect(
+        &mut self,
+        station: &Station,
+        done: &[DeviceResult<String, crate::station::jog::Jogged>],
+        t_s: f64,
+    ) {
         let temperatures = if t_s >= self.next_temperature {
             self.next_temperature = t_s + super::play::TEMPERATURE_EVERY_S;
             self.temperatures(station)
@@ -729,34 +762,14 @@ impl Run {
                 if f.action == Action::Stop {
                     self.stopped = Some(i);
                 }
-                self.summary.protection.push(f);
+                if self.summary.protection.len() < protect::MAX_EVENTS || f.action == Action::Stop {
+                    self.summary.protection.push(f);
+                }
             }
             if let Some(slot) = self.last_sent.get_mut(i) {
                 *slot = self.follower.joint_rad(i, j.sent).map(f64::to_degrees);
             }
         }
-        for (i, (row, result)) in self.rows.iter_mut().zip(done).enumerate() {
-            let target_deg = targets.get(i).copied().unwrap_or(0.0).to_degrees();
-            row.target_deg = Some(target_deg);
-            match result.outcome {
-                Outcome::Ok(j) => {
-                    row.commands += 1;
-                    if j.limited || clamped.get(i).copied().unwrap_or(false) {
-                        row.limited += 1;
-                    }
-                    if let Some(at) = self.follower.joint_rad(i, j.from) {
-                        let at = at.to_degrees();
-                        row.position_deg = Some(at);
-                        row.tracking.add(at, target_deg);
-                    }
-                }
-                Outcome::Failed(f) => {
-                    row.failed += 1;
-                    row.last_error = Some(f);
-                }
-            }
-        }
-        true
     }
 
     /// Each WHJ follower's temperature, read now (a status query; `None` for a wCK servo

@@ -18,7 +18,7 @@ use robobus_whj::JointId;
 use robobus_whj::units::Model;
 
 use super::{FollowedJoint, Units};
-use crate::ops::protect::{self, Action, Fault, Monitor, Reading};
+use crate::ops::protect::{self, Action, Fault, MAX_EVENTS, Monitor, Reading};
 use crate::ops::safe::WhjJoints;
 use crate::ops::whj::ServoLoop;
 use crate::ops::{DeviceResult, ErrorKind, Failure, Family, OpError, SafeState};
@@ -43,9 +43,6 @@ struct State {
     /// Every event, the last [`MAX_EVENTS`].
     events: Vec<Fault>,
 }
-
-/// The most events kept.
-const MAX_EVENTS: usize = 256;
 
 /// The protection of a [`Follower`](super::Follower)'s joints.
 #[derive(Debug)]
