@@ -71,6 +71,7 @@ impl SimJoint {
 }
 
 #[cfg(test)]
+#[allow(clippy::float_cmp)] // exact values are asserted on purpose
 mod tests {
     use super::Obstacle;
 
