@@ -74,10 +74,10 @@ impl Capacity {
         Self { buses }
     }
 
-    /// One sample of every joint, ms: the buses are read one after the other
-    /// (`robot.sample`).
+    /// One sample of every joint, ms: the slowest bus's, as `robot.sample` reads the
+    /// buses at the same time, one thread each.
     pub fn sample_ms(&self) -> f64 {
-        self.buses.iter().map(|b| b.sample_ms).sum()
+        self.buses.iter().map(|b| b.sample_ms).fold(0.0, f64::max)
     }
 
     /// One command to every joint, ms: the joints are stepped one after the other.
