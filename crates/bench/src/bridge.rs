@@ -24,9 +24,13 @@
 //!   nothing more is published; once every count has stood still, and after a drain, the
 //!   counts are compared.
 //! - **Rate**: states published per second per bridge, against the asked rate and the
-//!   WHJ bus's own limit for one sample stream (the studio's [`studio::wire_model`]: the
-//!   same 14 request/reply transactions per sample of 7 joints, each held for the
-//!   client's collision window).
+//!   buses' own limit for one sample stream, as the bridge computes it from their timing
+//!   ([`robobus_bridge::Capacity`]: the same 14 request/reply transactions per sample of 7
+//!   joints, each reply held for a second answer).
+//! - **The built-in robot**: one bridge on `Station::simulated_live` (16 wCK servos at
+//!   115200 bit/s, 7 WHJ joints), no command stream, asked for the default 50 Hz and for
+//!   90 % of its buses' limit ([`BuiltinRun`]): the rate published over the window against
+//!   the rate asked and the limit, and the samples its health counted lost.
 //! - **CPU**: `getrusage` of the whole process over the window (the simulators, the
 //!   bridges, the router and the subscriber all run in it), and of it the simulators'
 //!   serving threads, the bridges' own threads (`robobus-*`, `whj-bus`) and this thread
@@ -53,7 +57,7 @@ use robobus_whj::CanFrame;
 use zenoh::Wait as _;
 
 use crate::stats::Summary;
-use crate::{BenchError, Machine, cpu, studio};
+use crate::{BenchError, Machine, cpu};
 
 /// Joints of each bridge's robot.
 pub const JOINTS: u8 = 7;
@@ -63,6 +67,9 @@ pub const DEFAULT_BRIDGES: usize = 10;
 pub const DEFAULT_RATE_HZ: f64 = 100.0;
 /// Bridges accepted.
 pub const BRIDGES: std::ops::RangeInclusive<usize> = 1..=64;
+/// The built-in robot's runs: the bridge's default rate, and this share of its buses'
+/// limit.
+pub const BUILTIN_SHARE_OF_LIMIT: f64 = 0.9;
 /// How long every bridge has to deliver its first message.
 const READY_TIMEOUT: Duration = Duration::from_secs(15);
 /// How long the subscriber goes on reading after the last state was published.
@@ -157,6 +164,42 @@ impl Bot {
     }
 }
 
+/// One run of the bridge on the built-in simulated robot.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BuiltinRun {
+    /// The joint state rate asked, Hz.
+    pub asked_hz: f64,
+    /// What its buses carry, as the bridge computed it.
+    pub capacity: robobus_bridge::Capacity,
+    /// The measured window.
+    pub wall: Duration,
+    /// States published in the window.
+    pub published: u64,
+    /// Slots its health counted lost in the window.
+    pub lost: u64,
+    /// Samples failed whole in the window.
+    pub failed: u64,
+    /// Its health's `achieved_hz` at the window's end (the last 2 s).
+    pub achieved_hz: Option<f64>,
+}
+
+impl BuiltinRun {
+    /// States published a second in the window.
+    pub fn rate_hz(&self) -> f64 {
+        self.published as f64 / self.wall.as_secs_f64().max(1e-9)
+    }
+
+    /// The buses' limit, Hz.
+    pub fn limit_hz(&self) -> f64 {
+        self.capacity.states_hz().unwrap_or(f64::INFINITY)
+    }
+
+    /// What it can reach: the rate asked, or the buses' limit if lower.
+    pub fn reachable_hz(&self) -> f64 {
+        self.asked_hz.min(self.limit_hz())
+    }
+}
+
 /// Everything one run measured.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BridgeResult {
@@ -164,8 +207,10 @@ pub struct BridgeResult {
     pub spec: Spec,
     /// The router's endpoint.
     pub router: String,
-    /// The WHJ bus model of one sample of 7 joints.
-    pub model: studio::WireModel,
+    /// What one bridge's buses carry (the bridge's own computation from their timing).
+    pub capacity: robobus_bridge::Capacity,
+    /// The bridge on the built-in robot, at the default rate and at 90 % of its limit.
+    pub builtin: Vec<BuiltinRun>,
     /// The measured window.
     pub wall: Duration,
     /// Each bridge.
@@ -685,6 +730,64 @@ fn intervals(msgs: &[&Message]) -> Vec<f64> {
     stamps.windows(2).map(|w| (w[1] - w[0]) * 1e3).collect()
 }
 
+/// One bridge on the built-in simulated robot at `asked_hz` for `spec`'s warm-up and
+/// window.
+fn builtin_run(spec: &Spec, asked_hz: f64) -> Result<BuiltinRun, BenchError> {
+    let (station, live) = Station::simulated_live(None)
+        .map_err(|e| BenchError::new("the built-in simulated robot", e))?;
+    let bridge = Bridge::start(
+        station,
+        Some(live),
+        BridgeConfig {
+            namespace: Some("builtin".into()),
+            rate_hz: asked_hz,
+            listen: vec![],
+            ..BridgeConfig::default()
+        },
+    )
+    .map_err(|e| BenchError::new("starting the built-in robot's bridge", e))?;
+    let by = Instant::now() + READY_TIMEOUT;
+    while bridge.health().states.published == 0 {
+        if Instant::now() > by {
+            return Err(BenchError::msg(
+                "the built-in robot's bridge published no joint state",
+            ));
+        }
+        thread::sleep(Duration::from_millis(10));
+    }
+    thread::sleep(spec.warmup);
+    let (a, t0) = (bridge.health().states, Instant::now());
+    thread::sleep(spec.secs);
+    let (b, t1) = (bridge.health().states, Instant::now());
+    let run = BuiltinRun {
+        asked_hz,
+        capacity: bridge.capacity().clone(),
+        wall: t1.duration_since(t0),
+        published: b.published.saturating_sub(a.published),
+        lost: b.lost_samples.saturating_sub(a.lost_samples),
+        failed: b.failed_samples.saturating_sub(a.failed_samples),
+        achieved_hz: b.achieved_hz,
+    };
+    let stop = StopToken::new();
+    stop.stop();
+    bridge
+        .run(&stop)
+        .map_err(|e| BenchError::new("stopping the built-in robot's bridge", e))?;
+    Ok(run)
+}
+
+/// The built-in robot at the bridge's default rate, then at
+/// [`BUILTIN_SHARE_OF_LIMIT`] of its buses' limit (rounded down to 0.1 Hz).
+fn builtin_runs(spec: &Spec) -> Result<Vec<BuiltinRun>, BenchError> {
+    let default = builtin_run(spec, BridgeConfig::default().rate_hz)?;
+    let within = (default.limit_hz() * BUILTIN_SHARE_OF_LIMIT * 10.0).floor() / 10.0;
+    let mut runs = vec![default];
+    if within.is_finite() && within < runs[0].asked_hz {
+        runs.push(builtin_run(spec, within)?);
+    }
+    Ok(runs)
+}
+
 /// Runs `spec` (see the [module docs](self)).
 pub fn run(spec: Spec) -> Result<BridgeResult, BenchError> {
     if !BRIDGES.contains(&spec.bridges) {
@@ -695,9 +798,14 @@ pub fn run(spec: Spec) -> Result<BridgeResult, BenchError> {
             BRIDGES.end()
         )));
     }
-    let model = studio::wire_model()?;
+    let builtin = builtin_runs(&spec)?;
     let rig = Rig::start(&spec)?;
     rig.ready()?;
+    let capacity = rig
+        .bridges
+        .first()
+        .map(|b| b.capacity().clone())
+        .ok_or_else(|| BenchError::msg("no bridge"))?;
     thread::sleep(spec.warmup);
     let c0 = Cut::now(&rig.bridges);
     thread::sleep(spec.secs);
@@ -709,7 +817,8 @@ pub fn run(spec: Spec) -> Result<BridgeResult, BenchError> {
     Ok(BridgeResult {
         spec,
         router,
-        model,
+        capacity,
+        builtin,
         wall: c1.at.duration_since(c0.at),
         bots: bots(&c0, &c1, &totals, &received),
         undecodable: undecodable.undecodable.load(Ordering::Relaxed),
@@ -748,7 +857,7 @@ pub fn markdown(r: Option<&BridgeResult>, machine: &Machine) -> String {
     };
     let period_us = r.spec.period().as_secs_f64() * 1e6;
     let asked = r.spec.rate_hz;
-    let windowed = r.model.windowed_hz();
+    let windowed = r.capacity.states_hz().unwrap_or(f64::INFINITY);
     let _ = writeln!(
         o,
         "{} `robobus-bridge`s in one process, each on its own station of {JOINTS} simulated \
@@ -778,11 +887,13 @@ pub fn markdown(r: Option<&BridgeResult>, machine: &Machine) -> String {
          once none has moved for {:.1} s{}, and after a further {:.1} s drain, so both \
          are exact.\n\
          - **Rate**: states published a second per bridge, against the asked {asked:.0} Hz \
-         and the bus's limit for one sample stream: one sample of {JOINTS} joints is {} \
-         request/reply transactions ({:.1} µs on the wire), each reply held for the \
-         client's {:.0} µs collision window: **{windowed:.1} samples/s** at most, all \
-         other costs zero. The stamp interval (between consecutive messages of a \
-         bridge) is how long one sample took: its bus read, or the wait for its slot.\n",
+         and the bus's limit for one sample stream as the bridge computes it from the \
+         bus's timing (`Bridge::capacity`): one sample of {JOINTS} joints is a status \
+         query and a speed read per joint, each reply held one frame and the link's \
+         allowance for a second answer, {:.3} ms on the wire: **{windowed:.1} samples/s** \
+         at most, all other costs zero. The stamp interval (between consecutive messages \
+         of a bridge) is how long one sample took: its bus read, or the wait for its \
+         slot.\n",
         period_us / 1e3,
         SETTLE.as_secs_f64(),
         if r.settled {
@@ -791,9 +902,7 @@ pub fn markdown(r: Option<&BridgeResult>, machine: &Machine) -> String {
             " (**they did not settle**: the loss counts are not exact)"
         },
         DRAIN.as_secs_f64(),
-        r.model.transactions,
-        r.model.sample.as_secs_f64() * 1e6,
-        r.model.collision_window.as_secs_f64() * 1e6,
+        r.capacity.sample_ms(),
     );
     let (lat, gaps) = (r.latencies(), r.intervals());
     let rates: Vec<f64> = r.bots.iter().map(|b| b.rate_hz(r.wall)).collect();
@@ -869,6 +978,7 @@ pub fn markdown(r: Option<&BridgeResult>, machine: &Machine) -> String {
             r.undecodable
         );
     }
+    builtin_markdown(&mut o, &r.builtin);
     let joints = r.joints().max(1) as f64;
     let _ = writeln!(
         o,
@@ -908,6 +1018,54 @@ pub fn markdown(r: Option<&BridgeResult>, machine: &Machine) -> String {
     }
     let _ = writeln!(o);
     o
+}
+
+/// The built-in robot's rows.
+fn builtin_markdown(o: &mut String, runs: &[BuiltinRun]) {
+    let Some(first) = runs.first() else {
+        return;
+    };
+    let c = &first.capacity;
+    let _ = writeln!(
+        o,
+        "**The built-in robot**: one bridge on `Station::simulated_live` (16 wCK servos at \
+         115200 bit/s and 7 WHJ30 joints, wall clock), no command stream, in the same \
+         process, asked for the bridge's default rate and for {:.0} % of its buses' limit. \
+         The limit is the bridge's own (`Bridge::capacity`, said at start and in the \
+         health): one sample is {:.1} ms on the wire ({}; the buses read at the same \
+         time, the slowest sets it), so **{:.1} Hz** at most. Rate: states published in the window a second; \
+         lost: the slots of the rate asked its health counted without a sample.\n",
+        BUILTIN_SHARE_OF_LIMIT * 100.0,
+        c.sample_ms(),
+        c.buses
+            .iter()
+            .map(|b| format!("{}: {} joints, {:.1} ms", b.name, b.joints, b.sample_ms))
+            .collect::<Vec<_>>()
+            .join("; "),
+        first.limit_hz(),
+    );
+    let _ = writeln!(
+        o,
+        "| asked, Hz | bus limit, Hz | published, Hz | / asked | / bus limit | / reachable (min of both) | achieved (health, last 2 s) | lost slots / window | failed samples |\n|---|---|---|---|---|---|---|---|---|"
+    );
+    for b in runs {
+        let rate = b.rate_hz();
+        let _ = writeln!(
+            o,
+            "| {:.1} | {:.1} | {rate:.1} | {:.3}× | {:.3}× | **{:.3}×** | {} | {} / {:.1} s | {} |",
+            b.asked_hz,
+            b.limit_hz(),
+            rate / b.asked_hz,
+            rate / b.limit_hz(),
+            rate / b.reachable_hz(),
+            b.achieved_hz
+                .map_or_else(|| "-".to_owned(), |h| format!("{h:.1} Hz")),
+            b.lost,
+            b.wall.as_secs_f64(),
+            b.failed,
+        );
+    }
+    let _ = writeln!(o);
 }
 
 #[cfg(test)]
