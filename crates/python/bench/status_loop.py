@@ -14,7 +14,7 @@ CPU per transaction, one run each:
   loop (`robobus-bench servo-whj`, `Joint::command_position`) and the python-can peer
   (`scripts/bench/whj_servo_peer.py`).
 
-    target/pybind/bin/python crates/python/bench/status_loop.py [--seconds 3]
+    target/pybind/bin/python crates/python/bench/status_loop.py [--seconds 3] [--no-wck] [--calls-only]
 
 - The bindings' own cost per call, in-process on the built-in simulated robot (its
   simulators on their virtual clock, so a call is CPU only): each handle call in a Python
@@ -143,6 +143,13 @@ def whj(seconds: float) -> dict[str, dict[str, float]]:
                 "rate": n / (time.perf_counter() - t0),
                 "cpu_us": (time.process_time() - cpu0) / n * 1e6,
             }
+            # The same library call in a Rust loop on the same handle, as many times.
+            cpu0 = time.process_time()
+            each = joint._group._native._bench_command("position", [here], n)
+            out["the same handle call in a Rust loop (in the bindings)"] = {
+                "rate": 1.0 / each,
+                "cpu_us": (time.process_time() - cpu0) / n * 1e6,
+            }
             station.whj.disable("1", check=True)
         peer = subprocess.run(
             [peers_python(), str(ROOT / "scripts" / "bench" / "whj_servo_peer.py"),
@@ -261,11 +268,28 @@ def table(title: str, results: dict[str, dict[str, float]], base: str, peer: str
         )
 
 
+def wck(seconds: float) -> None:
+    sim, port = sim_port()
+    try:
+        results = {
+            "bindings, request (main thread)": bindings(port, seconds, True),
+            "bindings, request (other thread)": bindings(port, seconds, False),
+            "bindings, servo handle": handle(port, seconds),
+            "pyserial peer": pyserial(port, seconds),
+        }
+    finally:
+        sim.send_signal(signal.SIGINT)
+        sim.wait(timeout=20)
+    results["Rust (robobus-bench poll-wck)"] = rust(seconds)
+    table("wCK status reads, 1 servo, pty, 115200 bit/s", results, "Rust (robobus-bench poll-wck)", "pyserial peer")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--seconds", type=float, default=3.0)
     ap.add_argument("--whj-only", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--calls-only", action="store_true", help="only the in-process call costs")
+    ap.add_argument("--no-wck", action="store_true", help="without the wCK pty loops (no release robobus binary)")
     args = ap.parse_args()
     if args.calls_only:
         calls_table(calls())
@@ -274,19 +298,8 @@ def main() -> None:
         print(json.dumps(whj(args.seconds)))
         return
     calls_table(calls())
-    sim, port = sim_port()
-    try:
-        results = {
-            "bindings, request (main thread)": bindings(port, args.seconds, True),
-            "bindings, request (other thread)": bindings(port, args.seconds, False),
-            "bindings, servo handle": handle(port, args.seconds),
-            "pyserial peer": pyserial(port, args.seconds),
-        }
-    finally:
-        sim.send_signal(signal.SIGINT)
-        sim.wait(timeout=20)
-    results["Rust (robobus-bench poll-wck)"] = rust(args.seconds)
-    table("wCK status reads, 1 servo, pty, 115200 bit/s", results, "Rust (robobus-bench poll-wck)", "pyserial peer")
+    if not args.no_wck:
+        wck(args.seconds)
     inner = subprocess.run(
         ["unshare", "-n", "sh", "-c",
          'ip link set lo up && ip route add 224.0.0.0/4 dev lo && exec "$@"', "netns",

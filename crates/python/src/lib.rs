@@ -13,8 +13,9 @@
 //!   Python's own SIGINT handler stays in place; no handler is installed here.
 //! - Requests come in as dicts walked into the library's JSON value (bounded: at most
 //!   [`MAX_REQUEST_BYTES`](robobus::frontend::parse::MAX_REQUEST_BYTES) of strings and
-//!   [`MAX_DEPTH`] levels), or as JSON text, parsed once; the handles' results are Python
-//!   objects built here.
+//!   [`MAX_DEPTH`] levels), or as JSON text, parsed once; reports and the handles' results
+//!   are Python objects built here (`pyser`: what `json.loads` of the report's JSON text
+//!   would give, without the text).
 //! - Errors are raised as `robobus.errors` classes chosen by the error kind, with the
 //!   library's message.
 //! - The library's log events go to Python's `logging` (pyo3-log).
@@ -32,7 +33,6 @@ use std::time::{Duration, Instant};
 
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
-use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
 use robobus::ErrorKind;
 use robobus::catalogue::telemetry::RecvError;
@@ -42,6 +42,7 @@ use robobus::station::StationConfig;
 
 mod handles;
 mod life;
+mod pyser;
 
 use life::{Life, LoopCell, StreamCell, closed_error};
 
@@ -86,26 +87,10 @@ fn op_error(py: Python<'_>, e: &OpError) -> PyErr {
     raise(py, e.kind(), &e.to_string(), None)
 }
 
-/// Python's `json.loads`, looked up once.
-fn json_loads(py: Python<'_>) -> PyResult<&Bound<'_, PyAny>> {
-    static LOADS: PyOnceLock<Py<PyAny>> = PyOnceLock::new();
-    LOADS
-        .get_or_try_init(py, || {
-            Ok::<_, PyErr>(py.import("json")?.getattr("loads")?.unbind())
-        })
-        .map(|f| f.bind(py))
-}
-
-fn from_json(py: Python<'_>, text: &str) -> PyResult<Py<PyAny>> {
-    Ok(json_loads(py)?.call1((text,))?.unbind())
-}
-
-/// A report as Python objects: its JSON text (serde, in the report's field order) read by
-/// Python's C parser.
+/// A report (or any serialisable value) as Python objects, built directly (`pyser`): what
+/// `json.loads` of its JSON text would give, in its field order.
 fn to_py(py: Python<'_>, value: &impl serde::Serialize) -> PyResult<Py<PyAny>> {
-    let text = serde_json::to_string(value)
-        .map_err(|e| PyRuntimeError::new_err(format!("serialising a report: {e}")))?;
-    from_json(py, &text)
+    pyser::to_py(py, value).map(Bound::unbind)
 }
 
 /// Walks a Python request (dicts with string keys, lists, tuples, strings, numbers, bools,

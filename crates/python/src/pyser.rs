@@ -1,0 +1,375 @@
+//! A report straight into Python objects: a `serde` serializer that builds what
+//! `json.loads(serde_json::to_string(value))` would build (dicts in the value's field order,
+//! lists, str, int, float, bool, `None`; a non-finite float `None`; map keys as strings;
+//! enums as `serde_json` writes them), without the text in between.
+
+use std::fmt;
+
+use pyo3::BoundObject;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList, PyString};
+use serde::ser::{self, Serialize};
+
+/// What went wrong: a Python error, or a value JSON has no form for.
+#[derive(Debug)]
+pub(crate) enum Error {
+    Py(PyErr),
+    Custom(String),
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Py(e) => write!(f, "{e}"),
+            Self::Custom(m) => f.write_str(m),
+        }
+    }
+}
+
+impl std::error::Error for Error {}
+
+impl ser::Error for Error {
+    fn custom<T: fmt::Display>(msg: T) -> Self {
+        Self::Custom(msg.to_string())
+    }
+}
+
+impl From<PyErr> for Error {
+    fn from(e: PyErr) -> Self {
+        Self::Py(e)
+    }
+}
+
+impl From<Error> for PyErr {
+    fn from(e: Error) -> Self {
+        match e {
+            Error::Py(e) => e,
+            Error::Custom(m) => {
+                pyo3::exceptions::PyRuntimeError::new_err(format!("serialising a report: {m}"))
+            }
+        }
+    }
+}
+
+type Out<'py> = Result<Bound<'py, PyAny>, Error>;
+
+/// `value` as Python objects.
+pub(crate) fn to_py<'py>(py: Python<'py>, value: &impl Serialize) -> PyResult<Bound<'py, PyAny>> {
+    Ok(value.serialize(Ser(py))?)
+}
+
+#[derive(Clone, Copy)]
+struct Ser<'py>(Python<'py>);
+
+fn any<'py, T>(py: Python<'py>, v: T) -> Out<'py>
+where
+    T: IntoPyObject<'py>,
+    PyErr: From<T::Error>,
+{
+    Ok(v.into_pyobject(py)
+        .map_err(PyErr::from)?
+        .into_any()
+        .into_bound())
+}
+
+/// `{variant: value}`, `serde_json`'s form of a non-unit enum variant.
+fn tagged<'py>(py: Python<'py>, variant: &str, value: Bound<'py, PyAny>) -> Out<'py> {
+    let d = PyDict::new(py);
+    d.set_item(variant, value)?;
+    Ok(d.into_any())
+}
+
+impl<'py> ser::Serializer for Ser<'py> {
+    type Ok = Bound<'py, PyAny>;
+    type Error = Error;
+    type SerializeSeq = Seq<'py>;
+    type SerializeTuple = Seq<'py>;
+    type SerializeTupleStruct = Seq<'py>;
+    type SerializeTupleVariant = Seq<'py>;
+    type SerializeMap = Map<'py>;
+    type SerializeStruct = Map<'py>;
+    type SerializeStructVariant = Map<'py>;
+
+    fn serialize_bool(self, v: bool) -> Out<'py> {
+        any(self.0, v)
+    }
+    fn serialize_i8(self, v: i8) -> Out<'py> {
+        any(self.0, v)
+    }
+    fn serialize_i16(self, v: i16) -> Out<'py> {
+        any(self.0, v)
+    }
+    fn serialize_i32(self, v: i32) -> Out<'py> {
+        any(self.0, v)
+    }
+    fn serialize_i64(self, v: i64) -> Out<'py> {
+        any(self.0, v)
+    }
+    fn serialize_i128(self, v: i128) -> Out<'py> {
+        any(self.0, v)
+    }
+    fn serialize_u8(self, v: u8) -> Out<'py> {
+        any(self.0, v)
+    }
+    fn serialize_u16(self, v: u16) -> Out<'py> {
+        any(self.0, v)
+    }
+    fn serialize_u32(self, v: u32) -> Out<'py> {
+        any(self.0, v)
+    }
+    fn serialize_u64(self, v: u64) -> Out<'py> {
+        any(self.0, v)
+    }
+    fn serialize_u128(self, v: u128) -> Out<'py> {
+        any(self.0, v)
+    }
+    fn serialize_f32(self, v: f32) -> Out<'py> {
+        self.serialize_f64(f64::from(v))
+    }
+    fn serialize_f64(self, v: f64) -> Out<'py> {
+        // JSON has no NaN or infinity: serde_json writes null.
+        if v.is_finite() {
+            any(self.0, v)
+        } else {
+            Ok(self.0.None().into_bound(self.0))
+        }
+    }
+    fn serialize_char(self, v: char) -> Out<'py> {
+        any(self.0, v.to_string())
+    }
+    fn serialize_str(self, v: &str) -> Out<'py> {
+        Ok(PyString::new(self.0, v).into_any())
+    }
+    fn serialize_bytes(self, v: &[u8]) -> Out<'py> {
+        // serde_json writes bytes as an array of numbers.
+        Ok(PyList::new(self.0, v)?.into_any())
+    }
+    fn serialize_none(self) -> Out<'py> {
+        Ok(self.0.None().into_bound(self.0))
+    }
+    fn serialize_some<T: ?Sized + Serialize>(self, value: &T) -> Out<'py> {
+        value.serialize(self)
+    }
+    fn serialize_unit(self) -> Out<'py> {
+        self.serialize_none()
+    }
+    fn serialize_unit_struct(self, _name: &'static str) -> Out<'py> {
+        self.serialize_none()
+    }
+    fn serialize_unit_variant(self, _n: &'static str, _i: u32, variant: &'static str) -> Out<'py> {
+        self.serialize_str(variant)
+    }
+    fn serialize_newtype_struct<T: ?Sized + Serialize>(
+        self,
+        _name: &'static str,
+        value: &T,
+    ) -> Out<'py> {
+        value.serialize(self)
+    }
+    fn serialize_newtype_variant<T: ?Sized + Serialize>(
+        self,
+        _name: &'static str,
+        _index: u32,
+        variant: &'static str,
+        value: &T,
+    ) -> Out<'py> {
+        tagged(self.0, variant, value.serialize(self)?)
+    }
+    fn serialize_seq(self, _len: Option<usize>) -> Result<Seq<'py>, Error> {
+        Ok(Seq {
+            py: self.0,
+            list: PyList::empty(self.0),
+            variant: None,
+        })
+    }
+    fn serialize_tuple(self, len: usize) -> Result<Seq<'py>, Error> {
+        self.serialize_seq(Some(len))
+    }
+    fn serialize_tuple_struct(self, _name: &'static str, len: usize) -> Result<Seq<'py>, Error> {
+        self.serialize_seq(Some(len))
+    }
+    fn serialize_tuple_variant(
+        self,
+        _name: &'static str,
+        _index: u32,
+        variant: &'static str,
+        _len: usize,
+    ) -> Result<Seq<'py>, Error> {
+        Ok(Seq {
+            py: self.0,
+            list: PyList::empty(self.0),
+            variant: Some(variant),
+        })
+    }
+    fn serialize_map(self, _len: Option<usize>) -> Result<Map<'py>, Error> {
+        Ok(Map {
+            py: self.0,
+            dict: PyDict::new(self.0),
+            key: None,
+            variant: None,
+        })
+    }
+    fn serialize_struct(self, _name: &'static str, len: usize) -> Result<Map<'py>, Error> {
+        self.serialize_map(Some(len))
+    }
+    fn serialize_struct_variant(
+        self,
+        _name: &'static str,
+        _index: u32,
+        variant: &'static str,
+        _len: usize,
+    ) -> Result<Map<'py>, Error> {
+        Ok(Map {
+            py: self.0,
+            dict: PyDict::new(self.0),
+            key: None,
+            variant: Some(variant),
+        })
+    }
+}
+
+pub(crate) struct Seq<'py> {
+    py: Python<'py>,
+    list: Bound<'py, PyList>,
+    variant: Option<&'static str>,
+}
+
+impl<'py> Seq<'py> {
+    fn push<T: ?Sized + Serialize>(&mut self, value: &T) -> Result<(), Error> {
+        self.list.append(value.serialize(Ser(self.py))?)?;
+        Ok(())
+    }
+    fn done(self) -> Out<'py> {
+        match self.variant {
+            Some(v) => tagged(self.py, v, self.list.into_any()),
+            None => Ok(self.list.into_any()),
+        }
+    }
+}
+
+impl<'py> ser::SerializeSeq for Seq<'py> {
+    type Ok = Bound<'py, PyAny>;
+    type Error = Error;
+    fn serialize_element<T: ?Sized + Serialize>(&mut self, value: &T) -> Result<(), Error> {
+        self.push(value)
+    }
+    fn end(self) -> Out<'py> {
+        self.done()
+    }
+}
+
+impl<'py> ser::SerializeTuple for Seq<'py> {
+    type Ok = Bound<'py, PyAny>;
+    type Error = Error;
+    fn serialize_element<T: ?Sized + Serialize>(&mut self, value: &T) -> Result<(), Error> {
+        self.push(value)
+    }
+    fn end(self) -> Out<'py> {
+        self.done()
+    }
+}
+
+impl<'py> ser::SerializeTupleStruct for Seq<'py> {
+    type Ok = Bound<'py, PyAny>;
+    type Error = Error;
+    fn serialize_field<T: ?Sized + Serialize>(&mut self, value: &T) -> Result<(), Error> {
+        self.push(value)
+    }
+    fn end(self) -> Out<'py> {
+        self.done()
+    }
+}
+
+impl<'py> ser::SerializeTupleVariant for Seq<'py> {
+    type Ok = Bound<'py, PyAny>;
+    type Error = Error;
+    fn serialize_field<T: ?Sized + Serialize>(&mut self, value: &T) -> Result<(), Error> {
+        self.push(value)
+    }
+    fn end(self) -> Out<'py> {
+        self.done()
+    }
+}
+
+pub(crate) struct Map<'py> {
+    py: Python<'py>,
+    dict: Bound<'py, PyDict>,
+    key: Option<Bound<'py, PyAny>>,
+    variant: Option<&'static str>,
+}
+
+impl<'py> Map<'py> {
+    fn done(self) -> Out<'py> {
+        match self.variant {
+            Some(v) => tagged(self.py, v, self.dict.into_any()),
+            None => Ok(self.dict.into_any()),
+        }
+    }
+}
+
+/// A map key as `serde_json` writes it: a string, or a number or bool as its text.
+fn key<'py, T: ?Sized + Serialize>(py: Python<'py>, k: &T) -> Out<'py> {
+    let v = k.serialize(Ser(py))?;
+    if v.is_instance_of::<PyString>() {
+        return Ok(v);
+    }
+    if v.is_instance_of::<pyo3::types::PyBool>() {
+        return Ok(PyString::new(py, if v.is_truthy()? { "true" } else { "false" }).into_any());
+    }
+    if v.is_instance_of::<pyo3::types::PyInt>() || v.is_instance_of::<pyo3::types::PyFloat>() {
+        return Ok(v.str()?.into_any());
+    }
+    Err(Error::Custom("a map key must be a string".into()))
+}
+
+impl<'py> ser::SerializeMap for Map<'py> {
+    type Ok = Bound<'py, PyAny>;
+    type Error = Error;
+    fn serialize_key<T: ?Sized + Serialize>(&mut self, k: &T) -> Result<(), Error> {
+        self.key = Some(key(self.py, k)?);
+        Ok(())
+    }
+    fn serialize_value<T: ?Sized + Serialize>(&mut self, value: &T) -> Result<(), Error> {
+        let k = self
+            .key
+            .take()
+            .ok_or_else(|| Error::Custom("a map value without its key".into()))?;
+        self.dict.set_item(k, value.serialize(Ser(self.py))?)?;
+        Ok(())
+    }
+    fn end(self) -> Out<'py> {
+        self.done()
+    }
+}
+
+impl<'py> ser::SerializeStruct for Map<'py> {
+    type Ok = Bound<'py, PyAny>;
+    type Error = Error;
+    fn serialize_field<T: ?Sized + Serialize>(
+        &mut self,
+        name: &'static str,
+        value: &T,
+    ) -> Result<(), Error> {
+        self.dict.set_item(name, value.serialize(Ser(self.py))?)?;
+        Ok(())
+    }
+    fn end(self) -> Out<'py> {
+        self.done()
+    }
+}
+
+impl<'py> ser::SerializeStructVariant for Map<'py> {
+    type Ok = Bound<'py, PyAny>;
+    type Error = Error;
+    fn serialize_field<T: ?Sized + Serialize>(
+        &mut self,
+        name: &'static str,
+        value: &T,
+    ) -> Result<(), Error> {
+        self.dict.set_item(name, value.serialize(Ser(self.py))?)?;
+        Ok(())
+    }
+    fn end(self) -> Out<'py> {
+        self.done()
+    }
+}
