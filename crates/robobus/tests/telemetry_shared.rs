@@ -212,12 +212,12 @@ fn a_sample_taken_from_cyclic_feedback_says_so() {
     // the loop's, one servo frame per joint per 2 ms cycle (the two counters are read one
     // after the other while the loop runs: one cycle of slack).
     let before = host_frames(&sim);
-    let cycles = cyc.stats().cycles;
+    let cycles_before = cyc.stats().cycles;
     for _ in 0..5 {
         assert_eq!(next(&sub).sample.sampled_by, Some(SampledBy::Cyclic));
     }
     let sent = host_frames(&sim) - before;
-    let cycled = cyc.stats().cycles - cycles;
+    let cycled = cyc.stats().cycles - cycles_before;
     assert!(
         sent.abs_diff(cycled * 2) <= 2,
         "{sent} frames in {cycled} cycles"
