@@ -47,7 +47,7 @@ impl StateClock {
     }
 
     /// A sample was taken at `at` (published or not).
-    fn took(&self, at: Instant) {
+    pub(crate) fn took(&self, at: Instant) {
         let mut t = self.taken.lock().unwrap_or_else(PoisonError::into_inner);
         t.push_back(at);
         while t
@@ -58,9 +58,10 @@ impl StateClock {
         }
     }
 
-    /// Samples a second over the last [`RATE_WINDOW`] (or since the first sample, if
-    /// that is shorter); `None` before two samples.
-    fn achieved_hz(&self, now: Instant, started: Instant) -> Option<f64> {
+    /// Samples a second over the last [`RATE_WINDOW`]: the intervals between the samples
+    /// taken in it over the time from the first of them until `now` (a rate that stopped
+    /// falls as `now` moves on); `None` before two samples in the window.
+    pub(crate) fn achieved_hz(&self, now: Instant) -> Option<f64> {
         let mut t = self.taken.lock().unwrap_or_else(PoisonError::into_inner);
         while t
             .front()
@@ -68,8 +69,8 @@ impl StateClock {
         {
             t.pop_front();
         }
-        let span = now.saturating_duration_since(started).min(RATE_WINDOW);
-        (t.len() >= 2 && !span.is_zero()).then(|| t.len() as f64 / span.as_secs_f64())
+        let span = now.saturating_duration_since(*t.front()?);
+        (t.len() >= 2 && !span.is_zero()).then(|| (t.len() - 1) as f64 / span.as_secs_f64())
     }
 }
 
@@ -89,7 +90,8 @@ pub struct BusHealth {
 pub struct StatesHealth {
     /// The rate asked, Hz.
     pub asked_hz: f64,
-    /// Samples taken a second over the last [`RATE_WINDOW`] (2 s), Hz; `None` before two.
+    /// Samples taken a second over the last [`RATE_WINDOW`] (2 s): the intervals between
+    /// them over the time since the first of them, Hz; `None` before two.
     pub achieved_hz: Option<f64>,
     /// The highest rate the buses carry, computed from their timing
     /// ([`Capacity`](crate::Capacity)), Hz; `None` without joints.
@@ -222,7 +224,7 @@ pub(crate) fn of(s: &Shared) -> Health {
         buses,
         states: StatesHealth {
             asked_hz: s.config.rate_hz,
-            achieved_hz: s.states.achieved_hz(Instant::now(), s.started),
+            achieved_hz: s.states.achieved_hz(Instant::now()),
             bus_limit_hz: s.capacity.states_hz(),
             limited: s.capacity.note(s.config.rate_hz),
             published: get(&c.states_published),
@@ -291,7 +293,7 @@ pub(crate) fn publish_health(s: &Shared, publisher: &zenoh::pubsub::Publisher<'s
 /// The joint state message of one sample: every joint whose reading answered, in the
 /// robot file's order; `None` when none did (a read that failed as a whole). Marks each
 /// joint answering or not.
-fn joint_state(s: &Shared, report: Option<&Report>, unix_ms: f64) -> Option<JointState> {
+pub(crate) fn joint_state(s: &Shared, report: Option<&Report>, unix_ms: f64) -> Option<JointState> {
     let c = &s.counters;
     let mut ok = s.joint_ok.lock().unwrap_or_else(PoisonError::into_inner);
     let Some(report) = report else {

@@ -137,3 +137,71 @@ fn a_held_command_is_counted_with_its_reason() {
     );
     s.set_armed(false).unwrap();
 }
+
+#[test]
+fn a_sample_with_no_joint_answering_is_a_failed_sample_and_a_silent_joint_is_left_out() {
+    let s = shared(false);
+    let names: Vec<String> = s
+        .follower
+        .as_ref()
+        .unwrap()
+        .joints()
+        .iter()
+        .map(|j| j.name.clone())
+        .collect();
+    let row = |name: &str, ok: bool| {
+        if ok {
+            serde_json::json!({"id": name, "position_deg": 90.0, "speed_deg_s": null})
+        } else {
+            serde_json::json!({"id": name, "kind": "no-device", "error": "silent"})
+        }
+    };
+    let report = |silent: usize| {
+        robobus::catalogue::Report::with_rows(
+            "robot.sample",
+            "robot",
+            names
+                .iter()
+                .enumerate()
+                .map(|(i, n)| row(n, i >= silent))
+                .collect(),
+        )
+    };
+    // A read that failed as a whole, twice; a sample where no joint answered.
+    assert!(health::joint_state(&s, None, 0.0).is_none());
+    assert!(health::joint_state(&s, None, 0.0).is_none());
+    assert!(health::joint_state(&s, Some(&report(names.len())), 0.0).is_none());
+    // Two joints silent: left out, the others published.
+    let msg = health::joint_state(&s, Some(&report(2)), 0.0).unwrap();
+    assert_eq!(msg.name, names[2..].to_vec());
+    assert!((msg.position[0] - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+    let h = health::of(&s);
+    assert_eq!(
+        (h.states.failed_samples, h.states.joints_left_out),
+        (3, names.len() as u64 + 2)
+    );
+    let answering: usize = h.buses.iter().map(|b| b.answering).sum();
+    assert_eq!(answering, names.len() - 2);
+}
+
+#[test]
+fn the_rate_achieved_is_the_samples_of_the_last_two_seconds_and_lost_slots_keep_their_reason() {
+    let s = shared(false);
+    let t0 = s.started;
+    // 30 samples 100 ms apart (3 s): the last 2 s hold 21 of them (t = 1.0 ..= 3.0 s),
+    // 20 intervals.
+    for k in 0..30u32 {
+        s.states.took(t0 + Duration::from_millis(100) * (k + 1));
+    }
+    let now = t0 + Duration::from_secs(3);
+    assert_eq!(s.states.achieved_hz(now), Some(10.0));
+    // Half a second without a sample: 16 left in the window (t = 1.5 ..= 3.0 s), 15
+    // intervals over the 2 s since the first of them.
+    let later = now + Duration::from_millis(500);
+    assert_eq!(s.states.achieved_hz(later), Some(7.5));
+    s.states.lose(4, health::LOST_TO_COMMANDS);
+    s.states.lose(3, health::LOST_TO_BUSES);
+    let h = health::of(&s);
+    assert_eq!((h.states.lost_samples, h.states.lost_to_commands), (7, 4));
+    assert_eq!(h.states.lost_reason.as_deref(), Some(health::LOST_TO_BUSES));
+}
