@@ -133,7 +133,7 @@ impl Follower {
         };
         Ok(Self {
             joints,
-            jogger: Jogger::new(),
+            jogger: Jogger::unwatched(),
             guard,
         })
     }

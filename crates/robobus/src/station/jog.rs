@@ -24,6 +24,8 @@ use crate::ops::{Failure, OpError};
 use crate::station::Station;
 use crate::station::handles::{WckGroup, WhjGroup};
 
+pub(crate) mod guard;
+
 /// The largest step of one WHJ jog, degrees.
 pub const WHJ_JOG_STEP_DEG: f64 = 2.0;
 /// The largest step of one wCK jog, position steps (about 8.4°).
@@ -79,12 +81,34 @@ pub struct Jogger {
     wck: Mutex<HashMap<(String, u8), Arc<WckJog>>>,
     /// Each wCK servo's latest answered position (steps), on its bus's clock.
     wck_seen: Mutex<HashMap<(String, u8), (Instant, u8)>>,
+    /// The host's protection of the jogged devices (`None`: a caller that watches them
+    /// itself).
+    guard: Option<guard::Guard>,
 }
 
 impl Jogger {
-    /// A jogger with no handle yet.
+    /// A jogger with no handle yet, whose jogs the host's protection watches (see
+    /// `guard.rs`): a device that stalls, collides or runs hot is stopped and its later
+    /// jogs refused until [`Jogger::resume`].
     pub fn new() -> Self {
+        Self {
+            guard: Some(guard::Guard::default()),
+            ..Self::default()
+        }
+    }
+
+    /// A jogger whose caller watches the devices itself (a [`Follower`]'s stream).
+    ///
+    /// [`Follower`]: crate::station::follow::Follower
+    pub fn unwatched() -> Self {
         Self::default()
+    }
+
+    /// Takes jogs of a device the protection stopped again (once its cause is cleared).
+    pub fn resume(&self, bus: &str, device: u8) {
+        if let Some(g) = &self.guard {
+            g.resume(bus, device);
+        }
     }
 
     /// One jog step of `req`'s device toward its target (see the [module docs](self)).
@@ -97,7 +121,15 @@ impl Jogger {
                 "a finite number (wCK: steps 0..=254, WHJ: degrees)",
             ));
         }
-        match req.family {
+        let bus = match req.family {
+            Family::Whj => Some(station.whj(req.bus.as_deref())?.name().to_owned()),
+            Family::Wck => Some(station.wck(req.bus.as_deref())?.name().to_owned()),
+            _ => None,
+        };
+        if let (Some(g), Some(bus)) = (&self.guard, &bus) {
+            g.refuse(bus, req.device)?;
+        }
+        let jogged = match req.family {
             Family::Whj => self.jog_whj(station, req),
             Family::Wck => self.jog_wck(station, req),
             Family::Robot => Err(OpError::invalid(
@@ -110,7 +142,11 @@ impl Jogger {
                 "host",
                 "a jog moves one device: wck or whj",
             )),
+        }?;
+        if let Some(g) = &self.guard {
+            g.watch(station, &jogged)?;
         }
+        Ok(jogged)
     }
 
     /// Makes the handle of `req`'s device now, as its first jog would (a WHJ joint's

@@ -14,20 +14,18 @@
 use std::sync::{Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
-use robobus_whj::JointId;
 use robobus_whj::units::Model;
 
 use super::{FollowedJoint, Units};
 use crate::ops::protect::{self, Action, Fault, MAX_EVENTS, Monitor, Reading};
-use crate::ops::safe::WhjJoints;
-use crate::ops::whj::ServoLoop;
-use crate::ops::{DeviceResult, ErrorKind, Failure, Family, OpError, SafeState};
+use crate::ops::{DeviceResult, ErrorKind, Failure, Family, OpError};
 use crate::station::Station;
 use crate::station::clock::BusClock;
+use crate::station::jog::guard::{model, safe_stop, temperature_of};
 use crate::station::jog::{JogRequest, Jogged};
 
 /// How often each WHJ joint's temperature is read while commands come.
-pub(super) const TEMPERATURE_EVERY: Duration = Duration::from_millis(250);
+pub(super) const TEMPERATURE_EVERY: Duration = crate::station::jog::guard::TEMPERATURE_EVERY;
 
 /// What the guard keeps between commands.
 #[derive(Debug)]
@@ -167,7 +165,10 @@ impl Guard {
             let Some(config) = station.robot() else {
                 return results;
             };
-            s.models = joints.iter().map(|j| model(station, j)).collect();
+            s.models = joints
+                .iter()
+                .map(|j| model(station, j.family, &j.bus, j.id))
+                .collect();
             let limits = joints
                 .iter()
                 .zip(&self.joints)
@@ -213,7 +214,7 @@ impl Guard {
                     .and_then(serde_json::Value::as_f64)
                     .map(|ma| ma / 1e3),
                 temperature_c: if temperature {
-                    temperature_of(station, j)
+                    temperature_of(station, j.family, &j.bus, j.id)
                 } else {
                     None
                 },
@@ -241,9 +242,9 @@ impl Guard {
             let model = s.models.get(i).copied().flatten();
             s.stopped = Some(fault.clone());
             drop(s);
-            let end = joints
-                .get(i)
-                .map_or_else(String::new, |j| safe_stop(station, j, model));
+            let end = joints.get(i).map_or_else(String::new, |j| {
+                safe_stop(station, j.family, &j.bus, j.id, model)
+            });
             if let Some(r) = results.get_mut(i) {
                 *r = DeviceResult::failed(
                     r.id.clone(),
@@ -252,64 +253,6 @@ impl Guard {
             }
         }
         results
-    }
-}
-
-/// The model a WHJ joint identified as (`None`: a wCK servo, or not known yet).
-fn model(station: &Station, j: &FollowedJoint) -> Option<Model> {
-    if j.family != Family::Whj {
-        return None;
-    }
-    let id = JointId::new(j.id).ok()?;
-    let port = station.whj(Some(&j.bus)).ok()?;
-    port.bus().cached_identity(id).map(|i| i.model)
-}
-
-/// A WHJ joint's temperature, read now (`None`: a wCK servo, or no answer).
-fn temperature_of(station: &Station, j: &FollowedJoint) -> Option<f64> {
-    if j.family != Family::Whj {
-        return None;
-    }
-    let id = JointId::new(j.id).ok()?;
-    let port = station.whj(Some(&j.bus)).ok()?;
-    let status = port.bus().joint_unchecked(id).status().ok()?;
-    Some(f64::from(status.temperature.celsius()))
-}
-
-/// Brings a joint that tripped to its safe stop: a WHJ joint disabled where its model's
-/// brake holds it, else held where it is; a wCK servo keeps the position it was last
-/// sent (it holds it). What it did, for the fault's text.
-fn safe_stop(station: &Station, j: &FollowedJoint, model: Option<Model>) -> String {
-    if j.family != Family::Whj {
-        return "; it holds its last position and no command is sent".into();
-    }
-    let (state, what) = if protect::torque_off_is_safe(model) {
-        (
-            SafeState::Disable,
-            "its drive disabled (its brake holds it: holding would keep it pushing or heating)",
-        )
-    } else {
-        (SafeState::Hold, "held where it is")
-    };
-    let Ok(id) = JointId::new(j.id) else {
-        return String::new();
-    };
-    let Ok(port) = station.whj(Some(&j.bus)) else {
-        return "; its bus is closed".into();
-    };
-    let bus = port.bus();
-    let joint = [bus.joint_unchecked(id)];
-    let failed = state.apply(&mut WhjJoints {
-        joints: &joint,
-        servo: ServoLoop::Position,
-    });
-    match failed.first() {
-        None => format!("; {what}"),
-        Some(f) => format!(
-            "; it did not reach its safe state ({}): {}",
-            state.keyword(),
-            f.error
-        ),
     }
 }
 
