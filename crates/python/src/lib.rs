@@ -10,6 +10,10 @@
 //!   every 5 ms while it waits), at most once per [`SIGNAL_SLICE`], the GIL is taken back for
 //!   `check_signals`. Ctrl-C so stops the request (the operation brings its devices to their
 //!   safe state) and raises `KeyboardInterrupt` once it has; a short request never polls.
+//!   An operation sees the signal at its next check (a long move plans all its frames
+//!   before its first), and a CPU-bound Python thread can delay a poll by up to the
+//!   interpreter's switch interval (5 ms) while it holds the GIL. Handle calls do not poll:
+//!   each is a few transactions, bounded by the devices' reply timeouts.
 //!   Python's own SIGINT handler stays in place; no handler is installed here.
 //! - Requests come in as dicts walked into the library's JSON value (bounded: at most
 //!   [`MAX_REQUEST_BYTES`](robobus::frontend::parse::MAX_REQUEST_BYTES) of strings and
