@@ -278,7 +278,6 @@ pub fn wire_model() -> Result<WireModel, BenchError> {
     .map_err(|e| BenchError::new("starting the model's simulator", e))?;
     let log: Log = Arc::default();
     let config = JointBusConfig::simulated();
-    let collision_window = config.collision_window;
     let bus = JointBus::open_with(
         Recorder {
             inner: wire.endpoint(),
@@ -287,6 +286,7 @@ pub fn wire_model() -> Result<WireModel, BenchError> {
         config,
     )
     .map_err(|e| BenchError::new("JointBus", e))?;
+    let collision_window = bus.duplicate_check().unwrap_or_default();
     let mut station = Station::new();
     let port = station.add_whj("sim-whj", bus);
     let request = Request::WhjSample(cat_whj::Sample {

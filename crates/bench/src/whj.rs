@@ -65,7 +65,7 @@ impl ChainSpec {
             collision_window: if self.collision_window {
                 base.collision_window
             } else {
-                Duration::ZERO
+                Some(Duration::ZERO)
             },
             ..base
         }

@@ -198,7 +198,7 @@ fn a_whj_session_without_its_collision_window_is_caught_crediting_an_impostor() 
     data.extend(std::iter::repeat_n([0u8, 0x80], 64).flatten());
     assert_eq!(robobus_fuzzing::whj_matching(&data), Ok(()));
     let no_window = robobus::whj::JointBusConfig {
-        collision_window: Duration::ZERO,
+        collision_window: Some(Duration::ZERO),
         ..robobus::whj::JointBusConfig::default()
     };
     let e = robobus_fuzzing::whj_matching_with(&data, no_window).unwrap_err();

@@ -6,6 +6,7 @@
 //! wrappers ([`crate::FaultyFrameLink`], [`crate::CaptureFrameLink`]) and
 //! [`crate::ReplayFrameLink`] implement the same trait.
 
+use core::time::Duration;
 use std::io;
 use std::time::{Instant, SystemTime};
 
@@ -214,6 +215,16 @@ impl FrameLinkError {
     }
 }
 
+/// What [`FrameLink::reply_allowance`] says for a link that does not know its own: the
+/// scheduling of a host thread that forwards frames one by one (0.15 ms).
+pub const DEFAULT_REPLY_ALLOWANCE: Duration = Duration::from_micros(150);
+
+/// [`FrameLink::reply_allowance`] of a USB CAN adapter (slcan, fdcanusb): 1.5 ms. The
+/// adapter hands received frames to the host in USB full-speed transfers, 1 ms frames
+/// apart, and buffers its text lines until a transfer takes them, so a frame that followed
+/// another on the wire may come one transfer later, and the host's thread runs after that.
+pub(crate) const USB_ADAPTER_REPLY_ALLOWANCE: Duration = Duration::from_micros(1_500);
+
 /// A CAN FD bus endpoint: send frames, receive frames with a deadline.
 pub trait FrameLink {
     /// Sends one frame.
@@ -253,11 +264,24 @@ pub trait FrameLink {
     fn sends_empty_frames(&self) -> bool {
         true
     }
+
+    /// How much later than the wire this link may deliver a frame that followed another
+    /// on the wire back to back: how long after receiving the first a receiver may still
+    /// be handed the second, beyond the second's own wire time. A client that waits for a
+    /// second answer to one request (a WHJ duplicate check) waits one frame plus this.
+    /// Each link says its own: zero where frames are handed over in wire order the
+    /// instant they are complete (an in-memory bus, a simulator on virtual time), a
+    /// driver's interrupt and queue on `SocketCAN`, a USB frame and an adapter's
+    /// buffering on USB adapters (slcan, fdcanusb); [`DEFAULT_REPLY_ALLOWANCE`] for a
+    /// link that does not say. Wrappers pass their inner link's through.
+    fn reply_allowance(&self) -> Duration {
+        DEFAULT_REPLY_ALLOWANCE
+    }
 }
 
 /// The clock methods of a [`FrameLink`] that wraps another, forwarded to the wrapped
-/// link (the field named): `now`, `sleep_until`, `virtual_time`, and what the wrapped
-/// link can carry (`sends_empty_frames`). For use inside an `impl FrameLink for Wrapper`
+/// link (the field named): `now`, `sleep_until`, `virtual_time`, what the wrapped link
+/// can carry (`sends_empty_frames`) and how late it delivers (`reply_allowance`). For use inside an `impl FrameLink for Wrapper`
 /// block.
 #[macro_export]
 macro_rules! forward_frame_link_clock {
@@ -276,6 +300,10 @@ macro_rules! forward_frame_link_clock {
 
         fn sends_empty_frames(&self) -> bool {
             $crate::FrameLink::sends_empty_frames(&self.$field)
+        }
+
+        fn reply_allowance(&self) -> ::core::time::Duration {
+            $crate::FrameLink::reply_allowance(&self.$field)
         }
     };
 }
@@ -302,6 +330,9 @@ impl<T: FrameLink + ?Sized> FrameLink for &mut T {
     fn sends_empty_frames(&self) -> bool {
         (**self).sends_empty_frames()
     }
+    fn reply_allowance(&self) -> Duration {
+        (**self).reply_allowance()
+    }
 }
 
 impl<T: FrameLink + ?Sized> FrameLink for Box<T> {
@@ -325,6 +356,9 @@ impl<T: FrameLink + ?Sized> FrameLink for Box<T> {
     }
     fn sends_empty_frames(&self) -> bool {
         (**self).sends_empty_frames()
+    }
+    fn reply_allowance(&self) -> Duration {
+        (**self).reply_allowance()
     }
 }
 

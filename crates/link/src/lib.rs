@@ -113,7 +113,9 @@ pub use capture::{
 };
 pub use fault::{FaultConfig, FaultStats, FaultyByteLink, FaultyFrameLink};
 pub use fdcanusb::{FdcanusbConfig, FdcanusbLink};
-pub use frame_link::{BusErrorKind, FrameLink, FrameLinkError, IdFilter, Received};
+pub use frame_link::{
+    BusErrorKind, DEFAULT_REPLY_ALLOWANCE, FrameLink, FrameLinkError, IdFilter, Received,
+};
 pub use memory::{MemoryBus, MemoryBusEndpoint, MemoryByteLink};
 pub use port::{PortSpec, PortSpecError};
 #[cfg(unix)]

@@ -2,7 +2,7 @@
 
 use std::collections::VecDeque;
 use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
-use std::time::{Instant, SystemTime};
+use std::time::{Duration, Instant, SystemTime};
 
 use robobus_whj::frame::CanFrame;
 
@@ -286,6 +286,12 @@ impl FrameLink for MemoryBusEndpoint {
                     .ok_or(FrameLinkError::Timeout);
             }
         }
+    }
+
+    /// Zero: a frame is in every other endpoint's queue, behind the ones sent before it,
+    /// the instant it is sent.
+    fn reply_allowance(&self) -> Duration {
+        Duration::ZERO
     }
 
     fn set_filters(&mut self, filters: &[IdFilter]) -> Result<(), FrameLinkError> {

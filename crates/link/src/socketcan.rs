@@ -286,6 +286,12 @@ impl FrameLink for SocketCanLink {
         }
     }
 
+    /// 50 µs: the controller's receive interrupt and the kernel's receive queue, which
+    /// hands frames over in wire order (stamped by the kernel as they come).
+    fn reply_allowance(&self) -> Duration {
+        Duration::from_micros(50)
+    }
+
     fn set_filters(&mut self, filters: &[IdFilter]) -> Result<(), FrameLinkError> {
         let result = if filters.is_empty() {
             self.socket.set_filter_accept_all()

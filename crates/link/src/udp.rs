@@ -442,6 +442,12 @@ impl FrameLink for UdpBus {
         }
     }
 
+    /// 0.2 ms: every frame is a datagram that its sender's process writes when its
+    /// thread runs, and the host's network stack delivers to each member's socket.
+    fn reply_allowance(&self) -> Duration {
+        Duration::from_micros(200)
+    }
+
     fn set_filters(&mut self, filters: &[IdFilter]) -> Result<(), FrameLinkError> {
         self.filters = filters.to_vec();
         Ok(())

@@ -174,17 +174,27 @@ fn a_late_answer_to_a_retried_request_is_counted_late_never_as_a_second_joint() 
     eprintln!("{counts:?}; bus {health:?}");
     assert_eq!((counts.duplicate, health.duplicates), (0, 0), "{counts:?}");
     assert_eq!(counts.stale, 0, "{counts:?}");
-    // Seeded, on the virtual clock: exact.
+    // Seeded, on the virtual clock: exact. The timeouts follow the hold of a reply for a
+    // second answer, and are no loss of the check: most of them are this chain. Attempt 1's
+    // answer is held back (20 ms + a jitter j of 0..1 ms) and comes alone during attempt 2,
+    // whose own answer is held back too (jitter j'); it may be attempt 1's late answer, so
+    // it is not credited, and attempt 3 goes out one hold after it. Attempt 3's answer
+    // queues behind attempt 2's held-back one, which comes j' − j after attempt 3's
+    // deadline less the hold, so attempt 3 times out unless j' − j < the hold plus the
+    // reply's 0.07 ms lead: a chance of (1 − d)² / 2 with d in ms. A 0.5 ms window gave 43
+    // timeouts, one frame + 0.15 ms 115, one frame (the simulator's link adds no lateness)
+    // 158: 1 : 2.7 : 3.7, where (1 − d)² / 2 gives 1 : 2.7 : 4. Each is a read that
+    // failed as silent, never a value.
     assert_eq!(
         counts,
         Counts {
-            fresh: 1826,
+            fresh: 1795,
             stale: 0,
-            late: 59,
-            timeout: 115,
+            late: 47,
+            timeout: 158,
             duplicate: 0,
         }
     );
     // Every frame is accounted for: none was taken for a stray.
-    assert_eq!((health.unmatched, health.late), (0, 1702), "{health:?}");
+    assert_eq!((health.unmatched, health.late), (0, 1742), "{health:?}");
 }

@@ -19,14 +19,17 @@ use robobus::ops::whj::joint_status;
 use robobus::whj::{JointBus, JointBusConfig};
 use robobus_link::{FrameLink, FrameLinkError, IdFilter, Received};
 use robobus_sim::whj::{JointConfig, WhjModel};
+use robobus_whj::timing::{BitRates, frame_duration};
 use robobus_whj::{CanFrame, JointId};
 use whj_common::{configs, sim_link, virtual_config};
 
 /// Which faults the link injects, each into this share of the replies.
 #[derive(Clone, Copy)]
 struct Faults {
-    /// Two answers 0.2 ms apart: half the time the same frame twice, half the time the
-    /// other joint's answer under this joint's ID first (two joints at one ID).
+    /// Two answers, the second an arbitration loser's (one frame after the first, plus
+    /// the link's [`FrameLink::reply_allowance`]): half the time the same frame twice,
+    /// half the time the other joint's answer under this joint's ID first (two joints at
+    /// one ID).
     doubled: f64,
     /// The reply is held back and arrives after the next or the one after next request.
     wrong_slot: f64,
@@ -111,7 +114,12 @@ impl<L: FrameLink> ReplyFaults<L> {
             return None;
         }
         if self.chance(self.faults.doubled) {
-            let at = self.inner.now() + Duration::from_micros(200);
+            // The second answer is an arbitration loser's: it follows the first on the
+            // wire at once (the intermission, then a frame as long), and the link may
+            // deliver it that much later again.
+            let at = self.inner.now()
+                + frame_duration(&r.frame, BitRates::WHJ)
+                + self.inner.reply_allowance();
             let other = self
                 .last_status
                 .iter()
@@ -119,7 +127,7 @@ impl<L: FrameLink> ReplyFaults<L> {
                 .map(|(_, d)| d.clone());
             match other {
                 Some(data) if status && self.uniform() < 0.5 => {
-                    // The other joint's answer comes first, this joint's 0.2 ms later.
+                    // The other joint's answer comes first, this joint's one frame later.
                     self.injected.lock().unwrap().doubled_other += 1;
                     let first = Received {
                         frame: Self::frame_with(id, &data),
@@ -303,9 +311,9 @@ fn ten_thousand_status_reads_through_doubled_late_and_implausible_replies_give_n
         counts,
         [
             (9835, Some(165), injected(170, 67, 197, 99)),
-            (9821, Some(179), injected(268, 56, 303, 124)),
+            (9821, Some(179), injected(269, 54, 302, 126)),
             (9835, Some(165), injected(170, 67, 197, 99)),
-            (9821, Some(179), injected(268, 56, 303, 124)),
+            (9821, Some(179), injected(269, 54, 302, 126)),
         ]
     );
 }
@@ -353,7 +361,7 @@ fn without_the_collision_window_the_first_of_two_answers_would_be_taken() {
         false,
         10_000,
         JointBusConfig {
-            collision_window: Duration::ZERO,
+            collision_window: Some(Duration::ZERO),
             ..virtual_config()
         },
     );

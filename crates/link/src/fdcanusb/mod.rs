@@ -839,6 +839,12 @@ impl<L: ByteLink> FrameLink for FdcanusbLink<L> {
     fn sends_empty_frames(&self) -> bool {
         false
     }
+
+    /// 1.5 ms: the adapter's USB full-speed transfers (1 ms frames apart) and its
+    /// buffering of received frames until a transfer takes them.
+    fn reply_allowance(&self) -> Duration {
+        crate::frame_link::USB_ADAPTER_REPLY_ALLOWANCE
+    }
 }
 
 impl<L: ByteLink> Drop for FdcanusbLink<L> {

@@ -90,6 +90,8 @@ pub struct JointBus {
     /// Whether the link sends frames without data ([`FrameLink::sends_empty_frames`]);
     /// when not, status queries go by broadcast.
     empty_frames: bool,
+    /// The duplicate check's allowance for the link's lateness (`None`: off).
+    duplicate_check: Option<Duration>,
     wake: Mutex<Sender<Wake>>,
     thread: Option<JoinHandle<()>>,
 }
@@ -109,9 +111,11 @@ impl JointBus {
         let last_drain = link.now();
         let virtual_time = link.virtual_time();
         let empty_frames = link.sends_empty_frames();
+        let session = Session::on_link(config, link.reply_allowance());
+        let duplicate_check = session.allowance();
         let core = Arc::new(CoreLock::new(Core {
             link: Box::new(link),
-            session: Session::new(config),
+            session,
             shared: Arc::clone(&shared),
             cyclic: None,
             last_drain,
@@ -140,6 +144,7 @@ impl JointBus {
             config,
             virtual_time,
             empty_frames,
+            duplicate_check,
             wake: Mutex::new(tx),
             thread,
         })
@@ -148,6 +153,14 @@ impl JointBus {
     /// The bus settings.
     pub const fn config(&self) -> &JointBusConfig {
         &self.config
+    }
+
+    /// Whether replies are held for a second answer from a duplicate node, and how much
+    /// later than the wire the link may deliver it: [`JointBusConfig::collision_window`]
+    /// if set, else the link's own [`FrameLink::reply_allowance`]; `None` when the check
+    /// is off (`collision_window: Some(Duration::ZERO)`).
+    pub const fn duplicate_check(&self) -> Option<Duration> {
+        self.duplicate_check
     }
 
     /// The bus's clock: the link's ([`FrameLink::now`]). Instants in [`BusTelemetry`] and

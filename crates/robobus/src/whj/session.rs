@@ -58,7 +58,9 @@
 //! reply IDs go out meanwhile): one frame of its length on the wire (an arbitration
 //! loser's answer follows the winner's at once), lengthened by the wire time of every
 //! request sent meanwhile (which wins arbitration over the loser's answer), plus the
-//! link's allowance ([`JointBusConfig::collision_window`]). A second, different reply
+//! link's allowance ([`JointBusConfig::collision_window`], by default the link's own
+//! [`FrameLink::reply_allowance`](robobus_link::FrameLink::reply_allowance)). A second,
+//! different reply
 //! within the hold makes the attempt a [`Attempt::Duplicate`] (two joints at one ID),
 //! unless a late answer
 //! of that kind is due on the ID: then one joint answering the earlier attempt late and
@@ -172,15 +174,41 @@ struct Credited {
     frame: CanFrame,
     reply: Reply,
     until: Instant,
+    /// [`loser_time`] of `frame`.
+    loser: Duration,
 }
 
 /// How long after a reply in `frame` has arrived a second node that answered the same
 /// request at the same ID, and lost arbitration to it, is done sending its own: the
-/// intermission, then a frame as long as the winner's, at the WHJ rates (one frame's wire
-/// time: [`timing::frame_duration`] counts the intermission after each frame).
+/// intermission, then a frame of the winner's ID and length at the WHJ rates
+/// ([`timing::frame_duration`] counts the intermission after each frame), with as many
+/// stuff bits as any payload of that length can have: the loser's data differ from the
+/// winner's, and so do its stuff bits (joint 1's 16-byte status frame takes 62.2 µs with
+/// a payload of 0x55 bytes, 68.6 µs with the most stuff bits, intermission included).
 fn loser_time(frame: &CanFrame) -> Duration {
-    timing::frame_duration(frame, BitRates::WHJ)
+    let bits = timing::frame_bits(frame);
+    let most = frame
+        .standard_raw_id()
+        .filter(|_| frame.is_fd() && frame.brs())
+        .and_then(|id| timing::fd_data_stuff_bounds(id, frame.len(), frame.esi()));
+    match most {
+        Some((_, most)) => timing::FrameBits {
+            data_bits: bits.data_bits + most.saturating_sub(bits.stuff_data),
+            stuff_data: most.max(bits.stuff_data),
+            ..bits
+        }
+        .duration(BitRates::WHJ),
+        // Not a WHJ frame: a quarter more than its own, the most stuff bits can add.
+        None => {
+            let own = bits.duration(BitRates::WHJ);
+            own + own / 4
+        }
+    }
 }
+
+/// The most [`Session`] keeps of [`loser_time`] by reply ID and length (every standard ID
+/// at every CAN FD length fits).
+const LOSER_TIMES_KEPT: usize = 2048 * 16;
 
 /// Whether `raw` is an ID on which joints or the end board answer broadcast frames.
 fn is_broadcast_reply_id(raw: u16) -> bool {
@@ -198,6 +226,12 @@ fn is_broadcast_reply_id(raw: u16) -> bool {
 #[derive(Debug)]
 pub(crate) struct Session {
     config: JointBusConfig,
+    /// The duplicate check's allowance for the link's lateness
+    /// ([`JointBusConfig::collision_window`], else the link's own); `None`: the check is
+    /// off, a reply is credited at once.
+    allowance: Option<Duration>,
+    /// [`loser_time`] by raw ID, length and ESI, computed once each.
+    loser_times: HashMap<(u32, usize, bool), Duration>,
     next_id: TxnId,
     queued: VecDeque<Pending>,
     /// Attempts to send again after a failed send, queued at the next `handle_timeout`.
@@ -232,10 +266,27 @@ pub(crate) struct Session {
 }
 
 impl Session {
-    /// A session with nothing queued, the bus active and no loop.
+    /// A session with nothing queued, the bus active and no loop, on a link that does not
+    /// say how late it delivers ([`robobus_link::DEFAULT_REPLY_ALLOWANCE`]).
+    #[cfg(test)]
     pub(crate) fn new(config: JointBusConfig) -> Self {
+        Self::on_link(config, robobus_link::DEFAULT_REPLY_ALLOWANCE)
+    }
+
+    /// A session with nothing queued, the bus active and no loop, on a link that may
+    /// deliver the second of two back-to-back frames `link_allowance` late
+    /// ([`robobus_link::FrameLink::reply_allowance`]); the config's
+    /// [`JointBusConfig::collision_window`] overrides it.
+    pub(crate) fn on_link(config: JointBusConfig, link_allowance: Duration) -> Self {
+        let allowance = match config.collision_window {
+            None => Some(link_allowance),
+            Some(w) if w.is_zero() => None,
+            Some(w) => Some(w),
+        };
         Self {
             config,
+            allowance,
+            loser_times: HashMap::new(),
             next_id: 0,
             queued: VecDeque::new(),
             deferred: Vec::new(),
@@ -441,16 +492,18 @@ impl Session {
                         let joint = reply.joint().get();
                         self.quiet.insert(joint, now + txn.quiet_after);
                     }
-                    if self.config.collision_window.is_zero() {
+                    if self.allowance.is_none() {
                         self.credit(key, txn.expect, reply, now)
                     } else {
+                        let (loser, hold) = self.hold(frame);
                         self.credited.insert(
                             key,
                             Credited {
                                 pending: f.pending,
                                 frame: *frame,
                                 reply,
-                                until: now + self.hold(frame),
+                                until: now + hold,
+                                loser,
                             },
                         );
                         return;
@@ -512,6 +565,14 @@ impl Session {
     }
 
     // Time.
+
+    /// Whether a held reply's hold ends by `now` ([`Session::handle_timeout`] credits it):
+    /// frames already received are handed in first, so that a second answer that came at
+    /// the hold's last instant (an arbitration loser's, one frame after the winner's on a
+    /// link that adds nothing) is seen before the first is credited.
+    pub(crate) fn hold_ends(&self, now: Instant) -> bool {
+        self.credited.values().any(|c| c.until <= now)
+    }
 
     /// Whether the cyclic loop's next tick is due at `now`: frames already received are
     /// handed in first, so that none is taken for the next cycle's.
@@ -729,12 +790,29 @@ impl Session {
         &mut self.telemetry.bus
     }
 
+    /// The duplicate check's allowance for the link's lateness, `None` when it is off
+    /// (see [`JointBusConfig::collision_window`]).
+    pub(crate) const fn allowance(&self) -> Option<Duration> {
+        self.allowance
+    }
+
     /// How long a reply that arrived in `frame` is held for a second answer: the wire
-    /// time of the arbitration loser's frame (as long as the winner's: same ID, same
-    /// kind) and the intermission before it, at the WHJ rates, plus the link's allowance
-    /// ([`JointBusConfig::collision_window`]).
-    fn hold(&self, frame: &CanFrame) -> Duration {
-        loser_time(frame) + self.config.collision_window
+    /// time of the arbitration loser's frame ([`loser_time`]: the winner's ID and length,
+    /// the most stuff bits) and the intermission before it, at the WHJ rates, plus the
+    /// link's allowance ([`Session::allowance`]). Returns the loser's time and the hold.
+    pub(super) fn hold(&mut self, frame: &CanFrame) -> (Duration, Duration) {
+        let key = (frame.raw_id(), frame.len(), frame.esi());
+        let loser = match self.loser_times.get(&key) {
+            Some(t) => *t,
+            None => {
+                let t = loser_time(frame);
+                if self.loser_times.len() < LOSER_TIMES_KEPT {
+                    self.loser_times.insert(key, t);
+                }
+                t
+            }
+        };
+        (loser, loser + self.allowance.unwrap_or_default())
     }
 
     /// `frame` goes out at `now` while replies are held: a request wins arbitration over
@@ -746,9 +824,9 @@ impl Session {
             return;
         }
         let sent = now + timing::frame_duration(frame, BitRates::WHJ);
-        let allowance = self.config.collision_window;
+        let allowance = self.allowance.unwrap_or_default();
         for c in self.credited.values_mut() {
-            c.until = c.until.max(sent + loser_time(&c.frame) + allowance);
+            c.until = c.until.max(sent + c.loser + allowance);
         }
     }
 

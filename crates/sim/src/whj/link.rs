@@ -222,6 +222,11 @@ impl FrameLink for WhjSimLink {
         true
     }
 
+    /// Zero: each frame is handed over at the simulated instant its end crossed the wire.
+    fn reply_allowance(&self) -> Duration {
+        Duration::ZERO
+    }
+
     fn sleep_until(&mut self, deadline: Instant) {
         let until = self.shared.sim_time(deadline);
         let mut s = self.shared.lock();

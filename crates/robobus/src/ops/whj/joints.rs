@@ -331,7 +331,7 @@ pub fn duplicates_of(bus: &JointBus, id: JointId) -> Option<Duplicate> {
         if matches!(read, Err(WhjError::DuplicateReply { .. })) {
             break;
         }
-        if bus.config().collision_window.is_zero() {
+        if bus.duplicate_check().is_none() {
             // The second joint's reply comes after the first one's.
             bus.sleep_until(bus.now() + Duration::from_millis(5));
         }

@@ -151,6 +151,14 @@ impl Core {
                 self.session.set_cyclic_targets(targets);
             }
         }
+        if self.session.hold_ends(self.link.now()) {
+            // A second answer received by the end of a hold counts: taken before the hold
+            // credits its reply.
+            self.drain();
+            if self.closed {
+                return false;
+            }
+        }
         let now = self.link.now();
         self.session.handle_timeout(now);
         while let Some(tx) = self.session.poll_transmit(now) {

@@ -185,7 +185,8 @@ impl JointBus {
         timeout: Duration,
     ) -> Vec<Option<Attempt>> {
         let deadline = sent + timeout;
-        let window = self.config().collision_window;
+        let check = self.duplicate_check();
+        let window = check.unwrap_or_default();
         let answers_of = |got: &[(Instant, robobus_whj::CanFrame)], id: JointId| {
             got.iter()
                 .filter_map(|(at, f)| match Reply::from_frame(f) {
@@ -208,13 +209,13 @@ impl JointBus {
             // Every joint answered, and a second node at any of their IDs, which lost
             // arbitration to every answer on the bus (a lower ID wins), would have sent
             // its own by now: one frame after the last one received, plus the link's
-            // allowance (`JointBusConfig::collision_window`). Or the time is up.
+            // allowance (`JointBus::duplicate_check`). Or the time is up.
             let last = got.last().map(|(at, f)| {
                 at.checked_add(frame_duration(f, BitRates::WHJ) + window)
                     .unwrap_or(*at)
             });
             let settled = answers.iter().all(|a| !a.is_empty())
-                && (window.is_zero() || last.is_some_and(|t| now >= t));
+                && (check.is_none() || last.is_some_and(|t| now >= t));
             if settled || now >= deadline {
                 return answers
                     .into_iter()

@@ -45,29 +45,37 @@ pub struct JointBusConfig {
     /// After an error-passive or error-warning report, how long without a new report
     /// before the bus counts as recovered (default 1 s).
     pub error_passive_hold: Duration,
-    /// Duplicate detection: the link's allowance (default 0.15 ms) in how long a received
-    /// reply is held before it is credited to whoever asked for it. Two nodes at one ID
-    /// both answer a request; the one that lost arbitration sends its answer right after
-    /// the winner's, so a reply is held for one frame of its own length on the wire at
-    /// the WHJ rates (the loser's; a 16-byte status or servo feedback takes about 0.07 ms
-    /// at 1 / 5 Mbit/s, a 64-byte frame about 0.15 ms), plus this allowance for the link
-    /// delivering the second frame later than the first (a host's scheduling, an
-    /// adapter's buffering; raise it for an slcan or fdcanusb adapter, whose USB link
-    /// delivers in 1 ms frames). A request the client sends meanwhile, to another joint,
-    /// wins arbitration over the loser's answer and delays it, so it lengthens the hold
-    /// by its own wire time. A second, different reply within the hold fails the request
-    /// with [`WhjError::DuplicateReply`] instead of crediting either. Only the request's
-    /// caller waits for it: requests to other joints go out meanwhile; the next request
-    /// on the same reply ID waits for it too.
+    /// Duplicate detection: how much later than the wire the link may deliver the second
+    /// of two frames that followed each other on the wire, or `None` (the default) for the
+    /// link's own allowance ([`FrameLink::reply_allowance`]: zero on the in-memory bus and
+    /// the simulator on virtual time, 50 µs on `SocketCAN`, 0.2 ms on the UDP bus, 1.5 ms
+    /// through an slcan or fdcanusb USB adapter). Two nodes at one ID both answer a
+    /// request; the one that lost arbitration sends its answer right after the winner's,
+    /// so a reply is held for one frame of its own length on the wire at the WHJ rates
+    /// (the loser's; a 16-byte status or servo feedback takes about 0.07 ms at 1 / 5
+    /// Mbit/s, a 64-byte frame about 0.15 ms), plus this allowance. Every frame on the
+    /// wire meanwhile that the loser's answer had to wait for (a request the client sends
+    /// to another joint, which wins arbitration, or another joint's reply with a lower ID)
+    /// lengthens the hold by its own wire time. A second, different reply within the hold
+    /// fails the request with [`WhjError::DuplicateReply`] instead of crediting either.
+    /// Only the request's caller waits for it: requests to other joints go out meanwhile;
+    /// the next request on the same reply ID waits for it too. Set it only for a link
+    /// that delivers later than it says (a gateway, an adapter behind a hub).
     ///
-    /// Zero turns duplicate detection off: the first reply is credited at once, so a
-    /// second joint at the same ID (a joint given a used ID, a replaced joint left at its
-    /// factory ID) goes unnoticed, and whichever answer comes first is reported as the
-    /// joint's value (another joint's position, status or register); its second answer
-    /// then only counts as unmatched in the bus health.
+    /// `Some(Duration::ZERO)` turns duplicate detection off: the first reply is credited
+    /// at once, so a second joint at the same ID (a joint given a used ID, a replaced joint
+    /// left at its factory ID) goes unnoticed, and whichever answer comes first is reported
+    /// as the joint's value (another joint's position, status or register); its second
+    /// answer then only counts as unmatched in the bus health. What it saves a caller that
+    /// waits for each reply before its next request is that one frame and the allowance per
+    /// request (about 0.07 ms per servo command on a memory bus); requests sent together
+    /// ([`JointBus::request_many`]) hold their replies while the next ones are answered and
+    /// save almost nothing.
     ///
     /// [`WhjError::DuplicateReply`]: crate::whj::WhjError::DuplicateReply
-    pub collision_window: Duration,
+    /// [`FrameLink::reply_allowance`]: robobus_link::FrameLink::reply_allowance
+    /// [`JointBus::request_many`]: crate::whj::JointBus::request_many
+    pub collision_window: Option<Duration>,
     /// The longest one receive or sleep of the driving thread lasts before it looks at
     /// the session again and lets other threads in (default 0.5 ms).
     pub poll_interval: Duration,
@@ -91,7 +99,7 @@ impl Default for JointBusConfig {
             save_settle: Duration::from_millis(50),
             bus_recovery_timeout: Duration::from_secs(1),
             error_passive_hold: Duration::from_secs(1),
-            collision_window: Duration::from_micros(150),
+            collision_window: None,
             poll_interval: Duration::from_micros(500),
             wait: WaitMode::Sleep,
         }

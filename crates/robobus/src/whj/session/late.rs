@@ -84,12 +84,14 @@ impl Session {
             tracing::debug!(late = ?c.reply, reply = ?second, "a late reply before a WHJ request's own");
             self.health().late += 1;
             self.late_seen = Some(now);
+            let (loser, hold) = self.hold(frame);
             self.credited.insert(
                 key,
                 Credited {
                     frame: *frame,
                     reply: *second,
-                    until: now + self.hold(frame),
+                    until: now + hold,
+                    loser,
                     ..c
                 },
             );

@@ -26,7 +26,7 @@ fn read(addr: u8, count: u8) -> (Request, ReadRange) {
 /// Replies credited at once (the tests of other rules than the collision window).
 fn no_window() -> JointBusConfig {
     JointBusConfig {
-        collision_window: Duration::ZERO,
+        collision_window: Some(Duration::ZERO),
         ..JointBusConfig::default()
     }
 }
@@ -70,9 +70,10 @@ fn us(n: u64) -> Duration {
 }
 
 /// How long the default settings hold `reply` for a second answer when nothing is sent
-/// meanwhile: the arbitration loser's frame and the link's allowance.
+/// meanwhile, on a link that does not say its allowance ([`Session::new`]): the
+/// arbitration loser's frame and the default allowance.
 fn hold(reply: &Reply) -> Duration {
-    loser_time(&reply.to_frame()) + JointBusConfig::default().collision_window
+    loser_time(&reply.to_frame()) + robobus_link::DEFAULT_REPLY_ALLOWANCE
 }
 
 fn snapshot(s: &mut Session) -> BusTelemetry {
@@ -293,8 +294,9 @@ fn a_failed_write_ack_starts_no_settle_time() {
 #[test]
 fn a_second_different_reply_within_the_collision_window_is_a_duplicate_not_a_value() {
     let t0 = Instant::now();
-    assert_eq!(JointBusConfig::default().collision_window, us(150));
+    assert_eq!(JointBusConfig::default().collision_window, None);
     let mut s = Session::new(JointBusConfig::default());
+    assert_eq!(s.allowance(), Some(us(150)));
     let (req, range) = read(0x14, 2);
     let id = s.submit(txn(req, t0));
     s.poll_transmit(t0).unwrap();
@@ -734,6 +736,7 @@ fn a_late_answer_alone_in_the_retrys_window_is_not_credited_and_the_request_is_m
     // The bus delivered a frame late a moment ago.
     let mut s = seen_late(t0);
     s.config = JointBusConfig::default();
+    s.allowance = Some(robobus_link::DEFAULT_REPLY_ALLOWANCE);
     let id = retry_after_a_timeout(&mut s, t0);
     // One reply comes: the first attempt's late answer or the retry's own, which cannot
     // be told. Nothing is credited; a third attempt goes out when the window closes.
@@ -875,4 +878,67 @@ fn a_joint_that_was_only_silent_is_credited_its_first_reply() {
     let t1 = t0 + ms(40);
     let got = a_reply_after_a_silent_read(&mut seen_late(t1), t1);
     assert!(matches!(got, Some(Attempt::Late { reply: r }) if r == reply));
+}
+
+#[test]
+fn a_losers_answer_is_waited_for_with_the_most_stuff_bits_its_length_allows() {
+    // Two status frames of joint 1, 16 bytes: the winner's payload has few stuff bits,
+    // the loser's (all zeros) the most. The hold covers the loser's, not a copy of the
+    // winner's length on the wire.
+    let id = CanFrame::standard_id(0x701).unwrap();
+    let few = CanFrame::new_fd(id, &[0x55; 16]).unwrap();
+    let most = CanFrame::new_fd(id, &[0x00; 16]).unwrap();
+    let few_time = timing::frame_duration(&few, BitRates::WHJ);
+    let most_time = timing::frame_duration(&most, BitRates::WHJ);
+    assert!(most_time > few_time, "{few_time:?} {most_time:?}");
+    assert_eq!(loser_time(&few), loser_time(&most));
+    assert!(loser_time(&few) >= most_time, "{:?}", loser_time(&few));
+    eprintln!("{few_time:?} {most_time:?} {:?}", loser_time(&few));
+    let mut s = Session::new(JointBusConfig::default());
+    assert_eq!(
+        s.hold(&few),
+        (loser_time(&most), loser_time(&most) + us(150))
+    );
+}
+
+#[test]
+fn a_duplicate_during_the_next_transaction_to_the_same_joint_fails_its_own_reading_only() {
+    let t0 = Instant::now();
+    let mut s = Session::new(JointBusConfig::default());
+    let (req, range) = read(0x14, 2);
+    let first = s.submit(txn(req, t0));
+    assert_eq!(transmit(&mut s, t0).len(), 1);
+    let own = Reply::read(j1(), range, &[0x1000, 0]).unwrap();
+    let impostor = Reply::read(j1(), range, &[0x1200, 0]).unwrap();
+    let t1 = t0 + us(200);
+    s.handle_frame(&own.to_frame(), t1);
+    // The next transaction to joint 1 (another caller's, or the same caller's next
+    // reading) is queued during the hold: it is not sent while the reading it could be
+    // mistaken for is held, so a second answer cannot be taken for its reply.
+    let second = s.submit(txn(req, t1));
+    assert!(transmit(&mut s, t1).is_empty());
+    assert!(transmit(&mut s, t1 + hold(&own) - us(1)).is_empty());
+    // The second joint at ID 1 answers at the hold's last instant, before the session
+    // lets that instant pass: the first reading fails, the next is not touched.
+    let t2 = t1 + hold(&own);
+    s.handle_frame(&impostor.to_frame(), t2);
+    let got = s.poll_outcome(first).map(|o| o.attempt);
+    assert!(
+        matches!(&got, Some(Attempt::Duplicate { first: f, second: g }) if *f == own && *g == impostor),
+        "{got:?}"
+    );
+    assert!(s.poll_outcome(second).is_none());
+    // Now the next transaction goes out, and its own reply is credited after its hold.
+    assert_eq!(transmit(&mut s, t2), vec![req.to_frame()]);
+    let next = Reply::read(j1(), range, &[0x1010, 0]).unwrap();
+    let t3 = t2 + us(200);
+    s.handle_frame(&next.to_frame(), t3);
+    s.handle_timeout(t3 + hold(&next));
+    let got = s.poll_outcome(second).map(|o| o.attempt);
+    assert!(
+        matches!(&got, Some(Attempt::Reply { reply }) if *reply == next),
+        "{got:?}"
+    );
+    let bus = snapshot(&mut s).bus;
+    assert_eq!((bus.duplicates, bus.unmatched, bus.late), (1, 0, 0));
 }
