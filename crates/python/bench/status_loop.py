@@ -232,7 +232,7 @@ def calls(rounds: int = 5, n: int = 2000) -> list[tuple[str, float, float]]:
             (
                 "`station.run({\"op\": \"wck.status\", \"ids\": [0]})`",
                 lambda: station.run(req),
-                lambda k: station._native._bench_run(req, k),
+                lambda k: station._native._bench_run(req, k),  # type: ignore[attr-defined]
             )
         )
         for name, py_call, rust_loop in cases:

@@ -1,6 +1,7 @@
 """A WHJ cyclic sine on the built-in simulated arm: joint 1 enabled in position mode,
 ±10° at 0.5 Hz for 2 s as position servo frames at 200 Hz, with the loop's statistics,
-then its position read back through the telemetry stream.
+then every joint's position in one array, and joint 1's read back through the telemetry
+stream.
 
     python crates/python/examples/whj_sine.py
 """
@@ -20,6 +21,8 @@ def main() -> None:
             f"wave: {stats['cycles']} cycles, {stats['missing_replies']} missing replies, "
             f"tracking RMS {stats['tracking_rms']:.3f} {stats['unit']}"
         )
+        # Every joint's position in one call and one array (the status queries pipelined).
+        print("joints 1-7 at", station.whj_joints(range(1, 8)).read_positions().round(3), "deg")
         with station.telemetry({"op": "whj.sample", "joints": "1"}, 20.0, limit=5) as stream:
             for sample in stream:
                 row = sample["report"]["results"][0]
