@@ -33,7 +33,7 @@ use robobus_bench::{Options, report, run, wck, whj};
 fn usage() -> ExitCode {
     let _ = writeln!(
         std::io::stderr(),
-        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire] [--wait sleep|spin]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround] [--wait sleep|spin] [--memory|--tcp]\n       robobus-bench telemetry --secs S\n       robobus-bench studio --secs S\n       robobus-bench bridge [--bridges N] [--rate HZ] [--secs S] [--smoke]\n       robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window] [--external-sim]\n       robobus-bench free-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window]\n       robobus-bench syscalls [--udp] [--python PATH]\n       robobus-bench echo\n       robobus-bench slcan [--joints N] [--secs S]"
+        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire] [--wait sleep|spin]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround] [--wait sleep|spin] [--memory|--tcp]\n       robobus-bench telemetry --secs S\n       robobus-bench studio --secs S\n       robobus-bench bridge [--bridges N] [--rate HZ] [--secs S] [--smoke]\n       robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window] [--external-sim]\n       robobus-bench free-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window] [--pipelined]\n       robobus-bench syscalls [--udp] [--python PATH]\n       robobus-bench echo\n       robobus-bench slcan [--joints N] [--secs S]"
     );
     ExitCode::from(2)
 }
@@ -252,18 +252,27 @@ fn servo_whj(args: &[String]) -> ExitCode {
 /// `free-whj`: the free-running servo cycle alone over the in-process memory bus.
 fn free_whj(args: &[String]) -> ExitCode {
     let mut secs = 1.5;
-    let Some(spec) = chain_args(args, Some(&mut secs)) else {
+    let pipelined = args.iter().any(|a| a == "--pipelined");
+    let args: Vec<String> = args.iter().filter(|a| *a != "--pipelined").cloned().collect();
+    let Some(spec) = chain_args(&args, Some(&mut secs)) else {
         return usage();
     };
-    match whj::free_running_memory(spec, Duration::from_secs_f64(secs)) {
+    let duration = Duration::from_secs_f64(secs);
+    let run = if pipelined {
+        whj::free_running_pipelined_memory(spec, duration)
+    } else {
+        whj::free_running_memory(spec, duration)
+    };
+    match run {
         Ok(r) => {
             let late = r.sim_lateness.unwrap_or_default();
             let _ = writeln!(
                 std::io::stdout(),
-                "free-whj {} joint(s) memory, wait {}, collision window {}: {:.0} cycles/s, \
+                "free-whj {} joint(s) {}, wait {}, collision window {}: {:.0} cycles/s, \
                  {:.1} % of the wire, {} errors, client CPU {:.1} µs/cycle; simulator late \
                  p50 {} p99 {}",
                 spec.joints,
+                r.link,
                 spec.wait,
                 if spec.collision_window { "on" } else { "off" },
                 r.rate_hz(),

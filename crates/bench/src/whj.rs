@@ -314,6 +314,74 @@ pub fn free_running_memory(spec: ChainSpec, duration: Duration) -> Result<FreeRe
     Ok(r)
 }
 
+/// The free-running cycle pipelined: each cycle's position servo frames to every joint
+/// sent together (`JointBus::request_many`), their feedback collected; the next cycle
+/// starts when every reply of this one is credited. With the duplicate check on, each
+/// reply's hold overlaps the next joints' frames; only the last reply's hold is waited
+/// out alone. The model is the commands back to back, then the replies back to back.
+pub fn free_running_pipelined_memory(
+    spec: ChainSpec,
+    duration: Duration,
+) -> Result<FreeResult, BenchError> {
+    let wire = MemoryBus::new();
+    let sim = SimThread::spawn(spec.build(), wire.endpoint(), spec.wait);
+    let bus = JointBus::open_with(wire.endpoint(), spec.client_config())
+        .map_err(|e| BenchError::new("JointBus", e))?;
+    let joints = prepare(&bus, spec.joints)?;
+    let requests: Vec<Request> = joints
+        .iter()
+        .map(|&(joint, target)| Request::PositionServo { joint, target })
+        .collect();
+    // Warm-up cycle, and the exact frames for the model.
+    let warm = bus
+        .request_many(&requests)
+        .map_err(|e| BenchError::new("warm-up position commands", e))?;
+    let mut replies = Vec::with_capacity(warm.len());
+    for r in warm {
+        replies.push(
+            r.map_err(|e| BenchError::new("warm-up position command", e))?
+                .to_frame(),
+        );
+    }
+    let cmds: Vec<CanFrame> = requests.iter().map(Request::to_frame).collect();
+    let modelled = p2p_round_trip(&cmds, &replies, spec);
+    let mut errors = 0u64;
+    let mut cycles = 0u64;
+    let mut cycle_us = Vec::with_capacity(1 << 16);
+    let cpu0 = cpu::process();
+    let t0 = Instant::now();
+    while t0.elapsed() < duration {
+        let c0 = Instant::now();
+        match bus.request_many(&requests) {
+            Ok(rs) => errors += rs.iter().filter(|r| r.is_err()).count() as u64,
+            Err(_) => errors += requests.len() as u64,
+        }
+        cycle_us.push(c0.elapsed().as_secs_f64() * 1e6);
+        cycles += 1;
+    }
+    let elapsed = t0.elapsed();
+    let cpu = cpu::process().saturating_sub(cpu0);
+    drop(bus);
+    let report = sim.stop()?;
+    Ok(FreeResult {
+        spec,
+        link: "memory, pipelined",
+        cycles,
+        errors,
+        elapsed,
+        cpu,
+        // The simulator's share of the process CPU over the run, pro rata.
+        sim_cpu: Duration::from_secs_f64(
+            report.cpu.as_secs_f64()
+                * (elapsed.as_secs_f64() / report.wall.as_secs_f64().max(1e-9)),
+        ),
+        sim_lateness: Some(report.stats.lateness),
+        modelled_cycle: modelled,
+        cycle_us,
+        peer: None,
+    })
+}
+
 /// A fixed-rate cyclic loop (`JointBus::cyclic`).
 #[derive(Debug, Clone)]
 pub struct FixedResult {
