@@ -15,9 +15,9 @@
 //!   interpreter's switch interval (5 ms) while it holds the GIL. Handle calls do not poll:
 //!   each is a few transactions, bounded by the devices' reply timeouts.
 //!   Python's own SIGINT handler stays in place; no handler is installed here.
-//! - Requests come in as dicts walked into the library's JSON value (bounded: at most
-//!   [`MAX_REQUEST_BYTES`](robobus::frontend::parse::MAX_REQUEST_BYTES) of strings and
-//!   [`MAX_DEPTH`] levels), or as JSON text, parsed once; reports and the handles' results
+//! - Requests come in as dicts written natively as JSON text (bounded: at most
+//!   [`MAX_REQUEST_BYTES`](robobus::frontend::parse::MAX_REQUEST_BYTES) and [`MAX_DEPTH`]
+//!   levels), or as JSON text, parsed once by the library's parser; reports and the handles' results
 //!   are Python objects built here (`pyser`: what `json.loads` of the report's JSON text
 //!   would give, without the text).
 //! - Errors are raised as `robobus.errors` classes chosen by the error kind, with the
@@ -97,109 +97,131 @@ fn to_py(py: Python<'_>, value: &impl serde::Serialize) -> PyResult<Py<PyAny>> {
     pyser::to_py(py, value).map(Bound::unbind)
 }
 
-/// Walks a Python request (dicts with string keys, lists, tuples, strings, numbers, bools,
-/// `None`, and anything with numpy's `tolist`) into a JSON value, within `budget` bytes of
-/// strings and [`MAX_DEPTH`] levels.
-fn json_value(
-    py: Python<'_>,
-    v: &Bound<'_, PyAny>,
-    depth: usize,
-    budget: &mut usize,
-) -> PyResult<serde_json::Value> {
-    use serde_json::Value;
+/// Writes `s` as a JSON string.
+fn json_string(out: &mut String, s: &str) {
+    use std::fmt::Write as _;
+    out.push('"');
+    for c in s.chars() {
+        match c {
+            '"' => out.push_str("\\\""),
+            '\\' => out.push_str("\\\\"),
+            c if u32::from(c) < 0x20 => {
+                let _ = write!(out, "\\u{:04x}", u32::from(c));
+            }
+            c => out.push(c),
+        }
+    }
+    out.push('"');
+}
+
+/// Writes a Python request (dicts with string keys, lists, tuples, strings, numbers, bools,
+/// `None`, and anything with numpy's `tolist`) as JSON text, within
+/// [`MAX_REQUEST_BYTES`](robobus::frontend::parse::MAX_REQUEST_BYTES) and [`MAX_DEPTH`]
+/// levels: the library then parses it as it parses any request's text (`serde_json`
+/// reads text faster than it reads its own value tree).
+fn json_text(py: Python<'_>, v: &Bound<'_, PyAny>, depth: usize, out: &mut String) -> PyResult<()> {
+    use std::fmt::Write as _;
     let bad = |what: String| raise(py, ErrorKind::BadInput, &what, None);
     if depth > MAX_DEPTH {
         return Err(bad(format!(
             "request: nested deeper than {MAX_DEPTH} levels; nothing was sent"
         )));
     }
-    let spend = |budget: &mut usize, n: usize| -> PyResult<()> {
-        *budget = budget.checked_sub(n).ok_or_else(|| {
-            bad(format!(
-                "request: over {} bytes (the largest request taken); nothing was sent",
-                robobus::frontend::parse::MAX_REQUEST_BYTES
-            ))
-        })?;
-        Ok(())
-    };
-    spend(budget, 8)?;
+    if out.len() > robobus::frontend::parse::MAX_REQUEST_BYTES {
+        return Err(too_long(py));
+    }
     if v.is_none() {
-        return Ok(Value::Null);
-    }
-    if let Ok(s) = v.cast::<PyString>() {
-        let s = s.to_str()?;
-        spend(budget, s.len())?;
-        return Ok(Value::String(s.to_owned()));
-    }
-    if let Ok(b) = v.cast::<PyBool>() {
-        return Ok(Value::Bool(b.is_true()));
-    }
-    if v.is_instance_of::<PyInt>() {
+        out.push_str("null");
+    } else if let Ok(s) = v.cast::<PyString>() {
+        json_string(out, s.to_str()?);
+    } else if let Ok(b) = v.cast::<PyBool>() {
+        out.push_str(if b.is_true() { "true" } else { "false" });
+    } else if v.is_instance_of::<PyInt>() {
         if let Ok(i) = v.extract::<i64>() {
-            return Ok(Value::from(i));
+            let _ = write!(out, "{i}");
+        } else if let Ok(u) = v.extract::<u64>() {
+            let _ = write!(out, "{u}");
+        } else {
+            return Err(bad(format!(
+                "request: the number {v} is out of range (allowed: 64-bit integers); nothing \
+                 was sent"
+            )));
         }
-        if let Ok(u) = v.extract::<u64>() {
-            return Ok(Value::from(u));
-        }
-        return Err(bad(format!(
-            "request: the number {v} is out of range (allowed: 64-bit integers); nothing was sent"
-        )));
-    }
-    if let Ok(f) = v.cast::<PyFloat>() {
+    } else if let Ok(f) = v.cast::<PyFloat>() {
         let x = f.value();
-        return serde_json::Number::from_f64(x).map(Value::Number).ok_or_else(|| {
-            bad(format!(
+        if !x.is_finite() {
+            return Err(bad(format!(
                 "request: the number {x} is not finite (allowed: finite numbers); nothing was sent"
-            ))
-        });
-    }
-    if let Ok(d) = v.cast::<PyDict>() {
-        let mut map = serde_json::Map::new();
-        for (k, item) in d.iter() {
-            let key = k
-                .cast::<PyString>()
-                .map_err(|_| {
-                    bad(format!(
-                        "request: the key {k} is not a string; nothing was sent"
-                    ))
-                })?
-                .to_str()?
-                .to_owned();
-            spend(budget, key.len())?;
-            map.insert(key, json_value(py, &item, depth + 1, budget)?);
+            )));
         }
-        return Ok(Value::Object(map));
-    }
-    if v.is_instance_of::<PyList>() || v.is_instance_of::<PyTuple>() {
-        let mut out = Vec::new();
-        for item in v.try_iter()? {
-            out.push(json_value(py, &item?, depth + 1, budget)?);
+        // `{:?}` keeps a float a float (`1.0`, not `1`), as Python's json writes it.
+        let _ = write!(out, "{x:?}");
+    } else if let Ok(d) = v.cast::<PyDict>() {
+        out.push('{');
+        for (n, (k, item)) in d.iter().enumerate() {
+            let key = k.cast::<PyString>().map_err(|_| {
+                bad(format!(
+                    "request: the key {k} is not a string; nothing was sent"
+                ))
+            })?;
+            if n > 0 {
+                out.push(',');
+            }
+            json_string(out, key.to_str()?);
+            out.push(':');
+            json_text(py, &item, depth + 1, out)?;
         }
-        return Ok(Value::Array(out));
-    }
-    // numpy arrays and scalars.
-    if let Ok(plain) = v.call_method0("tolist")
+        out.push('}');
+    } else if v.is_instance_of::<PyList>() || v.is_instance_of::<PyTuple>() {
+        out.push('[');
+        for (n, item) in v.try_iter()?.enumerate() {
+            if n > 0 {
+                out.push(',');
+            }
+            json_text(py, &item?, depth + 1, out)?;
+        }
+        out.push(']');
+    } else if let Ok(plain) = v.call_method0("tolist")
         && !plain.is(v)
     {
-        return json_value(py, &plain, depth + 1, budget);
+        // numpy arrays and scalars.
+        json_text(py, &plain, depth + 1, out)?;
+    } else {
+        return Err(bad(format!(
+            "request: a {} is not a JSON value (allowed: dict, list, str, int, float, bool, \
+             None); nothing was sent",
+            v.get_type().name()?
+        )));
     }
-    Err(bad(format!(
-        "request: a {} is not a JSON value (allowed: dict, list, str, int, float, bool, None); \
-         nothing was sent",
-        v.get_type().name()?
-    )))
+    Ok(())
 }
 
-/// A request from a dict (walked into the library's JSON value) or from its JSON text:
-/// the library's one parser, its wording.
+/// A request from a dict (written as JSON text) or from its JSON text: the library's one
+/// parser, its wording.
 fn request(py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<Request> {
+    let parse =
+        |text: &str| robobus::frontend::parse::request_text(text).map_err(|e| op_error(py, &e));
     if let Ok(text) = value.cast::<PyString>() {
-        return robobus::frontend::parse::request_text(text.to_str()?)
-            .map_err(|e| op_error(py, &e));
+        return parse(text.to_str()?);
     }
-    let mut budget = robobus::frontend::parse::MAX_REQUEST_BYTES;
-    let v = json_value(py, value, 0, &mut budget)?;
-    robobus::frontend::parse::request_value(v).map_err(|e| op_error(py, &e))
+    let mut text = String::with_capacity(128);
+    json_text(py, value, 0, &mut text)?;
+    if text.len() > robobus::frontend::parse::MAX_REQUEST_BYTES {
+        return Err(too_long(py));
+    }
+    parse(&text)
+}
+
+fn too_long(py: Python<'_>) -> PyErr {
+    raise(
+        py,
+        ErrorKind::BadInput,
+        &format!(
+            "request: over {} bytes as JSON (the largest request taken); nothing was sent",
+            robobus::frontend::parse::MAX_REQUEST_BYTES
+        ),
+        None,
+    )
 }
 
 /// How long `close` waits for a call on another thread to let go of the station once it

@@ -131,6 +131,9 @@ def test_a_request_takes_numpy_values_tuples_and_json_text(station: robobus.Stat
     assert station.run({"op": "wck.status", "ids": np.arange(3)}) == want
     assert station.run({"op": "wck.status", "ids": (np.int16(0), 1, 2)}) == want
     assert station.run('{"op": "wck.status", "ids": [0, 1, 2]}') == want
+    # A float stays a float, as Python's json writes it: refused where a whole number goes.
+    with pytest.raises(robobus.BadInputError, match="nothing was sent"):
+        station.run({"op": "wck.status", "ids": [0.0, 1, 2]})
     # The report keeps the library's field order.
     assert list(want)[:2] == ["op", "bus"]
 
