@@ -826,26 +826,51 @@ impl Shared {
     }
 
     fn run(&self, station: &Station, reading: &Reading) -> StreamStats {
-        let mut stats = StreamStats::default();
-        let mut speeds = matches!(reading, Reading::Wck { .. }).then(Speeds::default);
-        let mut slot = Instant::now();
-        while let Some((devices, broadcast, period)) = self.plan() {
-            let late = Instant::now().saturating_duration_since(slot) > period;
-            let taking = Taking {
-                station,
-                reading,
-                devices: &devices,
-                broadcast,
-            };
-            let sample = take_sample(&taking, &self.stop, speeds.as_mut(), late, &mut stats);
-            self.deliver(&sample, slot, period);
-            match self.wait_slot(slot) {
-                // Behind: start again from now rather than bursting to catch up.
-                Some(next) if late => slot = next.max(Instant::now()),
-                Some(next) => slot = next,
-                None => break,
+        let (tx, rx) = std::sync::mpsc::sync_channel::<(Sample, Instant, Duration)>(4);
+        let stats = std::thread::scope(|scope| {
+            // The subscribers are served by a thread of their own while the next read is
+            // under way (in order, at most 4 samples behind; without that thread, here).
+            let delivering = std::thread::Builder::new()
+                .name("robobus-deliver".into())
+                .spawn_scoped(scope, move || {
+                    for (sample, slot, period) in rx {
+                        self.deliver(&sample, slot, period);
+                    }
+                })
+                .is_ok();
+            let tx = delivering.then_some(tx);
+            let mut stats = StreamStats::default();
+            let mut speeds = matches!(reading, Reading::Wck { .. }).then(Speeds::default);
+            let mut slot = Instant::now();
+            while let Some((devices, broadcast, period)) = self.plan() {
+                let late = Instant::now().saturating_duration_since(slot) > period;
+                let taking = Taking {
+                    station,
+                    reading,
+                    devices: &devices,
+                    broadcast,
+                };
+                let sample = take_sample(&taking, &self.stop, speeds.as_mut(), late, &mut stats);
+                match &tx {
+                    Some(tx) => {
+                        if let Err(e) = tx.send((sample, slot, period)) {
+                            let (sample, slot, period) = e.0;
+                            self.deliver(&sample, slot, period);
+                        }
+                    }
+                    None => self.deliver(&sample, slot, period),
+                }
+                match self.wait_slot(slot) {
+                    // Behind: start again from now rather than bursting to catch up.
+                    Some(next) if late => slot = next.max(Instant::now()),
+                    Some(next) => slot = next,
+                    None => break,
+                }
             }
-        }
+            // Everything taken is delivered before the subscribers' queues end.
+            drop(tx);
+            stats
+        });
         let mut m = self.lock();
         m.stopping = true;
         for s in &m.list {
