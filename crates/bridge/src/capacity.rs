@@ -104,8 +104,9 @@ impl Capacity {
         (rate_hz > limit).then(|| {
             format!(
                 "the buses carry at most {limit:.1} Hz of joint states, not the {rate_hz} Hz \
-                 asked (one sample of every joint is {:.1} ms on the wire: {}); states are \
-                 published as fast as the buses allow, and the health counts the samples lost",
+                 asked (one sample is {:.1} ms on the wire, its slowest bus's; the buses are \
+                 read at the same time: {}); states are published as fast as the buses allow, \
+                 and the health counts the samples lost",
                 self.sample_ms(),
                 self.buses
                     .iter()
