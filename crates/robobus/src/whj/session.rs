@@ -191,18 +191,17 @@ fn loser_time(frame: &CanFrame) -> Duration {
         .standard_raw_id()
         .filter(|_| frame.is_fd() && frame.brs())
         .and_then(|id| timing::fd_data_stuff_bounds(id, frame.len(), frame.esi()));
-    match most {
-        Some((_, most)) => timing::FrameBits {
+    if let Some((_, most)) = most {
+        timing::FrameBits {
             data_bits: bits.data_bits + most.saturating_sub(bits.stuff_data),
             stuff_data: most.max(bits.stuff_data),
             ..bits
         }
-        .duration(BitRates::WHJ),
+        .duration(BitRates::WHJ)
+    } else {
         // Not a WHJ frame: a quarter more than its own, the most stuff bits can add.
-        None => {
-            let own = bits.duration(BitRates::WHJ);
-            own + own / 4
-        }
+        let own = bits.duration(BitRates::WHJ);
+        own + own / 4
     }
 }
 
@@ -802,15 +801,14 @@ impl Session {
     /// link's allowance ([`Session::allowance`]). Returns the loser's time and the hold.
     pub(super) fn hold(&mut self, frame: &CanFrame) -> (Duration, Duration) {
         let key = (frame.raw_id(), frame.len(), frame.esi());
-        let loser = match self.loser_times.get(&key) {
-            Some(t) => *t,
-            None => {
-                let t = loser_time(frame);
-                if self.loser_times.len() < LOSER_TIMES_KEPT {
-                    self.loser_times.insert(key, t);
-                }
-                t
+        let loser = if let Some(t) = self.loser_times.get(&key) {
+            *t
+        } else {
+            let t = loser_time(frame);
+            if self.loser_times.len() < LOSER_TIMES_KEPT {
+                self.loser_times.insert(key, t);
             }
+            t
         };
         (loser, loser + self.allowance.unwrap_or_default())
     }

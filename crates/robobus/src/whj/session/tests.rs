@@ -917,7 +917,7 @@ fn a_duplicate_during_the_next_transaction_to_the_same_joint_fails_its_own_readi
     // mistaken for is held, so a second answer cannot be taken for its reply.
     let second = s.submit(txn(req, t1));
     assert!(transmit(&mut s, t1).is_empty());
-    assert!(transmit(&mut s, t1 + hold(&own) - us(1)).is_empty());
+    assert!(transmit(&mut s, t1 + hold(&own).saturating_sub(us(1))).is_empty());
     // The second joint at ID 1 answers at the hold's last instant, before the session
     // lets that instant pass: the first reading fails, the next is not touched.
     let t2 = t1 + hold(&own);
