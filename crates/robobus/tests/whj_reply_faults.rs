@@ -368,3 +368,90 @@ fn without_the_collision_window_the_first_of_two_answers_would_be_taken() {
     // Seeded, on the virtual clock: the count is exact (0 with the window, above).
     assert_eq!(o.wrong, 59, "{:?}", o.injected);
 }
+
+/// How long after a frame like `frame` a second node's answer to the same request has
+/// crossed the wire at the latest: the intermission, then a frame of its ID and length
+/// with the most stuff bits any payload of that length can have.
+fn longest_loser(frame: &CanFrame) -> Duration {
+    use robobus_whj::timing::{FrameBits, fd_data_stuff_bounds, frame_bits};
+    let bits = frame_bits(frame);
+    let id = frame.standard_raw_id().unwrap();
+    let (_, most) = fd_data_stuff_bounds(id, frame.len(), frame.esi()).unwrap();
+    FrameBits {
+        data_bits: bits.data_bits + most.saturating_sub(bits.stuff_data),
+        stuff_data: most,
+        ..bits
+    }
+    .duration(BitRates::WHJ)
+}
+
+/// A second joint at joint 1's ID, slower than it by the most the wire allows: each status
+/// answer of joint 1 is followed by a different one (another position) exactly when the
+/// longest arbitration loser's frame can have ended, plus the link's allowance.
+struct LoserAtTheLastInstant<L> {
+    inner: L,
+    due: Option<(Instant, Received)>,
+}
+
+impl<L: FrameLink> FrameLink for LoserAtTheLastInstant<L> {
+    fn send(&mut self, frame: &CanFrame) -> Result<(), FrameLinkError> {
+        self.inner.send(frame)
+    }
+
+    fn recv(&mut self, deadline: Instant) -> Result<Received, FrameLinkError> {
+        if let Some((at, r)) = self.due
+            && at <= self.inner.now()
+        {
+            self.due = None;
+            return Ok(r);
+        }
+        let until = self.due.map_or(deadline, |(at, _)| at.min(deadline));
+        let r = self.inner.recv(until)?;
+        if r.frame.raw_id() == 0x701 && r.frame.data().len() == 16 {
+            let mut data = r.frame.data().to_vec();
+            data[8] ^= 0x01;
+            let frame = CanFrame::new_fd(CanFrame::standard_id(0x701).unwrap(), &data).unwrap();
+            let at = self.inner.now() + longest_loser(&r.frame) + self.inner.reply_allowance();
+            self.due = Some((
+                at,
+                Received {
+                    frame,
+                    timestamp: r.timestamp,
+                },
+            ));
+        }
+        Ok(r)
+    }
+
+    fn set_filters(&mut self, filters: &[IdFilter]) -> Result<(), FrameLinkError> {
+        self.inner.set_filters(filters)
+    }
+
+    robobus_link::forward_frame_link_clock!(inner);
+}
+
+#[test]
+fn a_second_answer_at_the_last_instant_a_loser_can_send_it_fails_the_read() {
+    for wait in [WaitMode::Sleep, WaitMode::SPIN] {
+        let joint = JointConfig::new(1, WhjModel::Whj30).without_iap();
+        let (link, _sim) = sim_link(configs(vec![joint]));
+        let bus = JointBus::open_with(
+            LoserAtTheLastInstant {
+                inner: link,
+                due: None,
+            },
+            JointBusConfig {
+                wait,
+                ..virtual_config()
+            },
+        )
+        .unwrap();
+        let j = bus.joint_unchecked(JointId::new(1).unwrap());
+        for read in 0..20 {
+            let e = joint_status(&j).unwrap_err();
+            assert_eq!(e.kind(), ErrorKind::Device, "{wait} read {read}: {e}");
+            assert!(e.to_string().contains("two joints answer"), "{e}");
+        }
+        assert_eq!(bus.telemetry().bus.duplicates, 20, "{wait}");
+    }
+}
