@@ -229,6 +229,9 @@ pub(crate) struct Session {
     /// ([`JointBusConfig::collision_window`], else the link's own); `None`: the check is
     /// off, a reply is credited at once.
     allowance: Option<Duration>,
+    /// Until when the frames the session sent occupy the wire, as far as it knows (each
+    /// after the one before it).
+    wire_busy: Option<Instant>,
     /// [`loser_time`] by raw ID, length and ESI, computed once each.
     loser_times: HashMap<(u32, usize, bool), Duration>,
     next_id: TxnId,
@@ -285,6 +288,7 @@ impl Session {
         Self {
             config,
             allowance,
+            wire_busy: None,
             loser_times: HashMap::new(),
             next_id: 0,
             queued: VecDeque::new(),
@@ -425,6 +429,7 @@ impl Session {
     /// A frame arrived at `now`.
     pub(crate) fn handle_frame(&mut self, frame: &CanFrame, now: Instant) {
         let decoded = Reply::from_frame(frame);
+        self.outbid_by_received(frame, now);
         if frame.standard_raw_id().is_some_and(is_broadcast_reply_id) {
             if self.broadcast_log.len() >= BROADCAST_LOG {
                 self.broadcast_log.pop_front();
@@ -816,15 +821,28 @@ impl Session {
     /// `frame` goes out at `now` while replies are held: a request wins arbitration over
     /// an arbitration loser's reply (its ID is lower), so each held reply's second answer
     /// may come only after it: each hold lasts at least until `frame` has crossed the
-    /// wire and a loser's frame could have followed, plus the link's allowance.
+    /// wire (after the frames sent before it) and a loser's frame could have followed,
+    /// plus the link's allowance.
     fn outbid(&mut self, frame: &CanFrame, now: Instant) {
-        if self.credited.is_empty() {
-            return;
-        }
-        let sent = now + timing::frame_duration(frame, BitRates::WHJ);
+        let start = self.wire_busy.map_or(now, |t| t.max(now));
+        let sent = start + timing::frame_duration(frame, BitRates::WHJ);
+        self.wire_busy = Some(sent);
         let allowance = self.allowance.unwrap_or_default();
         for c in self.credited.values_mut() {
             c.until = c.until.max(sent + c.loser + allowance);
+        }
+    }
+
+    /// `frame` arrived at `now` while replies are held: a frame with a lower ID than a
+    /// held reply's won arbitration over its loser's answer, which may follow it at once,
+    /// so that hold lasts at least a loser's frame and the allowance from now.
+    fn outbid_by_received(&mut self, frame: &CanFrame, now: Instant) {
+        let id = frame.raw_id();
+        let allowance = self.allowance.unwrap_or_default();
+        for c in self.credited.values_mut() {
+            if id < c.frame.raw_id() {
+                c.until = c.until.max(now + c.loser + allowance);
+            }
         }
     }
 

@@ -942,3 +942,54 @@ fn a_duplicate_during_the_next_transaction_to_the_same_joint_fails_its_own_readi
     let bus = snapshot(&mut s).bus;
     assert_eq!((bus.duplicates, bus.unmatched, bus.late), (1, 0, 0));
 }
+
+#[test]
+fn a_hold_lasts_past_every_frame_that_won_arbitration_over_the_losers_answer() {
+    let t0 = Instant::now();
+    let mut s = Session::new(JointBusConfig::default());
+    let (_, range) = read(0x14, 2);
+    let ask = |n: u8| Request::Read { joint: j(n), range };
+    let answer = |n: u8, v: u16| Reply::read(j(n), range, &[v, 0]).unwrap();
+    let held = s.submit(txn(ask(2), t0));
+    assert_eq!(transmit(&mut s, t0).len(), 1);
+    let own = answer(2, 0x1000);
+    let t1 = t0 + us(200);
+    s.handle_frame(&own.to_frame(), t1);
+    assert_eq!(s.next_deadline(t1), t1 + hold(&own));
+    // Two requests go out together: the loser's answer waits for both, one after the
+    // other on the wire.
+    let others = [s.submit(txn(ask(1), t1)), s.submit(txn(ask(3), t1))];
+    let sent = transmit(&mut s, t1);
+    assert_eq!(sent.len(), 2);
+    let both: Duration = sent
+        .iter()
+        .map(|f| timing::frame_duration(f, BitRates::WHJ))
+        .sum();
+    assert_eq!(s.next_deadline(t1), t1 + both + hold(&own));
+    // Joint 3's answer (a higher ID than joint 2's) loses to the loser: no longer hold.
+    let t2 = t1 + both + us(30);
+    s.handle_frame(&answer(3, 0x0300).to_frame(), t2);
+    assert_eq!(s.next_deadline(t2), t1 + both + hold(&own));
+    // Joint 1's answer (a lower ID) won over the loser's, which may follow it at once.
+    let t3 = t2 + us(60);
+    s.handle_frame(&answer(1, 0x0100).to_frame(), t3);
+    assert_eq!(s.next_deadline(t3), t3 + hold(&own));
+    // The second joint at ID 2 answers then, after the hold it had before: a duplicate.
+    let t4 = t3 + hold(&own);
+    s.handle_frame(&answer(2, 0x1200).to_frame(), t4);
+    assert!(
+        matches!(
+            s.poll_outcome(held).map(|o| o.attempt),
+            Some(Attempt::Duplicate { .. })
+        ),
+        "joint 2's reading is a duplicate"
+    );
+    s.handle_timeout(t4 + ms(1));
+    for id in others {
+        assert!(matches!(
+            s.poll_outcome(id).map(|o| o.attempt),
+            Some(Attempt::Reply { .. })
+        ));
+    }
+    assert_eq!(snapshot(&mut s).bus.duplicates, 1);
+}
