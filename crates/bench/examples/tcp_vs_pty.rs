@@ -61,6 +61,7 @@ fn main() -> ExitCode {
             manual_turnaround: manual,
             wait,
             memory: false,
+            guard: false,
         };
         let (p, t) = match (poll(spec, duration, None), poll_tcp(spec, duration)) {
             (Ok(p), Ok(t)) => (p, t),

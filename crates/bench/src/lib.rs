@@ -24,6 +24,7 @@
 //!     manual_turnaround: true,
 //!     wait: robobus_link::WaitMode::Sleep,
 //!     memory: false,
+//!     guard: true,
 //! };
 //! let cycle = spec.modelled_cycle().as_secs_f64();
 //! assert!((1.0 / cycle - 21.1).abs() < 0.1);
@@ -247,6 +248,11 @@ pub fn run(opts: &Options, mut log: impl FnMut(&str)) -> Results {
             }
         }
     }
+    // Each case with the client's default guard after every reply, then with the guard
+    // off (the report gives the ratio); the Python peer runs beside the default.
+    let polls = polls
+        .into_iter()
+        .flat_map(|(s, with_peer)| [(s, with_peer), (wck::PollSpec { guard: false, ..s }, false)]);
     for (s, with_peer) in polls {
         let what = format!("wCK polling {}", s.label());
         log(&what);
@@ -451,6 +457,7 @@ fn spec(servos: u8, baud: BaudRate, manual_turnaround: bool) -> wck::PollSpec {
         manual_turnaround,
         wait: WaitMode::Sleep,
         memory: false,
+        guard: true,
     }
 }
 

@@ -3,7 +3,7 @@
 //! ```text
 //! robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]
 //! robobus-bench serve-whj --joints N --delay-us D [--fast-wire] [--wait sleep|spin]
-//! robobus-bench poll-wck --servos N --baud B --secs S [--turnaround] [--wait sleep|spin] [--memory|--tcp]
+//! robobus-bench poll-wck --servos N --baud B --secs S [--turnaround] [--wait sleep|spin] [--memory|--tcp] [--no-guard]
 //! robobus-bench slcan [--joints N] [--secs S]
 //! robobus-bench telemetry --secs S
 //! robobus-bench studio --secs S
@@ -19,7 +19,8 @@
 //! wire (for a quick look, or under `strace`); `free-whj` the WHJ free-running case over
 //! the memory bus. Both take `--wait sleep|spin` (spin: the client spins for its replies
 //! and the simulator serves in its precise mode); `poll-wck --tcp` serves the simulator
-//! over TCP on 127.0.0.1 instead of the pty. `syscalls` counts system calls per
+//! over TCP on 127.0.0.1 instead of the pty, `poll-wck --no-guard` turns the client's
+//! guard after each reply off (`WckConfig::guard: Some(0)`; the default guard otherwise). `syscalls` counts system calls per
 //! transaction with `strace`; `echo` measures the pty's, TCP's and the memory bus's own
 //! round trip.
 
@@ -33,7 +34,7 @@ use robobus_bench::{Options, report, run, wck, whj};
 fn usage() -> ExitCode {
     let _ = writeln!(
         std::io::stderr(),
-        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire] [--wait sleep|spin]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround] [--wait sleep|spin] [--memory|--tcp]\n       robobus-bench telemetry --secs S\n       robobus-bench studio --secs S\n       robobus-bench bridge [--bridges N] [--rate HZ] [--secs S] [--smoke]\n       robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window] [--external-sim]\n       robobus-bench free-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window] [--pipelined]\n       robobus-bench syscalls [--udp] [--python PATH]\n       robobus-bench echo\n       robobus-bench slcan [--joints N] [--secs S]"
+        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire] [--wait sleep|spin]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround] [--wait sleep|spin] [--memory|--tcp] [--no-guard]\n       robobus-bench telemetry --secs S\n       robobus-bench studio --secs S\n       robobus-bench bridge [--bridges N] [--rate HZ] [--secs S] [--smoke]\n       robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window] [--external-sim]\n       robobus-bench free-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window] [--pipelined]\n       robobus-bench syscalls [--udp] [--python PATH]\n       robobus-bench echo\n       robobus-bench slcan [--joints N] [--secs S]"
     );
     ExitCode::from(2)
 }
@@ -122,6 +123,7 @@ fn poll_wck(args: &[String]) -> ExitCode {
         manual_turnaround: false,
         wait: robobus_link::WaitMode::Sleep,
         memory: false,
+        guard: true,
     };
     let mut secs = 1.0_f64;
     let mut tcp = false;
@@ -146,6 +148,7 @@ fn poll_wck(args: &[String]) -> ExitCode {
             },
             "--turnaround" => spec.manual_turnaround = true,
             "--memory" => spec.memory = true,
+            "--no-guard" => spec.guard = false,
             "--tcp" => tcp = true,
             "--wait" => match it.next().map(|v| v.parse()) {
                 Some(Ok(w)) => spec.wait = w,
@@ -168,11 +171,12 @@ fn poll_wck(args: &[String]) -> ExitCode {
         Ok(r) => {
             let _ = writeln!(
                 std::io::stdout(),
-                "{} servo(s) at {}, wait {}: {} cycles, {} errors, {:.1} Hz, {:.1} % of the \
+                "{} servo(s) at {}, wait {}, guard {}: {} cycles, {} errors, {:.1} Hz, {:.1} % of the \
                  wire, client CPU {:.1} µs/cycle; simulator late p50 {} p99 {}",
                 spec.servos,
                 spec.baud,
                 spec.wait,
+                if spec.guard { "default" } else { "off" },
                 r.cycles,
                 r.errors,
                 r.rate_hz(),

@@ -8,7 +8,7 @@ use robobus::whj::Protocol;
 
 use crate::codec::{describe, us};
 use crate::stats::Summary;
-use crate::{BenchError, Results, studio, svg, telemetry};
+use crate::{BenchError, Results, studio, svg, telemetry, wck};
 
 /// Control-loop goal: this share of the modelled physical limit.
 pub const LOOP_GOAL: f64 = 0.97;
@@ -102,10 +102,11 @@ pub fn peer_ratios(r: &Results) -> Vec<(String, f64, f64)> {
         if let Some(peer) = &p.peer {
             v.push((
                 format!(
-                    "wCK polling {} servos, {} bit/s, zero turnaround, wait {} (pyserial)",
+                    "wCK polling {} servos, {} bit/s, zero turnaround, wait {}, guard {} (pyserial)",
                     p.spec.servos,
                     p.spec.baud.bits_per_second(),
-                    p.spec.wait
+                    p.spec.wait,
+                    if p.spec.guard { "default" } else { "off" }
                 ),
                 p.rate_hz() / peer.rate_hz().max(1e-9),
                 peer.cpu_per_cycle_us() / p.cpu_per_cycle_us().max(1e-9),
@@ -514,18 +515,34 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
          release instant). Link: the pty, or an in-process memory byte link to the same \
          endpoint (no kernel between client and simulator). Simulator late: how late the \
          endpoint released the reply bytes against their modelled instants (p50 / p99). \
-         The client's guard time after a reply is off (`guard: 0`): the simulated modules \
-         answer alone.\n"
+         Guard: the client's quiet time after each reply (`WckConfig::guard`), its default \
+         (one byte time plus the modules' 3 µs turnaround spread: 89.8 µs at 115200 bit/s, \
+         13.9 µs at 921600) or off (`Some(0)`), each case run both ways one after the \
+         other; default / off = the default's cycle rate over the same case's with the \
+         guard off. The simulated modules answer alone, so the guard never fires here: \
+         the ratio is what its quiet time costs.\n"
     );
     let _ = writeln!(
         o,
-        "| servos | baud | turnaround | wait | link | modelled cycle µs | measured mean µs | p99 µs | cycles/s | efficiency | at median cycle | overhead µs/transaction | errors | client CPU µs/cycle | endpoint CPU % | simulator late p50 / p99 |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+        "| servos | baud | turnaround | wait | link | guard | default / off | modelled cycle µs | measured mean µs | p99 µs | cycles/s | efficiency | at median cycle | overhead µs/transaction | errors | client CPU µs/cycle | endpoint CPU % | simulator late p50 / p99 |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
     );
     for p in &r.polls {
         let s = Summary::of_us(&p.cycle_us);
+        // The same case with the guard off, for the ratio on the default's row.
+        let off = r.polls.iter().find(|q| {
+            p.spec.guard
+                && q.spec
+                    == wck::PollSpec {
+                        guard: false,
+                        ..p.spec
+                    }
+        });
+        let ratio = off.map_or_else(String::new, |q| {
+            format!("{:.2}×", p.rate_hz() / q.rate_hz().max(1e-9))
+        });
         let _ = writeln!(
             o,
-            "| {} | {} | {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} | {:.1} | {} | {:.1} | {:.1} | {} / {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} | {:.1} | {} | {:.1} | {:.1} | {} / {} |",
             p.spec.servos,
             baud_name(p.spec.baud.bits_per_second()),
             if p.spec.manual_turnaround {
@@ -535,6 +552,8 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
             },
             p.spec.wait,
             if p.spec.memory { "memory" } else { "pty" },
+            if p.spec.guard { "default" } else { "off" },
+            ratio,
             us(p.spec.modelled_cycle()),
             1e6 / p.rate_hz().max(1e-9),
             s.p99,
@@ -551,7 +570,7 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
         );
         if p.spec.servos == 31 || r.smoke {
             let name = format!(
-                "wck_poll_{}_{}_{}_{}_{}.svg",
+                "wck_poll_{}_{}_{}_{}_{}_{}.svg",
                 p.spec.servos,
                 p.spec.baud.bits_per_second(),
                 if p.spec.manual_turnaround {
@@ -560,7 +579,8 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
                     "zero"
                 },
                 if p.spec.wait.spins() { "spin" } else { "sleep" },
-                if p.spec.memory { "memory" } else { "pty" }
+                if p.spec.memory { "memory" } else { "pty" },
+                if p.spec.guard { "guard" } else { "noguard" }
             );
             plots.push((
                 name,
@@ -777,10 +797,11 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
         if let Some(peer) = &p.peer {
             let _ = writeln!(
                 o,
-                "| wCK polling {} servos, {} bit/s, wait {} | {:.1} | {:.1} | {:.2}× | {:.1} | {:.1} | {:.1}× | {} | {} / {} | {} / {} |",
+                "| wCK polling {} servos, {} bit/s, wait {}, guard {} | {:.1} | {:.1} | {:.2}× | {:.1} | {:.1} | {:.1}× | {} | {} / {} | {} / {} |",
                 p.spec.servos,
                 p.spec.baud.bits_per_second(),
                 p.spec.wait,
+                if p.spec.guard { "default" } else { "off" },
                 p.rate_hz(),
                 peer.rate_hz(),
                 p.rate_hz() / peer.rate_hz().max(1e-9),
@@ -877,7 +898,7 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
     for p in r
         .polls
         .iter()
-        .filter(|p| p.spec.servos == 31 && !p.spec.wait.spins())
+        .filter(|p| p.spec.servos == 31 && !p.spec.wait.spins() && p.spec.guard)
     {
         let share = p.endpoint.cpu.as_secs_f64() / p.endpoint.wall.as_secs_f64().max(1e-9);
         let _ = writeln!(

@@ -185,6 +185,10 @@ pub struct PollSpec {
     /// Over an in-process memory byte link instead of the pty (takes the kernel's pty
     /// transfer out of the measurement).
     pub memory: bool,
+    /// The client's default guard after each reply (`true`: [`WckConfig::guard`] left at
+    /// `None`, one byte time plus the turnaround spread, [`robobus::wck::reply_guard`]),
+    /// or none (`false`: `guard: Some(0)`, a reply credited as soon as it is read).
+    pub guard: bool,
 }
 
 impl PollSpec {
@@ -202,23 +206,28 @@ impl PollSpec {
     }
 
     /// The client's settings: the simulated modules answer as soon as the command ends
-    /// (zero turnaround) or after exactly the manual's turnaround, and each alone, so no
-    /// guard time after a reply (a second module answering the same command, which the
-    /// guard catches, cannot happen on this bus; with it each transaction would carry one
-    /// module turnaround more than the wire model).
+    /// (zero turnaround) or after exactly the manual's turnaround; the guard after each
+    /// reply is the client's default or off ([`PollSpec::guard`]). The simulated modules
+    /// answer alone, so the guard never fires here: what it costs is its quiet time, one
+    /// byte time plus the turnaround spread per transaction, which the wire model does not
+    /// count.
     pub fn client_config(self) -> WckConfig {
         WckConfig {
             min_turnaround: (!self.manual_turnaround).then_some(Duration::ZERO),
-            guard: Duration::ZERO,
+            guard: if self.guard {
+                None
+            } else {
+                Some(Duration::ZERO)
+            },
             wait: self.wait,
             ..WckConfig::default()
         }
     }
 
-    /// `8 servos, 921600 bit/s, zero turnaround, wait spin, pty`.
+    /// `8 servos, 921600 bit/s, zero turnaround, wait spin, pty, guard default`.
     pub fn label(&self) -> String {
         format!(
-            "{} servos, {} bit/s, {} turnaround, wait {}, {}",
+            "{} servos, {} bit/s, {} turnaround, wait {}, {}, guard {}",
             self.servos,
             self.baud.bits_per_second(),
             if self.manual_turnaround {
@@ -227,7 +236,8 @@ impl PollSpec {
                 "zero"
             },
             self.wait,
-            if self.memory { "memory link" } else { "pty" }
+            if self.memory { "memory link" } else { "pty" },
+            if self.guard { "default" } else { "off" }
         )
     }
 
@@ -479,6 +489,7 @@ mod tests {
             manual_turnaround,
             wait: WaitMode::Sleep,
             memory: false,
+            guard: true,
         }
         .modelled_cycle()
         .as_secs_f64()

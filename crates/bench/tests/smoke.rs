@@ -47,7 +47,7 @@ fn smoke_run_writes_the_report_with_every_section() {
     }
     // Both peers ran against the simulators and answered.
     assert!(
-        report.contains("| wCK polling 1 servos, 921600 bit/s, wait sleep |"),
+        report.contains("| wCK polling 1 servos, 921600 bit/s, wait sleep, guard default |"),
         "{report}"
     );
     assert!(
@@ -55,12 +55,14 @@ fn smoke_run_writes_the_report_with_every_section() {
         "{report}"
     );
     assert!(!report.contains("FAILED"), "{report}");
-    // Both wait modes ran, the spin mode over the pty and over the memory link, and the
-    // simulators reported their release lateness in each row.
+    // Both wait modes ran, the spin mode over the pty and over the memory link, the wCK
+    // cases with the client's default guard and with it off, and the simulators reported
+    // their release lateness in each row.
     for row in [
-        "| 1 | 921600 | zero | sleep | pty |",
-        "| 1 | 921600 | zero | spin | pty |",
-        "| 1 | 921600 | zero | spin | memory |",
+        "| 1 | 921600 | zero | sleep | pty | default |",
+        "| 1 | 921600 | zero | sleep | pty | off |",
+        "| 1 | 921600 | zero | spin | pty | default |",
+        "| 1 | 921600 | zero | spin | memory | off |",
         "| 1 | memory | spin | off |",
         "| 1 | point-to-point | spin | 1000 |",
     ] {
