@@ -138,6 +138,7 @@ fn bus(link: Scripted, retries: u32, guard: Option<Duration>, wait: WaitMode) ->
 }
 
 /// Status reads of servos 1, 2, 3: each one's position, or the error.
+#[allow(clippy::result_large_err)] // the errors are compared as they are
 fn read_three(bus: &mut WckBus<Scripted>) -> Vec<Result<u8, WckError>> {
     (1..=3u8)
         .map(|id| {
@@ -183,7 +184,11 @@ fn the_default_guard_is_one_byte_time_plus_the_turnaround_spread() {
 fn a_byte_just_inside_the_guard_fails_that_reading_one_just_after_fails_only_the_next_attempt() {
     let guard = reply_guard(BAUD);
     let mut inside = bus(
-        Scripted::new(vec![(1, guard - Duration::from_micros(1), 0x33)]),
+        Scripted::new(vec![(
+            1,
+            guard.saturating_sub(Duration::from_micros(1)),
+            0x33,
+        )]),
         0,
         None,
         WaitMode::Sleep,
@@ -224,7 +229,11 @@ fn a_second_answer_during_the_next_transaction_fails_that_attempt_only_and_is_ne
     for wait in MODES {
         let doubled = || {
             Scripted::new(vec![
-                (1, Duration::from_micros(500) - timing::byte_time(BAUD), 0),
+                (
+                    1,
+                    Duration::from_micros(500).saturating_sub(timing::byte_time(BAUD)),
+                    0,
+                ),
                 (1, Duration::from_micros(500), 20),
             ])
         };
