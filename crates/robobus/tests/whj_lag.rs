@@ -207,7 +207,12 @@ fn a_joint_that_does_not_move_stops_the_wave_as_not_following() {
 /// unchanged; the frames sent count those, `held_back` how many were held back.
 #[test]
 fn a_move_on_a_lagging_joint_arrives_its_target_sent_again_until_unchanged() {
-    let (bus, sim) = joint(Some(0.2), 0.0);
+    // 0.3 A: the joint lags the plan (its set-points are held back) yet has the torque to
+    // overcome its friction near the target. At 0.2-0.5 A the simulated WHJ30 may overshoot
+    // and stop where friction holds it, 0.5-2 deg off, depending on when each frame
+    // crossed the wire (the reply hold moves them by microseconds): a move that ends there
+    // fails as MoveIncomplete, which is right for that joint, not what this test is about.
+    let (bus, sim) = joint(Some(0.3), 0.0);
     let j = bus.joint(id(1)).unwrap();
     let args = ops::MoveArgs {
         joint: id(1),
