@@ -257,7 +257,11 @@ fn servo_whj(args: &[String]) -> ExitCode {
 fn free_whj(args: &[String]) -> ExitCode {
     let mut secs = 1.5;
     let pipelined = args.iter().any(|a| a == "--pipelined");
-    let args: Vec<String> = args.iter().filter(|a| *a != "--pipelined").cloned().collect();
+    let args: Vec<String> = args
+        .iter()
+        .filter(|a| *a != "--pipelined")
+        .cloned()
+        .collect();
     let Some(spec) = chain_args(&args, Some(&mut secs)) else {
         return usage();
     };
