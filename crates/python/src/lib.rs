@@ -7,7 +7,7 @@
 //!   (no hand-off to another thread).
 //! - On the main thread a request's stop token polls Python's signals
 //!   ([`StopToken::with_poll`]): whenever the operation checks its token (between steps, and
-//!   every 5 ms while it waits), at most once per [`SIGNAL_SLICE`], the GIL is taken back for
+//!   every 5 ms while it waits), at most once per `SIGNAL_SLICE` (10 ms), the GIL is taken back for
 //!   `check_signals`. Ctrl-C so stops the request (the operation brings its devices to their
 //!   safe state) and raises `KeyboardInterrupt` once it has; a short request never polls.
 //!   An operation sees the signal at its next check (a long move plans all its frames
@@ -16,7 +16,7 @@
 //!   each is a few transactions, bounded by the devices' reply timeouts.
 //!   Python's own SIGINT handler stays in place; no handler is installed here.
 //! - Requests come in as dicts written natively as JSON text (bounded: at most
-//!   [`MAX_REQUEST_BYTES`](robobus::frontend::parse::MAX_REQUEST_BYTES) and [`MAX_DEPTH`]
+//!   [`MAX_REQUEST_BYTES`](robobus::frontend::parse::MAX_REQUEST_BYTES) and `MAX_DEPTH` (32)
 //!   levels), or as JSON text, parsed once by the library's parser; reports and the handles' results
 //!   are Python objects built here (`pyser`: what `json.loads` of the report's JSON text
 //!   would give, without the text).
