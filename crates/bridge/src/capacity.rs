@@ -37,7 +37,7 @@ pub struct BusTiming {
     pub command_ms: f64,
 }
 
-/// The buses' limits (see the [module docs](self)).
+/// The buses' limits: how many samples and commands a second their timing carries.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Capacity {
     /// Each bus of the robot file.

@@ -40,7 +40,7 @@
 //! rate changes the sampling from its next sample on; the last subscription dropped (or
 //! [`Subscription::close`]d) stops the sampling. A sample of WHJ joints says how the bus
 //! was read ([`Sample::sampled_by`]: pipelined requests, the broadcast status, the cyclic
-//! loop's feedback; see [`sample_whj`](crate::station::sampler::sample_whj)).
+//! loop's feedback; see [`sample_whj`]).
 //!
 //! [`Telemetry`] is a sampler of its own, for a caller that wants one whatever else reads
 //! the bus (and a `limit` of samples).

@@ -12,7 +12,9 @@
 
 use super::SimJoint;
 
-/// A stop in the way of the output (see the [module docs](self)).
+/// A stop in the way of the output: on its far side the output is pushed back with
+/// [`Obstacle::STIFFNESS`] per radian and damped with [`Obstacle::DAMPING`]; on its near
+/// side it does nothing.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Obstacle {
     /// Where the stop is, degrees of the output (the physical angle).
