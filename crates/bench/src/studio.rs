@@ -67,8 +67,9 @@ pub struct WireModel {
     /// One sample's transactions back to back: Σ (request + processing delay + reply −
     /// the intermission the delay hides).
     pub sample: Duration,
-    /// The client's collision window, waited after every reply before it is credited
-    /// (`JointBusConfig::collision_window`).
+    /// The link's own allowance in the client's duplicate check
+    /// (`JointBus::duplicate_check`: 0 on the in-process memory bus, where only the
+    /// arbitration loser's frame is waited for, which this model leaves out).
     pub collision_window: Duration,
     /// One jog: one position servo frame and its feedback.
     pub jog: Duration,
@@ -814,7 +815,9 @@ mod tests {
         assert_eq!(m.transactions, 2 * usize::from(JOINTS));
         // A status query and a speed read per joint, each about 0.1 ms at 1 / 5 Mbit/s.
         assert!((400.0..900.0).contains(&m.wire_hz()), "{m:?}");
-        assert!(m.windowed_hz() < m.wire_hz());
+        // The memory bus's allowance is 0: the window adds nothing on it.
+        assert_eq!(m.collision_window, Duration::ZERO);
+        assert!(m.windowed_hz() <= m.wire_hz());
         assert!(m.jog > Duration::from_micros(50) && m.jog < Duration::from_micros(300));
         assert!(m.servo_cycle.abs_diff(m.jog * u32::from(JOINTS)) < Duration::from_nanos(7));
     }
