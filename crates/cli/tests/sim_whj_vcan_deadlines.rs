@@ -28,7 +28,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use robobus::whj::{JointBus, JointBusConfig};
+use robobus::whj::{JointBus, JointBusConfig, WhjError};
 use robobus_link::{FrameLink, IdFilter, SocketCanLink};
 use robobus_whj::timing::{BitRates, frame_duration};
 use robobus_whj::{CanFrame, JointId, Request};
@@ -159,6 +159,13 @@ fn client_round_trips(n: usize, timeout: Duration) -> (Vec<Duration>, Vec<Instan
             Err(e) if e.is_timeout() => {
                 println!("query {i}: {e}");
                 missed.push(t0);
+            }
+            // The answer to the query before, which timed out, came during this one: this
+            // one is not credited (right), and it is the earlier miss's consequence, counted
+            // with the misses from the earlier query's start.
+            Err(e @ WhjError::LateReply { .. }) => {
+                println!("query {i}: {e}");
+                missed.push(t0.checked_sub(timeout).unwrap_or(t0));
             }
             Err(e) => failed.push(format!("query {i}: {e}")),
         }
