@@ -17,11 +17,11 @@ use std::time::{Duration, Instant};
 use robobus_whj::units::Model;
 
 use super::{FollowedJoint, Units};
-use crate::ops::protect::{self, Action, Fault, MAX_EVENTS, Monitor, Reading};
+use crate::ops::protect::{self, Action, Fault, MAX_EVENTS, Monitor};
 use crate::ops::{DeviceResult, ErrorKind, Failure, Family, OpError};
 use crate::station::Station;
 use crate::station::clock::BusClock;
-use crate::station::jog::guard::{model, safe_stop, temperature_of};
+use crate::station::jog::guard::{model, reading_of, safe_stop, temperature_of};
 use crate::station::jog::{JogRequest, Jogged};
 
 /// How often each WHJ joint's temperature is read while commands come.
@@ -203,22 +203,16 @@ impl Guard {
                 Units::Wck(_) => device * robobus_wck::Position::DEGREES_PER_STEP,
             };
             let before = s.last_sent.get(i).copied().flatten().map(|(_, p)| deg(p));
-            let reading = Reading {
-                at: now,
-                position_deg: position.map(deg),
-                error_deg: position.zip(before).map(|(p, b)| (deg(p) - b).abs()),
-                target_deg: before,
-                current_a: jogged
-                    .feedback
-                    .get("current_ma")
-                    .and_then(serde_json::Value::as_f64)
-                    .map(|ma| ma / 1e3),
-                temperature_c: if temperature {
-                    temperature_of(station, j.family, &j.bus, j.id)
-                } else {
-                    None
-                },
-            };
+            let reading = reading_of(
+                now,
+                &jogged.feedback,
+                position,
+                before,
+                deg,
+                temperature
+                    .then(|| temperature_of(station, j.family, &j.bus, j.id))
+                    .flatten(),
+            );
             if let Some(slot) = s.last_sent.get_mut(i) {
                 *slot = Some((now, jogged.sent));
             }

@@ -99,22 +99,16 @@ impl Guard {
         if temperature {
             w.next_temperature = now + TEMPERATURE_EVERY;
         }
-        let reading = Reading {
-            at: now,
-            position_deg: position.map(deg),
-            error_deg: position.zip(before).map(|(p, b)| (deg(p) - b).abs()),
-            target_deg: before,
-            current_a: j
-                .feedback
-                .get("current_ma")
-                .and_then(serde_json::Value::as_f64)
-                .map(|ma| ma / 1e3),
-            temperature_c: if temperature {
-                temperature_of(station, j.family, &j.bus, j.device)
-            } else {
-                None
-            },
-        };
+        let reading = reading_of(
+            now,
+            &j.feedback,
+            position,
+            before,
+            deg,
+            temperature
+                .then(|| temperature_of(station, j.family, &j.bus, j.device))
+                .flatten(),
+        );
         w.last_sent = Some(j.sent);
         let stop = w.monitor.feed(0, &reading).into_iter().find(|f| {
             tracing::warn!("{f}");
@@ -179,6 +173,30 @@ pub(crate) fn model(station: &Station, family: Family, bus: &str, id: u8) -> Opt
 }
 
 /// A WHJ joint's temperature, read now (`None`: a wCK servo, or no answer).
+/// One protection reading from a jog's answer: `position` (device units, `deg` turns them
+/// into degrees) against the set-point sent before it (`before`, degrees), the answer's
+/// current, and a temperature if one was read.
+pub(crate) fn reading_of(
+    at: Instant,
+    feedback: &serde_json::Value,
+    position: Option<f64>,
+    before: Option<f64>,
+    deg: impl Fn(f64) -> f64,
+    temperature_c: Option<f64>,
+) -> Reading {
+    Reading {
+        at,
+        position_deg: position.map(&deg),
+        error_deg: position.zip(before).map(|(p, b)| (deg(p) - b).abs()),
+        target_deg: before,
+        current_a: feedback
+            .get("current_ma")
+            .and_then(serde_json::Value::as_f64)
+            .map(|ma| ma / 1e3),
+        temperature_c,
+    }
+}
+
 pub(crate) fn temperature_of(station: &Station, family: Family, bus: &str, id: u8) -> Option<f64> {
     if family != Family::Whj {
         return None;
