@@ -35,20 +35,20 @@ use std::sync::{Arc, Mutex, OnceLock};
 use std::thread::ThreadId;
 use std::time::{Duration, Instant};
 
-use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
 use robobus::ErrorKind;
-use robobus::catalogue::telemetry::RecvError;
 use robobus::catalogue::{self, Request};
+use robobus::frontend::Wording;
 use robobus::ops::{Control, OpError, StopToken};
 use robobus::station::StationConfig;
 
 mod handles;
 mod life;
 mod pyser;
+mod telemetry;
 
-use life::{Life, LoopCell, StreamCell, closed_error};
+use life::{Life, LoopCell, closed_error};
 
 /// How often a wait (or a request's stop token) on the main thread looks at Python's
 /// signals.
@@ -87,8 +87,10 @@ fn raise(py: Python<'_>, kind: ErrorKind, message: &str, report: Option<Py<PyAny
     }
 }
 
+/// A library error as its class, in Python's wording (a refused argument is named
+/// `ids=`, not the command line's `<IDS>`).
 fn op_error(py: Python<'_>, e: &OpError) -> PyErr {
-    raise(py, e.kind(), &e.to_string(), None)
+    raise(py, e.kind(), &Wording::Python.message(e), None)
 }
 
 /// A report (or any serialisable value) as Python objects, built directly (`pyser`): what
@@ -272,6 +274,9 @@ struct NativeStation {
     station: Mutex<Option<Arc<robobus::station::Station>>>,
     /// Its process, whether it is closed, and what runs on it.
     life: Arc<Life>,
+    /// The clock its devices run on: `"wall"`, or `"virtual"` (the built-in simulated
+    /// robot's, which moves only as the buses are driven).
+    clock: &'static str,
 }
 
 impl NativeStation {
@@ -285,10 +290,11 @@ impl NativeStation {
             .ok_or_else(|| closed_error(py, call))
     }
 
-    fn wrap(station: robobus::station::Station, read_only: bool) -> Self {
+    fn wrap(station: robobus::station::Station, read_only: bool, clock: &'static str) -> Self {
         Self {
             station: Mutex::new(Some(Arc::new(station))),
             life: Life::new(read_only),
+            clock,
         }
     }
 
@@ -378,14 +384,40 @@ fn without_gil(f: impl FnOnce() + Send) {
 #[pymethods]
 #[allow(clippy::needless_pass_by_value, clippy::unused_self)] // pyo3 signatures
 impl NativeStation {
-    /// The built-in simulated robot, in-process.
+    /// The built-in simulated robot, in-process: on the wall clock (`"wall"`: its
+    /// simulators move in real time, as the studio's and the bridge's), or on the
+    /// simulators' virtual clock (`"virtual"`: time moves only as the buses are driven,
+    /// every run the same).
     #[staticmethod]
-    #[pyo3(signature = (read_only = false))]
-    fn simulated(py: Python<'_>, read_only: bool) -> PyResult<Self> {
-        let s = py
-            .detach(robobus::station::Station::simulated)
-            .map_err(|e| op_error(py, &e))?;
-        Ok(Self::wrap(s, read_only))
+    #[pyo3(signature = (read_only = false, clock = "wall"))]
+    fn simulated(py: Python<'_>, read_only: bool, clock: &str) -> PyResult<Self> {
+        let (s, clock) = match clock {
+            "wall" => (
+                py.detach(|| robobus::station::Station::simulated_live(None).map(|(s, _)| s)),
+                "wall",
+            ),
+            "virtual" => (py.detach(robobus::station::Station::simulated), "virtual"),
+            other => {
+                return Err(raise(
+                    py,
+                    ErrorKind::BadInput,
+                    &format!(
+                        "clock={other:?}: not a clock (allowed: \"wall\", \"virtual\"); \
+                         nothing was opened"
+                    ),
+                    None,
+                ));
+            }
+        };
+        let s = s.map_err(|e| op_error(py, &e))?;
+        Ok(Self::wrap(s, read_only, clock))
+    }
+
+    /// The clock the station's devices run on: `"wall"` (hardware, the simulated robot
+    /// by default) or `"virtual"`.
+    #[getter]
+    fn clock(&self) -> &'static str {
+        self.clock
     }
 
     /// Opens wCK ports, WHJ buses and a robot file from the CLI's address strings.
@@ -439,7 +471,7 @@ impl NativeStation {
         let s = py
             .detach(|| robobus::station::Station::open(&config))
             .map_err(|e| op_error(py, &e))?;
-        Ok(Self::wrap(s, read_only))
+        Ok(Self::wrap(s, read_only, "wall"))
     }
 
     /// Arms: motion requests, moves of handles and cyclic loops run (a station opened
@@ -669,28 +701,8 @@ impl NativeStation {
         rate_hz: f64,
         limit: Option<u64>,
         queue: usize,
-    ) -> PyResult<NativeTelemetry> {
-        let call = "Station.telemetry";
-        let req = request(py, request_obj)?;
-        let station = self.get(py, call)?;
-        let t = catalogue::Telemetry::paused(&station, req, rate_hz, limit)
-            .map_err(|e| op_error(py, &e))?;
-        drop(station);
-        let sub = t.subscribe(queue).map_err(|e| op_error(py, &e))?;
-        let stream = Arc::new(Mutex::new(Some(t)));
-        // Registered before its first read, so a `close` stops it.
-        self.life.adopt_stream(py, call, &stream)?;
-        if let Some(t) = &*stream
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-        {
-            t.resume();
-        }
-        Ok(NativeTelemetry {
-            stream,
-            sub,
-            life: Arc::clone(&self.life),
-        })
+    ) -> PyResult<telemetry::NativeTelemetry> {
+        telemetry::start(self, py, request_obj, rate_hz, limit, queue)
     }
 }
 
@@ -851,103 +863,6 @@ impl NativeCyclic {
     }
 }
 
-/// A running telemetry stream and this session's subscription to it.
-#[pyclass(module = "robobus._robobus", name = "NativeTelemetry", frozen)]
-#[derive(Debug)]
-struct NativeTelemetry {
-    /// Shared with the station's registry, which stops it when the station closes.
-    stream: Arc<StreamCell>,
-    sub: catalogue::Subscriber,
-    life: Arc<Life>,
-}
-
-impl Drop for NativeTelemetry {
-    fn drop(&mut self) {
-        if self.life.forked() {
-            // The stream's thread is the parent's: nothing to stop or join here.
-            std::mem::forget(Arc::clone(&self.stream));
-            return;
-        }
-        let taken = self
-            .stream
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .take();
-        without_gil(|| drop(taken));
-    }
-}
-
-#[pymethods]
-impl NativeTelemetry {
-    /// The next sample (a dict), waiting at most `timeout` seconds (`None`: until one
-    /// comes); `None` once the stream has ended. Ctrl-C interrupts the wait.
-    #[pyo3(signature = (timeout=None))]
-    fn next(&self, py: Python<'_>, timeout: Option<f64>) -> PyResult<Option<Py<PyAny>>> {
-        self.life.check(py, "Telemetry.next")?;
-        let deadline = timeout
-            .filter(|t| t.is_finite() && *t >= 0.0)
-            .map(|t| std::time::Instant::now() + Duration::from_secs_f64(t.min(1e6)));
-        loop {
-            let slice = deadline.map_or(SIGNAL_SLICE, |d| {
-                d.saturating_duration_since(std::time::Instant::now())
-                    .min(SIGNAL_SLICE)
-            });
-            match py.detach(|| self.sub.recv_timeout(slice)) {
-                Ok(d) => {
-                    let mut v = serde_json::to_value(&*d.sample).map_err(|e| {
-                        PyRuntimeError::new_err(format!("serialising a sample: {e}"))
-                    })?;
-                    v["lost"] = serde_json::json!(d.lost);
-                    v["age_ms"] = serde_json::json!(d.sample.age().as_secs_f64() * 1e3);
-                    return to_py(py, &v).map(Some);
-                }
-                Err(RecvError::Ended) if self.life.closed() => {
-                    return Err(closed_error(py, "Telemetry.next"));
-                }
-                Err(RecvError::Ended) => return Ok(None),
-                Err(RecvError::Timeout) => {
-                    if deadline.is_some_and(|d| std::time::Instant::now() >= d) {
-                        return Err(raise(
-                            py,
-                            ErrorKind::NoDevice,
-                            "no sample within the timeout",
-                            None,
-                        ));
-                    }
-                }
-            }
-            py.check_signals()?;
-        }
-    }
-
-    /// Samples this subscriber lost so far (its queue was full).
-    #[getter]
-    fn lost(&self) -> u64 {
-        self.sub.lost()
-    }
-
-    /// Stops the stream (the read under way completes); what it did: samples, late ones,
-    /// failed ones. Stopping twice returns `None` the second time (so does stopping it
-    /// after its station was closed).
-    fn stop(&self, py: Python<'_>) -> PyResult<Option<Py<PyAny>>> {
-        if let Some(e) = self.life.fork_error(py, "Telemetry.stop", "station") {
-            return Err(e);
-        }
-        let taken = self
-            .stream
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .take();
-        match taken {
-            Some(t) => {
-                let stats = py.detach(|| t.stop());
-                to_py(py, &stats).map(Some)
-            }
-            None => Ok(None),
-        }
-    }
-}
-
 /// The JSON Schema of a request, a report or a plan, as JSON text.
 #[pyfunction]
 fn schema(py: Python<'_>, of: &str) -> PyResult<String> {
@@ -1049,7 +964,7 @@ fn _robobus(m: &Bound<'_, PyModule>) -> PyResult<()> {
         "robobus native module loaded"
     );
     m.add_class::<NativeStation>()?;
-    m.add_class::<NativeTelemetry>()?;
+    m.add_class::<telemetry::NativeTelemetry>()?;
     m.add_class::<NativeCyclic>()?;
     m.add_class::<handles::NativeWckServos>()?;
     m.add_class::<handles::NativeWhjJoints>()?;
