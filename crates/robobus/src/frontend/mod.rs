@@ -7,6 +7,8 @@
 //! - [`admission`]: whether a request runs now: read-only mode, arming, the write rate
 //!   of non-volatile memory.
 //! - [`plan_view`]: one JSON view of a plan.
+//! - [`wording`]: each front end's name for a refused argument (`<IDS>` on the command
+//!   line, `ids=` in Python).
 //! - Front-end safety: [`guard`] (one controlling session, arming, the dead man's switch)
 //!   and `live` (feature `sim`: the built-in robot on the wall clock). The bounded motions
 //!   a front end sends through it are the station's: [`crate::station::jog`] (one bounded
@@ -19,6 +21,8 @@ pub mod guard;
 pub mod live;
 pub mod parse;
 pub mod plan_view;
+pub mod wording;
 
 pub use admission::{Admission, Admitted, Arming, FrontEnd, Refusal, RefusalKind};
 pub use plan_view::PlanView;
+pub use wording::Wording;
