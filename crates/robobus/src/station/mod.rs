@@ -9,6 +9,7 @@
 
 pub(crate) mod clock;
 pub mod cyclic;
+pub mod diagnostics;
 pub mod follow;
 pub mod handles;
 pub mod jog;
