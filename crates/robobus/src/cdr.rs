@@ -1,6 +1,7 @@
 //! CDR, as ROS 2 puts its messages on the wire, for the few messages robobus speaks (the
-//! Zenoh bridge, MCAP recordings): `sensor_msgs/msg/JointState` and
-//! `std_msgs/msg/Float64MultiArray`.
+//! Zenoh bridge, MCAP recordings): `sensor_msgs/msg/JointState`,
+//! `std_msgs/msg/Float64MultiArray`, `trajectory_msgs/msg/JointTrajectory` and the
+//! `control_msgs/msg/JointTrajectoryControllerState` a trajectory's progress is published in.
 //!
 //! A payload is the 4-byte encapsulation header (`00 01 00 00`: CDR, little endian; `00 00
 //! 00 00`: big endian), then the body. Every primitive is aligned to its own size, counted
@@ -24,6 +25,8 @@ pub const MAX_PAYLOAD: usize = 1 << 20;
 pub const MAX_ELEMENTS: usize = 4096;
 /// The longest string, bytes (without its NUL).
 pub const MAX_STRING: usize = 1024;
+/// The most points of one trajectory.
+pub const MAX_TRAJECTORY_POINTS: usize = 10_000;
 
 /// `builtin_interfaces/msg/Time`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -48,6 +51,101 @@ impl Time {
             nanosec: (ns % 1e9) as u32,
         }
     }
+}
+
+/// `builtin_interfaces/msg/Duration`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Duration {
+    /// Whole seconds (may be negative).
+    pub sec: i32,
+    /// Nanoseconds, 0..1e9 (read as they come; [`Duration::as_secs_f64`] takes them as
+    /// they are).
+    pub nanosec: u32,
+}
+
+impl Duration {
+    /// Seconds, `sec + nanosec / 1e9`.
+    #[must_use]
+    pub fn as_secs_f64(self) -> f64 {
+        f64::from(self.sec) + f64::from(self.nanosec) / 1e9
+    }
+
+    /// The duration of `s` seconds, to the nanosecond (0 for a value that is not finite or
+    /// does not fit an `i32` of seconds).
+    #[must_use]
+    pub fn from_secs_f64(s: f64) -> Self {
+        if !(s.is_finite() && (f64::from(i32::MIN)..f64::from(i32::MAX)).contains(&s)) {
+            return Self::default();
+        }
+        let sec = s.floor();
+        // In range: checked above; the fraction is in 0..1 s.
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let nanosec = (((s - sec) * 1e9).round() as u32).min(999_999_999);
+        #[allow(clippy::cast_possible_truncation)]
+        Self {
+            sec: sec as i32,
+            nanosec,
+        }
+    }
+}
+
+impl Time {
+    /// Seconds since the epoch, `sec + nanosec / 1e9`; `None` for the zero stamp (which a
+    /// trajectory's header means as "now").
+    #[must_use]
+    pub fn as_unix_s(self) -> Option<f64> {
+        (self != Self::default()).then(|| f64::from(self.sec) + f64::from(self.nanosec) / 1e9)
+    }
+}
+
+/// `trajectory_msgs/msg/JointTrajectoryPoint`.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct JointTrajectoryPoint {
+    /// Positions, rad, one per joint name (or none).
+    pub positions: Vec<f64>,
+    /// Velocities, rad/s (or none).
+    pub velocities: Vec<f64>,
+    /// Accelerations, rad/s² (or none).
+    pub accelerations: Vec<f64>,
+    /// Efforts, N·m (or none).
+    pub effort: Vec<f64>,
+    /// When the point is due, from the trajectory's start.
+    pub time_from_start: Duration,
+}
+
+/// `trajectory_msgs/msg/JointTrajectory` (its `std_msgs/Header` flattened).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct JointTrajectory {
+    /// `header.stamp`: when the trajectory starts (zero: when it is received).
+    pub stamp: Time,
+    /// `header.frame_id`.
+    pub frame_id: String,
+    /// The joints, in the order of every point's values.
+    pub joint_names: Vec<String>,
+    /// The points, at most [`MAX_TRAJECTORY_POINTS`].
+    pub points: Vec<JointTrajectoryPoint>,
+}
+
+/// `control_msgs/msg/JointTrajectoryControllerState` as `ros2_controllers`'
+/// `joint_trajectory_controller` publishes it since control_msgs 5 (ROS 2 Jazzy): the
+/// header, the joints, then `reference`, `feedback`, `error` and `output` points; its
+/// multi-DOF fields are written empty.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct JointTrajectoryControllerState {
+    /// `header.stamp`.
+    pub stamp: Time,
+    /// `header.frame_id`.
+    pub frame_id: String,
+    /// The joints, in the order of every point's values.
+    pub joint_names: Vec<String>,
+    /// The trajectory's desired state now.
+    pub reference: JointTrajectoryPoint,
+    /// What the joints reported.
+    pub feedback: JointTrajectoryPoint,
+    /// `reference` − `feedback`.
+    pub error: JointTrajectoryPoint,
+    /// What was sent to the joints (short of `reference` where a joint was held back).
+    pub output: JointTrajectoryPoint,
 }
 
 /// `sensor_msgs/msg/JointState` (its `std_msgs/Header` flattened).
@@ -296,9 +394,7 @@ impl JointState {
     /// The payload: header and little-endian CDR.
     pub fn encode(&self) -> Vec<u8> {
         let mut w = Writer::new();
-        w.u32(u32::from_ne_bytes(self.stamp.sec.to_ne_bytes()));
-        w.u32(self.stamp.nanosec);
-        w.string(&self.frame_id);
+        w.header(self.stamp, &self.frame_id);
         w.strings(&self.name);
         w.f64s(&self.position);
         w.f64s(&self.velocity);
@@ -370,6 +466,118 @@ impl Float64MultiArray {
     }
 }
 
+impl Writer {
+    fn i32(&mut self, v: i32) {
+        self.u32(u32::from_ne_bytes(v.to_ne_bytes()));
+    }
+
+    fn header(&mut self, stamp: Time, frame_id: &str) {
+        self.i32(stamp.sec);
+        self.u32(stamp.nanosec);
+        self.string(frame_id);
+    }
+
+    fn point(&mut self, p: &JointTrajectoryPoint) {
+        self.f64s(&p.positions);
+        self.f64s(&p.velocities);
+        self.f64s(&p.accelerations);
+        self.f64s(&p.effort);
+        self.i32(p.time_from_start.sec);
+        self.u32(p.time_from_start.nanosec);
+    }
+}
+
+impl Reader<'_> {
+    fn point(&mut self) -> Result<JointTrajectoryPoint, CdrError> {
+        Ok(JointTrajectoryPoint {
+            positions: self.f64s("points.positions")?,
+            velocities: self.f64s("points.velocities")?,
+            accelerations: self.f64s("points.accelerations")?,
+            effort: self.f64s("points.effort")?,
+            time_from_start: Duration {
+                sec: self.i32("points.time_from_start.sec")?,
+                nanosec: self.u32("points.time_from_start.nanosec")?,
+            },
+        })
+    }
+}
+
+impl JointTrajectory {
+    /// The payload: header and little-endian CDR.
+    pub fn encode(&self) -> Vec<u8> {
+        let mut w = Writer::new();
+        w.header(self.stamp, &self.frame_id);
+        w.strings(&self.joint_names);
+        w.count(self.points.len());
+        for p in &self.points {
+            w.point(p);
+        }
+        w.buf
+    }
+
+    /// Reads a payload (see the [module docs](self) for what is tolerated); at most
+    /// [`MAX_TRAJECTORY_POINTS`] points.
+    pub fn decode(payload: &[u8]) -> Result<Self, CdrError> {
+        let mut r = Reader::new(payload)?;
+        let stamp = Time {
+            sec: r.i32("header.stamp.sec")?,
+            nanosec: r.u32("header.stamp.nanosec")?,
+        };
+        let frame_id = r.string("header.frame_id")?;
+        let joint_names = r.strings("joint_names")?;
+        // A point takes at least 24 bytes: four empty sequences and its duration.
+        let n = r.count("points", MAX_TRAJECTORY_POINTS, 24)?;
+        let points = (0..n).map(|_| r.point()).collect::<Result<_, _>>()?;
+        Ok(Self {
+            stamp,
+            frame_id,
+            joint_names,
+            points,
+        })
+    }
+}
+
+impl JointTrajectoryControllerState {
+    /// The payload: header and little-endian CDR (the multi-DOF fields empty: no names
+    /// and four empty `MultiDOFJointTrajectoryPoint`s).
+    pub fn encode(&self) -> Vec<u8> {
+        let mut w = Writer::new();
+        w.header(self.stamp, &self.frame_id);
+        w.strings(&self.joint_names);
+        for p in [&self.reference, &self.feedback, &self.error, &self.output] {
+            w.point(p);
+        }
+        // multi_dof_joint_names, then four points of transforms, velocities and
+        // accelerations (all empty) and a zero duration.
+        w.count(0);
+        for _ in 0..4 {
+            w.count(0);
+            w.count(0);
+            w.count(0);
+            w.i32(0);
+            w.u32(0);
+        }
+        w.buf
+    }
+}
+
+/// `control_msgs/action/FollowJointTrajectory`'s result codes, which a trajectory's end
+/// carries (`error_code`).
+pub mod result_code {
+    /// Reached.
+    pub const SUCCESSFUL: i32 = 0;
+    /// Refused: a point, a value or a time does not fit.
+    pub const INVALID_GOAL: i32 = -1;
+    /// Refused: a joint name the robot does not have (or twice).
+    pub const INVALID_JOINTS: i32 = -2;
+    /// Refused: its stamp says it ended before it arrived.
+    pub const OLD_HEADER_TIMESTAMP: i32 = -3;
+    /// Aborted on the way (a joint failed, the host's protection, a stop).
+    pub const PATH_TOLERANCE_VIOLATED: i32 = -4;
+    /// Played, but a joint ended outside the goal tolerance.
+    pub const GOAL_TOLERANCE_VIOLATED: i32 = -5;
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -401,6 +609,149 @@ mod tests {
                  00000000",
             ),
         )
+    }
+
+    /// stamp 3 s 4 ns, frame `base`, joints `j1` `j2`; point 1: positions [0.5, -0.25],
+    /// velocities [0, 0.1], at 1.5 s; point 2: positions [1, 0] at 2 s (no velocities): 152
+    /// bytes, written by rosbags 0.11.9's serializer (`crates/bridge/tests/py/
+    /// test_trajectory.py` checks it makes them still).
+    const GOLDEN_TRAJECTORY: &str = "\
+        00010000030000000400000005000000626173650000000002000000030000006a31000003000000\
+        6a3200000200000002000000000000000000e03f000000000000d0bf020000000000000000000000\
+        000000009a9999999999b93f0000000000000000010000000065cd1d020000000000000000000000\
+        0000f03f00000000000000000000000000000000000000000200000000000000";
+
+    fn golden_trajectory() -> JointTrajectory {
+        let point =
+            |positions: Vec<f64>, velocities: Vec<f64>, sec, nanosec| JointTrajectoryPoint {
+                positions,
+                velocities,
+                accelerations: vec![],
+                effort: vec![],
+                time_from_start: Duration { sec, nanosec },
+            };
+        JointTrajectory {
+            stamp: Time { sec: 3, nanosec: 4 },
+            frame_id: "base".into(),
+            joint_names: vec!["j1".into(), "j2".into()],
+            points: vec![
+                point(vec![0.5, -0.25], vec![0.0, 0.1], 1, 500_000_000),
+                point(vec![1.0, 0.0], vec![], 2, 0),
+            ],
+        }
+    }
+
+    #[test]
+    fn joint_trajectory_encodes_to_rosbags_bytes_and_back() {
+        let bytes = hex(GOLDEN_TRAJECTORY);
+        assert_eq!(bytes.len(), 152);
+        let msg = golden_trajectory();
+        assert_eq!(msg.encode(), bytes);
+        assert_eq!(JointTrajectory::decode(&bytes).unwrap(), msg);
+        assert_eq!(msg.points[0].time_from_start.as_secs_f64(), 1.5);
+        assert_eq!(msg.stamp.as_unix_s(), Some(3.000_000_004));
+        assert_eq!(Time::default().as_unix_s(), None);
+    }
+
+    /// joint `j3`, stamp 5 s 6 ns; reference 0.5, feedback 0.25, error 0.25, output 0.5,
+    /// each at 0.25 s; the multi-DOF fields empty: 244 bytes, written by rosbags 0.11.9
+    /// with control_msgs 5's definition registered.
+    const GOLDEN_CONTROLLER_STATE: &str = "\
+        000100000500000006000000010000000000000001000000030000006a3300000100000000000000\
+        0000e03f0000000000000000000000000000000080b2e60e01000000000000000000d03f00000000\
+        00000000000000000000000080b2e60e01000000000000000000d03f000000000000000000000000\
+        0000000080b2e60e01000000000000000000e03f0000000000000000000000000000000080b2e60e\
+        00000000000000000000000000000000000000000000000000000000000000000000000000000000\
+        00000000000000000000000000000000000000000000000000000000000000000000000000000000\
+        00000000";
+
+    #[test]
+    fn controller_state_encodes_to_rosbags_bytes() {
+        let at = |p: f64| JointTrajectoryPoint {
+            positions: vec![p],
+            time_from_start: Duration::from_secs_f64(0.25),
+            ..JointTrajectoryPoint::default()
+        };
+        let msg = JointTrajectoryControllerState {
+            stamp: Time { sec: 5, nanosec: 6 },
+            frame_id: String::new(),
+            joint_names: vec!["j3".into()],
+            reference: at(0.5),
+            feedback: at(0.25),
+            error: at(0.25),
+            output: at(0.5),
+        };
+        let bytes = hex(GOLDEN_CONTROLLER_STATE);
+        assert_eq!(bytes.len(), 244);
+        assert_eq!(msg.encode(), bytes);
+    }
+
+    #[test]
+    fn duration_from_seconds() {
+        assert_eq!(
+            Duration::from_secs_f64(1.5),
+            Duration {
+                sec: 1,
+                nanosec: 500_000_000
+            }
+        );
+        assert_eq!(
+            Duration::from_secs_f64(-0.25),
+            Duration {
+                sec: -1,
+                nanosec: 750_000_000
+            }
+        );
+        assert_eq!(Duration::from_secs_f64(f64::NAN), Duration::default());
+        assert_eq!(Duration::from_secs_f64(1e12), Duration::default());
+    }
+
+    #[test]
+    fn every_trajectory_truncation_is_an_error_not_a_panic() {
+        let bytes = hex(GOLDEN_TRAJECTORY);
+        for n in 0..bytes.len() {
+            assert!(JointTrajectory::decode(&bytes[..n]).is_err(), "{n} bytes");
+        }
+    }
+
+    #[test]
+    fn trajectory_points_are_bounded() {
+        // A count of MAX_TRAJECTORY_POINTS + 1 points, each the 24 bytes of an empty one.
+        let mut b = CDR_LE.to_vec();
+        b.extend_from_slice(&[0; 8]); // stamp
+        b.extend_from_slice(&1_u32.to_le_bytes());
+        b.extend_from_slice(&[0; 4]); // "" and padding
+        b.extend_from_slice(&0_u32.to_le_bytes()); // no joint names
+        let n = MAX_TRAJECTORY_POINTS + 1;
+        b.extend_from_slice(&u32::try_from(n).unwrap().to_le_bytes());
+        b.extend(std::iter::repeat_n(0, 24 * n));
+        assert_eq!(
+            JointTrajectory::decode(&b),
+            Err(CdrError::TooLong {
+                field: "points",
+                count: n,
+                max: MAX_TRAJECTORY_POINTS
+            })
+        );
+        // One point fewer decodes: empty points.
+        let end = b.len() - 24;
+        let count_at = 4 + 8 + 8 + 4;
+        b[count_at..count_at + 4].copy_from_slice(&u32::try_from(n - 1).unwrap().to_le_bytes());
+        assert_eq!(
+            JointTrajectory::decode(&b[..end]).unwrap().points.len(),
+            MAX_TRAJECTORY_POINTS
+        );
+        // A count the bytes left cannot hold.
+        let mut short = hex(GOLDEN_TRAJECTORY)[..44].to_vec();
+        short.extend_from_slice(&1000_u32.to_le_bytes());
+        assert!(matches!(
+            JointTrajectory::decode(&short),
+            Err(CdrError::TooLong {
+                field: "points",
+                count: 1000,
+                ..
+            })
+        ));
     }
 
     #[test]
@@ -551,9 +902,33 @@ mod tests {
         }
 
         #[test]
+        fn joint_trajectories_round_trip(
+            names in proptest::collection::vec("[a-z_0-9]{0,12}", 0..8),
+            pos in proptest::collection::vec(proptest::num::f64::ANY, 0..8),
+            times in proptest::collection::vec((proptest::prelude::any::<i32>(), 0..1_000_000_000_u32), 0..6),
+        ) {
+            let msg = JointTrajectory {
+                stamp: Time { sec: 1, nanosec: 2 },
+                frame_id: "f".into(),
+                joint_names: names,
+                points: times.iter().map(|&(sec, nanosec)| JointTrajectoryPoint {
+                    positions: pos.clone(),
+                    velocities: pos.iter().map(|p| p * 2.0).collect(),
+                    accelerations: vec![],
+                    effort: pos.clone(),
+                    time_from_start: Duration { sec, nanosec },
+                }).collect(),
+            };
+            let back = JointTrajectory::decode(&msg.encode()).unwrap();
+            // NaN != NaN: compared bit for bit through the encoding.
+            proptest::prop_assert_eq!(back.encode(), msg.encode());
+        }
+
+        #[test]
         fn arbitrary_bytes_never_panic(bytes in proptest::collection::vec(proptest::prelude::any::<u8>(), 0..200)) {
             let _ = JointState::decode(&bytes);
             let _ = Float64MultiArray::decode(&bytes);
+            let _ = JointTrajectory::decode(&bytes);
         }
     }
 }
