@@ -179,7 +179,8 @@ pub use joints::*;
 pub use motion::*;
 pub use registers::*;
 
-pub use stream::{SILENT_AFTER, SILENT_FRAMES, STALL_AFTER, check_plan_steps};
+pub(crate) use stream::FrameTimes;
+pub use stream::{SILENT_AFTER, SILENT_FRAMES, STALL_AFTER, TEMPERATURE_EVERY, check_plan_steps};
 
 pub use broadcast::{
     BROADCAST_WAVE_MIN_HZ, BroadcastPlan, EndBoardArg, EndBoardStatus, SECOND_ANSWER_GUARD, Slot,

@@ -8,6 +8,7 @@ use robobus_whj::{JointId, Request};
 use serde::Serialize;
 
 use crate::motion::{Limiter, Tracking};
+use crate::ops::protect::Fault;
 use crate::ops::{Bound, Control, OpError, SafeState};
 use crate::whj::{Joint, MotionLimits, Percentiles, Profile, WhjError};
 
@@ -15,6 +16,11 @@ use super::{
     Plan, PlannedFrame, ServoLoop, check_demand, interrupted, mode_name, pause_until,
     plausible_position, require_ready, stream, whj,
 };
+use stream::FrameTimes;
+
+/// What a run hands an observer of its frames (the pre-flight on the simulator): each
+/// frame's index, its times and set-point, and the feedback that answered it.
+pub(crate) type FrameObserver<'o> = &'o mut dyn FnMut(usize, Option<&ServoFeedback>, &FrameTimes);
 
 // ---------------------------------------------------------------------------------------
 // Moves
@@ -180,6 +186,10 @@ pub struct MoveReport {
     pub held_back: u64,
     /// Error bits after the move.
     pub error: String,
+    /// The host's protection events that did not stop the move (warnings, derating), in
+    /// order; left out of the JSON when there were none.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub protection: Vec<Fault>,
 }
 
 /// The plan a real move runs: checks the joint (enabled in position mode, the target within
@@ -220,6 +230,18 @@ pub fn execute_move(
     control: &mut Control<'_>,
     on_stop: SafeState,
 ) -> Result<MoveReport, OpError> {
+    execute_move_observed(j, args, plan, control, on_stop, &mut |_, _, _| {})
+}
+
+/// [`execute_move`], each frame handed to `observe` as it is answered.
+pub(crate) fn execute_move_observed(
+    j: &Joint<'_>,
+    args: &MoveArgs,
+    plan: &Plan,
+    control: &mut Control<'_>,
+    on_stop: SafeState,
+    observe: FrameObserver<'_>,
+) -> Result<MoveReport, OpError> {
     let id = j.id();
     let bus = j.bus();
     let began = bus.now();
@@ -237,9 +259,19 @@ pub fn execute_move(
         period: limits.period,
         within: limits.settle_timeout,
     };
-    let Ok(sent) = stream::send_frames(j, plan, control, &watch, Some(finish), |_, _, times| {
-        held_back += u64::from(times.held_back);
-    })?
+    let mut protection = Vec::new();
+    let Ok(sent) = stream::send_frames(
+        j,
+        plan,
+        control,
+        &watch,
+        Some(finish),
+        &mut protection,
+        |k, fb, times| {
+            held_back += u64::from(times.held_back);
+            observe(k, fb, &times);
+        },
+    )?
     else {
         return Err(interrupted(j, on_stop, ServoLoop::Position));
     };
@@ -286,6 +318,7 @@ pub fn execute_move(
         step_limited,
         held_back,
         error: status.error.to_string(),
+        protection,
     })
 }
 
@@ -642,6 +675,10 @@ pub struct WaveReport {
     pub round_trip_p99_us: Option<u64>,
     /// The longest, µs.
     pub round_trip_max_us: Option<u64>,
+    /// The host's protection events that did not stop the wave (warnings, derating), in
+    /// order; left out of the JSON when there were none.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub protection: Vec<Fault>,
 }
 
 /// Runs a wave: checks the joint (enabled in the wave's mode, the values within its
@@ -687,6 +724,18 @@ pub fn execute_wave(
     control: &mut Control<'_>,
     on_stop: SafeState,
 ) -> Result<WaveReport, OpError> {
+    execute_wave_observed(j, args, plan, control, on_stop, &mut |_, _, _| {})
+}
+
+/// [`execute_wave`], each frame handed to `observe` as it is answered.
+pub(crate) fn execute_wave_observed(
+    j: &Joint<'_>,
+    args: &WaveArgs,
+    plan: &Plan,
+    control: &mut Control<'_>,
+    on_stop: SafeState,
+    observe: FrameObserver<'_>,
+) -> Result<WaveReport, OpError> {
     let scale = j.identity().map_err(whj)?.current_scale();
     let targets = wave_targets(args);
     let period = Duration::from_secs_f64(1.0 / args.rate_hz);
@@ -707,6 +756,7 @@ pub fn execute_wave(
         round_trip_p50_us: None,
         round_trip_p99_us: None,
         round_trip_max_us: None,
+        protection: Vec::new(),
     };
     for (f, want) in plan.frames.iter().zip(&targets) {
         // The set-point the frame carries for the wave's joint, point-to-point or in its
@@ -733,44 +783,55 @@ pub fn execute_wave(
         step_limit_deg: args.step_limit_deg,
         stage: "wave",
     };
-    let outcome = stream::send_frames(j, plan, control, &watch, None, |k, fb, times| {
-        let late = times.late;
-        round_trips.extend(times.round_trip);
-        let now = bus.now();
-        if k > 0 && now.duration_since(last_sent) > period * 2 {
-            r.overruns += 1;
-        }
-        last_sent = now;
-        r.cycles += 1;
-        r.held_back += u64::from(times.held_back);
-        if late > period {
-            r.deadline_misses += 1;
-        }
-        let Some(fb) = fb else {
-            r.missing_replies += 1;
-            r.missing_at_end += 1;
-            r.stale = true;
-            return;
-        };
-        r.stale = false;
-        r.missing_at_end = 0;
-        r.complete += 1;
-        if k > 0
-            && let Some(want) = targets.get(k - 1)
-        {
-            let got = match args.servo {
-                ServoLoop::Position => fb.position.degrees(),
-                ServoLoop::Speed => fb.speed.rpm(),
-                #[allow(clippy::cast_precision_loss)] // |mA| < 2^53
-                ServoLoop::Current => fb.current.milliamps(scale) as f64,
+    let mut protection = Vec::new();
+    let outcome = stream::send_frames(
+        j,
+        plan,
+        control,
+        &watch,
+        None,
+        &mut protection,
+        |k, fb, times| {
+            observe(k, fb, &times);
+            let late = times.late;
+            round_trips.extend(times.round_trip);
+            let now = bus.now();
+            if k > 0 && now.duration_since(last_sent) > period * 2 {
+                r.overruns += 1;
+            }
+            last_sent = now;
+            r.cycles += 1;
+            r.held_back += u64::from(times.held_back);
+            if late > period {
+                r.deadline_misses += 1;
+            }
+            let Some(fb) = fb else {
+                r.missing_replies += 1;
+                r.missing_at_end += 1;
+                r.stale = true;
+                return;
             };
-            tracking.add(got, *want);
-        }
-        r.last = Some(FeedbackReport::of(fb, scale));
-    })?;
+            r.stale = false;
+            r.missing_at_end = 0;
+            r.complete += 1;
+            if k > 0
+                && let Some(want) = targets.get(k - 1)
+            {
+                let got = match args.servo {
+                    ServoLoop::Position => fb.position.degrees(),
+                    ServoLoop::Speed => fb.speed.rpm(),
+                    #[allow(clippy::cast_precision_loss)] // |mA| < 2^53
+                    ServoLoop::Current => fb.current.milliamps(scale) as f64,
+                };
+                tracking.add(got, *want);
+            }
+            r.last = Some(FeedbackReport::of(fb, scale));
+        },
+    )?;
     if outcome.is_err() {
         return Err(interrupted(j, on_stop, args.servo));
     }
+    r.protection = protection;
     r.tracking_rms = tracking.rms();
     r.tracking_max = tracking.max();
     if !round_trips.is_empty() {

@@ -24,6 +24,16 @@
 //!   moved less than one step limit means it is not following the plan (stalled, blocked,
 //!   or commanded by someone else): the run stops as a *device* error. A joint that lags
 //!   but moves runs to the end.
+//! - **the host's protection** ([`protect::Monitor`](crate::ops::protect::Monitor), the
+//!   one monitor of every moving operation, with its model's defaults
+//!   ([`Limits::whj`](crate::ops::protect::Limits::whj))): each feedback is a reading (its
+//!   position against the set-point sent before it, its current) and every
+//!   [`TEMPERATURE_EVERY`] a status query adds the temperature. A stall, a collision or
+//!   heat stops the run: the joint is disabled where its model's brake holds it
+//!   ([`torque_off_is_safe`](crate::ops::protect::torque_off_is_safe)), else left in the
+//!   run's safe state, and the run fails as a *device* error naming the joint, the
+//!   quantity, the limit and the time. Warnings and derating are reported with the run (a
+//!   planned stream cannot slow down: a derated joint carries on at the plan's speed).
 
 use std::time::{Duration, Instant};
 
@@ -33,20 +43,30 @@ use robobus_whj::units::Position;
 
 use super::{OpError, Plan, PlannedFrame, ServoLoop, broadcast, pause_until, reading_fault, whj};
 use crate::motion::within_step;
+use crate::ops::protect::{self, Action, Fault, Limits, Monitor, Reading};
 use crate::ops::safe::WhjJoints;
 use crate::ops::{Control, Progress, SafeState};
 use crate::whj::Joint;
 
+/// How often a running stream reads its joint's temperature for the host's protection (a
+/// status query between two frames), as `robot play` does.
+pub const TEMPERATURE_EVERY: Duration = Duration::from_millis(250);
+
 /// When a planned frame went out and how long its exchange took.
 #[derive(Debug, Clone, Copy)]
-pub(super) struct FrameTimes {
+pub(crate) struct FrameTimes {
+    /// When it was due, from the plan's start.
+    pub(crate) at: Duration,
     /// How late after its planned time the frame was handed to the bus.
-    pub(super) late: Duration,
+    pub(crate) late: Duration,
     /// From handing the frame to the bus to its feedback (`None`: no feedback came).
-    pub(super) round_trip: Option<Duration>,
+    pub(crate) round_trip: Option<Duration>,
     /// Whether its position set-point was held back to the step limit from the joint's
     /// measured position (the joint lagged further behind the plan than that).
-    pub(super) held_back: bool,
+    pub(crate) held_back: bool,
+    /// The position set-point it carried, degrees, and how far the plan's was from it
+    /// (`None`: no position set-point).
+    pub(crate) set_point: Option<(f64, f64)>,
 }
 
 /// Frames in a row without feedback before a run counts its joint as silent.
@@ -91,6 +111,7 @@ pub fn check_plan_steps(plan: &Plan, step_limit_deg: f64, hint: &str) -> Result<
 }
 
 /// What the stream watch needs to know about the run.
+#[derive(Clone, Copy)]
 pub(super) struct Watch {
     /// The loop the frames drive (and the safe state's mode).
     pub servo: ServoLoop,
@@ -298,6 +319,96 @@ impl Follow {
     }
 }
 
+/// The host's protection of a stream's joint (see the module docs): its monitor, when
+/// the temperature is read next, and the events that did not stop the run.
+struct Guard {
+    monitor: Monitor,
+    model: Option<robobus_whj::units::Model>,
+    scale: robobus_whj::units::CurrentScale,
+    next_temperature: Instant,
+}
+
+impl Guard {
+    /// The joint's guard from `start`, with its model's limits (the identity the bus
+    /// read; a joint it does not know is watched with the defaults of an unknown model).
+    fn new(j: &Joint<'_>, start: Instant) -> Self {
+        let identity = j.identity().ok();
+        let model = identity.map(|i| i.model);
+        Self {
+            monitor: Monitor::new(
+                start,
+                vec![(format!("joint {}", j.id().get()), Limits::whj(model))],
+            ),
+            model,
+            scale: identity.map_or(robobus_whj::units::CurrentScale::OneMilliamp, |i| {
+                i.current_scale()
+            }),
+            next_temperature: start,
+        }
+    }
+
+    /// Feeds one feedback (`before`: the position set-point sent before the frame it
+    /// answers), with the temperature when it is due; the fault that stops the run, if
+    /// any. The other events go to `events` (at most [`protect::MAX_EVENTS`]).
+    fn feed(
+        &mut self,
+        j: &Joint<'_>,
+        fb: &ServoFeedback,
+        before: Option<f64>,
+        events: &mut Vec<Fault>,
+    ) -> Option<Fault> {
+        let now = j.bus().now();
+        let temperature_c = if now >= self.next_temperature {
+            self.next_temperature = now + TEMPERATURE_EVERY;
+            j.status()
+                .ok()
+                .map(|st| f64::from(st.temperature.celsius()))
+        } else {
+            None
+        };
+        let position = fb.position.degrees();
+        #[allow(clippy::cast_precision_loss)] // |mA| < 2^53
+        let current_a = fb.current.milliamps(self.scale) as f64 / 1e3;
+        let reading = Reading {
+            at: now,
+            position_deg: Some(position),
+            error_deg: before.map(|b| (position - b).abs()),
+            target_deg: before,
+            current_a: Some(current_a),
+            temperature_c,
+        };
+        let mut stop = None;
+        for f in self.monitor.feed(0, &reading) {
+            tracing::warn!("{f}");
+            if f.action == Action::Stop {
+                stop = Some(f);
+            } else if events.len() < protect::MAX_EVENTS {
+                events.push(f);
+            }
+        }
+        stop
+    }
+
+    /// Stops the joint for `fault`: disabled where its model's brake holds it, else in the
+    /// run's safe state; the run's error names the fault.
+    fn stop(&self, j: &Joint<'_>, watch: &Watch, fault: &Fault, sent: u64) -> OpError {
+        let on_stop = if protect::torque_off_is_safe(self.model) {
+            SafeState::Disable
+        } else {
+            watch.on_stop
+        };
+        let watch = Watch { on_stop, ..*watch };
+        stop_with(
+            j,
+            &watch,
+            OpError::Device(format!(
+                "{fault}; {} stopped after {sent} frame(s)",
+                watch.stage
+            )),
+        )
+    }
+}
+
 /// How a move finishes when its last set-point was held back (the joint lagged): the
 /// target goes out again every `period` until it goes out unchanged, for at most `within`
 /// after the plan's last frame.
@@ -312,15 +423,17 @@ pub(super) struct Finish {
 /// Sends the timed frames of `plan` at their times, planned against the joint's measured
 /// position and watched as the module docs say. `on_frame` gets each frame's index, its
 /// feedback (`None`: no reply) and its times; with `finish`, a held-back last set-point
-/// goes out again as [`Finish`] says. Returns the frames sent, or `Err(())` inside
-/// `Ok` when the caller's token stopped it (the caller applies the safe state and reports
-/// the interruption).
+/// goes out again as [`Finish`] says. The host's protection events that did not stop the
+/// run go to `events`. Returns the frames sent, or `Err(())` inside `Ok` when the
+/// caller's token stopped it (the caller applies the safe state and reports the
+/// interruption).
 pub(super) fn send_frames(
     j: &Joint<'_>,
     plan: &Plan,
     control: &mut Control<'_>,
     watch: &Watch,
     finish: Option<Finish>,
+    events: &mut Vec<Fault>,
     mut on_frame: impl FnMut(usize, Option<&ServoFeedback>, FrameTimes),
 ) -> Result<Result<u64, ()>, OpError> {
     let bus = j.bus();
@@ -328,6 +441,7 @@ pub(super) fn send_frames(
     let id = joint.get();
     let mut follow = Follow::new(measured_start(j, plan, watch)?);
     let start = bus.now();
+    let mut guard = Guard::new(j, start);
     let total = plan.frames.len() as u64;
     let mut sent = 0u64;
     let mut missing = 0u32;
@@ -355,6 +469,7 @@ pub(super) fn send_frames(
         if control.stopped() || !pause_until(bus, control, due) {
             return Ok(Err(()));
         }
+        let before = follow.last_sent;
         let (request, held_back) = follow
             .hold(f.request, j.id(), bus.now(), watch.step_limit_deg)
             .map_err(|m| {
@@ -376,13 +491,19 @@ pub(super) fn send_frames(
         let now = bus.now();
         let round_trip = fb.is_some().then(|| now.saturating_duration_since(sent_at));
         sent += 1;
+        let set_point = position_target(request, joint).map(|sent| {
+            let planned = position_target(f.request, joint).unwrap_or(sent);
+            (sent, (planned - sent).abs())
+        });
         on_frame(
             k,
             fb.as_ref(),
             FrameTimes {
+                at: f.at,
                 late,
                 round_trip,
                 held_back,
+                set_point,
             },
         );
         if sent <= total && (sent.is_multiple_of(16) || sent == total) {
@@ -409,6 +530,9 @@ pub(super) fn send_frames(
         last_heard = now;
         let when = format!("at frame {k} of {total}");
         check_feedback(j, watch, &fb, &when)?;
+        if let Some(fault) = guard.feed(j, &fb, before, events) {
+            return Err(guard.stop(j, watch, &fault, sent));
+        }
         follow.measured(fb.position.degrees());
     }
     Ok(Ok(sent))
