@@ -7,6 +7,10 @@ use std::time::{Duration, Instant};
 
 use robobus::catalogue::Report;
 use robobus::frontend::guard::SafeEvent;
+use robobus::ops::{DeviceResult, ErrorKind, Failure, Outcome};
+use robobus::station::Station;
+use robobus::station::diagnostics::{Diagnosis, Stops, Watch};
+use robobus::station::sampler::RobotJointSample;
 use serde::Serialize;
 use zenoh::Wait as _;
 
@@ -24,16 +28,50 @@ pub(crate) const LOST_TO_BUSES: &str =
     "a sample took longer than the period asked (the buses cannot carry the rate)";
 
 /// The joint states' timing: when each of the last [`RATE_WINDOW`] was taken, and the
-/// slots lost.
+/// slots lost; and each joint's last reading, for the diagnostics.
 #[derive(Debug, Default)]
 pub(crate) struct StateClock {
     taken: Mutex<VecDeque<Instant>>,
     lost_reason: Mutex<Option<&'static str>>,
     lost_to_commands: AtomicU64,
     lost_total: AtomicU64,
+    /// Each joint's last reading (made with the first sample).
+    watch: Mutex<Option<Watch>>,
 }
 
 impl StateClock {
+    /// Keeps each joint's reading of a sample taken at `at` (`None`: it failed as a
+    /// whole) for the diagnostics.
+    pub(crate) fn record(&self, station: &Station, report: Option<&Report>, at: Instant) {
+        let mut watch = self.watch.lock().unwrap_or_else(PoisonError::into_inner);
+        let watch = watch.get_or_insert_with(|| Watch::new(station));
+        match report {
+            Some(r) => watch.record(at, r.results.iter().filter_map(reading).collect()),
+            None => watch.record_failure(
+                at,
+                &Failure::of(
+                    ErrorKind::Device,
+                    &"robot.sample failed as a whole: no joint was read",
+                ),
+            ),
+        }
+    }
+
+    /// The diagnoses of the station's joints and buses at `now` from the last readings
+    /// (every joint stale before the first).
+    pub(crate) fn diagnose(
+        &self,
+        station: &Station,
+        now: Instant,
+        stale_after: Duration,
+        stops: &Stops,
+    ) -> Vec<Diagnosis> {
+        let mut watch = self.watch.lock().unwrap_or_else(PoisonError::into_inner);
+        watch
+            .get_or_insert_with(|| Watch::new(station))
+            .diagnose(station, now, stale_after, stops)
+    }
+
     /// `n` slots passed without a sample, for `why`.
     pub(crate) fn lose(&self, n: u64, why: &'static str) {
         self.lost_total.fetch_add(n, Ordering::Relaxed);
@@ -338,8 +376,38 @@ pub(crate) fn joint_state(s: &Shared, report: Option<&Report>, unix_ms: f64) -> 
     Some(msg)
 }
 
+/// One `robot.sample` row as the library typed it: a joint's reading or its failure
+/// (`None` for a row without its name).
+fn reading(row: &serde_json::Value) -> Option<DeviceResult<String, RobotJointSample>> {
+    let id = row.get("id")?.as_str()?.to_owned();
+    let f = |k: &str| row.get(k).and_then(serde_json::Value::as_f64);
+    let text = |k: &str| row.get(k).and_then(serde_json::Value::as_str);
+    let outcome = match f("position_deg") {
+        Some(position_deg) => Outcome::Ok(RobotJointSample {
+            position_deg,
+            speed_deg_s: f("speed_deg_s"),
+            current_ma: row.get("current_ma").and_then(serde_json::Value::as_i64),
+            effort_nm: f("effort_nm"),
+            load: row
+                .get("load")
+                .and_then(serde_json::Value::as_u64)
+                .and_then(|l| u8::try_from(l).ok()),
+            enabled: row.get("enabled").and_then(serde_json::Value::as_bool),
+            error: text("error").unwrap_or_default().to_owned(),
+        }),
+        None => Outcome::Failed(Failure {
+            kind: row
+                .get("kind")
+                .and_then(|k| serde_json::from_value(k.clone()).ok())
+                .unwrap_or(ErrorKind::Device),
+            error: text("error").unwrap_or("no reading").to_owned(),
+        }),
+    };
+    Some(DeviceResult { id, outcome })
+}
+
 /// Publishes one sample (its report, or `None` for a read that failed as a whole) taken
-/// at `at` as a joint state.
+/// at `at` as a joint state, and keeps its readings for the diagnostics.
 pub(crate) fn publish_sample(
     s: &Shared,
     report: Option<&Report>,
@@ -348,6 +416,7 @@ pub(crate) fn publish_sample(
     publisher: &zenoh::pubsub::Publisher<'static>,
 ) {
     s.states.took(at);
+    s.states.record(&s.station, report, at);
     if let Some(msg) = joint_state(s, report, unix_ms) {
         match publisher.put(msg.encode()).wait() {
             Ok(()) => {

@@ -15,6 +15,9 @@
 //!   ([`Follower::apply`]); a malformed one is refused, an out-of-range, unarmed or stale
 //!   one is held (nothing moves), each counted with its reason; one replaced by a newer
 //!   one before it could be applied is counted superseded.
+//! - `NS/diagnostics`: `diagnostic_msgs/msg/DiagnosticArray` in CDR ([`diagnostics`]) about
+//!   once a second: one status per joint and per bus of the robot file (OK, warning, error
+//!   or stale, with the reason and the values read), from the joint states' own samples.
 //! - `NS/robobus/run`: a queryable: a catalogue request in JSON in, its report out.
 //! - `NS/robobus/plan`: a queryable: a request's dry run.
 //! - `NS/robobus/arm`: a queryable: `true` / `false` (or `{"armed": B}`) arms or disarms,
@@ -40,6 +43,7 @@
 pub use robobus::cdr;
 mod capacity;
 mod claim;
+pub mod diagnostics;
 mod health;
 mod zconfig;
 
@@ -241,6 +245,8 @@ pub struct Keys {
     pub joint_states: String,
     /// `NS/joint_commands`.
     pub joint_commands: String,
+    /// `NS/diagnostics`.
+    pub diagnostics: String,
     /// `NS/robobus/run`.
     pub run: String,
     /// `NS/robobus/plan`.
@@ -263,6 +269,7 @@ impl Keys {
         Ok(Self {
             joint_states: k("joint_states"),
             joint_commands: k("joint_commands"),
+            diagnostics: k("diagnostics"),
             run: k("robobus/run"),
             plan: k("robobus/plan"),
             arm: k("robobus/arm"),
@@ -629,6 +636,15 @@ impl Bridge {
             let s = Arc::clone(&shared);
             threads.push(spawn("robobus-states", move || {
                 states(&s, &publisher);
+            })?);
+            let publisher = session
+                .declare_publisher(keys.diagnostics.clone())
+                .encoding(Encoding::APPLICATION_CDR)
+                .wait()
+                .map_err(zerr)?;
+            let s = Arc::clone(&shared);
+            threads.push(spawn("robobus-diagnostics", move || {
+                diagnostics::publish(&s, &publisher);
             })?);
         }
 
