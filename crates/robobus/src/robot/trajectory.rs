@@ -26,6 +26,8 @@
 
 use std::fmt;
 
+pub mod ros;
+
 use super::RobotConfig;
 
 /// The most rows (points) of a trajectory.

@@ -1,0 +1,727 @@
+//! ROS 2 trajectories (`trajectory_msgs/msg/JointTrajectory`) with the semantics of
+//! `ros2_controllers`' `joint_trajectory_controller`, turned into the trajectory
+//! [`robot.play`](crate::catalogue::robot::Play) plays.
+//!
+//! - **Joints**: the message's `joint_names` are some of the robot file's joints (each at
+//!   most once, in any order); the file's other joints are not moved (they hold).
+//! - **Points**: each has one position per joint (rad, the robot file's joint frame),
+//!   velocities for every joint or none (rad/s), no efforts (the joints are position
+//!   controlled); accelerations are read and not used. `time_from_start` is not negative
+//!   and grows from point to point.
+//! - **Start**: a zero `header.stamp` starts it when it is received; a stamp in the
+//!   future at that time (at most [`MAX_START_DELAY_S`] ahead); a stamp in the past
+//!   starts it now with the points already due skipped (as the controller samples a late
+//!   trajectory at the time it reads it), and one whose last point is already due is
+//!   refused (`OLD_HEADER_TIMESTAMP`, as the controller refuses it).
+//! - **Motion**: from where the joints are at the start (held still: a replaced
+//!   trajectory's joints are held first) to the first point due, then point to point:
+//!   linearly, or where both ends of a segment give velocities, on the cubic through
+//!   their positions and velocities (the controller's spline), sampled every
+//!   [`SPLINE_STEP_S`].
+//! - **Checked whole before anything moves** ([`plan`]): names, sizes, finite values,
+//!   times, every position within the joint's soft limits, every velocity and every
+//!   stretch of the motion (the first included) within its `max_velocity`; a refusal
+//!   names the point, the joint and the value, with
+//!   [`result_code`](crate::cdr::result_code)'s code.
+//! - **The end** ([`outcome`]): reached when every joint ends within
+//!   [`GOAL_TOLERANCE_DEG`] of its last point.
+
+use super::{MAX_DURATION_S, MAX_JOINTS, Trajectory};
+use crate::cdr::{JointTrajectory, result_code};
+use crate::robot::RobotConfig;
+
+/// The furthest in the future a trajectory's stamp may start it, s.
+pub const MAX_START_DELAY_S: f64 = 60.0;
+/// How often a segment with velocities at both ends is sampled, s (at most: a long
+/// trajectory is sampled more coarsely to stay within [`super::MAX_POINTS`]).
+pub const SPLINE_STEP_S: f64 = 0.02;
+/// How far from its last point a joint may end for the trajectory to count as reached,
+/// degrees.
+pub const GOAL_TOLERANCE_DEG: f64 = 1.0;
+/// How far from where a joint is a first point due at time 0 may be, degrees (it cannot
+/// be reached in no time).
+pub const AT_ONCE_DEG: f64 = 0.5;
+
+/// Why a trajectory is refused: the code of `control_msgs/action/FollowJointTrajectory`'s
+/// result and what does not fit.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Refused {
+    /// [`result_code`]'s `INVALID_GOAL`, `INVALID_JOINTS` or `OLD_HEADER_TIMESTAMP`.
+    pub code: i32,
+    /// The point, the joint and the value against what is allowed.
+    pub message: String,
+}
+
+impl std::fmt::Display for Refused {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.message)
+    }
+}
+
+impl std::error::Error for Refused {}
+
+fn invalid(message: String) -> Refused {
+    Refused {
+        code: result_code::INVALID_GOAL,
+        message: format!("joint_trajectory: {message}"),
+    }
+}
+
+/// A trajectory whose values were checked (names, sizes, finite values, times, limits,
+/// velocities): what [`check`] finds before the joints are read.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Checked {
+    /// The joints, in the message's order.
+    pub joints: Vec<String>,
+    /// Each joint's index in the robot file.
+    pub index: Vec<usize>,
+    /// Each point: its time from the start (s), positions (degrees) and velocities
+    /// (degrees a second, where given).
+    points: Vec<(f64, Vec<f64>, Option<Vec<f64>>)>,
+    /// The stamp's start, seconds since the epoch (`None`: when received).
+    start_unix_s: Option<f64>,
+}
+
+/// Checks the message's joints, sizes, values and times against `robot` (the first of
+/// [`plan`]'s checks, which need no reading of the joints).
+///
+/// # Errors
+///
+/// [`Refused`] naming the joint, the point and the value.
+pub fn check(msg: &JointTrajectory, robot: &RobotConfig) -> Result<Checked, Refused> {
+    let names = &msg.joint_names;
+    let bad_joints = |m: String| Refused {
+        code: result_code::INVALID_JOINTS,
+        message: format!("joint_trajectory: {m}"),
+    };
+    if names.is_empty() || names.len() > MAX_JOINTS {
+        return Err(bad_joints(format!(
+            "{} joint names; 1..={MAX_JOINTS} allowed",
+            names.len()
+        )));
+    }
+    let mut index = Vec::with_capacity(names.len());
+    for (k, name) in names.iter().enumerate() {
+        if names[..k].contains(name) {
+            return Err(bad_joints(format!("joint {name} appears twice")));
+        }
+        let Some(i) = robot.joints.iter().position(|j| &j.name == name) else {
+            return Err(bad_joints(format!(
+                "joint {} is not in the robot file (its joints: {})",
+                crate::ops::cut(name),
+                robot.joint_names()
+            )));
+        };
+        index.push(i);
+    }
+    if msg.points.is_empty() {
+        return Err(invalid("no points: nothing to play".into()));
+    }
+    let n = names.len();
+    let mut points = Vec::with_capacity(msg.points.len());
+    let mut before: Option<f64> = None;
+    for (k, p) in msg.points.iter().enumerate() {
+        let at = |what: &str| format!("point {k}: {what}");
+        if p.positions.len() != n {
+            return Err(invalid(at(&format!(
+                "{} positions for {n} joints",
+                p.positions.len()
+            ))));
+        }
+        for (what, v) in [
+            ("velocities", &p.velocities),
+            ("accelerations", &p.accelerations),
+        ] {
+            if !v.is_empty() && v.len() != n {
+                return Err(invalid(at(&format!(
+                    "{} {what} for {n} joints (give one per joint or none)",
+                    v.len()
+                ))));
+            }
+        }
+        if !p.effort.is_empty() {
+            return Err(invalid(at(
+                "efforts are given: the bridge plays positions (and velocities), not efforts",
+            )));
+        }
+        for (what, v) in [
+            ("position", &p.positions),
+            ("velocity", &p.velocities),
+            ("acceleration", &p.accelerations),
+        ] {
+            if let Some((j, x)) = v.iter().enumerate().find(|(_, x)| !x.is_finite()) {
+                return Err(invalid(at(&format!(
+                    "{}'s {what} {x} is not finite",
+                    names[j]
+                ))));
+            }
+        }
+        let d = p.time_from_start;
+        if d.sec < 0 || d.nanosec >= 1_000_000_000 {
+            return Err(invalid(at(&format!(
+                "time_from_start {} s {} ns: not a time from the start (sec >= 0, \
+                 nanosec < 1e9)",
+                d.sec, d.nanosec
+            ))));
+        }
+        let t = d.as_secs_f64();
+        if t > MAX_DURATION_S {
+            return Err(invalid(at(&format!(
+                "time_from_start {t} s: more than the {MAX_DURATION_S} s a trajectory may last"
+            ))));
+        }
+        if let Some(b) = before
+            && t <= b
+        {
+            return Err(invalid(at(&format!(
+                "time_from_start {t} s is not later than the point before ({b} s)"
+            ))));
+        }
+        before = Some(t);
+        let mut deg = Vec::with_capacity(n);
+        for (c, (&x, &i)) in p.positions.iter().zip(&index).enumerate() {
+            let j = &robot.joints[i];
+            let (lo, hi) = (j.limits[0].min(j.limits[1]), j.limits[0].max(j.limits[1]));
+            if x < lo - 1e-12 || x > hi + 1e-12 {
+                return Err(invalid(at(&format!(
+                    "{} = {x} rad is outside its soft limits {lo}..={hi} rad (the robot \
+                     file's limits)",
+                    names[c]
+                ))));
+            }
+            deg.push(x.to_degrees());
+        }
+        let vel = if p.velocities.is_empty() {
+            None
+        } else {
+            for (c, (&v, &i)) in p.velocities.iter().zip(&index).enumerate() {
+                let vmax = robot.joints[i].max_velocity;
+                if v.abs() > vmax * (1.0 + 1e-9) {
+                    return Err(invalid(at(&format!(
+                        "{}'s velocity {v} rad/s is faster than its max_velocity {vmax} rad/s",
+                        names[c]
+                    ))));
+                }
+            }
+            Some(p.velocities.iter().map(|v| v.to_degrees()).collect())
+        };
+        points.push((t, deg, vel));
+    }
+    Ok(Checked {
+        joints: names.clone(),
+        index,
+        points,
+        start_unix_s: msg.stamp.as_unix_s(),
+    })
+}
+
+impl Checked {
+    /// Seconds from `now_unix_s` to the trajectory's start (0 for a zero stamp; negative
+    /// for a stamp in the past).
+    #[must_use]
+    pub fn start_in_s(&self, now_unix_s: f64) -> f64 {
+        self.start_unix_s.map_or(0.0, |s| s - now_unix_s)
+    }
+
+    /// Refuses a start too far ahead or an end already past, at `now_unix_s`.
+    ///
+    /// # Errors
+    ///
+    /// [`Refused`]: `INVALID_GOAL` for a start more than [`MAX_START_DELAY_S`] ahead,
+    /// `OLD_HEADER_TIMESTAMP` for a last point already due.
+    pub fn check_start(&self, now_unix_s: f64) -> Result<(), Refused> {
+        let ahead = self.start_in_s(now_unix_s);
+        if ahead > MAX_START_DELAY_S {
+            return Err(invalid(format!(
+                "header.stamp starts it {ahead:.3} s from now, more than the \
+                 {MAX_START_DELAY_S} s allowed"
+            )));
+        }
+        let last = self.points.last().map_or(0.0, |p| p.0);
+        if ahead + last < 0.0 {
+            return Err(Refused {
+                code: result_code::OLD_HEADER_TIMESTAMP,
+                message: format!(
+                    "joint_trajectory: header.stamp is {:.3} s ago and its last point was due \
+                     {last} s after it: it ended {:.3} s ago",
+                    -ahead,
+                    -(ahead + last)
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    /// The last point's positions, degrees, in the order of [`Checked::joints`].
+    #[must_use]
+    pub fn goal_deg(&self) -> &[f64] {
+        self.points.last().map_or(&[], |p| p.1.as_slice())
+    }
+}
+
+/// A trajectory ready to play: checked whole against the robot file and where its joints
+/// are.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Planned {
+    /// The trajectory file `robot.play` plays (joint degrees): where the joints are at
+    /// 0 s, then the points.
+    pub csv: String,
+    /// It, parsed.
+    pub trajectory: Trajectory,
+    /// The points skipped because they were already due (a stamp in the past).
+    pub skipped: usize,
+    /// How much of the message's time was already over at the start, s.
+    pub late_s: f64,
+}
+
+/// The position and velocity at `t` of the cubic through `(t0, p0, v0)` and `(t1, p1,
+/// v1)`.
+fn hermite(t: f64, (t0, p0, v0): (f64, f64, f64), (t1, p1, v1): (f64, f64, f64)) -> f64 {
+    let h = t1 - t0;
+    let s = (t - t0) / h;
+    let (s2, s3) = (s * s, s * s * s);
+    (2.0 * s3 - 3.0 * s2 + 1.0) * p0
+        + (s3 - 2.0 * s2 + s) * h * v0
+        + (-2.0 * s3 + 3.0 * s2) * p1
+        + (s3 - s2) * h * v1
+}
+
+/// Plans `checked` to start now: `late_s` seconds after its stamp's start (0 for a zero
+/// stamp or a start reached by waiting), from `from_deg` (where each of its joints is,
+/// degrees, in its order; held still). The points already due are skipped, and the
+/// joints go from where they are to the first point due in the time left to it.
+///
+/// # Errors
+///
+/// [`Refused`] (`INVALID_GOAL`) for a first stretch faster than a joint's
+/// `max_velocity` (or a first point due at once and more than [`AT_ONCE_DEG`] away), or
+/// a spline that leaves a joint's soft limits or exceeds its `max_velocity` between its
+/// points; `OLD_HEADER_TIMESTAMP` when every point is already due.
+pub fn plan(
+    checked: &Checked,
+    robot: &RobotConfig,
+    from_deg: &[f64],
+    late_s: f64,
+) -> Result<Planned, Refused> {
+    let late_s = late_s.max(0.0);
+    let n = checked.joints.len();
+    if from_deg.len() != n || from_deg.iter().any(|x| !x.is_finite()) {
+        return Err(invalid(format!(
+            "{} positions read for {n} joints",
+            from_deg.len()
+        )));
+    }
+    let skipped = checked
+        .points
+        .iter()
+        .take_while(|p| late_s > 0.0 && p.0 <= late_s)
+        .count();
+    let rest = &checked.points[skipped..];
+    let Some(first) = rest.first() else {
+        return Err(Refused {
+            code: result_code::OLD_HEADER_TIMESTAMP,
+            message: format!(
+                "joint_trajectory: it started {late_s:.3} s ago: every point is already due"
+            ),
+        });
+    };
+    // The first stretch, from where the joints are.
+    let t_first = first.0 - late_s;
+    for (c, (&a, &b)) in from_deg.iter().zip(&first.1).enumerate() {
+        let j = &robot.joints[checked.index[c]];
+        let d = (b - a).abs();
+        let vmax = j.max_velocity.to_degrees();
+        let at_once = t_first <= 1e-9;
+        if at_once && d > AT_ONCE_DEG {
+            return Err(invalid(format!(
+                "point {skipped}: due at once, and {} is {d:.3}° from it (at {a:.3}°): more \
+                 than the {AT_ONCE_DEG}° a point due at once may be",
+                checked.joints[c]
+            )));
+        }
+        if !at_once && d > vmax * t_first * (1.0 + 1e-9) {
+            return Err(invalid(format!(
+                "point {skipped}: {} is at {a:.3}° and would move {d:.3}° in {t_first:.3} s \
+                 ({:.1}°/s), faster than its max_velocity {vmax:.1}°/s ({} rad/s)",
+                checked.joints[c],
+                d / t_first.max(1e-9),
+                j.max_velocity
+            )));
+        }
+    }
+    // Knots: (time from now, positions, velocities); the joints start still.
+    let mut knots: Vec<(f64, &[f64], Option<Vec<f64>>)> = Vec::with_capacity(rest.len() + 1);
+    let still = vec![0.0; n];
+    if t_first > 1e-9 {
+        knots.push((0.0, from_deg, Some(still)));
+    }
+    for (t, p, v) in rest {
+        knots.push((t - late_s, p.as_slice(), v.clone()));
+    }
+    let duration = knots.last().map_or(0.0, |k| k.0);
+    let step = SPLINE_STEP_S.max(duration / (super::MAX_POINTS as f64 / 2.0));
+    let mut rows: Vec<(f64, Vec<f64>)> = Vec::new();
+    for (k, (t, p, v)) in knots.iter().enumerate() {
+        if let (Some((t0, p0, Some(v0))), Some(v1)) = (k.checked_sub(1).map(|i| &knots[i]), v) {
+            // Velocities at both ends: the cubic, sampled.
+            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // bounded
+            let m = ((t - t0) / step).ceil().max(1.0) as usize;
+            for s in 1..m {
+                #[allow(clippy::cast_precision_loss)]
+                let ts = t0 + (t - t0) * s as f64 / m as f64;
+                rows.push((
+                    ts,
+                    (0..n)
+                        .map(|c| hermite(ts, (*t0, p0[c], v0[c]), (*t, p[c], v1[c])))
+                        .collect(),
+                ));
+            }
+        }
+        rows.push((*t, p.to_vec()));
+    }
+    let mut csv = String::from("time_s");
+    for j in &checked.joints {
+        csv.push(',');
+        csv.push_str(j);
+    }
+    csv.push('\n');
+    for (t, p) in &rows {
+        csv.push_str(&format!("{t}"));
+        for x in p {
+            csv.push_str(&format!(",{x}"));
+        }
+        csv.push('\n');
+    }
+    let trajectory = Trajectory::parse(&csv).map_err(|e| invalid(e.0))?;
+    // Between the points: the spline's own limits and speeds (the points' are checked).
+    trajectory.check(robot).map_err(|e| {
+        let at =
+            e.0.strip_prefix("trajectory line ")
+                .and_then(|r| r.split_once(": "))
+                .and_then(|(line, what)| {
+                    let row = line.parse::<usize>().ok()?.checked_sub(2)?;
+                    Some(format!(
+                        "at {:.3} s from the start: {what}",
+                        rows.get(row)?.0
+                    ))
+                })
+                .unwrap_or(e.0);
+        invalid(format!("on the curve its velocities make, {at}"))
+    })?;
+    Ok(Planned {
+        csv,
+        trajectory,
+        skipped,
+        late_s,
+    })
+}
+
+/// How a played trajectory ended, per joint: how far from its last point.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct JointEnd {
+    /// The joint.
+    pub joint: String,
+    /// Its last point, degrees.
+    pub goal_deg: f64,
+    /// Where it was read at the end, degrees (`None`: it did not answer).
+    pub position_deg: Option<f64>,
+    /// The distance, degrees.
+    pub error_deg: Option<f64>,
+}
+
+/// The end of a played trajectory: each joint against its last point, and whether all
+/// are within [`GOAL_TOLERANCE_DEG`]: `(code, the joints)`, the code
+/// `SUCCESSFUL` or `GOAL_TOLERANCE_VIOLATED` (a joint outside, or one that did not
+/// answer).
+#[must_use]
+pub fn outcome(checked: &Checked, positions_deg: &[Option<f64>]) -> (i32, Vec<JointEnd>) {
+    let ends: Vec<JointEnd> = checked
+        .joints
+        .iter()
+        .zip(checked.goal_deg())
+        .enumerate()
+        .map(|(c, (j, &g))| {
+            let at = positions_deg.get(c).copied().flatten();
+            JointEnd {
+                joint: j.clone(),
+                goal_deg: g,
+                position_deg: at,
+                error_deg: at.map(|p| (p - g).abs()),
+            }
+        })
+        .collect();
+    let ok = ends
+        .iter()
+        .all(|e| e.error_deg.is_some_and(|d| d <= GOAL_TOLERANCE_DEG));
+    (
+        if ok {
+            result_code::SUCCESSFUL
+        } else {
+            result_code::GOAL_TOLERANCE_VIOLATED
+        },
+        ends,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::float_cmp)] // exact sampled values
+
+    use super::*;
+    use crate::cdr::{Duration, JointTrajectoryPoint, Time};
+
+    const ROBOT: &str = r#"
+        [buses.a]
+        kind = "whj-external"
+        [[joints]]
+        name = "j1"
+        bus = "a"
+        id = 1
+        limits = [-1.0, 1.0]
+        max_velocity = 1.0
+        max_acceleration = 10.0
+        [[joints]]
+        name = "j2"
+        bus = "a"
+        id = 2
+        limits = [-2.0, 2.0]
+        max_velocity = 2.0
+        max_acceleration = 10.0
+    "#;
+
+    fn robot() -> RobotConfig {
+        RobotConfig::from_toml_str(ROBOT).unwrap()
+    }
+
+    fn point(t: f64, positions: &[f64]) -> JointTrajectoryPoint {
+        JointTrajectoryPoint {
+            positions: positions.to_vec(),
+            time_from_start: Duration::from_secs_f64(t),
+            ..JointTrajectoryPoint::default()
+        }
+    }
+
+    fn msg(names: &[&str], points: Vec<JointTrajectoryPoint>) -> JointTrajectory {
+        JointTrajectory {
+            joint_names: names.iter().map(|s| (*s).to_owned()).collect(),
+            points,
+            ..JointTrajectory::default()
+        }
+    }
+
+    #[test]
+    fn a_subset_of_joints_plays_from_where_they_are_to_each_point_on_time() {
+        let m = msg(&["j2"], vec![point(1.0, &[0.5]), point(2.0, &[1.0])]);
+        let c = check(&m, &robot()).unwrap();
+        assert_eq!(c.index, [1]);
+        let p = plan(&c, &robot(), &[10.0], 0.0).unwrap();
+        assert_eq!(
+            p.csv,
+            format!(
+                "time_s,j2\n0,10\n1,{}\n2,{}\n",
+                0.5_f64.to_degrees(),
+                1.0_f64.to_degrees()
+            )
+        );
+        assert_eq!(p.trajectory.at(1.0), [0.5_f64.to_degrees()]);
+        assert_eq!(p.skipped, 0);
+    }
+
+    #[test]
+    fn a_late_stamp_skips_the_points_already_due_and_goes_to_the_next_in_the_time_left() {
+        let m = msg(
+            &["j1"],
+            vec![point(1.0, &[0.1]), point(2.0, &[0.2]), point(3.0, &[0.3])],
+        );
+        let c = check(&m, &robot()).unwrap();
+        let p = plan(&c, &robot(), &[0.0], 1.5).unwrap();
+        assert_eq!(p.skipped, 1);
+        assert_eq!(
+            p.csv,
+            format!(
+                "time_s,j1\n0,0\n0.5,{}\n1.5,{}\n",
+                0.2_f64.to_degrees(),
+                0.3_f64.to_degrees()
+            )
+        );
+        let e = plan(&c, &robot(), &[0.0], 3.0).unwrap_err();
+        assert_eq!(e.code, result_code::OLD_HEADER_TIMESTAMP);
+    }
+
+    #[test]
+    fn the_stamp_says_when_it_starts() {
+        let mut m = msg(&["j1"], vec![point(1.0, &[0.1])]);
+        m.stamp = Time {
+            sec: 100,
+            nanosec: 0,
+        };
+        let c = check(&m, &robot()).unwrap();
+        assert_eq!(c.start_in_s(99.0), 1.0);
+        assert_eq!(c.start_in_s(100.5), -0.5);
+        c.check_start(99.0).unwrap();
+        assert_eq!(
+            c.check_start(101.5).unwrap_err().code,
+            result_code::OLD_HEADER_TIMESTAMP
+        );
+        let e = c.check_start(30.0).unwrap_err();
+        assert_eq!(e.code, result_code::INVALID_GOAL);
+        assert!(e.message.contains("70.000 s from now"), "{e}");
+        m.stamp = Time::default();
+        assert_eq!(check(&m, &robot()).unwrap().start_in_s(12345.0), 0.0);
+    }
+
+    #[test]
+    fn velocities_at_both_ends_make_the_cubic_through_them() {
+        let mut a = point(1.0, &[0.5]);
+        a.velocities = vec![0.0];
+        let mut b = point(2.0, &[1.0]);
+        b.velocities = vec![0.0];
+        let c = check(&msg(&["j2"], vec![a, b]), &robot()).unwrap();
+        let p = plan(&c, &robot(), &[0.5_f64.to_degrees()], 0.0).unwrap();
+        // The joints start still: the first stretch is a cubic too (already there: it
+        // stays), then the second; 50 samples each and the first point.
+        let half = p.trajectory.at(1.5)[0];
+        assert!((half - 0.75_f64.to_degrees()).abs() < 1e-9, "{half}");
+        // The smoothstep is slow at its ends: at 1.1 s, 2.8 % of the way.
+        let early = p.trajectory.at(1.1)[0] - 0.5_f64.to_degrees();
+        assert!(
+            (early - 0.028 * 0.5_f64.to_degrees()).abs() < 1e-6,
+            "{early}"
+        );
+        assert_eq!(p.trajectory.len(), 1 + 50 + 50);
+    }
+
+    #[test]
+    fn a_bad_trajectory_is_refused_whole_naming_what_does_not_fit() {
+        let r = robot();
+        let mut with_effort = point(1.0, &[0.1]);
+        with_effort.effort = vec![1.0];
+        let mut fast_velocity = point(1.0, &[0.1]);
+        fast_velocity.velocities = vec![1.5];
+        let mut negative = point(1.0, &[0.1]);
+        negative.time_from_start = Duration {
+            sec: -1,
+            nanosec: 0,
+        };
+        for (m, code, says) in [
+            (
+                msg(&[], vec![point(1.0, &[])]),
+                result_code::INVALID_JOINTS,
+                "0 joint names",
+            ),
+            (
+                msg(&["j9"], vec![point(1.0, &[0.0])]),
+                result_code::INVALID_JOINTS,
+                "joint j9 is not in the robot file (its joints: j1, j2)",
+            ),
+            (
+                msg(&["j1", "j1"], vec![point(1.0, &[0.0, 0.0])]),
+                result_code::INVALID_JOINTS,
+                "joint j1 appears twice",
+            ),
+            (msg(&["j1"], vec![]), result_code::INVALID_GOAL, "no points"),
+            (
+                msg(&["j1"], vec![point(1.0, &[0.0, 1.0])]),
+                result_code::INVALID_GOAL,
+                "point 0: 2 positions for 1 joints",
+            ),
+            (
+                msg(&["j1"], vec![point(1.0, &[f64::NAN])]),
+                result_code::INVALID_GOAL,
+                "point 0: j1's position NaN is not finite",
+            ),
+            (
+                msg(&["j1"], vec![point(1.0, &[1.5])]),
+                result_code::INVALID_GOAL,
+                "point 0: j1 = 1.5 rad is outside its soft limits -1..=1 rad",
+            ),
+            (
+                msg(&["j1"], vec![point(1.0, &[0.1]), point(1.0, &[0.2])]),
+                result_code::INVALID_GOAL,
+                "point 1: time_from_start 1 s is not later than the point before (1 s)",
+            ),
+            (
+                msg(&["j1"], vec![negative]),
+                result_code::INVALID_GOAL,
+                "point 0: time_from_start -1 s 0 ns",
+            ),
+            (
+                msg(&["j1"], vec![point(4000.0, &[0.1])]),
+                result_code::INVALID_GOAL,
+                "more than the 3600 s",
+            ),
+            (
+                msg(&["j1"], vec![with_effort]),
+                result_code::INVALID_GOAL,
+                "efforts are given",
+            ),
+            (
+                msg(&["j1"], vec![fast_velocity]),
+                result_code::INVALID_GOAL,
+                "j1's velocity 1.5 rad/s is faster than its max_velocity 1 rad/s",
+            ),
+        ] {
+            let e = check(&m, &r).unwrap_err();
+            assert_eq!(e.code, code, "{e}");
+            assert!(e.message.contains(says), "{says:?} in {e}");
+        }
+        // Too fast from where the joint is (0.8 rad in 0.5 s at 1 rad/s), and between
+        // two points.
+        let c = check(&msg(&["j1"], vec![point(0.5, &[0.8])]), &r).unwrap();
+        let e = plan(&c, &r, &[0.0], 0.0).unwrap_err();
+        assert!(
+            e.message
+                .contains("point 0: j1 is at 0.000° and would move 45.837° in 0.500 s"),
+            "{e}"
+        );
+        let c = check(
+            &msg(&["j1"], vec![point(1.0, &[0.0]), point(1.5, &[0.8])]),
+            &r,
+        )
+        .unwrap();
+        let e = plan(&c, &r, &[0.0], 0.0).unwrap_err();
+        assert!(e.message.contains("faster than its max_velocity"), "{e}");
+        // A first point due at once is where the joint is, or refused.
+        let c = check(
+            &msg(&["j1"], vec![point(0.0, &[0.0]), point(1.0, &[0.1])]),
+            &r,
+        )
+        .unwrap();
+        assert_eq!(plan(&c, &r, &[0.3], 0.0).unwrap().trajectory.len(), 2);
+        assert!(plan(&c, &r, &[5.0], 0.0).is_err());
+    }
+
+    #[test]
+    fn a_spline_that_overshoots_a_limit_is_refused_naming_the_time() {
+        let mut a = point(1.0, &[0.9]);
+        a.velocities = vec![1.0];
+        let mut b = point(3.0, &[0.9]);
+        b.velocities = vec![-1.0];
+        let r = robot();
+        let c = check(&msg(&["j1"], vec![a, b]), &r).unwrap();
+        let e = plan(&c, &r, &[0.9_f64.to_degrees()], 0.0).unwrap_err();
+        assert!(
+            e.message.contains("on the curve its velocities make, at "),
+            "{e}"
+        );
+        assert!(e.message.contains("outside its soft limits"), "{e}");
+    }
+
+    #[test]
+    fn the_end_is_reached_within_the_goal_tolerance() {
+        let r = robot();
+        let c = check(&msg(&["j1", "j2"], vec![point(1.0, &[0.0, 0.5])]), &r).unwrap();
+        let goal = 0.5_f64.to_degrees();
+        let (code, ends) = outcome(&c, &[Some(0.4), Some(goal - 0.9)]);
+        assert_eq!(code, result_code::SUCCESSFUL);
+        assert_eq!(ends[1].error_deg.map(|e| (e * 10.0).round()), Some(9.0));
+        assert_eq!(
+            outcome(&c, &[Some(0.0), Some(goal + 1.5)]).0,
+            result_code::GOAL_TOLERANCE_VIOLATED
+        );
+        assert_eq!(
+            outcome(&c, &[None, Some(goal)]).0,
+            result_code::GOAL_TOLERANCE_VIOLATED
+        );
+    }
+}
