@@ -3,21 +3,22 @@
     python crates/python/stubgen.py            # prints the stub of robobus/__init__.pyi
     python crates/python/stubgen.py --write    # rewrites crates/python/python/robobus/__init__.pyi
 
-The generated methods (``station.wck.move``, ...) exist only at run time; this gives
-editors and type checkers their signatures: the required arguments in the command line's
-order, the rest keyword-only, each typed from the schema. The test suite checks that the
-stub in the package is what this prints, so the two cannot drift apart.
+The generated methods (``station.wck.move``, ...) are made at import from the schema; this
+gives editors and type checkers the same signatures and docs (``robobus._signatures``
+makes both): the required arguments in the command line's order, the rest keyword-only,
+each typed and described from the schema. The test suite checks that the stub in the
+package is what this prints, so the two cannot drift apart.
 """
 
 from __future__ import annotations
 
-import json
-import keyword
 import pathlib
 import sys
+import textwrap
 from typing import Any
 
 import robobus
+from robobus import _signatures
 
 HERE = pathlib.Path(__file__).resolve().parent
 STUB = HERE / "python" / "robobus" / "__init__.pyi"
@@ -110,7 +111,9 @@ class Station:
     robot: RobotOps
     host: HostOps
     @classmethod
-    def simulated(cls, *, read_only: bool = ...) -> Station: ...
+    def simulated(
+        cls, *, read_only: bool = ..., clock: Literal["wall", "virtual"] = ...
+    ) -> Station: ...
     @classmethod
     def open(
         cls,
@@ -129,6 +132,8 @@ class Station:
     def buses(self) -> tuple[list[str], list[str]]: ...
     @property
     def closed(self) -> bool: ...
+    @property
+    def clock(self) -> Literal["wall", "virtual"]: ...
     @property
     def armed(self) -> bool: ...
     @property
@@ -172,66 +177,24 @@ class JointBus(Station):
 '''
 
 
-def py_type(prop: dict[str, Any], defs: dict[str, Any]) -> str:
-    """The Python type of a schema property."""
-    if "$ref" in prop:
-        name = prop["$ref"].rsplit("/", 1)[1]
-        return py_type(defs[name], defs)
-    for key in ("oneOf", "anyOf"):
-        if key in prop:
-            alts = prop[key]
-            if all("const" in a for a in alts):
-                return "Literal[" + ", ".join(json.dumps(a["const"]) for a in alts) + "]"
-            return " | ".join(dict.fromkeys(py_type(a, defs) for a in alts))
-    if "const" in prop:
-        return f"Literal[{json.dumps(prop['const'])}]"
-    t = prop.get("type")
-    if isinstance(t, list):
-        return " | ".join(py_type({**prop, "type": one}, defs) for one in t)
-    return {
-        "integer": "int",
-        "number": "float",
-        "boolean": "bool",
-        "string": "str",
-        "null": "None",
-    }.get(t, f"Sequence[{py_type(prop.get('items', {}), defs)}]" if t == "array" else "Any")
-
-
 def stub(schema: dict[str, Any]) -> str:
-    defs = schema.get("$defs", {})
     families: dict[str, list[str]] = {}
-    for variant in schema["oneOf"]:
-        props = variant["properties"]
-        op = props["op"]["const"]
-        family = op.split(".", 1)[0]
-        required = [f for f in variant.get("required", []) if f != "op"]
-        optional = sorted(f for f in props if f not in required and f != "op")
+    for o in _signatures.operations(schema).values():
         params = ["self"]
-        for f in required:
-            params.append(f"{arg(f)}: {py_type(props[f], defs)}")
+        params.extend(f"{f.name}: {f.type}" for f in o.fields if f.required)
         params.append("*")
-        for f in optional:
-            t = py_type(props[f], defs)
-            if "None" not in t.split(" | "):
-                t += " | None"
-            params.append(f"{arg(f)}: {t} = ...")
+        params.extend(f"{f.name}: {f.type} = ..." for f in o.fields if not f.required)
         params.append("check: bool = ...")
-        name = robobus.method_name(op)
-        families.setdefault(family, []).append(
-            f"    def {name}(\n        " + ",\n        ".join(params) + ",\n    ) -> Report:\n"
-            f"        \"\"\"The request ``{op}``; a failed device raises its kind's error "
-            "(``check=False``: the report with its row).\"\"\"\n"
+        doc = textwrap.indent(_signatures.docstring(o), "        ").lstrip()
+        families.setdefault(o.family, []).append(
+            f"    def {o.name}(\n        " + ",\n        ".join(params) + ",\n    ) -> Report:\n"
+            f'        """{doc}\n        """\n'
         )
     out = [HEAD]
     for family in ("wck", "whj", "robot", "host"):
         out.append(f"\nclass {family.capitalize()}Ops:\n")
         out.extend(sorted(families.get(family, [])))
     return "".join(out)
-
-
-def arg(name: str) -> str:
-    """A schema field as a parameter name (``from`` is a Python keyword: ``from_``)."""
-    return name + "_" if keyword.iskeyword(name) else name
 
 
 def main() -> None:

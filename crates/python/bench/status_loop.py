@@ -204,7 +204,7 @@ def calls(rounds: int = 5, n: int = 2000) -> list[tuple[str, float, float]]:
     from robobus import _robobus
 
     out: list[tuple[str, float, float]] = []
-    with robobus.Station.simulated() as station:
+    with robobus.Station.simulated(clock="virtual") as station:
         station.whj.mode("1-7", "position", check=True)
         station.whj.enable("1-7", check=True)
         servo = station.wck_servo(0)

@@ -11,13 +11,16 @@ the host safety limits and the confirmation rule decided there, as for the comma
 [127, 127, 127]
 
 - :class:`Station` holds the open buses: ``Station.simulated()`` (the built-in simulated
-  robot: 16 wCK servos, 7 WHJ joints, in-process), ``Station.open(...)`` from the command
-  line's address strings, :func:`open_wck` / :func:`open_whj` for one bus.
+  robot: 16 wCK servos, 7 WHJ joints, in-process, moving in real time;
+  ``clock="virtual"`` runs it on the simulators' virtual clock, ``station.clock`` says
+  which), ``Station.open(...)`` from the command line's address strings,
+  :func:`open_wck` / :func:`open_whj` for one bus.
 - ``station.run(request)`` returns the request's report as a dict equal to what
   ``robobus run`` prints; ``station.wck.<op>(...)``, ``station.whj.<op>(...)`` and
   ``station.robot.sample()`` (and ``station.host.ports()``, the machine's serial ports) are
-  the same requests with the command line's argument names
-  as keyword arguments (the required ones may be given in order).
+  the same requests with the request's field names as keyword arguments (the required
+  ones may be given in order): each has its request's signature and docs
+  (``help(station.whj.move)``), and a refused argument is named as written (``ids=``).
 - ``station.telemetry(request, rate_hz)`` streams a reading request; iterate it.
 - Hot paths take and give numpy arrays: ``station.wck_servos(ids)`` /
   ``station.whj_joints(ids)`` (and one device: ``wck_servo``, ``whj_joint``),
@@ -41,11 +44,10 @@ from __future__ import annotations
 
 import atexit
 import json
-import keyword
 import weakref
 from typing import Any, Iterator, Sequence
 
-from . import errors
+from . import _signatures, errors
 import numpy as np
 import numpy.typing as npt
 
@@ -124,57 +126,42 @@ def schema(of: str = "request") -> dict[str, Any]:
     return json.loads(_schema(of))
 
 
-def _operations() -> dict[str, tuple[list[str], list[str]]]:
-    """Every operation: its arguments (the schema's order) and its required ones (in the
-    order the command line takes them)."""
-    out: dict[str, tuple[list[str], list[str]]] = {}
-    for variant in schema("request")["oneOf"]:
-        props = variant["properties"]
-        op = props["op"]["const"]
-        fields = [f for f in props if f != "op"]
-        required = [f for f in variant.get("required", []) if f != "op"]
-        out[op] = (fields, required)
-    return out
-
-
-_OPS = _operations()
+_SPECS = _signatures.operations(schema("request"))
+# Each operation's parameters as a call takes them (no ``self``, no ``check``).
+_REQUEST_SIGNATURES = {
+    op: _signatures.signature(o, self_=False, check=False) for op, o in _SPECS.items()
+}
 
 
 def operations() -> list[str]:
     """The names of every operation (``"wck.scan"``, ``"whj.move"``, ...)."""
-    return sorted(_OPS)
+    return sorted(_SPECS)
 
 
-def method_name(op: str) -> str:
-    """The Python name of an operation within its family: ``wck.sync-move`` is
-    ``station.wck.sync_move``, ``wck.program.upload`` ``station.wck.program_upload``."""
-    return op.split(".", 1)[1].replace(".", "_").replace("-", "_")
+method_name = _signatures.method_name
+
+
+def _bind(op: str, args: tuple[Any, ...], kwargs: dict[str, Any]) -> dict[str, Any]:
+    """The request dict of ``op`` from a call's arguments, bound to its signature (a
+    missing, unknown or doubled argument is refused in Python's words, naming it)."""
+    try:
+        bound = _REQUEST_SIGNATURES[op].bind(*args, **kwargs)
+    except TypeError as e:
+        raise BadInputError(f"{op}: {e}; nothing was sent", "bad-input") from None
+    req: dict[str, Any] = {"op": op}
+    fields = {f.name: f.field for f in _SPECS[op].fields}
+    for name, value in bound.arguments.items():
+        if value is not None:
+            req[fields[name]] = _plain(value)
+    return req
 
 
 def request(op: str, *args: Any, **kwargs: Any) -> dict[str, Any]:
     """The request dict of ``op`` with the required arguments given in order and the rest
     by name (``None`` values are left out, as an omitted option)."""
-    if op not in _OPS:
+    if op not in _SPECS:
         raise BadInputError(f"op {op!r}: unknown operation; nothing was sent", "bad-input")
-    _fields, required = _OPS[op]
-    if len(args) > len(required):
-        raise BadInputError(
-            f"{op}: takes {len(required)} argument(s) in order ({', '.join(required)}), "
-            f"{len(args)} given; nothing was sent",
-            "bad-input",
-        )
-    req: dict[str, Any] = {"op": op}
-    for name, value in zip(required, args):
-        if name in kwargs:
-            raise BadInputError(f"{op}: {name} given twice; nothing was sent", "bad-input")
-        req[name] = _plain(value)
-    for name, value in kwargs.items():
-        # `from` is a Python keyword: it is given as `from_`.
-        if name.endswith("_") and keyword.iskeyword(name[:-1]):
-            name = name[:-1]
-        if value is not None:
-            req[name] = _plain(value)
-    return req
+    return _bind(op, args, kwargs)
 
 
 def _plain(value: Any) -> Any:
@@ -193,40 +180,59 @@ def plan(request_: dict[str, Any] | str) -> dict[str, Any]:
 
 
 class _Family:
-    """The operations of one family as methods: ``station.wck.status("0-2")``."""
+    """The operations of one family as methods (``station.wck.status("0-2")``), each with
+    its request's signature and docs."""
 
-    def __init__(self, station: "Station", family: str):
+    _family = ""
+
+    def __init__(self, station: "Station"):
         self._station = station
-        self._family = family
-        self._ops = {method_name(op): op for op in _OPS if op.startswith(family + ".")}
 
     def __getattr__(self, name: str) -> Any:
-        op = self._ops.get(name)
-        if op is None:
-            raise AttributeError(
-                f"robobus has no operation {self._family}.{name} "
-                f"(there are: {', '.join(sorted(self._ops))})"
-            )
-        station = self._station
-
-        def call(*args: Any, check: bool = True, **kwargs: Any) -> dict[str, Any]:
-            return station.run(request(op, *args, **kwargs), check=check)
-
-        call.__name__ = name
-        call.__qualname__ = f"{self._family}.{name}"
-        fields, required = _OPS[op]
-        call.__doc__ = (
-            f"The request {op!r}: arguments {', '.join(required) or '-'} in order, "
-            f"any of {', '.join(fields)} by name; returns its report. "
-            "A failed device raises its kind's error, the report attached; check=False "
-            "returns the report with its row instead."
+        # Only names that are no method come here.
+        if name.startswith("__"):
+            raise AttributeError(name)
+        ops = sorted(o.name for o in _SPECS.values() if o.family == self._family)
+        raise AttributeError(
+            f"robobus has no operation {self._family}.{name} (there are: {', '.join(ops)})"
         )
-        # Kept on the instance: the next lookup finds it without coming here.
-        setattr(self, name, call)
-        return call
 
-    def __dir__(self) -> list[str]:
-        return sorted(self._ops)
+    def __repr__(self) -> str:
+        return f"<robobus operations {self._family}.* of {self._station!r}>"
+
+
+def _method(o: _signatures.Operation) -> Any:
+    """The method of operation ``o``: binds its arguments, runs the request."""
+    op = o.op
+
+    def call(self: _Family, *args: Any, check: bool = True, **kwargs: Any) -> dict[str, Any]:
+        return self._station.run(_bind(op, args, kwargs), check=check)
+
+    call.__name__ = o.name
+    call.__qualname__ = f"{o.family.capitalize()}Ops.{o.name}"
+    call.__doc__ = _signatures.docstring(o)
+    call.__signature__ = _signatures.signature(o)  # type: ignore[attr-defined]
+    return call
+
+
+def _family_class(family: str) -> type[_Family]:
+    """The class of ``station.<family>``: one method per operation of the family."""
+    body: dict[str, Any] = {
+        "_family": family,
+        "__doc__": f"The {family}.* operations of the catalogue, one method each "
+        "(``help()`` shows each one's parameters).",
+        "__module__": __name__,
+    }
+    for o in _SPECS.values():
+        if o.family == family:
+            body[o.name] = _method(o)
+    return type(f"{family.capitalize()}Ops", (_Family,), body)
+
+
+WckOps = _family_class("wck")
+WhjOps = _family_class("whj")
+RobotOps = _family_class("robot")
+HostOps = _family_class("host")
 
 
 class Station:
@@ -240,18 +246,25 @@ class Station:
     def __init__(self, native: NativeStation):
         self._native = native
         _OPEN.add(self)
-        self.wck = _Family(self, "wck")
-        self.whj = _Family(self, "whj")
-        self.robot = _Family(self, "robot")
-        self.host = _Family(self, "host")
+        self.wck = WckOps(self)
+        self.whj = WhjOps(self)
+        self.robot = RobotOps(self)
+        self.host = HostOps(self)
 
     @classmethod
-    def simulated(cls, *, read_only: bool = False) -> "Station":
+    def simulated(cls, *, read_only: bool = False, clock: str = "wall") -> "Station":
         """The built-in simulated robot, in-process: 16 wCK servos (IDs 0..=15) on the
         bus ``sim-wck``, 7 WHJ30 joints (IDs 1..=7) on ``sim-whj``, and a robot file
         naming them ``s0``..``s15`` and ``j1``..``j7``. No pty, no network.
-        ``read_only``: see :meth:`open`."""
-        return cls(NativeStation.simulated(read_only))
+
+        ``clock="wall"`` (the default): the simulators run in real time, as hardware
+        does (a joint moving at 30°/s has moved 30° a second later, whether or not it
+        was read in between). ``clock="virtual"``: they run on their own virtual clock,
+        which moves only as the buses are driven (each request advances it by the time
+        its transfers and waits take on the wire), so every run gives the same readings
+        and a long wait costs no wall time; a joint does not move while Python sleeps.
+        :attr:`clock` says which. ``read_only``: see :meth:`open`."""
+        return cls(NativeStation.simulated(read_only, clock))
 
     @classmethod
     def open(
@@ -313,6 +326,12 @@ class Station:
     def closed(self) -> bool:
         """Whether it is closed."""
         return self._native.closed
+
+    @property
+    def clock(self) -> str:
+        """The clock the devices run on: ``"wall"`` (hardware, and the simulated robot
+        by default) or ``"virtual"`` (``Station.simulated(clock="virtual")``)."""
+        return str(self._native.clock)
 
     @property
     def armed(self) -> bool:
@@ -410,7 +429,7 @@ class Station:
             wck, whj = self.buses
         except RefusedError:
             return "<robobus.Station of another process>"
-        return f"<robobus.Station wck={wck} whj={whj}>"
+        return f"<robobus.Station wck={wck} whj={whj} clock={self.clock}>"
 
 
 # The stations not closed yet: closed when the interpreter exits (it need not collect

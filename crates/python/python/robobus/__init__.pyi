@@ -86,7 +86,9 @@ class Station:
     robot: RobotOps
     host: HostOps
     @classmethod
-    def simulated(cls, *, read_only: bool = ...) -> Station: ...
+    def simulated(
+        cls, *, read_only: bool = ..., clock: Literal["wall", "virtual"] = ...
+    ) -> Station: ...
     @classmethod
     def open(
         cls,
@@ -105,6 +107,8 @@ class Station:
     def buses(self) -> tuple[list[str], list[str]]: ...
     @property
     def closed(self) -> bool: ...
+    @property
+    def clock(self) -> Literal["wall", "virtual"]: ...
     @property
     def armed(self) -> bool: ...
     @property
@@ -154,14 +158,54 @@ class WckOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.backup``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`wck.backup`: a servo's settings (gains, I gain, speed, over-load, boundaries) as the
+        settings file (the report's `summary`).
+
+        The request ``wck.backup`` (docs/catalogue.md).
+
+        Args:
+            id (int): Servo ID, 0..=30.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def brake(
         self,
         *,
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.brake``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`wck.brake` (A-1 (6)): break mode on every servo of the bus.
+
+        The request ``wck.brake`` (docs/catalogue.md).
+
+        Args:
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def diff(
         self,
         id: int,
@@ -172,7 +216,32 @@ class WckOps:
         settings: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.diff``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`wck.diff`: the settings on which a servo differs from a settings file, the factory
+        settings, or another servo.
+
+        The request ``wck.diff`` (docs/catalogue.md).
+
+        Args:
+            id (int): Servo ID, 0..=30.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            factory (bool | None, optional): Compare with the manual's factory settings (A-5).
+                Default: ``false``.
+            other (int | None, optional): Compare with this servo, 0..=30.
+            settings (str | None, optional): A settings file's text (what `wck.backup` gives).
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def get(
         self,
         param: Literal["gains", "i-gain", "speed", "overload", "bounds", "io"],
@@ -181,7 +250,32 @@ class WckOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.get``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`wck.get`: read a parameter of a servo.
+
+        The request ``wck.get`` (docs/catalogue.md).
+
+        Args:
+            param (Literal["gains", "i-gain", "speed", "overload", "bounds", "io"]): The
+                parameter: `gains`, `i-gain`, `speed`, `overload`, `bounds`, `io`. ``"gains"``:
+                P and D gains; ``"i-gain"``: I gain; ``"speed"``: Speed level and acceleration
+                range; ``"overload"``: Over-load threshold; ``"bounds"``: Movement boundaries;
+                ``"io"``: Digital outputs and A/D input.
+            id (int): Servo ID, 0..=30.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def move(
         self,
         id: int,
@@ -191,7 +285,30 @@ class WckOps:
         torque: int | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.move``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`wck.move` (A-1 (1)): position move of one servo.
+
+        The request ``wck.move`` (docs/catalogue.md).
+
+        Args:
+            id (int): Servo ID, 0..=30.
+            position (int): Target position, 0..=254.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            torque (int | None, optional): Torque level, 0 (maximum) ..= 4 (minimum). Default:
+                ``0``.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def move10(
         self,
         id: int,
@@ -201,7 +318,30 @@ class WckOps:
         torque: int | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.move10``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`wck.move10` (A-1 (26)): 10-bit position move.
+
+        The request ``wck.move10`` (docs/catalogue.md).
+
+        Args:
+            id (int): Servo ID, 0..=253.
+            position (int): Target position, 0..=1023.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            torque (int | None, optional): Torque, 0..=254 (a full data byte, as the manual
+                gives it). Default: ``0``.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def passive(
         self,
         ids: str | Sequence[int],
@@ -209,7 +349,28 @@ class WckOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.passive``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`wck.passive` (A-1 (4)): release the torque; replies the position.
+
+        The request ``wck.passive`` (docs/catalogue.md).
+
+        Args:
+            ids (str | Sequence[int]): Servo IDs: IDs and ranges, e.g. `3` or `0-5,7` (in JSON
+                also an array, `[0, 1]`).
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def play(
         self,
         motion: str,
@@ -219,7 +380,34 @@ class WckOps:
         rate_hz: float | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.play``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`wck.play`: play a keyframe motion (its text) as synchronized moves.
+
+        The request ``wck.play`` (docs/catalogue.md).
+
+        Args:
+            motion (str): The keyframe motion text (what a motion file holds).
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            on_stop (Literal["passive", "break", "hold"] | None, optional): What the servos do
+                on a stop (Ctrl-C): hold (keep the current position), passive or break.
+                ``"passive"``: Release the torque; ``"break"``: Dynamic brake on every servo of
+                the bus; ``"hold"``: Keep the current position, with torque. Default:
+                ``"hold"``.
+            rate_hz (float | None, optional): Synchronized moves per second while interpolating,
+                0.1..=200. Default: ``50.0``.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def program_check(
         self,
         program: str,
@@ -228,7 +416,29 @@ class WckOps:
         id: int | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.program.check``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`wck.program.check`: parse a program and show its upload packet (nothing sent).
+
+        The request ``wck.program.check`` (docs/catalogue.md).
+
+        Args:
+            program (str): The program text.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            id (int | None, optional): Servo ID for the printed upload packet, 0..=30. Default:
+                ``0``.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def program_download(
         self,
         id: int,
@@ -236,7 +446,27 @@ class WckOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.program.download``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`wck.program.download` (A-1 (25)): read a servo's motion program.
+
+        The request ``wck.program.download`` (docs/catalogue.md).
+
+        Args:
+            id (int): Servo ID, 0..=30.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def program_upload(
         self,
         id: int,
@@ -246,7 +476,29 @@ class WckOps:
         confirm: bool | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.program.upload``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`wck.program.upload` (A-1 (24), EEPROM): store a motion program; needs `confirm`.
+
+        The request ``wck.program.upload`` (docs/catalogue.md).
+
+        Args:
+            id (int): Servo ID, 0..=30.
+            program (str): The program in its text form (what a program file holds).
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            confirm (bool | None, optional): Confirms the EEPROM write. Default: ``false``.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def read10(
         self,
         id: int,
@@ -254,7 +506,27 @@ class WckOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.read10``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`wck.read10` (A-1 (27)): 10-bit position of a servo.
+
+        The request ``wck.read10`` (docs/catalogue.md).
+
+        Args:
+            id (int): Servo ID, 0..=253.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def restore(
         self,
         id: int,
@@ -265,7 +537,32 @@ class WckOps:
         settings: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.restore``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`wck.restore`: writes a settings file (or the factory settings) into a servo's EEPROM
+        where it differs, each write verified; needs `confirm`.
+
+        The request ``wck.restore`` (docs/catalogue.md).
+
+        Args:
+            id (int): Servo ID, 0..=30.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            confirm (bool | None, optional): Confirms the EEPROM writes. Default: ``false``.
+            factory (bool | None, optional): Restore the factory settings (the manual's A-5)
+                instead of a file. Default: ``false``.
+            settings (str | None, optional): A settings file's text.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def sample(
         self,
         ids: str | Sequence[int],
@@ -273,7 +570,28 @@ class WckOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.sample``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`wck.sample`: one monitor sample of servos (position, speed from the previous sample of
+        the same request, load).
+
+        The request ``wck.sample`` (docs/catalogue.md).
+
+        Args:
+            ids (str | Sequence[int]): Servo IDs.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def scan(
         self,
         *,
@@ -282,7 +600,30 @@ class WckOps:
         ids: str | Sequence[int] | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.scan``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`wck.scan`: find servos (status read of every ID).
+
+        The request ``wck.scan`` (docs/catalogue.md).
+
+        Args:
+            all_bauds (bool | None, optional): Try every baud rate the wCK supports, not only
+                the bus's. Default: ``false``.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            ids (str | Sequence[int] | None, optional): IDs to try: IDs and ranges, e.g. `0-5,7`
+                (in JSON also an array, `[0, 1]`). Default: ``"0-30"``.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def set(
         self,
         param: Literal["gains", "i-gain", "speed", "overload", "bounds", "io"],
@@ -302,7 +643,46 @@ class WckOps:
         upper: int | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.set``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`wck.set`: write a parameter (EEPROM unless `runtime`; needs `confirm`).
+
+        The request ``wck.set`` (docs/catalogue.md).
+
+        Args:
+            param (Literal["gains", "i-gain", "speed", "overload", "bounds", "io"]): The
+                parameter: `gains` (p, d), `i-gain` (i), `speed` (speed, accel), `overload`
+                (milliamps), `bounds` (lower, upper), `io` (outputs). ``"gains"``: P and D
+                gains; ``"i-gain"``: I gain; ``"speed"``: Speed level and acceleration range;
+                ``"overload"``: Over-load threshold; ``"bounds"``: Movement boundaries;
+                ``"io"``: Digital outputs and A/D input.
+            id (int): Servo ID, 0..=30.
+            accel (int | None, optional): Acceleration range 20..=100 (speed).
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            confirm (bool | None, optional): Confirms an EEPROM write (the CLI's `--yes`).
+                Default: ``false``.
+            d (int | None, optional): D gain 0..=254 (gains).
+            i (int | None, optional): I gain 0..=254 (i-gain).
+            lower (int | None, optional): Lower boundary 0..=254 (bounds).
+            milliamps (int | None, optional): Over-load threshold in mA, 400..=1800 (overload).
+            outputs (int | None, optional): Output bits 0..=3 (io).
+            p (int | None, optional): P gain 1..=254 (gains).
+            runtime (bool | None, optional): Only until power-off (gains, i-gain, speed), not in
+                EEPROM. Default: ``false``.
+            speed (int | None, optional): Speed level 0..=30 (speed).
+            upper (int | None, optional): Upper boundary 0..=254 (bounds).
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def set_baud(
         self,
         id: int,
@@ -312,7 +692,30 @@ class WckOps:
         confirm: bool | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.set-baud``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`wck.set-baud` (A-1 (7), EEPROM): a servo's baud rate; needs `confirm`.
+
+        The request ``wck.set-baud`` (docs/catalogue.md).
+
+        Args:
+            id (int): Servo ID, 0..=30.
+            rate (int): New baud rate, bit/s: 4800, 9600, 38400, 57600, 115200, 230400, 460800
+                or 921600.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            confirm (bool | None, optional): Confirms the EEPROM write. Default: ``false``.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def set_id(
         self,
         id: int,
@@ -322,7 +725,29 @@ class WckOps:
         confirm: bool | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.set-id``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`wck.set-id` (A-1 (14), EEPROM): a new ID; needs `confirm`.
+
+        The request ``wck.set-id`` (docs/catalogue.md).
+
+        Args:
+            id (int): Current ID, 0..=30.
+            new_id (int): New ID, 0..=253.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            confirm (bool | None, optional): Confirms the EEPROM write. Default: ``false``.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def status(
         self,
         ids: str | Sequence[int],
@@ -330,7 +755,28 @@ class WckOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.status``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`wck.status` (A-1 (3)): load and position of servos.
+
+        The request ``wck.status`` (docs/catalogue.md).
+
+        Args:
+            ids (str | Sequence[int]): Servo IDs: IDs and ranges, e.g. `3` or `0-5,7` (in JSON
+                also an array, `[0, 1]`).
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def sync_move(
         self,
         positions: Sequence[int],
@@ -339,7 +785,30 @@ class WckOps:
         torque: int | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.sync-move``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`wck.sync-move` (A-1 (2)): servos 0..N-1 at once, no reply.
+
+        The request ``wck.sync-move`` (docs/catalogue.md).
+
+        Args:
+            positions (Sequence[int]): Target positions of servos 0, 1, 2, ... (1..=31 values,
+                each 0..=254).
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            torque (int | None, optional): Torque level, 0 (maximum) ..= 4 (minimum). Default:
+                ``0``.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def teach(
         self,
         ids: str | Sequence[int],
@@ -352,7 +821,43 @@ class WckOps:
         torque: int | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.teach``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`wck.teach`: record poses at a rate for a time (servos passive meanwhile).
+
+        The request ``wck.teach`` (docs/catalogue.md).
+
+        Args:
+            ids (str | Sequence[int]): Servo IDs to record: 0..N-1 (e.g. `0-15`), since a pose
+                lists servos 0, 1, ...
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            duration (float | None, optional): Record for this many seconds (0.1..=3600), at
+                `rate_hz`; without it a recording at a rate runs until the front end's finish
+                event or a stop.
+            on_stop (Literal["passive", "break", "hold"] | None, optional): What the servos do
+                when recording ends: passive (stay limp), hold (keep the last pose with torque)
+                or break. ``"passive"``: Release the torque; ``"break"``: Dynamic brake on every
+                servo of the bus; ``"hold"``: Keep the current position, with torque. Default:
+                ``"passive"``.
+            pose_ms (int | None, optional): Transition time written for each pose recorded by an
+                event (a keypress), ms (0..=600000). Default: ``1000``.
+            rate_hz (float | None, optional): Record at this many poses per second (0.1..=200;
+                10 when only `duration` is given) instead of at each record event of the front
+                end (a keypress).
+            torque (int | None, optional): Torque level written into the poses (and of a hold at
+                the end), 0 (maximum) ..= 4 (minimum). Default: ``0``.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def tune(
         self,
         id: int,
@@ -366,7 +871,42 @@ class WckOps:
         torque: int | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.tune``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`wck.tune`: the same position step with each gain set (runtime gains), the responses
+        measured (rise, overshoot, settling, steady-state error) and the best one found; kept in
+        runtime or EEPROM (`confirm`) on request.
+
+        The request ``wck.tune`` (docs/catalogue.md).
+
+        Args:
+            id (int): Servo ID, 0..=30.
+            gains (Sequence[Sequence[int]]): The gain sets, each `P,D` (1..=8 sets; in JSON
+                `[[P, D], ...]`), e.g. `--gains 20,30 --gains 40,20`.
+            amplitude (int | None, optional): The step, position steps (2..=60), away from the
+                nearer boundary. Default: ``20``.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            confirm (bool | None, optional): Confirms an EEPROM keep. Default: ``false``.
+            hold_ms (int | None, optional): How long each step is recorded, ms (100..=5000).
+                Default: ``1000``.
+            keep (Literal["none", "runtime", "eeprom"] | None, optional): Keep the best set:
+                none (the runtime gains go back to the EEPROM's), runtime (until power-off) or
+                eeprom (needs confirming). ``"none"``: Nothing; ``"runtime"``: The runtime
+                gains; ``"eeprom"``: The EEPROM gains. Default: ``"none"``.
+            torque (int | None, optional): Torque level of the moves, 0 (strongest)..=4.
+                Default: ``0``.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def wheel(
         self,
         id: int,
@@ -378,7 +918,38 @@ class WckOps:
         on_stop: Literal["passive", "break", "hold"] | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``wck.wheel``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`wck.wheel` (A-1 (5)): turn continuously, optionally for a time.
+
+        The request ``wck.wheel`` (docs/catalogue.md).
+
+        Args:
+            id (int): Servo ID, 0..=30.
+            direction (Literal["ccw", "cw"]): Direction: `ccw` or `cw`. ``"ccw"``: Counter-
+                clockwise; ``"cw"``: Clockwise.
+            speed (int): Speed 0 (stop), 1 (minimum) ..= 15 (maximum).
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            duration (float | None, optional): Turn for this many seconds (0.1..=3600), then
+                stop per `on_stop`. Without it the servo keeps turning after the request
+                returns.
+            on_stop (Literal["passive", "break", "hold"] | None, optional): How the servo stops
+                after `duration` or on a stop (Ctrl-C): hold (position move to where it is),
+                passive or break. ``"passive"``: Release the torque; ``"break"``: Dynamic brake
+                on every servo of the bus; ``"hold"``: Keep the current position, with torque.
+                Default: ``"hold"``.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
 
 class WhjOps:
     def backup(
@@ -388,14 +959,58 @@ class WhjOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.backup``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`whj.backup`: every setting of a joint (the registers it keeps in flash), as the
+        settings file (the report's `summary`).
+
+        The request ``whj.backup`` (docs/catalogue.md).
+
+        Args:
+            joint (int): Joint ID, 1..=30.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def can_health(
         self,
         *,
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.can-health``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`whj.can-health`: the bus's CAN interface as the kernel reports it (netlink): the
+        controller's state (error-active, error-warning, error-passive, bus-off), its error
+        counters, its state changes and restarts, and the advice for bus-off and error-passive.
+        Nothing is sent on the bus; a UDP or simulated bus is a row without a controller. A
+        telemetry stream can take it.
+
+        The request ``whj.can-health`` (docs/catalogue.md).
+
+        Args:
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def clear(
         self,
         joints: str | Sequence[int],
@@ -403,7 +1018,27 @@ class WhjOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.clear``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`whj.clear`: clear latched errors (0x0F := 1).
+
+        The request ``whj.clear`` (docs/catalogue.md).
+
+        Args:
+            joints (str | Sequence[int]): Joint IDs, e.g. `1-7`.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def current(
         self,
         joint: int,
@@ -415,7 +1050,36 @@ class WhjOps:
         on_stop: Literal["hold", "disable"] | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.current``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`whj.current`: current target (0x400+ID), mA.
+
+        The request ``whj.current`` (docs/catalogue.md).
+
+        Args:
+            joint (int): Joint ID, 1..=30.
+            milliamps (float): Target current, mA, -30000..=30000.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            duration (float | None, optional): Keep the target this many seconds (0.01..=3600),
+                then target 0 (also when stopped). Without it the joint keeps the current after
+                the request.
+            model (Literal["whj03", "whj10", "whj30", "whj60", "whj120"] | None, optional):
+                Model for the plan's current scale (a run reads it from the joint).
+            on_stop (Literal["hold", "disable"] | None, optional): What a stop leaves the joint
+                in. ``"hold"``: Stay enabled and hold the present position (speed / current:
+                target 0); ``"disable"``: Disable the drive. Default: ``"hold"``.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def defaults(
         self,
         joint: int,
@@ -423,7 +1087,29 @@ class WhjOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.defaults``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`whj.defaults`: the settings whose factory value the vendor documents, for the joint's
+        model and firmware, as a settings file (the report's `summary`) that `whj.restore`
+        writes back (the joints have no factory reset of their own).
+
+        The request ``whj.defaults`` (docs/catalogue.md).
+
+        Args:
+            joint (int): Joint ID, 1..=30.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def diff(
         self,
         joint: int,
@@ -433,7 +1119,30 @@ class WhjOps:
         settings: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.diff``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`whj.diff`: the settings on which a joint differs from a settings file, or from another
+        joint.
+
+        The request ``whj.diff`` (docs/catalogue.md).
+
+        Args:
+            joint (int): Joint ID, 1..=30.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            other (int | None, optional): Another joint to compare with, instead of a file.
+            settings (str | None, optional): A settings file's text (what `whj.backup` gives).
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def disable(
         self,
         joints: str | Sequence[int],
@@ -441,7 +1150,27 @@ class WhjOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.disable``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`whj.disable`: register 0x0A := 0.
+
+        The request ``whj.disable`` (docs/catalogue.md).
+
+        Args:
+            joints (str | Sequence[int]): Joint IDs, e.g. `1-7`.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def enable(
         self,
         joints: str | Sequence[int],
@@ -449,7 +1178,27 @@ class WhjOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.enable``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`whj.enable`: register 0x0A := 1.
+
+        The request ``whj.enable`` (docs/catalogue.md).
+
+        Args:
+            joints (str | Sequence[int]): Joint IDs, e.g. `1-7`.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def end_board(
         self,
         action: Literal["status", "power", "io", "force"],
@@ -461,7 +1210,41 @@ class WhjOps:
         volts: int | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.end-board``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`whj.end-board`: the end-effector board's typed operations (its state, tool power, a
+        digital channel's direction, its force sensor). Switching the tool power on or a
+        channel's direction needs `confirm`: it switches what is attached to the tool.
+
+        The request ``whj.end-board`` (docs/catalogue.md).
+
+        Args:
+            action (Literal["status", "power", "io", "force"]): `status`, `power` (with
+                `volts`), `io` (with `channel` and `mode`) or `force`. ``"status"``: Read its
+                state: model, version, tool power, the digital channels' direction and level,
+                the buttons, the gripper's and the hand's "in position"; ``"power"``: Switch the
+                tool power (`volts`: 0, 12 or 24), verified; ``"io"``: Set a digital channel's
+                direction (`channel` 1 or 2, `mode`), verified; ``"force"``: Read the force
+                sensor's six raw values.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            channel (int | None, optional): `io`: the digital channel, 1 or 2.
+            confirm (bool | None, optional): Confirms switching the tool power on or a channel's
+                direction. Default: ``false``.
+            mode (Literal["input", "output"] | None, optional): `io`: the channel's direction,
+                `input` or `output`.
+            volts (int | None, optional): `power`: the tool power, volts (0, 12 or 24).
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def info(
         self,
         joint: int,
@@ -469,7 +1252,27 @@ class WhjOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.info``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`whj.info`: identity, unique ID and position limits of a joint.
+
+        The request ``whj.info`` (docs/catalogue.md).
+
+        Args:
+            joint (int): Joint ID, 1..=30.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def mode(
         self,
         joints: str | Sequence[int],
@@ -478,7 +1281,31 @@ class WhjOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.mode``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`whj.mode`: work mode (register 0x30).
+
+        The request ``whj.mode`` (docs/catalogue.md).
+
+        Args:
+            joints (str | Sequence[int]): Joint IDs, e.g. `1-7`.
+            mode (Literal["open-loop", "current", "speed", "position"]): The mode: `open-loop`,
+                `current`, `speed` or `position`. ``"open-loop"``: Open loop (PWM duty; not
+                recommended); ``"current"``: Current (torque) servo; ``"speed"``: Speed servo;
+                ``"position"``: Position servo (factory default).
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def move(
         self,
         joint: int,
@@ -491,7 +1318,38 @@ class WhjOps:
         rate_hz: float | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.move``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`whj.move`: smooth move in position mode.
+
+        The request ``whj.move`` (docs/catalogue.md).
+
+        Args:
+            joint (int): Joint ID, 1..=30.
+            degrees (float): Target angle in degrees, -360..=360.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            from_ (float | None, optional): Start angle of a plan (a dry run; a real run reads
+                the present position; without `from` a plan assumes 0).
+            max_speed (float | None, optional): Largest speed of the steps, degrees per second
+                (0.1..=180). Default: ``10.0``.
+            on_stop (Literal["hold", "disable"] | None, optional): What a stop leaves the joint
+                in: `hold` or `disable`. ``"hold"``: Stay enabled and hold the present position
+                (speed / current: target 0); ``"disable"``: Disable the drive. Default:
+                ``"hold"``.
+            rate_hz (float | None, optional): Position frames per second (1..=1000). Default:
+                ``200.0``.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def read(
         self,
         joints: str | Sequence[int],
@@ -503,14 +1361,63 @@ class WhjOps:
         end_board: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.read``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`whj.read`: registers by name or address.
+
+        The request ``whj.read`` (docs/catalogue.md).
+
+        Args:
+            joints (str | Sequence[int]): Joint ID, 1..=30 (with `broadcast`: joints 1..=7, e.g.
+                `1-7`).
+            register (str): Register name (`cur_position`, `SYS_TEMP`) or address (`0x14`,
+                `20`), 0x00..=0x91.
+            broadcast (bool | None, optional): Read the register of joints 1..=7 with one
+                broadcast frame (0x0F) instead of one request each; a joint that does not answer
+                is named. Default: ``false``.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            count (int | None, optional): Number of registers, 1..=31 (default: 2 for a 32-bit
+                pair, else 1).
+            end_board (str | None, optional): With `broadcast`: also read this register of the
+                end board's own map (name or address, e.g. `EB_SW_VERSION` or 0x03).
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def registers(
         self,
         *,
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.registers``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`whj.registers`: the register table (nothing sent).
+
+        The request ``whj.registers`` (docs/catalogue.md).
+
+        Args:
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def release_iap(
         self,
         joints: str | Sequence[int],
@@ -518,7 +1425,27 @@ class WhjOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.release-iap``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`whj.release-iap`: start the application of joints in the bootloader (connect).
+
+        The request ``whj.release-iap`` (docs/catalogue.md).
+
+        Args:
+            joints (str | Sequence[int]): Joint IDs, e.g. `1-7`.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def restore(
         self,
         joint: int,
@@ -528,7 +1455,31 @@ class WhjOps:
         confirm: bool | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.restore``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`whj.restore`: writes a settings file's values where the joint differs, saves them to
+        flash and reads them back; the bus identity (ID, bit rates) is never written.
+
+        The request ``whj.restore`` (docs/catalogue.md).
+
+        Args:
+            joint (int): Joint ID, 1..=30.
+            settings (str): The settings file's text.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            confirm (bool | None, optional): Confirms the flash write (and registers of the
+                `confirm` class). Default: ``false``.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def sample(
         self,
         joints: str | Sequence[int],
@@ -537,7 +1488,29 @@ class WhjOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.sample``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`whj.sample`: one monitor sample (status and servo feedback, or one broadcast status
+        frame).
+
+        The request ``whj.sample`` (docs/catalogue.md).
+
+        Args:
+            joints (str | Sequence[int]): Joint IDs.
+            broadcast (bool | None, optional): One broadcast status frame. Default: ``false``.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def save(
         self,
         joints: str | Sequence[int],
@@ -546,7 +1519,28 @@ class WhjOps:
         confirm: bool | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.save``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`whj.save`: save the register table to flash; needs `confirm`.
+
+        The request ``whj.save`` (docs/catalogue.md).
+
+        Args:
+            joints (str | Sequence[int]): Joint IDs, e.g. `1-7`.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            confirm (bool | None, optional): Confirms the flash write. Default: ``false``.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def scan(
         self,
         *,
@@ -554,7 +1548,28 @@ class WhjOps:
         joints: str | Sequence[int] | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.scan``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`whj.scan`: find joints (identity of every ID).
+
+        The request ``whj.scan`` (docs/catalogue.md).
+
+        Args:
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            joints (str | Sequence[int] | None, optional): Joint IDs to try. Default:
+                ``"1-30"``.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def set_id(
         self,
         joint: int,
@@ -564,7 +1579,29 @@ class WhjOps:
         confirm: bool | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.set-id``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`whj.set-id`: new ID, saved to flash; needs `confirm`.
+
+        The request ``whj.set-id`` (docs/catalogue.md).
+
+        Args:
+            joint (int): Current joint ID, 1..=30.
+            new_id (int): New joint ID, 1..=30.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            confirm (bool | None, optional): Confirms the ID change. Default: ``false``.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def set_rates(
         self,
         joints: str | Sequence[int],
@@ -575,7 +1612,36 @@ class WhjOps:
         confirm: bool | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.set-rates``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`whj.set-rates`: sets joints' CAN FD bit rates (registers 0x08 / 0x09), reads them back
+        and saves them. The joints keep the old rates until they are power-cycled and answer
+        only at the new ones after that: the adapter must follow (the report's summary says how,
+        and how to find a joint that is lost).
+
+        The request ``whj.set-rates`` (docs/catalogue.md).
+
+        Args:
+            joints (str | Sequence[int]): Joint IDs, e.g. `1-6`: every joint on a bus must be at
+                the bus's rates.
+            bitrate (int): Arbitration bit rate, bit/s: 250000, 500000 or 1000000.
+            dbitrate (int): Data bit rate, bit/s: 250000, 500000, 1000000, 2000000, 4000000 or
+                5000000, at least the arbitration rate.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            confirm (bool | None, optional): Confirms the change (the joints must then be
+                reached at the new rates). Default: ``false``.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def speed(
         self,
         joint: int,
@@ -586,7 +1652,34 @@ class WhjOps:
         on_stop: Literal["hold", "disable"] | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.speed``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`whj.speed`: speed target (0x300+ID), output RPM.
+
+        The request ``whj.speed`` (docs/catalogue.md).
+
+        Args:
+            joint (int): Joint ID, 1..=30.
+            rpm (float): Target speed, RPM, -37.5..=37.5.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            duration (float | None, optional): Keep the target this many seconds (0.01..=3600),
+                then target 0 (also when stopped). Without it the joint keeps turning after the
+                request.
+            on_stop (Literal["hold", "disable"] | None, optional): What a stop leaves the joint
+                in. ``"hold"``: Stay enabled and hold the present position (speed / current:
+                target 0); ``"disable"``: Disable the drive. Default: ``"hold"``.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def status(
         self,
         joints: str | Sequence[int],
@@ -596,7 +1689,33 @@ class WhjOps:
         end_board: bool | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.status``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`whj.status` (0x600+ID, or one broadcast 0x7F frame).
+
+        The request ``whj.status`` (docs/catalogue.md).
+
+        Args:
+            joints (str | Sequence[int]): Joint IDs, e.g. `1-7`.
+            broadcast (bool | None, optional): Ask joints 1..=7 with one broadcast status frame
+                (0x7F) instead of one query each; a joint that does not answer is named.
+                Default: ``false``.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            end_board (bool | None, optional): With `broadcast`: the end board answers the same
+                frame (IO modes and levels, buttons, gripper / hand in position, error byte).
+                Default: ``false``.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def wave(
         self,
         joint: int,
@@ -615,7 +1734,55 @@ class WhjOps:
         shape: Literal["sine", "square"] | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.wave``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`whj.wave`: a test signal as servo frames.
+
+        The request ``whj.wave`` (docs/catalogue.md).
+
+        Args:
+            joint (int): Joint ID, 1..=30.
+            amplitude (float): Amplitude (degrees, RPM or mA by `mode`), >= 0.
+            broadcast (bool | None, optional): Send the wave as broadcast frames (0x2F position,
+                0x4F current; joints 1..=7; position waves at `rate_hz` >= 100, since a joint
+                stops a broadcast position stream after 20 ms without a frame). Default:
+                ``false``.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            duration (float | None, optional): Duration in seconds, 0.01..=600. Default:
+                ``4.0``.
+            frequency (float | None, optional): Frequency in Hz, 0.01..=20 and at most `rate_hz`
+                / 4. Default: ``0.5``.
+            from_ (float | None, optional): Start angle of a position wave in a plan (a dry run;
+                a real run starts the step limiter at the present position; without `from` a
+                plan assumes 0).
+            mode (Literal["position", "speed", "current"] | None, optional): Which servo loop
+                the signal drives. ``"position"``: Position servo frames (0x200+ID); amplitude
+                and offset in degrees; ``"speed"``: Speed servo frames (0x300+ID); amplitude and
+                offset in RPM; ``"current"``: Current servo frames (0x400+ID); amplitude and
+                offset in mA. Default: ``"position"``.
+            model (Literal["whj03", "whj10", "whj30", "whj60", "whj120"] | None, optional):
+                Model for the current scale of a plan.
+            offset (float | None, optional): Offset (degrees, RPM or mA by `mode`). Default:
+                ``0.0``.
+            on_stop (Literal["hold", "disable"] | None, optional): What a stop leaves the joint
+                in. ``"hold"``: Stay enabled and hold the present position (speed / current:
+                target 0); ``"disable"``: Disable the drive. Default: ``"hold"``.
+            rate_hz (float | None, optional): Frames per second (1..=1000). Default: ``200.0``.
+            shape (Literal["sine", "square"] | None, optional): Signal shape. ``"sine"``: offset
+                + amplitude * sin(2 pi f t); ``"square"``: offset + amplitude while sin(2 pi f
+                t) >= 0, else offset - amplitude. Default: ``"sine"``.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def write(
         self,
         joints: str | Sequence[int],
@@ -630,7 +1797,44 @@ class WhjOps:
         raw: bool | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.write``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`whj.write`: a register in its unit, read back; the register's safety class decides
+        (refused, or needs `confirm`).
+
+        The request ``whj.write`` (docs/catalogue.md).
+
+        Args:
+            joints (str | Sequence[int]): Joint ID, 1..=30 (with `broadcast`: joints 1..=7, e.g.
+                `1-7`).
+            register (str): Register name (`cur_position`, `SYS_TEMP`) or address (`0x14`,
+                `20`), 0x00..=0x91.
+            value (float): The value, in the register's unit (see `robobus whj registers`); with
+                `raw`, in counts.
+            broadcast (bool | None, optional): Write the register of joints 1..=7 with one
+                broadcast frame (0x0F), then read it back with a second one; a joint that does
+                not answer is named. Default: ``false``.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            confirm (bool | None, optional): Confirms a write of the `confirm` class. Default:
+                ``false``.
+            end_board (str | None, optional): With `broadcast`: also write a register of the end
+                board's own map, `REGISTER=VALUE` (e.g. `EB_IO1_MODE=1`, 0x07=3); needs
+                confirming.
+            model (Literal["whj03", "whj10", "whj30", "whj60", "whj120"] | None, optional):
+                Model for the current scale of a plan.
+            raw (bool | None, optional): The value is in raw counts. Default: ``false``.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def zero(
         self,
         joint: int,
@@ -638,7 +1842,27 @@ class WhjOps:
         bus: str | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``whj.zero``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`whj.zero`: the present position becomes 0° (register 0x0E := 1).
+
+        The request ``whj.zero`` (docs/catalogue.md).
+
+        Args:
+            joint (int): Joint ID, 1..=30.
+            bus (str | None, optional): The bus it acts on (the station's name for it); needed
+                only when the station holds more than one bus of the family.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
 
 class RobotOps:
     def calibrate(
@@ -651,7 +1875,45 @@ class RobotOps:
         zero: Literal["end", "keep"] | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``robot.calibrate``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`robot.calibrate`: calibration by hand. The station's robot file's wCK servos are made
+        passive (torque off; `passive: false` leaves them as they are) and every joint is read
+        `seconds × rate_hz` times while the user moves each through its whole range; WHJ joints
+        are read as they are (a disabled WHJ joint holds its brake: move it in a mode that lets
+        it turn). Each joint's row has the range it went through and the file's new `offset`
+        (with `zero: "end"`, the pose at the end becomes the zero) and `limits` (the recorded
+        range, `margin_deg` inside at each end), in the same joint frame; the file is not
+        written (`robobus robot calibrate --write` writes it, keeping its comments). A joint
+        that never answered, or moved through less than twice the margin, is a failed row. Stops
+        early at the stop token, with what was read so far. Every bus of the file is then left
+        in its `safe_state` (`settle`).
+
+        The request ``robot.calibrate`` (docs/catalogue.md).
+
+        Args:
+            seconds (float): How long the joints are read, seconds (0.1..=600).
+            margin_deg (float | None, optional): How far inside the recorded range the soft
+                limits stay, degrees (0..=30; default 2). Default: ``2.0``.
+            passive (bool | None, optional): Make the wCK servos passive first (default true).
+                Default: ``true``.
+            rate_hz (float | None, optional): Readings a second (1..=100; default 20). Default:
+                ``20.0``.
+            zero (Literal["end", "keep"] | None, optional): `end` (default): the pose at the end
+                becomes each joint's zero; `keep`: the file's offsets stay. ``"end"``: The pose
+                the joints are in when the reading ends; ``"keep"``: The file's offsets stay;
+                only the limits change. Default: ``"end"``.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def play(
         self,
         trajectory: str,
@@ -660,13 +1922,57 @@ class RobotOps:
         torque: int | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``robot.play``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`robot.play` (see the [module docs](self)).
+
+        The request ``robot.play`` (docs/catalogue.md).
+
+        Args:
+            trajectory (str): The trajectory file's text: `time_s`, then a column per joint of
+                the robot file (degrees in its joint frame); a row per point.
+            rate_hz (float | None, optional): Ticks a second (1..=500; default 50). Default:
+                ``50.0``.
+            torque (int | None, optional): The wCK servos' torque level (0 strongest ..= 4
+                weakest; default 2). Default: ``2``.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def sample(
         self,
         *,
         check: bool = ...,
     ) -> Report:
-        """The request ``robot.sample``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`robot.sample`: one reading of every joint of the station's robot file, in the file's
+        order: its joint angle (deg, the file's `offset`, `direction` and wCK `centre` applied),
+        speed (deg/s; a wCK joint's from its previous reading on this station), WHJ current and
+        enable state, wCK load, error bits. Read-only. A joint that does not answer is a row
+        with its failure, never an older value.
+
+        The request ``robot.sample`` (docs/catalogue.md).
+
+        Args:
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def teach(
         self,
         seconds: float,
@@ -677,7 +1983,33 @@ class RobotOps:
         rate_hz: float | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``robot.teach``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`robot.teach` (see the [module docs](self)).
+
+        The request ``robot.teach`` (docs/catalogue.md).
+
+        Args:
+            seconds (float): How long the joints are read, seconds (0.1..=3600).
+            confirm (bool | None, optional): Confirms that the joints go limp (a WHJ arm falls
+                unless it is held). Default: ``false``.
+            hold_ma (float | None, optional): The current a WHJ joint is held at while it is
+                moved by hand, mA (-2000..=2000; default 0: limp). Default: ``0.0``.
+            joints (Sequence[str] | None, optional): The joints to record, by name; none: every
+                joint of the robot file.
+            rate_hz (float | None, optional): Readings (trajectory points) a second (1..=100;
+                default 20). Default: ``20.0``.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
     def teleop(
         self,
         map: Sequence[Any],
@@ -688,7 +2020,34 @@ class RobotOps:
         seconds: float | None = ...,
         check: bool = ...,
     ) -> Report:
-        """The request ``robot.teleop``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`robot.teleop` (see the [module docs](self)).
+
+        The request ``robot.teleop`` (docs/catalogue.md).
+
+        Args:
+            map (Sequence[Any]): The pairs (1..=64): a follower joint appears once, and never as
+                a leader; a leader joint may drive several followers.
+            leader_timeout_ms (int | None, optional): The run ends when no complete leader
+                reading has come for this long, ms (10..=10000; default 500). Default: ``500``.
+            passive_leader (bool | None, optional): Make the leader's wCK servos passive first,
+                to be moved by hand (default true). Default: ``true``.
+            rate_hz (float | None, optional): Cycles a second (1..=200; default 50). Default:
+                ``50.0``.
+            seconds (float | None, optional): How long, seconds (0.1..=86400); none: until
+                stopped.
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
 
 class HostOps:
     def ports(
@@ -696,4 +2055,25 @@ class HostOps:
         *,
         check: bool = ...,
     ) -> Report:
-        """The request ``host.ports``; a failed device raises its kind's error (``check=False``: the report with its row)."""
+        """`host.ports`: the serial ports of this machine as its OS lists them (COM ports on
+        Windows, `/dev/cu.*` on macOS, `/dev/ttyUSB*` / `/dev/ttyACM*` and on-board UARTs on
+        Linux; a simulator's pseudo-terminal is not among them): kind, USB IDs and strings, the
+        adapter robobus recognises and what it is for (`wCK bus: --port PORT`, `CAN FD adapter:
+        --bus slcan:PORT`), and this OS's latency-timer advice. Read-only: no port is opened.
+
+        The request ``host.ports`` (docs/catalogue.md).
+
+        Args:
+            check (bool, optional): A device that failed raises its kind's error (a silent one
+                NoDeviceError), the report under ``.report`` (the default); ``False`` returns
+                the report with a row per device.
+
+        Returns:
+            The report as ``robobus run --json`` prints it: ``op``, ``bus``, ``results``
+            (a row per device, keyed ``id``), ``summary``.
+
+        Raises:
+            BadInputError: an argument out of range or of the wrong type; nothing was sent.
+            RefusedError: refused for safety (``confirm``, disarmed, read-only); nothing sent.
+            NoDeviceError, DeviceError, LinkError: a device failed (with ``check=True``).
+        """
