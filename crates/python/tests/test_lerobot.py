@@ -2,7 +2,12 @@
 recorded list of LeRobot's signatures, and against LeRobot itself when it imports), and it
 drives the simulated robot's wCK servos and WHJ joints as LeRobot drives its motors: the
 handshake, calibration and normalisation, torque, sync reads and writes with nothing sent
-on a refusal, homing, range recording, scans and motor setup on the simulator's pty.
+on a refusal, homing, range recording, scans and motor setup on the simulator's pty; the
+settings registers LeRobot's robots write at start, mapped or refused naming why; and the
+robot class (a follower arm) connecting, calibrating, reading and writing on the simulator.
+
+LeRobot itself needs torch and is not installed here: the robot class is held against
+LeRobot 0.4.4's ``Robot`` base class as recorded below (its abstract members and helpers).
 """
 
 from __future__ import annotations
@@ -25,6 +30,9 @@ from robobus.lerobot import (
     Motor,
     MotorCalibration,
     MotorNormMode,
+    OperatingMode,
+    RobobusFollower,
+    RobobusFollowerConfig,
     RobobusMotorsBus,
 )
 
@@ -131,7 +139,9 @@ MOTORS = {
 
 @pytest.fixture
 def bus() -> Iterator[RobobusMotorsBus]:
-    b = RobobusMotorsBus("sim", MOTORS)
+    # On the virtual clock: each read moves the simulators on by its own time, so a test
+    # waits for a motion by reading, the same readings every run.
+    b = RobobusMotorsBus("sim:virtual", MOTORS)
     b.connect()
     yield b
     if b.is_connected:
@@ -152,7 +162,7 @@ def test_connect_checks_every_motor_and_the_state_is_lerobots(bus: RobobusMotors
     assert bus.ids == [0, 1, 2, 1, 2] and bus.models == ["wck"] * 3 + ["whj"] * 2
     with pytest.raises(DeviceAlreadyConnectedError):
         bus.connect()
-    missing = RobobusMotorsBus("sim", {"a": Motor(0, "wck", MotorNormMode.DEGREES), "b": Motor(20, "wck", MotorNormMode.DEGREES)})
+    missing = RobobusMotorsBus("sim:virtual", {"a": Motor(0, "wck", MotorNormMode.DEGREES), "b": Motor(20, "wck", MotorNormMode.DEGREES)})
     with pytest.raises(ConnectionError, match=r"motors \['b'\] \(IDs \[20\]\) did not answer"):
         missing.connect()
     assert not missing.is_connected
@@ -284,3 +294,194 @@ def test_setup_motor_on_the_simulators_pty() -> None:
     finally:
         sim.send_signal(signal.SIGINT)
         sim.wait(timeout=20)
+
+
+def test_the_settings_lerobots_robots_write_are_mapped_where_the_devices_have_them(
+    bus: RobobusMotorsBus,
+) -> None:
+    station = bus._station_()
+    # WHJ: the work mode, the position-loop gains (RAM registers), the acceleration limit.
+    bus.disable_torque(["shoulder", "base"])
+    bus.write("Operating_Mode", "shoulder", OperatingMode.VELOCITY.value)
+    assert station.whj.status("1")["results"][0]["mode"] == "speed"
+    bus.sync_write("Operating_Mode", {"shoulder": OperatingMode.POSITION, "base": 0})
+    assert [r["mode"] for r in station.whj.status("1-2")["results"]] == ["position", "position"]
+    for data_name, register, value in (
+        ("P_Coefficient", "SEV_POSITION_P", 16),
+        ("I_Coefficient", "SEV_POSITION_I", 0),
+        ("D_Coefficient", "SEV_POSITION_D", 32),
+        ("Position_P_Gain", "SEV_POSITION_P", 17),
+    ):
+        bus.write(data_name, "shoulder", value)
+        assert station.whj.read("1", register)["results"][0]["raw"] == value, data_name
+    bus.write("Acceleration", "base", 2500)
+    assert station.whj.read("2", "LIT_MAX_ACC")["results"][0]["value"] == 2500.0
+    # wCK: the runtime gains (P and D are one command: the other is kept) and acceleration.
+    bus.write("P_Coefficient", "elbow", 16)
+    bus.write("D_Coefficient", "elbow", 32)
+    bus.write("I_Coefficient", "elbow", 3)
+    assert station.wck.get("gains", 2)["results"][0] | {"id": 2} == {"id": 2, "p_gain": 16, "d_gain": 32}
+    assert station.wck.get("i-gain", 2)["results"][0]["i_gain"] == 3
+    bus.write("Operating_Mode", "elbow", OperatingMode.POSITION)
+
+
+def test_the_settings_the_devices_do_not_have_are_refused_naming_why(bus: RobobusMotorsBus) -> None:
+    station = bus._station_()
+    elbow_gains = station.wck.get("gains", 2)["results"][0]
+    refusals = [
+        ("Lock", "wrist", 0, "'Lock' of 'wrist': refused on a wck motor: a wCK servo has no EEPROM lock"),
+        ("Lock", "shoulder", 1, "'Lock' of 'shoulder': refused on a whj motor: a WHJ joint has no flash lock"),
+        ("Return_Delay_Time", "wrist", 0, "refused on a wck motor: a wCK servo answers after a fixed turnaround"),
+        ("Maximum_Acceleration", "wrist", 254, "a wCK servo has one acceleration setting: write Acceleration"),
+        ("Max_Torque_Limit", "gripper", 500, "a wCK servo's torque is a level 0..=4 sent with each move"),
+        ("Protection_Current", "shoulder", 250, "a WHJ joint's current limit is LIT_MAX_CURRENT in mA"),
+        ("Overload_Torque", "gripper", 25, "has no reduced torque on overload"),
+        ("Homing_Offset", "base", 0, "the homing offset is kept by the host"),
+        ("Min_Position_Limit", "base", 0, "the devices' own limits are not rewritten from LeRobot"),
+        ("Operating_Mode", "wrist", 1, "a wCK servo's wheel mode is a timed command"),
+        ("Operating_Mode", "shoulder", 2, "2 is no mode of a whj motor \\(allowed: 0 position, 1 velocity"),
+        ("Acceleration", "wrist", 254, "accel=254: acceleration 254 is out of range 20..=100"),
+        ("P_Coefficient", "wrist", 1.5, "1.5 is not a whole number"),
+    ]
+    for data_name, motor, value, why in refusals:
+        with pytest.raises(ValueError, match=why):
+            bus.write(data_name, motor, value)
+    # A refusal among several motors sends nothing to any.
+    with pytest.raises(ValueError, match="'P_Coefficient' of 'wrist': 5.5 is not a whole number"):
+        bus.sync_write("P_Coefficient", {"elbow": 5, "wrist": 5.5})
+    with pytest.raises(ValueError, match="acceleration 300 is out of range"):
+        bus.sync_write("Acceleration", {"elbow": 50, "wrist": 300})
+    with pytest.raises(ValueError, match="p=300: "):
+        bus.sync_write("P_Coefficient", {"elbow": 5, "wrist": 300})
+    assert station.wck.get("gains", 2)["results"][0] == elbow_gains, "nothing was sent"
+
+
+# LeRobot 0.4.4's `Robot` (lerobot/robots/robot.py): its abstract members, the helpers and
+# attributes its subclasses and its scripts use, and `connect`'s parameter.
+ROBOT_PROPERTIES = ["observation_features", "action_features", "is_connected", "is_calibrated"]
+ROBOT_METHODS = {
+    "connect": [["calibrate", "positional", True]],
+    "calibrate": [],
+    "configure": [],
+    "get_observation": [],
+    "send_action": [["action", "positional"]],
+    "disconnect": [],
+    "_load_calibration": [["fpath", "positional", None]],
+    "_save_calibration": [["fpath", "positional", None]],
+}
+ROBOT_ATTRIBUTES = ["robot_type", "id", "calibration_dir", "calibration_fpath", "calibration", "config"]
+ROBOT_CONFIG_FIELDS = ["id", "calibration_dir", "port", "disable_torque_on_disconnect", "max_relative_target", "cameras"]
+
+
+@pytest.fixture
+def follower(tmp_path: pathlib.Path) -> Iterator[RobobusFollower]:
+    robot = RobobusFollower(RobobusFollowerConfig(port="sim:virtual", id="arm", calibration_dir=tmp_path))
+    yield robot
+    if robot.is_connected:
+        robot.disconnect()
+
+
+def test_the_robot_class_has_lerobots_robot_interface(tmp_path: pathlib.Path) -> None:
+    assert RobobusFollower.config_class is RobobusFollowerConfig
+    assert RobobusFollower.name == "robobus_follower"
+    for name in ROBOT_PROPERTIES:
+        assert isinstance(inspect.getattr_static(RobobusFollower, name), property), name
+    for name, params in ROBOT_METHODS.items():
+        assert incompatible(getattr(RobobusFollower, name), params) is None, (name, incompatible(getattr(RobobusFollower, name), params))
+    fields = [f.name for f in __import__("dataclasses").fields(RobobusFollowerConfig)]
+    for name in ROBOT_CONFIG_FIELDS:
+        assert name in fields, name
+    robot = RobobusFollower(RobobusFollowerConfig(id="x", calibration_dir=tmp_path))
+    for name in ROBOT_ATTRIBUTES:
+        assert hasattr(robot, name), name
+    assert str(robot) == "x RobobusFollower"
+    assert robot.calibration_fpath == tmp_path / "x.json"
+    assert robot.observation_features == robot.action_features == {f"j{i}.pos": float for i in range(1, 7)}
+    assert robot.config.port == "sim" and not robot.is_connected
+    with pytest.raises(ValueError, match="has no cameras"):
+        RobobusFollower(RobobusFollowerConfig(cameras={"front": object()}, calibration_dir=tmp_path))
+
+
+def test_the_robot_connects_calibrates_reads_and_writes_on_the_simulator(
+    follower: RobobusFollower, tmp_path: pathlib.Path
+) -> None:
+    follower.connect()
+    assert follower.is_connected and follower.is_calibrated
+    with pytest.raises(DeviceAlreadyConnectedError):
+        follower.connect()
+    # Calibrated from the joints' own limits, saved in LeRobot's file format.
+    saved = json.loads((tmp_path / "arm.json").read_text())
+    assert list(saved) == [f"j{i}" for i in range(1, 7)]
+    assert set(saved["j1"]) == {"id", "drive_mode", "homing_offset", "range_min", "range_max"}
+    assert saved["j1"]["homing_offset"] == 0 and saved["j1"]["range_min"] < 0 < saved["j1"]["range_max"]
+    station = follower.bus._station_()
+    # configure() left every joint enabled in position mode.
+    rows = station.whj.status("1-6")["results"]
+    assert [(r["mode"], r["enabled"]) for r in rows] == [("position", True)] * 6
+    obs = follower.get_observation()
+    assert set(obs) == set(follower.observation_features)
+    middle = {k: v for k, v in obs.items()}
+    sent = follower.send_action({"j1.pos": middle["j1.pos"] + 1.0, "j3.pos": middle["j3.pos"] - 1.0})
+    assert sent == {"j1.pos": middle["j1.pos"] + 1.0, "j3.pos": middle["j3.pos"] - 1.0}
+    for _ in range(3000):
+        now = follower.get_observation()
+        if abs(now["j1.pos"] - sent["j1.pos"]) < 0.01 and abs(now["j3.pos"] - sent["j3.pos"]) < 0.01:
+            break
+    else:
+        raise AssertionError(f"the joints never reached {sent}: {now}")
+    assert now["j2.pos"] == pytest.approx(middle["j2.pos"], abs=0.01)
+    with pytest.raises(ValueError, match=r"action: no motor \['gripper'\]; nothing was sent|no motor \['gripper'\]"):
+        follower.send_action({"gripper.pos": 3.0})
+    follower.disconnect()
+    assert not follower.is_connected
+    with pytest.raises(DeviceNotConnectedError):
+        follower.get_observation()
+    # A second robot of the same id finds the calibration file and needs no calibration.
+    again = RobobusFollower(RobobusFollowerConfig(port="sim:virtual", id="arm", calibration_dir=tmp_path))
+    assert again.calibration == follower.calibration
+    again.connect(calibrate=False)
+    assert again.is_calibrated
+    again.disconnect()
+
+
+def test_max_relative_target_caps_each_step_and_says_so(tmp_path: pathlib.Path) -> None:
+    robot = RobobusFollower(
+        RobobusFollowerConfig(port="sim:virtual", id="capped", calibration_dir=tmp_path, max_relative_target=0.5)
+    )
+    robot.connect()
+    try:
+        start = robot.get_observation()["j2.pos"]
+        sent = robot.send_action({"j2.pos": start + 2.0})
+        assert sent == {"j2.pos": pytest.approx(start + 0.5)}
+    finally:
+        robot.disconnect()
+
+
+def test_configure_writes_the_configs_gains(tmp_path: pathlib.Path) -> None:
+    robot = RobobusFollower(
+        RobobusFollowerConfig(
+            port="sim:virtual",
+            id="tuned",
+            calibration_dir=tmp_path,
+            motors={"j1": Motor(1, "whj", MotorNormMode.DEGREES), "j2": Motor(2, "whj", MotorNormMode.RANGE_M100_100)},
+            gains=(250, 1, 40),
+        )
+    )
+    robot.connect()
+    try:
+        station = robot.bus._station_()
+        for register, value in (("SEV_POSITION_P", 250), ("SEV_POSITION_I", 1), ("SEV_POSITION_D", 40)):
+            for joint in ("1", "2"):
+                assert station.whj.read(joint, register)["results"][0]["raw"] == value, (joint, register)
+    finally:
+        robot.disconnect()
+
+
+def test_the_sim_port_runs_on_the_wall_clock_and_sim_virtual_on_the_virtual_one() -> None:
+    for port, clock in (("sim", "wall"), ("sim:virtual", "virtual")):
+        b = RobobusMotorsBus(port, {"shoulder": Motor(1, "whj", MotorNormMode.DEGREES)})
+        b.connect()
+        try:
+            assert b._station_().clock == clock
+        finally:
+            b.disconnect()

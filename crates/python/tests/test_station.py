@@ -35,7 +35,7 @@ MOTION = "torque 1\npose 100 100 140\nhold 40\npose 100 127 127\n"
 
 def _whj_settings() -> str:
     """Joint 1's settings file on the simulated robot (for `whj.restore`)."""
-    with robobus.Station.simulated() as station:
+    with robobus.Station.simulated(clock="virtual") as station:
         return json.dumps(station.whj.backup(1)["summary"])
 
 
@@ -243,9 +243,9 @@ def test_each_generated_method_reports_what_robobus_run_reports(
 ) -> None:
     family, name = method.split(".")
     assert robobus.request(req["op"], *args, **kwargs) == req
-    # Each on a fresh simulated robot, as `robobus run` makes one.
+    # Each on a fresh simulated robot on the virtual clock, as `robobus run` makes one.
     setup = SETUP.get(req["op"], [])
-    with robobus.Station.simulated() as station:
+    with robobus.Station.simulated(clock="virtual") as station:
         for s in setup:
             station.run(s, check=True)
         # The rows as they are, failed devices too: as `robobus run --json` prints them.
@@ -480,7 +480,7 @@ def test_the_stubs_are_the_schemas_and_type_check_the_examples(tmp_path: pathlib
     src = PKG / "python" / "robobus"
     mypy = subprocess.run(
         [sys.executable, "-m", "mypy", "--strict", "--cache-dir", str(tmp_path / "cache2")]
-        + [str(src / m) for m in ("handles.py", "lerobot.py", "errors.py")],
+        + [str(src / m) for m in ("handles.py", "lerobot.py", "errors.py", "_signatures.py")],
         capture_output=True,
         text=True,
         cwd=src.parent,
@@ -495,18 +495,23 @@ def test_the_examples_run_on_the_simulators() -> None:
         assert r.stdout.strip(), example
 
 
-def test_the_readmes_python_example_runs() -> None:
+def test_the_readmes_python_example_runs(tmp_path: pathlib.Path) -> None:
     text = (ROOT / "README.md").read_text()
     blocks = [b.split("```", 1)[0] for b in text.split("```python\n")[1:]]
-    assert len(blocks) == 3
+    assert len(blocks) == 4
     outputs = []
+    # The robot class keeps its calibration where LeRobot does: here, in a scratch place.
+    env = {**os.environ, "HF_LEROBOT_CALIBRATION": str(tmp_path)}
     for code in blocks:
-        r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+        r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=env)
         assert r.returncode == 0, code + r.stderr
         outputs.append(r.stdout)
     assert "'id': 's0'" in outputs[0], outputs[0]
+    assert "servo 20 did not answer" in outputs[0] and "'kind': 'no-device'" in outputs[0], outputs[0]
     assert outputs[1].startswith("[127. 127. 127. 127.]"), outputs[1]
     assert "'wrist': " in outputs[2] and "'shoulder': " in outputs[2], outputs[2]
+    assert "'j1.pos': " in outputs[3] and "'j6.pos': " in outputs[3], outputs[3]
+    assert (tmp_path / "robots" / "robobus_follower" / "arm.json").is_file()
 
 
 def test_the_librarys_log_events_go_to_pythons_logging() -> None:
@@ -592,7 +597,7 @@ def udp_body() -> None:
 
 def test_a_cyclic_loop_takes_arrays_and_gives_arrays() -> None:
     np = pytest.importorskip("numpy")
-    with robobus.Station.simulated() as station:
+    with robobus.Station.simulated(clock="virtual") as station:
         station.whj.mode("1", "speed", check=True)
         with pytest.raises(robobus.RefusedError, match="position mode"):
             station.cyclic([1, 2])

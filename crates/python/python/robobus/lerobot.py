@@ -1,5 +1,5 @@
-"""A LeRobot motors bus over robobus: wCK servos and WHJ joints as the motors of a LeRobot
-robot.
+"""LeRobot on robobus: a motors bus (wCK servos and WHJ joints as the motors of a LeRobot
+robot) and a robot class (a follower arm on robobus's joints).
 
 :class:`RobobusMotorsBus` has the method set of LeRobot's ``MotorsBus`` (its
 ``MotorsBusBase`` and the serial bus's extras): ``connect`` / ``disconnect``, ``read`` /
@@ -21,8 +21,11 @@ installed, the class is registered as a virtual subclass of its ``MotorsBusBase`
 
 The port is what the command line takes: a serial port for ``"wck"`` motors, a WHJ bus
 (``"can0"``, ``"udp"``) for ``"whj"`` motors, or ``"sim"`` for the built-in simulated
-robot (wCK servos 0..=15 and WHJ joints 1..=7, in-process). LeRobot's ``Motor``,
-``MotorCalibration`` and ``MotorNormMode`` work as well as the ones here.
+robot (wCK servos 0..=15 and WHJ joints 1..=7, in-process, moving in real time as
+hardware does; ``"sim:virtual"`` runs it on the simulators' virtual clock, which moves
+only as the bus is driven: every run the same, and nothing moves while Python sleeps).
+LeRobot's ``Motor``, ``MotorCalibration`` and ``MotorNormMode`` work as well as the ones
+here.
 
 Registers (``data_name``), raw units:
 
@@ -31,6 +34,19 @@ Registers (``data_name``), raw units:
 - WHJ: ``Present_Position`` / ``Goal_Position`` (0.0001° counts), ``Present_Velocity``
   (0.02 RPM counts), ``Present_Current`` (mA), ``Torque_Enable`` (the drive enabled),
   ``Goal_Velocity`` (0.002 RPM counts, speed mode), ``Goal_Current`` (mA, current mode).
+- The settings LeRobot's robots write when they start, where the devices have them
+  (each a request of the catalogue, checked before anything is sent and read back):
+  ``Operating_Mode`` (:class:`OperatingMode`: 0 position, and on WHJ 1 speed mode),
+  ``P_Coefficient`` / ``I_Coefficient`` / ``D_Coefficient`` (also ``Position_P_Gain``
+  ...: a wCK servo's runtime gains, a WHJ joint's position-loop gain registers in RAM),
+  ``Acceleration`` (a wCK servo's runtime acceleration 20..=100; a WHJ joint's
+  acceleration limit in rpm/s, also as ``Maximum_Acceleration``). The others LeRobot's
+  buses have (``Lock``, ``Return_Delay_Time``, ``Max_Torque_Limit``,
+  ``Protection_Current``, ``Overload_Torque``, the position limits, ``Homing_Offset``)
+  raise ``ValueError`` naming the register and why (:data:`REFUSED`), nothing sent.
+
+:class:`RobobusFollower` (config :class:`RobobusFollowerConfig`) is a LeRobot robot over
+this bus: a follower arm whose observations and actions are ``{"<motor>.pos": float}``.
 
 How it differs from a Dynamixel or Feetech bus, on purpose:
 
@@ -54,14 +70,18 @@ import contextlib
 import dataclasses
 import enum
 import importlib.util
+import json
 import logging
 import math
+import os
+import pathlib
 import select
 import sys
 import time
-from typing import Any, Callable, Iterator, Mapping, Sequence, TypeAlias
+from typing import Any, Callable, Iterator, Literal, Mapping, Sequence, TypeAlias
 
 from . import JointBus, Station, WckBus
+from ._robobus import NativeStation
 from ._robobus import facts as _facts
 from .errors import NotAvailableError, RobobusError
 from .handles import WckServos, WhjJoints
@@ -72,6 +92,10 @@ __all__ = [
     "Motor",
     "MotorCalibration",
     "MotorNormMode",
+    "OperatingMode",
+    "REFUSED",
+    "RobobusFollower",
+    "RobobusFollowerConfig",
     "RobobusMotorsBus",
 ]
 
@@ -125,14 +149,97 @@ class DeviceAlreadyConnectedError(ConnectionError):
     """``connect()`` was called twice."""
 
 
+class OperatingMode(enum.IntEnum):
+    """``Operating_Mode`` values (Feetech's numbers, which the SO-100 / SO-101 robots
+    write): ``POSITION`` is a WHJ joint's position mode (a wCK servo is always in it),
+    ``VELOCITY`` a WHJ joint's speed mode. Feetech's PWM (2) and step (3) modes have no
+    counterpart and are refused."""
+
+    POSITION = 0
+    VELOCITY = 1
+
+
 _READABLE = {
     WCK: ("Present_Position", "Present_Load"),
     WHJ: ("Present_Position", "Present_Velocity", "Present_Current", "Torque_Enable"),
 }
-_WRITABLE = {
-    WCK: ("Goal_Position", "Torque_Enable"),
-    WHJ: ("Goal_Position", "Goal_Velocity", "Goal_Current", "Torque_Enable"),
+
+# The settings registers LeRobot's robots write when they start (``configure``), and
+# what each is on a robobus device: a mapped one is written through the catalogue's
+# request (checked there, read back), a refused one names why.
+_GAINS = {
+    "P_Coefficient": "p",
+    "I_Coefficient": "i",
+    "D_Coefficient": "d",
+    "Position_P_Gain": "p",
+    "Position_I_Gain": "i",
+    "Position_D_Gain": "d",
 }
+_SETTINGS = ("Operating_Mode", *_GAINS, "Acceleration", "Maximum_Acceleration")
+_WRITABLE = {
+    WCK: ("Goal_Position", "Torque_Enable", *_SETTINGS[:-1]),
+    WHJ: ("Goal_Position", "Goal_Velocity", "Goal_Current", "Torque_Enable", *_SETTINGS),
+}
+_NO_LIMITS = (
+    "the devices' own limits are not rewritten from LeRobot: write_calibration() keeps the "
+    "range on the host, and the devices' limits are EEPROM / flash writes with their own "
+    "confirmation (the catalogue's wck.set bounds, whj.write LIT_MIN_POSITION / "
+    "LIT_MAX_POSITION)"
+)
+#: Registers of LeRobot's buses that robobus's devices do not have, with the reason.
+REFUSED: dict[str, dict[str, str]] = {
+    "Lock": {
+        WCK: "a wCK servo has no EEPROM lock: each EEPROM write of the catalogue is "
+        "confirmed on its own (confirm=True)",
+        WHJ: "a WHJ joint has no flash lock: each flash write of the catalogue is confirmed "
+        "on its own (confirm=True)",
+    },
+    "Return_Delay_Time": {
+        WCK: "a wCK servo answers after a fixed turnaround: robobus computes each reply's "
+        "deadline from the protocol (set_timeout() adds a margin)",
+        WHJ: "a WHJ joint has no reply delay setting: its replies follow the CAN FD bus",
+    },
+    "Maximum_Acceleration": {
+        WCK: "a wCK servo has one acceleration setting: write Acceleration",
+    },
+    "Max_Torque_Limit": {
+        WCK: "a wCK servo's torque is a level 0..=4 sent with each move "
+        "(RobobusMotorsBus(torque=...)), not a register",
+        WHJ: "a WHJ joint limits its current (LIT_MAX_CURRENT, mA, factory-tuned flash), "
+        "not a torque share: write it with the catalogue's whj.write, confirmed",
+    },
+    "Protection_Current": {
+        WCK: "a wCK servo's overload current is an EEPROM setting in mA: the catalogue's "
+        "wck.set overload, confirmed",
+        WHJ: "a WHJ joint's current limit is LIT_MAX_CURRENT in mA (factory-tuned flash): "
+        "the catalogue's whj.write, confirmed",
+    },
+    "Overload_Torque": {
+        WCK: "a wCK servo has no reduced torque on overload: its overload current cuts the "
+        "drive (wck.set overload)",
+        WHJ: "a WHJ joint has no reduced torque on overload: it latches an error and stops",
+    },
+    "Min_Position_Limit": {WCK: _NO_LIMITS, WHJ: _NO_LIMITS},
+    "Max_Position_Limit": {WCK: _NO_LIMITS, WHJ: _NO_LIMITS},
+    "Homing_Offset": {
+        WCK: "the homing offset is kept by the host (the calibration), not written to the servo",
+        WHJ: "the homing offset is kept by the host (the calibration), not written to the joint",
+    },
+}
+
+
+#: The simulated robot's ports and the clock each runs on.
+_SIM_PORTS: dict[str, Literal["wall", "virtual"]] = {"sim": "wall", "sim:virtual": "virtual"}
+
+
+def _simulated(port: str) -> Station:
+    """The built-in simulated robot on the clock of ``port``."""
+    return Station.simulated(clock=_SIM_PORTS[port])
+
+
+def _validate(request: dict[str, Any]) -> None:
+    """Checks a request as running it would (ranges, the host bounds); nothing is sent."""
+    NativeStation.validate(request)
 
 
 def _enter_pressed() -> bool:
@@ -163,6 +270,14 @@ class RobobusMotorsBus:
             "Goal_Position": ("w", "step"),
             "Present_Load": ("r", "0..=254"),
             "Torque_Enable": ("w", "0/1"),
+            "Operating_Mode": ("w", "0 position"),
+            "P_Coefficient": ("w", "runtime P gain"),
+            "I_Coefficient": ("w", "runtime I gain"),
+            "D_Coefficient": ("w", "runtime D gain"),
+            "Position_P_Gain": ("w", "runtime P gain"),
+            "Position_I_Gain": ("w", "runtime I gain"),
+            "Position_D_Gain": ("w", "runtime D gain"),
+            "Acceleration": ("w", "runtime acceleration 20..=100"),
         },
         WHJ: {
             "Present_Position": ("r", "0.0001 deg"),
@@ -172,6 +287,15 @@ class RobobusMotorsBus:
             "Torque_Enable": ("rw", "0/1"),
             "Goal_Velocity": ("w", "0.002 RPM"),
             "Goal_Current": ("w", "mA"),
+            "Operating_Mode": ("w", "0 position, 1 speed"),
+            "P_Coefficient": ("w", "SEV_POSITION_P"),
+            "I_Coefficient": ("w", "SEV_POSITION_I"),
+            "D_Coefficient": ("w", "SEV_POSITION_D"),
+            "Position_P_Gain": ("w", "SEV_POSITION_P"),
+            "Position_I_Gain": ("w", "SEV_POSITION_I"),
+            "Position_D_Gain": ("w", "SEV_POSITION_D"),
+            "Acceleration": ("w", "LIT_MAX_ACC, rpm/s"),
+            "Maximum_Acceleration": ("w", "LIT_MAX_ACC, rpm/s"),
         },
     }
     model_encoding_table: dict[str, dict[str, int]] = {WCK: {}, WHJ: {}}
@@ -208,7 +332,7 @@ class RobobusMotorsBus:
             if m.model not in (WCK, WHJ):
                 raise ValueError(f"motor {name!r}: model {m.model!r} is not one of 'wck', 'whj'")
         families = {m.model for m in self.motors.values()}
-        if len(families) > 1 and port != "sim":
+        if len(families) > 1 and port not in _SIM_PORTS:
             raise ValueError(
                 f"port {port!r}: one port carries one family; wCK and WHJ motors on one bus "
                 "only on the simulated robot ('sim')"
@@ -274,14 +398,14 @@ class RobobusMotorsBus:
             WHJ if port.startswith(("can", "vcan", "udp")) else WCK
         )
         if family == WHJ:
-            with (Station.simulated() if port == "sim" else JointBus.open(port)) as s:
+            with (_simulated(port) if port in _SIM_PORTS else JointBus.open(port)) as s:
                 rows = s.whj.scan(check=False)["results"]
             ids = sorted(r["id"] for r in rows if "error" not in r)
             return {cls.default_baudrate: ids} if ids else {}
         baudrate = kwargs.get("baudrate")
         opened = (
-            Station.simulated()
-            if port == "sim"
+            _simulated(port)
+            if port in _SIM_PORTS
             else WckBus.open(port, int(baudrate or cls.default_baudrate))
         )
         with opened as s:
@@ -317,7 +441,7 @@ class RobobusMotorsBus:
                 initial_baudrate = next(iter(found_by_baud))
             if initial_id is None:
                 initial_id = self._single(found_by_baud.get(initial_baudrate, []), motor)
-        if self.port == "sim":
+        if self.port in _SIM_PORTS:
             with self._temporary() as s:
                 if initial_id != m.id:
                     s.wck.set_id(initial_id, m.id, confirm=True, check=True)
@@ -630,8 +754,8 @@ class RobobusMotorsBus:
 
     def _open(self) -> None:
         families = {m.model for m in self.motors.values()}
-        if self.port == "sim":
-            self._station = Station.simulated()
+        if self.port in _SIM_PORTS:
+            self._station = _simulated(self.port)
         elif families == {WHJ}:
             self._station = JointBus.open(self.port)
         else:
@@ -741,6 +865,91 @@ class RobobusMotorsBus:
                 last = e
         raise ConnectionError(f"Failed to {what} on ids={list(ids)} after {1 + num_retry} tries: {last}") from last
 
+    def _setting(self, data_name: str, name: str, value: Value) -> Callable[[], Any]:
+        """The request that writes settings register ``data_name`` of motor ``name``
+        (checked now, sent when called)."""
+        m = self.motors[name]
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, (int, float))
+            or not math.isfinite(value)
+            or value != int(value)
+        ):
+            raise ValueError(f"{data_name!r} of {name!r}: {value!r} is not a whole number; nothing was sent")
+        v = int(value)
+        s = self._station_()
+        wck, whj = s.buses
+        if data_name == "Operating_Mode":
+            try:
+                mode = OperatingMode(v)
+            except ValueError:
+                raise ValueError(
+                    f"Operating_Mode of {name!r}: {v} is no mode of a {m.model} motor (allowed: "
+                    f"{OperatingMode.POSITION.value} position"
+                    + (f", {OperatingMode.VELOCITY.value} velocity" if m.model == WHJ else "")
+                    + "; Feetech's PWM and step modes have no counterpart); nothing was sent"
+                ) from None
+            if m.model == WCK:
+                if mode is not OperatingMode.POSITION:
+                    raise ValueError(
+                        f"Operating_Mode of {name!r}: refused on a wck motor: a wCK servo's "
+                        "wheel mode is a timed command (the catalogue's wck.wheel), not a mode "
+                        "register; nothing was sent"
+                    )
+                # A wCK servo takes every position command in position mode.
+                return lambda: None
+            work: Literal["position", "speed"] = "position" if mode is OperatingMode.POSITION else "speed"
+            return lambda: s.whj.mode(str(m.id), work, bus=self._bus(whj), check=True)
+        # The value within the device's range, as the catalogue checks it (the request it
+        # goes out in, with the value standing in for what is read when it is sent).
+        _validate(self._setting_check(data_name, m, v))
+        if data_name in _GAINS:
+            gain = _GAINS[data_name]
+            if m.model == WHJ:
+                register = f"SEV_POSITION_{gain.upper()}"
+                return lambda: s.whj.write(str(m.id), register, v, raw=True, bus=self._bus(whj), check=True)
+            if gain == "i":
+                return lambda: s.wck.set("i-gain", m.id, i=v, runtime=True, bus=self._bus(wck), check=True)
+
+            def pd() -> Any:
+                # The servo's runtime P and D are one command: the other gain is kept
+                # as the servo reads it now.
+                now = s.wck.get("gains", m.id, bus=self._bus(wck), check=True)["results"][0]
+                p, d = (v, now["d_gain"]) if gain == "p" else (now["p_gain"], v)
+                return s.wck.set("gains", m.id, p=p, d=d, runtime=True, bus=self._bus(wck), check=True)
+
+            return pd
+        # Acceleration, Maximum_Acceleration.
+        if m.model == WHJ:
+            return lambda: s.whj.write(str(m.id), "LIT_MAX_ACC", v, bus=self._bus(whj), check=True)
+
+        def accel() -> Any:
+            # Runtime speed and acceleration are one command: the speed is kept.
+            now = s.wck.get("speed", m.id, bus=self._bus(wck), check=True)["results"][0]
+            return s.wck.set("speed", m.id, speed=now["speed"], accel=v, runtime=True, bus=self._bus(wck), check=True)
+
+        return accel
+
+    @staticmethod
+    def _setting_check(data_name: str, m: Any, v: int) -> dict[str, Any]:
+        """The request a settings write goes out in, for checking ``v`` before anything
+        is sent."""
+        if m.model == WHJ:
+            if data_name in _GAINS:
+                register = f"SEV_POSITION_{_GAINS[data_name].upper()}"
+                return {"op": "whj.write", "joints": str(m.id), "register": register, "value": v, "raw": True}
+            return {"op": "whj.write", "joints": str(m.id), "register": "LIT_MAX_ACC", "value": v}
+        if data_name in _GAINS:
+            if _GAINS[data_name] == "i":
+                return {"op": "wck.set", "param": "i-gain", "id": m.id, "i": v, "runtime": True}
+            return {"op": "wck.set", "param": "gains", "id": m.id, "p": v, "d": v, "runtime": True}
+        return {"op": "wck.set", "param": "speed", "id": m.id, "speed": 0, "accel": v, "runtime": True}
+
+    @staticmethod
+    def _bus(names: list[str]) -> str | None:
+        """The bus to name in a request: the first of its family when there are several."""
+        return names[0] if len(names) > 1 else None
+
     def _homing(self, name: str) -> int:
         c = self.calibration.get(name)
         return int(c.homing_offset) if c is not None else 0
@@ -785,11 +994,22 @@ class RobobusMotorsBus:
     ) -> None:
         names = self._names(list(targets))
         for n in names:
-            if data_name not in _WRITABLE[self.motors[n].model]:
+            model = self.motors[n].model
+            why = REFUSED.get(data_name, {}).get(model)
+            if why is not None:
+                raise ValueError(f"{data_name!r} of {n!r}: refused on a {model} motor: {why}; nothing was sent")
+            if data_name not in _WRITABLE[model]:
                 raise ValueError(
-                    f"{data_name!r} of {n!r}: not writable on a {self.motors[n].model} motor "
-                    f"(writable: {', '.join(_WRITABLE[self.motors[n].model])})"
+                    f"{data_name!r} of {n!r}: not writable on a {model} motor "
+                    f"(writable: {', '.join(_WRITABLE[model])}); nothing was sent"
                 )
+        if data_name in _SETTINGS:
+            # Every value checked, then each motor's request sent (checked and read back
+            # by the library: a value out of the device's range is refused there).
+            sends = [self._setting(data_name, n, targets[n]) for n in names]
+            for send in sends:
+                self._retry(send, num_retry, f"write {data_name!r}")
+            return
         if data_name == "Torque_Enable":
             on = [n for n in names if targets[n]]
             off = [n for n in names if not targets[n]]
@@ -844,6 +1064,272 @@ class RobobusMotorsBus:
                 self._retry(lambda: w.move(positions, self._torque), num_retry, "write Goal_Position", ids)
 
 
+def _calibration_root() -> pathlib.Path:
+    """Where LeRobot keeps calibration files: ``$HF_LEROBOT_CALIBRATION``, else
+    ``$HF_LEROBOT_HOME/calibration``, else ``~/.cache/huggingface/lerobot/calibration``."""
+    if os.environ.get("HF_LEROBOT_CALIBRATION"):
+        return pathlib.Path(os.environ["HF_LEROBOT_CALIBRATION"]).expanduser()
+    home = os.environ.get("HF_LEROBOT_HOME")
+    if home:
+        return pathlib.Path(home).expanduser() / "calibration"
+    hf = os.environ.get("HF_HOME") or os.path.join(os.path.expanduser("~"), ".cache", "huggingface")
+    return pathlib.Path(hf) / "lerobot" / "calibration"
+
+
+def _default_motors() -> dict[str, Motor]:
+    """The follower arm of the simulated robot: its WHJ joints 1..=6, named as the robot
+    file names them (``j1``..``j6``)."""
+    return {f"j{i}": Motor(i, WHJ, MotorNormMode.DEGREES) for i in range(1, 7)}
+
+
+@dataclasses.dataclass(kw_only=True)
+class RobobusFollowerConfig:
+    """The configuration of a :class:`RobobusFollower` (LeRobot's ``RobotConfig`` fields
+    ``id`` and ``calibration_dir``, and its followers' ``port``,
+    ``disable_torque_on_disconnect``, ``max_relative_target`` and ``cameras``).
+
+    ``port``: as :class:`RobobusMotorsBus` takes it (``"sim"``: the built-in simulated
+    robot on the wall clock, ``"sim:virtual"`` on its virtual clock). ``motors``: the
+    arm's motors by name (default: WHJ joints 1..=6 as ``j1``..``j6``, in degrees).
+    ``gains``: ``(P, I, D)`` written to every motor by :meth:`RobobusFollower.configure`
+    (``None``, the default: the devices keep theirs; WHJ joints come factory-tuned).
+    ``calibrate_by_hand``: :meth:`RobobusFollower.calibrate` asks for the middle of the
+    range and records the ranges moved by hand, as LeRobot's Feetech arms do (``False``,
+    the default: each motor's calibrated range is its device's own limits, nothing to
+    move: WHJ joints and wCK servos know their absolute position)."""
+
+    port: str = "sim"
+    id: str | None = None
+    calibration_dir: pathlib.Path | None = None
+    motors: dict[str, Motor] = dataclasses.field(default_factory=_default_motors)
+    disable_torque_on_disconnect: bool = True
+    max_relative_target: float | dict[str, float] | None = None
+    cameras: dict[str, Any] = dataclasses.field(default_factory=dict)
+    gains: tuple[int, int, int] | None = None
+    calibrate_by_hand: bool = False
+
+    @property
+    def type(self) -> str:
+        """The robot type's name (LeRobot's ``RobotConfig.type``)."""
+        return RobobusFollower.name
+
+
+def _safe_goal(
+    goal_present: Mapping[str, tuple[float, float]], max_relative_target: float | Mapping[str, float]
+) -> dict[str, float]:
+    """Each goal moved no further than ``max_relative_target`` from the present position
+    (LeRobot's ``ensure_safe_goal_position``); a clamped goal is logged."""
+    if isinstance(max_relative_target, Mapping):
+        if set(goal_present) - set(max_relative_target):
+            raise ValueError(
+                f"max_relative_target: no value for {sorted(set(goal_present) - set(max_relative_target))}"
+            )
+        cap = {k: float(max_relative_target[k]) for k in goal_present}
+    else:
+        cap = dict.fromkeys(goal_present, float(max_relative_target))
+    out: dict[str, float] = {}
+    clamped: dict[str, tuple[float, float]] = {}
+    for key, (goal, present) in goal_present.items():
+        safe = present + max(-cap[key], min(cap[key], goal - present))
+        out[key] = safe
+        if abs(safe - goal) > 1e-4:
+            clamped[key] = (goal, safe)
+    if clamped:
+        log.warning("goal positions clamped to max_relative_target (goal, sent): %s", clamped)
+    return out
+
+
+class RobobusFollower:
+    """A LeRobot robot: a follower arm on robobus's joints, with the interface of
+    LeRobot's ``Robot`` (``connect`` / ``calibrate`` / ``configure`` /
+    ``get_observation`` / ``send_action`` / ``disconnect``, ``observation_features`` and
+    ``action_features`` as ``{"<motor>.pos": float}``), over a :class:`RobobusMotorsBus`
+    (``self.bus``). ::
+
+        from robobus.lerobot import RobobusFollower, RobobusFollowerConfig
+
+        robot = RobobusFollower(RobobusFollowerConfig(port="sim", id="arm"))
+        robot.connect()                      # calibrates if needed, then configures
+        obs = robot.get_observation()        # {"j1.pos": 0.0, ...}, read now
+        robot.send_action({"j1.pos": 5.0})   # checked whole before anything is sent
+        robot.disconnect()
+
+    The calibration file is LeRobot's (``<calibration_dir>/<id>.json``, the
+    ``MotorCalibration`` fields by motor). ``configure`` writes what LeRobot's followers
+    write at start: every motor's ``Operating_Mode`` to position and, when the config
+    has ``gains``, its P, I and D. Cameras are LeRobot's own; none here. When LeRobot is
+    installed, the class is registered as a virtual subclass of its ``Robot``.
+    """
+
+    config_class = RobobusFollowerConfig
+    name = "robobus_follower"
+
+    def __init__(self, config: RobobusFollowerConfig):
+        if config.cameras:
+            raise ValueError(
+                f"cameras {sorted(config.cameras)}: a RobobusFollower has no cameras yet "
+                "(LeRobot's cameras are not part of robobus); use an empty cameras"
+            )
+        self.config = config
+        self.robot_type = self.name
+        self.id = config.id
+        self.calibration_dir = pathlib.Path(
+            config.calibration_dir
+            if config.calibration_dir is not None
+            else _calibration_root() / "robots" / self.name
+        )
+        self.calibration_dir.mkdir(parents=True, exist_ok=True)
+        self.calibration_fpath = self.calibration_dir / f"{self.id}.json"
+        self.calibration: dict[str, MotorCalibration] = {}
+        if self.calibration_fpath.is_file():
+            self._load_calibration()
+        self.bus = RobobusMotorsBus(config.port, dict(config.motors), calibration=self.calibration)
+
+    def __str__(self) -> str:
+        return f"{self.id} {type(self).__name__}"
+
+    def __enter__(self) -> "RobobusFollower":
+        self.connect()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.disconnect()
+
+    @property
+    def _motors_ft(self) -> dict[str, type]:
+        return {f"{motor}.pos": float for motor in self.bus.motors}
+
+    @property
+    def observation_features(self) -> dict[str, type]:
+        """``{"<motor>.pos": float}``: what :meth:`get_observation` returns."""
+        return self._motors_ft
+
+    @property
+    def action_features(self) -> dict[str, type]:
+        """``{"<motor>.pos": float}``: what :meth:`send_action` takes."""
+        return self._motors_ft
+
+    @property
+    def is_connected(self) -> bool:
+        """Whether the bus is connected."""
+        return self.bus.is_connected
+
+    @property
+    def is_calibrated(self) -> bool:
+        """Whether every motor has a calibration within its device's range."""
+        return self.bus.is_calibrated
+
+    def connect(self, calibrate: bool = True) -> None:
+        """Connects the bus (every motor read once: a silent one raises
+        ``ConnectionError`` naming it), calibrates when ``calibrate`` and the
+        calibration is missing or outside the devices' ranges, then :meth:`configure`."""
+        if self.is_connected:
+            raise DeviceAlreadyConnectedError(f"{self} already connected")
+        self.bus.connect()
+        try:
+            if calibrate and not self.is_calibrated:
+                log.info("%s: no calibration, or one outside the devices' ranges: calibrating", self)
+                self.calibrate()
+            self.configure()
+        except BaseException:
+            self.bus.disconnect(disable_torque=False)
+            raise
+        log.info("%s connected", self)
+
+    def calibrate(self) -> None:
+        """Each motor's calibration: its device's own range with no homing offset (or,
+        with ``calibrate_by_hand``, LeRobot's procedure: the middle of the range, then
+        the ranges moved by hand until Enter), written to the bus and saved to
+        :attr:`calibration_fpath`."""
+        self._require()
+        if self.config.calibrate_by_hand:
+            self.bus.disable_torque()
+            input(f"Move {self} to the middle of its range of motion and press ENTER....")
+            homings = self.bus.set_half_turn_homings()
+            print("Move every joint through its whole range of motion. Press ENTER to stop...")
+            mins, maxes = self.bus.record_ranges_of_motion()
+            self.calibration = {
+                motor: MotorCalibration(
+                    id=m.id,
+                    drive_mode=0,
+                    homing_offset=int(homings[motor]),
+                    range_min=int(mins[motor]),
+                    range_max=int(maxes[motor]),
+                )
+                for motor, m in self.bus.motors.items()
+            }
+        else:
+            self.calibration = self.bus.read_calibration()
+        self.bus.write_calibration(self.calibration)
+        self._save_calibration()
+        log.info("%s: calibration saved to %s", self, self.calibration_fpath)
+
+    def configure(self) -> None:
+        """What LeRobot's followers write at start, with torque off: every motor's
+        ``Operating_Mode`` to position and, with the config's ``gains``, its P, I and D
+        (each a request of the catalogue, checked first and read back); torque is on
+        again afterwards."""
+        self._require()
+        with self.bus.torque_disabled():
+            self.bus.configure_motors()
+            for motor in self.bus.motors:
+                self.bus.write("Operating_Mode", motor, OperatingMode.POSITION.value)
+                if self.config.gains is not None:
+                    p, i, d = self.config.gains
+                    self.bus.write("P_Coefficient", motor, p)
+                    self.bus.write("I_Coefficient", motor, i)
+                    self.bus.write("D_Coefficient", motor, d)
+
+    def get_observation(self) -> dict[str, Any]:
+        """Every motor's position, read now (normalised as its ``norm_mode`` says)."""
+        self._require()
+        return {f"{motor}.pos": val for motor, val in self.bus.sync_read("Present_Position").items()}
+
+    def send_action(self, action: Mapping[str, Any]) -> dict[str, Any]:
+        """Sends the ``"<motor>.pos"`` goals of ``action`` (a goal moved no further than
+        ``max_relative_target`` from the present position, when set); every goal is
+        checked before any is sent. Returns the goals sent."""
+        self._require()
+        goal = {k.removesuffix(".pos"): float(v) for k, v in action.items() if k.endswith(".pos")}
+        unknown = sorted(set(goal) - set(self.bus.motors))
+        if unknown:
+            raise ValueError(
+                f"action: no motor {unknown} (motors: {list(self.bus.motors)}); nothing was sent"
+            )
+        if self.config.max_relative_target is not None:
+            present = self.bus.sync_read("Present_Position", list(goal))
+            goal = _safe_goal({k: (g, present[k]) for k, g in goal.items()}, self.config.max_relative_target)
+        self.bus.sync_write("Goal_Position", goal)
+        return {f"{motor}.pos": val for motor, val in goal.items()}
+
+    def disconnect(self) -> None:
+        """Disconnects; with ``disable_torque_on_disconnect`` every motor goes limp first
+        (the port closed with every device in its safe state)."""
+        if not self.is_connected:
+            raise DeviceNotConnectedError(f"{self} is not connected")
+        self.bus.disconnect(self.config.disable_torque_on_disconnect)
+        log.info("%s disconnected", self)
+
+    def _require(self) -> None:
+        if not self.is_connected:
+            raise DeviceNotConnectedError(f"{self} is not connected: call connect() first")
+
+    def _load_calibration(self, fpath: pathlib.Path | None = None) -> None:
+        """Reads LeRobot's calibration file (``{motor: MotorCalibration fields}``)."""
+        path = self.calibration_fpath if fpath is None else fpath
+        data = json.loads(path.read_text())
+        if not isinstance(data, dict):
+            raise ValueError(f"{path}: not a calibration file (a JSON object of motors)")
+        self.calibration = {name: MotorCalibration(**fields) for name, fields in data.items()}
+
+    def _save_calibration(self, fpath: pathlib.Path | None = None) -> None:
+        """Writes the calibration as LeRobot does (indented JSON, by motor)."""
+        path = self.calibration_fpath if fpath is None else fpath
+        path.write_text(
+            json.dumps({name: dataclasses.asdict(c) for name, c in self.calibration.items()}, indent=4)
+        )
+
+
 def _register_with_lerobot() -> None:
     """Makes ``isinstance(bus, MotorsBusBase)`` true when LeRobot is installed."""
     if importlib.util.find_spec("lerobot") is None:
@@ -856,6 +1342,12 @@ def _register_with_lerobot() -> None:
     base = getattr(motors_bus, "MotorsBusBase", None) or getattr(motors_bus, "MotorsBus", None)
     if base is not None and hasattr(base, "register"):
         base.register(RobobusMotorsBus)
+    try:
+        from lerobot.robots import Robot  # type: ignore[import-not-found]
+    except Exception as e:  # noqa: BLE001 (LeRobot is optional and may be broken)
+        log.debug("LeRobot's Robot does not import: %s", e)
+        return
+    Robot.register(RobobusFollower)
 
 
 _register_with_lerobot()
