@@ -22,7 +22,7 @@ test("the shell shows its header, tabs and control", async () => {
   assert.equal(await page.title(), "robobus studio");
   const tabs = page.getByRole("tab");
   assert.deepEqual(await tabs.allTextContents(), [
-    "Bus", "Device", "Tune", "Plot", "Waveform", "Program", "Poses", "Preview", "Capture",
+    "Bus", "Device", "Settings", "Backup", "Commission", "Tune", "Plot", "Waveform", "Program", "Poses", "Robot", "Preview", "Capture",
   ]);
   await page.getByText("you control the devices").waitFor();
   await page.getByRole("button", { name: "Arm", exact: true }).waitFor();

@@ -8,11 +8,15 @@ import { Studio, el, describeError } from "./core.js";
 const PANELS = [
   ["bus", "Bus"],
   ["device", "Device"],
+  ["settings", "Settings"],
+  ["backup", "Backup"],
+  ["commission", "Commission"],
   ["tune", "Tune"],
   ["plot", "Plot"],
   ["waveform", "Waveform"],
   ["program", "Program"],
   ["poses", "Poses"],
+  ["robotops", "Robot"],
   ["preview", "Preview"],
   ["capture", "Capture"],
 ];

@@ -1,6 +1,7 @@
-// Bus: find the devices on each bus (scan), and change a device's ID or bit rate.
+// Bus: find the devices on each bus (scan), and change a device's ID or bit rate. A scan
+// row opens its device's whole settings table in the Settings panel.
 
-import { el, field, select, numberInput, table, fmt, rowText, describeError, writes } from "../ui.js";
+import { el, field, select, numberInput, table, fmt, rowText, describeError, writes, panelStyles } from "../ui.js";
 
 const WCK_RATES = [4800, 9600, 38400, 57600, 115200, 230400, 460800, 921600];
 
@@ -8,6 +9,7 @@ export default {
   id: "bus",
   title: "Bus",
   mount(root, studio) {
+    panelStyles("flow");
     root.append(
       el("h2", {}, "Bus"),
       el("p", { className: "lead" }, "Scan a bus to find its devices; change a device's ID or bit rate (written to its EEPROM / flash after a confirmation)."),
@@ -173,8 +175,11 @@ function familySection(studio, family) {
       (dups.size ? `; duplicate IDs: ${[...dups].join(", ")}` : "") +
       ".";
     studio.setDevices(family, report.bus, rows);
-    const idCell = (r) =>
-      dups.has(r.id) ? el("span", {}, [String(r.id), " ", el("strong", { className: "fail" }, "duplicate ID")]) : String(r.id);
+    const idCell = (r) => {
+      const open = el("button", { type: "button", className: "link", title: `Open the settings of ${noun} ${r.id}`, onclick: () => openDevice(r, report.bus) }, String(r.id));
+      open.setAttribute("aria-label", `Open ${noun} ${r.id}`);
+      return dups.has(r.id) ? el("span", {}, [open, " ", el("strong", { className: "fail" }, "duplicate ID")]) : open;
+    };
     const cols = wck
       ? [
           ["ID", idCell],
@@ -192,9 +197,25 @@ function familySection(studio, family) {
         ];
     results.replaceChildren(
       rows.length
-        ? el("div", { className: "table-wrap" }, table(cols, rows, { caption: `${title} found on ${report.bus}`, rowClass: (r) => (dups.has(r.id) ? "dup" : "") }))
+        ? el("div", { className: "table-wrap" }, openOnClick(table(cols, rows, { caption: `${title} found on ${report.bus}`, rowClass: (r) => (dups.has(r.id) ? "dup scan-row" : "scan-row") }), rows, report.bus))
         : el("p", {}, `No ${noun} answered.`),
     );
+  }
+
+  /** Open a found device in the Settings panel: its whole settings table, read at once. */
+  function openDevice(r, bus) {
+    studio.openSettings = { family, bus, id: r.id };
+    studio.showPanel?.("settings");
+  }
+
+  /** A click anywhere on a row (but its buttons) opens its device. */
+  function openOnClick(t, rows, bus) {
+    [...t.tBodies[0].rows].forEach((tr, i) => {
+      tr.addEventListener("click", (e) => {
+        if (!e.target.closest("button, input, select, a")) openDevice(rows[i], bus);
+      });
+    });
+    return t;
   }
 
   function changeButtons(r, bus) {

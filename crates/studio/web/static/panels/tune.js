@@ -1,6 +1,9 @@
-// Tune: a wCK servo's gains, speed, overload and boundaries; a WHJ joint's registers.
+// Tune: a wCK servo's gains, speed, overload and boundaries; a WHJ joint's registers; and
+// the step response of a wCK servo under several gain sets (`wck.tune`), drawn over each
+// other with the step's target.
 
-import { el, field, numberInput, select, fmt, devicePicker, reportProblem, describeError, newId, writes } from "../ui.js";
+import { el, h, field, numberInput, select, fmt, devicePicker, reportProblem, describeError, newId, writes } from "../ui.js";
+import { createFlow, flowButtons, labelled, boundedNumber, reportTable } from "./flow.js";
 
 /** The wCK parameters: their fields, ranges and whether a runtime write exists. */
 const WCK_PARAMS = [
@@ -52,8 +55,126 @@ export default {
     root.append(cols);
     if (studio.buses("wck").length) cols.append(wckSection(studio));
     if (studio.buses("whj").length) cols.append(whjSection(studio));
+    if (studio.buses("wck").length) root.append(stepSection(studio));
   },
 };
+
+/** Colours of the gain sets' traces (the target is drawn in black, dashed). */
+const TRACE_COLOURS = ["#1f6feb", "#d1242f", "#1a7f37", "#9a6700", "#8250df", "#bf3989", "#0a7b83", "#57606a"];
+
+/**
+ * The step response: a servo, its gain sets, the step; `wck.tune` through the flow (its
+ * dry run, arming: it moves the servo; an EEPROM keep asks first); the report's figures as
+ * a table and every set's trace drawn over the others with the target step.
+ */
+function stepSection(studio) {
+  const picker = devicePicker(studio, { families: ["wck"], label: "Servo" });
+  picker.select.setAttribute("aria-label", "Step response servo");
+  const gains = el("input", { type: "text", value: "20,30; 60,10", size: 24, spellcheck: false });
+  const amplitude = numberInput({ value: 20, min: 2, max: 60 });
+  const hold = numberInput({ value: 400, min: 100, max: 5000, step: 50 });
+  const torque = numberInput({ value: 0, min: 0, max: 4 });
+  const keep = select([["none", "nothing (back to the EEPROM gains)"], ["runtime", "the best set, runtime"], ["eeprom", "the best set, EEPROM"]], "none");
+  const flow = createFlow(studio, { name: "Step response", render: drawTune });
+  const build = () => {
+    const d = picker.get();
+    if (!d) throw new Error("pick a servo");
+    const sets = gains.value.split(";").map((t) => t.trim()).filter(Boolean).map((t) => {
+      const m = /^(\d+)\s*[, ]\s*(\d+)$/.exec(t);
+      if (!m) throw new Error(`Gain sets: "${t}" is not P,D (sets separated by ";", e.g. 20,30; 60,10)`);
+      return [Number(m[1]), Number(m[2])];
+    });
+    if (!sets.length) throw new Error("Gain sets: give at least one P,D");
+    return {
+      op: "wck.tune", bus: d.bus, id: d.id, gains: sets,
+      amplitude: boundedNumber(amplitude, "Step (steps)", 2, 60),
+      hold_ms: boundedNumber(hold, "Hold (ms)", 100, 5000),
+      torque: boundedNumber(torque, "Torque", 0, 4),
+      keep: keep.value,
+    };
+  };
+  return el("section", { className: "card", "aria-label": "Step response" }, [
+    el("h3", {}, "Step response"),
+    el("p", { className: "hint" }, "The same position step with each gain set (runtime gains), recorded and drawn over each other with the step's target; the servo starts at rest and returns there. It moves the servo: arm first."),
+    el("div", { className: "row" }, [picker.element, labelled("Gain sets (P,D; P,D)", gains), labelled("Step (steps)", amplitude),
+      labelled("Hold (ms)", hold), labelled("Torque", torque), labelled("Keep", keep)]),
+    flowButtons(studio, flow, { label: "Run the steps", name: "Run the step responses", build }),
+    flow.element,
+  ]);
+}
+
+/** `wck.tune`'s report: its figures, and its traces against the target step. */
+function drawTune(rep, req) {
+  if (rep.failed) return h("p", { class: "fail" }, `${rep.failed}: ${rep.error ?? "failed"}`);
+  const s = rep.summary ?? {};
+  const rows = rep.results ?? [];
+  const best = s.best == null ? (s.tied?.length ? `a tie between sets ${s.tied.map((i) => i + 1).join(", ")}` : "none") : `set ${s.best + 1} (P ${rows[s.best]?.p}, D ${rows[s.best]?.d})`;
+  return [
+    h("p", { "data-field": "best" }, `Step from ${s.start} to ${s.target} (position steps). Best: ${best}; kept: ${s.kept}.`),
+    stepChart(s, req),
+    reportTable("Step responses", [["Set", (r) => rows.indexOf(r) + 1], ["P", "p"], ["D", "d"], ["Rise (ms)", "rise_ms"],
+      ["Overshoot (%)", "overshoot_pct"], ["Settling (ms)", "settling_ms"], ["Steady-state error", "steady_state_error"]], rows),
+  ];
+}
+
+/** An SVG of every response's trace (ms, position) and the target step. */
+function stepChart(s, req) {
+  const W = 720;
+  const H = 300;
+  const L = 48;
+  const B = 34;
+  const T = 26;
+  const R = 12;
+  const responses = s.responses ?? [];
+  const all = responses.flatMap((r) => r.trace ?? []);
+  const tMax = Math.max(req.hold_ms ?? 0, ...all.map((p) => p[0]), 1);
+  const vals = [s.start, s.target, ...all.map((p) => p[1])];
+  let lo = Math.min(...vals);
+  let hi = Math.max(...vals);
+  const pad = Math.max(1, (hi - lo) * 0.08);
+  lo -= pad;
+  hi += pad;
+  const tPre = tMax * 0.05;
+  const x = (t) => L + ((t + tPre) / (tMax + tPre)) * (W - L - R);
+  const y = (v) => T + (1 - (v - lo) / (hi - lo)) * (H - T - B);
+  const ns = "http://www.w3.org/2000/svg";
+  const svg = document.createElementNS(ns, "svg");
+  const add = (tag, attrs, text) => {
+    const e = document.createElementNS(ns, tag);
+    for (const [k, v] of Object.entries(attrs)) e.setAttribute(k, String(v));
+    if (text !== undefined) e.textContent = text;
+    svg.append(e);
+    return e;
+  };
+  svg.setAttribute("viewBox", `0 0 ${W} ${H}`);
+  svg.setAttribute("class", "step-chart");
+  svg.setAttribute("role", "img");
+  svg.setAttribute("aria-label", `Step responses: ${responses.length} gain sets against the target, position steps over ms`);
+  add("line", { x1: L, y1: H - B, x2: W - R, y2: H - B, stroke: "#999" });
+  add("line", { x1: L, y1: T, x2: L, y2: H - B, stroke: "#999" });
+  for (let i = 0; i <= 4; i++) {
+    const v = lo + ((hi - lo) * i) / 4;
+    add("text", { x: L - 6, y: y(v) + 4, "text-anchor": "end" }, v.toFixed(0));
+    add("line", { x1: L, y1: y(v), x2: W - R, y2: y(v), stroke: "#eee" });
+    const t = (tMax * i) / 4;
+    add("text", { x: x(t), y: H - B + 15, "text-anchor": "middle" }, t.toFixed(0));
+  }
+  add("text", { x: (L + W - R) / 2, y: H - 4, "text-anchor": "middle" }, "ms since the step");
+  add("text", { x: 6, y: 14, "text-anchor": "start" }, "position (steps)");
+  // The target: the start before the step, the target from it on.
+  add("polyline", {
+    points: [[-tPre, s.start], [0, s.start], [0, s.target], [tMax, s.target]].map(([t, v]) => `${x(t).toFixed(1)},${y(v).toFixed(1)}`).join(" "),
+    fill: "none", stroke: "#111", "stroke-width": 1.5, "stroke-dasharray": "5 4", "data-series": "target",
+  });
+  responses.forEach((r, i) => {
+    const pts = [[0, s.start], ...(r.trace ?? [])].map(([t, v]) => `${x(t).toFixed(1)},${y(v).toFixed(1)}`).join(" ");
+    add("polyline", { points: pts, fill: "none", stroke: TRACE_COLOURS[i % TRACE_COLOURS.length], "stroke-width": 2, "data-series": `set ${i + 1}` });
+  });
+  const legend = h("div", { class: "legend", "aria-label": "Legend" },
+    h("span", { style: "--c: #111" }, "target"),
+    responses.map((r, i) => h("span", { style: `--c: ${TRACE_COLOURS[i % TRACE_COLOURS.length]}` }, `set ${i + 1}: P ${r.p}, D ${r.d}`)));
+  return h("figure", { class: "step-figure" }, svg, legend);
+}
 
 function wckSection(studio) {
   const picker = devicePicker(studio, { families: ["wck"], label: "Servo" });
