@@ -138,6 +138,10 @@ fn describe(keys: &Keys, config: &BridgeConfig, joints: &[String], sim: bool) ->
             "std_msgs/msg/Float64MultiArray, rad".to_owned(),
         ),
         (
+            &keys.diagnostics,
+            "diagnostic_msgs/msg/DiagnosticArray, every second".to_owned(),
+        ),
+        (
             &keys.run,
             "queryable: a catalogue request in JSON, its report".to_owned(),
         ),
