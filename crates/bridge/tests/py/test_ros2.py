@@ -75,3 +75,38 @@ def test_a_ros2_node_reads_joint_states_and_its_commands_move_the_robot(netns, n
         router.terminate()
         router.wait(10)
         assert bridge.stop() == 0
+
+
+DIAGNOSTICS_NODE = ROOT / "tests/ros2/diagnostics_node.py"
+
+
+@pytest.mark.parametrize("namespace", [None, "bot1"])
+def test_a_ros2_node_receives_the_diagnostics(netns, namespace):
+    """`/diagnostics` (or `/NS/diagnostics`) as rqt's monitors and diagnostic_aggregator
+    subscribe to it: one status per joint and bus, OK on the simulated robot."""
+    ns = ["--namespace", namespace] if namespace else []
+    bridge = Bridge("--rate", "50", *ns)
+    router = start_router("--connect", bridge.endpoint, "--listen", "tcp/127.0.0.1:0")
+    robot = namespace or "robot"
+    try:
+        node = subprocess.run(
+            [sys.executable, str(DIAGNOSTICS_NODE), "--expect", "3", "--timeout", "90",
+             *(["--namespace", "/" + namespace] if namespace else [])],
+            capture_output=True, text=True, timeout=120)
+        assert node.returncode == 0, node.stderr
+        msgs = [json.loads(x) for x in node.stdout.splitlines()]
+        assert len(msgs) == 3
+        # The first may predate the first sample (every joint stale); the last is read.
+        last = {s["name"]: s for s in msgs[-1]["status"]}
+        assert len(last) == 23 + 2, sorted(last)
+        assert all(s["level"] == 0 for s in last.values()), last
+        j1 = last[f"robobus: {robot} joint j1"]
+        assert (j1["message"], j1["hardware_id"]) == ("OK", "whj sim-whj 1")
+        assert j1["values"]["error_bits"] == "no error" and "temperature_c" in j1["values"]
+        assert last[f"robobus: {robot} bus sim-whj"]["message"] == "OK, 7 of 7 joints answering"
+        stamps = [tuple(m["stamp"]) for m in msgs]
+        assert stamps == sorted(stamps) and len(set(stamps)) == 3
+    finally:
+        router.terminate()
+        router.wait(10)
+        assert bridge.stop() == 0
