@@ -2,10 +2,10 @@
 //! resolved and connected.
 
 use super::{
-    ActuatorError, Arc, AtomicBool, BTreeMap, BaudRate, BusConfig, Device, Duration, DynByteLink,
-    Hardware, Instant, JointBus, JointBusConfig, JointConfig, JointId, JointLimits, JointSlot,
-    Mutex, RateLimiter, Robot, RobotByteLink, RobotConfig, RobotError, ServoId, Shared,
-    TorqueLevel, WckBus, WckSlot, WhjSlot,
+    ActuatorError, Arc, AtomicBool, BTreeMap, BaudRate, BusConfig, Device, Drive, Duration,
+    DynByteLink, EffortScale, Hardware, Instant, Interface, JointBus, JointBusConfig, JointConfig,
+    JointId, JointLimits, JointSlot, Mutex, RateLimiter, Robot, RobotByteLink, RobotConfig,
+    RobotError, ServoId, Shared, TorqueLevel, WckBus, WckSlot, WhjSlot,
 };
 
 // ----- builder -------------------------------------------------------------------------
@@ -210,6 +210,8 @@ fn build_joint(
         value,
         expected,
     };
+    let mut peak_rad_s = None;
+    let mut effort_scale = None;
     let device = if config.is_wck(j) {
         let id = ServoId::new(j.id).map_err(|e| invalid("id", j.id.to_string(), e.to_string()))?;
         Device::Wck {
@@ -227,7 +229,37 @@ fn build_joint(
             source: Box::new(source),
         };
         let handle = slot.bus.joint(id).map_err(whj)?;
-        let current = handle.identity().map_err(whj)?.current_scale();
+        let identity = handle.identity().map_err(whj)?;
+        let current = identity.current_scale();
+        peak_rad_s = identity
+            .model
+            .peak_output_speed_rpm()
+            .map(|rpm| rpm * core::f64::consts::TAU / 60.0);
+        if j.has(Interface::Effort) {
+            let scale = EffortScale::of(identity.model, identity.reduction_ratio).ok_or_else(|| {
+                invalid(
+                    "interfaces",
+                    "\"effort\"".into(),
+                    format!(
+                        "a joint whose model has a torque constant in the product table                          (it identified as {} with reduction ratio {})",
+                        identity.model, identity.reduction_ratio
+                    ),
+                )
+            })?;
+            let most = j.max_effort.unwrap_or(0.0);
+            if most > scale.peak_nm {
+                return Err(invalid(
+                    "max_effort",
+                    most.to_string(),
+                    format!(
+                        "at most the peak torque of the joint's model, {} N·m ({} with \
+                         reduction ratio {})",
+                        scale.peak_nm, identity.model, identity.reduction_ratio
+                    ),
+                ));
+            }
+            effort_scale = Some(scale);
+        }
         Device::Whj {
             bus,
             id,
@@ -240,6 +272,17 @@ fn build_joint(
         device,
         limits,
         limiter: RateLimiter::new(0.0),
+        drive: Drive {
+            interfaces: j.interfaces(),
+            active: Interface::Position,
+            velocity: 0.0,
+            effort: 0.0,
+            max_effort: j.max_effort.unwrap_or(0.0),
+            effort_rate: j.effort_rate(),
+            wheel: j.wheel_speeds.clone(),
+            effort_scale,
+            peak_rad_s,
+        },
     })
 }
 

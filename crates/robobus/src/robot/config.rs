@@ -11,6 +11,7 @@ use toml::Spanned;
 use robobus_wck::Position;
 
 use super::RobotError;
+use super::interface::{self, Interface, WheelSpeeds};
 use crate::actuator::{JointMap, WCK_DEFAULT_CENTRE, WckScale};
 use crate::ops::SafeState;
 use crate::ops::protect::{Limits, Overrides};
@@ -161,6 +162,21 @@ pub struct JointConfig {
     /// (`[joints.protection]`; see [`crate::ops::protect`]).
     #[serde(default)]
     pub protection: Option<Overrides>,
+    /// The command interfaces the joint has (default `["position"]`): `"position"` always,
+    /// `"velocity"` (a WHJ joint's speed mode; a wCK servo's wheel mode, which needs
+    /// `wheel_speeds`), `"effort"` (a WHJ joint's current mode, which needs `max_effort`).
+    #[serde(default)]
+    pub interfaces: Option<Vec<Interface>>,
+    /// Largest commanded effort, N·m (required with `"effort"`; at most the model's peak
+    /// torque, checked when the joint identifies).
+    pub max_effort: Option<f64>,
+    /// Fastest change of the commanded effort, N·m/s (default ten times `max_effort`:
+    /// zero to full in 0.1 s).
+    pub max_effort_rate: Option<f64>,
+    /// wCK only, with `"velocity"`: what wheel speeds 1..=15 turn the joint at, rad/s (one
+    /// number: level 15's, the others in proportion; or the 15 measured speeds). See
+    /// [`WheelSpeeds`].
+    pub wheel_speeds: Option<WheelSpeeds>,
 }
 
 const fn default_direction() -> i8 {
@@ -252,6 +268,29 @@ impl JointConfig {
             centre: self.centre.unwrap_or(WCK_DEFAULT_CENTRE),
             map: self.map(),
         }
+    }
+
+    /// The command interfaces of the joint (`interfaces`; position alone by default).
+    pub fn interfaces(&self) -> Vec<Interface> {
+        self.interfaces
+            .clone()
+            .unwrap_or_else(|| vec![Interface::Position])
+    }
+
+    /// Whether the joint has `interface`.
+    pub fn has(&self, interface: Interface) -> bool {
+        interface == Interface::Position
+            || self
+                .interfaces
+                .as_ref()
+                .is_some_and(|i| i.contains(&interface))
+    }
+
+    /// The fastest change of its commanded effort, N·m/s (`max_effort_rate`, else ten
+    /// times `max_effort`; 0 without effort).
+    pub fn effort_rate(&self) -> f64 {
+        self.max_effort_rate
+            .unwrap_or_else(|| 10.0 * self.max_effort.unwrap_or(0.0))
     }
 }
 
@@ -382,6 +421,13 @@ impl RobotConfig {
 
     /// The largest joint acceleration a robot file may ask for, rad/s².
     pub const MAX_JOINT_ACCELERATION: f64 = 10_000.0;
+
+    /// The largest joint effort a robot file may ask for, N·m (the largest WHJ joint peaks
+    /// at 360 N·m; the model's own peak is checked when the joint identifies).
+    pub const MAX_JOINT_EFFORT: f64 = 1_000.0;
+
+    /// The fastest effort change a robot file may ask for, N·m/s.
+    pub const MAX_JOINT_EFFORT_RATE: f64 = 100_000.0;
 
     /// Parses and checks a robot file. Syntax errors give the line and column; errors in
     /// the values name the joint or bus, the field and the value.
@@ -689,6 +735,8 @@ impl RobotConfig {
                 ));
             }
         }
+        self.validate_interfaces(joint, bus.is_wck())
+            .map_err(|(field, value, expected)| invalid(field, value, &expected))?;
         if let Some(centre) = joint.centre {
             if !bus.is_wck() {
                 return Err(invalid(
@@ -746,6 +794,104 @@ impl RobotConfig {
                         scale.centre,
                         joint.offset
                     ),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl RobotConfig {
+    /// Checks a joint's `interfaces` and the fields they need: the field, the value and
+    /// what is allowed, when something is wrong.
+    fn validate_interfaces(
+        &self,
+        joint: &JointConfig,
+        wck: bool,
+    ) -> Result<(), (&'static str, String, String)> {
+        let listed = joint.interfaces();
+        let shown = format!("[{}]", interface::list(&listed));
+        if !listed.contains(&Interface::Position) {
+            return Err((
+                "interfaces",
+                shown,
+                "a list with \"position\" (every joint has it)".into(),
+            ));
+        }
+        if let Some(dup) = listed
+            .iter()
+            .enumerate()
+            .find(|(i, x)| listed[..*i].contains(x))
+            .map(|(_, x)| x)
+        {
+            return Err(("interfaces", shown, format!("\"{dup}\" listed once")));
+        }
+        if wck && joint.has(Interface::Effort) {
+            return Err((
+                "interfaces",
+                shown,
+                "\"position\" and \"velocity\" on a wCK servo (it has no current mode:                  effort only on WHJ joints)"
+                    .into(),
+            ));
+        }
+        if joint.has(Interface::Velocity) && wck && joint.wheel_speeds.is_none() {
+            return Err((
+                "wheel_speeds",
+                "none".into(),
+                "the wheel speeds of a wCK joint with \"velocity\" (rad/s of wheel level 15,                  or of levels 1..=15)"
+                    .into(),
+            ));
+        }
+        if let Some(w) = &joint.wheel_speeds {
+            if !wck {
+                return Err((
+                    "wheel_speeds",
+                    format!("{:?}", w.speeds()),
+                    "no wheel_speeds on a WHJ joint (its speed mode takes rad/s)".into(),
+                ));
+            }
+            if let Some(fault) = w.fault(Self::MAX_JOINT_VELOCITY) {
+                return Err(("wheel_speeds", format!("{:?}", w.speeds()), fault));
+            }
+        }
+        let effort = joint.has(Interface::Effort);
+        match joint.max_effort {
+            None if effort => {
+                return Err((
+                    "max_effort",
+                    "none".into(),
+                    "the largest effort in N·m of a joint with \"effort\"".into(),
+                ));
+            }
+            Some(v) if !effort => {
+                return Err((
+                    "max_effort",
+                    v.to_string(),
+                    "no max_effort without \"effort\" in interfaces".into(),
+                ));
+            }
+            Some(v) if !(v.is_finite() && v > 0.0 && v <= Self::MAX_JOINT_EFFORT) => {
+                return Err((
+                    "max_effort",
+                    v.to_string(),
+                    format!("a number > 0 and <= {} N·m", Self::MAX_JOINT_EFFORT),
+                ));
+            }
+            _ => {}
+        }
+        if let Some(v) = joint.max_effort_rate {
+            if !effort {
+                return Err((
+                    "max_effort_rate",
+                    v.to_string(),
+                    "no max_effort_rate without \"effort\" in interfaces".into(),
+                ));
+            }
+            if !(v.is_finite() && v > 0.0 && v <= Self::MAX_JOINT_EFFORT_RATE) {
+                return Err((
+                    "max_effort_rate",
+                    v.to_string(),
+                    format!("a number > 0 and <= {} N·m/s", Self::MAX_JOINT_EFFORT_RATE),
                 ));
             }
         }

@@ -2,6 +2,7 @@
 //! robot's clock (its buses' clocks), the watchdog's shared state, and reading and
 //! sending in joint units.
 
+use super::interface::{EffortScale, Interface, WheelSpeeds};
 use super::{
     ActuatorError, Arc, AtomicBool, CurrentScale, Duration, DynByteLink, Instant, Joint, JointBus,
     JointId, JointLimits, JointMap, Mutex, MutexGuard, Ordering, PoisonError, Position,
@@ -56,6 +57,39 @@ pub(super) struct JointSlot {
     pub(super) device: Device,
     pub(super) limits: JointLimits,
     pub(super) limiter: RateLimiter,
+    /// Its interfaces (the file's) and the one it is commanded in now.
+    pub(super) drive: Drive,
+}
+
+/// A joint's interfaces, the one in use, and the set-points and limits of velocity and
+/// effort (joint frame).
+#[derive(Debug, Clone)]
+pub(super) struct Drive {
+    pub(super) interfaces: Vec<Interface>,
+    pub(super) active: Interface,
+    /// The velocity set-point, rad/s, before a wCK level's quantisation.
+    pub(super) velocity: f64,
+    /// The effort set-point, N·m.
+    pub(super) effort: f64,
+    /// `max_effort`, N·m (0 without effort).
+    pub(super) max_effort: f64,
+    /// `max_effort_rate` (or its default), N·m/s.
+    pub(super) effort_rate: f64,
+    /// wCK: what the wheel levels turn it at.
+    pub(super) wheel: Option<WheelSpeeds>,
+    /// WHJ with effort: its model's torque constant and peak torque.
+    pub(super) effort_scale: Option<EffortScale>,
+    /// WHJ: its model's peak output speed, rad/s, when the model is known.
+    pub(super) peak_rad_s: Option<f64>,
+}
+
+impl Drive {
+    /// At rest on its position interface.
+    pub(super) fn resting(&mut self) {
+        self.active = Interface::Position;
+        self.velocity = 0.0;
+        self.effort = 0.0;
+    }
 }
 
 #[derive(Debug)]
@@ -250,23 +284,41 @@ impl Hardware {
             }
         }
         for (b, slot) in self.whj.iter().enumerate() {
-            let handles: Vec<Joint<'_>> = self
-                .joints
-                .iter()
-                .filter_map(|j| match j.device {
-                    Device::Whj { bus, id, .. } if bus == b => Some(slot.bus.joint_unchecked(id)),
-                    _ => None,
-                })
-                .collect();
-            let failed = slot.safe.apply(&mut WhjJoints {
-                joints: &handles,
-                servo: ServoLoop::Position,
-            });
-            for f in failed {
-                let name =
-                    name_of(&self.joints, f.device).unwrap_or_else(|| format!("bus {}", slot.name));
-                errors.push(format!("{name}: {}: {}", slot.safe.keyword(), f.error));
+            // Each joint is held in the loop it runs (a hold in speed or current mode is a
+            // zero target).
+            for (interface, servo) in [
+                (Interface::Position, ServoLoop::Position),
+                (Interface::Velocity, ServoLoop::Speed),
+                (Interface::Effort, ServoLoop::Current),
+            ] {
+                let handles: Vec<Joint<'_>> = self
+                    .joints
+                    .iter()
+                    .filter(|j| j.drive.active == interface)
+                    .filter_map(|j| match j.device {
+                        Device::Whj { bus, id, .. } if bus == b => {
+                            Some(slot.bus.joint_unchecked(id))
+                        }
+                        _ => None,
+                    })
+                    .collect();
+                if handles.is_empty() {
+                    continue;
+                }
+                let failed = slot.safe.apply(&mut WhjJoints {
+                    joints: &handles,
+                    servo,
+                });
+                for f in failed {
+                    let name = name_of(&self.joints, f.device)
+                        .unwrap_or_else(|| format!("bus {}", slot.name));
+                    errors.push(format!("{name}: {}: {}", slot.safe.keyword(), f.error));
+                }
             }
+        }
+        for joint in &mut self.joints {
+            joint.drive.velocity = 0.0;
+            joint.drive.effort = 0.0;
         }
         errors
     }
@@ -363,6 +415,11 @@ impl Hardware {
         for i in 0..self.joints.len() {
             let Some(&JointSlot {
                 device: Device::Whj { bus, id, map, .. },
+                drive:
+                    Drive {
+                        active: Interface::Position,
+                        ..
+                    },
                 ..
             }) = self.joints.get(i)
             else {
@@ -393,11 +450,12 @@ impl Hardware {
         Ok(reach)
     }
 
-    /// Sends `setpoints` (rad, joint order, within the soft limits); returns what was
-    /// sent at device resolution. wCK: per bus one synchronized move when its IDs are
-    /// exactly `0..n` (at the steps its servos' [`Actuator`]s would send), else each
+    /// Sends the position `setpoints` (rad, joint order, within the soft limits; `None`
+    /// for a joint not commanded in position); returns what was sent at device
+    /// resolution (0 where nothing was). wCK: per bus one synchronized move when its IDs
+    /// are exactly `0..n` (at the steps its servos' [`Actuator`]s would send), else each
     /// servo's own move; WHJ: each joint's position command.
-    pub(super) fn send(&mut self, setpoints: &[f64]) -> Result<Vec<f64>, RobotError> {
+    pub(super) fn send(&mut self, setpoints: &[Option<f64>]) -> Result<Vec<f64>, RobotError> {
         let mut sent = vec![0.0; setpoints.len()];
         let mut singles = Vec::new();
         for (b, slot) in self.wck.iter_mut().enumerate() {
@@ -405,8 +463,8 @@ impl Hardware {
             for (i, joint) in self.joints.iter().enumerate() {
                 if let Device::Wck { bus, id, scale } = joint.device
                     && bus == b
+                    && let Some(&Some(rad)) = setpoints.get(i)
                 {
-                    let rad = setpoints.get(i).copied().unwrap_or(0.0);
                     let position = scale
                         .position_within(rad, &joint.limits)
                         .ok_or_else(|| scale.range_error(&joint.name, rad))?;
@@ -446,11 +504,16 @@ impl Hardware {
             self.joints
                 .iter()
                 .enumerate()
-                .filter(|(_, j)| matches!(j.device, Device::Whj { .. }))
+                .filter(|(i, j)| {
+                    matches!(j.device, Device::Whj { .. })
+                        && matches!(setpoints.get(*i), Some(Some(_)))
+                })
                 .map(|(i, _)| i),
         );
         for i in singles {
-            let rad = setpoints.get(i).copied().unwrap_or(0.0);
+            let Some(&Some(rad)) = setpoints.get(i) else {
+                continue;
+            };
             let done = self.actuator(i)?.command_position(rad)?;
             if let Some(s) = sent.get_mut(i) {
                 *s = done.sent_rad;

@@ -76,7 +76,9 @@
 mod builder;
 pub mod calibration;
 mod config;
+mod drive;
 mod hardware;
+mod interface;
 mod safety;
 #[cfg(feature = "sim")]
 pub mod simulated;
@@ -97,7 +99,8 @@ use robobus_whj::units::CurrentScale;
 
 pub use builder::{RobotBuilder, open_wck_bus, open_whj_bus};
 pub use config::{BusConfig, JointConfig, Protection, RobotConfig};
-use hardware::{Device, Hardware, JointSlot, Shared, WckSlot, WhjSlot, lock};
+use hardware::{Device, Drive, Hardware, JointSlot, Shared, WckSlot, WhjSlot, lock};
+pub use interface::{EffortScale, Interface, WHEEL_LEVELS, WheelSpeeds};
 pub use safety::{LimitEvent, LimitKind, RateLimiter};
 
 use crate::actuator::{ActuatorError, ActuatorState, JointLimits, JointMap, WckScale, whj_to_rad};
@@ -219,6 +222,55 @@ pub enum RobotError {
     /// The watchdog thread cannot be started.
     #[error("cannot start the watchdog thread: {0}")]
     Watchdog(String),
+    /// A joint was asked for an interface the robot file does not give it; nothing sent.
+    #[error(
+        "joint {joint} has no {interface} interface (the robot file gives it: {has}); nothing sent"
+    )]
+    NoInterface {
+        /// The joint.
+        joint: String,
+        /// The interface asked for.
+        interface: Interface,
+        /// The interfaces it has.
+        has: String,
+    },
+    /// A target for an interface the joint is not commanded in now; nothing sent.
+    #[error(
+        "joint {joint} is commanded in {active}, not {asked}: switch it with \
+         Robot::set_interface first; nothing sent"
+    )]
+    WrongInterface {
+        /// The joint.
+        joint: String,
+        /// The interface of the target.
+        asked: Interface,
+        /// The interface the joint is in.
+        active: Interface,
+    },
+    /// A velocity or effort target the joint cannot take; nothing sent.
+    #[error("joint {joint}: {interface} target {value} {} is invalid; expected {expected}; nothing sent", .interface.unit())]
+    Target {
+        /// The joint.
+        joint: String,
+        /// The interface.
+        interface: Interface,
+        /// The target, in the interface's unit.
+        value: f64,
+        /// What is allowed.
+        expected: String,
+    },
+    /// An interface switch of a joint that is not at rest; nothing sent.
+    #[error("joint {joint} cannot switch from {from} to {to} while it moves: {why}; nothing sent")]
+    Moving {
+        /// The joint.
+        joint: String,
+        /// Its interface now.
+        from: Interface,
+        /// The interface asked for.
+        to: Interface,
+        /// What moves.
+        why: String,
+    },
 }
 
 impl RobotError {
@@ -231,7 +283,10 @@ impl RobotError {
             | Self::MissingBus { .. }
             | Self::WrongBus { .. }
             | Self::NoSuchJoint { .. }
-            | Self::TargetCount { .. } => ErrorKind::BadInput,
+            | Self::TargetCount { .. }
+            | Self::NoInterface { .. }
+            | Self::Target { .. } => ErrorKind::BadInput,
+            Self::WrongInterface { .. } | Self::Moving { .. } => ErrorKind::Refused,
             Self::OpenWck { source, .. } => source.kind(),
             Self::OpenWhj { .. } => ErrorKind::NoDevice,
             Self::Actuator(e) => e.kind(),
@@ -285,13 +340,56 @@ pub struct SafeStopReport {
     pub errors: Vec<String>,
 }
 
-/// What [`Robot::command`] sent.
+/// What [`Robot::command`] (and [`Robot::command_velocity`], [`Robot::command_effort`],
+/// [`Robot::command_targets`]) sent.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CommandReport {
-    /// The set-point sent to each joint (joint order), rad, at the device's resolution.
+    /// The set-point sent to each joint (joint order) at the device's resolution, in the
+    /// unit of its interface: rad, rad/s (a wCK servo's: the speed of the wheel level
+    /// sent), N·m (the current sent times the torque constant).
     pub sent_rad: Vec<f64>,
+    /// Each joint's interface (joint order): the unit of `sent_rad`.
+    pub interfaces: Vec<Interface>,
     /// Targets that a limit changed.
     pub limited: Vec<LimitEvent>,
+}
+
+/// One joint's target in one of its interfaces ([`Robot::command_targets`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Target {
+    /// An angle, rad.
+    Position(f64),
+    /// A speed, rad/s.
+    Velocity(f64),
+    /// A torque, N·m.
+    Effort(f64),
+}
+
+impl Target {
+    /// The target of `interface` with `value` (in its unit).
+    pub const fn new(interface: Interface, value: f64) -> Self {
+        match interface {
+            Interface::Position => Self::Position(value),
+            Interface::Velocity => Self::Velocity(value),
+            Interface::Effort => Self::Effort(value),
+        }
+    }
+
+    /// Its interface.
+    pub const fn interface(self) -> Interface {
+        match self {
+            Self::Position(_) => Interface::Position,
+            Self::Velocity(_) => Interface::Velocity,
+            Self::Effort(_) => Interface::Effort,
+        }
+    }
+
+    /// Its value, in the interface's unit.
+    pub const fn value(self) -> f64 {
+        match self {
+            Self::Position(v) | Self::Velocity(v) | Self::Effort(v) => v,
+        }
+    }
 }
 
 // ----- the robot -----------------------------------------------------------------------
@@ -391,9 +489,51 @@ impl Robot {
     /// its `max_velocity` / `max_acceleration` over the time since the previous call
     /// (at most the watchdog timeout, on the robot's clock); changed targets are reported
     /// in [`CommandReport::limited`]. A non-finite target or a wrong count is refused
-    /// before anything is sent; a command that comes a watchdog timeout or more after the
-    /// previous one finds the robot safe-stopped ([`RobotError::SafeStopped`]).
+    /// before anything is sent, and so is a joint not on its position interface
+    /// ([`RobotError::WrongInterface`]); a command that comes a watchdog timeout or more
+    /// after the previous one finds the robot safe-stopped ([`RobotError::SafeStopped`]).
     pub fn command(&mut self, targets: &[f64]) -> Result<CommandReport, RobotError> {
+        self.command_all(Interface::Position, targets)
+    }
+
+    /// Sends one cycle of speeds (rad/s, joint order; every joint on its velocity
+    /// interface, [`set_interface`](Self::set_interface)) and feeds the watchdog, as
+    /// [`command_targets`](Self::command_targets) does.
+    pub fn command_velocity(&mut self, rad_s: &[f64]) -> Result<CommandReport, RobotError> {
+        self.command_all(Interface::Velocity, rad_s)
+    }
+
+    /// Sends one cycle of efforts (N·m, joint order; every joint on its effort interface,
+    /// [`set_interface`](Self::set_interface)) and feeds the watchdog, as
+    /// [`command_targets`](Self::command_targets) does.
+    pub fn command_effort(&mut self, nm: &[f64]) -> Result<CommandReport, RobotError> {
+        self.command_all(Interface::Effort, nm)
+    }
+
+    fn command_all(
+        &mut self,
+        interface: Interface,
+        values: &[f64],
+    ) -> Result<CommandReport, RobotError> {
+        let targets: Vec<Target> = values.iter().map(|&v| Target::new(interface, v)).collect();
+        self.command_targets(&targets)
+    }
+
+    /// Sends one cycle of targets, each joint's in the interface it is on (joint order),
+    /// and feeds the watchdog: positions as [`command`](Self::command) sends them;
+    /// velocities (rad/s) clamped to `max_velocity` and ramped at `max_acceleration`,
+    /// never towards a WHJ joint's soft limit faster than it can stop there (a wCK servo's
+    /// wheel mode turns without limits), a wCK speed sent as the nearest wheel level
+    /// ([`WheelSpeeds`]); efforts (N·m) clamped to `max_effort`, ramped at
+    /// `max_effort_rate` and dropped where they push a joint past a soft limit it stands
+    /// on, sent as the current of the joint model's torque constant ([`EffortScale`]).
+    /// Every limit that acted is in [`CommandReport::limited`].
+    ///
+    /// Refused before anything is sent: a wrong count, a non-finite target, a target of
+    /// an interface its joint is not on ([`RobotError::WrongInterface`]), a speed or an
+    /// effort beyond what the device can do ([`RobotError::Target`]: past the top wheel
+    /// level, the WHJ model's peak speed or torque), a robot in its safe state.
+    pub fn command_targets(&mut self, targets: &[Target]) -> Result<CommandReport, RobotError> {
         if targets.len() != self.names.len() {
             return Err(RobotError::TargetCount {
                 expected: self.names.len(),
@@ -401,10 +541,15 @@ impl Robot {
                 names: self.names.join(", "),
             });
         }
-        if let Some((name, &value)) = self.names.iter().zip(targets).find(|(_, v)| !v.is_finite()) {
+        if let Some((name, target)) = self
+            .names
+            .iter()
+            .zip(targets)
+            .find(|(_, t)| t.interface() == Interface::Position && !t.value().is_finite())
+        {
             return Err(ActuatorError::NotFinite {
                 joint: name.clone(),
-                value,
+                value: target.value(),
             }
             .into());
         }
@@ -415,55 +560,157 @@ impl Robot {
                 cause: report.cause,
             });
         }
+        for (i, (joint, target)) in hw.joints.iter().zip(targets).enumerate() {
+            if joint.drive.active != target.interface() {
+                return Err(RobotError::WrongInterface {
+                    joint: joint.name.clone(),
+                    asked: target.interface(),
+                    active: joint.drive.active,
+                });
+            }
+            hw.check_target(i, target.interface(), target.value())?;
+        }
         let dt = now
             .duration_since(hw.last_cycle)
             .min(self.shared.timeout)
             .as_secs_f64();
-        let reach = hw.step_reach()?;
+        let positions = targets.iter().any(|t| t.interface() == Interface::Position);
+        let reach = if positions {
+            hw.step_reach()?
+        } else {
+            vec![None; targets.len()]
+        };
         let mut limited = Vec::new();
         let mut setpoints = Vec::with_capacity(targets.len());
-        for ((joint, &target), reach) in hw.joints.iter_mut().zip(targets).zip(reach) {
-            let (clamped, was_clamped) = joint.limits.clamp(target);
-            if was_clamped {
+        for ((joint, target), reach) in hw.joints.iter_mut().zip(targets).zip(reach) {
+            let Target::Position(target) = *target else {
+                setpoints.push(None);
+                continue;
+            };
+            let mut event = |kind, requested_rad, limited_rad| {
                 limited.push(LimitEvent {
                     joint: joint.name.clone(),
-                    kind: LimitKind::Position,
-                    requested_rad: target,
-                    limited_rad: clamped,
+                    interface: Interface::Position,
+                    kind,
+                    requested_rad,
+                    limited_rad,
                 });
+            };
+            let (clamped, was_clamped) = joint.limits.clamp(target);
+            if was_clamped {
+                event(LimitKind::Position, target, clamped);
             }
             let set = joint
                 .limiter
                 .step(clamped, dt, &joint.limits)
                 .clamp(joint.limits.min_rad, joint.limits.max_rad);
             if (set - clamped).abs() > 1e-12 {
-                limited.push(LimitEvent {
-                    joint: joint.name.clone(),
-                    kind: LimitKind::Motion,
-                    requested_rad: clamped,
-                    limited_rad: set,
-                });
+                event(LimitKind::Motion, clamped, set);
             }
             let mut set = set;
             if let Some((lo, hi)) = reach
                 && !(lo..=hi).contains(&set)
             {
                 let held = set.clamp(lo, hi);
-                limited.push(LimitEvent {
-                    joint: joint.name.clone(),
-                    kind: LimitKind::Step,
-                    requested_rad: set,
-                    limited_rad: held,
-                });
+                event(LimitKind::Step, set, held);
                 joint.limiter = RateLimiter::new(held);
                 set = held;
             }
-            setpoints.push(set);
+            setpoints.push(Some(set));
         }
-        let sent_rad = hw.send(&setpoints)?;
+        let mut outs = Vec::new();
+        for (i, target) in targets.iter().enumerate() {
+            if target.interface() != Interface::Position {
+                outs.push((
+                    i,
+                    hw.plan(i, target.interface(), target.value(), dt, &mut limited)?,
+                ));
+            }
+        }
+        let mut sent_rad = hw.send(&setpoints)?;
+        for (i, (out, sent)) in outs {
+            hw.send_out(i, out)?;
+            if let Some(s) = sent_rad.get_mut(i) {
+                *s = sent;
+            }
+        }
         hw.last_cycle = now;
         *lock(&self.shared.last_command) = Some(hw.now());
-        Ok(CommandReport { sent_rad, limited })
+        Ok(CommandReport {
+            sent_rad,
+            interfaces: targets.iter().map(|t| t.interface()).collect(),
+            limited,
+        })
+    }
+
+    /// The interface each joint is commanded in now (joint order; position after opening
+    /// and after [`resume`](Self::resume)).
+    pub fn interfaces(&self) -> Vec<Interface> {
+        lock(&self.shared.hw)
+            .joints
+            .iter()
+            .map(|j| j.drive.active)
+            .collect()
+    }
+
+    /// The interfaces the robot file gives joint `index` (position first); `None` past the
+    /// last joint.
+    pub fn available_interfaces(&self, index: usize) -> Option<Vec<Interface>> {
+        lock(&self.shared.hw)
+            .joints
+            .get(index)
+            .map(|j| j.drive.interfaces.clone())
+    }
+
+    /// Switches joint `index` to `interface`, and leaves it safe there: a WHJ joint's work
+    /// mode is changed (the joint takes its angle as its position target and zero speed
+    /// and current) and a zero speed or current target follows; a wCK servo enters wheel
+    /// mode at level 0 (stopped), or leaves it with a move to where it stands. Its
+    /// set-points start at rest (a position one at its measured angle). Asking for the
+    /// interface it is on sends nothing.
+    ///
+    /// Refused, nothing sent: an index past the joints, an interface the robot file does
+    /// not give the joint ([`RobotError::NoInterface`]), a robot in its safe state
+    /// ([`RobotError::SafeStopped`]), a joint that moves ([`RobotError::Moving`]: its
+    /// set-point is not at rest, or a WHJ joint turns faster than 0.05 rad/s). Does not
+    /// feed the watchdog.
+    pub fn set_interface(&mut self, index: usize, interface: Interface) -> Result<(), RobotError> {
+        let mut hw = lock(&self.shared.hw);
+        self.shared.tick(&mut hw);
+        let Some(joint) = hw.joints.get(index) else {
+            return Err(RobotError::NoSuchJoint {
+                index,
+                names: self.names.join(", "),
+            });
+        };
+        if !joint.drive.interfaces.contains(&interface) {
+            return Err(RobotError::NoInterface {
+                joint: joint.name.clone(),
+                interface,
+                has: interface::list(&joint.drive.interfaces),
+            });
+        }
+        if let Some(report) = lock(&self.shared.stopped).as_ref() {
+            return Err(RobotError::SafeStopped {
+                cause: report.cause,
+            });
+        }
+        let from = joint.drive.active;
+        if from == interface {
+            return Ok(());
+        }
+        let name = joint.name.clone();
+        if let Some(why) = hw.moving(index)? {
+            return Err(RobotError::Moving {
+                joint: name,
+                from,
+                to: interface,
+                why,
+            });
+        }
+        hw.switch(index, interface)?;
+        self.shared.tick(&mut hw);
+        Ok(())
     }
 
     /// The robot's clock: the clock of its buses (see the [module](self)). Every instant
@@ -525,11 +772,13 @@ impl Robot {
         lock(&self.shared.stopped).is_some()
     }
 
-    /// Leaves the safe state: re-enables WHJ joints in position mode, restarts every
-    /// joint's speed limiting from its measured angle, and disarms the watchdog until
-    /// the next [`command`](Self::command).
+    /// Leaves the safe state: every joint back on its position interface (WHJ joints in
+    /// speed or current mode switched to position mode), WHJ joints re-enabled in
+    /// position mode, every joint's speed limiting restarted from its measured angle, and
+    /// the watchdog disarmed until the next [`command`](Self::command).
     pub fn resume(&mut self) -> Result<(), RobotError> {
         let mut hw = lock(&self.shared.hw);
+        hw.back_to_position()?;
         hw.enable_whj()?;
         hw.reset_limiters()?;
         *lock(&self.shared.stopped) = None;

@@ -1,16 +1,21 @@
 //! Host-side motion limits: soft position limits, then speed and acceleration limits
 //! on the stream of targets.
 
+use super::Interface;
 use crate::actuator::JointLimits;
 use crate::motion;
 
 /// Which limit changed a target.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum LimitKind {
-    /// The soft position limits (`limits = [min, max]`).
+    /// The soft position limits (`limits = [min, max]`). A WHJ joint commanded in velocity
+    /// never heads for a limit faster than it can stop there at `max_acceleration`, and an
+    /// effort pushing it past a limit it stands on is dropped.
     Position,
     /// The speed or acceleration limit (`max_velocity`, `max_acceleration`): the target
-    /// is approached gradually.
+    /// is approached gradually. In velocity: the speed is clamped to `max_velocity` and
+    /// ramped at `max_acceleration`; in effort: clamped to `max_effort` and ramped at
+    /// `max_effort_rate`.
     Motion,
     /// The device's per-command step limit (WHJ: set-points further than 80 % of
     /// [`JointBusConfig::step_limit_deg`](crate::whj::JointBusConfig::step_limit_deg)
@@ -23,11 +28,13 @@ pub enum LimitKind {
 pub struct LimitEvent {
     /// The joint.
     pub joint: String,
+    /// The interface of the target: its unit (rad, rad/s, N·m).
+    pub interface: Interface,
     /// Which limit acted.
     pub kind: LimitKind,
-    /// The target asked for, rad.
+    /// The target asked for, in the interface's unit (rad for a position).
     pub requested_rad: f64,
-    /// The target after this limit, rad.
+    /// The target after this limit, in the interface's unit.
     pub limited_rad: f64,
 }
 
