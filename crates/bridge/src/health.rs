@@ -220,6 +220,9 @@ pub struct Health {
     pub queries: u64,
     /// Queries refused because the bridge was busy.
     pub queries_busy: u64,
+    /// Trajectories on `NS/joint_trajectory`: received, refused, played and how they
+    /// ended.
+    pub trajectories: crate::TrajectoryHealth,
 }
 
 fn get(c: &AtomicU64) -> u64 {
@@ -310,6 +313,7 @@ pub(crate) fn of(s: &Shared) -> Health {
             .clone(),
         queries: get(&c.queries),
         queries_busy: get(&c.queries_refused),
+        trajectories: s.trajectories.health(),
     }
 }
 

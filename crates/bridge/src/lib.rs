@@ -18,6 +18,10 @@
 //! - `NS/diagnostics`: `diagnostic_msgs/msg/DiagnosticArray` in CDR ([`diagnostics`]) about
 //!   once a second: one status per joint and per bus of the robot file (OK, warning, error
 //!   or stale, with the reason and the values read), from the joint states' own samples.
+//! - `NS/joint_trajectory`: `trajectory_msgs/msg/JointTrajectory` in CDR, played as
+//!   `joint_trajectory_controller` plays it (checked whole, then through `robot.play`);
+//!   its progress on `NS/controller_state` (`control_msgs/msg/JointTrajectoryControllerState`)
+//!   and its end on `NS/joint_trajectory/result` (JSON, [`TrajectoryResult`]).
 //! - `NS/robobus/run`: a queryable: a catalogue request in JSON in, its report out.
 //! - `NS/robobus/plan`: a queryable: a request's dry run.
 //! - `NS/robobus/arm`: a queryable: `true` / `false` (or `{"armed": B}`) arms or disarms,
@@ -45,6 +49,7 @@ mod capacity;
 mod claim;
 pub mod diagnostics;
 mod health;
+mod trajectory;
 mod zconfig;
 
 use std::path::PathBuf;
@@ -67,6 +72,7 @@ use zenoh::query::Query;
 
 pub use capacity::{BusTiming, Capacity};
 pub use health::{Health, RATE_WINDOW};
+pub use trajectory::{TRAJECTORY_RATE_HZ, TrajectoryHealth, TrajectoryKeys, TrajectoryResult};
 pub use zconfig::{DEFAULT_LISTEN, namespace_prefix};
 
 /// The guard session the bridge controls the station with.
@@ -365,6 +371,7 @@ pub(crate) struct Shared {
     pub(crate) states: health::StateClock,
     /// Each joint's last reading: answered or not (in the file's order).
     pub(crate) joint_ok: Mutex<Vec<Option<bool>>>,
+    pub(crate) trajectories: trajectory::Trajectories,
     mailbox: Mailbox,
     stop: StopToken,
     /// Why the bridge gave way to another on its namespace, once it has.
@@ -527,6 +534,7 @@ impl Shared {
             capacity,
             states: health::StateClock::default(),
             joint_ok: Mutex::new(vec![None; joints]),
+            trajectories: trajectory::Trajectories::default(),
             mailbox: Mailbox::default(),
             stop: StopToken::new(),
             displaced: Mutex::new(None),
@@ -625,6 +633,7 @@ impl Bridge {
         threads.push(spawn("robobus-commands", move || commands(&s))?);
 
         threads.extend(declare_queries(&shared, &session, &mut declared)?);
+        threads.extend(trajectory::declare(&shared, &session, &mut declared)?);
 
         // Joint states.
         if shared.follower.is_some() {

@@ -1,0 +1,622 @@
+//! `NS/joint_trajectory`: ROS 2 trajectories (`trajectory_msgs/msg/JointTrajectory`) played
+//! as `joint_trajectory_controller` plays them; their progress on `NS/controller_state`
+//! (`control_msgs/msg/JointTrajectoryControllerState`) and their end on
+//! `NS/joint_trajectory/result` (JSON, [`TrajectoryResult`]).
+//!
+//! The semantics are the library's ([`robobus::robot::trajectory::ros`]): this module
+//! decodes, waits for a stamp's start, reads where the joints are, hands the checked plan
+//! to `robot.play` (admitted as any motion request: armed, through the guard), publishes
+//! each tick and the end, and stops the trajectory a newer one replaces.
+
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Condvar, Mutex, PoisonError};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use robobus::catalogue::operation::PlayTick;
+use robobus::catalogue::robot::{Play, Sample};
+use robobus::catalogue::{Interaction, NoInteraction, Request, run_typed};
+use robobus::cdr::{
+    self, JointTrajectory, JointTrajectoryControllerState, JointTrajectoryPoint, result_code,
+};
+use robobus::ops::{Control, OpError, Outcome, StopToken};
+use robobus::robot::trajectory::Trajectory;
+use robobus::robot::trajectory::ros::{self, Checked, GOAL_TOLERANCE_DEG, JointEnd};
+use serde::Serialize;
+use zenoh::Wait as _;
+use zenoh::bytes::Encoding;
+
+use crate::{BridgeError, MAX_REQUEST, Shared, zerr};
+
+/// The rate a trajectory is played at, ticks a second (`robot.play`'s default).
+pub const TRAJECTORY_RATE_HZ: f64 = 50.0;
+
+/// The keys of the trajectory interface under a namespace prefix (`bot/` or empty).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct TrajectoryKeys {
+    /// `NS/joint_trajectory`: the trajectories taken.
+    pub trajectory: String,
+    /// `NS/controller_state`: each tick's reference, feedback, error and output.
+    pub state: String,
+    /// `NS/joint_trajectory/result`: each trajectory's end (JSON).
+    pub result: String,
+}
+
+impl TrajectoryKeys {
+    /// Under `prefix` (as [`crate::namespace_prefix`] makes it).
+    #[must_use]
+    pub fn under(prefix: &str) -> Self {
+        Self {
+            trajectory: format!("{prefix}joint_trajectory"),
+            state: format!("{prefix}controller_state"),
+            result: format!("{prefix}joint_trajectory/result"),
+        }
+    }
+}
+
+/// How a trajectory ended, as published on `NS/joint_trajectory/result`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TrajectoryResult {
+    /// The trajectory's number on this bridge (1, 2, ...: in the order received).
+    pub id: u64,
+    /// `reached`, `missed` (played, a joint ended outside the tolerance), `aborted`
+    /// (stopped on the way: a joint failed, the host's protection, disarming),
+    /// `replaced` (by a newer trajectory), `refused` (nothing moved).
+    pub status: &'static str,
+    /// `control_msgs/action/FollowJointTrajectory`'s result code (0 reached; -1 invalid
+    /// goal, -2 invalid joints, -3 old header timestamp, -4 aborted on the way, -5 goal
+    /// tolerance violated); `None` for a replaced trajectory.
+    pub error_code: Option<i32>,
+    /// What happened, in words.
+    pub error_string: String,
+    /// The goal tolerance, degrees.
+    pub tolerance_deg: f64,
+    /// Each joint against its last point, read after the end (empty when refused).
+    pub joints: Vec<JointEnd>,
+    /// Points skipped because they were already due (a stamp in the past).
+    pub skipped_points: usize,
+    /// How late it started after its stamp, s.
+    pub late_s: f64,
+}
+
+/// The trajectories' counts in the health.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize)]
+pub struct TrajectoryHealth {
+    /// Received.
+    pub received: u64,
+    /// Refused whole (nothing moved), with their reasons in `last_refusal`.
+    pub refused: u64,
+    /// Replaced by a newer one before this one was taken up.
+    pub superseded: u64,
+    /// Started.
+    pub started: u64,
+    /// Ended within the tolerance.
+    pub reached: u64,
+    /// Ended outside the tolerance.
+    pub missed: u64,
+    /// Stopped on the way.
+    pub aborted: u64,
+    /// Replaced by a newer one while playing.
+    pub replaced: u64,
+    /// The one playing now.
+    pub playing: Option<u64>,
+    /// The newest refusal.
+    pub last_refusal: Option<String>,
+}
+
+#[derive(Debug, Default)]
+struct Counts {
+    received: AtomicU64,
+    refused: AtomicU64,
+    superseded: AtomicU64,
+    started: AtomicU64,
+    reached: AtomicU64,
+    missed: AtomicU64,
+    aborted: AtomicU64,
+    replaced: AtomicU64,
+}
+
+fn bump(c: &AtomicU64) {
+    c.fetch_add(1, Ordering::Relaxed);
+}
+
+/// The one playing.
+#[derive(Debug)]
+struct Playing {
+    id: u64,
+    token: StopToken,
+    replaced: Arc<AtomicBool>,
+    thread: JoinHandle<()>,
+}
+
+/// Where a trajectory's progress and end go (Zenoh publishers; a test's lists).
+pub(crate) trait Sink: Send + Sync {
+    fn state(&self, msg: &JointTrajectoryControllerState);
+    fn result(&self, r: &TrajectoryResult);
+}
+
+/// The trajectory interface's state, shared by the subscriber, its thread and the
+/// players.
+#[derive(Debug, Default)]
+pub(crate) struct Trajectories {
+    inbox: Mutex<Option<Vec<u8>>>,
+    ready: Condvar,
+    playing: Mutex<Option<Playing>>,
+    counts: Counts,
+    last_refusal: Mutex<Option<String>>,
+    next_id: AtomicU64,
+}
+
+impl Trajectories {
+    /// A message arrived (its payload bounded by the caller): the newest waits, an older
+    /// one not yet taken is superseded.
+    pub(crate) fn post(&self, payload: Vec<u8>) {
+        bump(&self.counts.received);
+        let mut inbox = self.inbox.lock().unwrap_or_else(PoisonError::into_inner);
+        if inbox.replace(payload).is_some() {
+            bump(&self.counts.superseded);
+        }
+        drop(inbox);
+        self.ready.notify_all();
+    }
+
+    /// The counts for the health.
+    pub(crate) fn health(&self) -> TrajectoryHealth {
+        let c = &self.counts;
+        let g = |a: &AtomicU64| a.load(Ordering::Relaxed);
+        TrajectoryHealth {
+            received: g(&c.received),
+            refused: g(&c.refused),
+            superseded: g(&c.superseded),
+            started: g(&c.started),
+            reached: g(&c.reached),
+            missed: g(&c.missed),
+            aborted: g(&c.aborted),
+            replaced: g(&c.replaced),
+            playing: self
+                .playing
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .as_ref()
+                .filter(|p| !p.thread.is_finished())
+                .map(|p| p.id),
+            last_refusal: self
+                .last_refusal
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .clone(),
+        }
+    }
+
+    /// The newest message, waiting at most `wait`.
+    fn take(&self, wait: Duration, stop: &StopToken) -> Option<Vec<u8>> {
+        let inbox = self.inbox.lock().unwrap_or_else(PoisonError::into_inner);
+        let (mut inbox, _) = self
+            .ready
+            .wait_timeout_while(inbox, wait, |m| m.is_none() && !stop.is_stopped())
+            .unwrap_or_else(PoisonError::into_inner);
+        inbox.take()
+    }
+
+    /// Waits until `until` unless a newer message or the stop comes first: whether the
+    /// time came.
+    fn wait_until(&self, until: Instant, stop: &StopToken) -> bool {
+        let mut inbox = self.inbox.lock().unwrap_or_else(PoisonError::into_inner);
+        loop {
+            if inbox.is_some() || stop.is_stopped() {
+                return false;
+            }
+            let now = Instant::now();
+            if now >= until {
+                return true;
+            }
+            inbox = self
+                .ready
+                .wait_timeout(inbox, until - now)
+                .unwrap_or_else(PoisonError::into_inner)
+                .0;
+        }
+    }
+
+    /// Stops the one playing (a newer one replaces it, or the bridge ends) and waits for
+    /// its end (its joints brought to the robot file's safe state by `robot.play`).
+    fn stop_playing(&self, replaced: bool) {
+        let playing = self
+            .playing
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .take();
+        if let Some(p) = playing {
+            p.replaced.store(replaced, Ordering::SeqCst);
+            p.token.stop();
+            let _ = p.thread.join();
+        }
+    }
+}
+
+fn unix_now_s() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64())
+}
+
+fn refused(id: u64, code: i32, message: String) -> TrajectoryResult {
+    TrajectoryResult {
+        id,
+        status: "refused",
+        error_code: Some(code),
+        error_string: message,
+        tolerance_deg: GOAL_TOLERANCE_DEG,
+        joints: Vec::new(),
+        skipped_points: 0,
+        late_s: 0.0,
+    }
+}
+
+impl Shared {
+    fn refuse_trajectory(&self, sink: &dyn Sink, r: &TrajectoryResult) {
+        let t = &self.trajectories;
+        bump(&t.counts.refused);
+        tracing::debug!("trajectory {} refused: {}", r.id, r.error_string);
+        *t.last_refusal
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner) = Some(r.error_string.clone());
+        sink.result(r);
+    }
+}
+
+/// Where `names` are now, degrees (a fresh reading; `None` for a joint that did not
+/// answer).
+fn read(s: &Shared, names: &[String]) -> Result<Vec<Option<f64>>, OpError> {
+    let report = run_typed(
+        &s.station,
+        &Sample {},
+        &mut Control::none(),
+        &mut NoInteraction,
+    )?;
+    Ok(names
+        .iter()
+        .map(|n| {
+            report
+                .results
+                .iter()
+                .find(|r| &r.id == n)
+                .and_then(|r| match &r.outcome {
+                    Outcome::Ok(x) => Some(x.position_deg),
+                    Outcome::Failed(_) => None,
+                })
+        })
+        .collect())
+}
+
+/// Takes up one message: refused whole (published, counted), or started in place of the
+/// one playing. A stamp in the future is waited for (a newer message meanwhile replaces
+/// this one, counted superseded).
+pub(crate) fn take_up(s: &Arc<Shared>, sink: &Arc<dyn Sink>, payload: &[u8]) {
+    let t = &s.trajectories;
+    let id = t.next_id.fetch_add(1, Ordering::Relaxed) + 1;
+    let refuse =
+        |code: i32, message: String| s.refuse_trajectory(&**sink, &refused(id, code, message));
+    let msg = match JointTrajectory::decode(payload) {
+        Ok(m) => m,
+        Err(e) => return refuse(result_code::INVALID_GOAL, format!("joint_trajectory: {e}")),
+    };
+    let Some(config) = s.station.robot().cloned() else {
+        return refuse(
+            result_code::INVALID_JOINTS,
+            "joint_trajectory: the station has no robot file".into(),
+        );
+    };
+    if let Err(r) = s.admission.check_motion(s.arming(), "joint_trajectory") {
+        return refuse(result_code::INVALID_GOAL, r.to_string());
+    }
+    let checked = match ros::check(&msg, &config) {
+        Ok(c) => c,
+        Err(e) => return refuse(e.code, e.message),
+    };
+    if let Err(e) = checked.check_start(unix_now_s()) {
+        return refuse(e.code, e.message);
+    }
+    let ahead = checked.start_in_s(unix_now_s());
+    if ahead > 0.0 && !t.wait_until(Instant::now() + Duration::from_secs_f64(ahead), &s.stop) {
+        if !s.stop.is_stopped() {
+            bump(&t.counts.superseded);
+        }
+        return;
+    }
+    let late_s = (-checked.start_in_s(unix_now_s())).max(0.0);
+    // Where the joints are (the one playing still moves them: it stops only once this one
+    // is found to fit).
+    let from = match read(s, &checked.joints) {
+        Ok(f) => f,
+        Err(e) => return refuse(result_code::INVALID_GOAL, format!("joint_trajectory: {e}")),
+    };
+    let Some(from): Option<Vec<f64>> = from.iter().copied().collect() else {
+        let silent: Vec<&str> = checked
+            .joints
+            .iter()
+            .zip(&from)
+            .filter(|(_, f)| f.is_none())
+            .map(|(n, _)| n.as_str())
+            .collect();
+        return refuse(
+            result_code::INVALID_GOAL,
+            format!(
+                "joint_trajectory: {} did not answer: nothing moved",
+                silent.join(", ")
+            ),
+        );
+    };
+    let planned = match ros::plan(&checked, &config, &from, late_s) {
+        Ok(p) => p,
+        Err(e) => return refuse(e.code, e.message),
+    };
+    let play = Play {
+        trajectory: planned.csv.clone(),
+        rate_hz: TRAJECTORY_RATE_HZ,
+        torque: 2,
+    };
+    if let Err(r) = s
+        .admission
+        .admit(s.arming(), Request::RobotPlay(play.clone()))
+    {
+        return refuse(result_code::INVALID_GOAL, r.to_string());
+    }
+    // It fits: it replaces the one playing from here.
+    t.stop_playing(true);
+    if s.stop.is_stopped() {
+        return;
+    }
+    bump(&t.counts.started);
+    let token = StopToken::new();
+    let replaced = Arc::new(AtomicBool::new(false));
+    let player = Player {
+        shared: Arc::clone(s),
+        sink: Arc::clone(sink),
+        id,
+        checked,
+        trajectory: planned.trajectory,
+        skipped: planned.skipped,
+        late_s,
+        replaced: Arc::clone(&replaced),
+    };
+    let run_token = token.clone();
+    match std::thread::Builder::new()
+        .name(format!("robobus-trajectory-{id}"))
+        .spawn(move || player.run(&play, &run_token))
+    {
+        Ok(thread) => {
+            *t.playing.lock().unwrap_or_else(PoisonError::into_inner) = Some(Playing {
+                id,
+                token,
+                replaced,
+                thread,
+            });
+        }
+        Err(e) => refuse(
+            result_code::INVALID_GOAL,
+            format!("joint_trajectory: cannot start its thread: {e}"),
+        ),
+    }
+}
+
+/// One trajectory being played.
+struct Player {
+    shared: Arc<Shared>,
+    sink: Arc<dyn Sink>,
+    id: u64,
+    checked: Checked,
+    trajectory: Trajectory,
+    skipped: usize,
+    late_s: f64,
+    replaced: Arc<AtomicBool>,
+}
+
+/// Publishes each tick as a controller state.
+struct Progress<'a> {
+    sink: &'a dyn Sink,
+    trajectory: &'a Trajectory,
+}
+
+impl Interaction for Progress<'_> {
+    fn play_tick(&mut self, tick: &PlayTick<'_>) -> Result<(), OpError> {
+        let rad = |v: &[f64]| v.iter().map(|d| d.to_radians()).collect::<Vec<f64>>();
+        let at = cdr::Duration::from_secs_f64(tick.t_s);
+        let point = |positions: Vec<f64>| JointTrajectoryPoint {
+            positions,
+            time_from_start: at,
+            ..JointTrajectoryPoint::default()
+        };
+        let reference = rad(&self.trajectory.at(tick.t_s));
+        // A joint that did not answer this tick: NaN (never an older reading).
+        let feedback: Vec<f64> = tick
+            .positions
+            .iter()
+            .map(|p| p.map_or(f64::NAN, f64::to_radians))
+            .collect();
+        let error = reference
+            .iter()
+            .zip(&feedback)
+            .map(|(r, f)| r - f)
+            .collect();
+        self.sink.state(&JointTrajectoryControllerState {
+            stamp: cdr::Time::from_unix_ms(unix_now_s() * 1e3),
+            frame_id: String::new(),
+            joint_names: tick.joints.to_vec(),
+            reference: point(reference),
+            feedback: point(feedback),
+            error: point(error),
+            output: point(rad(tick.targets)),
+        });
+        Ok(())
+    }
+}
+
+impl Player {
+    fn run(self, play: &Play, token: &StopToken) {
+        let s = &self.shared;
+        let t = &s.trajectories;
+        let _ticket = s.guard.running(token);
+        let mut control = Control::new(token);
+        let mut progress = Progress {
+            sink: &*self.sink,
+            trajectory: &self.trajectory,
+        };
+        let report = run_typed(&s.station, play, &mut control, &mut progress);
+        let ends =
+            read(s, &self.checked.joints).unwrap_or_else(|_| vec![None; self.checked.joints.len()]);
+        let (code, joints) = ros::outcome(&self.checked, &ends);
+        let worst = joints
+            .iter()
+            .filter_map(|j| j.error_deg.map(|e| (e, &j.joint)))
+            .fold(None, |w: Option<(f64, &String)>, (e, j)| match w {
+                Some((we, _)) if we >= e => w,
+                _ => Some((e, j)),
+            });
+        let worst_text = worst.map_or_else(
+            || "no joint answered at the end".to_owned(),
+            |(e, j)| format!("the largest end error {e:.3}° ({j})"),
+        );
+        let (status, error_code, error_string) = match report {
+            _ if self.replaced.load(Ordering::SeqCst) => (
+                "replaced",
+                None,
+                "replaced by a newer trajectory (its joints held where they were, then the \
+                 newer one played from there)"
+                    .to_owned(),
+            ),
+            Err(e) => (
+                "aborted",
+                Some(result_code::PATH_TOLERANCE_VIOLATED),
+                e.to_string(),
+            ),
+            Ok(r) if r.summary.as_ref().is_some_and(|s| s.interrupted) => (
+                "aborted",
+                Some(result_code::PATH_TOLERANCE_VIOLATED),
+                "stopped on the way (disarmed, the guard's safe stop or the bridge's end); its \
+                 buses brought to the robot file's safe state"
+                    .to_owned(),
+            ),
+            Ok(r) if r.failed.is_some() => (
+                "aborted",
+                Some(result_code::PATH_TOLERANCE_VIOLATED),
+                r.error.unwrap_or_else(|| "a joint failed".into()),
+            ),
+            Ok(_) if code == result_code::SUCCESSFUL => (
+                "reached",
+                Some(code),
+                format!("reached: {worst_text}, within the {GOAL_TOLERANCE_DEG}° tolerance"),
+            ),
+            Ok(_) => (
+                "missed",
+                Some(code),
+                format!(
+                    "played to its end, but {worst_text} is outside the {GOAL_TOLERANCE_DEG}° tolerance"
+                ),
+            ),
+        };
+        bump(match status {
+            "reached" => &t.counts.reached,
+            "missed" => &t.counts.missed,
+            "replaced" => &t.counts.replaced,
+            _ => &t.counts.aborted,
+        });
+        self.sink.result(&TrajectoryResult {
+            id: self.id,
+            status,
+            error_code,
+            error_string,
+            tolerance_deg: GOAL_TOLERANCE_DEG,
+            joints,
+            skipped_points: self.skipped,
+            late_s: self.late_s,
+        });
+    }
+}
+
+/// The Zenoh publishers of the progress and the ends.
+struct Publishers {
+    state: zenoh::pubsub::Publisher<'static>,
+    result: zenoh::pubsub::Publisher<'static>,
+}
+
+impl Sink for Publishers {
+    fn state(&self, msg: &JointTrajectoryControllerState) {
+        if let Err(e) = self.state.put(msg.encode()).wait() {
+            tracing::warn!("controller state: {e}");
+        }
+    }
+
+    fn result(&self, r: &TrajectoryResult) {
+        let text = serde_json::to_string(r).unwrap_or_default();
+        if let Err(e) = self.result.put(text).wait() {
+            tracing::warn!("trajectory result: {e}");
+        }
+    }
+}
+
+/// The thread that takes up the trajectories, until the bridge stops (then the one
+/// playing is stopped and waited for).
+pub(crate) fn serve(s: &Arc<Shared>, sink: &Arc<dyn Sink>) {
+    while !s.stop.is_stopped() {
+        if let Some(payload) = s.trajectories.take(Duration::from_millis(50), &s.stop) {
+            take_up(s, sink, &payload);
+        }
+    }
+    s.trajectories.stop_playing(false);
+}
+
+/// Declares the subscriber and the publishers on `session`, and starts the thread.
+pub(crate) fn declare(
+    s: &Arc<Shared>,
+    session: &zenoh::Session,
+    declared: &mut Vec<Box<dyn std::any::Any + Send>>,
+) -> Result<Vec<JoinHandle<()>>, BridgeError> {
+    if s.follower.is_none() || s.config.read_only {
+        return Ok(Vec::new());
+    }
+    let prefix = crate::namespace_prefix(s.config.namespace.as_deref())?;
+    let keys = TrajectoryKeys::under(&prefix);
+    let sink: Arc<dyn Sink> = Arc::new(Publishers {
+        state: session
+            .declare_publisher(keys.state.clone())
+            .encoding(Encoding::APPLICATION_CDR)
+            .wait()
+            .map_err(zerr)?,
+        result: session
+            .declare_publisher(keys.result.clone())
+            .encoding(Encoding::APPLICATION_JSON)
+            .wait()
+            .map_err(zerr)?,
+    });
+    let shared = Arc::clone(s);
+    let sub = session
+        .declare_subscriber(keys.trajectory)
+        .callback(move |sample| {
+            let payload = sample.payload();
+            if payload.len() > MAX_REQUEST {
+                let t = &shared.trajectories;
+                bump(&t.counts.received);
+                bump(&t.counts.refused);
+                *t.last_refusal
+                    .lock()
+                    .unwrap_or_else(PoisonError::into_inner) = Some(format!(
+                    "joint_trajectory: a message of {} bytes: more than the {MAX_REQUEST} read",
+                    payload.len()
+                ));
+                return;
+            }
+            shared.trajectories.post(payload.to_bytes().into_owned());
+        })
+        .wait()
+        .map_err(zerr)?;
+    declared.push(Box::new(sub));
+    let shared = Arc::clone(s);
+    let thread = std::thread::Builder::new()
+        .name("robobus-trajectories".into())
+        .spawn(move || serve(&shared, &sink))?;
+    Ok(vec![thread])
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,319 @@
+//! The trajectory interface on the built-in simulated robot (its simulators on their
+//! virtual clocks: a trajectory plays faster than real time, each tick at its instant).
+
+#![allow(clippy::unwrap_used, clippy::panic)] // tests
+
+use std::sync::atomic::AtomicBool;
+use std::sync::{Arc, Condvar, Mutex};
+use std::time::{Duration, Instant};
+
+use robobus::cdr::{self, JointTrajectory, JointTrajectoryControllerState, JointTrajectoryPoint};
+
+use super::*;
+use crate::{BridgeConfig, Keys, SESSION, run_request};
+
+/// How close to a point a joint must be at the tick the point is due, degrees: the
+/// position a joint reports at a tick is the one it answered that tick's command with,
+/// before it moved toward it (one tick of a 2 rad/s joint at 50 Hz is 2.3°).
+const ON_TIME_DEG: f64 = 1.5;
+
+/// Every controller state and result, and a gate that holds the player at its first
+/// tick at or after `pause_at_s` until released.
+#[derive(Default)]
+struct Collect {
+    states: Mutex<Vec<JointTrajectoryControllerState>>,
+    results: Mutex<Vec<TrajectoryResult>>,
+    changed: Condvar,
+    pause_at_s: Option<f64>,
+    paused: AtomicBool,
+    released: AtomicBool,
+}
+
+impl Sink for Collect {
+    fn state(&self, msg: &JointTrajectoryControllerState) {
+        self.states.lock().unwrap().push(msg.clone());
+        let t = msg.reference.time_from_start.as_secs_f64();
+        if self.pause_at_s.is_some_and(|p| t >= p) && !self.released.load(Ordering::SeqCst) {
+            self.paused.store(true, Ordering::SeqCst);
+            self.changed.notify_all();
+            let deadline = Instant::now() + Duration::from_secs(20);
+            let mut g = self.states.lock().unwrap();
+            while !self.released.load(Ordering::SeqCst) && Instant::now() < deadline {
+                g = self
+                    .changed
+                    .wait_timeout(g, Duration::from_millis(20))
+                    .unwrap()
+                    .0;
+            }
+        }
+    }
+
+    fn result(&self, r: &TrajectoryResult) {
+        self.results.lock().unwrap().push(r.clone());
+        self.changed.notify_all();
+    }
+}
+
+impl Collect {
+    /// Waits for the `n`th result.
+    fn result(&self, n: usize) -> TrajectoryResult {
+        let deadline = Instant::now() + Duration::from_secs(60);
+        let mut g = self.results.lock().unwrap();
+        while g.len() < n {
+            assert!(Instant::now() < deadline, "no result {n}: {:?}", *g);
+            g = self
+                .changed
+                .wait_timeout(g, Duration::from_millis(20))
+                .unwrap()
+                .0;
+        }
+        g[n - 1].clone()
+    }
+}
+
+/// A bridge's shared state on the simulated robot, armed, joints 1-7 enabled in position
+/// mode, and a thread feeding the guard's heartbeat (as the command thread does) until
+/// the returned flag is set.
+fn armed() -> (Arc<Shared>, Arc<AtomicBool>) {
+    let s = unarmed();
+    s.set_armed(true).unwrap();
+    s.guard.heartbeat(SESSION);
+    for r in [
+        r#"{"op":"whj.mode","joints":"1-7","mode":"position"}"#,
+        r#"{"op":"whj.enable","joints":"1-7"}"#,
+    ] {
+        run_request(&s, r).unwrap();
+    }
+    let done = Arc::new(AtomicBool::new(false));
+    let (beat, stop) = (Arc::clone(&s), Arc::clone(&done));
+    std::thread::spawn(move || {
+        while !stop.load(Ordering::SeqCst) {
+            beat.guard.heartbeat(SESSION);
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    });
+    (s, done)
+}
+
+fn unarmed() -> Arc<Shared> {
+    Shared::new(
+        robobus::station::Station::simulated().unwrap(),
+        None,
+        BridgeConfig::default(),
+        Keys::new(None).unwrap(),
+    )
+    .unwrap()
+}
+
+fn point(t: f64, positions: &[f64]) -> JointTrajectoryPoint {
+    JointTrajectoryPoint {
+        positions: positions.to_vec(),
+        time_from_start: cdr::Duration::from_secs_f64(t),
+        ..JointTrajectoryPoint::default()
+    }
+}
+
+fn trajectory(names: &[&str], points: Vec<JointTrajectoryPoint>) -> Vec<u8> {
+    JointTrajectory {
+        joint_names: names.iter().map(|n| (*n).to_owned()).collect(),
+        points,
+        ..JointTrajectory::default()
+    }
+    .encode()
+}
+
+fn degrees(s: &Shared, names: &[&str]) -> Vec<f64> {
+    let names: Vec<String> = names.iter().map(|n| (*n).to_owned()).collect();
+    read(s, &names)
+        .unwrap()
+        .into_iter()
+        .map(Option::unwrap)
+        .collect()
+}
+
+/// The feedback of the tick at `t_s`, degrees, by joint.
+fn feedback_at(states: &[JointTrajectoryControllerState], t_s: f64) -> Vec<f64> {
+    let st = states
+        .iter()
+        .find(|m| (m.feedback.time_from_start.as_secs_f64() - t_s).abs() < 1e-6)
+        .unwrap_or_else(|| panic!("no tick at {t_s} s"));
+    st.feedback
+        .positions
+        .iter()
+        .map(|p| p.to_degrees())
+        .collect()
+}
+
+#[test]
+fn the_arm_reaches_each_point_on_time_and_the_joints_it_does_not_name_hold() {
+    let (s, done) = armed();
+    let sink = Arc::new(Collect::default());
+    let dyn_sink: Arc<dyn Sink> = sink.clone();
+    let before = degrees(&s, &["j1", "j4"]);
+    // j3 and j2 (in that order), 20° then back to 5°, the last point with velocities.
+    let mut last = point(2.0, &[5_f64.to_radians(), -5_f64.to_radians()]);
+    last.velocities = vec![0.0, 0.0];
+    let payload = trajectory(
+        &["j3", "j2"],
+        vec![
+            point(1.0, &[20_f64.to_radians(), -10_f64.to_radians()]),
+            last,
+        ],
+    );
+    take_up(&s, &dyn_sink, &payload);
+    let r = sink.result(1);
+    done.store(true, Ordering::SeqCst);
+    assert_eq!(r.status, "reached", "{r:?}");
+    assert_eq!(r.error_code, Some(0));
+    assert_eq!(r.id, 1);
+    assert!(
+        r.error_string
+            .starts_with("reached: the largest end error "),
+        "{r:?}"
+    );
+    for j in &r.joints {
+        assert!(j.error_deg.unwrap() <= GOAL_TOLERANCE_DEG, "{j:?}");
+    }
+    let states = sink.states.lock().unwrap().clone();
+    assert_eq!(states[0].joint_names, ["j3", "j2"]);
+    // On time: at each point's tick the joints are at it.
+    for (t, want) in [(1.0, [20.0, -10.0]), (2.0, [5.0, -5.0])] {
+        let at = feedback_at(&states, t);
+        for (a, w) in at.iter().zip(want) {
+            assert!((a - w).abs() < ON_TIME_DEG, "at {t} s: {at:?} for {want:?}");
+        }
+    }
+    // The reference is the trajectory's, and the error its distance from the feedback.
+    let mid = states
+        .iter()
+        .find(|m| (m.reference.time_from_start.as_secs_f64() - 0.5).abs() < 1e-6)
+        .unwrap();
+    assert!(
+        (mid.reference.positions[0].to_degrees() - 10.0).abs() < 0.5,
+        "{mid:?}"
+    );
+    assert!(
+        (mid.error.positions[0] - (mid.reference.positions[0] - mid.feedback.positions[0])).abs()
+            < 1e-12
+    );
+    // j1 and j4 were not named: they did not move.
+    let after = degrees(&s, &["j1", "j4"]);
+    for (a, b) in after.iter().zip(&before) {
+        assert!((a - b).abs() < 0.05, "{after:?} from {before:?}");
+    }
+    let h = s.trajectories.health();
+    assert_eq!((h.started, h.reached, h.refused), (1, 1, 0), "{h:?}");
+}
+
+#[test]
+fn a_bad_trajectory_is_refused_whole_and_nothing_moves() {
+    let (s, done) = armed();
+    let sink = Arc::new(Collect::default());
+    let dyn_sink: Arc<dyn Sink> = sink.clone();
+    let before = degrees(&s, &["j2", "j3"]);
+    // The first point fits; the second is outside j3's soft limits (±2 rad).
+    let payload = trajectory(
+        &["j2", "j3"],
+        vec![point(1.0, &[0.1, 0.2]), point(2.0, &[0.1, 2.5])],
+    );
+    take_up(&s, &dyn_sink, &payload);
+    // Faster than max_velocity (2 rad/s) between two points.
+    let fast = trajectory(&["j2"], vec![point(1.0, &[0.1]), point(1.1, &[0.5])]);
+    take_up(&s, &dyn_sink, &fast);
+    // Not a trajectory at all.
+    take_up(&s, &dyn_sink, &[0, 1, 0, 0, 9]);
+    done.store(true, Ordering::SeqCst);
+    let r = sink.result(1);
+    assert_eq!(r.status, "refused");
+    assert_eq!(r.error_code, Some(cdr::result_code::INVALID_GOAL));
+    assert_eq!(
+        r.error_string,
+        "joint_trajectory: point 1: j3 = 2.5 rad is outside its soft limits -2..=2 rad (the \
+         robot file's limits)"
+    );
+    let r = sink.result(2);
+    assert!(
+        r.error_string.contains("faster than its max_velocity"),
+        "{r:?}"
+    );
+    let r = sink.result(3);
+    assert!(
+        r.error_string
+            .starts_with("joint_trajectory: header.stamp.sec: the message ends"),
+        "{r:?}"
+    );
+    assert!(sink.states.lock().unwrap().is_empty());
+    let after = degrees(&s, &["j2", "j3"]);
+    for (a, b) in after.iter().zip(&before) {
+        assert!((a - b).abs() < 0.05, "{after:?} from {before:?}");
+    }
+    let h = s.trajectories.health();
+    assert_eq!((h.refused, h.started), (3, 0), "{h:?}");
+    assert!(
+        h.last_refusal
+            .is_some_and(|m| m.contains("header.stamp.sec"))
+    );
+}
+
+#[test]
+fn an_unarmed_bridge_refuses_a_trajectory() {
+    let s = unarmed();
+    let sink = Arc::new(Collect::default());
+    let dyn_sink: Arc<dyn Sink> = sink.clone();
+    take_up(
+        &s,
+        &dyn_sink,
+        &trajectory(&["j3"], vec![point(1.0, &[0.2])]),
+    );
+    let r = sink.result(1);
+    assert_eq!(r.status, "refused");
+    assert!(
+        r.error_string
+            .starts_with("joint_trajectory: not armed: motion needs this bridge armed"),
+        "{r:?}"
+    );
+    assert!(sink.states.lock().unwrap().is_empty());
+    assert_eq!(s.trajectories.health().refused, 1);
+}
+
+#[test]
+fn a_newer_trajectory_replaces_the_one_playing_from_where_the_joints_are() {
+    let (s, done) = armed();
+    let sink = Arc::new(Collect {
+        pause_at_s: Some(1.0),
+        ..Collect::default()
+    });
+    let dyn_sink: Arc<dyn Sink> = sink.clone();
+    // To 60° in 3 s; held at its tick at 1 s (about 20°) while the newer one comes.
+    take_up(
+        &s,
+        &dyn_sink,
+        &trajectory(&["j3"], vec![point(3.0, &[60_f64.to_radians()])]),
+    );
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while !sink.paused.load(Ordering::SeqCst) {
+        assert!(Instant::now() < deadline, "the first never reached 1 s");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    sink.released.store(true, Ordering::SeqCst);
+    sink.changed.notify_all();
+    take_up(
+        &s,
+        &dyn_sink,
+        &trajectory(&["j3"], vec![point(1.0, &[-10_f64.to_radians()])]),
+    );
+    let first = sink.result(1);
+    let second = sink.result(2);
+    done.store(true, Ordering::SeqCst);
+    assert_eq!(
+        (first.id, first.status, first.error_code),
+        (1, "replaced", None)
+    );
+    // It never got near 60°.
+    let p = first.joints[0].position_deg.unwrap();
+    assert!(p < 40.0, "{first:?}");
+    assert_eq!((second.id, second.status), (2, "reached"), "{second:?}");
+    assert!((second.joints[0].position_deg.unwrap() + 10.0).abs() <= GOAL_TOLERANCE_DEG);
+    let h = s.trajectories.health();
+    assert_eq!((h.started, h.replaced, h.reached), (2, 1, 1), "{h:?}");
+}
