@@ -73,16 +73,30 @@ test("an uploaded file is compared with a servo as wck.diff says, restored after
 test("a servo compared with another servo shows wck.diff's rows for the pair", async () => {
   await device("wck|sim-wck|4");
   await panel.getByLabel("Compare with").selectOption("other");
-  await panel.getByLabel("Other device").selectOption("wck|sim-wck|5");
+  await panel.getByLabel("Other device", { exact: true }).selectOption("wck|sim-wck|5");
   await panel.getByRole("button", { name: "Diff the device", exact: true }).click();
   await flow.getByText("wck.diff ran.").waitFor();
   const want = await runRequest(studio.url, { op: "wck.diff", id: 4, other: 5 });
   assert.ok(want.results.length > 0);
   const shown = flow.getByRole("table", { name: "Differences" }).locator("tbody tr");
   assert.equal(await shown.count(), want.results.length);
-  // Restoring from another device is a backup of it first: the page says so, nothing sent.
-  await panel.getByRole("button", { name: "Restore into the device", exact: true }).click();
-  await flow.getByText(/back it up first/).waitFor();
+  for (const [i, r] of want.results.entries()) {
+    assert.deepEqual(await shown.nth(i).locator("td").allTextContents(), [r.setting, r.a, r.b]);
+  }
+});
+
+test("another servo copied into a servo: its backup, then the restore of that file after the EEPROM confirmation; the two then do not differ", async () => {
+  await device("wck|sim-wck|5");
+  await panel.getByLabel("Compare with").selectOption("other");
+  await panel.getByLabel("Other device", { exact: true }).selectOption("wck|sim-wck|4");
+  await panel.getByRole("button", { name: "Copy the other device into the device", exact: true }).click();
+  const dialog = page.getByRole("dialog");
+  await dialog.waitFor();
+  await dialog.getByRole("button", { name: "Confirm" }).click();
+  await flow.getByText("wck.restore ran.").waitFor();
+  assert.match(await panel.locator('[data-field="file"]').textContent(), /^Settings file: servo-4-sim-wck.settings.json/);
+  const diff = await runRequest(studio.url, { op: "wck.diff", id: 5, other: 4 });
+  assert.deepEqual(diff.results, []);
 });
 
 test("a joint backed up and compared with another: the file is robobus run whj.backup's, the diff whj.diff's", async () => {

@@ -133,10 +133,37 @@ export default {
       build: () => {
         const d = device();
         const c = comparison(d);
-        if (c.other !== undefined) throw new Error("to copy another device, back it up first (it becomes the settings file), then restore the file");
+        if (c.other !== undefined) throw new Error("to restore another device's settings, use Copy: it backs the other device up, then restores that file");
         return { op: `${d.family}.restore`, bus: d.bus, ...target(d), ...c };
       },
     });
+    // Another device into this one: its backup (the settings file from then on), then the
+    // restore of that file, each through the flow (the restore asks first).
+    const copyRow = flowButtons(studio, flow, {
+      label: "Copy",
+      name: "Copy the other device into the device",
+      danger: true,
+      build: () => {
+        const d = device();
+        if (withSel.value !== "other") throw new Error('Copy takes the settings of another device: choose "another device"');
+        const o = { ...d, id: comparison(d).other };
+        return { op: `${o.family}.backup`, bus: o.bus, ...target(o) };
+      },
+      onReport: async (rep, req) => {
+        if (rep.failed || !rep.summary) return;
+        const d = device();
+        const family = req.op.split(".")[0];
+        const id = req.id ?? req.joint;
+        setFile(family, JSON.stringify(rep.summary, null, 2), `${family === "wck" ? "servo" : "joint"}-${id}-${req.bus}.settings.json`);
+        await flow.run({ op: `${d.family}.restore`, bus: d.bus, ...target(d), settings: file.text });
+      },
+    });
+    const syncCopy = () => {
+      copyRow.hidden = withSel.value !== "other";
+      restoreRow.hidden = withSel.value === "other";
+    };
+    withSel.addEventListener("change", syncCopy);
+    syncCopy();
 
     root.append(
       h("h2", {}, "Backup"),
@@ -154,6 +181,7 @@ export default {
         h("div", { class: "row" }, labelled("Compare or restore with", withSel), other.element),
         diffRow,
         restoreRow,
+        copyRow,
         flow.element));
   },
 };
