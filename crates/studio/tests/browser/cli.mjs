@@ -5,7 +5,8 @@
 import { spawn } from "node:child_process";
 import path from "node:path";
 import { fileURLToPath } from "node:url";
-import { ROBOBUS_BIN } from "./harness.mjs";
+import { mkdirSync } from "node:fs";
+import { ROBOBUS_BIN, SCREENS } from "./harness.mjs";
 
 const here = path.dirname(fileURLToPath(import.meta.url));
 export const DOCS = path.resolve(here, "../../../../docs");
@@ -61,12 +62,16 @@ export function recordRequests(page) {
 }
 
 /**
- * A screenshot of one element for docs/studio.md: docs/studio-NAME.png. Taken from the
- * whole page at its top (clipped to the element), so the header that stays on screen
- * does not cover the element's top as it would in a scrolled window.
+ * A screenshot of one element for docs/studio.md, studio-NAME.png: into the tests' screens
+ * folder, and into docs/ itself when STUDIO_DOC_SHOTS=1 (a test run does not rewrite the
+ * docs' pictures unasked). Taken from the whole page at its top (clipped to the element),
+ * so the header that stays on screen does not cover the element's top as it would in a
+ * scrolled window.
  */
 export async function docShot(locator, name) {
-  const file = path.join(DOCS, `studio-${name}.png`);
+  const dir = process.env.STUDIO_DOC_SHOTS === "1" ? DOCS : SCREENS;
+  mkdirSync(dir, { recursive: true });
+  const file = path.join(dir, `studio-${name}.png`);
   const page = locator.page();
   await page.evaluate(() => window.scrollTo(0, 0));
   const box = await locator.boundingBox();
