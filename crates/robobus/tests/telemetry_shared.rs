@@ -8,7 +8,7 @@ use std::collections::BTreeSet;
 use std::sync::Arc;
 use std::time::Duration;
 
-use robobus::catalogue::telemetry::{Delivery, Subscription};
+use robobus::catalogue::telemetry::{Delivery, RecvError, Subscription};
 use robobus::catalogue::{self, Request};
 use robobus::ops::Control;
 use robobus::station::sampler::SampledBy;
@@ -48,6 +48,19 @@ fn host_frames(sim: &WhjSimHandle) -> u64 {
 fn next(sub: &Subscription) -> Delivery {
     sub.recv_timeout(Duration::from_secs(10))
         .expect("a sample within 10 s")
+}
+
+/// Every delivery until the subscription's end; fails past `at_most` of them.
+fn until_end(sub: &Subscription, at_most: usize) -> Vec<Delivery> {
+    let mut got = Vec::new();
+    loop {
+        match sub.recv_timeout(Duration::from_secs(10)) {
+            Ok(d) => got.push(d),
+            Err(RecvError::Ended) => return got,
+            Err(RecvError::Timeout) => panic!("no sample and no end within 10 s"),
+        }
+        assert!(got.len() <= at_most, "{} samples and no end", got.len());
+    }
 }
 
 /// The joint IDs of a delivery's rows.
@@ -270,4 +283,79 @@ fn a_silent_joint_is_a_failed_row_for_every_subscriber_never_an_old_value() {
     }
     let failed: BTreeSet<bool> = subs.into_iter().map(|mut s| s.close().is_some()).collect();
     assert!(failed.contains(&true));
+}
+
+#[test]
+fn a_limited_subscription_leaves_after_its_count_and_says_what_it_was_given() {
+    let (station, _port, sim) = station(2);
+    let before = host_frames(&sim);
+    let mut other = station.telemetry(request("2"), 200.0, 4096).unwrap();
+    next(&other);
+    let mut limited = station
+        .telemetry_limited(request("1"), 200.0, 4096, Some(4))
+        .unwrap();
+    // Its four samples, numbered 0..=3, then the end; what it was given.
+    let got = until_end(&limited, 10);
+    let seqs: Vec<u64> = got.iter().map(|d| d.sample.seq).collect();
+    assert_eq!(seqs, [0, 1, 2, 3]);
+    assert!(got.iter().all(|d| ids(d) == [1]));
+    let stats = limited.stats();
+    assert_eq!((stats.samples, stats.failed), (4, 0), "{stats:?}");
+    let late = got.iter().filter(|d| d.sample.late).count();
+    assert_eq!(stats.late, u64::try_from(late).unwrap());
+    // It left the sampling: the other reads on, its own joint.
+    for _ in 0..20 {
+        assert_eq!(ids(&next(&other)), [2]);
+    }
+    assert!(limited.close().is_none(), "the other still reads");
+    let sampling = other.close().expect("the last subscriber's close");
+    // Joint 2 was read in every sample; joint 1 in the limited one's four and at most
+    // the reads begun before its fourth was delivered (the delivery runs up to 6 behind).
+    let joint_reads = (host_frames(&sim) - before) / FRAMES_PER_JOINT;
+    let joint1 = joint_reads - sampling.samples;
+    assert!(
+        (4..=4 + 6).contains(&joint1),
+        "{joint1} reads of joint 1, {sampling:?}"
+    );
+    // The other was given every sample but those under way when it left.
+    let given = other.stats().samples;
+    assert!(
+        given <= sampling.samples && sampling.samples <= given + 6,
+        "{given} {sampling:?}"
+    );
+}
+
+#[test]
+fn the_last_limited_subscription_stops_the_sampling_at_its_count() {
+    let (station, _port, sim) = station(2);
+    let before = host_frames(&sim);
+    let mut sub = station
+        .telemetry_limited(request("1-2"), 200.0, 64, Some(3))
+        .unwrap();
+    assert_eq!(until_end(&sub, 10).len(), 3);
+    // Its close joins the sampling, which took the three and at most the ones under way
+    // in the delivery (4) after them; then the bus is quiet.
+    let stats = sub.close().expect("the sampling's own stats");
+    assert!((3..=3 + 4).contains(&stats.samples), "{stats:?}");
+    let quiet = host_frames(&sim);
+    assert_eq!(quiet - before, stats.samples * 2 * FRAMES_PER_JOINT);
+    std::thread::sleep(Duration::from_millis(50));
+    assert_eq!(host_frames(&sim), quiet);
+    assert_eq!(sub.stats().samples, 3);
+}
+
+#[test]
+fn a_limit_of_zero_is_refused_naming_it() {
+    let (station, _port, sim) = station(1);
+    let before = host_frames(&sim);
+    let e = station
+        .telemetry_limited(request("1"), 100.0, 64, Some(0))
+        .unwrap_err();
+    assert_eq!(e.kind(), robobus::ErrorKind::BadInput);
+    let text = e.to_string();
+    assert!(
+        text.contains("limit") && text.contains("at least 1"),
+        "{text}"
+    );
+    assert_eq!(host_frames(&sim), before);
 }

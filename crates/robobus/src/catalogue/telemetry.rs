@@ -38,12 +38,14 @@
 //! and sequence numbers (`seq` 0, 1, 2, ... of the samples it was given or lost). A second
 //! subscriber costs the bus nothing; a subscriber that asks for more devices or a higher
 //! rate changes the sampling from its next sample on; the last subscription dropped (or
-//! [`Subscription::close`]d) stops the sampling. A sample of WHJ joints says how the bus
+//! [`Subscription::close`]d) stops the sampling. [`Station::telemetry_limited`] ends a
+//! subscription after a count of samples; [`Subscriber::stats`] says what a subscriber
+//! was given (samples, late ones, failed ones). A sample of WHJ joints says how the bus
 //! was read ([`Sample::sampled_by`]: pipelined requests, the broadcast status, the cyclic
 //! loop's feedback; see [`sample_whj`]).
 //!
 //! [`Telemetry`] is a sampler of its own, for a caller that wants one whatever else reads
-//! the bus (and a `limit` of samples).
+//! the bus. The shared sampling lives in `shared.rs`.
 //!
 //! Each subscriber has its own bounded queue. A subscriber that does not keep up loses
 //! its *oldest* samples, and the next [`Delivery`] says how many it lost; the sampler
@@ -66,6 +68,9 @@ use super::{Report, Request, kind_name};
 use crate::ops::{Control, OpError, StopToken};
 use crate::station::Station;
 use crate::station::sampler::{SampledBy, sample_whj};
+
+mod shared;
+pub use shared::Subscription;
 
 /// Sampling rates a stream takes, Hz.
 pub const RATE_HZ: std::ops::RangeInclusive<f64> = 0.1..=1000.0;
@@ -136,6 +141,8 @@ struct QueueState {
     capacity: usize,
     lost_since: u64,
     lost_total: u64,
+    /// What was pushed: samples (lost ones too), late ones, failed ones.
+    given: StreamStats,
     ended: bool,
 }
 
@@ -153,6 +160,7 @@ impl Queue {
                 capacity,
                 lost_since: 0,
                 lost_total: 0,
+                given: StreamStats::default(),
                 ended: false,
             }),
             ready: Condvar::new(),
@@ -168,6 +176,9 @@ impl Queue {
     /// Queues `sample`, losing the oldest one when full.
     fn push(&self, sample: Arc<Sample>) {
         let mut s = self.lock();
+        s.given.samples += 1;
+        s.given.late += u64::from(sample.late);
+        s.given.failed += u64::from(sample.error.is_some());
         if s.buf.len() >= s.capacity {
             s.buf.pop_front();
             s.lost_since += 1;
@@ -229,6 +240,12 @@ impl Subscriber {
     /// Samples this subscriber lost so far.
     pub fn lost(&self) -> u64 {
         self.queue.lock().lost_total
+    }
+
+    /// What this subscriber was given so far: samples (those it lost too), of them late
+    /// ones and reads that failed as a whole.
+    pub fn stats(&self) -> StreamStats {
+        self.queue.lock().given
     }
 }
 
@@ -659,380 +676,6 @@ impl Taking<'_> {
             }
             Reading::Whole(request) => (super::run(self.station, request, control), None),
         }
-    }
-}
-
-/// `report` with the rows of `devices` only, its failure summed up from them.
-fn rows_of(report: &Report, devices: Option<&BTreeSet<u64>>) -> Report {
-    let Some(devices) = devices else {
-        return report.clone();
-    };
-    // Every row is the member's (it asked for the whole union): as it is.
-    if report
-        .results
-        .iter()
-        .all(|row| row["id"].as_u64().is_some_and(|id| devices.contains(&id)))
-    {
-        return report.clone();
-    }
-    let results: Vec<serde_json::Value> = report
-        .results
-        .iter()
-        .filter(|row| row["id"].as_u64().is_some_and(|id| devices.contains(&id)))
-        .cloned()
-        .collect();
-    let failures: Vec<crate::ops::DeviceResult<u64, ()>> = results
-        .iter()
-        .filter_map(|row| {
-            let kind = serde_json::from_value::<crate::ErrorKind>(row.get("kind")?.clone()).ok()?;
-            Some(crate::ops::DeviceResult::failed(
-                0,
-                crate::ops::Failure::of(kind, &row["error"].as_str().unwrap_or("")),
-            ))
-        })
-        .collect();
-    let errors: Vec<String> = results
-        .iter()
-        .filter(|row| row.get("kind").is_some())
-        .filter_map(|row| row["error"].as_str().map(str::to_owned))
-        .collect();
-    let mut out = Report::with_rows(&report.op, &report.bus, results);
-    out.summary.clone_from(&report.summary);
-    if let Some(kind) = crate::ops::worst_kind(&failures) {
-        out.failed = Some(kind);
-        out.error = Some(errors.join("; "));
-    }
-    out
-}
-
-/// One subscriber of a shared sampling.
-#[derive(Debug)]
-struct Member {
-    id: u64,
-    /// Its devices (`None`: the request's every row).
-    devices: Option<BTreeSet<u64>>,
-    broadcast: bool,
-    period: Duration,
-    /// When its next sample is due (`None`: at once).
-    due: Option<Instant>,
-    /// Samples given to it (or lost from its queue) so far.
-    seq: u64,
-    queue: Arc<Queue>,
-}
-
-#[derive(Debug, Default)]
-struct Members {
-    list: Vec<Member>,
-    next_id: u64,
-    /// The last subscriber left: the sampling ends, no one joins it any more.
-    stopping: bool,
-}
-
-/// The one sampling of a bus that its subscribers share (see the [module docs](self)).
-#[derive(Debug)]
-struct Shared {
-    members: Mutex<Members>,
-    /// Rings when a subscriber joins or the last one leaves.
-    changed: Condvar,
-    stop: StopToken,
-    thread: Mutex<Option<JoinHandle<StreamStats>>>,
-}
-
-impl Shared {
-    fn lock(&self) -> MutexGuard<'_, Members> {
-        self.members
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-    }
-
-    /// Removes member `id` (its queue ends); whether it was the last (the sampling stops).
-    fn leave(&self, id: u64) -> bool {
-        let mut m = self.lock();
-        if let Some(k) = m.list.iter().position(|s| s.id == id) {
-            m.list.remove(k).queue.end();
-        }
-        let last = m.list.is_empty() && !m.stopping;
-        if m.list.is_empty() {
-            m.stopping = true;
-            self.stop.stop();
-        }
-        drop(m);
-        self.changed.notify_all();
-        last
-    }
-
-    /// What the next sample reads: the union of the members' devices, whether any asked
-    /// for the broadcast status, the shortest period; `None` once stopping.
-    fn plan(&self) -> Option<(BTreeSet<u64>, bool, Duration)> {
-        let m = self.lock();
-        if m.stopping {
-            return None;
-        }
-        let period = m.list.iter().map(|s| s.period).min()?;
-        let devices = m
-            .list
-            .iter()
-            .flat_map(|s| s.devices.iter().flatten().copied())
-            .collect();
-        Some((devices, m.list.iter().any(|s| s.broadcast), period))
-    }
-
-    /// Gives `sample`, taken for the sampling's `slot`, to every member whose turn it is,
-    /// each its own rows.
-    fn deliver(&self, sample: &Sample, slot: Instant, period: Duration) {
-        let mut m = self.lock();
-        for s in &mut m.list {
-            // A slot up to half the sampling's period before the member's turn is on time.
-            if s.due.is_some_and(|d| slot + period / 2 < d) {
-                continue;
-            }
-            s.due = Some(match s.due {
-                Some(d) if d + s.period > slot => d + s.period,
-                _ => slot + s.period,
-            });
-            let mine = Sample {
-                seq: s.seq,
-                report: sample
-                    .report
-                    .as_ref()
-                    .map(|r| rows_of(r, s.devices.as_ref())),
-                ..sample.clone()
-            };
-            s.seq += 1;
-            s.queue.push(Arc::new(mine));
-        }
-    }
-
-    /// Waits until the slot after `base` at the shortest period now (at once if that has
-    /// passed) and returns it; `None` when stopping.
-    fn wait_slot(&self, base: Instant) -> Option<Instant> {
-        let mut m = self.lock();
-        loop {
-            if m.stopping {
-                return None;
-            }
-            let period = m.list.iter().map(|s| s.period).min()?;
-            let now = Instant::now();
-            let next = base + period;
-            if now >= next {
-                return Some(next);
-            }
-            m = self
-                .changed
-                .wait_timeout(m, next - now)
-                .unwrap_or_else(std::sync::PoisonError::into_inner)
-                .0;
-        }
-    }
-
-    fn run(&self, station: &Station, reading: &Reading) -> StreamStats {
-        let (tx, rx) = std::sync::mpsc::sync_channel::<(Sample, Instant, Duration)>(4);
-        let stats = std::thread::scope(|scope| {
-            // The subscribers are served by a thread of their own while the next read is
-            // under way (in order, at most 4 samples behind; without that thread, here).
-            let delivering = std::thread::Builder::new()
-                .name("robobus-deliver".into())
-                .spawn_scoped(scope, move || {
-                    for (sample, slot, period) in rx {
-                        self.deliver(&sample, slot, period);
-                    }
-                })
-                .is_ok();
-            let tx = delivering.then_some(tx);
-            let mut stats = StreamStats::default();
-            let mut speeds = matches!(reading, Reading::Wck { .. }).then(Speeds::default);
-            let mut slot = Instant::now();
-            while let Some((devices, broadcast, period)) = self.plan() {
-                let late = Instant::now().saturating_duration_since(slot) > period;
-                let taking = Taking {
-                    station,
-                    reading,
-                    devices: &devices,
-                    broadcast,
-                };
-                let sample = take_sample(&taking, &self.stop, speeds.as_mut(), late, &mut stats);
-                match &tx {
-                    Some(tx) => {
-                        if let Err(e) = tx.send((sample, slot, period)) {
-                            let (sample, slot, period) = e.0;
-                            self.deliver(&sample, slot, period);
-                        }
-                    }
-                    None => self.deliver(&sample, slot, period),
-                }
-                match self.wait_slot(slot) {
-                    // Behind: start again from now rather than bursting to catch up.
-                    Some(next) if late => slot = next.max(Instant::now()),
-                    Some(next) => slot = next,
-                    None => break,
-                }
-            }
-            // Everything taken is delivered before the subscribers' queues end.
-            drop(tx);
-            stats
-        });
-        let mut m = self.lock();
-        m.stopping = true;
-        for s in &m.list {
-            s.queue.end();
-        }
-        m.list.clear();
-        stats
-    }
-}
-
-/// A subscription to the shared sampling of a bus ([`Station::telemetry`]): a
-/// [`Subscriber`] (its queue: `recv_timeout`, `try_recv`, `queued`, `lost`) that leaves
-/// the sampling when dropped or [closed](Subscription::close).
-#[derive(Debug)]
-pub struct Subscription {
-    subscriber: Subscriber,
-    shared: Arc<Shared>,
-    id: u64,
-    request: Request,
-    left: bool,
-}
-
-impl Subscription {
-    /// The request it asked for.
-    pub const fn request(&self) -> &Request {
-        &self.request
-    }
-
-    /// Leaves the sampling (what is queued can still be received, then the end); if it
-    /// was the last subscriber, stops the sampling, waits until its read under way has
-    /// completed and returns what the sampling did (`None`: others still read it, or it
-    /// had left already).
-    pub fn close(&mut self) -> Option<StreamStats> {
-        if std::mem::replace(&mut self.left, true) {
-            return None;
-        }
-        if !self.shared.leave(self.id) {
-            return None;
-        }
-        let thread = self
-            .shared
-            .thread
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .take();
-        thread.and_then(|t| t.join().ok())
-    }
-}
-
-impl std::ops::Deref for Subscription {
-    type Target = Subscriber;
-
-    fn deref(&self) -> &Subscriber {
-        &self.subscriber
-    }
-}
-
-/// Every sample until the subscription's stream ends.
-impl Iterator for Subscription {
-    type Item = Delivery;
-
-    fn next(&mut self) -> Option<Delivery> {
-        self.subscriber.next()
-    }
-}
-
-impl Drop for Subscription {
-    fn drop(&mut self) {
-        // Never waits: the sampling's thread ends on its own after its read under way.
-        if !self.left {
-            self.shared.leave(self.id);
-        }
-    }
-}
-
-impl Station {
-    /// A subscription to the one sampling of the bus `request` reads (see the [module
-    /// docs](crate::catalogue::telemetry)): `request` a reading request (`whj.sample`,
-    /// `wck.sample`, `robot.sample`, `whj.status`, `wck.status`, `whj.can-health`), its
-    /// rows given at `rate_hz` ([`RATE_HZ`]) into a queue of `capacity`
-    /// (1..=[`MAX_QUEUE`]) samples. The sampling starts with the first subscription of
-    /// its bus and reading, and stops with the last.
-    ///
-    /// # Errors
-    ///
-    /// Bad input naming the value and the allowed range: not a reading request, a rate or
-    /// capacity out of range, a request that does not validate, a bus the station does
-    /// not have; nothing is read then. A thread that cannot be started: a device error.
-    pub fn telemetry(
-        self: &Arc<Self>,
-        request: Request,
-        rate_hz: f64,
-        capacity: usize,
-    ) -> Result<Subscription, OpError> {
-        check_capacity(capacity)?;
-        let reading = check_stream(self, &request, rate_hz)?;
-        let devices = devices_of(&request)?;
-        let broadcast = matches!(&request, Request::WhjSample(r) if r.broadcast);
-        let key = reading.key();
-        let queue = Arc::new(Queue::new(capacity));
-        let mut streams = self.streams();
-        streams.retain(|_, w| w.strong_count() > 0);
-        let member = |id| Member {
-            id,
-            devices: devices.clone(),
-            broadcast,
-            period: Duration::from_secs_f64(1.0 / rate_hz),
-            due: None,
-            seq: 0,
-            queue: Arc::clone(&queue),
-        };
-        let running = streams
-            .get(&key)
-            .and_then(std::sync::Weak::upgrade)
-            .and_then(|a| a.downcast::<Shared>().ok());
-        if let Some(shared) = running {
-            let mut m = shared.lock();
-            if !m.stopping {
-                let id = m.next_id;
-                m.next_id += 1;
-                m.list.push(member(id));
-                drop(m);
-                shared.changed.notify_all();
-                return Ok(Subscription {
-                    subscriber: Subscriber { queue },
-                    shared,
-                    id,
-                    request,
-                    left: false,
-                });
-            }
-        }
-        let shared = Arc::new(Shared {
-            members: Mutex::new(Members {
-                list: vec![member(0)],
-                next_id: 1,
-                stopping: false,
-            }),
-            changed: Condvar::new(),
-            stop: StopToken::new(),
-            thread: Mutex::new(None),
-        });
-        let thread = {
-            let (shared, station) = (Arc::clone(&shared), Arc::clone(self));
-            std::thread::Builder::new()
-                .name("robobus-sampler".into())
-                .spawn(move || shared.run(&station, &reading))
-                .map_err(|e| OpError::Device(format!("starting the sampler thread: {e}")))?
-        };
-        *shared
-            .thread
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner) = Some(thread);
-        let erased: Arc<dyn std::any::Any + Send + Sync> = Arc::clone(&shared) as _;
-        streams.insert(key, Arc::downgrade(&erased));
-        Ok(Subscription {
-            subscriber: Subscriber { queue },
-            shared,
-            id: 0,
-            request,
-            left: false,
-        })
     }
 }
 
