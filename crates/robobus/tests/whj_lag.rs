@@ -147,6 +147,60 @@ fn a_wave_far_from_the_joint_shows_its_lead_in_and_counts_only_it_as_clamped() {
     assert!(latched(&sim).is_empty());
 }
 
+/// The number of clamped set-points a plan's note gives (`N of M set-point(s) clamped`).
+fn clamped_note(plan: &ops::Plan) -> Option<(u64, usize)> {
+    let note = plan
+        .notes
+        .iter()
+        .find(|n| n.contains("set-point(s) clamped"))?;
+    let mut words = note.split(' ');
+    let n = words.next()?.parse().ok()?;
+    let of = words.nth(1)?.parse().ok()?;
+    assert!(note.contains("set-point(s) clamped, by up to "), "{note}");
+    Some((n, of))
+}
+
+/// Before a wave runs, its plan from where the joint is says how many of its set-points
+/// the step limiter changes, and the run counts exactly that many as `clamped`: a lead-in
+/// from 21 deg away, and a wave whose joint stands 0.5 deg off its start (within the step
+/// limit, so no lead-in note: the limiter catches up within its speed and acceleration);
+/// a wave that starts where the joint is, within the limits, has no such note.
+#[test]
+fn a_waves_plan_says_how_many_set_points_its_run_counts_as_clamped() {
+    let cases = [
+        (0.0, 21.0, 5.0, 0.5, true),
+        (0.5, 0.0, 8.0, 0.5, true),
+        (0.0, 0.0, 2.0, 0.2, false),
+    ];
+    for (at_deg, offset, amplitude, frequency, any) in cases {
+        let (bus, sim) = joint(None, at_deg);
+        let j = bus.joint(id(1)).unwrap();
+        let args = WaveArgs {
+            offset,
+            amplitude,
+            frequency,
+            duration: 3.0,
+            rate_hz: 200.0,
+            ..sine()
+        };
+        let plan = ops::prepare_wave(&j, &args).unwrap();
+        let note = clamped_note(&plan);
+        let r = ops::execute_wave(&j, &args, &plan, &mut Control::none(), SafeState::Hold).unwrap();
+        if any {
+            assert_eq!(
+                note,
+                Some((r.clamped, plan.frames.len())),
+                "{:?}",
+                plan.notes
+            );
+            assert!(r.clamped > 0, "{r:?}");
+        } else {
+            assert_eq!((note, r.clamped), (None, 0), "{:?}", plan.notes);
+        }
+        assert!(latched(&sim).is_empty());
+    }
+}
+
 /// A plan whose first set-point is more than the step limit from where the joint is (a
 /// plan made from another start, here 21 deg away) is refused before its first frame,
 /// naming the distance, the limit and what to do; the joint is not moved.

@@ -520,6 +520,9 @@ pub fn plan_wave(
     let mut limiter = WaveLimiter::new(from_deg, max_speed, WAVE_LIMITS.max_accel_deg_s2);
     // Frames before the set-point first reaches the request (a lead-in from `from_deg`).
     let mut lead_in: Option<usize> = None;
+    // Set-points the limiter changed, counted as `execute_wave` counts `clamped`.
+    let mut clamped = 0usize;
+    let mut clamped_by = 0.0f64;
     let mut plan = Plan::default();
     if args.servo == ServoLoop::Position {
         plan.reads.push(Request::StatusQuery { joint: args.joint });
@@ -541,10 +544,13 @@ pub fn plan_wave(
                 if lead_in.is_none() && limiter.on_track {
                     lead_in = Some(k);
                 }
-                Request::PositionServo {
-                    joint,
-                    target: Position::from_degrees(v).map_err(bad)?,
+                let target = Position::from_degrees(v).map_err(bad)?;
+                let by = (target.degrees() - want).abs();
+                if by > 1e-3 {
+                    clamped += 1;
+                    clamped_by = clamped_by.max(by);
                 }
+                Request::PositionServo { joint, target }
             }
             ServoLoop::Speed => Request::SpeedServo {
                 joint,
@@ -583,6 +589,14 @@ pub fn plan_wave(
             String::new()
         }
     ));
+    if clamped > 0 {
+        plan.notes.push(format!(
+            "{clamped} of {} set-point(s) clamped, by up to {clamped_by:.3} deg: the step \
+             limiter changes them from what the wave asks (a run from {from_deg} deg counts \
+             them as `clamped`)",
+            plan.frames.len()
+        ));
+    }
     let first = wave_targets(args).first().copied().unwrap_or(from_deg);
     if args.servo == ServoLoop::Position && (first - from_deg).abs() > args.step_limit_deg {
         plan.notes.push(match lead_in {
