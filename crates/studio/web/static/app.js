@@ -1,9 +1,12 @@
-// The shell: the header (connection, control, arming, why the page was disarmed; it stays
-// at the top of the window), the stop key (Escape), the safe-state banner and the tabs. Each panel is a module ./panels/NAME.js whose default export is
+// The shell: the header (connection, control, arming, the silent devices of the page's
+// history, why the page was disarmed; it stays at the top of the window), the stop key
+// (Escape), the safe-state banner and the tabs. The page's history (history.js) records
+// every device from the moment the page connects. Each panel is a module ./panels/NAME.js whose default export is
 // {id, title, mount(element, studio)}; it is loaded and mounted the first time its tab shows.
 // A mounted panel's element gets the DOM events `studio:show` and `studio:hide`.
 
 import { Studio, el, describeError } from "./core.js";
+import { History } from "./history.js";
 
 const PANELS = [
   ["bus", "Bus"],
@@ -38,6 +41,8 @@ async function main() {
     return;
   }
   window.studio = studio; // for the console and the browser tests
+  // Every device's readings from now on, whichever panel shows them.
+  studio.history = new History(studio);
   app.replaceChildren(header(studio), safeBanner(studio), tabs(studio));
   stopKey(studio);
 }
@@ -127,10 +132,57 @@ function header(studio) {
   update();
   return el("header", { className: "top" }, [
     el("h1", {}, ["robobus studio", el("small", {}, ` ${where}${buses ? ` · ${buses}` : ""} · v${studio.info.version}`)]),
-    el("div", { className: "status", "aria-label": "Studio state" }, [conn, control, armed]),
+    el("div", { className: "status", "aria-label": "Studio state" }, [conn, control, armed, silentFlag(studio)]),
     el("div", { className: "controls" }, [take, release, arm, disarm]),
     reason,
   ]);
+}
+
+/**
+ * The silent devices, on every tab: a device of the page's history whose last reading
+ * failed, or a bus whose reading failed or stopped coming. Clicking it opens the first
+ * silent device in the Device panel.
+ */
+function silentFlag(studio) {
+  const flag = el("button", { type: "button", className: "pill bad silent-flag", id: "silent-state", hidden: true });
+  flag.setAttribute("aria-live", "polite");
+  let first = null;
+  flag.addEventListener("click", async () => {
+    if (!first || !studio.showPanel) return;
+    const panel = await studio.showPanel("device");
+    const sel = panel.querySelector("select.device-select");
+    const value = `${first.family}|${first.bus}|${first.id}`;
+    if (sel && [...sel.options].some((o) => o.value === value)) {
+      sel.value = value;
+      sel.dispatchEvent(new Event("change"));
+    }
+  });
+  let queued = false;
+  const render = () => {
+    queued = false;
+    const { devices, buses } = studio.history.silent();
+    const names = devices.map((d) => `${d.family === "wck" ? "servo" : "joint"} ${d.id}${d.name ? ` · ${d.name}` : ""}`);
+    const busText = buses.map((b) => `${b.bus}: ${b.why}`);
+    first = devices[0] ?? null;
+    const parts = [];
+    if (names.length) parts.push(`silent: ${names.slice(0, 4).join(", ")}${names.length > 4 ? ` and ${names.length - 4} more` : ""}`);
+    if (busText.length) parts.push(busText.join("; "));
+    const text = parts.join(" · ");
+    if (flag.textContent !== text) flag.textContent = text;
+    flag.hidden = !text;
+    flag.title = devices.length
+      ? `${devices.map((d) => `${d.family === "wck" ? "Servo" : "Joint"} ${d.id} (${d.bus}): ${d.error}`).join("\n")}\nClick to open ${names[0]} in Device.`
+      : busText.join("\n");
+  };
+  studio.history.onChange(() => {
+    if (!queued) {
+      queued = true;
+      setTimeout(render, 200);
+    }
+  });
+  setInterval(render, 1000); // a bus whose readings stopped coming
+  render();
+  return flag;
 }
 
 function capital(text) {

@@ -1,6 +1,8 @@
 // Device: one servo or joint up close: live readouts, jogging, and its actions.
 
 import { el, field, select, fmt, devicePicker, action, rowText } from "../ui.js";
+import { miniChart } from "../minichart.js";
+import { deviceKey } from "../history.js";
 
 export default {
   id: "device",
@@ -126,7 +128,9 @@ function wckView(studio, d, readouts, jogBox, actionsBox, result) {
     { r: readout("Load", "", 0), get: (r) => r.load },
   ];
   const status = el("span", { className: "stream-status" });
-  readouts.replaceChildren(el("h3", {}, `Servo ${d.id} on ${d.bus}`), group("Status", fields, status));
+  const chart = miniChart(studio, { name: "Position chart" });
+  readouts.replaceChildren(el("h3", {}, `Servo ${d.id} on ${d.bus}`), group("Status", fields, status), chart.element);
+  chart.show(deviceKey("wck", d.bus, d.id), "position", noun);
   const jog = jogger(studio, {
     family: "wck",
     d,
@@ -191,6 +195,7 @@ function wckView(studio, d, readouts, jogBox, actionsBox, result) {
     teardown() {
       stop();
       jog.teardown();
+      chart.teardown();
     },
   };
 }
@@ -210,13 +215,16 @@ function whjView(studio, d, readouts, jogBox, actionsBox, result) {
     { r: readout("Brake", "", 0), get: (r) => r.brake },
     { r: readout("Error bits", "", 0), get: (r) => r.error },
   ];
+  const chart = miniChart(studio, { name: "Position chart" });
   const fastStatus = el("span", { className: "stream-status" });
   const slowStatus = el("span", { className: "stream-status" });
   readouts.replaceChildren(
     el("h3", {}, `Joint ${d.id} on ${d.bus}`),
     group("Motion", fast, fastStatus),
     group("Status", slow, slowStatus),
+    chart.element,
   );
+  chart.show(deviceKey("whj", d.bus, d.id), "position", noun);
   const jog = jogger(studio, {
     family: "whj",
     d,
@@ -289,6 +297,7 @@ function whjView(studio, d, readouts, jogBox, actionsBox, result) {
     teardown() {
       for (const s of stops) s();
       jog.teardown();
+      chart.teardown();
     },
   };
 }

@@ -1,12 +1,18 @@
 // Plot: live charts of target against actual position, and of speed and current, of the
 // chosen devices over the last 10..60 s. Drag across a chart to zoom (it pauses).
+//
+// The readings come from the page's history (history.js): every device is recorded from
+// the moment the page connects, so ticking a device draws what it did before too. The
+// targets are every position target the studio commanded (jogs, moves: the server's
+// `target` messages) and the signal a wave asked for (the Waveform panel's).
 
 import uPlot from "../vendor/uplot/uPlot.esm.js";
 import { el, field, select, deviceLabel } from "../ui.js";
+import { KEEP_S } from "../history.js";
 
-const WCK_DEG_PER_STEP = 269 / 255; // wck.status: degrees = steps × 269 / 255
 const COLORS = ["#1f5fbf", "#c0392b", "#1e8449", "#7d3c98", "#b9770e", "#117a8b", "#6e2c00", "#c2185b"];
-const KEEP_MS = 62_000;
+/** The charts are drawn at most this often (ms): the history changes at every sample. */
+const DRAW_MS = 100;
 
 const CHARTS = [
   { id: "position", title: "Position", unit: "deg" },
@@ -26,20 +32,20 @@ class PlotPanel {
   constructor(root, studio) {
     this.root = root;
     this.studio = studio;
+    this.history = studio.history;
     this.paused = false;
     this.zoomPaused = false;
     this.devices = []; // [{family, bus, id, key, color, label}]
     this.t = []; // ms since the epoch, ascending
-    this.cols = new Map(); // series key -> values
-    this.targets = new Map(); // device key -> [{t, v}] ascending (deg)
-    this.unsubs = [];
+    this.cols = new Map(); // series key -> values (null: no reading, a gap; undefined: another device's row)
     this.charts = new Map(); // chart id -> {u, keys, box}
     this.dirty = false;
-    this.syncing = false;
+    this.drawnAt = 0;
 
     this.pick = el("fieldset", { className: "devices" }, [el("legend", {}, "Devices to plot")]);
     this.windowSel = select([10, 15, 20, 30, 45, 60].map((s) => [s, `${s} s`]), 20);
-    this.rateSel = select([10, 25, 50].map((r) => [r, `${r} Hz`]), 25);
+    this.whjRate = select([10, 25, 50].map((r) => [r, `${r} Hz`]), this.history.rates.whj);
+    this.wckRate = select([5, 10, 20].map((r) => [r, `${r} Hz`]), this.history.rates.wck);
     this.pauseBtn = el("button", { type: "button", onclick: () => this.setPaused(!this.paused) }, "Pause");
     const reset = el("button", { type: "button", className: "secondary", onclick: () => this.resetZoom() }, "Reset zoom");
     const csv = el("button", { type: "button", className: "secondary", onclick: () => this.exportCsv() }, "Export CSV");
@@ -48,10 +54,15 @@ class PlotPanel {
     this.chartBox = el("div", { className: "charts" });
     root.append(
       el("h2", {}, "Plot"),
-      el("p", { className: "lead" }, "Target (dashed) against actual, live. Drag across a chart to zoom in; that pauses the view."),
+      el(
+        "p",
+        { className: "lead" },
+        `Target (dashed) against actual, live: the targets of every jog, move and wave the studio starts. Every device is recorded from the moment the page opened (the last ${KEEP_S} s); ticking one chooses what is drawn. Drag across a chart to zoom in; that pauses the view.`,
+      ),
       el("div", { className: "row plot-controls" }, [
         field("Window", this.windowSel),
-        field("Sample rate", this.rateSel),
+        field("WHJ sample rate", this.whjRate),
+        field("wCK sample rate", this.wckRate),
         this.pauseBtn,
         reset,
         csv,
@@ -64,16 +75,22 @@ class PlotPanel {
     this.fillDevices();
     studio.on("devices", () => this.fillDevices());
     this.windowSel.addEventListener("change", () => this.redraw(true));
-    this.rateSel.addEventListener("change", () => this.restart());
-    studio.on("target", (m) => this.onTarget(m));
+    this.whjRate.addEventListener("change", () => this.history.setRate("whj", Number(this.whjRate.value)));
+    this.wckRate.addEventListener("change", () => this.history.setRate("wck", Number(this.wckRate.value)));
+    this.history.onChange(() => {
+      this.dirty = true;
+    });
     root.addEventListener("studio:show", () => {
       this.resize();
       this.redraw(true);
     });
     this.resizeObs = new ResizeObserver(() => this.resize());
     this.resizeObs.observe(this.chartBox);
-    const frame = () => {
-      if (this.dirty && !this.paused && !this.root.hidden) this.redraw(false);
+    const frame = (now) => {
+      if (this.dirty && !this.paused && !this.root.hidden && now - this.drawnAt >= DRAW_MS) {
+        this.drawnAt = now;
+        this.redraw(false);
+      }
       requestAnimationFrame(frame);
     };
     requestAnimationFrame(frame);
@@ -112,109 +129,65 @@ class PlotPanel {
     });
   }
 
-  /** Subscribe to the chosen devices (one stream per bus) and rebuild the charts. */
+  /** Rebuild the charts for the chosen devices (the history records them all already). */
   restart() {
-    for (const u of this.unsubs) u();
-    this.unsubs = [];
     this.devices = this.chosen();
-    this.t = [];
-    this.cols = new Map();
-    this.targets = new Map();
-    for (const d of this.devices) {
-      for (const k of this.keysOf(d)) this.cols.set(k, []);
-    }
     this.buildCharts();
-    const rate = Number(this.rateSel.value);
-    const groups = new Map();
-    for (const d of this.devices) {
-      const g = `${d.family}|${d.bus}`;
-      if (!groups.has(g)) groups.set(g, []);
-      groups.get(g).push(d);
-    }
-    for (const [g, ds] of groups) {
-      const [family, bus] = g.split("|");
-      const ids = ds.map((d) => d.id).join(",");
-      const request = family === "whj" ? { op: "whj.sample", bus, joints: ids } : { op: "wck.sample", bus, ids };
-      this.unsubs.push(
-        this.studio.subscribe(`plot.${g}`, request, rate, Math.min(rate, 60), (s) => this.onSample(family, bus, s)),
-      );
-    }
     this.status.textContent = this.devices.length ? "" : "Choose a device to plot.";
   }
 
+  /** The rows of the chosen devices from the history: their readings' times and their targets' steps, merged. */
+  collect() {
+    const h = this.history;
+    const tmin = Date.now() - KEEP_S * 1000;
+    const tmax = Date.now(); // a wave's asked signal is drawn up to now
+    const per = new Map();
+    const times = new Set();
+    for (const d of this.devices) {
+      const r = h.readings(d.key, tmin);
+      per.set(d.key, r);
+      for (const t of r.t) times.add(t);
+      for (const t of h.targetTimes(d.key, tmin, tmax)) times.add(t);
+    }
+    this.t = [...times].sort((a, b) => a - b);
+    const index = new Map(this.t.map((t, i) => [t, i]));
+    this.cols = new Map();
+    const silent = [];
+    for (const d of this.devices) {
+      const r = per.get(d.key);
+      for (const name of ["pos", "speed", "current"]) {
+        const col = new Array(this.t.length).fill(undefined);
+        r.t.forEach((t, k) => {
+          col[index.get(t)] = r[name][k];
+        });
+        this.cols.set(`${d.key}|${name}`, col);
+      }
+      this.cols.set(`${d.key}|target`, h.targetAt(d.key, this.t));
+      if (h.health.get(d.key)?.silent) silent.push(d);
+    }
+    if (this.devices.length) {
+      this.status.textContent = silent.length
+        ? `No reply from ${silent.map((d) => d.label).join(", ")}: no line is drawn while it is silent.`
+        : "";
+    }
+  }
+
   keysOf(d) {
-    const ks = [`${d.key}|pos`, `${d.key}|speed`]; // `|target` is computed from this.targets
+    const ks = [`${d.key}|pos`, `${d.key}|speed`];
     if (d.family === "whj") ks.push(`${d.key}|current`);
     return ks;
   }
 
-  add(t, values) {
-    let i = this.t.length;
-    while (i > 0 && this.t[i - 1] > t) i--;
-    this.t.splice(i, 0, t);
-    for (const [k, col] of this.cols) col.splice(i, 0, values.has(k) ? values.get(k) : null);
-    this.dirty = true;
-  }
-
-  onSample(family, bus, s) {
-    if (!s.report) {
-      this.status.textContent = `No reading from ${bus}: ${s.error ?? s.failed ?? "failed"}`;
-      return;
-    }
-    const values = new Map();
-    const silent = [];
-    for (const r of s.report.results ?? []) {
-      const key = `${family}|${bus}|${r.id}`;
-      if (!this.cols.has(`${key}|pos`)) continue;
-      if (r.kind) {
-        silent.push(r.id);
-        continue;
-      }
-      values.set(`${key}|pos`, r.position_deg ?? null);
-      if (family === "whj") {
-        values.set(`${key}|speed`, r.speed_rpm ?? null);
-        values.set(`${key}|current`, r.current_ma ?? null);
-      } else {
-        values.set(`${key}|speed`, r.speed_deg_s == null ? null : r.speed_deg_s / 6);
-      }
-    }
-    this.status.textContent = silent.length ? `No reply from ${family === "wck" ? "servo" : "joint"} ${silent.join(", ")}.` : "";
-    this.add(s.unix_ms, values);
-  }
-
-  onTarget(m) {
-    // A request without `bus` commands the family's only bus.
-    const d = this.devices.find(
-      (x) => x.family === m.family && x.id === Number(m.device) && (m.bus == null || x.bus === m.bus),
-    );
-    if (!d) return;
-    const v = m.family === "wck" ? Number(m.value) * WCK_DEG_PER_STEP : Number(m.value);
-    const t = m.unix_ms ?? Date.now();
-    if (!this.targets.has(d.key)) this.targets.set(d.key, []);
-    const list = this.targets.get(d.key);
-    let i = list.length;
-    while (i > 0 && list[i - 1].t > t) i--;
-    list.splice(i, 0, { t, v });
-    this.add(t, new Map()); // a row at the step, so the chart steps there
-  }
-
-  /** A column of values: a reading, or the target in force at each row's time. */
+  /** A column of values. */
   column(k) {
-    if (!k.endsWith("|target")) return this.cols.get(k) ?? [];
-    const list = this.targets.get(k.slice(0, -"|target".length)) ?? [];
-    const out = new Array(this.t.length).fill(null);
-    let j = -1;
-    for (let i = 0; i < this.t.length; i++) {
-      while (j + 1 < list.length && list[j + 1].t <= this.t[i]) j++;
-      if (j >= 0) out[i] = list[j].v;
-    }
-    return out;
+    return this.cols.get(k) ?? new Array(this.t.length).fill(null);
   }
 
   buildCharts() {
     for (const c of this.charts.values()) c.u.destroy();
     this.charts.clear();
     this.chartBox.replaceChildren();
+    this.collect();
     const width = this.width();
     for (const spec of CHARTS) {
       const devs = spec.id === "current" ? this.devices.filter((d) => d.family === "whj") : this.devices;
@@ -224,12 +197,12 @@ class PlotPanel {
         if (spec.id === "position") {
           keys.push(`${d.key}|pos`, `${d.key}|target`);
           series.push(
-            { label: `${d.label} actual`, stroke: d.color, width: 2, spanGaps: true },
+            { label: `${d.label} actual`, stroke: d.color, width: 2 },
             { label: `${d.label} target`, stroke: d.color, width: 1.5, dash: [6, 4], spanGaps: true, paths: uPlot.paths.stepped({ align: 1 }) },
           );
         } else {
           keys.push(`${d.key}|${spec.id}`);
-          series.push({ label: `${d.label} ${spec.id}`, stroke: d.color, width: 2, spanGaps: true });
+          series.push({ label: `${d.label} ${spec.id}`, stroke: d.color, width: 2 });
         }
       }
       const fig = el("figure", { className: "chart" });
@@ -277,6 +250,7 @@ class PlotPanel {
       };
       const defs = series.slice(1).map(({ label, stroke, dash }) => ({ label, stroke, dash }));
       const u = new uPlot(opts, this.data(keys), fig);
+      fig.uplot = u; // for the browser tests
       this.charts.set(spec.id, { u, keys, spec, defs });
     }
     this.redraw(true);
@@ -302,24 +276,10 @@ class PlotPanel {
     return [this.t.map((t) => t / 1000), ...keys.map((k) => this.column(k))];
   }
 
-  trim() {
-    const tmin = Date.now() - KEEP_MS;
-    let n = 0;
-    while (n < this.t.length && this.t[n] < tmin) n++;
-    if (!n) return;
-    this.t.splice(0, n);
-    for (const col of this.cols.values()) col.splice(0, n);
-    for (const list of this.targets.values()) {
-      let k = 0; // keep the one in force at the new start
-      while (k + 1 < list.length && list[k + 1].t < tmin) k++;
-      list.splice(0, k);
-    }
-  }
-
   redraw(force) {
     if (this.paused && !force) return;
     this.dirty = false;
-    if (!this.paused) this.trim();
+    if (!this.paused) this.collect();
     const [min, max] = this.windowRange();
     for (const c of this.charts.values()) {
       c.u.setData(this.data(c.keys), false);

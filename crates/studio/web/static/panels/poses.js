@@ -1,5 +1,7 @@
-// Poses (Motion Builder): record wCK poses by hand, edit them into a scene and play it.
-// The scene is the CLI's keyframe motion file (`robobus wck play --help`):
+// Poses (Motion Builder). First the robot file's poses (robotposes.js): its joints by name,
+// wCK and WHJ together, recorded with `robot.sample`, gone to and played (looped) with
+// `robot.play`. Below, the wCK keyframe scene: record wCK poses by hand, edit them into a
+// scene and play it. The scene is the CLI's keyframe motion file (`robobus wck play --help`):
 //
 //   # robobus keyframe motion
 //   # servos 0 1 2
@@ -11,6 +13,7 @@
 // and "Load file" reads such a file (validated by the library's parser on the server).
 
 import { field, h, panelStyles, errorPosition } from '../ui.js';
+import { robotPoses } from './robotposes.js';
 
 const MAX_MS = 600000;
 
@@ -95,9 +98,13 @@ export default {
 
     element.append(
       h('h2', {}, 'Poses'),
-      h('p', { class: 'lead' }, 'Motion builder: make the servos passive, pose them by hand, record each pose, ',
-        'then edit the scene and play it. The scene is the keyframe file of ', h('code', {}, 'robobus wck teach'),
+      h('p', { class: 'lead' }, 'Motion builder. Robot poses: the robot file\'s joints by name, both families, ',
+        'recorded where they are, gone to, and played in a loop (', h('code', {}, 'robot.play'), '). ',
+        'The wCK keyframe scene below: make the servos passive, pose them by hand, record each pose, ',
+        'then edit the scene and play it; it is the keyframe file of ', h('code', {}, 'robobus wck teach'),
         ' and ', h('code', {}, 'robobus wck play'), ': save it, or load one.'),
+      robotPoses(studio).element,
+      h('h3', { class: 'section-title' }, 'wCK keyframe scene'),
       h('section', { class: 'card', 'aria-labelledby': 'poses-record' },
         h('h3', { id: 'poses-record' }, 'Record'),
         h('div', { class: 'row' },
