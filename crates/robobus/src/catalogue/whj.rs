@@ -282,6 +282,82 @@ pub(crate) fn plan_of(
     plan
 }
 
+/// Whether a timed motion is run first on the simulator seeded with the real joints
+/// ([`crate::ops::preflight`]): in a request `"preflight": true` (always), `false`
+/// (never) or left out (by default: when the plan lasts at most 60 s, which the simulator
+/// runs in well under a second); on the command line `--preflight` / `--no-preflight`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(from = "Option<bool>", into = "Option<bool>")]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
+pub struct PreflightArg {
+    /// Run the motion on the simulator seeded with the joint first, and refuse it before
+    /// its first frame if the simulated joint would fault or be clamped (the default for
+    /// plans of at most 60 s).
+    #[cfg_attr(feature = "cli", arg(long, conflicts_with = "no_preflight"))]
+    preflight: bool,
+    /// Do not run the pre-flight on the simulator.
+    #[cfg_attr(feature = "cli", arg(long))]
+    no_preflight: bool,
+}
+
+impl PreflightArg {
+    /// Asked for always (`Some(true)`), never (`Some(false)`), or by default (`None`).
+    pub const fn asked(self) -> Option<bool> {
+        match (self.preflight, self.no_preflight) {
+            (true, _) => Some(true),
+            (false, true) => Some(false),
+            (false, false) => None,
+        }
+    }
+
+    /// Not asked either way (left out of a request's JSON).
+    pub const fn is_default(&self) -> bool {
+        !self.preflight && !self.no_preflight
+    }
+}
+
+impl From<Option<bool>> for PreflightArg {
+    fn from(v: Option<bool>) -> Self {
+        Self {
+            preflight: v == Some(true),
+            no_preflight: v == Some(false),
+        }
+    }
+}
+
+impl From<PreflightArg> for Option<bool> {
+    fn from(v: PreflightArg) -> Self {
+        v.asked()
+    }
+}
+
+impl JsonSchema for PreflightArg {
+    fn schema_name() -> std::borrow::Cow<'static, str> {
+        "Preflight".into()
+    }
+
+    fn json_schema(generator: &mut schemars::SchemaGenerator) -> schemars::Schema {
+        <Option<bool>>::json_schema(generator)
+    }
+}
+
+/// The note a plan gets when its run is pre-flown on the simulator: what is read first
+/// and what refuses it.
+pub(crate) fn preflight_note(joint: JointId, asked: Option<bool>, plan_s: f64) -> Option<String> {
+    let plan = Duration::from_secs_f64(plan_s.max(0.0));
+    crate::ops::preflight::wanted(asked, plan).then(|| {
+        format!(
+            "pre-flight: before the first frame joint {j}'s identity, status, mode and settings \
+             (whj backup's registers) are read, and these frames run on the simulator seeded \
+             with them, faster than real time; a set-point the simulated joint could not \
+             follow (clamped to the step limit), error bits it latched, a failed run or a \
+             protection derating refuse the run, naming the frame, its time and the reason, \
+             nothing sent to the joint (--no-preflight runs it without)",
+            j = joint.get()
+        )
+    })
+}
+
 /// The joints of a request's `joints` list, sorted (the CLI's `<JOINTS>`).
 pub(crate) fn joint_list(joints: &Ids) -> R<Vec<JointId>> {
     joints.parse_sorted::<JointId>("<JOINTS>")

@@ -51,6 +51,7 @@ pub mod capture;
 mod family;
 mod ids;
 pub mod ports;
+pub mod preflight;
 pub mod protect;
 pub mod replay;
 pub mod safe;
@@ -476,6 +477,11 @@ pub enum OpError {
     /// A bus could not be opened (no such interface, no CAN FD support, the UDP socket).
     #[error(transparent)]
     Open(#[from] robobus_link::OpenError),
+    /// The pre-flight on the simulator refused the run before its first frame: the frame,
+    /// its time, the joint and what the simulated joint did (kind *refused*; nothing was
+    /// sent).
+    #[error("{0}")]
+    Preflight(Box<preflight::Refusal>),
 }
 
 impl OpError {
@@ -492,6 +498,7 @@ impl OpError {
             Self::NotAvailable(_) => ErrorKind::NotAvailable,
             Self::NoDevice(_) => ErrorKind::NoDevice,
             Self::Open(e) => crate::error::open_error_kind(e),
+            Self::Preflight(_) => ErrorKind::Refused,
         }
     }
 

@@ -4,7 +4,7 @@ use robobus_wck::BaudRate;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use super::{JointRow, R, joint, moved, plan_of, step_limit};
+use super::{JointRow, PreflightArg, R, joint, moved, plan_of, preflight_note, step_limit};
 use crate::catalogue::args::WhjOnStop;
 use crate::catalogue::bounds;
 use crate::catalogue::operation::{Confirm, OpDoc, Operation, Report, RunCx};
@@ -12,7 +12,7 @@ use crate::catalogue::plan::WhjSteps;
 use crate::catalogue::wck::request;
 use crate::catalogue::{Effect, Family, Moved, Plan};
 use crate::ops::whj::{self as ops, MoveArgs, MoveReport, ServoLoop};
-use crate::ops::{DeviceResult, OpError};
+use crate::ops::{DeviceResult, OpError, preflight};
 
 const fn d10() -> f64 {
     10.0
@@ -47,6 +47,11 @@ request!(cli
         #[serde(default)]
         #[cfg_attr(feature = "cli", arg(skip))]
         on_stop: WhjOnStop,
+        /// Run the move first on the simulator seeded with the joint (`true`), never
+        /// (`false`), or by default: when it lasts at most 60 s.
+        #[serde(default, skip_serializing_if = "PreflightArg::is_default")]
+        #[cfg_attr(feature = "cli", command(flatten))]
+        preflight: PreflightArg,
     }
 );
 
@@ -72,7 +77,10 @@ impl Move {
     /// The frames of a move from `from` (0° when not given: the plan says so).
     fn steps(&self) -> R<(MoveArgs, WhjSteps)> {
         let (args, from) = self.args()?;
-        let plan = ops::plan_move(&args, from.unwrap_or(0.0), from.is_none())?;
+        let mut plan = ops::plan_move(&args, from.unwrap_or(0.0), from.is_none())?;
+        let length = preflight::plan_length(&plan).as_secs_f64();
+        plan.notes
+            .extend(preflight_note(args.joint, self.preflight.asked(), length));
         Ok((args, WhjSteps::of(&plan)))
     }
 }
@@ -81,7 +89,7 @@ impl Operation for Move {
     const OP: &'static str = "whj.move";
     const FAMILY: Family = Family::Whj;
     const DOC: OpDoc = OpDoc {
-        args: "`joint`, `degrees` (±360), `max_speed` deg/s (0.1..=180)=10, `rate_hz` (1..=1000)=200, `from`, `on_stop`",
+        args: "`joint`, `degrees` (±360), `max_speed` deg/s (0.1..=180)=10, `rate_hz` (1..=1000)=200, `from`, `on_stop`, `preflight` (default: on up to 60 s)",
         report: "one row: `from_deg` (measured), `target_deg`, `position_deg` (after it \
                  settled), `frames`, `seconds`, `step_limited`, `held_back`, `error`",
         confirm: "-",
@@ -120,7 +128,14 @@ impl Operation for Move {
         let port = cx.station.whj(self.bus())?;
         let j = port.bus().joint(args.joint)?;
         let plan = ops::prepare_move(&j, &args)?;
-        let r = ops::execute_move(&j, &args, &plan, cx.control, self.on_stop.into())?;
+        let flight = if preflight::wanted(self.preflight.asked(), preflight::plan_length(&plan)) {
+            let seed = preflight::seed_whj(&j)?;
+            Some(preflight::whj_move(&seed, &args, &plan, cx.control)?)
+        } else {
+            None
+        };
+        let mut r = ops::execute_move(&j, &args, &plan, cx.control, self.on_stop.into())?;
+        r.preflight = flight;
         let row = DeviceResult::ok(args.joint.get(), r);
         Ok(Report::devices(Self::OP, port.name(), vec![row]))
     }

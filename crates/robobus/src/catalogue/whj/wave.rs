@@ -6,7 +6,7 @@ use robobus_whj::units::CurrentScale;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use super::{Model, R, joint, moved, plan_of, scale_for, step_limit};
+use super::{Model, PreflightArg, R, joint, moved, plan_of, preflight_note, scale_for, step_limit};
 use crate::catalogue::args::WhjOnStop;
 use crate::catalogue::bounds;
 use crate::catalogue::operation::{Confirm, OpDoc, Operation, Report, RunCx};
@@ -14,8 +14,8 @@ use crate::catalogue::plan::WhjSteps;
 use crate::catalogue::wck::request;
 use crate::catalogue::{Effect, Family, Moved, Plan};
 use crate::error::ErrorKind;
-use crate::ops::OpError;
 use crate::ops::whj::{self as ops, FeedbackReport, ServoLoop, WaveArgs, WaveReport};
+use crate::ops::{OpError, preflight};
 
 /// Frames without a reply at the end of a wave after which the joint counts as gone (a
 /// no-device failure): one lost reply is a glitch, ten in a row at the end a silent joint.
@@ -120,6 +120,11 @@ request!(cli
         #[serde(default)]
         #[cfg_attr(feature = "cli", arg(skip))]
         on_stop: WhjOnStop,
+        /// Run the wave first on the simulator seeded with the joint (`true`), never
+        /// (`false`), or by default: when it lasts at most 60 s.
+        #[serde(default, skip_serializing_if = "PreflightArg::is_default")]
+        #[cfg_attr(feature = "cli", command(flatten))]
+        preflight: PreflightArg,
     }
 );
 
@@ -171,11 +176,14 @@ impl Wave {
             .map(|f| bounds::ANGLE_DEG.check("--from", f))
             .transpose()?;
         let start = from.unwrap_or(0.0);
-        let plan = if self.broadcast {
+        let mut plan = if self.broadcast {
             ops::plan_broadcast_wave(&args, start, scale, from.is_none())?
         } else {
             ops::plan_wave(&args, start, scale, from.is_none())?
         };
+        let length = preflight::plan_length(&plan).as_secs_f64();
+        plan.notes
+            .extend(preflight_note(args.joint, self.preflight.asked(), length));
         Ok((args, WhjSteps::of(&plan)))
     }
 }
@@ -204,7 +212,8 @@ impl Operation for Wave {
     const FAMILY: Family = Family::Whj;
     const DOC: OpDoc = OpDoc {
         args: "`joint`, `shape`, `mode`, `amplitude`, `frequency` Hz=0.5, `offset`, `duration` \
-               s=4, `rate_hz`=200, `broadcast`, `model`, `on_stop`",
+               s=4, `rate_hz`=200, `broadcast`, `model`, `on_stop`, `preflight` (default: on \
+               up to 60 s)",
         report: "last feedback; summary: wave statistics",
         confirm: "-",
     };
@@ -246,7 +255,14 @@ impl Operation for Wave {
         } else {
             ops::prepare_wave(&j, &args)?
         };
+        let flight = if preflight::wanted(self.preflight.asked(), preflight::plan_length(&plan)) {
+            let seed = preflight::seed_whj(&j)?;
+            Some(preflight::whj_wave(&seed, &args, &plan, cx.control)?)
+        } else {
+            None
+        };
         let mut r = ops::execute_wave(&j, &args, &plan, cx.control, self.on_stop.into())?;
+        r.preflight = flight;
         let id = args.joint.get();
         let row = WaveRow {
             id,

@@ -8,6 +8,7 @@ use robobus_whj::{JointId, Request};
 use serde::Serialize;
 
 use crate::motion::{Limiter, Tracking};
+use crate::ops::preflight::PreflightReport;
 use crate::ops::protect::Fault;
 use crate::ops::{Bound, Control, OpError, SafeState};
 use crate::whj::{Joint, MotionLimits, Percentiles, Profile, WhjError};
@@ -190,6 +191,10 @@ pub struct MoveReport {
     /// order; left out of the JSON when there were none.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub protection: Vec<Fault>,
+    /// The pre-flight on the simulator that passed before the move (left out when none
+    /// ran).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub preflight: Option<PreflightReport>,
 }
 
 /// The plan a real move runs: checks the joint (enabled in position mode, the target within
@@ -319,6 +324,7 @@ pub(crate) fn execute_move_observed(
         held_back,
         error: status.error.to_string(),
         protection,
+        preflight: None,
     })
 }
 
@@ -693,6 +699,10 @@ pub struct WaveReport {
     /// order; left out of the JSON when there were none.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub protection: Vec<Fault>,
+    /// The pre-flight on the simulator that passed before the wave (left out when none
+    /// ran).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub preflight: Option<PreflightReport>,
 }
 
 /// Runs a wave: checks the joint (enabled in the wave's mode, the values within its
@@ -771,6 +781,7 @@ pub(crate) fn execute_wave_observed(
         round_trip_p99_us: None,
         round_trip_max_us: None,
         protection: Vec::new(),
+        preflight: None,
     };
     for (f, want) in plan.frames.iter().zip(&targets) {
         // The set-point the frame carries for the wave's joint, point-to-point or in its
