@@ -466,3 +466,42 @@ fn the_robot_file_names_the_joint_value_and_range_of_a_wrong_interface() {
     let err = RobotConfig::from_toml_str(&file(0.1, &short)).unwrap_err();
     assert!(err.to_string().contains("15 speeds"), "{err}");
 }
+
+#[test]
+fn a_reversed_joint_turns_its_way_and_a_speed_past_the_models_peak_is_refused() {
+    let text = file(0.2, &joints(SPEED_AND_EFFORT))
+        .replace("id = 0\n", "id = 0\n        direction = -1\n")
+        .replace("id = 1\n", "id = 1\n        direction = -1\n")
+        .replace("max_velocity = 1.5", "max_velocity = 5.0");
+    let mut rig = rig(&text);
+    rig.robot.set_interface(0, Interface::Velocity).unwrap();
+    rig.robot.set_interface(1, Interface::Velocity).unwrap();
+    let level_5 = sim_1108_wheel_speeds()[4];
+    let (a0, p0) = (
+        wheel_angle(&rig),
+        rig.robot.read_joint(1).unwrap().position_rad,
+    );
+    hold_velocity(&mut rig.robot, &[level_5, 0.5], Duration::from_millis(500));
+    // Joint angles up: the servo's shaft and the WHJ joint's device angle down.
+    assert!(
+        wheel_angle(&rig) < a0 - 0.5,
+        "{} -> {}",
+        a0,
+        wheel_angle(&rig)
+    );
+    assert!(elbow(&rig).target_speed < 0);
+    let p1 = rig.robot.read_joint(1).unwrap().position_rad;
+    assert!(p1 > p0 + 0.1, "{p0} -> {p1}");
+    let v = rig.robot.read_joint(1).unwrap().velocity_rad_s.unwrap();
+    assert!((v - 0.5).abs() < 0.01, "{v}");
+
+    // The WHJ30 turns at most 37.5 RPM (3.93 rad/s): 4.5 rad/s is refused, nothing sent.
+    let before = traffic(&rig);
+    let err = rig.robot.command_velocity(&[0.0, 4.5]).unwrap_err();
+    assert!(
+        matches!(&err, RobotError::Target { joint, interface: Interface::Velocity, value, expected }
+            if joint == "elbow" && *value == 4.5 && expected.contains("-3.9270..=3.9270 rad/s")),
+        "{err}"
+    );
+    assert_eq!(traffic(&rig), before);
+}

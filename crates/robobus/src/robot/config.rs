@@ -735,7 +735,7 @@ impl RobotConfig {
                 ));
             }
         }
-        self.validate_interfaces(joint, bus.is_wck())
+        Self::validate_interfaces(joint, bus.is_wck())
             .map_err(|(field, value, expected)| invalid(field, value, &expected))?;
         if let Some(centre) = joint.centre {
             if !bus.is_wck() {
@@ -805,7 +805,6 @@ impl RobotConfig {
     /// Checks a joint's `interfaces` and the fields they need: the field, the value and
     /// what is allowed, when something is wrong.
     fn validate_interfaces(
-        &self,
         joint: &JointConfig,
         wck: bool,
     ) -> Result<(), (&'static str, String, String)> {

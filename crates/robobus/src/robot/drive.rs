@@ -206,8 +206,8 @@ impl Hardware {
                     value: set,
                     expected: "a speed the speed register holds".into(),
                 })?;
-                let sent = rpm_to_rad_s(target.rpm()) * device_sign(map.reversed);
-                Ok((Out::Speed(target), sent))
+                let sent_rad_s = rpm_to_rad_s(target.rpm()) * device_sign(map.reversed);
+                Ok((Out::Speed(target), sent_rad_s))
             }
             (Device::Whj { map, current, .. }, Interface::Effort) => {
                 let k = effort_scale.ok_or_else(|| missing(&name, interface))?;

@@ -286,11 +286,12 @@ impl RobotError {
             | Self::TargetCount { .. }
             | Self::NoInterface { .. }
             | Self::Target { .. } => ErrorKind::BadInput,
-            Self::WrongInterface { .. } | Self::Moving { .. } => ErrorKind::Refused,
             Self::OpenWck { source, .. } => source.kind(),
             Self::OpenWhj { .. } => ErrorKind::NoDevice,
             Self::Actuator(e) => e.kind(),
-            Self::SafeStopped { .. } => ErrorKind::Refused,
+            Self::SafeStopped { .. } | Self::WrongInterface { .. } | Self::Moving { .. } => {
+                ErrorKind::Refused
+            }
             Self::Watchdog(_) => ErrorKind::NotAvailable,
         }
     }
@@ -533,6 +534,7 @@ impl Robot {
     /// an interface its joint is not on ([`RobotError::WrongInterface`]), a speed or an
     /// effort beyond what the device can do ([`RobotError::Target`]: past the top wheel
     /// level, the WHJ model's peak speed or torque), a robot in its safe state.
+    #[allow(clippy::too_many_lines)] // the checks, then each interface's limits, then the sends
     pub fn command_targets(&mut self, targets: &[Target]) -> Result<CommandReport, RobotError> {
         if targets.len() != self.names.len() {
             return Err(RobotError::TargetCount {
