@@ -14,7 +14,9 @@ import sys
 
 import pytest
 
-from bridgekit import ROOT, Bridge, Inbox, health, joint_state, session, sim, wait_for, whj_deg
+from bridgekit import (
+    ROOT, Bridge, Inbox, health, joint_state, query, session, sim, wait_for, whj_deg,
+)
 
 ROUTER = os.environ.get("ROBOBUS_ROS2_ROUTER", str(ROOT / "target/ros2/debug/robobus-ros2-router"))
 NODE = ROOT / "tests/ros2/ros_node.py"
@@ -107,6 +109,44 @@ def test_a_ros2_node_receives_the_diagnostics(netns, namespace):
         stamps = [tuple(m["stamp"]) for m in msgs]
         assert stamps == sorted(stamps) and len(set(stamps)) == 3
     finally:
+        router.terminate()
+        router.wait(10)
+        assert bridge.stop() == 0
+
+
+TRAJECTORY_NODE = ROOT / "tests/ros2/trajectory_node.py"
+
+
+@pytest.mark.parametrize("namespace", [None, "bot1"])
+def test_a_ros2_node_publishes_a_joint_trajectory_the_arm_follows(netns, namespace):
+    """A JointTrajectory from rclpy (trajectory_msgs from PyPI) on `/joint_trajectory`
+    (`/NS/joint_trajectory`), as joint_trajectory_controller takes it: the simulated arm
+    plays it to its last point within the bridge's 1 degree tolerance."""
+    ns = ["--namespace", namespace] if namespace else []
+    prefix = f"{namespace}/" if namespace else ""
+    bridge = Bridge("--armed", "--rate", "20", *ns)
+    router = start_router("--connect", bridge.endpoint, "--listen", "tcp/127.0.0.1:0")
+    peer = session(bridge.endpoint)
+    try:
+        for r in ({"op": "whj.mode", "joints": "1-7", "mode": "position"},
+                  {"op": "whj.enable", "joints": "1-7"}):
+            query(peer, f"{prefix}robobus/run", json.dumps(r))
+        start = math.radians(whj_deg(sim(peer, prefix), 3))
+        goal = start + 0.2
+        results = Inbox(peer, f"{prefix}joint_trajectory/result")
+        node = subprocess.run(
+            [sys.executable, str(TRAJECTORY_NODE), "--joints", "j3", "--timeout", "90",
+             "--point", f"0.5:{start + 0.1!r}", "--point", f"1.0:{goal!r}",
+             *(["--namespace", "/" + namespace] if namespace else [])],
+            capture_output=True, text=True, timeout=120)
+        assert node.returncode == 0, (node.stdout, node.stderr)
+        result = json.loads(results.get(timeout=30).payload.to_string())
+        assert result["status"] == "reached", result
+        assert result["error_code"] == 0 and result["joints"][0]["joint"] == "j3"
+        assert abs(whj_deg(sim(peer, prefix), 3) - math.degrees(goal)) <= 1.0
+        assert health(peer, prefix)["trajectories"]["reached"] == 1
+    finally:
+        peer.close()
         router.terminate()
         router.wait(10)
         assert bridge.stop() == 0
