@@ -197,7 +197,10 @@ function familySection(studio, family) {
         ];
     results.replaceChildren(
       rows.length
-        ? el("div", { className: "table-wrap" }, openOnClick(table(cols, rows, { caption: `${title} found on ${report.bus}`, rowClass: (r) => (dups.has(r.id) ? "dup scan-row" : "scan-row") }), rows, report.bus))
+        ? el("div", { className: "table-wrap" }, [
+            el("p", { className: "hint" }, `Click a ${noun} (its row or its ID) to open its whole settings table in Settings.`),
+            openOnClick(table(cols, rows, { caption: `${title} found on ${report.bus}`, rowClass: (r) => (dups.has(r.id) ? "dup scan-row" : "scan-row") }), rows, report.bus),
+          ])
         : el("p", {}, `No ${noun} answered.`),
     );
   }

@@ -45,7 +45,7 @@ export function createFlow(studio, { name, render } = {}) {
   const element = h("div", { class: "flow" },
     h("div", { class: "row" }, progress, stopBtn),
     status,
-    h("details", { class: "flow-plan" },
+    h("details", { class: "flow-plan", hidden: true },
       h("summary", {}, "Dry run: ", requestLine),
       h("dl", { class: "plan-facts" },
         h("dt", {}, "Effect"), effect,
@@ -75,7 +75,9 @@ export function createFlow(studio, { name, render } = {}) {
       const n = p.steps?.length ?? 0;
       steps.textContent = `${n}${p.truncated ? " (the first ones of a streamed plan)" : ""}`;
       frames.textContent = p.text || "(nothing is sent)";
-      element.querySelector(".flow-plan").open = true;
+      const details = element.querySelector(".flow-plan");
+      details.hidden = false;
+      details.open = true;
       say(`Dry run of ${request.op}: nothing was sent${p.ask ? "; running it asks first" : ""}.`, "ok");
       return p;
     } catch (e) {

@@ -117,7 +117,7 @@ export default {
         const tr = h("tr", {},
           h("th", { scope: "row" }, title),
           value,
-          h("td", { class: "edit" }, inputs.map(([, , input]) => input)),
+          h("td", { class: "edit" }, inputs.map(([, label, input]) => h("label", { class: "mini" }, h("span", {}, label.replace(/ gain$/, "").replace("Threshold (mA)", "mA")), input))),
           h("td", { class: "safety-confirm" }, "EEPROM"),
           h("td", {}, buttons));
         return tr;
