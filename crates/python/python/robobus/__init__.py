@@ -25,7 +25,8 @@ the host safety limits and the confirmation rule decided there, as for the comma
 - Hot paths take and give numpy arrays: ``station.wck_servos(ids)`` /
   ``station.whj_joints(ids)`` (and one device: ``wck_servo``, ``whj_joint``),
   ``station.cyclic(joints)``, and :class:`Robot` (a robot file's joints in radians).
-- :mod:`robobus.lerobot` is a LeRobot motors bus over the same handles.
+- :mod:`robobus.lerobot` is a LeRobot motors bus over the same handles, and a LeRobot
+  robot class on it (``RobobusFollower``, a follower arm).
 - Errors are :mod:`robobus.errors` classes, one per error kind, also deriving from the
   matching builtin (``ValueError``, ``TimeoutError``, ``OSError``, ...). A device that
   failed raises its kind's class (a silent one :class:`NoDeviceError`) with the report
