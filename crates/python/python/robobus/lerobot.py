@@ -924,7 +924,8 @@ class RobobusMotorsBus:
             return lambda: s.whj.write(str(m.id), "LIT_MAX_ACC", v, bus=self._bus(whj), check=True)
 
         def accel() -> Any:
-            # Runtime speed and acceleration are one command: the speed is kept.
+            # Runtime speed and acceleration are one command: the speed goes with it as
+            # wck.get reads it now.
             now = s.wck.get("speed", m.id, bus=self._bus(wck), check=True)["results"][0]
             return s.wck.set("speed", m.id, speed=now["speed"], accel=v, runtime=True, bus=self._bus(wck), check=True)
 
