@@ -143,6 +143,10 @@ pub struct JointFacts {
     pub held: Option<String>,
 }
 
+fn put(values: &mut Vec<(String, String)>, key: &str, value: String) {
+    values.push((key.to_owned(), value));
+}
+
 fn fmt(v: f64, decimals: usize) -> String {
     format!("{v:.decimals$}")
 }
@@ -158,7 +162,6 @@ pub fn diagnose_joint(
 ) -> Diagnosis {
     let mut reasons: Vec<(Level, String)> = Vec::new();
     let mut values: Vec<(String, String)> = Vec::new();
-    let mut value = |k: &str, v: String| values.push((k.to_owned(), v));
     match &facts.last {
         None => reasons.push((Level::Stale, "not read yet".into())),
         Some((age, _)) if *age > stale_after => reasons.push((
@@ -170,8 +173,8 @@ pub fn diagnose_joint(
             ),
         )),
         Some((age, Outcome::Failed(f))) => {
-            value("last_read_s", fmt(age.as_secs_f64(), 3));
-            value("failure", f.kind.name().to_owned());
+            put(&mut values, "last_read_s", fmt(age.as_secs_f64(), 3));
+            put(&mut values, "failure", f.kind.name().to_owned());
             let what = if f.kind == ErrorKind::NoDevice {
                 "silent"
             } else {
@@ -180,66 +183,45 @@ pub fn diagnose_joint(
             reasons.push((Level::Error, format!("{what}: {}", f.error)));
         }
         Some((age, Outcome::Ok(s))) => {
-            value("last_read_s", fmt(age.as_secs_f64(), 3));
-            value("position_deg", fmt(s.position_deg, 3));
+            put(&mut values, "last_read_s", fmt(age.as_secs_f64(), 3));
+            put(&mut values, "position_deg", fmt(s.position_deg, 3));
             if let Some(v) = s.speed_deg_s {
-                value("speed_deg_s", fmt(v, 3));
+                put(&mut values, "speed_deg_s", fmt(v, 3));
             }
             #[allow(clippy::cast_precision_loss)] // |mA| < 2^53
             if let Some(ma) = s.current_ma {
-                value("current_a", fmt(ma as f64 / 1e3, 3));
+                put(&mut values, "current_a", fmt(ma as f64 / 1e3, 3));
             }
             if let Some(nm) = s.effort_nm {
-                value("effort_nm", fmt(nm, 3));
+                put(&mut values, "effort_nm", fmt(nm, 3));
             }
             if let Some(load) = s.load {
-                value("load", load.to_string());
+                put(&mut values, "load", load.to_string());
             }
             if let Some(on) = s.enabled {
-                value("enabled", on.to_string());
+                put(&mut values, "enabled", on.to_string());
             }
-            match facts.supply {
-                Some(p) => {
-                    let code = ErrorCode(p.error);
-                    value("error_bits", code.to_string());
-                    value("error_code", format!("{:#06x}", p.error));
-                    value("temperature_c", fmt(p.temperature_c, 1));
-                    value("voltage_v", fmt(p.voltage_v, 2));
-                    if !code.is_empty() {
-                        let level = if code.disables_drive() {
-                            Level::Error
-                        } else {
-                            Level::Warn
-                        };
-                        reasons.push((level, format!("error bits: {code}")));
-                    }
-                    reasons.extend(temperature(p.temperature_c, &facts.limits));
-                    if !SUPPLY_V.contains(&p.voltage_v) {
-                        reasons.push((
-                            Level::Warn,
-                            format!(
-                                "supply {:.2} V outside {}..{} V",
-                                p.voltage_v,
-                                SUPPLY_V.start(),
-                                SUPPLY_V.end()
-                            ),
-                        ));
-                    }
+            if let Some(p) = facts.supply {
+                supply(p, &facts.limits, &mut values, &mut reasons);
+            } else {
+                // A wCK servo reports no error bits (`ok`); a WHJ joint's bits without
+                // the status reply's code are taken at their worst.
+                put(&mut values, "error_bits", s.error.clone());
+                if s.error != "ok" && s.error != "no error" {
+                    reasons.push((Level::Error, format!("error bits: {}", s.error)));
                 }
-                // A wCK servo reports no error bits: `ok`.
-                None => value("error_bits", s.error.clone()),
             }
         }
     }
     if let Some(m) = &facts.model {
-        value("model", m.clone());
+        put(&mut values, "model", m.clone());
     }
     if let Some(f) = &facts.protection_stop {
-        value("protection", f.to_string());
+        put(&mut values, "protection", f.to_string());
         reasons.push((Level::Error, f.to_string()));
     }
     if let Some(why) = &facts.held {
-        value("safe_stop", why.clone());
+        put(&mut values, "safe_stop", why.clone());
     }
     let level = reasons
         .iter()
@@ -263,6 +245,43 @@ pub fn diagnose_joint(
         level,
         message: message.join("; "),
         values,
+    }
+}
+
+/// A WHJ joint's supply from its last status reply: its values, and the reasons of its
+/// error bits, temperature and voltage.
+fn supply(
+    p: Supply,
+    limits: &Limits,
+    values: &mut Vec<(String, String)>,
+    reasons: &mut Vec<(Level, String)>,
+) {
+    let code = ErrorCode(p.error);
+    values.extend([
+        ("error_bits".to_owned(), code.to_string()),
+        ("error_code".to_owned(), format!("{:#06x}", p.error)),
+        ("temperature_c".to_owned(), fmt(p.temperature_c, 1)),
+        ("voltage_v".to_owned(), fmt(p.voltage_v, 2)),
+    ]);
+    if !code.is_empty() {
+        let level = if code.disables_drive() {
+            Level::Error
+        } else {
+            Level::Warn
+        };
+        reasons.push((level, format!("error bits: {code}")));
+    }
+    reasons.extend(temperature(p.temperature_c, limits));
+    if !SUPPLY_V.contains(&p.voltage_v) {
+        reasons.push((
+            Level::Warn,
+            format!(
+                "supply {:.2} V outside {}..{} V",
+                p.voltage_v,
+                SUPPLY_V.start(),
+                SUPPLY_V.end()
+            ),
+        ));
     }
 }
 
@@ -375,12 +394,15 @@ pub struct Stops {
     pub held: Option<(String, Vec<(String, u8)>)>,
 }
 
+/// A reading: when it was taken, and what came back.
+type Reading = (Instant, Outcome<RobotJointSample>);
+
 /// A front end's last reading of each joint of the station's robot file (see the
 /// [module docs](self)).
 #[derive(Debug, Clone, Default)]
 pub struct Watch {
-    /// Per joint of the file, by name: when, and what came back.
-    last: Vec<(String, Option<(Instant, Outcome<RobotJointSample>)>)>,
+    /// Per joint of the file, by name: its last reading.
+    last: Vec<(String, Option<Reading>)>,
 }
 
 impl Watch {
@@ -442,18 +464,18 @@ impl Watch {
             // answered and that reply is within `stale_after` too (on the bus's clock; a
             // sample's status query is that reply).
             let supply = match (&last, &port, id) {
-                (Some((age, Outcome::Ok(_))), Some(p), Some(id)) if *age <= stale_after => {
-                    let bus = p.bus();
-                    let t = bus.telemetry();
-                    let jt = t.joint(id);
-                    let fresh = jt
-                        .updated
-                        .is_some_and(|u| bus.now().saturating_duration_since(u) <= stale_after);
+                (Some((age, Outcome::Ok(_))), Some(port), Some(id)) if *age <= stale_after => {
+                    let bus = port.bus();
+                    let telemetry = bus.telemetry();
+                    let jt = telemetry.joint(id);
+                    let fresh = jt.updated.is_some_and(|updated| {
+                        bus.now().saturating_duration_since(updated) <= stale_after
+                    });
                     match (fresh, jt.temperature, jt.voltage, jt.error) {
-                        (true, Some(c), Some(v), Some(e)) => Some(Supply {
-                            temperature_c: f64::from(c.celsius()),
-                            voltage_v: f64::from(v.volts()),
-                            error: e.bits(),
+                        (true, Some(celsius), Some(volts), Some(error)) => Some(Supply {
+                            temperature_c: f64::from(celsius.celsius()),
+                            voltage_v: f64::from(volts.volts()),
+                            error: error.bits(),
                         }),
                         _ => None,
                     }
@@ -670,6 +692,25 @@ mod tests {
         let d = diagnose(&answered(40.0, 24.0, 0x4000));
         assert_eq!(d.level, Level::Warn, "{}", d.message);
         assert!(d.message.starts_with("error bits: "), "{}", d.message);
+    }
+
+    #[test]
+    fn error_bits_without_the_status_replys_code_are_taken_at_their_worst() {
+        let mut facts = answered(40.0, 24.0, 0);
+        facts.supply = None;
+        assert_eq!(diagnose(&facts).level, Level::Ok);
+        facts.last = Some((
+            Duration::from_millis(20),
+            Outcome::Ok(RobotJointSample {
+                error: "position limit".into(),
+                ..sample()
+            }),
+        ));
+        let d = diagnose(&facts);
+        assert_eq!(
+            (d.level, d.message.as_str()),
+            (Level::Error, "error bits: position limit")
+        );
     }
 
     #[test]
