@@ -5,17 +5,19 @@
 import { test, before, after } from "node:test";
 import assert from "node:assert/strict";
 import { startStudio, launchBrowser, openPage, openTab, arm, teardown } from "./harness.mjs";
-import { cliRun, docShot, flowOf } from "./cli.mjs";
+import { cliRun, docShot, flowOf, recordRequests } from "./cli.mjs";
 
 let studio;
 let browser;
 let page;
 let errors;
+let sent;
 
 before(async () => {
   studio = await startStudio();
   browser = await launchBrowser();
   ({ page, errors } = await openPage(browser, studio.url));
+  sent = recordRequests(page);
 });
 
 after(() => teardown(browser, studio));
@@ -62,6 +64,24 @@ test("the step responses of two gain sets are drawn over the target, their figur
   }
   assert.match(await flow.locator('p[data-field="best"]').textContent(), new RegExp(`^Step from ${cli.summary.start} to ${cli.summary.target} `));
   await docShot(section, "tune-step");
+});
+
+test("the WHJ register table reads every setting of a joint with one whj.backup, the values robobus run reads", async () => {
+  const panel = await openTab(page, "Tune");
+  const whj = panel.getByRole("region", { name: "WHJ joint registers" });
+  await whj.getByRole("table", { name: "WHJ registers" }).waitFor();
+  await whj.getByLabel("Joint", { exact: true }).selectOption("whj|sim-whj|5");
+  sent.clear();
+  await whj.getByRole("button", { name: "Read every setting", exact: true }).click();
+  const cli = (await cliRun({ op: "whj.backup", joint: 5 })).report.summary.settings;
+  await whj.getByText(`Joint 5: ${cli.length} settings read with one whj.backup.`).waitFor();
+  assert.deepEqual(sent.runs.map((r) => r.op), ["whj.backup"]);
+  const table = whj.getByRole("table", { name: "WHJ registers" });
+  for (const s of cli) {
+    const name = (await table.getByRole("button", { name: `Select ${s.register}`, exact: true }).count()) ? s.register : `${s.register}_L`;
+    const row = table.locator("tr", { has: page.getByRole("button", { name: `Select ${name}`, exact: true }) });
+    assert.match(await row.locator("td").nth(6).textContent(), new RegExp(`raw ${s.raw}\\)?$`), name);
+  }
 });
 
 test("no console errors", () => {

@@ -394,6 +394,31 @@ function whjSection(studio) {
     }
   }
 
+  // Every setting (the registers the joint keeps in flash) in one request, into the table.
+  const readAllBtn = el("button", { type: "button", className: "secondary" }, "Read every setting");
+  readAllBtn.addEventListener("click", async () => {
+    const d = joint();
+    if (!d) return;
+    readAllBtn.disabled = true;
+    try {
+      const rep = await studio.run({ op: "whj.backup", bus: d.bus, joint: d.id });
+      const row = rep.results?.[0];
+      if (!row || row.kind) throw new Error(reportProblem(rep) ?? "no answer");
+      for (const s of rep.summary?.settings ?? []) {
+        const text = s.value !== null && s.value !== undefined ? `${fmt(s.value, 4)} ${s.unit ?? ""}`.trim() + ` (raw ${s.raw})` : `raw ${s.raw}`;
+        // A 32-bit pair is one setting, shown on its low half's row.
+        const cell = valueCells.get(s.register) ?? valueCells.get(`${s.register}_L`);
+        if (cell) cell.textContent = text;
+      }
+      out.textContent = `Joint ${d.id}: ${rep.summary?.settings?.length ?? 0} settings read with one whj.backup.`;
+    } catch (e) {
+      out.textContent = `Read every setting: ${describeError(e)}`;
+      studio.toast(e);
+    } finally {
+      readAllBtn.disabled = false;
+    }
+  });
+
   readBtn.addEventListener("click", () => {
     const r = reg();
     if (!r) return studio.toast(new Error(`no register named ${regInput.value || "(empty)"}`));
@@ -495,7 +520,7 @@ function whjSection(studio) {
   regInput.id = newId("reg");
   return el("section", { className: "card", "aria-label": "WHJ joint registers" }, [
     el("h3", {}, "WHJ joint registers"),
-    el("div", { className: "row" }, [picker.element, field("Register", regInput), datalist, readBtn]),
+    el("div", { className: "row" }, [picker.element, field("Register", regInput), datalist, readBtn, readAllBtn]),
     el("div", { className: "row" }, [
       el("div", { className: "field" }, [valueLabel, value]),
       el("div", { className: "field check" }, [raw, el("label", { htmlFor: raw.id }, "Value in raw counts")]),
