@@ -1315,6 +1315,7 @@ class WhjOps:
         from_: float | None = ...,
         max_speed: float | None = ...,
         on_stop: Literal["hold", "disable"] | None = ...,
+        preflight: bool | None = ...,
         rate_hz: float | None = ...,
         check: bool = ...,
     ) -> Report:
@@ -1335,6 +1336,8 @@ class WhjOps:
                 in: `hold` or `disable`. ``"hold"``: Stay enabled and hold the present position
                 (speed / current: target 0); ``"disable"``: Disable the drive. Default:
                 ``"hold"``.
+            preflight (bool | None, optional): Run the move first on the simulator seeded with
+                the joint (`true`), never (`false`), or by default: when it lasts at most 60 s.
             rate_hz (float | None, optional): Position frames per second (1..=1000). Default:
                 ``200.0``.
             check (bool, optional): A device that failed raises its kind's error (a silent one
@@ -1730,6 +1733,7 @@ class WhjOps:
         model: Literal["whj03", "whj10", "whj30", "whj60", "whj120"] | None = ...,
         offset: float | None = ...,
         on_stop: Literal["hold", "disable"] | None = ...,
+        preflight: bool | None = ...,
         rate_hz: float | None = ...,
         shape: Literal["sine", "square"] | None = ...,
         check: bool = ...,
@@ -1766,6 +1770,8 @@ class WhjOps:
             on_stop (Literal["hold", "disable"] | None, optional): What a stop leaves the joint
                 in. ``"hold"``: Stay enabled and hold the present position (speed / current:
                 target 0); ``"disable"``: Disable the drive. Default: ``"hold"``.
+            preflight (bool | None, optional): Run the wave first on the simulator seeded with
+                the joint (`true`), never (`false`), or by default: when it lasts at most 60 s.
             rate_hz (float | None, optional): Frames per second (1..=1000). Default: ``200.0``.
             shape (Literal["sine", "square"] | None, optional): Signal shape. ``"sine"``: offset
                 + amplitude * sin(2 pi f t); ``"square"``: offset + amplitude while sin(2 pi f
