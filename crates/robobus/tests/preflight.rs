@@ -225,3 +225,4 @@ fn whj_wave_on_a_joint_that_follows_reports_its_preflight_and_the_dry_run_says_i
     let long = catalogue::plan(&wave_request(&json!({"duration": 61.0}))).unwrap();
     assert!(!serde_json::to_value(&long).unwrap()["notes"].to_string().contains("pre-flight"));
 }
+

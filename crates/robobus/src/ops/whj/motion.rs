@@ -189,7 +189,7 @@ pub struct MoveReport {
     pub error: String,
     /// The host's protection events that did not stop the move (warnings, derating), in
     /// order; left out of the JSON when there were none.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub protection: Vec<Fault>,
     /// The pre-flight on the simulator that passed before the move (left out when none
     /// ran).
@@ -697,7 +697,7 @@ pub struct WaveReport {
     pub round_trip_max_us: Option<u64>,
     /// The host's protection events that did not stop the wave (warnings, derating), in
     /// order; left out of the JSON when there were none.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub protection: Vec<Fault>,
     /// The pre-flight on the simulator that passed before the wave (left out when none
     /// ran).
