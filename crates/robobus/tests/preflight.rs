@@ -116,8 +116,14 @@ fn preflight_refuses_the_lagging_joint_wave_before_its_first_frame_naming_frame_
     assert_eq!(refusal.joint, "joint 1");
     // The frame and its time are the plan's.
     let frame = plan.frames[refusal.frame];
-    assert!((frame.at.as_secs_f64() - refusal.at_s).abs() < 1e-9, "{refusal:?}");
-    assert!(refusal.frame > 0 && refusal.frame < plan.frames.len(), "{refusal:?}");
+    assert!(
+        (frame.at.as_secs_f64() - refusal.at_s).abs() < 1e-9,
+        "{refusal:?}"
+    );
+    assert!(
+        refusal.frame > 0 && refusal.frame < plan.frames.len(),
+        "{refusal:?}"
+    );
     assert!(
         refusal
             .reason
@@ -212,7 +218,10 @@ fn whj_wave_on_a_joint_that_follows_reports_its_preflight_and_the_dry_run_says_i
     let req = wave_request(&json!({}));
     let plan = catalogue::plan(&req).unwrap();
     let notes = serde_json::to_value(&plan).unwrap()["notes"].to_string();
-    assert!(notes.contains("pre-flight: before the first frame joint 1's identity"), "{notes}");
+    assert!(
+        notes.contains("pre-flight: before the first frame joint 1's identity"),
+        "{notes}"
+    );
     let report = catalogue::run(&station, &req, &mut Control::none()).unwrap();
     let v = serde_json::to_value(&report).unwrap();
     let flight = &v["summary"]["preflight"];
@@ -221,8 +230,15 @@ fn whj_wave_on_a_joint_that_follows_reports_its_preflight_and_the_dry_run_says_i
     assert_eq!(v["summary"]["held_back"], 0, "{v:#}");
     // Asked off, the plan says nothing of it; a 61 s wave is not pre-flown by default.
     let off = catalogue::plan(&wave_request(&json!({"preflight": false}))).unwrap();
-    assert!(!serde_json::to_value(&off).unwrap()["notes"].to_string().contains("pre-flight"));
+    assert!(
+        !serde_json::to_value(&off).unwrap()["notes"]
+            .to_string()
+            .contains("pre-flight")
+    );
     let long = catalogue::plan(&wave_request(&json!({"duration": 61.0}))).unwrap();
-    assert!(!serde_json::to_value(&long).unwrap()["notes"].to_string().contains("pre-flight"));
+    assert!(
+        !serde_json::to_value(&long).unwrap()["notes"]
+            .to_string()
+            .contains("pre-flight")
+    );
 }
-

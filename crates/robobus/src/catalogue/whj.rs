@@ -344,7 +344,7 @@ impl JsonSchema for PreflightArg {
 /// The note a plan gets when its run is pre-flown on the simulator: what is read first
 /// and what refuses it.
 pub(crate) fn preflight_note(joint: JointId, asked: Option<bool>, plan_s: f64) -> Option<String> {
-    let plan = Duration::from_secs_f64(plan_s.max(0.0));
+    let plan = Duration::try_from_secs_f64(plan_s).unwrap_or(Duration::MAX);
     crate::ops::preflight::wanted(asked, plan).then(|| {
         format!(
             "pre-flight: before the first frame joint {j}'s identity, status, mode and settings \
