@@ -972,6 +972,7 @@ fn _robobus(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(schema, m)?)?;
     m.add_function(wrap_pyfunction!(version, m)?)?;
     m.add_function(wrap_pyfunction!(bench_parse, m)?)?;
+    m.add_function(wrap_pyfunction!(telemetry::whj_frames_sent, m)?)?;
     m.add_function(wrap_pyfunction!(facts, m)?)?;
     Ok(())
 }

@@ -20,14 +20,13 @@ use std::sync::{Arc, Mutex, MutexGuard, RwLock, Weak};
 
 use pyo3::prelude::*;
 use robobus::ErrorKind;
-use robobus::catalogue;
 use robobus::ops::StopToken;
 use robobus::station::cyclic::CyclicLoop;
 
 use crate::raise;
 
 /// A running stream's cell, as the station's registry sees it.
-pub(crate) type StreamCell = Mutex<Option<catalogue::Telemetry>>;
+pub(crate) type StreamCell = Mutex<Option<crate::telemetry::Stream>>;
 /// A running loop's cell.
 pub(crate) type LoopCell = RwLock<CyclicLoop>;
 
@@ -206,7 +205,7 @@ impl Life {
     }
 }
 
-fn take(cell: &StreamCell) -> Option<catalogue::Telemetry> {
+fn take(cell: &StreamCell) -> Option<crate::telemetry::Stream> {
     cell.lock()
         .unwrap_or_else(std::sync::PoisonError::into_inner)
         .take()

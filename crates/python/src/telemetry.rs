@@ -1,5 +1,6 @@
-//! Python's telemetry stream: a subscription to the station's sampling of a reading
-//! request, with `Station.close` stopping it.
+//! Python's telemetry stream: a subscription to the station's one sampling of a bus
+//! (`Station::telemetry`, shared with every other reader of the bus), with `limit` and
+//! `stop()`'s statistics the library's, and `Station.close` closing it.
 
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -7,12 +8,17 @@ use std::time::Duration;
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 use robobus::ErrorKind;
-use robobus::catalogue::{self, telemetry::RecvError};
+use robobus::catalogue::{
+    self,
+    telemetry::{RecvError, Subscription},
+};
 
 use crate::life::{Life, StreamCell, closed_error};
 use crate::{NativeStation, SIGNAL_SLICE, op_error, raise, request, to_py, without_gil};
 
-/// Starts a telemetry stream of a reading request at `rate_hz` (`Station.telemetry`).
+/// Starts a telemetry stream of a reading request at `rate_hz` (`Station.telemetry`): a
+/// subscription to the station's one sampling of the bus, which every other reader of it
+/// shares.
 pub(crate) fn start(
     this: &NativeStation,
     py: Python<'_>,
@@ -24,19 +30,14 @@ pub(crate) fn start(
     let call = "Station.telemetry";
     let req = request(py, request_obj)?;
     let station = this.get(py, call)?;
-    let t = catalogue::Telemetry::paused(&station, req, rate_hz, limit)
+    let subscription = py
+        .detach(|| station.telemetry_limited(req, rate_hz, queue, limit))
         .map_err(|e| op_error(py, &e))?;
     drop(station);
-    let sub = t.subscribe(queue).map_err(|e| op_error(py, &e))?;
-    let stream = Arc::new(Mutex::new(Some(t)));
-    // Registered before its first read, so a `close` stops it.
+    let sub = subscription.receiver();
+    let stream = Arc::new(Mutex::new(Some(Stream(subscription))));
+    // On a closed station it is closed at once, and the call refused.
     this.life.adopt_stream(py, call, &stream)?;
-    if let Some(t) = &*stream
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner)
-    {
-        t.resume();
-    }
     Ok(NativeTelemetry {
         stream,
         sub,
@@ -44,12 +45,24 @@ pub(crate) fn start(
     })
 }
 
+/// A subscription as the station's registry holds it: closed when dropped (when it was
+/// the sampling's last, the sampling's thread is joined, so it lets go of the station).
+#[derive(Debug)]
+pub(crate) struct Stream(Subscription);
+
+impl Drop for Stream {
+    fn drop(&mut self) {
+        self.0.close();
+    }
+}
+
 /// A running telemetry stream and this session's subscription to it.
 #[pyclass(module = "robobus._robobus", name = "NativeTelemetry", frozen)]
 #[derive(Debug)]
 pub(crate) struct NativeTelemetry {
-    /// Shared with the station's registry, which stops it when the station closes.
+    /// Shared with the station's registry, which closes it when the station closes.
     stream: Arc<StreamCell>,
+    /// Its queue (what was queued is still received after it was closed, then the end).
     sub: catalogue::Subscriber,
     life: Arc<Life>,
 }
@@ -119,7 +132,8 @@ impl NativeTelemetry {
         self.sub.lost()
     }
 
-    /// Stops the stream (the read under way completes); what it did: samples, late ones,
+    /// Leaves the station's sampling (the read under way completes when this was its
+    /// last subscriber); what this stream was given: samples (lost ones too), late ones,
     /// failed ones. Stopping twice returns `None` the second time (so does stopping it
     /// after its station was closed).
     fn stop(&self, py: Python<'_>) -> PyResult<Option<Py<PyAny>>> {
@@ -133,10 +147,25 @@ impl NativeTelemetry {
             .take();
         match taken {
             Some(t) => {
-                let stats = py.detach(|| t.stop());
-                to_py(py, &stats).map(Some)
+                py.detach(|| drop(t));
+                to_py(py, &self.sub.stats()).map(Some)
             }
             None => Ok(None),
         }
     }
+}
+
+/// The frames the host has sent on WHJ bus `bus` (`None`: the only one) since it was
+/// opened: on a simulated bus, the frames its simulator received. For the tests that
+/// count what a sampling costs the bus.
+#[pyfunction]
+#[pyo3(name = "_whj_frames_sent", signature = (station, bus = None))]
+pub(crate) fn whj_frames_sent(
+    py: Python<'_>,
+    station: PyRef<'_, NativeStation>,
+    bus: Option<&str>,
+) -> PyResult<u64> {
+    let s = station.get(py, "_whj_frames_sent")?;
+    let port = s.whj(bus).map_err(|e| op_error(py, &e))?;
+    Ok(port.bus().telemetry().bus.frames_sent)
 }
