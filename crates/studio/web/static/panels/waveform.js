@@ -1,8 +1,13 @@
 // Waveform: a sine or square test signal on one WHJ joint (`whj.wave`), with its progress,
-// a Stop button and the tracking statistics of the report's summary (the figures
-// `robobus whj wave` prints below its table).
+// a Stop button, a live chart of the joint against the signal asked, and the tracking
+// statistics of the report's summary (the figures `robobus whj wave` prints below its
+// table). Before a position wave starts, its plan from where the joint is now says how
+// many set-points the step limiter would change (clamp): a wave with any does not start
+// until "Run anyway" is pressed.
 
 import { field, devicePicker, h } from '../ui.js';
+import { miniChart } from '../minichart.js';
+import { deviceKey } from '../history.js';
 
 /** A small element builder: h('button', {onclick}, 'Text'); attributes as attributes. */
 
@@ -25,6 +30,13 @@ const STATS = [
   ['round_trip_max_us', 'Round trip, max', 'µs'],
   ['stale', 'Last frame unanswered', ''],
 ];
+
+/** The value a wave asks for `t` seconds after its first frame (the signal `robobus whj wave` sends before its step limiter). */
+function waveAt(r, t) {
+  const s = Math.sin(2 * Math.PI * r.frequency * t);
+  if (r.shape === 'square') return r.offset + (s >= 0 ? r.amplitude : -r.amplitude);
+  return r.offset + r.amplitude * s;
+}
 
 function show(v) {
   if (v == null) return '–';
@@ -58,6 +70,12 @@ export default {
     const progressText = h('span', { class: 'progress-text' });
     const status = h('p', { role: 'status', 'aria-live': 'polite', class: 'summary' });
     const results = h('div', { class: 'wave-results' });
+    const chart = miniChart(studio, { name: 'Wave chart', seconds: 10 });
+    const warnText = h('div', {});
+    const anyway = h('button', { type: 'button', class: 'danger', onclick: runAnyway }, 'Run anyway');
+    const cancelWarn = h('button', { type: 'button', class: 'secondary', onclick: () => { confirmed = null; warn.hidden = true; say('Not started: nothing was sent.'); } }, 'Cancel');
+    const warn = h('div', { class: 'clamp-warning', role: 'alert', hidden: true },
+      warnText, h('div', { class: 'row' }, anyway, cancelWarn));
 
     const unitField = (label, input, unit) => {
       const f = field(`${label} (${unit})`, input);
@@ -75,6 +93,7 @@ export default {
       h('div', { class: 'row' }, h('span', { class: 'check' }, prepare,
         h('label', { for: 'wave-prepare' }, 'Enable the joint and set its mode first'))),
       h('div', { class: 'row' }, start, stop, dry),
+      warn,
       gate);
 
     element.append(
@@ -85,9 +104,21 @@ export default {
       h('div', { class: 'columns' },
         h('section', { class: 'card', 'aria-labelledby': 'wave-signal' }, h('h3', { id: 'wave-signal' }, 'Signal'), form),
         h('section', { class: 'card', 'aria-labelledby': 'wave-result' }, h('h3', { id: 'wave-result' }, 'Run'),
-          h('div', { class: 'progress' }, progress, progressText), status, results)));
+          h('div', { class: 'progress' }, progress, progressText), status, chart.element, results)));
 
     let running = null;
+    /** The request the user chose to run anyway though its set-points would be clamped (JSON). */
+    let confirmed = null;
+
+    const QUANTITY = { position: 'position', speed: 'speed', current: 'current' };
+    function follow() {
+      const d = picker.get();
+      if (d) chart.show(deviceKey('whj', d.bus, d.id), QUANTITY[mode.value], `joint ${d.id}`);
+    }
+    picker.onChange(follow);
+    mode.addEventListener('change', follow);
+    element.addEventListener('studio:show', follow);
+    follow();
 
     mode.addEventListener('change', () => {
       for (const f of [amplitudeField, offsetField]) {
@@ -135,6 +166,32 @@ export default {
       if (!row.enabled) await studio.run({ op: 'whj.enable', ...sel });
     }
 
+    /**
+     * How many of a position wave's set-points its step limiter would change, planned from
+     * where the joint is now (`whj.status`, then the wave's plan with `from` that position):
+     * the plan's note `N of M set-point(s) clamped`, and its note on a lead-in when it has
+     * one. Null for speed and current waves.
+     */
+    async function clampCheck(r) {
+      if (r.mode !== 'position') return null;
+      const sel = { joints: String(r.joint), ...(r.bus ? { bus: r.bus } : {}) };
+      const st = await studio.run({ op: 'whj.status', ...sel });
+      const row = st.results?.[0] ?? {};
+      if (row.kind) throw Object.assign(new Error(row.error), { kind: row.kind });
+      const from = row.position_deg;
+      const plan = await studio.plan({ ...r, from });
+      const notes = plan.notes ?? [];
+      const m = notes.map((n) => /^(\d+) of (\d+) set-point\(s\) clamped, by up to ([\d.]+) deg/.exec(n)).find(Boolean);
+      const why = notes.filter((n) => /set-point\(s\) clamped|counted as clamped/.test(n));
+      return { count: m ? Number(m[1]) : 0, frames: m ? Number(m[2]) : 0, by: m ? Number(m[3]) : 0, from, notes: why };
+    }
+
+    function runAnyway() {
+      confirmed = JSON.stringify(request());
+      warn.hidden = true;
+      form.requestSubmit();
+    }
+
     function showStats(report) {
       const s = report.summary ?? {};
       const unit = s.unit ?? UNITS[mode.value];
@@ -165,6 +222,30 @@ export default {
       ev.preventDefault();
       if (!form.reportValidity()) return;
       const r = request();
+      const asked = JSON.stringify(r);
+      if (confirmed !== asked) confirmed = null;
+      warn.hidden = true;
+      if (running) return;
+      if (!confirmed) {
+        try {
+          say('Checking the wave against where the joint is…');
+          const c = await clampCheck(r);
+          if (c && c.count > 0) {
+            warnText.replaceChildren(
+              h('strong', {}, `${c.count} of ${c.frames} set-points would be clamped, by up to ${c.by} deg`),
+              ` (the joint is at ${c.from.toFixed(2)} deg): there the joint is sent the step limiter's set-points, not the wave asked.`,
+              h('ul', {}, c.notes.map((n) => h('li', {}, n))));
+            warn.hidden = false;
+            say('Not started: its set-points would be clamped. Run anyway, or move the joint nearer the offset first.', 'fail');
+            anyway.focus();
+            return;
+          }
+        } catch (e) {
+          say(`Wave not started${e?.kind ? ` (${e.kind})` : ''}: ${e?.message ?? e}`, 'fail');
+          return;
+        }
+      }
+      confirmed = null;
       results.replaceChildren();
       progress.max = 1;
       progress.value = 0;
@@ -173,9 +254,25 @@ export default {
       stop.disabled = false;
       running = { stop() {} };
       update();
+      let seg = null;
       try {
         if (prepare.checked) await prepareJoint(r);
         running = studio.runLong(r, (p) => {
+          if (r.mode === 'position' && p.done != null) {
+            // The signal asked, drawn as the target from the first frame on. The first
+            // frame went `done` periods before this progress arrived (it cannot have gone
+            // later): the earliest such estimate is the closest.
+            const t0 = Date.now() - (p.done / r.rate_hz) * 1000;
+            if (!seg) {
+              const ask = { ...r };
+              const s0 = studio.history.addWave('whj', r.bus ?? null, r.joint, t0, t0 + r.duration * 1000,
+                (t) => waveAt(ask, (t - s0.t0) / 1000));
+              seg = s0;
+            } else if (t0 < seg.t0) {
+              seg.t1 -= seg.t0 - t0;
+              seg.t0 = t0;
+            }
+          }
           if (p.total) progress.max = p.total;
           progress.value = p.done ?? 0;
           progressText.textContent = `${p.stage ?? ''} ${p.done ?? 0}${p.total ? ` / ${p.total}` : ''}${p.note ? ` · ${p.note}` : ''}`;
@@ -190,6 +287,7 @@ export default {
         if (e?.kind === 'interrupted') say(`Stopped: the joint was brought to its safe state (${r.on_stop}).`, 'fail');
         else say(`Wave failed${e?.kind ? ` (${e.kind})` : ''}: ${e?.message ?? e}`, 'fail');
       } finally {
+        studio.history.endWave(seg, Date.now());
         running = null;
         stop.disabled = true;
         update();
