@@ -242,3 +242,46 @@ fn whj_wave_on_a_joint_that_follows_reports_its_preflight_and_the_dry_run_says_i
             .contains("pre-flight")
     );
 }
+
+/// A move on a joint that follows passes its pre-flight and reports it; the same move on a
+/// joint whose current limit is far too low for it is refused, naming its frame.
+#[test]
+fn whj_move_is_preflown_passes_on_a_following_joint_and_is_refused_on_a_weak_one() {
+    let request: Request = serde_json::from_value(
+        json!({"op": "whj.move", "joint": 1, "degrees": 40.0, "max_speed": 120.0}),
+    )
+    .unwrap();
+    let report = catalogue::run(&station(None), &request, &mut Control::none()).unwrap();
+    let v = serde_json::to_value(&report).unwrap();
+    let row = &v["results"][0];
+    assert_eq!(row["held_back"], 0, "{v:#}");
+    assert_eq!(row["preflight"]["frames"], row["frames"], "{v:#}");
+    let e = catalogue::run(&station(Some(300.0)), &request, &mut Control::none()).unwrap_err();
+    let OpError::Preflight(refusal) = &e else {
+        panic!("{e:?}")
+    };
+    assert_eq!(refusal.joint, "joint 1", "{refusal:?}");
+    assert!(refusal.frame > 0, "{refusal:?}");
+}
+
+/// Speed and broadcast waves are pre-flown too (their frames on the seeded simulator) and
+/// pass on a joint that follows them.
+#[test]
+fn speed_and_broadcast_waves_pass_their_preflight_on_a_joint_that_follows() {
+    let station = station(None);
+    let broadcast = wave_request(&json!({"broadcast": true, "amplitude": 5.0}));
+    let report = catalogue::run(&station, &broadcast, &mut Control::none()).unwrap();
+    let v = serde_json::to_value(&report).unwrap();
+    assert_eq!(v["summary"]["preflight"]["frames"], 200, "{v:#}");
+    let port = station.whj(None).unwrap();
+    let j = port.bus().joint(id(1)).unwrap();
+    j.disable().unwrap();
+    j.set_mode(WorkMode::Speed).unwrap();
+    j.enable().unwrap();
+    drop(j);
+    drop(port);
+    let speed = wave_request(&json!({"mode": "speed", "amplitude": 5.0}));
+    let report = catalogue::run(&station, &speed, &mut Control::none()).unwrap();
+    let v = serde_json::to_value(&report).unwrap();
+    assert_eq!(v["summary"]["preflight"]["seed"]["mode"], "speed", "{v:#}");
+}
