@@ -1,4 +1,5 @@
-//! The bridge's outputs on a clock: joint states, and its health about once a second.
+//! The bridge's outputs on a clock: joint states (each joint's last reading kept for the
+//! diagnostics), and its health about once a second.
 
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicU64, Ordering};
