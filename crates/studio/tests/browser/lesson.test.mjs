@@ -7,8 +7,8 @@
 import { test, before, after } from "node:test";
 import assert from "node:assert/strict";
 import { readFile } from "node:fs/promises";
-import path from "node:path";
-import { startStudio, launchBrowser, openPage, runRequest, simState, screenshot, openTab, arm, teardown, until, SCREENS } from "./harness.mjs";
+import { startStudio, launchBrowser, openPage, runRequest, simState, screenshot, openTab, arm, teardown, until } from "./harness.mjs";
+import { docShot } from "./cli.mjs";
 
 let studio;
 let browser;
@@ -38,7 +38,7 @@ test("a servo that goes silent is flagged in the header while another tab is ope
   const status = await runRequest(studio.url, { op: "wck.status", ids: "2" });
   assert.equal(status.results[0].kind, "no-device");
   await screenshot(page, "header-silent");
-  await page.locator("header.top").screenshot({ path: path.join(SCREENS, "studio-header.png") });
+  await docShot(page.locator("header.top"), "header");
   // The flag opens the silent servo in Device.
   await flag().click();
   const device = page.getByRole("tabpanel", { name: "Device" });
@@ -89,12 +89,11 @@ test("go to a pose moves the joints of both families there; the list plays in a 
   await set("Transition of pose 2 (s)", 0.6);
   await panel.getByRole("button", { name: "Go to pose 2" }).click();
   await until(async () => /^Done: pose 2/.test(await rpStatus()), { what: "go to pose 2", timeout: 15_000 });
-  console.log(await rpStatus());
   // The joints settle at the pose, as robot.sample reads them through the API.
   const want = { s3: 20, s5: -15, j2: 10, j4: -8 };
   let sample;
   const at = () => Object.fromEntries(Object.keys(want).map((n) => [n, sample.results.find((r) => r.id === n).position_deg]));
-  const near = () => Object.entries(at()).every(([n, v]) => Math.abs(v - want[n]) < (n[0] === "s" ? 1.5 : 0.3)) || (console.log(JSON.stringify(at())), false);
+  const near = () => Object.entries(at()).every(([n, v]) => Math.abs(v - want[n]) < (n[0] === "s" ? 1.5 : 0.3));
   await until(async () => {
     sample = await runRequest(studio.url, { op: "robot.sample" });
     return near();
@@ -118,7 +117,7 @@ test("go to a pose moves the joints of both families there; the list plays in a 
     return near();
   }, { what: "the joints back at pose 2, the last", timeout: 5000 });
   await screenshot(page, "poses-robot");
-  await panel.locator("section", { has: page.locator("#robot-poses") }).screenshot({ path: path.join(SCREENS, "studio-poses.png") });
+  await docShot(panel.locator("section", { has: page.locator("#robot-poses") }), "poses");
 });
 
 test("no console errors", () => {

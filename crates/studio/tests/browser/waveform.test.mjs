@@ -40,6 +40,12 @@ test("a sine on joint 1 moves the simulated joint and shows its tracking statist
   await panel.getByLabel("Duration (s)").fill("2");
   await panel.getByLabel("Rate (frames/s)").fill("100");
   await start.click();
+  // It starts 5 deg from the joint: its lead-in set-points are clamped, which the panel
+  // says before anything is sent; it runs when confirmed.
+  const warning = panel.getByRole("alert").filter({ hasText: "set-points would be clamped" });
+  await warning.waitFor();
+  assert.equal(await page.evaluate(() => window.studio.pending.size), 0, "nothing started before the confirmation");
+  await warning.getByRole("button", { name: "Run anyway" }).click();
   // While it runs, the simulated joint swings around the offset.
   let lo = Infinity;
   let hi = -Infinity;
@@ -116,6 +122,9 @@ test("a read-only studio offers no wave, upload or scene play", async () => {
     assert.equal(await poses.getByRole("button", { name: "Play scene" }).isDisabled(), true);
     assert.equal(await poses.getByRole("button", { name: "Make passive" }).isDisabled(), true);
     assert.equal(await poses.getByRole("button", { name: "Record pose" }).isDisabled(), false);
+    await poses.getByText("Read-only studio: robot poses are recorded, not gone to.").waitFor();
+    assert.equal(await poses.getByRole("button", { name: "Play poses" }).isDisabled(), true);
+    assert.equal(await poses.getByRole("button", { name: "Record robot pose" }).isDisabled(), false);
     assert.deepEqual(errs, []);
   } finally {
     await ro.stop();

@@ -127,7 +127,7 @@ export function robotPoses(studio) {
     const ok = s.controller && s.armed && !s.readOnly;
     play.disabled = !ok || running != null || !poses.length;
     for (const b of body.querySelectorAll('button.go')) b.disabled = !ok || running != null;
-    gate.textContent = s.readOnly ? 'Read-only studio: recording only.'
+    gate.textContent = s.readOnly ? 'Read-only studio: robot poses are recorded, not gone to.'
       : ok ? '' : s.controller ? 'Arm to go to a pose or play them.' : 'Take control and arm to go to a pose or play them.';
   }
   studio.on('control', update);

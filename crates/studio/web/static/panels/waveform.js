@@ -182,7 +182,8 @@ export default {
       const plan = await studio.plan({ ...r, from });
       const notes = plan.notes ?? [];
       const m = notes.map((n) => /^(\d+) of (\d+) set-point\(s\) clamped, by up to ([\d.]+) deg/.exec(n)).find(Boolean);
-      const why = notes.filter((n) => /set-point\(s\) clamped|counted as clamped/.test(n));
+      // Why, when the plan says more than the count (a lead-in).
+      const why = notes.filter((n) => /counted as clamped/.test(n));
       return { count: m ? Number(m[1]) : 0, frames: m ? Number(m[2]) : 0, by: m ? Number(m[3]) : 0, from, notes: why };
     }
 
@@ -233,8 +234,8 @@ export default {
           if (c && c.count > 0) {
             warnText.replaceChildren(
               h('strong', {}, `${c.count} of ${c.frames} set-points would be clamped, by up to ${c.by} deg`),
-              ` (the joint is at ${c.from.toFixed(2)} deg): there the joint is sent the step limiter's set-points, not the wave asked.`,
-              h('ul', {}, c.notes.map((n) => h('li', {}, n))));
+              ` (the joint is at ${c.from.toFixed(2)} deg): there the joint is sent the step limiter's set-points, not the wave asked`,
+              c.notes.length ? h('ul', {}, c.notes.map((n) => h('li', {}, n))) : ' (its speed and acceleration limits).');
             warn.hidden = false;
             say('Not started: its set-points would be clamped. Run anyway, or move the joint nearer the offset first.', 'fail');
             anyway.focus();
