@@ -16,6 +16,8 @@
 //! the sends were. Finished, failed or stopped, the run ends with each bus of its joints
 //! in the robot file's `safe_state` (`settle`).
 
+mod drive;
+
 use std::time::{Duration, Instant};
 
 use schemars::JsonSchema;
@@ -87,8 +89,53 @@ impl Play {
             .map_err(|e| OpError::invalid("trajectory", "(file)", e.to_string()))
     }
 
+    /// What the trajectory's header names: positions (plain joint names), velocities
+    /// (`NAME_deg_s`) or efforts (`NAME_nm`).
+    pub fn interface(&self) -> Result<crate::robot::Interface, OpError> {
+        drive::header(&self.trajectory).map(|(i, _)| i)
+    }
+
+    /// Checks the trajectory against the robot file `config` before anything opens (its
+    /// joints, and each value against their limits: angles and speeds of a position
+    /// play, the interface and its `max_velocity` / `max_effort` of a velocity or effort
+    /// play); the parsed trajectory, its joints' plain names.
+    pub fn check_against(&self, config: &RobotConfig) -> Result<Trajectory, OpError> {
+        let (interface, text) = drive::header(&self.trajectory)?;
+        if interface == crate::robot::Interface::Position {
+            let t = self.check()?;
+            t.check(config)
+                .map_err(|e| OpError::invalid("trajectory", "(file)", e.to_string()))?;
+            return Ok(t);
+        }
+        Play::check(self)?;
+        drive::check(&text, interface, config).map(|(t, _)| t)
+    }
+
     /// What a run sends, for the plan.
     pub fn note(&self) -> Result<String, OpError> {
+        let (interface, plain) = drive::header(&self.trajectory)?;
+        if interface != crate::robot::Interface::Position {
+            self.check()?;
+            let t = Trajectory::parse(&plain)
+                .map_err(|e| OpError::invalid("trajectory", "(file)", e.to_string()))?;
+            return Ok(format!(
+                "reads {joints} and refuses if one is silent or outside its soft limits; \
+                 switches them at rest to {interface} (WHJ: speed / current mode at zero; \
+                 wCK: wheel mode at level 0), then plays {n} points over {d} s, {r} ticks a \
+                 second: a {what} per joint, ramped; at the end a zero target, WHJ joints \
+                 back in position mode{END}",
+                joints = t.joints().join(", "),
+                n = t.len(),
+                d = t.duration_s(),
+                r = self.rate_hz,
+                what = if interface == crate::robot::Interface::Velocity {
+                    "speed servo frame (WHJ) or wheel command (wCK)"
+                } else {
+                    "current servo frame"
+                },
+                END = super::END_NOTE,
+            ));
+        }
         let t = self.check()?;
         Ok(format!(
             "reads {joints} (a status read per wCK servo; a status query and a speed read per \
@@ -158,9 +205,13 @@ impl Operation for Play {
     /// Each tick goes to the front end's [`Interaction::play_tick`](crate::catalogue::Interaction::play_tick).
     fn run(&self, cx: &mut RunCx<'_, '_>) -> Result<Report<Self::Row, PlaySummary>, OpError> {
         let interaction = &mut *cx.interaction;
-        let p = run_play(cx.station, self, cx.control, &mut |t| {
-            interaction.play_tick(t)
-        })?;
+        let p = if self.interface()? == crate::robot::Interface::Position {
+            run_play(cx.station, self, cx.control, &mut |t| {
+                interaction.play_tick(t)
+            })?
+        } else {
+            drive::run(cx.station, self, cx.control)?
+        };
         Ok(Report::devices_with(Self::OP, ROBOT, p.joints).summary(p.summary))
     }
 }
@@ -186,6 +237,14 @@ pub struct Played {
     pub tracking_max_deg: f64,
     /// The root mean square of that distance, degrees.
     pub tracking_rms_deg: f64,
+    /// A velocity play's last speed sent, deg/s (at the device's resolution; a wCK
+    /// servo's: its wheel level's speed); absent otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sent_deg_s: Option<f64>,
+    /// An effort play's last effort sent, N·m (the current sent times the torque
+    /// constant); absent otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sent_nm: Option<f64>,
     #[serde(skip)]
     tracking: Tracking,
     #[serde(skip)]
@@ -601,7 +660,7 @@ struct Timing {
 }
 
 /// The most ticks whose skew and lateness are kept (an hour at 500 Hz would be 1.8 M).
-const MAX_TIMED_TICKS: usize = 100_000;
+pub(super) const MAX_TIMED_TICKS: usize = 100_000;
 
 struct Player<'a> {
     traj: &'a Trajectory,
@@ -837,6 +896,8 @@ impl Played {
             position_deg: None,
             tracking_max_deg: 0.0,
             tracking_rms_deg: 0.0,
+            sent_deg_s: None,
+            sent_nm: None,
             tracking: Tracking::default(),
             last_error: None,
             protection: None,

@@ -1,0 +1,658 @@
+//! `robot.play` of velocities or efforts: a trajectory file whose header names its joints'
+//! interface by the columns' unit, `NAME_deg_s` (velocities, degrees a second, in the
+//! joint frame) or `NAME_nm` (efforts, N·m), every column the same.
+//!
+//! Checked whole before anything is sent: every joint in the robot file with that
+//! interface (`interfaces`), every value within its `max_velocity` / `max_effort` and (a
+//! wCK servo's speed) what its top wheel level turns it at, naming the line. The joints are
+//! read (a silent one refuses the run), switched at rest (a WHJ joint to speed or current
+//! mode with a zero target, a wCK servo to wheel mode at level 0), and played each tick,
+//! linearly between the points, ramped at `max_acceleration` / `max_effort_rate`: a speed
+//! servo frame or a current servo frame per WHJ joint (the current of the model's torque
+//! constant; a WHJ joint never heads for a soft limit faster than it can stop there, and an
+//! effort pushing it past one it stands on is dropped), a wheel command per wCK servo (the
+//! nearest level of `wheel_speeds`). At the end every joint gets a zero target, the WHJ
+//! joints go back to position mode (holding where they stand), and every bus goes to the
+//! robot file's `safe_state`. The host's protection, which compares positions with their
+//! targets, does not watch these plays; the front end gets no ticks (nothing is recorded).
+
+use std::f64::consts::TAU;
+use std::time::Duration;
+
+use robobus_wck::{Rotation, ServoId, WheelSpeed};
+use robobus_whj::units::{Current, CurrentScale, TargetSpeed};
+use robobus_whj::{JointId, WorkMode};
+
+use super::{PlaySummary, Played, PlayedRun, Spread};
+use crate::actuator::{JointMap, WckScale};
+use crate::ops::{Control, Failure, OpError, Progress};
+use crate::robot::trajectory::Trajectory;
+use crate::robot::{EffortScale, Interface, RobotConfig, WheelSpeeds};
+use crate::station::clock::BusClock;
+use crate::station::{Station, WckPort, WhjPort};
+
+/// The header suffix of a column of `interface` (none for positions).
+const fn suffix(interface: Interface) -> &'static str {
+    match interface {
+        Interface::Position => "",
+        Interface::Velocity => "_deg_s",
+        Interface::Effort => "_nm",
+    }
+}
+
+/// The interface a trajectory's header names, and the text with the joints' plain names
+/// (unchanged for positions). Columns naming different interfaces are refused.
+pub(super) fn header(text: &str) -> Result<(Interface, String), OpError> {
+    let Some((at, line)) = text
+        .lines()
+        .enumerate()
+        .find(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'))
+    else {
+        return Ok((Interface::Position, text.to_owned()));
+    };
+    let cells: Vec<&str> = line.split(',').map(str::trim).collect();
+    let of = |c: &str| {
+        [Interface::Velocity, Interface::Effort]
+            .into_iter()
+            .find(|&i| c.ends_with(suffix(i)) && c.len() > suffix(i).len())
+            .unwrap_or(Interface::Position)
+    };
+    let kinds: Vec<Interface> = cells.iter().skip(1).map(|c| of(c)).collect();
+    let Some(&first) = kinds.first() else {
+        return Ok((Interface::Position, text.to_owned()));
+    };
+    if let Some(other) = kinds.iter().find(|&&k| k != first) {
+        return Err(OpError::invalid(
+            "trajectory",
+            format!("line {}: {line}", at + 1),
+            format!(
+                "one interface for every column: plain joint names (positions, degrees), \
+                 NAME_deg_s (velocities) or NAME_nm (efforts), not {first} and {other}"
+            ),
+        ));
+    }
+    if first == Interface::Position {
+        return Ok((first, text.to_owned()));
+    }
+    let plain: Vec<&str> = cells
+        .iter()
+        .enumerate()
+        .map(|(k, c)| {
+            if k == 0 {
+                c
+            } else {
+                c.strip_suffix(suffix(first)).unwrap_or(c)
+            }
+        })
+        .collect();
+    let mut out = String::with_capacity(text.len());
+    for (k, l) in text.lines().enumerate() {
+        if k == at {
+            out.push_str(&plain.join(","));
+        } else {
+            out.push_str(l);
+        }
+        out.push('\n');
+    }
+    Ok((first, out))
+}
+
+/// Parses and checks a velocity or effort trajectory (`text` with plain names) against
+/// `config`: the trajectory and each column's joint in the file.
+pub(super) fn check(
+    text: &str,
+    interface: Interface,
+    config: &RobotConfig,
+) -> Result<(Trajectory, Vec<usize>), OpError> {
+    let bad = |what: String| OpError::invalid("trajectory", "(file)", what);
+    let traj = Trajectory::parse(text).map_err(|e| bad(e.to_string()))?;
+    let mut index = Vec::with_capacity(traj.joints().len());
+    for name in traj.joints() {
+        let Some(i) = config.joints.iter().position(|j| &j.name == name) else {
+            return Err(bad(format!(
+                "{name}{} is not a joint of the robot file: {}",
+                suffix(interface),
+                config.joint_names()
+            )));
+        };
+        let j = &config.joints[i];
+        if !j.has(interface) {
+            return Err(bad(format!(
+                "{name} has no {interface} interface in the robot file (its interfaces: {})",
+                crate::robot::interface_list(&j.interfaces())
+            )));
+        }
+        index.push(i);
+    }
+    // Every value, by its line.
+    let mut rows = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'))
+        .skip(1);
+    for (line, l) in rows.by_ref() {
+        for (cell, &i) in l.split(',').skip(1).zip(&index) {
+            let Ok(v) = cell.trim().parse::<f64>() else {
+                continue; // the parse refused it already
+            };
+            let j = &config.joints[i];
+            let fault = match interface {
+                Interface::Velocity => {
+                    let most = j.max_velocity.to_degrees();
+                    if v.abs() > most {
+                        Some(format!("-{most:.3}..={most:.3} deg/s (its max_velocity)"))
+                    } else {
+                        j.wheel_speeds
+                            .as_ref()
+                            .filter(|w| w.level(v.to_radians()).is_none())
+                            .map(|w| {
+                                let top = w.top().to_degrees();
+                                format!("-{top:.3}..={top:.3} deg/s (its top wheel level)")
+                            })
+                    }
+                }
+                _ => {
+                    let most = j.max_effort.unwrap_or(0.0);
+                    (v.abs() > most).then(|| format!("-{most}..={most} N·m (its max_effort)"))
+                }
+            };
+            if let Some(range) = fault {
+                return Err(bad(format!(
+                    "trajectory line {}: {} {v} {} is outside {range}",
+                    line + 1,
+                    j.name,
+                    match interface {
+                        Interface::Velocity => "deg/s",
+                        _ => "N·m",
+                    }
+                )));
+            }
+        }
+    }
+    Ok((traj, index))
+}
+
+/// One joint of the play: its device, limits and set-point.
+struct Joint {
+    name: String,
+    device: Device,
+    limits: (f64, f64),
+    /// rad/s² (velocity) or N·m/s (effort).
+    ramp: f64,
+    /// The set-point, rad/s or N·m.
+    set: f64,
+    /// Where it last reported itself, rad.
+    at: f64,
+}
+
+enum Device {
+    Wck {
+        port: WckPort,
+        id: ServoId,
+        scale: WckScale,
+        wheel: WheelSpeeds,
+    },
+    Whj {
+        port: WhjPort,
+        id: JointId,
+        map: JointMap,
+        current: CurrentScale,
+        effort: Option<EffortScale>,
+    },
+}
+
+impl Joint {
+    /// Sends `value` (rad/s or N·m, after the limits) in `interface`; what it reported
+    /// (rad) and what was sent at the device's resolution.
+    fn send(&mut self, interface: Interface, value: f64) -> Result<f64, OpError> {
+        let sign = |reversed: bool| if reversed { -1.0 } else { 1.0 };
+        match &self.device {
+            Device::Wck {
+                port,
+                id,
+                scale,
+                wheel,
+            } => {
+                let (level, speed) = wheel.level(value).unwrap_or((0, 0.0));
+                let device = speed * sign(scale.map.reversed);
+                let rotation = if device < 0.0 {
+                    Rotation::Cw
+                } else {
+                    Rotation::Ccw
+                };
+                let level = WheelSpeed::new(level).unwrap_or(WheelSpeed::MIN);
+                let st = port.lock().servo(*id).wheel(rotation, level)?;
+                self.at = scale.to_rad(st.position);
+                Ok(speed)
+            }
+            Device::Whj {
+                port,
+                id,
+                map,
+                current,
+                effort,
+            } => {
+                let joint = port.bus().joint_unchecked(*id);
+                let (fb, sent) = match interface {
+                    Interface::Velocity => {
+                        let rpm = value * sign(map.reversed) * 60.0 / TAU;
+                        let target = TargetSpeed::from_rpm(rpm)
+                            .map_err(|e| OpError::invalid("trajectory", value, e.to_string()))?;
+                        let sent = target.rpm() * TAU / 60.0 * sign(map.reversed);
+                        (joint.command_speed(target)?, sent)
+                    }
+                    _ => {
+                        let k = effort.map_or(1.0, |e| e.nm_per_a);
+                        let ma = value / k * 1e3 * sign(map.reversed);
+                        let counts = Current::from_milliamps(ma, *current)
+                            .map_err(|e| OpError::invalid("trajectory", value, e.to_string()))?;
+                        #[allow(clippy::cast_precision_loss)] // mA of a joint
+                        let sent_ma = counts.milliamps(*current) as f64;
+                        (
+                            joint.command_current(sent_ma)?,
+                            sent_ma / 1e3 * k * sign(map.reversed),
+                        )
+                    }
+                };
+                self.at = map.to_joint(fb.position.degrees().to_radians());
+                Ok(sent)
+            }
+        }
+    }
+
+    /// The set-point for `target` after `dt_s`: ramped, and for a WHJ joint kept from
+    /// running past a soft limit (see the module docs).
+    fn step(&mut self, interface: Interface, target: f64, dt_s: f64, accel: f64) -> f64 {
+        let step = self.ramp * dt_s;
+        let mut set = if (target - self.set).abs() <= step {
+            target
+        } else {
+            self.set + step.copysign(target - self.set)
+        };
+        if matches!(self.device, Device::Whj { .. }) {
+            let (lo, hi) = self.limits;
+            let room = if set > 0.0 {
+                hi - self.at
+            } else {
+                self.at - lo
+            };
+            let room = (room - self.set.abs() * dt_s).max(0.0);
+            set = match interface {
+                Interface::Velocity => {
+                    let stop = (2.0 * accel * room).sqrt();
+                    set.clamp(-stop, stop)
+                }
+                _ if room <= 0.0 => 0.0,
+                _ => set,
+            };
+        }
+        self.set = set;
+        set
+    }
+}
+
+/// `robot.play` of velocities or efforts (see the [module docs](self)).
+#[allow(clippy::too_many_lines)] // the checks, the switch, the ticks, the end
+pub(super) fn run(
+    station: &Station,
+    r: &super::Play,
+    control: &mut Control<'_>,
+) -> Result<PlayedRun, OpError> {
+    let (interface, text) = header(&r.trajectory)?;
+    let config = station
+        .robot()
+        .cloned()
+        .ok_or_else(super::super::no_robot)?;
+    let (traj, index) = check(&text, interface, &config)?;
+    let clock = BusClock::of(station, &super::super::only(&config, traj.joints()))?;
+    let from = super::super::ready_at(station, &config, traj.joints(), "a trajectory")?;
+    let mut joints = Vec::with_capacity(index.len());
+    for (&i, &start) in index.iter().zip(&from) {
+        let j = &config.joints[i];
+        let device = if config.is_wck(j) {
+            Device::Wck {
+                port: station.wck(Some(&j.bus))?,
+                id: ServoId::new(j.id).map_err(|e| OpError::invalid("id", j.id, e.to_string()))?,
+                scale: j.wck_scale(),
+                wheel: j
+                    .wheel_speeds
+                    .clone()
+                    .unwrap_or_else(|| WheelSpeeds::linear(1.0)),
+            }
+        } else {
+            let port = station.whj(Some(&j.bus))?;
+            let id = JointId::new(j.id).map_err(|e| OpError::invalid("id", j.id, e.to_string()))?;
+            let identity = port.bus().joint_unchecked(id).identity()?;
+            let effort = EffortScale::of(identity.model, identity.reduction_ratio);
+            if interface == Interface::Effort && effort.is_none() {
+                return Err(OpError::Refused(format!(
+                    "{}: its model {} (reduction ratio {}) has no torque constant in the models \
+                     table; nothing was moved",
+                    j.name, identity.model, identity.reduction_ratio
+                )));
+            }
+            Device::Whj {
+                port,
+                id,
+                map: j.map(),
+                current: identity.current_scale(),
+                effort,
+            }
+        };
+        joints.push(Joint {
+            name: j.name.clone(),
+            device,
+            limits: (j.limits[0], j.limits[1]),
+            ramp: match interface {
+                Interface::Velocity => j.max_acceleration,
+                _ => j.effort_rate(),
+            },
+            set: 0.0,
+            at: start.to_radians(),
+        });
+    }
+    let accels: Vec<f64> = index
+        .iter()
+        .map(|&i| config.joints[i].max_acceleration)
+        .collect();
+    let mut rows: Vec<Played> = from.iter().map(|&s| Played::new(s)).collect();
+    // Switched at rest: a WHJ joint's mode (the joint takes zero targets, §6.2), then zero.
+    let switched: Result<(), OpError> = joints.iter_mut().try_for_each(|j| {
+        if let Device::Whj { port, id, .. } = &j.device {
+            port.bus().joint_unchecked(*id).set_mode(match interface {
+                Interface::Velocity => WorkMode::Speed,
+                _ => WorkMode::Current,
+            })?;
+        }
+        j.send(interface, 0.0).map(drop)
+    });
+    let period = Duration::from_secs_f64(1.0 / r.rate_hz);
+    let period_s = period.as_secs_f64();
+    let total = traj.duration_s();
+    let start = clock.now();
+    let (mut ticks, mut overruns, mut late, mut interrupted) = (0_u64, 0_u64, Vec::new(), false);
+    let mut k: u64 = 0;
+    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // ≤ 3600 s × 500 Hz
+    let last = (total / period_s).ceil() as u64;
+    let ran = switched.and_then(|()| {
+        while k <= last {
+            let due = start + period * u32::try_from(k).unwrap_or(u32::MAX);
+            if !control.sleep_with(due, |until| {
+                if let Some(t) = until {
+                    clock.sleep_until(t);
+                }
+                clock.now()
+            }) {
+                interrupted = true;
+                break;
+            }
+            let t_s = (due - start).as_secs_f64().min(total);
+            let values = traj.at(t_s);
+            if late.len() < super::MAX_TIMED_TICKS {
+                late.push(clock.now().saturating_duration_since(due));
+            }
+            for (c, (j, row)) in joints.iter_mut().zip(rows.iter_mut()).enumerate() {
+                let target = values.get(c).copied().unwrap_or(0.0);
+                let target = match interface {
+                    Interface::Velocity => target.to_radians(),
+                    _ => target,
+                };
+                let accel = accels.get(c).copied().unwrap_or(0.0);
+                let set = j.step(interface, target, period_s, accel);
+                if (set - target).abs() > 1e-9 {
+                    row.limited += 1;
+                }
+                match j.send(interface, set) {
+                    Ok(sent) => {
+                        row.commands += 1;
+                        row.position_deg = Some(j.at.to_degrees());
+                        match interface {
+                            Interface::Velocity => row.sent_deg_s = Some(sent.to_degrees()),
+                            _ => row.sent_nm = Some(sent),
+                        }
+                    }
+                    Err(e) => {
+                        row.failed += 1;
+                        row.last_error = Some(Failure::from(&e));
+                    }
+                }
+            }
+            ticks += 1;
+            control.report(&Progress::new("play", k + 1, Some(last + 1)));
+            let now = clock.now().saturating_duration_since(start);
+            #[allow(clippy::cast_possible_truncation)] // ticks of at most an hour
+            let behind = (now.as_nanos() / period.as_nanos().max(1)) as u64;
+            if behind > k + 1 {
+                overruns += behind - k - 1;
+                k = behind;
+            } else {
+                k += 1;
+            }
+        }
+        Ok(())
+    });
+    // Finished, stopped or failed: zero, back to position mode, then the safe state.
+    for j in &mut joints {
+        j.set = 0.0;
+        if let Err(e) = j.send(interface, 0.0) {
+            tracing::warn!(joint = %j.name, "could not send the zero target: {e}");
+        }
+        if let Device::Whj { port, id, .. } = &j.device
+            && let Err(e) = port.bus().joint_unchecked(*id).set_mode(WorkMode::Position)
+        {
+            tracing::warn!(joint = %j.name, "could not go back to position mode: {e}");
+        }
+    }
+    let settled = super::super::settle(station, &config, traj.joints());
+    ran.inspect_err(|_| settled.log())?;
+    let names = traj.joints();
+    Ok(PlayedRun {
+        joints: settled.fail_rows(
+            names
+                .iter()
+                .zip(rows)
+                .map(|(n, row)| row.result(n))
+                .collect(),
+        ),
+        summary: PlaySummary {
+            lead_in_s: 0.0,
+            duration_s: total,
+            ticks,
+            overruns,
+            buses: clock.buses().map(|b| b.name().to_owned()).collect(),
+            skew_ms: Spread::of(&[]),
+            late_ms: Spread::of(&late),
+            interrupted,
+            safe_state: settled.buses,
+            protection: Vec::new(),
+        },
+    })
+}
+
+#[cfg(all(test, feature = "sim"))]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+
+    use serde_json::{Value, json};
+
+    use crate::catalogue::{Request, run};
+    use crate::ops::{Control, ErrorKind};
+    use crate::robot::RobotConfig;
+    use crate::station::Station;
+
+    /// What the simulated wCK-1108's wheel levels turn it at (see `tests/robot_velocity.rs`).
+    fn wheel_speeds() -> Vec<f64> {
+        (1..=15)
+            .map(|k| 400_f64.to_radians() * (f64::from(k) / 15.0 - 0.03))
+            .collect()
+    }
+
+    /// The built-in simulated station with a robot file of a wheel `s0`, a WHJ joint `j1`
+    /// with velocity and effort, and `j2` with position alone; its WHJ joints enabled.
+    fn station() -> (
+        Station,
+        robobus_sim::wck::SimHandle,
+        robobus_sim::whj::WhjSimHandle,
+    ) {
+        let (mut station, wck, whj) = Station::simulated_with_handles().unwrap();
+        let file = format!(
+            r#"
+            [buses.sim-wck]
+            kind = "wck-external"
+            [buses.sim-whj]
+            kind = "whj-external"
+            [[joints]]
+            name = "s0"
+            bus = "sim-wck"
+            id = 0
+            limits = [-2.0, 2.0]
+            max_velocity = 7.0
+            max_acceleration = 100.0
+            interfaces = ["position", "velocity"]
+            wheel_speeds = {:?}
+            [[joints]]
+            name = "j1"
+            bus = "sim-whj"
+            id = 1
+            limits = [-2.0, 2.0]
+            max_velocity = 2.0
+            max_acceleration = 20.0
+            interfaces = ["position", "velocity", "effort"]
+            max_effort = 5.0
+            [[joints]]
+            name = "j2"
+            bus = "sim-whj"
+            id = 2
+            limits = [-2.0, 2.0]
+            max_velocity = 2.0
+            max_acceleration = 20.0
+            "#,
+            wheel_speeds()
+        );
+        station
+            .set_robot(RobotConfig::from_toml_str(&file).unwrap())
+            .unwrap();
+        for r in [
+            json!({"op": "whj.mode", "joints": "1-2", "mode": "position"}),
+            json!({"op": "whj.enable", "joints": "1-2"}),
+        ] {
+            run(&station, &req(r), &mut Control::none()).unwrap();
+        }
+        (station, wck, whj)
+    }
+
+    fn req(v: Value) -> Request {
+        serde_json::from_value(v).unwrap()
+    }
+
+    fn play(station: &Station, csv: &str) -> Result<Value, crate::ops::OpError> {
+        let request = req(json!({"op": "robot.play", "trajectory": csv, "rate_hz": 50}));
+        run(station, &request, &mut Control::none()).map(|r| serde_json::to_value(r).unwrap())
+    }
+
+    fn wheel_angle(wck: &robobus_sim::wck::SimHandle) -> f64 {
+        wck.with_bus(|b| {
+            let s = b.servo(0).unwrap();
+            #[allow(clippy::cast_precision_loss)] // a few rotations
+            let turns = s.rotations() as f64;
+            turns * 360.0 + s.angle()
+        })
+    }
+
+    #[test]
+    fn a_csv_of_velocities_turns_a_wheel_and_a_whj_joint_at_its_speeds() {
+        let (station, wck, whj) = station();
+        let level_7 = wheel_speeds()[6].to_degrees();
+        let a0 = wheel_angle(&wck);
+        let v = play(
+            &station,
+            &format!("time_s,s0_deg_s,j1_deg_s\n0,{level_7},30\n1,{level_7},30\n"),
+        )
+        .unwrap();
+        assert_eq!(v["failed"], Value::Null, "{v:#}");
+        assert_eq!(v["summary"]["ticks"], 51, "{v:#}");
+        let rows = v["results"].as_array().unwrap();
+        // The wheel: its level-7 speed, sent as that level.
+        let s0 = rows[0]["sent_deg_s"].as_f64().unwrap();
+        assert!((s0 - level_7).abs() < 1e-9, "{v:#}");
+        // Up to speed within 31 ms at 100 rad/s², then 1 s: about 1 s of level 7.
+        let turned = wheel_angle(&wck) - a0;
+        assert!(
+            (turned - level_7).abs() < 0.04 * level_7,
+            "{turned}° for {level_7}°/s"
+        );
+        // The WHJ joint: 30°/s (0.002 RPM counts), 1 s less the ramp (26 ms at 20 rad/s²).
+        let j1 = rows[1]["sent_deg_s"].as_f64().unwrap();
+        assert!((j1 - 30.0).abs() < 0.012, "{v:#}");
+        let at = rows[1]["position_deg"].as_f64().unwrap();
+        assert!((at - 29.6).abs() < 1.0, "{v:#}");
+        assert_eq!(rows[1]["tracking_max_deg"], 0.0);
+        assert!(rows[0].get("sent_nm").is_none(), "{v:#}");
+        // Left in the safe state: the WHJ joint back in position mode, holding.
+        let s = whj.with_bus(|b| b.joint(1).unwrap().state());
+        // (still turning at 30°/s when the play ended: its position loop brakes it to
+        // the angle where the mode changed)
+        assert_eq!((s.mode, s.enabled, s.target_speed), (3, true, 0), "{s:?}");
+        assert!(
+            (f64::from(s.target_position) * 1e-4 - at).abs() < 1.0,
+            "{s:?}"
+        );
+        assert_eq!(
+            wck.with_bus(|b| b.servo(0).unwrap().mode()),
+            robobus_sim::wck::Mode::Passive
+        );
+    }
+
+    #[test]
+    fn a_csv_of_efforts_drives_a_whj_joint_in_current_mode() {
+        let (station, _wck, whj) = station();
+        let v = play(&station, "time_s,j1_nm\n0,1\n0.2,1\n").unwrap();
+        assert_eq!(v["failed"], Value::Null, "{v:#}");
+        let row = &v["results"][0];
+        // 1 N·m is 260 mA on the WHJ30 (3.846 N·m/A), sent in 1 mA counts.
+        let nm = row["sent_nm"].as_f64().unwrap();
+        assert!((nm - 0.26 * 30.0 / 7.8).abs() < 1e-9, "{v:#}");
+        assert!(
+            row["position_deg"].as_f64().unwrap() > 0.5,
+            "it turned: {v:#}"
+        );
+        let s = whj.with_bus(|b| b.joint(1).unwrap().state());
+        assert_eq!((s.mode, s.target_current), (3, 0), "{s:?}");
+    }
+
+    #[test]
+    fn a_joint_without_the_interface_or_a_value_past_its_limit_refuses_the_play() {
+        let (station, _wck, whj) = station();
+        let frames = || {
+            whj.with_bus(|b| {
+                b.joint(2).unwrap().frames_handled() + b.joint(1).unwrap().frames_handled()
+            })
+        };
+        let before = frames();
+        let err = play(&station, "time_s,j2_deg_s\n0,10\n1,10\n").unwrap_err();
+        assert_eq!(err.kind(), ErrorKind::BadInput);
+        assert!(
+            err.to_string().contains(
+                "j2 has no velocity interface in the robot file (its interfaces: position)"
+            ),
+            "{err}"
+        );
+        let err = play(&station, "time_s,j1_deg_s\n0,10\n1,130\n").unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("trajectory line 3: j1 130 deg/s is outside -114.592..=114.592 deg/s (its max_velocity)"),
+            "{err}"
+        );
+        let err = play(&station, "time_s,j1_nm,s0_deg_s\n0,1,0\n").unwrap_err();
+        assert!(
+            err.to_string().contains("one interface for every column"),
+            "{err}"
+        );
+        let err = play(&station, "time_s,j1_nm\n0,6\n").unwrap_err();
+        assert!(
+            err.to_string().contains("-5..=5 N·m (its max_effort)"),
+            "{err}"
+        );
+        assert_eq!(frames(), before, "nothing sent");
+    }
+}
