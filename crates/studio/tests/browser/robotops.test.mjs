@@ -87,6 +87,16 @@ test("teleoperation drives the follower from its leader for its time, as robobus
   assert.ok(Number(cells[2]) > 0);
 });
 
+test("teleoperation takes at most 64 pairs, as robot.teleop does: a 65th is refused on the page", async () => {
+  const card = panel.getByRole("region", { name: "Teleoperation" });
+  const add = card.getByRole("button", { name: "Add a pair", exact: true });
+  const pairs = card.locator("table.pairs tbody tr");
+  while ((await pairs.count()) < 64) await add.click();
+  await add.click();
+  assert.equal(await pairs.count(), 64);
+  await page.getByText("At most 64 leader → follower pairs (robot.teleop's bound).").waitFor();
+});
+
 test("no console errors", () => {
   assert.deepEqual(errors, []);
 });

@@ -31,6 +31,9 @@ export default {
   },
 };
 
+/** The most leader → follower pairs a teleoperation takes (`robot.teleop`'s `map`). */
+const MAX_PAIRS = 64;
+
 function card(title, ...children) {
   return h("section", { class: "card", "aria-label": title }, h("h3", {}, title), ...children);
 }
@@ -141,6 +144,10 @@ function play(studio, trajectory) {
 function teleop(studio, names) {
   const rows = h("tbody", {});
   const addPair = (leader = "", follower = "") => {
+    if (rows.children.length >= MAX_PAIRS) {
+      studio.toast(`At most ${MAX_PAIRS} leader → follower pairs (robot.teleop's bound).`, "error");
+      return;
+    }
     const l = h("select", {}, names.map((n) => h("option", { value: n }, n)));
     const f = h("select", {}, names.map((n) => h("option", { value: n }, n)));
     const scale = h("input", { type: "number", class: "num", min: -10, max: 10, step: 0.1, value: 1 });
