@@ -289,6 +289,24 @@ fn read(s: &Shared, names: &[String]) -> Result<Vec<Option<f64>>, OpError> {
         .collect())
 }
 
+/// Where every one of `names` is now, degrees; or why not (one did not answer).
+fn read_all(s: &Shared, names: &[String]) -> Result<Vec<f64>, String> {
+    let from = read(s, names).map_err(|e| format!("joint_trajectory: {e}"))?;
+    if let Some(all) = from.iter().copied().collect::<Option<Vec<f64>>>() {
+        return Ok(all);
+    }
+    let silent: Vec<&str> = names
+        .iter()
+        .zip(&from)
+        .filter(|(_, f)| f.is_none())
+        .map(|(n, _)| n.as_str())
+        .collect();
+    Err(format!(
+        "joint_trajectory: {} did not answer: nothing moved",
+        silent.join(", ")
+    ))
+}
+
 /// Takes up one message: refused whole (published, counted), or started in place of the
 /// one playing. A stamp in the future is waited for (a newer message meanwhile replaces
 /// this one, counted superseded).
@@ -327,25 +345,9 @@ pub(crate) fn take_up(s: &Arc<Shared>, sink: &Arc<dyn Sink>, payload: &[u8]) {
     let late_s = (-checked.start_in_s(unix_now_s())).max(0.0);
     // Where the joints are (the one playing still moves them: it stops only once this one
     // is found to fit).
-    let from = match read(s, &checked.joints) {
+    let from = match read_all(s, &checked.joints) {
         Ok(f) => f,
-        Err(e) => return refuse(result_code::INVALID_GOAL, format!("joint_trajectory: {e}")),
-    };
-    let Some(from): Option<Vec<f64>> = from.iter().copied().collect() else {
-        let silent: Vec<&str> = checked
-            .joints
-            .iter()
-            .zip(&from)
-            .filter(|(_, f)| f.is_none())
-            .map(|(n, _)| n.as_str())
-            .collect();
-        return refuse(
-            result_code::INVALID_GOAL,
-            format!(
-                "joint_trajectory: {} did not answer: nothing moved",
-                silent.join(", ")
-            ),
-        );
+        Err(why) => return refuse(result_code::INVALID_GOAL, why),
     };
     let planned = match ros::plan(&checked, &config, &from, late_s) {
         Ok(p) => p,

@@ -127,7 +127,7 @@ pub struct JointTrajectory {
 }
 
 /// `control_msgs/msg/JointTrajectoryControllerState` as `ros2_controllers`'
-/// `joint_trajectory_controller` publishes it since control_msgs 5 (ROS 2 Jazzy): the
+/// `joint_trajectory_controller` publishes it since `control_msgs` 5 (ROS 2 Jazzy): the
 /// header, the joints, then `reference`, `feedback`, `error` and `output` points; its
 /// multi-DOF fields are written empty.
 #[derive(Debug, Clone, Default, PartialEq)]

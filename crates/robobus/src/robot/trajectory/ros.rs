@@ -60,7 +60,7 @@ impl std::fmt::Display for Refused {
 
 impl std::error::Error for Refused {}
 
-fn invalid(message: String) -> Refused {
+fn invalid(message: impl std::fmt::Display) -> Refused {
     Refused {
         code: result_code::INVALID_GOAL,
         message: format!("joint_trajectory: {message}"),
@@ -75,9 +75,8 @@ pub struct Checked {
     pub joints: Vec<String>,
     /// Each joint's index in the robot file.
     pub index: Vec<usize>,
-    /// Each point: its time from the start (s), positions (degrees) and velocities
-    /// (degrees a second, where given).
-    points: Vec<(f64, Vec<f64>, Option<Vec<f64>>)>,
+    /// Each point.
+    points: Vec<Point>,
     /// The stamp's start, seconds since the epoch (`None`: when received).
     start_unix_s: Option<f64>,
 }
@@ -115,97 +114,14 @@ pub fn check(msg: &JointTrajectory, robot: &RobotConfig) -> Result<Checked, Refu
         index.push(i);
     }
     if msg.points.is_empty() {
-        return Err(invalid("no points: nothing to play".into()));
+        return Err(invalid("no points: nothing to play"));
     }
-    let n = names.len();
     let mut points = Vec::with_capacity(msg.points.len());
     let mut before: Option<f64> = None;
     for (k, p) in msg.points.iter().enumerate() {
-        let at = |what: &str| format!("point {k}: {what}");
-        if p.positions.len() != n {
-            return Err(invalid(at(&format!(
-                "{} positions for {n} joints",
-                p.positions.len()
-            ))));
-        }
-        for (what, v) in [
-            ("velocities", &p.velocities),
-            ("accelerations", &p.accelerations),
-        ] {
-            if !v.is_empty() && v.len() != n {
-                return Err(invalid(at(&format!(
-                    "{} {what} for {n} joints (give one per joint or none)",
-                    v.len()
-                ))));
-            }
-        }
-        if !p.effort.is_empty() {
-            return Err(invalid(at(
-                "efforts are given: the bridge plays positions (and velocities), not efforts",
-            )));
-        }
-        for (what, v) in [
-            ("position", &p.positions),
-            ("velocity", &p.velocities),
-            ("acceleration", &p.accelerations),
-        ] {
-            if let Some((j, x)) = v.iter().enumerate().find(|(_, x)| !x.is_finite()) {
-                return Err(invalid(at(&format!(
-                    "{}'s {what} {x} is not finite",
-                    names[j]
-                ))));
-            }
-        }
-        let d = p.time_from_start;
-        if d.sec < 0 || d.nanosec >= 1_000_000_000 {
-            return Err(invalid(at(&format!(
-                "time_from_start {} s {} ns: not a time from the start (sec >= 0, \
-                 nanosec < 1e9)",
-                d.sec, d.nanosec
-            ))));
-        }
-        let t = d.as_secs_f64();
-        if t > MAX_DURATION_S {
-            return Err(invalid(at(&format!(
-                "time_from_start {t} s: more than the {MAX_DURATION_S} s a trajectory may last"
-            ))));
-        }
-        if let Some(b) = before
-            && t <= b
-        {
-            return Err(invalid(at(&format!(
-                "time_from_start {t} s is not later than the point before ({b} s)"
-            ))));
-        }
-        before = Some(t);
-        let mut deg = Vec::with_capacity(n);
-        for (c, (&x, &i)) in p.positions.iter().zip(&index).enumerate() {
-            let j = &robot.joints[i];
-            let (lo, hi) = (j.limits[0].min(j.limits[1]), j.limits[0].max(j.limits[1]));
-            if x < lo - 1e-12 || x > hi + 1e-12 {
-                return Err(invalid(at(&format!(
-                    "{} = {x} rad is outside its soft limits {lo}..={hi} rad (the robot \
-                     file's limits)",
-                    names[c]
-                ))));
-            }
-            deg.push(x.to_degrees());
-        }
-        let vel = if p.velocities.is_empty() {
-            None
-        } else {
-            for (c, (&v, &i)) in p.velocities.iter().zip(&index).enumerate() {
-                let vmax = robot.joints[i].max_velocity;
-                if v.abs() > vmax * (1.0 + 1e-9) {
-                    return Err(invalid(at(&format!(
-                        "{}'s velocity {v} rad/s is faster than its max_velocity {vmax} rad/s",
-                        names[c]
-                    ))));
-                }
-            }
-            Some(p.velocities.iter().map(|v| v.to_degrees()).collect())
-        };
-        points.push((t, deg, vel));
+        let point = check_point(k, p, names, &index, robot, before)?;
+        before = Some(point.0);
+        points.push(point);
     }
     Ok(Checked {
         joints: names.clone(),
@@ -213,6 +129,108 @@ pub fn check(msg: &JointTrajectory, robot: &RobotConfig) -> Result<Checked, Refu
         points,
         start_unix_s: msg.stamp.as_unix_s(),
     })
+}
+
+/// A point: its time from the start (s), positions (degrees) and velocities (degrees a
+/// second, where given).
+type Point = (f64, Vec<f64>, Option<Vec<f64>>);
+
+/// Checks point `k` (after one at `before` s), in the joints' order (`index` into the
+/// robot file).
+#[allow(clippy::many_single_char_names)] // a point's time and values by their usual letters
+fn check_point(
+    k: usize,
+    p: &crate::cdr::JointTrajectoryPoint,
+    names: &[String],
+    index: &[usize],
+    robot: &RobotConfig,
+    before: Option<f64>,
+) -> Result<Point, Refused> {
+    let n = names.len();
+    let at = |what: &str| format!("point {k}: {what}");
+    if p.positions.len() != n {
+        return Err(invalid(at(&format!(
+            "{} positions for {n} joints",
+            p.positions.len()
+        ))));
+    }
+    for (what, v) in [
+        ("velocities", &p.velocities),
+        ("accelerations", &p.accelerations),
+    ] {
+        if !v.is_empty() && v.len() != n {
+            return Err(invalid(at(&format!(
+                "{} {what} for {n} joints (give one per joint or none)",
+                v.len()
+            ))));
+        }
+    }
+    if !p.effort.is_empty() {
+        return Err(invalid(at(
+            "efforts are given: the bridge plays positions (and velocities), not efforts",
+        )));
+    }
+    for (what, v) in [
+        ("position", &p.positions),
+        ("velocity", &p.velocities),
+        ("acceleration", &p.accelerations),
+    ] {
+        if let Some((j, x)) = v.iter().enumerate().find(|(_, x)| !x.is_finite()) {
+            return Err(invalid(at(&format!(
+                "{}'s {what} {x} is not finite",
+                names[j]
+            ))));
+        }
+    }
+    let d = p.time_from_start;
+    if d.sec < 0 || d.nanosec >= 1_000_000_000 {
+        return Err(invalid(at(&format!(
+            "time_from_start {} s {} ns: not a time from the start (sec >= 0, \
+             nanosec < 1e9)",
+            d.sec, d.nanosec
+        ))));
+    }
+    let t = d.as_secs_f64();
+    if t > MAX_DURATION_S {
+        return Err(invalid(at(&format!(
+            "time_from_start {t} s: more than the {MAX_DURATION_S} s a trajectory may last"
+        ))));
+    }
+    if let Some(b) = before
+        && t <= b
+    {
+        return Err(invalid(at(&format!(
+            "time_from_start {t} s is not later than the point before ({b} s)"
+        ))));
+    }
+    let mut deg = Vec::with_capacity(n);
+    for (c, (&x, &i)) in p.positions.iter().zip(index).enumerate() {
+        let j = &robot.joints[i];
+        let (lo, hi) = (j.limits[0].min(j.limits[1]), j.limits[0].max(j.limits[1]));
+        if x < lo - 1e-12 || x > hi + 1e-12 {
+            return Err(invalid(at(&format!(
+                "{} = {x} rad is outside its soft limits {lo}..={hi} rad (the robot \
+                 file's limits)",
+                names[c]
+            ))));
+        }
+        deg.push(x.to_degrees());
+    }
+    let vel = if p.velocities.is_empty() {
+        None
+    } else {
+        for (c, (&v, &i)) in p.velocities.iter().zip(index).enumerate() {
+            let vmax = robot.joints[i].max_velocity;
+            if v.abs() > vmax * (1.0 + 1e-9) {
+                return Err(invalid(at(&format!(
+                    "{}'s velocity {v} rad/s is faster than its max_velocity {vmax} rad/s",
+                    names[c]
+                ))));
+            }
+        }
+        Some(p.velocities.iter().map(|v| v.to_degrees()).collect())
+    };
+    Ok((t, deg, vel))
 }
 
 impl Checked {
@@ -286,6 +304,64 @@ fn hermite(t: f64, (t0, p0, v0): (f64, f64, f64), (t1, p1, v1): (f64, f64, f64))
         + (s3 - s2) * h * v1
 }
 
+/// A knot of the motion: its time from the start (s), positions and velocities (degrees,
+/// degrees a second; where given).
+type Knot<'a> = (f64, &'a [f64], Option<Vec<f64>>);
+
+/// The trajectory file of `rows` (time, joint degrees) of `joints`.
+fn csv_of(joints: &[String], rows: &[(f64, Vec<f64>)]) -> String {
+    use std::fmt::Write as _;
+    let mut csv = String::from("time_s");
+    for j in joints {
+        csv.push(',');
+        csv.push_str(j);
+    }
+    csv.push('\n');
+    for (t, p) in rows {
+        let _ = write!(csv, "{t}");
+        for x in p {
+            let _ = write!(csv, ",{x}");
+        }
+        csv.push('\n');
+    }
+    csv
+}
+
+/// Checks the first stretch, from `from_deg` to `first_deg` (point `skipped`) in
+/// `t_first` seconds, against each joint's `max_velocity`.
+fn check_first_stretch(
+    checked: &Checked,
+    robot: &RobotConfig,
+    from_deg: &[f64],
+    first_deg: &[f64],
+    t_first: f64,
+    skipped: usize,
+) -> Result<(), Refused> {
+    for (c, (&a, &b)) in from_deg.iter().zip(first_deg).enumerate() {
+        let j = &robot.joints[checked.index[c]];
+        let d = (b - a).abs();
+        let vmax = j.max_velocity.to_degrees();
+        let at_once = t_first <= 1e-9;
+        if at_once && d > AT_ONCE_DEG {
+            return Err(invalid(format!(
+                "point {skipped}: due at once, and {} is {d:.3}° from it (at {a:.3}°): more \
+                 than the {AT_ONCE_DEG}° a point due at once may be",
+                checked.joints[c]
+            )));
+        }
+        if !at_once && d > vmax * t_first * (1.0 + 1e-9) {
+            return Err(invalid(format!(
+                "point {skipped}: {} is at {a:.3}° and would move {d:.3}° in {t_first:.3} s \
+                 ({:.1}°/s), faster than its max_velocity {vmax:.1}°/s ({} rad/s)",
+                checked.joints[c],
+                d / t_first.max(1e-9),
+                j.max_velocity
+            )));
+        }
+    }
+    Ok(())
+}
+
 /// Plans `checked` to start now: `late_s` seconds after its stamp's start (0 for a zero
 /// stamp or a start reached by waiting), from `from_deg` (where each of its joints is,
 /// degrees, in its order; held still). The points already due are skipped, and the
@@ -325,32 +401,10 @@ pub fn plan(
             ),
         });
     };
-    // The first stretch, from where the joints are.
     let t_first = first.0 - late_s;
-    for (c, (&a, &b)) in from_deg.iter().zip(&first.1).enumerate() {
-        let j = &robot.joints[checked.index[c]];
-        let d = (b - a).abs();
-        let vmax = j.max_velocity.to_degrees();
-        let at_once = t_first <= 1e-9;
-        if at_once && d > AT_ONCE_DEG {
-            return Err(invalid(format!(
-                "point {skipped}: due at once, and {} is {d:.3}° from it (at {a:.3}°): more \
-                 than the {AT_ONCE_DEG}° a point due at once may be",
-                checked.joints[c]
-            )));
-        }
-        if !at_once && d > vmax * t_first * (1.0 + 1e-9) {
-            return Err(invalid(format!(
-                "point {skipped}: {} is at {a:.3}° and would move {d:.3}° in {t_first:.3} s \
-                 ({:.1}°/s), faster than its max_velocity {vmax:.1}°/s ({} rad/s)",
-                checked.joints[c],
-                d / t_first.max(1e-9),
-                j.max_velocity
-            )));
-        }
-    }
+    check_first_stretch(checked, robot, from_deg, &first.1, t_first, skipped)?;
     // Knots: (time from now, positions, velocities); the joints start still.
-    let mut knots: Vec<(f64, &[f64], Option<Vec<f64>>)> = Vec::with_capacity(rest.len() + 1);
+    let mut knots: Vec<Knot<'_>> = Vec::with_capacity(rest.len() + 1);
     let still = vec![0.0; n];
     if t_first > 1e-9 {
         knots.push((0.0, from_deg, Some(still)));
@@ -379,19 +433,7 @@ pub fn plan(
         }
         rows.push((*t, p.to_vec()));
     }
-    let mut csv = String::from("time_s");
-    for j in &checked.joints {
-        csv.push(',');
-        csv.push_str(j);
-    }
-    csv.push('\n');
-    for (t, p) in &rows {
-        csv.push_str(&format!("{t}"));
-        for x in p {
-            csv.push_str(&format!(",{x}"));
-        }
-        csv.push('\n');
-    }
+    let csv = csv_of(&checked.joints, &rows);
     let trajectory = Trajectory::parse(&csv).map_err(|e| invalid(e.0))?;
     // Between the points: the spline's own limits and speeds (the points' are checked).
     trajectory.check(robot).map_err(|e| {
