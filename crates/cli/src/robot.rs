@@ -313,13 +313,29 @@ fn play(g: Global, command: &RobotCommand) -> anyhow::Result<()> {
         rate_hz: *rate_hz,
         torque: *torque,
     });
-    let parsed = request_trajectory(&request)?;
+    let mut parsed = request_trajectory(&request)?;
     // The file's joints, limits and speeds are checked before anything opens.
     let config = RobotConfig::from_toml_str(&read_bounded(robot, 1 << 20)?)
         .map_err(|e| crate::exit::usage(format!("--robot {}: {e}", robot.display())))?;
-    parsed
-        .check(&config)
-        .map_err(|e| crate::exit::usage(format!("{}: {e}", trajectory.display())))?;
+    let Request::RobotPlay(play) = &request else {
+        return Ok(());
+    };
+    if play.interface()? == robobus::robot::Interface::Position {
+        parsed
+            .check(&config)
+            .map_err(|e| crate::exit::usage(format!("{}: {e}", trajectory.display())))?;
+    } else {
+        // Velocities or efforts, as the header names them.
+        parsed = play
+            .check_against(&config)
+            .map_err(|e| crate::exit::usage(format!("{}: {e}", trajectory.display())))?;
+        if record.is_some() {
+            return Err(crate::exit::usage(
+                "--record records a play of positions; a play of velocities or efforts \
+                 gives its front end no ticks",
+            ));
+        }
+    }
     if g.dry_run {
         return print_plan(g, &request);
     }
