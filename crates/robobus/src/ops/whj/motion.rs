@@ -457,6 +457,36 @@ pub fn wave_targets(args: &WaveArgs) -> Vec<f64> {
         .collect()
 }
 
+/// The set-points a wave's step limiter changed from the request, counted as
+/// [`execute_wave`] counts `clamped`, and the largest change.
+#[derive(Debug, Default, Clone, Copy)]
+struct Clamps {
+    count: usize,
+    largest_deg: f64,
+}
+
+impl Clamps {
+    fn add(&mut self, sent_deg: f64, want_deg: f64) {
+        let by = (sent_deg - want_deg).abs();
+        if by > 1e-3 {
+            self.count += 1;
+            self.largest_deg = self.largest_deg.max(by);
+        }
+    }
+
+    /// The plan's note: how many of its `frames` set-points are clamped, by up to how much.
+    fn note(&self, frames: usize, from_deg: f64) -> Option<String> {
+        (self.count > 0).then(|| {
+            format!(
+                "{} of {frames} set-point(s) clamped, by up to {:.3} deg: the step limiter \
+                 changes them from what the wave asks (a run from {from_deg} deg counts them \
+                 as `clamped`)",
+                self.count, self.largest_deg
+            )
+        })
+    }
+}
+
 /// The step limiter of a position wave: the requested value itself whenever the step to it
 /// keeps within the limits (speed, and speed change per frame), so a wave the joint may
 /// follow is sent unchanged; otherwise the one motion limiter
@@ -526,9 +556,7 @@ pub fn plan_wave(
     let mut limiter = WaveLimiter::new(from_deg, max_speed, WAVE_LIMITS.max_accel_deg_s2);
     // Frames before the set-point first reaches the request (a lead-in from `from_deg`).
     let mut lead_in: Option<usize> = None;
-    // Set-points the limiter changed, counted as `execute_wave` counts `clamped`.
-    let mut clamped = 0usize;
-    let mut clamped_by = 0.0f64;
+    let mut clamps = Clamps::default();
     let mut plan = Plan::default();
     if args.servo == ServoLoop::Position {
         plan.reads.push(Request::StatusQuery { joint: args.joint });
@@ -551,11 +579,7 @@ pub fn plan_wave(
                     lead_in = Some(k);
                 }
                 let target = Position::from_degrees(v).map_err(bad)?;
-                let by = (target.degrees() - want).abs();
-                if by > 1e-3 {
-                    clamped += 1;
-                    clamped_by = clamped_by.max(by);
-                }
+                clamps.add(target.degrees(), want);
                 Request::PositionServo { joint, target }
             }
             ServoLoop::Speed => Request::SpeedServo {
@@ -595,14 +619,7 @@ pub fn plan_wave(
             String::new()
         }
     ));
-    if clamped > 0 {
-        plan.notes.push(format!(
-            "{clamped} of {} set-point(s) clamped, by up to {clamped_by:.3} deg: the step \
-             limiter changes them from what the wave asks (a run from {from_deg} deg counts \
-             them as `clamped`)",
-            plan.frames.len()
-        ));
-    }
+    plan.notes.extend(clamps.note(plan.frames.len(), from_deg));
     let first = wave_targets(args).first().copied().unwrap_or(from_deg);
     if args.servo == ServoLoop::Position && (first - from_deg).abs() > args.step_limit_deg {
         plan.notes.push(match lead_in {
