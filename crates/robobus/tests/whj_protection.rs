@@ -193,3 +193,30 @@ fn a_wave_within_every_limit_reports_no_protection_event() {
     let json = serde_json::to_value(&r).unwrap();
     assert!(json.get("protection").is_none(), "{json}");
 }
+
+/// In current mode the current is what the frames ask (a square wave's edges jump by
+/// design, here from 0 to 9 A, more than the WHJ30's 7.8 A collision jump): it is not
+/// taken for a collision, and the wave runs to its end (the output against a stop).
+#[test]
+fn a_square_current_wave_s_current_jumps_are_not_taken_for_a_collision() {
+    let (bus, sim) = joint();
+    let j = bus.joint(id(1)).unwrap();
+    j.disable().unwrap();
+    j.set_mode(WorkMode::Current).unwrap();
+    j.enable().unwrap();
+    sim.with_bus(|b| {
+        let joint = b.joint_mut(1).unwrap();
+        joint.set_obstacle(Some(Obstacle::above(5.0)));
+    });
+    let args = WaveArgs {
+        shape: Shape::Square,
+        servo: ServoLoop::Current,
+        amplitude: 4500.0,
+        offset: 4500.0,
+        frequency: 5.0,
+        ..sine(1.0)
+    };
+    let (_, r) = ops::run_wave(&j, &args, &mut Control::none(), SafeState::Hold).unwrap();
+    assert_eq!(r.cycles, 100, "{r:?}");
+    assert!(r.protection.is_empty(), "{:?}", r.protection);
+}

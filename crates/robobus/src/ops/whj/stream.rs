@@ -27,7 +27,8 @@
 //! - **the host's protection** ([`protect::Monitor`](crate::ops::protect::Monitor), the
 //!   one monitor of every moving operation, with its model's defaults
 //!   ([`Limits::whj`](crate::ops::protect::Limits::whj))): each feedback is a reading (its
-//!   position against the set-point sent before it, its current) and every
+//!   position against the set-point sent before it, and in position mode its current: in
+//!   speed and current mode the current follows the frames) and every
 //!   [`TEMPERATURE_EVERY`] a status query adds the temperature. A stall, a collision or
 //!   heat stops the run: the joint is disabled where its model's brake holds it
 //!   ([`torque_off_is_safe`](crate::ops::protect::torque_off_is_safe)), else left in the
@@ -353,6 +354,7 @@ impl Guard {
     fn feed(
         &mut self,
         j: &Joint<'_>,
+        watch: &Watch,
         fb: &ServoFeedback,
         before: Option<f64>,
         events: &mut Vec<Fault>,
@@ -374,7 +376,9 @@ impl Guard {
             position_deg: Some(position),
             error_deg: before.map(|b| (position - b).abs()),
             target_deg: before,
-            current_a: Some(current_a),
+            // In speed and current mode the current follows what the frames ask (a
+            // square wave's edges jump by design): only a position stream's is watched.
+            current_a: (watch.servo == ServoLoop::Position).then_some(current_a),
             temperature_c,
         };
         let mut stop = None;
@@ -530,7 +534,7 @@ pub(super) fn send_frames(
         last_heard = now;
         let when = format!("at frame {k} of {total}");
         check_feedback(j, watch, &fb, &when)?;
-        if let Some(fault) = guard.feed(j, &fb, before, events) {
+        if let Some(fault) = guard.feed(j, watch, &fb, before, events) {
             return Err(guard.stop(j, watch, &fault, sent));
         }
         follow.measured(fb.position.degrees());
