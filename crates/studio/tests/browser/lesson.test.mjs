@@ -1,7 +1,8 @@
 // A lesson without surprises: a silent device is flagged in the header whichever tab is
 // open (and the flag opens it in Device); robot poses by the robot file's joint names, any
 // set of them, wCK servos and WHJ joints together: recorded as robot.sample reads them,
-// gone to, and played in a loop. (The stop key stopping a running wave, and the header
+// gone to, and played in a loop, the Plot drawing their trajectory as the joints' target.
+// (The stop key stopping a running wave, and the header
 // staying on screen: arming.test.mjs.)
 
 import { test, before, after } from "node:test";
@@ -118,6 +119,22 @@ test("go to a pose moves the joints of both families there; the list plays in a 
   }, { what: "the joints back at pose 2, the last", timeout: 5000 });
   await screenshot(page, "poses-robot");
   await docShot(panel.locator("section", { has: page.locator("#robot-poses") }), "poses");
+
+  // The Plot draws the poses' trajectory as the joints' target, against what they read.
+  const plot = await openTab(page, "Plot");
+  await plot.getByRole("checkbox", { name: "Robot joint j2", exact: true }).check();
+  await plot.getByRole("checkbox", { name: "Joint 1 · j1" }).uncheck();
+  const [csvFile] = await Promise.all([page.waitForEvent("download"), plot.getByRole("button", { name: "Export CSV" }).click()]);
+  const csv = (await readFile(await csvFile.path(), "utf8")).trim().split("\n");
+  const cols = csv[0].split(",");
+  const ti = cols.indexOf("robot j2 position target (deg)");
+  const ai = cols.indexOf("robot j2 position actual (deg)");
+  assert.ok(ti > 0 && ai > 0, csv[0]);
+  const targets = csv.slice(1).map((r) => r.split(",")[ti]).filter((v) => v !== "").map(Number);
+  const actual = csv.slice(1).map((r) => r.split(",")[ai]).filter((v) => v !== "").map(Number);
+  assert.ok(targets.some((v) => Math.abs(v - 10) < 0.01) && targets.some((v) => Math.abs(v) < 0.5), `the target goes between the poses: ${Math.min(...targets)}..${Math.max(...targets)}`);
+  assert.ok(actual.length > 20 && Math.max(...actual) > 9 && Math.min(...actual) < 1, `j2 followed: ${Math.min(...actual)}..${Math.max(...actual)}`);
+  await screenshot(page, "plot-poses");
 });
 
 test("no console errors", () => {

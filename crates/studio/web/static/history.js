@@ -6,6 +6,10 @@
 //
 // Targets: every position target a page commanded (the server's `target` messages: jogs,
 // moves) and the signal a page asked of a wave, kept per device for the same time.
+//
+// Robot joints (the robot file's, by name, in its joint frame): while a `robot.play` of
+// this page runs (Poses, Robot), `robot.sample` is recorded into a ring per joint and the
+// trajectory's points are the joints' targets, from the tick its first point is due.
 
 /** Seconds of readings kept per device (the Plot shows at most 60 s). */
 export const KEEP_S = 65;
@@ -81,6 +85,12 @@ export class History {
     this.buses = new Map();
     this.listeners = new Set();
     this.unsubs = [];
+    /** The robot file's joints: {key, name, family, bus, id}; their rings exist from the start. */
+    this.robot = (studio.info?.robot ?? []).map((j) => ({ ...j, key: deviceKey("robot", "robot", j.name) }));
+    for (const j of this.robot) this.rings.set(j.key, new Ring(KEEP_S * MAX_RATE));
+    this.robotUntil = 0;
+    this.robotUnsub = null;
+    this.#watchRuns();
     studio.on("devices", () => this.restart());
     studio.on("target", (m) => {
       const v = m.family === "wck" ? Number(m.value) * WCK_DEG_PER_STEP : Number(m.value);
@@ -131,6 +141,7 @@ export class History {
       if (!this.rings.has(d.key)) this.rings.set(d.key, new Ring(KEEP_S * MAX_RATE));
     }
     for (const key of [...this.rings.keys()]) {
+      if (key.startsWith("robot|")) continue;
       if (!this.devices().some((d) => d.key === key)) {
         this.rings.delete(key);
         this.health.delete(key);
@@ -181,6 +192,97 @@ export class History {
       }
     }
     this.#changed({ family, bus });
+  }
+
+  /**
+   * Every `robot.play` any panel of this page runs (through `studio.runLong`): its joints
+   * recorded while it runs and its trajectory drawn as their targets.
+   */
+  #watchRuns() {
+    const studio = this.studio;
+    const runLong = studio.runLong.bind(studio);
+    studio.runLong = (request, onProgress) => {
+      const watch = request?.op === "robot.play" ? this.#watchPlay(request) : null;
+      const handle = runLong(request, watch ? (p) => (watch(p), onProgress?.(p)) : onProgress);
+      if (watch) {
+        const end = () => watch(null);
+        handle.promise.then(end, end);
+      }
+      return handle;
+    };
+  }
+
+  /** The progress handler of a robot.play: its trajectory as targets, its joints recorded. */
+  #watchPlay(request) {
+    const traj = parseTrajectory(request.trajectory);
+    if (!traj) return null;
+    const rate = Number(request.rate_hz ?? 50);
+    const duration = traj.rows[traj.rows.length - 1][0];
+    this.#recordRobot(true);
+    let start = null; // ms: the run's first tick
+    const segs = [];
+    return (p) => {
+      if (!p) {
+        for (const seg of segs) if (seg.t1 > Date.now()) seg.t1 = Date.now();
+        this.#recordRobot(false);
+        this.#changed({ target: true });
+        return;
+      }
+      if (p.done == null || !p.total) return;
+      // Tick k (done k + 1) went k periods after the first: the earliest estimate is the closest.
+      const s0 = Date.now() - ((p.done - 1) / rate) * 1000;
+      if (start !== null && s0 >= start) return;
+      start = s0;
+      // The trajectory's first point is due at its last tick less its duration (after the lead-in).
+      const t0 = start + ((p.total - 1) / rate - duration) * 1000;
+      if (!segs.length) {
+        traj.names.forEach((name, c) => {
+          const key = deviceKey("robot", "robot", name);
+          if (!this.rings.has(key)) return;
+          const seg = { t0, t1: t0 + duration * 1000, at: (t) => interpolate(traj.rows, c + 1, (t - seg.t0) / 1000) };
+          if (!this.waves.has(key)) this.waves.set(key, []);
+          const list = this.waves.get(key);
+          list.push(seg);
+          while (list.length > MAX_TARGETS) list.shift();
+          segs.push(seg);
+        });
+      } else {
+        for (const seg of segs) {
+          seg.t1 -= seg.t0 - t0;
+          seg.t0 = t0;
+        }
+      }
+      this.#changed({ target: true });
+    };
+  }
+
+  /** Record the robot's joints (robot.sample at 20 Hz) while plays run, and 1 s after the last. */
+  #recordRobot(on) {
+    if (on) {
+      this.robotRuns = (this.robotRuns ?? 0) + 1;
+      if (!this.robotUnsub) {
+        this.robotUnsub = this.studio.subscribe("history.robot", { op: "robot.sample" }, 20, 40, (s) => this.#onRobotSample(s));
+      }
+      return;
+    }
+    this.robotRuns = Math.max(0, (this.robotRuns ?? 1) - 1);
+    setTimeout(() => {
+      if (this.robotRuns === 0 && this.robotUnsub) {
+        this.robotUnsub();
+        this.robotUnsub = null;
+      }
+    }, 1000);
+  }
+
+  #onRobotSample(s) {
+    const t = s.unix_ms ?? Date.now();
+    for (const r of s.report?.results ?? []) {
+      const ring = this.rings.get(deviceKey("robot", "robot", r.id));
+      if (!ring) continue;
+      if (r.kind) ring.push(t, null, null, null);
+      else ring.push(t, r.position_deg, r.speed_deg_s == null ? null : r.speed_deg_s / 6, r.current_ma);
+    }
+    this.#changed({ robot: true });
   }
 
   /** A commanded position target (deg) of a device at `t` (ms). A request without a bus commands the family's only bus. */
@@ -295,4 +397,29 @@ export class History {
     }
     return { devices, buses };
   }
+}
+
+/** A trajectory file's text (`time_s`, then a column per joint): {names, rows: [[t, v...]]}, or null. */
+function parseTrajectory(text) {
+  if (typeof text !== "string") return null;
+  const lines = text.split(/\r?\n/).map((l) => l.trim()).filter((l) => l && !l.startsWith("#"));
+  if (lines.length < 2) return null;
+  const head = lines[0].split(",").map((c) => c.trim());
+  if (head[0] !== "time_s") return null;
+  const rows = lines.slice(1, 100_001).map((l) => l.split(",").map(Number));
+  if (rows.some((r) => r.length !== head.length || r.some((v) => !Number.isFinite(v)))) return null;
+  return { names: head.slice(1), rows };
+}
+
+/** Column `c` of the trajectory's rows at `t` seconds, linearly between its points. */
+function interpolate(rows, c, t) {
+  if (t <= rows[0][0]) return rows[0][c];
+  for (let i = 1; i < rows.length; i++) {
+    if (t <= rows[i][0]) {
+      const [a, b] = [rows[i - 1], rows[i]];
+      const f = b[0] === a[0] ? 1 : (t - a[0]) / (b[0] - a[0]);
+      return a[c] + f * (b[c] - a[c]);
+    }
+  }
+  return rows[rows.length - 1][c];
 }

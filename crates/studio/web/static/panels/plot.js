@@ -104,6 +104,8 @@ class PlotPanel {
     const all = [
       ...this.studio.ids("whj").map((d) => ({ family: "whj", ...d })),
       ...this.studio.ids("wck").map((d) => ({ family: "wck", ...d })),
+      // The robot file's joints, in its joint frame: recorded while a robot.play runs.
+      ...this.history.robot.map((j) => ({ family: "robot", bus: "robot", id: j.name, joint: j.family })),
     ];
     const multi = { wck: this.studio.buses("wck").length > 1, whj: this.studio.buses("whj").length > 1 };
     all.forEach((d, i) => {
@@ -111,7 +113,10 @@ class PlotPanel {
       const box = el("input", { type: "checkbox", value, id: `plot-dev-${i}` });
       box.checked = first ? i === 0 : checked.has(value);
       box.addEventListener("change", () => this.restart());
-      const text = `${deviceLabel(d.family, d)}${multi[d.family] ? ` (${d.bus})` : ""}`;
+      const text = d.family === "robot" ? `Robot joint ${d.id}` : `${deviceLabel(d.family, d)}${multi[d.family] ? ` (${d.bus})` : ""}`;
+      if (d.family === "robot" && !this.pick.querySelector(".robot-note")) {
+        this.pick.append(el("p", { className: "hint robot-note" }, "Robot joints, by name in the robot file's joint frame: recorded while a pose or trajectory (robot.play) of this page runs, with its points as their target."));
+      }
       this.pick.append(el("span", { className: "check" }, [box, el("label", { htmlFor: box.id }, text)]));
     });
     if (!all.length) this.pick.append(el("p", { className: "hint" }, "No devices known: scan a bus first."));
@@ -121,10 +126,11 @@ class PlotPanel {
   chosen() {
     return [...this.pick.querySelectorAll("input:checked")].map((i, n) => {
       const [family, bus, id] = i.value.split("|");
-      const d = { family, bus, id: Number(id) };
+      const d = { family, bus, id: family === "robot" ? id : Number(id) };
       d.key = i.value;
       d.color = COLORS[n % COLORS.length];
-      d.label = `${family === "wck" ? "servo" : "joint"} ${id}`;
+      d.label = family === "robot" ? `robot ${id}` : `${family === "wck" ? "servo" : "joint"} ${id}`;
+      d.current = family === "whj" || (family === "robot" && this.history.robot.find((j) => j.name === id)?.family === "whj");
       return d;
     });
   }
@@ -190,7 +196,7 @@ class PlotPanel {
     this.collect();
     const width = this.width();
     for (const spec of CHARTS) {
-      const devs = spec.id === "current" ? this.devices.filter((d) => d.family === "whj") : this.devices;
+      const devs = spec.id === "current" ? this.devices.filter((d) => d.current) : this.devices;
       const keys = [];
       const series = [{ label: "time" }];
       for (const d of devs) {
@@ -327,7 +333,7 @@ class PlotPanel {
     const cols = [];
     for (const d of this.devices) {
       cols.push([`${d.key}|pos`, `${d.label} position actual (deg)`], [`${d.key}|target`, `${d.label} position target (deg)`], [`${d.key}|speed`, `${d.label} speed (rpm)`]);
-      if (d.family === "whj") cols.push([`${d.key}|current`, `${d.label} current (mA)`]);
+      if (d.current) cols.push([`${d.key}|current`, `${d.label} current (mA)`]);
     }
     const q = (s) => (/[",\n]/.test(s) ? `"${s.replaceAll('"', '""')}"` : s);
     const lines = [["unix_ms", ...cols.map(([, h]) => h)].map(q).join(",")];
