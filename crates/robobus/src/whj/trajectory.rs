@@ -65,6 +65,10 @@ impl MotionLimits {
     }
 }
 
+/// How many points [`Profile::plan_checked`] computes between two calls of its check
+/// (a few milliseconds of planning at most).
+pub(crate) const PLAN_CHECK_EVERY: usize = 4096;
+
 /// An online speed / acceleration-limited profile in degrees: the one motion limiter,
 /// [`motion::Limiter`], with a move's [`MotionLimits`].
 ///
@@ -117,16 +121,38 @@ impl Profile {
         limits: MotionLimits,
         max_points: usize,
     ) -> Option<Vec<f64>> {
+        Self::plan_checked(from_deg, to_deg, limits, max_points, || {
+            Ok::<(), std::convert::Infallible>(())
+        })
+        .unwrap_or_else(|never| match never {})
+    }
+
+    /// [`Profile::plan`], calling `check` before every 4096th point (the first one too):
+    /// its error ends the planning (a run stopped while its long move was being planned).
+    ///
+    /// # Errors
+    ///
+    /// The first error `check` returns.
+    pub fn plan_checked<E>(
+        from_deg: f64,
+        to_deg: f64,
+        limits: MotionLimits,
+        max_points: usize,
+        mut check: impl FnMut() -> Result<(), E>,
+    ) -> Result<Option<Vec<f64>>, E> {
         let dt = limits.period.as_secs_f64();
         let mut p = Self::new(from_deg, limits);
         let mut points = Vec::new();
         loop {
             if points.len() >= max_points {
-                return None;
+                return Ok(None);
+            }
+            if points.len() % PLAN_CHECK_EVERY == 0 {
+                check()?;
             }
             points.push(p.step(to_deg, dt));
             if p.at_rest(to_deg) {
-                return Some(points);
+                return Ok(Some(points));
             }
         }
     }

@@ -124,10 +124,11 @@ impl Operation for Move {
     }
 
     fn run(&self, cx: &mut RunCx<'_, '_>) -> Result<Report<Self::Row, ()>, OpError> {
-        let (args, _) = self.steps()?;
+        // Planned from the measured position only, the run's stop looked at while it is.
+        let (args, _) = self.args()?;
         let port = cx.station.whj(self.bus())?;
         let j = port.bus().joint(args.joint)?;
-        let plan = ops::prepare_move(&j, &args)?;
+        let plan = ops::prepare_move_stoppable(&j, &args, cx.control, self.on_stop.into())?;
         let flight = if preflight::wanted(self.preflight.asked(), preflight::plan_length(&plan)) {
             let seed = preflight::seed_whj(&j)?;
             Some(preflight::whj_move(&seed, &args, &plan, cx.control)?)

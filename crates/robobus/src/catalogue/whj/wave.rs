@@ -247,13 +247,14 @@ impl Operation for Wave {
     }
 
     fn run(&self, cx: &mut RunCx<'_, '_>) -> Result<Report<WaveRow, WaveReport>, OpError> {
-        let (args, _) = self.steps(false)?;
+        // Planned from the measured position only, the run's stop looked at while it is.
+        let args = self.args()?;
         let port = cx.station.whj(self.bus())?;
         let j = port.bus().joint(args.joint)?;
         let plan = if self.broadcast {
             ops::prepare_broadcast_wave(&j, &args)?
         } else {
-            ops::prepare_wave(&j, &args)?
+            ops::prepare_wave_stoppable(&j, &args, cx.control, self.on_stop.into())?
         };
         let flight = if preflight::wanted(self.preflight.asked(), preflight::plan_length(&plan)) {
             let seed = preflight::seed_whj(&j)?;

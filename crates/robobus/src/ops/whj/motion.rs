@@ -10,7 +10,7 @@ use serde::Serialize;
 use crate::motion::{Limiter, Tracking};
 use crate::ops::preflight::PreflightReport;
 use crate::ops::protect::Fault;
-use crate::ops::{Bound, Control, OpError, SafeState};
+use crate::ops::{Bound, Control, OpError, SafeState, StopToken};
 use crate::whj::{Joint, MotionLimits, Percentiles, Profile, WhjError};
 
 use super::{
@@ -106,20 +106,63 @@ pub const MAX_MOVE_FRAMES: usize = 360_000;
 /// last one exactly on the target. `assumed` says whether `from_deg` was assumed (dry run)
 /// rather than measured.
 pub fn plan_move(args: &MoveArgs, from_deg: f64, assumed: bool) -> Result<Plan, OpError> {
+    plan_move_checked(args, from_deg, assumed, &StopToken::new())
+}
+
+/// How many frames a plan computes between two looks at its run's stop token.
+const PLAN_CHECK_EVERY: usize = 4096;
+
+/// Whether a run's plan may go on: `stop` set is [`OpError::Interrupted`] without a
+/// detail, which [`stopped_planning`] turns into the run's stop.
+fn planning(stop: &StopToken) -> Result<(), OpError> {
+    if stop.is_stopped() {
+        Err(OpError::Interrupted { detail: None })
+    } else {
+        Ok(())
+    }
+}
+
+/// A plan's error as its run reports it: a stop while it was planned (see [`planning`])
+/// brings joint `j` to `on_stop` and is the run's stop, before any of its frames was sent.
+fn stopped_planning(j: &Joint<'_>, e: OpError, on_stop: SafeState, servo: ServoLoop) -> OpError {
+    match e {
+        OpError::Interrupted { detail: None } => match interrupted(j, on_stop, servo) {
+            OpError::Interrupted {
+                detail: Some(detail),
+            } => OpError::Interrupted {
+                detail: Some(format!(
+                    "{detail} (stopped while its frames were planned: none was sent)"
+                )),
+            },
+            other => other,
+        },
+        e => e,
+    }
+}
+
+/// [`plan_move`], looking at `stop` every [`PLAN_CHECK_EVERY`] frames.
+fn plan_move_checked(
+    args: &MoveArgs,
+    from_deg: f64,
+    assumed: bool,
+    stop: &StopToken,
+) -> Result<Plan, OpError> {
     args.validate()?;
     let limits = args.limits();
-    let points =
-        Profile::plan(from_deg, args.target_deg, limits, MAX_MOVE_FRAMES).ok_or_else(|| {
-            OpError::invalid(
-                "--max-speed",
-                args.max_speed_deg_s,
-                format!(
-                    "the move from {from_deg} deg to {} deg would take more than {MAX_MOVE_FRAMES} \
+    let points = Profile::plan_checked(from_deg, args.target_deg, limits, MAX_MOVE_FRAMES, || {
+        planning(stop)
+    })?
+    .ok_or_else(|| {
+        OpError::invalid(
+            "--max-speed",
+            args.max_speed_deg_s,
+            format!(
+                "the move from {from_deg} deg to {} deg would take more than {MAX_MOVE_FRAMES} \
                  frames; give a higher speed",
-                    args.target_deg
-                ),
-            )
-        })?;
+                args.target_deg
+            ),
+        )
+    })?;
     let mut plan = Plan {
         reads: vec![Request::StatusQuery { joint: args.joint }],
         start_deg: Some(from_deg),
@@ -132,6 +175,9 @@ pub fn plan_move(args: &MoveArgs, from_deg: f64, assumed: bool) -> Result<Plan, 
         ));
     }
     for (k, deg) in points.iter().enumerate() {
+        if k % PLAN_CHECK_EVERY == 0 {
+            planning(stop)?;
+        }
         let target = Position::from_degrees(*deg)
             .map_err(|e| OpError::invalid("<DEGREES>", deg, e.to_string()))?;
         plan.frames.push(PlannedFrame {
@@ -200,11 +246,29 @@ pub struct MoveReport {
 /// The plan a real move runs: checks the joint (enabled in position mode, the target within
 /// its limits, the present position plausible), then plans from the measured position.
 pub fn prepare_move(j: &Joint<'_>, args: &MoveArgs) -> Result<Plan, OpError> {
+    prepare_move_checked(j, args, &StopToken::new())
+}
+
+/// [`prepare_move`] for a run under `control`: a stop while its frames are planned (a
+/// slow move has up to [`MAX_MOVE_FRAMES`]) ends it there, the joint brought to `on_stop`,
+/// with the [`OpError::Interrupted`] of a stop during the move; none of its frames was
+/// sent.
+pub fn prepare_move_stoppable(
+    j: &Joint<'_>,
+    args: &MoveArgs,
+    control: &Control<'_>,
+    on_stop: SafeState,
+) -> Result<Plan, OpError> {
+    prepare_move_checked(j, args, control.token())
+        .map_err(|e| stopped_planning(j, e, on_stop, ServoLoop::Position))
+}
+
+fn prepare_move_checked(j: &Joint<'_>, args: &MoveArgs, stop: &StopToken) -> Result<Plan, OpError> {
     args.validate()?;
     require_ready(j, ServoLoop::Position, "move")?;
     check_demand(j, ServoLoop::Position, args.target_deg, args.target_deg)?;
     let from = plausible_position(j)?;
-    plan_move(args, from, false)
+    plan_move_checked(args, from, false, stop)
 }
 
 /// The joint's position limits in degrees (what feedback is checked against).
@@ -223,7 +287,7 @@ pub fn run_move(
     control: &mut Control<'_>,
     on_stop: SafeState,
 ) -> Result<MoveReport, OpError> {
-    let plan = prepare_move(j, args)?;
+    let plan = prepare_move_stoppable(j, args, control, on_stop)?;
     execute_move(j, args, &plan, control, on_stop)
 }
 
@@ -546,6 +610,17 @@ pub fn plan_wave(
     scale: CurrentScale,
     assumed: bool,
 ) -> Result<Plan, OpError> {
+    plan_wave_checked(args, from_deg, scale, assumed, &StopToken::new())
+}
+
+/// [`plan_wave`], looking at `stop` every [`PLAN_CHECK_EVERY`] frames.
+fn plan_wave_checked(
+    args: &WaveArgs,
+    from_deg: f64,
+    scale: CurrentScale,
+    assumed: bool,
+    stop: &StopToken,
+) -> Result<Plan, OpError> {
     args.validate()?;
     let period = Duration::from_secs_f64(1.0 / args.rate_hz);
     let dt = period.as_secs_f64();
@@ -572,6 +647,9 @@ pub fn plan_wave(
         |e: robobus_whj::units::UnitRangeError| OpError::invalid("wave", "value", e.to_string());
     let joint = args.joint;
     for (k, want) in wave_targets(args).into_iter().enumerate() {
+        if k % PLAN_CHECK_EVERY == 0 {
+            planning(stop)?;
+        }
         let request = match args.servo {
             ServoLoop::Position => {
                 let v = limiter.step(want, dt);
@@ -733,13 +811,30 @@ pub fn run_wave(
     control: &mut Control<'_>,
     on_stop: SafeState,
 ) -> Result<(Plan, WaveReport), OpError> {
-    let plan = prepare_wave(j, args)?;
+    let plan = prepare_wave_stoppable(j, args, control, on_stop)?;
     let report = execute_wave(j, args, &plan, control, on_stop)?;
     Ok((plan, report))
 }
 
 /// The plan a real wave runs (see [`run_wave`]).
 pub fn prepare_wave(j: &Joint<'_>, args: &WaveArgs) -> Result<Plan, OpError> {
+    prepare_wave_checked(j, args, &StopToken::new())
+}
+
+/// [`prepare_wave`] for a run under `control`: a stop while its frames are planned (up to
+/// 600 000) ends it there, the joint brought to `on_stop`, with the
+/// [`OpError::Interrupted`] of a stop during the wave; none of its frames was sent.
+pub fn prepare_wave_stoppable(
+    j: &Joint<'_>,
+    args: &WaveArgs,
+    control: &Control<'_>,
+    on_stop: SafeState,
+) -> Result<Plan, OpError> {
+    prepare_wave_checked(j, args, control.token())
+        .map_err(|e| stopped_planning(j, e, on_stop, args.servo))
+}
+
+fn prepare_wave_checked(j: &Joint<'_>, args: &WaveArgs, stop: &StopToken) -> Result<Plan, OpError> {
     args.validate()?;
     require_ready(j, args.servo, "wave")?;
     check_demand(
@@ -754,7 +849,7 @@ pub fn prepare_wave(j: &Joint<'_>, args: &WaveArgs) -> Result<Plan, OpError> {
         0.0
     };
     let scale = j.identity().map_err(whj)?.current_scale();
-    plan_wave(args, from, scale, false)
+    plan_wave_checked(args, from, scale, false, stop)
 }
 
 /// Runs a prepared wave plan (see [`run_wave`]).
