@@ -153,6 +153,20 @@ fn describe(keys: &Keys, config: &BridgeConfig, joints: &[String], sim: bool) ->
     for (k, what) in rows {
         let _ = writeln!(t, "  {k:<28} {what}");
     }
+    if !config.read_only {
+        let prefix = keys.joint_states.strip_suffix("joint_states").unwrap_or("");
+        let tk = robobus_bridge::TrajectoryKeys::under(prefix);
+        for (k, what) in [
+            (tk.trajectory, "trajectory_msgs/msg/JointTrajectory, played"),
+            (
+                tk.state,
+                "control_msgs/msg/JointTrajectoryControllerState, each tick",
+            ),
+            (tk.result, "JSON, each trajectory's end"),
+        ] {
+            let _ = writeln!(t, "  {k:<28} {what}");
+        }
+    }
     if sim {
         let _ = writeln!(t, "  {:<28} queryable: the simulators' state", keys.sim);
     }

@@ -54,11 +54,15 @@ fn a_dry_run_prints_the_keys_and_opens_no_socket() {
         [
             "site/arm1/joint_states",
             "site/arm1/joint_commands",
+            "site/arm1/diagnostics",
             "site/arm1/robobus/run",
             "site/arm1/robobus/plan",
             "site/arm1/robobus/arm",
             "site/arm1/robobus/health",
             "site/arm1/robobus/bridge",
+            "site/arm1/joint_trajectory",
+            "site/arm1/controller_state",
+            "site/arm1/joint_trajectory/result",
             "site/arm1/robobus/sim",
         ]
     );
