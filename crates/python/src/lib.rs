@@ -10,8 +10,8 @@
 //!   every 5 ms while it waits), at most once per `SIGNAL_SLICE` (10 ms), the GIL is taken back for
 //!   `check_signals`. Ctrl-C so stops the request (the operation brings its devices to their
 //!   safe state) and raises `KeyboardInterrupt` once it has; a short request never polls.
-//!   An operation sees the signal at its next check (a long move plans all its frames
-//!   before its first), and a CPU-bound Python thread can delay a poll by up to the
+//!   An operation sees the signal at its next check (a long move's planning looks every
+//!   4096 frames), and a CPU-bound Python thread can delay a poll by up to the
 //!   interpreter's switch interval (5 ms) while it holds the GIL. Handle calls do not poll:
 //!   each is a few transactions, bounded by the devices' reply timeouts.
 //!   Python's own SIGINT handler stays in place; no handler is installed here.

@@ -24,6 +24,9 @@
 //! position set-point is held back when the joint lags further behind the plan than the
 //! step limit allows (never a target beyond the joint's step protection from where it was
 //! measured; counted as `held_back`); on a joint that follows, the frames are the plan's.
+//! A run looks at its stop token while it plans (a slow move has up to
+//! [`MAX_MOVE_FRAMES`]): a stop ends it there, the joint brought to its safe state before
+//! any frame of the plan was sent ([`prepare_move_stoppable`], [`prepare_wave_stoppable`]).
 //!
 //! # Report schema (`--json`)
 //!
