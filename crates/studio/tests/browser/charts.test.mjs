@@ -66,14 +66,20 @@ test("the history keeps a bounded ring per device", async () => {
     const cap = ring.cap;
     for (let i = 0; i < cap * 3; i++) ring.push(1e12 + i, i, 0, 0);
     const kept = ring.since(0);
-    return { cap, n: ring.n, first: kept.pos[0], last: kept.pos[kept.pos.length - 1], length: kept.t.length, rings: window.studio.history.rings.size };
+    const keys = [...window.studio.history.rings.keys()];
+    return {
+      cap, n: ring.n, first: kept.pos[0], last: kept.pos[kept.pos.length - 1], length: kept.t.length,
+      devices: keys.filter((k) => !k.startsWith("robot|")).length,
+      joints: keys.filter((k) => k.startsWith("robot|")).length,
+    };
   });
   assert.equal(r.n, r.cap);
   assert.equal(r.length, r.cap);
   assert.equal(r.first, 2 * r.cap, "the oldest kept is the first not overwritten");
   assert.equal(r.last, 3 * r.cap - 1);
   assert.equal(r.cap, 65 * 50, "65 s at the highest rate offered");
-  assert.equal(r.rings, 23, "one ring per device of the simulated robot: 16 servos and 7 joints");
+  assert.equal(r.devices, 23, "one ring per device of the simulated robot: 16 servos and 7 joints");
+  assert.equal(r.joints, 23, "and one per joint of its robot file");
 });
 
 test("the Device panel's mini-chart draws the joint's position as whj.status reads it", async () => {
