@@ -491,14 +491,13 @@ impl OpError {
             Self::Wck(e) => e.kind(),
             Self::Whj(e) => e.kind(),
             Self::Invalid { .. } => ErrorKind::BadInput,
-            Self::Refused(_) => ErrorKind::Refused,
+            Self::Refused(_) | Self::Preflight(_) => ErrorKind::Refused,
             Self::Device(_) => ErrorKind::Device,
             Self::Interrupted { .. } => ErrorKind::Interrupted,
             Self::File { kind, .. } => *kind,
             Self::NotAvailable(_) => ErrorKind::NotAvailable,
             Self::NoDevice(_) => ErrorKind::NoDevice,
             Self::Open(e) => crate::error::open_error_kind(e),
-            Self::Preflight(_) => ErrorKind::Refused,
         }
     }
 

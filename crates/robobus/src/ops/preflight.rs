@@ -302,7 +302,7 @@ mod simulate {
     fn judge(
         seed: &WhjSeed,
         plan: &Plan,
-        seen: &Seen,
+        observed: &Seen,
         sim: &WhjSimHandle,
         result: Result<Vec<crate::ops::protect::Fault>, OpError>,
         started: std::time::Instant,
@@ -317,7 +317,7 @@ mod simulate {
                 reason,
             }))
         };
-        if let Some((k, at, sent, off)) = seen.held_back {
+        if let Some((k, at, sent, off)) = observed.held_back {
             return Err(refuse(
                 k,
                 at.as_secs_f64(),
@@ -331,7 +331,7 @@ mod simulate {
         let latched = sim.with_bus(|b| b.joint(seed.id).map(|j| j.state().error));
         match result {
             Err(e) => {
-                let (k, at) = seen.next(plan);
+                let (k, at) = observed.next(plan);
                 return Err(refuse(k, at, e.to_string()));
             }
             Ok(events) => {
@@ -346,7 +346,7 @@ mod simulate {
             }
         }
         if let Some(error) = latched.filter(|e| !e.is_empty()) {
-            let (k, at) = seen.next(plan);
+            let (k, at) = observed.next(plan);
             return Err(refuse(
                 k.saturating_sub(1),
                 at,
@@ -354,7 +354,7 @@ mod simulate {
             ));
         }
         Ok(PreflightReport {
-            frames: seen.frames,
+            frames: observed.frames,
             simulated_s: bus.now().saturating_duration_since(started).as_secs_f64(),
             seed: seed.clone(),
         })
@@ -377,7 +377,7 @@ mod simulate {
         let (bus, sim) = seeded(seed, args.step_limit_deg)?;
         let j = bus.joint(args.joint).map_err(OpError::Whj)?;
         let started = bus.now();
-        let mut seen = Seen::default();
+        let mut observed = Seen::default();
         let mut inner = Control::new(control.token());
         let result = ops::execute_wave_observed(
             &j,
@@ -385,7 +385,7 @@ mod simulate {
             plan,
             &mut inner,
             SafeState::Hold,
-            &mut |k, fb, t| seen.observe(k, fb, t),
+            &mut |k, fb, t| observed.observe(k, fb, t),
         );
         if control.stopped() {
             return Err(OpError::Interrupted {
@@ -393,7 +393,7 @@ mod simulate {
             });
         }
         let result = result.map(|r| r.protection);
-        judge(seed, plan, &seen, &sim, result, started, &bus)
+        judge(seed, plan, &observed, &sim, result, started, &bus)
     }
 
     /// Runs a move's `plan` on the simulator seeded with `seed` (see [`whj_wave`]).
@@ -410,7 +410,7 @@ mod simulate {
         let (bus, sim) = seeded(seed, args.step_limit_deg)?;
         let j = bus.joint(args.joint).map_err(OpError::Whj)?;
         let started = bus.now();
-        let mut seen = Seen::default();
+        let mut observed = Seen::default();
         let mut inner = Control::new(control.token());
         let result = ops::execute_move_observed(
             &j,
@@ -418,7 +418,7 @@ mod simulate {
             plan,
             &mut inner,
             SafeState::Hold,
-            &mut |k, fb, t| seen.observe(k, fb, t),
+            &mut |k, fb, t| observed.observe(k, fb, t),
         );
         if control.stopped() {
             return Err(OpError::Interrupted {
@@ -426,6 +426,6 @@ mod simulate {
             });
         }
         let result = result.map(|r| r.protection);
-        judge(seed, plan, &seen, &sim, result, started, &bus)
+        judge(seed, plan, &observed, &sim, result, started, &bus)
     }
 }

@@ -852,6 +852,27 @@ fn prepare_wave_checked(j: &Joint<'_>, args: &WaveArgs, stop: &StopToken) -> Res
     plan_wave_checked(args, from, scale, false, stop)
 }
 
+/// The position set-points of `plan` that differ from the wave's `targets` (the step
+/// limiter changed them).
+fn clamped(args: &WaveArgs, plan: &Plan, targets: &[f64]) -> u64 {
+    let mut n = 0;
+    for (f, want) in plan.frames.iter().zip(targets) {
+        // The set-point the frame carries for the wave's joint, point-to-point or in its
+        // slot of a 0x2F broadcast frame.
+        let sent = match f.request {
+            Request::PositionServo { target, .. } => Some(target),
+            Request::BroadcastPosition(b) => b.slot(args.joint).map(|s| s.position),
+            _ => None,
+        };
+        if let Some(target) = sent
+            && (target.degrees() - want).abs() > 1e-3
+        {
+            n += 1;
+        }
+    }
+    n
+}
+
 /// Runs a prepared wave plan (see [`run_wave`]).
 pub fn execute_wave(
     j: &Joint<'_>,
@@ -895,20 +916,7 @@ pub(crate) fn execute_wave_observed(
         protection: Vec::new(),
         preflight: None,
     };
-    for (f, want) in plan.frames.iter().zip(&targets) {
-        // The set-point the frame carries for the wave's joint, point-to-point or in its
-        // slot of a 0x2F broadcast frame.
-        let sent = match f.request {
-            Request::PositionServo { target, .. } => Some(target),
-            Request::BroadcastPosition(b) => b.slot(args.joint).map(|s| s.position),
-            _ => None,
-        };
-        if let Some(target) = sent
-            && (target.degrees() - want).abs() > 1e-3
-        {
-            r.clamped += 1;
-        }
-    }
+    r.clamped = clamped(args, plan, &targets);
     let mut tracking = Tracking::default();
     let bus = j.bus();
     let mut last_sent = bus.now();
