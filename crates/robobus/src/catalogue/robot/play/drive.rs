@@ -136,25 +136,22 @@ pub(super) fn check(
                 continue; // the parse refused it already
             };
             let j = &config.joints[i];
-            let fault = match interface {
-                Interface::Velocity => {
-                    let most = j.max_velocity.to_degrees();
-                    if v.abs() > most {
-                        Some(format!("-{most:.3}..={most:.3} deg/s (its max_velocity)"))
-                    } else {
-                        j.wheel_speeds
-                            .as_ref()
-                            .filter(|w| w.level(v.to_radians()).is_none())
-                            .map(|w| {
-                                let top = w.top().to_degrees();
-                                format!("-{top:.3}..={top:.3} deg/s (its top wheel level)")
-                            })
-                    }
+            let fault = if interface == Interface::Velocity {
+                let most = j.max_velocity.to_degrees();
+                if v.abs() > most {
+                    Some(format!("-{most:.3}..={most:.3} deg/s (its max_velocity)"))
+                } else {
+                    j.wheel_speeds
+                        .as_ref()
+                        .filter(|w| w.level(v.to_radians()).is_none())
+                        .map(|w| {
+                            let top = w.top().to_degrees();
+                            format!("-{top:.3}..={top:.3} deg/s (its top wheel level)")
+                        })
                 }
-                _ => {
-                    let most = j.max_effort.unwrap_or(0.0);
-                    (v.abs() > most).then(|| format!("-{most}..={most} N·m (its max_effort)"))
-                }
+            } else {
+                let most = j.max_effort.unwrap_or(0.0);
+                (v.abs() > most).then(|| format!("-{most}..={most} N·m (its max_effort)"))
             };
             if let Some(range) = fault {
                 return Err(bad(format!(
@@ -233,26 +230,23 @@ impl Joint {
                 effort,
             } => {
                 let joint = port.bus().joint_unchecked(*id);
-                let (fb, sent) = match interface {
-                    Interface::Velocity => {
-                        let rpm = value * sign(map.reversed) * 60.0 / TAU;
-                        let target = TargetSpeed::from_rpm(rpm)
-                            .map_err(|e| OpError::invalid("trajectory", value, e.to_string()))?;
-                        let sent = target.rpm() * TAU / 60.0 * sign(map.reversed);
-                        (joint.command_speed(target)?, sent)
-                    }
-                    _ => {
-                        let k = effort.map_or(1.0, |e| e.nm_per_a);
-                        let ma = value / k * 1e3 * sign(map.reversed);
-                        let counts = Current::from_milliamps(ma, *current)
-                            .map_err(|e| OpError::invalid("trajectory", value, e.to_string()))?;
-                        #[allow(clippy::cast_precision_loss)] // mA of a joint
-                        let sent_ma = counts.milliamps(*current) as f64;
-                        (
-                            joint.command_current(sent_ma)?,
-                            sent_ma / 1e3 * k * sign(map.reversed),
-                        )
-                    }
+                let (fb, sent) = if interface == Interface::Velocity {
+                    let rpm = value * sign(map.reversed) * 60.0 / TAU;
+                    let target = TargetSpeed::from_rpm(rpm)
+                        .map_err(|e| OpError::invalid("trajectory", value, e.to_string()))?;
+                    let sent = target.rpm() * TAU / 60.0 * sign(map.reversed);
+                    (joint.command_speed(target)?, sent)
+                } else {
+                    let k = effort.map_or(1.0, |e| e.nm_per_a);
+                    let ma = value / k * 1e3 * sign(map.reversed);
+                    let counts = Current::from_milliamps(ma, *current)
+                        .map_err(|e| OpError::invalid("trajectory", value, e.to_string()))?;
+                    #[allow(clippy::cast_precision_loss)] // mA of a joint
+                    let sent_ma = counts.milliamps(*current) as f64;
+                    (
+                        joint.command_current(sent_ma)?,
+                        sent_ma / 1e3 * k * sign(map.reversed),
+                    )
                 };
                 self.at = map.to_joint(fb.position.degrees().to_radians());
                 Ok(sent)
@@ -279,8 +273,8 @@ impl Joint {
             let room = (room - self.set.abs() * dt_s).max(0.0);
             set = match interface {
                 Interface::Velocity => {
-                    let stop = (2.0 * accel * room).sqrt();
-                    set.clamp(-stop, stop)
+                    let stoppable = (2.0 * accel * room).sqrt();
+                    set.clamp(-stoppable, stoppable)
                 }
                 _ if room <= 0.0 => 0.0,
                 _ => set,
@@ -374,7 +368,7 @@ pub(super) fn run(
     let mut k: u64 = 0;
     #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // ≤ 3600 s × 500 Hz
     let last = (total / period_s).ceil() as u64;
-    let ran = switched.and_then(|()| {
+    let ran = switched.map(|()| {
         while k <= last {
             let due = start + period * u32::try_from(k).unwrap_or(u32::MAX);
             if !control.sleep_with(due, |until| {
@@ -403,12 +397,13 @@ pub(super) fn run(
                     row.limited += 1;
                 }
                 match j.send(interface, set) {
-                    Ok(sent) => {
+                    Ok(done) => {
                         row.commands += 1;
                         row.position_deg = Some(j.at.to_degrees());
-                        match interface {
-                            Interface::Velocity => row.sent_deg_s = Some(sent.to_degrees()),
-                            _ => row.sent_nm = Some(sent),
+                        if interface == Interface::Velocity {
+                            row.sent_deg_s = Some(done.to_degrees());
+                        } else {
+                            row.sent_nm = Some(done);
                         }
                     }
                     Err(e) => {
@@ -429,7 +424,6 @@ pub(super) fn run(
                 k += 1;
             }
         }
-        Ok(())
     });
     // Finished, stopped or failed: zero, back to position mode, then the safe state.
     for j in &mut joints {
