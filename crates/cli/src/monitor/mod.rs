@@ -3,7 +3,7 @@
 //! Sources ([`Source`]):
 //!
 //! - `--bus BUS --joints 1-7`: WHJ joints, read-only: the monitor is one subscriber of the
-//!   library's telemetry stream ([`robobus::catalogue::Telemetry`]) of the request
+//!   station's one sampling of the bus ([`Station::telemetry`]) of the request
 //!   `whj.sample` on a station holding that bus: each sample is a status query (position,
 //!   current, enable, error bits) and a speed register read per joint; with `--broadcast`,
 //!   one broadcast status frame (0x7F) for all joints (1..=7).
@@ -32,7 +32,8 @@
 //! [`robobus::record`]; this module only waits, draws and prints.
 
 use robobus::catalogue::telemetry::RecvError;
-use robobus::catalogue::{self, Delivery, Request, Subscriber, Telemetry};
+use robobus::catalogue::telemetry::Subscription;
+use robobus::catalogue::{self, Delivery, Request};
 use robobus::ops::{IdList, ListId};
 use robobus::station::{self, Station, StationConfig};
 use std::io::IsTerminal as _;
@@ -160,12 +161,11 @@ enum Source {
     Sim(robobus::robot::simulated::SimArm),
 }
 
-/// The monitor as one subscriber of a telemetry stream ([`Telemetry`]) on a station that
-/// holds only the watched buses: each delivery fills the library's sample table
-/// ([`SampleTable::take`]).
+/// The monitor as a subscriber of the station's sampling of the bus
+/// ([`Station::telemetry`], as every reader of a bus is) on a station that holds only the
+/// watched buses: each delivery fills the library's sample table ([`SampleTable::take`]).
 struct Stream {
-    telemetry: Option<Telemetry>,
-    sub: Subscriber,
+    sub: Subscription,
     station: Option<Arc<Station>>,
 }
 
@@ -174,14 +174,12 @@ struct Stream {
 const QUEUE: usize = 256;
 
 impl Stream {
-    /// A paused stream of `request` on `station` (sampling starts when the dashboard
-    /// resumes it: [`Telemetry::resume`](robobus::catalogue::Telemetry::resume)).
+    /// A subscription to the sampling of `request` on `station` (it starts at once; the
+    /// samples taken before the dashboard draws wait in its queue).
     fn new(station: Station, request: Request, rate_hz: f64) -> anyhow::Result<Self> {
         let station = Arc::new(station);
-        let telemetry = Telemetry::paused(&station, request, rate_hz, None)?;
-        let sub = telemetry.subscribe(QUEUE)?;
+        let sub = station.telemetry(request, rate_hz, QUEUE)?;
         Ok(Self {
-            telemetry: Some(telemetry),
             sub,
             station: Some(station),
         })
@@ -190,9 +188,10 @@ impl Stream {
 
 impl Drop for Stream {
     fn drop(&mut self) {
-        // Stops the sampler (its read under way completes), then closes the station
-        // leaving every device as it was: the monitor only reads.
-        drop(self.telemetry.take());
+        // Stops the sampling (its read under way completes: the last subscriber's close
+        // joins it), then closes the station leaving every device as it was: the monitor
+        // only reads.
+        self.sub.close();
         if let Some(station) = self.station.take().and_then(|s| Arc::try_unwrap(s).ok()) {
             station.leave();
         }
@@ -583,11 +582,6 @@ fn watch(src: &mut Source, mut d: Dashboard, args: &Args, out: Output) -> anyhow
     let period = Duration::from_secs_f64(1.0 / args.rate_hz);
     let start = Instant::now();
     let end = args.duration.map(|s| start + Duration::from_secs_f64(s));
-    if let Source::Stream(s) = src
-        && let Some(t) = &s.telemetry
-    {
-        t.resume();
-    }
     let mut next = start;
     let mut last_line = -1.0f64;
     loop {
