@@ -342,7 +342,12 @@ pub(crate) fn take_up(s: &Arc<Shared>, sink: &Arc<dyn Sink>, payload: &[u8]) {
         }
         return;
     }
-    let late_s = (-checked.start_in_s(unix_now_s())).max(0.0);
+    // A start waited for is on time (the thread's wake-up is not the trajectory's delay).
+    let late_s = if ahead > 0.0 {
+        0.0
+    } else {
+        (-checked.start_in_s(unix_now_s())).max(0.0)
+    };
     // Where the joints are (the one playing still moves them: it stops only once this one
     // is found to fit).
     let from = match read_all(s, &checked.joints) {

@@ -317,3 +317,87 @@ fn a_newer_trajectory_replaces_the_one_playing_from_where_the_joints_are() {
     let h = s.trajectories.health();
     assert_eq!((h.started, h.replaced, h.reached), (2, 1, 1), "{h:?}");
 }
+
+fn stamped(names: &[&str], points: Vec<JointTrajectoryPoint>, start_unix_s: f64) -> Vec<u8> {
+    JointTrajectory {
+        stamp: cdr::Time::from_unix_ms(start_unix_s * 1e3),
+        joint_names: names.iter().map(|n| (*n).to_owned()).collect(),
+        points,
+        ..JointTrajectory::default()
+    }
+    .encode()
+}
+
+#[test]
+fn a_stamp_in_the_past_skips_the_points_already_due_and_one_that_ended_is_refused() {
+    let (s, done) = armed();
+    let sink = Arc::new(Collect::default());
+    let dyn_sink: Arc<dyn Sink> = sink.clone();
+    let points = || {
+        vec![
+            point(1.0, &[10_f64.to_radians()]),
+            point(2.0, &[20_f64.to_radians()]),
+            point(3.0, &[15_f64.to_radians()]),
+        ]
+    };
+    // Started 1.5 s ago: the point at 1 s is skipped, the one at 2 s is due in 0.5 s.
+    take_up(
+        &s,
+        &dyn_sink,
+        &stamped(&["j3"], points(), unix_now_s() - 1.5),
+    );
+    let r = sink.result(1);
+    assert_eq!((r.status, r.skipped_points), ("reached", 1), "{r:?}");
+    assert!((r.late_s - 1.5).abs() < 0.5, "{r:?}");
+    assert!((r.joints[0].position_deg.unwrap() - 15.0).abs() <= GOAL_TOLERANCE_DEG);
+    // It never went to the skipped point's 10° first: j3 rose from 0° straight to 20°.
+    let states = sink.states.lock().unwrap().clone();
+    let peak = states
+        .iter()
+        .map(|m| m.reference.positions[0].to_degrees())
+        .fold(f64::MIN, f64::max);
+    assert!((peak - 20.0).abs() < 0.5, "{peak}");
+    // Started 4 s ago: its last point (3 s) is past.
+    take_up(
+        &s,
+        &dyn_sink,
+        &stamped(&["j3"], points(), unix_now_s() - 4.0),
+    );
+    done.store(true, Ordering::SeqCst);
+    let r = sink.result(2);
+    assert_eq!(r.status, "refused");
+    assert_eq!(r.error_code, Some(cdr::result_code::OLD_HEADER_TIMESTAMP));
+    assert!(r.error_string.contains("it ended 1."), "{r:?}");
+}
+
+#[test]
+fn a_stamp_in_the_future_starts_it_then() {
+    let (s, done) = armed();
+    let sink = Arc::new(Collect::default());
+    let dyn_sink: Arc<dyn Sink> = sink.clone();
+    let start = unix_now_s() + 0.4;
+    take_up(
+        &s,
+        &dyn_sink,
+        &stamped(&["j3"], vec![point(0.5, &[5_f64.to_radians()])], start),
+    );
+    let r = sink.result(1);
+    done.store(true, Ordering::SeqCst);
+    assert_eq!((r.status, r.late_s), ("reached", 0.0), "{r:?}");
+    // Its first tick was published after the stamp's time, not before.
+    let first = sink.states.lock().unwrap()[0].stamp;
+    let first_s = f64::from(first.sec) + f64::from(first.nanosec) / 1e9;
+    assert!(first_s >= start, "first tick at {first_s}, start {start}");
+    // Too far ahead: refused.
+    take_up(
+        &s,
+        &dyn_sink,
+        &stamped(&["j3"], vec![point(0.5, &[0.0])], unix_now_s() + 120.0),
+    );
+    let r = sink.result(2);
+    assert_eq!(r.status, "refused");
+    assert!(
+        r.error_string.contains("more than the 60 s allowed"),
+        "{r:?}"
+    );
+}
