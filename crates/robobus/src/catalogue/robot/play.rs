@@ -159,13 +159,16 @@ impl Operation for Play {
     const FAMILY: Family = Family::Robot;
     const DOC: OpDoc = OpDoc {
         args: "`trajectory` (a trajectory file's text: `time_s`, then a column per joint of \
-               the robot file, degrees in its joint frame; see `docs/hardware.md`), \
+               the robot file, degrees in its joint frame; columns `NAME_deg_s` or `NAME_nm` \
+               play velocities, deg/s, or efforts, N·m, on joints with that interface; see \
+               `docs/hardware.md`), \
                `rate_hz`=50 (1..=500), `torque`=2 (wCK servos, 0..=4)",
         report: "one row per joint by name: `commands`, `failed`, `limited` (sent short of the \
                  trajectory's target: a WHJ joint that lagged), `start_deg`, `target_deg` (the \
                  last), `position_deg` (reported at the last command), `tracking_max_deg`, \
                  `tracking_rms_deg` (from where the joint reported itself to the target of the \
-                 tick before); `summary`: `lead_in_s`, `duration_s`, `ticks`, `overruns`, \
+                 tick before), `sent_deg_s` / `sent_nm` (a velocity / effort play: the last \
+                 value sent); `summary`: `lead_in_s`, `duration_s`, `ticks`, `overruns`, \
                  `buses`, `skew_ms` (per tick, the first send of the first bus to that of the \
                  last) and `late_ms` (`p50`, `p99`, `max`), `interrupted`, `safe_state` (per \
                  bus: `bus`, the file's `safe_state` it was left in, `failed`: the joints that \
