@@ -178,12 +178,6 @@ class PlotPanel {
     }
   }
 
-  keysOf(d) {
-    const ks = [`${d.key}|pos`, `${d.key}|speed`];
-    if (d.family === "whj") ks.push(`${d.key}|current`);
-    return ks;
-  }
-
   /** A column of values. */
   column(k) {
     return this.cols.get(k) ?? new Array(this.t.length).fill(null);
