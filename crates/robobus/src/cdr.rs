@@ -642,6 +642,7 @@ mod tests {
     }
 
     #[test]
+    #[allow(clippy::float_cmp)] // exact: 1.5 and the stamp are what the bytes hold
     fn joint_trajectory_encodes_to_rosbags_bytes_and_back() {
         let bytes = hex(GOLDEN_TRAJECTORY);
         assert_eq!(bytes.len(), 152);
@@ -655,7 +656,7 @@ mod tests {
 
     /// joint `j3`, stamp 5 s 6 ns; reference 0.5, feedback 0.25, error 0.25, output 0.5,
     /// each at 0.25 s; the multi-DOF fields empty: 244 bytes, written by rosbags 0.11.9
-    /// with control_msgs 5's definition registered.
+    /// with `control_msgs` 5's definition registered.
     const GOLDEN_CONTROLLER_STATE: &str = "\
         000100000500000006000000010000000000000001000000030000006a3300000100000000000000\
         0000e03f0000000000000000000000000000000080b2e60e01000000000000000000d03f00000000\

@@ -735,13 +735,13 @@ mod tests {
 
     #[test]
     fn a_spline_that_overshoots_a_limit_is_refused_naming_the_time() {
-        let mut a = point(1.0, &[0.9]);
-        a.velocities = vec![1.0];
-        let mut b = point(3.0, &[0.9]);
-        b.velocities = vec![-1.0];
-        let r = robot();
-        let c = check(&msg(&["j1"], vec![a, b]), &r).unwrap();
-        let e = plan(&c, &r, &[0.9_f64.to_degrees()], 0.0).unwrap_err();
+        let mut rising = point(1.0, &[0.9]);
+        rising.velocities = vec![1.0];
+        let mut falling = point(3.0, &[0.9]);
+        falling.velocities = vec![-1.0];
+        let robot = robot();
+        let checked = check(&msg(&["j1"], vec![rising, falling]), &robot).unwrap();
+        let e = plan(&checked, &robot, &[0.9_f64.to_degrees()], 0.0).unwrap_err();
         assert!(
             e.message.contains("on the curve its velocities make, at "),
             "{e}"
