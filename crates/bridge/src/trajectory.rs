@@ -13,6 +13,7 @@ use std::sync::{Arc, Condvar, Mutex, PoisonError};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+use robobus::ErrorKind;
 use robobus::catalogue::operation::PlayTick;
 use robobus::catalogue::robot::{Play, Sample};
 use robobus::catalogue::{Interaction, NoInteraction, Request, run_typed};
@@ -492,6 +493,13 @@ impl Player {
                  newer one played from there)"
                     .to_owned(),
             ),
+            // Refused by `robot.play` before it sent anything (a joint silent, outside its
+            // limits, not enabled in position mode; a step too large at its rate).
+            Err(e) if matches!(e.kind(), ErrorKind::BadInput | ErrorKind::Refused) => (
+                "refused",
+                Some(result_code::INVALID_GOAL),
+                format!("joint_trajectory: {e}"),
+            ),
             Err(e) => (
                 "aborted",
                 Some(result_code::PATH_TOLERANCE_VIOLATED),
@@ -522,7 +530,13 @@ impl Player {
                 ),
             ),
         };
+        if status == "refused" {
+            *t.last_refusal
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner) = Some(error_string.clone());
+        }
         bump(match status {
+            "refused" => &t.counts.refused,
             "reached" => &t.counts.reached,
             "missed" => &t.counts.missed,
             "replaced" => &t.counts.replaced,

@@ -401,3 +401,29 @@ fn a_stamp_in_the_future_starts_it_then() {
         "{r:?}"
     );
 }
+
+#[test]
+fn a_joint_robot_play_cannot_move_refuses_the_trajectory_before_anything_moves() {
+    let (s, done) = armed();
+    run_request(&s, r#"{"op":"whj.disable","joints":"5"}"#).unwrap();
+    let sink = Arc::new(Collect::default());
+    let dyn_sink: Arc<dyn Sink> = sink.clone();
+    let before = degrees(&s, &["j4", "j5"]);
+    take_up(
+        &s,
+        &dyn_sink,
+        &trajectory(&["j4", "j5"], vec![point(1.0, &[0.2, 0.2])]),
+    );
+    let r = sink.result(1);
+    done.store(true, Ordering::SeqCst);
+    assert_eq!(r.status, "refused", "{r:?}");
+    assert_eq!(r.error_code, Some(cdr::result_code::INVALID_GOAL));
+    assert!(r.error_string.contains("joint 5 is disabled"), "{r:?}");
+    assert!(sink.states.lock().unwrap().is_empty());
+    let after = degrees(&s, &["j4", "j5"]);
+    for (a, b) in after.iter().zip(&before) {
+        assert!((a - b).abs() < 0.05, "{after:?} from {before:?}");
+    }
+    let h = s.trajectories.health();
+    assert_eq!((h.refused, h.aborted), (1, 0), "{h:?}");
+}
