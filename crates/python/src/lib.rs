@@ -36,7 +36,7 @@ use std::thread::ThreadId;
 use std::time::{Duration, Instant};
 
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
+use pyo3::types::PyString;
 use robobus::ErrorKind;
 use robobus::catalogue::{self, Request};
 use robobus::frontend::Wording;
@@ -99,105 +99,6 @@ fn to_py(py: Python<'_>, value: &impl serde::Serialize) -> PyResult<Py<PyAny>> {
     pyser::to_py(py, value).map(Bound::unbind)
 }
 
-/// Writes `s` as a JSON string.
-fn json_string(out: &mut String, s: &str) {
-    use std::fmt::Write as _;
-    out.push('"');
-    for c in s.chars() {
-        match c {
-            '"' => out.push_str("\\\""),
-            '\\' => out.push_str("\\\\"),
-            c if u32::from(c) < 0x20 => {
-                let _ = write!(out, "\\u{:04x}", u32::from(c));
-            }
-            c => out.push(c),
-        }
-    }
-    out.push('"');
-}
-
-/// Writes a Python request (dicts with string keys, lists, tuples, strings, numbers, bools,
-/// `None`, and anything with numpy's `tolist`) as JSON text, within
-/// [`MAX_REQUEST_BYTES`](robobus::frontend::parse::MAX_REQUEST_BYTES) and [`MAX_DEPTH`]
-/// levels: the library then parses it as it parses any request's text (`serde_json`
-/// reads text faster than it reads its own value tree).
-fn json_text(py: Python<'_>, v: &Bound<'_, PyAny>, depth: usize, out: &mut String) -> PyResult<()> {
-    use std::fmt::Write as _;
-    let bad = |what: String| raise(py, ErrorKind::BadInput, &what, None);
-    if depth > MAX_DEPTH {
-        return Err(bad(format!(
-            "request: nested deeper than {MAX_DEPTH} levels; nothing was sent"
-        )));
-    }
-    if out.len() > robobus::frontend::parse::MAX_REQUEST_BYTES {
-        return Err(too_long(py));
-    }
-    if v.is_none() {
-        out.push_str("null");
-    } else if let Ok(s) = v.cast::<PyString>() {
-        json_string(out, s.to_str()?);
-    } else if let Ok(b) = v.cast::<PyBool>() {
-        out.push_str(if b.is_true() { "true" } else { "false" });
-    } else if v.is_instance_of::<PyInt>() {
-        if let Ok(i) = v.extract::<i64>() {
-            let _ = write!(out, "{i}");
-        } else if let Ok(u) = v.extract::<u64>() {
-            let _ = write!(out, "{u}");
-        } else {
-            return Err(bad(format!(
-                "request: the number {v} is out of range (allowed: 64-bit integers); nothing \
-                 was sent"
-            )));
-        }
-    } else if let Ok(f) = v.cast::<PyFloat>() {
-        let x = f.value();
-        if !x.is_finite() {
-            return Err(bad(format!(
-                "request: the number {x} is not finite (allowed: finite numbers); nothing was sent"
-            )));
-        }
-        // `{:?}` keeps a float a float (`1.0`, not `1`), as Python's json writes it.
-        let _ = write!(out, "{x:?}");
-    } else if let Ok(d) = v.cast::<PyDict>() {
-        out.push('{');
-        for (n, (k, item)) in d.iter().enumerate() {
-            let key = k.cast::<PyString>().map_err(|_| {
-                bad(format!(
-                    "request: the key {k} is not a string; nothing was sent"
-                ))
-            })?;
-            if n > 0 {
-                out.push(',');
-            }
-            json_string(out, key.to_str()?);
-            out.push(':');
-            json_text(py, &item, depth + 1, out)?;
-        }
-        out.push('}');
-    } else if v.is_instance_of::<PyList>() || v.is_instance_of::<PyTuple>() {
-        out.push('[');
-        for (n, item) in v.try_iter()?.enumerate() {
-            if n > 0 {
-                out.push(',');
-            }
-            json_text(py, &item?, depth + 1, out)?;
-        }
-        out.push(']');
-    } else if let Ok(plain) = v.call_method0("tolist")
-        && !plain.is(v)
-    {
-        // numpy arrays and scalars.
-        json_text(py, &plain, depth + 1, out)?;
-    } else {
-        return Err(bad(format!(
-            "request: a {} is not a JSON value (allowed: dict, list, str, int, float, bool, \
-             None); nothing was sent",
-            v.get_type().name()?
-        )));
-    }
-    Ok(())
-}
-
 /// A request from a dict (written as JSON text) or from its JSON text: the library's one
 /// parser, its wording.
 fn request(py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<Request> {
@@ -207,7 +108,7 @@ fn request(py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<Request> {
         return parse(text.to_str()?);
     }
     let mut text = String::with_capacity(128);
-    json_text(py, value, 0, &mut text)?;
+    pyser::json_text(py, value, 0, &mut text)?;
     if text.len() > robobus::frontend::parse::MAX_REQUEST_BYTES {
         return Err(too_long(py));
     }

@@ -373,3 +373,173 @@ impl<'py> ser::SerializeStructVariant for Map<'py> {
         self.done()
     }
 }
+
+// ---------------------------------------------------------------------------------------
+// Requests: Python objects to JSON text
+// ---------------------------------------------------------------------------------------
+
+/// Writes `s` as a JSON string.
+fn json_string(out: &mut String, s: &str) {
+    out.push('"');
+    // Runs of plain characters are copied whole; only quotes, backslashes and control
+    // characters are escaped.
+    let mut from = 0;
+    for (k, b) in s.bytes().enumerate() {
+        let escape = match b {
+            b'"' => "\\\"",
+            b'\\' => "\\\\",
+            0..=0x1f => "",
+            _ => continue,
+        };
+        out.push_str(&s[from..k]);
+        if escape.is_empty() {
+            use std::fmt::Write as _;
+            let _ = write!(out, "\\u{b:04x}");
+        } else {
+            out.push_str(escape);
+        }
+        from = k + 1;
+    }
+    out.push_str(&s[from..]);
+    out.push('"');
+}
+
+/// Writes a Python request (dicts with string keys, lists, tuples, strings, numbers, bools,
+/// `None`, and anything with numpy's `tolist`) as JSON text, within
+/// [`MAX_REQUEST_BYTES`](robobus::frontend::parse::MAX_REQUEST_BYTES) and `MAX_DEPTH`
+/// levels: the library then parses it as it parses any request's text (`serde_json`
+/// reads text faster than it reads its own value tree). Each value's type is asked once,
+/// in the order requests use them (no failed conversion per value).
+pub(crate) fn json_text(
+    py: Python<'_>,
+    v: &Bound<'_, PyAny>,
+    depth: usize,
+    out: &mut String,
+) -> PyResult<()> {
+    use pyo3::types::{PyBool, PyFloat, PyInt, PyTuple};
+    let bad = |what: String| crate::raise(py, robobus::ErrorKind::BadInput, &what, None);
+    if depth > crate::MAX_DEPTH {
+        return Err(bad(format!(
+            "request: nested deeper than {} levels; nothing was sent",
+            crate::MAX_DEPTH
+        )));
+    }
+    if out.len() > robobus::frontend::parse::MAX_REQUEST_BYTES {
+        return Err(crate::too_long(py));
+    }
+    if let Ok(d) = v.cast_exact::<PyDict>() {
+        return json_object(py, d, depth, out);
+    }
+    if let Ok(s) = v.cast_exact::<PyString>() {
+        json_string(out, s.to_str()?);
+    } else if v.is_none() {
+        out.push_str("null");
+    } else if v.is_exact_instance_of::<PyBool>() {
+        out.push_str(if v.is_truthy()? { "true" } else { "false" });
+    } else if v.is_instance_of::<PyInt>() {
+        // (`bool` has no subclasses: every bool was written above.)
+        if let Ok(i) = v.extract::<i64>() {
+            out.push_str(itoa(i, &mut [0u8; 20]));
+        } else if let Ok(u) = v.extract::<u64>() {
+            use std::fmt::Write as _;
+            let _ = write!(out, "{u}");
+        } else {
+            return Err(bad(format!(
+                "request: the number {v} is out of range (allowed: 64-bit integers); nothing \
+                 was sent"
+            )));
+        }
+    } else if let Ok(f) = v.cast::<PyFloat>() {
+        let x = f.value();
+        if !x.is_finite() {
+            return Err(bad(format!(
+                "request: the number {x} is not finite (allowed: finite numbers); nothing was sent"
+            )));
+        }
+        use std::fmt::Write as _;
+        // `{:?}` keeps a float a float (`1.0`, not `1`), as Python's json writes it.
+        let _ = write!(out, "{x:?}");
+    } else if let Ok(l) = v.cast::<PyList>() {
+        out.push('[');
+        for (n, item) in l.iter().enumerate() {
+            if n > 0 {
+                out.push(',');
+            }
+            json_text(py, &item, depth + 1, out)?;
+        }
+        out.push(']');
+    } else if let Ok(t) = v.cast::<PyTuple>() {
+        out.push('[');
+        for (n, item) in t.iter().enumerate() {
+            if n > 0 {
+                out.push(',');
+            }
+            json_text(py, &item, depth + 1, out)?;
+        }
+        out.push(']');
+    } else if let Ok(s) = v.cast::<PyString>() {
+        json_string(out, s.to_str()?);
+    } else if let Ok(d) = v.cast::<PyDict>() {
+        return json_object(py, d, depth, out);
+    } else if let Ok(plain) = v.call_method0("tolist")
+        && !plain.is(v)
+    {
+        // numpy arrays and scalars.
+        json_text(py, &plain, depth + 1, out)?;
+    } else {
+        return Err(bad(format!(
+            "request: a {} is not a JSON value (allowed: dict, list, str, int, float, bool, \
+             None); nothing was sent",
+            v.get_type().name()?
+        )));
+    }
+    Ok(())
+}
+
+/// A dict's items as a JSON object (its keys strings).
+fn json_object(
+    py: Python<'_>,
+    d: &Bound<'_, PyDict>,
+    depth: usize,
+    out: &mut String,
+) -> PyResult<()> {
+    out.push('{');
+    for (n, (k, item)) in d.iter().enumerate() {
+        let key = k.cast::<PyString>().map_err(|_| {
+            crate::raise(
+                py,
+                robobus::ErrorKind::BadInput,
+                &format!("request: the key {k} is not a string; nothing was sent"),
+                None,
+            )
+        })?;
+        if n > 0 {
+            out.push(',');
+        }
+        json_string(out, key.to_str()?);
+        out.push(':');
+        json_text(py, &item, depth + 1, out)?;
+    }
+    out.push('}');
+    Ok(())
+}
+
+/// `i` in decimal, written into `buf`.
+fn itoa(i: i64, buf: &mut [u8; 20]) -> &str {
+    let mut k = buf.len();
+    let mut n = i.unsigned_abs();
+    loop {
+        k -= 1;
+        // A digit: 0..=9.
+        buf[k] = b'0' + u8::try_from(n % 10).unwrap_or(0);
+        n /= 10;
+        if n == 0 {
+            break;
+        }
+    }
+    if i < 0 {
+        k -= 1;
+        buf[k] = b'-';
+    }
+    std::str::from_utf8(&buf[k..]).unwrap_or("0")
+}

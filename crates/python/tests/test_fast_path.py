@@ -172,3 +172,29 @@ def test_a_handle_call_releases_the_gil_while_it_waits_on_the_bus() -> None:
     finally:
         sim.send_signal(signal.SIGINT)
         sim.wait(timeout=20)
+
+
+@pytest.mark.parametrize(
+    "request_",
+    [
+        {"op": "whj.move", "joint": 1, "degrees": -12.5, "from": -3, "max_speed": 1e1, "rate_hz": 200},
+        {"op": "wck.sync-move", "positions": (10, 40, 70)},
+        {"op": "whj.status", "joints": [1, 2, -9223372036854775808]},
+        {"op": "whj.status", "joints": 18446744073709551615},
+        {"op": "wck.status", "ids": 'é0,"1\\\n\u0001\t'},
+        {"op": "wck.status", "ids": [True, False, None, {"a": [1.5, -0.0]}]},
+    ],
+    ids=["numbers", "tuple", "i64-min", "u64-max", "escapes", "nested"],
+)
+def test_a_request_dict_reads_as_its_json_text_reads(request_: dict[str, Any]) -> None:
+    """The dict is written natively as JSON text: the library sees what it sees of the
+    text Python's json writes (the same plan, or the same refusal naming the same value)."""
+    import json
+
+    def outcome(r: dict[str, Any] | str) -> tuple[str, Any]:
+        try:
+            return ("plan", robobus.plan(r))
+        except robobus.RobobusError as e:
+            return (type(e).__name__, str(e))
+
+    assert outcome(request_) == outcome(json.dumps(request_))
