@@ -57,6 +57,28 @@ test("a keyframe file loads into the scene and plays on the simulated servos", a
   }, { timeout: 3000, what: "servos 0-3 at the last pose" });
 });
 
+test("the scene's poses are the servos' target in the Plot, against what they read", async () => {
+  const plot = await openTab(page, "Plot");
+  await plot.getByRole("checkbox", { name: "Servo 1 · s1" }).check();
+  await plot.getByRole("checkbox", { name: "Joint 1 · j1" }).uncheck();
+  const [file] = await Promise.all([page.waitForEvent("download"), plot.getByRole("button", { name: "Export CSV" }).click()]);
+  const csv = (await readFile(await file.path(), "utf8")).trim().split("\n");
+  const cols = csv[0].split(",");
+  const ti = cols.indexOf("servo 1 position target (deg)");
+  const ai = cols.indexOf("servo 1 position actual (deg)");
+  assert.ok(ti > 0 && ai > 0, csv[0]);
+  const deg = (steps) => (steps * 269) / 255;
+  const targets = csv.slice(1).map((r) => r.split(",")[ti]).filter((v) => v !== "").map(Number);
+  assert.ok(targets.some((v) => Math.abs(v - deg(127)) < 0.01), "the first pose, 127 steps");
+  assert.ok(targets.some((v) => Math.abs(v - deg(150)) < 0.01), "the second, 150 steps");
+  const status = await runRequest(studio.url, { op: "wck.status", ids: "1" });
+  const actual = csv.slice(1).map((r) => r.split(",")[ai]).filter((v) => v !== "").map(Number);
+  assert.ok(Math.abs(actual[actual.length - 1] - status.results[0].degrees) < 1.1, `the last reading ${actual[actual.length - 1]} is wck.status's ${status.results[0].degrees}`);
+  await plot.getByRole("checkbox", { name: "Servo 1 · s1" }).uncheck();
+  await plot.getByRole("checkbox", { name: "Joint 1 · j1" }).check();
+  await openTab(page, "Poses");
+});
+
 test("Record pose adds the servos' positions; rows are edited, reordered and deleted", async () => {
   const status0 = await runRequest(studio.url, { op: "wck.status", ids: "0-3" });
   await panel.getByRole("button", { name: "Record pose" }).click();

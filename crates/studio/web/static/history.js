@@ -9,7 +9,8 @@
 //
 // Robot joints (the robot file's, by name, in its joint frame): while a `robot.play` of
 // this page runs (Poses, Robot), `robot.sample` is recorded into a ring per joint and the
-// trajectory's points are the joints' targets, from the tick its first point is due.
+// trajectory's points are the joints' targets, from the tick its first point is due. A
+// wCK keyframe scene (`wck.play`) gives its servos' targets the same way.
 
 /** Seconds of readings kept per device (the Plot shows at most 60 s). */
 export const KEEP_S = 65;
@@ -202,7 +203,8 @@ export class History {
     const studio = this.studio;
     const runLong = studio.runLong.bind(studio);
     studio.runLong = (request, onProgress) => {
-      const watch = request?.op === "robot.play" ? this.#watchPlay(request) : null;
+      const watch =
+        request?.op === "robot.play" ? this.#watchPlay(request) : request?.op === "wck.play" ? this.#watchScene(request) : null;
       const handle = runLong(request, watch ? (p) => (watch(p), onProgress?.(p)) : onProgress);
       if (watch) {
         const end = () => watch(null);
@@ -250,6 +252,47 @@ export class History {
         for (const seg of segs) {
           seg.t1 -= seg.t0 - t0;
           seg.t0 = t0;
+        }
+      }
+      this.#changed({ target: true });
+    };
+  }
+
+  /**
+   * The progress handler of a wCK keyframe scene (wck.play): its poses as the servos'
+   * targets (servos 0..N-1 of the bus, in degrees as wck.status gives them), from its start.
+   */
+  #watchScene(request) {
+    const scene = parseKeyframes(request.motion);
+    const bus = request.bus ?? this.studio.buses("wck")[0];
+    if (!scene || bus == null) return null;
+    const duration = scene.rows[scene.rows.length - 1][0];
+    let start = null;
+    const segs = [];
+    return (p) => {
+      if (!p) {
+        for (const seg of segs) if (seg.t1 > Date.now()) seg.t1 = Date.now();
+        this.#changed({ target: true });
+        return;
+      }
+      if (p.done == null) return;
+      // Its progress is the time into the scene (ms): the earliest estimate of its start is the closest.
+      const s0 = Date.now() - p.done;
+      if (start !== null && s0 >= start) return;
+      start = s0;
+      if (!segs.length) {
+        for (let i = 0; i < scene.servos; i++) {
+          const key = deviceKey("wck", bus, i);
+          if (!this.rings.has(key)) continue;
+          const seg = { t0: start, t1: start + duration * 1000, at: (t) => interpolate(scene.rows, i + 1, (t - seg.t0) / 1000) * WCK_DEG_PER_STEP };
+          if (!this.waves.has(key)) this.waves.set(key, []);
+          this.waves.get(key).push(seg);
+          segs.push(seg);
+        }
+      } else {
+        for (const seg of segs) {
+          seg.t1 -= seg.t0 - start;
+          seg.t0 = start;
         }
       }
       this.#changed({ target: true });
@@ -397,6 +440,34 @@ export class History {
     }
     return { devices, buses };
   }
+}
+
+/**
+ * A keyframe scene's text (`torque`, `pose MS P0 P1 …`, `hold MS`: the motion file of
+ * `robobus wck play`) as points in time: the first pose at once, held for its time, each
+ * later one reached linearly in its time, a hold keeping the pose. {servos, rows: [[s, steps…]]}, or null.
+ */
+function parseKeyframes(text) {
+  if (typeof text !== "string") return null;
+  const rows = [];
+  let t = 0;
+  let last = null;
+  for (const line of text.split(/\r?\n/).slice(0, 100_000)) {
+    const w = line.split("#")[0].trim().split(/\s+/).filter(Boolean);
+    if (w[0] === "pose" && w.length > 2) {
+      const ms = Number(w[1]);
+      const pos = w.slice(2).map(Number);
+      if (!Number.isFinite(ms) || pos.some((v) => !Number.isFinite(v))) return null;
+      if (last === null) rows.push([0, ...pos], [ms / 1000, ...pos]);
+      else rows.push([(t + ms) / 1000, ...pos]);
+      t += ms;
+      last = pos;
+    } else if (w[0] === "hold" && last) {
+      t += Number(w[1]) || 0;
+      rows.push([t / 1000, ...last]);
+    }
+  }
+  return last ? { servos: last.length, rows } : null;
 }
 
 /** A trajectory file's text (`time_s`, then a column per joint): {names, rows: [[t, v...]]}, or null. */
