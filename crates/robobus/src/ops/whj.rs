@@ -182,6 +182,7 @@ pub use joints::*;
 pub use motion::*;
 pub use registers::*;
 
+#[cfg(feature = "sim")]
 pub(crate) use stream::FrameTimes;
 pub use stream::{SILENT_AFTER, SILENT_FRAMES, STALL_AFTER, TEMPERATURE_EVERY, check_plan_steps};
 

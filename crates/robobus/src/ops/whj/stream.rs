@@ -56,7 +56,8 @@ pub const TEMPERATURE_EVERY: Duration = Duration::from_millis(250);
 /// When a planned frame went out and how long its exchange took.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct FrameTimes {
-    /// When it was due, from the plan's start.
+    /// When it was due, from the plan's start (what the pre-flight names).
+    #[cfg_attr(not(feature = "sim"), allow(dead_code))]
     pub(crate) at: Duration,
     /// How late after its planned time the frame was handed to the bus.
     pub(crate) late: Duration,
@@ -67,6 +68,7 @@ pub(crate) struct FrameTimes {
     pub(crate) held_back: bool,
     /// The position set-point it carried, degrees, and how far the plan's was from it
     /// (`None`: no position set-point).
+    #[cfg_attr(not(feature = "sim"), allow(dead_code))]
     pub(crate) set_point: Option<(f64, f64)>,
 }
 
