@@ -427,3 +427,37 @@ fn a_joint_robot_play_cannot_move_refuses_the_trajectory_before_anything_moves()
     let h = s.trajectories.health();
     assert_eq!((h.refused, h.aborted), (1, 0), "{h:?}");
 }
+
+#[test]
+fn disarming_stops_a_trajectory_on_the_way() {
+    let (s, done) = armed();
+    let sink = Arc::new(Collect {
+        pause_at_s: Some(0.5),
+        ..Collect::default()
+    });
+    let dyn_sink: Arc<dyn Sink> = sink.clone();
+    take_up(
+        &s,
+        &dyn_sink,
+        &trajectory(&["j3"], vec![point(2.0, &[40_f64.to_radians()])]),
+    );
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while !sink.paused.load(Ordering::SeqCst) {
+        assert!(Instant::now() < deadline, "it never reached 0.5 s");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    s.set_armed(false).unwrap();
+    sink.released.store(true, Ordering::SeqCst);
+    sink.changed.notify_all();
+    let r = sink.result(1);
+    done.store(true, Ordering::SeqCst);
+    assert_eq!(r.status, "aborted", "{r:?}");
+    assert_eq!(
+        r.error_code,
+        Some(cdr::result_code::PATH_TOLERANCE_VIOLATED)
+    );
+    // Held near where it was at 0.5 s (10°), far from 40°.
+    let at = r.joints[0].position_deg.unwrap();
+    assert!(at < 15.0, "{r:?}");
+    assert_eq!(s.trajectories.health().aborted, 1);
+}
