@@ -38,8 +38,11 @@ test("the capture files of both buses are listed; Refresh shows new traffic", as
   await runRequest(studio.url, { op: "whj.status", joints: "1-2" });
   await panel.getByRole("button", { name: "Refresh" }).click();
   await until(async () => (await size("sim-wck")) > wck0 && (await size("sim-whj")) > whj0, { what: "bigger captures" });
+  // The page's history samples every bus all the time: a list fetched after the panel's
+  // holds at least what the panel shows.
+  const shown = { "sim-wck": await size("sim-wck"), "sim-whj": await size("sim-whj") };
   const list = await (await fetch(new URL("api/capture", studio.url))).json();
-  for (const f of list) assert.equal(await size(f.bus), f.bytes);
+  for (const f of list) assert.ok(f.bytes >= shown[f.bus] && shown[f.bus] > 0, `${f.bus}: ${shown[f.bus]} shown, ${f.bytes} listed`);
   await screenshot(page, "capture");
 });
 

@@ -88,7 +88,9 @@ test("after the WebSocket drops, the page reconnects, takes control again and it
   const seen = await page.evaluate(
     () =>
       new Promise((resolve) => {
+        // The Device panel's own streams (the page's history streams run too).
         const off = window.studio.on("telemetry", (m) => {
+          if (!m.stream.startsWith("device.")) return;
           off();
           resolve(m.stream);
         });
