@@ -418,7 +418,14 @@ impl NativeStation {
             .admit(robobus::frontend::Arming::Local, req)
             .map_err(|r| op_error(py, &r.error))?
             .into_request();
-        let station = self.get(py, &call)?;
+        // Open and in this process, checked above (one `getpid` a call); a `close` since
+        // is seen here or by `running`.
+        let station = self
+            .station
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .clone()
+            .ok_or_else(|| closed_error(py, &call))?;
         let stop = StopToken::new();
         // Stopped by a `close` on another thread.
         let running = self.life.running(py, &call, &stop)?;
