@@ -224,6 +224,8 @@ pub struct Health {
     /// Trajectories on `NS/joint_trajectory`: received, refused, played and how they
     /// ended.
     pub trajectories: crate::TrajectoryHealth,
+    /// Velocity and effort commands, and the joints on each.
+    pub drives: crate::DriveHealth,
 }
 
 fn get(c: &AtomicU64) -> u64 {
@@ -315,6 +317,7 @@ pub(crate) fn of(s: &Shared) -> Health {
         queries: get(&c.queries),
         queries_busy: get(&c.queries_refused),
         trajectories: s.trajectories.health(),
+        drives: s.drives.health(),
     }
 }
 

@@ -15,6 +15,11 @@
 //!   ([`Follower::apply`]); a malformed one is refused, an out-of-range, unarmed or stale
 //!   one is held (nothing moves), each counted with its reason; one replaced by a newer
 //!   one before it could be applied is counted superseded.
+//! - `NS/joint_commands/velocity`, `NS/joint_commands/effort`: `Float64MultiArray` in
+//!   CDR, rad/s or N·m, one per joint on that interface in the file's order, after
+//!   `NS/robobus/interface` switched them (a queryable: `{"interface": "velocity",
+//!   "joints": [...]}`); checked whole, admitted and watched as positions are
+//!   ([`CommandKeys`], the library's `Driver`).
 //! - `NS/diagnostics`: `diagnostic_msgs/msg/DiagnosticArray` in CDR ([`diagnostics`]) about
 //!   once a second: one status per joint and per bus of the robot file (OK, warning, error
 //!   or stale, with the reason and the values read), from the joint states' own samples.
@@ -47,6 +52,7 @@
 pub use robobus::cdr;
 mod capacity;
 mod claim;
+mod commands;
 pub mod diagnostics;
 mod health;
 mod trajectory;
@@ -71,6 +77,7 @@ use zenoh::bytes::Encoding;
 use zenoh::query::Query;
 
 pub use capacity::{BusTiming, Capacity};
+pub use commands::{CommandKeys, DriveHealth, StreamHealth};
 pub use health::{Health, RATE_WINDOW};
 pub use trajectory::{TRAJECTORY_RATE_HZ, TrajectoryHealth, TrajectoryKeys, TrajectoryResult};
 pub use zconfig::{DEFAULT_LISTEN, namespace_prefix};
@@ -372,6 +379,8 @@ pub(crate) struct Shared {
     /// Each joint's last reading: answered or not (in the file's order).
     pub(crate) joint_ok: Mutex<Vec<Option<bool>>>,
     pub(crate) trajectories: trajectory::Trajectories,
+    /// Velocity and effort commands.
+    pub(crate) drives: commands::Drives,
     mailbox: Mailbox,
     stop: StopToken,
     /// Why the bridge gave way to another on its namespace, once it has.
@@ -467,6 +476,7 @@ impl Shared {
     ) -> Result<Arc<Self>, BridgeError> {
         let station = Arc::new(station);
         let follower = Follower::new(&station).ok();
+        let drives = commands::Drives::new(&station);
         let joints = follower.as_ref().map_or(0, |f| f.joints().len());
         // Each joint's handle now (reads only), so that the first command costs no more
         // than the next; a silent joint is tried again by the first command.
@@ -535,6 +545,7 @@ impl Shared {
             states: health::StateClock::default(),
             joint_ok: Mutex::new(vec![None; joints]),
             trajectories: trajectory::Trajectories::default(),
+            drives,
             mailbox: Mailbox::default(),
             stop: StopToken::new(),
             displaced: Mutex::new(None),
@@ -634,6 +645,7 @@ impl Bridge {
 
         threads.extend(declare_queries(&shared, &session, &mut declared)?);
         threads.extend(trajectory::declare(&shared, &session, &mut declared)?);
+        threads.extend(commands::declare(&shared, &session, &mut declared)?);
 
         // Joint states.
         if shared.follower.is_some() {
@@ -1021,6 +1033,10 @@ fn follow(s: &Shared, payload: &[u8]) -> bool {
         );
         return false;
     };
+    if let Some(why) = s.drives.blocks_positions() {
+        s.hold_command(&c.refused_out_of_range, why);
+        return false;
+    }
     if let Err(r) = s.admission.check_motion(s.arming(), "joint_commands") {
         s.hold_command(&c.refused_not_armed, r.to_string());
         return false;

@@ -31,6 +31,7 @@ use crate::ops::Family;
 use crate::ops::{DeviceResult, Failure, OpError};
 use crate::station::Station;
 
+pub mod drive;
 mod guard;
 
 /// A joint of the robot file as the follower commands it.
