@@ -417,6 +417,7 @@ pub(crate) fn json_text(
     out: &mut String,
 ) -> PyResult<()> {
     use pyo3::types::{PyBool, PyFloat, PyInt, PyTuple};
+    use std::fmt::Write as _;
     let bad = |what: String| crate::raise(py, robobus::ErrorKind::BadInput, &what, None);
     if depth > crate::MAX_DEPTH {
         return Err(bad(format!(
@@ -441,7 +442,6 @@ pub(crate) fn json_text(
         if let Ok(i) = v.extract::<i64>() {
             out.push_str(itoa(i, &mut [0u8; 20]));
         } else if let Ok(u) = v.extract::<u64>() {
-            use std::fmt::Write as _;
             let _ = write!(out, "{u}");
         } else {
             return Err(bad(format!(
@@ -456,7 +456,6 @@ pub(crate) fn json_text(
                 "request: the number {x} is not finite (allowed: finite numbers); nothing was sent"
             )));
         }
-        use std::fmt::Write as _;
         // `{:?}` keeps a float a float (`1.0`, not `1`), as Python's json writes it.
         let _ = write!(out, "{x:?}");
     } else if let Ok(l) = v.cast::<PyList>() {

@@ -160,6 +160,7 @@ impl NativeTelemetry {
 /// count what a sampling costs the bus.
 #[pyfunction]
 #[pyo3(name = "_whj_frames_sent", signature = (station, bus = None))]
+#[allow(clippy::needless_pass_by_value)] // pyo3 signature
 pub(crate) fn whj_frames_sent(
     py: Python<'_>,
     station: PyRef<'_, NativeStation>,
