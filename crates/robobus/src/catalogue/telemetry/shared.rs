@@ -330,9 +330,10 @@ impl Station {
     /// A subscription to the one sampling of the bus `request` reads (see the [module
     /// docs](crate::catalogue::telemetry)): `request` a reading request (`whj.sample`,
     /// `wck.sample`, `robot.sample`, `whj.status`, `wck.status`, `whj.can-health`), its
-    /// rows given at `rate_hz` ([`RATE_HZ`]) into a queue of `capacity`
-    /// (1..=[`MAX_QUEUE`]) samples. The sampling starts with the first subscription of
-    /// its bus and reading, and stops with the last.
+    /// rows given at `rate_hz` ([`RATE_HZ`](crate::catalogue::telemetry::RATE_HZ)) into a
+    /// queue of `capacity` (1..=[`MAX_QUEUE`](crate::catalogue::telemetry::MAX_QUEUE))
+    /// samples. The sampling starts with the first subscription of its bus and reading,
+    /// and stops with the last.
     ///
     /// # Errors
     ///
