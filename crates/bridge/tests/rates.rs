@@ -14,6 +14,19 @@ use robobus_bridge::cdr::Float64MultiArray;
 use robobus_bridge::{Bridge, BridgeConfig, Health};
 use zenoh::Wait as _;
 
+/// One bridge of these tests at a time: each runs a live simulated robot and a bridge whose
+/// command stream is timed on the wall clock; three at once on a 2-core machine starve each
+/// other's threads for longer than a command's room to spare, which the bridge rightly counts as a
+/// superseded command or a hold (the first test then failed about one run in six).
+static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// Holds [`ONE_AT_A_TIME`] for a test (a failed test's poison is not this one's failure).
+fn one_at_a_time() -> std::sync::MutexGuard<'static, ()> {
+    ONE_AT_A_TIME
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
 /// A free TCP port on loopback (bound, then released for Zenoh to take).
 fn free_port() -> u16 {
     std::net::TcpListener::bind("127.0.0.1:0")
@@ -110,13 +123,18 @@ fn settled(bridge: &Bridge, n: u64) -> Health {
 }
 
 #[test]
-fn a_steady_20_hz_stream_the_buses_carry_is_applied_command_for_command() {
+fn a_steady_10_hz_stream_the_buses_carry_is_applied_command_for_command() {
+    let _one = one_at_a_time();
     let port = free_port();
     let b = bridge(port, 50.0, true);
     let joints = b.joint_names().len();
-    // The buses carry the stream: one command to the 23 joints is less than its 50 ms.
+    // The buses carry the stream with room to spare: one command to the 23 joints is less
+    // than a third of its 100 ms (26 ms on the wire: 16 wCK servos at 115200 bit/s). The
+    // room is what a loaded 2-core machine may take from the bridge's threads; at 20 Hz
+    // (24 ms to spare) a command now and then waited for its predecessor and was rightly
+    // counted superseded.
     let carried = b.capacity().commands_hz().unwrap();
-    assert!(carried > 20.0, "{:?}", b.capacity());
+    assert!(carried > 30.0, "{:?}", b.capacity());
     // But not 50 Hz of states beside it.
     assert!(
         b.capacity().sample_ms() + b.capacity().command_ms() > 20.0,
@@ -126,18 +144,18 @@ fn a_steady_20_hz_stream_the_buses_carry_is_applied_command_for_command() {
     let (_session, publisher) = commander(port);
     let payload = command(&vec![0.0; joints]);
     // The stream's first command reads every servo before its step (no answer of theirs
-    // is recent yet): twice the wire time of the next ones. Then 40 more, 50 ms apart.
+    // is recent yet): twice the wire time of the next ones. Then 30 more, 100 ms apart.
     stream(&publisher, 1, Duration::ZERO, &payload);
     assert_eq!(settled(&b, 1).commands.applied, 1);
-    stream(&publisher, 40, Duration::from_millis(50), &payload);
-    let h = settled(&b, 41);
+    stream(&publisher, 30, Duration::from_millis(100), &payload);
+    let h = settled(&b, 31);
     let c = &h.commands;
     assert_eq!(
         (c.received, c.applied, c.superseded, c.held, c.stale),
-        (41, 41, 0, 0, 0),
+        (31, 31, 0, 0, 0),
         "{h:#?}"
     );
-    // No hold while the stream ran: a command every 50 ms, within the 200 ms timeout.
+    // No hold while the stream ran: a command every 100 ms, within the 200 ms timeout.
     assert_eq!(c.holds, 0, "{h:#?}");
     // The buses cannot carry 50 Hz of states beside it: the samples gave way, counted.
     assert!(h.states.lost_to_commands > 0, "{h:#?}");
@@ -153,6 +171,7 @@ fn a_steady_20_hz_stream_the_buses_carry_is_applied_command_for_command() {
 
 #[test]
 fn held_commands_are_counted_with_their_reason() {
+    let _one = one_at_a_time();
     let port = free_port();
     let b = bridge(port, 5.0, false);
     let joints = b.joint_names().len();
@@ -211,6 +230,7 @@ fn held_commands_are_counted_with_their_reason() {
 
 #[test]
 fn a_state_rate_the_buses_cannot_carry_is_said_and_its_lost_samples_counted() {
+    let _one = one_at_a_time();
     let port = free_port();
     let b = bridge(port, 200.0, false);
     let limit = b.capacity().states_hz().unwrap();
