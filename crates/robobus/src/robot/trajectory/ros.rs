@@ -22,7 +22,7 @@
 //!   times, every position within the joint's soft limits, every velocity and every
 //!   stretch of the motion (the first included) within its `max_velocity`; a refusal
 //!   names the point, the joint and the value, with
-//!   [`result_code`](crate::cdr::result_code)'s code.
+//!   [`result_code`]'s code.
 //! - **The end** ([`outcome`]): reached when every joint ends within
 //!   [`GOAL_TOLERANCE_DEG`] of its last point.
 
