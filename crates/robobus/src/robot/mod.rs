@@ -100,8 +100,8 @@ use robobus_whj::units::CurrentScale;
 pub use builder::{RobotBuilder, open_wck_bus, open_whj_bus};
 pub use config::{BusConfig, JointConfig, Protection, RobotConfig};
 use hardware::{Device, Drive, Hardware, JointSlot, Shared, WckSlot, WhjSlot, lock};
-pub use interface::{EffortScale, Interface, WHEEL_LEVELS, WheelSpeeds};
 pub(crate) use interface::list as interface_list;
+pub use interface::{EffortScale, Interface, WHEEL_LEVELS, WheelSpeeds};
 pub use safety::{LimitEvent, LimitKind, RateLimiter};
 
 use crate::actuator::{ActuatorError, ActuatorState, JointLimits, JointMap, WckScale, whj_to_rad};
