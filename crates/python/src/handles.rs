@@ -11,7 +11,7 @@ use pyo3::types::PyDict;
 use robobus::ErrorKind;
 use robobus::ops::whj::{JointSample, ServoLoop};
 use robobus::ops::{DeviceResult, Outcome};
-use robobus::robot::Robot;
+use robobus::robot::{Interface, Robot};
 use robobus::station::cyclic::JointFeedback;
 use robobus::station::handles::{WckGroup, WckReading, WhjGroup};
 
@@ -564,6 +564,39 @@ fn stop_report(py: Python<'_>, r: &robobus::robot::SafeStopReport) -> PyResult<P
     Ok(d.into_any().unbind())
 }
 
+/// A robot command's report: `sent_rad` (rad, rad/s or N·m by each joint's interface),
+/// `interfaces` and the `limited` targets.
+fn command_report(py: Python<'_>, report: &robobus::robot::CommandReport) -> PyResult<Py<PyAny>> {
+    let d = PyDict::new(py);
+    d.set_item(
+        "interfaces",
+        report
+            .interfaces
+            .iter()
+            .map(|i| i.keyword())
+            .collect::<Vec<_>>(),
+    )?;
+    d.set_item("sent_rad", &report.sent_rad)?;
+    let limited = pyo3::types::PyList::empty(py);
+    for l in &report.limited {
+        let e = PyDict::new(py);
+        e.set_item("joint", &l.joint)?;
+        e.set_item(
+            "kind",
+            match l.kind {
+                robobus::robot::LimitKind::Position => "position",
+                robobus::robot::LimitKind::Motion => "motion",
+                robobus::robot::LimitKind::Step => "step",
+            },
+        )?;
+        e.set_item("requested_rad", l.requested_rad)?;
+        e.set_item("limited_rad", l.limited_rad)?;
+        limited.append(e)?;
+    }
+    d.set_item("limited", limited)?;
+    Ok(d.into_any().unbind())
+}
+
 #[pymethods]
 #[allow(clippy::needless_pass_by_value)] // pyo3 signatures
 impl NativeRobot {
@@ -575,12 +608,19 @@ impl NativeRobot {
             .map_err(|e| robot_error(py, &e))
     }
 
-    /// The built-in simulated robot, in-process.
+    /// The built-in simulated robot, in-process; with `robot_toml`, driven through that
+    /// robot file (buses `sim-wck` and `sim-whj`).
     #[staticmethod]
-    fn simulated(py: Python<'_>) -> PyResult<Self> {
-        py.detach(Robot::simulated)
-            .map(Self::wrap)
-            .map_err(|e| robot_error(py, &e))
+    #[pyo3(signature = (robot_toml=None))]
+    fn simulated(py: Python<'_>, robot_toml: Option<String>) -> PyResult<Self> {
+        py.detach(|| match robot_toml {
+            None => Robot::simulated(),
+            Some(text) => {
+                robobus::robot::RobotConfig::from_toml_str(&text).and_then(Robot::simulated_with)
+            }
+        })
+        .map(Self::wrap)
+        .map_err(|e| robot_error(py, &e))
     }
 
     /// The joint names, in the order of every array.
@@ -645,26 +685,50 @@ impl NativeRobot {
         let report = self
             .with(py, |r| r.command(&targets))?
             .map_err(|e| robot_error(py, &e))?;
-        let d = PyDict::new(py);
-        d.set_item("sent_rad", report.sent_rad)?;
-        let limited = pyo3::types::PyList::empty(py);
-        for l in &report.limited {
-            let e = PyDict::new(py);
-            e.set_item("joint", &l.joint)?;
-            e.set_item(
-                "kind",
-                match l.kind {
-                    robobus::robot::LimitKind::Position => "position",
-                    robobus::robot::LimitKind::Motion => "motion",
-                    robobus::robot::LimitKind::Step => "step",
-                },
-            )?;
-            e.set_item("requested_rad", l.requested_rad)?;
-            e.set_item("limited_rad", l.limited_rad)?;
-            limited.append(e)?;
-        }
-        d.set_item("limited", limited)?;
-        Ok(d.into_any().unbind())
+        command_report(py, &report)
+    }
+
+    /// Sends one cycle of speeds (rad/s, joint order; every joint on velocity), as
+    /// `command`.
+    fn command_velocity(&self, py: Python<'_>, rad_s: Vec<f64>) -> PyResult<Py<PyAny>> {
+        let report = self
+            .with(py, |r| r.command_velocity(&rad_s))?
+            .map_err(|e| robot_error(py, &e))?;
+        command_report(py, &report)
+    }
+
+    /// Sends one cycle of efforts (N·m, joint order; every joint on effort), as
+    /// `command`.
+    fn command_effort(&self, py: Python<'_>, nm: Vec<f64>) -> PyResult<Py<PyAny>> {
+        let report = self
+            .with(py, |r| r.command_effort(&nm))?
+            .map_err(|e| robot_error(py, &e))?;
+        command_report(py, &report)
+    }
+
+    /// Switches joint `index` to `interface` (`position`, `velocity`, `effort`).
+    fn set_interface(&self, py: Python<'_>, index: usize, interface: &str) -> PyResult<()> {
+        let Some(to) = Interface::ALL
+            .into_iter()
+            .find(|i| i.keyword() == interface)
+        else {
+            return Err(raise(
+                py,
+                robobus::ErrorKind::BadInput,
+                &format!(
+                    "interface: {interface:?} is not allowed; expected position, velocity or \
+                     effort"
+                ),
+                None,
+            ));
+        };
+        self.with(py, |r| r.set_interface(index, to))?
+            .map_err(|e| robot_error(py, &e))
+    }
+
+    /// The interface each joint is on now (joint order).
+    fn interfaces(&self, py: Python<'_>) -> PyResult<Vec<&'static str>> {
+        self.with(py, |r| r.interfaces().iter().map(|i| i.keyword()).collect())
     }
 
     /// Puts every bus in its safe state now (once); what it did.

@@ -323,15 +323,17 @@ class RobotState:
 
 
 class RobotCommand:
-    """What :meth:`Robot.command` sent: ``sent_rad`` (each joint's set-point at the
-    device's resolution) and ``limited`` (the targets a limit changed: ``joint``,
-    ``kind`` ``"position"`` / ``"motion"`` / ``"step"``, ``requested_rad``,
-    ``limited_rad``)."""
+    """What :meth:`Robot.command` (or :meth:`Robot.command_velocity`,
+    :meth:`Robot.command_effort`) sent: ``sent_rad`` (each joint's set-point at the
+    device's resolution, in its interface's unit: rad, rad/s or N·m), ``interfaces``
+    (each joint's) and ``limited`` (the targets a limit changed: ``joint``, ``kind``
+    ``"position"`` / ``"motion"`` / ``"step"``, ``requested_rad``, ``limited_rad``)."""
 
-    __slots__ = ("limited", "sent_rad")
+    __slots__ = ("interfaces", "limited", "sent_rad")
 
     def __init__(self, d: dict[str, Any]):
         self.sent_rad = np.asarray(d["sent_rad"], dtype=np.float64)
+        self.interfaces: list[str] = list(d["interfaces"])
         self.limited: list[dict[str, Any]] = d["limited"]
 
     def __repr__(self) -> str:
@@ -353,9 +355,12 @@ class Robot:
         self._native = native
 
     @classmethod
-    def simulated(cls) -> "Robot":
-        """The built-in simulated robot (the simulators run in this process)."""
-        return cls(NativeRobot.simulated())
+    def simulated(cls, robot_toml: str | None = None) -> "Robot":
+        """The built-in simulated robot (the simulators run in this process); with
+        ``robot_toml``, the text of a robot file whose buses are ``sim-wck`` (servos
+        0..15) and ``sim-whj`` (joints 1..7), driven through it (its own limits and
+        interfaces)."""
+        return cls(NativeRobot.simulated(robot_toml))
 
     @classmethod
     def open(cls, path: str) -> "Robot":
@@ -390,6 +395,48 @@ class Robot:
         (see :attr:`RobotCommand.limited`); a non-finite target or a wrong count is
         refused before anything is sent."""
         return RobotCommand(self._native.command(_floats(targets, "targets")))
+
+    @property
+    def interfaces(self) -> list[str]:
+        """The interface each joint is commanded in now: ``"position"``, ``"velocity"``
+        or ``"effort"`` (position after opening and after :meth:`resume`)."""
+        return self._native.interfaces()
+
+    def set_interface(self, joint: str | int, interface: str) -> None:
+        """Switches ``joint`` (a name or an index) to ``interface`` (``"position"``,
+        ``"velocity"``: a WHJ joint's speed mode or a wCK servo's wheel mode; ``"effort"``:
+        a WHJ joint's current mode), left at rest there. Refused, nothing sent, for an
+        interface the robot file does not give the joint, a joint that moves, or a robot
+        in its safe state."""
+        names = self.joint_names
+        if isinstance(joint, str):
+            if joint not in names:
+                raise _bad_input(
+                    f"joint: {joint!r} is not a joint of the robot; expected one of "
+                    f"{', '.join(names)}; nothing was sent"
+                )
+            joint = names.index(joint)
+        elif not 0 <= joint < len(names):
+            raise _bad_input(
+                f"joint: {joint} is out of range; expected 0..{len(names) - 1} or a joint "
+                "name; nothing was sent"
+            )
+        self._native.set_interface(joint, interface)
+
+    def command_velocity(self, rad_s: npt.ArrayLike) -> RobotCommand:
+        """Sends one cycle of speeds (rad/s, one per joint, every joint on its velocity
+        interface) and feeds the watchdog: clamped to ``max_velocity``, ramped at
+        ``max_acceleration``, a wCK speed sent as its nearest wheel level. Refused before
+        anything is sent for a wrong count, a non-finite speed, a joint not on velocity or
+        a speed past what its device turns at."""
+        return RobotCommand(self._native.command_velocity(_floats(rad_s, "rad_s")))
+
+    def command_effort(self, nm: npt.ArrayLike) -> RobotCommand:
+        """Sends one cycle of efforts (N·m, one per joint, every joint on its effort
+        interface) and feeds the watchdog: clamped to ``max_effort``, ramped at
+        ``max_effort_rate``, sent as the current of the model's torque constant. Refused
+        before anything is sent as :meth:`command_velocity` is."""
+        return RobotCommand(self._native.command_effort(_floats(nm, "nm")))
 
     def safe_stop(self) -> dict[str, Any]:
         """Puts every bus in its safe state now; commands are refused until

@@ -55,7 +55,14 @@ impl Robot {
     /// in this process on the wall clock (the robot's watchdog and speed limits are
     /// measured on it), and stop when the robot is dropped, after its safe stop.
     pub fn simulated() -> Result<Self, RobotError> {
-        let config = RobotConfig::from_toml_str(&simulated_robot())?;
+        Self::simulated_with(RobotConfig::from_toml_str(&simulated_robot())?)
+    }
+
+    /// The built-in simulators (as [`Robot::simulated`]) driven through the robot file
+    /// `config` instead of the built-in one: its buses must be `sim-wck` (servos 0..=15)
+    /// and `sim-whj` (joints 1..=7); its joints any of those, with their own limits and
+    /// interfaces.
+    pub fn simulated_with(config: RobotConfig) -> Result<Self, RobotError> {
         let (link, wck_sim) = SimLink::new(Bus::with_servos(
             BusConfig::default(),
             Model::W1108,
