@@ -295,7 +295,7 @@ pub(crate) fn declare(
 }
 
 /// The thread: interface queries, then the newest command of each stream, then the
-/// watchdog.
+/// watchdog; at the bridge's end, every joint released to position.
 fn serve(s: &Shared) {
     let timeout = s.config.command_timeout;
     let tick = (timeout / 4).clamp(Duration::from_millis(5), Duration::from_millis(50));
@@ -335,6 +335,15 @@ fn serve(s: &Shared) {
             }
         }
         watch(s, Instant::now());
+    }
+    // The bridge's end: every joint off position to rest and back on it, before the guard
+    // brings what the bridge moved to the safe state.
+    if let Some(driver) = &s.drives.driver {
+        for r in driver.release(&s.station, None) {
+            if let Outcome::Failed(f) = r.outcome {
+                tracing::warn!("joint {}: could not go back to position: {}", r.id, f.error);
+            }
+        }
     }
 }
 

@@ -294,3 +294,21 @@ fn an_effort_stream_drives_the_whj_joint_in_current_mode() {
     assert_eq!(s.drives.health().effort.applied, 10);
     done.store(true, Ordering::SeqCst);
 }
+
+#[test]
+fn the_bridges_end_brings_joints_off_position_back_on_it() {
+    let (s, done) = armed();
+    interface(&s, r#"{"interface": "velocity", "joints": ["j1"]}"#).unwrap();
+    stream(&s, Interface::Velocity, &[0.5], 100);
+    s.stop.stop();
+    serve(&s);
+    assert!(s.drives.health().velocity_joints.is_empty());
+    let snap = until(&s, |n| n.whj[0].mode == 3);
+    assert_eq!(
+        (snap.whj[0].mode, snap.whj[0].target_speed_rpm),
+        (3, 0.0),
+        "{:?}",
+        snap.whj[0]
+    );
+    done.store(true, Ordering::SeqCst);
+}
