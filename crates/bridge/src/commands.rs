@@ -231,6 +231,10 @@ pub(crate) fn declare(
     session: &zenoh::Session,
     declared: &mut Vec<Box<dyn std::any::Any + Send>>,
 ) -> Result<Vec<JoinHandle<()>>, BridgeError> {
+    // A read-only bridge moves nothing: it offers no command stream and no switch.
+    if shared.config.read_only {
+        return Ok(Vec::new());
+    }
     let keys = CommandKeys::under(&crate::namespace_prefix(
         shared.config.namespace.as_deref(),
     )?);

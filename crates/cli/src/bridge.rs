@@ -166,6 +166,17 @@ fn describe(keys: &Keys, config: &BridgeConfig, joints: &[String], sim: bool) ->
         ] {
             let _ = writeln!(t, "  {k:<28} {what}");
         }
+        let ck = robobus_bridge::CommandKeys::under(prefix);
+        for (k, what) in [
+            (ck.velocity, "std_msgs/msg/Float64MultiArray, rad/s"),
+            (ck.effort, "std_msgs/msg/Float64MultiArray, N·m"),
+            (
+                ck.interface,
+                "queryable: the joints' interfaces, read or switched",
+            ),
+        ] {
+            let _ = writeln!(t, "  {k:<28} {what}");
+        }
     }
     if sim {
         let _ = writeln!(t, "  {:<28} queryable: the simulators' state", keys.sim);

@@ -63,6 +63,9 @@ fn a_dry_run_prints_the_keys_and_opens_no_socket() {
             "site/arm1/joint_trajectory",
             "site/arm1/controller_state",
             "site/arm1/joint_trajectory/result",
+            "site/arm1/joint_commands/velocity",
+            "site/arm1/joint_commands/effort",
+            "site/arm1/robobus/interface",
             "site/arm1/robobus/sim",
         ]
     );
