@@ -56,6 +56,13 @@ fn rows_of(report: &Report, devices: Option<&BTreeSet<u64>>) -> Report {
     out
 }
 
+/// What one sample read: the devices and whether the broadcast status.
+#[derive(Debug)]
+struct Read {
+    devices: BTreeSet<u64>,
+    broadcast: bool,
+}
+
 /// One subscriber of a shared sampling.
 #[derive(Debug)]
 struct Member {
@@ -132,10 +139,20 @@ impl Shared {
     }
 
     /// Gives `sample`, taken for the sampling's `slot`, to every member whose turn it is,
-    /// each its own rows.
-    fn deliver(&self, sample: &Sample, slot: Instant, period: Duration) {
+    /// each its own rows. A member whose devices (or broadcast status) the sample did not
+    /// read, one that joined while it was taken or queued, waits for the next one rather
+    /// than being given a sample without its rows.
+    fn deliver(&self, sample: &Sample, slot: Instant, period: Duration, read: &Read) {
         let mut m = self.lock();
         for s in &mut m.list {
+            let covered = s
+                .devices
+                .as_ref()
+                .is_none_or(|d| d.is_subset(&read.devices))
+                && (read.broadcast || !s.broadcast);
+            if !covered {
+                continue;
+            }
             // A slot up to half the sampling's period before the member's turn is on time.
             if s.due.is_some_and(|d| slot + period / 2 < d) {
                 continue;
@@ -197,15 +214,15 @@ impl Shared {
     }
 
     fn run(&self, station: &Station, reading: &Reading) -> StreamStats {
-        let (tx, rx) = std::sync::mpsc::sync_channel::<(Sample, Instant, Duration)>(4);
+        let (tx, rx) = std::sync::mpsc::sync_channel::<(Sample, Instant, Duration, Read)>(4);
         let stats = std::thread::scope(|scope| {
             // The subscribers are served by a thread of their own while the next read is
             // under way (in order, at most 4 samples behind; without that thread, here).
             let delivering = std::thread::Builder::new()
                 .name("robobus-deliver".into())
                 .spawn_scoped(scope, move || {
-                    for (sample, slot, period) in rx {
-                        self.deliver(&sample, slot, period);
+                    for (sample, slot, period, read) in rx {
+                        self.deliver(&sample, slot, period, &read);
                     }
                 })
                 .is_ok();
@@ -222,14 +239,15 @@ impl Shared {
                     broadcast,
                 };
                 let sample = take_sample(&taking, &self.stop, speeds.as_mut(), late, &mut stats);
+                let read = Read { devices, broadcast };
                 match &tx {
                     Some(tx) => {
-                        if let Err(e) = tx.send((sample, slot, period)) {
-                            let (sample, slot, period) = e.0;
-                            self.deliver(&sample, slot, period);
+                        if let Err(e) = tx.send((sample, slot, period, read)) {
+                            let (sample, slot, period, read) = e.0;
+                            self.deliver(&sample, slot, period, &read);
                         }
                     }
-                    None => self.deliver(&sample, slot, period),
+                    None => self.deliver(&sample, slot, period, &read),
                 }
                 match self.wait_slot(slot) {
                     // Behind: start again from now rather than bursting to catch up.
@@ -439,5 +457,77 @@ impl Station {
             request,
             left: false,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)] // tests
+
+    use super::*;
+
+    fn sample_of(ids: &[u64]) -> Sample {
+        let rows = ids
+            .iter()
+            .map(|id| serde_json::json!({"id": id, "position_deg": 1.5}))
+            .collect();
+        Sample {
+            seq: 0,
+            unix_ms: 0.0,
+            read_ms: 0.0,
+            late: false,
+            report: Some(Report::with_rows("whj.sample", "arm", rows)),
+            sampled_by: None,
+            failed: None,
+            error: None,
+            at: None,
+        }
+    }
+
+    #[test]
+    fn a_member_is_given_only_the_samples_that_read_its_devices() {
+        let shared = Shared {
+            members: Mutex::new(Members::default()),
+            changed: Condvar::new(),
+            stop: StopToken::new(),
+            thread: Mutex::new(None),
+        };
+        let queue = Arc::new(Queue::new(8));
+        let period = Duration::from_millis(10);
+        shared.lock().list.push(Member {
+            id: 0,
+            devices: Some(BTreeSet::from([1])),
+            broadcast: false,
+            period,
+            due: None,
+            seq: 0,
+            limit: None,
+            queue: Arc::clone(&queue),
+        });
+        let sub = Subscriber {
+            queue: Arc::clone(&queue),
+        };
+        let read = |devices: &[u64], broadcast| Read {
+            devices: devices.iter().copied().collect(),
+            broadcast,
+        };
+        // Taken before it joined, for joint 2 alone: not its sample (not an empty one).
+        let now = Instant::now();
+        shared.deliver(&sample_of(&[2]), now, period, &read(&[2], false));
+        assert_eq!(sub.queued(), 0);
+        // The next one read joints 1 and 2: its row, as sample 0.
+        shared.deliver(&sample_of(&[1, 2]), now, period, &read(&[1, 2], false));
+        let d = sub.try_recv().unwrap();
+        assert_eq!(d.sample.seq, 0);
+        let rows = &d.sample.report.as_ref().unwrap().results;
+        assert_eq!(rows.len(), 1);
+        assert_eq!(rows[0]["id"], 1);
+        // A member that asked for the broadcast status waits for a sample that read it.
+        shared.lock().list[0].broadcast = true;
+        shared.lock().list[0].due = None;
+        shared.deliver(&sample_of(&[1]), now, period, &read(&[1], false));
+        assert_eq!(sub.queued(), 0);
+        shared.deliver(&sample_of(&[1]), now, period, &read(&[1], true));
+        assert_eq!(sub.queued(), 1);
     }
 }
