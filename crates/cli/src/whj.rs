@@ -449,6 +449,9 @@ mod tests {
         // `settings` is the text of FILE; `other` is --with.
         ("diff", &["file", "with"], &["settings", "other"]),
         ("restore", &["file"], &["settings"]),
+        // The optional `preflight` field is --preflight and its negation --no-preflight.
+        ("move", &["no_preflight"], &[]),
+        ("wave", &["no_preflight"], &[]),
     ];
 
     fn request_fields(op: &str) -> BTreeSet<String> {

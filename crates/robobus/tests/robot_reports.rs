@@ -114,6 +114,8 @@ const ROBOT_FIELDS: &[(&str, &[&str], &[&str])] = &[
             "start_deg",
             "target_deg",
             "position_deg",
+            "sent_deg_s",
+            "sent_nm",
             "tracking_max_deg",
             "tracking_rms_deg",
         ],

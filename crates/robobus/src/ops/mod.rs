@@ -44,6 +44,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use robobus_link::ByteLink;
+use schemars::JsonSchema;
 use serde::Serialize;
 
 mod bound;
@@ -674,4 +675,54 @@ mod tests {
         token.reset();
         assert!(token.sleep_until(Instant::now()));
     }
+}
+
+// The pre-flight's seed and report are defined at the top of `ops`, where the WHJ motions whose
+// reports carry them (`whj::motion`) and the pre-flight (`ops::preflight`, which re-exports
+// them) both see them without importing each other.
+
+/// What the simulator is seeded with: one WHJ joint as read from the device.
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
+pub struct WhjSeed {
+    /// The joint.
+    pub id: u8,
+    /// Its model, as `whj info` names it.
+    pub model: String,
+    /// Its firmware version.
+    pub firmware: String,
+    /// Where it was, degrees.
+    pub position_deg: f64,
+    /// Its work mode.
+    pub mode: String,
+    /// The mode as the simulated joint is set to it.
+    #[serde(skip)]
+    #[schemars(skip)]
+    pub work_mode: robobus_whj::WorkMode,
+    /// The firmware as the simulated joint reports it.
+    #[serde(skip)]
+    #[schemars(skip)]
+    pub firmware_version: robobus_whj::units::FirmwareVersion,
+    /// Whether its drive was enabled.
+    pub enabled: bool,
+    /// Its temperature, °C (the simulated joint starts at it).
+    pub temperature_c: f64,
+    /// Its supply voltage, V.
+    pub voltage_v: f64,
+    /// Its settings (`whj backup`), restored onto the simulated joint.
+    #[serde(skip)]
+    #[schemars(skip)]
+    pub settings: whj::settings::Settings,
+    /// How many settings were copied.
+    pub settings_copied: usize,
+}
+
+/// A pre-flight that passed: what was simulated, from what seed.
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
+pub struct PreflightReport {
+    /// Frames the simulated run sent (the plan's, and a move's repeated last one).
+    pub frames: u64,
+    /// The simulated run's length, s (simulated time).
+    pub simulated_s: f64,
+    /// The seed read from the joint.
+    pub seed: WhjSeed,
 }

@@ -34,7 +34,7 @@ use schemars::JsonSchema;
 use serde::Serialize;
 
 use super::OpError;
-use super::whj::settings::Settings;
+pub use super::{PreflightReport, WhjSeed};
 use crate::whj::Joint;
 
 /// The longest plan (in its own time) a pre-flight runs by default: 60 s, simulated in
@@ -51,41 +51,6 @@ pub fn wanted(asked: Option<bool>, plan_length: Duration) -> bool {
 /// How long a plan's frames last, from the first to the last.
 pub fn plan_length(plan: &super::whj::Plan) -> Duration {
     plan.frames.last().map_or(Duration::ZERO, |f| f.at)
-}
-
-/// What the simulator is seeded with: one WHJ joint as read from the device.
-#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
-pub struct WhjSeed {
-    /// The joint.
-    pub id: u8,
-    /// Its model, as `whj info` names it.
-    pub model: String,
-    /// Its firmware version.
-    pub firmware: String,
-    /// Where it was, degrees.
-    pub position_deg: f64,
-    /// Its work mode.
-    pub mode: String,
-    /// The mode as the simulated joint is set to it.
-    #[serde(skip)]
-    #[schemars(skip)]
-    pub work_mode: robobus_whj::WorkMode,
-    /// The firmware as the simulated joint reports it.
-    #[serde(skip)]
-    #[schemars(skip)]
-    pub firmware_version: robobus_whj::units::FirmwareVersion,
-    /// Whether its drive was enabled.
-    pub enabled: bool,
-    /// Its temperature, °C (the simulated joint starts at it).
-    pub temperature_c: f64,
-    /// Its supply voltage, V.
-    pub voltage_v: f64,
-    /// Its settings (`whj backup`), restored onto the simulated joint.
-    #[serde(skip)]
-    #[schemars(skip)]
-    pub settings: Settings,
-    /// How many settings were copied.
-    pub settings_copied: usize,
 }
 
 /// Reads the seed of a pre-flight from the joint `j` (its identity, status and settings:
@@ -138,17 +103,6 @@ impl fmt::Display for Refusal {
             self.frame, self.at_s, self.joint, self.reason
         )
     }
-}
-
-/// A pre-flight that passed: what was simulated, from what seed.
-#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
-pub struct PreflightReport {
-    /// Frames the simulated run sent (the plan's, and a move's repeated last one).
-    pub frames: u64,
-    /// The simulated run's length, s (simulated time).
-    pub simulated_s: f64,
-    /// The seed read from the joint.
-    pub seed: WhjSeed,
 }
 
 #[cfg(feature = "sim")]

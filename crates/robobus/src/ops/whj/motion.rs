@@ -8,7 +8,7 @@ use robobus_whj::{JointId, Request};
 use serde::Serialize;
 
 use crate::motion::{Limiter, Tracking};
-use crate::ops::preflight::PreflightReport;
+use crate::ops::PreflightReport;
 use crate::ops::protect::Fault;
 use crate::ops::{Bound, Control, OpError, SafeState, StopToken};
 use crate::whj::{Joint, MotionLimits, Percentiles, Profile, WhjError};
