@@ -35,8 +35,8 @@ max_acceleration = 1.0
 
 #[test]
 fn calibration_by_hand_writes_limits_the_monitor_then_accepts() {
-    // Servo 0 swept between -40° and 50°, servo 1 between -20° and 30°, twice a second.
-    let sim = common::WckSim::start("0-1", &["--hand", "0:-40:50:0.5", "--hand", "1:-20:30:0.5"]);
+    // Servo 0 swept between -40° and 50°, servo 1 between -20° and 30°, once a second.
+    let sim = common::WckSim::start("0-1", &["--hand", "0:-40:50:1", "--hand", "1:-20:30:1"]);
     let dir = tempfile::tempdir().unwrap();
     let robot = dir.path().join("robot.toml");
     let original = FILE.replace("PORT", sim.port());
@@ -75,6 +75,7 @@ fn calibration_by_hand_writes_limits_the_monitor_then_accepts() {
         bad.stderr
     );
 
+    // Two and a half sweeps, each end passed at least twice.
     let r = robobus(&[
         "--json",
         "robot",
@@ -82,7 +83,7 @@ fn calibration_by_hand_writes_limits_the_monitor_then_accepts() {
         "--robot",
         path,
         "--seconds",
-        "1.5",
+        "2.5",
         "--zero",
         "keep",
         "--reply-margin",
@@ -99,7 +100,10 @@ fn calibration_by_hand_writes_limits_the_monitor_then_accepts() {
     ] {
         let min = row["min_deg"].as_f64().unwrap();
         let max = row["max_deg"].as_f64().unwrap();
-        // The sweep was read at 20 Hz: the extremes within a few degrees.
+        // The sweep was read at 20 Hz: the extremes within what the hand turns in half a
+        // reading's 50 ms (4.5° at the hip's 180°/s). (Swept twice a second, 9°: 20 Hz
+        // readings of a 2 Hz sweep fall on the same points of every sweep, and a start
+        // that put none near an end failed the 8° below.)
         assert!((min - lo).abs() < 8.0 && (max - hi).abs() < 8.0, "{row}");
         let limits = &row["limits_rad"];
         assert!(
