@@ -167,6 +167,14 @@ export default {
     }
 
     /**
+     * A clamp the warning stops for: a set-point changed by at least this much (deg), the
+     * position tolerance whj.move settles to. A sine started from rest is clamped by
+     * hundredths of a degree while its speed builds up (the acceleration limit): counted in
+     * the run's statistics, but not worth a question before every wave.
+     */
+    const NOTICEABLE_DEG = 0.1;
+
+    /**
      * How many of a position wave's set-points its step limiter would change, planned from
      * where the joint is now (`whj.status`, then the wave's plan with `from` that position):
      * the plan's note `N of M set-point(s) clamped`, and its note on a lead-in when it has
@@ -231,7 +239,7 @@ export default {
         try {
           say('Checking the wave against where the joint is…');
           const c = await clampCheck(r);
-          if (c && c.count > 0) {
+          if (c && c.count > 0 && c.by >= NOTICEABLE_DEG) {
             warnText.replaceChildren(
               h('strong', {}, `${c.count} of ${c.frames} set-points would be clamped, by up to ${c.by} deg`),
               ` (the joint is at ${c.from.toFixed(2)} deg): there the joint is sent the step limiter's set-points, not the wave asked`,
