@@ -3,19 +3,16 @@
 //! diagnostics ([`robobus::station::diagnostics`]) of the joint state thread's own samples:
 //! no frame of its own.
 //!
-//! The CDR is written here with [`robobus::cdr`]'s conventions (little endian after the
-//! 4-byte encapsulation header, each primitive aligned to its size from the header's end, a
-//! string a `u32` length that counts its NUL, a sequence a `u32` count); golden vectors
+//! The message and its CDR are [`robobus::cdr`]'s ([`DiagnosticArray`]); golden vectors
 //! written by rosbags check it (`tests/vectors/diagnostic_array.hex`, made by
-//! `tests/py/diagnostics_vectors.py`). The decoder, for tests and peers written in Rust,
-//! reads what DDS writers send as [`robobus::cdr`] does: bounded, padding contents and
-//! trailing bytes ignored.
+//! `tests/py/diagnostics_vectors.py`).
 
 use std::sync::PoisonError;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
-use robobus::cdr::{CDR_LE, CdrError, MAX_ELEMENTS, MAX_PAYLOAD, MAX_STRING, Time};
+use robobus::cdr::Time;
+pub use robobus::cdr::{DiagnosticArray, DiagnosticStatus, KeyValue};
 use robobus::station::diagnostics::{Diagnosis, STALE_AFTER, Stops};
 use zenoh::Wait as _;
 
@@ -24,240 +21,18 @@ use crate::Shared;
 /// How often the diagnostics are published.
 pub const DIAGNOSTICS_PERIOD: Duration = Duration::from_secs(1);
 
-/// `diagnostic_msgs/msg/KeyValue`.
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
-pub struct KeyValue {
-    /// The key (`temperature_c`).
-    pub key: String,
-    /// The value, as text.
-    pub value: String,
-}
-
-/// `diagnostic_msgs/msg/DiagnosticStatus`.
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
-pub struct DiagnosticStatus {
-    /// `OK` 0, `WARN` 1, `ERROR` 2, `STALE` 3.
-    pub level: u8,
-    /// `robobus: ROBOT joint NAME`, `robobus: ROBOT bus NAME`.
-    pub name: String,
-    /// Why it is at its level.
-    pub message: String,
-    /// The device.
-    pub hardware_id: String,
-    /// What was read.
-    pub values: Vec<KeyValue>,
-}
-
-/// `diagnostic_msgs/msg/DiagnosticArray` (its `std_msgs/Header` flattened).
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
-pub struct DiagnosticArray {
-    /// `header.stamp`.
-    pub stamp: Time,
-    /// `header.frame_id`.
-    pub frame_id: String,
-    /// One status per joint and per bus.
-    pub status: Vec<DiagnosticStatus>,
-}
-
-/// Writes CDR, little endian, after the encapsulation header.
-struct Writer(Vec<u8>);
-
-impl Writer {
-    fn align(&mut self, n: usize) {
-        while !(self.0.len() - CDR_LE.len()).is_multiple_of(n) {
-            self.0.push(0);
-        }
-    }
-
-    fn u32(&mut self, v: u32) {
-        self.align(4);
-        self.0.extend_from_slice(&v.to_le_bytes());
-    }
-
-    fn count(&mut self, n: usize) {
-        // Bounded by the callers (at most MAX_ELEMENTS, MAX_STRING + 1).
-        self.u32(u32::try_from(n).unwrap_or(u32::MAX));
-    }
-
-    /// A string, cut to [`MAX_STRING`] bytes at a character boundary (a reader bounds its
-    /// strings too).
-    fn string(&mut self, s: &str) {
-        let mut end = s.len().min(MAX_STRING);
-        while !s.is_char_boundary(end) {
-            end -= 1;
-        }
-        self.count(end + 1);
-        self.0.extend_from_slice(&s.as_bytes()[..end]);
-        self.0.push(0);
-    }
-}
-
-/// Reads CDR after the encapsulation header, ignoring padding contents.
-struct Reader<'a> {
-    buf: &'a [u8],
-    pos: usize,
-    little: bool,
-}
-
-impl<'a> Reader<'a> {
-    fn new(payload: &'a [u8]) -> Result<Self, CdrError> {
-        if payload.len() > MAX_PAYLOAD {
-            return Err(CdrError::TooLarge(payload.len()));
-        }
-        let Some(header) = payload.get(..4) else {
-            return Err(CdrError::NoHeader(payload.len()));
-        };
-        let little = match u16::from_be_bytes([header[0], header[1]]) {
-            0x0001 => true,
-            0x0000 => false,
-            other => return Err(CdrError::Encapsulation(other)),
-        };
-        Ok(Self {
-            buf: payload,
-            pos: 4,
-            little,
-        })
-    }
-
-    fn take(&mut self, n: usize, align: usize, field: &'static str) -> Result<&'a [u8], CdrError> {
-        let start = 4 + (self.pos - 4).next_multiple_of(align);
-        let end = start.checked_add(n).filter(|&e| e <= self.buf.len());
-        let Some(end) = end else {
-            return Err(CdrError::Truncated {
-                field,
-                len: self.buf.len(),
-            });
-        };
-        self.pos = end;
-        Ok(&self.buf[start..end])
-    }
-
-    fn fixed4(&mut self, field: &'static str) -> Result<[u8; 4], CdrError> {
-        let mut b = [0u8; 4];
-        b.copy_from_slice(self.take(4, 4, field)?);
-        if !self.little {
-            b.reverse();
-        }
-        Ok(b)
-    }
-
-    fn u8(&mut self, field: &'static str) -> Result<u8, CdrError> {
-        Ok(self.take(1, 1, field)?[0])
-    }
-
-    /// A count of elements of at least `min_bytes` each, checked against `max` and the
-    /// bytes left before anything is allocated.
-    fn count(
-        &mut self,
-        field: &'static str,
-        max: usize,
-        min_bytes: usize,
-    ) -> Result<usize, CdrError> {
-        let n = usize::try_from(u32::from_le_bytes(self.fixed4(field)?)).unwrap_or(usize::MAX);
-        let fit = max.min((self.buf.len() - self.pos) / min_bytes.max(1));
-        if n > fit {
-            return Err(CdrError::TooLong {
-                field,
-                count: n,
-                max: fit,
-            });
-        }
-        Ok(n)
-    }
-
-    fn string(&mut self, field: &'static str) -> Result<String, CdrError> {
-        let n = self.count(field, MAX_STRING + 1, 1)?;
-        match self.take(n, 1, field)?.split_last() {
-            Some((0, text)) => std::str::from_utf8(text)
-                .map(str::to_owned)
-                .map_err(|_| CdrError::BadString { field }),
-            _ => Err(CdrError::BadString { field }),
-        }
-    }
-}
-
-impl DiagnosticArray {
-    /// The payload: header and little-endian CDR. At most [`MAX_ELEMENTS`] statuses and
-    /// values per status are written, each string at most [`MAX_STRING`] bytes.
-    pub fn encode(&self) -> Vec<u8> {
-        let mut w = Writer(CDR_LE.to_vec());
-        w.u32(self.stamp.sec.cast_unsigned());
-        w.u32(self.stamp.nanosec);
-        w.string(&self.frame_id);
-        let status = &self.status[..self.status.len().min(MAX_ELEMENTS)];
-        w.count(status.len());
-        for s in status {
-            w.0.push(s.level);
-            w.string(&s.name);
-            w.string(&s.message);
-            w.string(&s.hardware_id);
-            let values = &s.values[..s.values.len().min(MAX_ELEMENTS)];
-            w.count(values.len());
-            for kv in values {
-                w.string(&kv.key);
-                w.string(&kv.value);
-            }
-        }
-        w.0
-    }
-
-    /// Reads a payload (either byte order).
-    ///
-    /// # Errors
-    ///
-    /// [`CdrError`] naming the field that does not fit.
-    pub fn decode(payload: &[u8]) -> Result<Self, CdrError> {
-        let mut r = Reader::new(payload)?;
-        let sec = u32::from_le_bytes(r.fixed4("header.stamp.sec")?).cast_signed();
-        let nanosec = u32::from_le_bytes(r.fixed4("header.stamp.nanosec")?);
-        let frame_id = r.string("header.frame_id")?;
-        // A status takes at least 20 bytes: its level, three empty strings, no values.
-        let n = r.count("status", MAX_ELEMENTS, 20)?;
-        let mut status = Vec::with_capacity(n);
-        for _ in 0..n {
-            let level = r.u8("status.level")?;
-            let name = r.string("status.name")?;
-            let message = r.string("status.message")?;
-            let hardware_id = r.string("status.hardware_id")?;
-            // A key value takes at least 10 bytes: two empty strings.
-            let m = r.count("status.values", MAX_ELEMENTS, 10)?;
-            let mut values = Vec::with_capacity(m);
-            for _ in 0..m {
-                values.push(KeyValue {
-                    key: r.string("status.values.key")?,
-                    value: r.string("status.values.value")?,
-                });
-            }
-            status.push(DiagnosticStatus {
-                level,
-                name,
-                message,
-                hardware_id,
-                values,
-            });
-        }
-        Ok(Self {
-            stamp: Time { sec, nanosec },
-            frame_id,
-            status,
-        })
-    }
-}
-
-impl DiagnosticStatus {
-    /// A library diagnosis, named `robobus: ROBOT NAME`.
-    pub fn of(robot: &str, d: Diagnosis) -> Self {
-        Self {
-            level: d.level.byte(),
-            name: format!("robobus: {robot} {}", d.name),
-            message: d.message,
-            hardware_id: d.hardware_id,
-            values: d
-                .values
-                .into_iter()
-                .map(|(key, value)| KeyValue { key, value })
-                .collect(),
-        }
+/// A library diagnosis as a status, named `robobus: ROBOT NAME`.
+pub fn status_of(robot: &str, d: Diagnosis) -> DiagnosticStatus {
+    DiagnosticStatus {
+        level: d.level.byte(),
+        name: format!("robobus: {robot} {}", d.name),
+        message: d.message,
+        hardware_id: d.hardware_id,
+        values: d
+            .values
+            .into_iter()
+            .map(|(key, value)| KeyValue { key, value })
+            .collect(),
     }
 }
 
@@ -303,7 +78,7 @@ pub(crate) fn message(s: &Shared, now: Instant, unix_ms: f64) -> DiagnosticArray
         .states
         .diagnose(&s.station, now, stale_after(s.config.rate_hz), &stops)
         .into_iter()
-        .map(|d| DiagnosticStatus::of(robot, d))
+        .map(|d| status_of(robot, d))
         .collect();
     DiagnosticArray {
         stamp: Time::from_unix_ms(unix_ms),
@@ -333,6 +108,7 @@ pub(crate) fn publish(s: &Shared, publisher: &zenoh::pubsub::Publisher<'static>)
 #[cfg(test)]
 mod tests {
     use super::*;
+    use robobus::cdr::{CdrError, MAX_STRING};
 
     fn hex(s: &str) -> Vec<u8> {
         (0..s.len())

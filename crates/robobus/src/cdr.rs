@@ -1,7 +1,8 @@
 //! CDR, as ROS 2 puts its messages on the wire, for the few messages robobus speaks (the
 //! Zenoh bridge, MCAP recordings): `sensor_msgs/msg/JointState`,
-//! `std_msgs/msg/Float64MultiArray`, `trajectory_msgs/msg/JointTrajectory` and the
-//! `control_msgs/msg/JointTrajectoryControllerState` a trajectory's progress is published in.
+//! `std_msgs/msg/Float64MultiArray`, `trajectory_msgs/msg/JointTrajectory`, the
+//! `control_msgs/msg/JointTrajectoryControllerState` a trajectory's progress is published in
+//! and `diagnostic_msgs/msg/DiagnosticArray` ([`diagnostics`]).
 //!
 //! A payload is the 4-byte encapsulation header (`00 01 00 00`: CDR, little endian; `00 00
 //! 00 00`: big endian), then the body. Every primitive is aligned to its own size, counted
@@ -16,6 +17,9 @@
 //! beyond its own size.
 
 use thiserror::Error;
+
+pub mod diagnostics;
+pub use diagnostics::{DiagnosticArray, DiagnosticStatus, KeyValue};
 
 /// The encapsulation header of little-endian CDR.
 pub const CDR_LE: [u8; 4] = [0x00, 0x01, 0x00, 0x00];
