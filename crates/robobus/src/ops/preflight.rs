@@ -159,7 +159,7 @@ mod simulate {
     use crate::ops::protect::Action;
     use crate::ops::whj::{self as ops, FrameTimes, MoveArgs, Plan, WaveArgs};
     use crate::ops::{Control, OpError, SafeState};
-    use crate::whj::{JointBus, JointBusConfig};
+    use crate::whj::{Joint, JointBus, JointBusConfig};
 
     /// The simulated model of a joint that identified as `model` (a WHJ10 is made with
     /// and without a brake under one code: simulated with it).
@@ -314,6 +314,38 @@ mod simulate {
         })
     }
 
+    /// Runs `run` (a wave's or a move's execution, each frame observed) on the simulator
+    /// seeded with `seed`, and judges what the simulated joint did.
+    fn fly<R>(
+        seed: &WhjSeed,
+        (joint, step_limit_deg): (JointId, f64),
+        plan: &Plan,
+        control: &Control<'_>,
+        run: impl FnOnce(&Joint<'_>, &mut Control<'_>, ops::FrameObserver<'_>) -> Result<R, OpError>,
+        protection: impl FnOnce(R) -> Vec<crate::ops::protect::Fault>,
+    ) -> Result<PreflightReport, OpError> {
+        let (bus, sim) = seeded(seed, step_limit_deg)?;
+        let j = bus.joint(joint).map_err(OpError::Whj)?;
+        let started = bus.now();
+        let mut observed = Seen::default();
+        let mut inner = Control::new(control.token());
+        let result = run(&j, &mut inner, &mut |k, fb, t| observed.observe(k, fb, t));
+        if control.stopped() {
+            return Err(OpError::Interrupted {
+                detail: Some("during the pre-flight on the simulator; nothing was sent".into()),
+            });
+        }
+        judge(
+            seed,
+            plan,
+            &observed,
+            &sim,
+            result.map(protection),
+            started,
+            &bus,
+        )
+    }
+
     /// Runs a wave's `plan` on the simulator seeded with `seed` (see the
     /// [module docs](super)).
     ///
@@ -328,26 +360,16 @@ mod simulate {
         plan: &Plan,
         control: &Control<'_>,
     ) -> Result<PreflightReport, OpError> {
-        let (bus, sim) = seeded(seed, args.step_limit_deg)?;
-        let j = bus.joint(args.joint).map_err(OpError::Whj)?;
-        let started = bus.now();
-        let mut observed = Seen::default();
-        let mut inner = Control::new(control.token());
-        let result = ops::execute_wave_observed(
-            &j,
-            args,
+        fly(
+            seed,
+            (args.joint, args.step_limit_deg),
             plan,
-            &mut inner,
-            SafeState::Hold,
-            &mut |k, fb, t| observed.observe(k, fb, t),
-        );
-        if control.stopped() {
-            return Err(OpError::Interrupted {
-                detail: Some("during the pre-flight on the simulator; nothing was sent".into()),
-            });
-        }
-        let result = result.map(|r| r.protection);
-        judge(seed, plan, &observed, &sim, result, started, &bus)
+            control,
+            |j, inner, observe| {
+                ops::execute_wave_observed(j, args, plan, inner, SafeState::Hold, observe)
+            },
+            |r| r.protection,
+        )
     }
 
     /// Runs a move's `plan` on the simulator seeded with `seed` (see [`whj_wave`]).
@@ -361,25 +383,15 @@ mod simulate {
         plan: &Plan,
         control: &Control<'_>,
     ) -> Result<PreflightReport, OpError> {
-        let (bus, sim) = seeded(seed, args.step_limit_deg)?;
-        let j = bus.joint(args.joint).map_err(OpError::Whj)?;
-        let started = bus.now();
-        let mut observed = Seen::default();
-        let mut inner = Control::new(control.token());
-        let result = ops::execute_move_observed(
-            &j,
-            args,
+        fly(
+            seed,
+            (args.joint, args.step_limit_deg),
             plan,
-            &mut inner,
-            SafeState::Hold,
-            &mut |k, fb, t| observed.observe(k, fb, t),
-        );
-        if control.stopped() {
-            return Err(OpError::Interrupted {
-                detail: Some("during the pre-flight on the simulator; nothing was sent".into()),
-            });
-        }
-        let result = result.map(|r| r.protection);
-        judge(seed, plan, &observed, &sim, result, started, &bus)
+            control,
+            |j, inner, observe| {
+                ops::execute_move_observed(j, args, plan, inner, SafeState::Hold, observe)
+            },
+            |r| r.protection,
+        )
     }
 }
