@@ -93,10 +93,14 @@ pub enum ConfirmClass {
 pub const NON_VOLATILE_TEXT: &str =
     "This rewrites the device's non-volatile memory (EEPROM / flash).";
 
+/// How a refusal for want of confirmation ends: how to confirm, in the request's JSON
+/// and on the command line (a front end with its own wording replaces it:
+/// [`crate::frontend::wording`]).
+pub const CONFIRM_HOW: &str = "Confirm with `confirm: true` (the CLI's --yes); nothing was sent";
+
 /// The refusal of a request that needs confirmation and lacks it: `what` (the CLI's
-/// prompt text) and how to confirm; [`crate::ErrorKind::Refused`], nothing sent.
+/// prompt text) and how to confirm ([`CONFIRM_HOW`]); [`crate::ErrorKind::Refused`],
+/// nothing sent.
 pub fn refused(what: &str) -> OpError {
-    OpError::Refused(format!(
-        "{what} Confirm with `confirm: true` (the CLI's --yes); nothing was sent"
-    ))
+    OpError::Refused(format!("{what} {CONFIRM_HOW}"))
 }

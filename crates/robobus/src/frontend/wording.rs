@@ -1,9 +1,11 @@
 //! Each front end's wording of a refused argument. The catalogue names the argument as
 //! the command line takes it (`<IDS>`, `--rate-hz`, `--offset / --amplitude`); a front
 //! end whose users write requests as keyword arguments (Python) names the same argument
-//! as they write it (`ids=`, `rate_hz=`): [`Wording::Python`]. Only the name of the
-//! argument changes; the value, the reason and the kind stay the library's.
+//! as they write it (`ids=`, `rate_hz=`): [`Wording::Python`], and a refusal for want
+//! of confirmation says `confirm=True`. Only those names change; the value, the reason
+//! and the kind stay the library's.
 
+use crate::catalogue::bounds::CONFIRM_HOW;
 use crate::ops::OpError;
 
 /// How a front end names the arguments of a request.
@@ -83,6 +85,11 @@ impl Wording {
                     format!("{named} {value}: {reason}; nothing was sent")
                 }
             }
+            // How to confirm, as a Python caller does it.
+            (Self::Python, OpError::Refused(text)) if text.ends_with(CONFIRM_HOW) => {
+                let what = &text[..text.len() - CONFIRM_HOW.len()];
+                format!("{what}Confirm with confirm=True; nothing was sent")
+            }
             _ => e.to_string(),
         }
     }
@@ -91,6 +98,20 @@ impl Wording {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn python_is_told_to_confirm_with_its_keyword_argument() {
+        let e = crate::catalogue::bounds::refused("This writes the EEPROM.");
+        assert_eq!(
+            Wording::Python.message(&e),
+            "This writes the EEPROM. Confirm with confirm=True; nothing was sent"
+        );
+        assert_eq!(
+            Wording::Cli.message(&e),
+            "This writes the EEPROM. Confirm with `confirm: true` (the CLI's --yes); nothing \
+             was sent"
+        );
+    }
 
     #[test]
     fn python_names_the_keyword_argument_where_the_cli_names_its_option() {
