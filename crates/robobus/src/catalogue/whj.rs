@@ -210,7 +210,7 @@ fn one_joint(joints: &[JointId], what: &str) -> R<JointId> {
         _ => Err(OpError::invalid(
             what,
             joints.len(),
-            "one joint, unless broadcast is asked for (joints 1..=7 then share one frame)",
+            "one joint, unless broadcast is asked for (--broadcast; joints 1..=7 then share one frame)",
         )),
     }
 }
