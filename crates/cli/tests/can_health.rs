@@ -21,7 +21,7 @@ use serde_json::Value;
 
 #[test]
 fn controller_states_forced_through_a_real_driver_are_read_and_advised() {
-    Inner::exact("inner_can_health", "ROBOBUS_IN_UML")
+    Inner::exact(module_path!(), "inner_can_health", "ROBOBUS_IN_UML")
         .in_uml()
         .expect_marker("CAN HEALTH OK");
 }

@@ -16,7 +16,7 @@ fn in_netns(name: &str) -> bool {
     if std::env::var_os(INSIDE).is_some() {
         return true;
     }
-    robobus_testkit::Inner::exact(name, INSIDE)
+    robobus_testkit::Inner::exact(module_path!(), name, INSIDE)
         .not_ignored()
         .timeout_s(300)
         .in_private_netns()

@@ -139,7 +139,7 @@ const IN_NETNS_ENV: &str = "ROBOBUS_CLI_IN_NETNS";
 
 #[test]
 fn sim_whj_device_faults_from_the_command_line() {
-    robobus_testkit::Inner::exact("inner_sim_whj_faults", IN_NETNS_ENV)
+    robobus_testkit::Inner::exact(module_path!(), "inner_sim_whj_faults", IN_NETNS_ENV)
         .in_private_netns()
         .expect_marker("SIM WHJ FAULTS OK");
 }

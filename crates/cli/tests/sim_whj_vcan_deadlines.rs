@@ -46,7 +46,7 @@ fn run_inner_in_uml(inner: &str) -> String {
     // The guest is one host process whose virtual CPU runs the simulator and the client:
     // a higher host priority (root only; ignored otherwise) keeps the shared build machine's
     // other jobs from stalling it for whole milliseconds.
-    Inner::exact(inner, IN_UML_ENV)
+    Inner::exact(module_path!(), inner, IN_UML_ENV)
         .env(IN_UML_ENV, uml.as_os_str())
         .nice(-10)
         .in_uml()

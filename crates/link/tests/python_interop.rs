@@ -138,7 +138,7 @@ const NETNS_ENV: &str = "ROBOBUS_LINK_IN_NETNS";
 #[test]
 fn python_can_and_robobus_exchange_brs_frames_in_a_private_network_namespace() {
     let py = common::python();
-    Inner::exact("inner_exchange_with_python_can", NETNS_ENV)
+    Inner::exact(module_path!(), "inner_exchange_with_python_can", NETNS_ENV)
         .env(NETNS_ENV, &py)
         .in_private_netns()
         .expect_marker("INTEROP OK");

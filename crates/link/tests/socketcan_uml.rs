@@ -25,7 +25,7 @@ const IN_UML_ENV: &str = "ROBOBUS_LINK_IN_UML";
 #[test]
 fn socketcan_fd_on_vcan0_inside_user_mode_linux() {
     let uml = common::provision("uml/ensure-uml");
-    robobus_testkit::Inner::exact("inner_socketcan_in_uml", IN_UML_ENV)
+    robobus_testkit::Inner::exact(module_path!(), "inner_socketcan_in_uml", IN_UML_ENV)
         .env(IN_UML_ENV, uml)
         .in_uml()
         .expect_marker("UML SOCKETCAN OK");

@@ -21,7 +21,7 @@ const FLOOD: u64 = 10_000;
 
 #[test]
 fn a_flood_of_malformed_datagrams_is_counted_and_logged_a_few_times() {
-    robobus_testkit::Inner::exact("inner_malformed_flood", IN_NETNS_ENV)
+    robobus_testkit::Inner::exact(module_path!(), "inner_malformed_flood", IN_NETNS_ENV)
         .in_private_netns()
         .expect_marker("MALFORMED FLOOD OK");
 }

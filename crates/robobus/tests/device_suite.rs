@@ -326,7 +326,7 @@ const NETNS_ENV: &str = "ROBOBUS_SUITE_IN_NETNS";
 #[cfg(target_os = "linux")] // a private network namespace, and the wCK simulator on a pty
 #[test]
 fn devices_named_by_the_environment_on_a_serial_port_and_a_udp_bus() {
-    Inner::exact("inner_serves_the_simulators_as_hardware", NETNS_ENV)
+    Inner::exact(module_path!(), "inner_serves_the_simulators_as_hardware", NETNS_ENV)
         .timeout_s(180)
         .in_private_netns()
         .expect_marker("DEVICE SUITE ON HARDWARE PATHS OK");
@@ -358,7 +358,7 @@ fn inner_serves_the_simulators_as_hardware() {
     )
     .unwrap();
     for motion in ["0", "1"] {
-        let out = Inner::matching("suite_", "ROBOBUS_TEST_MOTION")
+        let out = Inner::matching(module_path!(), "suite_", "ROBOBUS_TEST_MOTION")
             .not_ignored()
             .env("ROBOBUS_TEST_MOTION", motion)
             .env("ROBOBUS_TEST_WCK_PORT", wck.path().as_os_str())

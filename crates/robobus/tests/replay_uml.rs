@@ -27,7 +27,7 @@ const IN_UML_ENV: &str = "ROBOBUS_REPLAY_IN_UML";
 
 #[test]
 fn can_utils_play_our_capture_inside_user_mode_linux() {
-    robobus_testkit::Inner::exact("inner_can_utils_play_our_capture", IN_UML_ENV)
+    robobus_testkit::Inner::exact(module_path!(), "inner_can_utils_play_our_capture", IN_UML_ENV)
         .in_uml()
         .expect_marker("UML REPLAY OK");
 }

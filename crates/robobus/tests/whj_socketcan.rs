@@ -29,7 +29,7 @@ fn deg(d: f64) -> Position {
 
 #[test]
 fn whj_client_on_socketcan_vcan0_inside_user_mode_linux() {
-    let out = robobus_testkit::Inner::exact("inner_socketcan_in_uml", IN_UML_ENV)
+    let out = robobus_testkit::Inner::exact(module_path!(), "inner_socketcan_in_uml", IN_UML_ENV)
         .in_uml()
         .expect_marker("WHJ SOCKETCAN OK");
     eprintln!("{out}");

@@ -52,7 +52,7 @@ fn in_namespace() {
 
 #[test]
 fn whj_client_over_udp_in_a_private_network_namespace() {
-    let out = robobus_testkit::Inner::matching("inner_", NETNS_ENV)
+    let out = robobus_testkit::Inner::matching(module_path!(), "inner_", NETNS_ENV)
         .timeout_s(300)
         .in_private_netns()
         .expect_marker("test result: ok. 3 passed");

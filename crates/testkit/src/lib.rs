@@ -8,12 +8,19 @@
 //! the inner test where it runs, and checks the exit status and a marker line the inner
 //! test prints when it got to its end. [`Inner`] is that re-run.
 //!
+//! Each crate's integration tests are one test binary (`tests/main.rs` declares every
+//! file of `tests/` as a module), so a test's name starts with its file's module
+//! (`whj_udp::inner_every_operation`): [`Inner`] takes the `module_path!()` of the
+//! module that holds the inner tests and re-runs only that module's tests, and
+//! [`assert_every_test_file_declared`] is the test that keeps `main.rs` declaring every
+//! file.
+//!
 //! ```no_run
 //! use robobus_testkit::Inner;
 //!
 //! #[test]
 //! fn over_udp_in_a_private_network_namespace() {
-//!     Inner::exact("inner_over_udp", "ROBOBUS_IN_NETNS")
+//!     Inner::exact(module_path!(), "inner_over_udp", "ROBOBUS_IN_NETNS")
 //!         .in_private_netns()
 //!         .expect_marker("UDP OK");
 //! }
@@ -221,8 +228,13 @@ impl Guest {
 }
 
 /// The inner tests of the running test binary, to re-run somewhere else.
+///
+/// A re-run that runs no test fails (`running 0 tests`, `0 passed`), as does one whose
+/// filter names no test of the module: a renamed or moved inner test is never skipped in
+/// silence.
 #[derive(Debug, Clone)]
 pub struct Inner {
+    module: String,
     filter: String,
     exact: bool,
     ignored: bool,
@@ -230,11 +242,13 @@ pub struct Inner {
 }
 
 impl Inner {
-    /// The one inner test named `test`, told where it runs by the environment variable
-    /// `env` (set to `1`; [`Inner::env`] sets others).
+    /// The one inner test `test` of the module `module` (the `module_path!()` of the
+    /// module that defines it), told where it runs by the environment variable `env`
+    /// (set to `1`; [`Inner::env`] sets others).
     #[must_use]
-    pub fn exact(test: &str, env: &str) -> Self {
+    pub fn exact(module: &str, test: &str, env: &str) -> Self {
         Self {
+            module: module.to_owned(),
             filter: test.to_owned(),
             exact: true,
             ignored: true,
@@ -242,12 +256,14 @@ impl Inner {
         }
     }
 
-    /// Every inner test whose name contains `filter`.
+    /// Every inner test of the module `module` (its `module_path!()`, nested modules
+    /// included) whose name in it contains `filter`; tests of other modules whose names
+    /// contain it too are not run.
     #[must_use]
-    pub fn matching(filter: &str, env: &str) -> Self {
+    pub fn matching(module: &str, filter: &str, env: &str) -> Self {
         Self {
             exact: false,
-            ..Self::exact(filter, env)
+            ..Self::exact(module, filter, env)
         }
     }
 
@@ -281,13 +297,45 @@ impl Inner {
         self
     }
 
+    /// The test names to re-run, each in full (`module::test`, as the test binary names
+    /// it).
+    ///
+    /// # Panics
+    /// If the test binary cannot list its tests, or no test of the module matches.
+    fn names(&self) -> Vec<String> {
+        let prefix = module_prefix(&self.module);
+        if self.exact {
+            return vec![format!("{prefix}{}", self.filter)];
+        }
+        let mut list = Command::new(current_exe());
+        list.args(["--list", "--format", "terse"]);
+        if self.ignored {
+            list.arg("--ignored");
+        }
+        let out = list
+            .output()
+            .unwrap_or_else(|e| panic!("cannot list the test binary's tests: {e}"));
+        assert!(
+            out.status.success(),
+            "listing the test binary's tests failed ({}): {}",
+            out.status,
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let names = select(&String::from_utf8_lossy(&out.stdout), &prefix, &self.filter);
+        assert!(
+            !names.is_empty(),
+            "no {}test of module `{}` has `{}` in its name",
+            if self.ignored { "ignored " } else { "" },
+            self.module,
+            self.filter
+        );
+        names
+    }
+
     /// The test binary with the arguments that run the inner tests, one at a time.
     fn guest(&self) -> Guest {
-        let mut args = Vec::new();
-        if self.exact {
-            args.push("--exact".to_owned());
-        }
-        args.push(self.filter.clone());
+        let mut args = vec!["--exact".to_owned()];
+        args.extend(self.names());
         if self.ignored {
             args.push("--ignored".to_owned());
         }
@@ -300,21 +348,137 @@ impl Inner {
     /// serves as if they were hardware).
     #[must_use]
     pub fn here(&self) -> Ran {
-        self.guest().here()
+        self.guest().here().ran_tests()
     }
 
     /// Re-runs the inner tests inside a private network namespace
     /// ([`Guest::in_private_netns`]).
     #[must_use]
     pub fn in_private_netns(&self) -> Ran {
-        self.guest().in_private_netns()
+        self.guest().in_private_netns().ran_tests()
     }
 
     /// Re-runs the inner tests inside User-Mode Linux ([`Guest::in_uml`]).
     #[must_use]
     pub fn in_uml(&self) -> Ran {
-        self.guest().in_uml()
+        self.guest().in_uml().ran_tests()
     }
+}
+
+/// What a test of the module `module` (a `module_path!()`) is named by its test binary
+/// before its own name: nothing in the binary's root, `a::b::` in its module `a::b`.
+fn module_prefix(module: &str) -> String {
+    module
+        .split_once("::")
+        .map_or_else(String::new, |(_crate, path)| format!("{path}::"))
+}
+
+/// The tests of a `--list --format terse` listing (`name: test` lines) named `prefix`
+/// then something with `filter` in it.
+fn select(listing: &str, prefix: &str, filter: &str) -> Vec<String> {
+    listing
+        .lines()
+        .filter_map(|line| line.trim_end().strip_suffix(": test"))
+        .filter(|name| {
+            name.strip_prefix(prefix)
+                .is_some_and(|rest| rest.contains(filter))
+        })
+        .map(str::to_owned)
+        .collect()
+}
+
+/// How many tests a libtest run's output says passed, summed over its `test result:`
+/// lines; `None` without one.
+fn passed(stdout: &str) -> Option<u64> {
+    let mut total = None;
+    for line in stdout.lines() {
+        let Some((_, result)) = line.split_once("test result: ") else {
+            continue;
+        };
+        let count = result
+            .split(';')
+            .find_map(|part| part.trim().strip_suffix(" passed"))
+            .and_then(|part| part.rsplit(' ').next())
+            .and_then(|n| n.parse::<u64>().ok());
+        if let Some(n) = count {
+            total = Some(total.unwrap_or(0) + n);
+        }
+    }
+    total
+}
+
+/// Every `*.rs` file of the `tests/` directory of the crate at `manifest_dir` (and every
+/// directory there with a `main.rs` or `mod.rs`) that `main_rs` (the text of
+/// `tests/main.rs`) does not declare as a module (`mod NAME;`), sorted.
+///
+/// # Panics
+/// If the directory cannot be read.
+#[must_use]
+pub fn undeclared_test_files(manifest_dir: &str, main_rs: &str) -> Vec<String> {
+    let declared: Vec<&str> = main_rs
+        .lines()
+        .filter_map(|line| {
+            let line = line.trim();
+            let at = line.rfind("mod ")?;
+            let name = line[at + 4..].trim().strip_suffix(';')?.trim();
+            let before = line[..at].trim_end();
+            (before.is_empty() || before == "pub" || before.ends_with(']')).then_some(name)
+        })
+        .collect();
+    let dir = PathBuf::from(manifest_dir).join("tests");
+    let entries =
+        std::fs::read_dir(&dir).unwrap_or_else(|e| panic!("cannot read {}: {e}", dir.display()));
+    let mut missing = Vec::new();
+    for entry in entries {
+        let path = entry
+            .unwrap_or_else(|e| panic!("cannot read {}: {e}", dir.display()))
+            .path();
+        let file = path.file_name().unwrap_or_default().to_string_lossy();
+        let module = if path.is_dir() {
+            if !path.join("main.rs").exists() && !path.join("mod.rs").exists() {
+                continue;
+            }
+            file.to_string()
+        } else if let Some(stem) = file.strip_suffix(".rs") {
+            if stem == "main" {
+                continue;
+            }
+            stem.to_owned()
+        } else {
+            continue;
+        };
+        if !declared.contains(&module.as_str()) {
+            missing.push(format!("tests/{file}"));
+        }
+    }
+    missing.sort();
+    missing
+}
+
+/// Fails naming every test file of the crate at `manifest_dir` that its `tests/main.rs`
+/// (`main_rs`, its text) does not declare: `autotests = false` builds only what `main.rs`
+/// declares, and a file it does not would never run.
+///
+/// ```no_run
+/// #[test]
+/// fn every_test_file_is_a_module_of_this_binary() {
+///     robobus_testkit::assert_every_test_file_declared(
+///         env!("CARGO_MANIFEST_DIR"),
+///         include_str!("main.rs"),
+///     );
+/// }
+/// ```
+///
+/// # Panics
+/// Naming the files, if any is not declared.
+#[track_caller]
+pub fn assert_every_test_file_declared(manifest_dir: &str, main_rs: &str) {
+    let missing = undeclared_test_files(manifest_dir, main_rs);
+    assert!(
+        missing.is_empty(),
+        "tests/main.rs does not declare {} (add `mod NAME;` for each, or its tests never run)",
+        missing.join(", ")
+    );
 }
 
 fn current_exe() -> PathBuf {
@@ -342,6 +506,16 @@ impl Ran {
             stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
             stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
         }
+    }
+
+    /// A libtest run that ran no test is a failure: its filter named nothing.
+    fn ran_tests(mut self) -> Self {
+        if self.success && passed(&self.stdout).unwrap_or(0) == 0 {
+            self.success = false;
+            self.stderr
+                .push_str("\nrobobus-testkit: the re-run ran no test (0 passed)\n");
+        }
+        self
     }
 
     /// Requires that it exited 0; returns it (its output, to look at further).
@@ -375,5 +549,44 @@ impl Ran {
             self.stderr
         );
         self.stdout
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{module_prefix, passed, select};
+
+    #[test]
+    fn a_module_path_becomes_the_test_name_prefix_without_the_crate() {
+        assert_eq!(module_prefix("integration"), "");
+        assert_eq!(module_prefix("integration::whj_udp"), "whj_udp::");
+        assert_eq!(module_prefix("integration::a::b"), "a::b::");
+    }
+
+    #[test]
+    fn matching_selects_only_the_modules_own_tests() {
+        let listing = "whj_udp::inner_a: test\nwhj_udp::props::inner_b: test\n\
+                       other::inner_c: test\nxwhj_udp::inner_d: test\nwhj_udp::outer: test\n";
+        assert_eq!(
+            select(listing, "whj_udp::", "inner_"),
+            ["whj_udp::inner_a", "whj_udp::props::inner_b"]
+        );
+        assert_eq!(select(listing, "", "inner_c"), ["other::inner_c"]);
+        assert!(select(listing, "nothing::", "inner_").is_empty());
+    }
+
+    #[test]
+    fn zero_passed_and_no_result_line_are_told_apart_from_passes() {
+        assert_eq!(
+            passed(
+                "running 0 tests\n\ntest result: ok. 0 passed; 0 failed; 3 filtered out; finished in 0.00s\n"
+            ),
+            Some(0)
+        );
+        assert_eq!(
+            passed("test x ... ok\ntest result: ok. 4 passed; 0 failed; 0 ignored\r\n"),
+            Some(4)
+        );
+        assert_eq!(passed("booted\nno tests here\n"), None);
     }
 }
