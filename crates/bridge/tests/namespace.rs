@@ -83,6 +83,7 @@ fn states_heard(port: u16, key: &str, window: Duration) -> u64 {
 
 #[test]
 fn a_second_bridge_on_a_namespace_in_use_does_not_start_and_the_first_keeps_publishing() {
+    let _beside = crate::bridges_beside_each_other();
     let port = free_port();
     let first = start("bot1", Some(port), None).unwrap();
     let e = start("bot1", None, Some(port)).unwrap_err();
@@ -115,6 +116,7 @@ fn a_second_bridge_on_a_namespace_in_use_does_not_start_and_the_first_keeps_publ
 
 #[test]
 fn bridges_on_different_namespaces_both_run() {
+    let _beside = crate::bridges_beside_each_other();
     let (port, port2) = (free_port(), free_port());
     let one = start("site/arm1", Some(port), None).unwrap();
     // Connected to the first (peers without gossip forward nothing between others: a
@@ -129,6 +131,7 @@ fn bridges_on_different_namespaces_both_run() {
 
 #[test]
 fn of_two_bridges_started_at_once_on_one_namespace_exactly_one_keeps_serving() {
+    let _beside = crate::bridges_beside_each_other();
     for _ in 0..3 {
         let (a, b) = (free_port(), free_port());
         let barrier = Arc::new(Barrier::new(2));

@@ -14,18 +14,12 @@ use robobus_bridge::cdr::Float64MultiArray;
 use robobus_bridge::{Bridge, BridgeConfig, Health};
 use zenoh::Wait as _;
 
-/// One bridge of these tests at a time: each runs a live simulated robot and a bridge whose
-/// command stream is timed on the wall clock; three at once on a 2-core machine starve each
-/// other's threads for longer than a command's room to spare, which the bridge rightly counts as a
+/// One bridge of these tests at a time, and none of the other files' while one runs
+/// (`crate::live_bridge_alone`): each runs a live simulated robot and a bridge whose command
+/// stream is timed on the wall clock; three at once on a 2-core machine starve each other's
+/// threads for longer than a command's room to spare, which the bridge rightly counts as a
 /// superseded command or a hold (the first test then failed about one run in six).
-static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
-
-/// Holds [`ONE_AT_A_TIME`] for a test (a failed test's poison is not this one's failure).
-fn one_at_a_time() -> std::sync::MutexGuard<'static, ()> {
-    ONE_AT_A_TIME
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner)
-}
+use crate::live_bridge_alone as one_at_a_time;
 
 /// A free TCP port on loopback (bound, then released for Zenoh to take).
 fn free_port() -> u16 {

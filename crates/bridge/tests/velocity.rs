@@ -120,6 +120,7 @@ fn until(live: &LiveSimulator, ok: impl Fn(&SimSnapshot) -> bool) -> SimSnapshot
 
 #[test]
 fn a_zenoh_peer_turns_a_wheel_and_a_whj_joint_at_the_asked_velocity_until_it_stops() {
+    let _alone = crate::live_bridge_alone(); // timed on the wall clock
     let port = free_port();
     let (bridge, live) = start(port);
     let s = peer(port);
