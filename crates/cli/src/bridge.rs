@@ -3,9 +3,11 @@
 //! Ctrl-C.
 
 use std::fmt::Write as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
+use robobus::robot::simulated::{JOINTS, SERVOS};
+use robobus::robot::{BusConfig, RobotConfig};
 use robobus::station::{Station, StationConfig};
 use robobus_bridge::{Bridge, BridgeConfig, DEFAULT_LISTEN, Keys, ZenohMode};
 
@@ -50,6 +52,13 @@ pub(crate) struct Args {
     #[arg(long, default_value_t = 200, value_name = "MS",
           value_parser = clap::value_parser!(u64).range(20..=5000))]
     command_timeout: u64,
+    /// Serve the built-in simulated robot (as without --wck-port, --whj-bus and
+    /// --robot); with --robot, through that robot file: its buses are the simulators'
+    /// `sim-wck` (kind = "wck-external", servos 0..=15) and `sim-whj` (kind =
+    /// "whj-external", joints 1..=7), its joints any of them with their own limits and
+    /// command interfaces (docs/bridge.md).
+    #[arg(long, conflicts_with_all = ["wck_port", "whj_bus"])]
+    simulated: bool,
     #[command(flatten)]
     station: crate::run::StationArgs,
 }
@@ -89,7 +98,13 @@ impl Args {
 }
 
 /// The keys, one per line, for the first lines printed.
-fn describe(keys: &Keys, config: &BridgeConfig, joints: &[String], sim: bool) -> String {
+fn describe(
+    keys: &Keys,
+    config: &BridgeConfig,
+    joints: &[String],
+    sim: bool,
+    source: &str,
+) -> String {
     let endpoints = if config.mode == ZenohMode::Client {
         format!("a client of {}", config.connect.join(", "))
     } else {
@@ -109,11 +124,7 @@ fn describe(keys: &Keys, config: &BridgeConfig, joints: &[String], sim: bool) ->
     };
     let mut t = format!(
         "{endpoints}; {}; {} joints{}; {}\n",
-        if sim {
-            "the built-in simulated robot"
-        } else {
-            "the given buses"
-        },
+        source,
         joints.len(),
         if joints.is_empty() {
             String::new()
@@ -184,10 +195,81 @@ fn describe(keys: &Keys, config: &BridgeConfig, joints: &[String], sim: bool) ->
     t
 }
 
+/// `--simulated --robot FILE`: the file read and checked for the built-in simulators
+/// before anything starts: each bus is `sim-wck` (kind `wck-external`) or `sim-whj` (kind
+/// `whj-external`), each joint's ID one of that simulator's (servos `0..SERVOS`, joints
+/// `1..=JOINTS`). Anything else is bad input (exit 2) naming the file, the value and what
+/// is allowed.
+fn sim_robot(path: &Path) -> anyhow::Result<RobotConfig> {
+    let bad = |what: &dyn std::fmt::Display| {
+        crate::exit::usage(format!(
+            "--robot {} with --simulated: {what}",
+            path.display()
+        ))
+    };
+    let text = robobus::ops::read_bounded(path, RobotConfig::MAX_FILE_BYTES as u64)
+        .map_err(|e| bad(&e))?;
+    let robot = RobotConfig::from_toml_str(&text).map_err(|e| bad(&e))?;
+    for (name, bus) in &robot.buses {
+        let (wanted, kind) = if bus.is_wck() {
+            ("sim-wck", "wck-external")
+        } else {
+            ("sim-whj", "whj-external")
+        };
+        if name != wanted || bus.kind() != kind {
+            return Err(bad(&format!(
+                "bus {name} (kind = \"{}\") is not a bus of the built-in simulated robot; \
+                 expected [buses.sim-wck] with kind = \"wck-external\" or [buses.sim-whj] \
+                 with kind = \"whj-external\"",
+                bus.kind()
+            )));
+        }
+    }
+    for j in &robot.joints {
+        let wck = robot.buses.get(&j.bus).is_some_and(BusConfig::is_wck);
+        let (ok, ids) = if wck {
+            (j.id < SERVOS, format!("0..={}", SERVOS - 1))
+        } else {
+            ((1..=JOINTS).contains(&j.id), format!("1..={JOINTS}"))
+        };
+        if !ok {
+            return Err(bad(&format!(
+                "joint {}: id = {} is not on the simulated bus {}; expected {ids}",
+                j.name, j.id, j.bus
+            )));
+        }
+    }
+    Ok(robot)
+}
+
+/// The built-in simulated station with the robot file of `--simulated --robot` in place
+/// of its own.
+fn with_robot(mut station: Station, robot: Option<&RobotConfig>) -> anyhow::Result<Station> {
+    if let Some(robot) = robot {
+        station
+            .set_robot(robot.clone())
+            .map_err(|e| match e.kind() {
+                robobus::ErrorKind::BadInput => crate::exit::usage(e.to_string()),
+                _ => anyhow::Error::new(e),
+            })?;
+    }
+    Ok(station)
+}
+
 /// Runs `robobus bridge`.
 pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     let config = args.config();
-    let sim = args.station.simulated();
+    let sim = args.simulated || args.station.simulated();
+    let file = args.station.config().robot;
+    let robot = match (sim, &file) {
+        (true, Some(path)) => Some(sim_robot(path)?),
+        _ => None,
+    };
+    let source = match (sim, &file) {
+        (true, Some(path)) => format!("the built-in simulated robot through {}", path.display()),
+        (true, None) => "the built-in simulated robot".to_owned(),
+        (false, _) => "the given buses".to_owned(),
+    };
     if g.dry_run {
         // Checked as the real run checks them; nothing is opened.
         let keys = config.check().map_err(|e| match e.kind() {
@@ -195,22 +277,27 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
             _ => anyhow::Error::new(e),
         })?;
         let joints = if sim {
-            Station::simulated()
-                .ok()
-                .and_then(|s| robobus::station::follow::Follower::new(&s).ok())
-                .map(|f| f.joints().iter().map(|j| j.name.clone()).collect())
-                .unwrap_or_default()
+            robot.as_ref().map_or_else(
+                || {
+                    Station::simulated()
+                        .ok()
+                        .and_then(|s| robobus::station::follow::Follower::new(&s).ok())
+                        .map(|f| f.joints().iter().map(|j| j.name.clone()).collect())
+                        .unwrap_or_default()
+                },
+                |r| r.joints.iter().map(|j| j.name.clone()).collect(),
+            )
         } else {
             Vec::new()
         };
         return crate::output::print(&format!(
             "bridge: would serve, opening no socket: {}",
-            describe(&keys, &config, &joints, sim)
+            describe(&keys, &config, &joints, sim, &source)
         ));
     }
     let (station, live) = if sim {
         let (station, live) = Station::simulated_live(None)?;
-        (station, Some(live))
+        (with_robot(station, robot.as_ref())?, Some(live))
     } else {
         (
             Station::open(&StationConfig {
@@ -224,7 +311,7 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
     crate::output::print(&format!(
         "bridge: zenoh {} {}",
         bridge.zid(),
-        describe(bridge.keys(), &config, &bridge.joint_names(), sim)
+        describe(bridge.keys(), &config, &bridge.joint_names(), sim, &source)
     ))?;
     let stop = crate::interrupt::stop_token();
     bridge.run(&stop).map_err(exit_error)?;

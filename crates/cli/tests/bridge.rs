@@ -1,6 +1,7 @@
 //! `robobus bridge` as a process: its dry run (the keys, no socket), bad options (exit 2,
-//! nothing opened), a start and a clean stop, and a second bridge on a namespace in use
-//! (exit 4, the first serving on). Its peers (Python Zenoh, two network
+//! nothing opened), a start and a clean stop, the built-in simulators through a robot file
+//! of one's own (`--simulated --robot`; a file not of the simulators refused with exit 2),
+//! and a second bridge on a namespace in use (exit 4, the first serving on). Its peers (Python Zenoh, two network
 //! namespaces, ROS 2) are tested by `scripts/bridge/test-peers`.
 
 #![allow(clippy::unwrap_used, clippy::panic)] // test helpers: a failed unwrap is a failed test
@@ -156,6 +157,174 @@ fn bad_options_exit_2_naming_the_option_and_open_nothing() {
         assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
         assert!(err.contains(option), "{args:?}: {err}");
     }
+}
+
+/// The robot file of the built-in simulators with a wheel and WHJ joints on velocity and
+/// effort (crates/robobus/examples).
+const SIM_DRIVE: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../robobus/examples/sim_drive.toml"
+);
+
+#[test]
+fn simulated_with_a_robot_file_serves_the_files_joints_on_the_simulators() {
+    let out = robobus(&[
+        "--dry-run",
+        "bridge",
+        "--simulated",
+        "--robot",
+        SIM_DRIVE,
+        "--namespace",
+        "bot",
+    ]);
+    assert!(out.status.success(), "{out:?}");
+    let text = String::from_utf8(out.stdout).unwrap();
+    let first = text.lines().next().unwrap_or_default();
+    assert_eq!(
+        first,
+        format!(
+            "bridge: would serve, opening no socket: listening on tcp/127.0.0.1:7447; the \
+             built-in simulated robot through {SIM_DRIVE}; 3 joints (s0 j1 j2); not armed"
+        )
+    );
+    for key in [
+        "bot/joint_commands/velocity",
+        "bot/joint_commands/effort",
+        "bot/robobus/interface",
+        "bot/robobus/sim",
+    ] {
+        assert!(
+            text.lines().any(|l| l.trim_start().starts_with(key)),
+            "{key}: {text}"
+        );
+    }
+}
+
+#[cfg(unix)] // stopped with kill -INT
+#[test]
+fn simulated_with_a_robot_file_starts_with_its_joints_and_stops_on_ctrl_c() {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .args([
+            "bridge",
+            "--simulated",
+            "--robot",
+            SIM_DRIVE,
+            "--listen",
+            "tcp/127.0.0.1:0",
+            "--armed",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    assert!(
+        line.starts_with("bridge: zenoh ")
+            && line.ends_with(&format!(
+                "the built-in simulated robot through {SIM_DRIVE}; 3 joints (s0 j1 j2); ARMED\n"
+            )),
+        "{line}"
+    );
+    nix_kill(child.id());
+    assert_eq!(child.wait().unwrap().code(), Some(0));
+}
+
+#[test]
+fn simulated_refuses_a_robot_file_not_of_the_simulators_with_exit_2_before_starting() {
+    let dir = std::env::temp_dir().join(format!("robobus-bridge-sim-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let joint = |bus: &str, id: u8| {
+        format!(
+            "[[joints]]\nname = \"a\"\nbus = \"{bus}\"\nid = {id}\nlimits = [-1.0, 1.0]\n\
+             max_velocity = 1.0\nmax_acceleration = 5.0\n"
+        )
+    };
+    let cases = [
+        (
+            format!(
+                "[buses.arm]\nkind = \"whj-bus\"\nbus = \"udp\"\n{}",
+                joint("arm", 1)
+            ),
+            "bus arm (kind = \"whj-bus\") is not a bus of the built-in simulated robot; \
+             expected [buses.sim-wck] with kind = \"wck-external\" or [buses.sim-whj] with \
+             kind = \"whj-external\"",
+        ),
+        (
+            format!(
+                "[buses.sim-whj]\nkind = \"wck-external\"\n{}",
+                joint("sim-whj", 1)
+            ),
+            "bus sim-whj (kind = \"wck-external\") is not a bus of the built-in simulated robot",
+        ),
+        (
+            format!(
+                "[buses.sim-wck]\nkind = \"wck-external\"\n{}",
+                joint("sim-wck", 16)
+            ),
+            "joint a: id = 16 is not on the simulated bus sim-wck; expected 0..=15",
+        ),
+        (
+            format!(
+                "[buses.sim-whj]\nkind = \"whj-external\"\n{}",
+                joint("sim-whj", 8)
+            ),
+            "joint a: id = 8 is not on the simulated bus sim-whj; expected 1..=7",
+        ),
+        ("[buses.sim-whj\n".to_owned(), "line 1"),
+    ];
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    for (i, (text, expected)) in cases.iter().enumerate() {
+        let path = dir.join(format!("robot{i}.toml"));
+        std::fs::write(&path, text).unwrap();
+        let path = path.to_str().unwrap();
+        for dry in [false, true] {
+            let mut args = vec![
+                "bridge",
+                "--simulated",
+                "--robot",
+                path,
+                "--listen",
+                &endpoint,
+            ];
+            if dry {
+                args.insert(0, "--dry-run");
+            }
+            let out = robobus(&args);
+            let err = String::from_utf8_lossy(&out.stderr);
+            assert_eq!(out.status.code(), Some(2), "{text}: {err}");
+            assert!(
+                err.contains(&format!("--robot {path} with --simulated: "))
+                    && err.contains(expected),
+                "{text}: {err}"
+            );
+            // Nothing started: no first line.
+            assert!(out.stdout.is_empty(), "{text}: {out:?}");
+        }
+    }
+    let missing = dir.join("missing.toml");
+    let out = robobus(&[
+        "bridge",
+        "--simulated",
+        "--robot",
+        missing.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    assert!(String::from_utf8_lossy(&out.stderr).contains("missing.toml"));
+    for bus in [&["--whj-bus", "udp"][..], &["--wck-port", "/dev/null"][..]] {
+        let out = robobus(&[&["bridge", "--simulated"][..], bus].concat());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{err}");
+        assert!(err.contains("'--simulated' cannot be used with"), "{err}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[cfg(unix)] // stopped with kill -INT
