@@ -6,7 +6,9 @@
 //! it imports nothing of its driver ([`JointBus`](super::JointBus), which holds it under
 //! its one lock and publishes what it polls out) nor of the handles: everything it needs
 //! lives here or in its children (`config`: the settings and [`BusState`]; `telemetry`;
-//! `matching`: [`Expect`], [`Attempt`], [`Outcome`]; `cyclic`: the loop's pure state).
+//! `matching`: [`Expect`], [`Attempt`], [`Outcome`]; `late`: answers that may come late;
+//! `arbitration`: the duplicate check's collision window; `bus_state`: the bus-error
+//! state; `cyclic`: the loop's pure state).
 //! As quinn-proto's `Connection`, its methods come in classes:
 //!
 //! - **Commands** from the program, through the driver: [`Session::submit`] a
@@ -77,10 +79,12 @@ use core::time::Duration;
 use std::collections::{HashMap, VecDeque};
 use std::time::Instant;
 
-use robobus_link::{BusErrorKind, FrameLinkError, WaitMode};
+use robobus_link::{FrameLinkError, WaitMode};
 use robobus_whj::timing::{self, BitRates};
 use robobus_whj::{CanFrame, JointId, Reply, Request};
 
+mod arbitration;
+mod bus_state;
 mod config;
 pub(crate) mod cyclic;
 mod late;
@@ -89,6 +93,7 @@ mod telemetry;
 #[cfg(test)]
 mod tests;
 
+use arbitration::Credited;
 pub use config::{BusState, JointBusConfig};
 use cyclic::{CyclicRun, CyclicSetup, CyclicStats};
 use late::Owed;
@@ -166,49 +171,6 @@ struct InFlight {
     stray: bool,
 }
 
-/// A request whose reply arrived, held for the collision window: a second, different
-/// reply to it before `until` makes it a [`Attempt::Duplicate`].
-#[derive(Debug)]
-struct Credited {
-    pending: Pending,
-    frame: CanFrame,
-    reply: Reply,
-    until: Instant,
-    /// [`loser_time`] of `frame`.
-    loser: Duration,
-}
-
-/// How long after a reply in `frame` has arrived a second node that answered the same
-/// request at the same ID, and lost arbitration to it, is done sending its own: the
-/// intermission, then a frame of the winner's ID and length at the WHJ rates
-/// ([`timing::frame_duration`] counts the intermission after each frame), with as many
-/// stuff bits as any payload of that length can have: the loser's data differ from the
-/// winner's, and so do its stuff bits (joint 1's 16-byte status frame takes 62.2 µs with
-/// a payload of 0x55 bytes, 68.6 µs with the most stuff bits, intermission included).
-fn loser_time(frame: &CanFrame) -> Duration {
-    let bits = timing::frame_bits(frame);
-    let most = frame
-        .standard_raw_id()
-        .filter(|_| frame.is_fd() && frame.brs())
-        .and_then(|id| timing::fd_data_stuff_bounds(id, frame.len(), frame.esi()));
-    if let Some((_, most)) = most {
-        timing::FrameBits {
-            data_bits: bits.data_bits + most.saturating_sub(bits.stuff_data),
-            stuff_data: most.max(bits.stuff_data),
-            ..bits
-        }
-        .duration(BitRates::WHJ)
-    } else {
-        // Not a WHJ frame: a quarter more than its own, the most stuff bits can add.
-        let own = bits.duration(BitRates::WHJ);
-        own + own / 4
-    }
-}
-
-/// The most [`Session`] keeps of [`loser_time`] by reply ID and length (every standard ID
-/// at every CAN FD length fits).
-const LOSER_TIMES_KEPT: usize = 2048 * 16;
-
 /// Whether `raw` is an ID on which joints or the end board answer broadcast frames.
 fn is_broadcast_reply_id(raw: u16) -> bool {
     use robobus_whj::Address;
@@ -232,7 +194,7 @@ pub(crate) struct Session {
     /// Until when the frames the session sent occupy the wire, as far as it knows (each
     /// after the one before it).
     wire_busy: Option<Instant>,
-    /// [`loser_time`] by raw ID, length and ESI, computed once each.
+    /// [`loser_time`](arbitration::loser_time) by raw ID, length and ESI, computed once each.
     loser_times: HashMap<(u32, usize, bool), Duration>,
     next_id: TxnId,
     queued: VecDeque<Pending>,
@@ -570,14 +532,6 @@ impl Session {
 
     // Time.
 
-    /// Whether a held reply's hold ends by `now` ([`Session::handle_timeout`] credits it):
-    /// frames already received are handed in first, so that a second answer that came at
-    /// the hold's last instant (an arbitration loser's, one frame after the winner's on a
-    /// link that adds nothing) is seen before the first is credited.
-    pub(crate) fn hold_ends(&self, now: Instant) -> bool {
-        self.credited.values().any(|c| c.until <= now)
-    }
-
     /// Whether the cyclic loop's next tick is due at `now`: frames already received are
     /// handed in first, so that none is taken for the next cycle's.
     pub(crate) fn cyclic_due(&self, now: Instant) -> bool {
@@ -794,58 +748,6 @@ impl Session {
         &mut self.telemetry.bus
     }
 
-    /// The duplicate check's allowance for the link's lateness, `None` when it is off
-    /// (see [`JointBusConfig::collision_window`]).
-    pub(crate) const fn allowance(&self) -> Option<Duration> {
-        self.allowance
-    }
-
-    /// How long a reply that arrived in `frame` is held for a second answer: the wire
-    /// time of the arbitration loser's frame ([`loser_time`]: the winner's ID and length,
-    /// the most stuff bits) and the intermission before it, at the WHJ rates, plus the
-    /// link's allowance ([`Session::allowance`]). Returns the loser's time and the hold.
-    pub(super) fn hold(&mut self, frame: &CanFrame) -> (Duration, Duration) {
-        let key = (frame.raw_id(), frame.len(), frame.esi());
-        let loser = if let Some(t) = self.loser_times.get(&key) {
-            *t
-        } else {
-            let t = loser_time(frame);
-            if self.loser_times.len() < LOSER_TIMES_KEPT {
-                self.loser_times.insert(key, t);
-            }
-            t
-        };
-        (loser, loser + self.allowance.unwrap_or_default())
-    }
-
-    /// `frame` goes out at `now` while replies are held: a request wins arbitration over
-    /// an arbitration loser's reply (its ID is lower), so each held reply's second answer
-    /// may come only after it: each hold lasts at least until `frame` has crossed the
-    /// wire (after the frames sent before it) and a loser's frame could have followed,
-    /// plus the link's allowance.
-    fn outbid(&mut self, frame: &CanFrame, now: Instant) {
-        let start = self.wire_busy.map_or(now, |t| t.max(now));
-        let sent = start + timing::frame_duration(frame, BitRates::WHJ);
-        self.wire_busy = Some(sent);
-        let allowance = self.allowance.unwrap_or_default();
-        for c in self.credited.values_mut() {
-            c.until = c.until.max(sent + c.loser + allowance);
-        }
-    }
-
-    /// `frame` arrived at `now` while replies are held: a frame with a lower ID than a
-    /// held reply's won arbitration over its loser's answer, which may follow it at once,
-    /// so that hold lasts at least a loser's frame and the allowance from now.
-    fn outbid_by_received(&mut self, frame: &CanFrame, now: Instant) {
-        let id = frame.raw_id();
-        let allowance = self.allowance.unwrap_or_default();
-        for c in self.credited.values_mut() {
-            if id < c.frame.raw_id() {
-                c.until = c.until.max(now + c.loser + allowance);
-            }
-        }
-    }
-
     /// Attempt `p` ended with `outcome` at `now`: queued again if the transaction may
     /// take another attempt and the outcome allows one, finished otherwise.
     fn conclude(&mut self, p: Pending, outcome: Attempt, now: Instant) {
@@ -883,26 +785,6 @@ impl Session {
         );
     }
 
-    /// Credits the replies whose collision window closed by `now` (all, finally, with
-    /// `None`).
-    fn credit_due(&mut self, now: Option<Instant>) {
-        let due: Vec<u16> = self
-            .credited
-            .iter()
-            .filter(|(_, c)| now.is_none_or(|t| c.until <= t))
-            .map(|(k, _)| *k)
-            .collect();
-        for key in due {
-            if let Some(c) = self.credited.remove(&key) {
-                let outcome = self.credit(key, c.pending.txn.expect, c.reply, c.until);
-                match now {
-                    Some(now) => self.conclude(c.pending, outcome, now),
-                    None => self.finish(c.pending, outcome),
-                }
-            }
-        }
-    }
-
     fn expire(&mut self, now: Instant) {
         self.credit_due(Some(now));
         let expired: Vec<u16> = self
@@ -926,87 +808,5 @@ impl Session {
         }
         self.quiet.retain(|_, until| *until > now);
         self.forget_late(now);
-    }
-
-    const fn state(&self) -> BusState {
-        self.telemetry.bus.state
-    }
-
-    fn set_state(&mut self, state: BusState, detail: Option<String>) {
-        let bus = self.health();
-        let was = bus.state;
-        if was != state && state == BusState::Active {
-            bus.recoveries += 1;
-            tracing::info!(from = %was, "CAN bus recovered");
-        }
-        bus.state = state;
-        if let Some(d) = detail {
-            bus.last_error = Some(d);
-        }
-    }
-
-    fn recover_passive(&mut self, now: Instant) {
-        if let Some(since) = self.passive_since
-            && now.saturating_duration_since(since) >= self.config.error_passive_hold
-        {
-            self.passive_since = None;
-            if matches!(
-                self.state(),
-                BusState::ErrorPassive | BusState::ErrorWarning
-            ) {
-                self.set_state(BusState::Active, None);
-            }
-        }
-    }
-
-    fn last_error(&self) -> String {
-        self.telemetry
-            .bus
-            .last_error
-            .clone()
-            .unwrap_or_else(|| "no detail".into())
-    }
-
-    /// Applies a bus error reported at `now` to the state.
-    fn link_error_state(&mut self, e: &FrameLinkError, now: Instant) {
-        let detail = Some(e.to_string());
-        let state = self.state();
-        match e {
-            FrameLinkError::BusOff { .. } => {
-                self.health().bus_off_events += 1;
-                tracing::warn!(error = %e, "CAN bus-off");
-                self.set_state(BusState::BusOff, detail);
-            }
-            FrameLinkError::ErrorPassive { .. } => {
-                self.health().error_passive_events += 1;
-                self.passive_since = Some(now);
-                if state != BusState::BusOff {
-                    self.set_state(BusState::ErrorPassive, detail);
-                }
-            }
-            FrameLinkError::BusError { kind, .. } => {
-                self.health().other_bus_errors += 1;
-                match kind {
-                    BusErrorKind::Restarted => self.set_state(BusState::Active, detail),
-                    BusErrorKind::BusOff => self.set_state(BusState::BusOff, detail),
-                    BusErrorKind::ErrorPassive => {
-                        self.passive_since = Some(now);
-                        if state != BusState::BusOff {
-                            self.set_state(BusState::ErrorPassive, detail);
-                        }
-                    }
-                    BusErrorKind::ErrorWarning => {
-                        self.passive_since = Some(now);
-                        if state == BusState::Active {
-                            self.set_state(BusState::ErrorWarning, detail);
-                        }
-                    }
-                    BusErrorKind::NoAck | BusErrorKind::Other { .. } => {
-                        self.health().last_error = detail;
-                    }
-                }
-            }
-            _ => self.health().last_error = detail,
-        }
     }
 }

@@ -6,6 +6,7 @@ use robobus_whj::request::ReadRange;
 use robobus_whj::units::{ActualSpeed, Current, Position, Temperature, Voltage};
 use robobus_whj::{BroadcastFeedback, CmdError, ErrorCode, RegisterAddr, ServoFeedback};
 
+use super::arbitration::loser_time;
 use super::cyclic::{CyclicConfig, ServoMode};
 use super::late::LATE_HORIZON_TIMEOUTS;
 use super::*;
