@@ -13,7 +13,7 @@
 // Helpers outside #[test] functions may unwrap and panic too: a failure is a failed test.
 #![allow(clippy::unwrap_used, clippy::panic)]
 
-mod common;
+use crate::common;
 
 use std::fmt::Write as _;
 use std::io::{BufRead, BufReader, Write};
