@@ -3,7 +3,7 @@
 //! byte as a module does.
 #![allow(clippy::unwrap_used)] // test helpers
 
-mod wck_support;
+use crate::wck_support;
 
 use core::time::Duration;
 

@@ -2,7 +2,7 @@
 //! boundaries, over-load, passive, wheel and break modes.
 #![allow(clippy::unwrap_used)] // test helpers
 
-mod wck_support;
+use crate::wck_support;
 
 use core::time::Duration;
 

@@ -1,7 +1,7 @@
 //! The self-running motion program (section 3-11, A-1 (24)) on the virtual clock.
 #![allow(clippy::unwrap_used)] // test helpers
 
-mod wck_support;
+use crate::wck_support;
 
 use core::time::Duration;
 

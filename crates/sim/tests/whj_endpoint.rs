@@ -3,7 +3,7 @@
 
 #![allow(clippy::unwrap_used, clippy::panic)] // Test code: a failed unwrap is a failed test.
 
-mod whj_common;
+use crate::whj_common;
 
 use std::time::{Duration, Instant};
 

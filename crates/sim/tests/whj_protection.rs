@@ -13,7 +13,7 @@
     clippy::panic
 )] // Test code: a failed unwrap is a failed test; exact float equality is asserted on purpose.
 
-mod whj_common;
+use crate::whj_common;
 
 use robobus_sim::whj::{JointConfig, WhjBus, WhjModel};
 use whj_common::{
