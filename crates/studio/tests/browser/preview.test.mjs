@@ -52,7 +52,7 @@ test("the dry run of a move shows its packet, its effect and no confirmation", a
 
 test("Run it: refused while disarmed, then sent once armed", async () => {
   await panel.getByRole("button", { name: "Run it" }).click();
-  await until(async () => /wck\.move failed \(refused\)/.test(await status()), { what: "the refusal" });
+  await until(async () => /wck\.move failed: refused/.test(await status()), { what: "the refusal" });
   assert.equal((await simServo(studio.url, 2)).position, 127);
   await arm(page);
   await panel.getByRole("button", { name: "Run it" }).click();
@@ -73,7 +73,7 @@ test("an EEPROM write shows its confirmation class and asks before it runs", asy
   await panel.getByRole("button", { name: "Run it" }).click();
   const dialog = page.getByRole("dialog");
   await dialog.getByRole("button", { name: "Cancel" }).click();
-  await until(async () => /Cancelled; nothing was sent/.test(await status()), { what: "the cancel" });
+  await until(async () => /Cancelled: nothing was sent/.test(await status()), { what: "the cancel" });
   const gains = await runRequest(studio.url, { op: "wck.get", param: "gains", id: 4 });
   assert.notEqual(gains.results[0].p_gain, 33);
 
