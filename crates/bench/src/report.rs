@@ -8,7 +8,7 @@ use robobus::whj::Protocol;
 
 use crate::codec::{describe, us};
 use crate::stats::Summary;
-use crate::{BenchError, Results, studio, svg, telemetry, wck};
+use crate::{BenchError, Results, svg, wck};
 
 /// Control-loop goal: this share of the modelled physical limit.
 pub const LOOP_GOAL: f64 = 0.97;
@@ -22,6 +22,17 @@ pub const PEER_GOAL: f64 = 5.0;
 pub const TELEMETRY_GOAL: f64 = 0.98;
 /// Codec goal, ns per packet.
 pub const CODEC_GOAL_NS: f64 = 50.0;
+
+mod studio_section;
+mod system_section;
+mod telemetry_section;
+
+pub use studio_section::studio_markdown;
+use studio_section::studio_section;
+pub use system_section::syscalls_markdown;
+use system_section::transport_section;
+use telemetry_section::telemetry_section;
+pub use telemetry_section::{telemetry_markdown, telemetry_ratios};
 
 fn pct(x: f64) -> String {
     format!("{:.1} %", 100.0 * x)
@@ -131,267 +142,6 @@ pub fn peer_ratios(r: &Results) -> Vec<(String, f64, f64)> {
         }
     }
     v
-}
-
-/// Each telemetry run with eight subscribers against the run at the same rate with one:
-/// (rate, rate with 8 / rate with 1).
-pub fn telemetry_ratios(r: &Results) -> Vec<(f64, f64)> {
-    r.telemetry
-        .iter()
-        .filter(|t| t.subscribers > 1)
-        .filter_map(|many| {
-            let one = r
-                .telemetry
-                .iter()
-                .find(|t| t.subscribers == 1 && t.rate_hz.total_cmp(&many.rate_hz).is_eq())?;
-            Some((many.rate_hz, many.rate() / one.rate().max(1e-9)))
-        })
-        .collect()
-}
-
-/// The report's telemetry section alone.
-pub fn telemetry_markdown(r: &Results) -> String {
-    let mut o = String::new();
-    telemetry_section(&mut o, r);
-    o
-}
-
-fn telemetry_section(o: &mut String, r: &Results) {
-    let _ = writeln!(o, "## Telemetry\n");
-    let _ = writeln!(
-        o,
-        "`Station::telemetry` (the station's one sampling of a bus, shared by its \
-         subscribers) streaming `whj.sample` of the live simulated arm's 7 joints (1 / 5 \
-         Mbit/s wire, wall clock; two frames per joint per sample), each subscriber with a \
-         queue of {} samples. With eight subscribers, seven read on their own threads and \
-         one never reads. *Reachable*: the rate asked, or what the wire allows for one \
-         sample (its exact frames back to back) where that is lower.\n",
-        telemetry::QUEUE
-    );
-    let _ = writeln!(
-        o,
-        "| requested | subscribers | sampled by | samples/s | wire allows | of reachable | late | lost by readers | fewest received | idle queue / lost |\n|---|---|---|---|---|---|---|---|---|---|"
-    );
-    for t in &r.telemetry {
-        let idle = if t.subscribers > 1 {
-            format!("{} / {}", t.idle_queued, t.idle_lost)
-        } else {
-            "–".into()
-        };
-        let _ = writeln!(
-            o,
-            "| {:.0} Hz | {} | {} | {:.1} | {:.0} /s | {:.3}× | {} | {} | {} | {idle} |",
-            t.rate_hz,
-            t.subscribers,
-            t.sampled_by,
-            t.rate(),
-            t.wire_hz,
-            t.of_reachable(),
-            t.late,
-            t.lost_by_readers,
-            t.min_received,
-        );
-    }
-    let _ = writeln!(o);
-    for (hz, ratio) in telemetry_ratios(r) {
-        let _ = writeln!(
-            o,
-            "- At {hz:.0} Hz, the rate with eight subscribers is {ratio:.3}× the rate with one."
-        );
-    }
-    let _ = writeln!(o);
-}
-
-/// The report's studio section alone, with the machine it ran on.
-pub fn studio_markdown(r: &Results) -> String {
-    let mut o = String::new();
-    studio_section(&mut o, r);
-    let m = &r.machine;
-    let _ = writeln!(
-        o,
-        "Machine: {} logical CPUs, {}, Linux {}; load average before: {}; after: {}.",
-        m.cpus, m.model, m.kernel, m.load_before, m.load_after
-    );
-    o
-}
-
-fn ms(us: f64) -> String {
-    format!("{:.2}", us / 1e3)
-}
-
-#[allow(clippy::too_many_lines)] // one section, table by table
-fn studio_section(o: &mut String, r: &Results) {
-    let _ = writeln!(o, "## Studio\n");
-    let Some(st) = &r.studio else {
-        let _ = writeln!(o, "Not run.\n");
-        return;
-    };
-    let m = &st.model;
-    let period = us(studio::BUS_PERIOD);
-    let _ = writeln!(
-        o,
-        "`robobus-studio` serving the built-in simulated robot on the wall clock \
-         (`Station::simulated_live`: 7 WHJ30 joints on `sim-whj`, in-process memory bus, \
-         1 / 5 Mbit/s wire, 20 µs processing delay; 16 wCK servos on `sim-wck`) on a thread \
-         of this process, and its pages played by WebSocket clients (`tungstenite`, \
-         TCP_NODELAY, like a browser) on threads of this process. Each page subscribes to \
-         `{{\"op\": \"whj.sample\", \"joints\": \"1-7\"}}` at {:.0} Hz with {:.0} fps; \
-         the studio starts one sampler per page's stream, so N pages share the one bus. \
-         Everything runs on one machine: the pages, the studio and the simulators share \
-         its cores.\n",
-        studio::ASKED_HZ,
-        studio::FPS
-    );
-    let _ = writeln!(
-        o,
-        "Wire model (the exact frames of one sample and of one servo cycle, recorded on a \
-         second simulated chain and timed with `robobus_whj::timing::frame_duration`):\n\n\
-         - one `whj.sample` of 7 joints = {} request/reply transactions (a status query \
-         and a speed read per joint), {:.1} µs back to back on the wire: the wire could \
-         carry **{:.0} samples/s** with one stream on it;\n\
-         - the client credits each reply after its {:.0} µs collision window \
-         (`JointBusConfig::collision_window`), so the library's own limit, all other costs \
-         zero, is **{:.0} samples/s** for one stream (its requests go one after the \
-         other; streams of several pages overlap their windows on different joints, so \
-         together they can exceed it);\n\
-         - one jog = one position servo frame and its feedback, {:.1} µs on the wire; a \
-         7-joint position servo cycle {:.1} µs;\n\
-         - **\"the bus period\" below is {:.0} µs, the period of the {:.0} Hz the pages ask \
-         for**, not a wire time.\n",
-        m.transactions,
-        us(m.sample),
-        m.wire_hz(),
-        us(m.collision_window),
-        m.windowed_hz(),
-        us(m.jog),
-        us(m.servo_cycle),
-        period,
-        studio::ASKED_HZ
-    );
-    let _ = writeln!(
-        o,
-        "**Telemetry fan-out.** Samples taken: by the studio's samplers, from the delivered \
-         samples' `seq` and `unix_ms` (all streams together; per stream in brackets); \
-         each page asks {:.0} Hz for its own stream, and all streams share the one \
-         bus, so the wire limit is compared with all of them together. Delivered: `telemetry` messages a page read per second (the page that read \
-         fewest). Skipped: the `skipped` totals of all pages (taken and never sent: the \
-         frame rate is below the sampling rate). Age: the page's clock when it read the \
-         message − the sample's `unix_ms` (when its read completed), all pages: it \
-         includes the wait in the studio's forwarder, which sends the latest sample at \
-         each frame tick, up to one sample period. Late: delivered samples the sampler \
-         marked `late` (its read started more than a period, 2 ms, after its slot). A \
-         page can be delivered at most min(fps, its stream's samples taken) a second.\n",
-        studio::ASKED_HZ
-    );
-    let _ = writeln!(
-        o,
-        "| pages | samples taken/s, all streams (per stream) | per stream / asked | all / wire limit | per stream / windowed limit | delivered msg/s per page | delivered / fps | delivered / min(fps, taken) | skipped | late / failed delivered | age p50 ms | age p99 ms |\n|---|---|---|---|---|---|---|---|---|---|---|---|"
-    );
-    for f in &st.fan_out {
-        let n = f.subscribers.max(1) as f64;
-        let taken = f.taken_hz();
-        let fewest = f
-            .pages
-            .iter()
-            .map(studio::Page::delivered_hz)
-            .fold(f64::INFINITY, f64::min);
-        let fewest = if fewest.is_finite() { fewest } else { 0.0 };
-        let ages = f.ages();
-        let _ = writeln!(
-            o,
-            "| {} | {:.1} ({:.1}) | {:.3}× | {:.3}× | {:.3}× | {:.1} | {:.3}× | {:.3}× | {} | {} / {} | {} | {} |",
-            f.subscribers,
-            taken,
-            taken / n,
-            taken / n / studio::ASKED_HZ,
-            taken / m.wire_hz().max(1e-9),
-            taken / n / m.windowed_hz().max(1e-9),
-            fewest,
-            fewest / studio::FPS,
-            fewest / studio::FPS.min(taken / n).max(1e-9),
-            f.pages.iter().map(|p| p.skipped).sum::<u64>(),
-            f.pages.iter().map(|p| p.late).sum::<u64>(),
-            f.pages.iter().map(|p| p.failed).sum::<u64>(),
-            ms(ages.p50),
-            ms(ages.p99),
-        );
-    }
-    let _ = writeln!(o);
-    let _ = writeln!(
-        o,
-        "CPU over the same window, as a share of one core: the process (`getrusage`), \
-         of it the pages' threads (each its own `RUSAGE_THREAD`), the simulators' serving \
-         threads (`sim-whj`, `robobus-sim-wck`, from `/proc/self/task/*/stat`, 10 ms \
-         ticks) and the benchmark's waiting thread; the studio = the rest (its runtime \
-         thread, the stream forwarders, the samplers, the WHJ bus thread, the guard, the \
-         blocking pool).\n"
-    );
-    let _ = writeln!(
-        o,
-        "| pages | process | pages' threads | simulators | studio | studio per page |\n|---|---|---|---|---|---|"
-    );
-    for f in &st.fan_out {
-        let n = f.subscribers.max(1) as f64;
-        let _ = writeln!(
-            o,
-            "| {} | {} | {} | {} | {} | {} |",
-            f.subscribers,
-            pct(f.share(f.process_cpu)),
-            pct(f.share(f.clients_cpu)),
-            pct(f.share(f.sims_cpu)),
-            pct(f.share(f.server_cpu())),
-            pct(f.share(f.server_cpu()) / n),
-        );
-    }
-    let _ = writeln!(o);
-    let j = &st.jog;
-    let reply = Summary::of_us(&j.reply_us);
-    let wire = Summary::of_us(&j.wire_us);
-    let gap = Summary::of_us(&j.poll_gap_us);
-    let _ = writeln!(
-        o,
-        "**Jog latency.** One controlling page (take control, arm, heartbeat every 100 ms \
-         on the same socket; joint 1 put in position mode) sends `{{\"type\": \"jog\", \
-         \"family\": \"whj\", \"device\": 1, \"target\": ±1}}` at {:.0} Hz for {:.1} s. \
-         **Reply**: the jog message written → its `jogged` reply read by the page (the \
-         studio's runtime, the jogger on the blocking pool, the position servo frame \
-         out, the joint's feedback back, the {:.0} µs collision window, the reply \
-         message). **At the joint**: the jog message written → the simulated joint's \
-         position target seen changed to the position sent (`LiveSimulator::snapshot`, \
-         polled in a tight loop, yielding, by a thread of this process from the moment \
-         the jog is sent; the simulator publishes its state after each frame it takes \
-         in; the poll gap is how precisely the poll timed it). Ratios against the bus \
-         period, {:.0} µs.\n",
-        studio::JOG_HZ,
-        j.wall.as_secs_f64(),
-        us(m.collision_window),
-        period
-    );
-    let _ = writeln!(
-        o,
-        "| jogs | errors / unanswered | limited | heartbeats | reply p50 ms | reply p99 ms | reply p50 / p99 ÷ bus period | at the joint p50 ms | at the joint p99 ms | at the joint p50 / p99 ÷ bus period | poll gap p50 / p99 ms | not seen at the joint |\n|---|---|---|---|---|---|---|---|---|---|---|---|"
-    );
-    let _ = writeln!(
-        o,
-        "| {} | {} / {} | {} | {} | {} | {} | {:.2}× / {:.2}× | {} | {} | {:.2}× / {:.2}× | {} / {} | {} |",
-        j.sent,
-        j.errors,
-        j.unanswered,
-        j.limited,
-        j.heartbeats,
-        ms(reply.p50),
-        ms(reply.p99),
-        reply.p50 / period,
-        reply.p99 / period,
-        ms(wire.p50),
-        ms(wire.p99),
-        wire.p50 / period,
-        wire.p99 / period,
-        ms(gap.p50),
-        ms(gap.p99),
-        j.unmatched
-    );
-    let _ = writeln!(o);
 }
 
 #[allow(clippy::too_many_lines, clippy::many_single_char_names)] // one report, section by section
@@ -950,57 +700,6 @@ pub fn opt_us(d: Option<Duration>) -> String {
     )
 }
 
-/// The system-call section: per transaction, the calling thread and the others.
-pub fn syscalls_markdown(r: &Results) -> String {
-    let mut o = String::new();
-    let _ = writeln!(
-        o,
-        "## System calls per transaction
-"
-    );
-    if r.syscalls.is_empty() {
-        let _ = writeln!(
-            o,
-            "Not counted in this run ({}). `robobus-bench syscalls [--udp]` counts them \
-             with `strace`.\n",
-            if r.smoke {
-                "smoke mode"
-            } else {
-                "`strace` not found"
-            }
-        );
-        return o;
-    }
-    let _ = writeln!(
-        o,
-        "Counted with `strace -ff -ttt` on the one-case runners in the sleep mode, between \
-         two markers the measured loop leaves in the trace (the Python peers leave the same \
-         markers); every thread of the traced process. Ours in the wCK case runs the \
-         simulator's endpoint thread in the same process: it is the \"other threads\" column \
-         there; a peer's simulator runs outside the trace, and ours over UDP talks to a \
-         simulator process as the peer does.\n"
-    );
-    let _ = writeln!(
-        o,
-        "| case | transactions | caller per transaction | calls | other threads per transaction | calls |\n|---|---|---|---|---|---|"
-    );
-    for c in &r.syscalls {
-        let t = c.transactions.max(1) as f64;
-        let _ = writeln!(
-            o,
-            "| {} | {} | {:.1} | {} | {:.1} | {} |",
-            c.what,
-            c.transactions,
-            c.caller.total as f64 / t,
-            c.caller.per(c.transactions),
-            c.others.total as f64 / t,
-            c.others.per(c.transactions)
-        );
-    }
-    let _ = writeln!(o);
-    o
-}
-
 fn free_plot(f: &crate::whj::FreeResult) -> String {
     format!(
         "whj_free_{}j_{}_{}.svg",
@@ -1012,26 +711,4 @@ fn free_plot(f: &crate::whj::FreeResult) -> String {
             "nowindow"
         }
     )
-}
-
-/// The transports' own round trip, both sides spinning.
-fn transport_section(o: &mut String, r: &Results) {
-    let _ = writeln!(o, "## Transports\n");
-    let Some((pty, memory)) = &r.echo else {
-        let _ = writeln!(o, "Not measured.\n");
-        return;
-    };
-    let _ = writeln!(
-        o,
-        "One byte through the pty and straight back, and one frame through the in-process \
-         memory bus and straight back, both sides spinning (`robobus-bench echo`): what \
-         each request/reply transaction over that transport costs at the least, whatever \
-         the client and the simulator do. A pty hands every write to a kernel worker thread \
-         before the other side can read it.\n"
-    );
-    let _ = writeln!(
-        o,
-        "| transport | round trips | p50 µs | p99 µs |\n|---|---|---|---|\n| pty | {} | {:.1} | {:.1} |\n| memory bus | {} | {:.1} | {:.1} |\n",
-        pty.n, pty.p50, pty.p99, memory.n, memory.p50, memory.p99
-    );
 }
