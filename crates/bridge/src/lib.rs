@@ -651,38 +651,37 @@ impl Bridge {
         threads.extend(trajectory::declare(&shared, &session, &mut declared)?);
         threads.extend(commands::declare(&shared, &session, &mut declared)?);
 
-        // Joint states.
-        if shared.follower.is_some() {
-            let publisher = session
-                .declare_publisher(keys.joint_states.clone())
-                .encoding(Encoding::APPLICATION_CDR)
-                .wait()
-                .map_err(zerr)?;
-            let s = Arc::clone(&shared);
-            threads.push(spawn("robobus-states", move || {
-                states(&s, &publisher);
-            })?);
-            let publisher = session
-                .declare_publisher(keys.diagnostics.clone())
-                .encoding(Encoding::APPLICATION_CDR)
-                .wait()
-                .map_err(zerr)?;
-            let s = Arc::clone(&shared);
-            threads.push(spawn("robobus-diagnostics", move || {
-                diagnostics::publish(&s, &publisher);
-            })?);
+        // Joint states and diagnostics (on a bridge that moves joints), health.
+        let moves = shared.follower.is_some();
+        let cdr = Encoding::APPLICATION_CDR;
+        let publishers: [(bool, &str, Encoding, &str, Publish); 3] = [
+            (
+                moves,
+                &keys.joint_states,
+                cdr.clone(),
+                "robobus-states",
+                states,
+            ),
+            (
+                moves,
+                &keys.diagnostics,
+                cdr,
+                "robobus-diagnostics",
+                diagnostics::publish,
+            ),
+            (
+                true,
+                &keys.health,
+                Encoding::APPLICATION_JSON,
+                "robobus-health",
+                health::publish_health,
+            ),
+        ];
+        for (_, key, encoding, name, publish) in publishers.into_iter().filter(|p| p.0) {
+            threads.push(publishing(&shared, &session, key, encoding, name, publish)?);
         }
 
-        // Health and liveliness.
-        let publisher = session
-            .declare_publisher(keys.health.clone())
-            .encoding(Encoding::APPLICATION_JSON)
-            .wait()
-            .map_err(zerr)?;
-        let s = Arc::clone(&shared);
-        threads.push(spawn("robobus-health", move || {
-            health::publish_health(&s, &publisher);
-        })?);
+        // Liveliness.
         let token = session
             .liveliness()
             .declare_token(keys.alive.clone())
@@ -797,6 +796,28 @@ impl Drop for Bridge {
 
 fn spawn(name: &str, f: impl FnOnce() + Send + 'static) -> std::io::Result<JoinHandle<()>> {
     std::thread::Builder::new().name(name.to_owned()).spawn(f)
+}
+
+/// What a publishing thread runs until the bridge stops.
+type Publish = fn(&Shared, &zenoh::pubsub::Publisher<'static>);
+
+/// Declares a publisher on `key` with `encoding` and a thread `name` that publishes on it
+/// with `publish` until the bridge stops.
+fn publishing(
+    shared: &Arc<Shared>,
+    session: &zenoh::Session,
+    key: &str,
+    encoding: Encoding,
+    name: &str,
+    publish: Publish,
+) -> Result<JoinHandle<()>, BridgeError> {
+    let publisher = session
+        .declare_publisher(key.to_owned())
+        .encoding(encoding)
+        .wait()
+        .map_err(zerr)?;
+    let s = Arc::clone(shared);
+    Ok(spawn(name, move || publish(&s, &publisher))?)
 }
 
 /// The command thread: follows the newest command, keeps the guard's heartbeat, and
