@@ -11,16 +11,10 @@ use robobus::cdr::Float64MultiArray;
 use robobus::frontend::live::{LiveSimulator, SimSnapshot};
 use robobus::ops::StopToken;
 use robobus::robot::RobotConfig;
+use robobus::robot::simulated::{DRIVE_ROBOT, sim_1108_wheel_speeds};
 use robobus::station::Station;
 use robobus_bridge::{Bridge, BridgeConfig};
 use zenoh::Wait as _;
-
-/// What the simulated wCK-1108's wheel levels turn it at, rad/s.
-fn wheel_speeds() -> Vec<f64> {
-    (1..=15)
-        .map(|k| 400_f64.to_radians() * (f64::from(k) / 15.0 - 0.03))
-        .collect()
-}
 
 fn free_port() -> u16 {
     std::net::TcpListener::bind("127.0.0.1:0")
@@ -30,38 +24,13 @@ fn free_port() -> u16 {
         .port()
 }
 
-/// An armed bridge on `bot` on the built-in simulators, through a robot file of a wheel
-/// `s0` and a WHJ joint `j1` with velocity; and the simulators.
+/// An armed bridge on `bot` on the built-in simulators, through their robot file of a
+/// wheel `s0`, a WHJ joint `j1` with velocity and effort and `j2` with position alone
+/// ([`DRIVE_ROBOT`]); and the simulators.
 fn start(port: u16) -> (Bridge, LiveSimulator) {
     let (mut station, live) = Station::simulated_live(None).unwrap();
-    let file = format!(
-        r#"
-        [buses.sim-wck]
-        kind = "wck-external"
-        [buses.sim-whj]
-        kind = "whj-external"
-        [[joints]]
-        name = "s0"
-        bus = "sim-wck"
-        id = 0
-        limits = [-2.0, 2.0]
-        max_velocity = 7.0
-        max_acceleration = 100.0
-        interfaces = ["position", "velocity"]
-        wheel_speeds = {:?}
-        [[joints]]
-        name = "j1"
-        bus = "sim-whj"
-        id = 1
-        limits = [-3.0, 3.0]
-        max_velocity = 2.0
-        max_acceleration = 20.0
-        interfaces = ["position", "velocity"]
-        "#,
-        wheel_speeds()
-    );
     station
-        .set_robot(RobotConfig::from_toml_str(&file).unwrap())
+        .set_robot(RobotConfig::from_toml_str(DRIVE_ROBOT).unwrap())
         .unwrap();
     let bridge = Bridge::start(
         station,
@@ -141,7 +110,7 @@ fn a_zenoh_peer_turns_a_wheel_and_a_whj_joint_at_the_asked_velocity_until_it_sto
         serde_json::json!(["s0", "j1"]),
         "{reply}"
     );
-    let level_7 = wheel_speeds()[6];
+    let level_7 = sim_1108_wheel_speeds()[6];
     let payload = Float64MultiArray {
         dim: Vec::new(),
         data_offset: 0,

@@ -8,59 +8,19 @@ use std::sync::atomic::AtomicBool;
 
 use robobus::frontend::live::LiveSimulator;
 use robobus::robot::RobotConfig;
+use robobus::robot::simulated::{DRIVE_ROBOT, sim_1108_wheel_speeds};
 use robobus::station::Station;
 
 use super::*;
 use crate::{BridgeConfig, Keys, run_request};
 
-/// What the simulated wCK-1108's wheel levels turn it at, rad/s.
-fn wheel_speeds() -> Vec<f64> {
-    (1..=15)
-        .map(|k| 400_f64.to_radians() * (f64::from(k) / 15.0 - 0.03))
-        .collect()
-}
-
-/// The simulated robot with a file of a wheel `s0`, a WHJ joint `j1` with velocity and
-/// effort and `j2` with position alone; armed, its WHJ joints enabled in position mode,
+/// The simulated robot with its file of a wheel `s0`, a WHJ joint `j1` with velocity and
+/// effort and `j2` with position alone ([`DRIVE_ROBOT`]); armed, its WHJ joints enabled in position mode,
 /// and a thread feeding the guard's heartbeat until the flag is set.
 fn armed() -> (Arc<Shared>, Arc<AtomicBool>) {
     let (mut station, live) = Station::simulated_live(None).unwrap();
-    let file = format!(
-        r#"
-        [buses.sim-wck]
-        kind = "wck-external"
-        [buses.sim-whj]
-        kind = "whj-external"
-        [[joints]]
-        name = "s0"
-        bus = "sim-wck"
-        id = 0
-        limits = [-2.0, 2.0]
-        max_velocity = 7.0
-        max_acceleration = 100.0
-        interfaces = ["position", "velocity"]
-        wheel_speeds = {:?}
-        [[joints]]
-        name = "j1"
-        bus = "sim-whj"
-        id = 1
-        limits = [-3.0, 3.0]
-        max_velocity = 2.0
-        max_acceleration = 20.0
-        interfaces = ["position", "velocity", "effort"]
-        max_effort = 5.0
-        [[joints]]
-        name = "j2"
-        bus = "sim-whj"
-        id = 2
-        limits = [-2.0, 2.0]
-        max_velocity = 2.0
-        max_acceleration = 20.0
-        "#,
-        wheel_speeds()
-    );
     station
-        .set_robot(RobotConfig::from_toml_str(&file).unwrap())
+        .set_robot(RobotConfig::from_toml_str(DRIVE_ROBOT).unwrap())
         .unwrap();
     let s = Shared::new(
         station,
@@ -143,7 +103,7 @@ fn a_velocity_stream_turns_the_wheel_and_the_whj_joint_at_the_asked_speeds() {
         "{reply}"
     );
     assert_eq!(s.drives.health().velocity_joints, ["s0", "j1"]);
-    let level_7 = wheel_speeds()[6];
+    let level_7 = sim_1108_wheel_speeds()[6];
     let a0 = sim(&s).snapshot().wck[0].angle_deg;
     stream(&s, Interface::Velocity, &[level_7, 0.5], 600);
     let snap = until(&s, |n| n.whj[0].target_speed_rpm > 0.0);
@@ -247,7 +207,12 @@ fn velocity_is_refused_where_a_joint_lacks_the_interface_or_was_not_switched() {
 fn a_quiet_velocity_stream_brings_its_joints_to_rest_on_position() {
     let (s, done) = armed();
     interface(&s, r#"{"interface": "velocity", "joints": ["s0", "j1"]}"#).unwrap();
-    stream(&s, Interface::Velocity, &[wheel_speeds()[6], 0.5], 200);
+    stream(
+        &s,
+        Interface::Velocity,
+        &[sim_1108_wheel_speeds()[6], 0.5],
+        200,
+    );
     // Within the timeout nothing happens.
     watch(&s, Instant::now());
     assert_eq!(s.drives.health().velocity_joints, ["s0", "j1"]);

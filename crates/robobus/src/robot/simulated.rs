@@ -20,6 +20,27 @@ pub const SERVOS: u8 = 16;
 /// WHJ joints of the arm (IDs 1..=JOINTS).
 pub const JOINTS: u8 = 7;
 
+/// A robot file of the built-in simulators for velocity and effort
+/// (`examples/sim_drive.toml`, what `robobus bridge --simulated --robot` takes): servo 0 as
+/// the wheel `s0` (position and velocity, its `wheel_speeds` those of
+/// [`sim_1108_wheel_speeds`]), WHJ joint 1 as `j1` (position, velocity and effort up to
+/// 5 N·m) and joint 2 as `j2` (position only), on the buses `sim-wck` and `sim-whj`. The
+/// tests of velocity and effort commands share it.
+pub const DRIVE_ROBOT: &str = include_str!("../../examples/sim_drive.toml");
+
+/// What the simulated wCK-1108's wheel levels 1..=15 turn it at, unloaded, rad/s: its
+/// no-load speed (400 °/s) times the level's duty `k / 15`, less its gear friction (3 % of
+/// the stall torque), as a robot file gives the speeds measured on the robot
+/// ([`DRIVE_ROBOT`]'s `wheel_speeds`).
+#[must_use]
+pub fn sim_1108_wheel_speeds() -> [f64; super::WHEEL_LEVELS] {
+    std::array::from_fn(|i| {
+        #[allow(clippy::cast_precision_loss)] // 1..=15
+        let k = (i + 1) as f64;
+        400_f64.to_radians() * (k / 15.0 - 0.03)
+    })
+}
+
 /// The robot file of [`Robot::simulated`] and
 /// [`Station::simulated`](crate::station::Station::simulated): the humanoid's servos `s0`..`s15` on
 /// `sim-wck` (centre 127, joint angle 0 there) and the arm's joints `j1`..`j7` on `sim-whj`.
@@ -92,5 +113,20 @@ impl Robot {
         robot.keep.push(Box::new(wck_sim));
         robot.keep.push(Box::new(arm));
         Ok(robot)
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::float_cmp)] // exact: the file's numbers are the function's
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_drive_robot_files_wheel_speeds_are_the_simulated_servos() {
+        let robot = RobotConfig::from_toml_str(DRIVE_ROBOT).unwrap();
+        let names: Vec<&str> = robot.joints.iter().map(|j| j.name.as_str()).collect();
+        assert_eq!(names, ["s0", "j1", "j2"]);
+        let speeds = robot.joints[0].wheel_speeds.as_ref().unwrap().speeds();
+        assert_eq!(speeds, &sim_1108_wheel_speeds());
     }
 }
