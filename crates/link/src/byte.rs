@@ -226,62 +226,39 @@ macro_rules! forward_byte_link_rate_and_clock {
     };
 }
 
-impl<T: ByteLink + ?Sized> ByteLink for &mut T {
-    fn write_all(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
-        (**self).write_all(bytes)
-    }
-    fn read_some(&mut self, buf: &mut [u8], deadline: Instant) -> Result<usize, LinkError> {
-        (**self).read_some(buf, deadline)
-    }
-    fn read_exact(&mut self, buf: &mut [u8], deadline: Instant) -> Result<(), LinkError> {
-        (**self).read_exact(buf, deadline)
-    }
-    fn discard_input(&mut self) -> Result<(), LinkError> {
-        (**self).discard_input()
-    }
-    fn set_baud(&mut self, baud: u32) -> Result<(), LinkError> {
-        (**self).set_baud(baud)
-    }
-    fn baud(&self) -> Option<u32> {
-        (**self).baud()
-    }
-    fn now(&self) -> Instant {
-        (**self).now()
-    }
-    fn sleep_until(&mut self, deadline: Instant) {
-        (**self).sleep_until(deadline);
-    }
-    fn virtual_time(&self) -> bool {
-        (**self).virtual_time()
-    }
+/// `ByteLink` for a pointer to a link (`&mut T`, `Box<T>`): every method the link's own.
+macro_rules! byte_link_through {
+    ($($pointer:ty),+) => {$(
+        impl<T: ByteLink + ?Sized> ByteLink for $pointer {
+            fn write_all(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
+                (**self).write_all(bytes)
+            }
+            fn read_some(&mut self, buf: &mut [u8], deadline: Instant) -> Result<usize, LinkError> {
+                (**self).read_some(buf, deadline)
+            }
+            fn read_exact(&mut self, buf: &mut [u8], deadline: Instant) -> Result<(), LinkError> {
+                (**self).read_exact(buf, deadline)
+            }
+            fn discard_input(&mut self) -> Result<(), LinkError> {
+                (**self).discard_input()
+            }
+            fn set_baud(&mut self, baud: u32) -> Result<(), LinkError> {
+                (**self).set_baud(baud)
+            }
+            fn baud(&self) -> Option<u32> {
+                (**self).baud()
+            }
+            fn now(&self) -> Instant {
+                (**self).now()
+            }
+            fn sleep_until(&mut self, deadline: Instant) {
+                (**self).sleep_until(deadline);
+            }
+            fn virtual_time(&self) -> bool {
+                (**self).virtual_time()
+            }
+        }
+    )+};
 }
 
-impl<T: ByteLink + ?Sized> ByteLink for Box<T> {
-    fn write_all(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
-        (**self).write_all(bytes)
-    }
-    fn read_some(&mut self, buf: &mut [u8], deadline: Instant) -> Result<usize, LinkError> {
-        (**self).read_some(buf, deadline)
-    }
-    fn read_exact(&mut self, buf: &mut [u8], deadline: Instant) -> Result<(), LinkError> {
-        (**self).read_exact(buf, deadline)
-    }
-    fn discard_input(&mut self) -> Result<(), LinkError> {
-        (**self).discard_input()
-    }
-    fn set_baud(&mut self, baud: u32) -> Result<(), LinkError> {
-        (**self).set_baud(baud)
-    }
-    fn baud(&self) -> Option<u32> {
-        (**self).baud()
-    }
-    fn now(&self) -> Instant {
-        (**self).now()
-    }
-    fn sleep_until(&mut self, deadline: Instant) {
-        (**self).sleep_until(deadline);
-    }
-    fn virtual_time(&self) -> bool {
-        (**self).virtual_time()
-    }
-}
+byte_link_through!(&mut T, Box<T>);

@@ -308,59 +308,39 @@ macro_rules! forward_frame_link_clock {
     };
 }
 
-impl<T: FrameLink + ?Sized> FrameLink for &mut T {
-    fn send(&mut self, frame: &CanFrame) -> Result<(), FrameLinkError> {
-        (**self).send(frame)
-    }
-    fn recv(&mut self, deadline: Instant) -> Result<Received, FrameLinkError> {
-        (**self).recv(deadline)
-    }
-    fn set_filters(&mut self, filters: &[IdFilter]) -> Result<(), FrameLinkError> {
-        (**self).set_filters(filters)
-    }
-    fn now(&self) -> Instant {
-        (**self).now()
-    }
-    fn sleep_until(&mut self, deadline: Instant) {
-        (**self).sleep_until(deadline);
-    }
-    fn virtual_time(&self) -> bool {
-        (**self).virtual_time()
-    }
-    fn sends_empty_frames(&self) -> bool {
-        (**self).sends_empty_frames()
-    }
-    fn reply_allowance(&self) -> Duration {
-        (**self).reply_allowance()
-    }
+/// `FrameLink` for a pointer to a link (`&mut T`, `Box<T>`): every method the link's own.
+macro_rules! frame_link_through {
+    ($($pointer:ty),+) => {$(
+        impl<T: FrameLink + ?Sized> FrameLink for $pointer {
+            fn send(&mut self, frame: &CanFrame) -> Result<(), FrameLinkError> {
+                (**self).send(frame)
+            }
+            fn recv(&mut self, deadline: Instant) -> Result<Received, FrameLinkError> {
+                (**self).recv(deadline)
+            }
+            fn set_filters(&mut self, filters: &[IdFilter]) -> Result<(), FrameLinkError> {
+                (**self).set_filters(filters)
+            }
+            fn now(&self) -> Instant {
+                (**self).now()
+            }
+            fn sleep_until(&mut self, deadline: Instant) {
+                (**self).sleep_until(deadline);
+            }
+            fn virtual_time(&self) -> bool {
+                (**self).virtual_time()
+            }
+            fn sends_empty_frames(&self) -> bool {
+                (**self).sends_empty_frames()
+            }
+            fn reply_allowance(&self) -> Duration {
+                (**self).reply_allowance()
+            }
+        }
+    )+};
 }
 
-impl<T: FrameLink + ?Sized> FrameLink for Box<T> {
-    fn send(&mut self, frame: &CanFrame) -> Result<(), FrameLinkError> {
-        (**self).send(frame)
-    }
-    fn recv(&mut self, deadline: Instant) -> Result<Received, FrameLinkError> {
-        (**self).recv(deadline)
-    }
-    fn set_filters(&mut self, filters: &[IdFilter]) -> Result<(), FrameLinkError> {
-        (**self).set_filters(filters)
-    }
-    fn now(&self) -> Instant {
-        (**self).now()
-    }
-    fn sleep_until(&mut self, deadline: Instant) {
-        (**self).sleep_until(deadline);
-    }
-    fn virtual_time(&self) -> bool {
-        (**self).virtual_time()
-    }
-    fn sends_empty_frames(&self) -> bool {
-        (**self).sends_empty_frames()
-    }
-    fn reply_allowance(&self) -> Duration {
-        (**self).reply_allowance()
-    }
-}
+frame_link_through!(&mut T, Box<T>);
 
 #[cfg(test)]
 mod tests {
