@@ -5,22 +5,25 @@
 //! - **Joints**: the message's `joint_names` are some of the robot file's joints (each at
 //!   most once, in any order); the file's other joints are not moved (they hold).
 //! - **Points**: each has one position per joint (rad, the robot file's joint frame),
-//!   velocities for every joint or none (rad/s), no efforts (the joints are position
-//!   controlled); accelerations are read and not used. `time_from_start` is not negative
-//!   and grows from point to point.
+//!   velocities for every joint or none (rad/s), accelerations for every joint or none
+//!   (rad/s², only with velocities), no efforts (the joints are position controlled).
+//!   `time_from_start` is not negative and grows from point to point.
 //! - **Start**: a zero `header.stamp` starts it when it is received; a stamp in the
 //!   future at that time (at most [`MAX_START_DELAY_S`] ahead); a stamp in the past
 //!   starts it now with the points already due skipped (as the controller samples a late
 //!   trajectory at the time it reads it), and one whose last point is already due is
 //!   refused (`OLD_HEADER_TIMESTAMP`, as the controller refuses it).
-//! - **Motion**: from where the joints are at the start (held still: a replaced
-//!   trajectory's joints are held first) to the first point due, then point to point:
-//!   linearly, or where both ends of a segment give velocities, on the cubic through
-//!   their positions and velocities (the controller's spline), sampled every
+//! - **Motion**: from the joints' commanded state at the start ([`Start`]: where they
+//!   are, still; or, for a trajectory that replaces the one playing, the position,
+//!   velocity and acceleration that one commands at that instant) to the first point
+//!   due, then point to point, as the controller interpolates: where both ends of a
+//!   segment give velocities and accelerations, on the quintic through them; where both
+//!   give velocities, on the cubic; linearly otherwise. Curves are sampled every
 //!   [`SPLINE_STEP_S`].
 //! - **Checked whole before anything moves** ([`plan`]): names, sizes, finite values,
 //!   times, every position within the joint's soft limits, every velocity and every
-//!   stretch of the motion (the first included) within its `max_velocity`; a refusal
+//!   stretch of the motion (the first included) within its `max_velocity`, every
+//!   acceleration given and a quintic's all along within its `max_acceleration`; a refusal
 //!   names the point, the joint and the value, with
 //!   [`result_code`]'s code.
 //! - **The end** ([`outcome`]): reached when every joint ends within
@@ -131,9 +134,9 @@ pub fn check(msg: &JointTrajectory, robot: &RobotConfig) -> Result<Checked, Refu
     })
 }
 
-/// A point: its time from the start (s), positions (degrees) and velocities (degrees a
-/// second, where given).
-type Point = (f64, Vec<f64>, Option<Vec<f64>>);
+/// A point: its time from the start (s), positions (degrees), velocities (degrees a
+/// second, where given) and accelerations (degrees a second², where given).
+type Point = (f64, Vec<f64>, Option<Vec<f64>>, Option<Vec<f64>>);
 
 /// Checks point `k` (after one at `before` s), in the joints' order (`index` into the
 /// robot file).
@@ -164,6 +167,12 @@ fn check_point(
                 v.len()
             ))));
         }
+    }
+    if !p.accelerations.is_empty() && p.velocities.is_empty() {
+        return Err(invalid(at(
+            "accelerations without velocities (give velocities with them: the quintic \
+             through a point needs both)",
+        )));
     }
     if !p.effort.is_empty() {
         return Err(invalid(at(
@@ -230,7 +239,22 @@ fn check_point(
         }
         Some(p.velocities.iter().map(|v| v.to_degrees()).collect())
     };
-    Ok((t, deg, vel))
+    let acc = if p.accelerations.is_empty() {
+        None
+    } else {
+        for (c, (&a, &i)) in p.accelerations.iter().zip(index).enumerate() {
+            let amax = robot.joints[i].max_acceleration;
+            if a.abs() > amax * (1.0 + 1e-9) {
+                return Err(invalid(at(&format!(
+                    "{}'s acceleration {a} rad/s² is more than its max_acceleration {amax} \
+                     rad/s²",
+                    names[c]
+                ))));
+            }
+        }
+        Some(p.accelerations.iter().map(|a| a.to_degrees()).collect())
+    };
+    Ok((t, deg, vel, acc))
 }
 
 impl Checked {
@@ -292,21 +316,68 @@ pub struct Planned {
     pub late_s: f64,
 }
 
-/// The position and velocity at `t` of the cubic through `(t0, p0, v0)` and `(t1, p1,
-/// v1)`.
-fn hermite(t: f64, (t0, p0, v0): (f64, f64, f64), (t1, p1, v1): (f64, f64, f64)) -> f64 {
-    let h = t1 - t0;
-    let s = (t - t0) / h;
-    let (s2, s3) = (s * s, s * s * s);
-    (2.0 * s3 - 3.0 * s2 + 1.0) * p0
-        + (s3 - 2.0 * s2 + s) * h * v0
-        + (-2.0 * s3 + 3.0 * s2) * p1
-        + (s3 - s2) * h * v1
+/// A segment's curve from `(t0, p0, v0, a0)` to `(t1, p1, v1, a1)` (s, degrees, degrees a
+/// second, degrees a second²), as `joint_trajectory_controller` interpolates: the quintic
+/// where both ends give velocities and accelerations, the cubic where both give
+/// velocities; its polynomial's coefficients in the time since `t0`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Spline {
+    t0: f64,
+    c: [f64; 6],
 }
 
-/// A knot of the motion: its time from the start (s), positions and velocities (degrees,
-/// degrees a second; where given).
-type Knot<'a> = (f64, &'a [f64], Option<Vec<f64>>);
+/// One end of a segment: time, position, and the velocity and acceleration where given.
+type End = (f64, f64, Option<f64>, Option<f64>);
+
+impl Spline {
+    /// The curve between `a` and `b`, or `None` (linear) when they do not both give
+    /// velocities.
+    fn between((t0, p0, v0, a0): End, (t1, p1, v1, a1): End) -> Option<Self> {
+        let (v0, v1) = (v0?, v1?);
+        let h = t1 - t0;
+        let d = p1 - p0;
+        let c = match (a0, a1) {
+            (Some(a0), Some(a1)) => {
+                let (h2, h3) = (h * h, h * h * h);
+                [
+                    p0,
+                    v0,
+                    a0 / 2.0,
+                    (20.0 * d - (8.0 * v1 + 12.0 * v0) * h - (3.0 * a0 - a1) * h2) / (2.0 * h3),
+                    (-30.0 * d + (14.0 * v1 + 16.0 * v0) * h + (3.0 * a0 - 2.0 * a1) * h2)
+                        / (2.0 * h3 * h),
+                    (12.0 * d - 6.0 * (v1 + v0) * h + (a1 - a0) * h2) / (2.0 * h3 * h2),
+                ]
+            }
+            _ => [
+                p0,
+                v0,
+                (3.0 * d - (2.0 * v0 + v1) * h) / (h * h),
+                (-2.0 * d + (v0 + v1) * h) / (h * h * h),
+                0.0,
+                0.0,
+            ],
+        };
+        Some(Self { t0, c })
+    }
+
+    /// The position at `t`.
+    fn position(&self, t: f64) -> f64 {
+        let s = t - self.t0;
+        self.c.iter().rev().fold(0.0, |acc, &k| acc * s + k)
+    }
+
+    /// The acceleration at `t`.
+    fn acceleration(&self, t: f64) -> f64 {
+        let s = t - self.t0;
+        let c = &self.c;
+        2.0 * c[2] + s * (6.0 * c[3] + s * (12.0 * c[4] + s * 20.0 * c[5]))
+    }
+}
+
+/// A knot of the motion: its time from the start (s), positions, velocities and
+/// accelerations (degrees, degrees a second, degrees a second²; where given).
+type Knot<'a> = (f64, &'a [f64], Option<&'a [f64]>, Option<&'a [f64]>);
 
 /// The trajectory file of `rows` (time, joint degrees) of `joints`.
 fn csv_of(joints: &[String], rows: &[(f64, Vec<f64>)]) -> String {
@@ -362,29 +433,82 @@ fn check_first_stretch(
     Ok(())
 }
 
+/// Where the motion starts from, per joint of the trajectory (in its order): the
+/// position, velocity and acceleration commanded at the start (degrees, a second, a
+/// second²). Still joints ([`Start::still`]) for a trajectory that starts from rest; the
+/// state the one playing commands at the instant it is replaced for a replacement, as
+/// `joint_trajectory_controller` starts a new trajectory from its current command.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Start {
+    /// Degrees.
+    pub position_deg: Vec<f64>,
+    /// Degrees a second.
+    pub velocity_deg_s: Vec<f64>,
+    /// Degrees a second².
+    pub acceleration_deg_s2: Vec<f64>,
+}
+
+impl Start {
+    /// Joints still at `position_deg`.
+    #[must_use]
+    pub fn still(position_deg: &[f64]) -> Self {
+        Self {
+            position_deg: position_deg.to_vec(),
+            velocity_deg_s: vec![0.0; position_deg.len()],
+            acceleration_deg_s2: vec![0.0; position_deg.len()],
+        }
+    }
+}
+
 /// Plans `checked` to start now: `late_s` seconds after its stamp's start (0 for a zero
 /// stamp or a start reached by waiting), from `from_deg` (where each of its joints is,
-/// degrees, in its order; held still). The points already due are skipped, and the
-/// joints go from where they are to the first point due in the time left to it.
+/// degrees, in its order; held still). [`plan_from`] with [`Start::still`].
 ///
 /// # Errors
 ///
-/// [`Refused`] (`INVALID_GOAL`) for a first stretch faster than a joint's
-/// `max_velocity` (or a first point due at once and more than [`AT_ONCE_DEG`] away), or
-/// a spline that leaves a joint's soft limits or exceeds its `max_velocity` between its
-/// points; `OLD_HEADER_TIMESTAMP` when every point is already due.
+/// As [`plan_from`].
 pub fn plan(
     checked: &Checked,
     robot: &RobotConfig,
     from_deg: &[f64],
     late_s: f64,
 ) -> Result<Planned, Refused> {
+    plan_from(checked, robot, &Start::still(from_deg), late_s)
+}
+
+/// Plans `checked` to start now, `late_s` seconds after its stamp's start, from `start`
+/// (each joint's commanded state, in the trajectory's order). The points already due
+/// are skipped, and the joints go from the start to the first point due in the time
+/// left to it: on the quintic through the start's position, velocity and acceleration
+/// and the point's where the point gives velocities and accelerations, on the cubic
+/// where it gives velocities, linearly otherwise (as `joint_trajectory_controller`
+/// interpolates from its current command); then from point to point the same way.
+///
+/// # Errors
+///
+/// [`Refused`] (`INVALID_GOAL`) for a first stretch faster than a joint's
+/// `max_velocity` (or a first point due at once and more than [`AT_ONCE_DEG`] away), or
+/// a curve that leaves a joint's soft limits, exceeds its `max_velocity` or (a quintic)
+/// its `max_acceleration` between its points; `OLD_HEADER_TIMESTAMP` when every point is
+/// already due.
+pub fn plan_from(
+    checked: &Checked,
+    robot: &RobotConfig,
+    start: &Start,
+    late_s: f64,
+) -> Result<Planned, Refused> {
     let late_s = late_s.max(0.0);
     let n = checked.joints.len();
-    if from_deg.len() != n || from_deg.iter().any(|x| !x.is_finite()) {
+    let from_deg = start.position_deg.as_slice();
+    if [from_deg, &start.velocity_deg_s, &start.acceleration_deg_s2]
+        .iter()
+        .any(|v| v.len() != n || v.iter().any(|x| !x.is_finite()))
+    {
         return Err(invalid(format!(
-            "{} positions read for {n} joints",
-            from_deg.len()
+            "a start of {} positions, {} velocities and {} accelerations for {n} joints",
+            from_deg.len(),
+            start.velocity_deg_s.len(),
+            start.acceleration_deg_s2.len()
         )));
     }
     let skipped = checked
@@ -403,35 +527,49 @@ pub fn plan(
     };
     let t_first = first.0 - late_s;
     check_first_stretch(checked, robot, from_deg, &first.1, t_first, skipped)?;
-    // Knots: (time from now, positions, velocities); the joints start still.
+    // Knots: (time from now, positions, velocities, accelerations); the start first.
     let mut knots: Vec<Knot<'_>> = Vec::with_capacity(rest.len() + 1);
-    let still = vec![0.0; n];
     if t_first > 1e-9 {
-        knots.push((0.0, from_deg, Some(still)));
+        knots.push((
+            0.0,
+            from_deg,
+            Some(&start.velocity_deg_s),
+            Some(&start.acceleration_deg_s2),
+        ));
     }
-    for (t, p, v) in rest {
-        knots.push((t - late_s, p.as_slice(), v.clone()));
+    for (t, p, v, a) in rest {
+        knots.push((t - late_s, p.as_slice(), v.as_deref(), a.as_deref()));
     }
     let duration = knots.last().map_or(0.0, |k| k.0);
     let step = SPLINE_STEP_S.max(duration / (super::MAX_POINTS as f64 / 2.0));
     let mut rows: Vec<(f64, Vec<f64>)> = Vec::new();
-    for (k, (t, p, v)) in knots.iter().enumerate() {
-        if let (Some((t0, p0, Some(v0))), Some(v1)) = (k.checked_sub(1).map(|i| &knots[i]), v) {
-            // Velocities at both ends: the cubic, sampled.
+    for (k, &(t, p, v, a)) in knots.iter().enumerate() {
+        if let Some(&(t0, p0, v0, a0)) = k.checked_sub(1).and_then(|i| knots.get(i))
+            && v0.is_some()
+            && v.is_some()
+        {
+            let end = |x: Option<&[f64]>, c: usize| x.and_then(|x| x.get(c).copied());
+            let curves: Vec<Spline> = (0..n)
+                .filter_map(|c| {
+                    Spline::between(
+                        (t0, p0[c], end(v0, c), end(a0, c)),
+                        (t, p[c], end(v, c), end(a, c)),
+                    )
+                })
+                .collect();
             #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // bounded
             let m = ((t - t0) / step).ceil().max(1.0) as usize;
+            let quintic = a0.is_some() && a.is_some();
             for s in 1..m {
                 #[allow(clippy::cast_precision_loss)]
                 let ts = t0 + (t - t0) * s as f64 / m as f64;
-                rows.push((
-                    ts,
-                    (0..n)
-                        .map(|c| hermite(ts, (*t0, p0[c], v0[c]), (*t, p[c], v1[c])))
-                        .collect(),
-                ));
+                if quintic {
+                    check_acceleration(checked, robot, &curves, ts)?;
+                }
+                rows.push((ts, curves.iter().map(|q| q.position(ts)).collect()));
             }
         }
-        rows.push((*t, p.to_vec()));
+        rows.push((t, p.to_vec()));
     }
     let csv = csv_of(&checked.joints, &rows);
     let trajectory = Trajectory::parse(&csv).map_err(|e| invalid(e.0))?;
@@ -456,6 +594,30 @@ pub fn plan(
         skipped,
         late_s,
     })
+}
+
+/// Refuses a quintic whose acceleration at `t` (s from the start) is more than a joint's
+/// `max_acceleration`.
+fn check_acceleration(
+    checked: &Checked,
+    robot: &RobotConfig,
+    curves: &[Spline],
+    t: f64,
+) -> Result<(), Refused> {
+    for (c, q) in curves.iter().enumerate() {
+        let j = &robot.joints[checked.index[c]];
+        let acc = q.acceleration(t);
+        let amax = j.max_acceleration.to_degrees();
+        if acc.abs() > amax * (1.0 + 1e-9) {
+            return Err(invalid(format!(
+                "on the curve its velocities and accelerations make, at {t:.3} s from the \
+                 start: {} accelerates at {acc:.1}°/s², more than its max_acceleration \
+                 {amax:.1}°/s² ({} rad/s²)",
+                checked.joints[c], j.max_acceleration
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// How a played trajectory ended, per joint: how far from its last point.
@@ -631,6 +793,133 @@ mod tests {
             "{early}"
         );
         assert_eq!(p.trajectory.len(), 1 + 50 + 50);
+    }
+
+    fn full(t: f64, p: f64, v: f64, a: Option<f64>) -> JointTrajectoryPoint {
+        let mut q = point(t, &[p]);
+        q.velocities = vec![v];
+        q.accelerations = a.into_iter().collect();
+        q
+    }
+
+    #[test]
+    fn accelerations_at_both_ends_make_the_quintic_through_them() {
+        // From rest at 0 to 0.5 rad at rest in 1 s: the quintic is the minimum-jerk
+        // curve 10s³ - 15s⁴ + 6s⁵ of the way; the cubic (velocities only) 3s² - 2s³.
+        let d = 0.5_f64.to_degrees();
+        let r = robot();
+        let quintic = check(&msg(&["j2"], vec![full(1.0, 0.5, 0.0, Some(0.0))]), &r).unwrap();
+        let p = plan(&quintic, &r, &[0.0], 0.0).unwrap();
+        for (t, share) in [(0.1, 0.008_56), (0.5, 0.5), (0.9, 0.991_44)] {
+            let at = p.trajectory.at(t)[0];
+            assert!((at - share * d).abs() < 1e-9, "at {t} s: {at}");
+        }
+        let cubic = check(&msg(&["j2"], vec![full(1.0, 0.5, 0.0, None)]), &r).unwrap();
+        let at = plan(&cubic, &r, &[0.0], 0.0).unwrap().trajectory.at(0.1)[0];
+        assert!((at - 0.028 * d).abs() < 1e-9, "{at}");
+        // With an acceleration at the end: the quintic's own shape (at 0.5 s,
+        // p0/2 + p1/2 + (a0 + a1) h²/64 when the velocities are 0).
+        let ending = check(&msg(&["j2"], vec![full(1.0, 0.5, 0.0, Some(-1.0))]), &r).unwrap();
+        let at = plan(&ending, &r, &[0.0], 0.0).unwrap().trajectory.at(0.5)[0];
+        let want = d / 2.0 - 1.0_f64.to_degrees() / 64.0;
+        assert!((at - want).abs() < 1e-9, "{at} against {want}");
+    }
+
+    #[test]
+    fn accelerations_are_checked_against_max_acceleration() {
+        let r = robot();
+        for (m, says) in [
+            (
+                msg(&["j1"], vec![full(1.0, 0.1, 0.0, Some(20.0))]),
+                "point 0: j1's acceleration 20 rad/s² is more than its max_acceleration 10 \
+                 rad/s²",
+            ),
+            (
+                {
+                    let mut q = point(1.0, &[0.1]);
+                    q.accelerations = vec![0.0];
+                    msg(&["j1"], vec![q])
+                },
+                "point 0: accelerations without velocities",
+            ),
+        ] {
+            let e = check(&m, &r).unwrap_err();
+            assert_eq!(e.code, result_code::INVALID_GOAL, "{e}");
+            assert!(e.message.contains(says), "{says:?} in {e}");
+        }
+        // 0.5 rad in 1 s from rest to rest peaks at 10/√3 × 0.5 = 2.89 rad/s²: refused
+        // at 2 rad/s², naming the time and the joint.
+        let slow = RobotConfig::from_toml_str(&ROBOT.replacen(
+            "max_velocity = 2.0\n        max_acceleration = 10.0",
+            "max_velocity = 2.0\n        max_acceleration = 2.0",
+            1,
+        ))
+        .unwrap();
+        let c = check(&msg(&["j2"], vec![full(1.0, 0.5, 0.0, Some(0.0))]), &slow).unwrap();
+        let e = plan(&c, &slow, &[0.0], 0.0).unwrap_err();
+        assert!(
+            e.message.contains(
+                "on the curve its velocities and accelerations make, at 0.100 s from the \
+                 start: j2 accelerates at"
+            ) && e
+                .message
+                .contains("more than its max_acceleration 114.6°/s² (2 rad/s²)"),
+            "{e}"
+        );
+        assert!(plan(&c, &r, &[0.0], 0.0).is_ok());
+    }
+
+    #[test]
+    fn a_replacement_starts_from_the_commanded_position_and_velocity() {
+        let r = robot();
+        let v0 = 30.0;
+        let start = Start {
+            position_deg: vec![10.0],
+            velocity_deg_s: vec![v0],
+            acceleration_deg_s2: vec![0.0],
+        };
+        let p1 = 0.5_f64.to_degrees();
+        // A first point with a velocity: the cubic from the commanded state, which
+        // leaves it at its velocity (at 0.5 s, p0/2 + p1/2 + (v0 - v1) h / 8).
+        let c = check(&msg(&["j2"], vec![full(1.0, 0.5, 0.0, None)]), &r).unwrap();
+        let p = plan_from(&c, &r, &start, 0.0).unwrap();
+        assert_eq!(p.trajectory.at(0.0), [10.0]);
+        let at = p.trajectory.at(0.5)[0];
+        assert!((at - (5.0 + p1 / 2.0 + v0 / 8.0)).abs() < 1e-9, "{at}");
+        let first = p.trajectory.at(0.02)[0] - 10.0;
+        let cubic = v0 * 0.02
+            + (3.0 * (p1 - 10.0) - 2.0 * v0) * 0.02 * 0.02
+            + (-2.0 * (p1 - 10.0) + v0) * 0.02 * 0.02 * 0.02;
+        assert!((first - cubic).abs() < 1e-9, "{first} against {cubic}");
+        // With an acceleration too: the quintic from the commanded acceleration.
+        let start_acc = Start {
+            acceleration_deg_s2: vec![40.0],
+            ..start.clone()
+        };
+        let c = check(&msg(&["j2"], vec![full(1.0, 0.5, 0.0, Some(0.0))]), &r).unwrap();
+        let at = plan_from(&c, &r, &start_acc, 0.0)
+            .unwrap()
+            .trajectory
+            .at(0.5)[0];
+        // At s = 1/2: (p0 + p1)/2 + (v0 - v1) h (5/32) + (a0 + a1) h² / 64.
+        let want = 5.0 + p1 / 2.0 + v0 * 5.0 / 32.0 + 40.0 / 64.0;
+        assert!((at - want).abs() < 1e-9, "{at} against {want}");
+        // Positions only: linearly from the commanded position (the controller's
+        // interpolation between a state with velocities and a point without).
+        let c = check(&msg(&["j2"], vec![point(1.0, &[0.5])]), &r).unwrap();
+        let p = plan_from(&c, &r, &start, 0.0).unwrap();
+        assert_eq!(p.csv, format!("time_s,j2\n0,10\n1,{p1}\n"));
+        // The blended curve is checked as any: a commanded velocity that carries j1
+        // past its limit before it turns back is refused.
+        let past = Start {
+            position_deg: vec![0.9_f64.to_degrees()],
+            velocity_deg_s: vec![1.0_f64.to_degrees()],
+            acceleration_deg_s2: vec![0.0],
+        };
+        let c = check(&msg(&["j1"], vec![full(1.0, 0.9, 0.0, None)]), &r).unwrap();
+        let e = plan_from(&c, &r, &past, 0.0).unwrap_err();
+        assert!(e.message.contains("outside its soft limits"), "{e}");
+        assert!(plan(&c, &r, &[0.9_f64.to_degrees()], 0.0).is_ok());
     }
 
     #[test]
