@@ -524,7 +524,7 @@ impl NativeRobot {
     }
 
     fn forked(&self) -> bool {
-        self.pid != std::process::id()
+        crate::life::forked_from(self.pid)
     }
 
     fn with<R>(&self, py: Python<'_>, f: impl FnOnce(&mut Robot) -> R + Send) -> PyResult<R>

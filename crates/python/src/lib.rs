@@ -407,28 +407,36 @@ impl NativeStation {
     /// Runs one request (a dict in the catalogue's JSON form) and returns its report.
     fn run(&self, py: Python<'_>, request_obj: &Bound<'_, PyAny>) -> PyResult<Py<PyAny>> {
         let req = request(py, request_obj)?;
-        let call = format!("Station.run({})", req.op());
-        self.life.check(py, &call)?;
-        // Checked before anything is opened or sent, as `robobus run` does; then
-        // admitted (read-only, arming, the write rate) as every front end admits it.
-        catalogue::validate(&req).map_err(|e| op_error(py, &e))?;
+        // The call's name, for its errors only.
+        let call = || format!("Station.run({})", req.op());
+        if self.life.forked() || self.life.closed() {
+            self.life.check(py, &call())?;
+        }
+        // Admitted (read-only, arming, the write rate) as every front end admits it, which
+        // checks it first as `robobus run` does (bad input said as such before anything
+        // is opened or sent). A read-only station refuses a change before that check: it
+        // is checked here first, so that bad input is still said as such there.
+        if self.life.admission.read_only() && req.effect() != catalogue::Effect::Read {
+            catalogue::validate(&req).map_err(|e| op_error(py, &e))?;
+        }
         let req = self
             .life
             .admission
             .admit(robobus::frontend::Arming::Local, req)
             .map_err(|r| op_error(py, &r.error))?
             .into_request();
-        // Open and in this process, checked above (one `getpid` a call); a `close` since
-        // is seen here or by `running`.
+        let call = || format!("Station.run({})", req.op());
+        // Open and in this process, checked above; a `close` since is seen here or by
+        // `running`.
         let station = self
             .station
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner)
             .clone()
-            .ok_or_else(|| closed_error(py, &call))?;
+            .ok_or_else(|| closed_error(py, &call()))?;
         let stop = StopToken::new();
         // Stopped by a `close` on another thread.
-        let running = self.life.running(py, &call, &stop)?;
+        let running = self.life.running(py, call, &stop)?;
         let raised = Arc::new(Mutex::new(None));
         let token = signal_token(&stop, &raised);
         let outcome = py.detach(move || {
@@ -467,7 +475,7 @@ impl NativeStation {
             .into_request();
         let station = self.get(py, &call)?;
         let stop = StopToken::new();
-        let _running = self.life.running(py, &call, &stop)?;
+        let _running = self.life.running(py, || call.clone(), &stop)?;
         py.detach(move || {
             let start = Instant::now();
             for _ in 0..n {
@@ -865,6 +873,8 @@ fn version() -> &'static str {
 #[pymodule]
 fn _robobus(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let _ = MAIN.set(std::thread::current().id());
+    // A forked child refuses the parent's stations (life.rs).
+    life::watch_forks(m)?;
     // The library's log events go to Python's `logging` (a second import keeps the first).
     let _ = pyo3_log::try_init();
     tracing::debug!(

@@ -30,6 +30,38 @@ pub(crate) type StreamCell = Mutex<Option<crate::telemetry::Stream>>;
 /// A running loop's cell.
 pub(crate) type LoopCell = RwLock<CyclicLoop>;
 
+/// Whether this process was forked from another since the module was loaded (set in the
+/// child by [`after_fork_in_child`]; a fork's fork inherits it).
+static FORKED: AtomicBool = AtomicBool::new(false);
+
+/// Python's fork hook in the child (`os.register_at_fork(after_in_child=...)`, registered
+/// when the module is loaded): it runs after every fork Python makes or is told of
+/// (`os.fork`, `multiprocessing`'s fork and forkserver children, a C extension that calls
+/// `PyOS_AfterFork_Child`). From then on [`Life::forked`] compares process ids; before it,
+/// every call is spared that system call.
+#[pyfunction]
+#[pyo3(name = "_after_fork_in_child")]
+pub(crate) fn after_fork_in_child() {
+    FORKED.store(true, Ordering::Relaxed);
+}
+
+/// Whether this process is a fork of process `pid` (see [`after_fork_in_child`]).
+pub(crate) fn forked_from(pid: u32) -> bool {
+    FORKED.load(Ordering::Relaxed) && pid != std::process::id()
+}
+
+/// Registers [`after_fork_in_child`] with Python's fork hooks.
+pub(crate) fn watch_forks(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    let hook = wrap_pyfunction!(after_fork_in_child, m)?;
+    let kwargs = pyo3::types::PyDict::new(m.py());
+    kwargs.set_item("after_in_child", hook)?;
+    m.py()
+        .import("os")?
+        .getattr("register_at_fork")?
+        .call((), Some(&kwargs))?;
+    Ok(())
+}
+
 #[derive(Debug, Default)]
 struct State {
     closed: bool,
@@ -94,9 +126,10 @@ impl Life {
             .unwrap_or_else(std::sync::PoisonError::into_inner)
     }
 
-    /// Whether this process is a fork of the one the station was opened in.
+    /// Whether this process is a fork of the one the station was opened in. The process
+    /// id is asked (a system call) only once a fork was seen ([`after_fork_in_child`]).
     pub(crate) fn forked(&self) -> bool {
-        self.pid != std::process::id()
+        forked_from(self.pid)
     }
 
     /// Whether the station was closed.
@@ -126,12 +159,13 @@ impl Life {
     pub(crate) fn running(
         &self,
         py: Python<'_>,
-        call: &str,
+        call: impl FnOnce() -> String,
         stop: &StopToken,
     ) -> PyResult<Running<'_>> {
         let mut s = self.lock();
         if s.closed {
-            return Err(closed_error(py, call));
+            drop(s);
+            return Err(closed_error(py, &call()));
         }
         s.next_run += 1;
         let id = s.next_run;

@@ -3,7 +3,10 @@
 //! lists, str, int, float, bool, `None`; a non-finite float `None`; map keys as strings;
 //! enums as `serde_json` writes them), without the text in between.
 
+use std::collections::HashMap;
 use std::fmt;
+use std::hash::{BuildHasherDefault, Hasher};
+use std::sync::{Mutex, OnceLock};
 
 use pyo3::BoundObject;
 use pyo3::prelude::*;
@@ -55,11 +58,61 @@ type Out<'py> = Result<Bound<'py, PyAny>, Error>;
 
 /// `value` as Python objects.
 pub(crate) fn to_py<'py>(py: Python<'py>, value: &impl Serialize) -> PyResult<Bound<'py, PyAny>> {
-    Ok(value.serialize(Ser(py))?)
+    Ok(value.serialize(Ser(py, false))?)
 }
 
+/// The serializer; `.1`: what it serializes is a map key (a string key is taken from
+/// [`key_string`]'s cache).
 #[derive(Clone, Copy)]
-struct Ser<'py>(Python<'py>);
+struct Ser<'py>(Python<'py>, bool);
+
+/// At most this many key strings are kept ([`key_string`]); a report's keys are a few
+/// dozen names (fields, columns, joint names), so only a stream of ever new ones passes it.
+const MAX_KEYS: usize = 1024;
+
+/// FNV-1a: the cache's keys are short names, which it hashes in a few nanoseconds (the
+/// standard hasher takes several times that), and it holds at most [`MAX_KEYS`] of them.
+#[derive(Default)]
+struct Fnv(u64);
+
+impl Hasher for Fnv {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        let mut h = if self.0 == 0 {
+            0xcbf2_9ce4_8422_2325
+        } else {
+            self.0
+        };
+        for b in bytes {
+            h ^= u64::from(*b);
+            h = h.wrapping_mul(0x0100_0000_01b3);
+        }
+        self.0 = h;
+    }
+}
+
+type KeyCache = HashMap<Box<str>, Py<PyString>, BuildHasherDefault<Fnv>>;
+
+/// The Python string of a dict key `k`, made once: reports use the same keys every call,
+/// and a cached string is neither built nor hashed again (Python keeps its hash in it).
+/// Past [`MAX_KEYS`] a key is made each time.
+fn key_string<'py>(py: Python<'py>, k: &str) -> Bound<'py, PyString> {
+    static KEYS: OnceLock<Mutex<KeyCache>> = OnceLock::new();
+    let mut keys = KEYS
+        .get_or_init(|| Mutex::new(KeyCache::default()))
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    if let Some(s) = keys.get(k) {
+        return s.bind(py).clone();
+    }
+    let s = PyString::new(py, k);
+    if keys.len() < MAX_KEYS {
+        keys.insert(k.into(), s.clone().unbind());
+    }
+    s
+}
 
 fn any<'py, T>(py: Python<'py>, v: T) -> Out<'py>
 where
@@ -138,6 +191,9 @@ impl<'py> ser::Serializer for Ser<'py> {
         any(self.0, v.to_string())
     }
     fn serialize_str(self, v: &str) -> Out<'py> {
+        if self.1 {
+            return Ok(key_string(self.0, v).into_any());
+        }
         Ok(PyString::new(self.0, v).into_any())
     }
     fn serialize_bytes(self, v: &[u8]) -> Out<'py> {
@@ -236,7 +292,7 @@ pub(crate) struct Seq<'py> {
 
 impl<'py> Seq<'py> {
     fn push<T: ?Sized + Serialize>(&mut self, value: &T) -> Result<(), Error> {
-        self.list.append(value.serialize(Ser(self.py))?)?;
+        self.list.append(value.serialize(Ser(self.py, false))?)?;
         Ok(())
     }
     fn done(self) -> Out<'py> {
@@ -309,7 +365,7 @@ impl<'py> Map<'py> {
 
 /// A map key as `serde_json` writes it: a string, or a number or bool as its text.
 fn key<'py, T: ?Sized + Serialize>(py: Python<'py>, k: &T) -> Out<'py> {
-    let v = k.serialize(Ser(py))?;
+    let v = k.serialize(Ser(py, true))?;
     if v.is_instance_of::<PyString>() {
         return Ok(v);
     }
@@ -334,7 +390,8 @@ impl<'py> ser::SerializeMap for Map<'py> {
             .key
             .take()
             .ok_or_else(|| Error::Custom("a map value without its key".into()))?;
-        self.dict.set_item(k, value.serialize(Ser(self.py))?)?;
+        self.dict
+            .set_item(k, value.serialize(Ser(self.py, false))?)?;
         Ok(())
     }
     fn end(self) -> Out<'py> {
@@ -350,7 +407,10 @@ impl<'py> ser::SerializeStruct for Map<'py> {
         name: &'static str,
         value: &T,
     ) -> Result<(), Error> {
-        self.dict.set_item(name, value.serialize(Ser(self.py))?)?;
+        self.dict.set_item(
+            key_string(self.py, name),
+            value.serialize(Ser(self.py, false))?,
+        )?;
         Ok(())
     }
     fn end(self) -> Out<'py> {
@@ -366,7 +426,10 @@ impl<'py> ser::SerializeStructVariant for Map<'py> {
         name: &'static str,
         value: &T,
     ) -> Result<(), Error> {
-        self.dict.set_item(name, value.serialize(Ser(self.py))?)?;
+        self.dict.set_item(
+            key_string(self.py, name),
+            value.serialize(Ser(self.py, false))?,
+        )?;
         Ok(())
     }
     fn end(self) -> Out<'py> {

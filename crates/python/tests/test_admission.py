@@ -71,6 +71,26 @@ def test_a_read_only_station_reads_and_never_arms() -> None:
             station.wck_servos([1, 2]).passive()
 
 
+def test_bad_input_is_said_as_such_before_a_read_only_or_unarmed_refusal() -> None:
+    bad_write = dict(WRITE, p=300)
+    bad_move = dict(MOVE, degrees=1000)
+    write_says = "p=300: P gain 300 is out of range 1..=254; nothing was sent"
+    move_says = (
+        "degrees=1000: angle (degrees) 1000 is out of range -360..=360 (allowed: -360..=360 "
+        "deg); nothing was sent"
+    )
+    with robobus.Station.simulated(read_only=True) as station:
+        for request, says in ((bad_write, write_says), (bad_move, move_says)):
+            with pytest.raises(robobus.BadInputError) as e:
+                station.run(request)
+            assert str(e.value) == says
+    with robobus.Station.simulated() as station:
+        station.disarm()
+        with pytest.raises(robobus.BadInputError) as e:
+            station.run(bad_move)
+        assert str(e.value) == move_says
+
+
 def test_a_request_that_is_none_is_refused_in_the_one_wording() -> None:
     with robobus.Station.simulated() as station:
         with pytest.raises(robobus.BadInputError) as e:
