@@ -472,59 +472,20 @@ mod tests {
     use crate::catalogue::{Request, run};
     use crate::ops::{Control, ErrorKind};
     use crate::robot::RobotConfig;
+    use crate::robot::simulated::{DRIVE_ROBOT, sim_1108_wheel_speeds};
     use crate::station::Station;
 
-    /// What the simulated wCK-1108's wheel levels turn it at (see `tests/robot_velocity.rs`).
-    fn wheel_speeds() -> Vec<f64> {
-        (1..=15)
-            .map(|k| 400_f64.to_radians() * (f64::from(k) / 15.0 - 0.03))
-            .collect()
-    }
-
-    /// The built-in simulated station with a robot file of a wheel `s0`, a WHJ joint `j1`
-    /// with velocity and effort, and `j2` with position alone; its WHJ joints enabled.
+    /// The built-in simulated station with its robot file of a wheel `s0`, a WHJ joint `j1`
+    /// with velocity and effort, and `j2` with position alone ([`DRIVE_ROBOT`]); its WHJ
+    /// joints enabled.
     fn station() -> (
         Station,
         robobus_sim::wck::SimHandle,
         robobus_sim::whj::WhjSimHandle,
     ) {
         let (mut station, wck, whj) = Station::simulated_with_handles().unwrap();
-        let file = format!(
-            r#"
-            [buses.sim-wck]
-            kind = "wck-external"
-            [buses.sim-whj]
-            kind = "whj-external"
-            [[joints]]
-            name = "s0"
-            bus = "sim-wck"
-            id = 0
-            limits = [-2.0, 2.0]
-            max_velocity = 7.0
-            max_acceleration = 100.0
-            interfaces = ["position", "velocity"]
-            wheel_speeds = {:?}
-            [[joints]]
-            name = "j1"
-            bus = "sim-whj"
-            id = 1
-            limits = [-2.0, 2.0]
-            max_velocity = 2.0
-            max_acceleration = 20.0
-            interfaces = ["position", "velocity", "effort"]
-            max_effort = 5.0
-            [[joints]]
-            name = "j2"
-            bus = "sim-whj"
-            id = 2
-            limits = [-2.0, 2.0]
-            max_velocity = 2.0
-            max_acceleration = 20.0
-            "#,
-            wheel_speeds()
-        );
         station
-            .set_robot(RobotConfig::from_toml_str(&file).unwrap())
+            .set_robot(RobotConfig::from_toml_str(DRIVE_ROBOT).unwrap())
             .unwrap();
         for r in [
             json!({"op": "whj.mode", "joints": "1-2", "mode": "position"}),
@@ -556,7 +517,7 @@ mod tests {
     #[test]
     fn a_csv_of_velocities_turns_a_wheel_and_a_whj_joint_at_its_speeds() {
         let (station, wck, whj) = station();
-        let level_7 = wheel_speeds()[6].to_degrees();
+        let level_7 = sim_1108_wheel_speeds()[6].to_degrees();
         let a0 = wheel_angle(&wck);
         let v = play(
             &station,
