@@ -11,7 +11,8 @@ CPU per transaction, one run each:
   python-can's UDP multicast bus, against a simulator process with no processing delay
   (`robobus-bench serve-whj --delay-us 0`), inside a private network namespace: the
   bindings through a joint handle (`station.whj_joint(1).command_position(...)`), the Rust
-  loop (`robobus-bench servo-whj`, `Joint::command_position`) and the python-can peer
+  loop (`robobus-bench servo-whj`, `Joint::command_position`), the same loop with the
+  duplicate check off (`--no-window`: what the check costs it) and the python-can peer
   (`scripts/bench/whj_servo_peer.py`).
 
     target/pybind/bin/python crates/python/bench/status_loop.py [--seconds 3] [--no-wck] [--calls-only]
@@ -21,7 +22,9 @@ CPU per transaction, one run each:
   loop against the same library call in a Rust loop on the same handle (the native
   module's `_bench_*`, the GIL released as the call releases it), and `station.run(request)`
   against the library running the same parsed request, beside the library's parse of the
-  request's JSON text. Python and Rust alternate, five rounds; the median of each.
+  request's JSON text. Python and Rust alternate back to back, 31 rounds of 500 calls; the
+  median of each and of each round's difference, in the process's CPU time per call (what
+  other processes take of a shared host does not count).
 
 Needs the package installed (scripts/py/test-bindings does it, with the dev profile; for
 figures a user sees, install it with the release profile), the release robobus and
@@ -34,6 +37,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import pathlib
 import re
 import signal
@@ -43,7 +47,11 @@ import threading
 import time
 from typing import Any
 
-import robobus
+# numpy's BLAS threads would spin in this process's CPU time, which the call costs are
+# measured in; none of the calls uses them.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import robobus  # noqa: E402
 
 ROOT = pathlib.Path(__file__).resolve().parents[3]
 RELEASE = ROOT / "target" / "release"
@@ -121,6 +129,14 @@ def whj(seconds: float) -> dict[str, dict[str, float]]:
     m = re.search(r"([\d.]+) Hz, \d+ errors, client CPU ([\d.]+) µs/cycle", r.stdout)
     assert m is not None, r.stdout + r.stderr
     out = {"Rust (robobus-bench servo-whj)": {"rate": float(m.group(1)), "cpu_us": float(m.group(2))}}
+    # The same loop with the duplicate check off: what the check costs this loop.
+    r = subprocess.run(
+        [bench, "servo-whj", "--joints", "1", "--delay-us", "0", "--secs", str(seconds), "--no-window"],
+        capture_output=True, text=True, check=True,
+    )
+    m = re.search(r"([\d.]+) Hz, \d+ errors, client CPU ([\d.]+) µs/cycle", r.stdout)
+    assert m is not None, r.stdout + r.stderr
+    out["Rust, the duplicate check off (--no-window)"] = {"rate": float(m.group(1)), "cpu_us": float(m.group(2))}
     sim = subprocess.Popen(
         [bench, "serve-whj", "--joints", "1", "--delay-us", "0"],
         stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
@@ -188,22 +204,33 @@ def pyserial(port: str, seconds: float) -> dict[str, float]:
 
 
 def _per_call(f: Any, n: int) -> float:
+    """The process's CPU time per call of `f` over `n` calls: on a shared host, what other
+    processes take of the cores does not count, unlike wall time."""
     f()
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     for _ in range(n):
         f()
-    return (time.perf_counter() - t0) / n
+    return (time.process_time() - t0) / n
+
+
+def _rust_per_call(rust_loop: Any, n: int) -> float:
+    """The process's CPU time per call of a native `_bench_*` loop of `n` calls (its own
+    wall-clock figure is not used)."""
+    t0 = time.process_time()
+    rust_loop(n)
+    return (time.process_time() - t0) / n
 
 
 def _median(xs: list[float]) -> float:
     return sorted(xs)[len(xs) // 2]
 
 
-def calls(rounds: int = 5, n: int = 2000) -> list[tuple[str, float, float]]:
-    """(call, Python µs, Rust µs) per call, each the median of `rounds` alternations."""
+def calls(rounds: int = 31, n: int = 500) -> list[tuple[str, float, float, float]]:
+    """(call, Python µs, Rust µs, Python over Rust µs) per call, each the median of
+    `rounds` alternations (the last: of each round's difference)."""
     from robobus import _robobus
 
-    out: list[tuple[str, float, float]] = []
+    out: list[tuple[str, float, float, float]] = []
     with robobus.Station.simulated(clock="virtual") as station:
         station.whj.mode("1-7", "position", check=True)
         station.whj.enable("1-7", check=True)
@@ -238,22 +265,33 @@ def calls(rounds: int = 5, n: int = 2000) -> list[tuple[str, float, float]]:
         for name, py_call, rust_loop in cases:
             py_t: list[float] = []
             rust_t: list[float] = []
-            for _ in range(rounds):
-                py_t.append(_per_call(py_call, n))
-                rust_t.append(rust_loop(n))
-            out.append((name, _median(py_t) * 1e6, _median(rust_t) * 1e6))
+            over: list[float] = []
+            for r in range(rounds):
+                # Each round's pair measured back to back, in turn Python first and Rust
+                # first: the simulators' own cost drifts as their state grows, and the
+                # difference of a pair does not see it.
+                if r % 2 == 0:
+                    p_, r_ = _per_call(py_call, n), _rust_per_call(rust_loop, n)
+                else:
+                    r_, p_ = _rust_per_call(rust_loop, n), _per_call(py_call, n)
+                py_t.append(p_)
+                rust_t.append(r_)
+                over.append(p_ - r_)
+            out.append((name, _median(py_t) * 1e6, _median(rust_t) * 1e6, _median(over) * 1e6))
         text = json.dumps(req)
-        parse = _median([_robobus._bench_parse(text, n * 10) for _ in range(rounds)]) * 1e6
-        out.append((f"the library's parse of `{text}`", parse, parse))
+        parse = _median(
+            [_rust_per_call(lambda k: _robobus._bench_parse(text, k), n * 10) for _ in range(rounds)]
+        ) * 1e6
+        out.append((f"the library's parse of `{text}`", parse, parse, 0.0))
     return out
 
 
-def calls_table(rows: list[tuple[str, float, float]]) -> None:
+def calls_table(rows: list[tuple[str, float, float, float]]) -> None:
     print("\nThe bindings' cost per call, in-process simulated robot (virtual clock)\n")
     print("| call | Python µs | the same call in Rust µs | Python over Rust µs |")
     print("|---|---|---|---|")
-    for name, py_us, rust_us in rows:
-        print(f"| {name} | {py_us:.2f} | {rust_us:.2f} | {py_us - rust_us:.2f} |")
+    for name, py_us, rust_us, over_us in rows:
+        print(f"| {name} | {py_us:.2f} | {rust_us:.2f} | {over_us:.2f} |")
 
 
 def table(title: str, results: dict[str, dict[str, float]], base: str, peer: str) -> None:
