@@ -25,6 +25,14 @@
 //!   `temperature_derate_c` (the joint's speed is held to `derate` of its
 //!   `max_velocity` until it cools 5 K below) and `temperature_stop_c` (stopped).
 //!
+//! A joint driven in velocity or effort has no following error: it is fed with
+//! [`Monitor::feed_driven`] and its [`Drive`]. In velocity the stall is the stall current
+//! while the joint turns at under [`STALL_SPEED_SHARE`] of its commanded speed (commanded
+//! at least [`STALL_MIN_COMMAND_DEG_S`]), and a current jump is a collision; in effort its
+//! current is what it was sent, so neither is a fault, and it is stopped turning faster
+//! than its `max_velocity` (**speed**: what it pushed against gave way). The thermal
+//! checks are the same.
+//!
 //! The defaults come from the models table ([`robobus_whj::models::PRODUCTS`]): a WHJ
 //! joint's stall current and current jump are its model's rated current, and the
 //! temperatures are 15, 10 and 5 K under the joints' 90 °C over-temperature alarm
@@ -263,6 +271,9 @@ pub enum Check {
     Collision,
     /// The temperature.
     Thermal,
+    /// A joint driven in effort turning faster than its `max_velocity` (what it pushed
+    /// against gave way, or nothing holds it).
+    Speed,
 }
 
 /// What a fault makes the operation do.
@@ -285,8 +296,8 @@ pub struct Fault {
     pub joint: String,
     /// The check.
     pub check: Check,
-    /// The quantity measured: `current_a`, `current_jump_a`, `following_error_jump_deg`
-    /// or `temperature_c`.
+    /// The quantity measured: `current_a`, `current_jump_a`, `following_error_jump_deg`,
+    /// `speed_deg_s` or `temperature_c`.
     pub quantity: &'static str,
     /// Its value.
     pub value: f64,
@@ -304,12 +315,14 @@ impl fmt::Display for Fault {
             "current_a" => ("current", "A"),
             "current_jump_a" => ("current jump", "A"),
             "following_error_jump_deg" => ("following-error jump", "°"),
+            "speed_deg_s" => ("speed", "°/s"),
             _ => ("temperature", "°C"),
         };
         let check = match self.check {
             Check::Stall => "stall",
             Check::Collision => "collision",
             Check::Thermal => "thermal",
+            Check::Speed => "speed",
         };
         let action = match self.action {
             Action::Warn => "warning",
@@ -326,7 +339,7 @@ impl fmt::Display for Fault {
             at = self.at_s,
         )?;
         if self.check == Check::Stall {
-            write!(f, " (the following error did not shrink meanwhile)")?;
+            write!(f, " (the joint did not move as commanded meanwhile)")?;
         }
         Ok(())
     }
@@ -364,6 +377,35 @@ impl Reading {
         }
     }
 }
+
+/// How a joint not sent positions is driven: what its readings are compared with
+/// ([`Monitor::feed_driven`]; there is no following error to watch).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Drive {
+    /// In velocity (a WHJ joint's speed mode): the speed it was sent before the reading,
+    /// degrees a second. A stall is its current at `stall_current_a` while it turns at
+    /// less than [`STALL_SPEED_SHARE`] of that speed, for `stall_time_s`; a collision is
+    /// a jump of the current.
+    Velocity {
+        /// The commanded speed, °/s.
+        commanded_deg_s: f64,
+    },
+    /// In effort (a WHJ joint's current mode): its current is what it was sent, so
+    /// neither its level nor a jump is a fault; it is stopped when it turns faster than
+    /// `max_deg_s` (its `max_velocity`).
+    Effort {
+        /// The joint's `max_velocity`, °/s.
+        max_deg_s: f64,
+    },
+}
+
+/// Under velocity, a joint pushing with a stall current is stalled while it turns at
+/// less than this share of its commanded speed.
+pub const STALL_SPEED_SHARE: f64 = 0.5;
+
+/// Under velocity, the least commanded speed a stall is looked for at, °/s (a joint
+/// told to stand still and holding against a load is not stalled).
+pub const STALL_MIN_COMMAND_DEG_S: f64 = 1.0;
 
 /// What the monitor keeps of one joint.
 #[derive(Debug, Clone)]
@@ -445,6 +487,65 @@ impl Monitor {
         if let Some(e) = r.error_deg {
             watch.last_error = Some((r.at, e, r.target_deg));
         }
+        Self::ordered(watch, out)
+    }
+
+    /// Feeds joint `index`'s reading while it is driven in velocity or effort (`drive`),
+    /// with its measured speed (°/s; `None`: not read): the new events it makes, as
+    /// [`feed`](Self::feed) does. The reading's following error is not looked at; its
+    /// current and temperature are (see [`Drive`]).
+    pub fn feed_driven(
+        &mut self,
+        index: usize,
+        r: &Reading,
+        speed_deg_s: Option<f64>,
+        drive: Drive,
+    ) -> Vec<Fault> {
+        let start = self.start;
+        let Some(watch) = self.joints.get_mut(index) else {
+            return Vec::new();
+        };
+        if watch.stopped {
+            return Vec::new();
+        }
+        let at_s = r.at.saturating_duration_since(start).as_secs_f64();
+        let plain = Reading {
+            error_deg: None,
+            target_deg: None,
+            ..*r
+        };
+        let mut out = Vec::new();
+        match drive {
+            Drive::Velocity { commanded_deg_s } => {
+                out.extend(watch.collisions(&plain, at_s));
+                out.extend(watch.speed_stall(&plain, speed_deg_s, commanded_deg_s, at_s));
+                if let Some(i) = r.current_a {
+                    watch.last_current = Some((r.at, i));
+                }
+            }
+            Drive::Effort { max_deg_s } => {
+                watch.stall = None;
+                watch.last_current = None;
+                if let Some(v) = speed_deg_s
+                    && v.abs() >= max_deg_s
+                {
+                    out.push(watch.fault(
+                        Check::Speed,
+                        "speed_deg_s",
+                        (v.abs(), max_deg_s),
+                        at_s,
+                        Action::Stop,
+                    ));
+                }
+            }
+        }
+        watch.last_error = None;
+        out.extend(watch.thermal(&plain, at_s));
+        Self::ordered(watch, out)
+    }
+
+    /// The events most severe first; a stop alone, and the joint stopped.
+    fn ordered(watch: &mut Watch, mut out: Vec<Fault>) -> Vec<Fault> {
         out.sort_by_key(|f| std::cmp::Reverse(f.action));
         if out.first().is_some_and(|f| f.action == Action::Stop) {
             watch.stopped = true;
@@ -537,6 +638,39 @@ impl Watch {
             }
             _ => {
                 self.stall = Some((r.at, e, r.position_deg));
+                None
+            }
+        }
+    }
+
+    /// Under velocity: a high current while the joint turns at less than
+    /// [`STALL_SPEED_SHARE`] of its commanded speed (see [`Drive::Velocity`]).
+    fn speed_stall(
+        &mut self,
+        r: &Reading,
+        speed_deg_s: Option<f64>,
+        commanded_deg_s: f64,
+        at_s: f64,
+    ) -> Option<Fault> {
+        let lim = self.limits;
+        let (i, v, stall) = match (r.current_a, speed_deg_s, lim.stall_current_a) {
+            (Some(i), Some(v), Some(stall)) => (i.abs(), v, stall),
+            _ => return None,
+        };
+        let wanted = commanded_deg_s.abs();
+        let along = v * commanded_deg_s.signum();
+        if i < stall || wanted < STALL_MIN_COMMAND_DEG_S || along >= STALL_SPEED_SHARE * wanted {
+            self.stall = None;
+            return None;
+        }
+        match self.stall {
+            Some((since, ..)) => {
+                let held = r.at.saturating_duration_since(since).as_secs_f64();
+                (held >= lim.stall_time_s)
+                    .then(|| self.fault(Check::Stall, "current_a", (i, stall), at_s, Action::Stop))
+            }
+            None => {
+                self.stall = Some((r.at, wanted - along, r.position_deg));
                 None
             }
         }
@@ -737,6 +871,82 @@ mod tests {
         assert_eq!(
             f[0].to_string(),
             "j1: thermal protection: temperature 85.00 °C reached the limit 85 °C at 0.700 s; \
+             stopped in the safe state"
+        );
+    }
+
+    #[test]
+    fn under_velocity_a_stall_is_a_high_current_while_the_joint_falls_short_of_its_speed() {
+        let t0 = Instant::now();
+        let at = |k: u32, current: f64| Reading {
+            current_a: Some(current),
+            position_deg: Some(10.0),
+            ..Reading::at(t0 + 20 * MS * k)
+        };
+        let v30 = Drive::Velocity {
+            commanded_deg_s: 30.0,
+        };
+        // 8 A, commanded 30°/s, turning at 14°/s (under half): stopped after 0.3 s.
+        let mut m = Monitor::new(t0, vec![("j1".into(), whj30())]);
+        for k in 0..15u32 {
+            let f = m.feed_driven(0, &at(k, 8.0), Some(14.0), v30);
+            assert!(f.is_empty(), "{k}: {f:?}");
+        }
+        let f = m.feed_driven(0, &at(15, 8.0), Some(14.0), v30);
+        assert_eq!(
+            (f[0].check, f[0].quantity, f[0].limit, f[0].action),
+            (Check::Stall, "current_a", 7.8, Action::Stop)
+        );
+        assert!((f[0].at_s - 0.3).abs() < 1e-9);
+        assert!(f[0].to_string().ends_with(
+            "stopped in the safe state (the joint did not move as commanded meanwhile)"
+        ));
+        // The same current at 16°/s (over half), or told to stand still (holding a
+        // load), or turning the wrong way under a small command: no stall.
+        let mut m = Monitor::new(t0, vec![("j1".into(), whj30())]);
+        let still = Drive::Velocity {
+            commanded_deg_s: 0.5,
+        };
+        for k in 0..50u32 {
+            assert!(m.feed_driven(0, &at(k, 8.0), Some(16.0), v30).is_empty());
+        }
+        let mut m = Monitor::new(t0, vec![("j1".into(), whj30())]);
+        for k in 0..50u32 {
+            assert!(m.feed_driven(0, &at(k, 8.0), Some(-3.0), still).is_empty());
+        }
+        // A current jump is a collision under velocity too.
+        let mut m = Monitor::new(t0, vec![("j1".into(), whj30())]);
+        assert!(m.feed_driven(0, &at(0, 1.0), Some(30.0), v30).is_empty());
+        let f = m.feed_driven(0, &at(1, 9.0), Some(30.0), v30);
+        assert_eq!(
+            (f[0].check, f[0].quantity),
+            (Check::Collision, "current_jump_a")
+        );
+    }
+
+    #[test]
+    fn under_effort_the_current_is_not_watched_but_a_runaway_and_heat_are() {
+        let t0 = Instant::now();
+        let effort = Drive::Effort { max_deg_s: 100.0 };
+        let mut m = Monitor::new(t0, vec![("j1".into(), whj30())]);
+        // A commanded current step of 9 A, held for a second at no speed: no event.
+        for k in 0..50u32 {
+            let r = Reading {
+                current_a: Some(if k == 0 { 0.0 } else { 9.0 }),
+                ..Reading::at(t0 + 20 * MS * k)
+            };
+            assert!(m.feed_driven(0, &r, Some(0.0), effort).is_empty(), "{k}");
+        }
+        let r = Reading {
+            temperature_c: Some(80.0),
+            ..Reading::at(t0 + 1000 * MS)
+        };
+        let f = m.feed_driven(0, &r, Some(50.0), effort);
+        assert_eq!((f[0].check, f[0].action), (Check::Thermal, Action::Derate));
+        let f = m.feed_driven(0, &Reading::at(t0 + 1020 * MS), Some(-100.5), effort);
+        assert_eq!(
+            f[0].to_string(),
+            "j1: speed protection: speed 100.50 °/s reached the limit 100 °/s at 1.020 s; \
              stopped in the safe state"
         );
     }

@@ -13,8 +13,18 @@
 //! effort pushing it past one it stands on is dropped), a wheel command per wCK servo (the
 //! nearest level of `wheel_speeds`). At the end every joint gets a zero target, the WHJ
 //! joints go back to position mode (holding where they stand), and every bus goes to the
-//! robot file's `safe_state`. The host's protection, which compares positions with their
-//! targets, does not watch these plays; the front end gets no ticks (nothing is recorded).
+//! robot file's `safe_state`. The front end gets no ticks (nothing is recorded).
+//!
+//! The host's protection watches the WHJ joints ([`Monitor::feed_driven`]): each servo
+//! frame's feedback (its current and speed) against the set-point sent the tick before,
+//! and the temperature every [`TEMPERATURE_EVERY_S`] s. In velocity a stall is the stall
+//! current while the joint turns at under half its commanded speed, a collision a jump of
+//! the current; in effort the current is the command, and the joint is stopped when it
+//! turns faster than its `max_velocity`; heat warns, derates (a derated joint's speed, or
+//! effort, is held to its `derate` share of `max_velocity` / `max_effort`) and stops in
+//! both. A stop ends the play, fails the joint's row naming the fault (in
+//! `summary.protection`) and leaves the joint's drive disabled where its brake holds it.
+//! A wCK wheel's reply carries no speed and no current: it is not watched here.
 
 use std::f64::consts::TAU;
 use std::time::Duration;
@@ -23,8 +33,9 @@ use robobus_wck::{Rotation, ServoId, WheelSpeed};
 use robobus_whj::units::{Current, CurrentScale, TargetSpeed};
 use robobus_whj::{JointId, WorkMode};
 
-use super::{PlaySummary, Played, PlayedRun, Spread};
+use super::{PlaySummary, Played, PlayedRun, Spread, TEMPERATURE_EVERY_S};
 use crate::actuator::{JointMap, WckScale};
+use crate::ops::protect::{self, Action, Drive, Fault, Monitor, Reading};
 use crate::ops::{Control, Failure, OpError, Progress};
 use crate::robot::trajectory::Trajectory;
 use crate::robot::{EffortScale, Interface, RobotConfig, WheelSpeeds};
@@ -180,6 +191,11 @@ struct Joint {
     set: f64,
     /// Where it last reported itself, rad.
     at: f64,
+    /// Its speed (°/s) and current (A) in the last feedback (a WHJ joint's).
+    speed_deg_s: Option<f64>,
+    current_a: Option<f64>,
+    /// The most speed (velocity, rad/s) or effort (N·m) its derating scales.
+    most: f64,
 }
 
 enum Device {
@@ -249,6 +265,10 @@ impl Joint {
                     )
                 };
                 self.at = map.to_joint(fb.position.degrees().to_radians());
+                self.speed_deg_s = Some(fb.speed.rpm() * 6.0 * sign(map.reversed));
+                #[allow(clippy::cast_precision_loss)] // mA of a joint
+                let ma = fb.current.milliamps(*current) as f64;
+                self.current_a = Some(ma / 1e3);
                 Ok(sent)
             }
         }
@@ -285,6 +305,65 @@ impl Joint {
     }
 }
 
+impl Joint {
+    /// A WHJ joint's temperature, °C, by a status query (`None` for a wCK servo).
+    fn temperature(&self) -> Result<Option<f64>, OpError> {
+        match &self.device {
+            Device::Wck { .. } => Ok(None),
+            Device::Whj { port, id, .. } => {
+                let st = port.bus().joint_unchecked(*id).status()?;
+                Ok(Some(f64::from(st.temperature.celsius())))
+            }
+        }
+    }
+}
+
+/// The host's protection of a play's joints, by column, and its events so far.
+struct Watch {
+    monitor: Monitor,
+    faults: Vec<Fault>,
+    /// Each joint's `max_velocity`, °/s (an effort's runaway speed).
+    max_deg_s: Vec<f64>,
+}
+
+impl Watch {
+    /// Feeds joint `c`'s feedback (read at `now`, answering the set-point `before` of the
+    /// tick before, rad/s or N·m) and its `temperature_c`; whether it stops the play.
+    fn feed(
+        &mut self,
+        c: usize,
+        j: &Joint,
+        interface: Interface,
+        before: f64,
+        temperature_c: Option<f64>,
+        now: std::time::Instant,
+    ) -> bool {
+        let reading = Reading {
+            position_deg: Some(j.at.to_degrees()),
+            current_a: j.current_a,
+            temperature_c,
+            ..Reading::at(now)
+        };
+        let drive = match interface {
+            Interface::Velocity => Drive::Velocity {
+                commanded_deg_s: before.to_degrees(),
+            },
+            _ => Drive::Effort {
+                max_deg_s: self.max_deg_s.get(c).copied().unwrap_or(f64::INFINITY),
+            },
+        };
+        let mut stop = false;
+        for f in self.monitor.feed_driven(c, &reading, j.speed_deg_s, drive) {
+            stop |= f.action == Action::Stop;
+            tracing::warn!("{f}");
+            if self.faults.len() < protect::MAX_EVENTS || f.action == Action::Stop {
+                self.faults.push(f);
+            }
+        }
+        stop
+    }
+}
+
 /// `robot.play` of velocities or efforts (see the [module docs](self)).
 #[allow(clippy::too_many_lines)] // the checks, the switch, the ticks, the end
 pub(super) fn run(
@@ -301,9 +380,11 @@ pub(super) fn run(
     let clock = BusClock::of(station, &super::super::only(&config, traj.joints()))?;
     let from = super::super::ready_at(station, &config, traj.joints(), "a trajectory")?;
     let mut joints = Vec::with_capacity(index.len());
+    let mut models = Vec::with_capacity(index.len());
     for (&i, &start) in index.iter().zip(&from) {
         let j = &config.joints[i];
         let device = if config.is_wck(j) {
+            models.push(None);
             Device::Wck {
                 port: station.wck(Some(&j.bus))?,
                 id: ServoId::new(j.id).map_err(|e| OpError::invalid("id", j.id, e.to_string()))?,
@@ -318,6 +399,7 @@ pub(super) fn run(
             let id = JointId::new(j.id).map_err(|e| OpError::invalid("id", j.id, e.to_string()))?;
             let identity = port.bus().joint_unchecked(id).identity()?;
             let effort = EffortScale::of(identity.model, identity.reduction_ratio);
+            models.push(Some(identity.model));
             if interface == Interface::Effort && effort.is_none() {
                 return Err(OpError::Refused(format!(
                     "{}: its model {} (reduction ratio {}) has no torque constant in the models \
@@ -343,8 +425,38 @@ pub(super) fn run(
             },
             set: 0.0,
             at: start.to_radians(),
+            speed_deg_s: None,
+            current_a: None,
+            most: match interface {
+                Interface::Velocity => j.max_velocity,
+                _ => j.max_effort.unwrap_or(0.0),
+            },
         });
     }
+    let mut watch = Watch {
+        monitor: Monitor::new(
+            clock.now(),
+            index
+                .iter()
+                .zip(&models)
+                .map(|(&i, &m)| {
+                    let j = &config.joints[i];
+                    let limits = if m.is_some() {
+                        config.protection_of(j, m)
+                    } else {
+                        protect::Limits::OFF
+                    };
+                    (j.name.clone(), limits)
+                })
+                .collect(),
+        ),
+        faults: Vec::new(),
+        max_deg_s: index
+            .iter()
+            .map(|&i| config.joints[i].max_velocity.to_degrees())
+            .collect(),
+    };
+    let mut next_temperature = 0.0;
     let accels: Vec<f64> = index
         .iter()
         .map(|&i| config.joints[i].max_acceleration)
@@ -385,13 +497,22 @@ pub(super) fn run(
             if late.len() < super::MAX_TIMED_TICKS {
                 late.push(clock.now().saturating_duration_since(due));
             }
+            let temperature = t_s >= next_temperature;
+            if temperature {
+                next_temperature = t_s + TEMPERATURE_EVERY_S;
+            }
+            let mut stop = false;
             for (c, (j, row)) in joints.iter_mut().zip(rows.iter_mut()).enumerate() {
                 let target = values.get(c).copied().unwrap_or(0.0);
                 let target = match interface {
                     Interface::Velocity => target.to_radians(),
                     _ => target,
                 };
+                // A derated joint keeps its share of its max_velocity (or max_effort).
+                let most = watch.monitor.speed_share(c) * j.most;
+                let target = target.clamp(-most, most);
                 let accel = accels.get(c).copied().unwrap_or(0.0);
+                let before = j.set;
                 let set = j.step(interface, target, period_s, accel);
                 if (set - target).abs() > 1e-9 {
                     row.limited += 1;
@@ -405,6 +526,19 @@ pub(super) fn run(
                         } else {
                             row.sent_nm = Some(done);
                         }
+                        let temperature_c = if temperature {
+                            match j.temperature() {
+                                Ok(t) => t,
+                                Err(e) => {
+                                    row.failed += 1;
+                                    row.last_error = Some(Failure::from(&e));
+                                    None
+                                }
+                            }
+                        } else {
+                            None
+                        };
+                        stop |= watch.feed(c, j, interface, before, temperature_c, clock.now());
                     }
                     Err(e) => {
                         row.failed += 1;
@@ -414,6 +548,9 @@ pub(super) fn run(
             }
             ticks += 1;
             control.report(&Progress::new("play", k + 1, Some(last + 1)));
+            if stop {
+                break;
+            }
             let now = clock.now().saturating_duration_since(start);
             #[allow(clippy::cast_possible_truncation)] // ticks of at most an hour
             let behind = (now.as_nanos() / period.as_nanos().max(1)) as u64;
@@ -437,7 +574,29 @@ pub(super) fn run(
             tracing::warn!(joint = %j.name, "could not go back to position mode: {e}");
         }
     }
-    let settled = super::super::settle(station, &config, traj.joints());
+    // A protection stop fails its joint's row, naming what it measured; the joint goes
+    // torque off where that is safe (it would keep pushing or heating while it holds).
+    let faults = watch.faults;
+    let mut torque_off = Vec::new();
+    if let Some(stop) = faults.iter().find(|f| f.action == Action::Stop)
+        && let Some(c) = traj.joints().iter().position(|n| *n == stop.joint)
+        && let Some(row) = rows.get_mut(c)
+    {
+        let off = models
+            .get(c)
+            .is_some_and(|m| m.is_some() && protect::torque_off_is_safe(*m));
+        let end = if off {
+            torque_off.push(stop.joint.clone());
+            "; its drive disabled (its brake holds it: holding would keep it pushing or heating)"
+        } else {
+            ""
+        };
+        row.protection = Some(Failure::of(
+            crate::ErrorKind::Device,
+            &format!("{stop}{end}"),
+        ));
+    }
+    let settled = super::super::settle_with(station, &config, traj.joints(), &torque_off);
     ran.inspect_err(|_| settled.log())?;
     let names = traj.joints();
     Ok(PlayedRun {
@@ -458,7 +617,8 @@ pub(super) fn run(
             late_ms: Spread::of(&late),
             interrupted,
             safe_state: settled.buses,
-            protection: Vec::new(),
+            protection: faults,
+            preflight: None,
         },
     })
 }
@@ -573,6 +733,133 @@ mod tests {
         );
         let s = whj.with_bus(|b| b.joint(1).unwrap().state());
         assert_eq!((s.mode, s.target_current), (3, 0), "{s:?}");
+    }
+
+    /// The play's summary and j1's row (the first column).
+    fn stopped(v: &Value) -> (&Value, &Value) {
+        (&v["summary"], &v["results"][0])
+    }
+
+    #[test]
+    fn an_obstacle_stops_a_velocity_play_within_the_stall_time_and_names_the_joint() {
+        let (station, _wck, whj) = station();
+        // A stop 5° above where j1 stands, and j1 told to turn up at 30°/s for 2 s: it
+        // reaches the stop at about 0.17 s.
+        whj.with_bus(|b| {
+            let j = b.joint_mut(1).unwrap();
+            let at = j.state().physical_deg + 5.0;
+            j.set_obstacle(Some(robobus_sim::whj::Obstacle::above(at)));
+        });
+        let v = play(&station, "time_s,j1_deg_s\n0,30\n2,30\n").unwrap();
+        let (s, row) = stopped(&v);
+        let events = s["protection"].as_array().unwrap();
+        assert_eq!(events.len(), 1, "{s:#}");
+        let stop = &events[0];
+        assert_eq!(
+            (
+                &stop["joint"],
+                &stop["check"],
+                &stop["quantity"],
+                &stop["action"]
+            ),
+            (
+                &json!("j1"),
+                &json!("stall"),
+                &json!("current_a"),
+                &json!("stop")
+            ),
+            "{stop}"
+        );
+        // The WHJ30's rated current, from the models table.
+        assert_eq!(stop["limit"], 7.8, "{stop}");
+        let at = stop["at_s"].as_f64().unwrap();
+        assert!((at - STALL_AT_S).abs() < 0.001, "{stop}");
+        // The current reaches the stall current about 0.3 s into the play (the joint
+        // reached the stop at about 0.17 s), and the stall time (0.3 s) later the play
+        // stops: at the feedback of the tick at 0.6 s, not at 2 s.
+        assert_eq!(s["ticks"], json!(STALL_TICKS), "{s}");
+        assert_eq!(row["id"], "j1");
+        let error = row["error"].as_str().unwrap();
+        assert!(
+            error.starts_with("j1: stall protection: current ")
+                && error.contains("reached the limit 7.8 A at ")
+                && error.contains(
+                    "stopped in the safe state (the joint did not move as commanded meanwhile); \
+                     its drive disabled"
+                ),
+            "{error}"
+        );
+        // j1 (a WHJ30: a pin brake) is disabled, no longer pushing into the stop.
+        let j1 = whj.with_bus(|b| b.joint(1).unwrap().state());
+        assert!(!j1.enabled && j1.brake_locked, "{j1:?}");
+    }
+
+    /// When the obstacle test's stall stops the play, s, and its ticks by then (at 50 Hz).
+    const STALL_AT_S: f64 = 0.6005;
+    const STALL_TICKS: u64 = 31;
+
+    #[test]
+    fn a_hot_joint_under_velocity_is_derated_then_stopped() {
+        let (station, _wck, whj) = station();
+        // j1 starts at 81 °C (over the WHJ30's 80 °C derating), and is heated to 86 °C (over
+        // the 85 °C stop) at the tick at 0.4 s; the temperature is read every 13 ticks.
+        let heat = |celsius: f64| {
+            whj.with_bus(|b| b.joint_mut(1).unwrap().set_winding_temperature(celsius));
+        };
+        heat(81.0);
+        let mut on_progress = |p: &crate::ops::Progress| {
+            if p.done == 21 {
+                heat(86.0);
+            }
+        };
+        let mut control = Control::none().with_progress(&mut on_progress);
+        let request = req(json!({
+            "op": "robot.play",
+            "trajectory": "time_s,j1_deg_s\n0,100\n2,100\n",
+            "rate_hz": 50,
+        }));
+        let v = serde_json::to_value(run(&station, &request, &mut control).unwrap()).unwrap();
+        let (s, row) = stopped(&v);
+        let events: Vec<(String, String, f64, f64)> = s["protection"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|e| {
+                (
+                    e["check"].as_str().unwrap().to_owned(),
+                    e["action"].as_str().unwrap().to_owned(),
+                    e["limit"].as_f64().unwrap(),
+                    e["at_s"].as_f64().unwrap(),
+                )
+            })
+            .collect();
+        assert_eq!(events.len(), 2, "{s:#}");
+        assert_eq!(
+            (events[0].0.as_str(), events[0].1.as_str()),
+            ("thermal", "derate")
+        );
+        assert!(
+            (events[0].2 - 80.0).abs() < 1e-9 && events[0].3 < 0.001,
+            "{events:?}"
+        );
+        assert_eq!(
+            (events[1].0.as_str(), events[1].1.as_str()),
+            ("thermal", "stop")
+        );
+        assert!((events[1].2 - 85.0).abs() < 1e-9, "{events:?}");
+        assert!((events[1].3 - 0.521).abs() < 0.001, "{events:?}");
+        // Derated: held to half its max_velocity (2 rad/s), not the 100°/s asked for.
+        let sent = row.get("sent_deg_s").and_then(Value::as_f64);
+        assert!(sent.is_none(), "a failed row: {row}");
+        let error = row["error"].as_str().unwrap();
+        assert!(
+            error.starts_with("j1: thermal protection: temperature 86.")
+                && error.contains("reached the limit 85 °C at 0.52"),
+            "{error}"
+        );
+        let at = whj.with_bus(|b| b.joint(1).unwrap().state().position_deg);
+        // 0.52 s at most at 57.3°/s is under 30°; at 100°/s it would be about 50°.
+        assert!(at > 20.0 && at < 30.0, "{at}");
     }
 
     #[test]
