@@ -13,18 +13,10 @@ use std::f64::consts::TAU;
 use std::time::Duration;
 
 use robobus::error::ErrorKind;
+use robobus::robot::simulated::sim_1108_wheel_speeds;
 use robobus::robot::{Interface, LimitKind, Robot, RobotConfig, RobotError, StopCause};
 use robobus_sim::wck::Mode;
 use robobus_sim::whj::WhjSimHandle;
-
-/// What the simulated wCK-1108's wheel levels 1..=15 turn it at, unloaded, rad/s: its
-/// no-load speed (400 °/s) times the drive level's duty `k / 15` less its gear friction
-/// (3 % of the stall torque), as a robot file gives speeds measured on the robot.
-fn sim_1108_wheel_speeds() -> Vec<f64> {
-    (1..=15)
-        .map(|k| 400_f64.to_radians() * (f64::from(k) / 15.0 - 0.03))
-        .collect()
-}
 
 fn file(watchdog_s: f64, joints: &str) -> String {
     format!(
@@ -41,7 +33,8 @@ fn file(watchdog_s: f64, joints: &str) -> String {
     )
 }
 
-/// A wheel `wheel` (wCK 0, position and velocity) and a WHJ joint `elbow` (1) with
+/// A wheel `wheel` (wCK 0, position and velocity, the simulated servo's wheel speeds as
+/// in `robobus::robot::simulated::DRIVE_ROBOT`) and a WHJ joint `elbow` (1) with
 /// `interfaces`.
 fn joints(interfaces: &str) -> String {
     format!(
