@@ -29,48 +29,9 @@ pub fn pty_echo(_n: usize) -> Result<Summary, BenchError> {
 #[cfg(unix)]
 pub fn pty_echo(n: usize) -> Result<Summary, BenchError> {
     let PtyPair {
-        mut master,
-        mut slave,
-        ..
+        master, mut slave, ..
     } = PtyPair::open(&PtyOptions::default()).map_err(|e| BenchError::new("opening a pty", e))?;
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = Arc::clone(&stop);
-    let echo = std::thread::spawn(move || {
-        let mut b = [0u8; 16];
-        while !flag.load(Ordering::Relaxed) {
-            let now = Instant::now();
-            let deadline = now + Duration::from_millis(10);
-            if let Ok(k) = wait::read_some(&mut master, &mut b, deadline, now, WaitMode::SPIN)
-                && master.write_all(b.get(..k).unwrap_or_default()).is_err()
-            {
-                return;
-            }
-        }
-    });
-    let mut rtt = Vec::with_capacity(n);
-    let mut b = [0u8; 1];
-    let mut result = Ok(());
-    for i in 0..n {
-        let t0 = Instant::now();
-        #[allow(clippy::cast_possible_truncation)] // any byte will do
-        let byte = [i as u8];
-        if let Err(e) = slave.write_all(&byte).and_then(|()| {
-            wait::read_some(
-                &mut slave,
-                &mut b,
-                t0 + Duration::from_secs(1),
-                t0,
-                WaitMode::SPIN,
-            )
-        }) {
-            result = Err(BenchError::new("pty echo", e));
-            break;
-        }
-        rtt.push(t0.elapsed());
-    }
-    stop.store(true, Ordering::Relaxed);
-    let _ = echo.join();
-    result.map(|()| Summary::of(&rtt))
+    byte_echo(&mut slave, master, n, "pty echo")
 }
 
 /// `n` one-byte round trips over TCP on 127.0.0.1: the client ([`TcpByteLink`](robobus_link::TcpByteLink), as
@@ -78,12 +39,21 @@ pub fn pty_echo(n: usize) -> Result<Summary, BenchError> {
 /// simulator's side ([`TcpServer`]) writes it back, the client spins until it is in.
 pub fn tcp_echo(n: usize) -> Result<Summary, BenchError> {
     let any_port = std::net::SocketAddr::from((std::net::Ipv4Addr::LOCALHOST, 0));
-    let mut server =
-        TcpServer::bind(any_port, 115_200).map_err(|e| BenchError::new("listening", e))?;
+    let server = TcpServer::bind(any_port, 115_200).map_err(|e| BenchError::new("listening", e))?;
     let mut client = server
         .port_spec()
         .open(115_200)
         .map_err(|e| BenchError::new("connecting", e))?;
+    byte_echo(&mut *client, server, n, "TCP echo")
+}
+
+/// `n` one-byte round trips from `near` to `far` and back: an echo thread spinning on `far`
+/// writes every byte back, `near` spins until it is in (a failure is `what`'s).
+fn byte_echo<N, F>(near: &mut N, mut far: F, n: usize, what: &str) -> Result<Summary, BenchError>
+where
+    N: ByteLink + ?Sized,
+    F: ByteLink + Send + 'static,
+{
     let stop = Arc::new(AtomicBool::new(false));
     let flag = Arc::clone(&stop);
     let echo = std::thread::spawn(move || {
@@ -91,8 +61,8 @@ pub fn tcp_echo(n: usize) -> Result<Summary, BenchError> {
         while !flag.load(Ordering::Relaxed) {
             let now = Instant::now();
             let deadline = now + Duration::from_millis(10);
-            if let Ok(k) = wait::read_some(&mut server, &mut b, deadline, now, WaitMode::SPIN)
-                && server.write_all(b.get(..k).unwrap_or_default()).is_err()
+            if let Ok(k) = wait::read_some(&mut far, &mut b, deadline, now, WaitMode::SPIN)
+                && far.write_all(b.get(..k).unwrap_or_default()).is_err()
             {
                 return;
             }
@@ -105,16 +75,16 @@ pub fn tcp_echo(n: usize) -> Result<Summary, BenchError> {
         let t0 = Instant::now();
         #[allow(clippy::cast_possible_truncation)] // any byte will do
         let byte = [i as u8];
-        if let Err(e) = client.write_all(&byte).and_then(|()| {
+        if let Err(e) = near.write_all(&byte).and_then(|()| {
             wait::read_some(
-                &mut client,
+                near,
                 &mut b,
                 t0 + Duration::from_secs(1),
                 t0,
                 WaitMode::SPIN,
             )
         }) {
-            result = Err(BenchError::new("TCP echo", e));
+            result = Err(BenchError::new(what, e));
             break;
         }
         rtt.push(t0.elapsed());
