@@ -10,7 +10,7 @@
     clippy::many_single_char_names
 )]
 
-mod station_support;
+use crate::station_support;
 
 use robobus::catalogue::bounds::ConfirmClass;
 use robobus::catalogue::{self, ErrorKind, Request};

@@ -111,7 +111,7 @@ fn the_tables_of_operations_are_generated_from_the_registry() {
         std::fs::write(guide, format!("{}{table}{}", &text[..start], &text[end..])).unwrap();
         return;
     }
-    let hint = "regenerate with UPDATE_SNAPSHOTS=1 cargo test -p robobus --test catalogue_docs";
+    let hint = "regenerate with UPDATE_SNAPSHOTS=1 cargo test -p robobus --test integration catalogue_docs::";
     assert_eq!(std::fs::read_to_string(module).unwrap(), table, "{hint}");
     assert_eq!(guide_table, table, "{hint}");
 

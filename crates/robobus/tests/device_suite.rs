@@ -7,7 +7,7 @@
 //! ```text
 //! ROBOBUS_TEST_WCK_PORT=/dev/ttyUSB0 ROBOBUS_TEST_WCK_IDS=0-15 \
 //! ROBOBUS_TEST_WHJ_BUS=can0 ROBOBUS_TEST_WHJ_JOINTS=1-6 \
-//!   cargo test -p robobus --test device_suite -- --test-threads 1
+//!   cargo test -p robobus --test integration device_suite:: -- --test-threads 1
 //! ```
 //!
 //! On real devices the suite only reads unless `ROBOBUS_TEST_MOTION=1`; then it moves each
@@ -23,7 +23,7 @@
 
 #![allow(clippy::unwrap_used, clippy::panic, clippy::print_stdout)] // tests
 
-mod station_support;
+use crate::station_support;
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -326,10 +326,14 @@ const NETNS_ENV: &str = "ROBOBUS_SUITE_IN_NETNS";
 #[cfg(target_os = "linux")] // a private network namespace, and the wCK simulator on a pty
 #[test]
 fn devices_named_by_the_environment_on_a_serial_port_and_a_udp_bus() {
-    Inner::exact(module_path!(), "inner_serves_the_simulators_as_hardware", NETNS_ENV)
-        .timeout_s(180)
-        .in_private_netns()
-        .expect_marker("DEVICE SUITE ON HARDWARE PATHS OK");
+    Inner::exact(
+        module_path!(),
+        "inner_serves_the_simulators_as_hardware",
+        NETNS_ENV,
+    )
+    .timeout_s(180)
+    .in_private_netns()
+    .expect_marker("DEVICE SUITE ON HARDWARE PATHS OK");
 }
 
 #[cfg(target_os = "linux")]

@@ -4,7 +4,7 @@
 
 #![allow(clippy::unwrap_used)]
 
-mod station_support;
+use crate::station_support;
 
 use robobus::catalogue::{self, ErrorKind, Request};
 use robobus::ops::Control;

@@ -4,7 +4,7 @@
 
 #![allow(clippy::unwrap_used, clippy::float_cmp)] // tests
 
-mod wck_support;
+use crate::wck_support;
 
 use robobus::ErrorKind;
 use robobus::station::sampler::{WckSample, WckSampler};

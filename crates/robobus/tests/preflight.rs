@@ -8,7 +8,7 @@
 
 #![allow(clippy::unwrap_used)] // tests
 
-mod whj_common;
+use crate::whj_common;
 
 use std::io::Write;
 use std::sync::{Arc, Mutex};

@@ -4,8 +4,8 @@
 
 #![allow(clippy::unwrap_used)]
 
-mod wck_support;
-mod whj_common;
+use crate::wck_support;
+use crate::whj_common;
 
 use std::path::Path;
 use std::time::{Duration, Instant};

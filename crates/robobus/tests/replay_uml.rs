@@ -8,7 +8,7 @@
 #![allow(clippy::unwrap_used, clippy::panic)]
 #![cfg(target_os = "linux")]
 
-mod whj_common;
+use crate::whj_common;
 
 use std::io::{BufRead, BufReader};
 use std::path::Path;
@@ -27,9 +27,13 @@ const IN_UML_ENV: &str = "ROBOBUS_REPLAY_IN_UML";
 
 #[test]
 fn can_utils_play_our_capture_inside_user_mode_linux() {
-    robobus_testkit::Inner::exact(module_path!(), "inner_can_utils_play_our_capture", IN_UML_ENV)
-        .in_uml()
-        .expect_marker("UML REPLAY OK");
+    robobus_testkit::Inner::exact(
+        module_path!(),
+        "inner_can_utils_play_our_capture",
+        IN_UML_ENV,
+    )
+    .in_uml()
+    .expect_marker("UML REPLAY OK");
 }
 
 /// Raw-socket receivers registered on vcan0.

@@ -7,7 +7,7 @@
 
 #![allow(clippy::result_large_err)]
 
-mod common;
+use crate::common;
 
 use std::collections::BTreeSet;
 

@@ -7,8 +7,8 @@
 
 #![allow(clippy::unwrap_used, clippy::panic, clippy::float_cmp)]
 
-mod wck_support;
-mod whj_common;
+use crate::wck_support;
+use crate::whj_common;
 
 use std::time::{Duration, Instant};
 

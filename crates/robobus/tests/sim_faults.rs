@@ -12,8 +12,8 @@
 #![allow(clippy::unwrap_used)] // test code
 #![cfg(target_os = "linux")]
 
-mod wck_support;
-mod whj_common;
+use crate::wck_support;
+use crate::whj_common;
 
 use std::time::Duration;
 

@@ -3,7 +3,7 @@
 #![cfg(target_os = "linux")]
 #![allow(clippy::unwrap_used)] // test helpers
 
-mod wck_support;
+use crate::wck_support;
 
 use std::time::Duration;
 

@@ -2,7 +2,7 @@
 //! the plan a dry-run shows; per-servo results; stop, progress and the safe state.
 #![allow(clippy::unwrap_used, clippy::result_large_err)]
 
-mod wck_support;
+use crate::wck_support;
 
 use std::time::Duration;
 

@@ -8,8 +8,8 @@
 
 #![allow(clippy::unwrap_used, clippy::panic)]
 
-mod common;
-mod station_support;
+use crate::common;
+use crate::station_support;
 
 use std::collections::BTreeMap;
 

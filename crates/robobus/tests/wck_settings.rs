@@ -5,7 +5,7 @@
 
 #![allow(clippy::unwrap_used, clippy::result_large_err)] // tests
 
-mod station_support;
+use crate::station_support;
 
 use robobus::catalogue::{self, Report, Request};
 use robobus::ops::wck::settings::{self, WckSettings};

@@ -5,7 +5,7 @@
 //! and comes back.
 #![allow(clippy::unwrap_used)] // test helpers
 
-mod wck_support;
+use crate::wck_support;
 
 use std::time::{Duration, Instant};
 

@@ -4,7 +4,7 @@
 
 #![allow(clippy::unwrap_used)] // tests
 
-mod station_support;
+use crate::station_support;
 
 use robobus::ops::wck::tune::{self, Keep, TuneArgs};
 use robobus::ops::{Control, ErrorKind};

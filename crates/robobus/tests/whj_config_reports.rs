@@ -8,8 +8,8 @@
 
 #![allow(clippy::unwrap_used, clippy::panic)]
 
-mod common;
-mod whj_common;
+use crate::common;
+use crate::whj_common;
 
 use std::collections::BTreeMap;
 

@@ -5,7 +5,7 @@
 
 #![allow(clippy::unwrap_used, clippy::result_large_err)] // tests
 
-mod whj_common;
+use crate::whj_common;
 
 use robobus::catalogue::{self, Request};
 use robobus::ops::{Control, ErrorKind};

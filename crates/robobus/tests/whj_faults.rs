@@ -5,7 +5,7 @@
 
 #![allow(clippy::unwrap_used)]
 
-mod whj_common;
+use crate::whj_common;
 
 use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};

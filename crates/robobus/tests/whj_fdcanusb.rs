@@ -11,7 +11,7 @@
 
 #![allow(clippy::unwrap_used, clippy::float_cmp)] // test code
 
-mod whj_common;
+use crate::whj_common;
 
 use std::time::Duration;
 

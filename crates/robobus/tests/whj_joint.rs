@@ -4,7 +4,7 @@
 
 #![allow(clippy::unwrap_used)]
 
-mod whj_common;
+use crate::whj_common;
 
 use std::time::Duration;
 

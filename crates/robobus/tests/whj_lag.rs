@@ -8,7 +8,7 @@
 
 #![allow(clippy::unwrap_used)] // tests
 
-mod whj_common;
+use crate::whj_common;
 
 use robobus::ops::whj::{self as ops, ServoLoop, Shape, WaveArgs};
 use robobus::ops::{Control, ErrorKind, OpError, SafeState};

@@ -6,7 +6,7 @@
 
 #![allow(clippy::unwrap_used, clippy::panic)]
 
-mod whj_common;
+use crate::whj_common;
 
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};

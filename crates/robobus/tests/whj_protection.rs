@@ -6,7 +6,7 @@
 
 #![allow(clippy::unwrap_used)] // tests
 
-mod whj_common;
+use crate::whj_common;
 
 use robobus::ops::protect::{Action, Check};
 use robobus::ops::whj::{self as ops, MoveArgs, ServoLoop, Shape, WaveArgs};

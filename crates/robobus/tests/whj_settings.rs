@@ -6,7 +6,7 @@
 
 #![allow(clippy::unwrap_used, clippy::panic, clippy::result_large_err)] // tests
 
-mod whj_common;
+use crate::whj_common;
 
 use robobus::ops::ErrorKind;
 use robobus::ops::whj::settings::{self, Settings};
@@ -197,7 +197,7 @@ fn a_settings_file_is_checked_when_it_is_read() {
     }
 }
 
-mod station_support;
+use crate::station_support;
 
 /// Runs one catalogue request on `s`.
 fn run(

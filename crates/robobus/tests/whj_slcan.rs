@@ -6,7 +6,7 @@
 
 #![allow(clippy::unwrap_used, clippy::float_cmp)] // test code: a joint at rest reads exactly 0
 
-mod whj_common;
+use crate::whj_common;
 
 use std::time::Duration;
 

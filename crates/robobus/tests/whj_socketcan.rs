@@ -7,7 +7,7 @@
 #![allow(clippy::unwrap_used)]
 #![cfg(target_os = "linux")]
 
-mod whj_common;
+use crate::whj_common;
 
 use std::time::Duration;
 

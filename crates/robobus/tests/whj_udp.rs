@@ -8,7 +8,7 @@
 #![cfg(target_os = "linux")] // a private network namespace
 #![allow(clippy::unwrap_used)]
 
-mod whj_common;
+use crate::whj_common;
 
 use std::net::Ipv4Addr;
 use std::time::Duration;
