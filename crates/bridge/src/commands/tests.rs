@@ -277,3 +277,66 @@ fn the_bridges_end_brings_joints_off_position_back_on_it() {
     );
     done.store(true, Ordering::SeqCst);
 }
+
+/// A trajectory's results.
+#[derive(Default)]
+struct Results(std::sync::Mutex<Vec<crate::trajectory::TrajectoryResult>>);
+
+impl crate::trajectory::Sink for Results {
+    fn state(&self, _: &cdr::JointTrajectoryControllerState) {}
+
+    fn result(&self, r: &crate::trajectory::TrajectoryResult) {
+        self.0.lock().unwrap().push(r.clone());
+    }
+}
+
+#[test]
+fn motions_of_positions_of_a_joint_on_velocity_are_refused_until_it_is_back_on_position() {
+    let (s, done) = armed();
+    interface(&s, r#"{"interface": "velocity", "joints": ["j1"]}"#).unwrap();
+    let said = "j1 is on its velocity interface: a motion of positions needs it on its \
+                position interface; switch it back to position first; nothing was sent";
+    // A robobus/run motion of it (j1 is WHJ joint 1), and a robot.play naming it.
+    let at = sim(&s).snapshot().whj[0].clone();
+    for request in [
+        r#"{"op":"whj.move","joint":1,"degrees":5}"#,
+        r#"{"op":"robot.play","trajectory":"time_s,j1\n0,0\n1,5\n"}"#,
+    ] {
+        let e = run_request(&s, request).unwrap_err();
+        assert_eq!(e.kind(), robobus::ErrorKind::Refused, "{request}: {e}");
+        assert!(e.to_string().contains(said), "{request}: {e}");
+    }
+    // A ROS 2 trajectory of it: refused whole, nothing moved.
+    let results = Arc::new(Results::default());
+    let sink: Arc<dyn crate::trajectory::Sink> = results.clone();
+    let payload = cdr::JointTrajectory {
+        joint_names: vec!["j1".into()],
+        points: vec![cdr::JointTrajectoryPoint {
+            positions: vec![0.1],
+            time_from_start: cdr::Duration::from_secs_f64(1.0),
+            ..cdr::JointTrajectoryPoint::default()
+        }],
+        ..cdr::JointTrajectory::default()
+    }
+    .encode();
+    crate::trajectory::take_up(&s, &sink, &payload);
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while results.0.lock().unwrap().is_empty() && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let r = results.0.lock().unwrap()[0].clone();
+    assert_eq!(r.status, "refused", "{r:?}");
+    assert_eq!(r.error_code, Some(cdr::result_code::INVALID_GOAL));
+    assert_eq!(r.error_string, format!("joint_trajectory: {said}"));
+    let now = sim(&s).snapshot().whj[0].clone();
+    assert_eq!(now.mode, 2, "{now:?}");
+    assert!(
+        (now.position_deg - at.position_deg).abs() < 0.01,
+        "{at:?} {now:?}"
+    );
+    // j2, on position, still moves; j1 once switched back.
+    run_request(&s, r#"{"op":"whj.move","joint":2,"degrees":1}"#).unwrap();
+    interface(&s, r#"{"interface": "position", "joints": ["j1"]}"#).unwrap();
+    run_request(&s, r#"{"op":"whj.move","joint":1,"degrees":1}"#).unwrap();
+    done.store(true, Ordering::SeqCst);
+}

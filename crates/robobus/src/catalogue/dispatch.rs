@@ -5,6 +5,7 @@ use robobus_wck::BaudRate;
 
 use super::Request;
 use super::bounds::refused;
+use super::effect::{Effect, Moved};
 use super::operation::{Interaction, NoInteraction, Operation, Report, RunCx};
 use super::plan::Plan;
 use super::registry::DynOperation;
@@ -68,12 +69,30 @@ pub fn run_with(
     if let Some(text) = confirmation(request)? {
         return Err(refused(&text));
     }
+    off_position(station, request.operation().effect(), || {
+        request.operation().moved()
+    })?;
     let mut cx = RunCx {
         station,
         control,
         interaction,
     };
     request.operation().run(&mut cx)
+}
+
+/// Refuses a motion whose moved devices include a joint off its position interface
+/// (see [`crate::station::interfaces`]); nothing sent.
+fn off_position(
+    station: &Station,
+    effect: Effect,
+    moved: impl FnOnce() -> Result<Option<Moved>, OpError>,
+) -> Result<(), OpError> {
+    if effect == Effect::Motion
+        && let Some(m) = moved()?
+    {
+        station.interfaces().check_moved(&m)?;
+    }
+    Ok(())
 }
 
 /// [`run_with`] of one operation, its report typed: a Rust front end gets the
@@ -87,6 +106,7 @@ pub fn run_typed<O: Operation>(
     if let Some(text) = asked(operation)? {
         return Err(refused(&text));
     }
+    off_position(station, operation.effect(), || operation.moved())?;
     let mut cx = RunCx {
         station,
         control,

@@ -12,6 +12,7 @@ pub mod cyclic;
 pub mod diagnostics;
 pub mod follow;
 pub mod handles;
+pub mod interfaces;
 pub mod jog;
 pub mod sampler;
 
@@ -257,6 +258,8 @@ pub struct Station {
     /// The shared samplings of its buses (`catalogue::telemetry`: one per bus and kind of
     /// reading), by key; each lives as long as a subscription to it or its thread.
     streams: Mutex<std::collections::HashMap<String, SharedStream>>,
+    /// Its joints off their position interface (`interfaces`).
+    interfaces: interfaces::Interfaces,
     closed: bool,
 }
 
@@ -382,6 +385,12 @@ impl Station {
     /// The robot file of the station, if it has one.
     pub fn robot(&self) -> Option<&RobotConfig> {
         self.robot.as_deref()
+    }
+
+    /// Which of its joints are off their position interface, and the check that refuses
+    /// a motion of positions of them (see [`interfaces`]).
+    pub fn interfaces(&self) -> &interfaces::Interfaces {
+        &self.interfaces
     }
 
     /// One reading of every joint of the station's robot file, in the file's order, as

@@ -76,8 +76,8 @@ pub(super) fn make_passive(station: &Station, config: &RobotConfig) -> Result<()
 
 /// Where each of the joints `names` of the robot file is now (joint degrees, in that
 /// order), checked before a robot operation moves them: refused, nothing moved, when one
-/// does not answer, stands outside its soft limits, or is a WHJ joint not enabled in
-/// position mode (`what` needs it: "a trajectory"; the wCK servos would otherwise move
+/// is off its position interface (`station::interfaces`), does not answer, stands
+/// outside its soft limits, or is a WHJ joint not enabled in position mode (`what` needs it: "a trajectory"; the wCK servos would otherwise move
 /// without it). The one check of `robot.play` and `robot.teleop`.
 pub(super) fn ready_at(
     station: &Station,
@@ -85,6 +85,7 @@ pub(super) fn ready_at(
     names: &[String],
     what: &str,
 ) -> Result<Vec<f64>, OpError> {
+    station.interfaces().check_joints(names)?;
     let mut sampler = sampler(station, &only(config, names))?;
     let rows = sampler.sample(0.0);
     let mut at = Vec::with_capacity(names.len());

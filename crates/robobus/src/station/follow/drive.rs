@@ -24,6 +24,16 @@
 //!
 //! [`Driver::release`] is the watchdog's and the disarm's end: every joint on velocity or
 //! effort gets a zero target and goes back to its position interface, held where it stands.
+//!
+//! The host's protection watches every WHJ joint on velocity or effort
+//! ([`Monitor::feed_driven`], as `robot.play` of velocities or efforts does): each servo
+//! frame's feedback (its speed and current, against the set-point of the command before)
+//! and every [`TEMPERATURE_EVERY`] its temperature, on the bus's clock. A stop brings the
+//! joint that tripped to a zero target, back on position, then its safe stop (disabled
+//! where its brake holds it, else held), fails its result naming the fault, and latches:
+//! every later command is refused whole, nothing sent, until [`Driver::resume`]. A derated
+//! joint's set-point is held to its `derate` share of `max_velocity` / `max_effort`. A wCK
+//! wheel's reply carries no speed and no current: it is not watched.
 
 use std::f64::consts::TAU;
 use std::sync::{Mutex, PoisonError};
@@ -35,9 +45,11 @@ use robobus_whj::{JointId, WorkMode};
 use serde::Serialize;
 
 use crate::actuator::{JointMap, WckScale, rpm_to_rad_s};
-use crate::ops::{DeviceResult, Failure, Family, OpError};
+use crate::ops::protect::{self, Action, Drive, Fault, MAX_EVENTS, Monitor, Reading};
+use crate::ops::{DeviceResult, ErrorKind, Failure, Family, OpError};
 use crate::robot::{EffortScale, Interface, RobotConfig, WheelSpeeds};
 use crate::station::Station;
+use crate::station::jog::guard::{TEMPERATURE_EVERY, model, safe_stop, temperature_of};
 
 /// A joint counts as at rest for a switch below this measured speed, rad/s (as
 /// `Robot::set_interface` takes it).
@@ -96,6 +108,24 @@ struct Slot {
     last: Option<Instant>,
     /// A WHJ joint's current register scale and torque constant, once it identified.
     whj: Option<(CurrentScale, Option<EffortScale>)>,
+    /// A WHJ joint's speed (°/s) and current (A) in its last feedback.
+    speed_deg_s: Option<f64>,
+    current_a: Option<f64>,
+}
+
+/// The host's protection of the joints on velocity or effort (see the
+/// [module docs](self)).
+#[derive(Debug, Default)]
+struct Protection {
+    /// Made at the first switch (on the bus's clock); each joint's limits set when it is
+    /// switched, once its model is known.
+    monitor: Option<Monitor>,
+    models: Vec<Option<robobus_whj::units::Model>>,
+    next_temperature: Vec<Option<Instant>>,
+    /// The stop, once one came.
+    stopped: Option<Fault>,
+    /// Every event, the last [`MAX_EVENTS`].
+    events: Vec<Fault>,
 }
 
 /// Follows velocity and effort commands (see the [module docs](self)).
@@ -103,6 +133,9 @@ struct Slot {
 pub struct Driver {
     joints: Vec<Joint>,
     slots: Mutex<Vec<Slot>>,
+    /// The robot file (the joints' protection).
+    robot: RobotConfig,
+    protection: Mutex<Protection>,
 }
 
 fn refused(what: &str, value: impl std::fmt::Display, expected: impl Into<String>) -> OpError {
@@ -156,13 +189,160 @@ impl Driver {
                 at: None,
                 last: None,
                 whj: None,
+                speed_deg_s: None,
+                current_a: None,
             };
             joints.len()
         ];
+        let n = joints.len();
         Self {
             joints,
             slots: Mutex::new(slots),
+            robot: robot.clone(),
+            protection: Mutex::new(Protection {
+                models: vec![None; n],
+                next_temperature: vec![None; n],
+                ..Protection::default()
+            }),
         }
+    }
+
+    fn guard(&self) -> std::sync::MutexGuard<'_, Protection> {
+        self.protection
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// The host's protection events so far (the last 256), in order.
+    pub fn protection(&self) -> Vec<Fault> {
+        self.guard().events.clone()
+    }
+
+    /// The protection stop that latched, if any.
+    pub fn stopped(&self) -> Option<Fault> {
+        self.guard().stopped.clone()
+    }
+
+    /// Takes commands again after a protection stop (the joints' watch starts afresh).
+    pub fn resume(&self) {
+        let mut p = self.guard();
+        p.stopped = None;
+        p.monitor = None;
+        p.next_temperature.fill(None);
+    }
+
+    /// Watches WHJ joint `i`, just switched to `to` (its model's limits and the file's).
+    fn watch_switched(&self, station: &Station, i: usize, to: Interface) {
+        let Some(j) = self.joints.get(i) else { return };
+        let Some(config) = self.robot.joints.get(i) else {
+            return;
+        };
+        if j.family != Family::Whj || to == Interface::Position {
+            return;
+        }
+        let Ok(port) = station.whj(Some(&j.bus)) else {
+            return;
+        };
+        let now = port.bus().now();
+        let m = model(station, j.family, &j.bus, j.id);
+        let mut p = self.guard();
+        let n = self.joints.len();
+        let monitor = p.monitor.get_or_insert_with(|| {
+            Monitor::new(
+                now,
+                self.joints
+                    .iter()
+                    .map(|j| (j.name.clone(), protect::Limits::OFF))
+                    .collect(),
+            )
+        });
+        monitor.set_limits(i, self.robot.protection_of(config, m));
+        if p.models.len() == n {
+            p.models[i] = m;
+        }
+    }
+
+    /// Feeds WHJ joint `i`'s feedback (answering the set-point `before`) to the
+    /// protection; on a stop, brings it to its safe stop and returns the failure naming
+    /// the fault.
+    fn watch(
+        &self,
+        station: &Station,
+        i: usize,
+        slot: &mut Slot,
+        interface: Interface,
+        before: f64,
+    ) -> Option<Failure> {
+        let j = self.joints.get(i)?;
+        if j.family != Family::Whj {
+            return None;
+        }
+        let now = station.whj(Some(&j.bus)).ok()?.bus().now();
+        let mut p = self.guard();
+        let due = p
+            .next_temperature
+            .get(i)
+            .copied()
+            .flatten()
+            .is_none_or(|t| now >= t);
+        let temperature_c = if due {
+            if let Some(t) = p.next_temperature.get_mut(i) {
+                *t = Some(now + TEMPERATURE_EVERY);
+            }
+            temperature_of(station, j.family, &j.bus, j.id)
+        } else {
+            None
+        };
+        let reading = Reading {
+            position_deg: slot.at.map(f64::to_degrees),
+            current_a: slot.current_a,
+            temperature_c,
+            ..Reading::at(now)
+        };
+        let drive = match interface {
+            Interface::Velocity => Drive::Velocity {
+                commanded_deg_s: before.to_degrees(),
+            },
+            _ => Drive::Effort {
+                max_deg_s: j.max_velocity.to_degrees(),
+            },
+        };
+        let faults = p
+            .monitor
+            .as_mut()?
+            .feed_driven(i, &reading, slot.speed_deg_s, drive);
+        let mut stop = None;
+        for f in faults {
+            tracing::warn!("{f}");
+            if f.action == Action::Stop {
+                stop = Some(f.clone());
+            }
+            if p.events.len() >= MAX_EVENTS {
+                p.events.remove(0);
+            }
+            p.events.push(f);
+        }
+        let stop = stop?;
+        p.stopped = Some(stop.clone());
+        let m = p.models.get(i).copied().flatten();
+        drop(p);
+        // A zero target, back on position, then the joint's safe stop.
+        let _ = send(station, j, slot, interface, 0.0);
+        slot.set = 0.0;
+        if let Err(e) = switch_one(station, j, slot, Interface::Position) {
+            tracing::warn!(joint = %j.name, "could not go back to position: {e}");
+        }
+        let what = safe_stop(station, j.family, &j.bus, j.id, m);
+        let what = what.strip_prefix("; ").unwrap_or(&what).to_owned();
+        Some(Failure::of(ErrorKind::Device, &format!("{stop}; {what}")))
+    }
+
+    /// The share of its `max_velocity` / `max_effort` joint `i` keeps (a derated one).
+    fn share(&self, i: usize) -> f64 {
+        self.guard()
+            .monitor
+            .as_ref()
+            .map_or(1.0, |m| m.speed_share(i))
     }
 
     fn lock(&self) -> std::sync::MutexGuard<'_, Vec<Slot>> {
@@ -277,7 +457,10 @@ impl Driver {
                     return DeviceResult::ok(j.name.clone(), to);
                 }
                 match switch_one(station, j, &mut slots[i], to) {
-                    Ok(()) => DeviceResult::ok(j.name.clone(), to),
+                    Ok(()) => {
+                        self.watch_switched(station, i, to);
+                        DeviceResult::ok(j.name.clone(), to)
+                    }
                     Err(e) => DeviceResult::failed(j.name.clone(), Failure::from(&e)),
                 }
             })
@@ -293,6 +476,12 @@ impl Driver {
     /// [`ErrorKind::BadInput`](crate::ErrorKind::BadInput) naming the value and its range (the count, a value not
     /// finite or past its limit); [`ErrorKind::Refused`](crate::ErrorKind::Refused) when no joint is on `interface`.
     pub fn plan(&self, interface: Interface, values: &[f64]) -> Result<Vec<(usize, f64)>, OpError> {
+        if let Some(stop) = self.stopped() {
+            return Err(OpError::Refused(format!(
+                "protection stopped a driven joint ({stop}); nothing was sent: resume once \
+                 the cause is cleared"
+            )));
+        }
         let on: Vec<usize> = {
             let slots = self.lock();
             (0..self.joints.len())
@@ -390,12 +579,22 @@ impl Driver {
                     .last
                     .map_or(MAX_DT, |t| now.saturating_duration_since(t).min(MAX_DT))
                     .as_secs_f64();
-                let set = step(j, slot, interface, target, dt);
+                // A derated joint keeps its share of its max_velocity / max_effort.
+                let most = self.share(i)
+                    * match interface {
+                        Interface::Velocity => j.max_velocity,
+                        _ => j.max_effort,
+                    };
+                let set = step(j, slot, interface, target.clamp(-most, most), dt);
+                let before = slot.set;
                 Some(match send(station, j, slot, interface, set) {
                     Ok(carried) => {
                         slot.set = set;
                         slot.last = Some(now);
-                        DeviceResult::ok(j.name.clone(), carried)
+                        match self.watch(station, i, slot, interface, before) {
+                            Some(stop) => DeviceResult::failed(j.name.clone(), stop),
+                            None => DeviceResult::ok(j.name.clone(), carried),
+                        }
                     }
                     Err(e) => DeviceResult::failed(j.name.clone(), Failure::from(&e)),
                 })
@@ -498,6 +697,15 @@ fn switch_one(station: &Station, j: &Joint, s: &mut Slot, to: Interface) -> Resu
     s.active = to;
     s.set = 0.0;
     s.last = None;
+    station
+        .interfaces()
+        .set(crate::station::interfaces::OffPosition {
+            joint: j.name.clone(),
+            family: j.family,
+            bus: j.bus.clone(),
+            id: j.id,
+            interface: to,
+        });
     Ok(())
 }
 
@@ -583,6 +791,12 @@ fn send(
                 )
             };
             s.at = Some(map.to_joint(fb.position.degrees().to_radians()));
+            s.speed_deg_s = Some(fb.speed.rpm() * 6.0 * sign(map.reversed));
+            s.current_a = s.whj.map(|(scale, _)| {
+                #[allow(clippy::cast_precision_loss)] // mA of a joint
+                let ma = fb.current.milliamps(scale) as f64;
+                ma / 1e3
+            });
             Ok(sent)
         }
         _ => Err(OpError::Refused(format!(
