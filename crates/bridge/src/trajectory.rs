@@ -16,6 +16,7 @@ use std::time::{Duration, Instant};
 use robobus::ErrorKind;
 use robobus::catalogue::operation::PlayTick;
 use robobus::catalogue::robot::{Play, Sample};
+use robobus::catalogue::whj::PreflightArg;
 use robobus::catalogue::{Interaction, NoInteraction, Request, run_typed};
 use robobus::cdr::{
     self, JointTrajectory, JointTrajectoryControllerState, JointTrajectoryPoint, result_code,
@@ -87,6 +88,9 @@ pub struct TrajectoryHealth {
     pub received: u64,
     /// Refused whole (nothing moved), with their reasons in `last_refusal`.
     pub refused: u64,
+    /// Of those, refused by the pre-flight on the simulator (a WHJ joint that would lag
+    /// behind it, fault or be derated).
+    pub preflight_refused: u64,
     /// Replaced by a newer one before this one was taken up.
     pub superseded: u64,
     /// Started.
@@ -109,6 +113,7 @@ pub struct TrajectoryHealth {
 struct Counts {
     received: AtomicU64,
     refused: AtomicU64,
+    preflight_refused: AtomicU64,
     superseded: AtomicU64,
     started: AtomicU64,
     reached: AtomicU64,
@@ -168,6 +173,7 @@ impl Trajectories {
         TrajectoryHealth {
             received: g(&c.received),
             refused: g(&c.refused),
+            preflight_refused: g(&c.preflight_refused),
             superseded: g(&c.superseded),
             started: g(&c.started),
             reached: g(&c.reached),
@@ -359,10 +365,13 @@ pub(crate) fn take_up(s: &Arc<Shared>, sink: &Arc<dyn Sink>, payload: &[u8]) {
         Ok(p) => p,
         Err(e) => return refuse(e.code, e.message),
     };
+    // Pre-flown by default (a trajectory of at most 60 s): `robot.play` runs it first on
+    // WHJ simulators seeded with its WHJ joints and refuses it before its first tick.
     let play = Play {
         trajectory: planned.csv.clone(),
         rate_hz: TRAJECTORY_RATE_HZ,
         torque: 2,
+        preflight: PreflightArg::default(),
     };
     if let Err(r) = s
         .admission
@@ -493,6 +502,20 @@ impl Player {
                  newer one played from there)"
                     .to_owned(),
             ),
+            // Refused by the pre-flight on the simulator before the first tick: the
+            // tick, its time, the joint and what the simulated joint did.
+            Err(OpError::Preflight(r)) => {
+                bump(&t.counts.preflight_refused);
+                (
+                    "refused",
+                    Some(result_code::INVALID_GOAL),
+                    format!(
+                        "joint_trajectory: refused by the pre-flight on the simulator: tick {} \
+                         at {:.3} s: {}: {}; nothing moved",
+                        r.frame, r.at_s, r.joint, r.reason
+                    ),
+                )
+            }
             // Refused by `robot.play` before it sent anything (a joint silent, outside its
             // limits, not enabled in position mode; a step too large at its rate).
             Err(e) if matches!(e.kind(), ErrorKind::BadInput | ErrorKind::Refused) => (

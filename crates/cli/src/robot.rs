@@ -102,6 +102,11 @@ enum RobotCommand {
         /// Extra time to wait for each wCK reply beyond its modelled wire time, in ms.
         #[arg(long, value_name = "MS", value_parser = crate::wck::parse_margin)]
         reply_margin: Option<std::time::Duration>,
+        /// A play of positions runs first on WHJ simulators seeded with its WHJ joints
+        /// (by default when the trajectory lasts at most 60 s) and is refused before its
+        /// first tick if a simulated joint would lag, fault or be derated.
+        #[command(flatten)]
+        preflight: robobus::catalogue::whj::PreflightArg,
     },
     /// Record a trajectory by hand: move the robot file's joints while they are read, then
     /// play it back with `robot play`.
@@ -304,6 +309,7 @@ fn play(g: Global, command: &RobotCommand) -> anyhow::Result<()> {
         torque,
         record,
         reply_margin,
+        preflight,
     } = command
     else {
         return Ok(());
@@ -312,6 +318,7 @@ fn play(g: Global, command: &RobotCommand) -> anyhow::Result<()> {
         trajectory: read_bounded(trajectory, MAX_TRAJECTORY_BYTES)?,
         rate_hz: *rate_hz,
         torque: *torque,
+        preflight: *preflight,
     });
     let mut parsed = request_trajectory(&request)?;
     // The file's joints, limits and speeds are checked before anything opens.

@@ -106,7 +106,17 @@ impl fmt::Display for Refusal {
 }
 
 #[cfg(feature = "sim")]
-pub use simulate::{whj_move, whj_wave};
+pub use simulate::{Latched, SeededBus, seeded_bus, whj_move, whj_wave};
+
+/// Why a frame is refused when the simulated joint lagged: its set-point was held back
+/// `off` degrees short, to `sent` degrees.
+pub fn clamped(off: f64, sent: f64) -> String {
+    format!(
+        "the joint lagged behind the plan: its set-point was clamped {off:.4} deg short, to \
+         {sent:.4} deg, to keep within its step protection (on the joint a lagging motion \
+         ends in the step fault or the run's hold-back)"
+    )
+}
 
 /// Without the simulator (`sim` feature) there is no pre-flight.
 ///
@@ -138,8 +148,9 @@ pub fn whj_move(
     Err(not_built())
 }
 
+/// The refusal of a pre-flight asked for in a build without the simulator.
 #[cfg(not(feature = "sim"))]
-fn not_built() -> OpError {
+pub fn not_built() -> OpError {
     OpError::NotAvailable(
         "pre-flight: this build has no simulator (robobus's `sim` feature); run it with \
          --no-preflight"
@@ -169,29 +180,48 @@ mod simulate {
             .find(|m| m.model().to_string() == model)
     }
 
-    /// The simulated joint of `seed`, set up as the real one: its settings restored, its
-    /// mode, its drive state; the bus on the virtual clock.
-    fn seeded(seed: &WhjSeed, step_limit_deg: f64) -> Result<(JointBus, WhjSimHandle), OpError> {
+    /// A simulated bus of the joints of `seeds`, each set up as the real one: its
+    /// settings restored, its mode, its drive state; the bus on the virtual clock with
+    /// the step limit `step_limit_deg`.
+    ///
+    /// # Errors
+    ///
+    /// [`OpError::NotAvailable`] for a joint the simulator has no model of;
+    /// [`OpError::Device`] when a simulated joint could not be seeded.
+    pub fn seeded_bus(seeds: &[WhjSeed], step_limit_deg: f64) -> Result<SeededBus, OpError> {
         let not_simulated = |what: String| {
             OpError::NotAvailable(format!(
                 "pre-flight: {what}; run it without the pre-flight (--no-preflight)"
             ))
         };
-        let model = sim_model(&seed.model)
-            .ok_or_else(|| not_simulated(format!("the simulator has no {}", seed.model)))?;
-        let id = JointId::new(seed.id)
-            .map_err(|_| not_simulated(format!("joint {} has no simulated ID", seed.id)))?;
-        let mut cfg = JointConfig::new(seed.id, model).without_iap();
-        cfg.firmware = seed.firmware_version;
-        cfg.initial_position_deg = seed.position_deg;
-        cfg.ambient_temp_c = seed.temperature_c;
-        cfg.supply_voltage_v = seed.voltage_v;
-        let (link, sim) = WhjSimLink::new(WhjBus::with_configs([cfg], 1));
+        let mut configs = Vec::with_capacity(seeds.len());
+        for seed in seeds {
+            let model = sim_model(&seed.model)
+                .ok_or_else(|| not_simulated(format!("the simulator has no {}", seed.model)))?;
+            JointId::new(seed.id)
+                .map_err(|_| not_simulated(format!("joint {} has no simulated ID", seed.id)))?;
+            let mut cfg = JointConfig::new(seed.id, model).without_iap();
+            cfg.firmware = seed.firmware_version;
+            cfg.initial_position_deg = seed.position_deg;
+            cfg.ambient_temp_c = seed.temperature_c;
+            cfg.supply_voltage_v = seed.voltage_v;
+            configs.push(cfg);
+        }
+        let (link, sim) = WhjSimLink::new(WhjBus::with_configs(configs, 1));
         let config = JointBusConfig {
             step_limit_deg,
             ..JointBusConfig::default()
         };
         let bus = JointBus::open_with(link, config).map_err(OpError::Whj)?;
+        for seed in seeds {
+            seed_joint(&bus, seed)?;
+        }
+        Ok(SeededBus { bus, sim })
+    }
+
+    /// Sets the simulated joint of `seed` up as the real one.
+    fn seed_joint(bus: &JointBus, seed: &WhjSeed) -> Result<(), OpError> {
+        let id = JointId::new(seed.id).map_err(|e| OpError::Device(e.to_string()))?;
         let simulated = |e: OpError| {
             OpError::Device(format!(
                 "pre-flight: the simulated joint {} could not be seeded: {e}",
@@ -202,18 +232,45 @@ mod simulate {
         bus.joint(id)
             .and_then(|j| j.disable())
             .map_err(|e| simulated(OpError::Whj(e)))?;
-        ops::settings::restore(&bus, id, &seed.settings, true).map_err(simulated)?;
-        {
-            let j = bus.joint(id).map_err(OpError::Whj)?;
-            if !matches!(seed.work_mode, WorkMode::Unknown(_)) {
-                j.set_mode(seed.work_mode)
-                    .map_err(|e| simulated(OpError::Whj(e)))?;
-            }
-            if seed.enabled {
-                j.enable().map_err(|e| simulated(OpError::Whj(e)))?;
-            }
+        ops::settings::restore(bus, id, &seed.settings, true).map_err(simulated)?;
+        let j = bus.joint(id).map_err(OpError::Whj)?;
+        if !matches!(seed.work_mode, WorkMode::Unknown(_)) {
+            j.set_mode(seed.work_mode)
+                .map_err(|e| simulated(OpError::Whj(e)))?;
         }
-        Ok((bus, sim))
+        if seed.enabled {
+            j.enable().map_err(|e| simulated(OpError::Whj(e)))?;
+        }
+        Ok(())
+    }
+
+    /// A simulated WHJ bus seeded with real joints ([`seeded_bus`]).
+    #[derive(Debug)]
+    pub struct SeededBus {
+        /// The bus, on the simulator's virtual clock.
+        pub bus: JointBus,
+        sim: WhjSimHandle,
+    }
+
+    impl SeededBus {
+        /// The bus, and what tells the error bits its joints latched.
+        pub fn into_parts(self) -> (JointBus, Latched) {
+            (self.bus, Latched(self.sim))
+        }
+    }
+
+    /// What tells the error bits a seeded bus's simulated joints latched.
+    #[derive(Debug, Clone)]
+    pub struct Latched(WhjSimHandle);
+
+    impl Latched {
+        /// Why joint `id` would refuse the run: the error bits it latched (`None`: none).
+        pub fn reason(&self, id: u8) -> Option<String> {
+            self.0
+                .with_bus(|b| b.joint(id).map(|j| j.state().error))
+                .filter(|e| !e.is_empty())
+                .map(|error| format!("the joint latched error bits: {error}"))
+        }
     }
 
     /// What the observer saw of the simulated run.
@@ -257,7 +314,7 @@ mod simulate {
         seed: &WhjSeed,
         plan: &Plan,
         observed: &Seen,
-        sim: &WhjSimHandle,
+        sim: &Latched,
         result: Result<Vec<crate::ops::protect::Fault>, OpError>,
         started: std::time::Instant,
         bus: &JointBus,
@@ -272,17 +329,9 @@ mod simulate {
             }))
         };
         if let Some((k, at, sent, off)) = observed.held_back {
-            return Err(refuse(
-                k,
-                at.as_secs_f64(),
-                format!(
-                    "the joint lagged behind the plan: its set-point was clamped {off:.4} deg \
-                     short, to {sent:.4} deg, to keep within its step protection (on the \
-                     joint a lagging motion ends in the step fault or the run's hold-back)"
-                ),
-            ));
+            return Err(refuse(k, at.as_secs_f64(), super::clamped(off, sent)));
         }
-        let latched = sim.with_bus(|b| b.joint(seed.id).map(|j| j.state().error));
+        let latched = sim.reason(seed.id);
         match result {
             Err(e) => {
                 let (k, at) = observed.next(plan);
@@ -299,13 +348,9 @@ mod simulate {
                 }
             }
         }
-        if let Some(error) = latched.filter(|e| !e.is_empty()) {
+        if let Some(reason) = latched {
             let (k, at) = observed.next(plan);
-            return Err(refuse(
-                k.saturating_sub(1),
-                at,
-                format!("the joint latched error bits: {error}"),
-            ));
+            return Err(refuse(k.saturating_sub(1), at, reason));
         }
         Ok(PreflightReport {
             frames: observed.frames,
@@ -324,7 +369,7 @@ mod simulate {
         run: impl FnOnce(&Joint<'_>, &mut Control<'_>, ops::FrameObserver<'_>) -> Result<R, OpError>,
         protection: impl FnOnce(R) -> Vec<crate::ops::protect::Fault>,
     ) -> Result<PreflightReport, OpError> {
-        let (bus, sim) = seeded(seed, step_limit_deg)?;
+        let (bus, sim) = seeded_bus(std::slice::from_ref(seed), step_limit_deg)?.into_parts();
         let j = bus.joint(joint).map_err(OpError::Whj)?;
         let started = bus.now();
         let mut observed = Seen::default();

@@ -17,6 +17,7 @@
 //! in the robot file's `safe_state` (`settle`).
 
 mod drive;
+mod preflight;
 
 use std::time::{Duration, Instant};
 
@@ -30,6 +31,7 @@ use crate::actuator::{JointMap, WckScale};
 use crate::catalogue::effect::{Effect, Moved};
 use crate::catalogue::operation::{Confirm, OpDoc, Operation, Report, RunCx};
 use crate::catalogue::plan::{Family, Plan};
+use crate::catalogue::whj::PreflightArg;
 use crate::motion::Tracking;
 use crate::ops::protect::{self, Action, Fault, Monitor, Reading};
 use crate::ops::whj::ServoLoop;
@@ -55,6 +57,10 @@ pub struct Play {
     /// The wCK servos' torque level (0 strongest ..= 4 weakest; default 2).
     #[serde(default = "default_torque")]
     pub torque: u8,
+    /// Run a play of positions first on WHJ simulators seeded with its WHJ joints
+    /// (`true`), never (`false`), or by default: when it lasts at most 60 s.
+    #[serde(default, skip_serializing_if = "PreflightArg::is_default")]
+    pub preflight: PreflightArg,
 }
 
 const fn default_rate() -> f64 {
@@ -139,12 +145,13 @@ impl Play {
         let t = self.check()?;
         Ok(format!(
             "reads {joints} (a status read per wCK servo; a status query and a speed read per \
-             WHJ joint) and refuses if one is silent or outside its soft limits; moves them to \
-             the first point no faster than each one's max_velocity, then plays {n} points over \
-             {d} s, {r} ticks a second: each bus at the same instant, a position command per \
-             wCK servo (torque {torque}) and a position servo frame per WHJ joint (enabled in \
-             position mode){END}",
+             WHJ joint) and refuses if one is silent or outside its soft limits; {flight}moves \
+             them to the first point no faster than each one's max_velocity, then plays {n} \
+             points over {d} s, {r} ticks a second: each bus at the same instant, a position \
+             command per wCK servo (torque {torque}) and a position servo frame per WHJ joint \
+             (enabled in position mode){END}",
             joints = t.joints().join(", "),
+            flight = preflight::note(self.preflight.asked(), t.duration_s()),
             n = t.len(),
             d = t.duration_s(),
             r = self.rate_hz,
@@ -162,7 +169,8 @@ impl Operation for Play {
                the robot file, degrees in its joint frame; columns `NAME_deg_s` or `NAME_nm` \
                play velocities, deg/s, or efforts, N·m, on joints with that interface; see \
                `docs/hardware.md`), \
-               `rate_hz`=50 (1..=500), `torque`=2 (wCK servos, 0..=4)",
+               `rate_hz`=50 (1..=500), `torque`=2 (wCK servos, 0..=4), `preflight` (a play \
+               of positions; default: on up to 60 s)",
         report: "one row per joint by name: `commands`, `failed`, `limited` (sent short of the \
                  trajectory's target: a WHJ joint that lagged), `start_deg`, `target_deg` (the \
                  last), `position_deg` (reported at the last command), `tracking_max_deg`, \
@@ -179,7 +187,11 @@ impl Operation for Play {
                  `robot.calibrate` and `robot.teach` do). `summary.protection`: the host's \
                  protection events (`joint`, `check`: stall / collision / thermal, \
                  `quantity`, `value`, `limit`, `at_s`, `action`: warn / derate / stop); a \
-                 stop ends the run in the safe state and fails its joint's row",
+                 stop ends the run in the safe state and fails its joint's row. \
+                 `summary.preflight` (a play of positions pre-flown on WHJ simulators seeded \
+                 with its WHJ joints): `ticks`, `simulated_s`, `joints` (`joint`, `bus`, \
+                 `seed`), `not_flown` (its wCK servos); refused before the first tick when a \
+                 simulated joint is held back, latches error bits, fails or is derated",
         confirm: "motion",
     };
     type Row = DeviceResult<String, Played>;
@@ -306,7 +318,13 @@ pub struct PlaySummary {
     /// The host's protection events, in order: warnings, deratings and the stop (a stop
     /// ends the run in the safe state and fails its joint's row).
     pub protection: Vec<Fault>,
+    /// The pre-flight on the simulator that passed before the play (left out when none
+    /// ran).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub preflight: Option<PlayPreflight>,
 }
+
+pub use preflight::{FlownJoint, PlayPreflight};
 
 /// What a `robot.play` run did.
 struct PlayedRun {
@@ -571,35 +589,26 @@ fn run_play(
         .map(|((a, b), &i)| (a - b).abs() / config.joints[i].max_velocity.to_degrees())
         .fold(0.0, f64::max);
     check_steps(&groups, &traj, &from, lead_in, r.rate_hz)?;
+    // The same play first on WHJ simulators seeded with its WHJ joints (refused before
+    // the first tick when one of them would not follow it).
+    let flight = preflight::fly(
+        r,
+        &config,
+        (&traj, &index),
+        &groups,
+        (&from, lead_in),
+        control,
+    )?;
     let mut rows: Vec<Played> = from.iter().map(|&s| Played::new(s)).collect();
     let models = models_of(&index, &groups);
-    let monitor = Monitor::new(
-        clock.now(),
-        index
-            .iter()
-            .zip(&models)
-            .map(|(&i, &m)| {
-                let j = &config.joints[i];
-                (j.name.clone(), config.protection_of(j, m))
-            })
-            .collect(),
-    );
-    let mut player = Player {
-        traj: &traj,
-        from: &from,
-        lead_in,
-        period: Duration::from_secs_f64(1.0 / r.rate_hz),
-        groups: &groups,
-        clock: &clock,
-        torque: r.torque,
-        steps: steps_of(&groups, traj.joints().len())?,
-        max_speed_deg: index
-            .iter()
-            .map(|&i| config.joints[i].max_velocity.to_degrees())
-            .collect(),
-        monitor,
-        faults: Vec::new(),
-    };
+    let mut player = Player::new(
+        r,
+        &config,
+        (&traj, &index),
+        (&groups, &clock),
+        (&from, lead_in),
+        &models,
+    )?;
     let run = player.run(&mut rows, control, on_tick);
     let faults = std::mem::take(&mut player.faults);
     // A protection stop fails its joint's row, naming what it measured; the joint goes
@@ -646,6 +655,7 @@ fn run_play(
             interrupted: timing.interrupted,
             safe_state: settled.buses,
             protection: faults,
+            preflight: flight,
         },
     })
 }
@@ -683,6 +693,62 @@ struct Player<'a> {
     monitor: Monitor,
     /// Its events so far.
     faults: Vec<Fault>,
+    /// The first target sent short of the trajectory's (what the pre-flight refuses).
+    held_back: Option<HeldBack>,
+}
+
+/// A target sent short of the trajectory's: the tick, its time, the column, what was
+/// sent and what the trajectory asked, degrees.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct HeldBack {
+    tick: u64,
+    t_s: f64,
+    column: usize,
+    sent: f64,
+    target: f64,
+}
+
+impl<'a> Player<'a> {
+    /// The player of `r` for the trajectory `traj` (its columns the robot file's
+    /// joints `index`) on `groups` paced by `clock`, from the joints' positions `from`
+    /// after the lead-in `lead_in`; `models` the WHJ joints' (by column).
+    fn new(
+        r: &Play,
+        config: &RobotConfig,
+        (traj, index): (&'a Trajectory, &[usize]),
+        (groups, clock): (&'a [Group], &'a BusClock),
+        (from, lead_in): (&'a [f64], f64),
+        models: &[Option<robobus_whj::units::Model>],
+    ) -> Result<Self, OpError> {
+        let monitor = Monitor::new(
+            clock.now(),
+            index
+                .iter()
+                .zip(models)
+                .map(|(&i, &m)| {
+                    let j = &config.joints[i];
+                    (j.name.clone(), config.protection_of(j, m))
+                })
+                .collect(),
+        );
+        Ok(Self {
+            traj,
+            from,
+            lead_in,
+            period: Duration::from_secs_f64(1.0 / r.rate_hz),
+            groups,
+            clock,
+            torque: r.torque,
+            steps: steps_of(groups, traj.joints().len())?,
+            max_speed_deg: index
+                .iter()
+                .map(|&i| config.joints[i].max_velocity.to_degrees())
+                .collect(),
+            monitor,
+            faults: Vec::new(),
+            held_back: None,
+        })
+    }
 }
 
 impl Player<'_> {
@@ -772,8 +838,15 @@ impl Player<'_> {
                 let target = targets.get(c).copied().unwrap_or(f64::NAN);
                 let prior = before.as_ref().and_then(|b| b.get(c).copied());
                 row.take(target, p, prior);
-                if sent.get(c).is_some_and(|&x| (x - target).abs() > 1e-9) {
+                if let Some(&x) = sent.get(c).filter(|&&x| (x - target).abs() > 1e-9) {
                     row.limited += 1;
+                    self.held_back.get_or_insert(HeldBack {
+                        tick: timing.ticks,
+                        t_s,
+                        column: c,
+                        sent: x,
+                        target,
+                    });
                 }
                 if let (Ok(at), Some(slot)) = (p, last_at.get_mut(c)) {
                     *slot = Some(*at);
