@@ -232,6 +232,26 @@ fn simulated_with_a_robot_file_starts_with_its_joints_and_stops_on_ctrl_c() {
     assert_eq!(child.wait().unwrap().code(), Some(0));
 }
 
+/// `robobus ARGS`'s output once it ends by itself; one still running after 30 s (a
+/// bridge that started serving) is killed and fails the test.
+fn ended(args: &[&str]) -> std::process::Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
+    while child.try_wait().unwrap().is_none() {
+        if std::time::Instant::now() > deadline {
+            let _ = child.kill();
+            panic!("robobus {args:?} started instead of refusing");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.wait_with_output().unwrap()
+}
+
 #[test]
 fn simulated_refuses_a_robot_file_not_of_the_simulators_with_exit_2_before_starting() {
     let dir = std::env::temp_dir().join(format!("robobus-bridge-sim-{}", std::process::id()));
@@ -297,7 +317,7 @@ fn simulated_refuses_a_robot_file_not_of_the_simulators_with_exit_2_before_start
             if dry {
                 args.insert(0, "--dry-run");
             }
-            let out = robobus(&args);
+            let out = ended(&args);
             let err = String::from_utf8_lossy(&out.stderr);
             assert_eq!(out.status.code(), Some(2), "{text}: {err}");
             assert!(
