@@ -2,7 +2,7 @@
 
 #![allow(clippy::unwrap_used, clippy::panic, clippy::cast_precision_loss)] // Test code.
 
-mod common;
+use crate::common;
 
 use serde_json::Value;
 

@@ -5,7 +5,7 @@
 
 #![allow(clippy::unwrap_used, clippy::panic)] // Test code.
 
-mod common;
+use crate::common;
 
 #[test]
 fn monitor_records_the_simulated_arm_to_csv_and_stops_by_itself() {

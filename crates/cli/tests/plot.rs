@@ -2,7 +2,7 @@
 
 #![allow(clippy::unwrap_used, clippy::panic)] // test helpers: a failed unwrap is a failed test
 
-mod common;
+use crate::common;
 
 use std::fmt::Write as _;
 

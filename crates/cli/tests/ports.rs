@@ -5,7 +5,7 @@
 
 #![allow(clippy::unwrap_used, clippy::panic)] // test helpers: a failed unwrap is a failed test
 
-mod common;
+use crate::common;
 
 #[cfg(target_os = "linux")]
 use std::collections::BTreeSet;

@@ -12,7 +12,7 @@
 #![allow(clippy::unwrap_used, clippy::panic, clippy::print_stdout)] // test code
 #![cfg(target_os = "linux")]
 
-mod common;
+use crate::common;
 
 use std::io::{BufRead as _, BufReader};
 use std::path::Path;

@@ -2,11 +2,11 @@
 //! JSON output of a few commands, against golden files in `tests/snapshots/`.
 //!
 //! Regenerate after an intended change with
-//! `UPDATE_SNAPSHOTS=1 cargo test -p robobus-cli --test snapshots`, then review the diff.
+//! `UPDATE_SNAPSHOTS=1 cargo test -p robobus-cli --test integration snapshots::`, then review the diff.
 
 #![allow(clippy::unwrap_used, clippy::panic)] // test helpers: a failed unwrap is a failed test
 
-mod common;
+use crate::common;
 
 use std::path::PathBuf;
 
@@ -27,7 +27,7 @@ fn check(name: &str, actual: &str) {
     }
     let expected = std::fs::read_to_string(&path).unwrap_or_else(|e| {
         panic!(
-            "{}: {e}; create it with UPDATE_SNAPSHOTS=1 cargo test -p robobus-cli --test snapshots",
+            "{}: {e}; create it with UPDATE_SNAPSHOTS=1 cargo test -p robobus-cli --test integration snapshots::",
             path.display()
         )
     });
@@ -42,7 +42,7 @@ fn check(name: &str, actual: &str) {
             .collect();
         panic!(
             "{} differs ({} vs {} lines); first differences:\n{}\nIf intended: \
-             UPDATE_SNAPSHOTS=1 cargo test -p robobus-cli --test snapshots",
+             UPDATE_SNAPSHOTS=1 cargo test -p robobus-cli --test integration snapshots::",
             path.display(),
             expected.lines().count(),
             actual.lines().count(),

@@ -5,7 +5,7 @@
 //! and bad input.
 #![allow(clippy::unwrap_used, clippy::panic)] // test helpers: a failed unwrap is a failed test
 
-mod common;
+use crate::common;
 
 use std::io::{BufRead as _, BufReader};
 use std::net::{TcpListener, TcpStream};

@@ -18,7 +18,7 @@
     clippy::similar_names
 )] // Test code: a failed unwrap is a failed test.
 
-mod common;
+use crate::common;
 
 use std::io::Read as _;
 use std::process::{Command, Stdio};
