@@ -285,3 +285,189 @@ fn speed_and_broadcast_waves_pass_their_preflight_on_a_joint_that_follows() {
     let v = serde_json::to_value(&report).unwrap();
     assert_eq!(v["summary"]["preflight"]["seed"]["mode"], "speed", "{v:#}");
 }
+
+/// A robot file of joints `j1` and `j2` (WHJ joints 1 and 2) on the bus `sim-whj`.
+const ARM: &str = "[buses.sim-whj]\nkind = \"whj-external\"\n\n\
+    [[joints]]\nname = \"j1\"\nbus = \"sim-whj\"\nid = 1\nlimits = [-2.0, 2.0]\n\
+    max_velocity = 2.0\nmax_acceleration = 20.0\n\n\
+    [[joints]]\nname = \"j2\"\nbus = \"sim-whj\"\nid = 2\nlimits = [-2.0, 2.0]\n\
+    max_velocity = 2.0\nmax_acceleration = 20.0\n";
+
+/// A station of the robot file [`ARM`] on a simulated bus of two WHJ30 joints at 0 deg,
+/// enabled in position mode, joint 1's current limit at `limit_ma` when given; the
+/// frames the client sends captured.
+fn arm(limit_ma: Option<f64>) -> (Station, WhjSimHandle, Shared) {
+    let cfgs = (1..=2)
+        .map(|n| JointConfig::new(n, WhjModel::Whj30).without_iap())
+        .collect();
+    let (link, sim) = WhjSimLink::new(configs(cfgs));
+    let log = Shared::default();
+    let link = CaptureFrameLink::new(link, log.clone(), "rx").with_tx_iface("tx");
+    let bus = JointBus::open_with(link, virtual_config()).unwrap();
+    for n in 1..=2 {
+        let j = bus.joint(id(n)).unwrap();
+        if let (1, Some(ma)) = (n, limit_ma) {
+            j.write_register("LIT_MAX_CURRENT", ma).unwrap();
+        }
+        j.set_mode(WorkMode::Position).unwrap();
+        j.enable().unwrap();
+    }
+    let mut station = Station::new();
+    station.add_whj("sim-whj", bus);
+    station
+        .set_robot(robobus::robot::RobotConfig::from_toml_str(ARM).unwrap())
+        .unwrap();
+    (station, sim, log)
+}
+
+/// j1 out to 60 deg and back at 60 deg/s (within its max_velocity, 1.2 deg a tick at
+/// 50 Hz), j2 a little.
+const FAST: &str = "time_s,j1,j2\n0,0,0\n1,60,5\n2,0,0\n";
+
+fn play_request(extra: &serde_json::Value) -> Request {
+    let mut v = json!({"op": "robot.play", "trajectory": FAST, "rate_hz": 50.0});
+    for (k, x) in extra.as_object().unwrap() {
+        v[k] = x.clone();
+    }
+    serde_json::from_value(v).unwrap()
+}
+
+#[test]
+fn robot_play_driving_a_lagging_whj_joint_too_fast_is_refused_before_its_first_tick_with_no_servo_frame_sent()
+ {
+    // 300 mA: joint 1 cannot accelerate to 60 deg/s in time.
+    let (station, sim, log) = arm(Some(300.0));
+    let handled = sim.with_bus(|b| b.joint(1).unwrap().frames_handled());
+    log.clear();
+    let e = catalogue::run(&station, &play_request(&json!({})), &mut Control::none()).unwrap_err();
+    assert_eq!(e.kind(), ErrorKind::Refused, "{e}");
+    let OpError::Preflight(refusal) = &e else {
+        panic!("{e:?}")
+    };
+    assert_eq!(refusal.joint, "j1 (joint 1 on sim-whj)", "{refusal:?}");
+    assert!(
+        refusal
+            .reason
+            .starts_with("the joint lagged behind the plan: its set-point was clamped "),
+        "{refusal:?}"
+    );
+    // The tick and its time are the play's (50 Hz from its start, no lead-in).
+    assert!(refusal.frame > 0, "{refusal:?}");
+    #[allow(clippy::cast_precision_loss)]
+    let at = refusal.frame as f64 / 50.0;
+    assert!((refusal.at_s - at).abs() < 1e-9, "{refusal:?}");
+    assert!(
+        e.to_string().starts_with(&format!(
+            "pre-flight on the simulator: frame {} at {:.3} s: j1 (joint 1 on sim-whj): ",
+            refusal.frame, refusal.at_s
+        )),
+        "{e}"
+    );
+    // Only reads went out: no servo frame, and the real joint moved not at all.
+    assert!(log.servo_frames().is_empty());
+    assert!(sim.with_bus(|b| b.joint(1).unwrap().frames_handled()) > handled);
+    let j1 = sim.with_bus(|b| b.joint(1).unwrap().state());
+    assert!(j1.position_deg.abs() < 1e-6, "{j1:?}");
+    // The prediction holds: played anyway, j1 lags and its targets are held back.
+    let report = catalogue::run(
+        &station,
+        &play_request(&json!({"preflight": false})),
+        &mut Control::none(),
+    )
+    .unwrap();
+    let v = serde_json::to_value(&report).unwrap();
+    assert!(v["results"][0]["limited"].as_u64().unwrap() > 0, "{v:#}");
+    assert!(v["summary"].get("preflight").is_none(), "{v:#}");
+}
+
+#[test]
+fn robot_play_on_joints_that_follow_passes_its_preflight_which_ran_the_real_runs_ticks() {
+    let (station, _sim, log) = arm(None);
+    let req = play_request(&json!({}));
+    let notes = serde_json::to_value(catalogue::plan(&req).unwrap()).unwrap()["notes"].to_string();
+    assert!(
+        notes.contains("pre-flight: the WHJ joints' identity, status, mode and settings"),
+        "{notes}"
+    );
+    log.clear();
+    let t0 = std::time::Instant::now();
+    let report = catalogue::run(&station, &req, &mut Control::none()).unwrap();
+    let with = t0.elapsed();
+    let v = serde_json::to_value(&report).unwrap();
+    let s = &v["summary"];
+    assert_eq!(v["failed"], serde_json::Value::Null, "{v:#}");
+    let flight = &s["preflight"];
+    // 2 s at 50 Hz, both ends: the real run's 101 ticks, in 2 s of simulated time.
+    assert_eq!(flight["ticks"], 101, "{v:#}");
+    assert_eq!(flight["ticks"], s["ticks"], "{v:#}");
+    assert!(
+        (flight["simulated_s"].as_f64().unwrap() - 2.0).abs() < 0.02,
+        "{flight}"
+    );
+    assert_eq!(flight["joints"][0]["joint"], "j1", "{flight}");
+    assert_eq!(flight["joints"][1]["bus"], "sim-whj", "{flight}");
+    assert_eq!(flight["joints"][0]["seed"]["mode"], "position", "{flight}");
+    assert_eq!(flight["not_flown"], json!([]), "{flight}");
+    for row in v["results"].as_array().unwrap() {
+        assert_eq!(row["limited"], 0, "{row}");
+    }
+    // The real run sent a servo frame per joint and tick, and one per joint as it held
+    // them at the end (the robot file's safe state).
+    assert_eq!(log.servo_frames().len(), 2 * 101 + 2);
+    // What the pre-flight costs (shown, not judged: the wall clock of a shared machine).
+    let t0 = std::time::Instant::now();
+    catalogue::run(
+        &station,
+        &play_request(&json!({"preflight": false})),
+        &mut Control::none(),
+    )
+    .unwrap();
+    eprintln!(
+        "robot.play of 2 s: {with:?} pre-flown, {:?} without",
+        t0.elapsed()
+    );
+    // Asked off or too long for the default, the plan says nothing of it.
+    for extra in [
+        json!({"preflight": false}),
+        json!({"trajectory": "time_s,j1\n0,0\n61,1\n"}),
+    ] {
+        let notes = serde_json::to_value(catalogue::plan(&play_request(&extra)).unwrap()).unwrap()
+            ["notes"]
+            .to_string();
+        assert!(!notes.contains("pre-flight"), "{extra}: {notes}");
+    }
+}
+
+/// On the built-in robot a play of wCK servos and WHJ joints pre-flies its WHJ joints
+/// and names its wCK servos as not flown; one of wCK servos only is not pre-flown.
+#[test]
+fn robot_play_preflies_its_whj_joints_and_names_the_wck_servos_it_does_not() {
+    let station = station(None);
+    let port = station.whj(None).unwrap();
+    let j = port.bus().joint(id(2)).unwrap();
+    j.set_mode(WorkMode::Position).unwrap();
+    j.enable().unwrap();
+    drop(j);
+    drop(port);
+    let req: Request = serde_json::from_value(json!({"op": "robot.play",
+        "trajectory": "time_s,s0,j1,j2\n0,0,0,0\n1,20,10,-10\n"}))
+    .unwrap();
+    let v = serde_json::to_value(catalogue::run(&station, &req, &mut Control::none()).unwrap())
+        .unwrap();
+    let flight = &v["summary"]["preflight"];
+    assert_eq!(flight["not_flown"], json!(["s0"]), "{v:#}");
+    let flown: Vec<&str> = flight["joints"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|j| j["joint"].as_str().unwrap())
+        .collect();
+    assert_eq!(flown, ["j1", "j2"], "{v:#}");
+    let req: Request = serde_json::from_value(
+        json!({"op": "robot.play", "trajectory": "time_s,s0\n0,0\n1,20\n", "preflight": true}),
+    )
+    .unwrap();
+    let v = serde_json::to_value(catalogue::run(&station, &req, &mut Control::none()).unwrap())
+        .unwrap();
+    assert!(v["summary"].get("preflight").is_none(), "{v:#}");
+}

@@ -130,6 +130,7 @@ const ROBOT_FIELDS: &[(&str, &[&str], &[&str])] = &[
             "interrupted",
             "safe_state",
             "protection",
+            "preflight",
         ],
     ),
     (

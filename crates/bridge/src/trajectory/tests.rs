@@ -461,3 +461,59 @@ fn disarming_stops_a_trajectory_on_the_way() {
     assert!(at < 15.0, "{r:?}");
     assert_eq!(s.trajectories.health().aborted, 1);
 }
+
+/// A trajectory joint 1 cannot follow (its current limit at 300 mA: it cannot reach
+/// 60°/s in time) is refused whole by the pre-flight on the simulator seeded with it:
+/// the result names the tick, its time, the joint and the reason, nothing moved, no
+/// tick was published, and the health counts it.
+#[test]
+fn a_trajectory_the_preflight_refuses_is_refused_whole_before_anything_moves() {
+    let (s, done) = armed();
+    let port = s.station.whj(None).unwrap();
+    let j = port
+        .bus()
+        .joint(robobus_whj::JointId::new(1).unwrap())
+        .unwrap();
+    j.disable().unwrap();
+    j.write_register("LIT_MAX_CURRENT", 300.0).unwrap();
+    j.enable().unwrap();
+    drop(j);
+    drop(port);
+    let sink = Arc::new(Collect::default());
+    let dyn_sink: Arc<dyn Sink> = sink.clone();
+    let before = degrees(&s, &["j1", "j2"]);
+    let payload = trajectory(
+        &["j1", "j2"],
+        vec![
+            point(1.0, &[60_f64.to_radians(), 5_f64.to_radians()]),
+            point(2.0, &[0.0, 0.0]),
+        ],
+    );
+    take_up(&s, &dyn_sink, &payload);
+    let r = sink.result(1);
+    done.store(true, Ordering::SeqCst);
+    assert_eq!(r.status, "refused", "{r:?}");
+    assert_eq!(r.error_code, Some(cdr::result_code::INVALID_GOAL));
+    assert!(
+        r.error_string
+            .starts_with("joint_trajectory: refused by the pre-flight on the simulator: tick ")
+            && r.error_string.contains(
+                " s: j1 (joint 1 on sim-whj): the joint lagged behind the plan: its set-point \
+                 was clamped "
+            )
+            && r.error_string.ends_with("; nothing moved"),
+        "{r:?}"
+    );
+    assert!(sink.states.lock().unwrap().is_empty());
+    let after = degrees(&s, &["j1", "j2"]);
+    for (a, b) in after.iter().zip(&before) {
+        assert!((a - b).abs() < 0.05, "{after:?} from {before:?}");
+    }
+    let h = s.trajectories.health();
+    assert_eq!(
+        (h.refused, h.preflight_refused, h.aborted, h.reached),
+        (1, 1, 0, 0),
+        "{h:?}"
+    );
+    assert_eq!(h.last_refusal.as_deref(), Some(r.error_string.as_str()));
+}

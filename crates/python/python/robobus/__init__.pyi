@@ -1924,6 +1924,7 @@ class RobotOps:
         self,
         trajectory: str,
         *,
+        preflight: bool | None = ...,
         rate_hz: float | None = ...,
         torque: int | None = ...,
         check: bool = ...,
@@ -1935,6 +1936,9 @@ class RobotOps:
         Args:
             trajectory (str): The trajectory file's text: `time_s`, then a column per joint of
                 the robot file (degrees in its joint frame); a row per point.
+            preflight (bool | None, optional): Run a play of positions first on WHJ simulators
+                seeded with its WHJ joints (`true`), never (`false`), or by default: when it
+                lasts at most 60 s.
             rate_hz (float | None, optional): Ticks a second (1..=500; default 50). Default:
                 ``50.0``.
             torque (int | None, optional): The wCK servos' torque level (0 strongest ..= 4
