@@ -15,6 +15,7 @@ use crate::Global;
 
 /// Options of `robobus bridge`.
 #[derive(Debug, clap::Args)]
+#[allow(clippy::struct_excessive_bools)] // each one of the command line's flags
 pub(crate) struct Args {
     /// The key prefix of every key (`bot1`, `site/arm`; a ROS 2 namespace `/bot1` works
     /// as is). Default: none.
