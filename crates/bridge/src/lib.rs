@@ -479,6 +479,9 @@ impl Shared {
         keys: Keys,
     ) -> Result<Arc<Self>, BridgeError> {
         let station = Arc::new(station);
+        // A trajectory played to its end holds its last point; the guard's safe state is
+        // for stops, faults and a lost operator.
+        station.set_hold_at_end(true);
         let follower = Follower::new(&station).ok();
         let drives = commands::Drives::new(&station);
         let joints = follower.as_ref().map_or(0, |f| f.joints().len());

@@ -340,3 +340,45 @@ fn motions_of_positions_of_a_joint_on_velocity_are_refused_until_it_is_back_on_p
     run_request(&s, r#"{"op":"whj.move","joint":1,"degrees":1}"#).unwrap();
     done.store(true, Ordering::SeqCst);
 }
+
+#[test]
+fn a_trajectory_played_to_its_end_holds_its_last_point_instead_of_the_safe_state() {
+    // s0 is a wCK servo on a bus whose safe_state is passive (the default): the
+    // trajectory's end leaves it in position control at its last point, not passive.
+    let (s, done) = armed();
+    let results = Arc::new(Results::default());
+    let sink: Arc<dyn crate::trajectory::Sink> = results.clone();
+    let goal = 10_f64.to_radians();
+    let payload = cdr::JointTrajectory {
+        joint_names: vec!["s0".into(), "j1".into()],
+        points: vec![cdr::JointTrajectoryPoint {
+            positions: vec![goal, goal],
+            time_from_start: cdr::Duration::from_secs_f64(0.5),
+            ..cdr::JointTrajectoryPoint::default()
+        }],
+        ..cdr::JointTrajectory::default()
+    }
+    .encode();
+    crate::trajectory::take_up(&s, &sink, &payload);
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while results.0.lock().unwrap().is_empty() && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let r = results.0.lock().unwrap()[0].clone();
+    assert_eq!(r.status, "reached", "{r:?}");
+    let snap = sim(&s).snapshot();
+    assert_eq!(snap.wck[0].mode, "position", "{:?}", snap.wck[0]);
+    assert!(
+        snap.whj[0].enabled && snap.whj[0].mode == 3,
+        "{:?}",
+        snap.whj[0]
+    );
+    // Still there a while later (held, not let go).
+    std::thread::sleep(Duration::from_millis(300));
+    let later = sim(&s).snapshot();
+    assert_eq!(later.wck[0].mode, "position", "{:?}", later.wck[0]);
+    let end = r.joints.iter().find(|j| j.joint == "s0").unwrap();
+    let at = end.position_deg.unwrap();
+    assert!((at - 10.0).abs() <= 1.0, "{end:?}");
+    done.store(true, Ordering::SeqCst);
+}

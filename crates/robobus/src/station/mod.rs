@@ -260,6 +260,9 @@ pub struct Station {
     streams: Mutex<std::collections::HashMap<String, SharedStream>>,
     /// Its joints off their position interface (`interfaces`).
     interfaces: interfaces::Interfaces,
+    /// Whether a `robot.play` played to its end leaves its joints holding its last point
+    /// ([`Station::set_hold_at_end`]).
+    hold_at_end: std::sync::atomic::AtomicBool,
     closed: bool,
 }
 
@@ -391,6 +394,24 @@ impl Station {
     /// a motion of positions of them (see [`interfaces`]).
     pub fn interfaces(&self) -> &interfaces::Interfaces {
         &self.interfaces
+    }
+
+    /// Whether a `robot.play` played to its end (not stopped, nothing failed, no
+    /// protection stop) leaves its joints holding its last point, as
+    /// `joint_trajectory_controller` holds a trajectory's end: WHJ joints held in
+    /// position, wCK servos keeping the torque of their last position command. Off by
+    /// default (every end goes to the robot file's `safe_state`, what a command-line run,
+    /// with no watchdog after it, needs); a front end whose guard brings the joints to
+    /// their safe state when its operator is lost (the bridge) turns it on, the safe
+    /// state then being for stops, faults and the watchdog.
+    pub fn set_hold_at_end(&self, hold: bool) {
+        self.hold_at_end
+            .store(hold, std::sync::atomic::Ordering::Relaxed);
+    }
+
+    /// See [`Station::set_hold_at_end`].
+    pub fn holds_at_end(&self) -> bool {
+        self.hold_at_end.load(std::sync::atomic::Ordering::Relaxed)
     }
 
     /// One reading of every joint of the station's robot file, in the file's order, as

@@ -205,6 +205,37 @@ impl Settled {
     }
 }
 
+/// The end of a `robot.play` played to its end: with [`Station::holds_at_end`], each of
+/// its joints holds its last point (a WHJ bus `hold`, a wCK bus left as the last
+/// position commands left it, `hold` in the report); otherwise [`settle`].
+pub(super) fn settle_at_end(station: &Station, config: &RobotConfig, names: &[String]) -> Settled {
+    if !station.holds_at_end() {
+        return settle(station, config, names);
+    }
+    let sub = only(config, names);
+    let mut settled = Settled::default();
+    for (bus, cfg) in &sub.buses {
+        let joints: Vec<&JointConfig> = sub.joints.iter().filter(|j| &j.bus == bus).collect();
+        let failed = if cfg.is_wck() {
+            Vec::new()
+        } else {
+            settle_whj(station, bus, SafeState::Hold, &joints)
+        };
+        let mut end = BusEnd {
+            bus: bus.clone(),
+            safe_state: SafeState::Hold.keyword(),
+            failed: Vec::new(),
+        };
+        for (name, kind, e) in failed {
+            let f = Failure::of(kind, &format!("{name}: did not hold its last point: {e}"));
+            end.failed.push(f.error.clone());
+            settled.failed.push((name, f));
+        }
+        settled.buses.push(end);
+    }
+    settled
+}
+
 /// Ends a robot operation: every bus of the joints `names` in the `safe_state` the robot
 /// file names for it, through [`SafeState::apply`] (the one safe stop), whether the
 /// operation finished, failed or was stopped. wCK: `passive` makes each servo passive,

@@ -633,7 +633,16 @@ fn run_play(
         ));
     }
     // Finished, stopped or failed: each bus as the robot file says.
-    let settled = super::settle_with(station, &config, traj.joints(), &torque_off);
+    // Played to its end, nothing failed: held there where the station says so.
+    let finished = run.as_ref().is_ok_and(|t| !t.interrupted)
+        && torque_off.is_empty()
+        && !faults.iter().any(|f| f.action == Action::Stop)
+        && rows.iter().all(|r| r.failed == 0);
+    let settled = if finished {
+        super::settle_at_end(station, &config, traj.joints())
+    } else {
+        super::settle_with(station, &config, traj.joints(), &torque_off)
+    };
     let timing = run.inspect_err(|_| settled.log())?;
     let names = traj.joints();
     Ok(PlayedRun {
