@@ -451,6 +451,21 @@ impl Monitor {
         }
     }
 
+    /// Replaces joint `index`'s limits (its model became known), its watch afresh.
+    pub fn set_limits(&mut self, index: usize, limits: Limits) {
+        if let Some(w) = self.joints.get_mut(index) {
+            *w = Watch {
+                name: std::mem::take(&mut w.name),
+                limits,
+                last_current: None,
+                last_error: None,
+                stall: None,
+                thermal: None,
+                stopped: false,
+            };
+        }
+    }
+
     /// The limits of joint `index`.
     pub fn limits(&self, index: usize) -> Option<&Limits> {
         self.joints.get(index).map(|w| &w.limits)
