@@ -717,6 +717,18 @@ struct HeldBack {
     target: f64,
 }
 
+impl From<(u64, f64, usize, f64, f64)> for HeldBack {
+    fn from((tick, t_s, column, sent, target): (u64, f64, usize, f64, f64)) -> Self {
+        Self {
+            tick,
+            t_s,
+            column,
+            sent,
+            target,
+        }
+    }
+}
+
 impl<'a> Player<'a> {
     /// The player of `r` for the trajectory `traj` (its columns the robot file's
     /// joints `index`) on `groups` paced by `clock`, from the joints' positions `from`
@@ -849,13 +861,8 @@ impl Player<'_> {
                 row.take(target, p, prior);
                 if let Some(&x) = sent.get(c).filter(|&&x| (x - target).abs() > 1e-9) {
                     row.limited += 1;
-                    self.held_back.get_or_insert(HeldBack {
-                        tick: timing.ticks,
-                        t_s,
-                        column: c,
-                        sent: x,
-                        target,
-                    });
+                    let at = (timing.ticks, t_s, c, x, target);
+                    self.held_back.get_or_insert(HeldBack::from(at));
                 }
                 if let (Ok(at), Some(slot)) = (p, last_at.get_mut(c)) {
                     *slot = Some(*at);
