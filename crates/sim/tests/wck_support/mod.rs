@@ -1,5 +1,5 @@
 //! Helpers shared by the wCK simulator tests.
-#![allow(dead_code, unreachable_pub)]
+#![allow(dead_code, unreachable_pub, clippy::unwrap_used)]
 
 use core::time::Duration;
 
