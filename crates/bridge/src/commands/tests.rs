@@ -306,6 +306,18 @@ fn motions_of_positions_of_a_joint_on_velocity_are_refused_until_it_is_back_on_p
         assert_eq!(e.kind(), robobus::ErrorKind::Refused, "{request}: {e}");
         assert!(e.to_string().contains(said), "{request}: {e}");
     }
+    // A jog of it (the studio's).
+    let jog = robobus::station::jog::JogRequest {
+        family: robobus::ops::Family::Whj,
+        bus: None,
+        device: 1,
+        target: 5.0,
+    };
+    let e = robobus::station::jog::Jogger::new()
+        .jog(&s.station, &jog)
+        .unwrap_err();
+    assert_eq!(e.kind(), robobus::ErrorKind::Refused, "{e}");
+    assert!(e.to_string().contains(said), "{e}");
     // A ROS 2 trajectory of it: refused whole, nothing moved.
     let results = Arc::new(Results::default());
     let sink: Arc<dyn crate::trajectory::Sink> = results.clone();

@@ -47,7 +47,8 @@ fn asked(op: &dyn DynOperation) -> Result<Option<String>, OpError> {
 }
 
 /// Runs `request` on the station's bus it names (or the station's only bus of the
-/// family): validates it, refuses it when it needs confirmation and lacks it
+/// family): validates it, refuses it when it needs confirmation and lacks it, or when it
+/// is a motion of a joint off its position interface ([`crate::station::interfaces`])
 /// ([`crate::ErrorKind::Refused`], nothing sent), then runs the operation with
 /// `control`'s stop token and progress. Device failures are in the report (`failed`);
 /// an error is a failure of the whole request.
@@ -90,7 +91,9 @@ fn off_position(
     if effect == Effect::Motion
         && let Some(m) = moved()?
     {
-        station.interfaces().check_moved(&m)?;
+        station
+            .interfaces()
+            .check_moved(m.family, m.bus.as_deref(), &m.ids)?;
     }
     Ok(())
 }

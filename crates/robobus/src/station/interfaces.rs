@@ -6,12 +6,11 @@
 //! (or, a WHJ joint in speed or current mode, be refused by the joint itself halfway), so
 //! the station refuses it before anything is sent, naming the joint and its interface:
 //! a `robot.play` (a ROS 2 trajectory included) or `robot.teleop` of it (its readiness
-//! check), and any run whose moved devices ([`Moved`]) include it (`wck.move`,
-//! `whj.move`, `whj.wave`, jogs, ...). Switching the joint back to position lifts it.
+//! check), any run whose moved devices include it (`wck.move`, `whj.move`, `whj.wave`,
+//! ...: the catalogue's dispatcher asks [`Interfaces::check_moved`]) and a jog of it. Switching the joint back to position lifts it.
 
 use std::sync::{Mutex, PoisonError};
 
-use crate::catalogue::effect::Moved;
 use crate::ops::{Family, OpError};
 use crate::robot::Interface;
 
@@ -83,21 +82,22 @@ impl Interfaces {
         }
     }
 
-    /// Refuses a run that sets `moved`'s devices moving when one is a joint off position
-    /// (a run that names no bus: its family's bus).
+    /// Refuses a run that sets the devices `ids` of `family` on `bus` moving when one is
+    /// a joint off position (`bus` `None`: the station's one bus of the family).
     ///
     /// # Errors
     ///
     /// [`OpError::Refused`] naming each such joint and its interface.
-    pub fn check_moved(&self, moved: &Moved) -> Result<(), OpError> {
+    pub fn check_moved(
+        &self,
+        family: Family,
+        bus: Option<&str>,
+        ids: &[u8],
+    ) -> Result<(), OpError> {
         let off = self.lock();
         let hit: Vec<&OffPosition> = off
             .iter()
-            .filter(|o| {
-                o.family == moved.family
-                    && moved.bus.as_ref().is_none_or(|b| *b == o.bus)
-                    && moved.ids.contains(&o.id)
-            })
+            .filter(|o| o.family == family && bus.is_none_or(|b| b == o.bus) && ids.contains(&o.id))
             .collect();
         if hit.is_empty() {
             Ok(())
@@ -110,7 +110,6 @@ impl Interfaces {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::ops::whj::ServoLoop;
 
     fn wheel(interface: Interface) -> OffPosition {
         OffPosition {
@@ -134,20 +133,16 @@ mod tests {
             "s0 is on its velocity interface: a motion of positions needs it on its \
              position interface; switch it back to position first; nothing was sent"
         );
-        let moved = |bus: Option<&str>, ids: Vec<u8>| Moved {
-            family: Family::Wck,
-            bus: bus.map(str::to_owned),
-            ids,
-            servo: ServoLoop::Position,
-        };
-        assert!(i.check_moved(&moved(None, vec![0, 1])).is_err());
-        assert!(i.check_moved(&moved(Some("legs"), vec![0])).is_err());
-        i.check_moved(&moved(Some("arm"), vec![0])).unwrap();
-        i.check_moved(&moved(None, vec![1, 2])).unwrap();
+        let wck = |bus: Option<&str>, ids: &[u8]| i.check_moved(Family::Wck, bus, ids);
+        assert!(wck(None, &[0, 1]).is_err());
+        assert!(wck(Some("legs"), &[0]).is_err());
+        assert!(i.check_moved(Family::Whj, None, &[0]).is_ok());
+        wck(Some("arm"), &[0]).unwrap();
+        wck(None, &[1, 2]).unwrap();
         i.check_joints(&["j1".to_owned()]).unwrap();
         i.set(wheel(Interface::Position));
         i.check_joints(&names).unwrap();
-        i.check_moved(&moved(None, vec![0])).unwrap();
+        wck(None, &[0]).unwrap();
         assert!(i.off_position().is_empty());
     }
 }

@@ -126,6 +126,11 @@ impl Jogger {
             Family::Wck => Some(station.wck(req.bus.as_deref())?.name().to_owned()),
             _ => None,
         };
+        if let Some(bus) = &bus {
+            station
+                .interfaces()
+                .check_moved(req.family, Some(bus), &[req.device])?;
+        }
         if let (Some(g), Some(bus)) = (&self.guard, &bus) {
             g.refuse(bus, req.device)?;
         }
