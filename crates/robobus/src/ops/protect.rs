@@ -678,16 +678,13 @@ impl Watch {
             self.stall = None;
             return None;
         }
-        match self.stall {
-            Some((since, ..)) => {
-                let held = r.at.saturating_duration_since(since).as_secs_f64();
-                (held >= lim.stall_time_s)
-                    .then(|| self.fault(Check::Stall, "current_a", (i, stall), at_s, Action::Stop))
-            }
-            None => {
-                self.stall = Some((r.at, wanted - along, r.position_deg));
-                None
-            }
+        if let Some((since, ..)) = self.stall {
+            let held = r.at.saturating_duration_since(since).as_secs_f64();
+            (held >= lim.stall_time_s)
+                .then(|| self.fault(Check::Stall, "current_a", (i, stall), at_s, Action::Stop))
+        } else {
+            self.stall = Some((r.at, wanted - along, r.position_deg));
+            None
         }
     }
 

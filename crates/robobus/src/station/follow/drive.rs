@@ -232,22 +232,23 @@ impl Driver {
     }
 
     /// Watches WHJ joint `i`, just switched to `to` (its model's limits and the file's).
-    fn watch_switched(&self, station: &Station, i: usize, to: Interface) {
-        let Some(j) = self.joints.get(i) else { return };
-        let Some(config) = self.robot.joints.get(i) else {
+    fn watch_switched(&self, station: &Station, index: usize, to: Interface) {
+        let Some(joint) = self.joints.get(index) else {
             return;
         };
-        if j.family != Family::Whj || to == Interface::Position {
+        let Some(config) = self.robot.joints.get(index) else {
+            return;
+        };
+        if joint.family != Family::Whj || to == Interface::Position {
             return;
         }
-        let Ok(port) = station.whj(Some(&j.bus)) else {
+        let Ok(port) = station.whj(Some(&joint.bus)) else {
             return;
         };
         let now = port.bus().now();
-        let m = model(station, j.family, &j.bus, j.id);
-        let mut p = self.guard();
-        let n = self.joints.len();
-        let monitor = p.monitor.get_or_insert_with(|| {
+        let found = model(station, joint.family, &joint.bus, joint.id);
+        let mut guard = self.guard();
+        let monitor = guard.monitor.get_or_insert_with(|| {
             Monitor::new(
                 now,
                 self.joints
@@ -256,9 +257,9 @@ impl Driver {
                     .collect(),
             )
         });
-        monitor.set_limits(i, self.robot.protection_of(config, m));
-        if p.models.len() == n {
-            p.models[i] = m;
+        monitor.set_limits(index, self.robot.protection_of(config, found));
+        if let Some(slot) = guard.models.get_mut(index) {
+            *slot = found;
         }
     }
 
