@@ -129,6 +129,29 @@ fn a_trajectory_is_planned_as_its_request_and_refused_before_anything_opens() {
         "{cli:#?} {run:#?}"
     );
     assert_eq!(cli.stdout, run.stdout);
+    // The pre-flight on the simulator: on by default (the plan says what it reads), off
+    // with --no-preflight as with the request's `"preflight": false`.
+    assert!(plan.stdout.contains("pre-flight:"), "{}", plan.stdout);
+    let off = dir.path().join("off.json");
+    let json = serde_json::json!({"op": "robot.play", "trajectory": WAVE, "preflight": false});
+    std::fs::write(&off, json.to_string()).unwrap();
+    let cli = robobus(&[
+        "--dry-run",
+        "robot",
+        "play",
+        wave,
+        "--robot",
+        robot,
+        "--no-preflight",
+    ]);
+    let run = robobus(&["run", "--dry-run", off.to_str().unwrap()]);
+    assert_eq!(
+        (cli.code, run.code),
+        (Some(0), Some(0)),
+        "{cli:#?} {run:#?}"
+    );
+    assert_eq!(cli.stdout, run.stdout);
+    assert!(!cli.stdout.contains("pre-flight"), "{}", cli.stdout);
     let fast = dir.path().join("fast.csv");
     std::fs::write(&fast, "time_s,hip\n0,0\n0.1,60\n").unwrap();
     for (args, says) in [
@@ -143,6 +166,18 @@ fn a_trajectory_is_planned_as_its_request_and_refused_before_anything_opens() {
         (
             vec!["robot", "play", wave, "--robot", robot, "--record", "x.txt"],
             ".mcap",
+        ),
+        (
+            vec![
+                "robot",
+                "play",
+                wave,
+                "--robot",
+                robot,
+                "--preflight",
+                "--no-preflight",
+            ],
+            "--no-preflight",
         ),
     ] {
         let r = robobus(&args);
