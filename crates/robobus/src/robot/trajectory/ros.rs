@@ -225,6 +225,23 @@ fn check_point(
         }
         deg.push(x.to_degrees());
     }
+    let (vel, acc) = rates(k, p, names, index, robot)?;
+    Ok((t, deg, vel, acc))
+}
+
+/// A point's velocities or accelerations, where given.
+type Rates = Option<Vec<f64>>;
+
+/// Point `k`'s velocities and accelerations (where given), each checked against its
+/// joint's `max_velocity` and `max_acceleration`, in degrees.
+fn rates(
+    k: usize,
+    p: &crate::cdr::JointTrajectoryPoint,
+    names: &[String],
+    index: &[usize],
+    robot: &RobotConfig,
+) -> Result<(Rates, Rates), Refused> {
+    let at = |what: &str| format!("point {k}: {what}");
     let vel = if p.velocities.is_empty() {
         None
     } else {
@@ -254,7 +271,7 @@ fn check_point(
         }
         Some(p.accelerations.iter().map(|a| a.to_degrees()).collect())
     };
-    Ok((t, deg, vel, acc))
+    Ok((vel, acc))
 }
 
 impl Checked {
@@ -795,10 +812,11 @@ mod tests {
         assert_eq!(p.trajectory.len(), 1 + 50 + 50);
     }
 
-    fn full(t: f64, p: f64, v: f64, a: Option<f64>) -> JointTrajectoryPoint {
-        let mut q = point(t, &[p]);
-        q.velocities = vec![v];
-        q.accelerations = a.into_iter().collect();
+    /// A point of one joint with its velocity, and its acceleration where given.
+    fn full(at: f64, position: f64, velocity: f64, acc: Option<f64>) -> JointTrajectoryPoint {
+        let mut q = point(at, &[position]);
+        q.velocities = vec![velocity];
+        q.accelerations = acc.into_iter().collect();
         q
     }
 
