@@ -109,6 +109,9 @@ pub struct Limits {
     pub temperature_stop_c: Option<f64>,
     /// The share of its `max_velocity` a derated joint keeps (0.05..=1).
     pub derate: f64,
+    /// Whether a joint driven in effort is stopped turning faster than its
+    /// `max_velocity` ([`Drive::Effort`]).
+    pub runaway: bool,
 }
 
 impl Limits {
@@ -123,6 +126,7 @@ impl Limits {
         temperature_derate_c: None,
         temperature_stop_c: None,
         derate: 1.0,
+        runaway: false,
     };
 
     /// The defaults of a WHJ joint of `model` (see the [module docs](self)); a model the
@@ -138,6 +142,7 @@ impl Limits {
             temperature_derate_c: Some(WHJ_OVER_TEMPERATURE_C - 10.0),
             temperature_stop_c: Some(WHJ_OVER_TEMPERATURE_C - 5.0),
             derate: DEFAULT_DERATE,
+            runaway: true,
             ..Self::OFF
         }
     }
@@ -169,6 +174,7 @@ impl Limits {
             temperature_derate_c: o.temperature_derate_c.or(self.temperature_derate_c),
             temperature_stop_c: o.temperature_stop_c.or(self.temperature_stop_c),
             derate: o.derate.unwrap_or(self.derate),
+            runaway: self.runaway,
         }
     }
 }
@@ -392,7 +398,7 @@ pub enum Drive {
     },
     /// In effort (a WHJ joint's current mode): its current is what it was sent, so
     /// neither its level nor a jump is a fault; it is stopped when it turns faster than
-    /// `max_deg_s` (its `max_velocity`).
+    /// `max_deg_s` (its `max_velocity`; [`Limits::runaway`], on for a WHJ joint).
     Effort {
         /// The joint's `max_velocity`, °/s.
         max_deg_s: f64,
@@ -542,6 +548,7 @@ impl Monitor {
                 watch.stall = None;
                 watch.last_current = None;
                 if let Some(v) = speed_deg_s
+                    && watch.limits.runaway
                     && v.abs() >= max_deg_s
                 {
                     out.push(watch.fault(
@@ -961,6 +968,10 @@ mod tests {
             "j1: speed protection: speed 100.50 °/s reached the limit 100 °/s at 1.020 s; \
              stopped in the safe state"
         );
+        // A joint whose protection is off: nothing.
+        let mut m = Monitor::new(t0, vec![("j1".into(), Limits::OFF)]);
+        let r = Reading::at(t0);
+        assert!(m.feed_driven(0, &r, Some(500.0), effort).is_empty());
     }
 
     #[test]

@@ -863,6 +863,38 @@ mod tests {
     }
 
     #[test]
+    fn an_effort_that_runs_a_joint_past_its_max_velocity_stops_the_play() {
+        let (station, _wck, whj) = station();
+        // 4 N·m on a free j1 for 2 s: its current is the command (no stall, no collision),
+        // and it speeds up past its max_velocity (2 rad/s, 114.6°/s).
+        let v = play(&station, "time_s,j1_nm\n0,4\n2,4\n").unwrap();
+        let (s, row) = stopped(&v);
+        let events = s["protection"].as_array().unwrap();
+        assert_eq!(events.len(), 1, "{s:#}");
+        let stop = &events[0];
+        assert_eq!(
+            (&stop["check"], &stop["quantity"], &stop["action"]),
+            (&json!("speed"), &json!("speed_deg_s"), &json!("stop")),
+            "{stop}"
+        );
+        let limit = stop["limit"].as_f64().unwrap();
+        assert!((limit - 2f64.to_degrees()).abs() < 1e-9, "{stop}");
+        let at = stop["at_s"].as_f64().unwrap();
+        // At 0.16 s (134.6°/s at that feedback), not at 2 s.
+        assert!((at - 0.1605).abs() < 0.001, "{stop}");
+        assert!(
+            row["error"]
+                .as_str()
+                .unwrap()
+                .starts_with("j1: speed protection: speed "),
+            "{row}"
+        );
+        // Its current is back to zero, in position mode.
+        let j1 = whj.with_bus(|b| b.joint(1).unwrap().state());
+        assert_eq!((j1.mode, j1.target_current), (3, 0), "{j1:?}");
+    }
+
+    #[test]
     fn a_joint_without_the_interface_or_a_value_past_its_limit_refuses_the_play() {
         let (station, _wck, whj) = station();
         let frames = || {
