@@ -320,7 +320,7 @@ fn arm(limit_ma: Option<f64>) -> (Station, WhjSimHandle, Shared) {
     (station, sim, log)
 }
 
-/// j1 out to 60 deg and back at 60 deg/s (within its max_velocity, 1.2 deg a tick at
+/// j1 out to 60 deg and back at 60 deg/s (within its `max_velocity`, 1.2 deg a tick at
 /// 50 Hz), j2 a little.
 const FAST: &str = "time_s,j1,j2\n0,0,0\n1,60,5\n2,0,0\n";
 
