@@ -478,7 +478,7 @@ mod tests {
     use serde_json::{Value, json};
 
     use crate::catalogue::{Request, confirmation, run};
-    use crate::ops::{Control, ErrorKind};
+    use crate::ops::{Control, ErrorKind, OpError};
     use crate::station::Station;
 
     fn req(v: Value) -> Request {
@@ -559,11 +559,31 @@ mod tests {
         let text = s["trajectory"].as_str().unwrap();
         let parsed = crate::robot::trajectory::Trajectory::parse(text).unwrap();
         assert_eq!(parsed.joints(), ["s0", "j1"]);
+        // Its lead-in takes j1 from where the hand left it to the first point at its
+        // max_velocity from rest: the joint lags, and the play holds its targets back to
+        // the step limit. The pre-flight on the simulator finds that and refuses it...
         let play = req(json!({"op": "robot.play", "trajectory": text, "rate_hz": 50}));
+        let e = run(&station, &play, &mut Control::none()).unwrap_err();
+        assert!(
+            matches!(&e, OpError::Preflight(r) if r.joint.starts_with("j1 ")),
+            "{e:?}"
+        );
+        // ... and played without it, j1's targets are held back where it lags.
+        let play = req(
+            json!({"op": "robot.play", "trajectory": text, "rate_hz": 50,
+                              "preflight": false}),
+        );
         let p = serde_json::to_value(run(&station, &play, &mut Control::none()).unwrap()).unwrap();
         assert_eq!(p["failed"], Value::Null, "{p:#}");
         for r in p["results"].as_array().unwrap() {
             assert!(r["tracking_rms_deg"].as_f64().unwrap() < 3.0, "{r}");
         }
+        let j1 = p["results"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|r| r["id"] == "j1")
+            .unwrap();
+        assert!(j1["limited"].as_u64().unwrap() > 0, "{j1}");
     }
 }
