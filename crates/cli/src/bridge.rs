@@ -308,13 +308,15 @@ pub(crate) fn run(g: Global, args: &Args) -> anyhow::Result<()> {
             None,
         )
     };
+    // The Ctrl-C handler is in place before the line that says the bridge serves: a
+    // signal sent as soon as that line is read stops it cleanly, never kills it.
+    let stop = crate::interrupt::stop_token();
     let bridge = Bridge::start(station, live, config.clone()).map_err(exit_error)?;
     crate::output::print(&format!(
         "bridge: zenoh {} {}",
         bridge.zid(),
         describe(bridge.keys(), &config, &bridge.joint_names(), sim, &source)
     ))?;
-    let stop = crate::interrupt::stop_token();
     bridge.run(&stop).map_err(exit_error)?;
     Ok(())
 }

@@ -131,8 +131,10 @@ fn serve_in(
         robobus::ErrorKind::BadInput => crate::exit::usage(e.to_string()),
         _ => anyhow::Error::new(e),
     })?;
-    crate::output::print(&format!("studio: http://{}/\n", studio.addr()))?;
+    // The Ctrl-C handler is in place before the address is printed: a signal sent as soon
+    // as that line is read stops the studio cleanly, never kills it.
     let stop = crate::interrupt::stop_token();
+    crate::output::print(&format!("studio: http://{}/\n", studio.addr()))?;
     studio.serve(&stop)?;
     Ok(())
 }
