@@ -5,8 +5,9 @@
 //! soft limits, `max_velocity`), and every joint it names is read
 //! (`ready_at`): one that does not answer, stands outside its
 //! soft limits, or is a WHJ joint not enabled in position mode refuses the run. The joints then go from
-//! where they are to the first point, each no faster than its `max_velocity` (the lead-in,
-//! as long as the slowest needs), and follow the trajectory, linearly between its points.
+//! where they are to the first point on a half-cosine from rest to rest, each within its
+//! `max_velocity` and `max_acceleration` (the lead-in, as long as the slowest needs), and
+//! follow the trajectory, linearly between its points.
 //! Every tick (`rate_hz`) each bus gets its joints' targets at the same instant, each bus
 //! from its own thread: a position command per wCK servo (its reply is the servo's
 //! position), a position servo frame per WHJ joint (its feedback the joint's position; the
@@ -523,7 +524,7 @@ fn check_steps(
         let limit = h.step_limit_deg()?;
         for &(c, _) in cols {
             let lead = match (traj.first().get(c), from.get(c)) {
-                (Some(a), Some(b)) if lead_in > 0.0 => (a - b).abs() / lead_in,
+                (Some(a), Some(b)) if lead_in > 0.0 => LEAD_IN_PEAK * (a - b).abs() / lead_in,
                 _ => 0.0,
             };
             let speed = traj.max_speed(c).max(lead);
@@ -580,13 +581,21 @@ fn run_play(
         .map_err(|e| OpError::invalid("trajectory", "(file)", e.to_string()))?;
     let (groups, clock) = groups(station, &config, &traj, &index)?;
     let from = super::ready_at(station, &config, traj.joints(), "a trajectory")?;
-    // The lead-in: as long as the slowest joint needs at its max_velocity.
+    // The lead-in: a half-cosine from rest to rest, as long as the slowest joint needs to
+    // stay within its max_velocity and max_acceleration on it.
     let lead_in = traj
         .first()
         .iter()
         .zip(&from)
         .zip(&index)
-        .map(|((a, b), &i)| (a - b).abs() / config.joints[i].max_velocity.to_degrees())
+        .map(|((a, b), &i)| {
+            let j = &config.joints[i];
+            lead_in_s(
+                (a - b).abs(),
+                j.max_velocity.to_degrees(),
+                j.max_acceleration.to_degrees(),
+            )
+        })
         .fold(0.0, f64::max);
     check_steps(&groups, &traj, &from, lead_in, r.rate_hz)?;
     // The same play first on WHJ simulators seeded with its WHJ joints (refused before
@@ -772,11 +781,25 @@ impl<'a> Player<'a> {
     }
 }
 
+/// The lead-in's peak speed over its mean: a half-cosine's, pi/2.
+const LEAD_IN_PEAK: f64 = std::f64::consts::FRAC_PI_2;
+
+/// How long a half-cosine lead-in over `distance` degrees takes to peak at no more than
+/// `max_speed` deg/s and `max_accel` deg/s²: its peak speed is pi/2 · d / T, its peak
+/// acceleration pi²/2 · d / T².
+fn lead_in_s(distance: f64, max_speed: f64, max_accel: f64) -> f64 {
+    let by_speed = LEAD_IN_PEAK * distance / max_speed;
+    let by_accel = std::f64::consts::PI * (distance / (2.0 * max_accel)).sqrt();
+    by_speed.max(by_accel)
+}
+
 impl Player<'_> {
     /// The targets at `t_s` since the start (joint degrees, by column).
     fn targets(&self, t_s: f64) -> Vec<f64> {
         if t_s < self.lead_in {
-            let f = t_s / self.lead_in;
+            // From rest to rest: a joint that must accelerate is not asked to jump to its
+            // speed (it would lag, and its targets would be held back).
+            let f = (1.0 - (std::f64::consts::PI * t_s / self.lead_in).cos()) / 2.0;
             self.from
                 .iter()
                 .zip(self.traj.first())
@@ -1145,7 +1168,8 @@ mod tests {
         let step = robobus_sim::wck::mechanics::DEG_PER_STEP8;
         let start = v["results"][0]["start_deg"].as_f64().unwrap();
         assert!((start - 10.0).abs() <= step, "{v:#}");
-        assert!((lead - start / 2f64.to_degrees()).abs() < 1e-9, "{v:#}");
+        let expected = super::lead_in_s(start, 2f64.to_degrees(), 20f64.to_degrees());
+        assert!((lead - expected).abs() < 1e-9, "{v:#}");
         assert!((v["results"][0]["target_deg"].as_f64().unwrap() - 5.0).abs() < 1e-9);
         // Refused before anything is sent: a joint not in the file, outside its limits,
         // too fast, silent.

@@ -559,9 +559,11 @@ mod tests {
         let text = s["trajectory"].as_str().unwrap();
         let parsed = crate::robot::trajectory::Trajectory::parse(text).unwrap();
         assert_eq!(parsed.joints(), ["s0", "j1"]);
-        // Its lead-in takes j1 from where the hand left it to the first point at its
-        // max_velocity from rest: the joint lags, and the play holds its targets back to
-        // the step limit. The pre-flight on the simulator finds that and refuses it...
+        // Its lead-in takes j1 from where the hand left it to the first point within the
+        // built-in file's max_velocity and max_acceleration (2 rad/s, 20 rad/s²), faster
+        // than the simulated joint follows from rest: it lags, and the play holds its
+        // targets back to the step limit. The pre-flight on the simulator finds that and
+        // refuses it...
         let play = req(json!({"op": "robot.play", "trajectory": text, "rate_hz": 50}));
         let e = run(&station, &play, &mut Control::none()).unwrap_err();
         assert!(
