@@ -1,12 +1,13 @@
 //! Each front end's wording of a refused argument. The catalogue names the argument as
 //! the command line takes it (`<IDS>`, `--rate-hz`, `--offset / --amplitude`); a front
 //! end whose users write requests as keyword arguments (Python) names the same argument
-//! as they write it (`ids=`, `rate_hz=`): [`Wording::Python`], and a refusal for want
-//! of confirmation says `confirm=True`. Only those names change; the value, the reason
-//! and the kind stay the library's.
+//! as they write it (`ids=`, `rate_hz=`): [`Wording::Python`], a refusal for want of
+//! confirmation says `confirm=True`, and one of the pre-flight `preflight=False`. Only
+//! those names change; the value, the reason and the kind stay the library's.
 
 use crate::catalogue::bounds::CONFIRM_HOW;
 use crate::ops::OpError;
+use crate::ops::preflight::ANYWAY;
 
 /// How a front end names the arguments of a request.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -90,6 +91,10 @@ impl Wording {
                 let what = &text[..text.len() - CONFIRM_HOW.len()];
                 format!("{what}Confirm with confirm=True; nothing was sent")
             }
+            // How to run it anyway, as a Python caller does it.
+            (Self::Python, OpError::Preflight(_)) => e
+                .to_string()
+                .replace(ANYWAY, "(preflight=False runs it anyway)"),
             _ => e.to_string(),
         }
     }
@@ -110,6 +115,26 @@ mod tests {
             Wording::Cli.message(&e),
             "This writes the EEPROM. Confirm with `confirm: true` (the CLI's --yes); nothing \
              was sent"
+        );
+    }
+
+    #[test]
+    fn python_is_told_to_run_past_the_preflight_with_its_keyword_argument() {
+        let e = OpError::Preflight(Box::new(crate::ops::preflight::Refusal {
+            frame: 5,
+            at_s: 0.1,
+            joint: "j1".into(),
+            reason: "lagged".into(),
+        }));
+        assert_eq!(
+            Wording::Python.message(&e),
+            "pre-flight on the simulator: frame 5 at 0.100 s: j1: lagged; nothing was sent \
+             (preflight=False runs it anyway)"
+        );
+        assert!(
+            Wording::Cli
+                .message(&e)
+                .ends_with("(--no-preflight runs it anyway)")
         );
     }
 

@@ -94,12 +94,16 @@ pub struct Refusal {
     pub reason: String,
 }
 
+/// How a pre-flight refusal ends: how to run it anyway, on the command line (a front end
+/// with its own wording replaces it: [`crate::frontend::wording`]).
+pub const ANYWAY: &str = "(--no-preflight runs it anyway)";
+
 impl fmt::Display for Refusal {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
             "pre-flight on the simulator: frame {} at {:.3} s: {}: {}; nothing was sent \
-             (--no-preflight runs it anyway)",
+             {ANYWAY}",
             self.frame, self.at_s, self.joint, self.reason
         )
     }
