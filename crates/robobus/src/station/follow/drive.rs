@@ -28,7 +28,7 @@
 //! The host's protection watches every WHJ joint on velocity or effort
 //! ([`Monitor::feed_driven`], as `robot.play` of velocities or efforts does): each servo
 //! frame's feedback (its speed and current, against the set-point of the command before)
-//! and every [`TEMPERATURE_EVERY`] its temperature, on the bus's clock. A stop brings the
+//! and every 0.25 s its temperature, on the bus's clock. A stop brings the
 //! joint that tripped to a zero target, back on position, then its safe stop (disabled
 //! where its brake holds it, else held), fails its result naming the fault, and latches:
 //! every later command is refused whole, nothing sent, until [`Driver::resume`]. A derated
@@ -145,7 +145,7 @@ fn refused(what: &str, value: impl std::fmt::Display, expected: impl Into<String
 impl Driver {
     /// The driver of the station's robot file, every joint on its position interface.
     ///
-    /// Errors: [`ErrorKind::BadInput`](crate::ErrorKind::BadInput) when the station has no robot file.
+    /// Errors: [`ErrorKind::BadInput`] when the station has no robot file.
     pub fn new(station: &Station) -> Result<Self, OpError> {
         let robot = station.robot().ok_or_else(|| {
             refused(
@@ -377,7 +377,7 @@ impl Driver {
 
     /// Switches the joints named to `to` (see the [module docs](self)): checked whole
     /// first (a name not in the file or without the interface, a joint that moves:
-    /// [`ErrorKind::BadInput`](crate::ErrorKind::BadInput) or [`ErrorKind::Refused`](crate::ErrorKind::Refused), nothing sent); a joint already
+    /// [`ErrorKind::BadInput`] or [`ErrorKind::Refused`], nothing sent); a joint already
     /// on `to` is left as it is. One result per joint named.
     ///
     /// # Errors
@@ -474,8 +474,8 @@ impl Driver {
     ///
     /// # Errors
     ///
-    /// [`ErrorKind::BadInput`](crate::ErrorKind::BadInput) naming the value and its range (the count, a value not
-    /// finite or past its limit); [`ErrorKind::Refused`](crate::ErrorKind::Refused) when no joint is on `interface`.
+    /// [`ErrorKind::BadInput`] naming the value and its range (the count, a value not
+    /// finite or past its limit); [`ErrorKind::Refused`] when no joint is on `interface`.
     pub fn plan(&self, interface: Interface, values: &[f64]) -> Result<Vec<(usize, f64)>, OpError> {
         if let Some(stop) = self.stopped() {
             return Err(OpError::Refused(format!(
