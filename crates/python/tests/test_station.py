@@ -19,6 +19,7 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Iterator
 from typing import Any
 
 import pytest
@@ -335,7 +336,19 @@ def test_close_is_idempotent_and_a_port_reopens_at_once() -> None:
         sim.wait(timeout=20)
 
 
-def test_ctrl_c_stops_a_long_move_in_its_safe_state() -> None:
+@pytest.fixture
+def ctrl_c_raises() -> Iterator[None]:
+    """Ctrl-C raises KeyboardInterrupt, as in a terminal, even where this process was
+    started with SIGINT ignored (as a background job of a non-interactive shell is, where
+    Python installs no handler and a SIGINT would leave the move below running)."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def test_ctrl_c_stops_a_long_move_in_its_safe_state(ctrl_c_raises: None) -> None:
     with robobus.Station.simulated() as station:
         station.whj.enable("1", check=True)
         station.whj.mode("1", "position", check=True)
@@ -369,7 +382,7 @@ def test_ctrl_c_stops_a_long_move_in_its_safe_state() -> None:
         assert abs(b["position_deg"] - a["position_deg"]) < 0.05, (a, b)
 
 
-def test_ctrl_c_is_seen_by_a_waiting_request_within_its_poll_slices() -> None:
+def test_ctrl_c_is_seen_by_a_waiting_request_within_its_poll_slices(ctrl_c_raises: None) -> None:
     with robobus.Station.simulated() as station:
         sent: list[float] = []
 
