@@ -547,6 +547,37 @@ fn check_steps(
     Ok(())
 }
 
+/// A protection stop among `faults` fails its joint's row (`rows` and `models` by column
+/// of `joints`), naming what it measured; returns the joints to leave torque off, where
+/// that is safe (holding would keep them pushing or heating).
+fn fail_protection_stop(
+    faults: &[Fault],
+    joints: &[String],
+    rows: &mut [Played],
+    models: &[Option<robobus_whj::units::Model>],
+) -> Vec<String> {
+    let mut torque_off = Vec::new();
+    if let Some(stop) = faults.iter().find(|f| f.action == Action::Stop)
+        && let Some(c) = joints.iter().position(|n| *n == stop.joint)
+        && let Some(row) = rows.get_mut(c)
+    {
+        let off = models
+            .get(c)
+            .is_some_and(|m| m.is_some() && protect::torque_off_is_safe(*m));
+        let end = if off {
+            torque_off.push(stop.joint.clone());
+            "; its drive disabled (its brake holds it: holding would keep it pushing or heating)"
+        } else {
+            ""
+        };
+        row.protection = Some(Failure::of(
+            crate::ErrorKind::Device,
+            &format!("{stop}{end}"),
+        ));
+    }
+    torque_off
+}
+
 /// Per column, the model a WHJ joint identified as (`None`: a wCK servo).
 fn models_of(index: &[usize], groups: &[Group]) -> Vec<Option<robobus_whj::units::Model>> {
     (0..index.len())
@@ -620,27 +651,7 @@ fn run_play(
     )?;
     let run = player.run(&mut rows, control, on_tick);
     let faults = std::mem::take(&mut player.faults);
-    // A protection stop fails its joint's row, naming what it measured; the joint goes
-    // torque off where that is safe (it would keep pushing or heating while it holds).
-    let mut torque_off = Vec::new();
-    if let Some(stop) = faults.iter().find(|f| f.action == Action::Stop)
-        && let Some(c) = traj.joints().iter().position(|n| *n == stop.joint)
-        && let Some(row) = rows.get_mut(c)
-    {
-        let off = models
-            .get(c)
-            .is_some_and(|m| m.is_some() && protect::torque_off_is_safe(*m));
-        let end = if off {
-            torque_off.push(stop.joint.clone());
-            "; its drive disabled (its brake holds it: holding would keep it pushing or heating)"
-        } else {
-            ""
-        };
-        row.protection = Some(Failure::of(
-            crate::ErrorKind::Device,
-            &format!("{stop}{end}"),
-        ));
-    }
+    let torque_off = fail_protection_stop(&faults, traj.joints(), &mut rows, &models);
     // Finished, stopped or failed: each bus as the robot file says.
     // Played to its end, nothing failed: held there where the station says so.
     let finished = run.as_ref().is_ok_and(|t| !t.interrupted)

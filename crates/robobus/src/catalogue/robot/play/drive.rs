@@ -574,28 +574,8 @@ pub(super) fn run(
             tracing::warn!(joint = %j.name, "could not go back to position mode: {e}");
         }
     }
-    // A protection stop fails its joint's row, naming what it measured; the joint goes
-    // torque off where that is safe (it would keep pushing or heating while it holds).
     let faults = watch.faults;
-    let mut torque_off = Vec::new();
-    if let Some(stop) = faults.iter().find(|f| f.action == Action::Stop)
-        && let Some(c) = traj.joints().iter().position(|n| *n == stop.joint)
-        && let Some(row) = rows.get_mut(c)
-    {
-        let off = models
-            .get(c)
-            .is_some_and(|m| m.is_some() && protect::torque_off_is_safe(*m));
-        let end = if off {
-            torque_off.push(stop.joint.clone());
-            "; its drive disabled (its brake holds it: holding would keep it pushing or heating)"
-        } else {
-            ""
-        };
-        row.protection = Some(Failure::of(
-            crate::ErrorKind::Device,
-            &format!("{stop}{end}"),
-        ));
-    }
+    let torque_off = super::fail_protection_stop(&faults, traj.joints(), &mut rows, &models);
     let settled = super::super::settle_with(station, &config, traj.joints(), &torque_off);
     ran.inspect_err(|_| settled.log())?;
     let names = traj.joints();
