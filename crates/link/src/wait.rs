@@ -12,6 +12,16 @@
 //! and ends at the reply or its deadline, so a silent device costs its timeout in
 //! either mode.
 //!
+//! A timed wait in the kernel ends late by the thread's *timer slack* as well: Linux lets
+//! every timer of a thread fire up to that much after its deadline so that wake-ups can be
+//! grouped, 50 µs by default, which is most of an arbitration loser's frame (the WHJ
+//! client's reply hold) and more than a wCK byte at 921600 bit/s. So the first wait of a
+//! thread here on a real clock sets that thread's slack to 1 ns ([`precise_timers`]):
+//! every later timed wait of the thread (a reply's deadline, a hold's end, a cyclic
+//! period) then wakes as soon as the scheduler runs it. It stays set for the thread (a
+//! caller's thread that waits on a bus once is a bus thread); elsewhere than Linux there
+//! is no such setting.
+//!
 //! [`read_some`], [`recv`] and [`sleep_until`] take the mode and wait on any link. On a
 //! link with a virtual clock ([`ByteLink::virtual_time`]) a poll cannot let time pass, so
 //! the polled stretch advances in steps of [`VIRTUAL_POLL_STEP`] there; each step returns
@@ -121,6 +131,36 @@ impl FromStr for WaitMode {
     }
 }
 
+/// Sets the calling thread's timer slack to 1 ns, once per thread (see the
+/// [module notes](self)): a timed wait then ends when the kernel's timer fires, not up to
+/// the default 50 µs later. Returns whether the thread's slack is that now (always `false`
+/// elsewhere than Linux, and where the kernel refused it).
+pub fn precise_timers() -> bool {
+    #[cfg(target_os = "linux")]
+    {
+        use std::cell::Cell;
+        thread_local! {
+            static SET: Cell<Option<bool>> = const { Cell::new(None) };
+        }
+        SET.with(|set| {
+            set.get().unwrap_or_else(|| {
+                let ok = nix::sys::prctl::set_timerslack(PRECISE_SLACK_NS).is_ok();
+                set.set(Some(ok));
+                ok
+            })
+        })
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        false
+    }
+}
+
+/// The timer slack [`precise_timers`] sets: the least Linux takes (0 would mean the
+/// process's default).
+#[cfg(target_os = "linux")]
+const PRECISE_SLACK_NS: std::os::raw::c_ulong = 1;
+
 /// A link's receive, as [`wait_with`] drives it.
 trait Poll {
     type Item;
@@ -189,6 +229,9 @@ fn wait_with<P: Poll>(
     deadline: Instant,
     expected: Instant,
 ) -> Result<Option<P::Item>, P::Error> {
+    if !p.virtual_time() {
+        precise_timers();
+    }
     let Some(spin_from) = mode.spin_from(expected) else {
         return p.poll_until(deadline);
     };
@@ -252,6 +295,9 @@ pub fn recv<L: FrameLink + ?Sized>(
 /// [`FrameLink::sleep_until`] in `mode`: in [`WaitMode::Spin`] the link sleeps until
 /// `before` ahead of `deadline` and then polls its clock, so the wait ends on time.
 pub fn sleep_until<L: FrameLink + ?Sized>(link: &mut L, deadline: Instant, mode: WaitMode) {
+    if !link.virtual_time() {
+        precise_timers();
+    }
     match mode.spin_from(deadline) {
         Some(from) if !link.virtual_time() => {
             if link.now() < from {
@@ -269,6 +315,45 @@ pub fn sleep_until<L: FrameLink + ?Sized>(link: &mut L, deadline: Instant, mode:
 mod tests {
     use super::*;
     use crate::MemoryByteLink;
+
+    /// A thread's first wait on a real clock sets its timer slack to 1 ns; a wait on a
+    /// virtual clock leaves it alone. Each case in a fresh thread (the default slack is
+    /// the process's, 50 µs unless set otherwise).
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn a_wait_on_a_real_clock_makes_the_threads_timers_precise() {
+        use nix::sys::prctl::get_timerslack;
+        let slack_after = |virtual_clock: bool| {
+            std::thread::spawn(move || {
+                let before = get_timerslack().unwrap();
+                if virtual_clock {
+                    let t0 = Instant::now();
+                    let mut link = OneFrame {
+                        now: t0,
+                        due: None,
+                        calls: 0,
+                    };
+                    let _ = recv(&mut link, t0, t0, WaitMode::Sleep);
+                } else {
+                    let (mut link, _other) = MemoryByteLink::pair();
+                    let now = link.now();
+                    let mut buf = [0_u8; 1];
+                    let _ = read_some(&mut link, &mut buf, now, now, WaitMode::Sleep);
+                }
+                (before, get_timerslack().unwrap())
+            })
+            .join()
+            .unwrap()
+        };
+        let (before, after) = slack_after(false);
+        assert_ne!(
+            before, 1,
+            "the test needs a thread whose slack is not 1 ns already"
+        );
+        assert_eq!(after, 1);
+        let (before, after) = slack_after(true);
+        assert_eq!(after, before);
+    }
 
     #[test]
     fn modes_parse_and_print_back() {
