@@ -33,6 +33,8 @@ use crate::station::Station;
 
 pub mod drive;
 mod guard;
+#[cfg(all(test, feature = "sim"))]
+mod testing;
 
 /// A joint of the robot file as the follower commands it.
 #[derive(Debug, Clone, PartialEq, Serialize)]

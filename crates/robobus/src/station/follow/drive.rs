@@ -813,17 +813,13 @@ mod tests {
 
     use std::time::Duration;
 
-    use serde_json::json;
-
     use super::*;
-    use crate::catalogue::{Request, run};
-    use crate::ops::{Control, Outcome};
+    use crate::ops::Outcome;
     use crate::station::clock::BusClock;
 
     /// The built-in simulated station with a robot file of two WHJ joints with velocity
     /// and effort, enabled in position mode, and its driver.
     fn driven() -> (Station, robobus_sim::whj::WhjSimHandle, Driver) {
-        let (mut station, _wck, whj) = Station::simulated_with_handles().unwrap();
         let file = r#"
             [buses.sim-whj]
             kind = "whj-external"
@@ -845,16 +841,7 @@ mod tests {
             max_acceleration = 20.0
             interfaces = ["position", "velocity"]
         "#;
-        station
-            .set_robot(RobotConfig::from_toml_str(file).unwrap())
-            .unwrap();
-        for r in [
-            json!({"op": "whj.mode", "joints": "1-2", "mode": "position"}),
-            json!({"op": "whj.enable", "joints": "1-2"}),
-        ] {
-            let r: Request = serde_json::from_value(r).unwrap();
-            run(&station, &r, &mut Control::none()).unwrap();
-        }
+        let (station, whj) = crate::station::follow::testing::enabled(file, "1-2");
         let driver = Driver::new(&station).unwrap();
         (station, whj, driver)
     }

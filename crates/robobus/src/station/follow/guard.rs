@@ -256,33 +256,18 @@ mod tests {
 
     use std::time::Duration;
 
-    use serde_json::json;
-
-    use crate::catalogue::{Request, run};
-    use crate::ops::{Control, ErrorKind, Outcome};
-    use crate::robot::RobotConfig;
-    use crate::station::Station;
+    use crate::ops::{ErrorKind, Outcome};
     use crate::station::clock::BusClock;
     use crate::station::follow::Follower;
 
     #[test]
     fn a_followed_joint_pushing_into_an_obstacle_is_stopped_and_later_commands_refused() {
-        let (mut station, _wck, whj) = Station::simulated_with_handles().unwrap();
         let file = "[buses.sim-whj]\nkind = \"whj-external\"\n\n\
             [[joints]]\nname = \"j1\"\nbus = \"sim-whj\"\nid = 1\nlimits = [-2.0, 2.0]\n\
             max_velocity = 2.0\nmax_acceleration = 20.0\n\n\
             [[joints]]\nname = \"j2\"\nbus = \"sim-whj\"\nid = 2\nlimits = [-2.0, 2.0]\n\
             max_velocity = 2.0\nmax_acceleration = 20.0\n";
-        station
-            .set_robot(RobotConfig::from_toml_str(file).unwrap())
-            .unwrap();
-        for r in [
-            json!({"op": "whj.mode", "joints": "1-2", "mode": "position"}),
-            json!({"op": "whj.enable", "joints": "1-2"}),
-        ] {
-            let r: Request = serde_json::from_value(r).unwrap();
-            run(&station, &r, &mut Control::none()).unwrap();
-        }
+        let (station, whj) = crate::station::follow::testing::enabled(file, "1-2");
         whj.with_bus(|b| {
             b.joint_mut(1)
                 .unwrap()
