@@ -11,6 +11,8 @@
 use crate::common;
 
 use std::path::Path;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use common::WhjSim;
@@ -126,7 +128,8 @@ fn fdcanusb_e2e_bad_addresses_and_ports_exit_2_3_4_naming_the_value() {
 
 /// Runs `whj --bus fdcanusb:<pty> status --broadcast 1` against a pty whose other end
 /// answers each line the client writes with `answer(line)`; returns the run, how long it
-/// took and every line the client wrote.
+/// took and every line the client wrote (read until the pty has been quiet for 500 ms
+/// after the client exited, at most 10 s).
 fn against(answer: fn(&str) -> String) -> (common::Run, Duration, Vec<String>) {
     let PtyPair {
         mut master,
@@ -135,13 +138,19 @@ fn against(answer: fn(&str) -> String) -> (common::Run, Duration, Vec<String>) {
     } = PtyPair::open(&PtyOptions::default()).unwrap();
     drop(slave);
     let bus = format!("fdcanusb:{}", slave_path.display());
+    let exited = Arc::new(AtomicBool::new(false));
+    let client_exited = Arc::clone(&exited);
     let reader = std::thread::spawn(move || {
         let mut written = Vec::new();
         let mut partial = Vec::new();
         let mut buf = [0u8; 256];
         let end = Instant::now() + Duration::from_secs(10);
         while Instant::now() < end {
-            match master.read_some(&mut buf, Instant::now() + Duration::from_millis(50)) {
+            // Once the client has exited, a read that times out after 500 ms has found
+            // everything it wrote.
+            let after_exit = client_exited.load(Ordering::SeqCst);
+            let wait = Duration::from_millis(if after_exit { 500 } else { 50 });
+            match master.read_some(&mut buf, Instant::now() + wait) {
                 Ok(n) => {
                     for &b in &buf[..n] {
                         if b == b'\n' {
@@ -157,6 +166,7 @@ fn against(answer: fn(&str) -> String) -> (common::Run, Duration, Vec<String>) {
                         }
                     }
                 }
+                Err(LinkError::Timeout { .. }) if after_exit => break,
                 Err(LinkError::Timeout { .. }) => {}
                 Err(LinkError::Closed { .. }) => break,
                 Err(e) => panic!("{e}"),
@@ -167,6 +177,7 @@ fn against(answer: fn(&str) -> String) -> (common::Run, Duration, Vec<String>) {
     let t0 = Instant::now();
     let r = common::robobus(&["whj", "--bus", &bus, "status", "--broadcast", "1"]);
     let took = t0.elapsed();
+    exited.store(true, Ordering::SeqCst);
     (r, took, reader.join().unwrap())
 }
 
