@@ -30,6 +30,7 @@ mod wck_guard;
 mod wck_late;
 mod wck_ops;
 mod wck_policy;
+mod wck_protection;
 mod wck_reports;
 mod wck_run_reports;
 mod wck_settings;

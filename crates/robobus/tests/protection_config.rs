@@ -126,16 +126,25 @@ fn a_bad_value_is_refused_naming_the_joint_the_field_the_value_the_range_and_the
 }
 
 #[test]
-fn a_wck_servo_takes_no_current_or_temperature_limit() {
+fn a_wck_servo_takes_a_stall_load_but_no_temperature_limit() {
     let text = file("", "").replace(
         "max_acceleration = 20.0\n",
-        "max_acceleration = 20.0\nprotection = { stall_current_a = 1.0 }\n",
+        "max_acceleration = 20.0\nprotection = { temperature_stop_c = 60 }\n",
     );
     let e = RobotConfig::from_toml_str(&text).unwrap_err();
     assert!(
         e.to_string()
-            .contains("on a wCK servo only enabled and collision_error_jump_deg"),
+            .contains("on a wCK servo no temperature limit and no derating"),
         "{e}"
+    );
+    let text = file("", "").replace(
+        "max_acceleration = 20.0\n",
+        "max_acceleration = 20.0\nprotection = { stall_current_a = 0.3 }\n",
+    );
+    let c = RobotConfig::from_toml_str(&text).unwrap();
+    assert_eq!(
+        c.protection_of(&c.joints[0], None).stall_current_a,
+        Some(0.3)
     );
     let text = file("", "").replace(
         "max_acceleration = 20.0\n",

@@ -58,6 +58,7 @@
 mod command;
 mod decoder;
 mod describe;
+pub mod models;
 pub mod program;
 mod reply;
 pub mod timing;

@@ -19,8 +19,8 @@
 //!   lifting one behind its target (moving), is not stalled.
 //! - **collision**: the current rises by `collision_current_jump_a`, or the following
 //!   error grows by `collision_error_jump_deg` more than the target moved (the joint
-//!   pushed away from its target), between two readings at most [`JUMP_WINDOW`] apart: a
-//!   knock.
+//!   pushed away from its target), between two readings at most `jump_window_s` apart
+//!   ([`JUMP_WINDOW`] for a WHJ joint): a knock.
 //! - **thermal**: the temperature reaches `temperature_warn_c` (a warning),
 //!   `temperature_derate_c` (the joint's speed is held to `derate` of its
 //!   `max_velocity` until it cools 5 K below) and `temperature_stop_c` (stopped).
@@ -36,10 +36,14 @@
 //! The defaults come from the models table ([`robobus_whj::models::PRODUCTS`]): a WHJ
 //! joint's stall current and current jump are its model's rated current, and the
 //! temperatures are 15, 10 and 5 K under the joints' 90 °C over-temperature alarm
-//! ([`WHJ_OVER_TEMPERATURE_C`]). A wCK reply carries no current and no temperature: a
-//! wCK servo is watched for the following-error jump only. The robot file overrides any
-//! of them per joint (`[joints.protection]`, [`Overrides`]) or turns protection off for a
-//! joint or the whole file.
+//! ([`WHJ_OVER_TEMPERATURE_C`]). A wCK reply carries the servo's load (its supply
+//! current on the over-load code scale, [`wck_load_a`]) and its position, no temperature:
+//! a wCK servo is watched for a stall and a collision, never for heat ([`Limits::wck`],
+//! from the wCK rows of the models table, [`robobus_wck::models::PRODUCTS`]). Its
+//! readings come further apart (a played motion reads one servo every 200 ms), so its
+//! windows are sized to the reading period ([`Limits::for_reading_period`]). The robot
+//! file overrides any of them per joint (`[joints.protection]`, [`Overrides`]) or turns
+//! protection off for a joint or the whole file.
 
 use std::fmt;
 use std::time::{Duration, Instant};
@@ -51,9 +55,29 @@ use serde::{Deserialize, Serialize};
 /// The WHJ joints' over-temperature alarm, °C (error bit 0x0008, "90 °C alarm reached").
 pub const WHJ_OVER_TEMPERATURE_C: f64 = 90.0;
 
-/// The longest time between two readings a jump is measured over: readings further apart
-/// are a new start, not a jump.
+/// The longest time between two readings a jump is measured over, for a WHJ joint (read
+/// every tick): readings further apart are a new start, not a jump.
 pub const JUMP_WINDOW: Duration = Duration::from_millis(100);
+
+/// A wCK servo's jump window by default, s: a little over the 200 ms a played motion
+/// takes to read the same servo again ([`Limits::for_reading_period`] widens it for a
+/// slower reading).
+pub const WCK_JUMP_WINDOW_S: f64 = 0.25;
+
+/// How long a wCK servo's stall lasts before the stop, by default, s: two of a played
+/// motion's 200 ms status reads after the first that saw it.
+pub const WCK_STALL_TIME_S: f64 = 0.4;
+
+/// The following error at which a wCK servo pushing with its stall load counts as
+/// stalled, by default, degrees: about three steps of 1.055°, well over the servo's own
+/// ±0.8° control error.
+pub const WCK_STALL_ERROR_DEG: f64 = 3.0;
+
+/// A wCK reply's load byte (0..=254) as a current, A: the load is the supply current on
+/// the over-load code scale (A-1 (18); [`robobus_wck::models::load_milliamps`]).
+pub fn wck_load_a(load: u8) -> f64 {
+    robobus_wck::models::load_milliamps(load) / 1e3
+}
 
 /// The most events an operation keeps (a joint hovering at a temperature limit for
 /// hours would otherwise grow its report without bound); a stop is always kept.
@@ -112,6 +136,8 @@ pub struct Limits {
     /// Whether a joint driven in effort is stopped turning faster than its
     /// `max_velocity` ([`Drive::Effort`]).
     pub runaway: bool,
+    /// The longest time between two readings a jump is measured over, s.
+    pub jump_window_s: f64,
 }
 
 impl Limits {
@@ -127,6 +153,7 @@ impl Limits {
         temperature_stop_c: None,
         derate: 1.0,
         runaway: false,
+        jump_window_s: JUMP_WINDOW.as_secs_f64(),
     };
 
     /// The defaults of a WHJ joint of `model` (see the [module docs](self)); a model the
@@ -147,12 +174,37 @@ impl Limits {
         }
     }
 
-    /// The defaults of a wCK servo: the following-error jump only (its replies carry no
-    /// current and no temperature).
+    /// The defaults of a wCK servo, from the wCK rows of the models table (a module does
+    /// not report its model: the values every row agrees on): its load read as a current
+    /// ([`wck_load_a`]); a stall at half the factory over-current threshold (400 mA, A-5:
+    /// a servo pushing harder soon trips its own protection and goes passive) for
+    /// [`WCK_STALL_TIME_S`] against at least [`WCK_STALL_ERROR_DEG`]; a collision a load
+    /// rise by the whole factory threshold, or the following-error jump, within
+    /// [`WCK_JUMP_WINDOW_S`]. No temperature: a wCK reply carries none.
     pub fn wck() -> Self {
+        let overload_a = f64::from(robobus_wck::models::overload_default_ma()) / 1e3;
         Self {
+            stall_current_a: Some(overload_a / 2.0),
+            stall_time_s: WCK_STALL_TIME_S,
+            stall_error_deg: WCK_STALL_ERROR_DEG,
+            collision_current_jump_a: Some(overload_a),
             collision_error_jump_deg: Some(DEFAULT_COLLISION_ERROR_JUMP_DEG),
+            jump_window_s: WCK_JUMP_WINDOW_S,
             ..Self::OFF
+        }
+    }
+
+    /// These limits for a joint read every `period` (a played wCK motion reads each of its
+    /// N servos every N × 200 ms): the jump window at least 1.25 periods (two readings in
+    /// a row are compared) and a stall at least two periods (it is seen on three
+    /// readings).
+    #[must_use]
+    pub fn for_reading_period(self, period: Duration) -> Self {
+        let p = period.as_secs_f64();
+        Self {
+            jump_window_s: self.jump_window_s.max(1.25 * p),
+            stall_time_s: self.stall_time_s.max(2.0 * p),
+            ..self
         }
     }
 
@@ -175,6 +227,7 @@ impl Limits {
             temperature_stop_c: o.temperature_stop_c.or(self.temperature_stop_c),
             derate: o.derate.unwrap_or(self.derate),
             runaway: self.runaway,
+            jump_window_s: self.jump_window_s,
         }
     }
 }
@@ -601,7 +654,9 @@ impl Watch {
     fn collisions(&self, r: &Reading, at_s: f64) -> Vec<Fault> {
         let mut out = Vec::new();
         let lim = self.limits;
-        let recent = |t: Instant| r.at.saturating_duration_since(t) <= JUMP_WINDOW;
+        let recent = |t: Instant| {
+            r.at.saturating_duration_since(t).as_secs_f64() <= lim.jump_window_s + 1e-9
+        };
         if let (Some(i), Some(jump)) = (r.current_a, lim.collision_current_jump_a)
             && let Some((_, before)) = self.last_current.filter(|(t, _)| recent(*t))
             && i.abs() - before.abs() >= jump

@@ -752,10 +752,6 @@ impl RobotConfig {
         if let Some(p) = &joint.protection {
             if bus.is_wck() {
                 let measured = [
-                    ("stall_current_a", p.stall_current_a),
-                    ("stall_time_s", p.stall_time_s),
-                    ("stall_error_deg", p.stall_error_deg),
-                    ("collision_current_jump_a", p.collision_current_jump_a),
                     ("temperature_warn_c", p.temperature_warn_c),
                     ("temperature_derate_c", p.temperature_derate_c),
                     ("temperature_stop_c", p.temperature_stop_c),
@@ -765,8 +761,8 @@ impl RobotConfig {
                     return Err(invalid(
                         "protection",
                         format!("{name} = {v}"),
-                        "on a wCK servo only enabled and collision_error_jump_deg (its replies \
-                         carry no current and no temperature)",
+                        "on a wCK servo no temperature limit and no derating (its replies \
+                         carry its load and position, no temperature)",
                     ));
                 }
             }

@@ -36,7 +36,7 @@ fn the_defaults_come_from_the_models_table() {
         Limits::whj(Some(Model::Joint60)).stall_current_a,
         Some(12.0)
     );
-    assert_eq!(Limits::wck().stall_current_a, None);
+    assert_eq!(Limits::wck().temperature_stop_c, None);
     assert!(torque_off_is_safe(Some(Model::Joint30)));
     assert!(!torque_off_is_safe(Some(Model::Joint10)));
     assert!(!torque_off_is_safe(None));
@@ -269,4 +269,37 @@ fn overrides_replace_the_defaults_and_are_checked() {
         ..Overrides::default()
     };
     assert_eq!(whj30().with(Some(&off)), Limits::OFF);
+}
+
+#[test]
+fn wck_defaults_come_from_the_wck_rows_and_fit_a_reading_every_200_ms() {
+    let l = Limits::wck();
+    // Half and all of the factory over-load (400 mA, A-5); no temperature.
+    assert_eq!(l.stall_current_a, Some(0.2));
+    assert_eq!(l.collision_current_jump_a, Some(0.4));
+    assert_eq!((l.stall_time_s, l.stall_error_deg), (0.4, 3.0));
+    assert_eq!((l.temperature_warn_c, l.temperature_stop_c), (None, None));
+    assert!((wck_load_a(33) - 0.4).abs() < 1e-12);
+    let slow = l.for_reading_period(Duration::from_millis(400));
+    assert!((slow.jump_window_s - 0.5).abs() < 1e-12);
+    assert!((slow.stall_time_s - 0.8).abs() < 1e-12);
+    // A load rise across one 200 ms reading period is a collision on a wCK servo; the
+    // same readings are a new start on a WHJ joint (its 100 ms window).
+    let t0 = Instant::now();
+    let mut m = Monitor::new(t0, vec![("servo 0".into(), l)]);
+    assert!(m.feed(0, &reading(t0, 1.0, 0.05)).is_empty());
+    let f = m.feed(0, &reading(t0 + 200 * MS, 1.0, 0.6));
+    assert_eq!(
+        (f[0].check, f[0].quantity, f[0].joint.as_str()),
+        (Check::Collision, "current_jump_a", "servo 0")
+    );
+    let mut m = Monitor::new(t0, vec![("j1".into(), whj30())]);
+    assert!(m.feed(0, &reading(t0, 1.0, 0.0)).is_empty());
+    assert!(m.feed(0, &reading(t0 + 200 * MS, 1.0, 9.0)).is_empty());
+    // A stall read every 200 ms: seen at 0, stopped at the third reading (0.4 s).
+    let mut m = Monitor::new(t0, vec![("servo 0".into(), l)]);
+    assert!(m.feed(0, &reading(t0, 6.0, 0.3)).is_empty());
+    assert!(m.feed(0, &reading(t0 + 200 * MS, 6.0, 0.3)).is_empty());
+    let f = m.feed(0, &reading(t0 + 400 * MS, 6.0, 0.3));
+    assert_eq!((f[0].check, f[0].limit), (Check::Stall, 0.2));
 }

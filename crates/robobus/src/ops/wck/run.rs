@@ -10,6 +10,7 @@ use super::motion::{Motion, Pose};
 use super::plan::{WckPlan, WckStep};
 use super::report::{FieldValue, Fields, reply_fields};
 use crate::ErrorKind;
+use crate::ops::protect::{self, Action, Drive, Fault, Limits, Monitor, Reading};
 use crate::ops::safe::WckServos;
 use crate::ops::{Control, DeviceResult, Failure, OpError, Progress, SafeState};
 use crate::wck::{FoundServo, ScanOptions, WckBus};
@@ -341,7 +342,9 @@ pub fn scan<L: ByteLink>(
 /// Runs a timed plan: each step at its time (a step without one right after the previous),
 /// stopping on the caller's token (then `ids` go to `state`). A step marked as taking its
 /// position from the device (a hold) is sent with the position the last status reply
-/// reported. Returns the replies in order.
+/// reported. Each reply goes to `on_reply` with the instant it came (the bus's clock); a
+/// host protection stop it returns ends the run: `ids` to the protection's safe state
+/// ([`protection_state`]), the error naming the fault.
 #[allow(clippy::result_large_err)] // OpError carries the client errors by value
 fn run_timed<L: ByteLink>(
     bus: &mut WckBus<L>,
@@ -350,7 +353,7 @@ fn run_timed<L: ByteLink>(
     total_ms: u64,
     stop: (&[ServoId], SafeState, TorqueLevel),
     control: &mut Control<'_>,
-    mut on_reply: impl FnMut(&WckStep, Option<Reply>),
+    mut on_reply: impl FnMut(&WckStep, Option<Reply>, Instant) -> Option<Fault>,
 ) -> Result<Instant, OpError> {
     let start = bus.now();
     let mut last_position: Option<Position> = None;
@@ -382,10 +385,62 @@ fn run_timed<L: ByteLink>(
         if let Some(Reply::Status { position, .. }) = reply {
             last_position = Some(position);
         }
-        on_reply(&step, reply);
+        if let Some(fault) = on_reply(&step, reply, bus.now()) {
+            let state = protection_state(stop.1);
+            let failed = state.apply(&mut WckServos {
+                bus,
+                ids: stop.0,
+                torque: stop.2,
+            });
+            let mut text = format!(
+                "{fault}; the {stage} stopped at {at_ms} ms, servo(s) {} {}",
+                crate::ops::ids_text(stop.0),
+                state.keyword()
+            );
+            for f in failed {
+                text.push_str(&format!(" (not reached: {})", f.error));
+            }
+            return Err(OpError::Device(text));
+        }
         control.report(&Progress::new(stage, at_ms, Some(total_ms)));
     }
     Ok(start)
+}
+
+/// The safe state a host protection stop brings wCK servos to: the run's own when it
+/// releases them (passive, or the bus-wide break), else passive: a servo held at its
+/// torque keeps pushing into what stopped it.
+pub(super) const fn protection_state(on_stop: SafeState) -> SafeState {
+    match on_stop {
+        SafeState::Break => SafeState::Break,
+        SafeState::Passive | SafeState::Hold | SafeState::Disable => SafeState::Passive,
+    }
+}
+
+/// Feeds `faults` to `events` (logged; at most [`protect::MAX_EVENTS`]): the stop, if one.
+fn keep_events(faults: Vec<Fault>) -> Option<Fault> {
+    let mut stop = None;
+    for f in faults {
+        tracing::warn!("{f}");
+        if f.action == Action::Stop {
+            stop = Some(f);
+        }
+    }
+    stop
+}
+
+/// A wCK status reply as a protection reading at `at`: its position and load (as a
+/// current); against `target` (steps) when one was sent.
+fn wck_reading(at: Instant, load: u8, position: Position, target: Option<Position>) -> Reading {
+    let p = position.degrees();
+    let t = target.map(Position::degrees);
+    Reading {
+        position_deg: Some(p),
+        error_deg: t.map(|t| (p - t).abs()),
+        target_deg: t,
+        current_a: Some(protect::wck_load_a(load)),
+        ..Reading::at(at)
+    }
 }
 
 /// Arguments of a wheel run.
@@ -463,6 +518,26 @@ impl WheelArgs {
     }
 }
 
+/// What a wheel `speed` (0..=15) in `rotation` is at least worth, °/s (counter-clockwise
+/// positive): its share of the slowest wCK model's no-load speed (the module does not say
+/// its model).
+pub(super) fn wheel_deg_s(rotation: Rotation, speed: WheelSpeed) -> f64 {
+    let v = f64::from(speed.get()) / 15.0 * robobus_wck::models::slowest_no_load_speed_dps();
+    if rotation == Rotation::Ccw { v } else { -v }
+}
+
+/// A wheel's speed between two status reads, °/s; `None` where a reading is at the end
+/// of the potentiometer's range (0 or 254 steps: the shaft may be anywhere in the 91°
+/// past it) and they differ.
+pub(super) fn wheel_speed(before: (Instant, Position), now: (Instant, Position)) -> Option<f64> {
+    let dt = now.0.saturating_duration_since(before.0).as_secs_f64();
+    let edge = |p: Position| p == Position::MIN || p == Position::MAX;
+    if dt <= 0.0 || (before.1 != now.1 && (edge(before.1) || edge(now.1))) {
+        return None;
+    }
+    Some((now.1.degrees() - before.1.degrees()) / dt)
+}
+
 /// The report of [`wheel`]: the wheel command's fields, and for a timed run `ran_ms`,
 /// `stopped` (the safe state applied at the end) and `stopped_at` / `stopped_load` (a
 /// status read after it).
@@ -481,6 +556,18 @@ pub fn wheel<L: ByteLink>(
         .map_or(0, |d| u64::try_from(d.as_millis()).unwrap_or(u64::MAX));
     let mut first: Option<Fields> = None;
     let mut rest: Option<Fields> = None;
+    let mut monitor = Monitor::new(
+        bus.now(),
+        vec![(
+            format!("servo {}", args.id.get()),
+            Limits::wck().for_reading_period(WHEEL_WATCH_PERIOD),
+        )],
+    );
+    let drive = Drive::Velocity {
+        commanded_deg_s: wheel_deg_s(args.rotation, args.speed),
+    };
+    let mut last: Option<(Instant, Position)> = None;
+    let mut turning = true;
     let start = run_timed(
         bus,
         plan.steps,
@@ -488,12 +575,28 @@ pub fn wheel<L: ByteLink>(
         total,
         (&[args.id], args.on_stop, WHEEL_HOLD_TORQUE),
         control,
-        |step, reply| {
+        |step, reply, at| {
             if first.is_none() {
                 first = Some(reply_fields(&step.command, reply));
+                // Where the wheel started: the first read's speed is measured from it.
+                if let Some(Reply::Wheel { position, .. }) = reply {
+                    last = Some((at, position));
+                }
             } else if matches!(step.command, Command::StatusRead { .. }) {
                 rest = Some(reply_fields(&step.command, reply));
+            } else {
+                // The stop at the end: no longer driven.
+                turning = false;
             }
+            let (true, Command::StatusRead { .. }, Some(Reply::Status { load, position })) =
+                (turning, &step.command, reply)
+            else {
+                return None;
+            };
+            let speed = last.and_then(|l| wheel_speed(l, (at, position)));
+            last = Some((at, position));
+            let reading = wck_reading(at, load.get(), position, None);
+            keep_events(monitor.feed_driven(0, &reading, speed, drive))
         },
     )?;
     let mut row = first.unwrap_or_default();
@@ -557,6 +660,23 @@ pub fn play<L: ByteLink>(
         .collect();
     let total = motion.end_ms();
     let (mut sent, mut moves, mut planned, mut last) = (0u64, 0u64, 0u64, Vec::new());
+    // Each servo is read every PLAY_WATCH_MS × servos (round robin).
+    let period = Duration::from_millis(super::PLAY_WATCH_MS)
+        * u32::try_from(ids.len().max(1)).unwrap_or(u32::MAX);
+    let mut monitor = Monitor::new(
+        bus.now(),
+        ids.iter()
+            .map(|id| {
+                (
+                    format!("servo {}", id.get()),
+                    Limits::wck().for_reading_period(period),
+                )
+            })
+            .collect(),
+    );
+    // The targets of the move before the last (a status read follows a move at once:
+    // the servo has had a period to follow the one before it, not the last one).
+    let (mut before, mut latest): (Vec<Position>, Vec<Position>) = (Vec::new(), Vec::new());
     let start = run_timed(
         bus,
         motion.moves(rate_hz),
@@ -564,12 +684,23 @@ pub fn play<L: ByteLink>(
         total,
         (&ids, on_stop, motion.torque),
         control,
-        |step, _| {
+        |step, reply, at| {
             sent += 1;
             planned = planned.max(step.at_ms.unwrap_or(0));
-            if let Command::SyncMove(s) = &step.command {
-                moves += 1;
-                last = s.positions().iter().map(|p| p.get()).collect();
+            match (&step.command, reply) {
+                (Command::SyncMove(s), _) => {
+                    moves += 1;
+                    last = s.positions().iter().map(|p| p.get()).collect();
+                    before = std::mem::replace(&mut latest, s.positions().to_vec());
+                    None
+                }
+                (Command::StatusRead { id }, Some(Reply::Status { load, position })) => {
+                    let i = usize::from(id.get());
+                    let target = before.get(i).or_else(|| latest.get(i)).copied();
+                    let reading = wck_reading(at, load.get(), position, target);
+                    keep_events(monitor.feed(i, &reading))
+                }
+                _ => None,
             }
         },
     )?;

@@ -24,7 +24,11 @@
 //! effort, is held to its `derate` share of `max_velocity` / `max_effort`) and stops in
 //! both. A stop ends the play, fails the joint's row naming the fault (in
 //! `summary.protection`) and leaves the joint's drive disabled where its brake holds it.
-//! A wCK wheel's reply carries no speed and no current: it is not watched here.
+//! A wCK wheel's command reply carries no load: every [`TEMPERATURE_EVERY_S`] s a status
+//! read gives its load (as a current, [`protect::wck_load_a`]) and position, its speed
+//! the position's change since the read before; it is watched on those readings alone
+//! (in velocity, as a WHJ joint; no temperature), with the wCK limits
+//! ([`protect::Limits::wck`]) sized to that period.
 
 use std::f64::consts::TAU;
 use std::time::Duration;
@@ -191,11 +195,15 @@ struct Joint {
     set: f64,
     /// Where it last reported itself, rad.
     at: f64,
-    /// Its speed (°/s) and current (A) in the last feedback (a WHJ joint's).
+    /// Its speed (°/s) and current (A) in the last feedback (a WHJ joint's, or a wCK
+    /// wheel's status read, taken by the next protection reading).
     speed_deg_s: Option<f64>,
     current_a: Option<f64>,
     /// The most speed (velocity, rad/s) or effort (N·m) its derating scales.
     most: f64,
+    /// A wCK wheel's last status read: when, and where (joint degrees, and whether the
+    /// reading was at the end of its range).
+    wck_last: Option<(std::time::Instant, f64, bool)>,
 }
 
 enum Device {
@@ -306,10 +314,27 @@ impl Joint {
 }
 
 impl Joint {
-    /// A WHJ joint's temperature, °C, by a status query (`None` for a wCK servo).
-    fn temperature(&self) -> Result<Option<f64>, OpError> {
+    /// A WHJ joint's temperature, °C, by a status query; for a wCK servo, a status read
+    /// of its load and position for the protection (`None`: it has no temperature).
+    fn temperature(&mut self, now: std::time::Instant) -> Result<Option<f64>, OpError> {
         match &self.device {
-            Device::Wck { .. } => Ok(None),
+            Device::Wck {
+                port, id, scale, ..
+            } => {
+                let st = port.lock().servo(*id).status()?;
+                let deg = scale.to_rad(st.position).to_degrees();
+                let edge = st.position == robobus_wck::Position::MIN
+                    || st.position == robobus_wck::Position::MAX;
+                self.speed_deg_s = self.wck_last.and_then(|(t, before, was_edge)| {
+                    let dt = now.saturating_duration_since(t).as_secs_f64();
+                    let changed = (deg - before).abs() > 1e-9;
+                    (dt > 0.0 && !(changed && (edge || was_edge))).then(|| (deg - before) / dt)
+                });
+                self.current_a = Some(protect::wck_load_a(st.load.get()));
+                self.wck_last = Some((now, deg, edge));
+                self.at = deg.to_radians();
+                Ok(None)
+            }
             Device::Whj { port, id, .. } => {
                 let st = port.bus().joint_unchecked(*id).status()?;
                 Ok(Some(f64::from(st.temperature.celsius())))
@@ -353,6 +378,10 @@ impl Watch {
             },
         };
         let mut stop = false;
+        if matches!(j.device, Device::Wck { .. }) && j.current_a.is_none() {
+            // A wheel is read every TEMPERATURE_EVERY_S s, not every tick.
+            return false;
+        }
         for f in self.monitor.feed_driven(c, &reading, j.speed_deg_s, drive) {
             stop |= f.action == Action::Stop;
             tracing::warn!("{f}");
@@ -431,6 +460,7 @@ pub(super) fn run(
                 Interface::Velocity => j.max_velocity,
                 _ => j.max_effort.unwrap_or(0.0),
             },
+            wck_last: None,
         });
     }
     let mut watch = Watch {
@@ -444,7 +474,10 @@ pub(super) fn run(
                     let limits = if m.is_some() {
                         config.protection_of(j, m)
                     } else {
-                        protect::Limits::OFF
+                        // A wCK wheel, read every TEMPERATURE_EVERY_S s.
+                        config
+                            .protection_of(j, None)
+                            .for_reading_period(Duration::from_secs_f64(TEMPERATURE_EVERY_S))
                     };
                     (j.name.clone(), limits)
                 })
@@ -527,7 +560,7 @@ pub(super) fn run(
                             row.sent_nm = Some(done);
                         }
                         let temperature_c = if temperature {
-                            match j.temperature() {
+                            match j.temperature(clock.now()) {
                                 Ok(t) => t,
                                 Err(e) => {
                                     row.failed += 1;
@@ -539,6 +572,11 @@ pub(super) fn run(
                             None
                         };
                         stop |= watch.feed(c, j, interface, before, temperature_c, clock.now());
+                        if matches!(j.device, Device::Wck { .. }) {
+                            // Taken: the next reading is the next status read's.
+                            j.current_a = None;
+                            j.speed_deg_s = None;
+                        }
                     }
                     Err(e) => {
                         row.failed += 1;
@@ -772,6 +810,54 @@ mod tests {
         // j1 (a WHJ30: a pin brake) is disabled, no longer pushing into the stop.
         let j1 = whj.with_bus(|b| b.joint(1).unwrap().state());
         assert!(!j1.enabled && j1.brake_locked, "{j1:?}");
+    }
+
+    /// A wheel held still while told to turn at its level 2 (267 mA held on the
+    /// simulated 1108, under its 400 mA over-load, so nothing else would stop it): read
+    /// at the first tick at or past every 0.25 s (0, 0.26, 0.52, 0.78 s at 50 Hz), the
+    /// stall seen at 0.26 s and held for two periods (0.5 s), the play stops at the read
+    /// at 0.78 s, not at 2 s, naming the wheel, which is left passive.
+    #[test]
+    fn a_wheel_held_still_under_velocity_is_stopped_naming_it() {
+        let (station, wck, _whj) = station();
+        wck.with_bus(|b| b.servo_mut(0).unwrap().hold(true));
+        let level_2 = sim_1108_wheel_speeds()[1].to_degrees();
+        let v = play(
+            &station,
+            &format!("time_s,s0_deg_s\n0,{level_2}\n2,{level_2}\n"),
+        )
+        .unwrap();
+        let (s, row) = stopped(&v);
+        let events = s["protection"].as_array().unwrap();
+        assert_eq!(events.len(), 1, "{s:#}");
+        let stop = &events[0];
+        assert_eq!(
+            (
+                &stop["joint"],
+                &stop["check"],
+                &stop["quantity"],
+                &stop["limit"]
+            ),
+            (
+                &json!("s0"),
+                &json!("stall"),
+                &json!("current_a"),
+                &json!(0.2)
+            ),
+            "{stop}"
+        );
+        let at = stop["at_s"].as_f64().unwrap();
+        assert!((0.78..0.79).contains(&at), "{stop}");
+        assert_eq!(s["ticks"], json!(40), "{s}");
+        let error = row["error"].as_str().unwrap();
+        assert!(
+            error.starts_with("s0: stall protection: current 0.27 A reached the limit 0.2 A"),
+            "{error}"
+        );
+        assert_eq!(
+            wck.with_bus(|b| b.servo(0).unwrap().mode()),
+            robobus_sim::wck::Mode::Passive
+        );
     }
 
     /// When the obstacle test's stall stops the play, s, and its ticks by then (at 50 Hz).
