@@ -478,7 +478,7 @@ mod tests {
     use serde_json::{Value, json};
 
     use crate::catalogue::{Request, confirmation, run};
-    use crate::ops::{Control, ErrorKind, OpError};
+    use crate::ops::{Control, ErrorKind};
     use crate::station::Station;
 
     fn req(v: Value) -> Request {
@@ -488,7 +488,7 @@ mod tests {
     #[test]
     fn taught_by_hand_on_both_buses_then_played_back() {
         let (station, wck, whj) = Station::simulated_with_handles().unwrap();
-        // Servo 0 is turned by hand to +20°, then to -10°; a hand takes joint 1 to +15°.
+        // Servo 0 is turned by hand to +20°, then to -10°; a hand takes joint 1 to +10°.
         let centre = 127.0 * robobus_sim::wck::mechanics::DEG_PER_STEP8;
         let t0 = wck.now();
         // The hand turns it at 50°/s: 2° every 40 ms, up to +20° and back to -10°.
@@ -500,7 +500,7 @@ mod tests {
                 b.servo_mut(0).unwrap().set_angle(centre + deg);
             });
         }
-        whj.with_bus(|b| b.joint_mut(1).unwrap().set_hand(Some(15.0)));
+        whj.with_bus(|b| b.joint_mut(1).unwrap().set_hand(Some(10.0)));
         let teach = json!({"op": "robot.teach", "seconds": 1, "joints": ["s0", "j1"]});
         // Limp joints need confirmation: refused without it, nothing sent.
         assert!(
@@ -543,7 +543,7 @@ mod tests {
         assert!((-10.0 - step..=-4.0).contains(&min), "{s0}");
         // The limp joint followed the hand, within its grip's few degrees.
         let max = j1["max_deg"].as_f64().unwrap();
-        assert!((12.0..=15.5).contains(&max), "{j1}");
+        assert!((8.0..=10.5).contains(&max), "{j1}");
         // Each as its bus's safe state in the robot file: the wCK servo passive, the WHJ
         // joint holding (back in position mode, enabled).
         assert_eq!(
@@ -559,33 +559,20 @@ mod tests {
         let text = s["trajectory"].as_str().unwrap();
         let parsed = crate::robot::trajectory::Trajectory::parse(text).unwrap();
         assert_eq!(parsed.joints(), ["s0", "j1"]);
-        // Its lead-in takes j1 from where the hand left it to the first point within the
-        // built-in file's max_velocity and max_acceleration (2 rad/s, 20 rad/s²), faster
-        // than the simulated joint follows from rest: it lags, and the play holds its
-        // targets back to the step limit. The pre-flight on the simulator finds that and
-        // refuses it...
+        // Its lead-in takes j1 from where the hand left it to the first point, then the
+        // hand's motion, within the built-in file's max_velocity and max_acceleration:
+        // what the simulated joint follows from rest (robot::simulated::whj_follows). The
+        // pre-flight on the simulator passes it, and no target is held back.
         let play = req(json!({"op": "robot.play", "trajectory": text, "rate_hz": 50}));
-        let e = run(&station, &play, &mut Control::none()).unwrap_err();
-        assert!(
-            matches!(&e, OpError::Preflight(r) if r.joint.starts_with("j1 ")),
-            "{e:?}"
-        );
-        // ... and played without it, j1's targets are held back where it lags.
-        let play = req(
-            json!({"op": "robot.play", "trajectory": text, "rate_hz": 50,
-                              "preflight": false}),
-        );
         let p = serde_json::to_value(run(&station, &play, &mut Control::none()).unwrap()).unwrap();
         assert_eq!(p["failed"], Value::Null, "{p:#}");
+        assert_eq!(
+            p["summary"]["preflight"]["joints"][0]["joint"], "j1",
+            "{p:#}"
+        );
         for r in p["results"].as_array().unwrap() {
             assert!(r["tracking_rms_deg"].as_f64().unwrap() < 3.0, "{r}");
+            assert_eq!(r["limited"], 0, "{r}");
         }
-        let j1 = p["results"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|r| r["id"] == "j1")
-            .unwrap();
-        assert!(j1["limited"].as_u64().unwrap() > 0, "{j1}");
     }
 }

@@ -276,14 +276,14 @@ fn a_hot_joint_is_derated_then_stopped() {
             .starts_with("j1: thermal protection: temperature 86.00 °C reached the limit 85 °C")
     );
     // Before the derating j1 was sent 1.2° a tick (60°/s); after it, at most half its
-    // max_velocity (2 rad/s): 0.5 × 114.59°/s × 0.02 s = 1.146°.
+    // max_velocity (the built-in file's, 1.33 rad/s): 0.5 × 75.96°/s × 0.02 s = 0.76°.
     let steps: Vec<(f64, f64)> = heat
         .ticks
         .0
         .windows(2)
         .map(|w| (w[1].0, w[1].1[0] - w[0].1[0]))
         .collect();
-    let most = 0.5 * 2f64.to_degrees() * 0.02;
+    let most = 0.5 * crate::robot::simulated::whj_follows().0.to_degrees() * 0.02;
     for &(t, step) in &steps {
         if t <= 0.52 {
             assert!((step - 1.2).abs() < 1e-9, "{t}: {step}");
