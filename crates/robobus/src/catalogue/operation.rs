@@ -164,6 +164,13 @@ pub trait Interaction {
         Ok(())
     }
 
+    /// `robot.play` of positions: the handle through which the front end blends a newer
+    /// trajectory into the run between two of its ticks
+    /// ([`Blend`](crate::catalogue::robot::Blend)); `None` (the default): none.
+    fn play_blend(&self) -> Option<std::sync::Arc<crate::catalogue::robot::Blend>> {
+        None
+    }
+
     /// Whether the report's summary lists every pose (`false`: only their count, for a
     /// front end that writes them elsewhere as they come).
     fn keep_poses(&self) -> bool {

@@ -27,7 +27,7 @@ pub mod teach;
 pub mod teleop;
 
 pub use calibrate::{Calibrate, ZeroPose};
-pub use play::{Play, PlayTick};
+pub use play::{Blend, Commanded, Play, PlayTick, Taken};
 pub use sample::Sample;
 pub use teach::Teach;
 pub use teleop::{Pair, Teleop};

@@ -17,6 +17,7 @@
 //! the sends were. Finished, failed or stopped, the run ends with each bus of its joints
 //! in the robot file's `safe_state` (`settle`).
 
+mod blend;
 mod drive;
 mod group;
 mod player;
@@ -41,7 +42,7 @@ use crate::robot::RobotConfig;
 use crate::robot::trajectory::Trajectory;
 use crate::station::Station;
 use crate::whj::Percentiles;
-use group::{Group, check_steps, groups, models_of};
+use group::{Group, check_steps, groups, models_of, step_limits};
 use player::{Player, lead_in_s};
 
 /// `robot.play` (see the [module docs](self)).
@@ -221,7 +222,8 @@ impl Operation for Play {
     fn run(&self, cx: &mut RunCx<'_, '_>) -> Result<Report<Self::Row, PlaySummary>, OpError> {
         let interaction = &mut *cx.interaction;
         let p = if self.interface()? == crate::robot::Interface::Position {
-            run_play(cx.station, self, cx.control, &mut |t| {
+            let blend = interaction.play_blend();
+            run_play(cx.station, self, cx.control, blend.as_deref(), &mut |t| {
                 interaction.play_tick(t)
             })?
         } else {
@@ -324,6 +326,7 @@ pub struct PlaySummary {
     pub preflight: Option<PlayPreflight>,
 }
 
+pub use blend::{Blend, Commanded, Taken};
 pub use preflight::{FlownJoint, PlayPreflight};
 
 /// What a `robot.play` run did.
@@ -371,6 +374,7 @@ fn run_play(
     station: &Station,
     r: &Play,
     control: &mut Control<'_>,
+    blend: Option<&Blend>,
     on_tick: &mut dyn FnMut(&PlayTick<'_>) -> Result<(), OpError>,
 ) -> Result<PlayedRun, OpError> {
     let traj = r.check()?;
@@ -396,7 +400,13 @@ fn run_play(
             )
         })
         .fold(0.0, f64::max);
-    check_steps(&groups, &traj, &from, lead_in, r.rate_hz)?;
+    check_steps(
+        &step_limits(&groups, index.len())?,
+        &traj,
+        &from,
+        lead_in,
+        r.rate_hz,
+    )?;
     // The same play first on WHJ simulators seeded with its WHJ joints (refused before
     // the first tick when one of them would not follow it).
     let flight = preflight::fly(
@@ -417,6 +427,7 @@ fn run_play(
         (&from, lead_in),
         &models,
     )?;
+    player.blend = blend;
     let run = player.run(&mut rows, control, on_tick);
     let faults = std::mem::take(&mut player.faults);
     let torque_off = fail_protection_stop(&faults, traj.joints(), &mut rows, &models);

@@ -396,8 +396,14 @@ impl Spline {
 /// accelerations (degrees, degrees a second, degrees a second²; where given).
 type Knot<'a> = (f64, &'a [f64], Option<&'a [f64]>, Option<&'a [f64]>);
 
+/// The times of `t`'s points, s (for the library's own trajectories made of another's
+/// points: a blend's).
+pub(crate) fn times(t: &Trajectory) -> Vec<f64> {
+    t.times.iter().map(|x| x.0).collect()
+}
+
 /// The trajectory file of `rows` (time, joint degrees) of `joints`.
-fn csv_of(joints: &[String], rows: &[(f64, Vec<f64>)]) -> String {
+pub(crate) fn csv_of(joints: &[String], rows: &[(f64, Vec<f64>)]) -> String {
     use std::fmt::Write as _;
     let mut csv = String::from("time_s");
     for j in joints {

@@ -169,16 +169,15 @@ pub(super) fn groups(
     Ok((groups, clock))
 }
 
-/// Per column, how far a WHJ joint's target may be sent from where it last reported
-/// itself: 0.8 of its bus's step limit (`None` for a wCK servo).
-pub(super) fn steps_of(groups: &[Group], columns: usize) -> Result<Vec<Option<f64>>, OpError> {
+/// Per column, its WHJ bus's step limit, degrees (`None` for a wCK servo).
+pub(super) fn step_limits(groups: &[Group], columns: usize) -> Result<Vec<Option<f64>>, OpError> {
     let mut steps = vec![None; columns];
     for g in groups {
         if let Group::Whj(h, _, cols) = g {
             let limit = h.step_limit_deg()?;
             for &(c, _) in cols {
                 if let Some(s) = steps.get_mut(c) {
-                    *s = Some(0.8 * limit);
+                    *s = Some(limit);
                 }
             }
         }
@@ -186,39 +185,46 @@ pub(super) fn steps_of(groups: &[Group], columns: usize) -> Result<Vec<Option<f6
     Ok(steps)
 }
 
-/// Refuses a trajectory whose WHJ joints would step more than half their bus's step
-/// limit in one tick (a joint lagging by a tick would then be refused its next frame):
-/// the fastest segment, and the lead-in, at `rate_hz`.
+/// Per column, how far a WHJ joint's target may be sent from where it last reported
+/// itself: 0.8 of its bus's step limit (`None` for a wCK servo).
+pub(super) fn steps_of(groups: &[Group], columns: usize) -> Result<Vec<Option<f64>>, OpError> {
+    Ok(step_limits(groups, columns)?
+        .into_iter()
+        .map(|l| l.map(|l| 0.8 * l))
+        .collect())
+}
+
+/// Refuses a trajectory whose WHJ joints (`limits`: each column's bus step limit, as
+/// [`step_limits`]) would step more than half their bus's step limit in one tick (a
+/// joint lagging by a tick would then be refused its next frame): the fastest segment,
+/// and the lead-in, at `rate_hz`.
 pub(super) fn check_steps(
-    groups: &[Group],
+    limits: &[Option<f64>],
     traj: &Trajectory,
     from: &[f64],
     lead_in: f64,
     rate_hz: f64,
 ) -> Result<(), OpError> {
-    for g in groups {
-        let Group::Whj(h, _, cols) = g else { continue };
-        let limit = h.step_limit_deg()?;
-        for &(c, _) in cols {
-            let lead = match (traj.first().get(c), from.get(c)) {
-                (Some(a), Some(b)) if lead_in > 0.0 => LEAD_IN_PEAK * (a - b).abs() / lead_in,
-                _ => 0.0,
-            };
-            let speed = traj.max_speed(c).max(lead);
-            let step = speed / rate_hz;
-            if step > limit / 2.0 {
-                let name = traj.joints().get(c).map_or("?", String::as_str);
-                return Err(OpError::invalid(
-                    "--rate-hz",
-                    rate_hz,
-                    format!(
-                        "{name} moves up to {speed:.1}°/s: at {rate_hz} Hz a tick steps \
-                         {step:.2}°, more than half its bus's {limit}° step limit; play at \
-                         --rate-hz {} or more",
-                        (2.0 * speed / limit).ceil()
-                    ),
-                ));
-            }
+    for (c, limit) in limits.iter().enumerate() {
+        let Some(limit) = *limit else { continue };
+        let lead = match (traj.first().get(c), from.get(c)) {
+            (Some(a), Some(b)) if lead_in > 0.0 => LEAD_IN_PEAK * (a - b).abs() / lead_in,
+            _ => 0.0,
+        };
+        let speed = traj.max_speed(c).max(lead);
+        let step = speed / rate_hz;
+        if step > limit / 2.0 {
+            let name = traj.joints().get(c).map_or("?", String::as_str);
+            return Err(OpError::invalid(
+                "--rate-hz",
+                rate_hz,
+                format!(
+                    "{name} moves up to {speed:.1}°/s: at {rate_hz} Hz a tick steps \
+                     {step:.2}°, more than half its bus's {limit}° step limit; play at \
+                     --rate-hz {} or more",
+                    (2.0 * speed / limit).ceil()
+                ),
+            ));
         }
     }
     Ok(())

@@ -5,7 +5,8 @@
 
 use std::time::{Duration, Instant};
 
-use super::group::{Group, Outcomes, Sensed, steps_of};
+use super::blend::{Blend, Course};
+use super::group::{Group, Outcomes, Sensed, step_limits, steps_of};
 use super::{MAX_TIMED_TICKS, Play, PlayTick, Played, TEMPERATURE_EVERY_S};
 use crate::ops::protect::{self, Action, Fault, Monitor, Reading};
 use crate::ops::{Control, Failure, OpError, Progress};
@@ -25,8 +26,13 @@ pub(super) struct Timing {
 
 pub(super) struct Player<'a> {
     traj: &'a Trajectory,
+    /// The trajectory's joints in the robot file, by column.
+    index: Vec<usize>,
     from: &'a [f64],
-    lead_in: f64,
+    /// What it plays: the lead-in, the trajectory, and a trajectory blended in.
+    course: Course,
+    /// Through which a front end blends a newer trajectory in (`None`: none).
+    pub(super) blend: Option<&'a Blend>,
     period: Duration,
     groups: &'a [Group],
     clock: &'a BusClock,
@@ -93,8 +99,10 @@ impl<'a> Player<'a> {
         );
         Ok(Self {
             traj,
+            index: index.to_vec(),
             from,
-            lead_in,
+            course: Course::new(traj, from, lead_in),
+            blend: None,
             period: Duration::from_secs_f64(1.0 / r.rate_hz),
             groups,
             clock,
@@ -126,27 +134,31 @@ pub(super) fn lead_in_s(distance: f64, max_speed: f64, max_accel: f64) -> f64 {
 impl Player<'_> {
     /// The targets at `t_s` since the start (joint degrees, by column).
     fn targets(&self, t_s: f64) -> Vec<f64> {
-        if t_s < self.lead_in {
-            // From rest to rest: a joint that must accelerate is not asked to jump to its
-            // speed (it would lag, and its targets would be held back).
-            let f = (1.0 - (std::f64::consts::PI * t_s / self.lead_in).cos()) / 2.0;
-            self.from
-                .iter()
-                .zip(self.traj.first())
-                .map(|(a, b)| a + (b - a) * f)
-                .collect()
-        } else {
-            self.traj.at(t_s - self.lead_in)
-        }
+        self.course.at(t_s)
     }
 
+    /// Plays the ticks (a trajectory offered through [`Player::blend`] taken at its
+    /// tick); each tick to `on_tick`.
     pub(super) fn run(
         &mut self,
         rows: &mut [Played],
         control: &mut Control<'_>,
         on_tick: &mut dyn FnMut(&PlayTick<'_>) -> Result<(), OpError>,
     ) -> Result<Timing, OpError> {
-        let total = self.lead_in + self.traj.duration_s();
+        let run = self.ticks(rows, control, on_tick);
+        if let Some(b) = self.blend {
+            b.end();
+        }
+        run
+    }
+
+    fn ticks(
+        &mut self,
+        rows: &mut [Played],
+        control: &mut Control<'_>,
+        on_tick: &mut dyn FnMut(&PlayTick<'_>) -> Result<(), OpError>,
+    ) -> Result<Timing, OpError> {
+        let mut total = self.course.end_s();
         let clock = self.clock;
         let start = clock.now();
         let mut timing = Timing::default();
@@ -157,7 +169,9 @@ impl Player<'_> {
         let period_s = self.period.as_secs_f64();
         let mut k: u64 = 0;
         #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)] // ≤ 3600 s × 500 Hz
-        let last = (total / self.period.as_secs_f64()).ceil() as u64;
+        let last_of = |total: f64| (total / period_s).ceil() as u64;
+        let mut last = last_of(total);
+        self.begin_blend(period_s, last)?;
         while k <= last {
             let due = start + self.period * u32::try_from(k).unwrap_or(u32::MAX);
             if !control.sleep_with(due, |until| {
@@ -169,30 +183,12 @@ impl Player<'_> {
                 timing.interrupted = true;
                 break;
             }
+            if let Some(end) = self.blend_at(k, &last_of) {
+                (total, last) = end;
+            }
             let t_s = (due - start).as_secs_f64().min(total);
             let targets = self.targets(t_s);
-            // A WHJ joint lagging behind is sent no further than its step allows; a
-            // derated one no faster than its share of its max_velocity.
-            let sent: Vec<f64> = targets
-                .iter()
-                .zip(&self.steps)
-                .zip(&last_at)
-                .enumerate()
-                .map(|(c, ((&t, step), at))| {
-                    let t = match (step, at) {
-                        (Some(s), Some(a)) => t.clamp(a - s, a + s),
-                        _ => t,
-                    };
-                    let share = self.monitor.speed_share(c);
-                    match (share < 1.0, last_sent.get(c), self.max_speed_deg.get(c)) {
-                        (true, Some(&prev), Some(&v)) => {
-                            let most = share * v * period_s;
-                            t.clamp(prev - most, prev + most)
-                        }
-                        _ => t,
-                    }
-                })
-                .collect();
+            let sent = self.held(&targets, &last_at, &last_sent, period_s);
             let temperature = t_s >= next_temperature;
             if temperature {
                 next_temperature = t_s + TEMPERATURE_EVERY_S;
@@ -247,6 +243,65 @@ impl Player<'_> {
             }
         }
         Ok(timing)
+    }
+
+    /// `targets` as sent: a WHJ joint lagging behind (where it was last `at`) no further
+    /// than its step allows; a derated one no faster than its share of its `max_velocity`
+    /// from what it was sent last (`last_sent`, a tick of `period_s` before).
+    fn held(
+        &self,
+        targets: &[f64],
+        last_at: &[Option<f64>],
+        last_sent: &[f64],
+        period_s: f64,
+    ) -> Vec<f64> {
+        targets
+            .iter()
+            .zip(&self.steps)
+            .zip(last_at)
+            .enumerate()
+            .map(|(c, ((&t, step), at))| {
+                let t = match (step, at) {
+                    (Some(s), Some(a)) => t.clamp(a - s, a + s),
+                    _ => t,
+                };
+                let share = self.monitor.speed_share(c);
+                match (share < 1.0, last_sent.get(c), self.max_speed_deg.get(c)) {
+                    (true, Some(&prev), Some(&v)) => {
+                        let most = share * v * period_s;
+                        t.clamp(prev - most, prev + most)
+                    }
+                    _ => t,
+                }
+            })
+            .collect()
+    }
+
+    /// Tells the blend (if any) a run begins: what it plays, its period, its last tick.
+    fn begin_blend(&self, period_s: f64, last: u64) -> Result<(), OpError> {
+        if let Some(b) = self.blend {
+            let limits = step_limits(self.groups, self.index.len())?;
+            b.begin(
+                (self.traj.joints(), &self.index),
+                &self.course,
+                period_s,
+                last,
+                limits,
+            );
+        }
+        Ok(())
+    }
+
+    /// At tick `k`: a trajectory blended in at it (or at a tick skipped) plays from here;
+    /// the run's new end (s) and last tick (`last_of` the end).
+    fn blend_at(&mut self, k: u64, last_of: &dyn Fn(f64) -> u64) -> Option<(f64, u64)> {
+        let b = self.blend?;
+        let (blended, origin) = b.at_tick(k)?;
+        self.course.blend_in(blended, origin);
+        let total = self.course.end_s();
+        let last = last_of(total).max(k);
+        b.last(last);
+        Some((total, last))
     }
 
     /// Feeds what the joints reported at `now` to the protection (the following error

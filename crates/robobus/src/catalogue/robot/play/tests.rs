@@ -293,3 +293,108 @@ fn a_hot_joint_is_derated_then_stopped() {
     }
     assert!((heat.ticks.0.last().unwrap().0 - 1.30).abs() < 1e-9);
 }
+
+/// Blends a newer trajectory (j1 to 0° at 1 s, velocity and acceleration 0) into the run
+/// at its tick `at` (15 ticks ahead, from the state commanded there), as a front end does.
+struct Blending<'s> {
+    station: &'s Station,
+    blend: std::sync::Arc<super::Blend>,
+    at: usize,
+    /// The tick the blend starts at and whether the offer was taken up.
+    offered: Option<(u64, bool)>,
+    ticks: Ticks,
+}
+
+impl Interaction for Blending<'_> {
+    fn play_tick(&mut self, t: &PlayTick<'_>) -> Result<(), OpError> {
+        self.ticks.play_tick(t)?;
+        if self.ticks.0.len() == self.at + 1 {
+            use crate::cdr::{Duration as Since, JointTrajectory, JointTrajectoryPoint};
+            use crate::robot::trajectory::ros;
+            let at = self.blend.commanded(15).unwrap();
+            let msg = JointTrajectory {
+                joint_names: vec!["j1".into()],
+                points: vec![JointTrajectoryPoint {
+                    positions: vec![0.0],
+                    velocities: vec![0.0],
+                    accelerations: vec![0.0],
+                    time_from_start: Since::from_secs_f64(1.0),
+                    ..JointTrajectoryPoint::default()
+                }],
+                ..JointTrajectory::default()
+            };
+            let config = self.station.robot().cloned().unwrap();
+            let checked = ros::check(&msg, &config).unwrap();
+            let start = at.start_of(&checked.joints).unwrap();
+            let planned = ros::plan_from(&checked, &config, &start, at.ahead_s).unwrap();
+            let blended = super::Blend::blended(&at, &planned.trajectory).unwrap();
+            let r: super::Play =
+                serde_json::from_value(json!({"trajectory": planned.csv})).unwrap();
+            let taken = self
+                .blend
+                .offer(self.station, &r, &at, &blended, &Control::none())
+                .unwrap();
+            self.offered = Some((at.tick, taken));
+        }
+        Ok(())
+    }
+
+    fn play_blend(&self) -> Option<std::sync::Arc<super::Blend>> {
+        Some(std::sync::Arc::clone(&self.blend))
+    }
+}
+
+/// A trajectory blended into a play between two of its ticks (as the bridge's newer
+/// trajectory): the same run goes on from the position, velocity and acceleration it
+/// commanded at the swap tick, with no stop and no jump, the joint the newer one does not
+/// name holds its commanded position, and the run ends when the newer one does.
+#[test]
+fn a_blended_trajectory_goes_on_from_the_commanded_state_in_the_same_run() {
+    let (station, _wck, _whj) = Station::simulated_with_handles().unwrap();
+    ready_whj(&station);
+    // j1 at 20°/s, j2 at -10°/s; the newer one is offered at the tick at 0.5 s.
+    let request = req(json!({
+        "op": "robot.play",
+        "trajectory": "time_s,j1,j2\n0,0,0\n2,40,-20\n",
+        "rate_hz": 50,
+    }));
+    let mut b = Blending {
+        station: &station,
+        blend: std::sync::Arc::new(super::Blend::new()),
+        at: 25,
+        offered: None,
+        ticks: Ticks::default(),
+    };
+    let report = run_with(&station, &request, &mut Control::none(), &mut b).unwrap();
+    let v = serde_json::to_value(&report).unwrap();
+    assert_eq!(v["failed"], Value::Null, "{v:#}");
+    // Taken at tick 41 (0.82 s): 15 after the one after 0.5 s.
+    assert_eq!(b.offered, Some((41, true)));
+    assert_eq!(b.blend.taken().count, 1);
+    assert!((b.blend.taken().t_s - 0.82).abs() < 1e-9);
+    let ticks = &b.ticks.0;
+    let j1 = |k: usize| ticks[k].1[0];
+    // At the swap tick exactly where the first trajectory had it (16.4°), its step per
+    // tick (0.4° at 20°/s) going on: the change in a step is the quintic's start's.
+    assert!((j1(41) - 16.4).abs() < 1e-9, "{}", j1(41));
+    for k in 38..=41 {
+        assert!((j1(k) - j1(k - 1) - 0.4).abs() < 1e-9, "tick {k}");
+    }
+    assert!((j1(42) - j1(41) - 0.4).abs() < 0.01, "{}", j1(42) - j1(41));
+    // Then as smooth as the quintic to 0° (down to -54°/s and back to rest in 0.68 s,
+    // its acceleration at most 320°/s²: a step changes by at most 0.128° a tick).
+    for k in 43..76 {
+        let (a, b) = (j1(k - 1) - j1(k - 2), j1(k) - j1(k - 1));
+        assert!((a - b).abs() < 0.13, "tick {k}: {a} then {b}");
+    }
+    // j2 holds its commanded -8.2° from the swap.
+    for (t, targets, _) in &ticks[41..] {
+        assert!((targets[1] + 8.2).abs() < 1e-9, "{t}: {targets:?}");
+    }
+    // The newer one's point was due 1 s after the tick it came at (0.5 s): the run ends
+    // there, at 1.5 s (76 ticks, not the first's 101), j1 at 0°.
+    assert_eq!(v["summary"]["ticks"], 76, "{v:#}");
+    let (t, targets, _) = ticks.last().unwrap();
+    assert!((t - 1.5).abs() < 1e-9, "{t}");
+    assert!(targets[0].abs() < 1e-9, "{targets:?}");
+}
