@@ -827,4 +827,6 @@ fn publishing(
 }
 
 #[cfg(test)]
+mod testing;
+#[cfg(test)]
 mod tests;

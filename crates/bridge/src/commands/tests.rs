@@ -29,23 +29,7 @@ fn armed() -> (Arc<Shared>, Arc<AtomicBool>) {
         Keys::new(None).unwrap(),
     )
     .unwrap();
-    s.set_armed(true).unwrap();
-    s.guard.heartbeat(SESSION);
-    for r in [
-        r#"{"op":"whj.mode","joints":"1-2","mode":"position"}"#,
-        r#"{"op":"whj.enable","joints":"1-2"}"#,
-    ] {
-        run_request(&s, r).unwrap();
-    }
-    let done = Arc::new(AtomicBool::new(false));
-    let (beat, stop) = (Arc::clone(&s), Arc::clone(&done));
-    std::thread::spawn(move || {
-        while !stop.load(Ordering::SeqCst) {
-            beat.guard.heartbeat(SESSION);
-            std::thread::sleep(Duration::from_millis(50));
-        }
-    });
-    (s, done)
+    crate::testing::armed(s, "1-2")
 }
 
 fn sim(s: &Shared) -> &LiveSimulator {

@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 use robobus::cdr::{self, JointTrajectory, JointTrajectoryControllerState, JointTrajectoryPoint};
 
 use super::*;
-use crate::{BridgeConfig, Keys, SESSION, run_request};
+use crate::{BridgeConfig, Keys, run_request};
 
 /// How close to a point a joint must be at the tick the point is due, degrees: the
 /// position a joint reports at a tick is the one it answered that tick's command with,
@@ -75,24 +75,7 @@ impl Collect {
 /// mode, and a thread feeding the guard's heartbeat (as the command thread does) until
 /// the returned flag is set.
 fn armed() -> (Arc<Shared>, Arc<AtomicBool>) {
-    let s = unarmed();
-    s.set_armed(true).unwrap();
-    s.guard.heartbeat(SESSION);
-    for r in [
-        r#"{"op":"whj.mode","joints":"1-7","mode":"position"}"#,
-        r#"{"op":"whj.enable","joints":"1-7"}"#,
-    ] {
-        run_request(&s, r).unwrap();
-    }
-    let done = Arc::new(AtomicBool::new(false));
-    let (beat, stop) = (Arc::clone(&s), Arc::clone(&done));
-    std::thread::spawn(move || {
-        while !stop.load(Ordering::SeqCst) {
-            beat.guard.heartbeat(SESSION);
-            std::thread::sleep(Duration::from_millis(50));
-        }
-    });
-    (s, done)
+    crate::testing::armed(unarmed(), "1-7")
 }
 
 fn unarmed() -> Arc<Shared> {
