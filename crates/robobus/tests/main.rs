@@ -19,6 +19,7 @@ mod replay_capture;
 mod replay_uml;
 mod report_schema;
 mod robot_config;
+mod robot_protection;
 mod robot_reports;
 mod robot_sim;
 mod robot_velocity;

@@ -8,6 +8,9 @@ use super::{
     RobotError, ServoId, Shared, TorqueLevel, WckBus, WckSlot, WhjSlot,
 };
 
+use super::guard::Guard;
+use robobus_whj::units::Model;
+
 // ----- builder -------------------------------------------------------------------------
 
 /// Builds a [`Robot`] from a [`RobotConfig`], with buses the program supplies (see
@@ -140,8 +143,12 @@ impl RobotBuilder {
             |s| s.origin,
         );
         let mut joints = Vec::new();
+        let mut watched = Vec::new();
         for j in &config.joints {
-            joints.push(build_joint(j, &config, &index, &whj_slots)?);
+            let (slot, model) = build_joint(j, &config, &index, &whj_slots)?;
+            // The host's protection: the models table's defaults with the file's.
+            watched.push((j.name.clone(), config.protection_of(j, model), model));
+            joints.push(slot);
         }
 
         let mut hw = Hardware {
@@ -150,6 +157,7 @@ impl RobotBuilder {
             joints,
             last_cycle: origin,
             origin,
+            guard: Guard::new(origin, watched),
         };
         hw.enable_whj()?;
         hw.reset_limiters()?;
@@ -189,13 +197,14 @@ fn start(hw: Hardware, timeout: Duration) -> Result<Robot, RobotError> {
     })
 }
 
-/// Resolves one joint of the file: its device, map and limits (WHJ: connects it).
+/// Resolves one joint of the file: its device, map and limits (WHJ: connects it), and
+/// the model a WHJ joint identified as.
 fn build_joint(
     j: &JointConfig,
     config: &RobotConfig,
     index: &BTreeMap<&str, usize>,
     whj_slots: &[WhjSlot],
-) -> Result<JointSlot, RobotError> {
+) -> Result<(JointSlot, Option<Model>), RobotError> {
     let map = j.map();
     let limits = JointLimits {
         min_rad: j.limits[0],
@@ -212,6 +221,7 @@ fn build_joint(
     };
     let mut peak_rad_s = None;
     let mut effort_scale = None;
+    let mut model = None;
     let device = if config.is_wck(j) {
         let id = ServoId::new(j.id).map_err(|e| invalid("id", j.id.to_string(), e.to_string()))?;
         Device::Wck {
@@ -231,6 +241,7 @@ fn build_joint(
         let handle = slot.bus.joint(id).map_err(whj)?;
         let identity = handle.identity().map_err(whj)?;
         let current = identity.current_scale();
+        model = Some(identity.model);
         peak_rad_s = identity
             .model
             .peak_output_speed_rpm()
@@ -267,7 +278,7 @@ fn build_joint(
             current,
         }
     };
-    Ok(JointSlot {
+    let slot = JointSlot {
         name: j.name.clone(),
         device,
         limits,
@@ -283,7 +294,8 @@ fn build_joint(
             effort_scale,
             peak_rad_s,
         },
-    })
+    };
+    Ok((slot, model))
 }
 
 /// Opens the wCK bus `name` of a robot file on its serial port, without a [`Robot`]: no

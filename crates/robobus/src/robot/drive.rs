@@ -6,7 +6,8 @@ use robobus_wck::{Rotation, WheelSpeed};
 use robobus_whj::WorkMode;
 use robobus_whj::units::{Current, TargetSpeed};
 
-use super::hardware::{Device, Hardware};
+use super::guard::Sensed;
+use super::hardware::{Device, Hardware, sensed_of};
 use super::interface::{Interface, wheel_command};
 use super::{ActuatorError, Duration, LimitEvent, LimitKind, RateLimiter, RobotError, whj_to_rad};
 use crate::actuator::rpm_to_rad_s;
@@ -116,8 +117,10 @@ impl Hardware {
     /// to its `max_velocity` / `max_effort`, ramped at its `max_acceleration` /
     /// `max_effort_rate`, and (a WHJ joint) never towards a soft limit faster than it can
     /// stop there at `max_acceleration` (an effort towards a limit it stands on is
-    /// dropped). Returns the frame and the value it carries in the joint's unit (a wCK
-    /// speed at its wheel level); records the set-point and every limit that acted.
+    /// dropped). A joint the host's protection derates for heat keeps its share of
+    /// `max_velocity` / `max_effort`. Returns the frame and the value it carries in the
+    /// joint's unit (a wCK speed at its wheel level); records the set-point and every
+    /// limit that acted.
     pub(super) fn plan(
         &mut self,
         index: usize,
@@ -126,6 +129,7 @@ impl Hardware {
         dt_s: f64,
         limited: &mut Vec<LimitEvent>,
     ) -> Result<(Out, f64), RobotError> {
+        let share = self.guard.share(index);
         let whj_angle = match self.joints.get(index).map(|j| j.device) {
             Some(Device::Whj { .. }) => Some(self.angle_now(index)?),
             _ => None,
@@ -151,11 +155,11 @@ impl Hardware {
         let d = &mut joint.drive;
         let (most, rate, previous) = match interface {
             Interface::Velocity => (
-                limits.max_velocity_rad_s,
+                limits.max_velocity_rad_s * share,
                 limits.max_acceleration_rad_s2,
                 d.velocity,
             ),
-            _ => (d.max_effort, d.effort_rate, d.effort),
+            _ => (d.max_effort * share, d.effort_rate, d.effort),
         };
         let clamped = target.clamp(-most, most);
         event(LimitKind::Motion, target, clamped);
@@ -230,12 +234,18 @@ impl Hardware {
         }
     }
 
-    /// Sends joint `index`'s planned velocity or effort frame.
-    pub(super) fn send_out(&mut self, index: usize, out: Out) -> Result<(), RobotError> {
+    /// Sends joint `index`'s planned velocity or effort frame; what a WHJ joint's servo
+    /// frame answered.
+    pub(super) fn send_out(
+        &mut self,
+        index: usize,
+        out: Out,
+    ) -> Result<Option<Sensed>, RobotError> {
         let Some(joint) = self.joints.get(index) else {
-            return Ok(());
+            return Ok(None);
         };
         let name = joint.name.clone();
+        let mut sensed = None;
         match (joint.device, out) {
             (Device::Wck { bus, id, .. }, Out::Wheel(rotation, level)) => {
                 if let Some(slot) = self.wck.get_mut(bus) {
@@ -245,25 +255,45 @@ impl Hardware {
                         .map_err(|e| wck_error(&name, e))?;
                 }
             }
-            (Device::Whj { bus, id, .. }, Out::Speed(target)) => {
+            (
+                Device::Whj {
+                    bus,
+                    id,
+                    map,
+                    current,
+                },
+                Out::Speed(target),
+            ) => {
                 if let Some(slot) = self.whj.get(bus) {
-                    slot.bus
+                    let fb = slot
+                        .bus
                         .joint_unchecked(id)
                         .command_speed(target)
                         .map_err(|e| whj_error(&name, e))?;
+                    sensed = Some(sensed_of(&fb, map, current));
                 }
             }
-            (Device::Whj { bus, id, .. }, Out::Current(ma)) => {
+            (
+                Device::Whj {
+                    bus,
+                    id,
+                    map,
+                    current,
+                },
+                Out::Current(ma),
+            ) => {
                 if let Some(slot) = self.whj.get(bus) {
-                    slot.bus
+                    let fb = slot
+                        .bus
                         .joint_unchecked(id)
                         .command_current(ma)
                         .map_err(|e| whj_error(&name, e))?;
+                    sensed = Some(sensed_of(&fb, map, current));
                 }
             }
             _ => {}
         }
-        Ok(())
+        Ok(sensed)
     }
 
     /// Why joint `index` may not switch its interface now: it is moving (its set-point is
@@ -363,6 +393,7 @@ impl Hardware {
                 joint.limiter = RateLimiter::new(at);
             }
         }
+        self.guard.restart(index);
         Ok(())
     }
 

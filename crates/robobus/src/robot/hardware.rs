@@ -2,6 +2,7 @@
 //! robot's clock (its buses' clocks), the watchdog's shared state, and reading and
 //! sending in joint units.
 
+use super::guard::Sensed;
 use super::interface::{EffortScale, Interface, WheelSpeeds};
 use super::{
     ActuatorError, Arc, AtomicBool, CurrentScale, Duration, DynByteLink, Instant, Joint, JointBus,
@@ -9,7 +10,23 @@ use super::{
     RateLimiter, RobotError, SafeDevice, SafeState, SafeStopReport, ServoId, ServoLoop, StopCause,
     TorqueLevel, WckBus, WckScale, WckServos, WhjJoints, whj_to_rad,
 };
-use crate::actuator::{Actuator, WckActuator, WhjActuator};
+use crate::actuator::{Actuator, WckActuator, WhjActuator, rpm_to_rad_s, whj_position};
+
+/// What a WHJ servo frame answered, in the joint frame (`map`; its current in A with the
+/// model's `scale`).
+pub(super) fn sensed_of(
+    fb: &robobus_whj::ServoFeedback,
+    map: JointMap,
+    scale: CurrentScale,
+) -> Sensed {
+    #[allow(clippy::cast_precision_loss)] // |mA| < 2^31
+    let current_a = fb.current.milliamps(scale) as f64 / 1e3;
+    Sensed {
+        position_rad: whj_to_rad(map, fb.position),
+        speed_rad_s: map.speed_to_joint(rpm_to_rad_s(fb.speed.rpm())),
+        current_a,
+    }
+}
 
 // ----- internals -----------------------------------------------------------------------
 
@@ -101,6 +118,8 @@ pub(super) struct Hardware {
     pub(super) last_cycle: Instant,
     /// The robot clock's time zero: the `origin` of its first bus (wCK buses first).
     pub(super) origin: Instant,
+    /// The host's protection of the robot's commands.
+    pub(super) guard: super::guard::Guard,
 }
 
 // ----- the robot's clock ---------------------------------------------------------------
@@ -452,11 +471,16 @@ impl Hardware {
 
     /// Sends the position `setpoints` (rad, joint order, within the soft limits; `None`
     /// for a joint not commanded in position); returns what was sent at device
-    /// resolution (0 where nothing was). wCK: per bus one synchronized move when its IDs
-    /// are exactly `0..n` (at the steps its servos' [`Actuator`]s would send), else each
-    /// servo's own move; WHJ: each joint's position command.
-    pub(super) fn send(&mut self, setpoints: &[Option<f64>]) -> Result<Vec<f64>, RobotError> {
+    /// resolution (0 where nothing was) and what each WHJ joint's servo frame answered.
+    /// wCK: per bus one synchronized move when its IDs are exactly `0..n` (at the steps
+    /// its servos' [`Actuator`]s would send), else each servo's own move; WHJ: each
+    /// joint's position servo frame.
+    pub(super) fn send(
+        &mut self,
+        setpoints: &[Option<f64>],
+    ) -> Result<(Vec<f64>, Vec<Option<Sensed>>), RobotError> {
         let mut sent = vec![0.0; setpoints.len()];
+        let mut sensed = vec![None; setpoints.len()];
         let mut singles = Vec::new();
         for (b, slot) in self.wck.iter_mut().enumerate() {
             let mut members: Vec<(usize, ServoId, Position)> = Vec::new();
@@ -514,11 +538,62 @@ impl Hardware {
             let Some(&Some(rad)) = setpoints.get(i) else {
                 continue;
             };
+            if let Some((at, fb)) = self.whj_position_frame(i, rad)? {
+                if let Some(s) = sent.get_mut(i) {
+                    *s = at;
+                }
+                if let Some(s) = sensed.get_mut(i) {
+                    *s = fb;
+                }
+                continue;
+            }
             let done = self.actuator(i)?.command_position(rad)?;
             if let Some(s) = sent.get_mut(i) {
                 *s = done.sent_rad;
             }
         }
-        Ok(sent)
+        Ok((sent, sensed))
+    }
+
+    /// Sends WHJ joint `index` one position servo frame to `rad` (within its soft
+    /// limits): the angle sent (at device resolution) and what the frame answered;
+    /// `None` for a wCK joint (nothing sent).
+    fn whj_position_frame(
+        &self,
+        index: usize,
+        rad: f64,
+    ) -> Result<Option<(f64, Option<Sensed>)>, RobotError> {
+        let Some(JointSlot {
+            name,
+            device:
+                Device::Whj {
+                    bus,
+                    id,
+                    map,
+                    current,
+                },
+            limits,
+            ..
+        }) = self.joints.get(index)
+        else {
+            return Ok(None);
+        };
+        let Some(slot) = self.whj.get(*bus) else {
+            return Ok(None);
+        };
+        let (target, _) = limits.clamp(rad);
+        let position = whj_position(name, *map, target)?;
+        let fb = slot
+            .bus
+            .joint_unchecked(*id)
+            .command_position(position)
+            .map_err(|source| ActuatorError::Whj {
+                joint: name.clone(),
+                source: Box::new(source),
+            })?;
+        Ok(Some((
+            whj_to_rad(*map, position),
+            Some(sensed_of(&fb, *map, *current)),
+        )))
     }
 }

@@ -77,6 +77,7 @@ mod builder;
 pub mod calibration;
 mod config;
 mod drive;
+mod guard;
 mod hardware;
 mod interface;
 mod safety;
@@ -99,6 +100,7 @@ use robobus_whj::units::CurrentScale;
 
 pub use builder::{RobotBuilder, open_wck_bus, open_whj_bus};
 pub use config::{BusConfig, JointConfig, Protection, RobotConfig};
+pub use guard::TEMPERATURE_EVERY;
 use hardware::{Device, Drive, Hardware, JointSlot, Shared, WckSlot, WhjSlot, lock};
 pub(crate) use interface::list as interface_list;
 pub use interface::{EffortScale, Interface, WHEEL_LEVELS, WheelSpeeds};
@@ -260,6 +262,27 @@ pub enum RobotError {
         /// What is allowed.
         expected: String,
     },
+    /// The host's protection stopped a joint during this command (a stall, a collision,
+    /// heat, a runaway under effort): the fault names the joint, the quantity, the limit
+    /// and the time; the joint was brought to rest through the one guard (`stopped`
+    /// says how). Every later command is refused until [`Robot::clear_protection`].
+    #[error("{fault}; {stopped}; every later command is refused until Robot::clear_protection")]
+    Protection {
+        /// The fault that stopped it.
+        fault: Box<crate::ops::protect::Fault>,
+        /// What the stop did (`its drive disabled (...)`, `held where it stands`).
+        stopped: String,
+    },
+    /// A command (or an interface switch) while a joint is stopped by the host's
+    /// protection; nothing sent.
+    #[error(
+        "the host's protection stopped joint {} ({fault}); nothing sent; call \
+         Robot::clear_protection once the cause is cleared", .fault.joint
+    )]
+    ProtectionStopped {
+        /// The fault that stopped the joint.
+        fault: Box<crate::ops::protect::Fault>,
+    },
     /// An interface switch of a joint that is not at rest; nothing sent.
     #[error("joint {joint} cannot switch from {from} to {to} while it moves: {why}; nothing sent")]
     Moving {
@@ -290,9 +313,11 @@ impl RobotError {
             Self::OpenWck { source, .. } => source.kind(),
             Self::OpenWhj { .. } => ErrorKind::NoDevice,
             Self::Actuator(e) => e.kind(),
-            Self::SafeStopped { .. } | Self::WrongInterface { .. } | Self::Moving { .. } => {
-                ErrorKind::Refused
-            }
+            Self::SafeStopped { .. }
+            | Self::WrongInterface { .. }
+            | Self::Moving { .. }
+            | Self::ProtectionStopped { .. } => ErrorKind::Refused,
+            Self::Protection { .. } => ErrorKind::Device,
             Self::Watchdog(_) => ErrorKind::NotAvailable,
         }
     }
@@ -563,6 +588,9 @@ impl Robot {
                 cause: report.cause,
             });
         }
+        if let Some(refused) = hw.guard.refusal() {
+            return Err(refused);
+        }
         for (i, (joint, target)) in hw.joints.iter().zip(targets).enumerate() {
             if joint.drive.active != target.interface() {
                 return Err(RobotError::WrongInterface {
@@ -585,7 +613,10 @@ impl Robot {
         };
         let mut limited = Vec::new();
         let mut setpoints = Vec::with_capacity(targets.len());
-        for ((joint, target), reach) in hw.joints.iter_mut().zip(targets).zip(reach) {
+        let shares: Vec<f64> = (0..targets.len()).map(|i| hw.guard.share(i)).collect();
+        for (((joint, target), reach), share) in
+            hw.joints.iter_mut().zip(targets).zip(reach).zip(shares)
+        {
             let Target::Position(target) = *target else {
                 setpoints.push(None);
                 continue;
@@ -603,9 +634,14 @@ impl Robot {
             if was_clamped {
                 event(LimitKind::Position, target, clamped);
             }
+            // A joint derated for heat moves at its share of max_velocity.
+            let derated = JointLimits {
+                max_velocity_rad_s: joint.limits.max_velocity_rad_s * share,
+                ..joint.limits
+            };
             let set = joint
                 .limiter
-                .step(clamped, dt, &joint.limits)
+                .step(clamped, dt, &derated)
                 .clamp(joint.limits.min_rad, joint.limits.max_rad);
             if (set - clamped).abs() > 1e-12 {
                 event(LimitKind::Motion, clamped, set);
@@ -630,20 +666,137 @@ impl Robot {
                 ));
             }
         }
-        let mut sent_rad = hw.send(&setpoints)?;
+        let (mut sent_rad, mut sensed) = hw.send(&setpoints)?;
         for (i, (out, sent)) in outs {
-            hw.send_out(i, out)?;
+            let answer = hw.send_out(i, out)?;
             if let Some(s) = sent_rad.get_mut(i) {
                 *s = sent;
             }
+            if let Some(s) = sensed.get_mut(i) {
+                *s = answer;
+            }
         }
+        let interfaces: Vec<Interface> = targets.iter().map(|t| t.interface()).collect();
+        let stopped = Self::protect(&mut hw, now, &interfaces, &setpoints, &sensed);
+        // The frames went out: the cycle counts, and the watchdog runs from its end.
         hw.last_cycle = now;
         *lock(&self.shared.last_command) = Some(hw.now());
+        if let Some(e) = stopped? {
+            return Err(e);
+        }
         Ok(CommandReport {
             sent_rad,
             interfaces: targets.iter().map(|t| t.interface()).collect(),
             limited,
         })
+    }
+
+    /// Feeds what this cycle's frames answered (`sensed`, joint order; a WHJ joint's
+    /// temperature read when due) to the host's protection; a joint it stops is brought
+    /// to rest through the one guard, and the first stop is the error.
+    fn protect(
+        hw: &mut Hardware,
+        now: Instant,
+        interfaces: &[Interface],
+        setpoints: &[Option<f64>],
+        sensed: &[Option<guard::Sensed>],
+    ) -> Result<Option<RobotError>, RobotError> {
+        if !hw.guard.on {
+            return Ok(None);
+        }
+        let mut first = None;
+        for (i, &interface) in interfaces.iter().enumerate() {
+            let Some(joint) = hw.joints.get(i) else {
+                continue;
+            };
+            let set = match interface {
+                Interface::Position => setpoints.get(i).copied().flatten().unwrap_or(0.0),
+                Interface::Velocity => joint.drive.velocity,
+                Interface::Effort => joint.drive.effort,
+            };
+            let max_rad_s = joint.limits.max_velocity_rad_s;
+            let temperature_c = match joint.device {
+                Device::Whj { bus, id, .. } if hw.guard.temperature_due(i, now) => {
+                    let name = joint.name.clone();
+                    let status = hw.whj.get(bus).map(|s| s.bus.joint_unchecked(id).status());
+                    match status {
+                        Some(Ok(s)) => Some(f64::from(s.temperature.celsius())),
+                        Some(Err(source)) => {
+                            return Err(ActuatorError::Whj {
+                                joint: name,
+                                source: Box::new(source),
+                            }
+                            .into());
+                        }
+                        None => None,
+                    }
+                }
+                _ => None,
+            };
+            let answer = sensed.get(i).copied().flatten();
+            if let Some(fault) =
+                hw.guard
+                    .feed(i, now, interface, answer, temperature_c, (set, max_rad_s))
+            {
+                let stopped = hw.protection_stop(i);
+                first.get_or_insert(RobotError::Protection {
+                    fault: Box::new(fault),
+                    stopped,
+                });
+            }
+        }
+        Ok(first)
+    }
+
+    /// Whether the host's protection watches this robot's commands (on when it opens;
+    /// the robot file's `[protection]` and `[joints.protection]` set its limits).
+    pub fn protection(&self) -> bool {
+        lock(&self.shared.hw).guard.on
+    }
+
+    /// Turns the host's protection of this robot's commands on or off (on when it
+    /// opens). Off, nothing watches a stall, a collision, heat or a runaway under effort:
+    /// a command pushing a joint into an obstacle goes on until the joint's own
+    /// protection trips. Turning it on starts every joint's watch afresh; a stop already
+    /// latched stays until [`clear_protection`](Self::clear_protection).
+    pub fn set_protection(&mut self, on: bool) {
+        let mut hw = lock(&self.shared.hw);
+        if on && !hw.guard.on {
+            hw.guard.restart_all();
+        }
+        hw.guard.on = on;
+    }
+
+    /// The host's protection events of this robot's commands so far (warnings,
+    /// derating, stops; at most [`MAX_EVENTS`](crate::ops::protect::MAX_EVENTS), the
+    /// oldest dropped).
+    pub fn protection_events(&self) -> Vec<crate::ops::protect::Fault> {
+        lock(&self.shared.hw).guard.events.clone()
+    }
+
+    /// The stops the host's protection latched (each joint's, joint order; empty when
+    /// none did).
+    pub fn protection_stops(&self) -> Vec<crate::ops::protect::Fault> {
+        lock(&self.shared.hw)
+            .guard
+            .stopped
+            .iter()
+            .flatten()
+            .cloned()
+            .collect()
+    }
+
+    /// Takes commands again after the host's protection stopped joints: each of them
+    /// back on its position interface, a WHJ joint whose drive was disabled enabled again
+    /// (holding where it stands), its speed limiting restarted at its measured angle and
+    /// its watch afresh. Returns the stops cleared (none: nothing done). Call it once the
+    /// cause (the obstacle, the heat) is gone.
+    pub fn clear_protection(&mut self) -> Result<Vec<crate::ops::protect::Fault>, RobotError> {
+        let mut hw = lock(&self.shared.hw);
+        self.shared.tick(&mut hw);
+        let cleared = hw.clear_protection()?;
+        self.shared.tick(&mut hw);
+        Ok(cleared)
     }
 
     /// The interface each joint is commanded in now (joint order; position after opening
@@ -697,6 +850,9 @@ impl Robot {
             return Err(RobotError::SafeStopped {
                 cause: report.cause,
             });
+        }
+        if let Some(refused) = hw.guard.refusal() {
+            return Err(refused);
         }
         let from = joint.drive.active;
         if from == interface {
@@ -784,6 +940,7 @@ impl Robot {
         hw.back_to_position()?;
         hw.enable_whj()?;
         hw.reset_limiters()?;
+        hw.guard.restart_all();
         *lock(&self.shared.stopped) = None;
         *lock(&self.shared.last_command) = None;
         Ok(())
