@@ -203,24 +203,15 @@ fn simulated_with_a_robot_file_serves_the_files_joints_on_the_simulators() {
 #[cfg(unix)] // stopped with kill -INT
 #[test]
 fn simulated_with_a_robot_file_starts_with_its_joints_and_stops_on_ctrl_c() {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
-        .args([
-            "bridge",
-            "--simulated",
-            "--robot",
-            SIM_DRIVE,
-            "--listen",
-            "tcp/127.0.0.1:0",
-            "--armed",
-        ])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
+    let (mut child, line) = started(&[
+        "bridge",
+        "--simulated",
+        "--robot",
+        SIM_DRIVE,
+        "--listen",
+        "tcp/127.0.0.1:0",
+        "--armed",
+    ]);
     assert!(
         line.starts_with("bridge: zenoh ")
             && line.ends_with(&format!(
@@ -235,6 +226,12 @@ fn simulated_with_a_robot_file_starts_with_its_joints_and_stops_on_ctrl_c() {
 /// `robobus ARGS`'s output once it ends by itself; one still running after 30 s (a
 /// bridge that started serving) is killed and fails the test.
 fn ended(args: &[&str]) -> std::process::Output {
+    ended_or(args, || ())
+}
+
+/// [`ended`], and on its failure `also` (what stops the rest of the test's processes)
+/// before the test fails.
+fn ended_or(args: &[&str], also: impl FnOnce()) -> std::process::Output {
     let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
         .args(args)
         .stdout(std::process::Stdio::piped())
@@ -245,6 +242,7 @@ fn ended(args: &[&str]) -> std::process::Output {
     while child.try_wait().unwrap().is_none() {
         if std::time::Instant::now() > deadline {
             let _ = child.kill();
+            also();
             panic!("robobus {args:?} started instead of refusing");
         }
         std::thread::sleep(std::time::Duration::from_millis(20));
@@ -295,12 +293,7 @@ fn simulated_refuses_a_robot_file_not_of_the_simulators_with_exit_2_before_start
         ),
         ("[buses.sim-whj\n".to_owned(), "line 1"),
     ];
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
-    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let endpoint = free_endpoint();
     for (i, (text, expected)) in cases.iter().enumerate() {
         let path = dir.join(format!("robot{i}.toml"));
         std::fs::write(&path, text).unwrap();
@@ -350,16 +343,7 @@ fn simulated_refuses_a_robot_file_not_of_the_simulators_with_exit_2_before_start
 #[cfg(unix)] // stopped with kill -INT
 #[test]
 fn it_starts_serves_and_stops_cleanly_on_ctrl_c() {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
-        .args(["bridge", "--listen", "tcp/127.0.0.1:0", "--namespace", "t"])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
+    let (mut child, line) = started(&["bridge", "--listen", "tcp/127.0.0.1:0", "--namespace", "t"]);
     assert!(line.starts_with("bridge: zenoh "), "{line}");
     assert!(
         line.contains("23 joints") && line.contains("not armed"),
@@ -374,47 +358,23 @@ fn it_starts_serves_and_stops_cleanly_on_ctrl_c() {
 #[cfg(unix)] // stopped with kill -INT
 #[test]
 fn a_second_bridge_on_a_namespace_in_use_exits_4_and_the_first_serves_on() {
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
-    let endpoint = format!("tcp/127.0.0.1:{port}");
-    let mut first = Command::new(env!("CARGO_BIN_EXE_robobus"))
-        .args(["bridge", "--listen", &endpoint, "--namespace", "bot1"])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(first.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
+    let endpoint = free_endpoint();
+    let (mut first, line) = started(&["bridge", "--listen", &endpoint, "--namespace", "bot1"]);
     assert!(line.starts_with("bridge: zenoh "), "{line}");
-    let mut second = Command::new(env!("CARGO_BIN_EXE_robobus"))
-        .args([
+    // It must end by itself (a bridge that started would serve until stopped).
+    let second = ended_or(
+        &[
             "bridge",
             "--no-listen",
             "--connect",
             &endpoint,
             "--namespace",
             "/bot1/",
-        ])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    // It must end by itself (a bridge that started would serve until stopped).
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
-    while second.try_wait().unwrap().is_none() {
-        if std::time::Instant::now() > deadline {
-            let _ = second.kill();
+        ],
+        || {
             let _ = first.kill();
-            panic!("the second bridge started on a namespace in use");
-        }
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
-    let second = second.wait_with_output().unwrap();
+        },
+    );
     let err = String::from_utf8_lossy(&second.stderr);
     assert_eq!(second.status.code(), Some(4), "{err}");
     assert!(
@@ -429,6 +389,33 @@ fn a_second_bridge_on_a_namespace_in_use_exits_4_and_the_first_serves_on() {
     );
     nix_kill(first.id());
     assert_eq!(first.wait().unwrap().code(), Some(0));
+}
+
+/// `robobus ARGS` started (its standard error discarded), and the first line it printed
+/// (a bridge's says it serves).
+#[cfg(unix)]
+fn started(args: &[&str]) -> (std::process::Child, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_robobus"))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    (child, line)
+}
+
+/// A TCP endpoint on the loopback whose port was free a moment ago.
+fn free_endpoint() -> String {
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    format!("tcp/127.0.0.1:{port}")
 }
 
 #[cfg(unix)]
