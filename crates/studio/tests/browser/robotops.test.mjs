@@ -91,7 +91,10 @@ test("teleoperation takes at most 64 pairs, as robot.teleop does: a 65th is refu
   const card = panel.getByRole("region", { name: "Teleoperation" });
   const add = card.getByRole("button", { name: "Add a pair", exact: true });
   const pairs = card.locator("table.pairs tbody tr");
-  while ((await pairs.count()) < 64) await add.click();
+  // Clicked up to 64 without reading the table after each click (9.8 s -> 6.7 s), then the
+  // count checked before and after the 65th.
+  for (let n = await pairs.count(); n < 64; n++) await add.click();
+  assert.equal(await pairs.count(), 64);
   await add.click();
   assert.equal(await pairs.count(), 64);
   await page.getByText("At most 64 leader → follower pairs (robot.teleop's bound).").waitFor();
