@@ -353,6 +353,13 @@ struct Mailbox {
     ready: Condvar,
 }
 
+impl Mailbox {
+    /// The inbox, locked (a thread that panicked holding it left it usable).
+    fn inbox(&self) -> std::sync::MutexGuard<'_, Inbox> {
+        self.slot.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+}
+
 /// The arming and safe-stop state, shared with the guard's report callback.
 #[derive(Debug, Default)]
 pub(crate) struct Status {
@@ -427,11 +434,7 @@ impl Shared {
     /// A command payload as it arrives: it replaces a waiting one (superseded, counted)
     /// and wakes the command thread.
     fn post(&self, payload: Vec<u8>, now: Instant) {
-        let mut inbox = self
-            .mailbox
-            .slot
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner);
+        let mut inbox = self.mailbox.inbox();
         if inbox.newest.replace((payload, now)).is_some() {
             bump(&self.counters.commands_superseded);
         }

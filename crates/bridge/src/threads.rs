@@ -18,11 +18,7 @@ pub(crate) fn commands(s: &Shared) {
     let mut last: Option<Instant> = None;
     while !s.stop.is_stopped() {
         let next = {
-            let inbox = s
-                .mailbox
-                .slot
-                .lock()
-                .unwrap_or_else(PoisonError::into_inner);
+            let inbox = s.mailbox.inbox();
             let (mut inbox, _) = s
                 .mailbox
                 .ready
@@ -54,11 +50,7 @@ pub(crate) fn commands(s: &Shared) {
                 last = Some(at);
                 s.status.streaming.store(true, Ordering::SeqCst);
             }
-            s.mailbox
-                .slot
-                .lock()
-                .unwrap_or_else(PoisonError::into_inner)
-                .applying = false;
+            s.mailbox.inbox().applying = false;
             s.mailbox.ready.notify_all();
         }
         if let Some(t) = last
@@ -101,11 +93,7 @@ pub(crate) fn states(s: &Shared, publisher: &zenoh::pubsub::Publisher<'static>) 
             slot += period * n;
         }
         if now < slot {
-            let inbox = s
-                .mailbox
-                .slot
-                .lock()
-                .unwrap_or_else(PoisonError::into_inner);
+            let inbox = s.mailbox.inbox();
             let _ = s
                 .mailbox
                 .ready
@@ -117,11 +105,7 @@ pub(crate) fn states(s: &Shared, publisher: &zenoh::pubsub::Publisher<'static>) 
         }
         // The commands first.
         let wait = {
-            let inbox = s
-                .mailbox
-                .slot
-                .lock()
-                .unwrap_or_else(PoisonError::into_inner);
+            let inbox = s.mailbox.inbox();
             let due = inbox.next_due().filter(|&(due, every)| {
                 s.status.streaming.load(Ordering::SeqCst)
                     && now + cost > due
@@ -135,11 +119,7 @@ pub(crate) fn states(s: &Shared, publisher: &zenoh::pubsub::Publisher<'static>) 
         };
         if let Some(until) = wait {
             deferred = true;
-            let inbox = s
-                .mailbox
-                .slot
-                .lock()
-                .unwrap_or_else(PoisonError::into_inner);
+            let inbox = s.mailbox.inbox();
             let _ = s
                 .mailbox
                 .ready
