@@ -34,7 +34,7 @@ use robobus_bench::{Options, report, run, wck, whj};
 fn usage() -> ExitCode {
     let _ = writeln!(
         std::io::stderr(),
-        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire] [--wait sleep|spin]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround] [--wait sleep|spin] [--memory|--tcp] [--no-guard]\n       robobus-bench telemetry --secs S\n       robobus-bench studio --secs S\n       robobus-bench bridge [--bridges N] [--rate HZ] [--secs S] [--smoke]\n       robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window] [--external-sim]\n       robobus-bench free-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window] [--pipelined]\n       robobus-bench syscalls [--udp] [--python PATH]\n       robobus-bench echo\n       robobus-bench slcan [--joints N] [--secs S]"
+        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire] [--wait sleep|spin]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround] [--wait sleep|spin] [--memory|--tcp] [--no-guard]\n       robobus-bench telemetry --secs S\n       robobus-bench studio --secs S\n       robobus-bench bridge [--bridges N] [--rate HZ] [--secs S] [--smoke]\n       robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window] [--external-sim] [--default-slack]\n       robobus-bench free-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window] [--pipelined] [--default-slack]\n       robobus-bench syscalls [--udp] [--python PATH]\n       robobus-bench echo\n       robobus-bench slcan [--joints N] [--secs S]"
     );
     ExitCode::from(2)
 }
@@ -198,6 +198,7 @@ fn poll_wck(args: &[String]) -> ExitCode {
 /// bus against a simulator process (run it inside a network namespace with a multicast
 /// route on loopback).
 fn servo_whj(args: &[String]) -> ExitCode {
+    let args = &default_slack_if_asked(args);
     let mut secs = 3.0;
     // With `--external-sim`, a simulator process serves already (counting system calls).
     let external = args.iter().any(|a| a == "--external-sim");
@@ -253,8 +254,28 @@ fn servo_whj(args: &[String]) -> ExitCode {
     }
 }
 
+/// `--default-slack` (for `free-whj` and `servo-whj`): the client's thread waits with
+/// Linux's default timer slack (50 µs) instead of the 1 ns the library's first wait sets
+/// (`robobus_link::wait::precise_timers`), to compare the two in one run; the simulator
+/// keeps its own. Returns the other arguments.
+fn default_slack_if_asked(args: &[String]) -> Vec<String> {
+    if args.iter().any(|a| a == "--default-slack") {
+        // The library sets it once per thread: set it first, then put the default back.
+        robobus_link::wait::precise_timers();
+        #[cfg(target_os = "linux")]
+        if let Err(e) = nix::sys::prctl::set_timerslack(50_000) {
+            let _ = writeln!(std::io::stderr(), "--default-slack: {e}");
+        }
+    }
+    args.iter()
+        .filter(|a| *a != "--default-slack")
+        .cloned()
+        .collect()
+}
+
 /// `free-whj`: the free-running servo cycle alone over the in-process memory bus.
 fn free_whj(args: &[String]) -> ExitCode {
+    let args = &default_slack_if_asked(args);
     let mut secs = 1.5;
     let pipelined = args.iter().any(|a| a == "--pipelined");
     let args: Vec<String> = args
