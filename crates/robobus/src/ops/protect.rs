@@ -178,16 +178,18 @@ impl Limits {
     /// not report its model: the values every row agrees on): its load read as a current
     /// ([`wck_load_a`]); a stall at half the factory over-current threshold (400 mA, A-5:
     /// a servo pushing harder soon trips its own protection and goes passive) for
-    /// [`WCK_STALL_TIME_S`] against at least [`WCK_STALL_ERROR_DEG`]; a collision a load
-    /// rise by the whole factory threshold, or the following-error jump, within
-    /// [`WCK_JUMP_WINDOW_S`]. No temperature: a wCK reply carries none.
+    /// [`WCK_STALL_TIME_S`] against at least [`WCK_STALL_ERROR_DEG`]; a collision the
+    /// following-error jump within [`WCK_JUMP_WINDOW_S`]. A load jump is no collision by
+    /// default: the firmware drives its motor at the torque level's full duty on any
+    /// error over a few degrees, so the load jumps as much at the start of every move as
+    /// against a hand (`collision_current_jump_a` in the robot file turns it on). No
+    /// temperature: a wCK reply carries none.
     pub fn wck() -> Self {
         let overload_a = f64::from(robobus_wck::models::overload_default_ma()) / 1e3;
         Self {
             stall_current_a: Some(overload_a / 2.0),
             stall_time_s: WCK_STALL_TIME_S,
             stall_error_deg: WCK_STALL_ERROR_DEG,
-            collision_current_jump_a: Some(overload_a),
             collision_error_jump_deg: Some(DEFAULT_COLLISION_ERROR_JUMP_DEG),
             jump_window_s: WCK_JUMP_WINDOW_S,
             ..Self::OFF

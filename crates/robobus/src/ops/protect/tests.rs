@@ -276,17 +276,22 @@ fn wck_defaults_come_from_the_wck_rows_and_fit_a_reading_every_200_ms() {
     let l = Limits::wck();
     // Half and all of the factory over-load (400 mA, A-5); no temperature.
     assert_eq!(l.stall_current_a, Some(0.2));
-    assert_eq!(l.collision_current_jump_a, Some(0.4));
+    assert_eq!(l.collision_current_jump_a, None);
     assert_eq!((l.stall_time_s, l.stall_error_deg), (0.4, 3.0));
     assert_eq!((l.temperature_warn_c, l.temperature_stop_c), (None, None));
     assert!((wck_load_a(33) - 0.4).abs() < 1e-12);
     let slow = l.for_reading_period(Duration::from_millis(400));
     assert!((slow.jump_window_s - 0.5).abs() < 1e-12);
     assert!((slow.stall_time_s - 0.8).abs() < 1e-12);
-    // A load rise across one 200 ms reading period is a collision on a wCK servo; the
-    // same readings are a new start on a WHJ joint (its 100 ms window).
+    // Where the robot file turns the load jump on, a load rise across one 200 ms reading
+    // period is a collision on a wCK servo; the same readings are a new start on a WHJ
+    // joint (its 100 ms window).
     let t0 = Instant::now();
-    let mut m = Monitor::new(t0, vec![("servo 0".into(), l)]);
+    let jump = Limits {
+        collision_current_jump_a: Some(0.4),
+        ..l
+    };
+    let mut m = Monitor::new(t0, vec![("servo 0".into(), jump)]);
     assert!(m.feed(0, &reading(t0, 1.0, 0.05)).is_empty());
     let f = m.feed(0, &reading(t0 + 200 * MS, 1.0, 0.6));
     assert_eq!(

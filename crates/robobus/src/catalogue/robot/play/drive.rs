@@ -860,6 +860,62 @@ mod tests {
         );
     }
 
+    /// A play of positions (through the same protection as velocities: the monitor
+    /// `robot.play` feeds) into a hand that grips the wCK servo `s0` 1 s in: each tick's
+    /// position move answers with the servo's load, read as a current: 800 mA held
+    /// (torque level 3, the servo's own over-load raised to 1800 mA so only the host can
+    /// stop it). Its target runs away at 20°/s, so the error passes the stall's 3° at
+    /// 1.12 s, and the stall time (0.4 s) later, at 1.52 s, the play stops naming the
+    /// servo, which is left passive.
+    #[test]
+    fn a_play_of_positions_into_a_gripped_wck_servo_is_stopped_naming_it() {
+        let (station, wck, _whj) = station();
+        wck.with_bus(|b| {
+            let s = b.servo_mut(0).unwrap();
+            let e = robobus_sim::wck::Eeprom {
+                overload: robobus_wck::Overload::new(199).unwrap(),
+                ..s.eeprom().clone()
+            };
+            s.set_eeprom(e);
+        });
+        let mut on_progress = |p: &crate::ops::Progress| {
+            if p.done == 50 {
+                wck.with_bus(|b| b.servo_mut(0).unwrap().hold(true));
+            }
+        };
+        let mut control = Control::none().with_progress(&mut on_progress);
+        let request = req(json!({
+            "op": "robot.play",
+            "trajectory": "time_s,s0\n0,0\n3,60\n",
+            "rate_hz": 50,
+            "torque": 3,
+        }));
+        let v = serde_json::to_value(run(&station, &request, &mut control).unwrap()).unwrap();
+        drop(control);
+        let (s, row) = stopped(&v);
+        let events = s["protection"].as_array().unwrap();
+        assert_eq!(events.len(), 1, "{s:#}");
+        let stop = &events[0];
+        assert_eq!(
+            (&stop["joint"], &stop["check"], &stop["action"]),
+            (&json!("s0"), &json!("stall"), &json!("stop")),
+            "{stop}"
+        );
+        let at = stop["at_s"].as_f64().unwrap();
+        assert!((1.52..1.53).contains(&at), "{stop}");
+        assert_eq!(s["ticks"], json!(77), "{s}");
+        assert_eq!(row["id"], "s0");
+        let error = row["error"].as_str().unwrap();
+        assert!(
+            error.starts_with("s0: stall protection: current 0.80 A reached the limit 0.2 A"),
+            "{error}"
+        );
+        assert_eq!(
+            wck.with_bus(|b| b.servo(0).unwrap().mode()),
+            robobus_sim::wck::Mode::Passive
+        );
+    }
+
     /// When the obstacle test's stall stops the play, s, and its ticks by then (at 50 Hz).
     const STALL_AT_S: f64 = 0.6005;
     const STALL_TICKS: u64 = 31;

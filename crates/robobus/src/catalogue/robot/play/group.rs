@@ -68,7 +68,13 @@ impl Group {
                             let at = match d.outcome {
                                 Outcome::Ok(reading) => {
                                     robobus_wck::Position::new(reading.position)
-                                        .map(|p| Sensed::at(s.to_rad(p).to_degrees()))
+                                        .map(|p| Sensed {
+                                            // The load, as a current, for the protection.
+                                            current_a: reading
+                                                .load
+                                                .map(crate::ops::protect::wck_load_a),
+                                            ..Sensed::at(s.to_rad(p).to_degrees())
+                                        })
                                         .map_err(|e| Failure::of(crate::ErrorKind::Device, &e))
                                 }
                                 Outcome::Failed(f) => Err(f),
