@@ -6,7 +6,9 @@
 //! The semantics are the library's ([`robobus::robot::trajectory::ros`]): this module
 //! decodes, waits for a stamp's start, reads where the joints are, hands the checked plan
 //! to `robot.play` (admitted as any motion request: armed, through the guard), publishes
-//! each tick and the end, and stops the trajectory a newer one replaces.
+//! each tick and the end, and blends a newer trajectory into the one playing
+//! ([`robobus::catalogue::robot::Blend`]: from the state it commands
+//! `BLEND_AHEAD_TICKS` ahead, between two of its ticks).
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex, PoisonError};
@@ -15,7 +17,7 @@ use std::time::{Duration, Instant};
 
 use robobus::ErrorKind;
 use robobus::catalogue::operation::PlayTick;
-use robobus::catalogue::robot::{Play, Sample};
+use robobus::catalogue::robot::{Blend, Play, Sample};
 use robobus::catalogue::whj::PreflightArg;
 use robobus::catalogue::{Interaction, NoInteraction, Request, run_typed};
 use robobus::cdr::{
@@ -32,6 +34,11 @@ use crate::{BridgeError, MAX_REQUEST, Shared, zerr};
 
 /// The rate a trajectory is played at, ticks a second (`robot.play`'s default).
 pub const TRAJECTORY_RATE_HZ: f64 = 50.0;
+
+/// How many ticks after the playing one's next a newer trajectory is blended in (0.3 s at
+/// [`TRAJECTORY_RATE_HZ`]: the time its plan and its pre-flight take); the newer one's
+/// points stay due at their `time_from_start` from its stamp.
+pub(crate) const BLEND_AHEAD_TICKS: u64 = 15;
 
 /// The keys of the trajectory interface under a namespace prefix (`bot/` or empty).
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -132,7 +139,24 @@ struct Playing {
     id: u64,
     token: StopToken,
     replaced: Arc<AtomicBool>,
+    /// Through which a newer one is blended in.
+    blend: Arc<Blend>,
+    /// The newer ones offered to the blend and not yet taken, by the tick they start at.
+    next: Arc<Mutex<Vec<(u64, Current)>>>,
     thread: JoinHandle<()>,
+}
+
+/// A trajectory as its player publishes it: its number, its checked message, the
+/// reference it plays (the run's joints; from `origin_s` of the run), the points skipped
+/// and how late it started.
+#[derive(Debug)]
+struct Current {
+    id: u64,
+    checked: Checked,
+    reference: Trajectory,
+    origin_s: f64,
+    skipped: usize,
+    late_s: f64,
 }
 
 /// Where a trajectory's progress and end go (Zenoh publishers; a test's lists).
@@ -355,6 +379,10 @@ pub(crate) fn take_up(s: &Arc<Shared>, sink: &Arc<dyn Sink>, payload: &[u8]) {
     } else {
         (-checked.start_in_s(unix_now_s())).max(0.0)
     };
+    // Into the one playing, from the state it commands a few ticks ahead.
+    if blend_in(s, sink, id, &checked, late_s) {
+        return;
+    }
     // Where the joints are (the one playing still moves them: it stops only once this one
     // is found to fit).
     let from = match read_all(s, &checked.joints) {
@@ -384,67 +412,272 @@ pub(crate) fn take_up(s: &Arc<Shared>, sink: &Arc<dyn Sink>, payload: &[u8]) {
     if s.stop.is_stopped() {
         return;
     }
-    bump(&t.counts.started);
-    let token = StopToken::new();
-    let replaced = Arc::new(AtomicBool::new(false));
-    let player = Player {
-        shared: Arc::clone(s),
-        sink: Arc::clone(sink),
+    let current = Current {
         id,
         checked,
-        trajectory: planned.trajectory,
+        reference: planned.trajectory,
+        origin_s: 0.0,
         skipped: planned.skipped,
         late_s,
-        replaced: Arc::clone(&replaced),
     };
-    let run_token = token.clone();
-    match std::thread::Builder::new()
-        .name(format!("robobus-trajectory-{id}"))
-        .spawn(move || player.run(&play, &run_token))
-    {
-        Ok(thread) => {
-            *t.playing.lock().unwrap_or_else(PoisonError::into_inner) = Some(Playing {
-                id,
-                token,
-                replaced,
-                thread,
-            });
-        }
-        Err(e) => refuse(
+    if let Err(e) = start(s, sink, current, play) {
+        refuse(
             result_code::INVALID_GOAL,
             format!("joint_trajectory: cannot start its thread: {e}"),
-        ),
+        );
     }
 }
 
-/// One trajectory being played.
+/// Starts playing `current` (`play`, its trajectory) on a thread of its own.
+fn start(
+    s: &Arc<Shared>,
+    sink: &Arc<dyn Sink>,
+    current: Current,
+    play: Play,
+) -> std::io::Result<()> {
+    let t = &s.trajectories;
+    bump(&t.counts.started);
+    let id = current.id;
+    let token = StopToken::new();
+    let replaced = Arc::new(AtomicBool::new(false));
+    let blend = Arc::new(Blend::new());
+    let next = Arc::new(Mutex::new(Vec::new()));
+    let player = Player {
+        shared: Arc::clone(s),
+        sink: Arc::clone(sink),
+        current,
+        replaced: Arc::clone(&replaced),
+        blend: Arc::clone(&blend),
+        next: Arc::clone(&next),
+    };
+    let run_token = token.clone();
+    let thread = std::thread::Builder::new()
+        .name(format!("robobus-trajectory-{id}"))
+        .spawn(move || player.run(&play, &run_token))?;
+    *t.playing.lock().unwrap_or_else(PoisonError::into_inner) = Some(Playing {
+        id,
+        token,
+        replaced,
+        blend,
+        next,
+        thread,
+    });
+    Ok(())
+}
+
+/// Blends `checked` (trajectory `id`, started `late_s` after its stamp) into the one
+/// playing as `joint_trajectory_controller` replaces the rest of a trajectory: planned
+/// from the position, velocity and acceleration the one playing commands
+/// `BLEND_AHEAD_TICKS` ahead (a joint it does not name holds its commanded position
+/// there), checked as `robot.play` checks a trajectory (pre-flight included), and
+/// taken by the player at that tick. Whether it was handled (blended, or refused and
+/// published); `false` when nothing plays, the one playing ends before that tick or
+/// passed it meanwhile, or this one names a joint the one playing does not move (it then
+/// starts from standstill in its place).
+fn blend_in(
+    s: &Arc<Shared>,
+    sink: &Arc<dyn Sink>,
+    id: u64,
+    checked: &Checked,
+    late_s: f64,
+) -> bool {
+    let t = &s.trajectories;
+    let refuse =
+        |code: i32, message: String| s.refuse_trajectory(&**sink, &refused(id, code, message));
+    let (blend, next) = {
+        let playing = t.playing.lock().unwrap_or_else(PoisonError::into_inner);
+        match playing.as_ref().filter(|p| !p.thread.is_finished()) {
+            Some(p) => (Arc::clone(&p.blend), Arc::clone(&p.next)),
+            None => return false,
+        }
+    };
+    let Some(config) = s.station.robot().cloned() else {
+        return false;
+    };
+    let Some(at) = blend.commanded(BLEND_AHEAD_TICKS) else {
+        return false;
+    };
+    let Some(start) = at.start_of(&checked.joints) else {
+        return false;
+    };
+    let planned = match ros::plan_from(checked, &config, &start, late_s + at.ahead_s) {
+        Ok(p) => p,
+        Err(e) => {
+            refuse(e.code, e.message);
+            return true;
+        }
+    };
+    let blended = match Blend::blended(&at, &planned.trajectory) {
+        Ok(b) => b,
+        Err(e) => {
+            refuse(result_code::INVALID_GOAL, format!("joint_trajectory: {e}"));
+            return true;
+        }
+    };
+    let play = Play {
+        trajectory: planned.csv.clone(),
+        rate_hz: TRAJECTORY_RATE_HZ,
+        torque: 2,
+        preflight: PreflightArg::default(),
+    };
+    if let Err(r) = s
+        .admission
+        .admit(s.arming(), Request::RobotPlay(play.clone()))
+    {
+        refuse(result_code::INVALID_GOAL, r.to_string());
+        return true;
+    }
+    let current = Current {
+        id,
+        checked: checked.clone(),
+        reference: blended.clone(),
+        origin_s: at.t_s,
+        skipped: planned.skipped,
+        late_s,
+    };
+    lock(&next).push((at.tick, current));
+    let offered = blend.offer(&s.station, &play, &at, &blended, &Control::new(&s.stop));
+    if !matches!(offered, Ok(true)) {
+        lock(&next).retain(|(_, c)| c.id != id);
+    }
+    match offered {
+        Ok(true) => true,
+        Ok(false) => false,
+        Err(e) => {
+            let message = refusal(t, &e).unwrap_or_else(|| format!("joint_trajectory: {e}"));
+            refuse(result_code::INVALID_GOAL, message);
+            true
+        }
+    }
+}
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// What `robot.play` refused a trajectory for before it sent anything, in the result's
+/// words (a pre-flight's refusal counted); `None` for another error.
+fn refusal(t: &Trajectories, e: &OpError) -> Option<String> {
+    match e {
+        // Refused by the pre-flight on the simulator before the first tick: the tick, its
+        // time, the joint and what the simulated joint did.
+        OpError::Preflight(r) => {
+            bump(&t.counts.preflight_refused);
+            Some(format!(
+                "joint_trajectory: refused by the pre-flight on the simulator: tick {} at \
+                 {:.3} s: {}: {}; nothing moved",
+                r.frame, r.at_s, r.joint, r.reason
+            ))
+        }
+        // Refused before it sent anything (a joint silent, outside its limits, not enabled
+        // in position mode; a step too large at its rate).
+        e if matches!(e.kind(), ErrorKind::BadInput | ErrorKind::Refused) => {
+            Some(format!("joint_trajectory: {e}"))
+        }
+        _ => None,
+    }
+}
+
+/// One trajectory being played (and those blended into it).
 struct Player {
     shared: Arc<Shared>,
     sink: Arc<dyn Sink>,
-    id: u64,
-    checked: Checked,
-    trajectory: Trajectory,
-    skipped: usize,
-    late_s: f64,
+    current: Current,
     replaced: Arc<AtomicBool>,
+    blend: Arc<Blend>,
+    next: Arc<Mutex<Vec<(u64, Current)>>>,
 }
 
-/// Publishes each tick as a controller state.
+/// Publishes each tick as a controller state, and the end of one a newer one was
+/// blended into.
 struct Progress<'a> {
+    shared: &'a Shared,
     sink: &'a dyn Sink,
-    trajectory: &'a Trajectory,
+    current: Current,
+    blend: &'a Arc<Blend>,
+    next: &'a Mutex<Vec<(u64, Current)>>,
+    /// The blends taken so far.
+    blends: u64,
+}
+
+impl Progress<'_> {
+    /// A newer trajectory was blended in at this tick: the one it replaced ends
+    /// (`replaced`, its joints as they reported themselves this tick), the newer one is
+    /// published from here.
+    fn blended(&mut self, tick: &PlayTick<'_>) {
+        let taken = self.blend.taken();
+        if taken.count == self.blends {
+            return;
+        }
+        self.blends = taken.count;
+        let t = &self.shared.trajectories;
+        let newer = {
+            let mut next = lock(self.next);
+            // Offers for earlier ticks were passed over by a later one.
+            let newest = next
+                .iter()
+                .rposition(|(k, _)| *k == taken.tick)
+                .map(|i| next.remove(i).1);
+            let before = next.len();
+            next.retain(|(k, _)| *k > taken.tick);
+            for _ in next.len()..before {
+                bump(&t.counts.superseded);
+            }
+            newest
+        };
+        let Some(newer) = newer else { return };
+        bump(&t.counts.started);
+        if let Some(p) = t
+            .playing
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .as_mut()
+        {
+            p.id = newer.id;
+        }
+        let old = std::mem::replace(&mut self.current, newer);
+        let ends: Vec<Option<f64>> = old
+            .checked
+            .joints
+            .iter()
+            .map(|j| {
+                let c = tick.joints.iter().position(|x| x == j)?;
+                tick.positions.get(c).copied().flatten()
+            })
+            .collect();
+        let (_, joints) = ros::outcome(&old.checked, &ends);
+        bump(&t.counts.replaced);
+        self.sink.result(&TrajectoryResult {
+            id: old.id,
+            status: "replaced",
+            error_code: None,
+            error_string: format!(
+                "replaced by trajectory {}, blended in at {:.3} s of this one from the \
+                 position, velocity and acceleration it commanded there (no stop)",
+                self.current.id,
+                taken.t_s - old.origin_s
+            ),
+            tolerance_deg: GOAL_TOLERANCE_DEG,
+            joints,
+            skipped_points: old.skipped,
+            late_s: old.late_s,
+        });
+    }
 }
 
 impl Interaction for Progress<'_> {
     fn play_tick(&mut self, tick: &PlayTick<'_>) -> Result<(), OpError> {
+        self.blended(tick);
         let rad = |v: &[f64]| v.iter().map(|d| d.to_radians()).collect::<Vec<f64>>();
-        let at = cdr::Duration::from_secs_f64(tick.t_s);
+        // The time since the start of the trajectory playing.
+        let t_s = tick.t_s - self.current.origin_s;
+        let at = cdr::Duration::from_secs_f64(t_s.max(0.0));
         let point = |positions: Vec<f64>| JointTrajectoryPoint {
             positions,
             time_from_start: at,
             ..JointTrajectoryPoint::default()
         };
-        let reference = rad(&self.trajectory.at(tick.t_s));
+        let reference = rad(&self.current.reference.at(t_s));
         // A joint that did not answer this tick: NaN (never an older reading).
         let feedback: Vec<f64> = tick
             .positions
@@ -467,6 +700,10 @@ impl Interaction for Progress<'_> {
         });
         Ok(())
     }
+
+    fn play_blend(&self) -> Option<Arc<Blend>> {
+        Some(Arc::clone(self.blend))
+    }
 }
 
 impl Player {
@@ -476,13 +713,22 @@ impl Player {
         let _ticket = s.guard.running(token);
         let mut control = Control::new(token);
         let mut progress = Progress {
+            shared: s,
             sink: &*self.sink,
-            trajectory: &self.trajectory,
+            current: self.current,
+            blend: &self.blend,
+            next: &self.next,
+            blends: 0,
         };
         let report = run_typed(&s.station, play, &mut control, &mut progress);
-        let ends =
-            read(s, &self.checked.joints).unwrap_or_else(|_| vec![None; self.checked.joints.len()]);
-        let (code, joints) = ros::outcome(&self.checked, &ends);
+        let current = progress.current;
+        // Offers the run ended before taking: superseded.
+        for _ in lock(&self.next).drain(..) {
+            bump(&t.counts.superseded);
+        }
+        let ends = read(s, &current.checked.joints)
+            .unwrap_or_else(|_| vec![None; current.checked.joints.len()]);
+        let (code, joints) = ros::outcome(&current.checked, &ends);
         let worst = joints
             .iter()
             .filter_map(|j| j.error_deg.map(|e| (e, &j.joint)))
@@ -494,6 +740,7 @@ impl Player {
             || "no joint answered at the end".to_owned(),
             |(e, j)| format!("the largest end error {e:.3}° ({j})"),
         );
+        let why_refused = report.as_ref().err().and_then(|e| refusal(t, e));
         let (status, error_code, error_string) = match report {
             _ if self.replaced.load(Ordering::SeqCst) => (
                 "replaced",
@@ -502,26 +749,13 @@ impl Player {
                  newer one played from there)"
                     .to_owned(),
             ),
-            // Refused by the pre-flight on the simulator before the first tick: the
-            // tick, its time, the joint and what the simulated joint did.
-            Err(OpError::Preflight(r)) => {
-                bump(&t.counts.preflight_refused);
-                (
-                    "refused",
-                    Some(result_code::INVALID_GOAL),
-                    format!(
-                        "joint_trajectory: refused by the pre-flight on the simulator: tick {} \
-                         at {:.3} s: {}: {}; nothing moved",
-                        r.frame, r.at_s, r.joint, r.reason
-                    ),
-                )
-            }
-            // Refused by `robot.play` before it sent anything (a joint silent, outside its
-            // limits, not enabled in position mode; a step too large at its rate).
-            Err(e) if matches!(e.kind(), ErrorKind::BadInput | ErrorKind::Refused) => (
+            // Refused by `robot.play` before it sent anything (the pre-flight on the
+            // simulator; a joint silent, outside its limits, not enabled in position mode;
+            // a step too large at its rate).
+            Err(_) if why_refused.is_some() => (
                 "refused",
                 Some(result_code::INVALID_GOAL),
-                format!("joint_trajectory: {e}"),
+                why_refused.clone().unwrap_or_default(),
             ),
             Err(e) => (
                 "aborted",
@@ -566,14 +800,14 @@ impl Player {
             _ => &t.counts.aborted,
         });
         self.sink.result(&TrajectoryResult {
-            id: self.id,
+            id: current.id,
             status,
             error_code,
             error_string,
             tolerance_deg: GOAL_TOLERANCE_DEG,
             joints,
-            skipped_points: self.skipped,
-            late_s: self.late_s,
+            skipped_points: current.skipped,
+            late_s: current.late_s,
         });
     }
 }

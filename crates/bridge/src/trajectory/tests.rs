@@ -259,38 +259,200 @@ fn an_unarmed_bridge_refuses_a_trajectory() {
     assert_eq!(s.trajectories.health().refused, 1);
 }
 
-#[test]
-fn a_newer_trajectory_replaces_the_one_playing_from_where_the_joints_are() {
+/// Starts `first` with the player held at its first tick at or after `pause_at_s`, takes
+/// up `second` there, then lets the player go; both results.
+fn replace_at(
+    pause_at_s: f64,
+    first: &[u8],
+    second: &[u8],
+) -> (
+    Arc<Shared>,
+    Arc<Collect>,
+    TrajectoryResult,
+    TrajectoryResult,
+) {
     let (s, done) = armed();
     let sink = Arc::new(Collect {
-        pause_at_s: Some(1.0),
+        pause_at_s: Some(pause_at_s),
         ..Collect::default()
     });
     let dyn_sink: Arc<dyn Sink> = sink.clone();
-    // To 60° in 3 s; held at its tick at 1 s (about 20°) while the newer one comes.
-    take_up(
-        &s,
-        &dyn_sink,
-        &trajectory(&["j3"], vec![point(3.0, &[60_f64.to_radians()])]),
-    );
+    take_up(&s, &dyn_sink, first);
     let deadline = Instant::now() + Duration::from_secs(30);
     while !sink.paused.load(Ordering::SeqCst) {
-        assert!(Instant::now() < deadline, "the first never reached 1 s");
+        assert!(
+            Instant::now() < deadline,
+            "the first never reached {pause_at_s} s"
+        );
         std::thread::sleep(Duration::from_millis(5));
     }
+    take_up(&s, &dyn_sink, second);
     sink.released.store(true, Ordering::SeqCst);
     sink.changed.notify_all();
-    take_up(
-        &s,
-        &dyn_sink,
-        &trajectory(&["j3"], vec![point(1.0, &[-10_f64.to_radians()])]),
-    );
-    let first = sink.result(1);
-    let second = sink.result(2);
+    let (a, b) = (sink.result(1), sink.result(2));
     done.store(true, Ordering::SeqCst);
+    (s, sink, a, b)
+}
+
+/// j3's and j2's output (the targets sent), degrees, and the time each tick was published
+/// at, s: per tick in order.
+fn outputs(states: &[JointTrajectoryControllerState]) -> Vec<(f64, f64, f64)> {
+    states
+        .iter()
+        .map(|m| {
+            (
+                m.output.time_from_start.as_secs_f64(),
+                m.output.positions[0].to_degrees(),
+                m.output.positions[1].to_degrees(),
+            )
+        })
+        .collect()
+}
+
+/// As `joint_trajectory_controller` replaces the rest of a trajectory: the newer one
+/// (j3 only, to 10° at 1 s with velocity and acceleration 0: a quintic) starts from the
+/// position, velocity and acceleration the playing one (j3 to 60° and j2 to -30° in 3 s:
+/// 20°/s and -10°/s) commands at the swap tick, in the same run: no stop, no held tick,
+/// no jump. The swap is `BLEND_AHEAD_TICKS` after the tick it came at (1.00 s), at 1.32 s:
+/// j3 commanded at 26.4° and 20°/s; j2, which the newer one does not name, holds its
+/// commanded -13.2° from there. The newer one's point is reached on time (1 s after it
+/// came: its 0.68 s from the swap).
+#[test]
+fn a_newer_trajectory_is_blended_in_from_the_commanded_state_without_a_stop() {
+    let first = trajectory(
+        &["j3", "j2"],
+        vec![point(3.0, &[60_f64.to_radians(), -30_f64.to_radians()])],
+    );
+    let mut to = point(1.0, &[10_f64.to_radians()]);
+    to.velocities = vec![0.0];
+    to.accelerations = vec![0.0];
+    let (s, sink, first, second) = replace_at(1.0, &first, &trajectory(&["j3"], vec![to]));
+    assert_eq!(
+        (first.id, first.status, first.error_code),
+        (1, "replaced", None),
+        "{first:?}"
+    );
+    assert_eq!(
+        first.error_string,
+        "replaced by trajectory 2, blended in at 1.320 s of this one from the position, \
+         velocity and acceleration it commanded there (no stop)"
+    );
+    assert_eq!((second.id, second.status), (2, "reached"), "{second:?}");
+    assert_eq!(second.joints.len(), 1);
+    assert!((second.joints[0].position_deg.unwrap() - 10.0).abs() <= GOAL_TOLERANCE_DEG);
+    let states = sink.states.lock().unwrap().clone();
+    let out = outputs(&states);
+    // One run, a tick every 20 ms: the first's ticks up to 1.30 s, then the newer one's
+    // from its 0 s (the run's 1.32 s).
+    let swap = out
+        .iter()
+        .position(|o| o.0 == 0.0 && o.1 > 20.0)
+        .expect("no blended tick");
+    assert_eq!(swap, 66, "{out:?}");
+    assert!((out[swap - 1].0 - 1.30).abs() < 1e-9, "{:?}", out[swap - 1]);
+    for (k, o) in out[swap..].iter().enumerate().take(40) {
+        #[allow(clippy::cast_precision_loss)]
+        let want = k as f64 * 0.02;
+        assert!((o.0 - want).abs() < 1e-6, "tick {k} after the swap: {o:?}");
+    }
+    // j3: at the swap tick exactly where the first commanded it; its step per tick goes
+    // on as it was (0.4° at 20°/s), no stop, no jump: the change in a step is what a tick
+    // of the quintic gives (its jerk at the start, under 0.01°; then at most 0.128°: down
+    // to -54°/s and back to rest at 10° in 0.68 s, at most 320°/s²).
+    assert!((out[swap].1 - 26.4).abs() < 1e-9, "{:?}", out[swap]);
+    let step = |k: usize| out[k].1 - out[k - 1].1;
+    for k in swap - 3..=swap {
+        assert!((step(k) - 0.4).abs() < 1e-9, "step {k}: {}", step(k));
+    }
+    assert!((step(swap + 1) - 0.4).abs() < 0.01, "{}", step(swap + 1));
+    for k in swap + 1..swap + 34 {
+        assert!(
+            (step(k + 1) - step(k)).abs() < 0.13,
+            "tick {k}: {} then {}",
+            step(k),
+            step(k + 1)
+        );
+    }
+    // j2 went on at -10°/s to the swap and holds its commanded -13.2° from there.
+    assert!((out[swap - 1].2 + 13.0).abs() < 1e-9, "{:?}", out[swap - 1]);
+    for o in &out[swap..] {
+        assert!((o.2 + 13.2).abs() < 1e-9, "{o:?}");
+    }
+    // On time: at its 0.68 s the reference is the point, and j3 is at it.
+    let at = states
+        .iter()
+        .rev()
+        .find(|m| (m.reference.time_from_start.as_secs_f64() - 0.68).abs() < 1e-6)
+        .unwrap();
+    assert!(
+        (at.reference.positions[0].to_degrees() - 10.0).abs() < 1e-9,
+        "{at:?}"
+    );
+    assert!(
+        (at.feedback.positions[0].to_degrees() - 10.0).abs() < ON_TIME_DEG,
+        "{at:?}"
+    );
+    let h = s.trajectories.health();
+    assert_eq!(
+        (h.started, h.replaced, h.reached, h.refused),
+        (2, 1, 1, 0),
+        "{h:?}"
+    );
+}
+
+/// A newer trajectory whose blend from the commanded state would take a joint past its
+/// limits is refused whole, and the one playing plays on to its end: j3 at 60°/s is
+/// commanded at 49.2° at the swap (0.82 s); back to 30° at rest 0.28 s later it would
+/// swing to -156°/s, its acceleration 2005°/s² 0.04 s after the swap, past its
+/// `max_acceleration` (1500°/s²). From standstill where it is (about 30°) the same
+/// trajectory would fit.
+#[test]
+fn a_blend_past_a_limit_from_the_commanded_state_is_refused_and_the_one_playing_plays_on() {
+    // To 60° in 1 s, then held there to 1.5 s.
+    let at = [60_f64.to_radians(), -20_f64.to_radians()];
+    let first = trajectory(&["j3", "j2"], vec![point(1.0, &at), point(1.5, &at)]);
+    let mut back = point(0.6, &[30_f64.to_radians()]);
+    back.velocities = vec![0.0];
+    back.accelerations = vec![0.0];
+    let (s, _sink, first, second) = replace_at(0.5, &first, &trajectory(&["j3"], vec![back]));
+    // The refusal comes first (the first plays on to its end).
+    assert_eq!((first.id, first.status), (2, "refused"), "{first:?}");
+    assert_eq!(first.error_code, Some(cdr::result_code::INVALID_GOAL));
+    assert!(
+        first.error_string.starts_with(
+            "joint_trajectory: on the curve its velocities and accelerations make, at 0.040 \
+             s from the start: j3 accelerates at -2004.9°/s², more than its \
+             max_acceleration 1500.0°/s²"
+        ),
+        "{first:?}"
+    );
+    assert_eq!((second.id, second.status), (1, "reached"), "{second:?}");
+    assert!((second.joints[0].position_deg.unwrap() - 60.0).abs() <= GOAL_TOLERANCE_DEG);
+    let h = s.trajectories.health();
+    assert_eq!(
+        (h.started, h.replaced, h.reached, h.refused),
+        (1, 0, 1, 1),
+        "{h:?}"
+    );
+}
+
+/// A newer trajectory naming a joint the one playing does not move replaces it from
+/// standstill: the one playing stopped, its joints held, then the newer one played from
+/// where they are.
+#[test]
+fn a_newer_trajectory_naming_another_joint_replaces_the_one_playing_from_standstill() {
+    let first = trajectory(&["j3", "j2"], vec![point(3.0, &[60_f64.to_radians(), 0.0])]);
+    let second = trajectory(&["j4"], vec![point(1.0, &[-10_f64.to_radians()])]);
+    let (s, _sink, first, second) = replace_at(1.0, &first, &second);
     assert_eq!(
         (first.id, first.status, first.error_code),
         (1, "replaced", None)
+    );
+    assert!(
+        first
+            .error_string
+            .starts_with("replaced by a newer trajectory (its joints held"),
+        "{first:?}"
     );
     // It never got near 60°.
     let p = first.joints[0].position_deg.unwrap();
