@@ -553,7 +553,26 @@ impl NativeRobot {
 }
 
 fn robot_error(py: Python<'_>, e: &robobus::robot::RobotError) -> PyErr {
-    raise(py, e.kind(), &e.to_string(), None)
+    let robobus::robot::RobotError::Protection { fault, .. } = e else {
+        return raise(py, e.kind(), &e.to_string(), None);
+    };
+    // The host's protection stopped a joint: robobus.errors.ProtectionError, its fault's
+    // facts as attributes.
+    let made = crate::to_py(py, &**fault).and_then(|f| {
+        py.import("robobus.errors")
+            .and_then(|m| m.getattr("ProtectionError"))
+            .and_then(|c| c.call1((e.to_string(), e.kind().name(), py.None(), f)))
+    });
+    match made {
+        Ok(err) => PyErr::from_value(err),
+        Err(err) => err,
+    }
+}
+
+/// Faults as a list of dicts (`joint`, `check`, `quantity`, `value`, `limit`, `at_s`,
+/// `action`).
+fn faults(py: Python<'_>, faults: &[robobus::ops::protect::Fault]) -> PyResult<Py<PyAny>> {
+    crate::to_py(py, &faults)
 }
 
 fn stop_report(py: Python<'_>, r: &robobus::robot::SafeStopReport) -> PyResult<Py<PyAny>> {
@@ -600,24 +619,36 @@ fn command_report(py: Python<'_>, report: &robobus::robot::CommandReport) -> PyR
 #[pymethods]
 #[allow(clippy::needless_pass_by_value)] // pyo3 signatures
 impl NativeRobot {
-    /// Opens the robot of a robot file (every bus it names).
+    /// Opens the robot of a robot file (every bus it names); `protection`: whether the
+    /// host's protection watches its commands.
     #[staticmethod]
-    fn open(py: Python<'_>, path: std::path::PathBuf) -> PyResult<Self> {
-        py.detach(|| Robot::from_toml_file(&path))
-            .map(Self::wrap)
-            .map_err(|e| robot_error(py, &e))
+    #[pyo3(signature = (path, protection=true))]
+    fn open(py: Python<'_>, path: std::path::PathBuf, protection: bool) -> PyResult<Self> {
+        py.detach(|| {
+            Robot::from_toml_file(&path).map(|mut r| {
+                r.set_protection(protection);
+                r
+            })
+        })
+        .map(Self::wrap)
+        .map_err(|e| robot_error(py, &e))
     }
 
     /// The built-in simulated robot, in-process; with `robot_toml`, driven through that
-    /// robot file (buses `sim-wck` and `sim-whj`).
+    /// robot file (buses `sim-wck` and `sim-whj`); `protection` as for `open`.
     #[staticmethod]
-    #[pyo3(signature = (robot_toml=None))]
-    fn simulated(py: Python<'_>, robot_toml: Option<String>) -> PyResult<Self> {
-        py.detach(|| match robot_toml {
-            None => Robot::simulated(),
-            Some(text) => {
-                robobus::robot::RobotConfig::from_toml_str(&text).and_then(Robot::simulated_with)
+    #[pyo3(signature = (robot_toml=None, protection=true))]
+    fn simulated(py: Python<'_>, robot_toml: Option<String>, protection: bool) -> PyResult<Self> {
+        py.detach(|| {
+            match robot_toml {
+                None => Robot::simulated(),
+                Some(text) => robobus::robot::RobotConfig::from_toml_str(&text)
+                    .and_then(Robot::simulated_with),
             }
+            .map(|mut r| {
+                r.set_protection(protection);
+                r
+            })
         })
         .map(Self::wrap)
         .map_err(|e| robot_error(py, &e))
@@ -749,6 +780,36 @@ impl NativeRobot {
     fn resume(&self, py: Python<'_>) -> PyResult<()> {
         self.with(py, Robot::resume)?
             .map_err(|e| robot_error(py, &e))
+    }
+
+    /// Whether the host's protection watches the robot's commands.
+    fn protection(&self, py: Python<'_>) -> PyResult<bool> {
+        self.with(py, |r| r.protection())
+    }
+
+    /// Turns the host's protection of the robot's commands on or off.
+    fn set_protection(&self, py: Python<'_>, on: bool) -> PyResult<()> {
+        self.with(py, |r| r.set_protection(on))
+    }
+
+    /// The host's protection events so far.
+    fn protection_events(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        let events = self.with(py, |r| r.protection_events())?;
+        faults(py, &events)
+    }
+
+    /// The stops the host's protection latched.
+    fn protection_stops(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        let stops = self.with(py, |r| r.protection_stops())?;
+        faults(py, &stops)
+    }
+
+    /// Takes commands again after protection stops; the stops cleared.
+    fn clear_protection(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        let cleared = self
+            .with(py, Robot::clear_protection)?
+            .map_err(|e| robot_error(py, &e))?;
+        faults(py, &cleared)
     }
 
     /// Closes the robot: every bus to its safe state, the ports released. A second call

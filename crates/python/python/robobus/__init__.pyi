@@ -14,6 +14,7 @@ from .errors import DeviceError as DeviceError
 from .errors import LinkError as LinkError
 from .errors import NoDeviceError as NoDeviceError
 from .errors import NotAvailableError as NotAvailableError
+from .errors import ProtectionError as ProtectionError
 from .errors import RefusedError as RefusedError
 from .errors import RobobusError as RobobusError
 from .errors import StoppedError as StoppedError

@@ -40,6 +40,43 @@ class DeviceError(RobobusError, RuntimeError):
     """The device answered with an error, a malformed reply, or another state than asked."""
 
 
+class ProtectionError(DeviceError):
+    """The host's protection stopped a joint during a :class:`robobus.Robot` command (a
+    stall, a collision, heat, a joint under effort turning past its ``max_velocity``).
+
+    The joint was brought to rest (disabled where its brake holds it, else held where it
+    stands), and every later command is refused (:class:`RefusedError`) until
+    :meth:`robobus.Robot.clear_protection`. The message names the joint, the quantity, the
+    limit and the time; so do the attributes: ``joint`` (its name), ``check``
+    (``"stall"``, ``"collision"``, ``"thermal"``, ``"speed"``), ``quantity``
+    (``"current_a"``, ``"current_jump_a"``, ``"following_error_jump_deg"``,
+    ``"speed_deg_s"``, ``"temperature_c"``), ``value``, ``limit`` (in the quantity's unit)
+    and ``at_s`` (seconds since the robot was opened, on its clock)."""
+
+    joint: str
+    check: str
+    quantity: str
+    value: float
+    limit: float
+    at_s: float
+
+    def __init__(
+        self,
+        message: str,
+        kind: str = "device",
+        report: dict[str, Any] | None = None,
+        fault: dict[str, Any] | None = None,
+    ):
+        super().__init__(message, kind, report)
+        fault = fault or {}
+        self.joint = fault.get("joint", "")
+        self.check = fault.get("check", "")
+        self.quantity = fault.get("quantity", "")
+        self.value = float(fault.get("value", float("nan")))
+        self.limit = float(fault.get("limit", float("nan")))
+        self.at_s = float(fault.get("at_s", float("nan")))
+
+
 class LinkError(RobobusError, OSError):
     """The link failed: I/O error, port busy, permission, bus off."""
 

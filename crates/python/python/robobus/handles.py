@@ -343,7 +343,20 @@ class RobotCommand:
 class Robot:
     """A robot: its joints by name, in radians, behind the robot file's soft limits, speed
     and acceleration limits and watchdog (no :meth:`command` within the watchdog timeout
-    puts every bus in its safe state).
+    puts every bus in its safe state), and the host's protection.
+
+    The host's protection (on unless ``protection=False``) watches every command of a
+    loop (:meth:`command`, :meth:`command_velocity`, :meth:`command_effort`) with what
+    each WHJ joint's servo frame answers (its position against the previous set-point,
+    its speed, its current; its temperature read every 0.25 s), with the limits of the
+    models table and the robot file's ``[protection]`` / ``[joints.protection]``: a stall,
+    a collision, heat (warned, derated, stopped) or a joint under effort turning past its
+    ``max_velocity``. A stop brings the joint to rest (disabled where its brake holds it,
+    else held where it stands) and raises :class:`robobus.errors.ProtectionError`
+    naming the joint, the quantity, the limit and the time; every later command is
+    refused (:class:`robobus.errors.RefusedError`, nothing sent) until
+    :meth:`clear_protection`. A wCK servo's synchronized move has no reply: wCK servos
+    are not watched.
 
     ``Robot.simulated()`` is the built-in simulated robot (16 wCK servos ``s0``..``s15``,
     7 WHJ joints ``j1``..``j7``, in-process); ``Robot.open(path)`` opens a robot file.
@@ -355,18 +368,19 @@ class Robot:
         self._native = native
 
     @classmethod
-    def simulated(cls, robot_toml: str | None = None) -> "Robot":
+    def simulated(cls, robot_toml: str | None = None, *, protection: bool = True) -> "Robot":
         """The built-in simulated robot (the simulators run in this process); with
         ``robot_toml``, the text of a robot file whose buses are ``sim-wck`` (servos
         0..15) and ``sim-whj`` (joints 1..7), driven through it (its own limits and
-        interfaces)."""
-        return cls(NativeRobot.simulated(robot_toml))
+        interfaces). ``protection=False``: no host protection (see :attr:`protection`)."""
+        return cls(NativeRobot.simulated(robot_toml, protection))
 
     @classmethod
-    def open(cls, path: str) -> "Robot":
+    def open(cls, path: str, *, protection: bool = True) -> "Robot":
         """Opens the robot file at ``path``: every bus it names; each WHJ joint is
-        connected and enabled in position mode, each wCK servo read."""
-        return cls(NativeRobot.open(path))
+        connected and enabled in position mode, each wCK servo read.
+        ``protection=False``: no host protection (see :attr:`protection`)."""
+        return cls(NativeRobot.open(path, protection))
 
     @property
     def joint_names(self) -> list[str]:
@@ -449,8 +463,44 @@ class Robot:
         return self._native.safe_stop_report() is not None
 
     def resume(self) -> None:
-        """Leaves the safe state (WHJ joints re-enabled in position mode)."""
+        """Leaves the safe state (WHJ joints re-enabled in position mode). A joint the
+        host's protection stopped stays stopped: see :meth:`clear_protection`."""
         self._native.resume()
+
+    @property
+    def protection(self) -> bool:
+        """Whether the host's protection watches this robot's commands (``True`` unless
+        opened with ``protection=False`` or set to ``False``). Off, nothing catches a
+        stall, a collision, heat or a joint under effort running away: a loop pushing a
+        joint into an obstacle goes on until the joint's own protection trips. Set to
+        ``True`` again, every joint's watch starts afresh; a stop already latched stays
+        until :meth:`clear_protection`."""
+        return self._native.protection()
+
+    @protection.setter
+    def protection(self, on: bool) -> None:
+        if not isinstance(on, bool):
+            raise _bad_input(f"protection: {on!r} is not allowed; expected True or False")
+        self._native.set_protection(on)
+
+    @property
+    def protection_events(self) -> list[dict[str, Any]]:
+        """The host's protection events so far (warnings, derating, stops; the last 256):
+        each ``joint``, ``check``, ``quantity``, ``value``, ``limit``, ``at_s``,
+        ``action``."""
+        return self._native.protection_events()
+
+    @property
+    def protection_stops(self) -> list[dict[str, Any]]:
+        """The stops the host's protection latched (empty when commands are taken)."""
+        return self._native.protection_stops()
+
+    def clear_protection(self) -> list[dict[str, Any]]:
+        """Takes commands again after a :class:`robobus.errors.ProtectionError`: each
+        stopped joint back on position, a disabled WHJ joint enabled again (holding where
+        it stands), its speed limiting restarted where it is. Call it once the cause (the
+        obstacle, the heat) is gone. Returns the stops cleared (empty: nothing done)."""
+        return self._native.clear_protection()
 
     def close(self) -> None:
         """Every bus to its safe state, the ports released; a second call does nothing."""
