@@ -129,7 +129,6 @@ impl Hardware {
         dt_s: f64,
         limited: &mut Vec<LimitEvent>,
     ) -> Result<(Out, f64), RobotError> {
-        let share = self.guard.share(index);
         let whj_angle = match self.joints.get(index).map(|j| j.device) {
             Some(Device::Whj { .. }) => Some(self.angle_now(index)?),
             _ => None,
@@ -151,7 +150,7 @@ impl Hardware {
                 });
             }
         };
-        let limits = joint.limits;
+        let (limits, share) = (joint.limits, self.guard.share(index));
         let d = &mut joint.drive;
         let (most, rate, previous) = match interface {
             Interface::Velocity => (
