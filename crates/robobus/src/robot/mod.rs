@@ -27,6 +27,14 @@
 //!   safe stop
 //!   commands are refused ([`RobotError::SafeStopped`]) until [`Robot::resume`].
 //!
+//! - The host's protection ([`crate::ops::protect`], on by default; `guard.rs`) watches
+//!   every command with what each WHJ joint's servo frame answered (and its temperature
+//!   every [`TEMPERATURE_EVERY`]): a stall, a collision, heat or a runaway under effort
+//!   brings the joint to rest (disabled where its brake holds it, else held) and fails
+//!   the command ([`RobotError::Protection`]); later commands are refused
+//!   ([`RobotError::ProtectionStopped`]) until [`Robot::clear_protection`].
+//!   [`Robot::set_protection`] turns it off.
+//!
 //! Buses of kind `wck`, `whj-udp`, `whj-can` and `whj-bus` (any `--bus` address, such as
 //! a serial-line CAN FD adapter's `slcan:COM8`) are opened from the file; kinds
 //! `wck-external` / `whj-external` (and any bus the program wants to replace, such as
@@ -934,7 +942,8 @@ impl Robot {
     /// Leaves the safe state: every joint back on its position interface (WHJ joints in
     /// speed or current mode switched to position mode), WHJ joints re-enabled in
     /// position mode, every joint's speed limiting restarted from its measured angle, and
-    /// the watchdog disarmed until the next [`command`](Self::command).
+    /// the watchdog disarmed until the next [`command`](Self::command). A joint the host's
+    /// protection stopped stays stopped until [`clear_protection`](Self::clear_protection).
     pub fn resume(&mut self) -> Result<(), RobotError> {
         let mut hw = lock(&self.shared.hw);
         hw.back_to_position()?;
