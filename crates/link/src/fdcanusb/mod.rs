@@ -451,11 +451,9 @@ impl<L: ByteLink> FdcanusbLink<L> {
             }
             match self.read_some(deadline) {
                 Ok(()) => {}
-                Err(Failure::Silent(_)) => {
-                    return Err(Failure::Silent(
-                        self.link.now().saturating_duration_since(start),
-                    ));
-                }
+                // Silent until the deadline: the reply timeout, said as configured (the
+                // clock read after a wake-up on a loaded machine says a little more).
+                Err(Failure::Silent(_)) => return Err(Failure::Silent(self.config.reply_timeout)),
                 Err(e) => return Err(e),
             }
         }
