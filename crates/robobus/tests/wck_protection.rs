@@ -23,7 +23,7 @@ fn a_wck_play_into_a_gripped_servo_is_stopped_within_the_stall_time_naming_it() 
         let s = b.servo_mut(0).unwrap();
         let e = robobus_sim::wck::Eeprom {
             overload: Overload::new(199).unwrap(),
-            ..s.eeprom().clone()
+            ..*s.eeprom()
         };
         s.set_eeprom(e);
     });
@@ -31,7 +31,7 @@ fn a_wck_play_into_a_gripped_servo_is_stopped_within_the_stall_time_naming_it() 
     let mut bus = sim.bus();
     let motion = Motion::parse("torque 3\npose 300 100\npose 3000 200\n").unwrap();
     let started = handle.now();
-    handle.at(started + Duration::from_millis(1000), |b| {
+    handle.at(started + Duration::from_secs(1), |b| {
         b.servo_mut(0).unwrap().hold(true);
     });
     let err = wck::play(
@@ -59,7 +59,7 @@ fn a_wck_play_into_a_gripped_servo_is_stopped_within_the_stall_time_naming_it() 
     );
     let took = handle.now().saturating_sub(started);
     assert!(
-        took > Duration::from_millis(1000) && took <= Duration::from_millis(1650),
+        took > Duration::from_secs(1) && took <= Duration::from_millis(1650),
         "stopped {took:?} after the start: {text}"
     );
     sim.with_bus(|b| {

@@ -386,8 +386,8 @@ fn run_timed<L: ByteLink>(
             last_position = Some(position);
         }
         if let Some(fault) = on_reply(&step, reply, bus.now()) {
-            let state = protection_state(stop.1);
-            let failed = state.apply(&mut WckServos {
+            let safe = protection_state(stop.1);
+            let failed = safe.apply(&mut WckServos {
                 bus,
                 ids: stop.0,
                 torque: stop.2,
@@ -395,10 +395,13 @@ fn run_timed<L: ByteLink>(
             let mut text = format!(
                 "{fault}; the {stage} stopped at {at_ms} ms, servo(s) {} {}",
                 crate::ops::ids_text(stop.0),
-                state.keyword()
+                safe.keyword()
             );
             for f in failed {
-                text.push_str(&format!(" (not reached: {})", f.error));
+                let _ = std::fmt::Write::write_fmt(
+                    &mut text,
+                    format_args!(" (not reached: {})", f.error),
+                );
             }
             return Err(OpError::Device(text));
         }

@@ -33,7 +33,11 @@
 //! where its brake holds it, else held), fails its result naming the fault, and latches:
 //! every later command is refused whole, nothing sent, until [`Driver::resume`]. A derated
 //! joint's set-point is held to its `derate` share of `max_velocity` / `max_effort`. A wCK
-//! wheel's reply carries no speed and no current: it is not watched.
+//! wheel's command reply carries no load: every 0.25 s a status read gives its load (as a
+//! current) and position, its speed the position's change since the read before, fed the
+//! same way with the wCK limits sized to that period; its stop is a zero level, back on
+//! position, then its bus's safe state, passive or the break (never held: a held servo
+//! keeps pushing).
 
 use std::f64::consts::TAU;
 use std::sync::{Mutex, PoisonError};
@@ -46,7 +50,8 @@ use serde::Serialize;
 
 use crate::actuator::{JointMap, WckScale, rpm_to_rad_s};
 use crate::ops::protect::{self, Action, Drive, Fault, MAX_EVENTS, Monitor, Reading};
-use crate::ops::{DeviceResult, ErrorKind, Failure, Family, OpError};
+use crate::ops::safe::WckServos;
+use crate::ops::{DeviceResult, ErrorKind, Failure, Family, OpError, SafeState};
 use crate::robot::{EffortScale, Interface, RobotConfig, WheelSpeeds};
 use crate::station::Station;
 use crate::station::jog::guard::{TEMPERATURE_EVERY, model, safe_stop, temperature_of};
@@ -126,6 +131,9 @@ struct Protection {
     stopped: Option<Fault>,
     /// Every event, the last [`MAX_EVENTS`].
     events: Vec<Fault>,
+    /// A wCK wheel's last status read: when, where (joint degrees), and whether at the end
+    /// of its range.
+    wck_last: Vec<Option<(Instant, f64, bool)>>,
 }
 
 /// Follows velocity and effort commands (see the [module docs](self)).
@@ -202,6 +210,7 @@ impl Driver {
             protection: Mutex::new(Protection {
                 models: vec![None; n],
                 next_temperature: vec![None; n],
+                wck_last: vec![None; n],
                 ..Protection::default()
             }),
         }
@@ -229,9 +238,11 @@ impl Driver {
         p.stopped = None;
         p.monitor = None;
         p.next_temperature.fill(None);
+        p.wck_last.fill(None);
     }
 
-    /// Watches WHJ joint `i`, just switched to `to` (its model's limits and the file's).
+    /// Watches joint `i`, just switched to `to` (a WHJ joint's model's limits and the
+    /// file's; a wCK wheel's, sized to its status read every [`TEMPERATURE_EVERY`]).
     fn watch_switched(&self, station: &Station, index: usize, to: Interface) {
         let Some(joint) = self.joints.get(index) else {
             return;
@@ -239,14 +250,29 @@ impl Driver {
         let Some(config) = self.robot.joints.get(index) else {
             return;
         };
-        if joint.family != Family::Whj || to == Interface::Position {
+        if to == Interface::Position {
             return;
         }
-        let Ok(port) = station.whj(Some(&joint.bus)) else {
-            return;
+        let (now, found) = if joint.family == Family::Wck {
+            let Ok(port) = station.wck(Some(&joint.bus)) else {
+                return;
+            };
+            let now = port.lock().now();
+            (now, None)
+        } else {
+            let Ok(port) = station.whj(Some(&joint.bus)) else {
+                return;
+            };
+            let now = port.bus().now();
+            (now, model(station, joint.family, &joint.bus, joint.id))
         };
-        let now = port.bus().now();
-        let found = model(station, joint.family, &joint.bus, joint.id);
+        let limits = if joint.family == Family::Wck {
+            self.robot
+                .protection_of(config, None)
+                .for_reading_period(TEMPERATURE_EVERY)
+        } else {
+            self.robot.protection_of(config, found)
+        };
         let mut guard = self.guard();
         let monitor = guard.monitor.get_or_insert_with(|| {
             Monitor::new(
@@ -257,7 +283,7 @@ impl Driver {
                     .collect(),
             )
         });
-        monitor.set_limits(index, self.robot.protection_of(config, found));
+        monitor.set_limits(index, limits);
         if let Some(slot) = guard.models.get_mut(index) {
             *slot = found;
         }
@@ -275,8 +301,8 @@ impl Driver {
         before: f64,
     ) -> Option<Failure> {
         let j = self.joints.get(i)?;
-        if j.family != Family::Whj {
-            return None;
+        if j.family == Family::Wck {
+            return self.watch_wheel(station, i, slot, interface, before);
         }
         let now = station.whj(Some(&j.bus)).ok()?.bus().now();
         let mut p = self.guard();
@@ -312,6 +338,22 @@ impl Driver {
             .monitor
             .as_mut()?
             .feed_driven(i, &reading, slot.speed_deg_s, drive);
+        let stop = Self::keep(&mut p, faults)?;
+        let m = p.models.get(i).copied().flatten();
+        drop(p);
+        // A zero target, back on position, then the joint's safe stop.
+        let _ = send(station, j, slot, interface, 0.0);
+        slot.set = 0.0;
+        if let Err(e) = switch_one(station, j, slot, Interface::Position) {
+            tracing::warn!(joint = %j.name, "could not go back to position: {e}");
+        }
+        let what = safe_stop(station, j.family, &j.bus, j.id, m);
+        let what = what.strip_prefix("; ").unwrap_or(&what).to_owned();
+        Some(Failure::of(ErrorKind::Device, &format!("{stop}; {what}")))
+    }
+
+    /// Keeps `faults` in the events (logged); the stop, latched, if one.
+    fn keep(p: &mut Protection, faults: Vec<Fault>) -> Option<Fault> {
         let mut stop = None;
         for f in faults {
             tracing::warn!("{f}");
@@ -325,17 +367,94 @@ impl Driver {
         }
         let stop = stop?;
         p.stopped = Some(stop.clone());
-        let m = p.models.get(i).copied().flatten();
+        Some(stop)
+    }
+
+    /// Feeds wCK wheel `i`'s status read to the protection, every [`TEMPERATURE_EVERY`]
+    /// on velocity (its wheel command's reply has no load); on a stop, a zero level, back
+    /// on position, then its bus's safe state (passive, or the break), and the failure
+    /// naming the fault.
+    fn watch_wheel(
+        &self,
+        station: &Station,
+        i: usize,
+        slot: &mut Slot,
+        interface: Interface,
+        before: f64,
+    ) -> Option<Failure> {
+        let j = self.joints.get(i)?;
+        let Units::Wck(scale, _) = &j.units else {
+            return None;
+        };
+        if interface != Interface::Velocity {
+            return None;
+        }
+        let port = station.wck(Some(&j.bus)).ok()?;
+        let id = servo_id(j).ok()?;
+        let now = port.lock().now();
+        let mut p = self.guard();
+        p.monitor.as_ref()?;
+        let due = p
+            .next_temperature
+            .get(i)
+            .copied()
+            .flatten()
+            .is_none_or(|t| now >= t);
+        if !due {
+            return None;
+        }
+        if let Some(t) = p.next_temperature.get_mut(i) {
+            *t = Some(now + TEMPERATURE_EVERY);
+        }
+        // A silent servo is no reading (its commands fail on their own).
+        let st = port.lock().servo(id).status().ok()?;
+        let deg = scale.to_rad(st.position).to_degrees();
+        let edge =
+            st.position == robobus_wck::Position::MIN || st.position == robobus_wck::Position::MAX;
+        let last = p.wck_last.get_mut(i)?;
+        let speed = last.and_then(|(t, was, was_edge)| {
+            let dt = now.saturating_duration_since(t).as_secs_f64();
+            let changed = (deg - was).abs() > 1e-9;
+            (dt > 0.0 && !(changed && (edge || was_edge))).then(|| (deg - was) / dt)
+        });
+        *last = Some((now, deg, edge));
+        slot.at = Some(deg.to_radians());
+        let reading = Reading {
+            position_deg: Some(deg),
+            current_a: Some(protect::wck_load_a(st.load.get())),
+            ..Reading::at(now)
+        };
+        let drive = Drive::Velocity {
+            commanded_deg_s: before.to_degrees(),
+        };
+        let faults = p.monitor.as_mut()?.feed_driven(i, &reading, speed, drive);
+        let stop = Self::keep(&mut p, faults)?;
         drop(p);
-        // A zero target, back on position, then the joint's safe stop.
         let _ = send(station, j, slot, interface, 0.0);
         slot.set = 0.0;
         if let Err(e) = switch_one(station, j, slot, Interface::Position) {
             tracing::warn!(joint = %j.name, "could not go back to position: {e}");
         }
-        let what = safe_stop(station, j.family, &j.bus, j.id, m);
-        let what = what.strip_prefix("; ").unwrap_or(&what).to_owned();
-        Some(Failure::of(ErrorKind::Device, &format!("{stop}; {what}")))
+        let state = match self
+            .robot
+            .buses
+            .get(&j.bus)
+            .map(crate::robot::BusConfig::safe_state)
+        {
+            Some(SafeState::Break) => SafeState::Break,
+            _ => SafeState::Passive,
+        };
+        let failed = state.apply(&mut WckServos {
+            bus: &mut port.lock(),
+            ids: &[id],
+            torque: TorqueLevel::MIN,
+        });
+        let mut text = format!("{stop}; servo {} {}", id.get(), state.keyword());
+        for f in failed {
+            let _ =
+                std::fmt::Write::write_fmt(&mut text, format_args!(" (not reached: {})", f.error));
+        }
+        Some(Failure::of(ErrorKind::Device, &text))
     }
 
     /// The share of its `max_velocity` / `max_effort` joint `i` keeps (a derated one).
@@ -844,6 +963,53 @@ mod tests {
         let (station, whj) = crate::station::follow::testing::enabled(file, "1-2");
         let driver = Driver::new(&station).unwrap();
         (station, whj, driver)
+    }
+
+    /// A wheel held still while streamed its level-2 speed (267 mA held on the simulated
+    /// 1108, under its 400 mA over-load): read every 0.25 s (at the commands at 0, 0.26,
+    /// 0.52, 0.78 s), the stall seen at 0.26 s and held for two periods (0.5 s), the
+    /// stream is stopped at 0.78 s naming the wheel, which is left passive (its bus's
+    /// safe state), and later commands are refused.
+    #[test]
+    fn a_wheel_held_still_under_a_velocity_stream_is_stopped_naming_it() {
+        let (mut station, wck, _whj) = Station::simulated_with_handles().unwrap();
+        station
+            .set_robot(RobotConfig::from_toml_str(crate::robot::simulated::DRIVE_ROBOT).unwrap())
+            .unwrap();
+        let driver = Driver::new(&station).unwrap();
+        driver
+            .switch(&station, &["s0".to_owned()], Interface::Velocity)
+            .unwrap();
+        wck.with_bus(|b| b.servo_mut(0).unwrap().hold(true));
+        let level_2 = crate::robot::simulated::sim_1108_wheel_speeds()[1];
+        let clock = BusClock::of(&station, station.robot().unwrap()).unwrap();
+        let start = clock.now();
+        let mut stopped_at = None;
+        for k in 0..100u32 {
+            clock.sleep_until(start + Duration::from_millis(20) * k);
+            let plan = driver.plan(Interface::Velocity, &[level_2]).unwrap();
+            let done = driver.apply(&station, Interface::Velocity, &plan);
+            if let Outcome::Failed(f) = &done[0].outcome {
+                assert_eq!(f.kind, ErrorKind::Device, "{f:?}");
+                assert!(
+                    f.error.starts_with(
+                        "s0: stall protection: current 0.27 A reached the limit 0.2 A"
+                    ) && f.error.ends_with("servo 0 passive"),
+                    "{}",
+                    f.error
+                );
+                stopped_at = Some(f64::from(k) * 0.02);
+                break;
+            }
+        }
+        let t = stopped_at.expect("the stream was never stopped");
+        assert!((0.77..=0.79).contains(&t), "{t}");
+        assert_eq!(
+            wck.with_bus(|b| b.servo(0).unwrap().mode()),
+            robobus_sim::wck::Mode::Passive
+        );
+        assert!(driver.stopped().is_some());
+        assert!(driver.plan(Interface::Velocity, &[level_2]).is_err());
     }
 
     #[test]

@@ -874,7 +874,7 @@ mod tests {
             let s = b.servo_mut(0).unwrap();
             let e = robobus_sim::wck::Eeprom {
                 overload: robobus_wck::Overload::new(199).unwrap(),
-                ..s.eeprom().clone()
+                ..*s.eeprom()
             };
             s.set_eeprom(e);
         });
