@@ -420,7 +420,8 @@ pub(super) const fn protection_state(on_stop: SafeState) -> SafeState {
     }
 }
 
-/// Feeds `faults` to `events` (logged; at most [`protect::MAX_EVENTS`]): the stop, if one.
+/// Logs `faults` (a wCK servo has no temperature: its events are stops, never warnings or
+/// derating to report): the stop, if one.
 fn keep_events(faults: Vec<Fault>) -> Option<Fault> {
     let mut stop = None;
     for f in faults {
