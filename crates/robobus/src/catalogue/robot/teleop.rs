@@ -586,9 +586,17 @@ impl Run {
             followers
                 .iter()
                 .zip(&models)
-                .map(|(n, &m)| {
+                .zip(follower.joints())
+                .map(|((n, &m), f)| {
                     let limits =
                         joint_of(n).map_or(protect::Limits::OFF, |j| config.protection_of(j, m));
+                    // A wCK follower is read at each command's reply: its windows at
+                    // least a cycle (the wCK defaults are sized for 200 ms).
+                    let limits = if f.family == Family::Wck {
+                        limits.for_reading_period(Duration::from_secs_f64(1.0 / r.rate_hz))
+                    } else {
+                        limits
+                    };
                     (n.clone(), limits)
                 })
                 .collect(),
@@ -750,11 +758,8 @@ impl Run {
                     .zip(self.last_sent.get(i).copied().flatten())
                     .map(|(a, sent)| (a.to_degrees() - sent).abs()),
                 target_deg: self.last_sent.get(i).copied().flatten(),
-                current_a: j
-                    .feedback
-                    .get("current_ma")
-                    .and_then(serde_json::Value::as_f64)
-                    .map(|ma| ma / 1e3),
+                // A WHJ joint's current, a wCK servo's load (its move's reply) as one.
+                current_a: crate::station::jog::guard::current_a_of(&j.feedback),
                 temperature_c: temperatures.get(i).copied().flatten(),
             };
             for f in self.monitor.feed(i, &reading) {

@@ -334,4 +334,74 @@ mod tests {
         let done = follower.apply(&station, &plan);
         assert!(matches!(done[1].outcome, Outcome::Ok(_)), "{:?}", done[1]);
     }
+
+    /// A followed wCK servo gripped by the simulator's hand, its own over-load at its
+    /// highest (1800 mA, so only the host can stop it): its move replies answer with the
+    /// load it pushes with (read as a current), so the stream is stopped naming it, and
+    /// the servo is passive.
+    #[test]
+    fn a_followed_wck_servo_gripped_is_stopped_naming_it_and_left_passive() {
+        let (station, wck, _) = crate::station::Station::simulated_with_handles().unwrap();
+        wck.with_bus(|b| {
+            let s = b.servo_mut(1).unwrap();
+            let e = robobus_sim::wck::Eeprom {
+                overload: robobus_wck::Overload::new(199).unwrap(),
+                ..*s.eeprom()
+            };
+            s.set_eeprom(e);
+            s.hold(true);
+        });
+        let follower = Follower::new(&station).unwrap();
+        let s1 = follower
+            .joints()
+            .iter()
+            .position(|j| j.name == "s1")
+            .unwrap();
+        // s1 toward 30°, every other joint where it is (the WHJ joints, not enabled,
+        // refuse their steps by themselves).
+        let mut targets = vec![0.0; follower.joints().len()];
+        targets[s1] = 30f64.to_radians();
+        let clock = BusClock::of(&station, station.robot().unwrap()).unwrap();
+        let start = clock.now();
+        // A position stream at 50 Hz toward 30°.
+        let mut stopped_at = None;
+        for k in 0..100u32 {
+            clock.sleep_until(start + Duration::from_millis(20) * k);
+            let plan = follower.plan(&targets).unwrap();
+            let done = follower.apply(&station, &plan);
+            if let Outcome::Failed(f) = &done[s1].outcome {
+                assert_eq!(f.kind, ErrorKind::Device, "{f:?}");
+                assert!(
+                    f.error.starts_with(
+                        "s1: stall protection: current 1.20 A reached the limit 0.2 A at "
+                    ) && f
+                        .error
+                        .ends_with("; passive (its torque off: holding would keep it pushing)"),
+                    "{}",
+                    f.error
+                );
+                stopped_at = Some(k);
+                break;
+            }
+        }
+        assert!(stopped_at.is_some(), "never stopped");
+        let events = follower.protection();
+        assert_eq!(events.len(), 1, "{events:?}");
+        assert_eq!(
+            (events[0].joint.as_str(), events[0].quantity),
+            ("s1", "current_a")
+        );
+        // s1 pushes with 1.2 A from its second command (0.04 s); the wCK stall time
+        // (0.4 s) later the stream is stopped.
+        assert!((events[0].at_s - 0.443).abs() < 0.005, "{:?}", events[0]);
+        wck.with_bus(|b| {
+            let s = b.servo(1).unwrap();
+            assert_eq!(s.mode(), robobus_sim::wck::Mode::Passive);
+            assert_eq!(
+                s.overload_trips(),
+                0,
+                "the host stopped it, not its own protection"
+            );
+        });
+    }
 }

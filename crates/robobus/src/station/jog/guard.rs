@@ -4,10 +4,10 @@
 //!
 //! A device's reading is where it reported itself at the jog (its servo frame's feedback
 //! or its move's reply) against the position its previous jog sent, a WHJ joint's
-//! current, and every [`TEMPERATURE_EVERY`] its temperature (a status query). Its limits
+//! current or a wCK servo's load (read as a current), and every [`TEMPERATURE_EVERY`] its temperature (a status query). Its limits
 //! are the robot file's for the joint at that bus and ID, else its family's defaults. A
 //! stop brings the device to its safe stop (a WHJ joint disabled where every product of
-//! its model has a pin brake, else held where it is; a wCK servo keeps its position) and
+//! its model has a pin brake, else held where it is; a wCK servo passive) and
 //! fails that jog naming the fault; every later jog of the device is refused, nothing
 //! sent, until [`Jogger::resume`](super::Jogger::resume).
 
@@ -189,12 +189,26 @@ pub(crate) fn reading_of(
         position_deg: position.map(&deg),
         error_deg: position.zip(before).map(|(p, b)| (deg(p) - b).abs()),
         target_deg: before,
-        current_a: feedback
-            .get("current_ma")
-            .and_then(serde_json::Value::as_f64)
-            .map(|ma| ma / 1e3),
+        current_a: current_a_of(feedback),
         temperature_c,
     }
+}
+
+/// The current in a device's answer, A: a WHJ joint's `current_ma`, or a wCK servo's
+/// `load` (its move's reply) read as a current ([`protect::wck_load_a`]); `None` in an
+/// answer without either.
+pub(crate) fn current_a_of(feedback: &serde_json::Value) -> Option<f64> {
+    if let Some(ma) = feedback
+        .get("current_ma")
+        .and_then(serde_json::Value::as_f64)
+    {
+        return Some(ma / 1e3);
+    }
+    feedback
+        .get("load")
+        .and_then(serde_json::Value::as_u64)
+        .and_then(|l| u8::try_from(l).ok())
+        .map(protect::wck_load_a)
 }
 
 pub(crate) fn temperature_of(station: &Station, family: Family, bus: &str, id: u8) -> Option<f64> {
@@ -208,8 +222,8 @@ pub(crate) fn temperature_of(station: &Station, family: Family, bus: &str, id: u
 }
 
 /// Brings a device that tripped to its safe stop: a WHJ joint disabled where its model's
-/// brake holds it, else held where it is; a wCK servo keeps the position it was last
-/// sent (it holds it). What it did, for the fault's text.
+/// brake holds it, else held where it is; a wCK servo passive. What it did, for the
+/// fault's text.
 pub(crate) fn safe_stop(
     station: &Station,
     family: Family,
@@ -218,7 +232,18 @@ pub(crate) fn safe_stop(
     model: Option<Model>,
 ) -> String {
     if family != Family::Whj {
-        return "; it holds its last position and no command is sent".into();
+        // Holding would keep a stalled servo pushing: its torque off.
+        let passive = robobus_wck::ServoId::new(id)
+            .map_err(|e| e.to_string())
+            .and_then(|id| {
+                let port = station.wck(Some(bus)).map_err(|e| e.to_string())?;
+                let mut bus = port.lock();
+                bus.servo(id).passive().map(drop).map_err(|e| e.to_string())
+            });
+        return match passive {
+            Ok(()) => "; passive (its torque off: holding would keep it pushing)".into(),
+            Err(e) => format!("; it did not reach its safe state (passive): {e}"),
+        };
     }
     let (state, what) = if protect::torque_off_is_safe(model) {
         (

@@ -221,3 +221,59 @@ fn a_follower_pushing_into_an_obstacle_is_stopped_and_named() {
     let j1 = whj.with_bus(|b| b.joint(1).unwrap().state());
     assert!(!j1.enabled && j1.current_a.abs() < 1e-9, "{j1:?}");
 }
+
+/// A wCK follower gripped by the simulator's hand, its own over-load at its highest
+/// (1800 mA, so only the host can stop it): its move replies answer with the load it
+/// pushes with (read as a current), so the stall stops the run, naming it, and leaves it
+/// passive.
+#[test]
+fn a_gripped_wck_follower_is_stopped_as_a_stall_naming_it() {
+    let (station, wck, _) = Station::simulated_with_handles().unwrap();
+    wck.with_bus(|b| {
+        let s = b.servo_mut(1).unwrap();
+        let e = robobus_sim::wck::Eeprom {
+            overload: robobus_wck::Overload::new(199).unwrap(),
+            ..*s.eeprom()
+        };
+        s.set_eeprom(e);
+        s.hold(true);
+    });
+    let t = u64::try_from(wck.now().as_millis()).unwrap();
+    turn(&wck, t + 50, 0, 30.0);
+    let request: Request = serde_json::from_value(json!({
+        "op": "robot.teleop",
+        "rate_hz": 50,
+        "seconds": 5,
+        "map": [{"leader": "s0", "follower": "s1"}],
+    }))
+    .unwrap();
+    let report = run(&station, &request, &mut Control::none()).unwrap();
+    let v = serde_json::to_value(&report).unwrap();
+    assert_eq!(v["failed"], "device", "{v:#}");
+    let s = &v["summary"];
+    let events = s["protection"].as_array().unwrap();
+    assert_eq!(events.len(), 1, "{s:#}");
+    let stop = &events[0];
+    assert_eq!(
+        (&stop["joint"], &stop["check"], &stop["action"]),
+        (&json!("s1"), &json!("stall"), &json!("stop")),
+        "{stop}"
+    );
+    assert_eq!(
+        (&stop["quantity"], &stop["limit"]),
+        (&json!("current_a"), &json!(0.2))
+    );
+    // s1 pushes from the first cycle after the leader's turn (0.08 s) with 1.2 A; the
+    // wCK stall time (0.4 s) later the run stops, long before its 5 s.
+    let at = stop["at_s"].as_f64().unwrap();
+    assert!((at - 0.483).abs() < 0.005, "{stop}");
+    assert!((s["seconds"].as_f64().unwrap() - at).abs() < 0.001, "{s}");
+    let e = row(&v, "s1")["error"].as_str().unwrap();
+    assert!(
+        e.starts_with("s1: stall protection: current 1.20 A reached the limit 0.2 A at 0.48"),
+        "{e}"
+    );
+    wck.with_bus(|b| {
+        assert_eq!(b.servo(1).unwrap().mode(), robobus_sim::wck::Mode::Passive);
+    });
+}
