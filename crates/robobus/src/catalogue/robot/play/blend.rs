@@ -90,7 +90,13 @@ impl Course {
 }
 
 /// The handle through which a front end blends a newer trajectory into a running play
-/// of positions (see the [module docs](self)). One run at a time uses it.
+/// of positions, handed to the run by
+/// [`Interaction::play_blend`](crate::catalogue::Interaction::play_blend): the state the
+/// run commands a few ticks ahead ([`Blend::commanded`]), the newer trajectory planned
+/// from it and made one of the run's joints ([`Blend::blended`]), then offered
+/// ([`Blend::offer`]): checked as a play's trajectory is, pre-flight included, and taken
+/// by the run's tick loop at that tick, or refused and the run left as it was. One run at
+/// a time uses it.
 #[derive(Debug, Default)]
 pub struct Blend {
     inner: Mutex<Inner>,
