@@ -4,10 +4,13 @@
 //! one monitor, the joint disabled (a WHJ30's brake holds it), the error naming the joint,
 //! the quantity, the limit and the time; every later command is refused, nothing sent,
 //! until `Robot::clear_protection`; with the protection turned off the same loop pushes
-//! on.
+//! on. A wCK servo's synchronized move has no reply: its status read every 0.25 s feeds
+//! the same monitor, and a loop pushing it into the wCK simulator's hand is stopped, the
+//! servo passive.
 
 #![allow(clippy::unwrap_used, clippy::panic, clippy::float_cmp)]
 
+use crate::wck_support;
 use crate::whj_common;
 
 use std::time::Duration;
@@ -271,4 +274,101 @@ fn a_hot_joint_in_a_loop_is_derated_then_stopped_at_its_temperatures() {
         "{e}"
     );
     assert!(!elbow(&sim).enabled);
+}
+
+/// A robot of one wCK servo `knee` (ID 0, on a passive bus), its own over-load at its
+/// highest (1800 mA, so only the host can stop it), gripped by the simulator's hand.
+fn gripped_knee() -> (Robot, wck_support::Sim) {
+    let config = RobotConfig::from_toml_str(
+        r#"
+        watchdog_timeout = 0.2
+        [buses.legs]
+        kind = "wck-external"
+        safe_state = "passive"
+        [[joints]]
+        name = "knee"
+        bus = "legs"
+        id = 0
+        limits = [-1.0, 1.0]
+        max_velocity = 3.0
+        max_acceleration = 30.0
+        "#,
+    )
+    .unwrap();
+    let mut sim = wck_support::serve_ids(&[0]);
+    sim.handle.with_bus(|b| {
+        let s = b.servo_mut(0).unwrap();
+        let e = robobus_sim::wck::Eeprom {
+            overload: robobus_wck::Overload::new(199).unwrap(),
+            ..*s.eeprom()
+        };
+        s.set_eeprom(e);
+        s.hold(true);
+    });
+    let robot = Robot::builder(config)
+        .wck_bus("legs", sim.bus())
+        .open()
+        .unwrap();
+    (robot, sim)
+}
+
+#[test]
+fn a_position_loop_pushing_a_gripped_wck_servo_is_stopped_naming_it_and_left_passive() {
+    let (mut robot, sim) = gripped_knee();
+    let (e, t) = loop_until_error(&mut robot, 3.0, |r, t| r.command(&[t.min(0.5)]).map(drop))
+        .expect("the loop was not stopped");
+    assert_eq!(e.kind(), ErrorKind::Device, "{e}");
+    let RobotError::Protection { fault, stopped } = &e else {
+        panic!("{e}");
+    };
+    assert_eq!(
+        (
+            fault.joint.as_str(),
+            fault.check,
+            fault.quantity,
+            fault.limit
+        ),
+        ("knee", Check::Stall, "current_a", 0.2),
+        "{e}"
+    );
+    // Its status is read every 0.25 s: the first read after the grip with the target
+    // away (0.25 s) sees 1.2 A pushing, and the stall time sized to that period (0.5 s,
+    // two reads) later, at the read of 0.75 s, the loop is stopped.
+    assert!((0.74..0.77).contains(&fault.at_s), "{e}");
+    assert!((0.74..0.77).contains(&t), "stopped at {t} s");
+    assert!(
+        e.to_string()
+            .starts_with("knee: stall protection: current 1.20 A reached the limit 0.2 A at 0.7"),
+        "{e}"
+    );
+    assert_eq!(
+        stopped,
+        "passive (its torque off: holding would keep it pushing)"
+    );
+    sim.handle.with_bus(|b| {
+        let s = b.servo(0).unwrap();
+        assert_eq!(s.mode(), robobus_sim::wck::Mode::Passive);
+        assert_eq!(
+            s.overload_trips(),
+            0,
+            "the host stopped it, not its own protection"
+        );
+    });
+    let again = robot.command(&[0.0]).unwrap_err();
+    assert!(
+        matches!(again, RobotError::ProtectionStopped { .. }),
+        "{again}"
+    );
+}
+
+#[test]
+fn with_the_protection_off_a_loop_pushes_on_into_the_gripped_wck_servo() {
+    let (mut robot, sim) = gripped_knee();
+    robot.set_protection(false);
+    let got = loop_until_error(&mut robot, 2.0, |r, t| r.command(&[t.min(0.5)]).map(drop));
+    assert!(got.is_none(), "{:?}", got.map(|g| g.0.to_string()));
+    sim.handle.with_bus(|b| {
+        assert_ne!(b.servo(0).unwrap().mode(), robobus_sim::wck::Mode::Passive);
+    });
+    assert!(robot.protection_events().is_empty());
 }

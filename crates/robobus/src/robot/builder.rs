@@ -147,7 +147,14 @@ impl RobotBuilder {
         for j in &config.joints {
             let (slot, model) = build_joint(j, &config, &index, &whj_slots)?;
             // The host's protection: the models table's defaults with the file's.
-            watched.push((j.name.clone(), config.protection_of(j, model), model));
+            let limits = config.protection_of(j, model);
+            // A wCK servo is read every WCK_READ_EVERY: its windows sized to that.
+            let limits = if config.is_wck(j) {
+                limits.for_reading_period(super::WCK_READ_EVERY)
+            } else {
+                limits
+            };
+            watched.push((j.name.clone(), limits, model));
             joints.push(slot);
         }
 

@@ -22,12 +22,20 @@ use robobus_whj::units::Model;
 
 use super::hardware::{Device, Hardware};
 use super::interface::Interface;
-use super::{RateLimiter, RobotError, SafeState, ServoLoop, WhjJoints};
+use super::{
+    ActuatorError, Position, RateLimiter, RobotError, SafeState, ServoId, ServoLoop, WckServos,
+    WhjJoints,
+};
 use crate::ops::protect::{self, Action, Drive, Fault, Limits, Monitor, Reading};
 
 /// How often a commanded WHJ joint's temperature is read (a status query after its
 /// command), robot clock.
 pub const TEMPERATURE_EVERY: Duration = Duration::from_millis(250);
+
+/// How often each of a robot's wCK servos is read for the protection while it is
+/// commanded (a status read after a command: its synchronized move has no reply), robot
+/// clock; the servos' reads are spread over the period, round-robin.
+pub const WCK_READ_EVERY: Duration = Duration::from_millis(250);
 
 /// What one command's frame answered for a joint (joint frame).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -52,6 +60,11 @@ pub(super) struct Guard {
     /// N·m); `None` before its first command on that interface.
     before: Vec<Option<f64>>,
     next_temperature: Vec<Option<Instant>>,
+    /// A wCK servo's next status read.
+    next_wck: Vec<Option<Instant>>,
+    /// A wCK servo's last status read: when, where (rad) and whether at the end of its
+    /// range (its speed is the change between two reads).
+    wck_last: Vec<Option<(Instant, f64, bool)>>,
     /// The stop that latched, by joint.
     pub(super) stopped: Vec<Option<Fault>>,
     /// The events so far (at most [`protect::MAX_EVENTS`]; the oldest dropped).
@@ -71,6 +84,8 @@ impl Guard {
             models,
             before: vec![None; n],
             next_temperature: vec![None; n],
+            next_wck: vec![None; n],
+            wck_last: vec![None; n],
             stopped: vec![None; n],
             events: Vec::new(),
         }
@@ -83,6 +98,9 @@ impl Guard {
         }
         if let Some(b) = self.before.get_mut(index) {
             *b = None;
+        }
+        if let Some(w) = self.wck_last.get_mut(index) {
+            *w = None;
         }
     }
 
@@ -133,6 +151,40 @@ impl Guard {
             return false;
         }
         *next = Some(now + TEMPERATURE_EVERY);
+        true
+    }
+
+    /// Whether wCK servo `index` (the `rank`-th of `count` wCK servos) is due for a
+    /// status read at `now` (and, if so, the next one scheduled): every
+    /// [`WCK_READ_EVERY`], the first reads spread over that period by rank, and never
+    /// when nothing of its limits needs a reading.
+    fn wck_due(&mut self, index: usize, now: Instant, (rank, count): (usize, usize)) -> bool {
+        if !self.on
+            || self.limits.get(index).is_none_or(|l| {
+                l.stall_current_a.is_none()
+                    && l.collision_current_jump_a.is_none()
+                    && l.collision_error_jump_deg.is_none()
+            })
+        {
+            return false;
+        }
+        let Some(next) = self.next_wck.get_mut(index) else {
+            return false;
+        };
+        match *next {
+            None => {
+                let spread = u32::try_from(count.max(1)).unwrap_or(u32::MAX);
+                let rank = u32::try_from(rank).unwrap_or(0);
+                let first = now + WCK_READ_EVERY * rank / spread;
+                *next = Some(first);
+                if now < first {
+                    return false;
+                }
+            }
+            Some(t) if now < t => return false,
+            Some(_) => {}
+        }
+        *next = Some(now + WCK_READ_EVERY);
         true
     }
 
@@ -211,6 +263,73 @@ impl Guard {
 }
 
 impl Hardware {
+    /// Wck servo `index`'s reading for the protection at `now`, when its status read is
+    /// due (see [`WCK_READ_EVERY`]): where it is, its load as a current
+    /// ([`protect::wck_load_a`]) and its speed since the read before; `None` for a WHJ
+    /// joint or when not due. A servo that does not answer is the error.
+    pub(super) fn wck_reading(
+        &mut self,
+        index: usize,
+        now: Instant,
+    ) -> Result<Option<Sensed>, RobotError> {
+        let Some(joint) = self.joints.get(index) else {
+            return Ok(None);
+        };
+        let Device::Wck { bus, id, scale } = joint.device else {
+            return Ok(None);
+        };
+        let wck: Vec<usize> = self
+            .joints
+            .iter()
+            .enumerate()
+            .filter(|(_, j)| matches!(j.device, Device::Wck { .. }))
+            .map(|(i, _)| i)
+            .collect();
+        let rank = wck.iter().position(|&i| i == index).unwrap_or(0);
+        if !self.guard.wck_due(index, now, (rank, wck.len())) {
+            return Ok(None);
+        }
+        let Some(slot) = self.wck.get_mut(bus) else {
+            return Ok(None);
+        };
+        let status = slot
+            .bus
+            .servo(id)
+            .status()
+            .map_err(|source| ActuatorError::Wck {
+                joint: joint.name.clone(),
+                source: Box::new(source),
+            })?;
+        let rad = scale.to_rad(status.position);
+        let edge = status.position == Position::MIN || status.position == Position::MAX;
+        let last = self.guard.wck_last.get_mut(index);
+        let speed_rad_s = last
+            .as_ref()
+            .and_then(|l| **l)
+            .and_then(|(t, before, was_edge)| {
+                let dt = now.saturating_duration_since(t).as_secs_f64();
+                let changed = (rad - before).abs() > 1e-9;
+                // A reading at the end of the range says nothing of the speed.
+                (dt > 0.0 && !(changed && (edge || was_edge))).then(|| (rad - before) / dt)
+            });
+        if let Some(l) = last {
+            *l = Some((now, rad, edge));
+        }
+        let wheel = self
+            .joints
+            .get(index)
+            .is_some_and(|j| j.drive.active == Interface::Velocity);
+        // A wheel's first read, with no speed yet, is where its next is measured from.
+        if wheel && speed_rad_s.is_none() {
+            return Ok(None);
+        }
+        Ok(Some(Sensed {
+            position_rad: rad,
+            speed_rad_s: speed_rad_s.unwrap_or(0.0),
+            current_a: protect::wck_load_a(status.load.get()),
+        }))
+    }
+
     /// Brings joint `index`, which tripped, to rest through the one guard (see the
     /// [module](self)); what it did, for the error's text.
     pub(super) fn protection_stop(&mut self, index: usize) -> String {
@@ -218,8 +337,9 @@ impl Hardware {
         let Some(joint) = self.joints.get(index) else {
             return String::new();
         };
-        let Device::Whj { bus, id, .. } = joint.device else {
-            return "it holds its last position".into();
+        let (bus, id) = match joint.device {
+            Device::Whj { bus, id, .. } => (bus, id),
+            Device::Wck { bus, id, .. } => return self.wck_protection_stop(index, bus, id),
         };
         let name = joint.name.clone();
         if joint.drive.active != Interface::Position {
@@ -251,6 +371,49 @@ impl Hardware {
             None => what.to_owned(),
             Some(f) => {
                 tracing::warn!(joint = %name, "protection stop incomplete: {}", f.error);
+                format!(
+                    "it did not reach its safe state ({}): {}",
+                    state.keyword(),
+                    f.error
+                )
+            }
+        }
+    }
+
+    /// Brings wCK servo `index` (`id` on bus `bus`), which tripped, to rest: a wheel
+    /// back on position (level 0), then the bus's safe state if it is the break (every
+    /// module), else the servo passive; never held (holding would keep it pushing).
+    fn wck_protection_stop(&mut self, index: usize, bus: usize, id: ServoId) -> String {
+        if self
+            .joints
+            .get(index)
+            .is_some_and(|j| j.drive.active != Interface::Position)
+        {
+            let _ = self.switch(index, Interface::Position);
+        }
+        let Some(slot) = self.wck.get_mut(bus) else {
+            return String::new();
+        };
+        let (state, what) = if slot.safe == SafeState::Break {
+            (SafeState::Break, "its bus's break (every module)")
+        } else {
+            (
+                SafeState::Passive,
+                "passive (its torque off: holding would keep it pushing)",
+            )
+        };
+        let failed = state.apply(&mut WckServos {
+            bus: &mut slot.bus,
+            ids: &[id],
+            torque: slot.torque,
+        });
+        if let Some(j) = self.joints.get_mut(index) {
+            j.drive.resting();
+        }
+        match failed.first() {
+            None => what.to_owned(),
+            Some(f) => {
+                tracing::warn!(servo = id.get(), "protection stop incomplete: {}", f.error);
                 format!(
                     "it did not reach its safe state ({}): {}",
                     state.keyword(),

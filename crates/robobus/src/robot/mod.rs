@@ -110,7 +110,7 @@ use robobus_whj::units::CurrentScale;
 pub use builder::{RobotBuilder, open_wck_bus, open_whj_bus};
 pub use config::{BusConfig, JointConfig, Protection, RobotConfig};
 pub use error::RobotError;
-pub use guard::TEMPERATURE_EVERY;
+pub use guard::{TEMPERATURE_EVERY, WCK_READ_EVERY};
 use hardware::{Device, Drive, Hardware, JointSlot, Shared, WckSlot, WhjSlot, lock};
 pub(crate) use interface::list as interface_list;
 pub use interface::{EffortScale, Interface, WHEEL_LEVELS, WheelSpeeds};
@@ -542,7 +542,11 @@ impl Robot {
                 }
                 _ => None,
             };
-            let answer = sensed.get(i).copied().flatten();
+            // A wCK servo's synchronized move has no reply: its status, read when due.
+            let answer = match hw.wck_reading(i, now)? {
+                Some(read) => Some(read),
+                None => sensed.get(i).copied().flatten(),
+            };
             if let Some(fault) =
                 hw.guard
                     .feed(i, now, interface, answer, temperature_c, (set, max_rad_s))
