@@ -8,12 +8,16 @@
 //! every [`TEMPERATURE_EVERY`] (robot clock) its temperature is read too. Those are the
 //! readings, and only those: nothing older is fed. A joint on position is fed with
 //! [`Monitor::feed`], one on velocity or effort with [`Monitor::feed_driven`]. A wCK
-//! servo's synchronized move has no reply: it is not watched.
+//! servo's synchronized move has no reply: every [`WCK_READ_EVERY`] (the servos' reads
+//! spread over that period, round-robin) a status read after the command gives its load
+//! (as a current, [`protect::wck_load_a`]) and position, its speed the change since the
+//! read before, fed with the wCK limits sized to that period (no temperature).
 //!
 //! A stop brings the joint that tripped to rest through the one guard: on velocity or
 //! effort a zero target and back to position mode, then disabled where every product of
 //! its model has a pin brake (holding would keep it pushing or heating), else held where
-//! it stands ([`SafeState::Hold`]). It latches: every later command (and interface
+//! it stands ([`SafeState::Hold`]); a wCK servo passive, or its bus's break where that is
+//! the bus's safe state (never held: it would keep pushing). It latches: every later command (and interface
 //! switch) is refused, nothing sent, until [`Robot::clear_protection`](super::Robot::clear_protection).
 
 use std::time::{Duration, Instant};

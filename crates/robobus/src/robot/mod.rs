@@ -29,9 +29,10 @@
 //!
 //! - The host's protection ([`crate::ops::protect`], on by default; `guard.rs`) watches
 //!   every command with what each WHJ joint's servo frame answered (and its temperature
-//!   every [`TEMPERATURE_EVERY`]): a stall, a collision, heat or a runaway under effort
-//!   brings the joint to rest (disabled where its brake holds it, else held) and fails
-//!   the command ([`RobotError::Protection`]); later commands are refused
+//!   every [`TEMPERATURE_EVERY`]) and each wCK servo's status (load and position, read
+//!   every [`WCK_READ_EVERY`]): a stall, a collision, heat or a runaway under effort
+//!   brings the joint to rest (disabled where its brake holds it, else held; a wCK servo
+//!   passive, or its bus's break) and fails the command ([`RobotError::Protection`]); later commands are refused
 //!   ([`RobotError::ProtectionStopped`]) until [`Robot::clear_protection`].
 //!   [`Robot::set_protection`] turns it off.
 //!

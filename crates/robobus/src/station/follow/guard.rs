@@ -4,12 +4,13 @@
 //!
 //! Each joint's reading is where it reported itself at its command (the feedback of its
 //! servo frame or its move) against the position it was sent by the command before, a
-//! WHJ joint's current, and every [`TEMPERATURE_EVERY`] its temperature (a status query).
-//! A derated joint is stepped at its share of its `max_velocity` (per second since its
-//! last command). A stop brings the joint that tripped to its safe stop
-//! ([`SafeState::apply`]: disabled where every product of its model has a pin brake,
-//! else held where it is) and latches: every later command is refused whole, nothing
-//! sent, naming the fault, until [`Follower::resume`](super::Follower::resume).
+//! WHJ joint's current or a wCK servo's load (its move's reply, read as a current), and
+//! every [`TEMPERATURE_EVERY`] its temperature (a status query). A derated joint is
+//! stepped at its share of its `max_velocity` (per second since its last command). A
+//! stop brings the joint that tripped to its safe stop ([`SafeState::apply`]: disabled
+//! where every product of its model has a pin brake, else held where it is; a wCK servo
+//! passive) and latches: every later command is refused whole, nothing sent, naming the
+//! fault, until [`Follower::resume`](super::Follower::resume).
 
 use std::sync::{Mutex, PoisonError};
 use std::time::{Duration, Instant};
