@@ -279,7 +279,12 @@ fn a_hot_joint_in_a_loop_is_derated_then_stopped_at_its_temperatures() {
 /// A robot of one wCK servo `knee` (ID 0, on a passive bus), its own over-load at its
 /// highest (1800 mA, so only the host can stop it), gripped by the simulator's hand.
 fn gripped_knee() -> (Robot, wck_support::Sim) {
-    let config = RobotConfig::from_toml_str(
+    gripped_wck("")
+}
+
+/// [`gripped_knee`] with `extra` lines for the joint.
+fn gripped_wck(extra: &str) -> (Robot, wck_support::Sim) {
+    let config = RobotConfig::from_toml_str(&format!(
         r#"
         watchdog_timeout = 0.2
         [buses.legs]
@@ -290,10 +295,11 @@ fn gripped_knee() -> (Robot, wck_support::Sim) {
         bus = "legs"
         id = 0
         limits = [-1.0, 1.0]
-        max_velocity = 3.0
-        max_acceleration = 30.0
+        max_velocity = 8.0
+        max_acceleration = 100.0
+        {extra}
         "#,
-    )
+    ))
     .unwrap();
     let mut sim = wck_support::serve_ids(&[0]);
     sim.handle.with_bus(|b| {
@@ -371,4 +377,36 @@ fn with_the_protection_off_a_loop_pushes_on_into_the_gripped_wck_servo() {
         assert_ne!(b.servo(0).unwrap().mode(), robobus_sim::wck::Mode::Passive);
     });
     assert!(robot.protection_events().is_empty());
+}
+
+#[test]
+fn a_velocity_loop_turning_a_gripped_wck_wheel_is_stopped_and_it_goes_back_to_position() {
+    let (mut robot, sim) = gripped_wck(&format!(
+        "interfaces = [\"position\", \"velocity\"]\nwheel_speeds = {:?}",
+        robobus::robot::simulated::sim_1108_wheel_speeds()
+    ));
+    robot.set_interface(0, Interface::Velocity).unwrap();
+    let (e, t) = loop_until_error(&mut robot, 3.0, |r, _| r.command_velocity(&[2.0]).map(drop))
+        .expect("the loop was not stopped");
+    let RobotError::Protection { fault, stopped } = &e else {
+        panic!("{e}");
+    };
+    // Read every 0.25 s: the first read is where the wheel's speed is measured from, the
+    // second (0.25 s) sees it still under 0.67 A, and the stall time sized to the period
+    // (0.5 s) later, at the read of 0.75 s, the loop is stopped.
+    assert!((0.76..0.79).contains(&fault.at_s), "{e}");
+    assert!((0.76..0.79).contains(&t), "stopped at {t} s");
+    assert_eq!(
+        (fault.joint.as_str(), fault.check, fault.quantity),
+        ("knee", Check::Stall, "current_a"),
+        "{e}"
+    );
+    assert_eq!(
+        stopped,
+        "passive (its torque off: holding would keep it pushing)"
+    );
+    assert_eq!(robot.interfaces(), [Interface::Position]);
+    sim.handle.with_bus(|b| {
+        assert_eq!(b.servo(0).unwrap().mode(), robobus_sim::wck::Mode::Passive);
+    });
 }
