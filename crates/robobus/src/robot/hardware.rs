@@ -2,6 +2,8 @@
 //! robot's clock (its buses' clocks), the watchdog's shared state, and reading and
 //! sending in joint units.
 
+mod protection;
+
 use super::guard::Sensed;
 use super::interface::{EffortScale, Interface, WheelSpeeds};
 use super::{

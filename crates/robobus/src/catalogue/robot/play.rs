@@ -20,6 +20,7 @@
 mod blend;
 mod drive;
 mod group;
+mod offer;
 mod player;
 mod preflight;
 
@@ -337,6 +338,9 @@ struct PlayedRun {
 
 /// How often each WHJ joint's temperature is read during a run (a status query), s.
 pub(super) const TEMPERATURE_EVERY_S: f64 = 0.25;
+
+/// The lead-in's peak speed over its mean: a half-cosine's, pi/2.
+const LEAD_IN_PEAK: f64 = std::f64::consts::FRAC_PI_2;
 
 /// A protection stop among `faults` fails its joint's row (`rows` and `models` by column
 /// of `joints`), naming what it measured; returns the joints to leave torque off, where

@@ -18,12 +18,9 @@
 
 use std::sync::{Arc, Mutex, PoisonError};
 
-use super::group::{check_steps, groups};
-use super::{Play, preflight};
-use crate::ops::{Control, OpError};
+use crate::ops::OpError;
 use crate::robot::trajectory::Trajectory;
 use crate::robot::trajectory::ros::{self, Start};
-use crate::station::Station;
 
 /// What a run plays: its trajectory after the lead-in from where the joints were, or
 /// the trajectory blended in last from its time 0.
@@ -80,7 +77,7 @@ impl Course {
     }
 
     /// With `blended` taken at `origin_s`.
-    fn with(&self, blended: Option<&(u64, Arc<Trajectory>, f64)>) -> Self {
+    pub(super) fn with(&self, blended: Option<&(u64, Arc<Trajectory>, f64)>) -> Self {
         let mut c = self.clone();
         if let Some((_, b, origin)) = blended {
             c.blended = Some((Arc::clone(b), *origin));
@@ -99,17 +96,17 @@ impl Course {
 /// a time uses it.
 #[derive(Debug, Default)]
 pub struct Blend {
-    inner: Mutex<Inner>,
+    pub(super) inner: Mutex<Inner>,
 }
 
 #[derive(Debug, Default)]
-struct Inner {
+pub(super) struct Inner {
     /// The run playing now (`None` before its first tick and after its end).
-    live: Option<Live>,
+    pub(super) live: Option<Live>,
     /// Runs begun so far (tells an offer for an ended run).
     runs: u64,
     /// The trajectory offered: the tick it is taken at, it, and that tick's time, s.
-    offered: Option<(u64, Arc<Trajectory>, f64)>,
+    pub(super) offered: Option<(u64, Arc<Trajectory>, f64)>,
     /// The blends taken so far.
     taken: Taken,
 }
@@ -127,24 +124,24 @@ pub struct Taken {
 }
 
 #[derive(Debug)]
-struct Live {
-    run: u64,
+pub(super) struct Live {
+    pub(super) run: u64,
     joints: Vec<String>,
-    index: Vec<usize>,
-    course: Course,
-    period_s: f64,
+    pub(super) index: Vec<usize>,
+    pub(super) course: Course,
+    pub(super) period_s: f64,
     /// The last tick run.
-    tick: Option<u64>,
+    pub(super) tick: Option<u64>,
     /// The last tick of the run as it stands.
     last: u64,
     /// Per column, its WHJ bus's step limit, degrees.
-    step_limits: Vec<Option<f64>>,
+    pub(super) step_limits: Vec<Option<f64>>,
 }
 
 /// The state a run commands at one of its ticks: where a blend starts from.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Commanded {
-    run: u64,
+    pub(super) run: u64,
     /// The tick (of the run).
     pub tick: u64,
     /// Its time since the start of the run, s.
@@ -176,7 +173,7 @@ impl Commanded {
     }
 }
 
-fn lock(m: &Mutex<Inner>) -> std::sync::MutexGuard<'_, Inner> {
+pub(super) fn lock(m: &Mutex<Inner>) -> std::sync::MutexGuard<'_, Inner> {
     m.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
@@ -269,88 +266,6 @@ impl Blend {
         parse(&at.joints, &rows)
     }
 
-    /// Checks `blended` (from [`Blend::blended`]) as the run `r` would check it, then
-    /// offers it for `at`'s tick: the robot file's limits and `max_velocity`, the step
-    /// limits at `r.rate_hz`, and the pre-flight on the simulator where it is on (of the
-    /// rest of the run from its last tick to `at`'s, then `blended`, seeded with the
-    /// joints as they are). `Ok(true)`: offered, the run takes it at that tick;
-    /// `Ok(false)`: too late (the run passed that tick, or ended), nothing changed.
-    ///
-    /// # Errors
-    ///
-    /// What the run's own checks refuse a trajectory with (`OpError::Preflight` from the
-    /// pre-flight); the run plays on as it was.
-    pub fn offer(
-        &self,
-        station: &Station,
-        r: &Play,
-        at: &Commanded,
-        blended: &Trajectory,
-        control: &Control<'_>,
-    ) -> Result<bool, OpError> {
-        let config = station
-            .robot()
-            .cloned()
-            .ok_or_else(super::super::no_robot)?;
-        let index = blended
-            .check(&config)
-            .map_err(|e| OpError::invalid("trajectory", "(file)", e.to_string()))?;
-        let (limits, rest, index_run, period_s) = {
-            let g = lock(&self.inner);
-            let Some(live) = g.live.as_ref().filter(|l| l.run == at.run) else {
-                return Ok(false);
-            };
-            let course = live.course.with(g.offered.as_ref());
-            let now = live.tick.unwrap_or(0);
-            #[allow(clippy::cast_precision_loss)] // ticks of at most an hour
-            let rest: Vec<(f64, Vec<f64>)> = (now..at.tick)
-                .map(|k| {
-                    let dt = (k - now) as f64 * live.period_s;
-                    (dt, course.at(k as f64 * live.period_s))
-                })
-                .collect();
-            (
-                live.step_limits.clone(),
-                rest,
-                live.index.clone(),
-                live.period_s,
-            )
-        };
-        if index != index_run {
-            return Ok(false);
-        }
-        check_steps(&limits, blended, &at.state.position_deg, 0.0, r.rate_hz)?;
-        // The rest of the run up to the tick, then the blend: what the joints will be
-        // sent from now on.
-        #[allow(clippy::cast_precision_loss)] // ticks of at most an hour
-        let offset = rest.len() as f64 * period_s;
-        let mut rows = rest;
-        rows.extend(
-            ros::times(blended)
-                .into_iter()
-                .map(|t| (offset + t, blended.at(t))),
-        );
-        let composite = parse(&at.joints, &rows)?;
-        let (real, _) = groups(station, &config, &composite, &index)?;
-        preflight::fly(
-            r,
-            &config,
-            (&composite, &index),
-            &real,
-            (composite.first(), 0.0),
-            control,
-        )?;
-        let mut g = lock(&self.inner);
-        let fits = g
-            .live
-            .as_ref()
-            .is_some_and(|l| l.run == at.run && l.tick.is_none_or(|k| k < at.tick));
-        if fits {
-            g.offered = Some((at.tick, Arc::new(blended.clone()), at.t_s));
-        }
-        Ok(fits)
-    }
-
     /// The blends taken so far.
     #[must_use]
     pub fn taken(&self) -> Taken {
@@ -420,7 +335,7 @@ impl Blend {
 }
 
 /// The trajectory of `rows` (time, joint degrees) of `joints`.
-fn parse(joints: &[String], rows: &[(f64, Vec<f64>)]) -> Result<Trajectory, OpError> {
+pub(super) fn parse(joints: &[String], rows: &[(f64, Vec<f64>)]) -> Result<Trajectory, OpError> {
     Trajectory::parse(&crate::robot::trajectory::ros::csv_of(joints, rows))
         .map_err(|e| OpError::invalid("trajectory", "(blend)", e.to_string()))
 }

@@ -2,7 +2,7 @@
 //! a tick's targets sent to a group's devices and what each reported ([`Sensed`]), and
 //! what the groups' WHJ joints allow (their step limits, [`check_steps`]; their models).
 
-use super::player::LEAD_IN_PEAK;
+use super::LEAD_IN_PEAK;
 use crate::actuator::{JointMap, WckScale};
 use crate::ops::whj::ServoLoop;
 use crate::ops::{Failure, OpError, Outcome};

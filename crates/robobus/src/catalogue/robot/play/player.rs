@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 
 use super::blend::{Blend, Course};
 use super::group::{Group, Outcomes, Sensed, step_limits, steps_of};
-use super::{MAX_TIMED_TICKS, Play, PlayTick, Played, TEMPERATURE_EVERY_S};
+use super::{LEAD_IN_PEAK, MAX_TIMED_TICKS, Play, PlayTick, Played, TEMPERATURE_EVERY_S};
 use crate::ops::protect::{self, Action, Fault, Monitor, Reading};
 use crate::ops::{Control, Failure, OpError, Progress};
 use crate::robot::RobotConfig;
@@ -118,9 +118,6 @@ impl<'a> Player<'a> {
         })
     }
 }
-
-/// The lead-in's peak speed over its mean: a half-cosine's, pi/2.
-pub(super) const LEAD_IN_PEAK: f64 = std::f64::consts::FRAC_PI_2;
 
 /// How long a half-cosine lead-in over `distance` degrees takes to peak at no more than
 /// `max_speed` deg/s and `max_accel` deg/s²: its peak speed is pi/2 · d / T, its peak
