@@ -393,20 +393,10 @@ pub(crate) fn take_up(s: &Arc<Shared>, sink: &Arc<dyn Sink>, payload: &[u8]) {
         Ok(p) => p,
         Err(e) => return refuse(e.code, e.message),
     };
-    // Pre-flown by default (a trajectory of at most 60 s): `robot.play` runs it first on
-    // WHJ simulators seeded with its WHJ joints and refuses it before its first tick.
-    let play = Play {
-        trajectory: planned.csv.clone(),
-        rate_hz: TRAJECTORY_RATE_HZ,
-        torque: 2,
-        preflight: PreflightArg::default(),
+    let play = match admitted_play(s, &planned.csv) {
+        Ok(p) => p,
+        Err(why) => return refuse(result_code::INVALID_GOAL, why),
     };
-    if let Err(r) = s
-        .admission
-        .admit(s.arming(), Request::RobotPlay(play.clone()))
-    {
-        return refuse(result_code::INVALID_GOAL, r.to_string());
-    }
     // It fits: it replaces the one playing from here.
     t.stop_playing(true);
     if s.stop.is_stopped() {
@@ -426,6 +416,23 @@ pub(crate) fn take_up(s: &Arc<Shared>, sink: &Arc<dyn Sink>, payload: &[u8]) {
             format!("joint_trajectory: cannot start its thread: {e}"),
         );
     }
+}
+
+/// The `robot.play` of a planned trajectory (`csv`) at [`TRAJECTORY_RATE_HZ`], pre-flown
+/// by default (a trajectory of at most 60 s: `robot.play` runs it first on WHJ
+/// simulators seeded with its WHJ joints and refuses it before its first tick), once the
+/// admission let it through (armed, the guard's checks); else why not.
+fn admitted_play(s: &Shared, csv: &str) -> Result<Play, String> {
+    let play = Play {
+        trajectory: csv.to_owned(),
+        rate_hz: TRAJECTORY_RATE_HZ,
+        torque: 2,
+        preflight: PreflightArg::default(),
+    };
+    s.admission
+        .admit(s.arming(), Request::RobotPlay(play.clone()))
+        .map_err(|r| r.to_string())?;
+    Ok(play)
 }
 
 /// Starts playing `current` (`play`, its trajectory) on a thread of its own.
@@ -514,19 +521,13 @@ fn blend_in(
             return true;
         }
     };
-    let play = Play {
-        trajectory: planned.csv.clone(),
-        rate_hz: TRAJECTORY_RATE_HZ,
-        torque: 2,
-        preflight: PreflightArg::default(),
+    let play = match admitted_play(s, &planned.csv) {
+        Ok(p) => p,
+        Err(why) => {
+            refuse(result_code::INVALID_GOAL, why);
+            return true;
+        }
     };
-    if let Err(r) = s
-        .admission
-        .admit(s.arming(), Request::RobotPlay(play.clone()))
-    {
-        refuse(result_code::INVALID_GOAL, r.to_string());
-        return true;
-    }
     let current = Current {
         id,
         checked: checked.clone(),

@@ -182,40 +182,13 @@ fn a_follower_pushing_into_an_obstacle_is_stopped_and_named() {
     });
     let t = u64::try_from(wck.now().as_millis()).unwrap();
     turn(&wck, t + 50, 0, 30.0);
-    let request: Request = serde_json::from_value(json!({
-        "op": "robot.teleop",
-        "rate_hz": 50,
-        "seconds": 5,
-        "map": [{"leader": "s0", "follower": "j1"}],
-    }))
-    .unwrap();
-    let report = run(&station, &request, &mut Control::none()).unwrap();
-    let v = serde_json::to_value(&report).unwrap();
-    // The stall ends the run long before its 5 s and fails it, naming the joint, the
-    // quantity, the limit and the time.
-    assert_eq!(v["failed"], "device", "{v:#}");
-    let s = &v["summary"];
-    let events = s["protection"].as_array().unwrap();
-    assert_eq!(events.len(), 1, "{s:#}");
-    let stop = &events[0];
-    assert_eq!(
-        (&stop["joint"], &stop["check"], &stop["action"]),
-        (&json!("j1"), &json!("stall"), &json!("stop")),
-        "{stop}"
-    );
-    assert_eq!(
-        (&stop["quantity"], &stop["limit"]),
-        (&json!("current_a"), &json!(7.8))
-    );
     // j1 reaches the stop about 0.2 s in (2° a cycle); the current passes the stall
-    // current within 0.2 s and the stall time (0.3 s) later the run stops.
-    let at = stop["at_s"].as_f64().unwrap();
-    assert!((at - 0.68).abs() < 0.005, "{stop}");
-    assert!((s["seconds"].as_f64().unwrap() - at).abs() < 0.001, "{s}");
-    let e = row(&v, "j1")["error"].as_str().unwrap();
-    assert!(
-        e.starts_with("j1: stall protection: current 23.40 A reached the limit 7.8 A at 0.6"),
-        "{e}"
+    // current within 0.2 s and the stall time (0.3 s) later the run stops, long before
+    // its 5 s, failing it and naming the joint, the quantity, the limit and the time.
+    teleop_stopped_by_a_stall(
+        &station,
+        ("j1", 7.8, 0.68),
+        "j1: stall protection: current 23.40 A reached the limit 7.8 A at 0.6",
     );
     // j1 (a WHJ30, braked) is disabled: no longer pushing.
     let j1 = whj.with_bus(|b| b.joint(1).unwrap().state());
@@ -240,14 +213,35 @@ fn a_gripped_wck_follower_is_stopped_as_a_stall_naming_it() {
     });
     let t = u64::try_from(wck.now().as_millis()).unwrap();
     turn(&wck, t + 50, 0, 30.0);
+    // s1 pushes from the first cycle after the leader's turn (0.08 s) with 1.2 A; the
+    // wCK stall time (0.4 s) later the run stops, long before its 5 s.
+    teleop_stopped_by_a_stall(
+        &station,
+        ("s1", 0.2, 0.483),
+        "s1: stall protection: current 1.20 A reached the limit 0.2 A at 0.48",
+    );
+    wck.with_bus(|b| {
+        assert_eq!(b.servo(1).unwrap().mode(), robobus_sim::wck::Mode::Passive);
+    });
+}
+
+/// Runs a 5 s teleop of leader s0 to `follower` and checks that a stall stopped it:
+/// failed (kind device) with one protection event, a stop of `follower` at `limit` A of
+/// current at `at_s` (within 5 ms), where the run ended, its row's error starting with
+/// `error_start`.
+fn teleop_stopped_by_a_stall(
+    station: &Station,
+    (follower, limit, at_s): (&str, f64, f64),
+    error_start: &str,
+) {
     let request: Request = serde_json::from_value(json!({
         "op": "robot.teleop",
         "rate_hz": 50,
         "seconds": 5,
-        "map": [{"leader": "s0", "follower": "s1"}],
+        "map": [{"leader": "s0", "follower": follower}],
     }))
     .unwrap();
-    let report = run(&station, &request, &mut Control::none()).unwrap();
+    let report = run(station, &request, &mut Control::none()).unwrap();
     let v = serde_json::to_value(&report).unwrap();
     assert_eq!(v["failed"], "device", "{v:#}");
     let s = &v["summary"];
@@ -256,24 +250,16 @@ fn a_gripped_wck_follower_is_stopped_as_a_stall_naming_it() {
     let stop = &events[0];
     assert_eq!(
         (&stop["joint"], &stop["check"], &stop["action"]),
-        (&json!("s1"), &json!("stall"), &json!("stop")),
+        (&json!(follower), &json!("stall"), &json!("stop")),
         "{stop}"
     );
     assert_eq!(
         (&stop["quantity"], &stop["limit"]),
-        (&json!("current_a"), &json!(0.2))
+        (&json!("current_a"), &json!(limit))
     );
-    // s1 pushes from the first cycle after the leader's turn (0.08 s) with 1.2 A; the
-    // wCK stall time (0.4 s) later the run stops, long before its 5 s.
     let at = stop["at_s"].as_f64().unwrap();
-    assert!((at - 0.483).abs() < 0.005, "{stop}");
+    assert!((at - at_s).abs() < 0.005, "{stop}");
     assert!((s["seconds"].as_f64().unwrap() - at).abs() < 0.001, "{s}");
-    let e = row(&v, "s1")["error"].as_str().unwrap();
-    assert!(
-        e.starts_with("s1: stall protection: current 1.20 A reached the limit 0.2 A at 0.48"),
-        "{e}"
-    );
-    wck.with_bus(|b| {
-        assert_eq!(b.servo(1).unwrap().mode(), robobus_sim::wck::Mode::Passive);
-    });
+    let e = row(&v, follower)["error"].as_str().unwrap();
+    assert!(e.starts_with(error_start), "{e}");
 }
