@@ -16,7 +16,7 @@ use crate::whj_common;
 use std::time::Duration;
 
 use robobus::error::ErrorKind;
-use robobus::ops::protect::{Action, Check};
+use robobus::ops::protect::{Action, Check, Fault};
 use robobus::robot::{Interface, Robot, RobotConfig, RobotError};
 use robobus_sim::whj::{JointState, Obstacle, WhjSimHandle};
 
@@ -84,6 +84,24 @@ fn loop_until_error(
     }
 }
 
+/// The protection stop `e` must be (kind device, [`RobotError::Protection`]): its fault,
+/// checked to be a `check` of `quantity` on `joint`, and what the stop did.
+fn protection_stop<'e>(
+    e: &'e RobotError,
+    (joint, check, quantity): (&str, Check, &str),
+) -> (&'e Fault, &'e str) {
+    assert_eq!(e.kind(), ErrorKind::Device, "{e}");
+    let RobotError::Protection { fault, stopped } = e else {
+        panic!("{e}");
+    };
+    assert_eq!(
+        (fault.joint.as_str(), fault.check, fault.quantity),
+        (joint, check, quantity),
+        "{e}"
+    );
+    (fault, stopped)
+}
+
 /// A position loop: a ramp up at 1 rad/s from 0 to 1 rad (through the stop at 5 deg).
 fn ramp(robot: &mut Robot, t: f64) -> Result<(), RobotError> {
     robot.command(&[t.min(1.0)]).map(drop)
@@ -95,22 +113,10 @@ fn a_position_loop_into_an_obstacle_is_stopped_naming_the_joint_quantity_limit_a
     assert!(robot.protection(), "on by default");
     block(&sim);
     let (e, t) = loop_until_error(&mut robot, 3.0, ramp).expect("the loop was not stopped");
-    assert_eq!(e.kind(), ErrorKind::Device, "{e}");
-    let RobotError::Protection { fault, stopped } = &e else {
-        panic!("{e}");
-    };
     // The set-point reaches the stop at 0.087 s; the current the WHJ30's rated 7.8 A soon
     // after, and the stall time (0.3 s) later the loop is stopped.
-    assert_eq!(
-        (
-            fault.joint.as_str(),
-            fault.check,
-            fault.quantity,
-            fault.limit
-        ),
-        ("elbow", Check::Stall, "current_a", 7.8),
-        "{e}"
-    );
+    let (fault, stopped) = protection_stop(&e, ("elbow", Check::Stall, "current_a"));
+    assert_eq!(fault.limit, 7.8, "{e}");
     assert_eq!(fault.action, Action::Stop);
     // At 0.48 s on the robot's clock (it opened at 0), as much into the loop.
     assert!((0.47..0.49).contains(&fault.at_s), "{e}");
@@ -132,14 +138,14 @@ fn a_position_loop_into_an_obstacle_is_stopped_naming_the_joint_quantity_limit_a
     assert!(st.current_a.abs() < 1e-9, "{st:?}");
     assert!(st.position_deg < 10.0, "{st:?}");
     assert_eq!(robot.protection_stops().len(), 1);
-    assert_eq!(robot.protection_events().last(), Some(&**fault));
+    assert_eq!(robot.protection_events().last(), Some(fault));
 
     // Every later command is refused, nothing sent, naming the stop and the way out.
     let before = frames(&sim);
     let again = robot.command(&[0.0]).unwrap_err();
     assert_eq!(again.kind(), ErrorKind::Refused, "{again}");
     assert!(
-        matches!(&again, RobotError::ProtectionStopped { fault: f } if **f == **fault),
+        matches!(&again, RobotError::ProtectionStopped { fault: f } if **f == *fault),
         "{again}"
     );
     assert!(
@@ -186,14 +192,7 @@ fn a_velocity_loop_into_an_obstacle_is_stopped_and_the_joint_goes_back_to_positi
     block(&sim);
     let (e, _) = loop_until_error(&mut robot, 3.0, |r, _| r.command_velocity(&[0.5]).map(drop))
         .expect("the loop was not stopped");
-    let RobotError::Protection { fault, .. } = &e else {
-        panic!("{e}");
-    };
-    assert_eq!(
-        (fault.joint.as_str(), fault.check, fault.quantity),
-        ("elbow", Check::Stall, "current_a"),
-        "{e}"
-    );
+    let (fault, _) = protection_stop(&e, ("elbow", Check::Stall, "current_a"));
     // At 0.63 s: the speed set-point ramps up at 20 rad/s², the joint reaches the stop at
     // about 0.2 s, its current the stall current soon after.
     assert!((0.62..0.65).contains(&fault.at_s), "{e}");
@@ -215,14 +214,7 @@ fn an_effort_loop_on_a_free_joint_is_stopped_past_its_max_velocity() {
     robot.set_interface(0, Interface::Effort).unwrap();
     let (e, _) = loop_until_error(&mut robot, 3.0, |r, _| r.command_effort(&[4.0]).map(drop))
         .expect("the loop was not stopped");
-    let RobotError::Protection { fault, .. } = &e else {
-        panic!("{e}");
-    };
-    assert_eq!(
-        (fault.joint.as_str(), fault.check, fault.quantity),
-        ("elbow", Check::Speed, "speed_deg_s"),
-        "{e}"
-    );
+    let (fault, _) = protection_stop(&e, ("elbow", Check::Speed, "speed_deg_s"));
     assert_eq!(fault.limit, 1.5_f64.to_degrees());
     assert!((0.12..0.15).contains(&fault.at_s), "{e}");
     let st = elbow(&sim);
@@ -323,20 +315,8 @@ fn a_position_loop_pushing_a_gripped_wck_servo_is_stopped_naming_it_and_left_pas
     let (mut robot, sim) = gripped_knee();
     let (e, t) = loop_until_error(&mut robot, 3.0, |r, t| r.command(&[t.min(0.5)]).map(drop))
         .expect("the loop was not stopped");
-    assert_eq!(e.kind(), ErrorKind::Device, "{e}");
-    let RobotError::Protection { fault, stopped } = &e else {
-        panic!("{e}");
-    };
-    assert_eq!(
-        (
-            fault.joint.as_str(),
-            fault.check,
-            fault.quantity,
-            fault.limit
-        ),
-        ("knee", Check::Stall, "current_a", 0.2),
-        "{e}"
-    );
+    let (fault, stopped) = protection_stop(&e, ("knee", Check::Stall, "current_a"));
+    assert_eq!(fault.limit, 0.2, "{e}");
     // Its status is read every 0.25 s: the first read after the grip with the target
     // away (0.25 s) sees 1.2 A pushing, and the stall time sized to that period (0.5 s,
     // two reads) later, at the read of 0.75 s, the loop is stopped.
@@ -388,19 +368,12 @@ fn a_velocity_loop_turning_a_gripped_wck_wheel_is_stopped_and_it_goes_back_to_po
     robot.set_interface(0, Interface::Velocity).unwrap();
     let (e, t) = loop_until_error(&mut robot, 3.0, |r, _| r.command_velocity(&[2.0]).map(drop))
         .expect("the loop was not stopped");
-    let RobotError::Protection { fault, stopped } = &e else {
-        panic!("{e}");
-    };
+    let (fault, stopped) = protection_stop(&e, ("knee", Check::Stall, "current_a"));
     // Read every 0.25 s: the first read is where the wheel's speed is measured from, the
     // second (0.25 s) sees it still under 0.67 A, and the stall time sized to the period
     // (0.5 s) later, at the read of 0.75 s, the loop is stopped.
     assert!((0.76..0.79).contains(&fault.at_s), "{e}");
     assert!((0.76..0.79).contains(&t), "stopped at {t} s");
-    assert_eq!(
-        (fault.joint.as_str(), fault.check, fault.quantity),
-        ("knee", Check::Stall, "current_a"),
-        "{e}"
-    );
     assert_eq!(
         stopped,
         "passive (its torque off: holding would keep it pushing)"
