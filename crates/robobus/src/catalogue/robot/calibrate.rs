@@ -254,6 +254,7 @@ mod tests {
 
     use serde_json::{Value, json};
 
+    use crate::catalogue::robot::row;
     use crate::catalogue::{Request, run, validate};
     use crate::ops::Control;
     use crate::robot::calibration::apply_to_toml;
@@ -267,15 +268,6 @@ mod tests {
             let centre = 127.0 * robobus_sim::wck::mechanics::DEG_PER_STEP8;
             bus.servo_mut(id).unwrap().set_angle(centre + deg);
         });
-    }
-
-    fn row<'a>(report: &'a Value, name: &str) -> &'a Value {
-        report["results"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|r| r["id"] == name)
-            .unwrap()
     }
 
     #[test]

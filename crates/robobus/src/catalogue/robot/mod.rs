@@ -742,3 +742,15 @@ mod end_tests {
         }
     }
 }
+
+/// A report's row of device `name` (its `id`), in the tests of these operations.
+#[cfg(all(test, feature = "sim"))]
+#[allow(clippy::unwrap_used)]
+fn row<'a>(report: &'a serde_json::Value, name: &str) -> &'a serde_json::Value {
+    report["results"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|r| r["id"] == name)
+        .unwrap()
+}

@@ -4,6 +4,7 @@ use std::time::Duration;
 
 use serde_json::{Value, json};
 
+use crate::catalogue::robot::row;
 use crate::catalogue::{Request, run, validate};
 use crate::ops::Control;
 use crate::station::Station;
@@ -21,15 +22,6 @@ fn turn(sim: &robobus_sim::wck::SimHandle, at_ms: u64, id: usize, deg: f64) {
 fn angle(sim: &robobus_sim::wck::SimHandle, id: usize) -> f64 {
     let p = sim.with_bus(|b| b.servo(id).unwrap().position());
     (f64::from(p) - 127.0) * robobus_sim::wck::mechanics::DEG_PER_STEP8
-}
-
-fn row<'a>(report: &'a Value, name: &str) -> &'a Value {
-    report["results"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|r| r["id"] == name)
-        .unwrap()
 }
 
 #[test]

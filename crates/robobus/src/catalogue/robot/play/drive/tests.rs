@@ -108,9 +108,17 @@ fn a_csv_of_efforts_drives_a_whj_joint_in_current_mode() {
     assert_eq!((s.mode, s.target_current), (3, 0), "{s:?}");
 }
 
-/// The play's summary and j1's row (the first column).
+/// The play's summary and its first column's row.
 fn stopped(v: &Value) -> (&Value, &Value) {
     (&v["summary"], &v["results"][0])
+}
+
+/// [`stopped`], and the one protection event the summary must have.
+fn stopped_once(v: &Value) -> (&Value, &Value, &Value) {
+    let (s, row) = stopped(v);
+    let events = s["protection"].as_array().unwrap();
+    assert_eq!(events.len(), 1, "{s:#}");
+    (s, row, &events[0])
 }
 
 #[test]
@@ -124,10 +132,7 @@ fn an_obstacle_stops_a_velocity_play_within_the_stall_time_and_names_the_joint()
         j.set_obstacle(Some(robobus_sim::whj::Obstacle::above(at)));
     });
     let v = play(&station, "time_s,j1_deg_s\n0,30\n2,30\n").unwrap();
-    let (s, row) = stopped(&v);
-    let events = s["protection"].as_array().unwrap();
-    assert_eq!(events.len(), 1, "{s:#}");
-    let stop = &events[0];
+    let (s, row, stop) = stopped_once(&v);
     assert_eq!(
         (
             &stop["joint"],
@@ -182,10 +187,7 @@ fn a_wheel_held_still_under_velocity_is_stopped_naming_it() {
         &format!("time_s,s0_deg_s\n0,{level_2}\n2,{level_2}\n"),
     )
     .unwrap();
-    let (s, row) = stopped(&v);
-    let events = s["protection"].as_array().unwrap();
-    assert_eq!(events.len(), 1, "{s:#}");
-    let stop = &events[0];
+    let (s, row, stop) = stopped_once(&v);
     assert_eq!(
         (
             &stop["joint"],
@@ -247,10 +249,7 @@ fn a_play_of_positions_into_a_gripped_wck_servo_is_stopped_naming_it() {
     }));
     let v = serde_json::to_value(run(&station, &request, &mut control).unwrap()).unwrap();
     drop(control);
-    let (s, row) = stopped(&v);
-    let events = s["protection"].as_array().unwrap();
-    assert_eq!(events.len(), 1, "{s:#}");
-    let stop = &events[0];
+    let (s, row, stop) = stopped_once(&v);
     assert_eq!(
         (&stop["joint"], &stop["check"], &stop["action"]),
         (&json!("s0"), &json!("stall"), &json!("stop")),
@@ -345,10 +344,7 @@ fn an_effort_that_runs_a_joint_past_its_max_velocity_stops_the_play() {
     // 4 N·m on a free j1 for 2 s: its current is the command (no stall, no collision),
     // and it speeds up past its max_velocity (2 rad/s, 114.6°/s).
     let v = play(&station, "time_s,j1_nm\n0,4\n2,4\n").unwrap();
-    let (s, row) = stopped(&v);
-    let events = s["protection"].as_array().unwrap();
-    assert_eq!(events.len(), 1, "{s:#}");
-    let stop = &events[0];
+    let (_, row, stop) = stopped_once(&v);
     assert_eq!(
         (&stop["check"], &stop["quantity"], &stop["action"]),
         (&json!("speed"), &json!("speed_deg_s"), &json!("stop")),
