@@ -55,6 +55,7 @@ mod whj_rates;
 mod whj_reply_faults;
 mod whj_reports;
 mod whj_runs;
+mod whj_servo_many;
 mod whj_settings;
 mod whj_slcan;
 mod whj_socketcan;

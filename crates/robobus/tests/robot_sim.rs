@@ -616,3 +616,72 @@ fn actuators_of_both_families_move_with_the_same_code() {
             .unwrap()
     );
 }
+
+/// The servo frames (`first`..`first + 6`) and feedback of joints 1..=7 in `trace` from
+/// `from` on: (from the host, raw ID), in wire order.
+fn servo_traffic(sim: &WhjSimHandle, from: usize, first: u32) -> Vec<(bool, u32)> {
+    sim.with_bus(|b| {
+        b.trace()[from..]
+            .iter()
+            .filter(|w| {
+                (first..first + 7).contains(&w.frame.raw_id())
+                    || (0x501..=0x507).contains(&w.frame.raw_id())
+            })
+            .map(|w| (w.source == robobus_sim::whj::Node::Host, w.frame.raw_id()))
+            .collect()
+    })
+}
+
+#[test]
+fn a_command_sends_each_whj_bus_its_servo_frames_in_one_batch() {
+    let joints: String = (1..=7)
+        .map(|n| {
+            joint(&format!("j{n}"), "arm", n, [-1.0, 1.0], 2.0, 20.0)
+                + "interfaces = [\"position\", \"velocity\"]\n"
+        })
+        .collect();
+    let config = RobotConfig::from_toml_str(&format!(
+        "watchdog_timeout = 0.5\n[buses.arm]\nkind = \"whj-external\"\nsafe_state = \"hold\"\n{joints}"
+    ))
+    .unwrap();
+    let (arm, sim) = whj_common::virtual_bus(whj_common::chain(7).with_trace());
+    let mut robot = Robot::builder(config).whj_bus("arm", arm).open().unwrap();
+    let here: Vec<f64> = robot
+        .read()
+        .unwrap()
+        .iter()
+        .map(|s| s.position_rad)
+        .collect();
+    // Every frame of a cycle was on the wire before the first feedback: each reply's
+    // duplicate check overlapped the other joints' frames.
+    let batch = |first: u32| -> Vec<(bool, u32)> {
+        (first..first + 7)
+            .map(|id| (true, id))
+            .chain((0x501..=0x507).map(|id| (false, id)))
+            .collect()
+    };
+    for round in 0..3 {
+        let traced = sim.with_bus(|b| b.trace().len());
+        robot.command(&here).unwrap();
+        assert_eq!(
+            servo_traffic(&sim, traced, 0x201),
+            batch(0x201),
+            "round {round}"
+        );
+    }
+    // Speed servo frames, the same.
+    for i in 0..7 {
+        robot
+            .set_interface(i, robobus::robot::Interface::Velocity)
+            .unwrap();
+    }
+    for round in 0..3 {
+        let traced = sim.with_bus(|b| b.trace().len());
+        robot.command_velocity(&[0.0; 7]).unwrap();
+        assert_eq!(
+            servo_traffic(&sim, traced, 0x301),
+            batch(0x301),
+            "round {round}"
+        );
+    }
+}

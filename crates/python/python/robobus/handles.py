@@ -249,7 +249,9 @@ class WhjJoints(_Group):
 
     def command(self, mode: str, targets: npt.ArrayLike) -> JointReadings:
         """Sends one ``mode`` servo frame per joint and returns each one's feedback (for
-        position, where it was when the frame arrived). Each joint must be enabled in
+        position, where it was when the frame arrived). The frames go out together, each
+        feedback credited only to its own frame, so a cycle of N joints costs about N
+        frames and replies on the wire, not N round trips. Each joint must be enabled in
         that work mode. Refused with nothing sent when a target is outside its joint's
         limits, a position target is further than the bus's step limit from where the
         joint is (use ``station.whj.move`` for large moves), or a cyclic loop runs on

@@ -233,20 +233,22 @@ impl Hardware {
         }
     }
 
-    /// Sends joint `index`'s planned velocity or effort frame; what a WHJ joint's servo
-    /// frame answered.
-    pub(super) fn send_out(
+    /// Sends the planned velocity and effort `outs` (joint index, frame): each wCK wheel
+    /// command in turn, then per WHJ bus its speed and current servo frames in one
+    /// pipelined batch ([`JointBus::servo_many`](crate::whj::JointBus::servo_many)); what
+    /// each WHJ joint's frame answered, in the order of `outs`. The first failure (wCK
+    /// first, then by bus and joint order) is the error.
+    pub(super) fn send_outs(
         &mut self,
-        index: usize,
-        out: Out,
-    ) -> Result<Option<Sensed>, RobotError> {
-        let Some(joint) = self.joints.get(index) else {
-            return Ok(None);
-        };
-        let name = joint.name.clone();
-        let mut sensed = None;
-        match (joint.device, out) {
-            (Device::Wck { bus, id, .. }, Out::Wheel(rotation, level)) => {
+        outs: &[(usize, Out)],
+    ) -> Result<Vec<Option<Sensed>>, RobotError> {
+        let mut sensed = vec![None; outs.len()];
+        for &(index, out) in outs {
+            let (Some(joint), Out::Wheel(rotation, level)) = (self.joints.get(index), out) else {
+                continue;
+            };
+            if let Device::Wck { bus, id, .. } = joint.device {
+                let name = joint.name.clone();
                 if let Some(slot) = self.wck.get_mut(bus) {
                     slot.bus
                         .servo(id)
@@ -254,43 +256,55 @@ impl Hardware {
                         .map_err(|e| wck_error(&name, e))?;
                 }
             }
-            (
-                Device::Whj {
-                    bus,
-                    id,
-                    map,
-                    current,
-                },
-                Out::Speed(target),
-            ) => {
-                if let Some(slot) = self.whj.get(bus) {
-                    let fb = slot
-                        .bus
-                        .joint_unchecked(id)
-                        .command_speed(target)
-                        .map_err(|e| whj_error(&name, e))?;
-                    sensed = Some(sensed_of(&fb, map, current));
+        }
+        for (b, slot) in self.whj.iter().enumerate() {
+            // This bus's frames: (position in `outs`, joint name, the frame).
+            let mut batch = Vec::new();
+            for (k, &(index, out)) in outs.iter().enumerate() {
+                let Some(joint) = self.joints.get(index) else {
+                    continue;
+                };
+                let Device::Whj {
+                    bus, id, current, ..
+                } = joint.device
+                else {
+                    continue;
+                };
+                if bus != b {
+                    continue;
+                }
+                let frame = match out {
+                    Out::Speed(target) => robobus_whj::Request::SpeedServo { joint: id, target },
+                    Out::Current(ma) => robobus_whj::Request::CurrentServo {
+                        joint: id,
+                        target: Current::from_milliamps(ma, current).map_err(|source| {
+                            whj_error(
+                                &joint.name,
+                                crate::whj::WhjError::Unit { joint: id, source },
+                            )
+                        })?,
+                    },
+                    Out::Wheel(..) => continue,
+                };
+                batch.push((k, index, frame));
+            }
+            if batch.is_empty() {
+                continue;
+            }
+            let name = |index: usize| self.joints.get(index).map_or("", |j| j.name.as_str());
+            let frames: Vec<_> = batch.iter().map(|b| b.2).collect();
+            let answers = slot
+                .bus
+                .servo_many(&frames)
+                .map_err(|e| whj_error(name(batch.first().map_or(0, |b| b.1)), e))?;
+            for (&(k, index, _), answer) in batch.iter().zip(answers) {
+                let fb = answer.map_err(|e| whj_error(name(index), e))?;
+                if let (Some(s), Some(Device::Whj { map, current, .. })) =
+                    (sensed.get_mut(k), self.joints.get(index).map(|j| j.device))
+                {
+                    *s = Some(sensed_of(&fb, map, current));
                 }
             }
-            (
-                Device::Whj {
-                    bus,
-                    id,
-                    map,
-                    current,
-                },
-                Out::Current(ma),
-            ) => {
-                if let Some(slot) = self.whj.get(bus) {
-                    let fb = slot
-                        .bus
-                        .joint_unchecked(id)
-                        .command_current(ma)
-                        .map_err(|e| whj_error(&name, e))?;
-                    sensed = Some(sensed_of(&fb, map, current));
-                }
-            }
-            _ => {}
         }
         Ok(sensed)
     }

@@ -526,76 +526,90 @@ impl Hardware {
                 }
             }
         }
-        singles.extend(
-            self.joints
-                .iter()
-                .enumerate()
-                .filter(|(i, j)| {
-                    matches!(j.device, Device::Whj { .. })
-                        && matches!(setpoints.get(*i), Some(Some(_)))
-                })
-                .map(|(i, _)| i),
-        );
         for i in singles {
             let Some(&Some(rad)) = setpoints.get(i) else {
                 continue;
             };
-            if let Some((at, fb)) = self.whj_position_frame(i, rad)? {
-                if let Some(s) = sent.get_mut(i) {
-                    *s = at;
-                }
-                if let Some(s) = sensed.get_mut(i) {
-                    *s = fb;
-                }
-                continue;
-            }
             let done = self.actuator(i)?.command_position(rad)?;
             if let Some(s) = sent.get_mut(i) {
                 *s = done.sent_rad;
             }
         }
+        for b in 0..self.whj.len() {
+            self.send_whj_positions(b, setpoints, &mut sent, &mut sensed)?;
+        }
         Ok((sent, sensed))
     }
 
-    /// Sends WHJ joint `index` one position servo frame to `rad` (within its soft
-    /// limits): the angle sent (at device resolution) and what the frame answered;
-    /// `None` for a wCK joint (nothing sent).
-    fn whj_position_frame(
+    /// Sends WHJ bus `b`'s joints their position servo frames to `setpoints` (joint
+    /// order, rad, clamped to their soft limits) in one pipelined batch, so that each
+    /// reply's duplicate check overlaps the other joints' frames; records the angle
+    /// sent (at device resolution) and what each frame answered. The first joint that
+    /// failed (in joint order) is the error.
+    fn send_whj_positions(
         &self,
-        index: usize,
-        rad: f64,
-    ) -> Result<Option<(f64, Option<Sensed>)>, RobotError> {
-        let Some(JointSlot {
-            name,
-            device:
-                Device::Whj {
-                    bus,
-                    id,
-                    map,
-                    current,
-                },
-            limits,
-            ..
-        }) = self.joints.get(index)
-        else {
-            return Ok(None);
+        b: usize,
+        setpoints: &[Option<f64>],
+        sent: &mut [f64],
+        sensed: &mut [Option<Sensed>],
+    ) -> Result<(), RobotError> {
+        let Some(slot) = self.whj.get(b) else {
+            return Ok(());
         };
-        let Some(slot) = self.whj.get(*bus) else {
-            return Ok(None);
+        let mut members = Vec::new();
+        let mut frames = Vec::new();
+        for (i, joint) in self.joints.iter().enumerate() {
+            let (Device::Whj { bus, id, map, .. }, Some(&Some(rad))) =
+                (joint.device, setpoints.get(i))
+            else {
+                continue;
+            };
+            if bus != b {
+                continue;
+            }
+            let (target, _) = joint.limits.clamp(rad);
+            let position = whj_position(&joint.name, map, target)?;
+            members.push((i, position));
+            frames.push(robobus_whj::Request::PositionServo {
+                joint: id,
+                target: position,
+            });
+        }
+        if frames.is_empty() {
+            return Ok(());
+        }
+        let whj = |i: usize, source| ActuatorError::Whj {
+            joint: self
+                .joints
+                .get(i)
+                .map_or_else(String::new, |j| j.name.clone()),
+            source: Box::new(source),
         };
-        let (target, _) = limits.clamp(rad);
-        let position = whj_position(name, *map, target)?;
-        let fb = slot
-            .bus
-            .joint_unchecked(*id)
-            .command_position(position)
-            .map_err(|source| ActuatorError::Whj {
-                joint: name.clone(),
-                source: Box::new(source),
-            })?;
-        Ok(Some((
-            whj_to_rad(*map, position),
-            Some(sensed_of(&fb, *map, *current)),
-        )))
+        let answers = match slot.bus.servo_many(&frames) {
+            Ok(answers) => answers,
+            Err(e) => {
+                // A refusal names its joint; a failure of the bus is the first member's.
+                let refused = match &e {
+                    crate::whj::WhjError::StepTooLarge { joint, .. } => {
+                        frames.iter().position(|f| f.joint() == Some(*joint))
+                    }
+                    _ => None,
+                };
+                let i = members.get(refused.unwrap_or(0)).map_or(0, |m| m.0);
+                return Err(whj(i, e).into());
+            }
+        };
+        for (&(i, position), answer) in members.iter().zip(answers) {
+            let fb = answer.map_err(|e| whj(i, e))?;
+            if let (Some(s), Some(j)) = (sent.get_mut(i), self.joints.get(i))
+                && let Device::Whj { map, current, .. } = j.device
+            {
+                *s = whj_to_rad(map, position);
+                if let Some(x) = sensed.get_mut(i) {
+                    *x = Some(sensed_of(&fb, map, current));
+                }
+            }
+        }
+        Ok(())
     }
 }

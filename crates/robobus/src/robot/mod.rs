@@ -477,8 +477,9 @@ impl Robot {
             }
         }
         let (mut sent_rad, mut sensed) = hw.send(&setpoints)?;
-        for (i, (out, sent)) in outs {
-            let answer = hw.send_out(i, out)?;
+        let frames: Vec<(usize, drive::Out)> = outs.iter().map(|&(i, (out, _))| (i, out)).collect();
+        let answers = hw.send_outs(&frames)?;
+        for ((i, (_, sent)), answer) in outs.into_iter().zip(answers) {
             if let Some(s) = sent_rad.get_mut(i) {
                 *s = sent;
             }

@@ -334,8 +334,9 @@ impl WhjGroup {
     }
 
     /// Sends one `servo` frame per joint (targets in that mode's unit: degrees, RPM, mA,
-    /// one per joint) and returns each joint's feedback (for position: where it was when
-    /// the frame arrived). Refused, with nothing sent, when a target is outside its
+    /// one per joint) in one pipelined batch ([`JointBus::servo_many`](crate::whj::JointBus::servo_many))
+    /// and returns each joint's feedback (for position: where it was when the frame
+    /// arrived), a joint that failed as its own row. Refused, with nothing sent, when a target is outside its
     /// joint's limits, when a position target is further than the bus's step limit from
     /// the joint's measured position (use `whj.move` for large moves), when a joint is
     /// not enabled in that mode, or while a cyclic loop runs on the bus.
@@ -382,23 +383,25 @@ impl WhjGroup {
                 },
             });
         }
-        if servo == ServoLoop::Position {
-            let limit = bus.config().step_limit_deg;
-            for (&id, &t) in self.ids.iter().zip(targets) {
-                let actual = bus.joint_unchecked(id).recent_position()?.degrees();
-                if (t - actual).abs() > limit {
-                    return Err(OpError::Whj(WhjError::StepTooLarge {
-                        joint: id,
-                        from_deg: actual,
-                        to_deg: t,
-                        limit_deg: limit,
-                    }));
-                }
+        // One pipelined batch: each reply's duplicate check overlaps the other joints'
+        // frames. A position target too far from its joint's measured position refuses
+        // the batch with nothing sent; a failure of the whole bus is each joint's.
+        let sent = match bus.servo_many(&frames) {
+            Ok(sent) => sent,
+            Err(e @ (WhjError::StepTooLarge { .. } | WhjError::InvalidConfig { .. })) => {
+                return Err(OpError::Whj(e));
             }
-        }
+            Err(e) => {
+                let failure = Failure::from(&OpError::from(e));
+                return Ok(self
+                    .ids
+                    .iter()
+                    .map(|id| DeviceResult::failed(id.get(), failure.clone()))
+                    .collect());
+            }
+        };
         let mut out = Vec::with_capacity(self.ids.len());
-        for ((&id, frame), a) in self.ids.iter().zip(frames).zip(&self.allowed) {
-            let sent = bus.joint_unchecked(id).servo_request(frame);
+        for ((&id, sent), a) in self.ids.iter().zip(sent).zip(&self.allowed) {
             out.push(match sent {
                 Ok(f) => {
                     if !f.is_enabled() {

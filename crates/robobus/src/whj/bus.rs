@@ -359,6 +359,22 @@ impl JointBus {
             .unwrap_or_else(|| Err(self.closed_error()))
     }
 
+    /// Each of `requests` with up to `attempts` attempts of
+    /// [`JointBusConfig::reply_timeout`] each, pipelined as in [`JointBus::attempt_many`];
+    /// outcomes in request order.
+    pub(crate) fn transact_many(
+        &self,
+        requests: &[Request],
+        attempts: u32,
+    ) -> Result<Vec<Result<Outcome, WhjError>>, WhjError> {
+        self.run(
+            requests,
+            self.config.reply_timeout,
+            Duration::ZERO,
+            attempts,
+        )
+    }
+
     /// One attempt of each of `requests`, pipelined: all are queued at once, each goes out
     /// as soon as its reply ID is free (at once for requests to different joints), and
     /// each reply is credited to its own request only. Outcomes in request order.

@@ -18,6 +18,7 @@ use super::session::{Attempt, describe};
 use super::trajectory::{MotionLimits, Profile};
 
 mod owned;
+mod servo;
 pub use owned::OwnedJoint;
 
 /// A register value read by name, with its unit.
@@ -502,17 +503,6 @@ impl<'a> Joint<'a> {
     /// actual position (from the latest telemetry, or a status query if that is older
     /// than 100 ms); use [`Joint::move_to`] for large moves.
     pub fn command_position(&self, target: Position) -> Result<ServoFeedback, WhjError> {
-        let actual = self.recent_position()?;
-        let limit = self.bus.config().step_limit_deg;
-        let step = (target.degrees() - actual.degrees()).abs();
-        if step > limit {
-            return Err(WhjError::StepTooLarge {
-                joint: self.id,
-                from_deg: actual.degrees(),
-                to_deg: target.degrees(),
-                limit_deg: limit,
-            });
-        }
         self.servo(Request::PositionServo {
             joint: self.id,
             target,
@@ -547,10 +537,9 @@ impl<'a> Joint<'a> {
     /// [`Joint::command_position`]; any other request is [`WhjError::InvalidConfig`].
     pub fn servo_request(&self, request: Request) -> Result<ServoFeedback, WhjError> {
         match request {
-            Request::PositionServo { joint, target } if joint == self.id => {
-                self.command_position(target)
-            }
-            Request::SpeedServo { joint, .. } | Request::CurrentServo { joint, .. }
+            Request::PositionServo { joint, .. }
+            | Request::SpeedServo { joint, .. }
+            | Request::CurrentServo { joint, .. }
                 if joint == self.id =>
             {
                 self.servo(request)
@@ -638,7 +627,15 @@ impl<'a> Joint<'a> {
     }
 
     pub(crate) fn recent_position(&self) -> Result<Position, WhjError> {
-        let t = *self.bus.telemetry().joint(self.id);
+        self.recent_position_in(&self.bus.telemetry())
+    }
+
+    /// [`Joint::recent_position`] from a snapshot of the bus's telemetry.
+    pub(crate) fn recent_position_in(
+        &self,
+        telemetry: &super::BusTelemetry,
+    ) -> Result<Position, WhjError> {
+        let t = *telemetry.joint(self.id);
         if let (Some(p), Some(at)) = (t.position, t.updated)
             && self.bus.now().saturating_duration_since(at) < Duration::from_millis(100)
         {
@@ -647,11 +644,12 @@ impl<'a> Joint<'a> {
         Ok(self.status()?.position)
     }
 
+    /// One servo frame of this joint's ([`JointBus::servo_many`] of one).
     fn servo(&self, req: Request) -> Result<ServoFeedback, WhjError> {
-        match self.transact(req, true, Duration::ZERO)? {
-            Reply::ServoFeedback { feedback, .. } => Ok(feedback),
-            other => Err(self.unexpected(req, &other)),
-        }
+        self.bus
+            .servo_many(&[req])?
+            .pop()
+            .unwrap_or_else(|| Err(self.bus.closed_error()))
     }
 
     fn unexpected(&self, req: Request, got: &Reply) -> WhjError {
