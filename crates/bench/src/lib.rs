@@ -302,7 +302,7 @@ pub fn run(opts: &Options, mut log: impl FnMut(&str)) -> Results {
     for spec in free {
         let what = format!("WHJ free-running, {}, memory bus", spec.label());
         log(&what);
-        match whj::free_running_memory(spec, secs(3.0, 0.1)) {
+        match whj::free_running_memory(spec, secs(3.0, 0.1), false) {
             Ok(f) => r.free.push(f),
             Err(e) => fail(&mut r, &mut log, &what, &e),
         }
@@ -366,7 +366,13 @@ pub fn run(opts: &Options, mut log: impl FnMut(&str)) -> Results {
                 }
             );
             log(&what);
-            match whj::udp_compare(&opts.exe, spec, secs(3.0, 0.3), opts.python.as_deref()) {
+            match whj::udp_compare(
+                &opts.exe,
+                spec,
+                secs(3.0, 0.3),
+                opts.python.as_deref(),
+                false,
+            ) {
                 Ok(f) => r.udp.push(f),
                 Err(e) => fail(&mut r, &mut log, &what, &e),
             }

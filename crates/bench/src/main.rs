@@ -8,7 +8,7 @@
 //! robobus-bench telemetry --secs S
 //! robobus-bench studio --secs S
 //! robobus-bench bridge [--bridges N] [--rate HZ] [--secs S] [--smoke]
-//! robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window]
+//! robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window] [--pipelined]
 //! ```
 //!
 //! `telemetry` runs the telemetry fan-out cases alone and prints their section of the
@@ -34,7 +34,7 @@ use robobus_bench::{Options, report, run, wck, whj};
 fn usage() -> ExitCode {
     let _ = writeln!(
         std::io::stderr(),
-        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire] [--wait sleep|spin]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround] [--wait sleep|spin] [--memory|--tcp] [--no-guard]\n       robobus-bench telemetry --secs S\n       robobus-bench studio --secs S\n       robobus-bench bridge [--bridges N] [--rate HZ] [--secs S] [--smoke]\n       robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window] [--external-sim] [--default-slack]\n       robobus-bench free-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window] [--pipelined] [--default-slack]\n       robobus-bench syscalls [--udp] [--python PATH]\n       robobus-bench echo\n       robobus-bench slcan [--joints N] [--secs S]"
+        "usage: robobus-bench [--smoke] [--out DIR] [--python PATH] [--udp] [--criterion DIR]\n       robobus-bench serve-whj --joints N --delay-us D [--fast-wire] [--wait sleep|spin]\n       robobus-bench poll-wck --servos N --baud B --secs S [--turnaround] [--wait sleep|spin] [--memory|--tcp] [--no-guard]\n       robobus-bench telemetry --secs S\n       robobus-bench studio --secs S\n       robobus-bench bridge [--bridges N] [--rate HZ] [--secs S] [--smoke]\n       robobus-bench servo-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window] [--external-sim] [--pipelined] [--default-slack]\n       robobus-bench free-whj --joints N --secs S [--delay-us D] [--fast-wire] [--wait sleep|spin] [--no-window] [--pipelined] [--default-slack]\n       robobus-bench syscalls [--udp] [--python PATH]\n       robobus-bench echo\n       robobus-bench slcan [--joints N] [--secs S]"
     );
     ExitCode::from(2)
 }
@@ -202,16 +202,18 @@ fn servo_whj(args: &[String]) -> ExitCode {
     let mut secs = 3.0;
     // With `--external-sim`, a simulator process serves already (counting system calls).
     let external = args.iter().any(|a| a == "--external-sim");
+    // With `--pipelined`, each cycle's frames go out in one batch (`JointBus::servo_many`).
+    let pipelined = args.iter().any(|a| a == "--pipelined");
     let args: Vec<String> = args
         .iter()
-        .filter(|a| *a != "--external-sim")
+        .filter(|a| *a != "--external-sim" && *a != "--pipelined")
         .cloned()
         .collect();
     let Some(spec) = chain_args(&args, Some(&mut secs)) else {
         return usage();
     };
     if external {
-        return match whj::udp_client(spec, Duration::from_secs_f64(secs), None) {
+        return match whj::udp_client(spec, Duration::from_secs_f64(secs), None, pipelined) {
             Ok(r) => {
                 let _ = writeln!(
                     std::io::stdout(),
@@ -235,7 +237,7 @@ fn servo_whj(args: &[String]) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    match whj::udp_compare(&exe, spec, Duration::from_secs_f64(secs), None) {
+    match whj::udp_compare(&exe, spec, Duration::from_secs_f64(secs), None, pipelined) {
         Ok(r) => {
             let _ = writeln!(
                 std::io::stdout(),
@@ -287,11 +289,7 @@ fn free_whj(args: &[String]) -> ExitCode {
         return usage();
     };
     let duration = Duration::from_secs_f64(secs);
-    let run = if pipelined {
-        whj::free_running_pipelined_memory(spec, duration)
-    } else {
-        whj::free_running_memory(spec, duration)
-    };
+    let run = whj::free_running_memory(spec, duration, pipelined);
     match run {
         Ok(r) => {
             let late = r.sim_lateness.unwrap_or_default();

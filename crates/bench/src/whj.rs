@@ -228,42 +228,58 @@ impl FreeResult {
     }
 }
 
-/// Runs the free-running cycle on a prepared bus for `duration`.
+/// Free-running cycles on `bus` for `duration`: each cycle one position servo frame to
+/// every joint, at its present position. One after another (`Joint::command_position`,
+/// each reply waited for, its duplicate check included), or with `pipelined` in one batch
+/// (`JointBus::servo_many`: every frame sent at once, each reply's check overlapping the
+/// other joints' frames, only the last one's waited out alone). The model is each
+/// joint's command and reply in turn, or, pipelined, the commands back to back, then the
+/// replies.
 pub fn free_running_on(
     bus: &JointBus,
     joints: &[(JointId, Position)],
     spec: ChainSpec,
     link: &'static str,
     duration: Duration,
+    pipelined: bool,
 ) -> Result<FreeResult, BenchError> {
     let handles: Vec<_> = joints
         .iter()
         .map(|(id, p)| (bus.joint_unchecked(*id), *p))
         .collect();
+    let requests: Vec<Request> = joints
+        .iter()
+        .map(|&(joint, target)| Request::PositionServo { joint, target })
+        .collect();
     // Warm-up cycle, and the exact frames for the model.
     let rates = spec.rates();
-    let mut modelled = Duration::ZERO;
-    for (j, p) in &handles {
-        let fb = j
-            .command_position(*p)
-            .map_err(|e| BenchError::new("warm-up position command", e))?;
-        let cmd = Request::PositionServo {
-            joint: j.id(),
-            target: *p,
-        }
-        .to_frame();
-        let reply = Reply::ServoFeedback {
-            joint: j.id(),
-            feedback: fb,
-        }
-        .to_frame();
+    let warm = bus
+        .servo_many(&requests)
+        .map_err(|e| BenchError::new("warm-up position commands", e))?;
+    let mut cmds = Vec::with_capacity(warm.len());
+    let mut replies = Vec::with_capacity(warm.len());
+    for (r, request) in warm.into_iter().zip(&requests) {
+        let feedback = r.map_err(|e| BenchError::new("warm-up position command", e))?;
+        let Some(joint) = request.joint() else {
+            continue;
+        };
+        cmds.push(request.to_frame());
+        replies.push(Reply::ServoFeedback { joint, feedback }.to_frame());
+    }
+    let modelled = if pipelined {
+        p2p_round_trip(&cmds, &replies, spec)
+    } else {
         // Steady state: the command waits out the intermission after the previous reply;
         // the joint starts replying once its delay has passed and the wire is free.
         let ifs = intermission(rates);
-        modelled +=
-            (frame_duration(&cmd, rates) + spec.delay.max(ifs) + frame_duration(&reply, rates))
-                .saturating_sub(ifs);
-    }
+        cmds.iter()
+            .zip(&replies)
+            .map(|(cmd, reply)| {
+                (frame_duration(cmd, rates) + spec.delay.max(ifs) + frame_duration(reply, rates))
+                    .saturating_sub(ifs)
+            })
+            .sum()
+    };
     let mut errors = 0u64;
     let mut cycles = 0u64;
     let mut cycle_us = Vec::with_capacity(1 << 16);
@@ -272,9 +288,16 @@ pub fn free_running_on(
     let t0 = Instant::now();
     while t0.elapsed() < duration {
         let c0 = Instant::now();
-        for (j, p) in &handles {
-            if j.command_position(*p).is_err() {
-                errors += 1;
+        if pipelined {
+            match bus.servo_many(&requests) {
+                Ok(rs) => errors += rs.iter().filter(|r| r.is_err()).count() as u64,
+                Err(_) => errors += requests.len() as u64,
+            }
+        } else {
+            for (j, p) in &handles {
+                if j.command_position(*p).is_err() {
+                    errors += 1;
+                }
             }
         }
         cycle_us.push(c0.elapsed().as_secs_f64() * 1e6);
@@ -296,14 +319,23 @@ pub fn free_running_on(
     })
 }
 
-/// Free-running cycle over the in-process memory bus.
-pub fn free_running_memory(spec: ChainSpec, duration: Duration) -> Result<FreeResult, BenchError> {
+/// Free-running cycles over the in-process memory bus ([`free_running_on`]).
+pub fn free_running_memory(
+    spec: ChainSpec,
+    duration: Duration,
+    pipelined: bool,
+) -> Result<FreeResult, BenchError> {
     let wire = MemoryBus::new();
     let sim = SimThread::spawn(spec.build(), wire.endpoint(), spec.wait);
     let bus = JointBus::open_with(wire.endpoint(), spec.client_config())
         .map_err(|e| BenchError::new("JointBus", e))?;
     let joints = prepare(&bus, spec.joints)?;
-    let mut r = free_running_on(&bus, &joints, spec, "memory", duration)?;
+    let link = if pipelined {
+        "memory, pipelined"
+    } else {
+        "memory"
+    };
+    let mut r = free_running_on(&bus, &joints, spec, link, duration, pipelined)?;
     drop(bus);
     let report = sim.stop()?;
     r.sim_lateness = Some(report.stats.lateness);
@@ -312,74 +344,6 @@ pub fn free_running_memory(spec: ChainSpec, duration: Duration) -> Result<FreeRe
         report.cpu.as_secs_f64() * (r.elapsed.as_secs_f64() / report.wall.as_secs_f64().max(1e-9)),
     );
     Ok(r)
-}
-
-/// The free-running cycle pipelined: each cycle's position servo frames to every joint
-/// sent together (`JointBus::request_many`), their feedback collected; the next cycle
-/// starts when every reply of this one is credited. With the duplicate check on, each
-/// reply's hold overlaps the next joints' frames; only the last reply's hold is waited
-/// out alone. The model is the commands back to back, then the replies back to back.
-pub fn free_running_pipelined_memory(
-    spec: ChainSpec,
-    duration: Duration,
-) -> Result<FreeResult, BenchError> {
-    let wire = MemoryBus::new();
-    let sim = SimThread::spawn(spec.build(), wire.endpoint(), spec.wait);
-    let bus = JointBus::open_with(wire.endpoint(), spec.client_config())
-        .map_err(|e| BenchError::new("JointBus", e))?;
-    let joints = prepare(&bus, spec.joints)?;
-    let requests: Vec<Request> = joints
-        .iter()
-        .map(|&(joint, target)| Request::PositionServo { joint, target })
-        .collect();
-    // Warm-up cycle, and the exact frames for the model.
-    let warm = bus
-        .request_many(&requests)
-        .map_err(|e| BenchError::new("warm-up position commands", e))?;
-    let mut replies = Vec::with_capacity(warm.len());
-    for r in warm {
-        replies.push(
-            r.map_err(|e| BenchError::new("warm-up position command", e))?
-                .to_frame(),
-        );
-    }
-    let cmds: Vec<CanFrame> = requests.iter().map(Request::to_frame).collect();
-    let modelled = p2p_round_trip(&cmds, &replies, spec);
-    let mut errors = 0u64;
-    let mut cycles = 0u64;
-    let mut cycle_us = Vec::with_capacity(1 << 16);
-    let cpu0 = cpu::process();
-    let t0 = Instant::now();
-    while t0.elapsed() < duration {
-        let c0 = Instant::now();
-        match bus.request_many(&requests) {
-            Ok(rs) => errors += rs.iter().filter(|r| r.is_err()).count() as u64,
-            Err(_) => errors += requests.len() as u64,
-        }
-        cycle_us.push(c0.elapsed().as_secs_f64() * 1e6);
-        cycles += 1;
-    }
-    let elapsed = t0.elapsed();
-    let cpu = cpu::process().saturating_sub(cpu0);
-    drop(bus);
-    let report = sim.stop()?;
-    Ok(FreeResult {
-        spec,
-        link: "memory, pipelined",
-        cycles,
-        errors,
-        elapsed,
-        cpu,
-        // The simulator's share of the process CPU over the run, pro rata.
-        sim_cpu: Duration::from_secs_f64(
-            report.cpu.as_secs_f64()
-                * (elapsed.as_secs_f64() / report.wall.as_secs_f64().max(1e-9)),
-        ),
-        sim_lateness: Some(report.stats.lateness),
-        modelled_cycle: modelled,
-        cycle_us,
-        peer: None,
-    })
 }
 
 /// A fixed-rate cyclic loop (`JointBus::cyclic`).
@@ -776,9 +740,10 @@ pub fn udp_compare(
     spec: ChainSpec,
     duration: Duration,
     python: Option<&Path>,
+    pipelined: bool,
 ) -> Result<FreeResult, BenchError> {
     let sim = ChildSim::start(exe, spec)?;
-    let mut r = udp_client(spec, duration, python)?;
+    let mut r = udp_client(spec, duration, python, pipelined)?;
     r.sim_lateness = sim.stop()?;
     Ok(r)
 }
@@ -789,12 +754,14 @@ pub fn udp_client(
     spec: ChainSpec,
     duration: Duration,
     python: Option<&Path>,
+    pipelined: bool,
 ) -> Result<FreeResult, BenchError> {
     let link = UdpBus::open(&UdpBusConfig::default()).map_err(|e| BenchError::new("UDP bus", e))?;
     let bus = JointBus::open_with(link, spec.client_config())
         .map_err(|e| BenchError::new("JointBus", e))?;
     let joints = prepare(&bus, spec.joints)?;
-    let mut r = free_running_on(&bus, &joints, spec, "UDP", duration)?;
+    let link = if pipelined { "UDP, pipelined" } else { "UDP" };
+    let mut r = free_running_on(&bus, &joints, spec, link, duration, pipelined)?;
     drop(bus);
     if let Some(py) = python {
         r.peer = Some(peers::whj_servo(py, spec.joints, duration)?);

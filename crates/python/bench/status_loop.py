@@ -7,13 +7,16 @@ CPU per transaction, one run each:
   servo handle (`station.wck_servo(0).status()`), on the main thread and on another; the
   Rust loop (`robobus-bench poll-wck --turnaround`); the pyserial peer
   (`scripts/bench/wck_poll_peer.py`, which waits for nothing but the two reply bytes).
-- WHJ position servo cycles (one frame, its 16-byte feedback) with one joint on
-  python-can's UDP multicast bus, against a simulator process with no processing delay
-  (`robobus-bench serve-whj --delay-us 0`), inside a private network namespace: the
-  bindings through a joint handle (`station.whj_joint(1).command_position(...)`), the Rust
-  loop (`robobus-bench servo-whj`, `Joint::command_position`), the same loop with the
-  duplicate check off (`--no-window`: what the check costs it) and the python-can peer
-  (`scripts/bench/whj_servo_peer.py`).
+- WHJ position servo cycles (one frame, its 16-byte feedback, per joint) with one and
+  with seven joints on python-can's UDP multicast bus, against a simulator process with
+  no processing delay (`robobus-bench serve-whj --delay-us 0`), inside a private network
+  namespace: the bindings through a joint handle (`station.whj_joint(1).command_position
+  (...)`) or, for seven, the group handle (`station.whj_joints(range(1, 8))
+  .command_position(...)`, one call a cycle, its frames in one batch); the Rust loop
+  (`robobus-bench servo-whj`, `Joint::command_position` joint after joint), the same loop
+  with the duplicate check off (`--no-window`: what the check costs it), for seven also
+  pipelined (`--pipelined`, `JointBus::servo_many`) both ways; and the python-can peer
+  (`scripts/bench/whj_servo_peer.py`, joint after joint).
 
     target/pybind/bin/python crates/python/bench/status_loop.py [--seconds 3] [--no-wck] [--calls-only]
 
@@ -119,57 +122,75 @@ def peers_python() -> str:
     ).stdout.strip()
 
 
-def whj(seconds: float) -> dict[str, dict[str, float]]:
-    """The WHJ part; runs inside the private network namespace."""
-    bench = str(RELEASE / "robobus-bench")
+def servo_whj(joints: int, seconds: float, *flags: str) -> dict[str, float]:
+    """`robobus-bench servo-whj` against its own simulator process: rate and client CPU."""
     r = subprocess.run(
-        [bench, "servo-whj", "--joints", "1", "--delay-us", "0", "--secs", str(seconds)],
+        [str(RELEASE / "robobus-bench"), "servo-whj", "--joints", str(joints), "--delay-us", "0",
+         "--secs", str(seconds), *flags],
         capture_output=True, text=True, check=True,
     )
     m = re.search(r"([\d.]+) Hz, \d+ errors, client CPU ([\d.]+) µs/cycle", r.stdout)
     assert m is not None, r.stdout + r.stderr
-    out = {"Rust (robobus-bench servo-whj)": {"rate": float(m.group(1)), "cpu_us": float(m.group(2))}}
+    return {"rate": float(m.group(1)), "cpu_us": float(m.group(2))}
+
+
+def whj(seconds: float, joints: int) -> dict[str, dict[str, float]]:
+    """The WHJ part for `joints` joints; runs inside the private network namespace. One
+    joint: its handle's `command_position`; more: the group handle's, whose frames go out
+    in one batch (`JointBus::servo_many`), against the Rust loop both ways."""
+    out = {"Rust (robobus-bench servo-whj)": servo_whj(joints, seconds)}
     # The same loop with the duplicate check off: what the check costs this loop.
-    r = subprocess.run(
-        [bench, "servo-whj", "--joints", "1", "--delay-us", "0", "--secs", str(seconds), "--no-window"],
-        capture_output=True, text=True, check=True,
-    )
-    m = re.search(r"([\d.]+) Hz, \d+ errors, client CPU ([\d.]+) µs/cycle", r.stdout)
-    assert m is not None, r.stdout + r.stderr
-    out["Rust, the duplicate check off (--no-window)"] = {"rate": float(m.group(1)), "cpu_us": float(m.group(2))}
+    out["Rust, the duplicate check off (--no-window)"] = servo_whj(joints, seconds, "--no-window")
+    if joints > 1:
+        out["Rust, pipelined (--pipelined)"] = servo_whj(joints, seconds, "--pipelined")
+        out["Rust, pipelined, the duplicate check off"] = servo_whj(
+            joints, seconds, "--pipelined", "--no-window")
+    ids = ",".join(str(n) for n in range(1, joints + 1))
     sim = subprocess.Popen(
-        [bench, "serve-whj", "--joints", "1", "--delay-us", "0"],
+        [str(RELEASE / "robobus-bench"), "serve-whj", "--joints", str(joints), "--delay-us", "0"],
         stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
     )
     try:
         assert sim.stdout is not None and sim.stdout.readline().strip() == "READY"
         with robobus.open_whj("udp") as station:
-            station.whj.mode("1", "position", check=True)
-            station.whj.enable("1", check=True)
-            joint = station.whj_joint(1)
-            here = joint.status()["position_deg"]
-            joint.command_position(here)
+            station.whj.mode(ids, "position", check=True)
+            station.whj.enable(ids, check=True)
+            if joints == 1:
+                joint = station.whj_joint(1)
+                here: Any = joint.status()["position_deg"]
+                command = joint.command_position
+                name = "bindings (joint handle)"
+                native = joint._group._native
+                targets = [here]
+            else:
+                group = station.whj_joints(range(1, joints + 1))
+                here = group.read_positions()
+                command = group.command_position
+                name = "bindings (group handle, one call a cycle)"
+                native = group._native
+                targets = list(here)
+            command(here)
             n = 0
             cpu0, t0 = time.process_time(), time.perf_counter()
             end = t0 + seconds
             while time.perf_counter() < end:
-                joint.command_position(here)
+                command(here)
                 n += 1
-            out["bindings (joint handle)"] = {
+            out[name] = {
                 "rate": n / (time.perf_counter() - t0),
                 "cpu_us": (time.process_time() - cpu0) / n * 1e6,
             }
             # The same library call in a Rust loop on the same handle, as many times.
             cpu0 = time.process_time()
-            each = joint._group._native._bench_command("position", [here], n)
+            each = native._bench_command("position", targets, n)
             out["the same handle call in a Rust loop (in the bindings)"] = {
                 "rate": 1.0 / each,
                 "cpu_us": (time.process_time() - cpu0) / n * 1e6,
             }
-            station.whj.disable("1", check=True)
+            station.whj.disable(ids, check=True)
         peer = subprocess.run(
             [peers_python(), str(ROOT / "scripts" / "bench" / "whj_servo_peer.py"),
-             "--joints", "1", "--seconds", str(seconds)],
+             "--joints", str(joints), "--seconds", str(seconds)],
             capture_output=True, text=True, check=True,
         )
         d = json.loads(peer.stdout)
@@ -333,7 +354,7 @@ def main() -> None:
         calls_table(calls())
         return
     if args.whj_only:
-        print(json.dumps(whj(args.seconds)))
+        print(json.dumps({str(n): whj(args.seconds, n) for n in (1, 7)}))
         return
     calls_table(calls())
     if not args.no_wck:
@@ -348,8 +369,9 @@ def main() -> None:
         print(f"\nWHJ part skipped: {inner.stderr.strip()[-300:]}")
         return
     whj_results = json.loads(inner.stdout.strip().splitlines()[-1])
-    table("WHJ position servo cycles, 1 joint, UDP multicast, 1 / 5 Mbit/s wire", whj_results,
-          "Rust (robobus-bench servo-whj)", "python-can peer")
+    for joints, results in whj_results.items():
+        table(f"WHJ position servo cycles, {joints} joint(s), UDP multicast, 1 / 5 Mbit/s wire",
+              results, "Rust (robobus-bench servo-whj)", "python-can peer")
 
 
 if __name__ == "__main__":
