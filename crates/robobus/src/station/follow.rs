@@ -258,11 +258,12 @@ impl Follower {
             }
             g.derate(station, &mut plan);
         }
+        // Each WHJ bus's joints step in one batch.
         let done = self
             .joints
             .iter()
-            .zip(&plan)
-            .map(|(j, jog)| match self.jogger.jog(station, jog) {
+            .zip(self.jogger.jog_many(station, &plan))
+            .map(|(j, r)| match r {
                 Ok(done) => DeviceResult::ok(j.name.clone(), done),
                 Err(e) => DeviceResult::failed(j.name.clone(), Failure::from(&e)),
             })

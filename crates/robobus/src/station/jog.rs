@@ -74,11 +74,16 @@ pub struct Jogged {
 /// A jogged wCK servo's handle and its limits (steps).
 type WckJog = (WckGroup, (f64, f64));
 
+/// Handles made once, by key.
+type Handles<K, T> = Mutex<HashMap<K, Arc<T>>>;
+
 /// Jogs devices of a station; keeps each device's handle and limits after the first jog.
 #[derive(Debug, Default)]
 pub struct Jogger {
-    whj: Mutex<HashMap<(String, u8), Arc<WhjGroup>>>,
-    wck: Mutex<HashMap<(String, u8), Arc<WckJog>>>,
+    whj: Handles<(String, u8), WhjGroup>,
+    /// The handles of WHJ joints jogged together ([`Jogger::jog_many`]), by bus and IDs.
+    whj_batches: Handles<(String, Vec<u8>), WhjGroup>,
+    wck: Handles<(String, u8), WckJog>,
     /// Each wCK servo's latest answered position (steps), on its bus's clock.
     wck_seen: Mutex<HashMap<(String, u8), (Instant, u8)>>,
     /// The host's protection of the jogged devices (`None`: a caller that watches them
@@ -154,6 +159,117 @@ impl Jogger {
         Ok(jogged)
     }
 
+    /// One jog step of each of `reqs` (see [`Jogger::jog`]), one result per request in
+    /// their order. The WHJ joints of one bus step in one batch: their servo frames go
+    /// out together ([`WhjGroup::command`], `JointBus::servo_many`), so each reply's
+    /// duplicate check overlaps the other joints' frames instead of one after another. A
+    /// batch refused before anything is sent (a joint not enabled, past a limit, stopped
+    /// by the protection) is jogged joint by joint instead, so that each joint gets its
+    /// own answer and the others still move.
+    pub fn jog_many(&self, station: &Station, reqs: &[JogRequest]) -> Vec<Result<Jogged, OpError>> {
+        let mut out: Vec<Option<Result<Jogged, OpError>>> = reqs.iter().map(|_| None).collect();
+        let mut by_bus: Vec<(String, Vec<usize>)> = Vec::new();
+        for (k, req) in reqs.iter().enumerate() {
+            if req.family != Family::Whj || !req.target.is_finite() {
+                continue;
+            }
+            let Ok(port) = station.whj(req.bus.as_deref()) else {
+                continue;
+            };
+            match by_bus.iter_mut().find(|(b, _)| b == port.name()) {
+                Some((_, ks)) => ks.push(k),
+                None => by_bus.push((port.name().to_owned(), vec![k])),
+            }
+        }
+        for (bus, ks) in by_bus {
+            if ks.len() < 2 {
+                continue;
+            }
+            let batch: Vec<&JogRequest> = ks.iter().filter_map(|&k| reqs.get(k)).collect();
+            if let Ok(done) = self.jog_whj_batch(station, &bus, &batch) {
+                for (k, r) in ks.into_iter().zip(done) {
+                    if let Some(slot) = out.get_mut(k) {
+                        *slot = Some(r);
+                    }
+                }
+            }
+        }
+        out.into_iter()
+            .zip(reqs)
+            .map(|(r, req)| r.unwrap_or_else(|| self.jog(station, req)))
+            .collect()
+    }
+
+    /// One batch of jog steps of WHJ joints on `bus` ([`Jogger::jog_many`]): `Err` when it
+    /// was refused with nothing sent, else each joint's result.
+    fn jog_whj_batch(
+        &self,
+        station: &Station,
+        bus: &str,
+        reqs: &[&JogRequest],
+    ) -> Result<Vec<Result<Jogged, OpError>>, OpError> {
+        let port = station.whj(Some(bus))?;
+        let mut ids = Vec::with_capacity(reqs.len());
+        for req in reqs {
+            JointId::new(req.device).map_err(|e| {
+                OpError::invalid("device", req.device, format!("{e} (allowed: 1..=30)"))
+            })?;
+            if ids.contains(&req.device) {
+                return Err(OpError::invalid("device", req.device, "each joint once"));
+            }
+            ids.push(req.device);
+        }
+        station
+            .interfaces()
+            .check_moved(Family::Whj, Some(bus), &ids)?;
+        if let Some(g) = &self.guard {
+            for &id in &ids {
+                g.refuse(bus, id)?;
+            }
+        }
+        let handle = cached(&self.whj_batches, (bus.to_owned(), ids.clone()), || {
+            WhjGroup::new(station, Some(bus), &ids)
+        })?;
+        let telemetry = port.bus().telemetry();
+        let limits = handle.limits(ServoLoop::Position);
+        let mut steps = Vec::with_capacity(reqs.len());
+        for ((req, &id), &own) in reqs.iter().zip(&ids).zip(&limits) {
+            let limits = within_soft_limits(station, (Family::Whj, bus, id), own);
+            let joint =
+                JointId::new(id).map_err(|e| OpError::invalid("device", id, e.to_string()))?;
+            let from = port
+                .bus()
+                .joint_unchecked(joint)
+                .recent_position_in(&telemetry)?
+                .degrees();
+            let (sent, limited) = step(from, req.target, limits, WHJ_JOG_STEP_DEG);
+            steps.push((from, sent, limited));
+        }
+        let sent: Vec<f64> = steps.iter().map(|s| s.1).collect();
+        let rows = handle.command(ServoLoop::Position, &sent)?;
+        Ok(reqs
+            .iter()
+            .zip(steps)
+            .zip(rows)
+            .map(|((req, (from, sent, limited)), row)| {
+                let jogged = Jogged {
+                    family: Family::Whj,
+                    bus: bus.to_owned(),
+                    device: req.device,
+                    target: req.target,
+                    from,
+                    sent,
+                    limited,
+                    feedback: one_result(Some(row))?,
+                };
+                if let Some(g) = &self.guard {
+                    g.watch(station, &jogged)?;
+                }
+                Ok(jogged)
+            })
+            .collect())
+    }
+
     /// Makes the handle of `req`'s device now, as its first jog would (a WHJ joint's
     /// identity handshake and limits, a wCK servo's boundaries: reads only), so that the
     /// first jog costs no more than the next. Nothing moves.
@@ -171,7 +287,7 @@ impl Jogger {
         req: &JogRequest,
     ) -> Result<(crate::station::WhjPort, Arc<WhjGroup>), OpError> {
         let port = station.whj(req.bus.as_deref())?;
-        let handle = cached(&self.whj, port.name(), req.device, || {
+        let handle = cached(&self.whj, (port.name().to_owned(), req.device), || {
             WhjGroup::new(station, Some(port.name()), &[req.device])
         })?;
         Ok((port, handle))
@@ -186,7 +302,7 @@ impl Jogger {
             OpError::invalid("device", req.device, format!("{e} (allowed: 0..=30)"))
         })?;
         let port = station.wck(req.bus.as_deref())?;
-        let entry = cached(&self.wck, port.name(), req.device, || {
+        let entry = cached(&self.wck, (port.name().to_owned(), req.device), || {
             let servos = WckGroup::new(station, Some(port.name()), &[req.device])?;
             let b = port.lock().servo(id).boundaries()?;
             let bounds = (f64::from(b.lower().get()), f64::from(b.upper().get()));
@@ -267,15 +383,13 @@ impl Jogger {
     }
 }
 
-/// The handle of `(bus, device)` in `map`, made by `make` the first time.
-fn cached<T>(
-    map: &Mutex<HashMap<(String, u8), Arc<T>>>,
-    bus: &str,
-    device: u8,
+/// The handle of `key` in `map`, made by `make` the first time.
+fn cached<K: Eq + std::hash::Hash, T>(
+    map: &Handles<K, T>,
+    key: K,
     make: impl FnOnce() -> Result<T, OpError>,
 ) -> Result<Arc<T>, OpError> {
     let mut map = map.lock().unwrap_or_else(PoisonError::into_inner);
-    let key = (bus.to_owned(), device);
     if let Some(h) = map.get(&key) {
         return Ok(Arc::clone(h));
     }
@@ -415,6 +529,69 @@ mod tests {
         let before = wck_commands(&station);
         jogger.jog(&station, &req).unwrap();
         assert_eq!(wck_commands(&station) - before, 2);
+    }
+
+    #[cfg(feature = "sim")]
+    #[test]
+    fn the_whj_joints_of_one_bus_step_in_one_batch_and_a_refused_one_alone() {
+        use crate::catalogue::{Request, run};
+        let station = Station::simulated().unwrap();
+        for r in [
+            r#"{"op": "whj.mode", "joints": "1-7", "mode": "position"}"#,
+            r#"{"op": "whj.enable", "joints": "1-6"}"#,
+            r#"{"op": "whj.disable", "joints": "7"}"#,
+        ] {
+            let r: Request = serde_json::from_str(r).unwrap();
+            run(&station, &r, &mut crate::ops::Control::none()).unwrap();
+        }
+        let jogger = Jogger::unwatched();
+        let jogs = |n: u8| -> Vec<JogRequest> {
+            (1..=n)
+                .map(|device| JogRequest {
+                    family: Family::Whj,
+                    bus: None,
+                    device,
+                    target: 1.0,
+                })
+                .collect()
+        };
+        // Joint 7 is not enabled: the batch is refused before anything is sent, and each
+        // joint is jogged alone: 7 is refused, the others step.
+        let done = jogger.jog_many(&station, &jogs(7));
+        for (d, r) in (1..=7u8).zip(&done) {
+            match r {
+                Ok(j) => assert!(d < 7 && j.device == d && j.sent > j.from, "{j:?}"),
+                Err(e) => assert!(d == 7 && e.kind() == crate::ErrorKind::Refused, "J{d}: {e}"),
+            }
+        }
+        let port = station.whj(None).unwrap();
+        let bus = port.bus();
+        let reqs = jogs(6);
+        // The batch's handle is made (and its joints' readiness read) by its first jog.
+        assert!(jogger.jog_many(&station, &reqs).iter().all(Result::is_ok));
+        let t = bus.now();
+        for r in &reqs {
+            jogger.jog(&station, r).unwrap();
+        }
+        let alone = bus.now() - t;
+        let t = bus.now();
+        let done = jogger.jog_many(&station, &reqs);
+        let together = bus.now() - t;
+        for (d, r) in (1..=6u8).zip(&done) {
+            let j = r.as_ref().unwrap();
+            assert_eq!(j.device, d);
+            assert!((j.sent - 1.0).abs() < 1e-9 || j.sent > j.from, "{j:?}");
+        }
+        // Each reply is held for an arbitration loser's answer, at least one feedback
+        // frame long: together, five of the six holds overlap the other frames.
+        let id = robobus_whj::CanFrame::standard_id(0x501).unwrap();
+        let feedback = robobus_whj::CanFrame::new_fd(id, &[0x55; 16]).unwrap();
+        let frame =
+            robobus_whj::timing::frame_duration(&feedback, robobus_whj::timing::BitRates::WHJ);
+        assert!(
+            together + frame * 5 <= alone,
+            "together {together:?}, alone {alone:?}, a feedback frame {frame:?}"
+        );
     }
 
     #[test]
