@@ -39,12 +39,11 @@
 //! position, then its bus's safe state, passive or the break (never held: a held servo
 //! keeps pushing).
 
-use std::f64::consts::TAU;
 use std::sync::{Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
 use robobus_wck::{Rotation, ServoId, TorqueLevel, WheelSpeed};
-use robobus_whj::units::{Current, CurrentScale, TargetSpeed};
+use robobus_whj::units::{CurrentScale, TargetSpeed};
 use robobus_whj::{JointId, WorkMode};
 use serde::Serialize;
 
@@ -342,7 +341,7 @@ impl Driver {
         let m = p.models.get(i).copied().flatten();
         drop(p);
         // A zero target, back on position, then the joint's safe stop.
-        let _ = send(station, j, slot, interface, 0.0);
+        let _ = frames::send(station, j, slot, interface, 0.0);
         slot.set = 0.0;
         if let Err(e) = switch_one(station, j, slot, Interface::Position) {
             tracing::warn!(joint = %j.name, "could not go back to position: {e}");
@@ -430,7 +429,7 @@ impl Driver {
         let faults = p.monitor.as_mut()?.feed_driven(i, &reading, speed, drive);
         let stop = Self::keep(&mut p, faults)?;
         drop(p);
-        let _ = send(station, j, slot, interface, 0.0);
+        let _ = frames::send(station, j, slot, interface, 0.0);
         slot.set = 0.0;
         if let Err(e) = switch_one(station, j, slot, Interface::Position) {
             tracing::warn!(joint = %j.name, "could not go back to position: {e}");
@@ -682,44 +681,109 @@ impl Driver {
     ) -> Vec<DeviceResult<String, f64>> {
         let mut slots = self.lock();
         let now = Instant::now();
-        plan.iter()
-            .filter_map(|&(i, target)| {
-                let j = self.joints.get(i)?;
-                let slot = slots.get_mut(i)?;
-                if slot.active != interface {
-                    return Some(DeviceResult::failed(
-                        j.name.clone(),
-                        Failure::from(&OpError::Refused(format!(
-                            "{}: on its {} interface, not {interface}",
-                            j.name, slot.active
-                        ))),
-                    ));
+        let mut rows: Vec<Option<DeviceResult<String, f64>>> = plan.iter().map(|_| None).collect();
+        // The WHJ frames, sent per bus in one batch after the loop: (row, joint, set-point,
+        // the set-point before, the frame, what it carries).
+        let mut batch: Vec<(usize, usize, f64, f64, robobus_whj::Request, f64)> = Vec::new();
+        for (k, &(i, target)) in plan.iter().enumerate() {
+            let (Some(j), Some(slot), Some(row)) =
+                (self.joints.get(i), slots.get_mut(i), rows.get_mut(k))
+            else {
+                continue;
+            };
+            if slot.active != interface {
+                *row = Some(DeviceResult::failed(
+                    j.name.clone(),
+                    Failure::from(&OpError::Refused(format!(
+                        "{}: on its {} interface, not {interface}",
+                        j.name, slot.active
+                    ))),
+                ));
+                continue;
+            }
+            let dt = slot
+                .last
+                .map_or(MAX_DT, |t| now.saturating_duration_since(t).min(MAX_DT))
+                .as_secs_f64();
+            // A derated joint keeps its share of its max_velocity / max_effort.
+            let most = self.share(i)
+                * match interface {
+                    Interface::Velocity => j.max_velocity,
+                    _ => j.max_effort,
+                };
+            let set = step(j, slot, interface, target.clamp(-most, most), dt);
+            let before = slot.set;
+            *row = match frames::frame(station, j, slot, interface, set) {
+                Ok(frames::Frame::Sent(carried)) => Some(self.sent(
+                    station,
+                    (i, j, slot),
+                    interface,
+                    (set, before, now),
+                    carried,
+                )),
+                Ok(frames::Frame::Whj { frame, carried }) => {
+                    batch.push((k, i, set, before, frame, carried));
+                    None
                 }
-                let dt = slot
-                    .last
-                    .map_or(MAX_DT, |t| now.saturating_duration_since(t).min(MAX_DT))
-                    .as_secs_f64();
-                // A derated joint keeps its share of its max_velocity / max_effort.
-                let most = self.share(i)
-                    * match interface {
-                        Interface::Velocity => j.max_velocity,
-                        _ => j.max_effort,
-                    };
-                let set = step(j, slot, interface, target.clamp(-most, most), dt);
-                let before = slot.set;
-                Some(match send(station, j, slot, interface, set) {
-                    Ok(carried) => {
-                        slot.set = set;
-                        slot.last = Some(now);
-                        match self.watch(station, i, slot, interface, before) {
-                            Some(stop) => DeviceResult::failed(j.name.clone(), stop),
-                            None => DeviceResult::ok(j.name.clone(), carried),
-                        }
+                Err(e) => Some(DeviceResult::failed(j.name.clone(), Failure::from(&e))),
+            };
+        }
+        let mut buses: Vec<&str> = Vec::new();
+        for &(_, i, ..) in &batch {
+            if let Some(j) = self.joints.get(i)
+                && !buses.contains(&j.bus.as_str())
+            {
+                buses.push(&j.bus);
+            }
+        }
+        for bus in buses {
+            let on_bus: Vec<_> = batch
+                .iter()
+                .filter(|b| self.joints.get(b.1).is_some_and(|j| j.bus == bus))
+                .collect();
+            let frames: Vec<robobus_whj::Request> = on_bus.iter().map(|b| b.4).collect();
+            for (&&(k, i, set, before, _, carried), answer) in
+                on_bus.iter().zip(frames::send_whj(station, bus, &frames))
+            {
+                let (Some(j), Some(slot), Some(row)) =
+                    (self.joints.get(i), slots.get_mut(i), rows.get_mut(k))
+                else {
+                    continue;
+                };
+                *row = Some(match answer {
+                    Ok(fb) => {
+                        frames::record(j, slot, &fb);
+                        self.sent(
+                            station,
+                            (i, j, slot),
+                            interface,
+                            (set, before, now),
+                            carried,
+                        )
                     }
-                    Err(e) => DeviceResult::failed(j.name.clone(), Failure::from(&e)),
-                })
-            })
-            .collect()
+                    Err(f) => DeviceResult::failed(j.name.clone(), f),
+                });
+            }
+        }
+        rows.into_iter().flatten().collect()
+    }
+
+    /// A joint's frame went out carrying `carried`: its set-point and time are kept, and
+    /// the protection watches it; its row.
+    fn sent(
+        &self,
+        station: &Station,
+        (i, j, slot): (usize, &Joint, &mut Slot),
+        interface: Interface,
+        (set, before, now): (f64, f64, Instant),
+        carried: f64,
+    ) -> DeviceResult<String, f64> {
+        slot.set = set;
+        slot.last = Some(now);
+        match self.watch(station, i, slot, interface, before) {
+            Some(stop) => DeviceResult::failed(j.name.clone(), stop),
+            None => DeviceResult::ok(j.name.clone(), carried),
+        }
     }
 
     /// Every joint on velocity or effort (or on `only`): a zero target, then back on its
@@ -736,7 +800,7 @@ impl Driver {
             .filter(|(_, s)| s.active != Interface::Position && only.is_none_or(|o| o == s.active))
             .map(|(j, s)| {
                 let active = s.active;
-                let zero = send(station, j, s, active, 0.0);
+                let zero = frames::send(station, j, s, active, 0.0);
                 s.set = 0.0;
                 match zero.and_then(|_| switch_one(station, j, s, Interface::Position)) {
                     Ok(()) => DeviceResult::ok(j.name.clone(), Interface::Position),
@@ -859,72 +923,7 @@ fn step(j: &Joint, s: &Slot, interface: Interface, target: f64, dt_s: f64) -> f6
     set
 }
 
-/// Sends `value` (rad/s or N·m) to a joint on `interface`: what it carries at the
-/// device's resolution; records where the joint reported itself.
-fn send(
-    station: &Station,
-    j: &Joint,
-    s: &mut Slot,
-    interface: Interface,
-    value: f64,
-) -> Result<f64, OpError> {
-    let sign = |reversed: bool| if reversed { -1.0 } else { 1.0 };
-    match (&j.units, interface) {
-        (Units::Wck(scale, Some(wheel)), Interface::Velocity) => {
-            let (level, speed) = wheel.level(value).unwrap_or((0, 0.0));
-            let device = speed * sign(scale.map.reversed);
-            let rotation = if device < 0.0 {
-                Rotation::Cw
-            } else {
-                Rotation::Ccw
-            };
-            let level = WheelSpeed::new(level).unwrap_or(WheelSpeed::MIN);
-            let port = station.wck(Some(&j.bus))?;
-            let st = port.lock().servo(servo_id(j)?).wheel(rotation, level)?;
-            s.at = Some(scale.to_rad(st.position));
-            Ok(speed)
-        }
-        (Units::Whj(map), Interface::Velocity | Interface::Effort) => {
-            let port = station.whj(Some(&j.bus))?;
-            let joint = port.bus().joint_unchecked(joint_id(j)?);
-            let (fb, sent) = if interface == Interface::Velocity {
-                let rpm = value * sign(map.reversed) * 60.0 / TAU;
-                let target = TargetSpeed::from_rpm(rpm)
-                    .map_err(|e| refused(&j.name, value, e.to_string()))?;
-                let sent = rpm_to_rad_s(target.rpm()) * sign(map.reversed);
-                (joint.command_speed(target)?, sent)
-            } else {
-                let Some((current, Some(k))) = s.whj else {
-                    return Err(OpError::Refused(format!(
-                        "{}: no torque constant known for its model",
-                        j.name
-                    )));
-                };
-                let ma = value / k.nm_per_a * 1e3 * sign(map.reversed);
-                let counts = Current::from_milliamps(ma, current)
-                    .map_err(|e| refused(&j.name, value, e.to_string()))?;
-                #[allow(clippy::cast_precision_loss)] // mA of a joint
-                let sent_ma = counts.milliamps(current) as f64;
-                (
-                    joint.command_current(sent_ma)?,
-                    sent_ma / 1e3 * k.nm_per_a * sign(map.reversed),
-                )
-            };
-            s.at = Some(map.to_joint(fb.position.degrees().to_radians()));
-            s.speed_deg_s = Some(fb.speed.rpm() * 6.0 * sign(map.reversed));
-            s.current_a = s.whj.map(|(scale, _)| {
-                #[allow(clippy::cast_precision_loss)] // mA of a joint
-                let ma = fb.current.milliamps(scale) as f64;
-                ma / 1e3
-            });
-            Ok(sent)
-        }
-        _ => Err(OpError::Refused(format!(
-            "{}: has no {interface} interface",
-            j.name
-        ))),
-    }
-}
+mod frames;
 
 #[cfg(all(test, feature = "sim"))]
 mod tests;

@@ -160,3 +160,44 @@ fn an_obstacle_stops_a_velocity_stream_and_later_commands_are_refused() {
     let plan = driver.plan(Interface::Velocity, &[0.0]).unwrap();
     assert!(driver.apply(&station, Interface::Velocity, &plan)[0].is_ok());
 }
+
+/// A command's WHJ frames on one bus go out in one batch: one reply's duplicate check
+/// overlaps the other joint's frame, so two joints together cost at least one feedback
+/// frame less than one after the other, and each joint's row is its own.
+#[test]
+fn a_command_sends_one_buss_whj_frames_in_one_batch() {
+    let (station, _whj, driver) = driven();
+    let names = ["j1".to_owned(), "j2".to_owned()];
+    driver
+        .switch(&station, &names, Interface::Velocity)
+        .unwrap();
+    let clock = BusClock::of(&station, station.robot().unwrap()).unwrap();
+    let plan = driver.plan(Interface::Velocity, &[0.0, 0.0]).unwrap();
+    assert_eq!(plan.len(), 2);
+    // The first command reads what the protection needs once.
+    assert!(
+        driver
+            .apply(&station, Interface::Velocity, &plan)
+            .iter()
+            .all(crate::ops::DeviceResult::is_ok)
+    );
+    let t = clock.now();
+    for one in plan.chunks(1) {
+        let done = driver.apply(&station, Interface::Velocity, one);
+        assert!(done.len() == 1 && done[0].is_ok(), "{done:?}");
+    }
+    let alone = clock.now() - t;
+    let t = clock.now();
+    let done = driver.apply(&station, Interface::Velocity, &plan);
+    let together = clock.now() - t;
+    let rows: Vec<&str> = done.iter().map(|r| r.id.as_str()).collect();
+    assert_eq!(rows, ["j1", "j2"]);
+    assert!(done.iter().all(crate::ops::DeviceResult::is_ok), "{done:?}");
+    let id = robobus_whj::CanFrame::standard_id(0x501).unwrap();
+    let feedback = robobus_whj::CanFrame::new_fd(id, &[0x55; 16]).unwrap();
+    let frame = robobus_whj::timing::frame_duration(&feedback, robobus_whj::timing::BitRates::WHJ);
+    assert!(
+        together + frame <= alone,
+        "together {together:?}, alone {alone:?}, a feedback frame {frame:?}"
+    );
+}
