@@ -299,10 +299,26 @@ pub fn run(opts: &Options, mut log: impl FnMut(&str)) -> Results {
             free.push(variant(n, WaitMode::SPIN, true));
         }
     }
-    for spec in free {
-        let what = format!("WHJ free-running, {}, memory bus", spec.label());
+    // Pipelined (one `servo_many` batch a cycle), 7 joints, the check on and off, both
+    // wait modes (the smoke run: one, to keep the row kind).
+    let mut free: Vec<(whj::ChainSpec, bool)> = free.into_iter().map(|s| (s, false)).collect();
+    if smoke {
+        free.push((variant(1, WaitMode::Sleep, true), true));
+    } else {
+        for wait in [WaitMode::Sleep, WaitMode::SPIN] {
+            for window in [true, false] {
+                free.push((variant(7, wait, window), true));
+            }
+        }
+    }
+    for (spec, pipelined) in free {
+        let what = format!(
+            "WHJ free-running{}, {}, memory bus",
+            if pipelined { " pipelined" } else { "" },
+            spec.label()
+        );
         log(&what);
-        match whj::free_running_memory(spec, secs(3.0, 0.1), false) {
+        match whj::free_running_memory(spec, secs(3.0, 0.1), pipelined) {
             Ok(f) => r.free.push(f),
             Err(e) => fail(&mut r, &mut log, &what, &e),
         }
@@ -345,19 +361,22 @@ pub fn run(opts: &Options, mut log: impl FnMut(&str)) -> Results {
             collision_window: false,
             ..plain(n, false)
         };
-        let mut runs = vec![plain(1, false)];
+        let mut runs = vec![(plain(1, false), false)];
         if !smoke {
             runs.extend([
-                plain(7, false),
-                plain(1, true),
-                plain(7, true),
-                bare(1, WaitMode::Sleep),
-                bare(1, WaitMode::SPIN),
+                (plain(7, false), false),
+                (plain(1, true), false),
+                (plain(7, true), false),
+                (bare(1, WaitMode::Sleep), false),
+                (bare(1, WaitMode::SPIN), false),
+                // One servo_many batch a cycle, the check on, against python-can's loop.
+                (plain(7, false), true),
             ]);
         }
-        for spec in runs {
+        for (spec, pipelined) in runs {
             let what = format!(
-                "WHJ free-running over UDP, {}, {}",
+                "WHJ free-running{} over UDP, {}, {}",
+                if pipelined { " pipelined" } else { "" },
                 spec.label(),
                 if spec.fast_wire {
                     "wire off"
@@ -371,7 +390,7 @@ pub fn run(opts: &Options, mut log: impl FnMut(&str)) -> Results {
                 spec,
                 secs(3.0, 0.3),
                 opts.python.as_deref(),
-                false,
+                pipelined,
             ) {
                 Ok(f) => r.udp.push(f),
                 Err(e) => fail(&mut r, &mut log, &what, &e),

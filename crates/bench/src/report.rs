@@ -128,8 +128,9 @@ pub fn peer_ratios(r: &Results) -> Vec<(String, f64, f64)> {
         if let Some(peer) = &f.peer {
             v.push((
                 format!(
-                    "WHJ servo cycle {}, UDP, {} (python-can)",
+                    "WHJ servo cycle {}, {}, {} (python-can)",
                     f.spec.label(),
+                    f.link,
                     if f.spec.fast_wire {
                         "wire off"
                     } else {
@@ -382,16 +383,19 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
     let _ = writeln!(
         o,
         "Client: `robobus::whj::JointBus`, `Joint::command_position` for each joint in turn \
-         (each position servo frame answered by its feedback before the next is sent), as \
-         fast as it goes, over the in-process memory bus to the simulator thread (wall clock, \
-         1 / 5 Mbit/s wire, 20 µs processing delay). Modelled cycle: Σ (command frame + \
-         processing delay + feedback frame − one intermission), exact bit-stuffed frame times. \
-         Wait: how the client waits (`JointBusConfig::wait`); in the spin rows the simulator \
-         serves in its precise mode. Window: whether the client holds each reply for its \
-         0.5 ms collision window before crediting it (duplicate detection, on by default); \
-         with it a request/reply loop cannot beat one window per transaction, whatever \
-         the wire. Simulator late: frames released after their modelled instants (p50 / \
-         p99).\n"
+         (each position servo frame answered by its feedback before the next is sent), or, \
+         on a `pipelined` link, one `JointBus::servo_many` batch a cycle (every frame sent \
+         at once, each feedback credited to its own frame), as fast as it goes, over the \
+         in-process memory bus to the simulator thread (wall clock, 1 / 5 Mbit/s wire, 20 µs \
+         processing delay). Modelled cycle: Σ (command frame + processing delay + feedback \
+         frame − one intermission), exact bit-stuffed frame times; pipelined, the commands \
+         back to back, then the feedback. Wait: how the client waits \
+         (`JointBusConfig::wait`); in the spin rows the simulator serves in its precise \
+         mode. Window: whether the client holds each reply for a second answer from a \
+         duplicate node (an arbitration loser's frame plus the link's allowance; on by \
+         default) before crediting it; joint after joint, a loop pays it per transaction, \
+         pipelined only the last reply's is waited out alone. Simulator late: frames \
+         released after their modelled instants (p50 / p99).\n"
     );
     let _ = writeln!(
         o,
@@ -576,8 +580,9 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
             Some(peer) => {
                 let _ = writeln!(
                     o,
-                    "| WHJ servo cycle {}, UDP, {} | {:.1} | {:.1} | {:.2}× | {:.1} | {:.1} | {:.1}× | {} | {} / {} | {} / {} |",
+                    "| WHJ servo cycle {}, {}, {} | {:.1} | {:.1} | {:.2}× | {:.1} | {:.1} | {:.1}× | {} | {} / {} | {} / {} |",
                     f.spec.label(),
+                    f.link,
                     if f.spec.fast_wire {
                         "wire off"
                     } else {
@@ -599,8 +604,9 @@ fn render(r: &Results, plots: &mut Vec<(String, String)>) -> String {
             None => {
                 let _ = writeln!(
                     o,
-                    "| WHJ servo cycle {}, UDP | {:.1} | – | – | {:.1} | – | – | {} | {} / – | {} / {} |",
+                    "| WHJ servo cycle {}, {} | {:.1} | – | – | {:.1} | – | – | {} | {} / – | {} / {} |",
                     f.spec.label(),
+                    f.link,
                     f.rate_hz(),
                     f.cpu_per_cycle_us(),
                     eff,
@@ -702,8 +708,13 @@ pub fn opt_us(d: Option<Duration>) -> String {
 
 fn free_plot(f: &crate::whj::FreeResult) -> String {
     format!(
-        "whj_free_{}j_{}_{}.svg",
+        "whj_free_{}j{}_{}_{}.svg",
         f.spec.joints,
+        if f.link.ends_with("pipelined") {
+            "_pipelined"
+        } else {
+            ""
+        },
         if f.spec.wait.spins() { "spin" } else { "sleep" },
         if f.spec.collision_window {
             "window"

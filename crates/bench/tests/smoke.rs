@@ -64,6 +64,7 @@ fn smoke_run_writes_the_report_with_every_section() {
         "| 1 | 921600 | zero | spin | pty | default |",
         "| 1 | 921600 | zero | spin | memory | off |",
         "| 1 | memory | spin | off |",
+        "| 1 | memory, pipelined | sleep | on |",
         "| 1 | point-to-point | spin | 1000 |",
     ] {
         assert!(report.contains(row), "no row {row:?} in:\n{report}");

@@ -121,6 +121,15 @@ impl WheelSpeeds {
         None
     }
 
+    /// The wheel command nearest `rad_s` (joint frame; level 0 past the top level) of a
+    /// servo turning the joint's way, or the other way when `reversed`: the device's
+    /// direction and level, and the joint speed it turns at (rad/s).
+    pub(crate) fn command(&self, rad_s: f64, reversed: bool) -> (Rotation, WheelSpeed, f64) {
+        let (level, speed) = self.level(rad_s).unwrap_or((0, 0.0));
+        let (rotation, level) = wheel_command(level, if reversed { -speed } else { speed });
+        (rotation, level.unwrap_or(WheelSpeed::MIN), speed)
+    }
+
     /// The level nearest to `|rad_s|` (0: stop) and its signed speed, or `None` when
     /// `|rad_s|` is nearer to a level past 15 than to 15 (faster than the servo turns).
     pub(crate) fn level(&self, rad_s: f64) -> Option<(u8, f64)> {

@@ -33,7 +33,7 @@
 use std::f64::consts::TAU;
 use std::time::Duration;
 
-use robobus_wck::{Rotation, ServoId, WheelSpeed};
+use robobus_wck::ServoId;
 use robobus_whj::units::{Current, CurrentScale, TargetSpeed};
 use robobus_whj::{JointId, WorkMode};
 
@@ -234,14 +234,7 @@ impl Joint {
                 scale,
                 wheel,
             } => {
-                let (level, speed) = wheel.level(value).unwrap_or((0, 0.0));
-                let device = speed * sign(scale.map.reversed);
-                let rotation = if device < 0.0 {
-                    Rotation::Cw
-                } else {
-                    Rotation::Ccw
-                };
-                let level = WheelSpeed::new(level).unwrap_or(WheelSpeed::MIN);
+                let (rotation, level, speed) = wheel.command(value, scale.map.reversed);
                 let st = port.lock().servo(*id).wheel(rotation, level)?;
                 self.at = scale.to_rad(st.position);
                 Ok(speed)

@@ -5,7 +5,6 @@
 
 use std::f64::consts::TAU;
 
-use robobus_wck::{Rotation, WheelSpeed};
 use robobus_whj::units::{Current, TargetSpeed};
 use robobus_whj::{Request, ServoFeedback};
 
@@ -38,14 +37,7 @@ pub(super) fn frame(
 ) -> Result<Frame, OpError> {
     match (&j.units, interface) {
         (Units::Wck(scale, Some(wheel)), Interface::Velocity) => {
-            let (level, speed) = wheel.level(value).unwrap_or((0, 0.0));
-            let device = speed * sign(scale.map.reversed);
-            let rotation = if device < 0.0 {
-                Rotation::Cw
-            } else {
-                Rotation::Ccw
-            };
-            let level = WheelSpeed::new(level).unwrap_or(WheelSpeed::MIN);
+            let (rotation, level, speed) = wheel.command(value, scale.map.reversed);
             let port = station.wck(Some(&j.bus))?;
             let st = port.lock().servo(servo_id(j)?).wheel(rotation, level)?;
             s.at = Some(scale.to_rad(st.position));
