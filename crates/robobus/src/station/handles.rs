@@ -26,7 +26,7 @@ use super::{Station, WckPort, WeakWckPort, WeakWhjPort, WhjPort};
 use crate::ops::distinct_ids;
 use crate::ops::whj::{JointSample, ServoLoop, check_reading, require_ready};
 use crate::ops::{DeviceResult, Failure, OpError};
-use crate::whj::{MAX_PIPELINED, WhjError};
+use crate::whj::MAX_PIPELINED;
 
 /// One wCK servo's reading.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -334,9 +334,10 @@ impl WhjGroup {
     }
 
     /// Sends one `servo` frame per joint (targets in that mode's unit: degrees, RPM, mA,
-    /// one per joint) in one pipelined batch ([`JointBus::servo_many`](crate::whj::JointBus::servo_many))
-    /// and returns each joint's feedback (for position: where it was when the frame
-    /// arrived), a joint that failed as its own row. Refused, with nothing sent, when a target is outside its
+    /// one per joint) in one pipelined batch
+    /// ([`JointBus::servo_many`](crate::whj::JointBus::servo_many)) and returns each
+    /// joint's feedback (for position: where it was when the frame arrived), a joint that
+    /// failed as its own row. Refused, with nothing sent, when a target is outside its
     /// joint's limits, when a position target is further than the bus's step limit from
     /// the joint's measured position (use `whj.move` for large moves), when a joint is
     /// not enabled in that mode, or while a cyclic loop runs on the bus.
@@ -384,22 +385,9 @@ impl WhjGroup {
             });
         }
         // One pipelined batch: each reply's duplicate check overlaps the other joints'
-        // frames. A position target too far from its joint's measured position refuses
-        // the batch with nothing sent; a failure of the whole bus is each joint's.
-        let sent = match bus.servo_many(&frames) {
-            Ok(sent) => sent,
-            Err(e @ (WhjError::StepTooLarge { .. } | WhjError::InvalidConfig { .. })) => {
-                return Err(OpError::Whj(e));
-            }
-            Err(e) => {
-                let failure = Failure::from(&OpError::from(e));
-                return Ok(self
-                    .ids
-                    .iter()
-                    .map(|id| DeviceResult::failed(id.get(), failure.clone()))
-                    .collect());
-            }
-        };
+        // frames. An error here (a position target too far from its joint's measured
+        // position, or that position unreadable) refused the batch with nothing sent.
+        let sent = bus.servo_many(&frames)?;
         let mut out = Vec::with_capacity(self.ids.len());
         for ((&id, sent), a) in self.ids.iter().zip(sent).zip(&self.allowed) {
             out.push(match sent {
