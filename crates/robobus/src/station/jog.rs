@@ -210,10 +210,11 @@ impl Jogger {
     ) -> Result<Vec<Result<Jogged, OpError>>, OpError> {
         let port = station.whj(Some(bus))?;
         let mut ids = Vec::with_capacity(reqs.len());
+        let mut joints = Vec::with_capacity(reqs.len());
         for req in reqs {
-            JointId::new(req.device).map_err(|e| {
+            joints.push(JointId::new(req.device).map_err(|e| {
                 OpError::invalid("device", req.device, format!("{e} (allowed: 1..=30)"))
-            })?;
+            })?);
             if ids.contains(&req.device) {
                 return Err(OpError::invalid("device", req.device, "each joint once"));
             }
@@ -233,10 +234,8 @@ impl Jogger {
         let telemetry = port.bus().telemetry();
         let limits = handle.limits(ServoLoop::Position);
         let mut steps = Vec::with_capacity(reqs.len());
-        for ((req, &id), &own) in reqs.iter().zip(&ids).zip(&limits) {
-            let limits = within_soft_limits(station, (Family::Whj, bus, id), own);
-            let joint =
-                JointId::new(id).map_err(|e| OpError::invalid("device", id, e.to_string()))?;
+        for ((req, &joint), &own) in reqs.iter().zip(&joints).zip(&limits) {
+            let limits = within_soft_limits(station, (Family::Whj, bus, req.device), own);
             let from = port
                 .bus()
                 .joint_unchecked(joint)
