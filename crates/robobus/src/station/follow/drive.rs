@@ -741,9 +741,9 @@ impl Driver {
                 .iter()
                 .filter(|b| self.joints.get(b.1).is_some_and(|j| j.bus == bus))
                 .collect();
-            let frames: Vec<robobus_whj::Request> = on_bus.iter().map(|b| b.4).collect();
+            let requests: Vec<robobus_whj::Request> = on_bus.iter().map(|b| b.4).collect();
             for (&&(k, i, set, before, _, carried), answer) in
-                on_bus.iter().zip(frames::send_whj(station, bus, &frames))
+                on_bus.iter().zip(frames::send_whj(station, bus, &requests))
             {
                 let (Some(j), Some(slot), Some(row)) =
                     (self.joints.get(i), slots.get_mut(i), rows.get_mut(k))
