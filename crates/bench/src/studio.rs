@@ -4,9 +4,10 @@
 //! would talk to it.
 //!
 //! - **Telemetry fan-out**: N pages each subscribe to `whj.sample` of the 7 joints at
-//!   [`ASKED_HZ`] with [`FPS`] frames a second, and read. Each subscription is a sampler of
-//!   its own on the one bus (the studio starts a `Telemetry` per stream), so N streams
-//!   share the bus.
+//!   [`ASKED_HZ`] with [`FPS`] frames a second, and read. Every stream subscribes to the
+//!   station's one sampling of the bus (`Station::telemetry`), so N pages cost the bus one
+//!   stream's frames; each page's samples say so (the same `seq` carries the same read
+//!   instant on every page, [`FanOut::same_samples`]).
 //! - **Jog latency**: one controlling page (take control, arm, heartbeat every 100 ms)
 //!   jogs WHJ joint 1 at [`JOG_HZ`] between −1° and +1° (each jog one position servo
 //!   frame), and times each jog message to its `jogged` reply on the page, and to the
@@ -69,7 +70,8 @@ pub struct WireModel {
     pub sample: Duration,
     /// The link's own allowance in the client's duplicate check
     /// (`JointBus::duplicate_check`: 0 on the in-process memory bus, where only the
-    /// arbitration loser's frame is waited for, which this model leaves out).
+    /// arbitration loser's frame is waited for). A sample's requests are pipelined, so
+    /// the holds overlap the other requests' frames and this model leaves them out.
     pub collision_window: Duration,
     /// One jog: one position servo frame and its feedback.
     pub jog: Duration,
@@ -81,14 +83,6 @@ impl WireModel {
     /// Samples a second the wire could carry (one stream alone on the bus).
     pub fn wire_hz(&self) -> f64 {
         1.0 / self.sample.as_secs_f64().max(1e-9)
-    }
-
-    /// Samples a second with the client's collision window after every transaction (what
-    /// the library can reach, all other costs zero).
-    pub fn windowed_hz(&self) -> f64 {
-        let per = self.sample
-            + self.collision_window * u32::try_from(self.transactions).unwrap_or(u32::MAX);
-        1.0 / per.as_secs_f64().max(1e-9)
     }
 }
 
@@ -110,6 +104,8 @@ pub struct Page {
     pub failed: u64,
     /// Age of each delivered sample at the page (now − `unix_ms`), µs.
     pub age_us: Vec<f64>,
+    /// Each delivered sample's `seq` and read instant (`unix_ms`).
+    pub samples: Vec<(u64, f64)>,
     /// CPU time of this page's thread while it read.
     pub cpu: Duration,
 }
@@ -152,9 +148,32 @@ impl FanOut {
             .saturating_sub(self.sims_cpu)
     }
 
-    /// Samples the server took a second, all streams together.
-    pub fn taken_hz(&self) -> f64 {
-        self.pages.iter().map(|p| p.taken_hz).sum()
+    /// Samples the server took a second for the stream of the page that had fewest.
+    pub fn fewest_taken_hz(&self) -> f64 {
+        let fewest = self
+            .pages
+            .iter()
+            .map(|p| p.taken_hz)
+            .fold(f64::INFINITY, f64::min);
+        if fewest.is_finite() { fewest } else { 0.0 }
+    }
+
+    /// Of the samples a later page received with a `seq` the first page received too, how
+    /// many carry the first page's read instant, and how many there were: equal when one
+    /// sampling serves every page (a sampler per page would number its own samples).
+    pub fn same_samples(&self) -> (usize, usize) {
+        let Some((first, rest)) = self.pages.split_first() else {
+            return (0, 0);
+        };
+        let at: HashMap<u64, f64> = first.samples.iter().copied().collect();
+        let (mut same, mut common) = (0, 0);
+        for (seq, t) in rest.iter().flat_map(|p| p.samples.iter()) {
+            if let Some(t0) = at.get(seq) {
+                common += 1;
+                same += usize::from(t0.to_bits() == t.to_bits());
+            }
+        }
+        (same, common)
     }
 
     /// Share of a core, `d` over the window.
@@ -537,6 +556,7 @@ fn read_page(s: &mut PageSocket, deadline: Instant) -> Result<Page, BenchError> 
         p.failed += u64::from(!sample["failed"].is_null());
         if let (Some(seq), Some(at)) = (sample["seq"].as_u64(), sample["unix_ms"].as_f64()) {
             p.age_us.push((now - at) * 1e3);
+            p.samples.push((seq, at));
             first.get_or_insert((seq, at));
             last = Some((seq, at));
         }
@@ -817,8 +837,33 @@ mod tests {
         assert!((400.0..900.0).contains(&m.wire_hz()), "{m:?}");
         // The memory bus's allowance is 0: the window adds nothing on it.
         assert_eq!(m.collision_window, Duration::ZERO);
-        assert!(m.windowed_hz() <= m.wire_hz());
         assert!(m.jog > Duration::from_micros(50) && m.jog < Duration::from_micros(300));
         assert!(m.servo_cycle.abs_diff(m.jog * u32::from(JOINTS)) < Duration::from_nanos(7));
+    }
+
+    #[test]
+    fn pages_of_one_sampling_share_their_samples_and_samplers_of_their_own_do_not() {
+        let page = |samples: &[(u64, f64)]| Page {
+            samples: samples.to_vec(),
+            ..Page::default()
+        };
+        let of = |pages: Vec<Page>| FanOut {
+            pages,
+            ..FanOut::default()
+        };
+        // One sampling: a later page sees some of the first page's samples, each with the
+        // same read instant, and others the first page skipped.
+        let shared = of(vec![
+            page(&[(10, 1.5), (18, 17.5), (26, 33.5)]),
+            page(&[(11, 3.5), (18, 17.5), (26, 33.5)]),
+        ]);
+        assert_eq!(shared.same_samples(), (2, 2));
+        // A sampler per page numbers its own samples: the same seq, another instant.
+        let own = of(vec![
+            page(&[(1, 1.5), (2, 3.5)]),
+            page(&[(1, 1.7), (2, 3.1)]),
+        ]);
+        assert_eq!(own.same_samples(), (0, 2));
+        assert_eq!(of(vec![page(&[(1, 1.5)])]).same_samples(), (0, 0));
     }
 }

@@ -42,9 +42,9 @@ pub(super) fn studio_section(o: &mut String, r: &Results) {
          of this process, and its pages played by WebSocket clients (`tungstenite`, \
          TCP_NODELAY, like a browser) on threads of this process. Each page subscribes to \
          `{{\"op\": \"whj.sample\", \"joints\": \"1-7\"}}` at {:.0} Hz with {:.0} fps; \
-         the studio starts one sampler per page's stream, so N pages share the one bus. \
-         Everything runs on one machine: the pages, the studio and the simulators share \
-         its cores.\n",
+         every page's stream subscribes to the studio's one sampling of the bus \
+         (`Station::telemetry`), so N pages cost the bus one stream's frames. Everything \
+         runs on one machine: the pages, the studio and the simulators share its cores.\n",
         studio::ASKED_HZ,
         studio::FPS
     );
@@ -55,11 +55,11 @@ pub(super) fn studio_section(o: &mut String, r: &Results) {
          - one `whj.sample` of 7 joints = {} request/reply transactions (a status query \
          and a speed read per joint), {:.1} µs back to back on the wire: the wire could \
          carry **{:.0} samples/s** with one stream on it;\n\
-         - the client credits each reply after its {:.0} µs collision window \
-         (`JointBusConfig::collision_window`), so the library's own limit, all other costs \
-         zero, is **{:.0} samples/s** for one stream (its requests go one after the \
-         other; streams of several pages overlap their windows on different joints, so \
-         together they can exceed it);\n\
+         - the client holds each reply from its caller for a second answer from a \
+         duplicate node (an arbitration loser's frame of the reply's length, plus the \
+         link's allowance, {:.0} µs on this memory bus); a sample's requests go out \
+         together (`JointBus::request_many`), so the holds overlap the other requests' \
+         frames and the wire's figure is the limit;\n\
          - one jog = one position servo frame and its feedback, {:.1} µs on the wire; a \
          7-joint position servo cycle {:.1} µs;\n\
          - **\"the bus period\" below is {:.0} µs, the period of the {:.0} Hz the pages ask \
@@ -68,7 +68,6 @@ pub(super) fn studio_section(o: &mut String, r: &Results) {
         us(m.sample),
         m.wire_hz(),
         us(m.collision_window),
-        m.windowed_hz(),
         us(m.jog),
         us(m.servo_cycle),
         period,
@@ -76,26 +75,27 @@ pub(super) fn studio_section(o: &mut String, r: &Results) {
     );
     let _ = writeln!(
         o,
-        "**Telemetry fan-out.** Samples taken: by the studio's samplers, from the delivered \
-         samples' `seq` and `unix_ms` (all streams together; per stream in brackets); \
-         each page asks {:.0} Hz for its own stream, and all streams share the one \
-         bus, so the wire limit is compared with all of them together. Delivered: `telemetry` messages a page read per second (the page that read \
-         fewest). Skipped: the `skipped` totals of all pages (taken and never sent: the \
-         frame rate is below the sampling rate). Age: the page's clock when it read the \
-         message − the sample's `unix_ms` (when its read completed), all pages: it \
-         includes the wait in the studio's forwarder, which sends the latest sample at \
-         each frame tick, up to one sample period. Late: delivered samples the sampler \
-         marked `late` (its read started more than a period, 2 ms, after its slot). A \
-         page can be delivered at most min(fps, its stream's samples taken) a second.\n",
+        "**Telemetry fan-out.** Samples taken: by the studio's sampling of the stream, \
+         from the delivered samples' `seq` and `unix_ms` (the page that saw fewest); each \
+         page asks {:.0} Hz. Same sample: of the samples a later page received with a \
+         `seq` the first page received too, those with the first page's read instant \
+         (`unix_ms`); all of them when one sampling serves every page. Delivered: \
+         `telemetry` messages a page read per second (the page that read fewest). Skipped: \
+         the `skipped` totals of all pages (taken and never sent: the frame rate is below \
+         the sampling rate). Age: the page's clock when it read the message − the \
+         sample's `unix_ms` (when its read completed), all pages: it includes the wait in \
+         the studio's forwarder, which sends the latest sample at each frame tick, up to \
+         one sample period. Late: delivered samples the sampler marked `late` (its read \
+         started more than a period, 2 ms, after its slot). A page can be delivered at \
+         most min(fps, samples taken) a second.\n",
         studio::ASKED_HZ
     );
     let _ = writeln!(
         o,
-        "| pages | samples taken/s, all streams (per stream) | per stream / asked | all / wire limit | per stream / windowed limit | delivered msg/s per page | delivered / fps | delivered / min(fps, taken) | skipped | late / failed delivered | age p50 ms | age p99 ms |\n|---|---|---|---|---|---|---|---|---|---|---|---|"
+        "| pages | samples taken/s | / asked | / wire limit | same sample | delivered msg/s per page | delivered / fps | delivered / min(fps, taken) | skipped | late / failed delivered | age p50 ms | age p99 ms |\n|---|---|---|---|---|---|---|---|---|---|---|---|"
     );
     for f in &st.fan_out {
-        let n = f.subscribers.max(1) as f64;
-        let taken = f.taken_hz();
+        let taken = f.fewest_taken_hz();
         let fewest = f
             .pages
             .iter()
@@ -103,18 +103,22 @@ pub(super) fn studio_section(o: &mut String, r: &Results) {
             .fold(f64::INFINITY, f64::min);
         let fewest = if fewest.is_finite() { fewest } else { 0.0 };
         let ages = f.ages();
+        let (same, common) = f.same_samples();
+        let same = if f.pages.len() < 2 {
+            "–".to_owned()
+        } else {
+            format!("{same} of {common}")
+        };
         let _ = writeln!(
             o,
-            "| {} | {:.1} ({:.1}) | {:.3}× | {:.3}× | {:.3}× | {:.1} | {:.3}× | {:.3}× | {} | {} / {} | {} | {} |",
+            "| {} | {:.1} | {:.3}× | {:.3}× | {same} | {:.1} | {:.3}× | {:.3}× | {} | {} / {} | {} | {} |",
             f.subscribers,
             taken,
-            taken / n,
-            taken / n / studio::ASKED_HZ,
+            taken / studio::ASKED_HZ,
             taken / m.wire_hz().max(1e-9),
-            taken / n / m.windowed_hz().max(1e-9),
             fewest,
             fewest / studio::FPS,
-            fewest / studio::FPS.min(taken / n).max(1e-9),
+            fewest / studio::FPS.min(taken).max(1e-9),
             f.pages.iter().map(|p| p.skipped).sum::<u64>(),
             f.pages.iter().map(|p| p.late).sum::<u64>(),
             f.pages.iter().map(|p| p.failed).sum::<u64>(),
@@ -161,8 +165,8 @@ pub(super) fn studio_section(o: &mut String, r: &Results) {
          \"family\": \"whj\", \"device\": 1, \"target\": ±1}}` at {:.0} Hz for {:.1} s. \
          **Reply**: the jog message written → its `jogged` reply read by the page (the \
          studio's runtime, the jogger on the blocking pool, the position servo frame \
-         out, the joint's feedback back, the {:.0} µs collision window, the reply \
-         message). **At the joint**: the jog message written → the simulated joint's \
+         out, the joint's feedback back, its duplicate check (a loser's frame plus the \
+         link's {:.0} µs allowance), the reply message). **At the joint**: the jog message written → the simulated joint's \
          position target seen changed to the position sent (`LiveSimulator::snapshot`, \
          polled in a tight loop, yielding, by a thread of this process from the moment \
          the jog is sent; the simulator publishes its state after each frame it takes \
