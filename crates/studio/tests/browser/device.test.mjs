@@ -85,6 +85,22 @@ test("WHJ commands: Disable, Enable, Set mode; Save asks first", async () => {
   await until(async () => (await simJoint(studio.url, 1)).mode === 3, { what: "position mode" });
 });
 
+test("a picked mode is what Set mode sends, though the joint's status keeps coming", async () => {
+  const list = panel.getByLabel("New mode");
+  assert.equal(await list.inputValue(), "position");
+  await list.selectOption("speed");
+  // The focus leaves the list, as a click on Set mode takes it, while the status streams in
+  // at 2 Hz with the joint still in position mode: the pick stays.
+  await list.evaluate((e) => e.blur());
+  await page.waitForTimeout(1200);
+  assert.equal(await list.inputValue(), "speed");
+  await panel.getByRole("button", { name: "Set mode of joint 1", exact: true }).click();
+  await until(async () => (await simJoint(studio.url, 1)).mode === 2, { what: "speed mode" });
+  await list.selectOption("position");
+  await panel.getByRole("button", { name: "Set mode of joint 1", exact: true }).click();
+  await until(async () => (await simJoint(studio.url, 1)).mode === 3, { what: "position mode" });
+});
+
 test("a wCK servo: readouts, Passive, Hold, Preview", async () => {
   await panel.getByLabel("Device", { exact: true }).selectOption({ label: "Servo 0 · s0" });
   const steps = panel.getByLabel("Position (steps)");

@@ -239,6 +239,14 @@ function whjView(studio, d, readouts, jogBox, actionsBox, result) {
     eps: 0.05,
   });
   const mode = select(["position", "speed", "current", "open-loop"], "position");
+  // The joint's mode from its status, until the user picks one: the pick then stays until
+  // the joint reports that mode, whether or not the list still has the focus (a click on
+  // Set mode takes the focus first, and a status arriving between the two must not put
+  // the old mode back into the request).
+  let modePicked = false;
+  mode.addEventListener("change", () => {
+    modePicked = true;
+  });
   const stops = [
     stream(studio, {
       name: "device.whj.sample",
@@ -255,7 +263,9 @@ function whjView(studio, d, readouts, jogBox, actionsBox, result) {
       fields: slow,
       status: slowStatus,
       onRow: (row) => {
-        if (row?.mode && document.activeElement !== mode) mode.value = row.mode;
+        if (!row?.mode) return;
+        if (row.mode === mode.value) modePicked = false;
+        if (!modePicked && document.activeElement !== mode) mode.value = row.mode;
       },
     }),
   ];
