@@ -87,7 +87,7 @@ test("WHJ commands: Disable, Enable, Set mode; Save asks first", async () => {
 
 test("a picked mode is what Set mode sends, though the joint's status keeps coming", async () => {
   const list = panel.getByLabel("New mode");
-  assert.equal(await list.inputValue(), "position");
+  await until(async () => (await list.inputValue()) === "position", { what: "the list at the joint's mode" });
   await list.selectOption("speed");
   // The focus leaves the list, as a click on Set mode takes it, while the status streams in
   // at 2 Hz with the joint still in position mode: the pick stays.

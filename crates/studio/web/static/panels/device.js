@@ -240,12 +240,13 @@ function whjView(studio, d, readouts, jogBox, actionsBox, result) {
   });
   const mode = select(["position", "speed", "current", "open-loop"], "position");
   // The joint's mode from its status, until the user picks one: the pick then stays until
-  // the joint reports that mode, whether or not the list still has the focus (a click on
-  // Set mode takes the focus first, and a status arriving between the two must not put
-  // the old mode back into the request).
-  let modePicked = false;
+  // Set mode has sent it and its report is back, whether or not the list still has the
+  // focus (a click on Set mode takes the focus first, and a status arriving between the
+  // two must not put the old mode back into the request).
+  let picked = null; // the mode the user picked, until Set mode's report for it is back
+  let sent = null; // the mode the last Set mode sent
   mode.addEventListener("change", () => {
-    modePicked = true;
+    picked = mode.value;
   });
   const stops = [
     stream(studio, {
@@ -263,9 +264,7 @@ function whjView(studio, d, readouts, jogBox, actionsBox, result) {
       fields: slow,
       status: slowStatus,
       onRow: (row) => {
-        if (!row?.mode) return;
-        if (row.mode === mode.value) modePicked = false;
-        if (!modePicked && document.activeElement !== mode) mode.value = row.mode;
+        if (row?.mode && picked === null && document.activeElement !== mode) mode.value = row.mode;
       },
     }),
   ];
@@ -293,7 +292,19 @@ function whjView(studio, d, readouts, jogBox, actionsBox, result) {
     ]),
     el("div", { className: "row" }, [
       field("New mode", mode),
-      a("Set mode", "Set mode of", () => ({ op: "whj.mode", bus: d.bus, joints, mode: mode.value })),
+      action(studio, {
+        label: "Set mode",
+        name: `Set mode of ${noun}`,
+        request: () => {
+          sent = mode.value;
+          return { op: "whj.mode", bus: d.bus, joints, mode: sent };
+        },
+        onReport: (rep) => {
+          // A pick made since is kept.
+          if (picked === sent) picked = null;
+          show(rep);
+        },
+      }).element,
     ]),
     el("div", { className: "row" }, [
       a("Zero", "Zero the position of", () => ({ op: "whj.zero", bus: d.bus, joint: d.id })),
