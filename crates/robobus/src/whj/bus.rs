@@ -49,8 +49,20 @@ pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
-/// The most requests [`JointBus::request_many`] takes in one batch.
+/// The most requests [`JointBus::request_many`] and [`JointBus::servo_many`] take in one
+/// batch.
 pub const MAX_PIPELINED: usize = 256;
+
+/// `n` requests (`what`: "requests", "servo frames") fit in one pipelined batch, or the
+/// error that says how many were given and how many fit.
+pub(crate) fn within_batch(n: usize, what: &str) -> Result<(), WhjError> {
+    if n > MAX_PIPELINED {
+        return Err(WhjError::InvalidConfig {
+            reason: format!("{n} {what} given, at most {MAX_PIPELINED} go in one pipelined batch"),
+        });
+    }
+    Ok(())
+}
 
 /// A WHJ CAN FD bus: owns a [`FrameLink`] and hands out [`Joint`](super::Joint) handles.
 ///
@@ -500,14 +512,7 @@ impl JointBus {
         &self,
         requests: &[Request],
     ) -> Result<Vec<Result<Reply, WhjError>>, WhjError> {
-        if requests.len() > MAX_PIPELINED {
-            return Err(WhjError::InvalidConfig {
-                reason: format!(
-                    "{} requests given, at most {MAX_PIPELINED} go in one pipelined batch",
-                    requests.len()
-                ),
-            });
-        }
+        within_batch(requests.len(), "requests")?;
         let mut joints = Vec::with_capacity(requests.len());
         for r in requests {
             joints.push(r.joint().ok_or_else(|| WhjError::InvalidConfig {

@@ -4,8 +4,9 @@
 use robobus_whj::{Reply, Request, ServoFeedback};
 
 use super::super::session::{Attempt, describe};
+use crate::whj::bus::within_batch;
 use crate::whj::error::attempt_error;
-use crate::whj::{JointBus, MAX_PIPELINED, WhjError};
+use crate::whj::{JointBus, WhjError};
 
 impl JointBus {
     /// One servo frame (position, speed or current) to each of several joints,
@@ -20,20 +21,13 @@ impl JointBus {
     /// (the latest telemetry, or a status query where that is older than 100 ms): one
     /// further than [`JointBusConfig::step_limit_deg`](crate::whj::JointBusConfig::step_limit_deg)
     /// refuses the whole batch ([`WhjError::StepTooLarge`]) with no frame of it sent. A request
-    /// that is not a servo frame to one joint, or more than [`MAX_PIPELINED`] of them,
+    /// that is not a servo frame to one joint, or more than [`MAX_PIPELINED`](crate::whj::MAX_PIPELINED) of them,
     /// is [`WhjError::InvalidConfig`], with nothing sent.
     pub fn servo_many(
         &self,
         requests: &[Request],
     ) -> Result<Vec<Result<ServoFeedback, WhjError>>, WhjError> {
-        if requests.len() > MAX_PIPELINED {
-            return Err(WhjError::InvalidConfig {
-                reason: format!(
-                    "{} servo frames given, at most {MAX_PIPELINED} go in one pipelined batch",
-                    requests.len()
-                ),
-            });
-        }
+        within_batch(requests.len(), "servo frames")?;
         let limit = self.config().step_limit_deg;
         // One snapshot of the telemetry for every step check (a status read only for a
         // joint whose position in it is older than 100 ms).
